@@ -1,0 +1,253 @@
+"""Command line: ``mechsweep run | plot | info | bench``. Thin: parsing and messages only."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+EXIT_INVALID = 2
+EXIT_INTERRUPTED = 130
+
+DESCRIPTION = """\
+Parameter sweeps over the dynamics of machine mechanisms, compiled with numba.
+
+A study is a scene: a TOML file naming a model, the axes of a grid, the fixed
+parameters, the outputs wanted and (for integrated outputs) the solver settings.
+`run` computes it on all cores into an HDF5 file (an xarray Dataset), `plot` draws
+its nomogram, `info` summarises a stored run.
+
+typical session:
+  mechsweep run sweeps/quickstart.toml             # -> data/runs/quickstart.h5
+  mechsweep plot data/runs/quickstart.h5           # -> data/runs/quickstart.png
+  mechsweep info data/runs/quickstart.h5
+  mechsweep models                                 # every model, parameter and output
+
+exit codes: 0 done, 1 unexpected error, 2 invalid input (nothing written), 130 interrupted
+"""
+
+RUN_EPILOG = """\
+The grid is cut into chunks; each finished chunk is written to PATH.partial at once.
+When every chunk is in, PATH.partial is renamed to PATH, so an existing PATH is never
+left half overwritten. If the run is interrupted (Ctrl-C, kill), `--resume` computes
+only the missing chunks; the result is identical to an uninterrupted run.
+
+examples:
+  mechsweep run sweeps/duffing_amplitude_period.toml
+  mechsweep run sweeps/duffing_amplitude_period.toml -o /tmp/ap.h5 --threads 1
+  mechsweep run sweeps/duffing_amplitude_period.toml --resume
+"""
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "command", None):
+        parser.print_help()
+        return EXIT_INVALID
+    from .errors import InputError
+
+    try:
+        return args.func(args)
+    except (InputError, FileNotFoundError) as exc:
+        print(f"mechsweep {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    except KeyboardInterrupt:
+        print(f"mechsweep {args.command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+def _parser() -> argparse.ArgumentParser:
+    fmt = argparse.RawDescriptionHelpFormatter
+    parser = argparse.ArgumentParser(prog="mechsweep", description=DESCRIPTION, formatter_class=fmt)
+    from . import __version__
+
+    parser.add_argument("--version", action="version", version=f"mechsweep {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    p = sub.add_parser("run", help="compute a scene's grid into an HDF5 dataset", description=RUN_EPILOG,
+                       formatter_class=fmt)
+    p.add_argument("scene", metavar="SCENE", help="scene TOML file, e.g. sweeps/quickstart.toml")
+    p.add_argument("-o", "--output", metavar="PATH", help="output file (default: [storage] path of the scene)")
+    p.add_argument("--resume", action="store_true", help="complete an interrupted run of the same scene")
+    p.add_argument("--restart", action="store_true", help="discard an unfinished run and start over")
+    p.add_argument("--threads", type=int, metavar="N", help="numba threads (default: all cores)")
+    p.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
+    p.set_defaults(func=_cmd_run)
+
+    p = sub.add_parser("plot", help="draw the nomogram of a stored dataset",
+                       description="Draw the figure that fits the dataset's model and dimensions. "
+                                   "Plots read the stored data only; they never compute.")
+    p.add_argument("dataset", metavar="DATASET", help="HDF5 file written by `mechsweep run`")
+    p.add_argument("-o", "--output", metavar="FIGURE", help="figure file (default: DATASET with the format's suffix)")
+    p.add_argument("--format", choices=("png", "svg", "pdf"), default=None, help="figure format (default png)")
+    p.add_argument("--kind", default=None, help="which figure, when a dataset has several (see --list)")
+    p.add_argument("--list", action="store_true", help="list the figures this dataset can draw")
+    p.set_defaults(func=_cmd_plot)
+
+    p = sub.add_parser("info", help="summarise a stored dataset: dims, outputs, status counts, cost, provenance")
+    p.add_argument("dataset", metavar="DATASET")
+    p.set_defaults(func=_cmd_info)
+
+    p = sub.add_parser("models", help="list models with their parameters and outputs (name, unit, range)")
+    p.add_argument("model", nargs="?", help="one model only")
+    p.set_defaults(func=_cmd_models)
+
+    p = sub.add_parser("check", help="validate scene files without running them")
+    p.add_argument("scenes", nargs="+", metavar="SCENE")
+    p.set_defaults(func=_cmd_check)
+
+    p = sub.add_parser("bench", help="benchmarks: speed and accuracy against scipy / numpy, measured now",
+                       formatter_class=fmt,
+                       description="Benchmarks print measured numbers of this machine, with ratios "
+                                   "against the alternatives measured in the same run.")
+    bsub = p.add_subparsers(dest="bench", metavar="BENCH")
+    b = bsub.add_parser("duffing", help="amplitude-period sweep: points/s, ratio to scipy solve_ivp, error")
+    b.add_argument("--points", type=int, default=200_000, help="grid points for mechsweep (default 200000)")
+    b.add_argument("--scipy-points", type=int, default=200, help="points solved with scipy (default 200)")
+    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
+    b.add_argument("--rtol", type=float, default=1e-10)
+    b.add_argument("--atol", type=float, default=1e-12)
+    b.set_defaults(func=_cmd_bench)
+    p.set_defaults(func=lambda a: (p.print_help(), EXIT_INVALID)[1])
+    return parser
+
+
+def _cmd_run(args) -> int:
+    from .runner import RunInterrupted, run
+    from .scene import load_scene
+
+    scene = load_scene(args.scene)
+    try:
+        ds = run(scene, output=args.output, resume=args.resume, restart=args.restart, threads=args.threads,
+                 progress=False if args.no_progress else None)
+    except RunInterrupted as exc:
+        print(f"mechsweep run: {exc}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    path = args.output or scene.storage.path
+    counts = _status_counts(ds)
+    print(f"wrote {path}: {dict(ds.sizes)}, outputs {', '.join(scene.outputs)}; "
+          f"status {counts}; wall time {ds.attrs['wall_time_s']:.2f} s")
+    return 0
+
+
+def _cmd_plot(args) -> int:
+    from . import figures
+    from .errors import InputError
+    from .store import open_dataset
+
+    ds = open_dataset(args.dataset)
+    kinds = figures.available(ds)
+    if args.list:
+        for k, doc in kinds.items():
+            print(f"{k}: {doc}")
+        return 0
+    fmt = args.format or (Path(args.output).suffix.lstrip(".") if args.output else "png")
+    if fmt not in ("png", "svg", "pdf"):
+        raise InputError(f"figure format {fmt!r} is not allowed; expected png, svg or pdf")
+    out = Path(args.output) if args.output else Path(args.dataset).with_suffix("." + fmt)
+    written = figures.save(ds, out, kind=args.kind, fmt=fmt)
+    for path in written:
+        print(f"wrote {path}")
+    return 0
+
+
+def _cmd_info(args) -> int:
+    from .store import open_dataset
+
+    print(describe(open_dataset(args.dataset, allow_partial=True)))
+    return 0
+
+
+def _cmd_models(args) -> int:
+    from .errors import InputError
+    from .models import MODELS
+
+    names = [args.model] if args.model else list(MODELS)
+    for name in names:
+        if name not in MODELS:
+            raise InputError(f"unknown model {name!r}; models: {', '.join(MODELS)}")
+        print(model_text(MODELS[name]))
+    return 0
+
+
+def _cmd_check(args) -> int:
+    from .scene import SceneError, load_scene
+
+    bad = 0
+    for path in args.scenes:
+        try:
+            s = load_scene(path)
+            print(f"{path}: ok ({s.model.name}, {s.n_points} points, outputs {', '.join(s.outputs)})")
+        except SceneError as exc:
+            bad += 1
+            print(f"{path}: {exc}", file=sys.stderr)
+    return EXIT_INVALID if bad else 0
+
+
+def _cmd_bench(args) -> int:
+    from .bench import duffing as bench_duffing
+
+    bench_duffing.main(points=args.points, scipy_points=args.scipy_points, threads=args.threads,
+                       rtol=args.rtol, atol=args.atol)
+    return 0
+
+
+# ----------------------------------------------------------------------------- text helpers
+def _status_counts(ds) -> dict[str, int]:
+    import numpy as np
+
+    from . import status as st
+
+    codes, counts = np.unique(ds["status"].values, return_counts=True)
+    return {st.MEANINGS.get(int(c), str(c)): int(n) for c, n in zip(codes, counts)}
+
+
+def describe(ds) -> str:
+    import numpy as np
+
+    lines = [f"{ds.attrs.get('title', '?')}  (model {ds.attrs.get('model', '?')})"]
+    lines.append("dimensions:")
+    for dim in ds.dims:
+        c = ds[dim]
+        vals = c.values
+        rng = f"{vals[0]} .. {vals[-1]}" if vals.dtype.kind in "fiu" else ", ".join(map(str, vals[:6]))
+        lines.append(f"  {dim:<12} {ds.sizes[dim]:>7}  [{c.attrs.get('units', '')}]  {rng}  "
+                     f"({c.attrs.get('spacing', '')})  {c.attrs.get('long_name', '')}")
+    fixed = [k for k in ds.coords if k not in ds.dims]
+    if fixed:
+        lines.append("fixed: " + ", ".join(f"{k} = {ds[k].values} {ds[k].attrs.get('units', '')}".strip()
+                                           for k in fixed))
+    lines.append("outputs:")
+    ok = ds["status"].values == 0
+    for name in ds.attrs.get("outputs", "").split():
+        v = ds[name].values[ok]
+        rng = f"{np.nanmin(v):.6g} .. {np.nanmax(v):.6g}" if v.size else "no ok points"
+        lines.append(f"  {name:<20} [{ds[name].attrs.get('units', '')}]  {rng}  {ds[name].attrs.get('long_name', '')}")
+    total = ds["status"].size
+    lines.append("status: " + ", ".join(f"{k} {n} ({100 * n / total:.3g}%)" for k, n in _status_counts(ds).items()))
+    if "n_steps" in ds:
+        lines.append(f"cost: {int(ds['n_steps'].sum())} steps, {int(ds['n_rhs'].sum())} rhs evaluations, "
+                     f"mean {float(ds['n_steps'].mean()):.1f} steps/point")
+        solver = {k[len('solver_'):]: v for k, v in ds.attrs.items() if k.startswith("solver_")}
+        lines.append("solver: " + ", ".join(f"{k}={v}" for k, v in solver.items()))
+    lines.append(f"wall time: {float(ds.attrs.get('wall_time_s', float('nan'))):.3f} s on "
+                 f"{ds.attrs.get('threads', '?')} threads")
+    lines.append("provenance: " + ", ".join(f"{k} {ds.attrs.get(k)}" for k in
+                                             ("created", "mechsweep_version", "numba_version", "numpy_version")))
+    return "\n".join(lines)
+
+
+def model_text(spec) -> str:
+    lines = [f"{spec.name}: {spec.description}", f"  source: {spec.source}", "  parameters:"]
+    for p in spec.params:
+        opt = "" if p.required else " (optional)"
+        lines.append(f"    {p.name:<10} [{p.unit or '-'}] {p.long_name}; {p.allowed()}{opt}")
+    lines.append("  outputs:")
+    for o in spec.outputs:
+        extra = " (integrated)" if o.integrated else ""
+        lines.append(f"    {o.name:<20} [{o.unit}] {o.long_name}{extra}")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

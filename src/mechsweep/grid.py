@@ -1,0 +1,74 @@
+"""The grid of a scene: flat point index <-> axis values, and its cut into chunks.
+
+Points are numbered in C order over the axes (the last axis varies fastest). A chunk
+is a contiguous range of flat indices that is also a hyperslab of the N-d grid
+(leading indices fixed, a slice of one axis, all of the following axes), so each
+finished chunk is written to the HDF5 file as one rectangular block.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .scene import Scene
+
+
+@dataclass(frozen=True)
+class Chunk:
+    index: int
+    start: int  # first flat point
+    stop: int  # one past the last flat point
+    region: tuple  # tuple of slices into the N-d grid
+
+    @property
+    def size(self) -> int:
+        return self.stop - self.start
+
+
+def plan_chunks(shape: tuple[int, ...], target: int) -> list[Chunk]:
+    """Cut a grid of ``shape`` into hyperslab chunks of about ``target`` points (never more)."""
+    if not shape:
+        return [Chunk(0, 0, 1, ())]
+    target = max(1, int(target))
+    # the split axis j: the first axis whose trailing block (one index of j, all after) fits
+    trailing = [int(np.prod(shape[k + 1 :], dtype=np.int64)) for k in range(len(shape))]
+    j = next((k for k in range(len(shape)) if trailing[k] <= target), len(shape) - 1)
+    step = max(1, target // trailing[j])
+    lead_shape = shape[:j]
+    chunks = []
+    flat = 0
+    for lead in np.ndindex(*lead_shape) if lead_shape else [()]:
+        for s in range(0, shape[j], step):
+            e = min(shape[j], s + step)
+            region = tuple(slice(i, i + 1) for i in lead) + (slice(s, e),) + (slice(None),) * (len(shape) - j - 1)
+            size = (e - s) * trailing[j]
+            chunks.append(Chunk(len(chunks), flat, flat + size, region))
+            flat += size
+    return chunks
+
+
+def default_chunk_target(scene: Scene) -> int:
+    """Points per chunk: a few seconds of work, many chunks for the progress bar and resume."""
+    if scene.storage.chunk_size:
+        return scene.storage.chunk_size
+    per_chunk = 8192 if scene.solver is not None else 262_144
+    return int(min(per_chunk, max(256, scene.n_points // 20)))
+
+
+def parameter_matrix(scene: Scene, start: int, stop: int) -> np.ndarray:
+    """float64 [stop - start, n_params] in the model's declared parameter order."""
+    n = stop - start
+    P = np.empty((n, len(scene.model.params)))
+    axis_pos = {a.name: k for k, a in enumerate(scene.axes)}
+    idx = np.unravel_index(np.arange(start, stop, dtype=np.int64), scene.shape) if scene.axes else ()
+    for col, prm in enumerate(scene.model.params):
+        if prm.name in axis_pos:
+            k = axis_pos[prm.name]
+            encoded = np.array([prm.encode(v) for v in scene.axes[k].values])
+            P[:, col] = encoded[idx[k]]
+        elif prm.name in scene.fixed:
+            P[:, col] = prm.encode(scene.fixed[prm.name])
+        else:
+            P[:, col] = prm.default
+    return P

@@ -1,0 +1,142 @@
+"""Declarations of model parameters and outputs: one place for names, units and ranges.
+
+A model module declares a :class:`ModelSpec` beside its kernels. Everything else
+(scene validation, dataset attributes, README glossary, figure labels) reads it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Param:
+    """A model parameter: a float in [lo, hi] (ends open or closed) or one of ``choices``."""
+
+    name: str
+    symbol: str
+    unit: str
+    long_name: str
+    lo: float = -math.inf
+    hi: float = math.inf
+    lo_open: bool = False
+    hi_open: bool = False
+    choices: tuple[str, ...] = ()
+    required: bool = True
+    default: float | None = None  # value used internally when an optional parameter is absent
+
+    @property
+    def categorical(self) -> bool:
+        return bool(self.choices)
+
+    def allowed(self) -> str:
+        """Human-readable allowed range, used in every error message."""
+        if self.categorical:
+            return "one of " + ", ".join(repr(c) for c in self.choices)
+        left = "(" if self.lo_open or self.lo == -math.inf else "["
+        right = ")" if self.hi_open or self.hi == math.inf else "]"
+        return f"a finite number in {left}{_fmt(self.lo)}, {_fmt(self.hi)}{right}"
+
+    def problem(self, value) -> str | None:
+        """Why ``value`` is not allowed, or None when it is."""
+        if self.categorical:
+            if not isinstance(value, str) or value not in self.choices:
+                return f"{value!r} is not allowed; expected {self.allowed()}"
+            return None
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            return f"{value!r} is not a number; expected {self.allowed()}"
+        v = float(value)
+        if not math.isfinite(v):
+            return f"{value!r} is not finite; expected {self.allowed()}"
+        below = v <= self.lo if self.lo_open else v < self.lo
+        above = v >= self.hi if self.hi_open else v > self.hi
+        if below or above:
+            unit = f" {self.unit}" if self.unit not in ("", "1") else ""
+            return f"{value!r}{unit} is outside the physical range; expected {self.allowed()}"
+        return None
+
+    def encode(self, value) -> float:
+        """The float a kernel sees: the value, or the index of a choice."""
+        return float(self.choices.index(value)) if self.categorical else float(value)
+
+
+@dataclass(frozen=True)
+class Output:
+    """A model output. ``needs`` lists outputs it is derived from (computed, not stored,
+    unless requested); ``needs_params`` lists optional parameters it requires."""
+
+    name: str
+    symbol: str
+    unit: str
+    long_name: str
+    integrated: bool = False
+    needs: tuple[str, ...] = ()
+    needs_params: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """Everything the engine knows about a model.
+
+    ``evaluate(P, wanted, solver, out, status, n_steps, n_rhs)`` fills one chunk:
+    ``P`` float64 [n, len(params)] in declared order (absent optional parameters
+    hold their default), ``wanted`` the tuple of output names to compute (closed
+    under ``needs``), ``out`` float64 [n, len(wanted)] in that order.
+    """
+
+    name: str
+    description: str
+    params: tuple[Param, ...]
+    outputs: tuple[Output, ...]
+    evaluate: Callable = field(repr=False)
+    source: str = ""
+
+    def param(self, name: str) -> Param:
+        return self._params_by_name()[name]
+
+    def output(self, name: str) -> Output:
+        return self._outputs_by_name()[name]
+
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.params)
+
+    def output_names(self) -> tuple[str, ...]:
+        return tuple(o.name for o in self.outputs)
+
+    def _params_by_name(self) -> dict[str, Param]:
+        return {p.name: p for p in self.params}
+
+    def _outputs_by_name(self) -> dict[str, Output]:
+        return {o.name: o for o in self.outputs}
+
+    def closure(self, requested) -> tuple[str, ...]:
+        """Requested outputs plus everything they depend on, in declaration order."""
+        by_name = self._outputs_by_name()
+        seen: set[str] = set()
+        stack = list(requested)
+        while stack:
+            name = stack.pop()
+            if name not in seen:
+                seen.add(name)
+                stack.extend(by_name[name].needs)
+        return tuple(o.name for o in self.outputs if o.name in seen)
+
+    def needs_integration(self, requested) -> bool:
+        by_name = self._outputs_by_name()
+        return any(by_name[n].integrated for n in self.closure(requested))
+
+
+def wanted_flags(all_names: tuple[str, ...], wanted: tuple[str, ...]) -> np.ndarray:
+    """Boolean mask over a kernel's full output layout."""
+    return np.array([n in wanted for n in all_names], dtype=np.bool_)
+
+
+def _fmt(x: float) -> str:
+    if x == math.inf:
+        return "inf"
+    if x == -math.inf:
+        return "-inf"
+    return f"{x:g}"

@@ -1,0 +1,231 @@
+"""Spatial torsional oscillating circuit: rocking lever + out-of-plane spring -> Duffing equation.
+
+Source: Klyuchkovskyi, "Synthesis of motion laws of the rocking link of spatial torsional
+oscillating circuits"; formulas (4)-(7) as checked in ../shared/physics.md section 1.
+
+Nondimensional form used by the kernels (s = S0 / R = s0_over_r, sigma = +1 tension,
+-1 compression):
+    D0    = 1 + lambda1^2 + lambda2^2 - 2 sigma lambda1          (= (L(0)/R)^2)
+    chi   = omega^2 I / (R^2 c) = lambda1 s / sqrt(D0)                         (5), (7)
+    xi    = mu I / (R^2 c) = lambda1 (3 lambda1 - s (D0 + 3 sigma lambda1) / sqrt(D0)) / (6 D0)  (4), (6)
+    exact moment  M_b / (c R^2) = sigma lambda1 sin(phi) (1 - (sqrt(D0) - sigma s) / l(phi)),
+                  l(phi)^2 = 1 + lambda1^2 + lambda2^2 - 2 sigma lambda1 cos(phi)     [beyond]
+(D0 + 3 sigma lambda1 is the source's lambda2^2 + lambda1^2 + 1 +/- lambda1.)
+Without R, c, I the time unit is sqrt(I / (R^2 c)); outputs with dimensional units need them.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .. import status as st
+from .._jit import jit, pjit, prange
+from ..ode import dop853
+from . import duffing as duf
+from ._spec import ModelSpec, Output, Param
+
+OUTPUTS = ("chi", "xi", "omega2", "mu", "hardness") + duf.OUTPUTS + ("period_exact_moment", "truncation_error")
+K_CHI, K_XI, K_OMEGA2, K_MU, K_HARD = range(5)
+OFF = 5  # Duffing outputs occupy columns OFF .. OFF + 7 in the same order as duffing.OUTPUTS
+K_EXACT_MOMENT = OFF + len(duf.OUTPUTS)
+K_TRUNC = K_EXACT_MOMENT + 1
+
+SINGULAR_D0 = 1e-12  # (L(0)/R)^2 below this: spring of zero length at rest, formulas singular
+
+BLOCK = 16
+
+
+@jit
+def spring_sign(spring_code):
+    return 1.0 if spring_code == 0.0 else -1.0  # choices: 0 tension, 1 compression
+
+
+@jit
+def coefficients(sigma, lam1, lam2, s):
+    """(status, chi, xi, D0). Formulas (4)-(7) in nondimensional form."""
+    D0 = 1.0 + lam1 * lam1 + lam2 * lam2 - 2.0 * sigma * lam1
+    if D0 <= SINGULAR_D0:
+        return st.SINGULAR, math.nan, math.nan, D0
+    r = math.sqrt(D0)
+    if r - sigma * s <= 0.0:
+        return st.INFEASIBLE, math.nan, math.nan, D0  # free length L0 = R (sqrt(D0) - sigma s) <= 0
+    chi = lam1 * s / r
+    xi = lam1 * (3.0 * lam1 - s * (D0 + 3.0 * sigma * lam1) / r) / (6.0 * D0)
+    return st.OK, chi, xi, D0
+
+
+@jit
+def exact_moment(phi, sigma, lam1, base, L0):
+    """M_b / (c R^2) from the spring energy; base = 1 + lambda1^2 + lambda2^2, L0 = free length / R."""
+    length = math.sqrt(base - 2.0 * sigma * lam1 * math.cos(phi))
+    return sigma * lam1 * math.sin(phi) * (1.0 - L0 / length)
+
+
+@jit
+def _exact_rhs(t, y, p, dydt):
+    # x = phi / A, tau = w t:  x'' = -coef * m(A x);  p = (sigma, lambda1, base, L0, A, coef)
+    dydt[0] = y[1]
+    dydt[1] = -p[5] * exact_moment(p[4] * y[0], p[0], p[1], p[2], p[3])
+
+
+@jit
+def _phi_event(t, y, p):
+    return y[0]
+
+
+exact_quarter_period_solver = dop853.make_event_solver(_exact_rhs, _phi_event)
+
+
+@jit
+def integrate_exact_period(sigma, lam1, lam2, s, k, chi, xi, A, rtol, atol, max_steps, t_max_periods, y, p, work):
+    """Period with the exact spring moment (k = R^2 c / I). Returns (status, T, n_steps, n_rhs)."""
+    w2 = k * (chi + abs(xi) * A * A)  # same time scale as the two-term model
+    p[0] = sigma
+    p[1] = lam1
+    p[2] = 1.0 + lam1 * lam1 + lam2 * lam2
+    p[3] = math.sqrt(p[2] - 2.0 * sigma * lam1) - sigma * s
+    p[4] = A
+    p[5] = k / (w2 * A)
+    y[0] = 1.0
+    y[1] = 0.0
+    code, tau_q, ns, nr = exact_quarter_period_solver(
+        0.0, y, p, t_max_periods * 2.0 * math.pi, rtol, atol, 0.0, max_steps, work
+    )
+    if code == st.NO_EVENT:
+        code = st.NOT_OSCILLATORY  # the exact moment does not bring the lever back through 0
+    if code != st.OK:
+        return code, math.nan, ns, nr
+    return st.OK, 4.0 * tau_q / math.sqrt(w2), ns, nr
+
+
+@jit
+def _point_coefficients(P, i):
+    """(status, sigma, lam1, lam2, s, k, chi, xi, A) of row i; k = R^2 c / I."""
+    sigma = spring_sign(P[i, 0])
+    lam1, lam2, s = P[i, 1], P[i, 2], P[i, 3]
+    k = P[i, 4] * P[i, 4] * P[i, 5] / P[i, 6]
+    code, chi, xi, _ = coefficients(sigma, lam1, lam2, s)
+    return code, sigma, lam1, lam2, s, k, chi, xi, P[i, 7]
+
+
+@pjit
+def algebraic_kernel(P, want, want_duffing, table, status):
+    for i in prange(P.shape[0]):
+        code, sigma, lam1, lam2, s, k, chi, xi, A = _point_coefficients(P, i)
+        if code != st.OK:
+            status[i] = code
+            continue
+        row = table[i]
+        row[K_CHI] = chi
+        row[K_XI] = xi
+        if want[K_OMEGA2]:
+            row[K_OMEGA2] = k * chi
+        if want[K_MU]:
+            row[K_MU] = k * xi
+        if want[K_HARD]:
+            row[K_HARD] = 1.0 if xi > 0.0 else (-1.0 if xi < 0.0 else 0.0)
+        if want_duffing:
+            code = duf.classify(k * chi, k * xi, A)
+            if code != st.OK:
+                status[i] = code
+                continue
+            duf.fill_closed_forms(k * chi, k * xi, A, want[OFF:K_EXACT_MOMENT], row[OFF:K_EXACT_MOMENT])
+
+
+@pjit
+def integrated_kernel(P, want_period, want_exact, rtol, atol, max_steps, t_max_periods, table, status, n_steps, n_rhs):
+    n = P.shape[0]
+    for b in prange((n + BLOCK - 1) // BLOCK):
+        work = dop853.workspace(2)
+        y = np.empty(2)
+        p = np.empty(6)
+        for i in range(b * BLOCK, min(n, (b + 1) * BLOCK)):
+            if status[i] != st.OK:
+                continue
+            code, sigma, lam1, lam2, s, k, chi, xi, A = _point_coefficients(P, i)
+            if code == st.OK:
+                code = duf.classify(k * chi, k * xi, A)
+            if code == st.OK and want_period:
+                code, T, ns, nr = duf.integrate_period(
+                    k * chi, k * xi, A, rtol, atol, max_steps, t_max_periods, y, p, work
+                )
+                n_steps[i] += ns
+                n_rhs[i] += nr
+                table[i, OFF + duf.K_PERIOD] = T
+            if code == st.OK and want_exact:
+                code, T, ns, nr = integrate_exact_period(
+                    sigma, lam1, lam2, s, k, chi, xi, A, rtol, atol, max_steps, t_max_periods, y, p, work
+                )
+                n_steps[i] += ns
+                n_rhs[i] += nr
+                table[i, K_EXACT_MOMENT] = T
+            status[i] = code
+
+
+def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
+    table = np.full((P.shape[0], len(OUTPUTS)), np.nan)
+    want = np.array([name in wanted for name in OUTPUTS])
+    want_duffing_closed = bool(want[OFF:K_EXACT_MOMENT].any())
+    # chi, xi are the base of everything: the algebraic stage always runs (it is cheap).
+    algebraic_kernel(P, want, want_duffing_closed, table, status)
+    want_period = bool(want[OFF + duf.K_PERIOD])
+    want_exact = bool(want[K_EXACT_MOMENT])
+    if want_period or want_exact:
+        integrated_kernel(
+            P, want_period, want_exact, solver.rtol, solver.atol, solver.max_steps, solver.t_max_periods,
+            table, status, n_steps, n_rhs,
+        )
+    if want[OFF + duf.K_PERIOD_ERROR]:
+        table[:, OFF + duf.K_PERIOD_ERROR] = duf.relative_error(
+            table[:, OFF + duf.K_PERIOD], table[:, OFF + duf.K_PERIOD_EXACT]
+        )
+    if want[K_TRUNC]:
+        table[:, K_TRUNC] = duf.relative_error(table[:, OFF + duf.K_PERIOD_EXACT], table[:, K_EXACT_MOMENT])
+    for col, name in enumerate(wanted):
+        out[:, col] = table[:, OUTPUTS.index(name)]
+
+
+_DIMENSIONAL = ("R", "c", "I")
+
+
+def _duffing_output(o: Output) -> Output:
+    """Re-declare a Duffing output for this model: needs A, and R, c, I when it has a unit."""
+    needs_params = ("A",) + (_DIMENSIONAL if o.unit != "1" else ())
+    return Output(o.name, o.symbol, o.unit, o.long_name, o.integrated, o.needs, needs_params)
+
+
+SPEC = ModelSpec(
+    name="torsional_circuit",
+    description="Rocking lever with an out-of-plane spring: Duffing coefficients, nomograms, amplitude-period",
+    source="Klyuchkovskyi, torsional oscillating circuits, formulas (4)-(7); physics.md section 1",
+    params=(
+        Param("spring", "", "", "spring kind", choices=("tension", "compression")),
+        Param("lambda1", "λ1", "1", "frame point offset in the lever plane / R", lo=0.0, lo_open=True),
+        Param("lambda2", "λ2", "1", "frame point offset along the axis / R", lo=0.0),
+        Param("s0_over_r", "S0/R", "1", "mounting deformation of the spring / R"),
+        Param("R", "R", "m", "lever radius of the spring attachment", lo=0.0, lo_open=True,
+              required=False, default=1.0),
+        Param("c", "c", "N/m", "spring stiffness", lo=0.0, lo_open=True, required=False, default=1.0),
+        Param("I", "I", "kg m^2", "moment of inertia of the lever", lo=0.0, lo_open=True,
+              required=False, default=1.0),
+        Param("A", "A", "rad", "amplitude, phi(0) = A, phi'(0) = 0", lo=0.0, hi=math.pi,
+              required=False, default=math.nan),
+    ),
+    outputs=(
+        Output("chi", "χ = ω² I / (R² c)", "1", "linear stiffness coefficient chi"),
+        Output("xi", "ξ = μ I / (R² c)", "1", "cubic stiffness coefficient xi"),
+        Output("omega2", "ω²", "1/s^2", "squared linear natural frequency", needs_params=_DIMENSIONAL),
+        Output("mu", "μ", "1/(rad^2 s^2)", "cubic stiffness coefficient mu", needs_params=_DIMENSIONAL),
+        Output("hardness", "sign ξ", "1", "characteristic: +1 hard, 0 linear, -1 soft"),
+    )
+    + tuple(_duffing_output(o) for o in duf.SPEC.outputs)
+    + (
+        Output("period_exact_moment", "T_M", "s", "period with the exact spring moment (integrated)",
+               integrated=True, needs_params=("A",) + _DIMENSIONAL),
+        Output("truncation_error", "|T_exact - T_M| / T_M", "1",
+               "relative period error of the two-term (Duffing) model against the exact moment",
+               needs=("period_exact", "period_exact_moment"), needs_params=("A",)),
+    ),
+    evaluate=evaluate,
+)

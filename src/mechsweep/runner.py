@@ -1,0 +1,165 @@
+"""Run a scene: plan chunks, evaluate each with the model's kernels, store it at once."""
+from __future__ import annotations
+
+import datetime as _dt
+import os
+import platform
+import time
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Mapping
+
+import numba
+import numpy as np
+import xarray as xr
+
+from . import __version__
+from . import status as st
+from .errors import InputError
+from .grid import Chunk, default_chunk_target, parameter_matrix, plan_chunks
+from .scene import Scene, load_scene
+from .store import PartialFile, StoreError, layout, open_dataset, partial_path
+
+
+class RunInterrupted(RuntimeError):
+    """The run stopped (Ctrl-C) after saving every finished chunk; resume with --resume."""
+
+
+def run(
+    scene_or_path: str | os.PathLike | Mapping | Scene,
+    *,
+    output: str | os.PathLike | None = None,
+    resume: bool = False,
+    restart: bool = False,
+    threads: int | None = None,
+    progress: bool | None = None,
+) -> xr.Dataset:
+    """Compute a scene's grid and return the stored dataset.
+
+    ``output`` overrides ``[storage] path``. With ``resume`` an unfinished run of the same
+    scene (``<path>.partial``) is completed, computing only its missing chunks; ``restart``
+    discards such a file. ``threads`` sets numba's thread count (default: all cores).
+    ``progress`` shows a progress bar (default: only on a terminal).
+    """
+    scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path)
+    final = Path(output if output is not None else scene.storage.path)
+    check_target(final)
+    part = partial_path(final)
+    if part.exists() and not (resume or restart):
+        raise StoreError(f"an unfinished run of this output exists: {part}; continue it with --resume "
+                         "or discard it with --restart")
+    if resume and not part.exists() and final.exists():
+        ds = open_dataset(final)
+        if ds.attrs.get("scene_canonical") != scene.canonical():
+            raise StoreError(f"{final} holds a finished run of a different scene; use --restart to "
+                             "replace it")
+        return ds  # already complete: nothing to do
+    if restart:
+        part.unlink(missing_ok=True)
+
+    chunks = plan_chunks(scene.shape, default_chunk_target(scene))
+    lay = layout(scene, len(chunks))
+    if part.exists():
+        store = PartialFile.reopen(part, scene, lay)
+    else:
+        store = PartialFile.create(part, scene, lay, provenance(scene, chunks))
+    with _threads(threads):
+        store.set_attrs(threads=numba.get_num_threads())
+        try:
+            todo = [c for c, done in zip(chunks, store.done_chunks()) if not done]
+            _run_chunks(scene, store, todo, scene.n_points - sum(c.size for c in todo), progress)
+        except KeyboardInterrupt:
+            store.close()
+            raise RunInterrupted(f"interrupted: finished chunks are saved in {part}; "
+                                 "run again with --resume to complete it") from None
+        except BaseException:
+            store.close()
+            raise
+    store.finish(final)
+    return open_dataset(final)
+
+
+def check_target(final: Path) -> None:
+    """Refuse an output path that cannot work, before any computation."""
+    if final.is_dir():
+        raise StoreError(f"output path {final} is a directory; give a file path such as {final / 'run.h5'}")
+    parent = final.parent
+    if not parent.is_dir():
+        raise StoreError(f"the folder {parent} for output {final} does not exist; create it first "
+                         f"(mkdir -p {parent}) or choose another path with -o")
+    if not os.access(parent, os.W_OK):
+        raise StoreError(f"cannot write into {parent}: permission denied")
+    if final.exists() and not os.access(final, os.W_OK):
+        raise StoreError(f"{final} exists and is read-only")
+
+
+def evaluate_chunk(scene: Scene, chunk: Chunk):
+    """Compute one chunk. Returns (columns of requested outputs, status, n_steps, n_rhs)."""
+    P = parameter_matrix(scene, chunk.start, chunk.stop)
+    computed = scene.computed_outputs
+    n = chunk.size
+    out = np.full((n, len(computed)), np.nan)
+    status = np.zeros(n, dtype=st.DTYPE)
+    n_steps = np.zeros(n, dtype=np.int64)
+    n_rhs = np.zeros(n, dtype=np.int64)
+    scene.model.evaluate(P, computed, scene.solver, out, status, n_steps, n_rhs)
+    cols = [computed.index(name) for name in scene.outputs]
+    requested = out[:, cols]
+    # A point is ok only if everything asked of it is finite (never a NaN with status ok).
+    status[(status == st.OK) & ~np.isfinite(requested).all(axis=1)] = st.NONFINITE
+    return {name: requested[:, k] for k, name in enumerate(scene.outputs)}, status, n_steps, n_rhs
+
+
+def _run_chunks(scene: Scene, store: PartialFile, todo: list[Chunk], already: int, progress) -> None:
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=scene.n_points, initial=already, unit="pt", unit_scale=True, dynamic_ncols=True,
+               desc=scene.name, disable=(None if progress is None else not progress), smoothing=0.1)
+    try:
+        for chunk in todo:
+            t0 = time.perf_counter()
+            columns, status, n_steps, n_rhs = evaluate_chunk(scene, chunk)
+            store.write_chunk(chunk, columns, status, n_steps, n_rhs)
+            store.add_wall_time(time.perf_counter() - t0)
+            bar.update(chunk.size)
+    finally:
+        bar.close()
+
+
+@contextmanager
+def _threads(n: int | None):
+    if n is None:
+        yield
+        return
+    if not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
+        raise InputError(f"threads = {n} is outside [1, {numba.config.NUMBA_NUM_THREADS}] (cores available)")
+    before = numba.get_num_threads()
+    numba.set_num_threads(n)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
+
+
+def provenance(scene: Scene, chunks: list[Chunk]) -> dict:
+    attrs = {
+        "title": scene.name,
+        "model": scene.model.name,
+        "model_source": scene.model.source,
+        "outputs": " ".join(scene.outputs),
+        "scene": scene.text,
+        "scene_canonical": scene.canonical(),
+        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "mechsweep_version": __version__,
+        "numba_version": numba.__version__,
+        "numpy_version": np.__version__,
+        "xarray_version": xr.__version__,
+        "python_version": platform.python_version(),
+        "chunk_size": max(c.size for c in chunks),
+        "wall_time_s": 0.0,
+        "Conventions": "CF-1.10",
+    }
+    if scene.solver is not None:
+        for k, v in scene.solver.__dict__.items():
+            attrs[f"solver_{k}"] = v
+    return attrs

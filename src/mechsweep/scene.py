@@ -1,0 +1,421 @@
+"""Scene files: TOML (or an equivalent dict) -> a validated, frozen :class:`Scene`.
+
+Validation happens once, here. Every problem is reported with its key path, the bad
+value and what is allowed; all problems of a scene are reported together.
+"""
+from __future__ import annotations
+
+import difflib
+import json
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any, Mapping
+
+import numpy as np
+
+from .errors import InputError
+from .models import MODELS, ModelSpec
+
+SECTIONS = ("scene", "axes", "fixed", "solver", "storage")
+METHODS = ("dop853",)
+MAX_POINTS = 2**40  # beyond this a flat int64 index and any disk are hopeless
+MAX_AXIS_POINTS = 10**8
+
+
+class SceneError(InputError):
+    """An invalid scene. ``problems`` lists one message per bad key."""
+
+    def __init__(self, problems: list[str], source: str = "scene"):
+        self.problems = list(problems)
+        self.source = source
+        lines = "\n".join(f"  - {p}" for p in self.problems)
+        super().__init__(f"invalid {source}:\n{lines}")
+
+
+@dataclass(frozen=True)
+class Axis:
+    name: str
+    values: tuple  # floats, or strings for a categorical parameter
+    spacing: str  # "linear", "log" or "list"
+
+    @property
+    def size(self) -> int:
+        return len(self.values)
+
+
+@dataclass(frozen=True)
+class Solver:
+    method: str = "dop853"
+    rtol: float = 1e-10
+    atol: float = 1e-12
+    max_steps: int = 100_000
+    t_max_periods: float = 100.0  # integration horizon, in linearised periods 2 pi / w
+
+
+SOLVER_LIMITS = {
+    "rtol": (1e-15, 0.1),
+    "atol": (1e-300, 1.0),
+    "max_steps": (1, 10**9),
+    "t_max_periods": (1e-3, 1e9),
+}
+
+
+@dataclass(frozen=True)
+class Storage:
+    path: str
+    chunk_size: int | None = None  # grid points per chunk; None = chosen by the runner
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str
+    model: ModelSpec
+    outputs: tuple[str, ...]
+    axes: tuple[Axis, ...]
+    fixed: Mapping[str, Any]
+    solver: Solver | None  # None when no requested output needs integration
+    storage: Storage
+    text: str  # the scene as the user wrote it (TOML), stored with the dataset
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return tuple(a.size for a in self.axes)
+
+    @property
+    def n_points(self) -> int:
+        return int(np.prod(self.shape, dtype=np.int64)) if self.axes else 1
+
+    @property
+    def computed_outputs(self) -> tuple[str, ...]:
+        """Requested outputs plus what they depend on."""
+        return self.model.closure(self.outputs)
+
+    def canonical(self) -> str:
+        """A normalised JSON form: two scenes that compute the same dataset compare equal."""
+        return json.dumps(
+            {
+                "model": self.model.name,
+                "outputs": list(self.outputs),
+                "axes": [[a.name, list(a.values)] for a in self.axes],
+                "fixed": {k: self.fixed[k] for k in sorted(self.fixed)},
+                "solver": None if self.solver is None else self.solver.__dict__,
+            },
+            sort_keys=True,
+        )
+
+
+# ----------------------------------------------------------------------------- loading
+def load_scene(source: str | Path | Mapping) -> Scene:
+    """Load and validate a scene from a TOML path or a dict with the same structure."""
+    if isinstance(source, Mapping):
+        return validate(source, text=to_toml(source), label="scene")
+    path = Path(source)
+    label = str(path)
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise SceneError([f"file {label!r} does not exist"], "scene") from None
+    except IsADirectoryError:
+        raise SceneError([f"{label!r} is a directory, not a scene file"], "scene") from None
+    except OSError as exc:
+        raise SceneError([f"cannot read {label!r}: {exc.strerror}"], "scene") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SceneError([f"{label!r} is not UTF-8 text (byte {exc.start})"], label) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError([f"TOML syntax error: {exc}"], label) from None
+    except RecursionError:
+        raise SceneError(["TOML nesting too deep"], label) from None
+    return validate(data, text=text, label=label)
+
+
+def validate(data: Mapping, *, text: str, label: str = "scene") -> Scene:
+    p = _Problems()
+    if not isinstance(data, Mapping):
+        raise SceneError([f"a scene is a table of sections, got {type(data).__name__}"], label)
+    for key in data:
+        if key not in SECTIONS:
+            p.unknown(key, key, SECTIONS, "section")
+    head = _table(data, "scene", p, required=True)
+    name = head.get("name")
+    if not isinstance(name, str) or not name.strip():
+        p.add("scene.name", f"{name!r} is not allowed; expected a non-empty string")
+    for key in head:
+        if key not in ("name", "model", "outputs", "description"):
+            p.unknown(f"scene.{key}", key, ("name", "model", "outputs", "description"), "key")
+    model = _model(head.get("model"), p)
+    if model is None:
+        raise SceneError(p.items, label)
+    outputs = _outputs(head.get("outputs"), model, p)
+    axes_table, fixed_table = _table(data, "axes", p), _table(data, "fixed", p)
+    axes = _axes(axes_table, model, p)
+    fixed = _fixed(fixed_table, model, set(axes_table), p)
+    given = set(axes_table) | set(fixed_table)  # a bad value is reported as bad, not as missing
+    for prm in model.params:
+        if prm.required and prm.name not in given:
+            p.add(f"fixed.{prm.name}", f"missing; {model.name} needs {prm.name} "
+                  f"({prm.long_name}, {prm.allowed()}) as an axis or a fixed value")
+    for out in outputs:
+        missing = [q for q in model.output(out).needs_params if q not in given]
+        if missing:
+            p.add("scene.outputs", f"output {out!r} needs parameter(s) {', '.join(missing)}; "
+                  "give them in [axes] or [fixed]")
+    solver = _solver(_table(data, "solver", p), p) if model.needs_integration(outputs) else None
+    storage = _storage(_table(data, "storage", p), name if isinstance(name, str) else "scene", p)
+    if axes:
+        n = math.prod(a.size for a in axes)
+        if n > MAX_POINTS:
+            p.add("axes", f"the grid has {n:.3g} points; at most {MAX_POINTS:.3g} are allowed")
+    if p.items:
+        raise SceneError(p.items, label)
+    return Scene(
+        name=name.strip(),
+        model=model,
+        outputs=outputs,
+        axes=tuple(axes),
+        fixed=MappingProxyType(fixed),
+        solver=solver,
+        storage=storage,
+        text=text,
+    )
+
+
+# ----------------------------------------------------------------------------- sections
+class _Problems:
+    def __init__(self):
+        self.items: list[str] = []
+
+    def add(self, key: str, message: str) -> None:
+        self.items.append(f"{key}: {message}")
+
+    def unknown(self, key: str, name, allowed, what: str) -> None:
+        hint = difflib.get_close_matches(str(name), [str(a) for a in allowed], n=1, cutoff=0.5)
+        tip = f"; did you mean {hint[0]!r}?" if hint else ""
+        self.add(key, f"unknown {what} {name!r}{tip} (allowed: {', '.join(map(str, allowed))})")
+
+
+def _table(data: Mapping, key: str, p: _Problems, required: bool = False) -> Mapping:
+    value = data.get(key)
+    if value is None:
+        if required:
+            p.add(key, "missing section [" + key + "]")
+        return {}
+    if not isinstance(value, Mapping):
+        p.add(key, f"expected a table [{key}], got {type(value).__name__} {value!r}")
+        return {}
+    return value
+
+
+def _model(name, p: _Problems) -> ModelSpec | None:
+    if name is None:
+        p.add("scene.model", f"missing; expected one of {', '.join(MODELS)}")
+        return None
+    if not isinstance(name, str) or name not in MODELS:
+        p.unknown("scene.model", name, tuple(MODELS), "model")
+        return None
+    return MODELS[name]
+
+
+def _outputs(value, model: ModelSpec, p: _Problems) -> tuple[str, ...]:
+    names = model.output_names()
+    if not isinstance(value, list) or not value:
+        p.add("scene.outputs", f"{value!r} is not allowed; expected a non-empty list of output names "
+              f"from {', '.join(names)}")
+        return ()
+    good = []
+    for item in value:
+        if not isinstance(item, str) or item not in names:
+            p.unknown("scene.outputs", item, names, f"output of model {model.name!r}")
+        elif item in good:
+            p.add("scene.outputs", f"{item!r} is listed twice")
+        else:
+            good.append(item)
+    return tuple(good)
+
+
+def _axes(table: Mapping, model: ModelSpec, p: _Problems) -> list[Axis]:
+    axes = []
+    for name, spec in table.items():
+        key = f"axes.{name}"
+        if name not in model.param_names():
+            p.unknown(key, name, model.param_names(), f"parameter of model {model.name!r}")
+            continue
+        prm = model.param(name)
+        if isinstance(spec, list):
+            axis = _list_axis(key, name, spec, prm, p)
+        elif isinstance(spec, Mapping):
+            axis = _range_axis(key, name, spec, prm, p)
+        else:
+            p.add(key, f"{spec!r} is not allowed; expected a list of values or a table "
+                  "{ start, stop, num, spacing }")
+            axis = None
+        if axis is not None:
+            axes.append(axis)
+    return axes
+
+
+def _list_axis(key, name, values, prm, p) -> Axis | None:
+    if not values:
+        p.add(key, "an empty list gives an empty grid; give at least one value")
+        return None
+    if len(values) > MAX_AXIS_POINTS:
+        p.add(key, f"{len(values)} values; at most {MAX_AXIS_POINTS} per axis")
+        return None
+    bad = [(i, prm.problem(v)) for i, v in enumerate(values)]
+    bad = [(i, msg) for i, msg in bad if msg]
+    for i, msg in bad[:3]:
+        p.add(f"{key}[{i}]", msg)
+    if bad:
+        return None
+    if len(set(values)) != len(values):
+        p.add(key, "values repeat; each grid value must be distinct")
+        return None
+    vals = tuple(values) if prm.categorical else tuple(float(v) for v in values)
+    return Axis(name, vals, "list")
+
+
+def _range_axis(key, name, spec, prm, p) -> Axis | None:
+    if prm.categorical:
+        p.add(key, f"{name} is categorical; give a list of values, e.g. {list(prm.choices)!r}")
+        return None
+    allowed_keys = ("start", "stop", "num", "spacing")
+    for k in spec:
+        if k not in allowed_keys:
+            p.unknown(f"{key}.{k}", k, allowed_keys, "axis key")
+    ok = True
+    for end in ("start", "stop"):
+        if end not in spec:
+            p.add(f"{key}.{end}", "missing")
+            ok = False
+        else:
+            msg = prm.problem(spec[end])
+            if msg:
+                p.add(f"{key}.{end}", msg)
+                ok = False
+    num = spec.get("num")
+    if isinstance(num, bool) or not isinstance(num, int) or not 1 <= num <= MAX_AXIS_POINTS:
+        p.add(f"{key}.num", f"{num!r} is not allowed; expected a whole number in [1, {MAX_AXIS_POINTS}]")
+        ok = False
+    spacing = spec.get("spacing", "linear")
+    if spacing not in ("linear", "log"):
+        p.unknown(f"{key}.spacing", spacing, ("linear", "log"), "spacing")
+        ok = False
+    if not ok:
+        return None
+    start, stop = float(spec["start"]), float(spec["stop"])
+    if num > 1 and start == stop:
+        p.add(key, f"start = stop = {start:g} with num = {num}: the values would repeat")
+        return None
+    if spacing == "log":
+        if start <= 0 or stop <= 0:
+            p.add(key, f"log spacing needs start > 0 and stop > 0, got start = {start:g}, stop = {stop:g}")
+            return None
+        values = np.geomspace(start, stop, num)
+        values[0], values[-1] = start, stop  # exact ends, as the user wrote them
+    else:
+        values = np.linspace(start, stop, num)
+    return Axis(name, tuple(float(v) for v in values), spacing)
+
+
+def _fixed(table: Mapping, model: ModelSpec, axis_names: set, p: _Problems) -> dict:
+    fixed = {}
+    for name, value in table.items():
+        key = f"fixed.{name}"
+        if name not in model.param_names():
+            p.unknown(key, name, model.param_names(), f"parameter of model {model.name!r}")
+            continue
+        if name in axis_names:
+            p.add(key, f"{name} is given both as an axis and as a fixed value; keep one")
+            continue
+        msg = model.param(name).problem(value)
+        if msg:
+            p.add(key, msg)
+            continue
+        fixed[name] = value if model.param(name).categorical else float(value)
+    return fixed
+
+
+def _solver(table: Mapping, p: _Problems) -> Solver:
+    defaults = Solver()
+    values = {}
+    for k, v in table.items():
+        key = f"solver.{k}"
+        if k == "method":
+            if v not in METHODS:
+                p.unknown(key, v, METHODS, "method")
+            else:
+                values[k] = v
+        elif k in SOLVER_LIMITS:
+            lo, hi = SOLVER_LIMITS[k]
+            want_int = k == "max_steps"
+            kind = "a whole number" if want_int else "a number"
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or (want_int and not isinstance(v, int)):
+                p.add(key, f"{v!r} is not allowed; expected {kind} in [{lo:g}, {hi:g}]")
+            elif not math.isfinite(float(v)) or not lo <= v <= hi:
+                p.add(key, f"{v!r} is outside the allowed range [{lo:g}, {hi:g}]")
+            else:
+                values[k] = int(v) if want_int else float(v)
+        else:
+            p.unknown(key, k, ("method",) + tuple(SOLVER_LIMITS), "solver setting")
+    return Solver(**{**defaults.__dict__, **values})
+
+
+def _storage(table: Mapping, name: str, p: _Problems) -> Storage:
+    path = table.get("path", f"data/runs/{_slug(name)}.h5")
+    chunk = table.get("chunk_size")
+    for k in table:
+        if k not in ("path", "chunk_size"):
+            p.unknown(f"storage.{k}", k, ("path", "chunk_size"), "storage key")
+    if not isinstance(path, str) or not path.strip():
+        p.add("storage.path", f"{path!r} is not allowed; expected a file path string")
+        path = "invalid"
+    if chunk is not None and (isinstance(chunk, bool) or not isinstance(chunk, int) or not 1 <= chunk <= 2**31):
+        p.add("storage.chunk_size", f"{chunk!r} is not allowed; expected a whole number in [1, 2147483648]")
+        chunk = None
+    return Storage(path=path, chunk_size=chunk)
+
+
+def _slug(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "-" for c in name.strip()) or "scene"
+
+
+# ----------------------------------------------------------------------------- dict -> TOML
+def to_toml(data: Mapping) -> str:
+    """Write a scene dict as TOML (the subset scenes use), so a dict scene is stored as text too."""
+    lines = []
+    for section, table in data.items():
+        if not isinstance(table, Mapping):
+            lines.append(f"{_key(section)} = {_value(table)}")
+            continue
+        lines.append(f"[{_key(section)}]")
+        lines.extend(f"{_key(k)} = {_value(v)}" for k, v in table.items())
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _key(k) -> str:
+    k = str(k)
+    return k if k.replace("_", "").replace("-", "").isalnum() else json.dumps(k)
+
+
+def _value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        v = float(v)
+        return "nan" if v != v else ("inf" if v == math.inf else "-inf" if v == -math.inf else repr(v))
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, Mapping):
+        return "{ " + ", ".join(f"{_key(k)} = {_value(x)}" for k, x in v.items()) + " }"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_value(x) for x in v) + "]"
+    return json.dumps(str(v))

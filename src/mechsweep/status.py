@@ -1,0 +1,59 @@
+"""Per-point status codes.
+
+Kernels return or write these integers; Python decides what they mean. A point
+whose status is not ``OK`` has NaN in every output that could not be computed;
+a point with status ``OK`` never has a NaN or inf output (tests check this).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+PENDING = -1  # not computed yet (only seen in an unfinished file)
+OK = 0
+MAX_STEPS = 1  # integration hit the step budget
+STEP_UNDERFLOW = 2  # step size fell below round-off of t
+NONFINITE = 3  # NaN or inf appeared in the state or an output
+INFEASIBLE = 4  # parameters outside the model's physical domain at this point
+SINGULAR = 5  # a formula is singular here (e.g. D0 -> 0)
+NOT_OSCILLATORY = 6  # the motion is not an oscillation about phi = 0
+NO_MOTION = 7  # amplitude A = 0: period-based ratios are undefined
+NO_EVENT = 8  # the event (e.g. phi = 0) was not reached before t_max
+
+MEANINGS: dict[int, str] = {
+    PENDING: "pending",
+    OK: "ok",
+    MAX_STEPS: "max_steps",
+    STEP_UNDERFLOW: "step_underflow",
+    NONFINITE: "nonfinite",
+    INFEASIBLE: "infeasible",
+    SINGULAR: "singular",
+    NOT_OSCILLATORY: "not_oscillatory",
+    NO_MOTION: "no_motion",
+    NO_EVENT: "no_event",
+}
+
+DESCRIPTIONS: dict[int, str] = {
+    PENDING: "not computed yet (the run was interrupted; use --resume)",
+    OK: "all requested outputs computed",
+    MAX_STEPS: "the integrator used its whole step budget (solver.max_steps)",
+    STEP_UNDERFLOW: "the step size fell below the round-off of t (stiff or singular)",
+    NONFINITE: "NaN or inf appeared in the state or an output",
+    INFEASIBLE: "parameters outside the model's physical domain at this point",
+    SINGULAR: "a formula of the model is singular at this point",
+    NOT_OSCILLATORY: "the motion is not an oscillation about phi = 0 (beyond the separatrix)",
+    NO_MOTION: "amplitude A = 0: there is no motion, ratios to A are undefined",
+    NO_EVENT: "the period event was not reached within solver.t_max_periods",
+}
+
+DTYPE = np.int8
+
+
+def cf_attrs() -> dict:
+    """CF flag attributes for the ``status`` variable."""
+    codes = sorted(MEANINGS)
+    return {
+        "long_name": "status of the grid point",
+        "flag_values": np.array(codes, dtype=DTYPE),
+        "flag_meanings": " ".join(MEANINGS[c] for c in codes),
+        "comment": "; ".join(f"{MEANINGS[c]}: {DESCRIPTIONS[c]}" for c in codes),
+    }

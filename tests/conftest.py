@@ -1,0 +1,33 @@
+"""Shared fixtures: small scenes and a temporary working directory."""
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SWEEPS = REPO / "sweeps"
+
+SMALL_DUFFING = {
+    "scene": {"name": "small", "model": "duffing",
+              "outputs": ["period", "period_exact", "period_error", "kv", "epsilon"]},
+    "axes": {"A": {"start": 0.1, "stop": 1.0, "num": 7},
+             "mu": {"start": -0.5, "stop": 20.0, "num": 9}},
+    "fixed": {"omega": 2.0},
+    "solver": {"rtol": 1e-10, "atol": 1e-12},
+    "storage": {"chunk_size": 10},
+}
+
+
+@pytest.fixture
+def small_duffing():
+    return copy.deepcopy(SMALL_DUFFING)
+
+
+@pytest.fixture
+def in_tmp(tmp_path, monkeypatch):
+    """Run in an empty directory with a data/runs folder, like a fresh checkout."""
+    (tmp_path / "data" / "runs").mkdir(parents=True)
+    monkeypatch.chdir(tmp_path)
+    return tmp_path

@@ -1,0 +1,69 @@
+"""The command line as a user meets it: exit codes, messages without tracebacks, files."""
+import subprocess
+import sys
+
+import pytest
+
+from mechsweep.cli import main
+
+from .conftest import REPO
+
+BAD_SCENE = """
+[scene]
+name = "bad"
+model = "duffing"
+outputs = ["period"]
+[axes]
+A = { start = 0.1, stop = 1.0, num = 3 }
+[fixed]
+omega = -2.0
+mu = 1.0
+"""
+
+
+def run_cli(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "mechsweep.cli", *args], capture_output=True, text=True, cwd=cwd)
+
+
+def test_invalid_scene_exit_2_no_traceback_no_file(in_tmp):
+    (in_tmp / "bad.toml").write_text(BAD_SCENE)
+    before = sorted(p.name for p in (in_tmp / "data" / "runs").iterdir())
+    out = run_cli("run", "bad.toml", cwd=in_tmp)
+    assert out.returncode == 2
+    assert "Traceback" not in out.stderr
+    assert "fixed.omega: -2.0 rad/s is outside the physical range; expected a finite number in (0, inf)" in out.stderr
+    assert sorted(p.name for p in (in_tmp / "data" / "runs").iterdir()) == before
+
+
+def test_run_info_plot(in_tmp, capsys):
+    scene = REPO / "sweeps" / "quickstart.toml"
+    assert main(["run", str(scene), "-o", "data/runs/q.h5", "--no-progress", "--threads", "1"]) == 0
+    assert "wrote data/runs/q.h5" in capsys.readouterr().out
+    assert main(["info", "data/runs/q.h5"]) == 0
+    info = capsys.readouterr().out
+    for piece in ("dimensions:", "A ", "[rad]", "status: ok 1000", "steps", "solver: method=dop853", "wall time"):
+        assert piece in info, piece
+    assert main(["plot", "data/runs/q.h5", "--list"]) == 0
+    assert "amplitude_period" in capsys.readouterr().out
+    assert main(["plot", "data/runs/q.h5", "--kind", "amplitude_period", "--format", "svg"]) == 0
+    assert (in_tmp / "data/runs/q.svg").stat().st_size > 10_000
+
+
+def test_plot_missing_dataset_is_a_clear_error(in_tmp, capsys):
+    assert main(["plot", "nothing.h5"]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("args", [["--help"], ["run", "--help"], ["plot", "--help"], ["bench", "--help"]])
+def test_help_teaches(args, capsys):
+    with pytest.raises(SystemExit) as info:
+        main(args)
+    assert info.value.code == 0
+    assert "mechsweep" in capsys.readouterr().out
+
+
+def test_check_and_models(capsys):
+    assert main(["check", *map(str, sorted((REPO / "sweeps").glob("*.toml")))]) == 0
+    assert main(["models", "duffing"]) == 0
+    text = capsys.readouterr().out
+    assert "omega" in text and "[rad/s]" in text

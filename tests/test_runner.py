@@ -1,0 +1,146 @@
+"""Runner and store: dataset layout, leave-out, resume, atomic replace, reproducibility."""
+import contextlib
+import copy
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import mechsweep
+from mechsweep import runner
+from mechsweep import status as st
+from mechsweep.store import StoreError, partial_path
+
+from .conftest import REPO, SMALL_DUFFING
+
+
+def test_dataset_layout(in_tmp, small_duffing):
+    ds = mechsweep.run(small_duffing, output="data/runs/s.h5")
+    assert list(ds.dims) == ["A", "mu"]
+    assert ds["A"].attrs["units"] == "rad" and ds["mu"].attrs["long_name"]
+    assert float(ds["omega"]) == 2.0 and ds["omega"].attrs["units"] == "rad/s"
+    assert set(ds.data_vars) == {"period", "period_exact", "period_error", "kv", "epsilon", "status",
+                                 "n_steps", "n_rhs"}
+    for name in ("period", "kv"):
+        assert ds[name].attrs["units"] and ds[name].attrs["long_name"]
+    assert ds["status"].dtype == np.int8
+    assert "ok" in ds["status"].attrs["flag_meanings"].split()
+    for key in ("scene", "mechsweep_version", "numba_version", "numpy_version", "solver_rtol", "wall_time_s",
+                "created"):
+        assert key in ds.attrs, key
+    # readable by plain xarray
+    with xr.open_dataset("data/runs/s.h5", engine="h5netcdf") as raw:
+        np.testing.assert_array_equal(raw["period"].values, ds["period"].values)
+    ok = ds["status"].values == st.OK
+    for name in ("period", "period_exact", "kv", "epsilon"):
+        assert np.isfinite(ds[name].values[ok]).all()
+        assert np.isnan(ds[name].values[~ok]).all()
+
+
+def test_only_requested_outputs_are_stored(in_tmp, small_duffing):
+    small_duffing["scene"]["outputs"] = ["period_error"]
+    ds = mechsweep.run(small_duffing, output="data/runs/e.h5")
+    assert set(ds.data_vars) == {"period_error", "status", "n_steps", "n_rhs"}
+
+
+def test_algebraic_scene_never_compiles_an_integrator(in_tmp):
+    """Run in a fresh interpreter: no integrating kernel may have a compiled signature."""
+    code = textwrap.dedent("""
+        import mechsweep
+        from mechsweep.models import duffing, torsional_circuit
+        ds = mechsweep.run({"scene": {"name": "alg", "model": "duffing", "outputs": ["period_exact", "kv"]},
+                            "axes": {"A": [0.1, 0.5]}, "fixed": {"omega": 1.0, "mu": 2.0}},
+                           output="data/runs/alg.h5")
+        assert "n_steps" not in ds and "solver_rtol" not in ds.attrs
+        compiled = [k for k in (duffing.period_kernel, duffing.quarter_period_solver,
+                                torsional_circuit.integrated_kernel) if k.signatures]
+        assert duffing.algebraic_kernel.signatures, "the algebraic kernel should have run"
+        print("COMPILED", compiled)
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=in_tmp)
+    assert out.returncode == 0, out.stderr
+    assert "COMPILED []" in out.stdout
+
+
+@contextlib.contextmanager
+def interrupt_after(n_chunks):
+    """Ctrl-C arrives while chunk n_chunks + 1 is computed."""
+    real = runner.evaluate_chunk
+    calls = {"n": 0}
+
+    def flaky(scene, chunk):
+        calls["n"] += 1
+        if calls["n"] > n_chunks:
+            raise KeyboardInterrupt
+        return real(scene, chunk)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(runner, "evaluate_chunk", flaky)
+        yield
+
+
+def test_interrupted_run_resumes_to_identical_dataset(in_tmp, small_duffing):
+    reference = mechsweep.run(small_duffing, output="data/runs/ref.h5")
+    with interrupt_after(3), pytest.raises(mechsweep.RunInterrupted, match="--resume"):
+        mechsweep.run(small_duffing, output="data/runs/r.h5")
+    part = partial_path("data/runs/r.h5")
+    assert part.exists() and not (in_tmp / "data/runs/r.h5").exists()
+    partial = mechsweep.open_dataset("data/runs/r.h5", allow_partial=True)
+    assert (partial["status"].values == st.PENDING).any()
+    with pytest.raises(StoreError, match="--resume"):
+        mechsweep.run(small_duffing, output="data/runs/r.h5")  # neither resume nor restart
+    done = mechsweep.run(small_duffing, output="data/runs/r.h5", resume=True)
+    assert not part.exists()
+    for name in ("period", "period_exact", "kv", "epsilon", "status", "n_steps", "n_rhs"):
+        np.testing.assert_array_equal(done[name].values, reference[name].values, err_msg=name)
+
+
+def test_failed_run_leaves_finished_dataset_untouched(in_tmp, small_duffing):
+    first = mechsweep.run(small_duffing, output="data/runs/keep.h5")
+    before = (in_tmp / "data/runs/keep.h5").read_bytes()
+    changed = copy.deepcopy(small_duffing)
+    changed["fixed"]["omega"] = 3.0
+    with interrupt_after(1), pytest.raises(mechsweep.RunInterrupted):
+        mechsweep.run(changed, output="data/runs/keep.h5")
+    assert (in_tmp / "data/runs/keep.h5").read_bytes() == before
+    np.testing.assert_array_equal(mechsweep.open_dataset("data/runs/keep.h5")["period"], first["period"])
+
+
+def test_resume_with_a_different_scene_is_refused(in_tmp, small_duffing):
+    with interrupt_after(1), pytest.raises(mechsweep.RunInterrupted):
+        mechsweep.run(small_duffing, output="data/runs/x.h5")
+    other = copy.deepcopy(small_duffing)
+    other["fixed"]["omega"] = 3.0
+    with pytest.raises(StoreError, match="different scene"):
+        mechsweep.run(other, output="data/runs/x.h5", resume=True)
+    ds = mechsweep.run(other, output="data/runs/x.h5", restart=True)
+    assert float(ds["omega"]) == 3.0
+
+
+def test_results_do_not_depend_on_threads_or_chunks(in_tmp, small_duffing):
+    a = mechsweep.run(small_duffing, output="data/runs/a.h5", threads=1)
+    other = copy.deepcopy(small_duffing)
+    other["storage"]["chunk_size"] = 7
+    b = mechsweep.run(other, output="data/runs/b.h5", threads=2)
+    for name in ("period", "kv", "status", "n_steps"):
+        np.testing.assert_array_equal(a[name].values, b[name].values)
+
+
+def test_bad_output_paths(in_tmp, small_duffing):
+    with pytest.raises(StoreError, match="is a directory"):
+        mechsweep.run(small_duffing, output="data")
+    with pytest.raises(StoreError, match="does not exist"):
+        mechsweep.run(small_duffing, output="no/such/folder/x.h5")
+    assert not (in_tmp / "no").exists()
+
+
+def test_torsional_nomogram_scene_small(in_tmp):
+    scene = mechsweep.load_scene(REPO / "sweeps" / "torsional_circuit_nomogram.toml")
+    ds = mechsweep.run(scene, output="data/runs/t.h5")
+    assert list(ds.dims) == ["spring", "s0_over_r", "lambda2"]
+    assert list(ds["spring"].values) == ["tension", "compression"]
+    ok = ds["status"].values == st.OK
+    assert ok.mean() > 0.8
+    assert set(np.unique(ds["hardness"].values[ok])) <= {-1.0, 0.0, 1.0}
