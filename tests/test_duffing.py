@@ -76,7 +76,10 @@ def test_invariants_against_closed_form_motion(omega, mu, A):
 
 def test_integrated_period_within_1e10_over_epsilon_range_at_default_settings():
     """Acceptance: relative period error <= 1e-10 for epsilon in [-0.99, 1e4] (defaults)."""
-    eps = np.concatenate([-np.geomspace(1e-6, 0.99, 120), [0.0], np.geomspace(1e-6, 1e4, 160)])
+    # T omega depends on epsilon only, so a fine scan of epsilon covers every (omega, mu, A);
+    # the worst case sits near epsilon = -0.97, found only by a fine scan.
+    eps = np.concatenate([np.linspace(-0.99, -0.9, 3000), -np.geomspace(1e-6, 0.9, 1000), [0.0],
+                          np.geomspace(1e-6, 1e4, 2000)])
     cols, status, ns = evaluate(1.0, eps, 1.0, ("period_error",))
     assert (status == st.OK).all()
     worst = np.argmax(cols["period_error"])

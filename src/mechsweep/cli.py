@@ -90,6 +90,7 @@ def _parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("models", help="list models with their parameters and outputs (name, unit, range)")
     p.add_argument("model", nargs="?", help="one model only")
+    p.add_argument("--markdown", action="store_true", help="print the glossary tables used in README.md")
     p.set_defaults(func=_cmd_models)
 
     p = sub.add_parser("check", help="validate scene files without running them")
@@ -105,9 +106,14 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--points", type=int, default=200_000, help="grid points for mechsweep (default 200000)")
     b.add_argument("--scipy-points", type=int, default=200, help="points solved with scipy (default 200)")
     b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
-    b.add_argument("--rtol", type=float, default=1e-10)
-    b.add_argument("--atol", type=float, default=1e-12)
+    b.add_argument("--rtol", type=float, default=None, help="default: the solver default")
+    b.add_argument("--atol", type=float, default=None, help="default: the solver default")
     b.set_defaults(func=_cmd_bench)
+    b = bsub.add_parser("period-error", help="worst Duffing period error over epsilon for a ladder of tolerances")
+    b.set_defaults(func=_cmd_bench_period_error)
+    b = bsub.add_parser("quickstart", help="time the quickstart (run + plot) in fresh processes, cold and warm JIT cache")
+    b.add_argument("--scene", default="sweeps/quickstart.toml")
+    b.set_defaults(func=_cmd_bench_quickstart)
     p.set_defaults(func=lambda a: (p.print_help(), EXIT_INVALID)[1])
     return parser
 
@@ -166,7 +172,7 @@ def _cmd_models(args) -> int:
     for name in names:
         if name not in MODELS:
             raise InputError(f"unknown model {name!r}; models: {', '.join(MODELS)}")
-        print(model_text(MODELS[name]))
+        print(model_markdown(MODELS[name]) if args.markdown else model_text(MODELS[name]))
     return 0
 
 
@@ -187,8 +193,24 @@ def _cmd_check(args) -> int:
 def _cmd_bench(args) -> int:
     from .bench import duffing as bench_duffing
 
+    from .scene import Solver
+
     bench_duffing.main(points=args.points, scipy_points=args.scipy_points, threads=args.threads,
-                       rtol=args.rtol, atol=args.atol)
+                       rtol=args.rtol or Solver.rtol, atol=args.atol or Solver.atol)
+    return 0
+
+
+def _cmd_bench_period_error(args) -> int:
+    from .bench import period_error
+
+    period_error.main()
+    return 0
+
+
+def _cmd_bench_quickstart(args) -> int:
+    from .bench import quickstart
+
+    quickstart.main(args.scene)
     return 0
 
 
@@ -247,6 +269,21 @@ def model_text(spec) -> str:
         extra = " (integrated)" if o.integrated else ""
         lines.append(f"    {o.name:<20} [{o.unit}] {o.long_name}{extra}")
     return "\n".join(lines)
+
+
+def model_markdown(spec) -> str:
+    """Glossary tables of one model (README.md embeds them; a test keeps them in sync)."""
+    lines = [f"### `{spec.name}`: {spec.description}", "", f"Source: {spec.source}.", "",
+             "| parameter | symbol | meaning | unit | allowed |", "|---|---|---|---|---|"]
+    for p in spec.params:
+        opt = " (optional)" if not p.required else ""
+        lines.append(f"| `{p.name}` | {p.symbol or '-'} | {p.long_name}{opt} | {p.unit or '-'} | {p.allowed()} |")
+    lines += ["", "| output | symbol | meaning | unit |", "|---|---|---|---|"]
+    for o in spec.outputs:
+        how = " (integrated)" if o.integrated else ""
+        sym = o.symbol.replace("|", "\\|")  # a bare | would end the table cell
+        lines.append(f"| `{o.name}` | {sym} | {o.long_name}{how} | {o.unit} |")
+    return "\n".join(lines) + "\n"
 
 
 if __name__ == "__main__":

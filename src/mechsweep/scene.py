@@ -49,8 +49,8 @@ class Axis:
 @dataclass(frozen=True)
 class Solver:
     method: str = "dop853"
-    rtol: float = 1e-10
-    atol: float = 1e-12
+    rtol: float = 5e-11  # measured: period error <= 5.7e-11 for epsilon in [-0.99, 1e4];
+    atol: float = 1e-12  # rtol = 1e-10 reaches 1.2e-10 near the soft separatrix
     max_steps: int = 100_000
     t_max_periods: float = 100.0  # integration horizon, in linearised periods 2 pi / w
 

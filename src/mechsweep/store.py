@@ -54,25 +54,33 @@ def layout(scene: Scene, n_chunks: int) -> Layout:
 
 
 class PartialFile:
-    """An open ``.partial`` file being filled chunk by chunk."""
+    """An open ``.partial`` file being filled chunk by chunk.
 
-    def __init__(self, handle: h5netcdf.File, path: Path, lay: Layout):
+    The file is defined with h5netcdf (netCDF dimensions and attributes) and then filled
+    through plain h5py datasets, looked up once (h5netcdf's per-write lookups cost more
+    than the write itself).
+    """
+
+    def __init__(self, handle: h5py.File, path: Path, lay: Layout):
         self.f = handle
         self.path = path
         self.layout = lay
+        names = list(lay.outputs) + ["status"] + (["n_steps", "n_rhs"] if lay.integrated else [])
+        self.vars = {name: handle[name] for name in names}
+        self.done = handle[PROGRESS]["chunk_done"]
 
     # -- creation and reopening ------------------------------------------------
     @classmethod
     def create(cls, path: Path, scene: Scene, lay: Layout, attrs: dict) -> "PartialFile":
-        f = _open(path, "w")
+        if path.exists():
+            _open(path, "a").close()  # refuse (locked) before truncating another run's file
         try:
-            _define(f, scene, lay, attrs)
-            f.flush()
+            with h5netcdf.File(path, "w") as f:
+                _define(f, scene, lay, attrs)
         except BaseException:
-            f.close()
             path.unlink(missing_ok=True)
             raise
-        return cls(f, path, lay)
+        return cls(_open(path, "a"), path, lay)
 
     @classmethod
     def reopen(cls, path: Path, scene: Scene, lay: Layout) -> "PartialFile":
@@ -85,8 +93,8 @@ class PartialFile:
                     "solver settings differ); resume it with the scene it was started with, or start "
                     "over with --restart"
                 )
-            if int(f.attrs.get("n_chunks", -1)) != lay.n_chunks:
-                raise StoreError(f"{path} was cut into {f.attrs.get('n_chunks')} chunks, this run into "
+            if int(_scalar(f.attrs.get("n_chunks", -1))) != lay.n_chunks:
+                raise StoreError(f"{path} was cut into {_scalar(f.attrs.get('n_chunks'))} chunks, this run into "
                                  f"{lay.n_chunks}; use the same storage.chunk_size, or --restart")
         except BaseException:
             f.close()
@@ -95,23 +103,23 @@ class PartialFile:
 
     # -- progress ------------------------------------------------------------------
     def done_chunks(self) -> np.ndarray:
-        return np.asarray(self.f.groups[PROGRESS].variables["chunk_done"][:], dtype=bool)
+        return np.asarray(self.done[:], dtype=bool)
 
     def write_chunk(self, chunk, columns: dict[str, np.ndarray], status, n_steps=None, n_rhs=None) -> None:
         shape = _region_shape(chunk.region, self.layout.shape)
         for name, values in columns.items():
-            self.f.variables[name][chunk.region] = values.reshape(shape)
-        self.f.variables["status"][chunk.region] = status.reshape(shape)
+            self.vars[name][chunk.region] = values.reshape(shape)
+        self.vars["status"][chunk.region] = status.reshape(shape)
         if self.layout.integrated:
-            self.f.variables["n_steps"][chunk.region] = n_steps.reshape(shape)
-            self.f.variables["n_rhs"][chunk.region] = n_rhs.reshape(shape)
+            self.vars["n_steps"][chunk.region] = n_steps.reshape(shape)
+            self.vars["n_rhs"][chunk.region] = n_rhs.reshape(shape)
         # mark done only after the data: a crash in between recomputes the chunk
         self.f.flush()
-        self.f.groups[PROGRESS].variables["chunk_done"][chunk.index] = 1
+        self.done[chunk.index] = 1
         self.f.flush()
 
     def add_wall_time(self, seconds: float) -> None:
-        self.f.attrs["wall_time_s"] = float(self.f.attrs.get("wall_time_s", 0.0)) + float(seconds)
+        self.f.attrs["wall_time_s"] = _scalar(self.f.attrs.get("wall_time_s", 0.0)) + float(seconds)
         self.f.flush()
 
     def set_attrs(self, **attrs) -> None:
@@ -127,9 +135,9 @@ class PartialFile:
         os.replace(self.path, final)
 
 
-def _open(path: Path, mode: str) -> h5netcdf.File:
+def _open(path: Path, mode: str) -> h5py.File:
     try:
-        return h5netcdf.File(path, mode)
+        return h5py.File(path, mode)
     except BlockingIOError:
         raise StoreError(f"{path} is being written by another mechsweep run (the file is locked); "
                          "wait for it to finish or stop it first") from None
@@ -139,6 +147,11 @@ def _open(path: Path, mode: str) -> h5netcdf.File:
             raise StoreError(f"{path} is being written by another mechsweep run (the file is locked); "
                              "wait for it to finish or stop it first") from None
         raise StoreError(f"cannot open {path} for writing: {msg}") from None
+
+
+def _scalar(value) -> float:
+    """An attribute as a float (h5netcdf may store scalars as 1-element arrays)."""
+    return float(np.ravel(value)[0])
 
 
 def _region_shape(region: tuple, shape: tuple[int, ...]) -> tuple[int, ...]:

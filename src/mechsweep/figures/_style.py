@@ -12,7 +12,7 @@ import numpy as np  # noqa: E402
 STATUS_OK = 0
 
 
-def label(da, width: int = 60) -> str:
+def label(da, width: int = 42) -> str:
     """'long name [unit]' from a DataArray's attributes (unit omitted when dimensionless)."""
     name = da.attrs.get("long_name", da.name)
     unit = da.attrs.get("units", "")
@@ -70,5 +70,6 @@ def log_or_symlog(ax, values, axis="x") -> None:
     if (v > 0).all():
         if v.max() / v.min() > 50:
             setter("log")
-    elif (np.abs(v) > 0).any():
+    elif (v < 0).any() and (v > 0).any():
         setter("symlog", linthresh=max(np.min(np.abs(v[v != 0])), 1e-3))
+    # all <= 0 (soft springs up to the separatrix): a linear axis shows T -> inf best

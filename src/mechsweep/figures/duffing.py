@@ -40,7 +40,7 @@ def amplitude_period(ds):
     log_or_symlog(ax, eps)
     ax.set_xlabel(label(ds["epsilon"]))
     ax.set_ylabel("T ω, dimensionless period [1]")
-    ax.grid(True, which="both", alpha=0.3)
+    ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     flag_note(ax, ds)
     if has_err:
@@ -56,7 +56,7 @@ def amplitude_period(ds):
         if "solver_rtol" in ds.attrs:
             ax2.axhline(ds.attrs["solver_rtol"], color="C0", lw=0.8, ls=":", label=f"rtol = {ds.attrs['solver_rtol']:g}")
             ax2.legend(fontsize=8)
-        ax2.grid(True, which="both", alpha=0.3)
+        ax2.grid(True, alpha=0.3)
     title(fig, ds, "Duffing amplitude-period relation")
     return fig
 
@@ -80,7 +80,7 @@ def kinematic_coefficients(ds):
         log_or_symlog(ax, eps)
         ax.set_xlabel(label(ds["epsilon"]))
         ax.set_ylabel(label(ds[name]))
-        ax.grid(True, which="both", alpha=0.3)
+        ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
         flag_note(ax, ds)
     title(fig, ds, "Kinematic invariants of the Duffing oscillator")

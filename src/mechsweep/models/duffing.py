@@ -132,11 +132,12 @@ def algebraic_kernel(omega, mu, A, want, table, status):
 @pjit
 def period_kernel(omega, mu, A, rtol, atol, max_steps, t_max_periods, table, status, n_steps, n_rhs):
     n = omega.shape[0]
-    for b in prange((n + BLOCK - 1) // BLOCK):
+    n_blocks = (n + BLOCK - 1) // BLOCK
+    for b in prange(n_blocks):
         work = dop853.workspace(2)
         y = np.empty(2)
         p = np.empty(2)
-        for i in range(b * BLOCK, min(n, (b + 1) * BLOCK)):
+        for i in range(b, n, n_blocks):  # strided: prange splits blocks statically, and cost varies along the grid
             if status[i] != st.OK:
                 continue
             code = classify(omega[i] * omega[i], mu[i], A[i])
@@ -184,7 +185,7 @@ SPEC = ModelSpec(
         Param("A", "A", "rad", "amplitude, phi(0) = A, phi'(0) = 0", lo=0.0),
     ),
     outputs=(
-        Output("period", "T", "s", "period (integrated)", integrated=True),
+        Output("period", "T", "s", "period of the free oscillation", integrated=True),
         Output("period_exact", "T_exact", "s", "period (elliptic closed form)"),
         Output("period_error", "|T - T_exact| / T_exact", "1", "relative error of the integrated period",
                needs=("period", "period_exact")),

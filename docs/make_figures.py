@@ -1,0 +1,32 @@
+"""Regenerate every committed figure: run each shipped scene, then draw its figures.
+
+    python docs/make_figures.py            # all scenes in sweeps/
+    python docs/make_figures.py quickstart # only scenes whose file name contains 'quickstart'
+
+Datasets go to data/runs/ (git-ignored), figures to docs/figures/ (committed).
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import mechsweep
+from mechsweep import figures
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "docs" / "figures"
+
+
+def main(filters: list[str]) -> None:
+    OUT.mkdir(parents=True, exist_ok=True)
+    for path in sorted((ROOT / "sweeps").glob("*.toml")):
+        if filters and not any(f in path.stem for f in filters):
+            continue
+        scene = mechsweep.load_scene(path)
+        ds = mechsweep.run(scene, output=ROOT / scene.storage.path, restart=True, progress=False)
+        for written in figures.save(ds, OUT / f"{path.stem}.png"):
+            print(f"{path.name} -> {written.relative_to(ROOT)}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

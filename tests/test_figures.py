@@ -1,0 +1,74 @@
+"""Figures draw from stored datasets and label every axis with its unit."""
+import matplotlib
+
+matplotlib.use("Agg")
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+import mechsweep  # noqa: E402
+from mechsweep import figures  # noqa: E402
+
+from .conftest import REPO  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def datasets(tmp_path_factory):
+    out = tmp_path_factory.mktemp("fig")
+    small = {
+        "quickstart": {"axes": {"A": {"start": 0.1, "stop": 1.0, "num": 4},
+                                "mu": {"start": 0.1, "stop": 10.0, "num": 5, "spacing": "log"}}},
+        "torsional_circuit_nomogram": {"axes": {"spring": ["tension", "compression"],
+                                                "s0_over_r": [0.0, 0.1],
+                                                "lambda2": {"start": 0.0, "stop": 2.0, "num": 11}}},
+        "torsional_circuit_truncation": {"axes": {"lambda2": {"start": 0.3, "stop": 2.0, "num": 4},
+                                                  "A": {"start": 0.05, "stop": 1.0, "num": 5}}},
+    }
+    result = {}
+    for name, override in small.items():
+        data = __import__("tomllib").loads((REPO / "sweeps" / f"{name}.toml").read_text())
+        data.update(override)
+        result[name] = mechsweep.run(data, output=out / f"{name}.h5", progress=False)
+    return result
+
+
+@pytest.mark.parametrize("name,kinds", [
+    ("quickstart", {"amplitude_period", "kinematic_coefficients"}),
+    ("torsional_circuit_nomogram", {"coefficients"}),
+    ("torsional_circuit_truncation", {"truncation_error"}),
+])
+def test_each_dataset_gets_its_figures(datasets, name, kinds):
+    assert kinds <= set(figures.available(datasets[name]))
+
+
+@pytest.mark.parametrize("name", ["quickstart", "torsional_circuit_nomogram", "torsional_circuit_truncation"])
+def test_axes_are_labelled_with_units(datasets, name):
+    """Every axis has labels; a label naming a dimensional variable carries its [unit]."""
+    ds = datasets[name]
+    variables = [ds[v] for v in list(ds.coords) + list(ds.data_vars)]
+    for kind in figures.available(ds):
+        fig = figures.draw(ds, kind)
+        for ax in fig.axes:
+            if ax.get_label() == "<colorbar>":
+                continue
+            for text in (ax.get_xlabel(), ax.get_ylabel()):
+                flat = text.replace("\n", " ")
+                assert flat, (kind, ax)
+                for var in variables:
+                    unit = var.attrs.get("units", "")
+                    if var.attrs.get("long_name", "@") in flat and unit not in ("", "1"):
+                        assert f"[{unit}]" in flat, (kind, flat, unit)
+
+
+def test_figures_do_not_draw_flagged_points(datasets):
+    ds = datasets["quickstart"].copy(deep=True)
+    ds["status"].values[0, 0] = 4  # pretend one point was flagged infeasible
+    fig = figures.draw(ds, "amplitude_period")
+    drawn = fig.axes[0].lines[1].get_ydata()  # integrated markers
+    assert np.isnan(drawn).sum() >= 1
+    texts = [t.get_text() for t in fig.axes[0].texts]
+    assert any("1 flagged point" in t for t in texts)
+
+
+def test_save_writes_files(datasets, tmp_path):
+    written = figures.save(datasets["torsional_circuit_nomogram"], tmp_path / "nomo.png")
+    assert [p.name for p in written] == ["nomo.png"] and written[0].stat().st_size > 20_000
