@@ -144,3 +144,29 @@ def test_torsional_nomogram_scene_small(in_tmp):
     ok = ds["status"].values == st.OK
     assert ok.mean() > 0.8
     assert set(np.unique(ds["hardness"].values[ok])) <= {-1.0, 0.0, 1.0}
+
+
+def test_restart_refuses_to_discard_a_file_another_run_is_writing(in_tmp, small_duffing):
+    import h5py
+
+    with interrupt_after(1), pytest.raises(mechsweep.RunInterrupted):
+        mechsweep.run(small_duffing, output="data/runs/busy.h5")
+    part = partial_path("data/runs/busy.h5")
+    code = f"import h5py, time; f = h5py.File({str(part)!r}, 'a'); print('open', flush=True); time.sleep(30)"
+    holder = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "open"
+        with pytest.raises(StoreError, match="another mechsweep run"):
+            mechsweep.run(small_duffing, output="data/runs/busy.h5", restart=True)
+        assert part.exists()
+        with h5py.File(part, "r", locking=False) as f:
+            assert "mechsweep_progress" in f
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_progress_bar_shows_points_and_rate(in_tmp, small_duffing, capsys):
+    mechsweep.run(small_duffing, output="data/runs/p.h5", progress=True)
+    err = capsys.readouterr().err
+    assert "63/63" in err and "pt/s" in err

@@ -18,7 +18,7 @@ from . import status as st
 from .errors import InputError
 from .grid import Chunk, default_chunk_target, parameter_matrix, plan_chunks
 from .scene import Scene, load_scene
-from .store import PartialFile, StoreError, layout, open_dataset, partial_path
+from .store import PartialFile, StoreError, discard_partial, layout, open_dataset, partial_path
 
 
 class RunInterrupted(RuntimeError):
@@ -55,7 +55,7 @@ def run(
                              "replace it")
         return ds  # already complete: nothing to do
     if restart:
-        part.unlink(missing_ok=True)
+        discard_partial(part)
 
     chunks = plan_chunks(scene.shape, default_chunk_target(scene))
     lay = layout(scene, len(chunks))
@@ -113,7 +113,7 @@ def evaluate_chunk(scene: Scene, chunk: Chunk):
 def _run_chunks(scene: Scene, store: PartialFile, todo: list[Chunk], already: int, progress) -> None:
     from tqdm.auto import tqdm
 
-    bar = tqdm(total=scene.n_points, initial=already, unit="pt", unit_scale=True, dynamic_ncols=True,
+    bar = tqdm(total=scene.n_points, initial=already, unit="pt", unit_scale=scene.n_points >= 100_000, dynamic_ncols=True,
                desc=scene.name, disable=(None if progress is None else not progress), smoothing=0.1)
     try:
         for chunk in todo:

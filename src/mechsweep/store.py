@@ -149,6 +149,13 @@ def _open(path: Path, mode: str) -> h5py.File:
         raise StoreError(f"cannot open {path} for writing: {msg}") from None
 
 
+def discard_partial(path: Path) -> None:
+    """Delete an unfinished run's file, unless another run is writing it right now."""
+    if path.exists():
+        _open(path, "a").close()  # raises StoreError when another process holds the file
+        path.unlink()
+
+
 def _scalar(value) -> float:
     """An attribute as a float (h5netcdf may store scalars as 1-element arrays)."""
     return float(np.ravel(value)[0])
