@@ -14,18 +14,18 @@ from mechsweep.models import duffing as d
 from mechsweep.scene import Solver
 
 
-def evaluate(omega, mu, A, outputs, solver=Solver()):
+def evaluate(omega, mu, A, outputs, solver=None):
+    solver = solver or Solver.for_model(d.SPEC)
     omega, mu, A = np.broadcast_arrays(*(np.atleast_1d(np.asarray(x, float)) for x in (omega, mu, A)))
     P = np.stack([omega, mu, A], axis=1).astype(float)
     n = P.shape[0]
     wanted = d.SPEC.closure(outputs)
-    out = np.full((n, len(wanted)), np.nan)
+    out = {name: np.full(n, np.nan) for name in wanted}
     status = np.zeros(n, np.int8)
     ns = np.zeros(n, np.int64)
     nr = np.zeros(n, np.int64)
     d.evaluate(P, wanted, solver, out, status, ns, nr)
-    cols = {name: out[:, k] for k, name in enumerate(wanted)}
-    return cols, status, ns
+    return out, status, ns
 
 
 def period_by_quadrature(omega, mu, A):
@@ -110,12 +110,12 @@ def test_meaningless_points_get_status_and_nan(omega, mu, A, code):
 
 
 def test_step_budget_gives_max_steps():
-    cols, status, ns = evaluate(1.0, 1.0, 1.0, ("period",), Solver(max_steps=3))
+    cols, status, ns = evaluate(1.0, 1.0, 1.0, ("period",), Solver.for_model(d.SPEC, max_steps=3))
     assert status[0] == st.MAX_STEPS and np.isnan(cols["period"][0])
 
 
 def test_short_horizon_gives_no_event():
-    cols, status, _ = evaluate(1.0, 1.0, 1.0, ("period",), Solver(t_max_periods=0.01))
+    cols, status, _ = evaluate(1.0, 1.0, 1.0, ("period",), Solver.for_model(d.SPEC, t_max_periods=0.01))
     assert status[0] == st.NO_EVENT and np.isnan(cols["period"][0])
 
 

@@ -267,7 +267,13 @@ def model_text(spec) -> str:
     lines.append("  outputs:")
     for o in spec.outputs:
         extra = " (integrated)" if o.integrated else ""
-        lines.append(f"    {o.name:<20} [{o.unit}] {o.long_name}{extra}")
+        dims = f" (per {', '.join(d.name for d in o.extra_dims)})" if o.extra_dims else ""
+        lines.append(f"    {o.name:<20} [{o.unit}] {o.long_name}{extra}{dims}")
+    if spec.settings:
+        lines.append("  solver settings (besides method, rtol, atol, max_steps):")
+        for st in spec.settings:
+            lines.append(f"    {st.name:<20} [{st.unit}] {st.long_name}; default {st.default:g}, "
+                         f"allowed [{st.lo:g}, {st.hi:g}]")
     return "\n".join(lines)
 
 
@@ -281,8 +287,13 @@ def model_markdown(spec) -> str:
     lines += ["", "| output | symbol | meaning | unit |", "|---|---|---|---|"]
     for o in spec.outputs:
         how = " (integrated)" if o.integrated else ""
+        how += f" (per {', '.join(d.name for d in o.extra_dims)})" if o.extra_dims else ""
         sym = o.symbol.replace("|", "\\|")  # a bare | would end the table cell
         lines.append(f"| `{o.name}` | {sym} | {o.long_name}{how} | {o.unit} |")
+    if spec.settings:
+        lines += ["", "| solver setting | meaning | unit | default | allowed |", "|---|---|---|---|---|"]
+        for st in spec.settings:
+            lines.append(f"| `{st.name}` | {st.long_name} | {st.unit} | {st.default:g} | [{st.lo:g}, {st.hi:g}] |")
     return "\n".join(lines) + "\n"
 
 

@@ -93,21 +93,29 @@ def check_target(final: Path) -> None:
         raise StoreError(f"{final} exists and is read-only")
 
 
+def extra_shape(scene: Scene, name: str) -> tuple[int, ...]:
+    """Sizes of an output's dimensions beyond the grid's."""
+    settings = scene.solver.settings if scene.solver is not None else {}
+    return tuple(len(d.values(settings)) for d in scene.model.output(name).extra_dims)
+
+
 def evaluate_chunk(scene: Scene, chunk: Chunk):
-    """Compute one chunk. Returns (columns of requested outputs, status, n_steps, n_rhs)."""
+    """Compute one chunk. Returns (requested outputs by name, status, n_steps, n_rhs)."""
     P = parameter_matrix(scene, chunk.start, chunk.stop)
     computed = scene.computed_outputs
     n = chunk.size
-    out = np.full((n, len(computed)), np.nan)
+    out = {name: np.full((n,) + extra_shape(scene, name), np.nan) for name in computed}
     status = np.zeros(n, dtype=st.DTYPE)
     n_steps = np.zeros(n, dtype=np.int64)
     n_rhs = np.zeros(n, dtype=np.int64)
     scene.model.evaluate(P, computed, scene.solver, out, status, n_steps, n_rhs)
-    cols = [computed.index(name) for name in scene.outputs]
-    requested = out[:, cols]
+    requested = {name: out[name] for name in scene.outputs}
     # A point is ok only if everything asked of it is finite (never a NaN with status ok).
-    status[(status == st.OK) & ~np.isfinite(requested).all(axis=1)] = st.NONFINITE
-    return {name: requested[:, k] for k, name in enumerate(scene.outputs)}, status, n_steps, n_rhs
+    finite = np.ones(n, dtype=bool)
+    for values in requested.values():
+        finite &= np.isfinite(values.reshape(n, -1)).all(axis=1)
+    status[(status == st.OK) & ~finite] = st.NONFINITE
+    return requested, status, n_steps, n_rhs
 
 
 def _run_chunks(scene: Scene, store: PartialFile, todo: list[Chunk], already: int, progress) -> None:
@@ -160,6 +168,6 @@ def provenance(scene: Scene, chunks: list[Chunk]) -> dict:
         "Conventions": "CF-1.10",
     }
     if scene.solver is not None:
-        for k, v in scene.solver.__dict__.items():
+        for k, v in scene.solver.as_dict().items():
             attrs[f"solver_{k}"] = v
     return attrs

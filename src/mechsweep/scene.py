@@ -9,7 +9,7 @@ import difflib
 import json
 import math
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Mapping
@@ -48,18 +48,31 @@ class Axis:
 
 @dataclass(frozen=True)
 class Solver:
+    """Numerical settings: common ones, plus the model's own :class:`Setting` values."""
+
     method: str = "dop853"
     rtol: float = 5e-11  # measured: period error <= 5.7e-11 for epsilon in [-0.99, 1e4];
     atol: float = 1e-12  # rtol = 1e-10 reaches 1.2e-10 near the soft separatrix
     max_steps: int = 100_000
-    t_max_periods: float = 100.0  # integration horizon, in linearised periods 2 pi / w
+    settings: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
+
+    @classmethod
+    def for_model(cls, model: ModelSpec, **overrides) -> "Solver":
+        """Defaults for ``model``; keyword overrides may name common or model settings."""
+        settings = {st.name: st.default for st in model.settings}
+        common = {k: v for k, v in overrides.items() if k not in settings}
+        settings.update({k: v for k, v in overrides.items() if k in settings})
+        return cls(**common, settings=MappingProxyType(settings))
+
+    def as_dict(self) -> dict:
+        return {"method": self.method, "rtol": self.rtol, "atol": self.atol, "max_steps": self.max_steps,
+                **dict(self.settings)}
 
 
 SOLVER_LIMITS = {
     "rtol": (1e-15, 0.1),
     "atol": (1e-300, 1.0),
     "max_steps": (1, 10**9),
-    "t_max_periods": (1e-3, 1e9),
 }
 
 
@@ -101,7 +114,7 @@ class Scene:
                 "outputs": list(self.outputs),
                 "axes": [[a.name, list(a.values)] for a in self.axes],
                 "fixed": {k: self.fixed[k] for k in sorted(self.fixed)},
-                "solver": None if self.solver is None else self.solver.__dict__,
+                "solver": None if self.solver is None else self.solver.as_dict(),
             },
             sort_keys=True,
         )
@@ -161,12 +174,15 @@ def validate(data: Mapping, *, text: str, label: str = "scene") -> Scene:
         if prm.required and prm.name not in given:
             p.add(f"fixed.{prm.name}", f"missing; {model.name} needs {prm.name} "
                   f"({prm.long_name}, {prm.allowed()}) as an axis or a fixed value")
+    if model.check is not None and not p.items:
+        values = {a.name: a.values for a in axes} | {k: (v,) for k, v in fixed.items()}
+        p.items.extend(model.check(values))
     for out in outputs:
         missing = [q for q in model.output(out).needs_params if q not in given]
         if missing:
             p.add("scene.outputs", f"output {out!r} needs parameter(s) {', '.join(missing)}; "
                   "give them in [axes] or [fixed]")
-    solver = _solver(_table(data, "solver", p), p) if model.needs_integration(outputs) else None
+    solver = _solver(_table(data, "solver", p), model, p) if model.needs_integration(outputs) else None
     storage = _storage(_table(data, "storage", p), name if isinstance(name, str) else "scene", p)
     if axes:
         n = math.prod(a.size for a in axes)
@@ -341,9 +357,11 @@ def _fixed(table: Mapping, model: ModelSpec, axis_names: set, p: _Problems) -> d
     return fixed
 
 
-def _solver(table: Mapping, p: _Problems) -> Solver:
+def _solver(table: Mapping, model: ModelSpec, p: _Problems) -> Solver:
     defaults = Solver()
     values = {}
+    own = {st.name: st for st in model.settings}
+    settings = {st.name: st.default for st in model.settings}
     for k, v in table.items():
         key = f"solver.{k}"
         if k == "method":
@@ -361,9 +379,15 @@ def _solver(table: Mapping, p: _Problems) -> Solver:
                 p.add(key, f"{v!r} is outside the allowed range [{lo:g}, {hi:g}]")
             else:
                 values[k] = int(v) if want_int else float(v)
+        elif k in own:
+            msg = own[k].problem(v)
+            if msg:
+                p.add(key, msg)
+            else:
+                settings[k] = int(v) if own[k].integer else float(v)
         else:
-            p.unknown(key, k, ("method",) + tuple(SOLVER_LIMITS), "solver setting")
-    return Solver(**{**defaults.__dict__, **values})
+            p.unknown(key, k, ("method",) + tuple(SOLVER_LIMITS) + tuple(own), f"solver setting of {model.name!r}")
+    return Solver(**{**defaults.__dict__, **values, "settings": MappingProxyType(settings)})
 
 
 def _storage(table: Mapping, name: str, p: _Problems) -> Storage:

@@ -18,6 +18,8 @@ SINGULAR = 5  # a formula is singular here (e.g. D0 -> 0)
 NOT_OSCILLATORY = 6  # the motion is not an oscillation about phi = 0
 NO_MOTION = 7  # amplitude A = 0: period-based ratios are undefined
 NO_EVENT = 8  # the event (e.g. phi = 0) was not reached before t_max
+NOT_BALANCEABLE = 9  # no balanced state (A0 > 2 m a or A1 != 0): balanced-state outputs are NaN
+UNDECIDED = 10  # the simulation could not decide stability within the horizon
 
 MEANINGS: dict[int, str] = {
     PENDING: "pending",
@@ -30,6 +32,8 @@ MEANINGS: dict[int, str] = {
     NOT_OSCILLATORY: "not_oscillatory",
     NO_MOTION: "no_motion",
     NO_EVENT: "no_event",
+    NOT_BALANCEABLE: "not_balanceable",
+    UNDECIDED: "undecided",
 }
 
 DESCRIPTIONS: dict[int, str] = {
@@ -42,7 +46,9 @@ DESCRIPTIONS: dict[int, str] = {
     SINGULAR: "a formula of the model is singular at this point",
     NOT_OSCILLATORY: "the motion is not an oscillation about phi = 0 (beyond the separatrix)",
     NO_MOTION: "amplitude A = 0: there is no motion, ratios to A are undefined",
-    NO_EVENT: "the period event was not reached within solver.t_max_periods",
+    NO_EVENT: "the period event was not reached within the horizon solver.t_max_periods",
+    NOT_BALANCEABLE: "no balanced state exists (A0 > 2 m a, A0 = 0 or A1 != 0): balanced-state outputs are NaN",
+    UNDECIDED: "the simulation could not decide stability within the horizon",
 }
 
 DTYPE = np.int8

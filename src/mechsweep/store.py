@@ -41,15 +41,23 @@ class Layout:
     outputs: tuple[str, ...]
     integrated: bool
     n_chunks: int
+    extra: dict  # output name -> tuple of (ExtraDim, coordinate values), for outputs with extra dims
 
 
 def layout(scene: Scene, n_chunks: int) -> Layout:
+    settings = scene.solver.settings if scene.solver is not None else {}
+    extra = {}
+    for name in scene.outputs:
+        dims = scene.model.output(name).extra_dims
+        if dims:
+            extra[name] = tuple((d, np.asarray(d.values(settings), dtype=float)) for d in dims)
     return Layout(
         dims=tuple(a.name for a in scene.axes),
         shape=scene.shape,
         outputs=scene.outputs,
         integrated=scene.solver is not None,
         n_chunks=n_chunks,
+        extra=extra,
     )
 
 
@@ -108,7 +116,8 @@ class PartialFile:
     def write_chunk(self, chunk, columns: dict[str, np.ndarray], status, n_steps=None, n_rhs=None) -> None:
         shape = _region_shape(chunk.region, self.layout.shape)
         for name, values in columns.items():
-            self.vars[name][chunk.region] = values.reshape(shape)
+            n_extra = values.ndim - 1
+            self.vars[name][chunk.region + (slice(None),) * n_extra] = values.reshape(shape + values.shape[1:])
         self.vars["status"][chunk.region] = status.reshape(shape)
         if self.layout.integrated:
             self.vars["n_steps"][chunk.region] = n_steps.reshape(shape)
@@ -187,11 +196,20 @@ def _define(f: h5netcdf.File, scene: Scene, lay: Layout, attrs: dict) -> None:
             v = f.create_variable(name, (), dtype="f8")
             v[()] = value
         _describe(v, prm.unit, prm.long_name, prm.symbol)
+    for dims in lay.extra.values():
+        for dim, values in dims:
+            if dim.name not in f.dimensions:
+                f.dimensions[dim.name] = len(values)
+                v = f.create_variable(dim.name, (dim.name,), dtype="f8")
+                v[:] = values
+                _describe(v, dim.unit, dim.long_name, "")
     fixed_coords = " ".join(scene.fixed)
     chunks = _storage_chunks(lay.shape)
     for name in lay.outputs:
         out = model.output(name)
-        v = f.create_variable(name, lay.dims, dtype="f8", fillvalue=np.nan, chunks=chunks)
+        extra = tuple(d.name for d, _ in lay.extra.get(name, ()))
+        v = f.create_variable(name, lay.dims + extra, dtype="f8", fillvalue=np.nan,
+                              chunks=_storage_chunks(lay.shape + tuple(len(x) for _, x in lay.extra.get(name, ()))))
         _describe(v, out.unit, out.long_name, out.symbol)
         if out.integrated:
             v.attrs["integrated"] = 1

@@ -24,12 +24,12 @@ def worst_error(eps: np.ndarray, rtol: float, atol: float) -> dict:
     n = eps.size
     P = np.stack([np.ones(n), eps, np.ones(n)], axis=1)
     wanted = duffing.SPEC.closure(("period_error",))
-    out = np.full((n, len(wanted)), np.nan)
+    out = {name: np.full(n, np.nan) for name in wanted}
     status = np.zeros(n, np.int8)
     n_steps = np.zeros(n, np.int64)
     n_rhs = np.zeros(n, np.int64)
-    duffing.evaluate(P, wanted, Solver(rtol=rtol, atol=atol), out, status, n_steps, n_rhs)
-    err = out[:, wanted.index("period_error")]
+    duffing.evaluate(P, wanted, Solver.for_model(duffing.SPEC, rtol=rtol, atol=atol), out, status, n_steps, n_rhs)
+    err = out["period_error"]
     worst = int(np.nanargmax(err))
     return {"rtol": rtol, "atol": atol, "max_error": float(err[worst]), "at_epsilon": float(eps[worst]),
             "mean_steps": float(n_steps.mean()), "not_ok": int((status != 0).sum())}

@@ -64,9 +64,43 @@ class Param:
 
 
 @dataclass(frozen=True)
+class Setting:
+    """A model-specific numerical setting, given in the scene's [solver] table."""
+
+    name: str
+    default: float
+    unit: str
+    long_name: str
+    lo: float
+    hi: float
+    integer: bool = False
+
+    def problem(self, value) -> str | None:
+        kind = "a whole number" if self.integer else "a number"
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or (self.integer and not isinstance(value, int)):
+            return f"{value!r} is not allowed; expected {kind} in [{_fmt(self.lo)}, {_fmt(self.hi)}]"
+        if not math.isfinite(float(value)) or not self.lo <= value <= self.hi:
+            return f"{value!r} is outside the allowed range [{_fmt(self.lo)}, {_fmt(self.hi)}] ({self.long_name})"
+        return None
+
+
+@dataclass(frozen=True)
+class ExtraDim:
+    """A dimension an output has beyond the grid's (e.g. time samples of a trajectory).
+
+    ``values(settings)`` gives its coordinate from the solver settings."""
+
+    name: str
+    unit: str
+    long_name: str
+    values: Callable = field(repr=False, compare=False)
+
+
+@dataclass(frozen=True)
 class Output:
     """A model output. ``needs`` lists outputs it is derived from (computed, not stored,
-    unless requested); ``needs_params`` lists optional parameters it requires."""
+    unless requested); ``needs_params`` lists optional parameters it requires;
+    ``extra_dims`` the dimensions it has beyond the grid's."""
 
     name: str
     symbol: str
@@ -75,6 +109,7 @@ class Output:
     integrated: bool = False
     needs: tuple[str, ...] = ()
     needs_params: tuple[str, ...] = ()
+    extra_dims: tuple[ExtraDim, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -84,7 +119,13 @@ class ModelSpec:
     ``evaluate(P, wanted, solver, out, status, n_steps, n_rhs)`` fills one chunk:
     ``P`` float64 [n, len(params)] in declared order (absent optional parameters
     hold their default), ``wanted`` the tuple of output names to compute (closed
-    under ``needs``), ``out`` float64 [n, len(wanted)] in that order.
+    under ``needs``), ``solver`` the scene's :class:`~mechsweep.scene.Solver` (its
+    ``settings`` hold this model's :class:`Setting` values), ``out`` a dict
+    name -> float64 array (n,) or (n, *extra dims) prefilled with NaN, ``status``
+    int8 (n,) prefilled OK, ``n_steps``/``n_rhs`` int64 (n,) to add counts to.
+
+    ``check(given)`` (optional) receives {parameter: tuple of the values the scene
+    gives it} and returns problems of cross-parameter rules as "key: message".
     """
 
     name: str
@@ -93,6 +134,8 @@ class ModelSpec:
     outputs: tuple[Output, ...]
     evaluate: Callable = field(repr=False)
     source: str = ""
+    settings: tuple[Setting, ...] = ()
+    check: Callable | None = field(default=None, repr=False)
 
     def param(self, name: str) -> Param:
         return self._params_by_name()[name]

@@ -18,7 +18,11 @@ from .. import status as st
 from .._jit import jit, pjit, prange
 from ..ode import dop853
 from ..special import ellipk
-from ._spec import ModelSpec, Output, Param
+from ._spec import ModelSpec, Output, Param, Setting
+
+# Integration horizon of the period event, in linearised periods 2 pi / w (w^2 = omega^2 + |mu| A^2):
+# near the soft separatrix T grows like log(1 / distance), so 100 is reached only ~e^-200 from it.
+T_MAX_PERIODS = Setting("t_max_periods", 100.0, "1", "integration horizon in linearised periods", 1e-3, 1e9)
 
 # Full output layout of this model's kernels (column k of the internal table).
 OUTPUTS = ("period", "period_exact", "period_error", "v_max", "a_max", "kv", "ka", "epsilon")
@@ -162,13 +166,13 @@ def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
         algebraic_kernel(omega, mu, A, want, table, status)
     if want[K_PERIOD]:
         period_kernel(
-            omega, mu, A, solver.rtol, solver.atol, solver.max_steps, solver.t_max_periods,
+            omega, mu, A, solver.rtol, solver.atol, solver.max_steps, solver.settings["t_max_periods"],
             table, status, n_steps, n_rhs,
         )
     if want[K_PERIOD_ERROR]:
         table[:, K_PERIOD_ERROR] = relative_error(table[:, K_PERIOD], table[:, K_PERIOD_EXACT])
-    for col, name in enumerate(wanted):
-        out[:, col] = table[:, OUTPUTS.index(name)]
+    for name in wanted:
+        out[name][:] = table[:, OUTPUTS.index(name)]
 
 
 def relative_error(value, reference):
@@ -196,4 +200,5 @@ SPEC = ModelSpec(
         Output("epsilon", "ε = μ A² / ω²", "1", "nonlinearity parameter mu A^2 / omega^2"),
     ),
     evaluate=evaluate,
+    settings=(T_MAX_PERIODS,),
 )

@@ -174,7 +174,7 @@ def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
     want_exact = bool(want[K_EXACT_MOMENT])
     if want_period or want_exact:
         integrated_kernel(
-            P, want_period, want_exact, solver.rtol, solver.atol, solver.max_steps, solver.t_max_periods,
+            P, want_period, want_exact, solver.rtol, solver.atol, solver.max_steps, solver.settings["t_max_periods"],
             table, status, n_steps, n_rhs,
         )
     if want[OFF + duf.K_PERIOD_ERROR]:
@@ -183,8 +183,8 @@ def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
         )
     if want[K_TRUNC]:
         table[:, K_TRUNC] = duf.relative_error(table[:, OFF + duf.K_PERIOD_EXACT], table[:, K_EXACT_MOMENT])
-    for col, name in enumerate(wanted):
-        out[:, col] = table[:, OUTPUTS.index(name)]
+    for name in wanted:
+        out[name][:] = table[:, OUTPUTS.index(name)]
 
 
 _DIMENSIONAL = ("R", "c", "I")
@@ -229,4 +229,5 @@ SPEC = ModelSpec(
                needs=("period_exact", "period_exact_moment"), needs_params=("A",)),
     ),
     evaluate=evaluate,
+    settings=(duf.T_MAX_PERIODS,),
 )
