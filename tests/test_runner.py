@@ -71,11 +71,11 @@ def interrupt_after(n_chunks):
     real = runner.evaluate_chunk
     calls = {"n": 0}
 
-    def flaky(scene, chunk):
+    def flaky(scene, chunk, *rest):
         calls["n"] += 1
         if calls["n"] > n_chunks:
             raise KeyboardInterrupt
-        return real(scene, chunk)
+        return real(scene, chunk, *rest)
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(runner, "evaluate_chunk", flaky)
         yield

@@ -82,6 +82,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--format", choices=("png", "svg", "pdf"), default=None, help="figure format (default png)")
     p.add_argument("--kind", default=None, help="which figure, when a dataset has several (see --list)")
     p.add_argument("--list", action="store_true", help="list the figures this dataset can draw")
+    p.add_argument("--point", metavar="KEY=VALUE,...",
+                   help="select one grid point (nearest values), e.g. --point Omega=12.5,m=0.2; "
+                        "draws its time histories when the dataset stores them")
     p.set_defaults(func=_cmd_plot)
 
     p = sub.add_parser("info", help="summarise a stored dataset: dims, outputs, status counts, cost, provenance")
@@ -142,6 +145,8 @@ def _cmd_plot(args) -> int:
     from .store import open_dataset
 
     ds = open_dataset(args.dataset)
+    if args.point:
+        ds = select_point(ds, args.point)
     kinds = figures.available(ds)
     if args.list:
         for k, doc in kinds.items():
@@ -155,6 +160,35 @@ def _cmd_plot(args) -> int:
     for path in written:
         print(f"wrote {path}")
     return 0
+
+
+def select_point(ds, text: str):
+    """The sub-dataset at one grid point, from 'key=value,...' (nearest grid values)."""
+    from .errors import InputError
+
+    wanted = {}
+    for item in filter(None, (part.strip() for part in text.split(","))):
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or key not in ds.dims:
+            raise InputError(f"--point: {item!r} is not KEY=VALUE with KEY one of the grid dimensions "
+                             f"{', '.join(ds.dims)}")
+        if ds[key].dtype.kind in "fiu":
+            try:
+                wanted[key] = [float(value)]
+            except ValueError:
+                raise InputError(f"--point: {key} needs a number, got {value!r}") from None
+        elif value.strip() not in ds[key].values:
+            raise InputError(f"--point: {key} = {value!r} is not in the grid ({', '.join(map(str, ds[key].values))})")
+        else:
+            wanted[key] = [value.strip()]
+    grid_dims = [d for d in ds["status"].dims]
+    missing = [d for d in grid_dims if d not in wanted and ds.sizes[d] > 1]
+    if missing:
+        raise InputError(f"--point: give a value for {', '.join(missing)} too")
+    numeric = {k: v for k, v in wanted.items() if ds[k].dtype.kind in "fiu"}
+    other = {k: v for k, v in wanted.items() if k not in numeric}
+    return ds.sel(numeric, method="nearest").sel(other)
 
 
 def _cmd_info(args) -> int:

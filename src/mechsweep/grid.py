@@ -56,19 +56,32 @@ def default_chunk_target(scene: Scene) -> int:
     return int(min(per_chunk, max(256, scene.n_points // 20)))
 
 
+class ParameterMatrix:
+    """Builds the float64 [n, n_params] parameter rows of any flat range of a scene's grid.
+
+    Axis values are encoded (choices -> indices) once, not per chunk."""
+
+    def __init__(self, scene: Scene):
+        self.shape = scene.shape
+        self.columns = []  # per parameter: ("axis", k, encoded values) or ("const", value)
+        axis_pos = {a.name: k for k, a in enumerate(scene.axes)}
+        for prm in scene.model.params:
+            if prm.name in axis_pos:
+                k = axis_pos[prm.name]
+                self.columns.append(("axis", k, np.array([prm.encode(v) for v in scene.axes[k].values])))
+            elif prm.name in scene.fixed:
+                self.columns.append(("const", prm.encode(scene.fixed[prm.name])))
+            else:
+                self.columns.append(("const", prm.default))
+
+    def __call__(self, start: int, stop: int) -> np.ndarray:
+        P = np.empty((stop - start, len(self.columns)))
+        idx = np.unravel_index(np.arange(start, stop, dtype=np.int64), self.shape) if self.shape else ()
+        for col, spec in enumerate(self.columns):
+            P[:, col] = spec[2][idx[spec[1]]] if spec[0] == "axis" else spec[1]
+        return P
+
+
 def parameter_matrix(scene: Scene, start: int, stop: int) -> np.ndarray:
     """float64 [stop - start, n_params] in the model's declared parameter order."""
-    n = stop - start
-    P = np.empty((n, len(scene.model.params)))
-    axis_pos = {a.name: k for k, a in enumerate(scene.axes)}
-    idx = np.unravel_index(np.arange(start, stop, dtype=np.int64), scene.shape) if scene.axes else ()
-    for col, prm in enumerate(scene.model.params):
-        if prm.name in axis_pos:
-            k = axis_pos[prm.name]
-            encoded = np.array([prm.encode(v) for v in scene.axes[k].values])
-            P[:, col] = encoded[idx[k]]
-        elif prm.name in scene.fixed:
-            P[:, col] = prm.encode(scene.fixed[prm.name])
-        else:
-            P[:, col] = prm.default
-    return P
+    return ParameterMatrix(scene)(start, stop)

@@ -16,7 +16,7 @@ import xarray as xr
 from . import __version__
 from . import status as st
 from .errors import InputError
-from .grid import Chunk, default_chunk_target, parameter_matrix, plan_chunks
+from .grid import Chunk, ParameterMatrix, default_chunk_target, plan_chunks
 from .scene import Scene, load_scene
 from .store import PartialFile, StoreError, discard_partial, layout, open_dataset, partial_path
 
@@ -99,9 +99,9 @@ def extra_shape(scene: Scene, name: str) -> tuple[int, ...]:
     return tuple(len(d.values(settings)) for d in scene.model.output(name).extra_dims)
 
 
-def evaluate_chunk(scene: Scene, chunk: Chunk):
+def evaluate_chunk(scene: Scene, chunk: Chunk, params: ParameterMatrix | None = None):
     """Compute one chunk. Returns (requested outputs by name, status, n_steps, n_rhs)."""
-    P = parameter_matrix(scene, chunk.start, chunk.stop)
+    P = (params or ParameterMatrix(scene))(chunk.start, chunk.stop)
     computed = scene.computed_outputs
     n = chunk.size
     out = {name: np.full((n,) + extra_shape(scene, name), np.nan) for name in computed}
@@ -119,19 +119,40 @@ def evaluate_chunk(scene: Scene, chunk: Chunk):
 
 
 def _run_chunks(scene: Scene, store: PartialFile, todo: list[Chunk], already: int, progress) -> None:
+    """Compute chunks in order; each chunk's write overlaps the next chunk's computation
+    (kernels release the GIL). At most one chunk waits to be written, so memory stays bounded."""
+    from concurrent.futures import ThreadPoolExecutor
+
     from tqdm.auto import tqdm
 
-    bar = tqdm(total=scene.n_points, initial=already, unit="pt", unit_scale=scene.n_points >= 100_000, dynamic_ncols=True,
-               desc=scene.name, disable=(None if progress is None else not progress), smoothing=0.1)
-    try:
-        for chunk in todo:
-            t0 = time.perf_counter()
-            columns, status, n_steps, n_rhs = evaluate_chunk(scene, chunk)
-            store.write_chunk(chunk, columns, status, n_steps, n_rhs)
-            store.add_wall_time(time.perf_counter() - t0)
-            bar.update(chunk.size)
-    finally:
-        bar.close()
+    params = ParameterMatrix(scene)
+    bar = tqdm(total=scene.n_points, initial=already, unit="pt", unit_scale=scene.n_points >= 100_000,
+               dynamic_ncols=True, desc=scene.name, disable=(None if progress is None else not progress),
+               smoothing=0.1)
+    pending = None
+    clock = {"last": time.perf_counter()}
+
+    def write(chunk, result):
+        store.write_chunk(chunk, *result)
+        now = time.perf_counter()  # wall time up to this chunk is saved with it (survives a kill)
+        store.add_wall_time(now - clock["last"])
+        clock["last"] = now
+
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="mechsweep-writer") as writer:
+        try:
+            for chunk in todo:
+                result = evaluate_chunk(scene, chunk, params)
+                if pending is not None:
+                    pending.result()  # raises a write error here, in order
+                    bar.update(pending_size)
+                pending, pending_size = writer.submit(write, chunk, result), chunk.size
+            if pending is not None:
+                pending.result()
+                bar.update(pending_size)
+        finally:
+            if pending is not None and not pending.done():
+                pending.exception()  # let the last write finish before the file is closed
+            bar.close()
 
 
 @contextmanager

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from . import duffing, generic, torsional
+from . import autobalancer, duffing, generic, torsional
 
 # (name, can_draw, draw), most specific first; draw(ds) -> matplotlib Figure
 FIGURES = (
@@ -14,6 +14,9 @@ FIGURES = (
     ("truncation_error", torsional.can_truncation_error, torsional.truncation_error),
     ("amplitude_period", duffing.can_amplitude_period, duffing.amplitude_period),
     ("kinematic_coefficients", duffing.can_kinematic_coefficients, duffing.kinematic_coefficients),
+    ("stability_chart", autobalancer.can_stability_chart, autobalancer.stability_chart),
+    ("residual", autobalancer.can_residual, autobalancer.residual),
+    ("time_history", autobalancer.can_time_history, autobalancer.time_history),
 )
 FALLBACK = ("outputs", generic.can_outputs, generic.outputs)
 
