@@ -22,6 +22,13 @@ def datasets(tmp_path_factory):
                                                 "lambda2": {"start": 0.0, "stop": 2.0, "num": 11}}},
         "torsional_circuit_truncation": {"axes": {"lambda2": {"start": 0.3, "stop": 2.0, "num": 4},
                                                   "A": {"start": 0.05, "stop": 1.0, "num": 5}}},
+        "autobalancer_damping": {"axes": {"Omega": {"start": 10.0, "stop": 60.0, "num": 6},
+                                          "zeta_xi": {"start": 0.01, "stop": 0.3, "num": 3, "spacing": "log"}}},
+        "autobalancer_residual": {"axes": {"Omega": [30.0, 55.0], "A0": [0.1, 0.3]},
+                                  "fixed": {**__import__("tomllib").loads(
+                                      (REPO / "sweeps" / "autobalancer_residual.toml").read_text())["fixed"], "A1": 0.0},
+                                  "solver": {"rtol": 1e-7, "atol": 1e-9, "horizon_revolutions": 60,
+                                             "trajectory_samples": 50}},
     }
     result = {}
     for name, override in small.items():
@@ -35,12 +42,15 @@ def datasets(tmp_path_factory):
     ("quickstart", {"amplitude_period", "kinematic_coefficients"}),
     ("torsional_circuit_nomogram", {"coefficients"}),
     ("torsional_circuit_truncation", {"truncation_error"}),
+    ("autobalancer_damping", {"stability_chart"}),
+    ("autobalancer_residual", {"residual"}),
 ])
 def test_each_dataset_gets_its_figures(datasets, name, kinds):
     assert kinds <= set(figures.available(datasets[name]))
 
 
-@pytest.mark.parametrize("name", ["quickstart", "torsional_circuit_nomogram", "torsional_circuit_truncation"])
+@pytest.mark.parametrize("name", ["quickstart", "torsional_circuit_nomogram", "torsional_circuit_truncation",
+                                  "autobalancer_damping", "autobalancer_residual"])
 def test_axes_are_labelled_with_units(datasets, name):
     """Every axis has labels; a label naming a dimensional variable carries its [unit]."""
     ds = datasets[name]
@@ -72,3 +82,19 @@ def test_figures_do_not_draw_flagged_points(datasets):
 def test_save_writes_files(datasets, tmp_path):
     written = figures.save(datasets["torsional_circuit_nomogram"], tmp_path / "nomo.png")
     assert [p.name for p in written] == ["nomo.png"] and written[0].stat().st_size > 20_000
+
+
+def test_time_history_of_one_point_via_the_cli(datasets, tmp_path, capsys):
+    from mechsweep.cli import main
+
+    data = __import__("tomllib").loads((REPO / "sweeps" / "autobalancer_residual.toml").read_text())
+    data["scene"]["outputs"] = ["xi_history", "eta_history", "phase_error1_history", "phase_error2_history"]
+    data["axes"] = {"Omega": [30.0, 55.0]}
+    data["fixed"]["A0"] = 0.1
+    data["fixed"]["A1"] = 0.0
+    data["solver"].update(horizon_revolutions=20, trajectory_samples=40, rtol=1e-7, atol=1e-9)
+    mechsweep.run(data, output=tmp_path / "h.h5", progress=False)
+    assert main(["plot", str(tmp_path / "h.h5"), "--point", "Omega=54", "-o", str(tmp_path / "h.png")]) == 0
+    assert "h_time_history.png" in capsys.readouterr().out or (tmp_path / "h.png").exists()
+    assert main(["plot", str(tmp_path / "h.h5"), "--point", "Omeg=54"]) == 2
+    assert "grid dimensions Omega" in capsys.readouterr().err

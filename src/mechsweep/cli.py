@@ -112,6 +112,11 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--rtol", type=float, default=None, help="default: the solver default")
     b.add_argument("--atol", type=float, default=None, help="default: the solver default")
     b.set_defaults(func=_cmd_bench)
+    b = bsub.add_parser("autobalancer", help="Floquet chart time (200 x 200) and simulation throughput vs scipy")
+    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
+    b.add_argument("--sim-points", type=int, default=16, help="trajectories simulated by mechsweep (default 16)")
+    b.add_argument("--scipy-points", type=int, default=3, help="of those, solved with scipy too (default 3)")
+    b.set_defaults(func=_cmd_bench_autobalancer)
     b = bsub.add_parser("period-error", help="worst Duffing period error over epsilon for a ladder of tolerances")
     b.set_defaults(func=_cmd_bench_period_error)
     b = bsub.add_parser("quickstart", help="time the quickstart (run + plot) in fresh processes, cold and warm JIT cache")
@@ -234,6 +239,13 @@ def _cmd_bench(args) -> int:
     return 0
 
 
+def _cmd_bench_autobalancer(args) -> int:
+    from .bench import autobalancer
+
+    autobalancer.main(sim_points=args.sim_points, scipy_points=args.scipy_points, threads=args.threads)
+    return 0
+
+
 def _cmd_bench_period_error(args) -> int:
     from .bench import period_error
 
@@ -279,6 +291,8 @@ def describe(ds) -> str:
         v = ds[name].values[ok]
         rng = f"{np.nanmin(v):.6g} .. {np.nanmax(v):.6g}" if v.size else "no ok points"
         lines.append(f"  {name:<20} [{ds[name].attrs.get('units', '')}]  {rng}  {ds[name].attrs.get('long_name', '')}")
+    if "stable_floquet" in ds and "stable_sim" in ds:
+        lines.append("verdicts: " + verdict_agreement(ds))
     total = ds["status"].size
     lines.append("status: " + ", ".join(f"{k} {n} ({100 * n / total:.3g}%)" for k, n in _status_counts(ds).items()))
     if "n_steps" in ds:
@@ -291,6 +305,19 @@ def describe(ds) -> str:
     lines.append("provenance: " + ", ".join(f"{k} {ds.attrs.get(k)}" for k in
                                              ("created", "mechsweep_version", "numba_version", "numpy_version")))
     return "\n".join(lines)
+
+
+def verdict_agreement(ds) -> str:
+    """How often the Floquet and simulation verdicts agree, over points where both exist."""
+    import numpy as np
+
+    fl, sim = ds["stable_floquet"].values.ravel(), ds["stable_sim"].values.ravel()
+    both = np.isfinite(fl) & np.isfinite(sim)
+    agree = int((fl[both] == sim[both]).sum())
+    fl_only = int((np.isfinite(fl) & ~np.isfinite(sim)).sum())
+    return (f"Floquet and simulation agree at {agree} of {int(both.sum())} points with both verdicts; "
+            f"disagree at {int(both.sum()) - agree} (Floquet stable, simulation unstable: "
+            f"{int(((fl == 1) & (sim == 0)).sum())}); {fl_only} points have a Floquet verdict only")
 
 
 def model_text(spec) -> str:

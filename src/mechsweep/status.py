@@ -17,9 +17,9 @@ INFEASIBLE = 4  # parameters outside the model's physical domain at this point
 SINGULAR = 5  # a formula is singular here (e.g. D0 -> 0)
 NOT_OSCILLATORY = 6  # the motion is not an oscillation about phi = 0
 NO_MOTION = 7  # amplitude A = 0: period-based ratios are undefined
-NO_EVENT = 8  # the event (e.g. phi = 0) was not reached before t_max
+NO_EVENT = 8  # an event (period crossing, settling) did not happen within the horizon
 NOT_BALANCEABLE = 9  # no balanced state (A0 > 2 m a or A1 != 0): balanced-state outputs are NaN
-UNDECIDED = 10  # the simulation could not decide stability within the horizon
+UNDECIDED = 10  # stability undecided (simulation inconclusive, or |multiplier| within margin of 1)
 
 MEANINGS: dict[int, str] = {
     PENDING: "pending",
@@ -46,9 +46,9 @@ DESCRIPTIONS: dict[int, str] = {
     SINGULAR: "a formula of the model is singular at this point",
     NOT_OSCILLATORY: "the motion is not an oscillation about phi = 0 (beyond the separatrix)",
     NO_MOTION: "amplitude A = 0: there is no motion, ratios to A are undefined",
-    NO_EVENT: "the period event was not reached within the horizon solver.t_max_periods",
+    NO_EVENT: "an event the output needs (a period crossing, settling) did not happen within the horizon",
     NOT_BALANCEABLE: "no balanced state exists (A0 > 2 m a, A0 = 0 or A1 != 0): balanced-state outputs are NaN",
-    UNDECIDED: "the simulation could not decide stability within the horizon",
+    UNDECIDED: "stability could not be decided: the simulation neither settled nor diverged within the horizon, or floquet_max is within solver.floquet_margin of 1",
 }
 
 DTYPE = np.int8

@@ -31,7 +31,9 @@ def fixed_text(ds, skip=()) -> str:
         v = ds[k].values
         unit = ds[k].attrs.get("units", "")
         val = str(v) if v.dtype.kind in "OUS" else f"{float(v):g}"
-        parts.append(f"{k} = {val}" + (f" {unit}" if unit not in ("", "1") else ""))
+        # non-breaking spaces keep "N m s/rad" on one line when the title wraps
+        text = f"{k} = {val}" + (f" {unit}" if unit not in ("", "1") else "")
+        parts.append(text.replace(" ", "\u00a0"))
     return ", ".join(parts)
 
 
@@ -49,7 +51,7 @@ def new_figure(nrows=1, ncols=1, width=6.4, height=4.2):
 def title(fig, ds, what: str) -> None:
     fixed = fixed_text(ds)
     sub = ds.attrs.get("title", "") + (f": {fixed}" if fixed else "")
-    wrapped = "\n".join(textwrap.wrap(sub, 100))
+    wrapped = "\n".join(textwrap.wrap(sub, int(fig.get_figwidth() * 12)))  # ~12 characters per inch
     fig.suptitle(f"{what}\n{wrapped}", fontsize=11)
 
 

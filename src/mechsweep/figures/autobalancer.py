@@ -25,9 +25,12 @@ def _y_dim(ds, name):
 
 
 def _y(ds, dim):
-    """Second chart axis; the pendulum mass as the mass ratio 2 m / M when M is fixed."""
+    """Second chart axis; a pendulum or platform mass axis is shown as the mass ratio 2 m / M."""
+    ratio = "2 m / M, pendulum mass ratio [1]"
     if dim == "m" and "M" in ds.coords and ds["M"].ndim == 0:
-        return 2.0 * ds["m"].values / float(ds["M"]), "2 m / M, pendulum mass ratio [1]"
+        return 2.0 * ds["m"].values / float(ds["M"]), ratio
+    if dim == "M" and "m" in ds.coords and ds["m"].ndim == 0:
+        return 2.0 * float(ds["m"]) / ds["M"].values, ratio
     return ds[dim].values, label(ds[dim])
 
 
@@ -48,15 +51,15 @@ def stability_chart(ds):
     flagged = np.isnan(verdict)
     if flagged.any():
         ax.pcolormesh(x, y, np.where(flagged, 1.0, np.nan), cmap=ListedColormap(["0.8"]), shading="nearest")
+    handles = [ax.fill_between([], [], color=STABLE_COLORS.colors[1], label="stable (Floquet)"),
+               ax.fill_between([], [], color=STABLE_COLORS.colors[0], label="unstable (Floquet)")]
+    if flagged.any():
+        handles.append(ax.fill_between([], [], color="0.8", label="flagged (see status)"))
     if "floquet_max" in ds:
         fm = ds["floquet_max"].transpose(ydim, "Omega").values
         if np.isfinite(fm).any() and np.nanmin(fm) < 1 < np.nanmax(fm):
             ax.contour(x, y, fm, levels=[1.0], colors="k", linewidths=1.2)
             handles.append(ax.plot([], [], color="k", lw=1.2, label="max |Floquet multiplier| = 1")[0])
-    handles = [ax.fill_between([], [], color=STABLE_COLORS.colors[1], label="stable (Floquet)"),
-               ax.fill_between([], [], color=STABLE_COLORS.colors[0], label="unstable (Floquet)")]
-    if flagged.any():
-        handles.append(ax.fill_between([], [], color="0.8", label="flagged (see status)"))
     for name, style, text in (("omega_xi", "--", "ω_ξ"), ("omega_eta", ":", "ω_η"), ("omega_p", "-.", "ω_p")):
         value = _scalar(ds, name)
         if value is not None:
@@ -80,6 +83,8 @@ def stability_chart(ds):
     ax.set_xlabel(xlab)
     ax.set_ylabel(ylab)
     ax.set_xlim(x.min(), x.max())
+    if ds[ydim].attrs.get("spacing") == "log":
+        ax.set_yscale("log")
     ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     flag_note(ax, ds)
     title(fig, ds, "Stability of the balanced state of the pendulum auto-balancer")
@@ -108,7 +113,9 @@ def residual(ds):
     x, xlab, scale = _x(ds)
     for r, name in enumerate(names):
         ax = axes[r, 0]
-        da = ds[name].where(ds["status"] == 0)
+        # the model keeps what it could compute at a flagged point (e.g. the residual where the
+        # pendulums never settle); NaN marks what it could not, and is not drawn
+        da = ds[name]
         rest = [d for d in da.dims if d != "Omega"]
         members = list(np.ndindex(*(da.sizes[d] for d in rest)))
         step = max(1, len(members) // 8)  # at most ~8 curves stay readable
@@ -126,8 +133,12 @@ def residual(ds):
                 ax.axvline(value / scale, color="0.5", ls=style, lw=0.9)
         ax.set_xlabel(xlab)
         ax.set_ylabel(label(ds[name], width=30))
+        ax.set_xlim(x.min(), x.max())
         ax.grid(True, alpha=0.3)
-        flag_note(ax, ds)
+    bad = int((ds["status"].values != 0).sum())
+    if bad:
+        axes[0, 0].text(0.01, 0.01, f"{bad} point(s) flagged: drawn only where the value could be computed "
+                        "(see the status variable)", transform=axes[0, 0].transAxes, fontsize=7, color="0.35")
     title(fig, ds, "Residual vibration and settling of the pendulum auto-balancer")
     return fig
 

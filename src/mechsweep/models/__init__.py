@@ -1,12 +1,13 @@
 """The models mechsweep knows, by name (an explicit table: no registration by import side effect)."""
 from __future__ import annotations
 
-from . import duffing, torsional_circuit
+from . import autobalancer, duffing, torsional_circuit
 from ._spec import ModelSpec, Output, Param
 
 MODELS: dict[str, ModelSpec] = {
     duffing.SPEC.name: duffing.SPEC,
     torsional_circuit.SPEC.name: torsional_circuit.SPEC,
+    autobalancer.SPEC.name: autobalancer.SPEC,
 }
 
 __all__ = ["MODELS", "ModelSpec", "Output", "Param"]
