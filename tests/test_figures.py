@@ -22,6 +22,13 @@ def datasets(tmp_path_factory):
                                                 "lambda2": {"start": 0.0, "stop": 2.0, "num": 11}}},
         "torsional_circuit_truncation": {"axes": {"lambda2": {"start": 0.3, "stop": 2.0, "num": 4},
                                                   "A": {"start": 0.05, "stop": 1.0, "num": 5}}},
+        "fourbar_methods": {},
+        "fourbar_geometry_family": {"axes": {"a2": {"start": 0.2, "stop": 0.8, "num": 12},
+                                             "a3": {"start": 0.15, "stop": 0.6, "num": 10}}},
+        "fourbar_pareto": {"axes": {"cw1_mr": {"start": 0.0, "stop": 0.4, "num": 5},
+                                    "cw1_angle": {"start": 2.0, "stop": 4.2, "num": 4},
+                                    "cw3_mr": {"start": 0.0, "stop": 0.4, "num": 3}}},
+        "slidercrank_partial": {"axes": {"k": {"start": 0.0, "stop": 1.0, "num": 6}, "lambda": [0.2, 0.4]}},
         "autobalancer_damping": {"axes": {"Omega": {"start": 10.0, "stop": 60.0, "num": 6},
                                           "zeta_xi": {"start": 0.01, "stop": 0.3, "num": 3, "spacing": "log"}}},
         "autobalancer_residual": {"axes": {"Omega": [30.0, 55.0], "A0": [0.1, 0.3]},
@@ -44,13 +51,18 @@ def datasets(tmp_path_factory):
     ("torsional_circuit_truncation", {"truncation_error"}),
     ("autobalancer_damping", {"stability_chart"}),
     ("autobalancer_residual", {"residual"}),
+    ("fourbar_methods", {"moment_methods"}),
+    ("fourbar_geometry_family", {"balancing_map"}),
+    ("fourbar_pareto", {"pareto"}),
+    ("slidercrank_partial", {"slider_residual"}),
 ])
 def test_each_dataset_gets_its_figures(datasets, name, kinds):
     assert kinds <= set(figures.available(datasets[name]))
 
 
 @pytest.mark.parametrize("name", ["quickstart", "torsional_circuit_nomogram", "torsional_circuit_truncation",
-                                  "autobalancer_damping", "autobalancer_residual"])
+                                  "autobalancer_damping", "autobalancer_residual", "fourbar_methods",
+                                  "fourbar_geometry_family", "fourbar_pareto", "slidercrank_partial"])
 def test_axes_are_labelled_with_units(datasets, name):
     """Every axis has labels; a label naming a dimensional variable carries its [unit]."""
     ds = datasets[name]

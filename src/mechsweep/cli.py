@@ -117,6 +117,11 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--sim-points", type=int, default=16, help="trajectories simulated by mechsweep (default 16)")
     b.add_argument("--scipy-points", type=int, default=3, help="of those, solved with scipy too (default 3)")
     b.set_defaults(func=_cmd_bench_autobalancer)
+    b = bsub.add_parser("linkage", help="four-bar residual sweep (360 positions/design): designs/s vs vectorised numpy")
+    b.add_argument("--designs", type=int, default=200_000, help="designs for mechsweep (default 200000)")
+    b.add_argument("--numpy-designs", type=int, default=20_000, help="designs for numpy (default 20000)")
+    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
+    b.set_defaults(func=_cmd_bench_linkage)
     b = bsub.add_parser("period-error", help="worst Duffing period error over epsilon for a ladder of tolerances")
     b.set_defaults(func=_cmd_bench_period_error)
     b = bsub.add_parser("quickstart", help="time the quickstart (run + plot) in fresh processes, cold and warm JIT cache")
@@ -243,6 +248,16 @@ def _cmd_bench_autobalancer(args) -> int:
     from .bench import autobalancer
 
     autobalancer.main(sim_points=args.sim_points, scipy_points=args.scipy_points, threads=args.threads)
+    return 0
+
+
+def _cmd_bench_linkage(args) -> int:
+    import numba
+
+    from .bench import linkage
+
+    linkage.main(designs=args.designs, numpy_designs=args.numpy_designs,
+                 threads=args.threads or numba.config.NUMBA_NUM_THREADS)
     return 0
 
 

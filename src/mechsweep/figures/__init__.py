@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from . import autobalancer, duffing, generic, torsional
+from . import autobalancer, duffing, generic, linkage, torsional
 
 # (name, can_draw, draw), most specific first; draw(ds) -> matplotlib Figure
 FIGURES = (
@@ -17,6 +17,10 @@ FIGURES = (
     ("stability_chart", autobalancer.can_stability_chart, autobalancer.stability_chart),
     ("residual", autobalancer.can_residual, autobalancer.residual),
     ("time_history", autobalancer.can_time_history, autobalancer.time_history),
+    ("moment_methods", linkage.can_moment_methods, linkage.moment_methods),
+    ("balancing_map", linkage.can_balancing_map, linkage.balancing_map),
+    ("slider_residual", linkage.can_slider_residual, linkage.slider_residual),
+    ("pareto", linkage.can_pareto, linkage.pareto),
 )
 FALLBACK = ("outputs", generic.can_outputs, generic.outputs)
 
