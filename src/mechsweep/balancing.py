@@ -30,11 +30,12 @@ from typing import Mapping
 import numpy as np
 
 from . import status as st
+from ._jit import jit
 from .models import _linkage as L
 
 __all__ = [
     "rms_axis_offset", "first_harmonic_axis_offset", "axis_moment", "efficiency",
-    "pareto_front", "weighted_optimum",
+    "periodic_trapezoid_weights", "pareto_front", "weighted_optimum",
     "static_two_point", "dynamic_two_point", "fourbar_counterweights", "slidercrank_counterweight",
     "fourbar_curves", "slidercrank_curves", "evaluate", "N_POSITIONS", "PHI",
 ]
@@ -146,47 +147,61 @@ def efficiency(dM_static, dM_method):
 
 
 # ----------------------------------------------------------------------------- method 5
-def pareto_front(indices, *, block: int = 2048) -> np.ndarray:
+def pareto_front(indices) -> np.ndarray:
     """Boolean mask of the non-dominated rows of ``indices`` [n, k] (every column minimised).
 
     Row a dominates row b if a <= b in every column and a < b in at least one. Rows with a NaN
-    are never on the front (e.g. non-OK grid points); identical rows are all kept. Vectorised:
-    rows are sorted lexicographically (a dominator always sorts first), then checked block by
-    block against the front found so far; cost ~ n * front size * k."""
+    are never on the front (e.g. non-OK grid points); identical rows are all kept. The rows are
+    sorted lexicographically (a dominator always sorts first), then each is checked against the
+    front found so far in one compiled pass, stopping at the first dominator (which is moved to
+    the start of the list, so strong dominators are tried first). Cost: about n x (a few front
+    points) for dominated rows, the front size for front rows (measured: 600,625 rows of 4
+    indices with a front of 11,805 rows in 1.5 s; with the counterweight mass as a 5th index the
+    front has 35,506 rows and takes 11 s)."""
     F = np.asarray(indices, dtype=np.float64)
     if F.ndim == 1:
         F = F[:, None]
     if F.ndim != 2:
         raise ValueError(f"indices must be [n, k], got shape {F.shape}")
-    n = F.shape[0]
-    mask = np.zeros(n, dtype=bool)
+    mask = np.zeros(F.shape[0], dtype=bool)
     good = np.flatnonzero(~np.isnan(F).any(axis=1))
     if good.size == 0:
         return mask
     order = good[np.lexsort(F[good].T[::-1])]
-    G = F[order]
-    front = np.empty((0, F.shape[1]))
-    keep = np.zeros(order.size, dtype=bool)
-    for s in range(0, order.size, block):
-        B = G[s:s + block]
-        dominated = np.zeros(B.shape[0], dtype=bool)
-        if front.shape[0]:
-            step = max(1, 4_000_000 // max(1, front.shape[0] * F.shape[1]))
-            for t in range(0, B.shape[0], step):
-                b = B[t:t + step, None, :]
-                le = (front[None, :, :] <= b).all(axis=2)
-                lt = (front[None, :, :] < b).any(axis=2)
-                dominated[t:t + step] = (le & lt).any(axis=1)
-        cand = np.flatnonzero(~dominated)
-        C = B[cand]
-        le = (C[None, :, :] <= C[:, None, :]).all(axis=2)  # [i, j]: C_j <= C_i everywhere
-        lt = (C[None, :, :] < C[:, None, :]).any(axis=2)
-        inner = (le & lt).any(axis=1)
-        new = cand[~inner]
-        keep[s + new] = True
-        front = np.concatenate([front, B[new]])
-    mask[order[keep]] = True
+    mask[order[_front_of_sorted(np.ascontiguousarray(F[order]))]] = True
     return mask
+
+
+@jit
+def _front_of_sorted(G):
+    """Non-dominated rows of lexicographically sorted G (bool mask in G's order)."""
+    n, k = G.shape
+    keep = np.zeros(n, dtype=np.bool_)
+    front = np.empty(n, dtype=np.int64)  # indices of the front rows found so far, in trial order
+    nf = 0
+    for i in range(n):
+        dominated = False
+        for t in range(nf):
+            j = front[t]
+            le = True
+            lt = False
+            for c in range(k):
+                if G[j, c] > G[i, c]:
+                    le = False
+                    break
+                if G[j, c] < G[i, c]:
+                    lt = True
+            if le and lt:
+                dominated = True
+                if t > 0:  # move the dominator forward
+                    front[t] = front[t // 2]
+                    front[t // 2] = j
+                break
+        if not dominated:
+            keep[i] = True
+            front[nf] = i
+            nf += 1
+    return keep
 
 
 def weighted_optimum(indices, weights) -> int:
