@@ -85,3 +85,15 @@ def test_duffing_horizon_setting_reaches_the_dataset(in_tmp, small_duffing):
     small_duffing["solver"]["t_max_periods"] = 50.0
     ds = mechsweep.run(small_duffing, output="data/runs/h.h5")
     assert ds.attrs["solver_t_max_periods"] == 50.0
+
+
+def test_chunks_shrink_with_extra_dimensions(toy):
+    from mechsweep.grid import CHUNK_VALUES, default_chunk_target
+
+    big = scene(samples=1000)
+    big["axes"] = {"k": {"start": 1.0, "stop": 2.0, "num": 100_000}}
+    target = default_chunk_target(load_scene(big))
+    assert target * 1000 <= CHUNK_VALUES  # a chunk's curves stay within the memory budget
+    small = scene(samples=2)
+    small["axes"] = {"k": {"start": 1.0, "stop": 2.0, "num": 100_000}}
+    assert default_chunk_target(load_scene(small)) > 100 * target

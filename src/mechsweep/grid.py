@@ -48,12 +48,22 @@ def plan_chunks(shape: tuple[int, ...], target: int) -> list[Chunk]:
     return chunks
 
 
+CHUNK_VALUES = 2**22  # float64 values of one chunk's outputs (32 MiB), whatever their extra dims
+
+
 def default_chunk_target(scene: Scene) -> int:
-    """Points per chunk: a few seconds of work, many chunks for the progress bar and resume."""
+    """Points per chunk: a few seconds of work, many chunks for the progress bar and resume,
+    and at most CHUNK_VALUES output values (a 360-position curve counts 360 per point)."""
     if scene.storage.chunk_size:
         return scene.storage.chunk_size
     per_chunk = 8192 if scene.solver is not None else 262_144
-    return int(min(per_chunk, max(256, scene.n_points // 20)))
+    settings = scene.solver.settings if scene.solver is not None else {}
+    values_per_point = sum(
+        int(np.prod([len(d.values(settings)) for d in scene.model.output(name).extra_dims], dtype=np.int64))
+        for name in scene.computed_outputs
+    )
+    per_chunk = min(per_chunk, max(1, CHUNK_VALUES // max(1, values_per_point)))
+    return int(min(per_chunk, max(min(256, per_chunk), scene.n_points // 20)))
 
 
 class ParameterMatrix:
