@@ -19,7 +19,7 @@ def test_shipped_scene_full_size(in_tmp, path):
     assert not (ds["status"].values == st.PENDING).any()
     for name in scene.outputs:
         values = ds[name].values
-        assert np.isfinite(values[ok]).all(), name  # never a NaN or inf with status ok
-        assert np.isnan(values[~ok]).all() or name in ("chi", "xi", "hardness"), name
+        # never a NaN or inf with status ok (a flagged point may keep what could be computed)
+        assert np.isfinite(values[ok]).all(), name
     if "period_error" in ds:
         assert float(ds["period_error"].max()) <= 1e-10 * 1.0001  # promised at rtol 1e-10
