@@ -172,12 +172,17 @@ assert tuple(SCALARS) == L.FOURBAR_OUTPUTS and tuple(CURVES) == L.FOURBAR_CURVES
 
 def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
     """Engine entry point (algebraic: solver is None and unused)."""
-    table, curves, names = run_kernel(L.fourbar_kernel, P, wanted, L.FOURBAR_OUTPUTS, L.FOURBAR_CURVES, status)
+    fill_outputs(L.fourbar_kernel, P, wanted, L.FOURBAR_OUTPUTS, L.FOURBAR_CURVES, status, out)
+
+
+def fill_outputs(kernel, P, wanted, scalar_names, curve_names, status, out):
+    """Run a linkage chunk kernel and copy the wanted scalars and curves into ``out``."""
+    table, curves, names = run_kernel(kernel, P, wanted, scalar_names, curve_names, status)
     for name in wanted:
-        if name in CURVES:
+        if name in curve_names:
             out[name][:] = curves[:, names.index(name), :]
         else:
-            out[name][:] = table[:, L.FOURBAR_OUTPUTS.index(name)]
+            out[name][:] = table[:, scalar_names.index(name)]
 
 
 def run_kernel(kernel, P, wanted, scalar_names, curve_names, status):

@@ -28,7 +28,7 @@ import math
 
 from . import _linkage as L
 from ._spec import ModelSpec, Output, Param
-from .fourbar_balancing import PHI_DIM, run_kernel
+from .fourbar_balancing import PHI_DIM, fill_outputs
 
 _ANGLE = dict(lo=-2.0 * math.pi, hi=2.0 * math.pi)
 
@@ -107,12 +107,7 @@ assert tuple(SCALARS) == L.SLIDER_OUTPUTS and tuple(CURVES) == L.SLIDER_CURVES
 
 def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
     """Engine entry point (algebraic: solver is None and unused)."""
-    table, curves, names = run_kernel(L.slider_kernel, P, wanted, L.SLIDER_OUTPUTS, L.SLIDER_CURVES, status)
-    for name in wanted:
-        if name in CURVES:
-            out[name][:] = curves[:, names.index(name), :]
-        else:
-            out[name][:] = table[:, L.SLIDER_OUTPUTS.index(name)]
+    fill_outputs(L.slider_kernel, P, wanted, L.SLIDER_OUTPUTS, L.SLIDER_CURVES, status, out)
 
 
 def check(given):
