@@ -14,7 +14,7 @@ from mechsweep import runner
 from mechsweep import status as st
 from mechsweep.store import StoreError, partial_path
 
-from .conftest import REPO, SMALL_DUFFING
+from .conftest import REPO
 
 
 def test_dataset_layout(in_tmp, small_duffing):

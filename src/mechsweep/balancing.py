@@ -299,6 +299,14 @@ def _matrix(model: str, params: Mapping):
     return np.ascontiguousarray(P), shape
 
 
+def _motion(phi, phi_d, phi_dd):
+    """Crank angle, speed and acceleration as contiguous float64 arrays of phi's shape."""
+    phi = np.ascontiguousarray(np.atleast_1d(np.asarray(phi, dtype=np.float64)))
+    w1 = np.ascontiguousarray(np.broadcast_to(np.asarray(phi_d, float), phi.shape))
+    al1 = np.ascontiguousarray(np.broadcast_to(np.asarray(phi_dd, float), phi.shape))
+    return phi, w1, al1
+
+
 def fourbar_curves(phi, phi_d, phi_dd=0.0, *, static: bool = False, **params) -> tuple[dict, int]:
     """Kinematics and loads of one four-bar at crank positions phi with phi' = phi_d and
     phi'' = phi_dd (scalars or arrays; any motion law). ``static`` True: with the counterweights of
@@ -308,11 +316,9 @@ def fourbar_curves(phi, phi_d, phi_dd=0.0, *, static: bool = False, **params) ->
     phi3 - phi2), Fx, Fy, M, T as arrays like phi."""
     params.setdefault("omega", 1.0)
     p = _row("fourbar_balancing", params)
-    phi = np.atleast_1d(np.asarray(phi, dtype=np.float64))
-    w1 = np.ascontiguousarray(np.broadcast_to(np.asarray(phi_d, float), phi.shape))
-    al1 = np.ascontiguousarray(np.broadcast_to(np.asarray(phi_dd, float), phi.shape))
+    phi, w1, al1 = _motion(phi, phi_d, phi_dd)
     out = np.full((phi.size, 13), np.nan)
-    code = L.fourbar_curves_at(p, static, np.ascontiguousarray(phi), w1, al1, out)
+    code = L.fourbar_curves_at(p, static, phi, w1, al1, out)
     c = {"phi2": np.arctan2(out[:, 1], out[:, 0]), "phi3": np.arctan2(out[:, 3], out[:, 2])}
     for k, name in enumerate(("omega2", "omega3", "alpha2", "alpha3", "sin_mu", "Fx", "Fy", "M", "T"), start=4):
         c[name] = out[:, k]
@@ -327,11 +333,9 @@ def slidercrank_curves(phi, phi_d, phi_dd=0.0, *, balanced: bool = True, **param
     params.setdefault("omega", 1.0)
     params.setdefault("k", 0.0)
     p = _row("slidercrank_balancing", params)
-    phi = np.atleast_1d(np.asarray(phi, dtype=np.float64))
-    w1 = np.ascontiguousarray(np.broadcast_to(np.asarray(phi_d, float), phi.shape))
-    al1 = np.ascontiguousarray(np.broadcast_to(np.asarray(phi_dd, float), phi.shape))
+    phi, w1, al1 = _motion(phi, phi_d, phi_dd)
     out = np.full((phi.size, 11), np.nan)
-    code = L.slider_curves_at(p, balanced, np.ascontiguousarray(phi), w1, al1, out)
+    code = L.slider_curves_at(p, balanced, phi, w1, al1, out)
     c = {"phi2": np.arctan2(out[:, 1], out[:, 0])}
     for k, name in enumerate(("omega2", "alpha2", "x_B", "v_B", "a_B", "Fx", "Fy", "M", "T"), start=2):
         c[name] = out[:, k]

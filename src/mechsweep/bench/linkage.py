@@ -57,17 +57,16 @@ def numpy_residuals(P: np.ndarray, block: int = 64) -> dict:
     res = {k: np.empty(n) for k in OUTPUTS}
     c1 = L.COS_PHI[None, :]
     s1 = L.SIN_PHI[None, :]
-    N = L.N_POSITIONS
     for s in range(0, n, block):
         p = P[s:s + block]
         col = lambda name: p[:, L.FOURBAR_PARAMS.index(name)][:, None]  # noqa: E731
         a1, a2, a3, a4 = col("a1"), col("a2"), col("a3"), col("a4")
         sigma = 1.0 - 2.0 * col("branch")
         w1 = col("omega")  # constant speed: phi'' = 0
-        m1, r1, th1, I1 = col("m1"), col("r1"), col("theta1"), col("I1")
+        m1, r1, th1 = col("m1"), col("r1"), col("theta1")  # I1: no effect at constant crank speed
         m2, r2, th2, I2 = col("m2"), col("r2"), col("theta2"), col("I2")
         m3, r3, th3, I3 = col("m3"), col("r3"), col("theta3"), col("I3")
-        rc1, rc3 = col("r_cw1"), col("r_cw3")
+        rc3 = col("r_cw3")
         # method 1: counterweights (linearly independent vectors)
         C1x = m2 * a1 * (r2 / a2 * np.cos(th2) - 1.0) - m1 * r1 * np.cos(th1)
         C1y = m2 * a1 * (r2 / a2 * np.sin(th2)) - m1 * r1 * np.sin(th1)

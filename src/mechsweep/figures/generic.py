@@ -1,7 +1,6 @@
 """Fallback figures for any dataset: lines over one axis, maps over two."""
 from __future__ import annotations
 
-import numpy as np
 
 from ._style import flag_note, label, log_or_symlog, new_figure, ok_values, title
 
