@@ -5,8 +5,8 @@
    all numba threads, the solver's tolerances (defaults rtol 5e-11, atol 1e-12). A grid smaller than
    200 x 200 is extrapolated to 200 x 200 by points (and says so).
 2. Direct simulation: the same perturbed-balanced-state simulation as the model's stable_sim
-   (scaled equations, the model's sampling grid), timed on one thread -> accepted steps per second
-   per core; scipy's DOP853 (scipy.integrate.DOP853 stepped like solve_ivp with t_eval, the same
+   (scaled equations, the model's sampling grid), timed on one thread (accepted steps per second
+   per core) and on all numba threads (4x as many points), best of REPEATS runs each; scipy's DOP853 (scipy.integrate.DOP853 stepped like solve_ivp with t_eval, the same
    equations written in Python with math/numpy, the same tolerances) integrates a sample of the
    same trajectories in the same process. Both implement the same step-size control, so their step
    counts agree and the ratio of steps per second is the speed-up at equal accuracy.
@@ -24,6 +24,17 @@ from ..models import autobalancer as ab
 from ..scene import Solver
 
 CHART = 200  # the chart the target refers to: 200 x 200
+REPEATS = 3  # our simulation is timed as the best of this many runs (a run takes ~0.2 s)
+
+
+def _best_of(repeats, func, *args):
+    """(shortest wall time, result) of `repeats` calls: the least disturbed by other processes."""
+    best, result = math.inf, None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        result = func(*args)
+        best = min(best, time.perf_counter() - t0)
+    return best, result
 
 
 def chart_parameters(n_omega: int, n_ratio: int) -> np.ndarray:
@@ -138,14 +149,17 @@ def _main(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
     rng = np.random.default_rng(0)
     pick = np.sort(rng.choice(n, size=min(sim_points, n), replace=False))
     Psim = P[pick]
+    sim_outputs = ("residual_amplitude", "stable_sim")
     numba.set_num_threads(1)
     try:
-        t0 = time.perf_counter()
-        sim, sstatus, sns, snr = run_outputs(Psim, ("residual_amplitude", "stable_sim"), solver)
-        sim_s = time.perf_counter() - t0
+        sim_s, (sim, sstatus, sns, snr) = _best_of(REPEATS, run_outputs, Psim, sim_outputs, solver)
     finally:
         numba.set_num_threads(n_threads)
     ours_steps_per_s = sns.sum() / sim_s
+    # all threads: 4x the points, so that every thread stays busy to the end
+    Pall = P[np.sort(rng.choice(n, size=min(4 * sim_points, n), replace=False))]
+    sim_all_s, (_, _, ans, _) = _best_of(REPEATS, run_outputs, Pall, sim_outputs, solver)
+    ours_all_steps_per_s = ans.sum() / sim_all_s
 
     # scipy on the first scipy_points of those trajectories
     t_eval, *_ = ab.sample_grid(solver.settings, histories=False)
@@ -185,7 +199,8 @@ def _main(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
         "ours_steps_same_trajectories": [int(s) for s in sns[:k_sp]],
         "scipy_steps_per_s": float(scipy_steps_per_s),
         "ratio_vs_scipy_per_core": float(ours_steps_per_s / scipy_steps_per_s),
-        "ratio_vs_scipy_all_threads": float(ours_steps_per_s / scipy_steps_per_s * n_threads),
+        "sim_steps_per_s_all_threads": float(ours_all_steps_per_s),
+        "ratio_vs_scipy_all_threads": float(ours_all_steps_per_s / scipy_steps_per_s),
         "max_residual_difference_m": float(max(diffs)) if diffs else math.nan,
         "rtol": rtol,
         "atol": atol,
@@ -203,14 +218,15 @@ def _print(r: dict, solver) -> None:
           f"{r['threads']} threads{extra}; {r['chart_mean_steps']:.1f} steps/point (64-state variational "
           f"system over one period), {r['chart_ok_fraction'] * 100:.1f}% ok")
     H = solver.settings["horizon_revolutions"]
-    print(f"  direct simulation ({H:g} revolutions, {r['sim_points']} chart points, 1 thread): "
-          f"{r['sim_steps_per_s_per_core']:,.0f} steps/s per core, {r['sim_mean_steps']:.0f} steps/trajectory, "
-          f"{r['sim_s_one_thread'] / r['sim_points'] * 1e3:.1f} ms/trajectory")
+    print(f"  direct simulation ({H:g} revolutions, {r['sim_points']} chart points, best of {REPEATS} runs): "
+          f"{r['sim_steps_per_s_per_core']:,.0f} steps/s on 1 thread, {r['sim_steps_per_s_all_threads']:,.0f} "
+          f"steps/s on {r['threads']} threads; {r['sim_mean_steps']:.0f} steps/trajectory, "
+          f"{r['sim_s_one_thread'] / r['sim_points'] * 1e3:.1f} ms/trajectory on 1 thread")
     print(f"  scipy DOP853 (Python rhs), {r['scipy_trajectories']} of the same trajectories: "
           f"{r['scipy_steps_per_s']:,.0f} steps/s ({r['scipy_mean_steps']:.0f} steps/trajectory; ours "
           f"{r['ours_steps_same_trajectories']})")
-    print(f"  ratio mechsweep / scipy: {r['ratio_vs_scipy_per_core']:,.0f}x per core, "
-          f"{r['ratio_vs_scipy_all_threads']:,.0f}x with all {r['threads']} threads; "
+    print(f"  ratio mechsweep / scipy (one process): {r['ratio_vs_scipy_per_core']:,.0f}x on 1 thread, "
+          f"{r['ratio_vs_scipy_all_threads']:,.0f}x on {r['threads']} threads; "
           f"largest residual_amplitude difference {r['max_residual_difference_m']:.2e} m")
 
 

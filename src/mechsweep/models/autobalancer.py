@@ -117,8 +117,9 @@ import math
 import numpy as np
 
 from .. import status as st
-from .._jit import jit, pjit, prange
+from .._jit import jit, jit_inline, jit_noalloc, pjit, prange
 from ..ode import dop853
+from ..special import sincos
 from ._spec import ExtraDim, ModelSpec, Output, Param, Setting
 
 TWO_PI = 2.0 * math.pi
@@ -146,15 +147,13 @@ SEVERITY = (st.INFEASIBLE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.SIN
 
 
 # ----------------------------------------------------------------------------- kinematics
-@jit
-def conrod_terms(tau, lam):
-    """A1 factors of eq. (1) and (2) (tau-derivatives, Omega = 1):
+@jit_inline
+def conrod_terms(sphi, cphi, lam):
+    """A1 factors of eq. (1) and (2) (tau-derivatives, Omega = 1) from sin and cos of phi = tau:
     (psi'' sin psi + psi'^2 cos psi, psi'' cos psi - psi'^2 sin psi),
     psi from l3 sin(phi) + l4 sin(psi) = 0, cos psi > 0, lam = l3 / l4 < 1."""
     if lam == 0.0:
         return 0.0, 0.0
-    sphi = math.sin(tau)
-    cphi = math.cos(tau)
     spsi = -lam * sphi
     cpsi = math.sqrt(1.0 - spsi * spsi)
     dpsi = -lam * cphi / cpsi
@@ -163,7 +162,7 @@ def conrod_terms(tau, lam):
 
 
 # ----------------------------------------------------------------------------- equations of motion
-@jit
+@jit_inline
 def accelerations(tau, x, y, g1, g2, xd, yd, w1, w2, p):
     """Closed-form solution of the mass-matrix system of eq. (1)-(3) (scaled).
 
@@ -173,18 +172,17 @@ def accelerations(tau, x, y, g1, g2, xd, yd, w1, w2, p):
     mu = p[IP_MU]
     inv = 1.0 / p[IP_IOTA]
     eh = p[IP_EH]
-    s1 = math.sin(g1)
-    k1 = math.cos(g1)
-    s2 = math.sin(g2)
-    k2 = math.cos(g2)
+    s1, k1 = sincos(g1)  # one call for both: trigonometry is half the cost of this function
+    s2, k2 = sincos(g2)
+    st_, ct_ = sincos(tau)
     q1 = -eh * (w1 - 1.0)  # pendulum damping relative to the crank, eq. (3) [fix]
     q2 = -eh * (w2 - 1.0)
-    cx, cy = conrod_terms(tau, p[IP_LAM])
+    cx, cy = conrod_terms(st_, ct_, p[IP_LAM])
     # eq. (1): everything except the acceleration terms, moved to the right-hand side
-    rx = (-p[IP_KX] * x - p[IP_DX] * xd + p[IP_ALPHA0] * math.cos(tau) + p[IP_ALPHA1] * cx
+    rx = (-p[IP_KX] * x - p[IP_DX] * xd + p[IP_ALPHA0] * ct_ + p[IP_ALPHA1] * cx
           + w1 * w1 * k1 + w2 * w2 * k2)
     # eq. (2)
-    ry = (-p[IP_KY] * y - p[IP_DY] * yd + p[IP_ALPHA0] * math.sin(tau) - p[IP_ALPHA1] * cy
+    ry = (-p[IP_KY] * y - p[IP_DY] * yd + p[IP_ALPHA0] * st_ - p[IP_ALPHA1] * cy
           + w1 * w1 * s1 + w2 * w2 * s2)
     # eq. (3) solved for g_i'' and substituted: 2x2 system in x'', y''
     rx += inv * (s1 * q1 + s2 * q2)
@@ -201,7 +199,7 @@ def accelerations(tau, x, y, g1, g2, xd, yd, w1, w2, p):
     return xdd, ydd, g1dd, g2dd, s1, k1, s2, k2, k11, k12, k22, det
 
 
-@jit
+@jit_noalloc
 def rhs(tau, z, p, dz):
     """Scaled state z = (x, y, g1, g2, x', y', g1', g2'), ' = d/dtau, tau = Omega t."""
     xdd, ydd, g1dd, g2dd, _, _, _, _, _, _, _, _ = accelerations(
@@ -216,7 +214,7 @@ def rhs(tau, z, p, dz):
     dz[7] = g2dd
 
 
-@jit
+@jit_inline
 def _jvp(w1, w2, p, xdd, ydd, s1, k1, s2, k2, k11, k12, k22, det, v, out):
     """Directional derivative of the accelerations along v (analytic Jacobian times v).
 
@@ -269,7 +267,7 @@ def jacobian(tau, z, p, J):
             J[r, c] = col[r]
 
 
-@jit
+@jit_noalloc
 def variational_rhs(tau, Y, p, dY):
     """Phi' = J(tau) Phi about the exact balanced solution x = y = 0, g_i = tau + Theta_i,
     g_i' = 1 (eq. (4), (5), (8)); Phi stored column-major: column c is Y[8c:8c+8]."""
@@ -333,13 +331,13 @@ M_E0, M_ELATE, M_RREF, M_RLATE, M_EFINAL, M_TSETTLE, M_EPREV = range(7)
 N_MEAS = 7
 
 
-@jit
+@jit_noalloc
 def wrap(x):
     """x wrapped into [-pi, pi]."""
     return x - TWO_PI * math.floor(x / TWO_PI + 0.5)
 
 
-@jit
+@jit_noalloc
 def phase_errors(tau, g1, g2, th1, th2):
     """Signed phase errors of the two pendulums against the reference angles, for the
     labelling (1->Theta_1, 2->Theta_2 or swapped) with the smaller maximum."""

@@ -49,7 +49,7 @@ import math
 
 import numpy as np
 
-from .._jit import jit
+from .._jit import jit, jit_noalloc
 from ..status import MAX_STEPS, NO_EVENT, NONFINITE, OK, STEP_UNDERFLOW
 from ._dop853_tableau import (
     A,
@@ -106,7 +106,7 @@ def workspace(n):
 # ---------------------------------------------------------------------------
 
 
-@jit
+@jit_noalloc
 def _all_finite(v):
     for i in range(v.size):
         if not math.isfinite(v[i]):
@@ -114,13 +114,13 @@ def _all_finite(v):
     return True
 
 
-@jit
+@jit_noalloc
 def _copy(src, dst):
     for i in range(src.size):
         dst[i] = src[i]
 
 
-@jit
+@jit_noalloc
 def _stage_argument(y, h, work, s, out):
     """out = y + h * sum_{j<s} A[s, j] K[j]: the state at which stage s is evaluated."""
     for i in range(y.size):
@@ -130,7 +130,7 @@ def _stage_argument(y, h, work, s, out):
         out[i] = y[i] + h * acc
 
 
-@jit
+@jit_noalloc
 def _combine_solution(y, h, work, out):
     """out = y + h * sum_j B[j] K[j]: the 8th-order solution."""
     for i in range(y.size):
@@ -140,7 +140,7 @@ def _combine_solution(y, h, work, out):
         out[i] = y[i] + h * acc
 
 
-@jit
+@jit_noalloc
 def _error_norm(y, work, h, rtol, atol):
     """scipy's DOP853 error norm of the step from y to work[Y_NEW] (< 1: accept).
 
@@ -182,7 +182,7 @@ def _rms_scaled_difference(a, b, y, rtol, atol):
     return math.sqrt(acc / a.size)
 
 
-@jit
+@jit_noalloc
 def _step_factor(error_norm, rejected_before):
     """Growth factor after an accepted step (error_norm < 1)."""
     if error_norm == 0.0:
@@ -194,20 +194,20 @@ def _step_factor(error_norm, rejected_before):
     return factor
 
 
-@jit
+@jit_noalloc
 def _min_step(t):
     """Smallest step that still changes t meaningfully (scipy: 10 ulp of t)."""
     return 10.0 * abs(np.nextafter(t, np.inf) - t)
 
 
-@jit
+@jit_noalloc
 def _commit(y, work):
     """Accept the trial step: y <- y_new and, first-same-as-last, K0 <- K12."""
     _copy(work[Y_NEW], y)
     _copy(work[K_FSAL], work[0])
 
 
-@jit
+@jit_noalloc
 def _dense_coefficients(h, y, work):
     """The seven dense-output rows F of dop853 (needs all 16 stages in work)."""
     n = y.size
@@ -226,7 +226,7 @@ def _dense_coefficients(h, y, work):
             work[F_DENSE + 3 + r, i] = h * acc
 
 
-@jit
+@jit_noalloc
 def _interpolate(x, y_old, work, out):
     """State at fraction x of the step (0: y_old, 1: y_new); out may alias y_old.
 
@@ -247,7 +247,7 @@ def _interpolate(x, y_old, work, out):
 
 @functools.cache
 def _make_rk_step(rhs):
-    @jit
+    @jit_noalloc
     def rk_step(t, y, h, p, work):
         """One DOP853 step: stages 1..11, y_new in work[Y_NEW], f(t+h, y_new) in
         work[K_FSAL]. work[0] must hold f(t, y). Costs 12 rhs evaluations."""
@@ -264,7 +264,7 @@ def _make_rk_step(rhs):
 
 @functools.cache
 def _make_start(rhs):
-    @jit
+    @jit_noalloc
     def start(t0, y, p, t_bound, rtol, atol, h0, work):
         """f(t0, y) into work[0] and the first step size (scipy's
         select_initial_step when h0 <= 0). Returns (status, h_abs, n_rhs)."""
@@ -304,7 +304,7 @@ def _make_start(rhs):
 def _make_advance(rhs):
     rk_step = _make_rk_step(rhs)
 
-    @jit
+    @jit_noalloc
     def advance(t, y, p, t_bound, h_abs, rtol, atol, work, budget):
         """The adaptive step shared by every solver: try steps from (t, y) until
         one passes the error test; leave it in work (y itself is not changed:
@@ -348,7 +348,7 @@ def _make_advance(rhs):
 
 @functools.cache
 def _make_dense_output(rhs):
-    @jit
+    @jit_noalloc
     def dense_output(t, h, y, p, work):
         """After an accepted (uncommitted) step from (t, y) of size h: the three
         extra stages and the interpolation rows. Costs 3 rhs evaluations."""
@@ -363,13 +363,13 @@ def _make_dense_output(rhs):
 
 @functools.cache
 def _make_root_locator(event):
-    @jit
+    @jit_noalloc
     def event_on_interpolant(t, t_old, h, y_old, p, work):
         y_at = work[Y_STAGE]  # free once the dense output is built
         _interpolate((t - t_old) / h, y_old, work, y_at)
         return event(t, y_at, p)
 
-    @jit
+    @jit_noalloc
     def locate_root(t_old, h, g_old, t_new, g_new, y_old, p, work):
         """Root of event(t, interpolant(t)) in [t_old, t_new] where g_old > 0 >= g_new.
 
@@ -436,7 +436,7 @@ def make_stepper(rhs):
     """
     rk_step = _make_rk_step(rhs)
 
-    @jit
+    @jit_noalloc
     def step(t, y, f, h, p, rtol, atol, work, y_new, f_new):
         _copy(f, work[0])
         rk_step(t, y, h, p, work)
@@ -460,7 +460,7 @@ def make_solver(rhs):
     start = _make_start(rhs)
     advance = _make_advance(rhs)
 
-    @jit
+    @jit_noalloc
     def solve(t0, y, p, t_end, rtol, atol, h0, max_steps, work):
         status, h_abs, n_rhs = start(t0, y, p, t_end, rtol, atol, h0, work)
         n_steps = 0
@@ -500,7 +500,7 @@ def make_event_solver(rhs, event):
     dense_output = _make_dense_output(rhs)
     locate_root = _make_root_locator(event)
 
-    @jit
+    @jit_noalloc
     def solve(t0, y, p, t_max, rtol, atol, h0, max_steps, work):
         status, h_abs, n_rhs = start(t0, y, p, t_max, rtol, atol, h0, work)
         n_steps = 0
@@ -558,7 +558,7 @@ def make_trajectory_solver(rhs):
     advance = _make_advance(rhs)
     dense_output = _make_dense_output(rhs)
 
-    @jit
+    @jit_noalloc
     def solve(t0, y, p, t_eval, rtol, atol, h0, max_steps, work, out):
         out[:, :] = np.nan
         n_eval = t_eval.size
