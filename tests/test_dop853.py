@@ -364,3 +364,43 @@ def test_prange_caller_matches_serial_calls_bitwise():
         assert st == status.OK
         assert t == t_par[i] and np.array_equal(y, y_par[i]), i
         assert (st, n_steps, n_rhs) == tuple(counts_par[i]), i
+
+
+# ----------------------------------------------------------------------------- stiffness detection
+def test_stiffness_test_stops_van_der_pol_in_its_stiff_phase():
+    """Van der Pol with mu = 1000 is stiff on its slow branches: the explicit step is held at
+    the stability boundary there, and the test must say so instead of grinding on."""
+    solve = make_solver(van_der_pol, stiffness_test=True)
+    y = np.array([2.0, 0.0])
+    code, n_steps, _ = solve(0.0, y, np.array([1000.0]), 3000.0, 1e-6, 1e-9, 0.0, 10**6, workspace(2))
+    assert code == status.STIFF
+    assert n_steps < 2000  # detected early: scipy's DOP853 needs ~10^6 steps for this interval
+    plain = make_solver(van_der_pol)
+    y = np.array([2.0, 0.0])
+    code, _, _ = plain(0.0, y, np.array([1000.0]), 3000.0, 1e-6, 1e-9, 0.0, 5000, workspace(2))
+    assert code == status.MAX_STEPS  # without the test the same budget is simply used up
+
+
+@pytest.mark.parametrize("kind", ["solve", "event", "trajectory"])
+def test_stiffness_test_is_silent_on_a_nonstiff_problem(kind):
+    """1000 periods of a harmonic oscillator, loose and tight tolerances: never STIFF, and the
+    result is identical to the solver without the test."""
+    p = np.array([1.0, -2.0])  # level -2 is never reached: the event solver runs to t_max
+    t_end = 2000 * np.pi
+    for rtol in (1e-4, 1e-12):
+        results = []
+        for test in (False, True):
+            y = np.array([1.0, 0.0])
+            if kind == "solve":
+                r = make_solver(harmonic, stiffness_test=test)(0.0, y, p, t_end, rtol, 1e-14, 0.0, 10**6, workspace(2))
+            elif kind == "event":
+                r = make_event_solver(harmonic, coordinate_above_level, stiffness_test=test)(
+                    0.0, y, p, t_end, rtol, 1e-14, 0.0, 10**6, workspace(2))
+            else:
+                out = np.empty((3, 2))
+                r = make_trajectory_solver(harmonic, stiffness_test=test)(
+                    0.0, y, p, np.array([0.0, 1.0, t_end]), rtol, 1e-14, 0.0, 10**6, workspace(2), out)
+            results.append((r, y.copy()))
+        (r0, y0), (r1, y1) = results
+        assert r1[0] != status.STIFF
+        assert r0 == r1 and np.array_equal(y0, y1)

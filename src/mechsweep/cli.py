@@ -124,6 +124,21 @@ def _parser() -> argparse.ArgumentParser:
     b.set_defaults(func=_cmd_bench_linkage)
     b = bsub.add_parser("period-error", help="worst Duffing period error over epsilon for a ladder of tolerances")
     b.set_defaults(func=_cmd_bench_period_error)
+    b = bsub.add_parser("workprecision", formatter_class=fmt,
+                        help="error against run time for every method, ours and scipy's (DOP853, Radau, LSODA)",
+                        description="Integrate a fixed sample of a scene's grid points with every method the "
+                                    "model offers and with scipy's solve_ivp, over a ladder of tolerances; print "
+                                    "error against time per point and write DIR/workprecision_MODEL.h5 and .csv "
+                                    "(draw it with `mechsweep plot DIR/workprecision_MODEL.h5`).")
+    b.add_argument("model", help="duffing, torsional_circuit or autobalancer")
+    b.add_argument("--scene", default=None, help="draw the sample from this scene (default: the model's reference scene)")
+    b.add_argument("--points", type=int, default=64, help="sample points for mechsweep (default 64)")
+    b.add_argument("--scipy-points", type=int, default=6, help="of those, solved with scipy (default 6)")
+    b.add_argument("--rtol", type=float, nargs="+", default=None, metavar="RTOL",
+                   help="tolerance ladder (default 1e-4 ... 1e-13, one per decade)")
+    b.add_argument("--repeats", type=int, default=3, help="timing repetitions, the fastest counts (default 3)")
+    b.add_argument("--out", default="data/bench", help="output folder (default data/bench)")
+    b.set_defaults(func=_cmd_bench_workprecision)
     b = bsub.add_parser("quickstart", help="time the quickstart (run + plot) in fresh processes, cold and warm JIT cache")
     b.add_argument("--scene", default="sweeps/quickstart.toml")
     b.set_defaults(func=_cmd_bench_quickstart)
@@ -265,6 +280,15 @@ def _cmd_bench_period_error(args) -> int:
     from .bench import period_error
 
     period_error.main()
+    return 0
+
+
+def _cmd_bench_workprecision(args) -> int:
+    from .bench import workprecision
+
+    workprecision.main(args.model, args.scene, points=args.points, scipy_points=args.scipy_points,
+                       ladder=tuple(args.rtol) if args.rtol else workprecision.LADDER, repeats=args.repeats,
+                       out_dir=args.out)
     return 0
 
 

@@ -8,6 +8,9 @@ from __future__ import annotations
 import difflib
 import json
 import math
+import re
+import reprlib
+import sys
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,9 +23,11 @@ from .errors import InputError
 from .models import MODELS, ModelSpec
 
 SECTIONS = ("scene", "axes", "fixed", "solver", "storage")
-METHODS = ("dop853",)
 MAX_POINTS = 2**40  # beyond this a flat int64 index and any disk are hopeless
 MAX_AXIS_POINTS = 10**8
+MAX_KEY_DEPTH = 32  # dotted keys a.b.c...: tomllib's time grows with the square of the depth
+_DEEP_KEY = re.compile(r"(?<![A-Za-z0-9_-])(?:(?:[A-Za-z0-9_-]++|\"[^\"\n]*+\"|'[^'\n]*+')[ \t]*+\.[ \t]*+){%d,}"
+                       % MAX_KEY_DEPTH)
 
 
 class SceneError(InputError):
@@ -139,12 +144,19 @@ def load_scene(source: str | Path | Mapping) -> Scene:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise SceneError([f"{label!r} is not UTF-8 text (byte {exc.start})"], label) from None
+    deep = _DEEP_KEY.search(text)
+    if deep:
+        line = text.count("\n", 0, deep.start()) + 1
+        raise SceneError([f"TOML nesting too deep: a dotted key at line {line} has more than {MAX_KEY_DEPTH} "
+                          "levels"], label)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError([f"TOML syntax error: {exc}"], label) from None
     except RecursionError:
         raise SceneError(["TOML nesting too deep"], label) from None
+    except ValueError as exc:  # e.g. an integer of more than 4300 digits
+        raise SceneError([f"TOML value not readable: {exc}"], label) from None
     return validate(data, text=text, label=label)
 
 
@@ -158,7 +170,7 @@ def validate(data: Mapping, *, text: str, label: str = "scene") -> Scene:
     head = _table(data, "scene", p, required=True)
     name = head.get("name")
     if not isinstance(name, str) or not name.strip():
-        p.add("scene.name", f"{name!r} is not allowed; expected a non-empty string")
+        p.add("scene.name", f"{_short(name)} is not allowed; expected a non-empty string")
     for key in head:
         if key not in ("name", "model", "outputs", "description"):
             p.unknown(f"scene.{key}", key, ("name", "model", "outputs", "description"), "key")
@@ -211,9 +223,43 @@ class _Problems:
         self.items.append(f"{key}: {message}")
 
     def unknown(self, key: str, name, allowed, what: str) -> None:
-        hint = difflib.get_close_matches(str(name), [str(a) for a in allowed], n=1, cutoff=0.5)
+        word = name[:100] if isinstance(name, str) else _short(name)
+        hint = difflib.get_close_matches(word, [str(a) for a in allowed], n=1, cutoff=0.5)
         tip = f"; did you mean {hint[0]!r}?" if hint else ""
-        self.add(key, f"unknown {what} {name!r}{tip} (allowed: {', '.join(map(str, allowed))})")
+        self.add(_short_key(key), f"unknown {what} {_short(name)}{tip} (allowed: {', '.join(map(str, allowed))})")
+
+
+_REPR = reprlib.Repr()
+_REPR.maxstring, _REPR.maxother, _REPR.maxlong, _REPR.maxlevel = 60, 60, 40, 3
+
+
+def _short(value) -> str:
+    """repr(value) cut to a readable length: a scene may hold huge or deeply nested values."""
+    return _REPR.repr(value)
+
+
+def _short_key(key: str) -> str:
+    return key if len(key) <= 120 else key[:60] + "..." + key[-40:]
+
+
+class _Shown:
+    """Stands in for a value whose repr is too long to show in a message."""
+
+    def __init__(self, value):
+        self.text = _short(value)
+
+    def __repr__(self) -> str:
+        return self.text
+
+
+def _value_problem(item, value) -> str | None:
+    """``item.problem(value)`` of a Param or Setting, safe for values it cannot show or convert."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > sys.float_info.max:
+        allowed = item.allowed() if hasattr(item, "allowed") else f"a number in [{item.lo:g}, {item.hi:g}]"
+        return f"{_short(value)} is too large for a float (at most {sys.float_info.max:.4g}); expected {allowed}"
+    if isinstance(value, (list, Mapping)) or (isinstance(value, str) and len(value) > 60):
+        value = _Shown(value)
+    return item.problem(value)
 
 
 def _table(data: Mapping, key: str, p: _Problems, required: bool = False) -> Mapping:
@@ -223,7 +269,7 @@ def _table(data: Mapping, key: str, p: _Problems, required: bool = False) -> Map
             p.add(key, "missing section [" + key + "]")
         return {}
     if not isinstance(value, Mapping):
-        p.add(key, f"expected a table [{key}], got {type(value).__name__} {value!r}")
+        p.add(key, f"expected a table [{key}], got {type(value).__name__} {_short(value)}")
         return {}
     return value
 
@@ -241,7 +287,7 @@ def _model(name, p: _Problems) -> ModelSpec | None:
 def _outputs(value, model: ModelSpec, p: _Problems) -> tuple[str, ...]:
     names = model.output_names()
     if not isinstance(value, list) or not value:
-        p.add("scene.outputs", f"{value!r} is not allowed; expected a non-empty list of output names "
+        p.add("scene.outputs", f"{_short(value)} is not allowed; expected a non-empty list of output names "
               f"from {', '.join(names)}")
         return ()
     good = []
@@ -257,6 +303,14 @@ def _outputs(value, model: ModelSpec, p: _Problems) -> tuple[str, ...]:
 
 def _axes(table: Mapping, model: ModelSpec, p: _Problems) -> list[Axis]:
     axes = []
+    # refuse a hopeless grid before building its axes (10^8 values take seconds and gigabytes)
+    sizes = [spec.get("num") if isinstance(spec, Mapping) else len(spec) if isinstance(spec, list) else 1
+             for spec in table.values()]
+    n = math.prod(k if isinstance(k, int) and not isinstance(k, bool) and k >= 1 else 1 for k in sizes)
+    if n > MAX_POINTS:
+        p.add("axes", f"the grid would have {n:.3g} points "
+              f"({' x '.join(f'{name} {k}' for name, k in zip(table, sizes))}); at most {MAX_POINTS:.3g} are allowed")
+        return axes
     for name, spec in table.items():
         key = f"axes.{name}"
         if name not in model.param_names():
@@ -268,7 +322,7 @@ def _axes(table: Mapping, model: ModelSpec, p: _Problems) -> list[Axis]:
         elif isinstance(spec, Mapping):
             axis = _range_axis(key, name, spec, prm, p)
         else:
-            p.add(key, f"{spec!r} is not allowed; expected a list of values or a table "
+            p.add(_short_key(key), f"{_short(spec)} is not allowed; expected a list of values or a table "
                   "{ start, stop, num, spacing }")
             axis = None
         if axis is not None:
@@ -283,7 +337,7 @@ def _list_axis(key, name, values, prm, p) -> Axis | None:
     if len(values) > MAX_AXIS_POINTS:
         p.add(key, f"{len(values)} values; at most {MAX_AXIS_POINTS} per axis")
         return None
-    bad = [(i, prm.problem(v)) for i, v in enumerate(values)]
+    bad = [(i, _value_problem(prm, v)) for i, v in enumerate(values)]
     bad = [(i, msg) for i, msg in bad if msg]
     for i, msg in bad[:3]:
         p.add(f"{key}[{i}]", msg)
@@ -310,13 +364,13 @@ def _range_axis(key, name, spec, prm, p) -> Axis | None:
             p.add(f"{key}.{end}", "missing")
             ok = False
         else:
-            msg = prm.problem(spec[end])
+            msg = _value_problem(prm, spec[end])
             if msg:
                 p.add(f"{key}.{end}", msg)
                 ok = False
     num = spec.get("num")
     if isinstance(num, bool) or not isinstance(num, int) or not 1 <= num <= MAX_AXIS_POINTS:
-        p.add(f"{key}.num", f"{num!r} is not allowed; expected a whole number in [1, {MAX_AXIS_POINTS}]")
+        p.add(f"{key}.num", f"{_short(num)} is not allowed; expected a whole number in [1, {MAX_AXIS_POINTS}]")
         ok = False
     spacing = spec.get("spacing", "linear")
     if spacing not in ("linear", "log"):
@@ -335,7 +389,15 @@ def _range_axis(key, name, spec, prm, p) -> Axis | None:
         values = np.geomspace(start, stop, num)
         values[0], values[-1] = start, stop  # exact ends, as the user wrote them
     else:
-        values = np.linspace(start, stop, num)
+        with np.errstate(over="ignore", invalid="ignore"):
+            values = np.linspace(start, stop, num)
+    if not np.isfinite(values).all():
+        p.add(key, f"start = {start:g}, stop = {stop:g}: the span overflows a float; narrow the range")
+        return None
+    if num > 1 and not (np.diff(values) != 0).all():
+        p.add(key, f"start = {start!r}, stop = {stop!r} with num = {num}: the values repeat at float precision; "
+              "widen the range or lower num")
+        return None
     return Axis(name, tuple(float(v) for v in values), spacing)
 
 
@@ -349,7 +411,7 @@ def _fixed(table: Mapping, model: ModelSpec, axis_names: set, p: _Problems) -> d
         if name in axis_names:
             p.add(key, f"{name} is given both as an axis and as a fixed value; keep one")
             continue
-        msg = model.param(name).problem(value)
+        msg = _value_problem(model.param(name), value)
         if msg:
             p.add(key, msg)
             continue
@@ -365,8 +427,8 @@ def _solver(table: Mapping, model: ModelSpec, p: _Problems) -> Solver:
     for k, v in table.items():
         key = f"solver.{k}"
         if k == "method":
-            if v not in METHODS:
-                p.unknown(key, v, METHODS, "method")
+            if v not in model.methods:
+                p.unknown(key, v, model.methods, f"method of {model.name!r}")
             else:
                 values[k] = v
         elif k in SOLVER_LIMITS:
@@ -374,13 +436,13 @@ def _solver(table: Mapping, model: ModelSpec, p: _Problems) -> Solver:
             want_int = k == "max_steps"
             kind = "a whole number" if want_int else "a number"
             if isinstance(v, bool) or not isinstance(v, (int, float)) or (want_int and not isinstance(v, int)):
-                p.add(key, f"{v!r} is not allowed; expected {kind} in [{lo:g}, {hi:g}]")
-            elif not math.isfinite(float(v)) or not lo <= v <= hi:
-                p.add(key, f"{v!r} is outside the allowed range [{lo:g}, {hi:g}]")
+                p.add(key, f"{_short(v)} is not allowed; expected {kind} in [{lo:g}, {hi:g}]")
+            elif not lo <= v <= hi or not math.isfinite(v):  # compares a huge int without float()
+                p.add(key, f"{_short(v)} is outside the allowed range [{lo:g}, {hi:g}]")
             else:
                 values[k] = int(v) if want_int else float(v)
         elif k in own:
-            msg = own[k].problem(v)
+            msg = _value_problem(own[k], v)
             if msg:
                 p.add(key, msg)
             else:
@@ -397,10 +459,15 @@ def _storage(table: Mapping, name: str, p: _Problems) -> Storage:
         if k not in ("path", "chunk_size"):
             p.unknown(f"storage.{k}", k, ("path", "chunk_size"), "storage key")
     if not isinstance(path, str) or not path.strip():
-        p.add("storage.path", f"{path!r} is not allowed; expected a file path string")
+        p.add("storage.path", f"{_short(path)} is not allowed; expected a file path string")
         path = "invalid"
+    elif "\0" in path:
+        p.add("storage.path", f"{_short(path)} contains a NUL character; expected a file path")
+    elif path.endswith(("/", "\\")):
+        p.add("storage.path", f"{_short(path)} ends with a path separator; give a file path such as "
+              f"{path.rstrip('/')}/run.h5, not a folder")
     if chunk is not None and (isinstance(chunk, bool) or not isinstance(chunk, int) or not 1 <= chunk <= 2**31):
-        p.add("storage.chunk_size", f"{chunk!r} is not allowed; expected a whole number in [1, 2147483648]")
+        p.add("storage.chunk_size", f"{_short(chunk)} is not allowed; expected a whole number in [1, 2147483648]")
         chunk = None
     return Storage(path=path, chunk_size=chunk)
 

@@ -20,6 +20,7 @@ NO_MOTION = 7  # amplitude A = 0: period-based ratios are undefined
 NO_EVENT = 8  # an event (period crossing, settling) did not happen within the horizon
 NOT_BALANCEABLE = 9  # no balanced state (A0 > 2 m a or A1 != 0): balanced-state outputs are NaN
 UNDECIDED = 10  # stability undecided (simulation inconclusive, or |multiplier| within margin of 1)
+STIFF = 11  # the explicit method detected stiffness and no implicit method was allowed to take over
 
 MEANINGS: dict[int, str] = {
     PENDING: "pending",
@@ -34,6 +35,7 @@ MEANINGS: dict[int, str] = {
     NO_EVENT: "no_event",
     NOT_BALANCEABLE: "not_balanceable",
     UNDECIDED: "undecided",
+    STIFF: "stiff",
 }
 
 DESCRIPTIONS: dict[int, str] = {
@@ -49,6 +51,7 @@ DESCRIPTIONS: dict[int, str] = {
     NO_EVENT: "an event the output needs (a period crossing, settling) did not happen within the horizon",
     NOT_BALANCEABLE: "no balanced state exists (A0 > 2 m a, A0 = 0 or A1 != 0): balanced-state outputs are NaN",
     UNDECIDED: "stability could not be decided: the simulation neither settled nor diverged within the horizon, or floquet_max is within solver.floquet_margin of 1",
+    STIFF: "the problem is stiff at this point and the explicit method stopped (use method = \"auto\" or \"radau\")",
 }
 
 DTYPE = np.int8

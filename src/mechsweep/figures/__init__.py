@@ -6,10 +6,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from . import autobalancer, duffing, generic, linkage, torsional
+from . import autobalancer, duffing, generic, linkage, torsional, workprecision
 
 # (name, can_draw, draw), most specific first; draw(ds) -> matplotlib Figure
 FIGURES = (
+    ("workprecision", workprecision.can_workprecision, workprecision.workprecision),
     ("coefficients", torsional.can_coefficients, torsional.coefficients),
     ("truncation_error", torsional.can_truncation_error, torsional.truncation_error),
     ("amplitude_period", duffing.can_amplitude_period, duffing.amplitude_period),

@@ -126,6 +126,7 @@ class ModelSpec:
 
     ``check(given)`` (optional) receives {parameter: tuple of the values the scene
     gives it} and returns problems of cross-parameter rules as "key: message".
+    ``methods``: the values of ``solver.method`` this model's integrated outputs support.
     """
 
     name: str
@@ -136,6 +137,7 @@ class ModelSpec:
     source: str = ""
     settings: tuple[Setting, ...] = ()
     check: Callable | None = field(default=None, repr=False)
+    methods: tuple[str, ...] = ("dop853",)  # integration methods `evaluate` offers (solver.method)
 
     def param(self, name: str) -> Param:
         return self._params_by_name()[name]

@@ -50,7 +50,7 @@ import math
 import numpy as np
 
 from .._jit import jit, jit_noalloc
-from ..status import MAX_STEPS, NO_EVENT, NONFINITE, OK, STEP_UNDERFLOW
+from ..status import MAX_STEPS, NO_EVENT, NONFINITE, OK, STEP_UNDERFLOW, STIFF
 from ._dop853_tableau import (
     A,
     B,
@@ -77,6 +77,15 @@ SAFETY = 0.9
 MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
 ERROR_EXPONENT = -1.0 / 8.0  # -1 / (error estimator order 7 + 1)
+
+# Stiffness detection of dop853.f (Hairer & Wanner, Solving ODEs II, IV.2): after an accepted
+# step, h * |f(y_new) - f(y_12)| / |y_new - y_12| estimates |h lambda| of the dominant eigenvalue
+# from the last two stages (both at t + h); the step sits on the stability boundary when it
+# exceeds 6.1. Fifteen such steps (counting reset after six that are not) mean the step size is
+# limited by stability, not accuracy: the problem is stiff there.
+STIFF_H_LAMBDA = 6.1
+STIFF_STEPS = 15
+NONSTIFF_RESET = 6
 
 # Root finding on the interpolant: Brent's method, relative tolerance as in
 # scipy.optimize.brentq; 100 iterations are far more than it ever needs.
@@ -198,6 +207,23 @@ def _step_factor(error_norm, rejected_before):
 def _min_step(t):
     """Smallest step that still changes t meaningfully (scipy: 10 ulp of t)."""
     return 10.0 * abs(np.nextafter(t, np.inf) - t)
+
+
+@jit_noalloc
+def _stiffness_update(h, work, stiff_count, nonstiff_count):
+    """Hairer's stiffness test after an accepted (uncommitted) step; returns the new counters.
+    stiff_count reaching STIFF_STEPS means the problem is stiff. Needs work as rk_step left it."""
+    num = 0.0
+    den = 0.0
+    for i in range(work.shape[1]):
+        num += (work[K_FSAL, i] - work[N_STAGES - 1, i]) ** 2
+        den += (work[Y_NEW, i] - work[Y_STAGE, i]) ** 2
+    if den > 0.0 and abs(h) * math.sqrt(num / den) > STIFF_H_LAMBDA:
+        return stiff_count + 1, 0
+    nonstiff_count += 1
+    if nonstiff_count >= NONSTIFF_RESET:
+        return 0, nonstiff_count
+    return stiff_count, nonstiff_count
 
 
 @jit_noalloc
@@ -448,14 +474,15 @@ def make_stepper(rhs):
 
 
 @functools.cache
-def make_solver(rhs):
+def make_solver(rhs, stiffness_test=False):
     """Jitted ``solve(t0, y, p, t_end, rtol, atol, h0, max_steps, work)
     -> (status, n_steps, n_rhs)``.
 
     Integrates from t0 to exactly t_end (last step clipped), y in place.
     h0 <= 0 selects the first step automatically. n_steps counts accepted
     steps, n_rhs right-hand-side evaluations. On failure y holds the last
-    accepted state.
+    accepted state. With ``stiffness_test`` the solver stops with STIFF when
+    Hairer's test finds the step size limited by stability (see STIFF_H_LAMBDA).
     """
     start = _make_start(rhs)
     advance = _make_advance(rhs)
@@ -465,6 +492,8 @@ def make_solver(rhs):
         status, h_abs, n_rhs = start(t0, y, p, t_end, rtol, atol, h0, work)
         n_steps = 0
         n_attempts = 0
+        n_stiff = 0
+        n_nonstiff = 0
         t = t0
         while status == OK and t < t_end:
             status, t_new, h_abs, attempts = advance(
@@ -473,16 +502,20 @@ def make_solver(rhs):
             n_attempts += attempts
             n_rhs += N_STAGES * attempts
             if status == OK:
+                if stiffness_test:
+                    n_stiff, n_nonstiff = _stiffness_update(t_new - t, work, n_stiff, n_nonstiff)
                 _commit(y, work)
                 t = t_new
                 n_steps += 1
+                if stiffness_test and n_stiff >= STIFF_STEPS and t < t_end:
+                    return STIFF, n_steps, n_rhs
         return status, n_steps, n_rhs
 
     return solve
 
 
 @functools.cache
-def make_event_solver(rhs, event):
+def make_event_solver(rhs, event, stiffness_test=False):
     """Jitted ``solve(t0, y, p, t_max, rtol, atol, h0, max_steps, work)
     -> (status, t, n_steps, n_rhs)``.
 
@@ -493,7 +526,7 @@ def make_event_solver(rhs, event):
     only, so two roots inside one step are missed (step sizes are set by the
     tolerance, not by the event). Without an event before t_max: (NO_EVENT,
     t_max, ...) with y at t_max. On failure: (status, t of the last accepted
-    step, ...) with y there.
+    step, ...) with y there; with ``stiffness_test`` that includes (STIFF, ...).
     """
     start = _make_start(rhs)
     advance = _make_advance(rhs)
@@ -505,6 +538,8 @@ def make_event_solver(rhs, event):
         status, h_abs, n_rhs = start(t0, y, p, t_max, rtol, atol, h0, work)
         n_steps = 0
         n_attempts = 0
+        n_stiff = 0
+        n_nonstiff = 0
         t = t0
         if status != OK:
             return status, t, n_steps, n_rhs
@@ -526,9 +561,13 @@ def make_event_solver(rhs, event):
                 t_root = locate_root(t, h, g_old, t_new, g_new, y, p, work)
                 _interpolate((t_root - t) / h, y, work, y)
                 return OK, t_root, n_steps, n_rhs
+            if stiffness_test:
+                n_stiff, n_nonstiff = _stiffness_update(t_new - t, work, n_stiff, n_nonstiff)
             _commit(y, work)
             t = t_new
             g_old = g_new
+            if stiffness_test and n_stiff >= STIFF_STEPS and t < t_max:
+                return STIFF, t, n_steps, n_rhs
         return NO_EVENT, t, n_steps, n_rhs
 
     return solve
@@ -544,7 +583,7 @@ def _store_rows_at_step_end(t_eval, k, t_new, y_new, out):
 
 
 @functools.cache
-def make_trajectory_solver(rhs):
+def make_trajectory_solver(rhs, stiffness_test=False):
     """Jitted ``solve(t0, y, p, t_eval, rtol, atol, h0, max_steps, work, out)
     -> (status, n_steps, n_rhs)``.
 
@@ -552,7 +591,8 @@ def make_trajectory_solver(rhs):
     out[k] is the state at t_eval[k], from the dense output of the step that
     contains it (3 extra rhs evaluations per such step) or the exact step end.
     Integration stops at t_eval[-1], where y ends. On failure the rows not
-    reached are NaN and y holds the last accepted state.
+    reached are NaN and y holds the last accepted state (``stiffness_test``: STIFF
+    is such a failure).
     """
     start = _make_start(rhs)
     advance = _make_advance(rhs)
@@ -572,6 +612,8 @@ def make_trajectory_solver(rhs):
         status, h_abs, n_rhs = start(t0, y, p, t_end, rtol, atol, h0, work)
         n_steps = 0
         n_attempts = 0
+        n_stiff = 0
+        n_nonstiff = 0
         t = t0
         while status == OK and t < t_end:
             status, t_new, h_abs, attempts = advance(
@@ -582,6 +624,8 @@ def make_trajectory_solver(rhs):
             if status != OK:
                 break
             n_steps += 1
+            if stiffness_test:  # before the dense output, which reuses the stage-12 argument row
+                n_stiff, n_nonstiff = _stiffness_update(t_new - t, work, n_stiff, n_nonstiff)
             if k < n_eval and t_eval[k] < t_new:  # output points inside this step
                 h = t_new - t
                 dense_output(t, h, y, p, work)
@@ -592,6 +636,8 @@ def make_trajectory_solver(rhs):
             k = _store_rows_at_step_end(t_eval, k, t_new, work[Y_NEW], out)
             _commit(y, work)
             t = t_new
+            if stiffness_test and n_stiff >= STIFF_STEPS and t < t_end:
+                return STIFF, n_steps, n_rhs
         return status, n_steps, n_rhs
 
     return solve

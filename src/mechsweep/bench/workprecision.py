@@ -1,0 +1,340 @@
+"""`mechsweep bench workprecision MODEL`: error against run time for every method, ours and scipy's.
+
+A fixed sample of grid points (drawn with a fixed seed from the model's reference scene, or from
+--scene) is integrated by every method the model offers (``SPEC.methods``) and by scipy's
+solve_ivp (DOP853, Radau, LSODA) over a ladder of tolerances, in the same process:
+
+- error: of one integrated output per model, against the best reference available
+  (``CASES``: a closed form where one exists, otherwise scipy's DOP853 at rtol 1e-13, an
+  implementation independent of ours); the maximum and the median over the sample;
+- time: wall time per point after JIT compilation (the compile or cache-load time of the first
+  call is reported separately), the minimum of ``repeats`` runs; ours runs the whole sample
+  through the model's ``evaluate`` on one thread (what a sweep does, per core); scipy runs
+  ``scipy_points`` of the points one by one with the model's jitted right-hand side (scipy's
+  best case: its Python-level stepping is then the whole cost), and stops a scipy method's
+  ladder once a rung costs more than ``scipy_budget_s`` per point (said in the report);
+- errors of all methods are compared on the points scipy solved; ours also over the whole sample;
+- cost: accepted steps and right-hand-side evaluations per point.
+
+The result is an xarray Dataset (dims integrator x rtol) written to DIR/workprecision_MODEL.h5 and
+.csv; ``mechsweep plot DIR/workprecision_MODEL.h5`` draws error against time from it.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numba
+import numpy as np
+
+from .. import status as st
+from ..grid import ParameterMatrix
+from ..models import MODELS
+from ..scene import Scene, Solver, load_scene
+
+ROOT = Path(__file__).resolve().parents[3]
+LADDER = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13)
+ATOL_RATIO = 1e-2  # atol = 1e-2 rtol: the scaled states are O(1)
+SCIPY_METHODS = ("DOP853", "Radau", "LSODA")
+REFERENCE_RTOL = 1e-13
+
+
+@dataclass(frozen=True)
+class Case:
+    """What is measured for one model."""
+
+    scene: str  # default scene the sample is drawn from
+    output: str  # integrated output whose error is measured
+    error: str  # "relative" or "absolute"
+    norm: str  # what the error means, for the report
+    reference: Callable  # P -> reference values (n,)
+    reference_name: str
+    scipy_value: Callable  # (P row, method, rtol, atol) -> (value, n_rhs, accepted steps)
+
+
+# ----------------------------------------------------------------------------- scipy adapters
+def _scipy_rhs(rhs, p):
+    """solve_ivp's f(t, y) from a mechsweep jitted rhs(t, y, p, dydt)."""
+    def f(t, y):
+        d = np.empty_like(y)
+        rhs(t, y, p, d)
+        return d
+    return f
+
+
+def _quarter_period(rhs, p, method, rtol, atol, t_max, jac=None):
+    from scipy.integrate import solve_ivp
+
+    def crossing(t, y):
+        return y[0]
+    crossing.terminal = True
+    crossing.direction = -1
+    kw = {"jac": jac} if (jac is not None and method != "DOP853") else {}
+    sol = solve_ivp(_scipy_rhs(rhs, p), (0.0, t_max), np.array([1.0, 0.0]), method=method, rtol=rtol,
+                    atol=atol, events=crossing, **kw)
+    if sol.status != 1 or not sol.t_events[0].size:
+        return math.nan, sol.nfev, sol.t.size - 1
+    return float(sol.t_events[0][0]), sol.nfev, sol.t.size - 1
+
+
+def _duffing_scaled(row):
+    omega, mu, A = row[:3]
+    w2 = omega * omega + abs(mu) * A * A
+    return np.array([omega * omega / w2, mu * A * A / w2]), math.sqrt(w2)
+
+
+def _duffing_scipy(row, method, rtol, atol):
+    from ..models import duffing
+
+    p, w = _duffing_scaled(row)
+
+    def jac(t, y):
+        return np.array([[0.0, 1.0], [-p[0] - 3.0 * p[1] * y[0] * y[0], 0.0]])
+    tq, nfev, steps = _quarter_period(duffing._scaled_rhs, p, method, rtol, atol, 200.0 * math.pi, jac)
+    return 4.0 * tq / w, nfev, steps
+
+
+def _duffing_reference(P):
+    from ..models import duffing
+
+    return np.array([duffing.period_closed_form(r[0] * r[0], r[1], r[2]) for r in P])
+
+
+def _torsional_scaled(P, i):
+    from ..models import torsional_circuit as tc
+
+    code, sigma, lam1, lam2, s, k, chi, xi, A = tc._point_coefficients(P, i)
+    w2 = k * (chi + abs(xi) * A * A)  # as integrate_exact_period
+    base = 1.0 + lam1 * lam1 + lam2 * lam2
+    p = np.array([sigma, lam1, base, math.sqrt(base - 2.0 * sigma * lam1) - sigma * s, A, k / (w2 * A)])
+    return code, p, math.sqrt(w2)
+
+
+def _torsional_value(P, i, method, rtol, atol):
+    from ..models import torsional_circuit as tc
+
+    code, p, w = _torsional_scaled(P, i)
+    if code != st.OK:
+        return math.nan, 0, 0
+    tq, nfev, steps = _quarter_period(tc._exact_rhs, p, method, rtol, atol, 200.0 * math.pi)
+    return 4.0 * tq / w, nfev, steps
+
+
+def _torsional_scipy(row, method, rtol, atol):
+    return _torsional_value(row[None, :], 0, method, rtol, atol)
+
+
+def _torsional_reference(P):
+    return np.array([_torsional_value(P, i, "DOP853", REFERENCE_RTOL, REFERENCE_RTOL * 1e-2)[0]
+                     for i in range(P.shape[0])])
+
+
+def _autobalancer_pp(row):
+    from ..models import autobalancer as ab
+
+    P = row[None, :]
+    col = {name: P[:, j] for j, name in enumerate(ab.PARAM_NAMES)}
+    pf = ab.platform(P)
+    theta = np.arccos(-col["A0"] / (2 * col["m"] * col["a"]))
+    return ab.scaled_parameters(col["Omega"], col["M"], col["m"], col["a"], col["I_B"], col["A0"], 0.0, 0.0,
+                                pf["c_xi"], pf["c_eta"], pf["b_xi"], pf["b_eta"], col["h"], theta, -theta)[0]
+
+
+def _floquet_scipy(row, method, rtol, atol):
+    from scipy.integrate import solve_ivp
+    from scipy.linalg import block_diag
+
+    from ..models import autobalancer as ab
+
+    p = _autobalancer_pp(row)
+    J = np.empty((8, 8))
+
+    def jac(t, Y):  # the variational system is linear: block diagonal with J(tau) about the orbit
+        z = np.array([0.0, 0.0, t + p[ab.IP_TH1], t + p[ab.IP_TH2], 0.0, 0.0, 1.0, 1.0])
+        ab.jacobian(t, z, p, J)
+        return block_diag(*([J] * 8))
+    kw = {"jac": jac} if method != "DOP853" else {}
+    sol = solve_ivp(_scipy_rhs(ab.variational_rhs, p), (0.0, 2 * math.pi), np.eye(8).T.ravel(), method=method,
+                    rtol=rtol, atol=atol, **kw)
+    if sol.status != 0:
+        return math.nan, sol.nfev, sol.t.size - 1
+    mono = sol.y[:, -1].reshape(8, 8).T  # column c is Y[8c:8c+8]
+    return float(np.abs(np.linalg.eigvals(mono)).max()), sol.nfev, sol.t.size - 1
+
+
+def _floquet_reference(P):
+    return np.array([_floquet_scipy(r, "DOP853", REFERENCE_RTOL, REFERENCE_RTOL * 1e-2)[0] for r in P])
+
+
+CASES = {
+    "duffing": Case("sweeps/duffing_amplitude_period.toml", "period", "relative",
+                    "relative period error |T - T_exact| / T_exact", _duffing_reference,
+                    "closed form 4 K(m) / sqrt(omega^2 + mu A^2)", _duffing_scipy),
+    "torsional_circuit": Case("sweeps/torsional_circuit_truncation.toml", "period_exact_moment", "relative",
+                              "relative error of the period with the exact spring moment", _torsional_reference,
+                              f"scipy DOP853 at rtol {REFERENCE_RTOL:g}", _torsional_scipy),
+    "autobalancer": Case("sweeps/autobalancer_stability_chart.toml", "floquet_max", "absolute",
+                         "absolute error of the largest Floquet multiplier modulus", _floquet_reference,
+                         f"scipy DOP853 at rtol {REFERENCE_RTOL:g}", _floquet_scipy),
+}
+
+
+# ----------------------------------------------------------------------------- measurement
+def sample(scene: Scene, points: int, seed: int = 0) -> np.ndarray:
+    """`points` grid points of the scene, drawn without replacement with a fixed seed."""
+    pm = ParameterMatrix(scene)
+    rng = np.random.default_rng(seed)
+    idx = np.sort(rng.choice(scene.n_points, size=min(points, scene.n_points), replace=False))
+    return np.vstack([pm(int(i), int(i) + 1) for i in idx])
+
+
+def _run_ours(spec, P, output, solver):
+    n = P.shape[0]
+    wanted = spec.closure((output,))
+    out = {k: np.full(n, np.nan) for k in wanted}
+    status = np.zeros(n, st.DTYPE)
+    ns = np.zeros(n, np.int64)
+    nr = np.zeros(n, np.int64)
+    spec.evaluate(P, wanted, solver, out, status, ns, nr)
+    return out[output], status, ns, nr
+
+
+def _error(values, reference, kind):
+    err = np.abs(values - reference)
+    return err / np.abs(reference) if kind == "relative" else err
+
+
+def main(model: str, scene_path: str | None = None, points: int = 64, scipy_points: int = 6,
+         ladder=LADDER, repeats: int = 3, out_dir: str | Path = "data/bench", quiet: bool = False,
+         scipy_budget_s: float = 1.0):
+    import xarray as xr
+
+    from ..errors import InputError
+
+    if model not in CASES:
+        raise InputError(f"no work-precision case for model {model!r}; cases: {', '.join(CASES)}")
+    case = CASES[model]
+    spec = MODELS[model]
+    scene = load_scene(scene_path or ROOT / case.scene)
+    if scene.model.name != model:
+        raise InputError(f"scene {scene_path} is for model {scene.model.name!r}, not {model!r}")
+    P = sample(scene, points)
+    t0 = time.perf_counter()
+    reference = case.reference(P)
+    ref_s = time.perf_counter() - t0
+    usable = np.isfinite(reference)
+    P, reference = P[usable], reference[usable]
+    methods = [f"mechsweep {m}" for m in spec.methods] + [f"scipy {m}" for m in SCIPY_METHODS]
+    shape = (len(methods), len(ladder))
+    res = {k: np.full(shape, np.nan) for k in ("error_max", "error_median", "error_max_sample", "time_per_point",
+                                                 "steps_per_point", "rhs_per_point", "ok_fraction")}
+    k = min(scipy_points, P.shape[0])  # errors of every method are compared on these points
+    compile_s = {}
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        for a, method in enumerate(spec.methods):
+            for b, rtol in enumerate(ladder):
+                solver = Solver.for_model(spec, **{**_scene_settings(scene), "method": method, "rtol": rtol,
+                                                   "atol": rtol * ATOL_RATIO})
+                if method not in compile_s:
+                    t0 = time.perf_counter()
+                    _run_ours(spec, P[:1], case.output, solver)
+                    compile_s[method] = time.perf_counter() - t0
+                best = math.inf
+                for _ in range(repeats):
+                    t0 = time.perf_counter()
+                    values, status, ns, nr = _run_ours(spec, P, case.output, solver)
+                    best = min(best, time.perf_counter() - t0)
+                _fill(res, a, b, values, status, ns, nr, reference, case.error, best / P.shape[0], k)
+    finally:
+        numba.set_num_threads(before)
+    skipped = []
+    for a, method in enumerate(SCIPY_METHODS, start=len(spec.methods)):
+        case.scipy_value(P[0], method, ladder[0], ladder[0] * ATOL_RATIO)  # first-call costs are not timed
+        for b, rtol in enumerate(ladder):
+            if b and res["time_per_point"][a, b - 1] > scipy_budget_s:
+                skipped.append(f"scipy {method} below rtol {ladder[b - 1]:g}")
+                break
+            values, nfev, steps, best = np.full(k, np.nan), np.zeros(k, np.int64), np.zeros(k, np.int64), 0.0
+            for i in range(k):
+                t_i = math.inf
+                for _ in range(repeats):
+                    t0 = time.perf_counter()
+                    values[i], nfev[i], steps[i] = case.scipy_value(P[i], method, rtol, rtol * ATOL_RATIO)
+                    t_i = min(t_i, time.perf_counter() - t0)
+                best += t_i
+            status = np.where(np.isfinite(values), st.OK, st.NONFINITE)
+            _fill(res, a, b, values, status, steps, nfev, reference[:k], case.error, best / k, k)
+    ds = xr.Dataset(
+        {name: (("integrator", "rtol"), v, {"units": UNITS[name], "long_name": LONG[name]}) for name, v in res.items()},
+        coords={"integrator": ("integrator", methods, {"long_name": "implementation and method"}),
+                "rtol": ("rtol", np.array(ladder), {"units": "1", "long_name": "relative tolerance (atol = 1e-2 rtol)"})},
+        attrs={"mechsweep_kind": "workprecision", "model": model, "output": case.output, "norm": case.norm,
+               "reference": case.reference_name, "reference_time_s": ref_s, "points": P.shape[0],
+               "scipy_points": k, "repeats": repeats, "skipped": "; ".join(skipped) or "none", "scene": str(scene_path or case.scene),
+               "compile_or_cache_load_s": ", ".join(f"{m} {s:.2f}" for m, s in compile_s.items()),
+               "threads": 1, "scipy_rhs": "the model's jitted right-hand side; Radau/LSODA with the analytic "
+               "Jacobian where the model has one (duffing, autobalancer), else finite differences"},
+    )
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / f"workprecision_{model}.h5"
+    ds.to_netcdf(path, engine="h5netcdf")
+    ds.to_dataframe().to_csv(path.with_suffix(".csv"))
+    if not quiet:
+        _print(ds, path)
+    return ds
+
+
+def _scene_settings(scene: Scene) -> dict:
+    return dict(scene.solver.settings)
+
+
+def _fill(res, a, b, values, status, ns, nr, reference, kind, time_per_point, k):
+    """One cell of the report; error_max/median over the first k points (those every method
+    solved), error_max_sample over all points this method solved."""
+    ok = (status == st.OK) & np.isfinite(values)
+    err = np.where(ok, _error(values, reference, kind), np.nan)
+    res["ok_fraction"][a, b] = ok.mean()
+    if ok[:k].any():
+        res["error_max"][a, b] = np.nanmax(err[:k])
+        res["error_median"][a, b] = np.nanmedian(err[:k])
+    if ok.any():
+        res["error_max_sample"][a, b] = np.nanmax(err)
+    res["time_per_point"][a, b] = time_per_point
+    res["steps_per_point"][a, b] = ns.mean()
+    res["rhs_per_point"][a, b] = nr.mean()
+
+
+UNITS = {"error_max": "1", "error_median": "1", "error_max_sample": "1", "time_per_point": "s", "steps_per_point": "1",
+         "rhs_per_point": "1", "ok_fraction": "1"}
+LONG = {"error_max": "largest error over the points every method solved",
+        "error_median": "median error over the points every method solved",
+        "error_max_sample": "largest error over all points this method solved",
+        "time_per_point": "wall time per point (1 thread, best of repeats)",
+        "steps_per_point": "accepted steps per point", "rhs_per_point": "right-hand-side evaluations per point",
+        "ok_fraction": "fraction of points with status ok"}
+
+
+def _print(ds, path) -> None:
+    a = ds.attrs
+    print(f"mechsweep bench workprecision {a['model']}: {a['norm']}")
+    print(f"  reference: {a['reference']} ({a['reference_time_s']:.1f} s); {a['points']} points from "
+          f"{a['scene']} (scipy: first {a['scipy_points']}); compile/cache load: {a['compile_or_cache_load_s']}")
+    print(f"  errors over the first {a['scipy_points']} points (max over all {a['points']} in the last column)")
+    print(f"  {'method':<22}{'rtol':>8}{'max error':>12}{'median':>12}{'time/point':>13}{'steps':>9}{'rhs':>9}"
+          f"{'ok':>6}{'max (all)':>12}")
+    for i, m in enumerate(ds.integrator.values):
+        for j, r in enumerate(ds.rtol.values):
+            row = ds.isel(integrator=i, rtol=j)
+            print(f"  {m:<22}{r:>8.0e}{float(row.error_max):>12.2e}{float(row.error_median):>12.2e}"
+                  f"{float(row.time_per_point) * 1e6:>10.1f} us{float(row.steps_per_point):>9.1f}"
+                  f"{float(row.rhs_per_point):>9.1f}{float(row.ok_fraction) * 100:>5.0f}%"
+                  f"{float(row.error_max_sample):>12.2e}")
+    if a["skipped"] != "none":
+        print(f"  skipped (a rung above took more than the time budget per point): {a['skipped']}")
+    print(f"  written: {path} and {path.with_suffix('.csv')}")

@@ -1,0 +1,49 @@
+"""`mechsweep bench workprecision`: the report measures what it says (small ladder, few points)."""
+import numpy as np
+import pytest
+import xarray as xr
+
+from mechsweep import figures
+from mechsweep.bench import workprecision as wp
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory):
+    out = tmp_path_factory.mktemp("wp")
+    ds = wp.main("duffing", points=6, scipy_points=3, ladder=(1e-5, 1e-8, 1e-11), repeats=1, out_dir=out,
+                 quiet=True)
+    return ds, out
+
+
+def test_report_is_written_and_reopens_identical(report):
+    ds, out = report
+    stored = xr.open_dataset(out / "workprecision_duffing.h5", engine="h5netcdf")
+    xr.testing.assert_identical(stored.load(), ds)
+    assert (out / "workprecision_duffing.csv").read_text().count("\n") == ds.sizes["integrator"] * 3 + 1
+    assert "scipy Radau" in list(ds.integrator.values) and "mechsweep dop853" in list(ds.integrator.values)
+
+
+def test_errors_follow_the_tolerance_and_match_scipy_dop853(report):
+    ds, _ = report
+    ours = ds.error_max.sel(integrator="mechsweep dop853").values
+    theirs = ds.error_max.sel(integrator="scipy DOP853").values
+    assert np.all(np.diff(ours) < 0)  # tighter tolerance, smaller error
+    assert np.all(ours < 10 * ds.rtol.values)
+    # same algorithm, same points and tolerances: the same error (a few ulp of period apart)
+    np.testing.assert_allclose(ours, theirs, rtol=0.05)
+    assert (ds.ok_fraction.values[np.isfinite(ds.ok_fraction.values)] == 1.0).all()
+    assert (ds.time_per_point.values > 0).all()
+
+
+def test_figure_draws_from_the_stored_report(report):
+    ds, out = report
+    assert "workprecision" in figures.available(ds)
+    written = figures.save(ds, out / "wp.png")
+    assert written[0].stat().st_size > 10_000
+
+
+def test_unknown_model_is_an_input_error():
+    from mechsweep.errors import InputError
+
+    with pytest.raises(InputError, match="no work-precision case for model 'fourbar_balancing'"):
+        wp.main("fourbar_balancing")
