@@ -42,8 +42,12 @@ def run(
     ``progress`` shows a progress bar (default: only on a terminal).
     """
     scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path)
+    if output is not None and str(output).endswith(("/", os.sep)):
+        raise StoreError(f"output path {output} ends with a path separator; give a file path such as "
+                         f"{Path(output) / 'run.h5'}")
     final = Path(output if output is not None else scene.storage.path)
     check_target(final)
+    _check_threads(threads)  # before any file is created
     part = partial_path(final)
     if part.exists() and not (resume or restart):
         raise StoreError(f"an unfinished run of this output exists: {part}; continue it with --resume "
@@ -81,16 +85,45 @@ def run(
 
 def check_target(final: Path) -> None:
     """Refuse an output path that cannot work, before any computation."""
+    if "\0" in str(final):
+        raise StoreError(f"output path {str(final)!r} contains a NUL character")
+    try:
+        name_max = os.pathconf(final.parent if final.parent.is_dir() else ".", "PC_NAME_MAX")
+    except (AttributeError, OSError):
+        name_max = 255
+    longest = len(os.fsencode(partial_path(final).name))
+    if longest > name_max:
+        raise StoreError(f"file name {final.name[:40]}... is too long: {longest} bytes with the '.partial' "
+                         f"suffix, at most {name_max} allowed")
+    try:
+        final.stat()
+    except (FileNotFoundError, NotADirectoryError):
+        pass
+    except OSError as exc:  # e.g. a path longer than the system allows
+        raise StoreError(f"output path {str(final)[:80]}...: {exc.strerror}") from None
     if final.is_dir():
         raise StoreError(f"output path {final} is a directory; give a file path such as {final / 'run.h5'}")
     parent = final.parent
+    if parent.exists() and not parent.is_dir():
+        raise StoreError(f"{parent} (in output path {final}) is a file, not a folder; choose another path with -o")
     if not parent.is_dir():
         raise StoreError(f"the folder {parent} for output {final} does not exist; create it first "
                          f"(mkdir -p {parent}) or choose another path with -o")
-    if not os.access(parent, os.W_OK):
-        raise StoreError(f"cannot write into {parent}: permission denied")
-    if final.exists() and not os.access(final, os.W_OK):
+    if not _writable(parent):
+        raise StoreError(f"cannot write into {parent}: permission denied (read-only folder)")
+    if final.exists() and not _writable(final):
         raise StoreError(f"{final} exists and is read-only")
+    if final.is_file() and final.stat().st_size > 0:
+        with open(final, "rb") as f:
+            magic = f.read(8)
+        if magic != b"\x89HDF\r\n\x1a\n":
+            raise StoreError(f"{final} exists and is not an HDF5 dataset; it would be overwritten: "
+                             "choose another path with -o")
+
+
+def _writable(path: Path) -> bool:
+    """Write permission, and not marked read-only (root passes os.access even then)."""
+    return os.access(path, os.W_OK) and bool(path.stat().st_mode & 0o222)
 
 
 def extra_shape(scene: Scene, name: str) -> tuple[int, ...]:
@@ -155,13 +188,17 @@ def _run_chunks(scene: Scene, store: PartialFile, todo: list[Chunk], already: in
             bar.close()
 
 
+def _check_threads(n: int | None) -> None:
+    if n is not None and not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
+        raise InputError(f"threads = {n} is outside [1, {numba.config.NUMBA_NUM_THREADS}] (cores available)")
+
+
 @contextmanager
 def _threads(n: int | None):
     if n is None:
         yield
         return
-    if not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
-        raise InputError(f"threads = {n} is outside [1, {numba.config.NUMBA_NUM_THREADS}] (cores available)")
+    _check_threads(n)
     before = numba.get_num_threads()
     numba.set_num_threads(n)
     try:

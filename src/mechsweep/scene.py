@@ -26,8 +26,8 @@ SECTIONS = ("scene", "axes", "fixed", "solver", "storage")
 MAX_POINTS = 2**40  # beyond this a flat int64 index and any disk are hopeless
 MAX_AXIS_POINTS = 10**8
 MAX_KEY_DEPTH = 32  # dotted keys a.b.c...: tomllib's time grows with the square of the depth
-_DEEP_KEY = re.compile(r"(?<![A-Za-z0-9_-])(?:(?:[A-Za-z0-9_-]++|\"[^\"\n]*+\"|'[^'\n]*+')[ \t]*+\.[ \t]*+){%d,}"
-                       % MAX_KEY_DEPTH)
+_DEEP_KEY = re.compile(r"(?<![A-Za-z0-9_-])(?:(?:[A-Za-z0-9_-]++|\"[^\"\n]*+\"|'[^'\n]*+')[ \t]*+\.[ \t]*+)"
+                       + "{" + str(MAX_KEY_DEPTH) + ",}")
 
 
 class SceneError(InputError):
@@ -144,11 +144,14 @@ def load_scene(source: str | Path | Mapping) -> Scene:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise SceneError([f"{label!r} is not UTF-8 text (byte {exc.start})"], label) from None
+    if text.startswith("\ufeff"):
+        raise SceneError([(f"{label!r} starts with a byte-order mark (BOM, bytes EF BB BF); "
+                           "save it as UTF-8 without BOM")], label)
     deep = _DEEP_KEY.search(text)
     if deep:
         line = text.count("\n", 0, deep.start()) + 1
-        raise SceneError([f"TOML nesting too deep: a dotted key at line {line} has more than {MAX_KEY_DEPTH} "
-                          "levels"], label)
+        raise SceneError([(f"TOML nesting too deep: a dotted key at line {line} has more than {MAX_KEY_DEPTH} "
+                           "levels")], label)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -156,7 +159,7 @@ def load_scene(source: str | Path | Mapping) -> Scene:
     except RecursionError:
         raise SceneError(["TOML nesting too deep"], label) from None
     except ValueError as exc:  # e.g. an integer of more than 4300 digits
-        raise SceneError([f"TOML value not readable: {exc}"], label) from None
+        raise SceneError([f"TOML value not readable ({str(exc).split(';')[0]})"], label) from None
     return validate(data, text=text, label=label)
 
 
