@@ -1,9 +1,11 @@
-"""Regenerate every committed figure: run each shipped scene, then draw its figures.
+"""Regenerate every committed figure: run each shipped scene, then draw its figures; then the
+work-precision reports of the integrated models.
 
-    python docs/make_figures.py            # all scenes in sweeps/
-    python docs/make_figures.py quickstart # only scenes whose file name contains 'quickstart'
+    python docs/make_figures.py               # all scenes in sweeps/ and every work-precision report
+    python docs/make_figures.py quickstart    # only scenes whose file name contains 'quickstart'
+    python docs/make_figures.py workprecision # only the work-precision reports
 
-Datasets go to data/runs/ (git-ignored), figures to docs/figures/ (committed).
+Datasets go to data/runs/ and data/bench/ (git-ignored), figures to docs/figures/ (committed).
 """
 from __future__ import annotations
 
@@ -26,6 +28,13 @@ def main(filters: list[str]) -> None:
         ds = mechsweep.run(scene, output=ROOT / scene.storage.path, restart=True, progress=False)
         for written in figures.save(ds, OUT / f"{path.stem}.png"):
             print(f"{path.name} -> {written.relative_to(ROOT)}")
+    if not filters or "workprecision" in filters:
+        from mechsweep.bench import workprecision
+
+        for model in workprecision.CASES:
+            ds = workprecision.main(model, out_dir=ROOT / "data" / "bench")
+            for written in figures.save(ds, OUT / f"workprecision_{model}.png"):
+                print(f"workprecision {model} -> {written.relative_to(ROOT)}")
 
 
 if __name__ == "__main__":

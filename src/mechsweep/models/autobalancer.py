@@ -117,8 +117,8 @@ import math
 import numpy as np
 
 from .. import status as st
-from .._jit import jit, jit_inline, jit_noalloc, pjit, prange
-from ..ode import dop853
+from .._jit import compile_time_switch, jit, jit_inline, jit_noalloc, literally, pjit, prange
+from ..ode import AUTO, DOP853, METHOD_CODES, RADAU, dop853, radau
 from ..special import sincos
 from ._spec import ExtraDim, ModelSpec, Output, Param, Setting
 
@@ -215,16 +215,15 @@ def rhs(tau, z, p, dz):
 
 
 @jit_inline
-def _jvp(w1, w2, p, xdd, ydd, s1, k1, s2, k2, k11, k12, k22, det, v, out):
-    """Directional derivative of the accelerations along v (analytic Jacobian times v).
+def _jvp_acc(w1, w2, p, xdd, ydd, s1, k1, s2, k2, k11, k12, k22, det, vx, vy, vg1, vg2, vxd, vyd, vw1, vw2):
+    """Directional derivative of the accelerations (x'', y'', g1'', g2'') along the state
+    direction v = (vx, vy, vg1, vg2, vxd, vyd, vw1, vw2): the analytic Jacobian times v.
 
     Differentiates K [x''; y''] = [Rx; Ry] and g_i'' = (Q_i - (y'' k_i - x'' s_i)) / iota:
-    d[x''; y''] = K^-1 (dR - dK [x''; y'']). Writes d(x'', y'', g1'', g2'') into out[4:8] and
-    v[4:8] (d of the velocities) into out[0:4].
+    d[x''; y''] = K^-1 (dR - dK [x''; y'']).
     """
     inv = 1.0 / p[IP_IOTA]
     eh = p[IP_EH]
-    vx, vy, vg1, vg2, vxd, vyd, vw1, vw2 = v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]
     q1 = -eh * (w1 - 1.0)
     q2 = -eh * (w2 - 1.0)
     drx = (-p[IP_KX] * vx - p[IP_DX] * vxd
@@ -242,29 +241,48 @@ def _jvp(w1, w2, p, xdd, ydd, s1, k1, s2, k2, k11, k12, k22, det, v, out):
     r2 = dry - dk12 * xdd - dk22 * ydd
     dxdd = (k22 * r1 - k12 * r2) / det
     dydd = (k11 * r2 - k12 * r1) / det
-    out[0] = vxd
-    out[1] = vyd
-    out[2] = vw1
-    out[3] = vw2
-    out[4] = dxdd
-    out[5] = dydd
-    out[6] = (-eh * vw1 - dydd * k1 + dxdd * s1 + (ydd * s1 + xdd * k1) * vg1) * inv
-    out[7] = (-eh * vw2 - dydd * k2 + dxdd * s2 + (ydd * s2 + xdd * k2) * vg2) * inv
+    dg1dd = (-eh * vw1 - dydd * k1 + dxdd * s1 + (ydd * s1 + xdd * k1) * vg1) * inv
+    dg2dd = (-eh * vw2 - dydd * k2 + dxdd * s2 + (ydd * s2 + xdd * k2) * vg2) * inv
+    return dxdd, dydd, dg1dd, dg2dd
 
 
-@jit
-def jacobian(tau, z, p, J):
-    """The analytic 8x8 Jacobian d rhs / d z at (tau, z), column by column (tests, tools)."""
-    xdd, ydd, _, _, s1, k1, s2, k2, k11, k12, k22, det = accelerations(
-        tau, z[0], z[1], z[2], z[3], z[4], z[5], z[6], z[7], p)
-    v = np.zeros(8)
-    col = np.empty(8)
+@jit_inline
+def _jvp(w1, w2, p, xdd, ydd, s1, k1, s2, k2, k11, k12, k22, det, v, out):
+    """J v for the 8-state rhs: v[4:8] (d of the velocities) into out[0:4], d of the
+    accelerations into out[4:8]."""
+    a, b, c, d = _jvp_acc(w1, w2, p, xdd, ydd, s1, k1, s2, k2, k11, k12, k22, det,
+                          v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7])
+    out[0] = v[4]
+    out[1] = v[5]
+    out[2] = v[6]
+    out[3] = v[7]
+    out[4] = a
+    out[5] = b
+    out[6] = c
+    out[7] = d
+
+
+@jit_noalloc
+def _jacobian_block(tau, x, y, g1, g2, xd, yd, w1, w2, p, J, r0):
+    """The 8x8 Jacobian at the given state into J[r0:r0+8, r0:r0+8] (other entries untouched)."""
+    xdd, ydd, _, _, s1, k1, s2, k2, k11, k12, k22, det = accelerations(tau, x, y, g1, g2, xd, yd, w1, w2, p)
     for c in range(8):
-        v[:] = 0.0
-        v[c] = 1.0
-        _jvp(z[6], z[7], p, xdd, ydd, s1, k1, s2, k2, k11, k12, k22, det, v, col)
-        for r in range(8):
-            J[r, c] = col[r]
+        for r in range(4):
+            J[r0 + r, r0 + c] = 1.0 if c == r + 4 else 0.0
+        a, b, cc, d = _jvp_acc(w1, w2, p, xdd, ydd, s1, k1, s2, k2, k11, k12, k22, det,
+                               1.0 if c == 0 else 0.0, 1.0 if c == 1 else 0.0, 1.0 if c == 2 else 0.0,
+                               1.0 if c == 3 else 0.0, 1.0 if c == 4 else 0.0, 1.0 if c == 5 else 0.0,
+                               1.0 if c == 6 else 0.0, 1.0 if c == 7 else 0.0)
+        J[r0 + 4, r0 + c] = a
+        J[r0 + 5, r0 + c] = b
+        J[r0 + 6, r0 + c] = cc
+        J[r0 + 7, r0 + c] = d
+
+
+@jit_noalloc
+def jacobian(tau, z, p, J):
+    """The analytic 8x8 Jacobian d rhs / d z at (tau, z) (radau, tests)."""
+    _jacobian_block(tau, z[0], z[1], z[2], z[3], z[4], z[5], z[6], z[7], p, J, 0)
 
 
 @jit_noalloc
@@ -278,18 +296,62 @@ def variational_rhs(tau, Y, p, dY):
              Y[8 * c:8 * c + 8], dY[8 * c:8 * c + 8])
 
 
+@jit_noalloc
+def variational_jacobian(tau, Y, p, J):
+    """Jacobian of the (linear) variational system: block diagonal, J(tau) on the orbit 8 times."""
+    for r in range(64):
+        for c in range(64):
+            J[r, c] = 0.0
+    for b in range(8):
+        _jacobian_block(tau, 0.0, 0.0, tau + p[IP_TH1], tau + p[IP_TH2], 0.0, 0.0, 1.0, 1.0, p, J, 8 * b)
+
+
 # ----------------------------------------------------------------------------- Floquet
 floquet_solver = dop853.make_solver(variational_rhs)
+floquet_solver_stiffness_test = dop853.make_solver(variational_rhs, stiffness_test=True)
+floquet_solver_radau = radau.make_solver(variational_rhs, variational_jacobian)
 
 
-@jit
-def floquet_point(p, rtol, atol, max_steps, Y, work):
-    """Largest |Floquet multiplier| of the balanced state. Returns (status, value, steps, rhs)."""
+@jit_noalloc
+def _identity(Y):
     for i in range(64):
         Y[i] = 0.0
     for i in range(8):
         Y[9 * i] = 1.0
-    code, ns, nr = floquet_solver(0.0, Y, p, TWO_PI, rtol, atol, 0.0, max_steps, work)
+
+
+@jit_noalloc
+def _monodromy_dop853(Y, p, rtol, atol, max_steps, work, rwork):
+    return floquet_solver(0.0, Y, p, TWO_PI, rtol, atol, 0.0, max_steps, work)
+
+
+@jit_noalloc
+def _monodromy_radau(Y, p, rtol, atol, max_steps, work, rwork):
+    return floquet_solver_radau(0.0, Y, p, TWO_PI, rtol, atol, 0.0, max_steps, rwork)
+
+
+@jit_noalloc
+def _monodromy_auto(Y, p, rtol, atol, max_steps, work, rwork):
+    """dop853 with the stiffness test; a stiff point starts again with radau (costs add up)."""
+    code, ns, nr = floquet_solver_stiffness_test(0.0, Y, p, TWO_PI, rtol, atol, 0.0, max_steps, work)
+    if code != st.STIFF:
+        return code, ns, nr
+    _identity(Y)
+    code, ns2, nr2 = floquet_solver_radau(0.0, Y, p, TWO_PI, rtol, atol, 0.0, max_steps, rwork)
+    return code, ns + ns2, nr + nr2
+
+
+# monodromy(method, Y, p, rtol, atol, max_steps, work, rwork) -> (status, n_steps, n_rhs): the
+# variational system over one period from Y = identity; only the method's solver is compiled.
+monodromy = compile_time_switch("monodromy", {DOP853: _monodromy_dop853, RADAU: _monodromy_radau,
+                                              AUTO: _monodromy_auto})
+
+
+@jit
+def floquet_point(method, p, rtol, atol, max_steps, Y, work, rwork):
+    """Largest |Floquet multiplier| of the balanced state. Returns (status, value, steps, rhs)."""
+    _identity(Y)
+    code, ns, nr = monodromy(method, Y, p, rtol, atol, max_steps, work, rwork)
     if code != st.OK:
         return code, math.nan, ns, nr
     mono = np.empty((8, 8), dtype=np.complex128)
@@ -307,16 +369,18 @@ def floquet_point(p, rtol, atol, max_steps, Y, work):
 
 
 @pjit
-def floquet_kernel(pp, run, rtol, atol, max_steps, value, code, n_steps, n_rhs):
+def floquet_kernel(method, pp, run, rtol, atol, max_steps, value, code, n_steps, n_rhs):
+    literally(method)  # one cached kernel per method
     n = pp.shape[0]
     n_blocks = (n + BLOCK - 1) // BLOCK
     for b in prange(n_blocks):
         work = dop853.workspace(64)
+        rwork = radau.workspace(64)
         Y = np.empty(64)
         for i in range(b, n, n_blocks):  # strided: cost varies along the grid
             if not run[i]:
                 continue
-            c, v, ns, nr = floquet_point(pp[i], rtol, atol, max_steps, Y, work)
+            c, v, ns, nr = floquet_point(method, pp[i], rtol, atol, max_steps, Y, work, rwork)
             code[i] = c
             value[i] = v
             n_steps[i] += ns
@@ -325,6 +389,35 @@ def floquet_kernel(pp, run, rtol, atol, max_steps, value, code, n_steps, n_rhs):
 
 # ----------------------------------------------------------------------------- direct simulation
 trajectory_solver = dop853.make_trajectory_solver(rhs)
+trajectory_solver_stiffness_test = dop853.make_trajectory_solver(rhs, stiffness_test=True)
+trajectory_solver_radau = radau.make_trajectory_solver(rhs, jacobian)
+
+
+@jit_noalloc
+def _trajectory_dop853(z, p, t_eval, rtol, atol, max_steps, work, rwork, traj):
+    return trajectory_solver(0.0, z, p, t_eval, rtol, atol, 0.0, max_steps, work, traj)
+
+
+@jit_noalloc
+def _trajectory_radau(z, p, t_eval, rtol, atol, max_steps, work, rwork, traj):
+    return trajectory_solver_radau(0.0, z, p, t_eval, rtol, atol, 0.0, max_steps, rwork, traj)
+
+
+@jit_noalloc
+def _trajectory_auto(z, p, t_eval, rtol, atol, max_steps, work, rwork, traj):
+    """dop853 with the stiffness test; a stiff point starts again with radau (costs add up)."""
+    z0, z1, z2, z3, z4, z5, z6, z7 = z[0], z[1], z[2], z[3], z[4], z[5], z[6], z[7]
+    code, ns, nr = trajectory_solver_stiffness_test(0.0, z, p, t_eval, rtol, atol, 0.0, max_steps, work, traj)
+    if code != st.STIFF:
+        return code, ns, nr
+    z[0], z[1], z[2], z[3], z[4], z[5], z[6], z[7] = z0, z1, z2, z3, z4, z5, z6, z7
+    code, ns2, nr2 = trajectory_solver_radau(0.0, z, p, t_eval, rtol, atol, 0.0, max_steps, rwork, traj)
+    return code, ns + ns2, nr + nr2
+
+
+# trajectory(method, z, p, t_eval, rtol, atol, max_steps, work, rwork, traj) -> (status, n_steps, n_rhs)
+trajectory = compile_time_switch("trajectory", {DOP853: _trajectory_dop853, RADAU: _trajectory_radau,
+                                                AUTO: _trajectory_auto})
 
 # Columns of the per-point measurement table of the simulation kernel.
 M_E0, M_ELATE, M_RREF, M_RLATE, M_EFINAL, M_TSETTLE, M_EPREV = range(7)
@@ -351,8 +444,8 @@ def phase_errors(tau, g1, g2, th1, th2):
 
 
 @jit
-def simulate_point(p, delta, t_eval, n_rev1, n_early, i_prev, i_late, rtol, atol, max_steps, settle,
-                   hist_idx, hist, z, work, traj, meas):
+def simulate_point(method, p, delta, t_eval, n_rev1, n_early, i_prev, i_late, rtol, atol, max_steps, settle,
+                   hist_idx, hist, z, work, rwork, traj, meas):
     """One direct simulation (scaled). Fills meas (N_MEAS) and, if hist has columns, hist[4, k].
     Returns (status, n_steps, n_rhs)."""
     th1 = p[IP_TH1]
@@ -365,7 +458,7 @@ def simulate_point(p, delta, t_eval, n_rev1, n_early, i_prev, i_late, rtol, atol
     z[5] = 0.0
     z[6] = 1.0
     z[7] = 1.0
-    code, ns, nr = trajectory_solver(0.0, z, p, t_eval, rtol, atol, 0.0, max_steps, work, traj)
+    code, ns, nr = trajectory(method, z, p, t_eval, rtol, atol, max_steps, work, rwork, traj)
     if code != st.OK:
         return code, ns, nr
     n_eval = t_eval.size
@@ -425,19 +518,21 @@ def simulate_point(p, delta, t_eval, n_rev1, n_early, i_prev, i_late, rtol, atol
 
 
 @pjit
-def simulation_kernel(pp, run, delta, t_eval, n_rev1, n_early, i_prev, i_late, rtol, atol, max_steps, settle,
+def simulation_kernel(method, pp, run, delta, t_eval, n_rev1, n_early, i_prev, i_late, rtol, atol, max_steps, settle,
                       hist_idx, hist, meas, code, n_steps, n_rhs):
+    literally(method)  # one cached kernel per method
     n = pp.shape[0]
     n_blocks = (n + BLOCK - 1) // BLOCK
     for b in prange(n_blocks):
         work = dop853.workspace(8)
+        rwork = radau.workspace(8)
         z = np.empty(8)
         traj = np.empty((t_eval.size, 8))
         for i in range(b, n, n_blocks):
             if not run[i]:
                 continue
-            c, ns, nr = simulate_point(pp[i], delta, t_eval, n_rev1, n_early, i_prev, i_late, rtol, atol,
-                                       max_steps, settle, hist_idx, hist[i], z, work, traj, meas[i])
+            c, ns, nr = simulate_point(method, pp[i], delta, t_eval, n_rev1, n_early, i_prev, i_late, rtol, atol,
+                                       max_steps, settle, hist_idx, hist[i], z, work, rwork, traj, meas[i])
             code[i] = c
             n_steps[i] += ns
             n_rhs[i] += nr
@@ -597,7 +692,8 @@ def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
         value = np.full(n, np.nan)
         fcode = np.zeros(n, dtype=np.int8)
         if run.any():
-            floquet_kernel(pp, run, solver.rtol, solver.atol, solver.max_steps, value, fcode, n_steps, n_rhs)
+            floquet_kernel(METHOD_CODES[solver.method], pp, run, solver.rtol, solver.atol, solver.max_steps, value,
+                           fcode, n_steps, n_rhs)
         code = _worse(code, fcode)
         good = run & (fcode == st.OK)
         out["floquet_max"][:] = np.where(good, value, np.nan)
@@ -625,8 +721,8 @@ def _simulate(wants, solver, pp, feasible, isolated, Omega, a, code, out, n_step
     meas = np.full((n, N_MEAS), np.nan)
     scode = np.zeros(n, dtype=np.int8)
     if run.any():
-        simulation_kernel(pp, run, float(s["perturbation"]), t_eval, n_rev1, n_early, i_prev, i_late,
-                          solver.rtol, solver.atol, solver.max_steps, float(s["settle_threshold"]),
+        simulation_kernel(METHOD_CODES[solver.method], pp, run, float(s["perturbation"]), t_eval, n_rev1, n_early,
+                          i_prev, i_late, solver.rtol, solver.atol, solver.max_steps, float(s["settle_threshold"]),
                           hist_idx, hist, meas, scode, n_steps, n_rhs)
     code[:] = _worse(code, scode)
     good = run & (scode == st.OK)
@@ -778,4 +874,5 @@ SPEC = ModelSpec(
     evaluate=evaluate,
     settings=SETTINGS,
     check=check,
+    methods=("dop853", "radau", "auto"),
 )

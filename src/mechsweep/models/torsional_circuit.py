@@ -20,8 +20,8 @@ import math
 import numpy as np
 
 from .. import status as st
-from .._jit import jit, pjit, prange
-from ..ode import dop853
+from .._jit import compile_time_switch, jit, jit_noalloc, literally, pjit, prange
+from ..ode import AUTO, DOP853, METHOD_CODES, RADAU, SYMPLECTIC, dop853, radau, symplectic
 from . import duffing as duf
 from ._spec import ModelSpec, Output, Param
 
@@ -74,11 +74,81 @@ def _phi_event(t, y, p):
     return y[0]
 
 
+@jit_noalloc
+def exact_moment_slope(phi, sigma, lam1, base, L0):
+    """d/dphi of exact_moment: sigma lam1 (cos phi (1 - L0 / l) + sigma lam1 L0 sin^2 phi / l^3)."""
+    length = math.sqrt(base - 2.0 * sigma * lam1 * math.cos(phi))
+    sin_phi = math.sin(phi)
+    return sigma * lam1 * (math.cos(phi) * (1.0 - L0 / length)
+                           + sigma * lam1 * L0 * sin_phi * sin_phi / (length * length * length))
+
+
+@jit_noalloc
+def _exact_jac(t, y, p, J):
+    J[0, 0] = 0.0
+    J[0, 1] = 1.0
+    J[1, 0] = -p[5] * p[4] * exact_moment_slope(p[4] * y[0], p[0], p[1], p[2], p[3])
+    J[1, 1] = 0.0
+
+
+@jit_noalloc
+def _exact_accel(t, q, p, a):
+    a[0] = -p[5] * exact_moment(p[4] * q[0], p[0], p[1], p[2], p[3])
+
+
+@jit_noalloc
+def _q_event(t, q, v, p):
+    return q[0]
+
+
 exact_quarter_period_solver = dop853.make_event_solver(_exact_rhs, _phi_event)
+exact_quarter_period_stiffness_test = dop853.make_event_solver(_exact_rhs, _phi_event, stiffness_test=True)
+exact_quarter_period_radau = radau.make_event_solver(_exact_rhs, _exact_jac, _phi_event)
+exact_quarter_period_symplectic = symplectic.make_event_solver(_exact_accel, _q_event, duf.SYMPLECTIC_ORDER)
 
 
-@jit
-def integrate_exact_period(sigma, lam1, lam2, s, k, chi, xi, A, rtol, atol, max_steps, t_max_periods, y, p, work):
+@jit_noalloc
+def _exact_quarter_period_dop853(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
+    return exact_quarter_period_solver(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, work)
+
+
+@jit_noalloc
+def _exact_quarter_period_radau(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
+    return exact_quarter_period_radau(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, rwork)
+
+
+@jit_noalloc
+def _exact_quarter_period_symplectic(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
+    q[0] = y[0]
+    v[0] = y[1]
+    code, tq, ns, nr = exact_quarter_period_symplectic(0.0, q, v, p, duf.symplectic_step(rtol), t_max, max_steps,
+                                                       swork)
+    y[0] = q[0]
+    y[1] = v[0]
+    return code, tq, ns, nr
+
+
+@jit_noalloc
+def _exact_quarter_period_auto(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
+    y0, y1 = y[0], y[1]
+    code, tq, ns, nr = exact_quarter_period_stiffness_test(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, work)
+    if code != st.STIFF:
+        return code, tq, ns, nr
+    y[0] = y0
+    y[1] = y1
+    code, tq, ns2, nr2 = exact_quarter_period_radau(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, rwork)
+    return code, tq, ns + ns2, nr + nr2
+
+
+# as duffing.quarter_period, for the exact spring moment
+exact_quarter_period = compile_time_switch("exact_quarter_period", {
+    DOP853: _exact_quarter_period_dop853, RADAU: _exact_quarter_period_radau,
+    SYMPLECTIC: _exact_quarter_period_symplectic, AUTO: _exact_quarter_period_auto})
+
+
+@jit_noalloc
+def integrate_exact_period(method, sigma, lam1, lam2, s, k, chi, xi, A, rtol, atol, max_steps, t_max_periods, y, p,
+                           work, rwork, swork, q, v):
     """Period with the exact spring moment (k = R^2 c / I). Returns (status, T, n_steps, n_rhs)."""
     w2 = k * (chi + abs(xi) * A * A)  # same time scale as the two-term model
     p[0] = sigma
@@ -89,9 +159,8 @@ def integrate_exact_period(sigma, lam1, lam2, s, k, chi, xi, A, rtol, atol, max_
     p[5] = k / (w2 * A)
     y[0] = 1.0
     y[1] = 0.0
-    code, tau_q, ns, nr = exact_quarter_period_solver(
-        0.0, y, p, t_max_periods * 2.0 * math.pi, rtol, atol, 0.0, max_steps, work
-    )
+    code, tau_q, ns, nr = exact_quarter_period(method, y, p, t_max_periods * 2.0 * math.pi, rtol, atol, max_steps,
+                                               work, rwork, swork, q, v)
     if code == st.NO_EVENT:
         code = st.NOT_OSCILLATORY  # the exact moment does not bring the lever back through 0
     if code != st.OK:
@@ -134,12 +203,13 @@ def algebraic_kernel(P, want, want_duffing, table, status):
 
 
 @pjit
-def integrated_kernel(P, want_period, want_exact, rtol, atol, max_steps, t_max_periods, table, status, n_steps, n_rhs):
+def integrated_kernel(method, P, want_period, want_exact, rtol, atol, max_steps, t_max_periods, table, status, n_steps,
+                      n_rhs):
+    literally(method)  # one cached kernel per method
     n = P.shape[0]
     n_blocks = (n + BLOCK - 1) // BLOCK
     for b in prange(n_blocks):
-        work = dop853.workspace(2)
-        y = np.empty(2)
+        work, rwork, swork, y, _, q, v = duf.workspaces()
         p = np.empty(6)
         for i in range(b, n, n_blocks):  # strided: prange splits blocks statically, and cost varies along the grid
             if status[i] != st.OK:
@@ -149,14 +219,15 @@ def integrated_kernel(P, want_period, want_exact, rtol, atol, max_steps, t_max_p
                 code = duf.classify(k * chi, k * xi, A)
             if code == st.OK and want_period:
                 code, T, ns, nr = duf.integrate_period(
-                    k * chi, k * xi, A, rtol, atol, max_steps, t_max_periods, y, p, work
+                    method, k * chi, k * xi, A, rtol, atol, max_steps, t_max_periods, y, p, work, rwork, swork, q, v
                 )
                 n_steps[i] += ns
                 n_rhs[i] += nr
                 table[i, OFF + duf.K_PERIOD] = T
             if code == st.OK and want_exact:
                 code, T, ns, nr = integrate_exact_period(
-                    sigma, lam1, lam2, s, k, chi, xi, A, rtol, atol, max_steps, t_max_periods, y, p, work
+                    method, sigma, lam1, lam2, s, k, chi, xi, A, rtol, atol, max_steps, t_max_periods, y, p, work,
+                    rwork, swork, q, v,
                 )
                 n_steps[i] += ns
                 n_rhs[i] += nr
@@ -174,7 +245,7 @@ def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
     want_exact = bool(want[K_EXACT_MOMENT])
     if want_period or want_exact:
         integrated_kernel(
-            P, want_period, want_exact, solver.rtol, solver.atol, solver.max_steps, solver.settings["t_max_periods"],
+            METHOD_CODES[solver.method], P, want_period, want_exact, solver.rtol, solver.atol, solver.max_steps, solver.settings["t_max_periods"],
             table, status, n_steps, n_rhs,
         )
     if want[OFF + duf.K_PERIOD_ERROR]:
@@ -230,4 +301,5 @@ SPEC = ModelSpec(
     ),
     evaluate=evaluate,
     settings=(duf.T_MAX_PERIODS,),
+    methods=duf.SPEC.methods,
 )

@@ -1,0 +1,128 @@
+"""solver.method: every method of every integrated model gives the same answer within its
+tolerance; auto hands stiff points to radau; scenes refuse a method a model does not offer."""
+import math
+
+import numpy as np
+import pytest
+
+from mechsweep import status as st
+from mechsweep.models import MODELS
+from mechsweep.models import autobalancer as ab
+from mechsweep.models import torsional_circuit as tc
+from mechsweep.scene import SceneError, Solver, load_scene
+
+
+def evaluate(model, P, outputs, **solver):
+    spec = MODELS[model]
+    n = P.shape[0]
+    wanted = spec.closure(outputs)
+    out = {k: np.full((n,), np.nan) for k in wanted}
+    status = np.zeros(n, st.DTYPE)
+    ns = np.zeros(n, np.int64)
+    nr = np.zeros(n, np.int64)
+    spec.evaluate(P, wanted, Solver.for_model(spec, **solver), out, status, ns, nr)
+    return out, status, ns, nr
+
+
+DUFFING_EPS = np.array([-0.99, -0.9, -0.5, 0.0, 0.01, 1.0, 10.0, 1e2, 1e3, 1e4])
+
+
+@pytest.mark.parametrize("method", MODELS["duffing"].methods)
+@pytest.mark.parametrize("rtol", [1e-6, 1e-10])
+def test_duffing_period_of_every_method_meets_its_tolerance(method, rtol):
+    P = np.column_stack([np.ones(DUFFING_EPS.size), DUFFING_EPS, np.ones(DUFFING_EPS.size)])
+    out, status, ns, nr = evaluate("duffing", P, ("period_error",), method=method, rtol=rtol, atol=rtol * 1e-2)
+    assert (status == st.OK).all()
+    assert np.nanmax(out["period_error"]) < 2 * rtol
+    assert (ns > 0).all() and (nr > ns).all()
+
+
+def test_torsional_exact_moment_slope_is_the_derivative_of_the_moment():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        sigma = rng.choice([-1.0, 1.0])
+        lam1, lam2, s = rng.uniform(0.2, 1.5), rng.uniform(0.1, 2.0), rng.uniform(-0.3, 0.3)
+        base = 1 + lam1**2 + lam2**2
+        L0 = math.sqrt(base - 2 * sigma * lam1) - sigma * s
+        phi, h = rng.uniform(-2, 2), 1e-6
+        fd = (tc.exact_moment(phi + h, sigma, lam1, base, L0) - tc.exact_moment(phi - h, sigma, lam1, base, L0)) / (2 * h)
+        assert tc.exact_moment_slope(phi, sigma, lam1, base, L0) == pytest.approx(fd, rel=1e-7, abs=1e-9)
+
+
+def test_torsional_methods_agree_on_the_exact_moment_period():
+    scene = load_scene({"scene": {"name": "t", "model": "torsional_circuit", "outputs": ["period_exact_moment"]},
+                        "axes": {"A": {"start": 0.05, "stop": 1.4, "num": 6}},
+                        "fixed": {"spring": "tension", "lambda1": 0.8, "lambda2": 1.0, "s0_over_r": 0.1,
+                                  "R": 0.05, "c": 2000.0, "I": 2e-3}})
+    from mechsweep.grid import ParameterMatrix
+    P = ParameterMatrix(scene)(0, scene.n_points)
+    periods = {}
+    for method in MODELS["torsional_circuit"].methods:
+        out, status, _, _ = evaluate("torsional_circuit", P, ("period_exact_moment",), method=method, rtol=1e-10,
+                                     atol=1e-12)
+        assert (status == st.OK).all(), method
+        periods[method] = out["period_exact_moment"]
+    for method, T in periods.items():
+        np.testing.assert_allclose(T, periods["dop853"], rtol=3e-10, err_msg=method)
+
+
+def test_autobalancer_jacobians_are_consistent():
+    """The 8x8 Jacobian against finite differences of the rhs; the variational system is linear,
+    so its rhs equals its Jacobian times the state."""
+    rng = np.random.default_rng(5)
+    p = ab.scaled_parameters(1.3, 10.0, 1.0, 0.1, 0.012, 0.1, 0.0, 0.0, 400.0, 900.0, 4.0, 6.0, 0.02, 2.0, -2.0)
+    z = rng.normal(size=8)
+    J = np.empty((8, 8))
+    ab.jacobian(0.4, z, p, J)
+    f0, f1 = np.empty(8), np.empty(8)
+    for c in range(8):
+        dz = np.zeros(8)
+        dz[c] = 1e-6
+        ab.rhs(0.4, z + dz, p, f1)
+        ab.rhs(0.4, z - dz, p, f0)
+        np.testing.assert_allclose(J[:, c], (f1 - f0) / 2e-6, rtol=1e-6, atol=1e-7)
+    Y = rng.normal(size=64)
+    JV = np.empty((64, 64))
+    ab.variational_jacobian(0.9, Y, p, JV)
+    dY = np.empty(64)
+    ab.variational_rhs(0.9, Y, p, dY)
+    np.testing.assert_allclose(JV @ Y, dY, rtol=1e-12, atol=1e-12)
+
+
+def stiff_platform(n=3):
+    """Platform natural frequencies 10^4 x the crank speed, heavily damped: an explicit step is
+    held at the stability limit ~ 1 / (10^4 Omega) while the solution changes on the scale 1 / Omega."""
+    names = ab.PARAM_NAMES
+    P = np.full((n, len(names)), np.nan)
+    for j, prm in enumerate(MODELS["autobalancer"].params):
+        P[:, j] = prm.default
+    values = dict(Omega=np.linspace(1.0, 1.5, n), M=10.0, m=1.0, a=0.1, I_B=0.012, A0=0.1, h=0.02,
+                  omega_xi=1e4, omega_eta=1.5e4, zeta_xi=0.5, zeta_eta=0.5)
+    for k, v in values.items():
+        P[:, names.index(k)] = v
+    return P
+
+
+def test_auto_hands_a_stiff_autobalancer_to_radau_and_agrees_with_a_long_explicit_run():
+    P = stiff_platform()
+    tight, s_ref, ns_ref, _ = evaluate("autobalancer", P, ("floquet_max",), method="dop853", rtol=1e-9, atol=1e-11,
+                                       max_steps=10**6)
+    assert (s_ref == st.OK).all()
+    auto, s_auto, ns_auto, _ = evaluate("autobalancer", P, ("floquet_max",), method="auto", rtol=1e-9, atol=1e-11)
+    assert (s_auto == st.OK).all()
+    np.testing.assert_allclose(auto["floquet_max"], tight["floquet_max"], atol=1e-6)
+    radau_only, _, ns_radau, _ = evaluate("autobalancer", P, ("floquet_max",), method="radau", rtol=1e-9, atol=1e-11)
+    assert (ns_auto > ns_radau).all()  # auto = a few explicit steps until the test fires, then radau
+    assert (ns_auto < ns_ref).all()
+
+
+def test_scene_refuses_a_method_the_model_does_not_offer():
+    base = {"scene": {"name": "x", "model": "autobalancer", "outputs": ["floquet_max"]},
+            "axes": {"Omega": {"start": 1.0, "stop": 2.0, "num": 2}},
+            "fixed": {"M": 10.0, "m": 1.0, "a": 0.1, "I_B": 0.012, "A0": 0.1, "h": 0.02, "omega_xi": 1.0,
+                      "omega_eta": 1.5, "zeta_xi": 0.02, "zeta_eta": 0.02},
+            "solver": {"method": "symplectic"}}
+    with pytest.raises(SceneError, match=r"solver.method.*'symplectic'.*dop853, radau, auto"):
+        load_scene(base)
+    base["solver"]["method"] = "radau"
+    assert load_scene(base).solver.method == "radau"
