@@ -42,11 +42,11 @@ def test_torsional_exact_moment_slope_is_the_derivative_of_the_moment():
     for _ in range(20):
         sigma = rng.choice([-1.0, 1.0])
         lam1, lam2, s = rng.uniform(0.2, 1.5), rng.uniform(0.1, 2.0), rng.uniform(-0.3, 0.3)
-        base = 1 + lam1**2 + lam2**2
-        L0 = math.sqrt(base - 2 * sigma * lam1) - sigma * s
+        D0 = (1 - sigma * lam1) ** 2 + lam2**2
+        L0 = math.sqrt(D0) - sigma * s
         phi, h = rng.uniform(-2, 2), 1e-6
-        fd = (tc.exact_moment(phi + h, sigma, lam1, base, L0) - tc.exact_moment(phi - h, sigma, lam1, base, L0)) / (2 * h)
-        assert tc.exact_moment_slope(phi, sigma, lam1, base, L0) == pytest.approx(fd, rel=1e-7, abs=1e-9)
+        fd = (tc.exact_moment(phi + h, sigma, lam1, D0, L0) - tc.exact_moment(phi - h, sigma, lam1, D0, L0)) / (2 * h)
+        assert tc.exact_moment_slope(phi, sigma, lam1, D0, L0) == pytest.approx(fd, rel=1e-7, abs=1e-9)
 
 
 def test_torsional_methods_agree_on_the_exact_moment_period():

@@ -144,9 +144,11 @@ def evaluate_chunk(scene: Scene, chunk: Chunk, params: ParameterMatrix | None = 
     scene.model.evaluate(P, computed, scene.solver, out, status, n_steps, n_rhs)
     requested = {name: out[name] for name in scene.outputs}
     # A point is ok only if everything asked of it is finite (never a NaN with status ok).
+    # An overflow (inf) is never stored as a value: it becomes NaN, the point NONFINITE.
     finite = np.ones(n, dtype=bool)
     for values in requested.values():
         finite &= np.isfinite(values.reshape(n, -1)).all(axis=1)
+        values[np.isinf(values)] = np.nan
     status[(status == st.OK) & ~finite] = st.NONFINITE
     return requested, status, n_steps, n_rhs
 

@@ -108,8 +108,8 @@ def _torsional_scaled(P, i):
 
     code, sigma, lam1, lam2, s, k, chi, xi, A = tc._point_coefficients(P, i)
     w2 = k * (chi + abs(xi) * A * A)  # as integrate_exact_period
-    base = 1.0 + lam1 * lam1 + lam2 * lam2
-    p = np.array([sigma, lam1, base, math.sqrt(base - 2.0 * sigma * lam1) - sigma * s, A, k / (w2 * A)])
+    D0 = tc.rest_length_squared(sigma, lam1, lam2)
+    p = np.array([sigma, lam1, D0, math.sqrt(D0) - sigma * s, A, k / (w2 * A)])
     return code, p, math.sqrt(w2)
 
 

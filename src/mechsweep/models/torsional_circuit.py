@@ -44,7 +44,7 @@ def spring_sign(spring_code):
 @jit
 def coefficients(sigma, lam1, lam2, s):
     """(status, chi, xi, D0). Formulas (4)-(7) in nondimensional form."""
-    D0 = 1.0 + lam1 * lam1 + lam2 * lam2 - 2.0 * sigma * lam1
+    D0 = rest_length_squared(sigma, lam1, lam2)
     if D0 <= SINGULAR_D0:
         return st.SINGULAR, math.nan, math.nan, D0
     r = math.sqrt(D0)
@@ -55,16 +55,32 @@ def coefficients(sigma, lam1, lam2, s):
     return st.OK, chi, xi, D0
 
 
-@jit
-def exact_moment(phi, sigma, lam1, base, L0):
-    """M_b / (c R^2) from the spring energy; base = 1 + lambda1^2 + lambda2^2, L0 = free length / R."""
-    length = math.sqrt(base - 2.0 * sigma * lam1 * math.cos(phi))
-    return sigma * lam1 * math.sin(phi) * (1.0 - L0 / length)
+@jit_noalloc
+def rest_length_squared(sigma, lam1, lam2):
+    """D0 = (L(0)/R)^2 = 1 + lambda1^2 + lambda2^2 - 2 sigma lambda1, written as a sum of squares:
+    the expanded form cancels as D0 -> 0 (lambda1 -> 1, lambda2 -> 0 with tension) and lost
+    five digits of chi at D0 ~ 1e-12 (sweeps/extreme/torsional_d0_limit.toml)."""
+    d = 1.0 - sigma * lam1
+    return d * d + lam2 * lam2
+
+
+@jit_noalloc
+def spring_length(phi, sigma, lam1, D0):
+    """l(phi) = L(phi)/R: l^2 = 1 + lambda1^2 + lambda2^2 - 2 sigma lambda1 cos(phi)
+    = D0 + 4 sigma lambda1 sin^2(phi / 2), the second form free of cancellation near phi = 0."""
+    h = math.sin(0.5 * phi)
+    return math.sqrt(D0 + 4.0 * sigma * lam1 * h * h)
+
+
+@jit_noalloc
+def exact_moment(phi, sigma, lam1, D0, L0):
+    """M_b / (c R^2) from the spring energy; D0 = rest_length_squared, L0 = free length / R."""
+    return sigma * lam1 * math.sin(phi) * (1.0 - L0 / spring_length(phi, sigma, lam1, D0))
 
 
 @jit
 def _exact_rhs(t, y, p, dydt):
-    # x = phi / A, tau = w t:  x'' = -coef * m(A x);  p = (sigma, lambda1, base, L0, A, coef)
+    # x = phi / A, tau = w t:  x'' = -coef * m(A x);  p = (sigma, lambda1, D0, L0, A, coef)
     dydt[0] = y[1]
     dydt[1] = -p[5] * exact_moment(p[4] * y[0], p[0], p[1], p[2], p[3])
 
@@ -75,9 +91,9 @@ def _phi_event(t, y, p):
 
 
 @jit_noalloc
-def exact_moment_slope(phi, sigma, lam1, base, L0):
+def exact_moment_slope(phi, sigma, lam1, D0, L0):
     """d/dphi of exact_moment: sigma lam1 (cos phi (1 - L0 / l) + sigma lam1 L0 sin^2 phi / l^3)."""
-    length = math.sqrt(base - 2.0 * sigma * lam1 * math.cos(phi))
+    length = spring_length(phi, sigma, lam1, D0)
     sin_phi = math.sin(phi)
     return sigma * lam1 * (math.cos(phi) * (1.0 - L0 / length)
                            + sigma * lam1 * L0 * sin_phi * sin_phi / (length * length * length))
@@ -153,19 +169,28 @@ def integrate_exact_period(method, sigma, lam1, lam2, s, k, chi, xi, A, rtol, at
     w2 = k * (chi + abs(xi) * A * A)  # same time scale as the two-term model
     p[0] = sigma
     p[1] = lam1
-    p[2] = 1.0 + lam1 * lam1 + lam2 * lam2
-    p[3] = math.sqrt(p[2] - 2.0 * sigma * lam1) - sigma * s
+    p[2] = rest_length_squared(sigma, lam1, lam2)
+    p[3] = math.sqrt(p[2]) - sigma * s
     p[4] = A
     p[5] = k / (w2 * A)
+    if not _returns_through_zero(sigma, lam1, p[2], p[3], A):
+        return st.NOT_OSCILLATORY, math.nan, 0, 0
     y[0] = 1.0
     y[1] = 0.0
+    # NO_EVENT now means the lever does come back, later than the horizon: raise t_max_periods
     code, tau_q, ns, nr = exact_quarter_period(method, y, p, t_max_periods * 2.0 * math.pi, rtol, atol, max_steps,
                                                work, rwork, swork, q, v)
-    if code == st.NO_EVENT:
-        code = st.NOT_OSCILLATORY  # the exact moment does not bring the lever back through 0
     if code != st.OK:
         return code, math.nan, ns, nr
     return st.OK, 4.0 * tau_q / math.sqrt(w2), ns, nr
+
+
+@jit_noalloc
+def _returns_through_zero(sigma, lam1, D0, L0, A):
+    """Energy: released at rest from A, the lever reaches phi = 0 iff the spring energy there is
+    lower than at A, (l(0) - L0)^2 < (l(A) - L0)^2; l is monotonic on [0, pi], so the energy has
+    no other hump in between. Otherwise it stays in a well away from 0 (or creeps to 0 forever)."""
+    return abs(math.sqrt(D0) - L0) < abs(spring_length(A, sigma, lam1, D0) - L0)
 
 
 @jit
