@@ -117,7 +117,7 @@ import math
 import numpy as np
 
 from .. import status as st
-from .._jit import compile_time_switch, jit, jit_inline, jit_noalloc, literally, pjit, prange
+from .._jit import call_with_literal, compile_time_switch, jit, jit_inline, jit_noalloc, literally, pjit, prange
 from ..ode import AUTO, DOP853, METHOD_CODES, RADAU, dop853, radau
 from ..special import sincos
 from ._spec import ExtraDim, ModelSpec, Output, Param, Setting
@@ -692,8 +692,8 @@ def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
         value = np.full(n, np.nan)
         fcode = np.zeros(n, dtype=np.int8)
         if run.any():
-            floquet_kernel(METHOD_CODES[solver.method], pp, run, solver.rtol, solver.atol, solver.max_steps, value,
-                           fcode, n_steps, n_rhs)
+            call_with_literal(floquet_kernel, METHOD_CODES[solver.method], pp, run, solver.rtol, solver.atol,
+                              solver.max_steps, value, fcode, n_steps, n_rhs)
         code = _worse(code, fcode)
         good = run & (fcode == st.OK)
         out["floquet_max"][:] = np.where(good, value, np.nan)
@@ -721,8 +721,8 @@ def _simulate(wants, solver, pp, feasible, isolated, Omega, a, code, out, n_step
     meas = np.full((n, N_MEAS), np.nan)
     scode = np.zeros(n, dtype=np.int8)
     if run.any():
-        simulation_kernel(METHOD_CODES[solver.method], pp, run, float(s["perturbation"]), t_eval, n_rev1, n_early,
-                          i_prev, i_late, solver.rtol, solver.atol, solver.max_steps, float(s["settle_threshold"]),
+        call_with_literal(simulation_kernel, METHOD_CODES[solver.method], pp, run, float(s["perturbation"]), t_eval,
+                          n_rev1, n_early, i_prev, i_late, solver.rtol, solver.atol, solver.max_steps, float(s["settle_threshold"]),
                           hist_idx, hist, meas, scode, n_steps, n_rhs)
     code[:] = _worse(code, scode)
     good = run & (scode == st.OK)

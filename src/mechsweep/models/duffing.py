@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from .. import status as st
-from .._jit import compile_time_switch, jit, jit_noalloc, literally, pjit, prange
+from .._jit import call_with_literal, compile_time_switch, jit, jit_noalloc, literally, pjit, prange
 from ..ode import AUTO, DOP853, METHOD_CODES, RADAU, SYMPLECTIC, dop853, radau, symplectic
 from ..special import ellipk
 from ._spec import ModelSpec, Output, Param, Setting
@@ -245,9 +245,9 @@ def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
     if want[[K_PERIOD_EXACT, K_VMAX, K_AMAX, K_KV, K_KA, K_EPS]].any():
         algebraic_kernel(omega, mu, A, want, table, status)
     if want[K_PERIOD]:
-        period_kernel(
-            METHOD_CODES[solver.method], omega, mu, A, solver.rtol, solver.atol, solver.max_steps, solver.settings["t_max_periods"],
-            table, status, n_steps, n_rhs,
+        call_with_literal(
+            period_kernel, METHOD_CODES[solver.method], omega, mu, A, solver.rtol, solver.atol, solver.max_steps,
+            solver.settings["t_max_periods"], table, status, n_steps, n_rhs,
         )
     if want[K_PERIOD_ERROR]:
         table[:, K_PERIOD_ERROR] = relative_error(table[:, K_PERIOD], table[:, K_PERIOD_EXACT])

@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from .. import status as st
-from .._jit import compile_time_switch, jit, jit_noalloc, literally, pjit, prange
+from .._jit import call_with_literal, compile_time_switch, jit, jit_noalloc, literally, pjit, prange
 from ..ode import AUTO, DOP853, METHOD_CODES, RADAU, SYMPLECTIC, dop853, radau, symplectic
 from . import duffing as duf
 from ._spec import ModelSpec, Output, Param
@@ -269,9 +269,9 @@ def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
     want_period = bool(want[OFF + duf.K_PERIOD])
     want_exact = bool(want[K_EXACT_MOMENT])
     if want_period or want_exact:
-        integrated_kernel(
-            METHOD_CODES[solver.method], P, want_period, want_exact, solver.rtol, solver.atol, solver.max_steps, solver.settings["t_max_periods"],
-            table, status, n_steps, n_rhs,
+        call_with_literal(
+            integrated_kernel, METHOD_CODES[solver.method], P, want_period, want_exact, solver.rtol, solver.atol,
+            solver.max_steps, solver.settings["t_max_periods"], table, status, n_steps, n_rhs,
         )
     if want[OFF + duf.K_PERIOD_ERROR]:
         table[:, OFF + duf.K_PERIOD_ERROR] = duf.relative_error(
