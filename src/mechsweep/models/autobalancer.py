@@ -722,8 +722,8 @@ def _simulate(wants, solver, pp, feasible, isolated, Omega, a, code, out, n_step
     scode = np.zeros(n, dtype=np.int8)
     if run.any():
         call_with_literal(simulation_kernel, METHOD_CODES[solver.method], pp, run, float(s["perturbation"]), t_eval,
-                          n_rev1, n_early, i_prev, i_late, solver.rtol, solver.atol, solver.max_steps, float(s["settle_threshold"]),
-                          hist_idx, hist, meas, scode, n_steps, n_rhs)
+                          n_rev1, n_early, i_prev, i_late, solver.rtol, solver.atol, solver.max_steps,
+                          float(s["settle_threshold"]), hist_idx, hist, meas, scode, n_steps, n_rhs)
     code[:] = _worse(code, scode)
     good = run & (scode == st.OK)
     bal = good & isolated
