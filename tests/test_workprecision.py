@@ -47,3 +47,16 @@ def test_unknown_model_is_an_input_error():
 
     with pytest.raises(InputError, match="no work-precision case for model 'fourbar_balancing'"):
         wp.main("fourbar_balancing")
+
+
+def test_energy_drift_grows_for_dop853_and_not_for_symplectic(report, tmp_path):
+    ds, _ = report
+    for i, name in enumerate(ds.drift_run.values):
+        e = ds.energy_error.values[i]
+        if "symplectic" in name:
+            assert e.max() < 1e-12  # bounded at round-off over 10^4 periods
+        else:
+            assert e[-1] > 1e3 * e[0]  # linear growth: 10^4 periods, ~10^4 times the first one
+    other = wp.main("torsional_circuit", points=2, scipy_points=1, ladder=(1e-6,), repeats=1, out_dir=tmp_path,
+                    quiet=True)
+    assert "energy_error" not in other  # the drift experiment is the undamped Duffing's

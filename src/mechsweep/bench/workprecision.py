@@ -8,8 +8,9 @@ solve_ivp (DOP853, Radau, LSODA) over a ladder of tolerances, in the same proces
   (``CASES``: a closed form where one exists, otherwise scipy's DOP853 at rtol 1e-13, an
   implementation independent of ours); the maximum and the median over the sample;
 - time: wall time per point after JIT compilation (the compile or cache-load time of the first
-  call is reported separately), the minimum of ``repeats`` runs; ours runs the whole sample
-  through the model's ``evaluate`` on one thread (what a sweep does, per core); scipy runs
+  call is reported separately), the minimum of ``repeats`` runs; ours runs the sample, repeated
+  up to TIMED_POINTS points (or until a call takes TIMED_CALL_S), through the model's ``evaluate`` on one thread (what a sweep's chunk
+  does, per core; a call's fixed cost of ~0.1-0.5 ms is then spread as in a sweep); scipy runs
   ``scipy_points`` of the points one by one with the model's jitted right-hand side (scipy's
   best case: its Python-level stepping is then the whole cost), and stops a scipy method's
   ladder once a rung costs more than ``scipy_budget_s`` per point (said in the report);
@@ -40,6 +41,8 @@ LADDER = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13)
 ATOL_RATIO = 1e-2  # atol = 1e-2 rtol: the scaled states are O(1)
 SCIPY_METHODS = ("DOP853", "Radau", "LSODA")
 REFERENCE_RTOL = 1e-13
+TIMED_POINTS = 1024  # our time per point: the sample repeated up to this many points ...
+TIMED_CALL_S = 0.05  # ... or until one call takes this long
 
 
 @dataclass(frozen=True)
@@ -182,6 +185,48 @@ CASES = {
 }
 
 
+# ----------------------------------------------------------------------------- energy drift (duffing)
+DRIFT_PERIODS = (1, 10, 100, 1000, 10000)
+DRIFT_RTOLS = (1e-6, 1e-9)
+
+
+def energy_drift(periods=DRIFT_PERIODS, rtols=DRIFT_RTOLS):
+    """Relative energy error of the undamped Duffing x'' = -x/2 - x^3/2 (x(0) = 1, x'(0) = 0)
+    after 1 ... 10^4 periods: dop853 (adaptive, rtol) against the symplectic method (its fixed step
+    for the same rtol). Returns (names, errors[name, period], cost in rhs evaluations)."""
+    from ..models import duffing
+    from ..ode import dop853, symplectic
+
+    p = np.array([0.5, 0.5])
+    T = float(duffing.period_closed_form(0.5, 0.5, 1.0))
+    energy = lambda x, v: 0.5 * v * v + 0.25 * x * x + 0.125 * x**4  # noqa: E731
+    e0 = energy(1.0, 0.0)
+    explicit = dop853.make_solver(duffing._scaled_rhs)
+    composed = symplectic.make_solver(duffing._scaled_accel, duffing.SYMPLECTIC_ORDER)
+    names, errors, costs = [], [], []
+    for rtol in rtols:
+        for name in ("dop853", "symplectic"):
+            row, cost = [], 0
+            y, t = np.array([1.0, 0.0]), 0.0
+            q, v = np.array([1.0]), np.array([0.0])
+            for n in periods:  # continue from the previous end: one long integration
+                t_end = n * T
+                if name == "dop853":
+                    _, _, nr = explicit(t, y, p, t_end, rtol, rtol * ATOL_RATIO, 0.0, 10**8, dop853.workspace(2))
+                    x1, v1 = y
+                else:
+                    steps = int(math.ceil((t_end - t) / float(duffing.symplectic_step(rtol))))
+                    _, _, nr = composed(t, q, v, p, t_end, steps, symplectic.workspace(1))
+                    x1, v1 = q[0], v[0]
+                cost += nr
+                t = t_end
+                row.append(abs(energy(x1, v1) - e0) / e0)
+            names.append(f"mechsweep {name}, rtol {rtol:g}")
+            errors.append(row)
+            costs.append(cost)
+    return names, np.array(errors), np.array(costs)
+
+
 # ----------------------------------------------------------------------------- measurement
 def sample(scene: Scene, points: int, seed: int = 0) -> np.ndarray:
     """`points` grid points of the scene, drawn without replacement with a fixed seed."""
@@ -244,12 +289,19 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
                     t0 = time.perf_counter()
                     _run_ours(spec, P[:1], case.output, solver)
                     compile_s[method] = time.perf_counter() - t0
+                t0 = time.perf_counter()
+                values, status, ns, nr = _run_ours(spec, P, case.output, solver)
+                once = time.perf_counter() - t0
+                # timed on the sample repeated until a call takes ~TIMED_CALL_S (at most TIMED_POINTS
+                # points), so that a call's fixed cost is spread as over a sweep's chunk
+                tiles = int(min(max(1, TIMED_POINTS // P.shape[0]), max(1, math.ceil(TIMED_CALL_S / once))))
+                P_timed = np.tile(P, (tiles, 1))
                 best = math.inf
                 for _ in range(repeats):
                     t0 = time.perf_counter()
-                    values, status, ns, nr = _run_ours(spec, P, case.output, solver)
+                    _run_ours(spec, P_timed, case.output, solver)
                     best = min(best, time.perf_counter() - t0)
-                _fill(res, a, b, values, status, ns, nr, reference, case.error, best / P.shape[0], k)
+                _fill(res, a, b, values, status, ns, nr, reference, case.error, best / P_timed.shape[0], k)
     finally:
         numba.set_num_threads(before)
     skipped = []
@@ -280,6 +332,15 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
                "threads": 1, "scipy_rhs": "the model's jitted right-hand side; Radau/LSODA with the analytic "
                "Jacobian where the model has one (duffing, autobalancer), else finite differences"},
     )
+    if model == "duffing":
+        names, drift, cost = energy_drift()
+        ds["energy_error"] = (("drift_run", "periods"), drift,
+                              {"units": "1", "long_name": "relative energy error |E - E0| / E0"})
+        ds["drift_rhs"] = (("drift_run",), cost, {"units": "1", "long_name": "rhs evaluations for 10^4 periods"})
+        ds = ds.assign_coords(drift_run=("drift_run", names, {"long_name": "method and tolerance"}),
+                              periods=("periods", np.array(DRIFT_PERIODS), {"units": "1",
+                                                                            "long_name": "periods integrated"}))
+        ds.attrs["drift_problem"] = "x'' = -x/2 - x^3/2, x(0) = 1, x'(0) = 0, one integration over 10^4 periods"
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / f"workprecision_{model}.h5"
@@ -335,6 +396,11 @@ def _print(ds, path) -> None:
                   f"{float(row.time_per_point) * 1e6:>10.1f} us{float(row.steps_per_point):>9.1f}"
                   f"{float(row.rhs_per_point):>9.1f}{float(row.ok_fraction) * 100:>5.0f}%"
                   f"{float(row.error_max_sample):>12.2e}")
+    if "energy_error" in ds:
+        print(f"  energy drift ({a['drift_problem']}):")
+        for i, name in enumerate(ds.drift_run.values):
+            errs = "  ".join(f"{n:>5d}: {e:.1e}" for n, e in zip(ds.periods.values, ds.energy_error.values[i]))
+            print(f"    {name:<34}{errs}   ({int(ds.drift_rhs.values[i]):,} rhs)")
     if a["skipped"] != "none":
         print(f"  skipped (a rung above took more than the time budget per point): {a['skipped']}")
     print(f"  written: {path} and {path.with_suffix('.csv')}")

@@ -16,7 +16,8 @@ def can_workprecision(ds) -> bool:
 
 def workprecision(ds):
     """Error against run time per point, one line per method (ours solid, scipy dashed)."""
-    fig, axes = new_figure(1, 1, width=7.4, height=5.0)
+    drift = "energy_error" in ds
+    fig, axes = new_figure(1, 2 if drift else 1, width=7.4, height=5.0)
     ax = axes[0, 0]
     rtol = ds["rtol"].values
     for i, name in enumerate(ds["integrator"].values):
@@ -35,7 +36,23 @@ def workprecision(ds):
     ax.set_ylabel(textwrap.fill(f"{ds.attrs['norm']} (max over {ds.attrs['scipy_points']} points)", 48))
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, loc="best")
+    if drift:
+        _energy_drift(axes[0, 1], ds)
     head = f"Work-precision, {ds.attrs['model']}: rtol ladder {rtol.max():.0e} ... {rtol.min():.0e}"
     ref = f"reference: {ds.attrs['reference']}; {ds.attrs['points']} points of {ds.attrs['scene']}, 1 thread"
     fig.suptitle(head + "\n" + textwrap.fill(ref, 100), fontsize=9)
     return fig
+
+
+def _energy_drift(ax, ds):
+    """Energy error against integrated periods: linear growth of the explicit method, none for
+    the symplectic one (its error sits at round-off)."""
+    for i, name in enumerate(ds["drift_run"].values):
+        e = np.maximum(ds["energy_error"].isel(drift_run=i).values, 1e-17)  # exact zeros drawn at the floor
+        ax.loglog(ds["periods"].values, e, marker=MARKERS[i % len(MARKERS)], ls="-" if "symplectic" in name else "--",
+                  label=f"{name} ({int(ds['drift_rhs'].values[i]):,} rhs)")
+    ax.set_xlabel(label(ds["periods"]))
+    ax.set_ylabel(label(ds["energy_error"]))
+    ax.set_title(textwrap.fill(ds.attrs["drift_problem"], 60), fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, loc="best")

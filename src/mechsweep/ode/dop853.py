@@ -50,6 +50,7 @@ import math
 import numpy as np
 
 from .._jit import jit, jit_noalloc
+from ._common import ROOT_RTOL, _all_finite, _copy, _min_step, _rms_scaled, _rms_scaled_difference, make_brent
 from ..status import MAX_STEPS, NO_EVENT, NONFINITE, OK, STEP_UNDERFLOW, STIFF
 from ._dop853_tableau import (
     A,
@@ -87,10 +88,6 @@ STIFF_H_LAMBDA = 6.1
 STIFF_STEPS = 15
 NONSTIFF_RESET = 6
 
-# Root finding on the interpolant: Brent's method, relative tolerance as in
-# scipy.optimize.brentq; 100 iterations are far more than it ever needs.
-ROOT_RTOL = 4.0 * np.finfo(np.float64).eps
-ROOT_MAX_ITER = 100
 
 # Rows of the workspace (each of length n).
 K_FSAL = N_STAGES  # stage 12 = f(t + h, y_new), becomes stage 0 of the next step
@@ -115,18 +112,8 @@ def workspace(n):
 # ---------------------------------------------------------------------------
 
 
-@jit_noalloc
-def _all_finite(v):
-    for i in range(v.size):
-        if not math.isfinite(v[i]):
-            return False
-    return True
 
 
-@jit_noalloc
-def _copy(src, dst):
-    for i in range(src.size):
-        dst[i] = src[i]
 
 
 @jit_noalloc
@@ -174,21 +161,8 @@ def _error_norm(y, work, h, rtol, atol):
     return abs(h) * sum5 / math.sqrt((sum5 + 0.01 * sum3) * n)
 
 
-@jit
-def _rms_scaled(v, y, rtol, atol):
-    """RMS of v / (atol + rtol |y|), the norm of select_initial_step."""
-    acc = 0.0
-    for i in range(v.size):
-        acc += (v[i] / (atol + abs(y[i]) * rtol)) ** 2
-    return math.sqrt(acc / v.size)
 
 
-@jit
-def _rms_scaled_difference(a, b, y, rtol, atol):
-    acc = 0.0
-    for i in range(a.size):
-        acc += ((a[i] - b[i]) / (atol + abs(y[i]) * rtol)) ** 2
-    return math.sqrt(acc / a.size)
 
 
 @jit_noalloc
@@ -203,10 +177,6 @@ def _step_factor(error_norm, rejected_before):
     return factor
 
 
-@jit_noalloc
-def _min_step(t):
-    """Smallest step that still changes t meaningfully (scipy: 10 ulp of t)."""
-    return 10.0 * abs(np.nextafter(t, np.inf) - t)
 
 
 @jit_noalloc
@@ -390,58 +360,18 @@ def _make_dense_output(rhs):
 @functools.cache
 def _make_root_locator(event):
     @jit_noalloc
-    def event_on_interpolant(t, t_old, h, y_old, p, work):
+    def event_on_interpolant(t, ctx):
+        t_old, h, y_old, p, work = ctx
         y_at = work[Y_STAGE]  # free once the dense output is built
         _interpolate((t - t_old) / h, y_old, work, y_at)
         return event(t, y_at, p)
 
+    brent = make_brent(event_on_interpolant)
+
     @jit_noalloc
     def locate_root(t_old, h, g_old, t_new, g_new, y_old, p, work):
-        """Root of event(t, interpolant(t)) in [t_old, t_new] where g_old > 0 >= g_new.
-
-        Brent's method as in scipy.optimize.brentq (bracketing, so bounded and
-        robust), to a few ulp of t.
-        """
-        if g_new == 0.0:
-            return t_new
-        x_tol = ROOT_RTOL * abs(h)  # absolute floor when t is near 0
-        x_pre, f_pre = t_old, g_old
-        x_cur, f_cur = t_new, g_new
-        x_blk, f_blk = 0.0, 0.0
-        s_pre, s_cur = 0.0, 0.0
-        for _ in range(ROOT_MAX_ITER):
-            if f_pre != 0.0 and f_cur != 0.0 and (f_pre < 0.0) != (f_cur < 0.0):
-                x_blk, f_blk = x_pre, f_pre
-                s_pre = s_cur = x_cur - x_pre
-            if abs(f_blk) < abs(f_cur):  # keep the best estimate in x_cur
-                x_pre, x_cur, x_blk = x_cur, x_blk, x_cur
-                f_pre, f_cur, f_blk = f_cur, f_blk, f_cur
-            delta = 0.5 * (x_tol + ROOT_RTOL * abs(x_cur))
-            s_bis = 0.5 * (x_blk - x_cur)
-            if f_cur == 0.0 or abs(s_bis) < delta:
-                return x_cur
-            if abs(s_pre) > delta and abs(f_cur) < abs(f_pre):
-                if x_pre == x_blk:  # secant
-                    s_try = -f_cur * (x_cur - x_pre) / (f_cur - f_pre)
-                else:  # inverse quadratic interpolation
-                    d_pre = (f_pre - f_cur) / (x_pre - x_cur)
-                    d_blk = (f_blk - f_cur) / (x_blk - x_cur)
-                    s_try = -f_cur * (f_blk * d_blk - f_pre * d_pre) / (
-                        d_blk * d_pre * (f_blk - f_pre)
-                    )
-                if 2.0 * abs(s_try) < min(abs(s_pre), 3.0 * abs(s_bis) - delta):
-                    s_pre, s_cur = s_cur, s_try
-                else:
-                    s_pre = s_cur = s_bis
-            else:
-                s_pre = s_cur = s_bis
-            x_pre, f_pre = x_cur, f_cur
-            if abs(s_cur) > delta:
-                x_cur += s_cur
-            else:
-                x_cur += delta if s_bis > 0.0 else -delta
-            f_cur = event_on_interpolant(x_cur, t_old, h, y_old, p, work)
-        return x_cur
+        """Root of event(t, interpolant(t)) in [t_old, t_new] where g_old > 0 >= g_new."""
+        return brent(t_old, g_old, t_new, g_new, ROOT_RTOL * abs(h), (t_old, h, y_old, p, work))
 
     return locate_root
 

@@ -101,6 +101,7 @@ import math
 import numpy as np
 
 from .._jit import jit, jit_inline, jit_noalloc
+from ._common import ROOT_RTOL, _all_finite, _copy, _min_step, _rms_scaled, _rms_scaled_difference, make_brent
 from ..status import MAX_STEPS, NO_EVENT, NONFINITE, OK, SINGULAR, STEP_UNDERFLOW
 
 __all__ = [
@@ -161,8 +162,6 @@ MIN_RTOL = 100.0 * EPS
 # unchanged while it would grow by less than 20 %.
 LU_H_TOLERANCE = 0.2
 
-ROOT_RTOL = 4.0 * EPS
-ROOT_MAX_ITER = 100
 
 # LU outcomes.
 _LU_OK = 0
@@ -236,12 +235,6 @@ def jacobian_and_lu_counts(work):
 # ---------------------------------------------------------------------------
 
 
-@jit_noalloc
-def _all_finite(v):
-    for i in range(v.size):
-        if not math.isfinite(v[i]):
-            return False
-    return True
 
 
 @jit_noalloc
@@ -253,33 +246,12 @@ def _all_finite_2d(a):
     return True
 
 
-@jit_noalloc
-def _copy(src, dst):
-    for i in range(src.size):
-        dst[i] = src[i]
 
 
-@jit_inline
-def _min_step(t):
-    """Smallest step that still changes t meaningfully (scipy: 10 ulp of t)."""
-    return 10.0 * abs(np.nextafter(t, np.inf) - t)
 
 
-@jit_noalloc
-def _rms_scaled(v, y, rtol, atol):
-    """RMS of v / (atol + rtol |y|), the norm of select_initial_step."""
-    acc = 0.0
-    for i in range(v.size):
-        acc += (v[i] / (atol + abs(y[i]) * rtol)) ** 2
-    return math.sqrt(acc / v.size)
 
 
-@jit_noalloc
-def _rms_scaled_difference(a, b, y, rtol, atol):
-    acc = 0.0
-    for i in range(a.size):
-        acc += ((a[i] - b[i]) / (atol + abs(y[i]) * rtol)) ** 2
-    return math.sqrt(acc / a.size)
 
 
 @jit_noalloc
@@ -863,57 +835,18 @@ def _make_advance(rhs, jac):
 @functools.cache
 def _make_root_locator(event):
     @jit_noalloc
-    def event_on_interpolant(t, t_old, h, p, rw):
+    def event_on_interpolant(t, ctx):
+        t_old, h, p, rw = ctx
         y_at = rw[Y_STAGE]  # free after the step
         _interpolate((t - t_old) / h, rw, y_at)
         return event(t, y_at, p)
 
+    brent = make_brent(event_on_interpolant)
+
     @jit_noalloc
     def locate_root(t_old, h, g_old, t_new, g_new, p, rw):
-        """Root of event(t, interpolant(t)) in [t_old, t_new] where g_old > 0 >= g_new.
-
-        Brent's method as in scipy.optimize.brentq (dop853's loop), to a few ulp of t.
-        """
-        if g_new == 0.0:
-            return t_new
-        x_tol = ROOT_RTOL * abs(h)
-        x_pre, f_pre = t_old, g_old
-        x_cur, f_cur = t_new, g_new
-        x_blk, f_blk = 0.0, 0.0
-        s_pre, s_cur = 0.0, 0.0
-        for _ in range(ROOT_MAX_ITER):
-            if f_pre != 0.0 and f_cur != 0.0 and (f_pre < 0.0) != (f_cur < 0.0):
-                x_blk, f_blk = x_pre, f_pre
-                s_pre = s_cur = x_cur - x_pre
-            if abs(f_blk) < abs(f_cur):
-                x_pre, x_cur, x_blk = x_cur, x_blk, x_cur
-                f_pre, f_cur, f_blk = f_cur, f_blk, f_cur
-            delta = 0.5 * (x_tol + ROOT_RTOL * abs(x_cur))
-            s_bis = 0.5 * (x_blk - x_cur)
-            if f_cur == 0.0 or abs(s_bis) < delta:
-                return x_cur
-            if abs(s_pre) > delta and abs(f_cur) < abs(f_pre):
-                if x_pre == x_blk:
-                    s_try = -f_cur * (x_cur - x_pre) / (f_cur - f_pre)
-                else:
-                    d_pre = (f_pre - f_cur) / (x_pre - x_cur)
-                    d_blk = (f_blk - f_cur) / (x_blk - x_cur)
-                    s_try = -f_cur * (f_blk * d_blk - f_pre * d_pre) / (
-                        d_blk * d_pre * (f_blk - f_pre)
-                    )
-                if 2.0 * abs(s_try) < min(abs(s_pre), 3.0 * abs(s_bis) - delta):
-                    s_pre, s_cur = s_cur, s_try
-                else:
-                    s_pre = s_cur = s_bis
-            else:
-                s_pre = s_cur = s_bis
-            x_pre, f_pre = x_cur, f_cur
-            if abs(s_cur) > delta:
-                x_cur += s_cur
-            else:
-                x_cur += delta if s_bis > 0.0 else -delta
-            f_cur = event_on_interpolant(x_cur, t_old, h, p, rw)
-        return x_cur
+        """Root of event(t, interpolant(t)) in [t_old, t_new] where g_old > 0 >= g_new."""
+        return brent(t_old, g_old, t_new, g_new, ROOT_RTOL * abs(h), (t_old, h, p, rw))
 
     return locate_root
 

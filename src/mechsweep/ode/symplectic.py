@@ -86,11 +86,11 @@ within one step are missed.
 from __future__ import annotations
 
 import functools
-import math
 
 import numpy as np
 
 from .._jit import jit, jit_noalloc
+from ._common import ROOT_RTOL, _all_finite, _copy, make_brent
 from ..status import MAX_STEPS, NO_EVENT, NONFINITE, OK
 
 __all__ = [
@@ -155,9 +155,6 @@ def _kick_drift(order):
     return kick, drift, c
 
 
-# Root finding on the interpolant: Brent's method as in dop853.
-ROOT_RTOL = 4.0 * np.finfo(np.float64).eps
-ROOT_MAX_ITER = 100
 
 # Rows of the workspace (each of length n).
 ACC = 0  # a(q) at the current state (FSAL)
@@ -185,12 +182,6 @@ def workspace(n):
 # ---------------------------------------------------------------------------
 
 
-@jit_noalloc
-def _all_finite(x):
-    for i in range(x.size):
-        if not math.isfinite(x[i]):
-            return False
-    return True
 
 
 @jit_noalloc
@@ -200,10 +191,6 @@ def _state_finite(q, v):
     return _all_finite(q) and _all_finite(v)
 
 
-@jit_noalloc
-def _copy(src, dst):
-    for i in range(src.size):
-        dst[i] = src[i]
 
 
 @jit_noalloc
@@ -281,60 +268,21 @@ def _make_step(accel, order):
 @functools.cache
 def _make_root_locator(event):
     @jit_noalloc
-    def event_on_interpolant(t, t_old, h, q, v, p, work):
+    def event_on_interpolant(t, ctx):
+        """event at t on the quintic Hermite interpolant of the last step (state into Q_AT, V_AT)."""
+        t_old, h, q, v, p, work = ctx
         q_at = work[Q_AT]
         v_at = work[V_AT]
         _hermite((t - t_old) / h, h, work[Q_OLD], work[V_OLD], work[A_OLD],
                  q, v, work[ACC], q_at, v_at)
         return event(t, q_at, v_at, p)
 
+    brent = make_brent(event_on_interpolant)
+
     @jit_noalloc
     def locate_root(t_old, h, g_old, t_new, g_new, q, v, p, work):
-        """Root of event(t, interpolant(t)) in [t_old, t_new] where g_old > 0 >= g_new.
-
-        Brent's method as in scipy.optimize.brentq (bracketing, so bounded and
-        robust), to a few ulp of t; same code as dop853's locator.
-        """
-        if g_new == 0.0:
-            return t_new
-        x_tol = ROOT_RTOL * abs(h)  # absolute floor when t is near 0
-        x_pre, f_pre = t_old, g_old
-        x_cur, f_cur = t_new, g_new
-        x_blk, f_blk = 0.0, 0.0
-        s_pre, s_cur = 0.0, 0.0
-        for _ in range(ROOT_MAX_ITER):
-            if f_pre != 0.0 and f_cur != 0.0 and (f_pre < 0.0) != (f_cur < 0.0):
-                x_blk, f_blk = x_pre, f_pre
-                s_pre = s_cur = x_cur - x_pre
-            if abs(f_blk) < abs(f_cur):  # keep the best estimate in x_cur
-                x_pre, x_cur, x_blk = x_cur, x_blk, x_cur
-                f_pre, f_cur, f_blk = f_cur, f_blk, f_cur
-            delta = 0.5 * (x_tol + ROOT_RTOL * abs(x_cur))
-            s_bis = 0.5 * (x_blk - x_cur)
-            if f_cur == 0.0 or abs(s_bis) < delta:
-                return x_cur
-            if abs(s_pre) > delta and abs(f_cur) < abs(f_pre):
-                if x_pre == x_blk:  # secant
-                    s_try = -f_cur * (x_cur - x_pre) / (f_cur - f_pre)
-                else:  # inverse quadratic interpolation
-                    d_pre = (f_pre - f_cur) / (x_pre - x_cur)
-                    d_blk = (f_blk - f_cur) / (x_blk - x_cur)
-                    s_try = -f_cur * (f_blk * d_blk - f_pre * d_pre) / (
-                        d_blk * d_pre * (f_blk - f_pre)
-                    )
-                if 2.0 * abs(s_try) < min(abs(s_pre), 3.0 * abs(s_bis) - delta):
-                    s_pre, s_cur = s_cur, s_try
-                else:
-                    s_pre = s_cur = s_bis
-            else:
-                s_pre = s_cur = s_bis
-            x_pre, f_pre = x_cur, f_cur
-            if abs(s_cur) > delta:
-                x_cur += s_cur
-            else:
-                x_cur += delta if s_bis > 0.0 else -delta
-            f_cur = event_on_interpolant(x_cur, t_old, h, q, v, p, work)
-        return x_cur
+        """Root of event(t, interpolant(t)) in [t_old, t_new] where g_old > 0 >= g_new."""
+        return brent(t_old, g_old, t_new, g_new, ROOT_RTOL * abs(h), (t_old, h, q, v, p, work))
 
     return event_on_interpolant, locate_root
 
@@ -434,7 +382,7 @@ def make_event_solver(accel, event, order):
             if g_old > 0.0 and g_new <= 0.0:
                 t_root = locate_root(t, h_step, g_old, t_new, g_new, q, v, p, work)
                 if t_root != t_new:
-                    event_on_interpolant(t_root, t, h_step, q, v, p, work)
+                    event_on_interpolant(t_root, (t, h_step, q, v, p, work))
                     _copy(work[Q_AT], q)
                     _copy(work[V_AT], v)
                 return OK, t_root, n_steps, n_accel
