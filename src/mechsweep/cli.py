@@ -369,6 +369,11 @@ def model_text(spec) -> str:
         extra = " (integrated)" if o.integrated else ""
         dims = f" (per {', '.join(d.name for d in o.extra_dims)})" if o.extra_dims else ""
         lines.append(f"    {o.name:<20} [{o.unit}] {o.long_name}{extra}{dims}")
+    if any(o.integrated for o in spec.outputs):
+        from .ode import METHOD_HELP
+
+        lines.append("  solver.method:")
+        lines += [f"    {m:<12} {METHOD_HELP[m]}" for m in spec.methods]
     if spec.settings:
         lines.append("  solver settings (besides method, rtol, atol, max_steps):")
         for st in spec.settings:
@@ -390,6 +395,8 @@ def model_markdown(spec) -> str:
         how += f" (per {', '.join(d.name for d in o.extra_dims)})" if o.extra_dims else ""
         sym = o.symbol.replace("|", "\\|")  # a bare | would end the table cell
         lines.append(f"| `{o.name}` | {sym} | {o.long_name}{how} | {o.unit} |")
+    if any(o.integrated for o in spec.outputs):
+        lines += ["", "`solver.method`: " + ", ".join(f"`{m}`" for m in spec.methods) + " (default `dop853`)."]
     if spec.settings:
         lines += ["", "| solver setting | meaning | unit | default | allowed |", "|---|---|---|---|---|"]
         for st in spec.settings:
