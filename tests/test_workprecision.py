@@ -21,6 +21,8 @@ def test_report_is_written_and_reopens_identical(report):
     xr.testing.assert_identical(stored.load(), ds)
     assert (out / "workprecision_duffing.csv").read_text().count("\n") == ds.sizes["integrator"] * 3 + 1
     assert "scipy Radau" in list(ds.integrator.values) and "mechsweep dop853" in list(ds.integrator.values)
+    energy = (out / "workprecision_duffing_energy.csv").read_text()
+    assert energy.count("\n") == ds.sizes["drift_run"] * ds.sizes["periods"] + 1
 
 
 def test_errors_follow_the_tolerance_and_match_scipy_dop853(report):

@@ -18,7 +18,7 @@ solve_ivp (DOP853, Radau, LSODA) over a ladder of tolerances, in the same proces
 - cost: accepted steps and right-hand-side evaluations per point.
 
 The result is an xarray Dataset (dims integrator x rtol) written to DIR/workprecision_MODEL.h5 and
-.csv; ``mechsweep plot DIR/workprecision_MODEL.h5`` draws error against time from it.
+.csv (Duffing: the energy drift also to DIR/workprecision_duffing_energy.csv); ``mechsweep plot DIR/workprecision_MODEL.h5`` draws error against time from it.
 """
 from __future__ import annotations
 
@@ -345,7 +345,10 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / f"workprecision_{model}.h5"
     ds.to_netcdf(path, engine="h5netcdf")
-    ds.to_dataframe().to_csv(path.with_suffix(".csv"))
+    table = [name for name in ds.data_vars if ds[name].dims == ("integrator", "rtol")]
+    ds[table].to_dataframe().to_csv(path.with_suffix(".csv"))
+    if "energy_error" in ds:
+        ds[["energy_error"]].to_dataframe().to_csv(path.with_name(f"{path.stem}_energy.csv"))
     if not quiet:
         _print(ds, path)
     return ds
