@@ -372,7 +372,6 @@ path = "data/runs/huge.h5"{storage}
 SIZE = re.compile(r"\d+(\.\d+)?\s*([kMGTPE]i?B|bytes)")
 
 
-@pytest.mark.xfail(strict=True, reason="size refusal not implemented yet")
 def test_grid_beyond_the_disk_is_refused_with_its_size(work, capsys):
     points = 10**6  # 3.2 TB of output
     assert points * 3.2e6 > shutil.disk_usage(work).free
@@ -381,7 +380,6 @@ def test_grid_beyond_the_disk_is_refused_with_its_size(work, capsys):
     assert SIZE.search(err), f"no size in:\n{err}"
 
 
-@pytest.mark.xfail(strict=True, reason="size refusal not implemented yet")
 def test_chunk_beyond_the_memory_is_refused_with_its_size(work, capsys):
     ram = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     points = math.ceil(2 * ram / 3.2e6)  # one chunk of twice the machine's memory

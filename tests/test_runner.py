@@ -170,3 +170,13 @@ def test_progress_bar_shows_points_and_rate(in_tmp, small_duffing, capsys):
     mechsweep.run(small_duffing, output="data/runs/p.h5", progress=True)
     err = capsys.readouterr().err
     assert "63/63" in err and "pt/s" in err
+
+
+def test_size_estimate_is_the_file_size(in_tmp, small_duffing):
+    """The disk refusal compares bytes_per_point x points with the free space: that product must
+    be the size of the data actually written (plus HDF5 metadata, coordinates and attributes)."""
+    scene = mechsweep.load_scene(small_duffing)
+    mechsweep.run(scene, output="data/runs/size.h5", progress=False)
+    data = runner.bytes_per_point(scene) * scene.n_points
+    actual = (in_tmp / "data" / "runs" / "size.h5").stat().st_size
+    assert data <= actual <= data + 200_000

@@ -4,6 +4,7 @@ from __future__ import annotations
 import datetime as _dt
 import os
 import platform
+import shutil
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -58,10 +59,11 @@ def run(
             raise StoreError(f"{final} holds a finished run of a different scene; use --restart to "
                              "replace it")
         return ds  # already complete: nothing to do
+    chunks = plan_chunks(scene.shape, default_chunk_target(scene))
+    check_size(scene, final, max(c.size for c in chunks), have_partial=part.exists() and not restart)
     if restart:
         discard_partial(part)
 
-    chunks = plan_chunks(scene.shape, default_chunk_target(scene))
     lay = layout(scene, len(chunks))
     if part.exists():
         store = PartialFile.reopen(part, scene, lay)
@@ -119,6 +121,60 @@ def check_target(final: Path) -> None:
         if magic != b"\x89HDF\r\n\x1a\n":
             raise StoreError(f"{final} exists and is not an HDF5 dataset; it would be overwritten: "
                              "choose another path with -o")
+
+
+# Memory a chunk needs, in units of its output arrays: the chunk being computed (outputs and the
+# model's scratch of the same size, e.g. the autobalancer's trajectory samples) and the previous
+# chunk waiting to be written.
+CHUNK_MEMORY_FACTOR = 3
+
+
+def bytes_per_point(scene: Scene) -> int:
+    """Stored bytes of one grid point: every requested output (with its extra dimensions, float64),
+    status (int8), n_steps and n_rhs (int64). The file is not compressed, so this is its size."""
+    values = sum(int(np.prod(extra_shape(scene, name), dtype=np.int64)) for name in scene.outputs)
+    return 8 * values + 1 + 16
+
+
+def check_size(scene: Scene, final: Path, chunk_points: int, have_partial: bool) -> None:
+    """Refuse, before any file is made, a run whose dataset does not fit the free disk space or
+    whose chunk does not fit the available memory, with the sizes involved."""
+    per_point = bytes_per_point(scene)
+    need = per_point * scene.n_points
+    if not have_partial:  # a resumed file already holds its space
+        free = shutil.disk_usage(final.parent).free + (final.stat().st_size if final.exists() else 0)
+        if need > free:
+            raise StoreError(f"the dataset {final} would need {_size(need)} ({scene.n_points:,} points x "
+                             f"{_size(per_point)}), but its disk has {_size(free)} free; make the grid "
+                             "coarser, ask for fewer outputs, or write elsewhere with -o")
+    chunk_need = CHUNK_MEMORY_FACTOR * per_point * chunk_points
+    available = _available_memory()
+    if available is not None and chunk_need > available:
+        raise StoreError(f"a chunk of {chunk_points:,} points would need about {_size(chunk_need)} of memory, "
+                         f"{_size(available)} is available; set a smaller [storage] chunk_size "
+                         f"(at most {max(1, available // (CHUNK_MEMORY_FACTOR * per_point)):,} points)")
+
+
+def _available_memory() -> int | None:
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def _size(n: float) -> str:
+    for unit in ("bytes", "kB", "MB", "GB", "TB", "PB"):
+        if n < 1000 or unit == "PB":
+            return f"{n:.0f} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
+        n /= 1000.0
+    return f"{n:.1f} PB"
 
 
 def _writable(path: Path) -> bool:
