@@ -21,6 +21,7 @@ NO_EVENT = 8  # an event (period crossing, settling) did not happen within the h
 NOT_BALANCEABLE = 9  # no balanced state (A0 > 2 m a or A1 != 0): balanced-state outputs are NaN
 UNDECIDED = 10  # stability undecided (simulation inconclusive, or |multiplier| within margin of 1)
 STIFF = 11  # the explicit method detected stiffness and no implicit method was allowed to take over
+ILL_CONDITIONED = 12  # the output is too sensitive here to reach the tolerance in double precision
 
 MEANINGS: dict[int, str] = {
     PENDING: "pending",
@@ -36,6 +37,7 @@ MEANINGS: dict[int, str] = {
     NOT_BALANCEABLE: "not_balanceable",
     UNDECIDED: "undecided",
     STIFF: "stiff",
+    ILL_CONDITIONED: "ill_conditioned",
 }
 
 DESCRIPTIONS: dict[int, str] = {
@@ -51,6 +53,7 @@ DESCRIPTIONS: dict[int, str] = {
     NO_EVENT: "an event the output needs (a period crossing, settling) did not happen within the horizon",
     NOT_BALANCEABLE: "no balanced state exists (A0 > 2 m a, A0 = 0 or A1 != 0): balanced-state outputs are NaN",
     UNDECIDED: "stability could not be decided: the simulation neither settled nor diverged within the horizon, or floquet_max is within solver.floquet_margin of 1",
+    ILL_CONDITIONED: "the output is too sensitive here to reach solver.rtol in double precision (the Duffing period within ~1e-6 of the soft separatrix); the closed form, where there is one, is still given",
     STIFF: "the problem is stiff at this point and the explicit method stopped (use method = \"auto\" or \"radau\")",
 }
 
