@@ -67,3 +67,14 @@ def test_check_and_models(capsys):
     assert main(["models", "duffing"]) == 0
     text = capsys.readouterr().out
     assert "omega" in text and "[rad/s]" in text
+
+
+def test_output_cut_short_by_a_pipe_is_not_an_error():
+    """`mechsweep models | head -1`: the reader leaves early; no traceback, exit 0."""
+    import subprocess
+    import sys
+
+    proc = subprocess.run(f"{sys.executable} -m mechsweep.cli models | head -1", shell=True, capture_output=True,
+                          text=True, timeout=120)
+    assert proc.stdout.startswith("duffing")
+    assert "Traceback" not in proc.stderr and "BrokenPipe" not in proc.stderr
