@@ -161,22 +161,22 @@ def test_lu_matches_numpy_and_reports_singular(n):
     mu_real, mu_complex = 0.7, 0.4 - 1.3j
     lu = np.empty((n, n))
     piv = np.empty(n, dtype=np.int64)
-    assert radau._lu_real(J, mu_real, lu, piv) == radau._LU_OK
+    assert radau._lu_factor(J, mu_real, lu, piv) == radau._LU_OK
     x = b.copy()
     radau._lu_solve(lu, piv, x)
     np.testing.assert_allclose(x, np.linalg.solve(mu_real * np.eye(n) - J, b), rtol=1e-12)
     lu_c = np.empty((n, n), dtype=np.complex128)
-    assert radau._lu_complex(J, mu_complex, lu_c, piv) == radau._LU_OK
+    assert radau._lu_factor(J, mu_complex, lu_c, piv) == radau._LU_OK
     xc = b.astype(np.complex128)
     radau._lu_solve(lu_c, piv, xc)
     np.testing.assert_allclose(xc, np.linalg.solve(mu_complex * np.eye(n) - J, b), rtol=1e-12)
     # mu I - J singular (mu equal to an eigenvalue of a triangular J): no exception.
     J_tri = np.triu(J)
     J_tri[n - 1, n - 1] = mu_real
-    assert radau._lu_real(J_tri, mu_real, lu, piv) == radau._LU_SINGULAR
+    assert radau._lu_factor(J_tri, mu_real, lu, piv) == radau._LU_SINGULAR
     J_nan = J.copy()
     J_nan[0, 0] = np.nan
-    assert radau._lu_real(J_nan, mu_real, lu, piv) == radau._LU_NONFINITE
+    assert radau._lu_factor(J_nan, mu_real, lu, piv) == radau._LU_NONFINITE
 
 
 # --------------------------------------------------------------------------

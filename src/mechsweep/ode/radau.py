@@ -235,8 +235,6 @@ def jacobian_and_lu_counts(work):
 # ---------------------------------------------------------------------------
 
 
-
-
 @jit_noalloc
 def _all_finite_2d(a):
     for i in range(a.shape[0]):
@@ -246,54 +244,12 @@ def _all_finite_2d(a):
     return True
 
 
-
-
-
-
-
-
-
-
 @jit_noalloc
-def _lu_real(jac_rows, mu, a, piv):
-    """a <- LU of (mu I - J) with partial pivoting (row interchanges in piv, as
-    LAPACK's getrf). Returns _LU_OK, _LU_SINGULAR (zero pivot) or _LU_NONFINITE."""
-    n = a.shape[0]
-    for i in range(n):
-        for j in range(n):
-            a[i, j] = -jac_rows[i, j]
-        a[i, i] += mu
-    for k in range(n):
-        p = k
-        amax = abs(a[k, k])
-        for i in range(k + 1, n):
-            v = abs(a[i, k])
-            if v > amax:
-                amax = v
-                p = i
-        piv[k] = p
-        if not math.isfinite(amax):
-            return _LU_NONFINITE
-        if amax == 0.0:
-            return _LU_SINGULAR
-        if p != k:
-            for j in range(n):
-                tmp = a[k, j]
-                a[k, j] = a[p, j]
-                a[p, j] = tmp
-        pivot = a[k, k]
-        for i in range(k + 1, n):
-            factor = a[i, k] / pivot
-            a[i, k] = factor
-            if factor != 0.0:
-                for j in range(k + 1, n):
-                    a[i, j] -= factor * a[k, j]
-    return _LU_OK
-
-
-@jit_noalloc
-def _lu_complex(jac_rows, mu, a, piv):
-    """a <- LU of (mu I - J), mu complex; pivot by |Re| + |Im| (LAPACK's izamax)."""
+def _lu_factor(jac_rows, mu, a, piv):
+    """a <- LU of (mu I - J) with partial pivoting, row interchanges in piv (as LAPACK's getrf),
+    for the real (mu real, a float64) and the complex (mu complex, a complex128) matrix alike:
+    numba compiles it once per type. Pivots by |Re| + |Im| (LAPACK's idamax / izamax; for a real
+    number that is |x|). Returns _LU_OK, _LU_SINGULAR (a zero pivot column) or _LU_NONFINITE."""
     n = jac_rows.shape[0]
     for i in range(n):
         for j in range(n):
@@ -355,10 +311,10 @@ def _factorize(h, rw, cw, piv, state):
     n = rw.shape[1]
     jac_rows = rw[JAC_ROW : JAC_ROW + n]
     state[STATE_N_LU] += 2.0
-    code = _lu_real(jac_rows, MU_REAL / h, rw[JAC_ROW + n : JAC_ROW + 2 * n], piv[0])
+    code = _lu_factor(jac_rows, MU_REAL / h, rw[JAC_ROW + n : JAC_ROW + 2 * n], piv[0])
     if code != _LU_OK:
         return code
-    return _lu_complex(jac_rows, MU_COMPLEX / h, cw[:n], piv[1])
+    return _lu_factor(jac_rows, MU_COMPLEX / h, cw[:n], piv[1])
 
 
 @jit_inline
