@@ -139,44 +139,46 @@ def symplectic_step(rtol):
     return 2.0 * math.pi / math.ceil(SYMPLECTIC_C * rtol ** (-1.0 / SYMPLECTIC_ORDER))
 
 
-@jit_noalloc
-def _quarter_period_dop853(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
-    return quarter_period_solver(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, work)
+def make_quarter_period(name, explicit, explicit_stiffness_test, implicit, composed):
+    """``name(method, y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v) -> (status, tau,
+    n_steps, n_rhs)``: tau of the first zero of x from y = (1, 0) by solver.method, for an
+    oscillator whose dop853, dop853-with-stiffness-test, radau and symplectic event solvers are
+    given; only the method's solver is compiled into a kernel. auto: dop853 with the stiffness
+    test, and a stiff point starts again with radau (costs add up)."""
+    @jit_noalloc
+    def by_dop853(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
+        return explicit(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, work)
 
+    @jit_noalloc
+    def by_radau(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
+        return implicit(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, rwork)
 
-@jit_noalloc
-def _quarter_period_radau(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
-    return quarter_period_radau(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, rwork)
-
-
-@jit_noalloc
-def _quarter_period_symplectic(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
-    q[0] = y[0]
-    v[0] = y[1]
-    code, tq, ns, nr = quarter_period_symplectic(0.0, q, v, p, symplectic_step(rtol), t_max, max_steps, swork)
-    y[0] = q[0]
-    y[1] = v[0]
-    return code, tq, ns, nr
-
-
-@jit_noalloc
-def _quarter_period_auto(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
-    """dop853 with the stiffness test; a stiff point starts again with radau (costs add up)."""
-    y0, y1 = y[0], y[1]
-    code, tq, ns, nr = quarter_period_stiffness_test(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, work)
-    if code != st.STIFF:
+    @jit_noalloc
+    def by_symplectic(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
+        q[0] = y[0]
+        v[0] = y[1]
+        code, tq, ns, nr = composed(0.0, q, v, p, symplectic_step(rtol), t_max, max_steps, swork)
+        y[0] = q[0]
+        y[1] = v[0]
         return code, tq, ns, nr
-    y[0] = y0
-    y[1] = y1
-    code, tq, ns2, nr2 = quarter_period_radau(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, rwork)
-    return code, tq, ns + ns2, nr + nr2
+
+    @jit_noalloc
+    def by_auto(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
+        y0, y1 = y[0], y[1]
+        code, tq, ns, nr = explicit_stiffness_test(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, work)
+        if code != st.STIFF:
+            return code, tq, ns, nr
+        y[0] = y0
+        y[1] = y1
+        code, tq, ns2, nr2 = implicit(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, rwork)
+        return code, tq, ns + ns2, nr + nr2
+
+    return compile_time_switch(name, {DOP853: by_dop853, RADAU: by_radau, SYMPLECTIC: by_symplectic,
+                                      AUTO: by_auto})
 
 
-# quarter_period(method, y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v) -> (status, tau,
-# n_steps, n_rhs): tau of the first zero of x from y = (1, 0); only the method's solver is compiled.
-quarter_period = compile_time_switch("quarter_period", {
-    DOP853: _quarter_period_dop853, RADAU: _quarter_period_radau, SYMPLECTIC: _quarter_period_symplectic,
-    AUTO: _quarter_period_auto})
+quarter_period = make_quarter_period("quarter_period", quarter_period_solver, quarter_period_stiffness_test,
+                                     quarter_period_radau, quarter_period_symplectic)
 
 
 # Near the soft separatrix the motion lingers at the saddle x = sqrt(a / -b) just beyond the turning

@@ -20,8 +20,8 @@ import math
 import numpy as np
 
 from .. import status as st
-from .._jit import call_with_literal, compile_time_switch, jit, jit_noalloc, literally, pjit, prange
-from ..ode import AUTO, DOP853, METHOD_CODES, RADAU, SYMPLECTIC, dop853, radau, symplectic
+from .._jit import call_with_literal, jit, jit_noalloc, literally, pjit, prange
+from ..ode import METHOD_CODES, dop853, radau, symplectic
 from . import duffing as duf
 from ._spec import ModelSpec, Output, Param
 
@@ -123,43 +123,10 @@ exact_quarter_period_radau = radau.make_event_solver(_exact_rhs, _exact_jac, _ph
 exact_quarter_period_symplectic = symplectic.make_event_solver(_exact_accel, _q_event, duf.SYMPLECTIC_ORDER)
 
 
-@jit_noalloc
-def _exact_quarter_period_dop853(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
-    return exact_quarter_period_solver(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, work)
-
-
-@jit_noalloc
-def _exact_quarter_period_radau(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
-    return exact_quarter_period_radau(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, rwork)
-
-
-@jit_noalloc
-def _exact_quarter_period_symplectic(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
-    q[0] = y[0]
-    v[0] = y[1]
-    code, tq, ns, nr = exact_quarter_period_symplectic(0.0, q, v, p, duf.symplectic_step(rtol), t_max, max_steps,
-                                                       swork)
-    y[0] = q[0]
-    y[1] = v[0]
-    return code, tq, ns, nr
-
-
-@jit_noalloc
-def _exact_quarter_period_auto(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
-    y0, y1 = y[0], y[1]
-    code, tq, ns, nr = exact_quarter_period_stiffness_test(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, work)
-    if code != st.STIFF:
-        return code, tq, ns, nr
-    y[0] = y0
-    y[1] = y1
-    code, tq, ns2, nr2 = exact_quarter_period_radau(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, rwork)
-    return code, tq, ns + ns2, nr + nr2
-
-
 # as duffing.quarter_period, for the exact spring moment
-exact_quarter_period = compile_time_switch("exact_quarter_period", {
-    DOP853: _exact_quarter_period_dop853, RADAU: _exact_quarter_period_radau,
-    SYMPLECTIC: _exact_quarter_period_symplectic, AUTO: _exact_quarter_period_auto})
+exact_quarter_period = duf.make_quarter_period(
+    "exact_quarter_period", exact_quarter_period_solver, exact_quarter_period_stiffness_test,
+    exact_quarter_period_radau, exact_quarter_period_symplectic)
 
 
 @jit_noalloc
