@@ -144,3 +144,16 @@ def test_period_near_the_soft_separatrix_is_right_or_ill_conditioned():
         assert (status[~ok] == st.ILL_CONDITIONED).all() and np.isnan(out["period"][~ok]).all()
         assert ok[:3].all() and not ok[-1]  # far enough: solved; 1e-9 from it: flagged
         assert np.isfinite(out["period_exact"]).all()  # the closed form is still there
+
+
+def test_saddle_amplification_model_bounds_the_measured_one():
+    """duffing.saddle_amplification must not underestimate the measured amplification of the
+    period error near the soft separatrix at the tolerances where it tightens (rtol >= 5e-11)."""
+    from mechsweep.bench import period_error as pe
+
+    for gap in (1e-4, 1e-5, 1e-6):
+        model = d.saddle_amplification(1.0, -(1.0 - gap), 1.0)
+        for rtol in (5e-9, 5e-11):
+            measured = pe.plain_period_error(gap, rtol) / rtol
+            assert measured <= model, (gap, rtol, measured, model)
+            assert measured > model / 10, (gap, rtol, measured, model)  # and is not far off

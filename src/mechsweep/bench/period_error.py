@@ -4,8 +4,15 @@ T omega of the Duffing oscillator depends on epsilon = mu A^2 / omega^2 alone, s
 of epsilon in [-0.99, 1e4] (omega = A = 1) covers every (omega, mu, A). Prints, per (rtol, atol),
 the largest relative error of the integrated period against the elliptic closed form, where it
 occurs, and the mean number of steps: the evidence behind the default tolerances.
+
+Then, towards the soft separatrix (1 + epsilon from 1e-3 to 1e-7), the error of the plain
+quarter-period integration (without the model's tolerance tightening) divided by rtol: the
+saddle's amplification that duffing.saddle_amplification models, and the error the model gives
+with its tightening.
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -35,6 +42,43 @@ def worst_error(eps: np.ndarray, rtol: float, atol: float) -> dict:
             "mean_steps": float(n_steps.mean()), "not_ok": int((status != 0).sum())}
 
 
+SEPARATRIX_GAPS = (1e-3, 1e-5, 1e-7)  # 1 + epsilon
+SEPARATRIX_RTOLS = (5e-9, 5e-11, 5e-13)
+
+
+def plain_period_error(gap: float, rtol: float) -> float:
+    """Relative period error at epsilon = -(1 - gap) (omega = A = 1) of dop853 on the scaled
+    equation with rtol, atol = rtol / 50 and no tightening."""
+    omega2, mu, A = 1.0, -(1.0 - gap), 1.0
+    w2 = omega2 + abs(mu)
+    p = np.array([omega2 / w2, mu / w2])
+    y = np.array([1.0, 0.0])
+    code, tq, _, _ = duffing.quarter_period_solver(0.0, y, p, 200 * math.pi, rtol, rtol / 50, 0.0, 10**6,
+                                                   duffing.dop853.workspace(2))
+    exact = duffing.period_closed_form(omega2, mu, A)
+    return abs(4.0 * tq / math.sqrt(w2) - exact) / exact if code == 0 else math.nan
+
+
+def separatrix_table() -> list[dict]:
+    print("  near the soft separatrix: plain error / rtol (measured amplification), model's factor, "
+          "model's error")
+    rows = []
+    for gap in SEPARATRIX_GAPS:
+        amp = [plain_period_error(gap, r) / r for r in SEPARATRIX_RTOLS]
+        model = duffing.saddle_amplification(1.0, -(1.0 - gap), 1.0)
+        out = {k: np.full(1, np.nan) for k in ("period", "period_exact", "period_error")}
+        status, ns = np.zeros(1, np.int8), np.zeros(1, np.int64)
+        duffing.evaluate(np.array([[1.0, -(1.0 - gap), 1.0]]), tuple(out), Solver.for_model(duffing.SPEC), out,
+                         status, ns, ns.copy())
+        err = float(out["period_error"][0])
+        rows.append({"gap": gap, "amplification": amp, "model_factor": model, "model_error": err,
+                     "status": int(status[0])})
+        verdict = f"error at the defaults {err:.2e}" if status[0] == 0 else "ill_conditioned at the defaults"
+        print(f"    1 + eps = {gap:6.0e}: x" + ", x".join(f"{a:.3g}" for a in amp)
+              + f" (rtol {', '.join(f'{x:g}' for x in SEPARATRIX_RTOLS)}); model x{model:.3g}; {verdict}")
+    return rows
+
+
 def main(ladder=LADDER) -> list[dict]:
     eps = epsilon_scan()
     print(f"mechsweep bench period-error: {eps.size} values of epsilon in [-0.99, 1e4], DOP853; "
@@ -46,4 +90,5 @@ def main(ladder=LADDER) -> list[dict]:
         rows.append(r)
         print(f"  {rtol:8.0e} {atol:8.0e}  {r['max_error']:14.3e}  {r['at_epsilon']:11.4g}  "
               f"{r['mean_steps']:8.2f}  {r['not_ok']}")
+    separatrix_table()
     return rows

@@ -183,8 +183,9 @@ quarter_period = make_quarter_period("quarter_period", quarter_period_solver, qu
 
 # Near the soft separatrix the motion lingers at the saddle x = sqrt(a / -b) just beyond the turning
 # point, and the period's error is the local error amplified by (SADDLE_DELTA / delta)^SADDLE_POWER,
-# delta = a + b = (omega^2 + mu A^2) / w^2 (measured: x72 at delta = 5e-6, x3600 at 5e-8, ~1.4 at
-# 5e-4; dop853, rtol 5e-9 ... 5e-14). The tolerance is tightened by that factor; where even
+# delta = a + b = (omega^2 + mu A^2) / w^2 (`mechsweep bench period-error`: x53-x148 at delta =
+# 5e-6, x2.2e3-x1.1e4 at 5e-8, x1.2-x1.8 at 5e-4; dop853, rtol 5e-9 ... 5e-13; it grows slowly
+# as rtol tightens). The tolerance is tightened by that factor; where even
 # RTOL_FLOOR cannot reach rtol the point is ILL_CONDITIONED (the closed form is still given).
 SADDLE_DELTA = 2e-3  # fitted 7.6e-4, raised for a margin of ~2.3 on the measured amplification
 SADDLE_POWER = 0.85
