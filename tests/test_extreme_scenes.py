@@ -434,6 +434,18 @@ def test_autobalancer_unbalance_limit(ran):
 
 
 # ----------------------------------------------------------------------------- linkages
+def max_shaking_force(moment, omega, positions):
+    """max over the positions of |F| = omega^2 |d^2/dphi^2 (first moment)| at constant speed
+    (mpmath; call inside the caller's workdps)."""
+    om2 = mp.mpf(omega) ** 2
+    best = 0
+    for phi in positions:
+        fx = -om2 * mp.diff(lambda q: moment(q, 0), phi, 2)
+        fy = -om2 * mp.diff(lambda q: moment(q, 1), phi, 2)
+        best = max(best, mp.sqrt(fx * fx + fy * fy))
+    return float(best)
+
+
 def fourbar_force_reference(f, a3, sigma, positions):
     """max |shaking force| of the bare four-bar (g = 0, constant omega): -omega^2 d^2/dphi^2 of the
     first moment sum m_i G_i, positions by circle intersection, derivative numerically, 50 digits."""
@@ -455,13 +467,7 @@ def fourbar_force_reference(f, a3, sigma, positions):
             g3 = f["m3"] * ((a4, 0)[comp] + f["r3"] * e3[comp])
             return g1 + g2 + g3
 
-        om2 = mp.mpf(f["omega"]) ** 2
-        best = 0
-        for phi in positions:
-            fx = -om2 * mp.diff(lambda q: moment(q, 0), phi, 2)
-            fy = -om2 * mp.diff(lambda q: moment(q, 1), phi, 2)
-            best = max(best, mp.sqrt(fx * fx + fy * fy))
-        return float(best)
+        return max_shaking_force(moment, f["omega"], positions)
 
 
 def test_fourbar_grashof_limit(ran):
@@ -482,10 +488,9 @@ def test_fourbar_grashof_limit(ran):
     f = dict(scene.fixed)
     positions = [2 * mp.pi * j / 360 for j in range(0, 360, 1)]
     for a, branch, sigma in ((0.150001, "open", 1), (0.3, "crossed", -1), (0.649999, "crossed", -1)):
-        if True:
-            got = float(ds["F_max"].sel(a3=a, branch=branch))
-            ref = fourbar_force_reference(f, a, sigma, positions)
-            assert got == pytest.approx(ref, rel=1e-9), (a, branch)
+        got = float(ds["F_max"].sel(a3=a, branch=branch))
+        ref = fourbar_force_reference(f, a, sigma, positions)
+        assert got == pytest.approx(ref, rel=1e-9), (a, branch)
 
 
 def slider_force_reference(f, e, positions):
@@ -502,13 +507,7 @@ def slider_force_reference(f, e, positions):
             g3 = f["m3"] * (bx, e)[comp]
             return g1 + g2 + g3
 
-        om2 = mp.mpf(f["omega"]) ** 2
-        best = 0
-        for phi in positions:
-            fx = -om2 * mp.diff(lambda q: moment(q, 0), phi, 2)
-            fy = -om2 * mp.diff(lambda q: moment(q, 1), phi, 2)
-            best = max(best, mp.sqrt(fx * fx + fy * fy))
-        return float(best)
+        return max_shaking_force(moment, f["omega"], positions)
 
 
 def test_slidercrank_toggle(ran):

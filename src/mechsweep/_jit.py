@@ -10,14 +10,15 @@ Options and why:
 - Hot-path helpers of the integrators (stage sums, error norm, right-hand sides) are compiled
   by :func:`jit_noalloc`, without numba's reference counting (``_nrt=False``): numba compiles
   every function separately and, across calls, increments and decrements the reference count
-  of every array argument and view with atomic instructions; about 200 of them per DOP853 step
-  cost ~15 % of an autobalancer step (``mechsweep bench autobalancer``). Such a function must
+  of every array argument and view with atomic instructions, about 200 of them per DOP853 step
+  (a measurable share of an autobalancer step: ``mechsweep bench autobalancer``). Such a function must
   not allocate arrays (numba refuses to compile it if it does).
 - :func:`jit_inline` (``inline="always"`` at numba IR level, no reference counting) for small
   scalar helpers called in every right-hand side (sincos, the closed-form accelerations):
   LLVM inlines across separately compiled numba functions only below its size threshold,
-  which these exceed. Inlining the integrator's large functions as well gained ~10 % more
-  speed at twice the compile time (measured), so it is chosen per helper.
+  which these exceed. Inlining the integrator's large functions as well gained little more
+  speed for about twice the compile time (a one-off measurement, not kept in the repo), so it is
+  chosen per helper.
 - ``cache=True`` with a cache directory keyed by a hash of the package sources:
   numba's own cache only checks the file of the decorated function, so a kernel
   that calls an integrator from another module would keep stale machine code
@@ -111,7 +112,8 @@ def compile_time_switch(name: str, cases: dict):
     ``code`` must be a literal integer in the caller (a kernel makes its ``method`` argument
     one with ``literally(method)``); only the chosen case is compiled, and the kernel is cached
     per code. Used for solver.method: compiling every integrator into every kernel cost a cold
-    Duffing sweep 61 s instead of 13 s (measured); the usual alternatives do not cache (a
+    Duffing sweep several times the compile time of one method (one-off measurement: 61 s
+    against 13 s); the usual alternatives do not cache (a
     dispatcher passed as an argument, or a closure called from Python).
     """
     from numba.core import types
@@ -139,8 +141,8 @@ def call_with_literal(kernel, code: int, *args):
     """``kernel(code, *args)`` for a kernel that makes ``code`` literal with ``literally``.
 
     numba's dispatcher types a Python int as int64, attempts that signature, meets
-    ``literally`` and only then retries with the literal: ~40 ms per call (measured), which
-    dominated short chunks. The compiled literal overload is called directly when it exists.
+    ``literally`` and only then retries with the literal: tens of milliseconds per call in a
+    one-off measurement, which dominated short chunks. The compiled literal overload is called directly when it exists.
     """
     from numba import typeof
     from numba.core import types

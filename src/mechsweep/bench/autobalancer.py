@@ -20,6 +20,7 @@ import numba
 import numpy as np
 
 from .. import status as st
+from .._jit import jit
 from ..models import autobalancer as ab
 from ..scene import Solver
 
@@ -117,6 +118,27 @@ def scipy_trajectory(p, delta, t_eval, rtol, atol):
     return out, steps
 
 
+# ----------------------------------------------------------------------------- right-hand side cost
+@jit
+def _rhs_loop(n, p, z, dz):
+    """n evaluations of the model's rhs, each from the previous derivative (a dependent chain,
+    as the stages of a step are)."""
+    for i in range(n):
+        ab.rhs(0.01 * i, z, p, dz)
+        for k in range(8):
+            z[k] += 1e-9 * dz[k]
+    return z[0]
+
+
+def rhs_ns(p, n: int = 2_000_000, repeats: int = REPEATS) -> float:
+    """Nanoseconds per right-hand-side evaluation, best of `repeats` loops."""
+    z = np.array([0.0, 0.0, p[ab.IP_TH1] + 0.1, p[ab.IP_TH2] - 0.1, 0.0, 0.0, 1.0, 1.0])
+    dz = np.empty(8)
+    _rhs_loop(10, p, z.copy(), dz)
+    best, _ = _best_of(repeats, _rhs_loop, n, p, z.copy(), dz)
+    return best / n * 1e9
+
+
 # ----------------------------------------------------------------------------- main
 def main(n_omega: int = CHART, n_ratio: int = CHART, sim_points: int = 16, scipy_points: int = 3,
          threads: int | None = None, rtol: float = Solver.rtol, atol: float = Solver.atol) -> dict:
@@ -179,6 +201,7 @@ def _main(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
         r_late = np.hypot(traj[t_eval >= 0.9 * t_eval[-1], 0], traj[t_eval >= 0.9 * t_eval[-1], 1]).max()
         diffs.append(abs(r_late * col["a"][i] - sim["residual_amplitude"][i]))
     scipy_steps_per_s = sum(sp_steps) / sp_time
+    rhs_cost = rhs_ns(pp[0])
 
     result = {
         "threads": n_threads,
@@ -201,6 +224,8 @@ def _main(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
         "ratio_vs_scipy_per_core": float(ours_steps_per_s / scipy_steps_per_s),
         "sim_steps_per_s_all_threads": float(ours_all_steps_per_s),
         "ratio_vs_scipy_all_threads": float(ours_all_steps_per_s / scipy_steps_per_s),
+        "rhs_ns": rhs_cost,
+        "rhs_per_step": float(snr.sum() / sns.sum()),
         "max_residual_difference_m": float(max(diffs)) if diffs else math.nan,
         "rtol": rtol,
         "atol": atol,
@@ -225,6 +250,9 @@ def _print(r: dict, solver) -> None:
     print(f"  scipy DOP853 (Python rhs), {r['scipy_trajectories']} of the same trajectories: "
           f"{r['scipy_steps_per_s']:,.0f} steps/s ({r['scipy_mean_steps']:.0f} steps/trajectory; ours "
           f"{r['ours_steps_same_trajectories']})")
+    print(f"  one right-hand side: {r['rhs_ns']:.0f} ns; {r['rhs_per_step']:.1f} per step, "
+          f"{r['rhs_ns'] * r['rhs_per_step'] / 1e3:.2f} us of the "
+          f"{1e6 / r['sim_steps_per_s_per_core']:.2f} us a step takes on one thread")
     print(f"  ratio mechsweep / scipy (one process): {r['ratio_vs_scipy_per_core']:,.0f}x on 1 thread, "
           f"{r['ratio_vs_scipy_all_threads']:,.0f}x on {r['threads']} threads; "
           f"largest residual_amplitude difference {r['max_residual_difference_m']:.2e} m")
