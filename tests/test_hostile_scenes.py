@@ -185,8 +185,9 @@ def work(tmp_path, monkeypatch):
     def tripwire(*args, **kwargs):
         raise AssertionError("work started: the scene was not refused before the run")
 
-    monkeypatch.setattr(runner.PartialFile, "create", tripwire)
-    monkeypatch.setattr(runner, "_run_chunks", tripwire)
+    monkeypatch.setattr(runner.RunLock, "acquire", tripwire)
+    monkeypatch.setattr(runner.Journal, "create", tripwire)
+    monkeypatch.setattr(runner, "_save_chunks", tripwire)
     monkeypatch.setattr(runner, "evaluate_chunk", tripwire)
     return tmp_path
 

@@ -146,24 +146,27 @@ def test_torsional_nomogram_scene_small(in_tmp):
     assert set(np.unique(ds["hardness"].values[ok])) <= {-1.0, 0.0, 1.0}
 
 
-def test_restart_refuses_to_discard_a_file_another_run_is_writing(in_tmp, small_duffing):
-    import h5py
-
+def test_a_second_writer_is_refused_and_touches_nothing(in_tmp, small_duffing):
+    """While one process holds a run's lock, another run on the same output (plain, --resume or
+    --restart) is refused with the holder's pid, and the unfinished run's journal is left as it was."""
     with interrupt_after(1), pytest.raises(mechsweep.RunInterrupted):
         mechsweep.run(small_duffing, output="data/runs/busy.h5")
     part = partial_path("data/runs/busy.h5")
-    code = f"import h5py, time; f = h5py.File({str(part)!r}, 'a'); print('open', flush=True); time.sleep(30)"
+    saved = sorted(p.name for p in (part / "chunks").iterdir())
+    code = ("import time; from mechsweep.journal import RunLock; RunLock('data/runs/busy.h5').acquire(); "
+            "print('locked', flush=True); time.sleep(60)")
     holder = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
     try:
-        assert holder.stdout.readline().strip() == "open"
-        with pytest.raises(StoreError, match="another mechsweep run"):
-            mechsweep.run(small_duffing, output="data/runs/busy.h5", restart=True)
-        assert part.exists()
-        with h5py.File(part, "r", locking=False) as f:
-            assert "mechsweep_progress" in f
+        assert holder.stdout.readline().strip() == "locked"
+        for flags in ({}, {"resume": True}, {"restart": True}):
+            with pytest.raises(StoreError, match=f"another mechsweep run \\(process {holder.pid}\\)"):
+                mechsweep.run(small_duffing, output="data/runs/busy.h5", **flags)
+        assert sorted(p.name for p in (part / "chunks").iterdir()) == saved
     finally:
         holder.kill()
         holder.wait()
+    # the holder died without releasing: the kernel dropped its lock, the run resumes
+    assert mechsweep.run(small_duffing, output="data/runs/busy.h5", resume=True)["status"].size == 63
 
 
 def test_progress_bar_shows_points_and_rate(in_tmp, small_duffing, capsys):

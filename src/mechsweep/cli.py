@@ -76,6 +76,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--restart", action="store_true", help="discard an unfinished run and start over")
     p.add_argument("--threads", type=int, metavar="N", help="numba threads (default: all cores)")
     p.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run the chunks on this dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 "
+                        "(default: the scene's [execution] scheduler, else local threads)")
     p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser("plot", help="draw the nomogram of a stored dataset",
@@ -157,7 +160,7 @@ def _cmd_run(args) -> int:
     scene = load_scene(args.scene)
     try:
         ds = run(scene, output=args.output, resume=args.resume, restart=args.restart, threads=args.threads,
-                 progress=False if args.no_progress else None)
+                 progress=False if args.no_progress else None, scheduler=args.scheduler)
     except RunInterrupted as exc:
         print(f"mechsweep run: {exc}", file=sys.stderr)
         return EXIT_INTERRUPTED

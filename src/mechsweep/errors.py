@@ -3,3 +3,7 @@
 
 class InputError(ValueError):
     """Invalid input: a message for the user, no traceback."""
+
+
+class StoreError(InputError):
+    """A problem with the output file or an unfinished run (exists, locked, from another scene, unwritable)."""

@@ -18,8 +18,9 @@ from . import __version__
 from . import status as st
 from .errors import InputError
 from .grid import Chunk, ParameterMatrix, default_chunk_target, plan_chunks
-from .scene import Scene, load_scene
-from .store import PartialFile, StoreError, discard_partial, layout, open_dataset, partial_path
+from .journal import Journal, RunLock, discard_path, drop, partial_path
+from .scene import Scene, check_scheduler, load_scene
+from .store import StoreError, assemble, layout, open_dataset
 
 
 class RunInterrupted(RuntimeError):
@@ -34,13 +35,18 @@ def run(
     restart: bool = False,
     threads: int | None = None,
     progress: bool | None = None,
+    scheduler: str | None = None,
+    load: bool | None = None,
 ) -> xr.Dataset:
     """Compute a scene's grid and return the stored dataset.
 
     ``output`` overrides ``[storage] path``. With ``resume`` an unfinished run of the same
     scene (``<path>.partial``) is completed, computing only its missing chunks; ``restart``
-    discards such a file. ``threads`` sets numba's thread count (default: all cores).
-    ``progress`` shows a progress bar (default: only on a terminal).
+    discards such a run. ``threads`` sets numba's thread count (default: all cores).
+    ``progress`` shows a progress bar (default: only on a terminal). ``scheduler`` (or the scene's
+    ``[execution] scheduler``) runs the chunks on that dask.distributed cluster instead of here.
+    ``load``: the returned dataset is in memory (True), opened lazily (False), or loaded when it
+    is at most store.LOAD_LIMIT_BYTES (None, default).
     """
     scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path)
     if output is not None and str(output).endswith(("/", os.sep)):
@@ -49,40 +55,78 @@ def run(
     final = Path(output if output is not None else scene.storage.path)
     check_target(final)
     _check_threads(threads)  # before any file is created
+    if scheduler is not None and (why := check_scheduler(scheduler)) is not None:
+        raise InputError(f"scheduler {why}")
+    scheduler = scheduler if scheduler is not None else scene.execution.scheduler
+    lazy = None if load is None else not load
+    target = default_chunk_target(scene)
+    check_size(scene, final, min(target, scene.n_points), saved_bytes(final) if not restart else 0)
+    # Conflicts are refused before the lock (taking it touches the folder), and checked again
+    # under it: another run may have changed the files meanwhile.
+    RunLock(final).refuse_if_held()
+    if _check_existing(scene, final, resume, restart):
+        return open_dataset(final, lazy=lazy)  # --resume of a finished run: nothing to do
+    with RunLock(final):  # from here to the end, no other run touches final or its journal
+        if not _check_existing(scene, final, resume, restart):
+            _compute(scene, final, restart, threads, progress, scheduler)
+    return open_dataset(final, lazy=lazy)
+
+
+def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool) -> bool:
+    """Refuse what would mix runs: an unfinished run without --resume/--restart, a resume with
+    another scene. True when ``resume`` finds the run already finished."""
     part = partial_path(final)
     if part.exists() and not (resume or restart):
         raise StoreError(f"an unfinished run of this output exists: {part}; continue it with --resume "
                          "or discard it with --restart")
     if resume and not part.exists() and final.exists():
-        ds = open_dataset(final)
-        if ds.attrs.get("scene_canonical") != scene.canonical():
-            raise StoreError(f"{final} holds a finished run of a different scene; use --restart to "
-                             "replace it")
-        return ds  # already complete: nothing to do
-    chunks = plan_chunks(scene.shape, default_chunk_target(scene))
-    check_size(scene, final, max(c.size for c in chunks), have_partial=part.exists() and not restart)
-    if restart:
-        discard_partial(part)
+        with open_dataset(final, lazy=True) as ds:
+            if ds.attrs.get("scene_canonical") != scene.canonical():
+                raise StoreError(f"{final} holds a finished run of a different scene; use --restart to "
+                                 "replace it")
+        return True
+    if part.exists() and not restart:
+        journal = Journal.read(part)
+        target = default_chunk_target(scene)
+        if not journal.empty and (why := journal.matches(scene.canonical(), target,
+                                                        len(plan_chunks(scene.shape, target)))) is not None:
+            raise StoreError(why)
+    return False
 
-    lay = layout(scene, len(chunks))
-    if part.exists():
-        store = PartialFile.reopen(part, scene, lay)
-    else:
-        store = PartialFile.create(part, scene, lay, provenance(scene, chunks))
+
+def _compute(scene: Scene, final: Path, restart: bool, threads, progress, scheduler) -> None:
+    """Compute the missing chunks into the journal, then assemble the dataset."""
+    part = partial_path(final)
+    shutil.rmtree(discard_path(final), ignore_errors=True)  # what a killed clean-up left
+    target = default_chunk_target(scene)
+    chunks = plan_chunks(scene.shape, target)
+    journal = Journal.read(part) if part.exists() and not restart else None
+    if journal is None or journal.empty:  # none, discarded, or killed before its first word
+        drop(final)
+        journal = Journal.create(part, canonical=scene.canonical(), text=scene.text, chunk_target=target,
+                                 n_chunks=len(chunks), attrs=provenance(scene, chunks))
+    done = journal.done_chunks()
+    todo = [c for c in chunks if not done[c.index]]
     with _threads(threads):
-        store.set_attrs(threads=numba.get_num_threads())
+        where = (f"dask scheduler {scheduler}" if scheduler else f"local, {numba.get_num_threads()} threads")
+        results = (_dask_results(scene, todo, scheduler) if scheduler else _local_results(scene, todo))
         try:
-            todo = [c for c, done in zip(chunks, store.done_chunks()) if not done]
-            _run_chunks(scene, store, todo, scene.n_points - sum(c.size for c in todo), progress)
+            _save_chunks(scene, journal, results, todo, scene.n_points - sum(c.size for c in todo), progress)
         except KeyboardInterrupt:
-            store.close()
             raise RunInterrupted(f"interrupted: finished chunks are saved in {part}; "
                                  "run again with --resume to complete it") from None
-        except BaseException:
-            store.close()
-            raise
-    store.finish(final)
-    return open_dataset(final)
+        attrs = {**journal.meta["attrs"], "threads": numba.get_num_threads(), "execution": where}
+    _finish(journal, scene, chunks, final, attrs)
+
+
+def _finish(journal: Journal, scene: Scene, chunks: list[Chunk], final: Path, attrs: dict) -> None:
+    """Assemble the dataset next to the journal, move it into place by one rename, drop the journal."""
+    tmp = journal.folder / "assembly.h5"
+    assemble(journal, scene, layout(scene, len(chunks)), chunks, tmp, attrs)
+    with open(tmp, "rb+") as f:
+        os.fsync(f.fileno())
+    os.replace(tmp, final)
+    drop(final)
 
 
 def check_target(final: Path) -> None:
@@ -131,28 +175,41 @@ CHUNK_MEMORY_FACTOR = 3
 
 def bytes_per_point(scene: Scene) -> int:
     """Stored bytes of one grid point: every requested output (with its extra dimensions, float64),
-    status (int8), n_steps and n_rhs (int64). The file is not compressed, so this is its size."""
+    status (int8), and for integrated outputs n_steps and n_rhs (int64). The file is not
+    compressed, so this is its size."""
     values = sum(int(np.prod(extra_shape(scene, name), dtype=np.int64)) for name in scene.outputs)
-    return 8 * values + 1 + 16
+    return 8 * values + 1 + (16 if scene.solver is not None else 0)
 
 
-def check_size(scene: Scene, final: Path, chunk_points: int, have_partial: bool) -> None:
-    """Refuse, before any file is made, a run whose dataset does not fit the free disk space or
-    whose chunk does not fit the available memory, with the sizes involved."""
+def check_size(scene: Scene, final: Path, chunk_points: int, saved: int) -> None:
+    """Refuse, before any file is made, a run whose chunk does not fit the available memory or
+    whose files do not fit the free disk space, with the sizes involved. Until the end a run needs
+    twice the dataset's size, less the ``saved`` bytes an unfinished run already holds: the journal
+    of finished chunks and the dataset assembled from it."""
     per_point = bytes_per_point(scene)
-    need = per_point * scene.n_points
-    if not have_partial:  # a resumed file already holds its space
-        free = shutil.disk_usage(final.parent).free + (final.stat().st_size if final.exists() else 0)
-        if need > free:
-            raise StoreError(f"the dataset {final} would need {_size(need)} ({scene.n_points:,} points x "
-                             f"{_size(per_point)}), but its disk has {_size(free)} free; make the grid "
-                             "coarser, ask for fewer outputs, or write elsewhere with -o")
     chunk_need = CHUNK_MEMORY_FACTOR * per_point * chunk_points
     available = _available_memory()
     if available is not None and chunk_need > available:
         raise StoreError(f"a chunk of {chunk_points:,} points would need about {_size(chunk_need)} of memory, "
                          f"{_size(available)} is available; set a smaller [storage] chunk_size "
                          f"(at most {max(1, available // (CHUNK_MEMORY_FACTOR * per_point)):,} points)")
+    data = per_point * scene.n_points
+    need = max(0, 2 * data - saved)
+    free = shutil.disk_usage(final.parent).free + (final.stat().st_size if final.exists() else 0)
+    if need > free:
+        raise StoreError(f"the dataset {final} would need {_size(data)} ({scene.n_points:,} points x "
+                         f"{_size(per_point)}), and {_size(need)} free until the run ends (its journal of "
+                         f"finished chunks and the dataset); its disk has {_size(free)} free; make the grid "
+                         "coarser, ask for fewer outputs, or write elsewhere with -o")
+
+
+def saved_bytes(final: Path) -> int:
+    """Bytes of finished chunks an unfinished run of ``final`` holds (0 if none)."""
+    chunks = partial_path(final) / "chunks"
+    try:
+        return sum(e.stat().st_size for e in os.scandir(chunks))
+    except OSError:  # no journal, or it went away meanwhile
+        return 0
 
 
 def _available_memory() -> int | None:
@@ -209,14 +266,27 @@ def evaluate_chunk(scene: Scene, chunk: Chunk, params: ParameterMatrix | None = 
     return requested, status, n_steps, n_rhs
 
 
-def _run_chunks(scene: Scene, store: PartialFile, todo: list[Chunk], already: int, progress) -> None:
-    """Compute chunks in order; each chunk's write overlaps the next chunk's computation
-    (kernels release the GIL). At most one chunk waits to be written, so memory stays bounded."""
+def _local_results(scene: Scene, todo: list[Chunk]):
+    """Chunks computed here, in order, each by the numba kernels on all threads."""
+    params = ParameterMatrix(scene)
+    for chunk in todo:
+        yield chunk, evaluate_chunk(scene, chunk, params)
+
+
+def _dask_results(scene: Scene, todo: list[Chunk], scheduler: str):
+    from .cluster import dask_results
+
+    return dask_results(scene, todo, scheduler)
+
+
+def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], already: int, progress) -> None:
+    """Save each computed chunk to the journal as it arrives; the write of one chunk overlaps the
+    computation of the next (kernels release the GIL). At most one chunk waits to be written, so
+    memory stays bounded by the chunk size."""
     from concurrent.futures import ThreadPoolExecutor
 
     from tqdm.auto import tqdm
 
-    params = ParameterMatrix(scene)
     bar = tqdm(total=scene.n_points, initial=already, unit="pt", unit_scale=scene.n_points >= 100_000,
                dynamic_ncols=True, desc=scene.name, disable=(None if progress is None else not progress),
                smoothing=0.1)
@@ -224,15 +294,17 @@ def _run_chunks(scene: Scene, store: PartialFile, todo: list[Chunk], already: in
     clock = {"last": time.perf_counter()}
 
     def write(chunk, result):
-        store.write_chunk(chunk, *result)
-        now = time.perf_counter()  # wall time up to this chunk is saved with it (survives a kill)
-        store.add_wall_time(now - clock["last"])
+        columns, status, n_steps, n_rhs = result
+        arrays = {**columns, "status": status}
+        if scene.solver is not None:
+            arrays.update(n_steps=n_steps, n_rhs=n_rhs)
+        now = time.perf_counter()  # the wall time up to this chunk is saved with it (survives a kill)
+        journal.write_chunk(chunk.index, arrays, now - clock["last"])
         clock["last"] = now
 
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="mechsweep-writer") as writer:
         try:
-            for chunk in todo:
-                result = evaluate_chunk(scene, chunk, params)
+            for chunk, result in results:
                 if pending is not None:
                     pending.result()  # raises a write error here, in order
                     bar.update(pending_size)
@@ -242,7 +314,10 @@ def _run_chunks(scene: Scene, store: PartialFile, todo: list[Chunk], already: in
                 bar.update(pending_size)
         finally:
             if pending is not None and not pending.done():
-                pending.exception()  # let the last write finish before the file is closed
+                pending.exception()  # let the last write finish before leaving
+            close = getattr(results, "close", None)
+            if close is not None:
+                close()  # a distributed run cancels what is still in flight
             bar.close()
 
 

@@ -22,7 +22,7 @@ import numpy as np
 from .errors import InputError
 from .models import MODELS, ModelSpec
 
-SECTIONS = ("scene", "axes", "fixed", "solver", "storage")
+SECTIONS = ("scene", "axes", "fixed", "solver", "storage", "execution")
 MAX_POINTS = 2**40  # beyond this a flat int64 index and any disk are hopeless
 MAX_AXIS_POINTS = 10**8
 MAX_KEY_DEPTH = 32  # dotted keys a.b.c...: tomllib's time grows with the square of the depth
@@ -88,6 +88,11 @@ class Storage:
 
 
 @dataclass(frozen=True)
+class Execution:
+    scheduler: str | None = None  # dask.distributed scheduler address; None = local threads
+
+
+@dataclass(frozen=True)
 class Scene:
     name: str
     model: ModelSpec
@@ -97,6 +102,7 @@ class Scene:
     solver: Solver | None  # None when no requested output needs integration
     storage: Storage
     text: str  # the scene as the user wrote it (TOML), stored with the dataset
+    execution: Execution = Execution()
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -144,6 +150,11 @@ def load_scene(source: str | Path | Mapping) -> Scene:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise SceneError([f"{label!r} is not UTF-8 text (byte {exc.start})"], label) from None
+    return load_scene_text(text, label)
+
+
+def load_scene_text(text: str, label: str = "scene") -> Scene:
+    """Load and validate a scene from its TOML text (e.g. the copy stored with a run)."""
     if text.startswith("\ufeff"):
         raise SceneError([(f"{label!r} starts with a byte-order mark (BOM, bytes EF BB BF); "
                            "save it as UTF-8 without BOM")], label)
@@ -199,6 +210,7 @@ def validate(data: Mapping, *, text: str, label: str = "scene") -> Scene:
                   "give them in [axes] or [fixed]")
     solver = _solver(_table(data, "solver", p), model, p) if model.needs_integration(outputs) else None
     storage = _storage(_table(data, "storage", p), name if isinstance(name, str) else "scene", p)
+    execution = _execution(_table(data, "execution", p), p)
     if axes:
         n = math.prod(a.size for a in axes)
         if n > MAX_POINTS:
@@ -214,6 +226,7 @@ def validate(data: Mapping, *, text: str, label: str = "scene") -> Scene:
         solver=solver,
         storage=storage,
         text=text,
+        execution=execution,
     )
 
 
@@ -473,6 +486,29 @@ def _storage(table: Mapping, name: str, p: _Problems) -> Storage:
         p.add("storage.chunk_size", f"{_short(chunk)} is not allowed; expected a whole number in [1, 2147483648]")
         chunk = None
     return Storage(path=path, chunk_size=chunk)
+
+
+SCHEDULER_FORMS = "an address such as 'tcp://10.0.0.5:8786' or 'localhost:8786'"
+
+
+def check_scheduler(address) -> str | None:
+    """Why ``address`` is not a dask scheduler address, or None."""
+    if not isinstance(address, str) or not address.strip():
+        return f"{_short(address)} is not allowed; expected {SCHEDULER_FORMS}"
+    if any(c.isspace() for c in address) or "\0" in address or len(address) > 512:
+        return f"{_short(address)} is not an address; expected {SCHEDULER_FORMS}"
+    return None
+
+
+def _execution(table: Mapping, p: _Problems) -> Execution:
+    for k in table:
+        if k != "scheduler":
+            p.unknown(f"execution.{k}", k, ("scheduler",), "execution key")
+    scheduler = table.get("scheduler")
+    if scheduler is not None and (why := check_scheduler(scheduler)) is not None:
+        p.add("execution.scheduler", why)
+        scheduler = None
+    return Execution(scheduler=scheduler)
 
 
 def _slug(name: str) -> str:

@@ -1,10 +1,9 @@
-"""HDF5 datasets: a sweep is written chunk by chunk to ``<path>.partial`` and renamed to
-``<path>`` only when every chunk is in. A finished file is therefore never half
-overwritten, and an interrupted run leaves a partial file that ``--resume`` completes.
+"""HDF5 datasets: netCDF4-flavoured HDF5 written with h5netcdf, read back by
+``xarray.open_dataset(path, engine="h5netcdf")``.
 
-The file is netCDF4-flavoured HDF5 written with h5netcdf and read back by
-``xarray.open_dataset(path, engine="h5netcdf")``. Which chunks are done is kept in
-the group ``/mechsweep_progress`` (not part of the Dataset xarray shows).
+A run saves its finished chunks in a journal (``journal.py``); ``assemble`` writes the dataset
+from it, chunk by chunk (memory bounded by one chunk), into a temporary file that replaces the
+output by one rename. A finished file is therefore never half overwritten.
 """
 from __future__ import annotations
 
@@ -18,18 +17,14 @@ import numpy as np
 import xarray as xr
 
 from . import status as st
-from .errors import InputError
-from .scene import Scene
+from .errors import StoreError  # noqa: F401  (raised by the runner, part of this module's API)
+from .grid import plan_chunks
+from .journal import Journal, partial_path  # noqa: F401  (partial_path: part of this module's API)
+from .scene import Scene, load_scene_text
 
-PROGRESS = "mechsweep_progress"
-
-
-class StoreError(InputError):
-    """A problem with the output file (exists, locked, from another scene, unwritable)."""
-
-
-def partial_path(path: str | Path) -> Path:
-    return Path(str(path) + ".partial")
+# Datasets up to this size are loaded into memory by open_dataset(lazy=None); larger ones are
+# opened lazily, so that the memory a run or a plot needs stays bounded by a chunk, not the grid.
+LOAD_LIMIT_BYTES = 256 * 2**20
 
 
 @dataclass(frozen=True)
@@ -61,108 +56,26 @@ def layout(scene: Scene, n_chunks: int) -> Layout:
     )
 
 
-class PartialFile:
-    """An open ``.partial`` file being filled chunk by chunk.
-
-    The file is defined with h5netcdf (netCDF dimensions and attributes) and then filled
-    through plain h5py datasets, looked up once (h5netcdf's per-write lookups cost more
-    than the write itself).
-    """
-
-    def __init__(self, handle: h5py.File, path: Path, lay: Layout):
-        self.f = handle
-        self.path = path
-        self.layout = lay
+def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, attrs: dict) -> None:
+    """Write the dataset of a journal to ``target`` (a path or a file object): every variable
+    defined, each journaled chunk written into its region, one chunk in memory at a time.
+    Chunks not in the journal keep the fill values (NaN, status PENDING). The attribute
+    ``wall_time_s`` is the sum of the journaled chunks' wall times."""
+    with h5netcdf.File(target, "w") as f:
+        _define(f, scene, lay, attrs)
+    with h5py.File(target, "a") as f:
         names = list(lay.outputs) + ["status"] + (["n_steps", "n_rhs"] if lay.integrated else [])
-        self.vars = {name: handle[name] for name in names}
-        self.done = handle[PROGRESS]["chunk_done"]
-
-    # -- creation and reopening ------------------------------------------------
-    @classmethod
-    def create(cls, path: Path, scene: Scene, lay: Layout, attrs: dict) -> "PartialFile":
-        if path.exists():
-            _open(path, "a").close()  # refuse (locked) before truncating another run's file
-        try:
-            with h5netcdf.File(path, "w") as f:
-                _define(f, scene, lay, attrs)
-        except BaseException:
-            path.unlink(missing_ok=True)
-            raise
-        return cls(_open(path, "a"), path, lay)
-
-    @classmethod
-    def reopen(cls, path: Path, scene: Scene, lay: Layout) -> "PartialFile":
-        f = _open(path, "a")
-        try:
-            stored = f.attrs.get("scene_canonical")
-            if stored != scene.canonical():
-                raise StoreError(
-                    f"{path} was started from a different scene (model, outputs, axes, fixed values or "
-                    "solver settings differ); resume it with the scene it was started with, or start "
-                    "over with --restart"
-                )
-            if int(_scalar(f.attrs.get("n_chunks", -1))) != lay.n_chunks:
-                raise StoreError(f"{path} was cut into {_scalar(f.attrs.get('n_chunks'))} chunks, this run into "
-                                 f"{lay.n_chunks}; use the same storage.chunk_size, or --restart")
-        except BaseException:
-            f.close()
-            raise
-        return cls(f, path, lay)
-
-    # -- progress ------------------------------------------------------------------
-    def done_chunks(self) -> np.ndarray:
-        return np.asarray(self.done[:], dtype=bool)
-
-    def write_chunk(self, chunk, columns: dict[str, np.ndarray], status, n_steps=None, n_rhs=None) -> None:
-        shape = _region_shape(chunk.region, self.layout.shape)
-        for name, values in columns.items():
-            n_extra = values.ndim - 1
-            self.vars[name][chunk.region + (slice(None),) * n_extra] = values.reshape(shape + values.shape[1:])
-        self.vars["status"][chunk.region] = status.reshape(shape)
-        if self.layout.integrated:
-            self.vars["n_steps"][chunk.region] = n_steps.reshape(shape)
-            self.vars["n_rhs"][chunk.region] = n_rhs.reshape(shape)
-        # mark done only after the data: a crash in between recomputes the chunk
-        self.f.flush()
-        self.done[chunk.index] = 1
-        self.f.flush()
-
-    def add_wall_time(self, seconds: float) -> None:
-        self.f.attrs["wall_time_s"] = _scalar(self.f.attrs.get("wall_time_s", 0.0)) + float(seconds)
-        self.f.flush()
-
-    def set_attrs(self, **attrs) -> None:
-        for k, v in attrs.items():
-            self.f.attrs[k] = v
-
-    def close(self) -> None:
-        self.f.close()
-
-    def finish(self, final: Path) -> None:
-        """Close and move into place atomically (same directory, os.replace)."""
-        self.f.close()
-        os.replace(self.path, final)
-
-
-def _open(path: Path, mode: str) -> h5py.File:
-    try:
-        return h5py.File(path, mode)
-    except BlockingIOError:
-        raise StoreError(f"{path} is being written by another mechsweep run (the file is locked); "
-                         "wait for it to finish or stop it first") from None
-    except OSError as exc:
-        msg = str(exc)
-        if "lock" in msg.lower():
-            raise StoreError(f"{path} is being written by another mechsweep run (the file is locked); "
-                             "wait for it to finish or stop it first") from None
-        raise StoreError(f"cannot open {path} for writing: {msg}") from None
-
-
-def discard_partial(path: Path) -> None:
-    """Delete an unfinished run's file, unless another run is writing it right now."""
-    if path.exists():
-        _open(path, "a").close()  # raises StoreError when another process holds the file
-        path.unlink()
+        variables = {name: f[name] for name in names}
+        wall_time = 0.0
+        for i in np.flatnonzero(journal.done_chunks()):
+            chunk = chunks[int(i)]
+            arrays, seconds = journal.read_chunk(int(i))
+            wall_time += seconds
+            shape = _region_shape(chunk.region, lay.shape)
+            for name, var in variables.items():
+                values = arrays[name]
+                var[chunk.region + (slice(None),) * (values.ndim - 1)] = values.reshape(shape + values.shape[1:])
+        f.attrs["wall_time_s"] = wall_time
 
 
 def _scalar(value) -> float:
@@ -225,10 +138,6 @@ def _define(f: h5netcdf.File, scene: Scene, lay: Layout, attrs: dict) -> None:
             c = f.create_variable(name, lay.dims, dtype="i8", fillvalue=0, chunks=chunks)
             del c.attrs["_FillValue"]
             _describe(c, "1", long_name, "")
-    g = f.create_group(PROGRESS)
-    g.dimensions = {"chunk": lay.n_chunks}
-    d = g.create_variable("chunk_done", ("chunk",), dtype="i1", fillvalue=0)
-    del d.attrs["_FillValue"]
     for k, val in attrs.items():
         f.attrs[k] = val
     f.attrs["n_chunks"] = lay.n_chunks
@@ -245,19 +154,54 @@ def _describe(var, unit: str, long_name: str, symbol: str) -> None:
         var.attrs["symbol"] = symbol
 
 
-def open_dataset(path: str | Path, *, allow_partial: bool = False) -> xr.Dataset:
-    """Load a mechsweep dataset into memory (the file is closed again)."""
+def open_dataset(path: str | Path, *, allow_partial: bool = False, lazy: bool | None = False) -> xr.Dataset:
+    """Open a mechsweep dataset.
+
+    ``lazy=False`` loads it into memory (the file is closed again); ``lazy=True`` reads values
+    only when they are used (as dask arrays, one per storage chunk, when dask is installed);
+    ``lazy=None`` loads datasets up to LOAD_LIMIT_BYTES and opens larger ones lazily.
+    ``allow_partial`` opens an unfinished run (its missing chunks NaN, status pending) when the
+    finished file does not exist yet; that view is always loaded.
+    """
     path = Path(path)
     if not path.exists():
         part = partial_path(path)
         if allow_partial and part.exists():
-            path = part
-        elif part.exists():
+            return _open_partial(part)
+        if part.exists():
             raise FileNotFoundError(
                 f"{path} does not exist, but an unfinished run left {part}; complete it with "
                 "`mechsweep run SCENE --resume`, or open it with allow_partial=True"
             )
-        else:
-            raise FileNotFoundError(f"{path} does not exist")
+        raise FileNotFoundError(f"{path} does not exist")
+    if lazy is None:
+        lazy = path.stat().st_size > LOAD_LIMIT_BYTES
+    if lazy:
+        return xr.open_dataset(path, engine="h5netcdf", chunks={} if _have_dask() else None)
     with xr.open_dataset(path, engine="h5netcdf") as ds:
         return ds.load()
+
+
+def _open_partial(part: Path) -> xr.Dataset:
+    """An unfinished run as a Dataset, assembled in memory from its journal."""
+    import io
+
+    journal = Journal.read(part)
+    if journal.empty:
+        raise FileNotFoundError(f"{part} holds no finished chunk yet")
+    scene = load_scene_text(journal.meta["scene"], label=str(part / "run.json"))
+    chunks = plan_chunks(scene.shape, journal.meta["chunk_target"])
+    lay = layout(scene, len(chunks))
+    buffer = io.BytesIO()
+    assemble(journal, scene, lay, chunks, buffer, journal.meta["attrs"])
+    buffer.seek(0)
+    with xr.open_dataset(buffer, engine="h5netcdf") as ds:
+        return ds.load()
+
+
+def _have_dask() -> bool:
+    try:
+        import dask.array  # noqa: F401
+    except ImportError:
+        return False
+    return True

@@ -1,0 +1,81 @@
+"""Chunks as tasks on a dask.distributed cluster.
+
+Each task carries the scene's text and one chunk; a worker parses the scene once (cached per
+process), runs the same numba kernels as a local run on its own threads, and returns the chunk's
+arrays. The client that submitted the tasks is the only writer: it saves each result to the run's
+journal as it arrives (in any order), so a failure loses at most the chunks in flight. At most
+IN_FLIGHT_PER_THREAD tasks per worker thread are submitted at a time, so the client's memory stays
+bounded by that many chunks, whatever the grid. If a worker dies, the scheduler runs its tasks
+again on another worker; a chunk is saved once, when its result arrives, whichever worker made it.
+
+Needs the optional packages ``dask`` and ``distributed`` (``pip install "mechsweep[distributed]"``)
+on the client and on every worker, with the same mechsweep version.
+"""
+from __future__ import annotations
+
+import functools
+import itertools
+import uuid
+
+from .errors import InputError
+
+IN_FLIGHT_PER_THREAD = 2
+CONNECT_TIMEOUT_S = 20
+
+
+def dask_results(scene, todo, scheduler: str):
+    """Yield ``(chunk, result)`` as the cluster at ``scheduler`` finishes them. Closing the
+    generator cancels the tasks still in flight and disconnects."""
+    try:
+        from distributed import Client, as_completed
+    except ImportError:
+        raise InputError("running on a dask cluster needs the optional packages dask and distributed: "
+                         "pip install \"mechsweep[distributed]\"") from None
+    try:
+        client = Client(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise InputError(f"cannot reach the dask scheduler at {scheduler!r} within {CONNECT_TIMEOUT_S} s "
+                         f"({exc}); start one with `dask scheduler` and workers with `dask worker ADDRESS`") from None
+    run_id = uuid.uuid4().hex[:12]
+    futures = as_completed()
+    live = {}  # key -> (future, chunk), submitted and not yet handed out
+
+    def submit(chunk) -> None:
+        fut = client.submit(compute_chunk, scene.text, chunk, key=f"mechsweep-{run_id}-{chunk.index}")
+        live[fut.key] = (fut, chunk)
+        futures.add(fut)
+
+    try:
+        slots = max(1, sum(client.nthreads().values()))
+        pending = iter(todo)
+        for chunk in itertools.islice(pending, IN_FLIGHT_PER_THREAD * slots):
+            submit(chunk)
+        for fut in futures:
+            result = fut.result()
+            _, chunk = live.pop(fut.key)
+            fut.release()
+            following = next(pending, None)
+            if following is not None:
+                submit(following)
+            yield chunk, result
+    finally:
+        if live:
+            client.cancel([f for f, _ in live.values()])
+        client.close()
+
+
+def compute_chunk(scene_text: str, chunk):
+    """A worker's task: the chunk's (outputs, status, n_steps, n_rhs), as a local run computes them."""
+    from .runner import evaluate_chunk
+
+    scene, params = _scene(scene_text)
+    return evaluate_chunk(scene, chunk, params)
+
+
+@functools.lru_cache(maxsize=4)
+def _scene(text: str):
+    from .grid import ParameterMatrix
+    from .scene import load_scene_text
+
+    scene = load_scene_text(text, label="scene sent by the mechsweep client")
+    return scene, ParameterMatrix(scene)
