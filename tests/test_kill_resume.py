@@ -1,8 +1,15 @@
-"""A run killed with SIGKILL mid-way resumes to a dataset identical to an uninterrupted run."""
+"""A run killed with SIGKILL at any moment resumes to a dataset identical to an uninterrupted run.
+
+Two kinds of kill: at a random moment of the computation (after k chunks were saved), and at each
+step where the run changes files on disk (the child process kills itself right there, so the
+test hits moments too short to aim at from outside: mid-way through a chunk file, between a
+rename and the folder sync, while the dataset is assembled, between placing the dataset and
+dropping the journal)."""
 import os
 import signal
 import subprocess
 import sys
+import textwrap
 import time
 
 import numpy as np
@@ -15,15 +22,16 @@ SCENE = """
 [scene]
 name = "kill"
 model = "duffing"
-outputs = ["period", "period_error", "v_max"]
+outputs = ["period", "period_exact", "v_max"]
 [axes]
 A = {{ start = 0.01, stop = 1.0, num = {n_a} }}
-mu = {{ start = 1e-3, stop = 1e3, num = 200, spacing = "log" }}
+mu = {{ start = 1e-3, stop = 1e3, num = {n_mu}, spacing = "log" }}
 [fixed]
 omega = 1.0
 [storage]
-chunk_size = 2000
+chunk_size = {chunk}
 """
+COMPARED = ("period", "period_exact", "v_max", "status", "n_steps", "n_rhs", "A", "mu")
 
 
 def chunks_done(part) -> int:
@@ -33,24 +41,102 @@ def chunks_done(part) -> int:
         return -1
 
 
+def cli(*args, cwd):
+    return [sys.executable, "-m", "mechsweep.cli", *args], dict(cwd=cwd)
+
+
+def assert_identical(out, reference):
+    done = mechsweep.open_dataset(out)
+    for name in COMPARED:
+        np.testing.assert_array_equal(done[name].values, reference[name].values, err_msg=name)
+    assert done.attrs["scene_canonical"] == reference.attrs["scene_canonical"]
+
+
+def assert_no_leftovers(folder, out):
+    assert sorted(p.name for p in folder.iterdir()) == [out.name], "journal, lock or temporary files left"
+
+
 @pytest.mark.parametrize("kill_after", [1, 7])
-def test_sigkill_then_resume_is_identical(in_tmp, kill_after):
-    (in_tmp / "kill.toml").write_text(SCENE.format(n_a=1000))
+def test_sigkill_during_the_computation_then_resume_is_identical(in_tmp, kill_after):
+    (in_tmp / "kill.toml").write_text(SCENE.format(n_a=1000, n_mu=200, chunk=2000))
     out = in_tmp / "data" / "runs" / "k.h5"
     part = partial_path(out)
-    proc = subprocess.Popen([sys.executable, "-m", "mechsweep.cli", "run", "kill.toml", "-o", str(out),
-                             "--no-progress", "--threads", "1"], cwd=in_tmp,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    argv, kw = cli("run", "kill.toml", "-o", str(out), "--no-progress", "--threads", "1", cwd=in_tmp)
+    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **kw)
     deadline = time.monotonic() + 120
     while chunks_done(part) < kill_after and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.005)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     assert part.exists() and not out.exists(), "the run finished before it could be killed"
-    resumed = subprocess.run([sys.executable, "-m", "mechsweep.cli", "run", "kill.toml", "-o", str(out),
-                              "--no-progress", "--resume"], cwd=in_tmp, capture_output=True, text=True)
+    argv, kw = cli("run", "kill.toml", "-o", str(out), "--no-progress", "--resume", cwd=in_tmp)
+    resumed = subprocess.run(argv, capture_output=True, text=True, **kw)
     assert resumed.returncode == 0, resumed.stderr
     reference = mechsweep.run(mechsweep.load_scene(in_tmp / "kill.toml"), output=in_tmp / "ref.h5", progress=False)
-    done = mechsweep.open_dataset(out)
-    for name in ("period", "period_error", "v_max", "status", "n_steps", "n_rhs", "A", "mu"):
-        np.testing.assert_array_equal(done[name].values, reference[name].values, err_msg=name)
+    assert_identical(out, reference)
+    assert_no_leftovers(out.parent, out)
+
+
+# The child runs the scene with one function wrapped so that the process kills itself with
+# SIGKILL on the n-th call that matches: `before` kills before the call, otherwise just after it.
+KILLER = textwrap.dedent("""
+    import os, signal, sys
+    import numpy as np, shutil
+    import mechsweep
+    from mechsweep import journal, runner, store
+
+    site, n = sys.argv[1], int(sys.argv[2])
+    seen = [0]
+
+    def killing(owner, name, before=False, when=lambda *a: True):
+        original = getattr(owner, name)
+        def wrapper(*args, **kwargs):
+            if when(*args):
+                seen[0] += 1
+                if seen[0] == n and before:
+                    os.kill(os.getpid(), signal.SIGKILL)
+            result = original(*args, **kwargs)
+            if when(*args) and seen[0] == n and not before:
+                os.kill(os.getpid(), signal.SIGKILL)
+            return result
+        setattr(owner, name, wrapper)
+
+    if site == "journal-created":  # the folder exists, run.json does not
+        killing(journal, "_write_atomic", before=True)
+    elif site == "mid-chunk-file":  # a chunk's temporary file written, not synced nor renamed
+        killing(np, "savez")
+    elif site == "chunk-renamed":  # a chunk file renamed, the folder not synced
+        killing(journal, "_sync_dir", before=True, when=lambda folder: folder.name == "chunks")
+    elif site == "assembling":  # the dataset half written in the journal folder
+        killing(journal.Journal, "read_chunk")
+    elif site == "dataset-placed":  # the dataset in place, the journal not dropped yet
+        killing(runner, "drop", before=True, when=lambda final: (final.parent / final.name).exists())
+    elif site == "journal-dropping":  # the journal renamed away, not yet deleted
+        killing(shutil, "rmtree", before=True, when=lambda p, **k: str(p).endswith(".discard") and os.path.exists(p))
+    mechsweep.run(mechsweep.load_scene("kill.toml"), output=sys.argv[3], progress=False)
+    print("finished without being killed")
+""")
+
+SITES = [("journal-created", 1), ("mid-chunk-file", 1), ("mid-chunk-file", 3), ("chunk-renamed", 2),
+         ("assembling", 3), ("dataset-placed", 1), ("journal-dropping", 1)]
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    where = tmp_path_factory.mktemp("ref")
+    (where / "kill.toml").write_text(SCENE.format(n_a=40, n_mu=20, chunk=100))
+    return mechsweep.run(mechsweep.load_scene(where / "kill.toml"), output=where / "ref.h5", progress=False)
+
+
+@pytest.mark.parametrize("site,n", SITES, ids=[f"{s}-{n}" for s, n in SITES])
+def test_sigkill_at_every_file_step_then_resume_is_identical(in_tmp, reference, site, n):
+    (in_tmp / "kill.toml").write_text(SCENE.format(n_a=40, n_mu=20, chunk=100))
+    (in_tmp / "killer.py").write_text(KILLER)
+    out = in_tmp / "data" / "runs" / "k.h5"
+    child = subprocess.run([sys.executable, "killer.py", site, str(n), str(out)], cwd=in_tmp,
+                           capture_output=True, text=True)
+    assert child.returncode == -signal.SIGKILL, f"not killed at {site}: {child.stdout}{child.stderr}"
+    resumed = mechsweep.run(mechsweep.load_scene(in_tmp / "kill.toml"), output=out, resume=True, progress=False)
+    assert_identical(out, reference)
+    assert resumed.attrs["scene_canonical"] == reference.attrs["scene_canonical"]
+    assert_no_leftovers(out.parent, out)

@@ -64,10 +64,10 @@ def run(
     # Conflicts are refused before the lock (taking it touches the folder), and checked again
     # under it: another run may have changed the files meanwhile.
     RunLock(final).refuse_if_held()
-    if _check_existing(scene, final, resume, restart):
-        return open_dataset(final, lazy=lazy)  # --resume of a finished run: nothing to do
+    _check_existing(scene, final, resume, restart)
     with RunLock(final):  # from here to the end, no other run touches final or its journal
-        if not _check_existing(scene, final, resume, restart):
+        shutil.rmtree(discard_path(final), ignore_errors=True)  # what a killed clean-up left
+        if not _check_existing(scene, final, resume, restart):  # True: resumed a finished run
             _compute(scene, final, restart, threads, progress, scheduler)
     return open_dataset(final, lazy=lazy)
 
@@ -97,7 +97,6 @@ def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool) -> b
 def _compute(scene: Scene, final: Path, restart: bool, threads, progress, scheduler) -> None:
     """Compute the missing chunks into the journal, then assemble the dataset."""
     part = partial_path(final)
-    shutil.rmtree(discard_path(final), ignore_errors=True)  # what a killed clean-up left
     target = default_chunk_target(scene)
     chunks = plan_chunks(scene.shape, target)
     journal = Journal.read(part) if part.exists() and not restart else None
