@@ -37,7 +37,7 @@ def dask_results(scene, todo, scheduler: str):
         raise InputError(f"cannot reach the dask scheduler at {scheduler!r} within {CONNECT_TIMEOUT_S} s "
                          f"({exc}); start one with `dask scheduler` and workers with `dask worker ADDRESS`") from None
     run_id = uuid.uuid4().hex[:12]
-    futures = as_completed()
+    futures = as_completed(loop=client.loop)
     live = {}  # key -> (future, chunk), submitted and not yet handed out
 
     def submit(chunk) -> None:

@@ -173,9 +173,9 @@ CHUNK_MEMORY_FACTOR = 3
 
 
 def bytes_per_point(scene: Scene) -> int:
-    """Stored bytes of one grid point: every requested output (with its extra dimensions, float64),
-    status (int8), and for integrated outputs n_steps and n_rhs (int64). The file is not
-    compressed, so this is its size."""
+    """Bytes of one grid point before compression: every requested output (with its extra
+    dimensions, float64), status (int8), and for integrated outputs n_steps and n_rhs (int64).
+    Only the integer variables are compressed, so the file is at most this size per point."""
     values = sum(int(np.prod(extra_shape(scene, name), dtype=np.int64)) for name in scene.outputs)
     return 8 * values + 1 + (16 if scene.solver is not None else 0)
 

@@ -128,19 +128,26 @@ def _define(f: h5netcdf.File, scene: Scene, lay: Layout, attrs: dict) -> None:
             v.attrs["integrated"] = 1
         if fixed_coords:
             v.attrs["coordinates"] = fixed_coords
-    s = f.create_variable("status", lay.dims, dtype=st.DTYPE, fillvalue=st.PENDING, chunks=chunks)
+    s = f.create_variable("status", lay.dims, dtype=st.DTYPE, fillvalue=st.PENDING, chunks=chunks,
+                          **_compressed(lay.shape))
     del s.attrs["_FillValue"]  # keep int8 on reading (xarray would mask it to float)
     for k, val in st.cf_attrs().items():
         s.attrs[k] = val
     if lay.integrated:
         for name, long_name in (("n_steps", "accepted integration steps"),
                                 ("n_rhs", "right-hand-side evaluations")):
-            c = f.create_variable(name, lay.dims, dtype="i8", fillvalue=0, chunks=chunks)
+            c = f.create_variable(name, lay.dims, dtype="i8", fillvalue=0, chunks=chunks, **_compressed(lay.shape))
             del c.attrs["_FillValue"]
             _describe(c, "1", long_name, "")
     for k, val in attrs.items():
         f.attrs[k] = val
     f.attrs["n_chunks"] = lay.n_chunks
+
+
+def _compressed(shape: tuple[int, ...]) -> dict:
+    """Status codes and step counts repeat a few values: gzip (level 1, fast) with byte shuffling
+    shrinks them many times over. Float outputs are left raw: their mantissas do not compress."""
+    return {"compression": "gzip", "compression_opts": 1, "shuffle": True} if _storage_chunks(shape) else {}
 
 
 def _storage_chunks(shape: tuple[int, ...]):
