@@ -185,3 +185,18 @@ def test_size_estimate_is_the_file_size(in_tmp, small_duffing):
     floats = 8 * len(scene.outputs) * scene.n_points
     actual = (in_tmp / "data" / "runs" / "size.h5").stat().st_size
     assert floats <= actual <= data + 200_000
+
+
+def test_big_datasets_open_lazily_with_dask_chunks(in_tmp, small_duffing, monkeypatch):
+    from mechsweep import store
+
+    loaded = mechsweep.run(small_duffing, output="data/runs/lazy.h5", progress=False)
+    assert loaded["period"].chunks is None  # small: in memory
+    monkeypatch.setattr(store, "LOAD_LIMIT_BYTES", 0)  # now every file counts as big
+    with mechsweep.open_dataset("data/runs/lazy.h5", lazy=None) as lazy:
+        assert lazy["period"].chunks is not None, "not opened lazily as dask arrays"
+        for name in ("period", "status", "n_steps"):
+            np.testing.assert_array_equal(lazy[name].values, loaded[name].values)
+    ran = mechsweep.run(small_duffing, output="data/runs/lazy.h5", resume=True, load=False)
+    assert ran["period"].chunks is not None
+    ran.close()

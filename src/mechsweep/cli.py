@@ -146,6 +146,14 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--repeats", type=int, default=3, help="timing repetitions, the fastest counts (default 3)")
     b.add_argument("--out", default="data/bench", help="output folder (default data/bench)")
     b.set_defaults(func=_cmd_bench_workprecision)
+    b = bsub.add_parser("cluster", help="throughput locally and on a dask LocalCluster of 1..W workers; identical datasets")
+    b.add_argument("--points", type=int, default=400_000, help="Duffing grid points (default 400000)")
+    b.add_argument("--workers", type=int, default=None, help="up to this many worker processes (default: cores)")
+    b.set_defaults(func=_cmd_bench_cluster)
+    b = bsub.add_parser("memory", help="peak resident memory of runs up to 10^8 points against their dataset size")
+    b.add_argument("--quick", action="store_true", help="small grids only (10^4 ... 10^6 points)")
+    b.add_argument("--dir", default=None, help="folder for the temporary datasets (default: the system's temp)")
+    b.set_defaults(func=_cmd_bench_memory)
     b = bsub.add_parser("quickstart", help="time the quickstart (run + plot) in fresh processes, cold and warm JIT cache")
     b.add_argument("--scene", default="sweeps/quickstart.toml")
     b.set_defaults(func=_cmd_bench_quickstart)
@@ -226,7 +234,7 @@ def select_point(ds, text: str):
 def _cmd_info(args) -> int:
     from .store import open_dataset
 
-    print(describe(open_dataset(args.dataset, allow_partial=True)))
+    print(describe(open_dataset(args.dataset, allow_partial=True, lazy=None)))
     return 0
 
 
@@ -299,6 +307,20 @@ def _cmd_bench_workprecision(args) -> int:
     return 0
 
 
+def _cmd_bench_cluster(args) -> int:
+    from .bench import cluster
+
+    cluster.main(points=args.points, workers=args.workers)
+    return 0
+
+
+def _cmd_bench_memory(args) -> int:
+    from .bench import memory
+
+    rows = memory.main(quick=args.quick, folder=args.dir)
+    return 0 if all(r["ok"] for r in rows) else 1
+
+
 def _cmd_bench_quickstart(args) -> int:
     from .bench import quickstart
 
@@ -332,10 +354,11 @@ def describe(ds) -> str:
         lines.append("fixed: " + ", ".join(f"{k} = {ds[k].values} {ds[k].attrs.get('units', '')}".strip()
                                            for k in fixed))
     lines.append("outputs:")
-    ok = ds["status"].values == 0
+    ok = ds["status"] == 0
     for name in ds.attrs.get("outputs", "").split():
-        v = ds[name].values[ok]
-        rng = f"{np.nanmin(v):.6g} .. {np.nanmax(v):.6g}" if v.size else "no ok points"
+        v = ds[name].where(ok)  # chunk by chunk when the dataset is opened lazily
+        lo, hi = float(v.min()), float(v.max())
+        rng = f"{lo:.6g} .. {hi:.6g}" if np.isfinite(lo) else "no ok points"
         lines.append(f"  {name:<20} [{ds[name].attrs.get('units', '')}]  {rng}  {ds[name].attrs.get('long_name', '')}")
     if "stable_floquet" in ds and "stable_sim" in ds:
         lines.append("verdicts: " + verdict_agreement(ds))
@@ -346,8 +369,8 @@ def describe(ds) -> str:
                      f"mean {float(ds['n_steps'].mean()):.1f} steps/point")
         solver = {k[len('solver_'):]: v for k, v in ds.attrs.items() if k.startswith("solver_")}
         lines.append("solver: " + ", ".join(f"{k}={v}" for k, v in solver.items()))
-    lines.append(f"wall time: {float(ds.attrs.get('wall_time_s', float('nan'))):.3f} s on "
-                 f"{ds.attrs.get('threads', '?')} threads")
+    where = ds.attrs.get("execution", f"{ds.attrs.get('threads', '?')} threads")
+    lines.append(f"wall time: {float(ds.attrs.get('wall_time_s', float('nan'))):.3f} s ({where})")
     lines.append("provenance: " + ", ".join(f"{k} {ds.attrs.get(k)}" for k in
                                              ("created", "mechsweep_version", "numba_version", "numpy_version")))
     return "\n".join(lines)

@@ -1,0 +1,67 @@
+"""`mechsweep bench cluster`: throughput of one scene run locally and on a dask cluster of
+1 ... W worker processes on this machine, in the same run, and whether the datasets are identical.
+
+Every configuration runs the same Duffing amplitude-period scene (integrated periods) into its own
+file. Local runs use 1 and all numba threads. Cluster runs start a LocalCluster of w worker
+processes with one task slot and one numba thread each (the layout the README recommends per
+core), warm it up (each worker loads the JIT cache once) and then time `mechsweep.run(...,
+scheduler=...)`: wall time from the call to the finished dataset, journal and assembly included.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..runner import run
+from .duffing import grid_scene
+
+COMPARED = ("period", "status", "n_steps", "n_rhs")
+
+
+def _timed_run(scene: dict, out: Path, **kw) -> tuple[float, object]:
+    t0 = time.perf_counter()
+    ds = run(scene, output=out, progress=False, restart=True, **kw)
+    return time.perf_counter() - t0, ds
+
+
+def _same(a, b) -> bool:
+    return all(np.array_equal(a[k].values, b[k].values, equal_nan=True) for k in COMPARED)
+
+
+def main(points: int = 400_000, workers: int | None = None, chunk: int = 8192) -> list[dict]:
+    from distributed import LocalCluster
+
+    workers = workers or os.cpu_count() or 1
+    scene = grid_scene(points, 5e-11, 1e-12)
+    scene["storage"] = {"chunk_size": chunk}
+    warm = grid_scene(2_000, 5e-11, 1e-12)
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        run(warm, output=tmp / "warm.h5", progress=False)  # JIT compile or load here first
+        reference = None
+        for threads in sorted({1, os.cpu_count() or 1}):
+            seconds, ds = _timed_run(scene, tmp / f"local{threads}.h5", threads=threads)
+            reference = ds if reference is None else reference
+            rows.append({"where": f"local, {threads} numba thread(s)", "seconds": seconds, "same": _same(ds, reference)})
+        for w in range(1, workers + 1):
+            with LocalCluster(n_workers=w, threads_per_worker=1, processes=True, dashboard_address=None,
+                              env={"NUMBA_NUM_THREADS": "1"}) as cluster:
+                address = cluster.scheduler_address
+                run(warm, output=tmp / "warm.h5", progress=False, restart=True, scheduler=address)
+                seconds, ds = _timed_run(scene, tmp / f"dask{w}.h5", scheduler=address)
+            rows.append({"where": f"dask, {w} worker(s) x 1 thread", "seconds": seconds, "same": _same(ds, reference)})
+    n = reference["status"].size
+    base = rows[0]["seconds"]
+    print(f"mechsweep bench cluster: Duffing periods, {n:,} points in chunks of {chunk}, this machine "
+          f"({os.cpu_count()} cores); time includes the journal and the dataset assembly")
+    print(f"  {'configuration':<34} {'wall s':>8} {'points/s':>12} {'vs local 1 thread':>18}  identical to local")
+    for r in rows:
+        r["points_per_s"] = n / r["seconds"]
+        print(f"  {r['where']:<34} {r['seconds']:8.2f} {r['points_per_s']:12,.0f} {base / r['seconds']:17.2f}x  "
+              f"{'yes' if r['same'] else 'NO'}")
+    return rows
