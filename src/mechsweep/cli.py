@@ -27,15 +27,21 @@ exit codes: 0 done, 1 unexpected error, 2 invalid input (nothing written), 130 i
 """
 
 RUN_EPILOG = """\
-The grid is cut into chunks; each finished chunk is written to PATH.partial at once.
-When every chunk is in, PATH.partial is renamed to PATH, so an existing PATH is never
-left half overwritten. If the run is interrupted (Ctrl-C, kill), `--resume` computes
-only the missing chunks; the result is identical to an uninterrupted run.
+The grid is cut into chunks; each finished chunk is saved at once to the journal PATH.partial/
+(a kill leaves every chunk file whole or absent). When every chunk is in, the dataset is
+assembled and renamed to PATH, so an existing PATH is never left half overwritten. If the run is
+interrupted (Ctrl-C, kill, power cut), `--resume` computes only the missing chunks; the result is
+identical to an uninterrupted run. A second run on the same PATH is refused while one is writing.
+
+With --scheduler (or [execution] scheduler in the scene) the chunks run as tasks on a
+dask.distributed cluster (pip install "mechsweep[distributed]"); this process still writes the
+file, and the result is the same as a local run, bit for bit.
 
 examples:
   mechsweep run sweeps/duffing_amplitude_period.toml
   mechsweep run sweeps/duffing_amplitude_period.toml -o /tmp/ap.h5 --threads 1
   mechsweep run sweeps/duffing_amplitude_period.toml --resume
+  mechsweep run sweeps/duffing_amplitude_period.toml --scheduler tcp://10.0.0.5:8786
 """
 
 
