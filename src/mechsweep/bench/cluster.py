@@ -39,6 +39,7 @@ def main(points: int = 400_000, workers: int | None = None, chunk: int = 8192) -
     scene = grid_scene(points, 5e-11, 1e-12)
     scene["storage"] = {"chunk_size": chunk}
     warm = grid_scene(2_000, 5e-11, 1e-12)
+    warm["storage"] = {"chunk_size": 100}  # 20 tasks: every worker gets some and loads the JIT cache
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
