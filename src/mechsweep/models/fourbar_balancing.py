@@ -11,8 +11,9 @@ Every per-design output is evaluated at N_POSITIONS = 360 uniform crank position
 phi_i = 2 pi i / 360 (a fixed constant: algebraic scenes have no solver settings; the kernels and
 ``evaluate(..., n_positions=N)`` take any N, for convergence studies). RMS values are
 over those positions (uniform in phi, as the source's sums over computed positions), maxima and
-ranges too (``mechsweep bench workprecision fourbar_balancing`` measures their error). Per-position outputs (``*_phi``) have the extra dimension ``phi`` with these
-positions and are stored only when a scene asks for them (360 floats per design each).
+ranges too (``mechsweep bench workprecision fourbar_balancing`` measures their error).
+Per-position outputs (``*_phi``) have the extra dimension ``phi`` with these positions and are
+stored only when a scene asks for them (360 floats per design each).
 
 Methods (each output is computed only when a scene asks for it or for an output of the same
 method):

@@ -14,8 +14,8 @@ cw_angle from the crank (pi when every centre of mass is on its link line).
 
 Every output is evaluated at N_POSITIONS = 360 uniform crank positions phi_i = 2 pi i / 360 (a
 fixed constant: algebraic scenes have no solver settings; ``evaluate(..., n_positions=N)`` takes
-any N, and ``mechsweep bench workprecision slidercrank_balancing`` measures the error); ``*_phi`` outputs have the extra
-dimension ``phi`` and are stored only when a scene asks for them. The textbook formula uses the
+any N, and ``mechsweep bench workprecision slidercrank_balancing`` measures the error);
+``*_phi`` outputs have the extra dimension ``phi`` and are stored only when a scene asks for them. The textbook formula uses the
 mean speed omega and e = 0; its curves include the static weight -g m_total in Fy so that the
 error measures the kinematic approximation (with delta = 0, e = 0 and centres on the link lines
 the error is the lambda^3 and higher terms of the slider acceleration, in Fx only).
