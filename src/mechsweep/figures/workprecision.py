@@ -67,7 +67,7 @@ def _positions(ds):
     """Linkage models: error against time per point (left) and against the number N of crank
     positions (right, with the slope N^-2 of a maximum), one colour per output; mechsweep solid,
     numpy dashed (same values, its own time)."""
-    fig, axes = new_figure(1, 2, width=10.5, height=5.0)
+    fig, axes = new_figure(1, 2, width=6.4, height=5.4)
     left, right = axes[0, 0], axes[0, 1]
     N = ds["n_positions"].values
     for o, name in enumerate(ds["output"].values):
@@ -98,5 +98,5 @@ def _positions(ds):
     right.legend(fontsize=7, loc="best")
     head = f"Work-precision, {ds.attrs['model']}: crank positions N = {N.min()} ... {N.max()}, 1 thread"
     ref = f"reference: {ds.attrs['reference']}; {ds.attrs['points']} points of {ds.attrs['scene']}"
-    fig.suptitle(head + "\n" + textwrap.fill(ref, 130), fontsize=9)
+    fig.suptitle(head + "\n" + textwrap.fill(ref, 120), fontsize=9)
     return fig
