@@ -1,9 +1,11 @@
 """Regenerate every committed figure: run each shipped scene, then draw its figures; then the
-work-precision reports of the integrated models.
+work-precision reports of the integrated models (tolerance ladder) and of the linkage models
+(crank-position ladder).
 
     python docs/make_figures.py               # all scenes in sweeps/ and every work-precision report
     python docs/make_figures.py quickstart    # only scenes whose file name contains 'quickstart'
     python docs/make_figures.py workprecision # only the work-precision reports
+    python docs/make_figures.py workprecision_fourbar_balancing  # only that model's report
 
 Datasets go to data/runs/ and data/bench/ (git-ignored), figures to docs/figures/ (committed).
 """
@@ -28,13 +30,14 @@ def main(filters: list[str]) -> None:
         ds = mechsweep.run(scene, output=ROOT / scene.storage.path, restart=True, progress=False)
         for written in figures.save(ds, OUT / f"{path.stem}.png"):
             print(f"{path.name} -> {written.relative_to(ROOT)}")
-    if not filters or "workprecision" in filters:
-        from mechsweep.bench import workprecision
+    from mechsweep.bench import workprecision
 
-        for model in workprecision.CASES:
-            ds = workprecision.main(model, out_dir=ROOT / "data" / "bench")
-            for written in figures.save(ds, OUT / f"workprecision_{model}.png"):
-                print(f"workprecision {model} -> {written.relative_to(ROOT)}")
+    for model in workprecision.all_cases():
+        if filters and "workprecision" not in filters and f"workprecision_{model}" not in filters:
+            continue
+        ds = workprecision.main(model, out_dir=ROOT / "data" / "bench")
+        for written in figures.save(ds, OUT / f"workprecision_{model}.png"):
+            print(f"workprecision {model} -> {written.relative_to(ROOT)}")
 
 
 if __name__ == "__main__":

@@ -245,7 +245,7 @@ def test_sweep_kernel_matches_the_position_function(delta):
 
 def test_kinematics_cycle_is_the_position_function_term_for_term():
     buf = np.empty((L.N_BUF, L.N_POSITIONS))
-    L.fourbar_kinematics_cycle(0.1, 0.35, 0.3, 0.4, -1.0, 20.0, 0.4, buf)
+    L.fourbar_kinematics_cycle(0.1, 0.35, 0.3, 0.4, -1.0, 20.0, 0.4, L.COS_PHI, L.SIN_PHI, buf)
     for j in (0, 17, 90, 181, 359):
         w1, al1 = L.crank_speed(20.0, 0.4, L.COS_PHI[j], L.SIN_PHI[j])
         ref = L.fourbar_position(0.1, 0.35, 0.3, 0.4, -1.0, L.COS_PHI[j], L.SIN_PHI[j], w1, al1)
@@ -628,7 +628,8 @@ def test_design_kernels_agree_with_python(model, kernel, design, n_buf):
     slot = np.arange(len(curves))
     row = np.full(len(scalars), np.nan)
     crv_py = np.full((len(curves), L.N_POSITIONS), np.nan)
-    args = (P[0], want, row, crv_py, slot) + ((np.empty((n_buf, L.N_POSITIONS)),))
+    positions = (L.COS_PHI, L.SIN_PHI, L.SUMS, np.ones(L.N_POSITIONS)) if spec is fb.SPEC else (L.COS_PHI, L.SIN_PHI)
+    args = (P[0], want, row, crv_py, slot, np.empty((n_buf, L.N_POSITIONS))) + positions
     assert getattr(L, design).py_func(*args) == status[0] == st.OK
     np.testing.assert_allclose(row, table[0], rtol=1e-13)
     np.testing.assert_allclose(crv_py, crv[0], rtol=1e-13, atol=1e-13 * np.abs(crv[0]).max())

@@ -342,10 +342,11 @@ def slidercrank_curves(phi, phi_d, phi_dd=0.0, *, balanced: bool = True, **param
     return c, int(code)
 
 
-def evaluate(model: str, outputs, **params) -> tuple[dict, np.ndarray]:
+def evaluate(model: str, outputs, *, n_positions: int = N_POSITIONS, **params) -> tuple[dict, np.ndarray]:
     """Outputs of a linkage model for parameters given as scalars or broadcastable arrays
-    (categorical ones by name), without a scene. Returns ({output: array [..., 360 for *_phi]},
-    status array) in the broadcast shape."""
+    (categorical ones by name), without a scene. Returns ({output: array [..., n_positions for
+    *_phi]}, status array) in the broadcast shape. n_positions: uniform crank positions per cycle
+    behind the maxima, RMS values, fits and curves (default 360, as in every sweep)."""
     spec = _spec(model)
     outputs = (outputs,) if isinstance(outputs, str) else tuple(outputs)
     for o in outputs:
@@ -354,7 +355,7 @@ def evaluate(model: str, outputs, **params) -> tuple[dict, np.ndarray]:
     P, shape = _matrix(model, params)
     n = P.shape[0]
     wanted = spec.closure(outputs)
-    out = {o: np.full((n,) + ((N_POSITIONS,) if spec.output(o).extra_dims else ()), np.nan) for o in wanted}
+    out = {o: np.full((n,) + ((n_positions,) if spec.output(o).extra_dims else ()), np.nan) for o in wanted}
     status = np.zeros(n, dtype=st.DTYPE)
-    spec.evaluate(P, wanted, None, out, status, np.zeros(n, np.int64), np.zeros(n, np.int64))
+    spec.evaluate(P, wanted, None, out, status, np.zeros(n, np.int64), np.zeros(n, np.int64), n_positions)
     return ({o: out[o].reshape(shape + out[o].shape[1:]) for o in outputs}, status.reshape(shape))

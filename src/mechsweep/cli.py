@@ -142,14 +142,21 @@ def _parser() -> argparse.ArgumentParser:
                         description="Integrate a fixed sample of a scene's grid points with every method the "
                                     "model offers and with scipy's solve_ivp, over a ladder of tolerances; print "
                                     "error against time per point and write DIR/workprecision_MODEL.h5 and .csv "
-                                    "(draw it with `mechsweep plot DIR/workprecision_MODEL.h5`).")
-    b.add_argument("model", help="duffing, torsional_circuit or autobalancer")
+                                    "(draw it with `mechsweep plot DIR/workprecision_MODEL.h5`). The algebraic "
+                                    "linkage models (fourbar_balancing, slidercrank_balancing) are evaluated over "
+                                    "a ladder of crank positions per cycle instead (--positions), against a "
+                                    "continuous-angle reference, with a plain numpy implementation timed alongside.")
+    b.add_argument("model", help="duffing, torsional_circuit, autobalancer, fourbar_balancing or "
+                                 "slidercrank_balancing")
     b.add_argument("--scene", default=None, help="draw the sample from this scene (default: the model's reference scene)")
     b.add_argument("--points", type=int, default=64, help="sample points for mechsweep (default 64)")
     b.add_argument("--scipy-points", type=int, default=6, help="of those, solved with scipy (default 6)")
     b.add_argument("--rtol", type=float, nargs="+", default=None, metavar="RTOL",
                    help="tolerance ladder (default 1e-4 ... 1e-13, one per decade)")
-    b.add_argument("--repeats", type=int, default=3, help="timing repetitions, the fastest counts (default 3)")
+    b.add_argument("--positions", type=int, nargs="+", default=None, metavar="N",
+                   help="linkage models: crank positions per cycle (default 12 24 45 90 180 360 720 1440 2880)")
+    b.add_argument("--repeats", type=int, default=None,
+                   help="timing repetitions, the fastest counts (default 3; linkage models 5)")
     b.add_argument("--out", default="data/bench", help="output folder (default data/bench)")
     b.set_defaults(func=_cmd_bench_workprecision)
     b = bsub.add_parser("cluster", help="throughput locally and on a dask LocalCluster of 1..W workers; identical datasets")
@@ -305,10 +312,22 @@ def _cmd_bench_period_error(args) -> int:
 
 
 def _cmd_bench_workprecision(args) -> int:
-    from .bench import workprecision
+    from .bench import workprecision, workprecision_linkage
+    from .errors import InputError
 
+    linkage = args.model in workprecision_linkage.CASES
+    if linkage and args.rtol:
+        raise InputError(f"{args.model} is algebraic: it has no tolerance (--rtol); its ladder is --positions")
+    if args.positions and not linkage:
+        raise InputError(f"--positions is for the linkage models ({', '.join(workprecision_linkage.CASES)}), "
+                         f"not {args.model}")
+    if linkage:
+        workprecision_linkage.main(args.model, args.scene, points=args.points,
+                                   positions=tuple(args.positions or workprecision_linkage.POSITIONS),
+                                   repeats=args.repeats or 5, out_dir=args.out)
+        return 0
     workprecision.main(args.model, args.scene, points=args.points, scipy_points=args.scipy_points,
-                       ladder=tuple(args.rtol) if args.rtol else workprecision.LADDER, repeats=args.repeats,
+                       ladder=tuple(args.rtol) if args.rtol else workprecision.LADDER, repeats=args.repeats or 3,
                        out_dir=args.out)
     return 0
 

@@ -51,12 +51,19 @@ def design_family(n: int, seed: int = 0) -> np.ndarray:
     return P
 
 
-def numpy_residuals(P: np.ndarray, block: int = 64) -> dict:
-    """The same computation as the mechsweep kernel, vectorised with numpy over [designs, 360]."""
+def numpy_residuals(P: np.ndarray, block: int = 64, n_positions: int = L.N_POSITIONS) -> dict:
+    """The same computation as the mechsweep kernel, vectorised with numpy over [designs, N]
+    (N = n_positions uniform crank positions, 360 as in sweeps). Constant crank speed and no
+    gravity only (delta = 0, g = 0): a ValueError otherwise."""
+    for name in ("delta", "g"):
+        if np.any(P[:, L.FOURBAR_PARAMS.index(name)] != 0.0):
+            raise ValueError(f"the numpy four-bar residuals assume {name} = 0 (constant speed, no gravity)")
     n = P.shape[0]
     res = {k: np.empty(n) for k in OUTPUTS}
-    c1 = L.COS_PHI[None, :]
-    s1 = L.SIN_PHI[None, :]
+    cos_phi, sin_phi, sums = fb.positions(n_positions)
+    SUM_CC, SUM_SS, SUM_SC = sums
+    c1 = cos_phi[None, :]
+    s1 = sin_phi[None, :]
     for s in range(0, n, block):
         p = P[s:s + block]
         col = lambda name: p[:, L.FOURBAR_PARAMS.index(name)][:, None]  # noqa: E731
@@ -66,7 +73,7 @@ def numpy_residuals(P: np.ndarray, block: int = 64) -> dict:
         m1, r1, th1 = col("m1"), col("r1"), col("theta1")  # I1: no effect at constant crank speed
         m2, r2, th2, I2 = col("m2"), col("r2"), col("theta2"), col("I2")
         m3, r3, th3, I3 = col("m3"), col("r3"), col("theta3"), col("I3")
-        rc3 = col("r_cw3")
+        rc3 = np.where(np.isnan(col("r_cw3")), a3, col("r_cw3"))  # absent: at the rocker's joint B
         # method 1: counterweights (linearly independent vectors)
         C1x = m2 * a1 * (r2 / a2 * np.cos(th2) - 1.0) - m1 * r1 * np.cos(th1)
         C1y = m2 * a1 * (r2 / a2 * np.sin(th2)) - m1 * r1 * np.sin(th1)
@@ -106,10 +113,10 @@ def numpy_residuals(P: np.ndarray, block: int = 64) -> dict:
         # method 2: RMS-optimal axis O1 (x, y); constant speed and uniform positions: formula (1)
         cb, sb = C1x[:, 0] / S[:, 0], C1y[:, 0] / S[:, 0]
         k = S[:, 0] * w1[:, 0] ** 2
-        smc, sms = M @ L.COS_PHI, M @ L.SIN_PHI
+        smc, sms = M @ cos_phi, M @ sin_phi
         m_sin, m_cos = sms * cb + smc * sb, smc * cb - sms * sb
-        sin2 = L.SUM_SS * cb * cb + 2.0 * L.SUM_SC * cb * sb + L.SUM_CC * sb * sb
-        cos2 = L.SUM_CC * cb * cb - 2.0 * L.SUM_SC * cb * sb + L.SUM_SS * sb * sb
+        sin2 = SUM_SS * cb * cb + 2.0 * SUM_SC * cb * sb + SUM_CC * sb * sb
+        cos2 = SUM_CC * cb * cb - 2.0 * SUM_SC * cb * sb + SUM_SS * sb * sb
         x, y = -m_sin / (k * sin2), m_cos / (k * cos2)
         A, Bc = k * (x * cb + y * sb), k * (x * sb - y * cb)
         dM = M + (A[:, None] * s1 + Bc[:, None] * c1)

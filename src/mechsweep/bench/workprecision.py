@@ -1,5 +1,8 @@
 """`mechsweep bench workprecision MODEL`: error against run time for every method, ours and scipy's.
 
+(The algebraic linkage models have no integrator: their report, error against the number of crank
+positions, is :mod:`mechsweep.bench.workprecision_linkage`; ``main`` hands them over.)
+
 A fixed sample of grid points (drawn with a fixed seed from the model's reference scene, or from
 --scene) is integrated by every method the model offers (``SPEC.methods``) and by scipy's
 solve_ivp (DOP853, Radau, LSODA) over a ladder of tolerances, in the same process:
@@ -185,6 +188,15 @@ CASES = {
 }
 
 
+def all_cases() -> tuple[str, ...]:
+    """Every model with a work-precision report: the integrated ones (CASES, a ladder of
+    tolerances) and the algebraic linkage models (a ladder of crank positions,
+    :mod:`mechsweep.bench.workprecision_linkage`)."""
+    from . import workprecision_linkage
+
+    return tuple(CASES) + tuple(workprecision_linkage.CASES)
+
+
 # ----------------------------------------------------------------------------- energy drift (duffing)
 DRIFT_PERIODS = (1, 10, 100, 1000, 10000)
 DRIFT_RTOLS = (1e-6, 1e-9)
@@ -259,8 +271,13 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
 
     from ..errors import InputError
 
+    from . import workprecision_linkage
+
+    if model in workprecision_linkage.CASES:  # algebraic: a ladder of crank positions, not of tolerances
+        return workprecision_linkage.main(model, scene_path, points=points, repeats=max(repeats, 5), out_dir=out_dir,
+                                          quiet=quiet)
     if model not in CASES:
-        raise InputError(f"no work-precision case for model {model!r}; cases: {', '.join(CASES)}")
+        raise InputError(f"no work-precision case for model {model!r}; cases: {', '.join(all_cases())}")
     case = CASES[model]
     spec = MODELS[model]
     scene = load_scene(scene_path or ROOT / case.scene)

@@ -62,6 +62,8 @@ MAP_OUTPUTS = ("dM_rms_axis", "R_axis", "R_h1", "R_inertia", "M_rms_static", "cw
 
 
 def _map_dims(ds):
+    if "status" not in ds:  # not a sweep (e.g. a work-precision report of the model)
+        return None
     dims = [d for d in ds["status"].dims if ds.sizes[d] > 1]
     return dims if len(dims) == 2 and all(ds[d].dtype.kind == "f" for d in dims) else None
 

@@ -48,13 +48,33 @@ from .. import status as st
 from .._jit import jit, pjit, prange
 
 # ----------------------------------------------------------------------------- positions
-N_POSITIONS = 360  # crank positions per cycle of the stored (and internal) curves
-PHI = 2.0 * np.pi * np.arange(N_POSITIONS) / N_POSITIONS  # phi_i = 2 pi i / N, uniform
-COS_PHI = np.cos(PHI)
-SIN_PHI = np.sin(PHI)
-# exact values at the quarter points (they decide toggle and stroke extremes)
-COS_PHI[[N_POSITIONS // 4, 3 * N_POSITIONS // 4]] = 0.0
-SIN_PHI[[0, N_POSITIONS // 2]] = 0.0
+N_POSITIONS = 360  # crank positions per cycle of the stored curves and of every sweep
+
+
+def crank_positions(n: int):
+    """(phi, cos phi, sin phi) of n uniform crank positions phi_i = 2 pi i / n, with the exact
+    values at the quarter points that are on the grid (they decide toggle and stroke extremes).
+    Every kernel takes the cosines and sines as arguments: N_POSITIONS for sweeps, any n >= 4
+    for convergence studies (``mechsweep bench workprecision fourbar_balancing``)."""
+    if n < 4:
+        raise ValueError(f"need at least 4 crank positions, got {n}")
+    phi = 2.0 * np.pi * np.arange(n) / n
+    c = np.cos(phi)
+    s = np.sin(phi)
+    if n % 4 == 0:
+        c[[n // 4, 3 * n // 4]] = 0.0
+    s[0] = 0.0
+    if n % 2 == 0:
+        s[n // 2] = 0.0
+    return phi, c, s
+
+
+def position_sums(c, s):
+    """[sum cos^2, sum sin^2, sum sin cos] over the positions: the sums of formula (1)."""
+    return np.array([float(c @ c), float(s @ s), float(s @ c)])
+
+
+PHI, COS_PHI, SIN_PHI = crank_positions(N_POSITIONS)
 
 # |sin(transmission angle)| below this anywhere in the cycle: a toggle (0.057 deg from it);
 # velocities grow like 1 / sin(mu), accelerations like 1 / sin(mu)^3 there.
@@ -63,10 +83,8 @@ TOGGLE_SIN = 1e-3
 # given in floats is a toggle (SINGULAR), not INFEASIBLE
 ASSEMBLY_RTOL = 1e-12
 
-UNIT_WEIGHTS = np.ones(N_POSITIONS)
-SUM_CC = float(COS_PHI @ COS_PHI)  # sums over the positions for formula (1)
-SUM_SS = float(SIN_PHI @ SIN_PHI)
-SUM_SC = float(SIN_PHI @ COS_PHI)
+SUMS = position_sums(COS_PHI, SIN_PHI)  # sums over the positions for formula (1)
+SUM_CC, SUM_SS, SUM_SC = (float(v) for v in SUMS)
 
 BLOCK = 64  # designs per scratch-space allocation in the parallel kernels
 
@@ -185,7 +203,7 @@ def fourbar_assembly(a1, a2, a3, a4):
     The crank turns fully iff |a2 - a3| <= L <= a2 + a3 for every distance L = |A O_B| in
     [|a4 - a1|, a4 + a1] (Grashof crank, both assembly branches); sin(mu), with mu the angle
     between coupler and rocker, follows from cos(mu) = (a2^2 + a3^2 - L^2) / (2 a2 a3) and is
-    smallest at an end of that interval (phi = 0 or pi, which are crank positions of the grid).
+    smallest at an end of that interval (phi = 0 or pi; in closed form, whatever the positions).
     Products of differences keep it accurate next to a toggle. INFEASIBLE: no full turn;
     SINGULAR: a toggle (sin mu < TOGGLE_SIN) in the cycle, e.g. a change-point linkage."""
     tol = ASSEMBLY_RTOL * (a1 + a2 + a3 + a4)
@@ -520,18 +538,18 @@ N_BUF = 19
 
 
 @jit
-def fourbar_kinematics_cycle(a1, a2, a3, a4, sigma, omega, delta, buf):
-    """fourbar_position at the N_POSITIONS uniform crank positions (speed law of crank_speed)
-    into rows R_C2 .. R_AL1 of buf: the same expressions, term for term (so bitwise the same
-    numbers), split into four loops. Each loop is branch-free and vectorised by LLVM; splitting
-    the long chain div -> sqrt -> div of one position lets the processor overlap many positions
-    (one fused loop is latency-bound: 1.4x slower)."""
-    N = N_POSITIONS
+def fourbar_kinematics_cycle(a1, a2, a3, a4, sigma, omega, delta, cos_phi, sin_phi, buf):
+    """fourbar_position at the crank positions with cosines cos_phi and sines sin_phi (speed law
+    of crank_speed) into rows R_C2 .. R_AL1 of buf: the same expressions, term for term (so
+    bitwise the same numbers), split into four loops. Each loop is branch-free and vectorised by
+    LLVM; splitting the long chain div -> sqrt -> div of one position lets the processor overlap
+    many positions (one fused loop is latency-bound: 1.4x slower)."""
+    N = cos_phi.shape[0]
     ia2 = 1.0 / a2
     ia3 = 1.0 / a3
     for j in range(N):
-        dx = a4 - a1 * COS_PHI[j]
-        dy = -a1 * SIN_PHI[j]
+        dx = a4 - a1 * cos_phi[j]
+        dy = -a1 * sin_phi[j]
         iL2 = 1.0 / (dx * dx + dy * dy)
         q = (a2 * a2 - a3 * a3) * (0.5 * iL2) + 0.5
         buf[R_Q, j] = q
@@ -539,8 +557,8 @@ def fourbar_kinematics_cycle(a1, a2, a3, a4, sigma, omega, delta, buf):
     for j in range(N):
         buf[R_H, j] = sigma * math.sqrt(buf[R_H, j])
     for j in range(N):
-        dx = a4 - a1 * COS_PHI[j]
-        dy = -a1 * SIN_PHI[j]
+        dx = a4 - a1 * cos_phi[j]
+        dy = -a1 * sin_phi[j]
         q = buf[R_Q, j]
         hL = buf[R_H, j]
         ex = q * dx - hL * dy
@@ -555,8 +573,8 @@ def fourbar_kinematics_cycle(a1, a2, a3, a4, sigma, omega, delta, buf):
         buf[R_S3, j] = s3
         buf[R_ID, j] = 1.0 / (c2 * s3 - s2 * c3)
     for j in range(N):
-        c1 = COS_PHI[j]
-        s1 = SIN_PHI[j]
+        c1 = cos_phi[j]
+        s1 = sin_phi[j]
         w1, al1 = crank_speed(omega, delta, c1, s1)
         c2 = buf[R_C2, j]
         s2 = buf[R_S2, j]
@@ -579,13 +597,14 @@ def fourbar_kinematics_cycle(a1, a2, a3, a4, sigma, omega, delta, buf):
 
 
 @jit
-def fourbar_loads_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, g, M_load, buf):
+def fourbar_loads_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, g, M_load,
+                        cos_phi, sin_phi, buf):
     """fourbar_loads over the cycle from the kinematics rows of buf into rows B_FX, B_FY, B_M,
     B_T and B_Q3 (phi3' / phi'). Branch-free, vectorised."""
-    for j in range(N_POSITIONS):
+    for j in range(cos_phi.shape[0]):
         w1 = buf[R_W1, j]
         w3 = buf[R_W3, j]
-        Fx, Fy, M, T = fourbar_loads(a1, a4, COS_PHI[j], SIN_PHI[j], w1, buf[R_AL1, j],
+        Fx, Fy, M, T = fourbar_loads(a1, a4, cos_phi[j], sin_phi[j], w1, buf[R_AL1, j],
                                      buf[R_C2, j], buf[R_S2, j], buf[R_C3, j], buf[R_S3, j],
                                      buf[R_W2, j], w3, buf[R_AL2, j], buf[R_AL3, j],
                                      U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, g, M_load)
@@ -597,12 +616,12 @@ def fourbar_loads_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m
 
 
 @jit
-def fourbar_moment_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, g, buf):
+def fourbar_moment_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, g, cos_phi, sin_phi, buf):
     """Only the shaking moment (row B_M): the cheaper loop when no force or torque is asked
     for. The expressions are those of fourbar_loads, term for term, so M is bitwise the same."""
-    for j in range(N_POSITIONS):
-        c1 = COS_PHI[j]
-        s1 = SIN_PHI[j]
+    for j in range(cos_phi.shape[0]):
+        c1 = cos_phi[j]
+        s1 = sin_phi[j]
         w1 = buf[R_W1, j]
         al1 = buf[R_AL1, j]
         c2 = buf[R_C2, j]
@@ -681,12 +700,14 @@ def max_force(fx, fy, fy_offset):
 
 
 @jit
-def fourbar_design(p, want, row, crv, slot, buf):
+def fourbar_design(p, want, row, crv, slot, buf, cos_phi, sin_phi, sums, unit):
     """All requested outputs of one four-bar design (row p of the parameter matrix) over the
-    N_POSITIONS uniform crank positions. row: the design's scalar outputs (prefilled NaN);
-    crv: (n_curve_slots, N) the design's curves; slot[c] = row of curve c in crv or -1;
-    buf: (N_BUF, N) scratch. Returns a status; outputs of a non-OK design stay NaN."""
-    N = N_POSITIONS
+    N uniform crank positions with cosines cos_phi and sines sin_phi (crank_positions).
+    row: the design's scalar outputs (prefilled NaN); crv: (n_curve_slots, N) the design's
+    curves; slot[c] = row of curve c in crv or -1; buf: (N_BUF, N) scratch; sums: position_sums
+    of the positions; unit: N ones (the positions' weights). Returns a status; outputs of a
+    non-OK design stay NaN."""
+    N = cos_phi.shape[0]
     a1, a2, a3, a4 = p[P_A1], p[P_A2], p[P_A3], p[P_A4]
     code, smin = fourbar_assembly(a1, a2, a3, a4)
     if code != st.OK:
@@ -718,13 +739,14 @@ def fourbar_design(p, want, row, crv, slot, buf):
 
     m_links = p[P_M1] + p[P_M2] + p[P_M3]
     if need_given or need_static:
-        fourbar_kinematics_cycle(a1, a2, a3, a4, sigma, omega, delta, buf)  # shared by both
+        fourbar_kinematics_cycle(a1, a2, a3, a4, sigma, omega, delta, cos_phi, sin_phi, buf)  # shared by both
     # ---- the mechanism as given (method 5 indices)
     if need_given:
         U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, cwm = fourbar_links(
             p, p[P_CW1] * math.cos(p[P_CW1A]), p[P_CW1] * math.sin(p[P_CW1A]),
             p[P_CW3] * math.cos(p[P_CW3A]), p[P_CW3] * math.sin(p[P_CW3A]), r_cw1, r_cw3)
-        fourbar_loads_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, g, M_load, buf)
+        fourbar_loads_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, g, M_load,
+                            cos_phi, sin_phi, buf)
         # method 5: the textbook's four indices f1..f4 and their RMS
         lo, hi, rms = cycle_stats(Fx)
         row[K_FX_RANGE] = hi - lo
@@ -756,9 +778,10 @@ def fourbar_design(p, want, row, crv, slot, buf):
               or want[K_TRMS_IN] or want[K_TMAX_IN])
     need_F = want[K_FMAX_S]
     if need_T or need_F:
-        fourbar_loads_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, g, M_load, buf)
+        fourbar_loads_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, g, M_load,
+                            cos_phi, sin_phi, buf)
     else:
-        fourbar_moment_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, g, buf)
+        fourbar_moment_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, g, cos_phi, sin_phi, buf)
     S = math.hypot(C1x, C1y)  # static moment of the crank counterweight
     row[K_CW1_S] = S
     row[K_CW1A_S] = math.atan2(C1y + 0.0, C1x)  # + 0.0: no -pi from a -0.0
@@ -807,14 +830,14 @@ def fourbar_design(p, want, row, crv, slot, buf):
                 if S == 0.0:
                     x, y = 0.0, 0.0
                 else:
-                    x, y = axis_formula1_sums(dot4(Ms, COS_PHI), dot4(Ms, SIN_PHI), SUM_CC, SUM_SS, SUM_SC,
+                    x, y = axis_formula1_sums(dot4(Ms, cos_phi), dot4(Ms, sin_phi), sums[0], sums[1], sums[2],
                                               S, omega, cb, sb)
-                rms, mx = axis_residual_const(COS_PHI, SIN_PHI, Ms, S * omega * omega, cb, sb, x, y, dM)
+                rms, mx = axis_residual_const(cos_phi, sin_phi, Ms, S * omega * omega, cb, sb, x, y, dM)
             else:
-                ok, x, y = axis_fit(COS_PHI, SIN_PHI, W1, AL1, Ms, UNIT_WEIGHTS, S, cb, sb, method == 1)
+                ok, x, y = axis_fit(cos_phi, sin_phi, W1, AL1, Ms, unit, S, cb, sb, method == 1)
                 if not ok:
                     return st.SINGULAR
-                rms, mx = axis_residual(COS_PHI, SIN_PHI, W1, AL1, Ms, S, cb, sb, x, y, dM)
+                rms, mx = axis_residual(cos_phi, sin_phi, W1, AL1, Ms, S, cb, sb, x, y, dM)
             row[kx] = x
             row[ky] = y
             row[krms] = rms
@@ -854,17 +877,20 @@ def fourbar_design(p, want, row, crv, slot, buf):
 
 
 @pjit
-def fourbar_kernel(P, want, slot, table, curves, status):
-    """prange over designs (rows of P); one scratch buffer per block of BLOCK designs."""
+def fourbar_kernel(P, want, slot, table, curves, status, cos_phi, sin_phi, sums):
+    """prange over designs (rows of P); one scratch buffer per block of BLOCK designs. The crank
+    positions are arguments (crank_positions, position_sums): N_POSITIONS in sweeps."""
     n = P.shape[0]
+    N = cos_phi.shape[0]
     n_blocks = (n + BLOCK - 1) // BLOCK
     use_curves = curves.shape[0] == n
+    unit = np.ones(N)
     for b in prange(n_blocks):
-        buf = np.empty((N_BUF, N_POSITIONS))
-        dummy = np.empty((0, N_POSITIONS))
+        buf = np.empty((N_BUF, N))
+        dummy = np.empty((0, N))
         for i in range(b * BLOCK, min(n, (b + 1) * BLOCK)):
             crv = curves[i] if use_curves else dummy
-            code = fourbar_design(P[i], want, table[i], crv, slot, buf)
+            code = fourbar_design(P[i], want, table[i], crv, slot, buf, cos_phi, sin_phi, sums, unit)
             if code != st.OK:
                 status[i] = code
                 table[i, :] = math.nan
@@ -1022,16 +1048,17 @@ N_SBUF = 17
 
 
 @jit
-def slider_kinematics_cycle(r, l, e, sigma, omega, delta, buf):
-    """slider_position at the N_POSITIONS uniform crank positions into rows SR_C2 .. SR_AL1
-    (two branch-free loops, vectorised)."""
-    for j in range(N_POSITIONS):
-        s2 = (e - r * SIN_PHI[j]) / l
+def slider_kinematics_cycle(r, l, e, sigma, omega, delta, cos_phi, sin_phi, buf):
+    """slider_position at the crank positions with cosines cos_phi and sines sin_phi into rows
+    SR_C2 .. SR_AL1 (two branch-free loops, vectorised)."""
+    N = cos_phi.shape[0]
+    for j in range(N):
+        s2 = (e - r * sin_phi[j]) / l
         buf[SR_S2, j] = s2
         buf[SR_C2, j] = sigma * math.sqrt(max((1.0 - s2) * (1.0 + s2), 0.0))
-    for j in range(N_POSITIONS):
-        c1 = COS_PHI[j]
-        s1 = SIN_PHI[j]
+    for j in range(N):
+        c1 = cos_phi[j]
+        s1 = sin_phi[j]
         w1, al1 = crank_speed(omega, delta, c1, s1)
         c2 = buf[SR_C2, j]
         s2 = buf[SR_S2, j]
@@ -1049,11 +1076,11 @@ def slider_kinematics_cycle(r, l, e, sigma, omega, delta, buf):
 
 
 @jit
-def slider_loads_cycle(r, e, U1x, U1y, J1, m2, V2x, V2y, J2A, m3, mtot, g, F_load, buf, first):
+def slider_loads_cycle(r, e, U1x, U1y, J1, m2, V2x, V2y, J2A, m3, mtot, g, F_load, cos_phi, sin_phi, buf, first):
     """slider_loads over the cycle from the kinematics rows into rows first .. first + 3
     (Fx, Fy, M, T). Branch-free, vectorised."""
-    for j in range(N_POSITIONS):
-        Fx, Fy, M, T = slider_loads(r, e, COS_PHI[j], SIN_PHI[j], buf[SR_W1, j], buf[SR_AL1, j],
+    for j in range(cos_phi.shape[0]):
+        Fx, Fy, M, T = slider_loads(r, e, cos_phi[j], sin_phi[j], buf[SR_W1, j], buf[SR_AL1, j],
                                     buf[SR_C2, j], buf[SR_S2, j], buf[SR_W2, j], buf[SR_AL2, j],
                                     buf[SR_XB, j], buf[SR_VB, j], buf[SR_AB, j],
                                     U1x, U1y, J1, m2, V2x, V2y, J2A, m3, mtot, g, F_load)
@@ -1064,9 +1091,11 @@ def slider_loads_cycle(r, e, U1x, U1y, J1, m2, V2x, V2y, J2A, m3, mtot, g, F_loa
 
 
 @jit
-def slider_design(p, want, row, crv, slot, buf):
-    """All requested outputs of one slider-crank design over the N_POSITIONS crank positions.
-    buf: (N_SBUF, N) scratch. Returns a status."""
+def slider_design(p, want, row, crv, slot, buf, cos_phi, sin_phi):
+    """All requested outputs of one slider-crank design over the N uniform crank positions with
+    cosines cos_phi and sines sin_phi (crank_positions). buf: (N_SBUF, N) scratch. Returns a
+    status."""
+    N = cos_phi.shape[0]
     r = p[S_R]
     l = slider_conrod_length(p)
     e = p[S_E]
@@ -1091,8 +1120,8 @@ def slider_design(p, want, row, crv, slot, buf):
     row[Q_CWA] = math.atan2(cwy + 0.0, cwx)
     U1x, U1y, J1, m2, V2x, V2y, J2A, m3, mtot, cwm = slider_links(p, cwx, cwy, r_cw)
     row[Q_CWM] = cwm
-    slider_kinematics_cycle(r, l, e, sigma, omega, p[S_DELTA], buf)
-    slider_loads_cycle(r, e, U1x, U1y, J1, m2, V2x, V2y, J2A, m3, mtot, g, F_load, buf, SB_FX)
+    slider_kinematics_cycle(r, l, e, sigma, omega, p[S_DELTA], cos_phi, sin_phi, buf)
+    slider_loads_cycle(r, e, U1x, U1y, J1, m2, V2x, V2y, J2A, m3, mtot, g, F_load, cos_phi, sin_phi, buf, SB_FX)
     Fx = buf[SB_FX]
     Fy = buf[SB_FY]
     lo, hi, rms = cycle_stats(Fx)
@@ -1114,19 +1143,20 @@ def slider_design(p, want, row, crv, slot, buf):
     row[Q_TRANGE] = hi - lo
     if want[Q_FMAX_UNB]:
         bU1x, bU1y, bJ1, _, _, _, _, _, bmtot, _ = slider_links(p, 0.0, 0.0, r_cw)
-        slider_loads_cycle(r, e, bU1x, bU1y, bJ1, m2, V2x, V2y, J2A, m3, bmtot, g, F_load, buf, SB_FX0)
+        slider_loads_cycle(r, e, bU1x, bU1y, bJ1, m2, V2x, V2y, J2A, m3, bmtot, g, F_load, cos_phi, sin_phi, buf,
+                           SB_FX0)
         row[Q_FMAX_UNB] = max_force(buf[SB_FX0], buf[SB_FY0], 0.0)
     if need_tb:
         # textbook residual (physics.md section 4), mean speed omega, plus the static weight -g M:
         # Fx = (1 - k) m_B r w^2 cos phi + lambda m_B r w^2 cos 2 phi,  Fy = -k m_B r w^2 sin phi
         amp = mB * r * omega * omega
         lam = r / l
-        for j in range(N_POSITIONS):
-            c1 = COS_PHI[j]
-            s1 = SIN_PHI[j]
+        for j in range(N):
+            c1 = cos_phi[j]
+            s1 = sin_phi[j]
             buf[SB_FXTB, j] = (1.0 - k) * amp * c1 + lam * amp * (c1 * c1 - s1 * s1)
             buf[SB_FYTB, j] = -k * amp * s1 - g * mtot
-        for j in range(N_POSITIONS):  # the error, in the rows of the unbalanced force (free now)
+        for j in range(N):  # the error, in the rows of the unbalanced force (free now)
             buf[SB_FX0, j] = Fx[j] - buf[SB_FXTB, j]
             buf[SB_FY0, j] = Fy[j] - buf[SB_FYTB, j]
         err = max_force(buf[SB_FX0], buf[SB_FY0], 0.0)
@@ -1140,17 +1170,19 @@ def slider_design(p, want, row, crv, slot, buf):
 
 
 @pjit
-def slider_kernel(P, want, slot, table, curves, status):
-    """prange over designs (rows of P); one scratch buffer per block of BLOCK designs."""
+def slider_kernel(P, want, slot, table, curves, status, cos_phi, sin_phi, sums):
+    """prange over designs (rows of P); one scratch buffer per block of BLOCK designs. The crank
+    positions are arguments as for fourbar_kernel (sums unused: the same signature)."""
     n = P.shape[0]
+    N = cos_phi.shape[0]
     n_blocks = (n + BLOCK - 1) // BLOCK
     use_curves = curves.shape[0] == n
     for b in prange(n_blocks):
-        buf = np.empty((N_SBUF, N_POSITIONS))
-        dummy = np.empty((0, N_POSITIONS))
+        buf = np.empty((N_SBUF, N))
+        dummy = np.empty((0, N))
         for i in range(b * BLOCK, min(n, (b + 1) * BLOCK)):
             crv = curves[i] if use_curves else dummy
-            code = slider_design(P[i], want, table[i], crv, slot, buf)
+            code = slider_design(P[i], want, table[i], crv, slot, buf, cos_phi, sin_phi)
             if code != st.OK:
                 status[i] = code
                 table[i, :] = math.nan

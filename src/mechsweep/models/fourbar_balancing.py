@@ -8,10 +8,12 @@ conventions: :mod:`mechsweep.models._linkage` (frame on the x axis from the cran
 the rocker pivot O_B, gravity along -y, crank speed omega(phi) = omega (1 + delta sin phi)).
 
 Every per-design output is evaluated at N_POSITIONS = 360 uniform crank positions
-phi_i = 2 pi i / 360 (a fixed constant: algebraic scenes have no solver settings). RMS values are
+phi_i = 2 pi i / 360 (a fixed constant: algebraic scenes have no solver settings; the kernels and
+``evaluate(..., n_positions=N)`` take any N, for convergence studies). RMS values are
 over those positions (uniform in phi, as the source's sums over computed positions), maxima and
-ranges too. Per-position outputs (``*_phi``) have the extra dimension ``phi`` with these
-positions and are stored only when a scene asks for them (360 floats per design each).
+ranges too (``mechsweep bench workprecision fourbar_balancing`` measures their error).
+Per-position outputs (``*_phi``) have the extra dimension ``phi`` with these positions and are
+stored only when a scene asks for them (360 floats per design each).
 
 Methods (each output is computed only when a scene asks for it or for an output of the same
 method):
@@ -49,6 +51,7 @@ for and the static residual is identically zero (R_j = 0/0). Non-OK points have 
 from __future__ import annotations
 
 import math
+import operator
 
 import numpy as np
 
@@ -170,14 +173,16 @@ CURVES = {
 assert tuple(SCALARS) == L.FOURBAR_OUTPUTS and tuple(CURVES) == L.FOURBAR_CURVES
 
 
-def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
-    """Engine entry point (algebraic: solver is None and unused)."""
-    fill_outputs(L.fourbar_kernel, P, wanted, L.FOURBAR_OUTPUTS, L.FOURBAR_CURVES, status, out)
+def evaluate(P, wanted, solver, out, status, n_steps, n_rhs, n_positions=N_POSITIONS):
+    """Engine entry point (algebraic: solver is None and unused). ``n_positions``: crank
+    positions per cycle (sweeps: N_POSITIONS; other values for convergence studies, curves then
+    have that length)."""
+    fill_outputs(L.fourbar_kernel, P, wanted, L.FOURBAR_OUTPUTS, L.FOURBAR_CURVES, status, out, n_positions)
 
 
-def fill_outputs(kernel, P, wanted, scalar_names, curve_names, status, out):
+def fill_outputs(kernel, P, wanted, scalar_names, curve_names, status, out, n_positions=N_POSITIONS):
     """Run a linkage chunk kernel and copy the wanted scalars and curves into ``out``."""
-    table, curves, names = run_kernel(kernel, P, wanted, scalar_names, curve_names, status)
+    table, curves, names = run_kernel(kernel, P, wanted, scalar_names, curve_names, status, n_positions)
     for name in wanted:
         if name in curve_names:
             out[name][:] = curves[:, names.index(name), :]
@@ -185,17 +190,30 @@ def fill_outputs(kernel, P, wanted, scalar_names, curve_names, status, out):
             out[name][:] = table[:, scalar_names.index(name)]
 
 
-def run_kernel(kernel, P, wanted, scalar_names, curve_names, status):
-    """Call a linkage chunk kernel: (table [n, scalars], curves [n, wanted curves, N], their names)."""
+def positions(n_positions: int = N_POSITIONS):
+    """(cos phi, sin phi, position sums) of n uniform crank positions, the kernels' last three
+    arguments; the module's constants for N_POSITIONS (built once)."""
+    if n_positions == N_POSITIONS:
+        return L.COS_PHI, L.SIN_PHI, L.SUMS
+    n = operator.index(n_positions)
+    _, c, s = L.crank_positions(n)
+    return c, s, L.position_sums(c, s)
+
+
+def run_kernel(kernel, P, wanted, scalar_names, curve_names, status, n_positions=N_POSITIONS):
+    """Call a linkage chunk kernel at n_positions uniform crank positions: (table [n, scalars],
+    curves [n, wanted curves, n_positions], their names)."""
+    cos_phi, sin_phi, sums = positions(n_positions)
+    N = cos_phi.shape[0]
     P = np.ascontiguousarray(P, dtype=np.float64)
     n = P.shape[0]
     want = wanted_flags(scalar_names, tuple(wanted))
     names = [c for c in curve_names if c in wanted]
     slot = np.array([names.index(c) if c in names else -1 for c in curve_names], dtype=np.int64)
     table = np.full((n, len(scalar_names)), np.nan)
-    shape = (n, len(names), N_POSITIONS) if names else (0, 0, N_POSITIONS)
+    shape = (n, len(names), N) if names else (0, 0, N)
     curves = np.full(shape, np.nan)
-    kernel(P, want, slot, table, curves, status)
+    kernel(P, want, slot, table, curves, status, cos_phi, sin_phi, sums)
     return table, curves, names
 
 

@@ -13,8 +13,9 @@ the crank counterweight). The counterweight is a point mass at radius r_cw (defa
 cw_angle from the crank (pi when every centre of mass is on its link line).
 
 Every output is evaluated at N_POSITIONS = 360 uniform crank positions phi_i = 2 pi i / 360 (a
-fixed constant: algebraic scenes have no solver settings); ``*_phi`` outputs have the extra
-dimension ``phi`` and are stored only when a scene asks for them. The textbook formula uses the
+fixed constant: algebraic scenes have no solver settings; ``evaluate(..., n_positions=N)`` takes
+any N, and ``mechsweep bench workprecision slidercrank_balancing`` measures the error);
+``*_phi`` outputs have the extra dimension ``phi`` and are stored only when a scene asks for them. The textbook formula uses the
 mean speed omega and e = 0; its curves include the static weight -g m_total in Fy so that the
 error measures the kinematic approximation (with delta = 0, e = 0 and centres on the link lines
 the error is the lambda^3 and higher terms of the slider acceleration, in Fx only).
@@ -105,9 +106,10 @@ CURVES = {
 assert tuple(SCALARS) == L.SLIDER_OUTPUTS and tuple(CURVES) == L.SLIDER_CURVES
 
 
-def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
-    """Engine entry point (algebraic: solver is None and unused)."""
-    fill_outputs(L.slider_kernel, P, wanted, L.SLIDER_OUTPUTS, L.SLIDER_CURVES, status, out)
+def evaluate(P, wanted, solver, out, status, n_steps, n_rhs, n_positions=L.N_POSITIONS):
+    """Engine entry point (algebraic: solver is None and unused); n_positions as for
+    fourbar_balancing.evaluate."""
+    fill_outputs(L.slider_kernel, P, wanted, L.SLIDER_OUTPUTS, L.SLIDER_CURVES, status, out, n_positions)
 
 
 def check(given):
