@@ -27,9 +27,8 @@ COMPARED = ("period", "period_exact", "v_max", "status", "n_steps", "n_rhs", "A"
 
 @pytest.fixture(scope="module")
 def local_cluster():
-    # two worker processes of one task slot each; their numba uses one thread (2-core CI machine)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-                                  env={"NUMBA_NUM_THREADS": "1"}) as c:
+    # two worker processes of one task slot each (2-core CI machine); runs ask for one numba thread
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as c:
         yield c
 
 
@@ -45,7 +44,8 @@ def assert_identical(ds, reference):
 
 
 def test_cluster_run_equals_local_run(in_tmp, local_cluster, reference):
-    ds = mechsweep.run(SCENE, output="data/runs/dist.h5", progress=False, scheduler=local_cluster.scheduler_address)
+    ds = mechsweep.run(SCENE, output="data/runs/dist.h5", progress=False, scheduler=local_cluster.scheduler_address,
+                       threads=1)
     assert_identical(ds, reference)
     assert ds.attrs["execution"] == f"dask scheduler {local_cluster.scheduler_address}"
     assert reference.attrs["execution"] == "local, 2 threads"
@@ -81,7 +81,8 @@ def test_a_worker_killed_mid_run_loses_and_duplicates_nothing(in_tmp, local_clus
 
     killer = threading.Thread(target=kill_when_under_way)
     killer.start()
-    ds = mechsweep.run(SCENE, output="data/runs/dist.h5", progress=False, scheduler=local_cluster.scheduler_address)
+    ds = mechsweep.run(SCENE, output="data/runs/dist.h5", progress=False, scheduler=local_cluster.scheduler_address,
+                       threads=1)
     killer.join()
     assert 2 <= killed_at[0] < n_chunks, "the worker was not killed while the run was under way"
     assert sorted(saved) == list(range(n_chunks)), "a chunk was lost or saved twice"
@@ -101,3 +102,20 @@ def test_bad_scheduler_address_is_refused_before_any_file(in_tmp, address):
     with pytest.raises(InputError, match="scheduler"):
         mechsweep.run(SCENE, output="data/runs/none.h5", progress=False, scheduler=address)
     assert list((in_tmp / "data" / "runs").iterdir()) == []
+
+
+def _threads_after_a_chunk(text, chunk, threads):
+    import numba
+
+    cluster.compute_chunk(text, chunk, threads)
+    return numba.get_num_threads()
+
+
+def test_threads_apply_to_the_worker_task(local_cluster):
+    scene = mechsweep.load_scene(SCENE)
+    chunk = runner.plan_chunks(scene.shape, 400)[0]
+    with distributed.Client(local_cluster.scheduler_address) as client:
+        for threads, expected in ((1, 1), (10**6, None)):  # None: all of the worker's, and no more
+            got = client.submit(_threads_after_a_chunk, scene.text, chunk, threads, pure=False).result()
+            most = client.submit(lambda: __import__("numba").config.NUMBA_NUM_THREADS, pure=False).result()
+            assert got == (expected or most)

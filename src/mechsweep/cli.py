@@ -80,7 +80,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", metavar="PATH", help="output file (default: [storage] path of the scene)")
     p.add_argument("--resume", action="store_true", help="complete an interrupted run of the same scene")
     p.add_argument("--restart", action="store_true", help="discard an unfinished run and start over")
-    p.add_argument("--threads", type=int, metavar="N", help="numba threads (default: all cores)")
+    p.add_argument("--threads", type=int, metavar="N",
+                   help="numba threads (default: all cores); with --scheduler, per dask worker")
     p.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run the chunks on this dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 "
@@ -162,6 +163,7 @@ def _parser() -> argparse.ArgumentParser:
     b = bsub.add_parser("cluster", help="throughput locally and on a dask LocalCluster of 1..W workers; identical datasets")
     b.add_argument("--points", type=int, default=400_000, help="Duffing grid points (default 400000)")
     b.add_argument("--workers", type=int, default=None, help="up to this many worker processes (default: cores)")
+    b.add_argument("--chunk", type=int, default=8192, help="points per chunk, i.e. per task (default 8192)")
     b.set_defaults(func=_cmd_bench_cluster)
     b = bsub.add_parser("memory", help="peak resident memory of runs up to 10^8 points against their dataset size")
     b.add_argument("--quick", action="store_true", help="small grids only (10^4 ... 10^6 points)")
@@ -335,7 +337,7 @@ def _cmd_bench_workprecision(args) -> int:
 def _cmd_bench_cluster(args) -> int:
     from .bench import cluster
 
-    cluster.main(points=args.points, workers=args.workers)
+    cluster.main(points=args.points, workers=args.workers, chunk=args.chunk)
     return 0
 
 

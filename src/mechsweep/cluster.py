@@ -23,7 +23,7 @@ IN_FLIGHT_PER_THREAD = 2
 CONNECT_TIMEOUT_S = 20
 
 
-def dask_results(scene, todo, scheduler: str):
+def dask_results(scene, todo, scheduler: str, threads: int | None = None):
     """Yield ``(chunk, result)`` as the cluster at ``scheduler`` finishes them. Closing the
     generator cancels the tasks still in flight and disconnects."""
     try:
@@ -41,7 +41,7 @@ def dask_results(scene, todo, scheduler: str):
     live = {}  # key -> (future, chunk), submitted and not yet handed out
 
     def submit(chunk) -> None:
-        fut = client.submit(compute_chunk, scene.text, chunk, key=f"mechsweep-{run_id}-{chunk.index}")
+        fut = client.submit(compute_chunk, scene.text, chunk, threads, key=f"mechsweep-{run_id}-{chunk.index}")
         live[fut.key] = (fut, chunk)
         futures.add(fut)
 
@@ -64,11 +64,16 @@ def dask_results(scene, todo, scheduler: str):
         client.close()
 
 
-def compute_chunk(scene_text: str, chunk):
-    """A worker's task: the chunk's (outputs, status, n_steps, n_rhs), as a local run computes them."""
+def compute_chunk(scene_text: str, chunk, threads: int | None = None):
+    """A worker's task: the chunk's (outputs, status, n_steps, n_rhs), as a local run computes them,
+    on ``threads`` numba threads (at most the worker's; default all of them)."""
+    import numba
+
     from .runner import evaluate_chunk
 
     scene, params = _scene(scene_text)
+    # numba's thread count is per calling thread: set it for this task's thread, every time
+    numba.set_num_threads(min(threads or numba.config.NUMBA_NUM_THREADS, numba.config.NUMBA_NUM_THREADS))
     return evaluate_chunk(scene, chunk, params)
 
 

@@ -42,7 +42,8 @@ def run(
 
     ``output`` overrides ``[storage] path``. With ``resume`` an unfinished run of the same
     scene (``<path>.partial``) is completed, computing only its missing chunks; ``restart``
-    discards such a run. ``threads`` sets numba's thread count (default: all cores).
+    discards such a run. ``threads`` sets numba's thread count (default: all cores; on a dask
+    cluster: per worker, at most its cores).
     ``progress`` shows a progress bar (default: only on a terminal). ``scheduler`` (or the scene's
     ``[execution] scheduler``) runs the chunks on that dask.distributed cluster instead of here.
     ``load``: the returned dataset is in memory (True), opened lazily (False), or loaded when it
@@ -54,10 +55,10 @@ def run(
                          f"{Path(output) / 'run.h5'}")
     final = Path(output if output is not None else scene.storage.path)
     check_target(final)
-    _check_threads(threads)  # before any file is created
     if scheduler is not None and (why := check_scheduler(scheduler)) is not None:
         raise InputError(f"scheduler {why}")
     scheduler = scheduler if scheduler is not None else scene.execution.scheduler
+    _check_threads(threads, here=scheduler is None)  # before any file is created
     lazy = None if load is None else not load
     target = default_chunk_target(scene)
     check_size(scene, final, min(target, scene.n_points), saved_bytes(final) if not restart else 0)
@@ -106,9 +107,9 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
                                  n_chunks=len(chunks), attrs=provenance(scene, chunks))
     done = journal.done_chunks()
     todo = [c for c in chunks if not done[c.index]]
-    with _threads(threads):
+    with _threads(None if scheduler else threads):
         where = (f"dask scheduler {scheduler}" if scheduler else f"local, {numba.get_num_threads()} threads")
-        results = (_dask_results(scene, todo, scheduler) if scheduler else _local_results(scene, todo))
+        results = (_dask_results(scene, todo, scheduler, threads) if scheduler else _local_results(scene, todo))
         try:
             _save_chunks(scene, journal, results, todo, scene.n_points - sum(c.size for c in todo), progress)
         except KeyboardInterrupt:
@@ -272,10 +273,10 @@ def _local_results(scene: Scene, todo: list[Chunk]):
         yield chunk, evaluate_chunk(scene, chunk, params)
 
 
-def _dask_results(scene: Scene, todo: list[Chunk], scheduler: str):
+def _dask_results(scene: Scene, todo: list[Chunk], scheduler: str, threads: int | None):
     from .cluster import dask_results
 
-    return dask_results(scene, todo, scheduler)
+    return dask_results(scene, todo, scheduler, threads)
 
 
 def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], already: int, progress) -> None:
@@ -320,9 +321,15 @@ def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], alr
             bar.close()
 
 
-def _check_threads(n: int | None) -> None:
-    if n is not None and not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
+def _check_threads(n: int | None, here: bool = True) -> None:
+    """Threads for this machine's kernels; on a cluster the workers' cores are not known here
+    (each worker uses at most its own)."""
+    if n is None:
+        return
+    if here and not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
         raise InputError(f"threads = {n} is outside [1, {numba.config.NUMBA_NUM_THREADS}] (cores available)")
+    if not here and n < 1:
+        raise InputError(f"threads = {n} is not allowed; expected at least 1 (numba threads per dask worker)")
 
 
 @contextmanager

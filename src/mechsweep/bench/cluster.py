@@ -3,8 +3,8 @@
 
 Every configuration runs the same Duffing amplitude-period scene (integrated periods) into its own
 file. Local runs use 1 and all numba threads. Cluster runs start a LocalCluster of w worker
-processes with one task slot and one numba thread each (the layout the README recommends per
-core), warm it up (each worker loads the JIT cache once) and then time `mechsweep.run(...,
+processes with one task slot each, running the kernels on one numba thread (``threads=1``),
+warm it up (each worker loads the JIT cache once) and then time `mechsweep.run(...,
 scheduler=...)`: wall time from the call to the finished dataset, journal and assembly included.
 """
 from __future__ import annotations
@@ -50,11 +50,10 @@ def main(points: int = 400_000, workers: int | None = None, chunk: int = 8192) -
             reference = ds if reference is None else reference
             rows.append({"where": f"local, {threads} numba thread(s)", "seconds": seconds, "same": _same(ds, reference)})
         for w in range(1, workers + 1):
-            with LocalCluster(n_workers=w, threads_per_worker=1, processes=True, dashboard_address=None,
-                              env={"NUMBA_NUM_THREADS": "1"}) as cluster:
+            with LocalCluster(n_workers=w, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
                 address = cluster.scheduler_address
-                run(warm, output=tmp / "warm.h5", progress=False, restart=True, scheduler=address)
-                seconds, ds = _timed_run(scene, tmp / f"dask{w}.h5", scheduler=address)
+                run(warm, output=tmp / "warm.h5", progress=False, restart=True, scheduler=address, threads=1)
+                seconds, ds = _timed_run(scene, tmp / f"dask{w}.h5", scheduler=address, threads=1)
             rows.append({"where": f"dask, {w} worker(s) x 1 thread", "seconds": seconds, "same": _same(ds, reference)})
     n = reference["status"].size
     base = rows[0]["seconds"]
