@@ -144,3 +144,23 @@ def test_sigkill_at_every_file_step_then_resume_is_identical(in_tmp, reference, 
     assert_identical(out, reference)
     assert resumed.attrs["scene_canonical"] == reference.attrs["scene_canonical"]
     assert_no_leftovers(out.parent, out)
+
+
+def test_a_second_run_on_the_same_output_is_refused_while_the_first_writes(in_tmp, long_reference):
+    (in_tmp / "kill.toml").write_text(SCENE.format(n_a=600, n_mu=200, chunk=2000))
+    out = in_tmp / "data" / "runs" / "k.h5"
+    argv, kw = cli("run", "kill.toml", "-o", str(out), "--no-progress", "--threads", "1", cwd=in_tmp)
+    first = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **kw)
+    try:
+        deadline = time.monotonic() + 120
+        while chunks_done(partial_path(out)) < 1 and first.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.005)
+        assert first.poll() is None, "the first run ended before the second could start"
+        for flags in ({}, {"resume": True}, {"restart": True}):
+            with pytest.raises(mechsweep.StoreError, match=f"being written by another mechsweep run "
+                                                           f"\\(process {first.pid}\\)"):
+                mechsweep.run(mechsweep.load_scene(in_tmp / "kill.toml"), output=out, progress=False, **flags)
+        assert first.poll() is None, "the refused runs disturbed the first"
+    finally:
+        first.kill()
+        first.wait()
