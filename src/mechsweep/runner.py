@@ -108,14 +108,17 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
     done = journal.done_chunks()
     todo = [c for c in chunks if not done[c.index]]
     with _threads(None if scheduler else threads):
-        where = (f"dask scheduler {scheduler}" if scheduler else f"local, {numba.get_num_threads()} threads")
+        where = (f"dask scheduler {scheduler}, {threads or 'all'} numba threads per worker" if scheduler
+                 else f"local, {numba.get_num_threads()} threads")
         results = (_dask_results(scene, todo, scheduler, threads) if scheduler else _local_results(scene, todo))
         try:
             _save_chunks(scene, journal, results, todo, scene.n_points - sum(c.size for c in todo), progress)
         except KeyboardInterrupt:
             raise RunInterrupted(f"interrupted: finished chunks are saved in {part}; "
                                  "run again with --resume to complete it") from None
-        attrs = {**journal.meta["attrs"], "threads": numba.get_num_threads(), "execution": where}
+        attrs = {**journal.meta["attrs"], "execution": where}
+        if not scheduler:
+            attrs["threads"] = numba.get_num_threads()
     _finish(journal, scene, chunks, final, attrs)
 
 
@@ -137,10 +140,10 @@ def check_target(final: Path) -> None:
         name_max = os.pathconf(final.parent if final.parent.is_dir() else ".", "PC_NAME_MAX")
     except (AttributeError, OSError):
         name_max = 255
-    longest = len(os.fsencode(partial_path(final).name))
+    longest = len(os.fsencode(discard_path(final).name))  # the longest name a run gives its files
     if longest > name_max:
-        raise StoreError(f"file name {final.name[:40]}... is too long: {longest} bytes with the '.partial' "
-                         f"suffix, at most {name_max} allowed")
+        raise StoreError(f"file name {final.name[:40]}... is too long: {longest} bytes with the '.partial.discard' "
+                         f"suffix a run uses, at most {name_max} allowed")
     try:
         final.stat()
     except (FileNotFoundError, NotADirectoryError):
