@@ -65,15 +65,16 @@ def run(
     # Conflicts are refused before the lock (taking it touches the folder), and checked again
     # under it: another run may have changed the files meanwhile.
     RunLock(final).refuse_if_held()
-    _check_existing(scene, final, resume, restart)
+    chunks = plan_chunks(scene.shape, target)
+    _check_existing(scene, final, resume, restart, target, len(chunks))
     with RunLock(final):  # from here to the end, no other run touches final or its journal
         shutil.rmtree(discard_path(final), ignore_errors=True)  # what a killed clean-up left
-        if not _check_existing(scene, final, resume, restart):  # True: resumed a finished run
-            _compute(scene, final, restart, threads, progress, scheduler)
+        if not _check_existing(scene, final, resume, restart, target, len(chunks)):  # True: finished
+            _compute(scene, final, restart, threads, progress, scheduler, target, chunks)
     return open_dataset(final, lazy=lazy)
 
 
-def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool) -> bool:
+def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, target: int, n_chunks: int) -> bool:
     """Refuse what would mix runs: an unfinished run without --resume/--restart, a resume with
     another scene. True when ``resume`` finds the run already finished."""
     part = partial_path(final)
@@ -88,18 +89,15 @@ def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool) -> b
         return True
     if part.exists() and not restart:
         journal = Journal.read(part)
-        target = default_chunk_target(scene)
-        if not journal.empty and (why := journal.matches(scene.canonical(), target,
-                                                        len(plan_chunks(scene.shape, target)))) is not None:
+        if not journal.empty and (why := journal.matches(scene.canonical(), target, n_chunks)) is not None:
             raise StoreError(why)
     return False
 
 
-def _compute(scene: Scene, final: Path, restart: bool, threads, progress, scheduler) -> None:
+def _compute(scene: Scene, final: Path, restart: bool, threads, progress, scheduler, target: int,
+             chunks: list[Chunk]) -> None:
     """Compute the missing chunks into the journal, then assemble the dataset."""
     part = partial_path(final)
-    target = default_chunk_target(scene)
-    chunks = plan_chunks(scene.shape, target)
     journal = Journal.read(part) if part.exists() and not restart else None
     if journal is None or journal.empty:  # none, discarded, or killed before its first word
         drop(final)

@@ -7,7 +7,6 @@ output by one rename. A finished file is therefore never half overwritten.
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 

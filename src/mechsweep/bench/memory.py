@@ -13,7 +13,6 @@ what is measured is the run.
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 import tempfile
