@@ -1,3 +1,5 @@
+import math
+
 import numpy as np
 import pytest
 import scipy.special as sp
@@ -82,3 +84,31 @@ def test_sincos_outside_the_reduction_range_and_non_finite():
 def test_sincos_jitted_equals_python():
     for x in sample_arguments()[::10]:
         assert sincos(x) == sincos.py_func(x)
+
+
+# ----------------------------------------------------------------------------- the branch-free forms
+from mechsweep._jit import jit  # noqa: E402
+from mechsweep.special import ieee_sqrt, sincos_reduced  # noqa: E402
+
+
+def test_sincos_reduced_is_sincos_inside_the_reduction_range():
+    """The lane right-hand side uses sincos_reduced; the one-trajectory one sincos: the same floats."""
+    xs = np.concatenate([sample_arguments(), [-0.0, 0.0, 1e6, -1e6]])
+    for x in xs:
+        s, c = sincos_reduced(x)
+        assert (s, c) == sincos(x)
+        assert np.copysign(1.0, s) == np.copysign(1.0, sincos(x)[0])
+    assert all(np.isnan(v) for v in sincos_reduced(np.nan))
+
+
+@jit
+def _sqrt_both(x):
+    return ieee_sqrt(x), math.sqrt(x)
+
+
+def test_ieee_sqrt_is_libm_sqrt():
+    rng = np.random.default_rng(3)
+    for x in np.concatenate([rng.uniform(0, 2, 200), np.geomspace(1e-310, 1e300, 200), [0.0, -0.0, np.inf]]):
+        a, b = _sqrt_both(x)
+        assert a == b and np.copysign(1.0, a) == np.copysign(1.0, b)
+    assert np.isnan(_sqrt_both(-1.0)[0]) and np.isnan(_sqrt_both(np.nan)[0])

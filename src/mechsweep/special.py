@@ -3,6 +3,10 @@ from __future__ import annotations
 
 import math
 
+from llvmlite import ir as llvm_ir
+from numba.core import types
+from numba.extending import intrinsic
+
 from ._jit import jit, jit_inline
 
 
@@ -37,7 +41,7 @@ _INVPIO2 = 6.36619772367581382433e-01
 _PIO2_1 = 1.57079632673412561417e+00  # first 33 bits of pi/2
 _PIO2_2 = 6.07710050630396597660e-11  # next 33 bits
 _PIO2_2T = 2.02226624879595063154e-21  # pi/2 - (PIO2_1 + PIO2_2)
-_SINCOS_MAX = 1.0e6  # beyond this (and for inf/NaN) fall back to libm
+SINCOS_MAX = _SINCOS_MAX = 1.0e6  # beyond this (and for inf/NaN) fall back to libm
 
 _S1 = -1.66666666666666324348e-01
 _S2 = 8.33333333332248946124e-03
@@ -59,8 +63,15 @@ def sincos(x):
     larger, infinite or NaN arguments go to libm."""
     if not abs(x) <= _SINCOS_MAX:
         return math.sin(x), math.cos(x)
+    return sincos_reduced(x)
+
+
+@jit_inline
+def sincos_reduced(x):
+    """sincos for finite |x| <= 1e6 (SINCOS_MAX) only, without the libm fallback: no branch and
+    no call, so that numba/LLVM can vectorise a loop that calls it (several trajectories side by
+    side). The quadrant is selected by float comparisons, which LLVM turns into selects."""
     fn = (x * _INVPIO2 + _TOINT) - _TOINT  # nearest integer to x / (pi/2)
-    n = int(fn)
     r = x - fn * _PIO2_1  # exact: fn has at most 21 bits, PIO2_1 33
     w = fn * _PIO2_2
     t = r
@@ -79,11 +90,31 @@ def sincos(x):
     hz = 0.5 * z
     w = 1.0 - hz
     c = w + (((1.0 - w) - hz) + (z * rc - y0 * y1))
-    q = n & 3
-    if q == 0:
-        return s, c
-    if q == 1:
-        return c, -s
-    if q == 2:
-        return -s, -c
-    return -c, s
+    q = fn - 4.0 * math.floor(fn * 0.25)  # quadrant 0..3 (exact: fn is an integer below 2^21)
+    odd = (q == 1.0) | (q == 3.0)
+    a = c if odd else s
+    b = s if odd else c
+    return (a if q < 2.0 else -a), (b if (q == 0.0) | (q == 3.0) else -b)
+
+
+@intrinsic
+def _llvm_sqrt(typingctx, x):
+    if x != types.float64:
+        return None
+    sig = types.float64(types.float64)
+
+    def codegen(context, builder, signature, args):
+        fn = builder.module.declare_intrinsic("llvm.sqrt", [llvm_ir.DoubleType()])
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
+@jit_inline
+def ieee_sqrt(x):
+    """Correctly rounded sqrt of a float64 as LLVM's sqrt intrinsic (NaN below zero, as libm).
+
+    numba's math.sqrt calls libm's sqrt behind a branch that sets errno for negative
+    arguments; the call keeps LLVM from vectorising a loop around it. Same values. (A jitted
+    function around the intrinsic, so that Python callers such as py_func tests can call it.)"""
+    return _llvm_sqrt(float(x))

@@ -1,0 +1,406 @@
+"""DOP853 for many trajectories side by side: one trajectory per SIMD lane.
+
+The one-trajectory solver (:mod:`.dop853`) computes a step of an 8-state system in scalar code:
+its right-hand side, its stage sums, its error norm each handle one float at a time. Here
+``lanes`` trajectories advance together, the state of lane l in column l of (n, lanes) arrays,
+and every loop over the lanes is written so that LLVM vectorises it (no call, no branch that
+it cannot turn into a select, lanes innermost): with AVX2 four lanes share one instruction.
+
+Each lane keeps its own time, step size, error test, step-size control and output samples, so a
+lane computes the same floats, step for step, as :func:`.dop853.make_trajectory_solver` on the
+same trajectory (tests/test_dop853_lanes.py checks bitwise equality). The lanes only share the
+moment of their attempts: every active lane attempts a step in every round, accepted or not,
+and the three extra stages of the dense output are computed for all lanes when any accepted
+lane has a sample inside its step. A lane whose trajectory ends is handed back to the caller,
+which reads its samples and loads the next trajectory into it (a queue per thread).
+
+Usage (numba code; ``rhs_lanes(tau, Z, P, dZ)`` is the lane form of ``rhs(t, y, p, dy)``,
+``tau`` one time per lane, ``P`` the parameters column per lane)::
+
+    load, run = make_lane_trajectory_solver(rhs_lanes, rhs)
+    ws = workspace(n, n_params, lanes, t_eval.size)
+    load(ws, lane, point, t0, y0, p, t_eval, rtol, atol)   # for every lane
+    while True:
+        lane = run(ws, t_eval, rtol, atol, max_steps)      # -1: no lane left
+        ...  # ws[TRAJ][lane] holds its samples, lane_status(ws, lane) its outcome
+        load(...) or idle(ws, lane)
+
+``n_rhs`` counts what the one-trajectory solver would evaluate (the dense stages only for lanes
+that need them), so datasets are the same whichever solver made them; the time of the stages
+computed for nothing shows in the benchmark's steps per second, not in the counts.
+"""
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+
+from .._jit import jit, jit_noalloc
+from ..status import MAX_STEPS, NONFINITE, OK, STEP_UNDERFLOW
+from ._common import _min_step
+from . import _dop853_lane_sums as sums
+from ._dop853_tableau import C, INTERPOLATOR_POWER, N_STAGES, N_STAGES_EXTENDED
+from .dop853 import (ERROR_EXPONENT, F_DENSE, K_FSAL, MIN_FACTOR, SAFETY, WORK_ROWS, Y_NEW, Y_STAGE, _commit,
+                     _interpolate as _interpolate_one, _make_advance, _make_dense_output, _make_start, _step_factor,
+                     _store_rows_at_step_end)
+
+__all__ = ["workspace", "make_lane_trajectory_solver", "idle", "lane_result", "TRAJ"]
+
+
+# Positions in the workspace tuple.
+W, Y, PL, LF, LI, TRAJ, SW, WF, YF, HK, YS, PS = range(12)
+# Rows of LF (per-lane floats).
+T, T_NEW, H, H_ABS, MIN_STEP, TAU, SUM5, SUM3 = range(8)
+N_LF = 8
+# Rows of LI (per-lane integers).
+STATE, POINT, STATUS, N_STEPS, N_RHS, N_ATTEMPTS, K_NEXT, REJECTED, LAST_NONFINITE, ACCEPTED, DENSE = range(11)
+N_LI = 11
+# Lane states.
+IDLE, ACTIVE, DONE = 0, 1, 2
+# When at most lanes // TAIL_FRACTION lanes are active (the caller had nothing left to load), they
+# finish one at a time in scalar code: a round of 16 lanes cost about as much as 4 scalar steps
+# (mechsweep bench autobalancer, autobalancer right-hand side).
+TAIL_FRACTION = 4
+
+
+@jit
+def workspace(n, n_params, lanes, n_eval):
+    """Everything the lanes need, as a tuple (indexed by W, Y, PL, LF, LI, TRAJ, SW, WF, YF, HK, YS,
+    PS): stages W (WORK_ROWS, n, lanes) in the row layout of dop853, states Y (n, lanes),
+    parameters PL (n_params, lanes), per-lane floats LF and integers LI, samples TRAJ (lanes,
+    n_eval, n), flat views WF, YF of W and Y (n * lanes per row) for the tableau sums, HK, the
+    step per flat element, and for the one-trajectory code (first step, end of a queue) its
+    workspace SW, a state YS and parameters PS."""
+    w = np.zeros((WORK_ROWS, n, lanes))
+    y = np.zeros((n, lanes))
+    return (w, y, np.zeros((n_params, lanes)), np.zeros((N_LF, lanes)), np.zeros((N_LI, lanes), dtype=np.int64),
+            np.full((lanes, n_eval, n), np.nan), np.zeros((WORK_ROWS, n)), w.reshape((WORK_ROWS, n * lanes)),
+            y.reshape(n * lanes), np.zeros(n * lanes), np.zeros(n), np.zeros(n_params))
+
+
+@jit_noalloc
+def idle(ws, lane):
+    """Leave the lane empty (no trajectory left for it). Its stale state keeps being stepped
+    with h = 0 alongside the others, and is never read."""
+    ws[LI][STATE, lane] = IDLE
+
+
+@jit_noalloc
+def lane_result(ws, lane):
+    """(point, status, n_steps, n_rhs) of the trajectory that has just ended in the lane."""
+    li = ws[LI]
+    return li[POINT, lane], li[STATUS, lane], li[N_STEPS, lane], li[N_RHS, lane]
+
+
+@jit_noalloc
+def _finish(li, lane, status):
+    li[STATE, lane] = DONE
+    li[STATUS, lane] = status
+
+
+@jit_noalloc
+def _error_sums(y, w, e5, e3, rtol, atol, sum5, sum3):
+    """The sums of squares of scipy's DOP853 error norm per lane (dop853._error_norm), from the
+    flat estimates e5, e3 (component i of lane l at i * lanes + l)."""
+    n, lanes = y.shape
+    for l in range(lanes):
+        sum5[l] = 0.0
+        sum3[l] = 0.0
+    for i in range(n):
+        for l in range(lanes):
+            scale = atol + max(abs(y[i, l]), abs(w[Y_NEW, i, l])) * rtol
+            sum5[l] += (e5[i * lanes + l] / scale) ** 2
+            sum3[l] += (e3[i * lanes + l] / scale) ** 2
+
+
+@jit_noalloc
+def _first_dense_rows(h, y, w):
+    """The first three dense-output rows of every lane (dop853._dense_coefficients)."""
+    n, lanes = y.shape
+    for i in range(n):
+        for l in range(lanes):
+            delta = w[Y_NEW, i, l] - y[i, l]
+            w[F_DENSE, i, l] = delta
+            w[F_DENSE + 1, i, l] = h[l] * w[0, i, l] - delta
+            w[F_DENSE + 2, i, l] = 2.0 * delta - h[l] * (w[K_FSAL, i, l] + w[0, i, l])
+
+
+@jit_noalloc
+def _spread(h, hk, lanes):
+    """hk[i * lanes + l] = h[l]: the step of each lane beside each of its components."""
+    for k in range(hk.size):
+        hk[k] = h[k % lanes]
+
+
+@jit_noalloc
+def _interpolate(x, y, w, lane, out):
+    """State of one lane at fraction x of its step (dop853._interpolate)."""
+    for i in range(y.shape[0]):
+        acc = 0.0
+        for k in range(INTERPOLATOR_POWER):
+            acc += w[F_DENSE + INTERPOLATOR_POWER - 1 - k, i, lane]
+            acc *= x if k % 2 == 0 else 1.0 - x
+        out[i] = acc + y[i, lane]
+
+
+@jit_noalloc
+def _lane_finite(w, row, lane):
+    for i in range(w.shape[1]):
+        if not math.isfinite(w[row, i, lane]):
+            return False
+    return True
+
+
+@jit_noalloc
+def _begin_advance(lf, li, lane):
+    """What dop853's advance() does on entry: floor the step at 10 ulp of t, clear the flags."""
+    lf[MIN_STEP, lane] = _min_step(lf[T, lane])
+    lf[H_ABS, lane] = max(lf[H_ABS, lane], lf[MIN_STEP, lane])
+    li[REJECTED, lane] = 0
+    li[LAST_NONFINITE, lane] = 0
+
+
+@functools.cache
+def make_lane_trajectory_solver(rhs_lanes, rhs):
+    """(load, run) for the lanes of ``rhs_lanes``; ``rhs`` (the one-trajectory form) picks each
+    lane's first step exactly as dop853's solvers do.
+
+    ``load(ws, lane, point, t0, y0, p, t_eval, rtol, atol)``: start trajectory ``point`` (any
+    integer the caller wants back) from (t0, y0) with parameters p in the lane; its samples at
+    t_eval go to ``ws[TRAJ][lane]`` (NaN where not reached).
+    ``run(ws, t_eval, rtol, atol, max_steps) -> lane``: advance the active lanes until one ends
+    and return it (-1 when none is left); its outcome is ``lane_result(ws, lane)``, and the caller
+    must ``load`` or ``idle`` the lane before the next ``run``. Every lane has the same t_eval.
+    """
+    start = _make_start(rhs)
+    advance_one = _make_advance(rhs)
+    dense_output_one = _make_dense_output(rhs)
+
+    @jit_noalloc
+    def finish_alone(ws, lane, t_eval, rtol, atol, max_steps):
+        """Run the lane's trajectory to its end with the one-trajectory code (dop853's trajectory
+        solver from where the lane stands; the same floats). For the last lanes of a queue: a lane
+        round costs the same however few lanes are active. The lane must be at the start of an
+        advance (no rejection since its last accepted step), where both codes agree on the state."""
+        w, y, pl, lf, li, traj, sw, wf, yf, hk, ys, ps = ws
+        n = ys.size
+        n_eval = t_eval.size
+        t_end = t_eval[n_eval - 1]
+        for i in range(n):
+            ys[i] = y[i, lane]
+            sw[0, i] = w[0, i, lane]
+        for j in range(ps.size):
+            ps[j] = pl[j, lane]
+        t = lf[T, lane]
+        h_abs = lf[H_ABS, lane]
+        k = li[K_NEXT, lane]
+        n_attempts = li[N_ATTEMPTS, lane]
+        n_steps = li[N_STEPS, lane]
+        n_rhs = li[N_RHS, lane]
+        status = OK
+        while t < t_end:
+            status, t_new, h_abs, attempts = advance_one(t, ys, ps, t_end, h_abs, rtol, atol, sw,
+                                                         max_steps - n_attempts)
+            n_attempts += attempts
+            n_rhs += N_STAGES * attempts
+            if status != OK:
+                break
+            n_steps += 1
+            if k < n_eval and t_eval[k] < t_new:
+                h = t_new - t
+                dense_output_one(t, h, ys, ps, sw)
+                n_rhs += N_STAGES_EXTENDED - N_STAGES - 1
+                while k < n_eval and t_eval[k] < t_new:
+                    _interpolate_one((t_eval[k] - t) / h, ys, sw, traj[lane, k])
+                    k += 1
+            k = _store_rows_at_step_end(t_eval, k, t_new, sw[Y_NEW], traj[lane])
+            _commit(ys, sw)
+            t = t_new
+        li[N_STEPS, lane] = n_steps
+        li[N_RHS, lane] = n_rhs
+        _finish(li, lane, status)
+
+    @jit_noalloc
+    def load(ws, lane, point, t0, y0, p, t_eval, rtol, atol):
+        w, y, pl, lf, li, traj, sw, wf, yf, hk, ys, ps = ws
+        n_eval = t_eval.size
+        for k in range(n_eval):
+            for i in range(y0.size):
+                traj[lane, k, i] = math.nan
+        k = 0
+        while k < n_eval and t_eval[k] <= t0:
+            for i in range(y0.size):
+                traj[lane, k, i] = y0[i]
+            k += 1
+        for i in range(y0.size):
+            y[i, lane] = y0[i]
+        for j in range(p.size):
+            pl[j, lane] = p[j]
+        li[STATE, lane] = ACTIVE
+        li[POINT, lane] = point
+        li[STATUS, lane] = OK
+        li[N_STEPS, lane] = 0
+        li[N_ATTEMPTS, lane] = 0
+        li[K_NEXT, lane] = k
+        li[ACCEPTED, lane] = 0
+        li[DENSE, lane] = 0
+        if n_eval == 0:
+            li[N_RHS, lane] = 0
+            _finish(li, lane, OK)
+            return
+        t_end = t_eval[n_eval - 1]
+        status, h_abs, n_rhs = start(t0, y0, p, t_end, rtol, atol, 0.0, sw)
+        li[N_RHS, lane] = n_rhs
+        for i in range(y0.size):
+            w[0, i, lane] = sw[0, i]
+        lf[T, lane] = t0
+        lf[H_ABS, lane] = h_abs
+        if status != OK:
+            _finish(li, lane, status)
+        elif not t0 < t_end:
+            _finish(li, lane, OK)
+        else:
+            _begin_advance(lf, li, lane)
+
+    @jit_noalloc
+    def stages(w, pl, lf, wf, yf, hk, first, last):
+        """Stages first..last of every lane: 1..12 make a step (dop853 rk_step; stage 12 is
+        f(t + h, y_new), C[12] = 1), 13..15 the dense output. One loop, so that the lane
+        right-hand side is compiled into one place."""
+        tau = lf[TAU]
+        for s in range(first, last + 1):
+            for l in range(tau.size):
+                tau[l] = lf[T, l] + C[s] * lf[H, l]
+            if s == K_FSAL:
+                sums.solution(yf, hk, wf, wf[Y_NEW])
+                rhs_lanes(tau, w[Y_NEW], pl, w[s])
+            else:
+                sums.stage_argument(s, yf, hk, wf, wf[Y_STAGE])
+                rhs_lanes(tau, w[Y_STAGE], pl, w[s])
+
+    @jit_noalloc
+    def prepare_attempts(lf, li, t_end, max_steps):
+        """The checks of dop853's advance() before an attempt, and its step, per lane.
+        Returns the number of lanes that attempt a step."""
+        attempting = 0
+        for l in range(li.shape[1]):
+            li[ACCEPTED, l] = 0
+            lf[H, l] = 0.0
+            lf[T_NEW, l] = lf[T, l]
+            if li[STATE, l] != ACTIVE:
+                continue
+            if lf[H_ABS, l] < lf[MIN_STEP, l]:
+                _finish(li, l, NONFINITE if li[LAST_NONFINITE, l] else STEP_UNDERFLOW)
+                continue
+            if li[N_ATTEMPTS, l] >= max_steps:
+                _finish(li, l, MAX_STEPS)
+                continue
+            li[N_ATTEMPTS, l] += 1
+            li[N_RHS, l] += N_STAGES
+            t_new = min(lf[T, l] + lf[H_ABS, l], t_end)
+            lf[T_NEW, l] = t_new
+            lf[H, l] = t_new - lf[T, l]
+            attempting += 1
+        return attempting
+
+    @jit_noalloc
+    def error_tests(w, lf, li, t_eval, n):
+        """Accept or reject each attempting lane (dop853's advance()); returns whether an accepted
+        lane has a sample inside its step (the dense output is needed)."""
+        n_eval = t_eval.size
+        any_dense = False
+        for l in range(li.shape[1]):
+            if li[STATE, l] != ACTIVE:
+                continue
+            h = lf[H, l]
+            sum5 = lf[SUM5, l]
+            sum3 = lf[SUM3, l]
+            if sum5 == 0.0 and sum3 == 0.0:
+                error = 0.0
+            else:
+                error = abs(h) * sum5 / math.sqrt((sum5 + 0.01 * sum3) * n)
+            finite = math.isfinite(error) and _lane_finite(w, Y_NEW, l) and _lane_finite(w, K_FSAL, l)
+            if finite and error < 1.0:
+                li[ACCEPTED, l] = 1
+                lf[H_ABS, l] = h * _step_factor(error, li[REJECTED, l] != 0)
+                k = li[K_NEXT, l]
+                li[DENSE, l] = 1 if (k < n_eval and t_eval[k] < lf[T_NEW, l]) else 0
+                any_dense = any_dense or li[DENSE, l] == 1
+            else:
+                if finite:
+                    lf[H_ABS, l] = h * max(MIN_FACTOR, SAFETY * error**ERROR_EXPONENT)
+                else:  # overflow or NaN in the trial step: shrink hard and retry
+                    lf[H_ABS, l] = h * MIN_FACTOR
+                li[LAST_NONFINITE, l] = 0 if finite else 1
+                li[REJECTED, l] = 1
+        return any_dense
+
+    @jit_noalloc
+    def commit(w, y, lf, li, traj, t_eval):
+        """Samples and new state of every accepted lane (dop853's trajectory solver)."""
+        n, lanes = y.shape
+        n_eval = t_eval.size
+        t_end = t_eval[n_eval - 1]
+        for l in range(lanes):
+            if not li[ACCEPTED, l]:
+                continue
+            t = lf[T, l]
+            t_new = lf[T_NEW, l]
+            h = lf[H, l]
+            li[N_STEPS, l] += 1
+            k = li[K_NEXT, l]
+            if li[DENSE, l]:
+                li[N_RHS, l] += N_STAGES_EXTENDED - N_STAGES - 1
+                while k < n_eval and t_eval[k] < t_new:
+                    _interpolate((t_eval[k] - t) / h, y, w, l, traj[l, k])
+                    k += 1
+            while k < n_eval and t_eval[k] == t_new:
+                for i in range(n):
+                    traj[l, k, i] = w[Y_NEW, i, l]
+                k += 1
+            li[K_NEXT, l] = k
+            for i in range(n):
+                y[i, l] = w[Y_NEW, i, l]
+                w[0, i, l] = w[K_FSAL, i, l]  # first same as last
+            lf[T, l] = t_new
+            if t_new < t_end:
+                _begin_advance(lf, li, l)
+            else:
+                _finish(li, l, OK)
+
+    @jit_noalloc
+    def run(ws, t_eval, rtol, atol, max_steps):
+        w, y, pl, lf, li, traj, sw, wf, yf, hk, ys, ps = ws
+        n, lanes = y.shape
+        t_end = t_eval[t_eval.size - 1]
+        few = lanes // TAIL_FRACTION
+        e5 = wf[Y_STAGE]  # scratch rows of the error estimates, free after the step
+        e3 = wf[F_DENSE]  # (the dense output rewrites both before it needs them)
+        while True:
+            active = 0
+            for l in range(lanes):
+                if li[STATE, l] == DONE:
+                    return l
+                if li[STATE, l] == ACTIVE:
+                    active += 1
+            if active == 0:
+                return -1
+            if active <= few:  # the end of the queue: what is left goes faster one by one
+                for l in range(lanes):
+                    if li[STATE, l] == ACTIVE and li[REJECTED, l] == 0:
+                        finish_alone(ws, l, t_eval, rtol, atol, max_steps)
+                        return l
+            if prepare_attempts(lf, li, t_end, max_steps) == 0:
+                continue  # every active lane ended in the checks
+            _spread(lf[H], hk, lanes)
+            stages(w, pl, lf, wf, yf, hk, 1, N_STAGES)
+            sums.error_estimates(wf, e5, e3)
+            _error_sums(y, w, e5, e3, rtol, atol, lf[SUM5], lf[SUM3])
+            if error_tests(w, lf, li, t_eval, n):
+                stages(w, pl, lf, wf, yf, hk, N_STAGES + 1, N_STAGES_EXTENDED - 1)
+                _first_dense_rows(lf[H], y, w)
+                sums.dense_rows(hk, wf, F_DENSE + 3)
+            commit(w, y, lf, li, traj, t_eval)
+
+    return load, run
