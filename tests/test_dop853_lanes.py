@@ -123,3 +123,15 @@ def test_lanes_end_with_the_same_statuses(mixed):
 def test_fewer_points_than_lanes():
     pp = mixed_points(5, seed=4)
     assert_same(simulate(pp, lanes=True, histories=False), simulate(pp, lanes=False, histories=False))
+
+
+@pytest.mark.slow
+def test_benchmark_runs_and_compares_the_same_steps():
+    """`mechsweep bench autobalancer` on a tiny sample: the lanes and the one-at-a-time kernel take
+    the same steps, and both beat scipy on the same trajectories (timings themselves: not asserted)."""
+    from mechsweep.bench import autobalancer as bench
+
+    r = bench.main(n_omega=2, n_ratio=2, sim_points=4, scipy_points=1, threads=1)
+    assert r["one_at_a_time_same_steps"]
+    assert r["ours_steps_same_trajectories"][0] == pytest.approx(r["scipy_mean_steps"], rel=0.5)
+    assert r["max_residual_difference_m"] < 1e-9

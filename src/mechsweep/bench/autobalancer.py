@@ -5,10 +5,15 @@
    all numba threads, the solver's tolerances (defaults rtol 5e-11, atol 1e-12). A grid smaller than
    200 x 200 is extrapolated to 200 x 200 by points (and says so).
 2. Direct simulation: the same perturbed-balanced-state simulation as the model's stable_sim
-   (scaled equations, the model's sampling grid), timed on one thread (accepted steps per second
-   per core) and on all numba threads (4x as many points), best of REPEATS runs each; scipy's DOP853 (scipy.integrate.DOP853 stepped like solve_ivp with t_eval, the same
+   (scaled equations, the model's sampling grid), through the model's own kernel (16 trajectories
+   side by side in SIMD lanes per thread, ode/dop853_lanes.py), timed on one thread (accepted
+   steps per second per core) and on all numba threads (4x as many points), best of REPEATS runs
+   each. The points are a sweep's worth per thread (256 by default): a thread's lanes idle at the
+   end of its queue, which a handful of points would overstate. For comparison, once, the same
+   points one trajectory at a time (method "auto": the same DOP853 steps plus the stiffness
+   test). scipy's DOP853 (scipy.integrate.DOP853 stepped like solve_ivp with t_eval, the same
    equations written in Python with math/numpy, the same tolerances) integrates a sample of the
-   same trajectories in the same process. Both implement the same step-size control, so their step
+   same trajectories in the same process, each also the best of REPEATS runs. Both implement the same step-size control, so their step
    counts agree and the ratio of steps per second is the speed-up at equal accuracy.
 """
 from __future__ import annotations
@@ -25,7 +30,7 @@ from ..models import autobalancer as ab
 from ..scene import Solver
 
 CHART = 200  # the chart the target refers to: 200 x 200
-REPEATS = 3  # our simulation is timed as the best of this many runs (a run takes ~0.2 s)
+REPEATS = 3  # simulations (ours and scipy's) are timed as the best of this many runs
 
 
 def _best_of(repeats, func, *args):
@@ -130,6 +135,29 @@ def _rhs_loop(n, p, z, dz):
     return z[0]
 
 
+@jit
+def _lane_rhs_loop(n, tau, P, Z, dZ):
+    """n lane right-hand sides (every lane at once), each from the previous derivative."""
+    for i in range(n):
+        ab.rhs_lanes(tau, Z, P, dZ)
+        for k in range(8):
+            for l in range(Z.shape[1]):
+                Z[k, l] += 1e-9 * dZ[k, l]
+    return Z[0, 0]
+
+
+def lane_rhs_ns(pp, n: int = 125_000, repeats: int = REPEATS) -> float:
+    """Nanoseconds per lane per lane right-hand side (ab.LANES lanes, parameters pp[:LANES])."""
+    P = np.ascontiguousarray(np.resize(pp, (ab.LANES, pp.shape[1])).T)
+    Z = np.zeros((8, ab.LANES))
+    Z[2], Z[3], Z[6], Z[7] = P[ab.IP_TH1] + 0.1, P[ab.IP_TH2] - 0.1, 1.0, 1.0
+    tau = np.linspace(0.0, 1.0, ab.LANES)
+    dZ = np.empty_like(Z)
+    _lane_rhs_loop(10, tau, P, Z.copy(), dZ)
+    best, _ = _best_of(repeats, _lane_rhs_loop, n, tau, P, Z.copy(), dZ)
+    return best / (n * ab.LANES) * 1e9
+
+
 def rhs_ns(p, n: int = 2_000_000, repeats: int = REPEATS) -> float:
     """Nanoseconds per right-hand-side evaluation, best of `repeats` loops."""
     z = np.array([0.0, 0.0, p[ab.IP_TH1] + 0.1, p[ab.IP_TH2] - 0.1, 0.0, 0.0, 1.0, 1.0])
@@ -140,7 +168,7 @@ def rhs_ns(p, n: int = 2_000_000, repeats: int = REPEATS) -> float:
 
 
 # ----------------------------------------------------------------------------- main
-def main(n_omega: int = CHART, n_ratio: int = CHART, sim_points: int = 16, scipy_points: int = 3,
+def main(n_omega: int = CHART, n_ratio: int = CHART, sim_points: int = 256, scipy_points: int = 3,
          threads: int | None = None, rtol: float = Solver.rtol, atol: float = Solver.atol) -> dict:
     before = numba.get_num_threads()
     if threads is not None:
@@ -182,6 +210,16 @@ def _main(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
     Pall = P[np.sort(rng.choice(n, size=min(4 * sim_points, n), replace=False))]
     sim_all_s, (_, _, ans, _) = _best_of(REPEATS, run_outputs, Pall, sim_outputs, solver)
     ours_all_steps_per_s = ans.sum() / sim_all_s
+    # one trajectory at a time, once (slower: a few seconds)
+    numba.set_num_threads(1)
+    try:
+        auto = Solver.for_model(ab.SPEC, rtol=rtol, atol=atol, method="auto")
+        run_outputs(Psim[:2], sim_outputs, auto)  # compile or load
+        t0 = time.perf_counter()
+        _, _, one_ns, _ = run_outputs(Psim, sim_outputs, auto)
+        one_steps_per_s = one_ns.sum() / (time.perf_counter() - t0)
+    finally:
+        numba.set_num_threads(n_threads)
 
     # scipy on the first scipy_points of those trajectories
     t_eval, *_ = ab.sample_grid(solver.settings, histories=False)
@@ -193,15 +231,15 @@ def _main(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
     delta = solver.settings["perturbation"]
     k_sp = min(scipy_points, pick.size)
     sp_steps, sp_time, diffs = [], 0.0, []
-    for i in range(k_sp):
-        t0 = time.perf_counter()
-        traj, steps = scipy_trajectory(pp[i], delta, t_eval, rtol, atol)
-        sp_time += time.perf_counter() - t0
+    for i in range(k_sp):  # best of REPEATS, as ours: the least disturbed run
+        t_best, (traj, steps) = _best_of(REPEATS, scipy_trajectory, pp[i], delta, t_eval, rtol, atol)
+        sp_time += t_best
         sp_steps.append(steps)
         r_late = np.hypot(traj[t_eval >= 0.9 * t_eval[-1], 0], traj[t_eval >= 0.9 * t_eval[-1], 1]).max()
         diffs.append(abs(r_late * col["a"][i] - sim["residual_amplitude"][i]))
     scipy_steps_per_s = sum(sp_steps) / sp_time
     rhs_cost = rhs_ns(pp[0])
+    lane_rhs_cost = lane_rhs_ns(pp)
 
     result = {
         "threads": n_threads,
@@ -224,7 +262,11 @@ def _main(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
         "ratio_vs_scipy_per_core": float(ours_steps_per_s / scipy_steps_per_s),
         "sim_steps_per_s_all_threads": float(ours_all_steps_per_s),
         "ratio_vs_scipy_all_threads": float(ours_all_steps_per_s / scipy_steps_per_s),
+        "one_at_a_time_steps_per_s": float(one_steps_per_s),
+        "one_at_a_time_same_steps": bool(np.array_equal(one_ns, sns)),
         "rhs_ns": rhs_cost,
+        "lane_rhs_ns": lane_rhs_cost,
+        "lanes": ab.LANES,
         "rhs_per_step": float(snr.sum() / sns.sum()),
         "max_residual_difference_m": float(max(diffs)) if diffs else math.nan,
         "rtol": rtol,
@@ -247,12 +289,16 @@ def _print(r: dict, solver) -> None:
           f"{r['sim_steps_per_s_per_core']:,.0f} steps/s on 1 thread, {r['sim_steps_per_s_all_threads']:,.0f} "
           f"steps/s on {r['threads']} threads; {r['sim_mean_steps']:.0f} steps/trajectory, "
           f"{r['sim_s_one_thread'] / r['sim_points'] * 1e3:.1f} ms/trajectory on 1 thread")
-    print(f"  scipy DOP853 (Python rhs), {r['scipy_trajectories']} of the same trajectories: "
+    print(f"  scipy DOP853 (Python rhs), {r['scipy_trajectories']} of the same trajectories, best of {REPEATS} runs each: "
           f"{r['scipy_steps_per_s']:,.0f} steps/s ({r['scipy_mean_steps']:.0f} steps/trajectory; ours "
           f"{r['ours_steps_same_trajectories']})")
-    print(f"  one right-hand side: {r['rhs_ns']:.0f} ns; {r['rhs_per_step']:.1f} per step, "
-          f"{r['rhs_ns'] * r['rhs_per_step'] / 1e3:.2f} us of the "
-          f"{1e6 / r['sim_steps_per_s_per_core']:.2f} us a step takes on one thread")
+    print(f"  the same points one trajectory at a time (method auto): {r['one_at_a_time_steps_per_s']:,.0f} steps/s "
+          f"on 1 thread, lanes {r['sim_steps_per_s_per_core'] / r['one_at_a_time_steps_per_s']:.1f}x faster"
+          f"{'' if r['one_at_a_time_same_steps'] else ' (step counts DIFFER)'}")
+    print(f"  right-hand side: {r['rhs_ns']:.0f} ns alone, {r['lane_rhs_ns']:.1f} ns per lane in {r['lanes']} lanes; "
+          f"{r['rhs_per_step']:.1f} per step (counted as one trajectory would: lanes compute the dense "
+          f"output's 3 whenever any lane needs them); a step takes {1e6 / r['sim_steps_per_s_per_core']:.2f} us "
+          f"per lane on one thread")
     print(f"  ratio mechsweep / scipy (one process): {r['ratio_vs_scipy_per_core']:,.0f}x on 1 thread, "
           f"{r['ratio_vs_scipy_all_threads']:,.0f}x on {r['threads']} threads; "
           f"largest residual_amplitude difference {r['max_residual_difference_m']:.2e} m")
