@@ -59,7 +59,8 @@ def mixed_points(n, seed=11):
 
 
 def simulate(pp, lanes, max_steps=100_000, histories=True, run=None, threads=None):
-    """Both simulation kernels on the same points: (meas, hist, code, n_steps, n_rhs)."""
+    """The lane kernel with `lanes` lanes per thread, or (lanes=0) the one-trajectory kernel, on the
+    points: (meas, hist, code, n_steps, n_rhs)."""
     s = Solver.for_model(ab.SPEC, horizon_revolutions=40.0, max_steps=max_steps)
     n = pp.shape[0]
     t_eval, n_rev1, n_early, i_prev, i_late, hist_idx = ab.sample_grid(s.settings, histories)
@@ -73,7 +74,7 @@ def simulate(pp, lanes, max_steps=100_000, histories=True, run=None, threads=Non
     numba.set_num_threads(threads or before)
     try:
         if lanes:
-            ab.simulation_kernel_lanes(ab.lane_queues(n), *args)
+            ab.simulate_lanes(lanes, *args)
         else:
             call_with_literal(ab.simulation_kernel, METHOD_CODES["dop853"], *args)
     finally:
@@ -91,7 +92,7 @@ def mixed():
     pp = mixed_points(70)
     run = np.ones(70, bool)
     run[[3, 40]] = False  # points the kernel must leave alone
-    return pp, run, simulate(pp, lanes=False, run=run)
+    return pp, run, simulate(pp, lanes=0, run=run)
 
 
 @pytest.mark.parametrize("threads", [1, 2])
@@ -99,7 +100,7 @@ def test_lanes_give_the_one_trajectory_results_bitwise(mixed, threads):
     """70 points through 16 lanes (queues refill lanes as trajectories end, the last few of a
     queue finish in scalar code), on one and on two threads (other queues, other lane mates)."""
     pp, run, reference = mixed
-    result = simulate(pp, lanes=True, run=run, threads=threads)
+    result = simulate(pp, lanes=ab.LANES, run=run, threads=threads)
     assert_same(result, reference)
     code, n_steps = result[2], result[3]
     assert (n_steps[~run] == 0).all() and (code[~run] == 0).all()
@@ -113,16 +114,25 @@ def test_lanes_end_with_the_same_statuses(mixed):
     pp = pp[:24].copy()
     pp[5, ab.IP_MU] = 2.0 / pp[5, ab.IP_IOTA]  # K11 K22 - K12^2 = 0: infinite accelerations
     pp[9, ab.IP_MU] = math.nan
-    a = simulate(pp, lanes=False, max_steps=1500)
-    b = simulate(pp, lanes=True, max_steps=1500)
-    assert_same(b, a)
+    a = simulate(pp, lanes=0, max_steps=1500)
+    for lanes in (ab.LANES, 8, 5):  # 5: the vector loops run their scalar remainders too
+        assert_same(simulate(pp, lanes=lanes, max_steps=1500), a)
     codes = set(a[2].tolist())
     assert st.MAX_STEPS in codes and st.OK in codes and (codes & {st.NONFINITE, st.STEP_UNDERFLOW}), codes
 
 
+def test_lanes_shrink_to_keep_the_samples_within_budget():
+    """Each lane holds its trajectory's samples: long horizons get 8 lanes, then one trajectory at
+    a time (what the one-trajectory kernel always holds)."""
+    n_eval = [ab.sample_grid(Solver.for_model(ab.SPEC, horizon_revolutions=H).settings, False)[0].size
+              for H in (300.0, 3e4, 1e5)]
+    assert [ab.simulation_lanes(k) for k in n_eval] == [ab.LANES, 8, 0]
+    assert all(ab.simulation_lanes(k) * k * 64 <= ab.LANE_SAMPLES_BYTES for k in n_eval)
+
+
 def test_fewer_points_than_lanes():
     pp = mixed_points(5, seed=4)
-    assert_same(simulate(pp, lanes=True, histories=False), simulate(pp, lanes=False, histories=False))
+    assert_same(simulate(pp, lanes=ab.LANES, histories=False), simulate(pp, lanes=0, histories=False))
 
 
 @pytest.mark.slow

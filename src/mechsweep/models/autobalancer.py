@@ -603,16 +603,29 @@ def simulation_kernel(method, pp, run, delta, t_eval, n_rev1, n_early, i_prev, i
 # The DOP853 simulations run LANES trajectories side by side per thread (ode/dop853_lanes.py):
 # bitwise the results of simulation_kernel, several times the steps per second. 16 lanes are four
 # AVX2 vectors; 8 lanes took 1.5x as long per lane right-hand side, 32 gained 5 % (one-off
-# measurement), and more lanes idle at the end of a thread's queue.
+# measurement), and more lanes idle at the end of a thread's queue. Below 8 lanes the vector
+# loops run mostly in their scalar remainders, slower than one trajectory at a time.
 LANES = 16
+# Each lane keeps its trajectory's samples (n_eval x 8 floats) until it ends: with long horizons
+# or dense sampling fewer lanes are used, so that a thread's samples stay within this budget
+# (8 lanes, else one trajectory at a time, as simulation_kernel always keeps one).
+LANE_SAMPLES_BYTES = 256 * 2**20
 lane_load, lane_run = dop853_lanes.make_lane_trajectory_solver(rhs_lanes, rhs)
 
 
-def lane_queues(n_points: int) -> int:
+def simulation_lanes(n_eval: int) -> int:
+    """Lanes per thread for trajectories of n_eval samples: LANES, 8, or 0 (one at a time)."""
+    for lanes in (LANES, 8):
+        if lanes * n_eval * 8 * 8 <= LANE_SAMPLES_BYTES:
+            return lanes
+    return 0
+
+
+def lane_queues(n_points: int, lanes: int = LANES) -> int:
     """Queues (prange iterations) for n points: at least 8 trajectories per lane where there are
     enough points (lanes idle only at the end of a queue), at least one queue per thread."""
-    per_lane = -(-n_points // (8 * LANES))
-    return max(per_lane, min(numba.get_num_threads(), -(-n_points // LANES)), 1)
+    per_lane = -(-n_points // (8 * lanes))
+    return max(per_lane, min(numba.get_num_threads(), -(-n_points // lanes)), 1)
 
 
 @jit
@@ -631,14 +644,14 @@ def _load_next(ws, lane, i, step, pp, run, delta, t_eval, rtol, atol, z):
 
 
 @jit
-def simulate_queue(first, step, pp, run, delta, t_eval, n_rev1, n_early, i_prev, i_late, rtol, atol, max_steps, settle,
-                   hist_idx, hist, meas, code, n_steps, n_rhs):
+def simulate_queue(lanes, first, step, pp, run, delta, t_eval, n_rev1, n_early, i_prev, i_late, rtol, atol, max_steps,
+                   settle, hist_idx, hist, meas, code, n_steps, n_rhs):
     """The points first, first + step, ... (those with run[i]) through the lanes of one thread."""
-    ws = dop853_lanes.workspace(8, NP, LANES, t_eval.size)
+    ws = dop853_lanes.workspace(8, NP, lanes, t_eval.size)
     traj = ws[dop853_lanes.TRAJ]
     z = np.empty(8)
     nxt = first
-    for lane in range(LANES):
+    for lane in range(lanes):
         nxt = _load_next(ws, lane, nxt, step, pp, run, delta, t_eval, rtol, atol, z)
     while True:
         lane = lane_run(ws, t_eval, rtol, atol, max_steps)
@@ -653,15 +666,26 @@ def simulate_queue(first, step, pp, run, delta, t_eval, n_rev1, n_early, i_prev,
         nxt = _load_next(ws, lane, nxt, step, pp, run, delta, t_eval, rtol, atol, z)
 
 
-@pjit
-def simulation_kernel_lanes(n_blocks, pp, run, delta, t_eval, n_rev1, n_early, i_prev, i_late, rtol, atol, max_steps,
-                            settle, hist_idx, hist, meas, code, n_steps, n_rhs):
-    """simulation_kernel for DOP853: n_blocks queues (lane_queues), LANES trajectories at a time each.
-    The parallel loop only calls simulate_queue: numba compiles a parallel loop's body again for
-    the threads, and that body is small."""
-    for b in prange(n_blocks):
-        simulate_queue(np.int64(b), n_blocks, pp, run, delta, t_eval, n_rev1, n_early, i_prev, i_late, rtol, atol,
-                       max_steps, settle, hist_idx, hist, meas, code, n_steps, n_rhs)
+def simulate_lanes(lanes, pp, run, *args):
+    """simulation_kernel's work for DOP853 through the lanes: lane_queues() queues of points, each
+    run by simulate_queue (nogil) in a pool of numba.get_num_threads() Python threads, which
+    take the next queue as they finish one. A numba parallel loop would do the same, but it
+    compiles the whole lane solver once more into its loop body (about 12 s, measured)."""
+    n_queues = lane_queues(pp.shape[0], lanes)
+    threads = min(numba.get_num_threads(), n_queues)
+
+    def queue(b):
+        simulate_queue(lanes, b, n_queues, pp, run, *args)
+
+    if threads == 1:
+        for b in range(n_queues):
+            queue(b)
+        return
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="mechsweep-lanes") as pool:
+        for _ in pool.map(queue, range(n_queues)):
+            pass
 
 
 def sample_grid(settings, histories: bool):
@@ -848,10 +872,11 @@ def _simulate(wants, solver, pp, feasible, isolated, Omega, a, code, out, n_step
     scode = np.zeros(n, dtype=np.int8)
     args = (pp, run, float(s["perturbation"]), t_eval, n_rev1, n_early, i_prev, i_late, solver.rtol, solver.atol,
             solver.max_steps, float(s["settle_threshold"]), hist_idx, hist, meas, scode, n_steps, n_rhs)
+    lanes = simulation_lanes(t_eval.size)
     if not run.any():
         pass
-    elif solver.method == "dop853":
-        simulation_kernel_lanes(lane_queues(pp.shape[0]), *args)
+    elif solver.method == "dop853" and lanes:
+        simulate_lanes(lanes, *args)
     else:
         call_with_literal(simulation_kernel, METHOD_CODES[solver.method], *args)
     code[:] = _worse(code, scode)

@@ -12,7 +12,14 @@ same trajectory (tests/test_dop853_lanes.py checks bitwise equality). The lanes 
 moment of their attempts: every active lane attempts a step in every round, accepted or not,
 and the three extra stages of the dense output are computed for all lanes when any accepted
 lane has a sample inside its step. A lane whose trajectory ends is handed back to the caller,
-which reads its samples and loads the next trajectory into it (a queue per thread).
+which reads its samples and loads the next trajectory into it (a queue per thread). When only a
+quarter of the lanes is still busy (the caller's queue is empty), the rest finish in scalar code.
+
+Requirements on ``rhs_lanes`` (else LLVM leaves the loop scalar, at about a third of the speed):
+lanes innermost, no call (numba's math.sqrt is one: use special.ieee_sqrt), branches only of
+the kind LLVM turns into selects, and few output rows per loop (the run-time aliasing checks it
+adds per pair of arrays have a limit). The tableau sums are generated (_dop853_lane_sums.py).
+Lane counts that are multiples of 8 keep every loop in its vector body.
 
 Usage (numba code; ``rhs_lanes(tau, Z, P, dZ)`` is the lane form of ``rhs(t, y, p, dy)``,
 ``tau`` one time per lane, ``P`` the parameters column per lane)::
@@ -22,7 +29,7 @@ Usage (numba code; ``rhs_lanes(tau, Z, P, dZ)`` is the lane form of ``rhs(t, y, 
     load(ws, lane, point, t0, y0, p, t_eval, rtol, atol)   # for every lane
     while True:
         lane = run(ws, t_eval, rtol, atol, max_steps)      # -1: no lane left
-        ...  # ws[TRAJ][lane] holds its samples, lane_status(ws, lane) its outcome
+        point, status, n_steps, n_rhs = lane_result(ws, lane)  # samples: ws[TRAJ][lane]
         load(...) or idle(ws, lane)
 
 ``n_rhs`` counts what the one-trajectory solver would evaluate (the dense stages only for lanes
