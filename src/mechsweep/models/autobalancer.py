@@ -622,10 +622,9 @@ def simulation_lanes(n_eval: int) -> int:
 
 
 def lane_queues(n_points: int, lanes: int = LANES) -> int:
-    """Queues (prange iterations) for n points: at least 8 trajectories per lane where there are
-    enough points (lanes idle only at the end of a queue), at least one queue per thread."""
-    per_lane = -(-n_points // (8 * lanes))
-    return max(per_lane, min(numba.get_num_threads(), -(-n_points // lanes)), 1)
+    """Queues for n points: one per thread (a queue's lanes idle only at its end), fewer when
+    there are not lanes / 2 points per thread."""
+    return max(1, min(numba.get_num_threads(), -(-n_points // max(1, lanes // 2))))
 
 
 @jit

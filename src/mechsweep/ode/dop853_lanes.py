@@ -12,8 +12,9 @@ same trajectory (tests/test_dop853_lanes.py checks bitwise equality). The lanes 
 moment of their attempts: every active lane attempts a step in every round, accepted or not,
 and the three extra stages of the dense output are computed for all lanes when any accepted
 lane has a sample inside its step. A lane whose trajectory ends is handed back to the caller,
-which reads its samples and loads the next trajectory into it (a queue per thread). When only a
-quarter of the lanes is still busy (the caller's queue is empty), the rest finish in scalar code.
+which reads its samples and loads the next trajectory into it (a queue per thread). At the end
+of a queue lanes idle; finishing the last few in scalar code instead measured no faster (a
+round of 16 lanes costs about four scalar steps) and cost 12 s more JIT compile, so it is not done.
 
 Requirements on ``rhs_lanes`` (else LLVM leaves the loop scalar, at about a third of the speed):
 lanes innermost, no call (numba's math.sqrt is one: use special.ieee_sqrt), branches only of
@@ -48,15 +49,13 @@ from ..status import MAX_STEPS, NONFINITE, OK, STEP_UNDERFLOW
 from ._common import _min_step
 from . import _dop853_lane_sums as sums
 from ._dop853_tableau import C, INTERPOLATOR_POWER, N_STAGES, N_STAGES_EXTENDED
-from .dop853 import (ERROR_EXPONENT, F_DENSE, K_FSAL, MIN_FACTOR, SAFETY, WORK_ROWS, Y_NEW, Y_STAGE, _commit,
-                     _interpolate as _interpolate_one, _make_advance, _make_dense_output, _make_start, _step_factor,
-                     _store_rows_at_step_end)
+from .dop853 import ERROR_EXPONENT, F_DENSE, K_FSAL, MIN_FACTOR, SAFETY, WORK_ROWS, Y_NEW, Y_STAGE, _make_start, _step_factor
 
 __all__ = ["workspace", "make_lane_trajectory_solver", "idle", "lane_result", "TRAJ"]
 
 
 # Positions in the workspace tuple.
-W, Y, PL, LF, LI, TRAJ, SW, WF, YF, HK, YS, PS = range(12)
+W, Y, PL, LF, LI, TRAJ, SW, WF, YF, HK = range(10)
 # Rows of LF (per-lane floats).
 T, T_NEW, H, H_ABS, MIN_STEP, TAU, SUM5, SUM3 = range(8)
 N_LF = 8
@@ -65,25 +64,20 @@ STATE, POINT, STATUS, N_STEPS, N_RHS, N_ATTEMPTS, K_NEXT, REJECTED, LAST_NONFINI
 N_LI = 11
 # Lane states.
 IDLE, ACTIVE, DONE = 0, 1, 2
-# When at most lanes // TAIL_FRACTION lanes are active (the caller had nothing left to load), they
-# finish one at a time in scalar code: a round of 16 lanes cost about as much as 4 scalar steps
-# (mechsweep bench autobalancer, autobalancer right-hand side).
-TAIL_FRACTION = 4
 
 
 @jit
 def workspace(n, n_params, lanes, n_eval):
-    """Everything the lanes need, as a tuple (indexed by W, Y, PL, LF, LI, TRAJ, SW, WF, YF, HK, YS,
-    PS): stages W (WORK_ROWS, n, lanes) in the row layout of dop853, states Y (n, lanes),
-    parameters PL (n_params, lanes), per-lane floats LF and integers LI, samples TRAJ (lanes,
-    n_eval, n), flat views WF, YF of W and Y (n * lanes per row) for the tableau sums, HK, the
-    step per flat element, and for the one-trajectory code (first step, end of a queue) its
-    workspace SW, a state YS and parameters PS."""
+    """Everything the lanes need, as a tuple (indexed by W, Y, PL, LF, LI, TRAJ, SW, WF, YF, HK):
+    stages W (WORK_ROWS, n, lanes) in the row layout of dop853, states Y (n, lanes), parameters
+    PL (n_params, lanes), per-lane floats LF and integers LI, samples TRAJ (lanes, n_eval, n), the
+    one-trajectory workspace SW that picks a lane's first step, flat views WF, YF of W and Y
+    (n * lanes per row) for the tableau sums, and HK, the step per flat element."""
     w = np.zeros((WORK_ROWS, n, lanes))
     y = np.zeros((n, lanes))
     return (w, y, np.zeros((n_params, lanes)), np.zeros((N_LF, lanes)), np.zeros((N_LI, lanes), dtype=np.int64),
             np.full((lanes, n_eval, n), np.nan), np.zeros((WORK_ROWS, n)), w.reshape((WORK_ROWS, n * lanes)),
-            y.reshape(n * lanes), np.zeros(n * lanes), np.zeros(n), np.zeros(n_params))
+            y.reshape(n * lanes), np.zeros(n * lanes))
 
 
 @jit_noalloc
@@ -181,56 +175,10 @@ def make_lane_trajectory_solver(rhs_lanes, rhs):
     must ``load`` or ``idle`` the lane before the next ``run``. Every lane has the same t_eval.
     """
     start = _make_start(rhs)
-    advance_one = _make_advance(rhs)
-    dense_output_one = _make_dense_output(rhs)
-
-    @jit_noalloc
-    def finish_alone(ws, lane, t_eval, rtol, atol, max_steps):
-        """Run the lane's trajectory to its end with the one-trajectory code (dop853's trajectory
-        solver from where the lane stands; the same floats). For the last lanes of a queue: a lane
-        round costs the same however few lanes are active. The lane must be at the start of an
-        advance (no rejection since its last accepted step), where both codes agree on the state."""
-        w, y, pl, lf, li, traj, sw, wf, yf, hk, ys, ps = ws
-        n = ys.size
-        n_eval = t_eval.size
-        t_end = t_eval[n_eval - 1]
-        for i in range(n):
-            ys[i] = y[i, lane]
-            sw[0, i] = w[0, i, lane]
-        for j in range(ps.size):
-            ps[j] = pl[j, lane]
-        t = lf[T, lane]
-        h_abs = lf[H_ABS, lane]
-        k = li[K_NEXT, lane]
-        n_attempts = li[N_ATTEMPTS, lane]
-        n_steps = li[N_STEPS, lane]
-        n_rhs = li[N_RHS, lane]
-        status = OK
-        while t < t_end:
-            status, t_new, h_abs, attempts = advance_one(t, ys, ps, t_end, h_abs, rtol, atol, sw,
-                                                         max_steps - n_attempts)
-            n_attempts += attempts
-            n_rhs += N_STAGES * attempts
-            if status != OK:
-                break
-            n_steps += 1
-            if k < n_eval and t_eval[k] < t_new:
-                h = t_new - t
-                dense_output_one(t, h, ys, ps, sw)
-                n_rhs += N_STAGES_EXTENDED - N_STAGES - 1
-                while k < n_eval and t_eval[k] < t_new:
-                    _interpolate_one((t_eval[k] - t) / h, ys, sw, traj[lane, k])
-                    k += 1
-            k = _store_rows_at_step_end(t_eval, k, t_new, sw[Y_NEW], traj[lane])
-            _commit(ys, sw)
-            t = t_new
-        li[N_STEPS, lane] = n_steps
-        li[N_RHS, lane] = n_rhs
-        _finish(li, lane, status)
 
     @jit_noalloc
     def load(ws, lane, point, t0, y0, p, t_eval, rtol, atol):
-        w, y, pl, lf, li, traj, sw, wf, yf, hk, ys, ps = ws
+        w, y, pl, lf, li, traj, sw, wf, yf, hk = ws
         n_eval = t_eval.size
         for k in range(n_eval):
             for i in range(y0.size):
@@ -378,10 +326,9 @@ def make_lane_trajectory_solver(rhs_lanes, rhs):
 
     @jit_noalloc
     def run(ws, t_eval, rtol, atol, max_steps):
-        w, y, pl, lf, li, traj, sw, wf, yf, hk, ys, ps = ws
+        w, y, pl, lf, li, traj, sw, wf, yf, hk = ws
         n, lanes = y.shape
         t_end = t_eval[t_eval.size - 1]
-        few = lanes // TAIL_FRACTION
         e5 = wf[Y_STAGE]  # scratch rows of the error estimates, free after the step
         e3 = wf[F_DENSE]  # (the dense output rewrites both before it needs them)
         while True:
@@ -393,11 +340,6 @@ def make_lane_trajectory_solver(rhs_lanes, rhs):
                     active += 1
             if active == 0:
                 return -1
-            if active <= few:  # the end of the queue: what is left goes faster one by one
-                for l in range(lanes):
-                    if li[STATE, l] == ACTIVE and li[REJECTED, l] == 0:
-                        finish_alone(ws, l, t_eval, rtol, atol, max_steps)
-                        return l
             if prepare_attempts(lf, li, t_end, max_steps) == 0:
                 continue  # every active lane ended in the checks
             _spread(lf[H], hk, lanes)
