@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from llvmlite import ir as llvm_ir
 from numba.core import types
 from numba.extending import intrinsic
@@ -90,7 +92,8 @@ def sincos_reduced(x):
     hz = 0.5 * z
     w = 1.0 - hz
     c = w + (((1.0 - w) - hz) + (z * rc - y0 * y1))
-    q = fn - 4.0 * math.floor(fn * 0.25)  # quadrant 0..3 (exact: fn is an integer below 2^21)
+    q = fn - 4.0 * np.floor(fn * 0.25)  # quadrant 0..3, exact; np.floor stays a float (math.floor
+    # is an int in numba, and AVX2 has no vector conversion to int64)
     odd = (q == 1.0) | (q == 3.0)
     a = c if odd else s
     b = s if odd else c
