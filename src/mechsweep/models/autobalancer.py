@@ -601,10 +601,11 @@ def simulation_kernel(method, pp, run, delta, t_eval, n_rev1, n_early, i_prev, i
 
 
 # The DOP853 simulations run LANES trajectories side by side per thread (ode/dop853_lanes.py):
-# bitwise the results of simulation_kernel, several times the steps per second. 16 lanes are four
-# AVX2 vectors; 8 lanes took 1.5x as long per lane right-hand side, 32 gained 5 % (one-off
-# measurement), and more lanes idle at the end of a thread's queue. Below 8 lanes the vector
-# loops run mostly in their scalar remainders, slower than one trajectory at a time.
+# bitwise the results of simulation_kernel, about 3x the steps per second. 16 lanes are four AVX2
+# vectors: the lane right-hand side took 24 ns per lane with 16 lanes, 29 with 8, 23 with 32,
+# 77 with 4 (the vector loops then run in their scalar remainders), 95 ns alone (one-off
+# measurement); more lanes idle longer at the end of a thread's queue and leave L1 (16 lanes'
+# stages are 28 kB).
 LANES = 16
 # Each lane keeps its trajectory's samples (n_eval x 8 floats) until it ends: with long horizons
 # or dense sampling fewer lanes are used, so that a thread's samples stay within this budget
