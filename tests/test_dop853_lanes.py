@@ -97,8 +97,8 @@ def mixed():
 
 @pytest.mark.parametrize("threads", [1, 2])
 def test_lanes_give_the_one_trajectory_results_bitwise(mixed, threads):
-    """70 points through 16 lanes (queues refill lanes as trajectories end, the last few of a
-    queue finish in scalar code), on one and on two threads (other queues, other lane mates)."""
+    """70 points through the lanes (queues refill lanes as trajectories end), on one and on two
+    threads (other queues, other lane mates)."""
     pp, run, reference = mixed
     result = simulate(pp, lanes=ab.LANES, run=run, threads=threads)
     assert_same(result, reference)
@@ -115,18 +115,18 @@ def test_lanes_end_with_the_same_statuses(mixed):
     pp[5, ab.IP_MU] = 2.0 / pp[5, ab.IP_IOTA]  # K11 K22 - K12^2 = 0: infinite accelerations
     pp[9, ab.IP_MU] = math.nan
     a = simulate(pp, lanes=0, max_steps=1500)
-    for lanes in (ab.LANES, 8, 5):  # 5: the vector loops run their scalar remainders too
+    for lanes in (ab.LANES, 16, 5):  # 5: the vector loops run their scalar remainders too
         assert_same(simulate(pp, lanes=lanes, max_steps=1500), a)
     codes = set(a[2].tolist())
     assert st.MAX_STEPS in codes and st.OK in codes and (codes & {st.NONFINITE, st.STEP_UNDERFLOW}), codes
 
 
 def test_lanes_shrink_to_keep_the_samples_within_budget():
-    """Each lane holds its trajectory's samples: long horizons get 8 lanes, then one trajectory at
-    a time (what the one-trajectory kernel always holds)."""
+    """Each lane holds its trajectory's samples: long horizons get 16, then 8 lanes, then one
+    trajectory at a time (what the one-trajectory kernel always holds)."""
     n_eval = [ab.sample_grid(Solver.for_model(ab.SPEC, horizon_revolutions=H).settings, False)[0].size
-              for H in (300.0, 3e4, 1e5)]
-    assert [ab.simulation_lanes(k) for k in n_eval] == [ab.LANES, 8, 0]
+              for H in (300.0, 1e4, 3e4, 1e5)]
+    assert [ab.simulation_lanes(k) for k in n_eval] == [ab.LANES, 16, 8, 0]
     assert all(ab.simulation_lanes(k) * k * 64 <= ab.LANE_SAMPLES_BYTES for k in n_eval)
 
 

@@ -128,8 +128,8 @@ def _parser() -> argparse.ArgumentParser:
     b.set_defaults(func=_cmd_bench)
     b = bsub.add_parser("autobalancer", help="Floquet chart time (200 x 200) and simulation throughput vs scipy")
     b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
-    b.add_argument("--sim-points", type=int, default=256,
-                   help="trajectories simulated by mechsweep on one thread (4x on all threads; default 256)")
+    b.add_argument("--sim-points", type=int, default=512,
+                   help="trajectories simulated by mechsweep on one thread (4x on all threads; default 512)")
     b.add_argument("--scipy-points", type=int, default=3, help="of those, solved with scipy too (default 3)")
     b.set_defaults(func=_cmd_bench_autobalancer)
     b = bsub.add_parser("linkage", help="four-bar residual sweep (360 positions/design): designs/s vs vectorised numpy")

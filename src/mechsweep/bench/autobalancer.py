@@ -8,12 +8,14 @@
    (scaled equations, the model's sampling grid), through the model's own kernel (16 trajectories
    side by side in SIMD lanes per thread, ode/dop853_lanes.py), timed on one thread (accepted
    steps per second per core) and on all numba threads (4x as many points), best of REPEATS runs
-   each. The points are a sweep's worth per thread (256 by default): a thread's lanes idle at the
-   end of its queue, which a handful of points would overstate. For comparison, once, the same
+   each. The points are a sweep's worth per thread (512 by default; the shipped scenes give a
+   thread 1,800-3,000): a thread's lanes idle at the end of its queue, which a handful of points
+   would overstate. For comparison, once, the same
    points one trajectory at a time (method "auto": the same DOP853 steps plus the stiffness
-   test). scipy's DOP853 (scipy.integrate.DOP853 stepped like solve_ivp with t_eval, the same
-   equations written in Python with math/numpy, the same tolerances) integrates a sample of the
-   same trajectories in the same process, each also the best of REPEATS runs. Both implement the same step-size control, so their step
+   test). scipy.integrate.solve_ivp(method="DOP853", t_eval=the model's samples; the same equations
+   written in Python with math/numpy, the same tolerances) integrates a sample of the same
+   trajectories in the same process, each also the best of REPEATS runs; its step count comes
+   from scipy's DOP853 class stepped by hand (untimed), whose samples must equal solve_ivp's. Both implement the same step-size control, so their step
    counts agree and the ratio of steps per second is the speed-up at equal accuracy.
 """
 from __future__ import annotations
@@ -102,10 +104,11 @@ def python_rhs(p):
 
 
 def scipy_trajectory(p, delta, t_eval, rtol, atol):
-    """scipy's DOP853 stepped as solve_ivp does with t_eval. Returns (samples, n_steps)."""
+    """scipy's DOP853 stepped as solve_ivp does with t_eval. Returns (samples, n_steps): the step
+    count, which solve_ivp does not report (not timed)."""
     from scipy.integrate import DOP853
 
-    z0 = np.array([0.0, 0.0, p[ab.IP_TH1] + delta, p[ab.IP_TH2] - delta, 0.0, 0.0, 1.0, 1.0])
+    z0 = initial_state(p, delta)
     solver = DOP853(python_rhs(p), 0.0, z0, t_eval[-1], rtol=rtol, atol=atol)
     out = np.empty((t_eval.size, 8))
     out[0] = z0
@@ -121,6 +124,19 @@ def scipy_trajectory(p, delta, t_eval, rtol, atol):
                 out[k] = dense(t_eval[k]) if t_eval[k] > t_old else solver.y
                 k += 1
     return out, steps
+
+
+def solve_ivp_trajectory(p, delta, t_eval, rtol, atol):
+    """The trajectory by scipy.integrate.solve_ivp(method="DOP853", t_eval=...): the timed one."""
+    from scipy.integrate import solve_ivp
+
+    sol = solve_ivp(python_rhs(p), (0.0, t_eval[-1]), initial_state(p, delta), method="DOP853", t_eval=t_eval,
+                    rtol=rtol, atol=atol)
+    return sol.y.T
+
+
+def initial_state(p, delta):
+    return np.array([0.0, 0.0, p[ab.IP_TH1] + delta, p[ab.IP_TH2] - delta, 0.0, 0.0, 1.0, 1.0])
 
 
 # ----------------------------------------------------------------------------- right-hand side cost
@@ -168,7 +184,7 @@ def rhs_ns(p, n: int = 2_000_000, repeats: int = REPEATS) -> float:
 
 
 # ----------------------------------------------------------------------------- main
-def main(n_omega: int = CHART, n_ratio: int = CHART, sim_points: int = 256, scipy_points: int = 3,
+def main(n_omega: int = CHART, n_ratio: int = CHART, sim_points: int = 512, scipy_points: int = 3,
          threads: int | None = None, rtol: float = Solver.rtol, atol: float = Solver.atol) -> dict:
     before = numba.get_num_threads()
     if threads is not None:
@@ -231,8 +247,11 @@ def _main(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
     delta = solver.settings["perturbation"]
     k_sp = min(scipy_points, pick.size)
     sp_steps, sp_time, diffs = [], 0.0, []
-    for i in range(k_sp):  # best of REPEATS, as ours: the least disturbed run
-        t_best, (traj, steps) = _best_of(REPEATS, scipy_trajectory, pp[i], delta, t_eval, rtol, atol)
+    for i in range(k_sp):  # solve_ivp timed best of REPEATS, as ours: the least disturbed run
+        t_best, traj = _best_of(REPEATS, solve_ivp_trajectory, pp[i], delta, t_eval, rtol, atol)
+        stepped, steps = scipy_trajectory(pp[i], delta, t_eval, rtol, atol)  # its steps (the same solver)
+        if not np.array_equal(stepped, traj):
+            raise AssertionError("scipy's DOP853 stepped by hand and solve_ivp disagree")
         sp_time += t_best
         sp_steps.append(steps)
         r_late = np.hypot(traj[t_eval >= 0.9 * t_eval[-1], 0], traj[t_eval >= 0.9 * t_eval[-1], 1]).max()
@@ -289,7 +308,7 @@ def _print(r: dict, solver) -> None:
           f"{r['sim_steps_per_s_per_core']:,.0f} steps/s on 1 thread, {r['sim_steps_per_s_all_threads']:,.0f} "
           f"steps/s on {r['threads']} threads; {r['sim_mean_steps']:.0f} steps/trajectory, "
           f"{r['sim_s_one_thread'] / r['sim_points'] * 1e3:.1f} ms/trajectory on 1 thread")
-    print(f"  scipy DOP853 (Python rhs), {r['scipy_trajectories']} of the same trajectories, best of {REPEATS} runs each: "
+    print(f"  scipy solve_ivp DOP853 (Python rhs), {r['scipy_trajectories']} of the same trajectories, best of {REPEATS} runs each: "
           f"{r['scipy_steps_per_s']:,.0f} steps/s ({r['scipy_mean_steps']:.0f} steps/trajectory; ours "
           f"{r['ours_steps_same_trajectories']})")
     print(f"  the same points one trajectory at a time (method auto): {r['one_at_a_time_steps_per_s']:,.0f} steps/s "

@@ -601,22 +601,22 @@ def simulation_kernel(method, pp, run, delta, t_eval, n_rev1, n_early, i_prev, i
 
 
 # The DOP853 simulations run LANES trajectories side by side per thread (ode/dop853_lanes.py):
-# bitwise the results of simulation_kernel, about 3x the steps per second. 16 lanes are four AVX2
-# vectors: the lane right-hand side took 24 ns per lane with 16 lanes, 29 with 8, 23 with 32,
-# 77 with 4 (the vector loops then run in their scalar remainders), 95 ns alone (one-off
-# measurement); more lanes idle longer at the end of a thread's queue and leave L1 (16 lanes'
-# stages are 28 kB).
-LANES = 16
+# bitwise the results of simulation_kernel, about 3x the steps per second. The lane right-hand
+# side took 23 ns per lane with 32 lanes, 24 with 16, 29 with 8, 77 with 4 (the vector loops then
+# run in their scalar remainders), 95 ns alone; a whole simulation of 512 points on one thread
+# ran 8-10 % faster with 32 lanes than with 16 (one-off measurements, alternating). More lanes
+# idle longer at the end of a thread's queue, and 32 lanes' stages (55 kB) already leave L1.
+LANES = 32
 # Each lane keeps its trajectory's samples (n_eval x 8 floats) until it ends: with long horizons
 # or dense sampling fewer lanes are used, so that a thread's samples stay within this budget
-# (8 lanes, else one trajectory at a time, as simulation_kernel always keeps one).
+# (16, then 8 lanes, else one trajectory at a time, as simulation_kernel always keeps one).
 LANE_SAMPLES_BYTES = 256 * 2**20
 lane_load, lane_run = dop853_lanes.make_lane_trajectory_solver(rhs_lanes, rhs)
 
 
 def simulation_lanes(n_eval: int) -> int:
-    """Lanes per thread for trajectories of n_eval samples: LANES, 8, or 0 (one at a time)."""
-    for lanes in (LANES, 8):
+    """Lanes per thread for trajectories of n_eval samples: LANES, 16, 8, or 0 (one at a time)."""
+    for lanes in (LANES, 16, 8):
         if lanes * n_eval * 8 * 8 <= LANE_SAMPLES_BYTES:
             return lanes
     return 0
