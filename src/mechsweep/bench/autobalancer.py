@@ -5,7 +5,7 @@
    all numba threads, the solver's tolerances (defaults rtol 5e-11, atol 1e-12). A grid smaller than
    200 x 200 is extrapolated to 200 x 200 by points (and says so).
 2. Direct simulation: the same perturbed-balanced-state simulation as the model's stable_sim
-   (scaled equations, the model's sampling grid), through the model's own kernel (16 trajectories
+   (scaled equations, the model's sampling grid), through the model's own kernel (ab.LANES trajectories
    side by side in SIMD lanes per thread, ode/dop853_lanes.py), timed on one thread (accepted
    steps per second per core) and on all numba threads (4x as many points), best of REPEATS runs
    each. The points are a sweep's worth per thread (512 by default; the shipped scenes give a

@@ -14,7 +14,7 @@ and the three extra stages of the dense output are computed for all lanes when a
 lane has a sample inside its step. A lane whose trajectory ends is handed back to the caller,
 which reads its samples and loads the next trajectory into it (a queue per thread). At the end
 of a queue lanes idle; finishing the last few in scalar code instead measured no faster (a
-round of 16 lanes costs about four scalar steps) and cost 12 s more JIT compile, so it is not done.
+round of 16 lanes cost about four scalar steps) and cost 12 s more JIT compile, so it is not done.
 
 Requirements on ``rhs_lanes`` (else LLVM leaves the loop scalar, at about a third of the speed):
 lanes innermost, no call (numba's math.sqrt is one: use special.ieee_sqrt), branches only of
