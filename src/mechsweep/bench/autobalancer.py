@@ -5,18 +5,19 @@
    all numba threads, the solver's tolerances (defaults rtol 5e-11, atol 1e-12). A grid smaller than
    200 x 200 is extrapolated to 200 x 200 by points (and says so).
 2. Direct simulation: the same perturbed-balanced-state simulation as the model's stable_sim
-   (scaled equations, the model's sampling grid), through the model's own kernel (ab.LANES trajectories
-   side by side in SIMD lanes per thread, ode/dop853_lanes.py), timed on one thread (accepted
-   steps per second per core) and on all numba threads (4x as many points), best of REPEATS runs
-   each. The points are a sweep's worth per thread (512 by default; the shipped scenes give a
-   thread 1,800-3,000): a thread's lanes idle at the end of its queue, which a handful of points
-   would overstate. For comparison, once, the same
-   points one trajectory at a time (method "auto": the same DOP853 steps plus the stiffness
-   test). scipy.integrate.solve_ivp(method="DOP853", t_eval=the model's samples; the same equations
+   (scaled equations, the model's sampling grid), through the model's own kernel (ab.LANES
+   trajectories side by side in SIMD lanes per thread, ode/dop853_lanes.py), timed on one thread
+   (accepted steps per second per core) and on all numba threads (4x as many points), best of
+   REPEATS runs each. The points are a sweep's worth per thread (512 by default; on 2 threads the
+   shipped scenes give a thread 180-3,000): a thread's lanes idle at the end of its queue, which a
+   handful of points would overstate. For comparison, once, the same points one trajectory at a
+   time (method "auto": the same DOP853 steps plus the stiffness test).
+   scipy.integrate.solve_ivp(method="DOP853", t_eval=the model's samples; the same equations
    written in Python with math/numpy, the same tolerances) integrates a sample of the same
-   trajectories in the same process, each also the best of REPEATS runs; its step count comes
-   from scipy's DOP853 class stepped by hand (untimed), whose samples must equal solve_ivp's. Both implement the same step-size control, so their step
-   counts agree and the ratio of steps per second is the speed-up at equal accuracy.
+   trajectories in the same process, each the best of REPEATS runs too; its step count comes from
+   scipy's DOP853 class stepped by hand (untimed), whose samples must equal solve_ivp's. Both
+   implement the same step-size control, so their step counts agree and the ratio of steps per
+   second is the speed-up at equal accuracy.
 """
 from __future__ import annotations
 

@@ -873,12 +873,11 @@ def _simulate(wants, solver, pp, feasible, isolated, Omega, a, code, out, n_step
     args = (pp, run, float(s["perturbation"]), t_eval, n_rev1, n_early, i_prev, i_late, solver.rtol, solver.atol,
             solver.max_steps, float(s["settle_threshold"]), hist_idx, hist, meas, scode, n_steps, n_rhs)
     lanes = simulation_lanes(t_eval.size)
-    if not run.any():
-        pass
-    elif solver.method == "dop853" and lanes:
-        simulate_lanes(lanes, *args)
-    else:
-        call_with_literal(simulation_kernel, METHOD_CODES[solver.method], *args)
+    if run.any():
+        if solver.method == "dop853" and lanes:
+            simulate_lanes(lanes, *args)
+        else:
+            call_with_literal(simulation_kernel, METHOD_CODES[solver.method], *args)
     code[:] = _worse(code, scode)
     good = run & (scode == st.OK)
     bal = good & isolated
