@@ -48,8 +48,8 @@ def test_lane_rhs_is_rhs_in_every_lane(seed, lanes, g1, tau):
 
 # ----------------------------------------------------------------------------- whole simulations
 def mixed_points(n, seed=11):
-    """Scaled parameters of n varied mechanisms: conrod terms on half of them, unbalance up to
-    twice what the pendulums can balance (those never settle), damping from none to strong."""
+    """Scaled parameters of n varied mechanisms: conrod terms on half of them, unbalance below
+    what the pendulums can balance (A0 < 2 m a), pendulum damping from none to moderate."""
     rng = np.random.default_rng(seed)
     pp = np.stack([random_p(rng, A1=bool(i % 2)) for i in range(n)])
     ok = pp[:, ab.IP_ALPHA0] < 2.0  # a balanced state exists: start from it, as evaluate does

@@ -43,7 +43,7 @@ _INVPIO2 = 6.36619772367581382433e-01
 _PIO2_1 = 1.57079632673412561417e+00  # first 33 bits of pi/2
 _PIO2_2 = 6.07710050630396597660e-11  # next 33 bits
 _PIO2_2T = 2.02226624879595063154e-21  # pi/2 - (PIO2_1 + PIO2_2)
-SINCOS_MAX = _SINCOS_MAX = 1.0e6  # beyond this (and for inf/NaN) fall back to libm
+SINCOS_MAX = 1.0e6  # beyond this (and for inf/NaN) fall back to libm
 
 _S1 = -1.66666666666666324348e-01
 _S2 = 8.33333333332248946124e-03
@@ -63,7 +63,7 @@ _C6 = -1.13596475577881948265e-11
 def sincos(x):
     """(sin x, cos x), each within about one ulp of libm (measured), for |x| <= 1e6;
     larger, infinite or NaN arguments go to libm."""
-    if not abs(x) <= _SINCOS_MAX:
+    if not abs(x) <= SINCOS_MAX:
         return math.sin(x), math.cos(x)
     return sincos_reduced(x)
 

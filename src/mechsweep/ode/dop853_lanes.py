@@ -46,10 +46,11 @@ import numpy as np
 
 from .._jit import jit, jit_noalloc
 from ..status import MAX_STEPS, NONFINITE, OK, STEP_UNDERFLOW
-from ._common import _min_step
+from ._common import _all_finite, _min_step
 from . import _dop853_lane_sums as sums
 from ._dop853_tableau import C, INTERPOLATOR_POWER, N_STAGES, N_STAGES_EXTENDED
-from .dop853 import ERROR_EXPONENT, F_DENSE, K_FSAL, MIN_FACTOR, SAFETY, WORK_ROWS, Y_NEW, Y_STAGE, _make_start, _step_factor
+from .dop853 import (ERROR_EXPONENT, F_DENSE, K_FSAL, MIN_FACTOR, SAFETY, WORK_ROWS, Y_NEW, Y_STAGE, _interpolate,
+                     _make_start, _step_factor)
 
 __all__ = ["workspace", "make_lane_trajectory_solver", "idle", "lane_result", "TRAJ"]
 
@@ -132,25 +133,6 @@ def _spread(h, hk, lanes):
     """hk[i * lanes + l] = h[l]: the step of each lane beside each of its components."""
     for k in range(hk.size):
         hk[k] = h[k % lanes]
-
-
-@jit_noalloc
-def _interpolate(x, y, w, lane, out):
-    """State of one lane at fraction x of its step (dop853._interpolate)."""
-    for i in range(y.shape[0]):
-        acc = 0.0
-        for k in range(INTERPOLATOR_POWER):
-            acc += w[F_DENSE + INTERPOLATOR_POWER - 1 - k, i, lane]
-            acc *= x if k % 2 == 0 else 1.0 - x
-        out[i] = acc + y[i, lane]
-
-
-@jit_noalloc
-def _lane_finite(w, row, lane):
-    for i in range(w.shape[1]):
-        if not math.isfinite(w[row, i, lane]):
-            return False
-    return True
 
 
 @jit_noalloc
@@ -275,7 +257,7 @@ def make_lane_trajectory_solver(rhs_lanes, rhs):
                 error = 0.0
             else:
                 error = abs(h) * sum5 / math.sqrt((sum5 + 0.01 * sum3) * n)
-            finite = math.isfinite(error) and _lane_finite(w, Y_NEW, l) and _lane_finite(w, K_FSAL, l)
+            finite = math.isfinite(error) and _all_finite(w[Y_NEW, :, l]) and _all_finite(w[K_FSAL, :, l])
             if finite and error < 1.0:
                 li[ACCEPTED, l] = 1
                 lf[H_ABS, l] = h * _step_factor(error, li[REJECTED, l] != 0)
@@ -308,7 +290,7 @@ def make_lane_trajectory_solver(rhs_lanes, rhs):
             if li[DENSE, l]:
                 li[N_RHS, l] += N_STAGES_EXTENDED - N_STAGES - 1
                 while k < n_eval and t_eval[k] < t_new:
-                    _interpolate((t_eval[k] - t) / h, y, w, l, traj[l, k])
+                    _interpolate((t_eval[k] - t) / h, y[:, l], w[:, :, l], traj[l, k])  # the lane's view
                     k += 1
             while k < n_eval and t_eval[k] == t_new:
                 for i in range(n):
