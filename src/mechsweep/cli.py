@@ -178,20 +178,20 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _cmd_run(args) -> int:
-    from .runner import RunInterrupted, run
+    from .runner import RunInterrupted, compute
     from .scene import load_scene
 
     scene = load_scene(args.scene)
-    try:
-        ds = run(scene, output=args.output, resume=args.resume, restart=args.restart, threads=args.threads,
-                 progress=False if args.no_progress else None, scheduler=args.scheduler)
+    try:  # the dataset is not opened: its status counts were added up as its chunks were assembled
+        summary = compute(scene, output=args.output, resume=args.resume, restart=args.restart,
+                          threads=args.threads, progress=False if args.no_progress else None,
+                          scheduler=args.scheduler)
     except RunInterrupted as exc:
         print(f"mechsweep run: {exc}", file=sys.stderr)
         return EXIT_INTERRUPTED
     path = args.output or scene.storage.path
-    counts = _status_counts(ds)
-    print(f"wrote {path}: {dict(ds.sizes)}, outputs {', '.join(scene.outputs)}; "
-          f"status {counts}; wall time {ds.attrs['wall_time_s']:.2f} s")
+    print(f"wrote {path}: {summary.sizes}, outputs {', '.join(scene.outputs)}; "
+          f"status {summary.status_names()}; wall time {summary.wall_time_s:.2f} s")
     return 0
 
 

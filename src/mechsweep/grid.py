@@ -7,6 +7,9 @@ finished chunk is written to the HDF5 file as one rectangular block.
 """
 from __future__ import annotations
 
+import math
+import operator
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,26 +29,88 @@ class Chunk:
         return self.stop - self.start
 
 
-def plan_chunks(shape: tuple[int, ...], target: int) -> list[Chunk]:
+class ChunkPlan(Sequence):
+    """The chunks of a grid of ``shape`` cut into hyperslabs of about ``target`` points (never
+    more): the first axis whose trailing block (one index of it, all axes after) fits is sliced
+    into steps, the axes before it are walked one index at a time. Chunks are made on demand
+    from their index, so the plan takes O(1) memory and time, whatever their number."""
+
+    def __init__(self, shape: tuple[int, ...], target: int):
+        self.shape = tuple(int(n) for n in shape)
+        self.target = max(1, int(target))
+        if not self.shape:
+            self._n = 1
+            return
+        trailing = [math.prod(self.shape[k + 1:]) for k in range(len(self.shape))]
+        self._j = j = next(k for k in range(len(self.shape)) if trailing[k] <= self.target)
+        self._trailing = trailing[j]
+        self._step = max(1, self.target // trailing[j])
+        self._per_lead = -(-self.shape[j] // self._step)
+        self._n = math.prod(self.shape[:j]) * self._per_lead
+
+    def __len__(self) -> int:
+        return self._n
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[k] for k in range(*i.indices(self._n))]
+        i = operator.index(i)
+        if i < 0:
+            i += self._n
+        if not 0 <= i < self._n:
+            raise IndexError(f"chunk {i} of a plan of {self._n}")
+        if not self.shape:
+            return Chunk(0, 0, 1, ())
+        j, step, trailing = self._j, self._step, self._trailing
+        lead_flat, k = divmod(i, self._per_lead)
+        s, e = k * step, min(self.shape[j], (k + 1) * step)
+        lead = []
+        rest = lead_flat
+        for n in reversed(self.shape[:j]):
+            rest, idx = divmod(rest, n)
+            lead.append(idx)
+        region = (tuple(slice(x, x + 1) for x in reversed(lead)) + (slice(s, e),)
+                  + (slice(None),) * (len(self.shape) - j - 1))
+        start = (lead_flat * self.shape[j] + s) * trailing
+        return Chunk(i, start, start + (e - s) * trailing, region)
+
+    @property
+    def max_size(self) -> int:
+        """Points of the largest chunk."""
+        return min(self._step, self.shape[self._j]) * self._trailing if self.shape else 1
+
+
+def plan_chunks(shape: tuple[int, ...], target: int) -> ChunkPlan:
     """Cut a grid of ``shape`` into hyperslab chunks of about ``target`` points (never more)."""
-    if not shape:
-        return [Chunk(0, 0, 1, ())]
-    target = max(1, int(target))
-    # the split axis j: the first axis whose trailing block (one index of j, all after) fits
-    trailing = [int(np.prod(shape[k + 1 :], dtype=np.int64)) for k in range(len(shape))]
-    j = next((k for k in range(len(shape)) if trailing[k] <= target), len(shape) - 1)
-    step = max(1, target // trailing[j])
-    lead_shape = shape[:j]
-    chunks = []
-    flat = 0
-    for lead in np.ndindex(*lead_shape) if lead_shape else [()]:
-        for s in range(0, shape[j], step):
-            e = min(shape[j], s + step)
-            region = tuple(slice(i, i + 1) for i in lead) + (slice(s, e),) + (slice(None),) * (len(shape) - j - 1)
-            size = (e - s) * trailing[j]
-            chunks.append(Chunk(len(chunks), flat, flat + size, region))
-            flat += size
-    return chunks
+    return ChunkPlan(shape, target)
+
+
+# A run keeps one file per chunk (written and synced) and one flag per chunk; beyond this count
+# the per-chunk costs dominate (about 10,000 synced files a minute) and the chunks are raised.
+MAX_CHUNKS = 10_000
+
+
+def least_target(shape: tuple[int, ...], max_chunks: int = MAX_CHUNKS) -> int:
+    """The smallest chunk target whose plan has at most ``max_chunks`` chunks (the count never
+    grows with the target: a bisection over O(1) plans)."""
+    lo, hi = 1, max(1, math.prod(shape))
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if len(ChunkPlan(shape, mid)) <= max_chunks:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+def chunk_target(scene: Scene) -> int:
+    """Points per chunk of a run: ``default_chunk_target``, raised when it would cut the grid into
+    more than MAX_CHUNKS chunks (a [storage] chunk_size that does so is refused when the scene is
+    loaded)."""
+    target = default_chunk_target(scene)
+    if len(ChunkPlan(scene.shape, target)) > MAX_CHUNKS:
+        target = max(target, least_target(scene.shape))
+    return target
 
 
 CHUNK_VALUES = 2**22  # float64 values of one chunk's outputs (32 MiB), whatever their extra dims
@@ -69,16 +134,20 @@ def default_chunk_target(scene: Scene) -> int:
 class ParameterMatrix:
     """Builds the float64 [n, n_params] parameter rows of any flat range of a scene's grid.
 
-    Axis values are encoded (choices -> indices) once, not per chunk."""
+    List axes are encoded (choices -> indices) once; a range axis gives, per chunk, only the
+    stretch of values the chunk covers, so memory is bounded by the chunk, whatever the axes."""
 
     def __init__(self, scene: Scene):
         self.shape = scene.shape
-        self.columns = []  # per parameter: ("axis", k, encoded values) or ("const", value)
+        self.columns = []  # per parameter: ("axis", k, encoded values or the range Axis) or ("const", value)
         axis_pos = {a.name: k for k, a in enumerate(scene.axes)}
         for prm in scene.model.params:
             if prm.name in axis_pos:
                 k = axis_pos[prm.name]
-                self.columns.append(("axis", k, np.array([prm.encode(v) for v in scene.axes[k].values])))
+                axis = scene.axes[k]
+                values = (np.array([prm.encode(v) for v in axis.items], dtype=float) if axis.spacing == "list"
+                          else axis)
+                self.columns.append(("axis", k, values))
             elif prm.name in scene.fixed:
                 self.columns.append(("const", prm.encode(scene.fixed[prm.name])))
             else:
@@ -88,7 +157,14 @@ class ParameterMatrix:
         P = np.empty((stop - start, len(self.columns)))
         idx = np.unravel_index(np.arange(start, stop, dtype=np.int64), self.shape) if self.shape else ()
         for col, spec in enumerate(self.columns):
-            P[:, col] = spec[2][idx[spec[1]]] if spec[0] == "axis" else spec[1]
+            if spec[0] == "const":
+                P[:, col] = spec[1]
+            elif isinstance(spec[2], np.ndarray):
+                P[:, col] = spec[2][idx[spec[1]]]
+            elif stop > start:  # a range axis: the values this stretch of points uses
+                i = idx[spec[1]]
+                lo, hi = int(i.min()), int(i.max()) + 1
+                P[:, col] = spec[2].array(lo, hi)[i - lo]
         return P
 
 

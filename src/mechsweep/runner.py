@@ -7,6 +7,7 @@ import platform
 import shutil
 import time
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping
 
@@ -17,14 +18,28 @@ import xarray as xr
 from . import __version__
 from . import status as st
 from .errors import InputError
-from .grid import Chunk, ParameterMatrix, default_chunk_target, plan_chunks
+from .grid import Chunk, ChunkPlan, ParameterMatrix, chunk_target, plan_chunks
 from .journal import Journal, RunLock, discard_path, drop, partial_path
 from .scene import Scene, check_scheduler, load_scene
-from .store import StoreError, assemble, layout, open_dataset
+from .store import StoreError, assemble, layout, open_dataset, status_counts
 
 
 class RunInterrupted(RuntimeError):
     """The run stopped (Ctrl-C) after saving every finished chunk; resume with --resume."""
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """What a finished run wrote, known without opening its dataset."""
+
+    path: Path
+    sizes: dict  # dimension -> size: the grid's axes, then the outputs' extra dimensions
+    status: dict  # status code -> number of points, counted chunk by chunk
+    wall_time_s: float
+
+    def status_names(self) -> dict[str, int]:
+        """Counts by status name ("ok", "max_steps", ...)."""
+        return {st.MEANINGS.get(code, str(code)): n for code, n in self.status.items()}
 
 
 def run(
@@ -49,6 +64,25 @@ def run(
     ``load``: the returned dataset is in memory (True), opened lazily (False), or loaded when it
     is at most store.LOAD_LIMIT_BYTES (None, default).
     """
+    lazy = None if load is None else not load
+    summary = compute(scene_or_path, output=output, resume=resume, restart=restart, threads=threads,
+                      progress=progress, scheduler=scheduler)
+    return open_dataset(summary.path, lazy=lazy)
+
+
+def compute(
+    scene_or_path: str | os.PathLike | Mapping | Scene,
+    *,
+    output: str | os.PathLike | None = None,
+    resume: bool = False,
+    restart: bool = False,
+    threads: int | None = None,
+    progress: bool | None = None,
+    scheduler: str | None = None,
+) -> RunSummary:
+    """``run`` without opening the result: compute the scene into its file and return a
+    :class:`RunSummary` (path, sizes, status counts, wall time). Memory stays bounded by the
+    chunk, whatever the grid; the status counts are added up as the chunks are assembled."""
     scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path)
     if output is not None and str(output).endswith(("/", os.sep)):
         raise StoreError(f"output path {output} ends with a path separator; give a file path such as "
@@ -59,8 +93,7 @@ def run(
         raise InputError(f"scheduler {why}")
     scheduler = scheduler if scheduler is not None else scene.execution.scheduler
     _check_threads(threads, here=scheduler is None)  # before any file is created
-    lazy = None if load is None else not load
-    target = default_chunk_target(scene)
+    target = chunk_target(scene)
     check_size(scene, final, min(target, scene.n_points), saved_bytes(final) if not restart else 0)
     # Conflicts are refused before the lock (taking it touches the folder), and checked again
     # under it: another run may have changed the files meanwhile.
@@ -70,8 +103,27 @@ def run(
     with RunLock(final):  # from here to the end, no other run touches final or its journal
         shutil.rmtree(discard_path(final), ignore_errors=True)  # what a killed clean-up left
         if not _check_existing(scene, final, resume, restart, target, len(chunks)):  # True: finished
-            _compute(scene, final, restart, threads, progress, scheduler, target, chunks)
-    return open_dataset(final, lazy=lazy)
+            counts = _compute(scene, final, restart, threads, progress, scheduler, target, chunks)
+        else:
+            counts = status_counts(final)
+        wall_time = _wall_time(final)
+    return RunSummary(final, _sizes(scene), counts, wall_time)
+
+
+def _sizes(scene: Scene) -> dict:
+    lay = layout(scene, 0)
+    sizes = dict(zip(lay.dims, lay.shape))
+    for dims in lay.extra.values():
+        for dim, values in dims:
+            sizes.setdefault(dim.name, len(values))
+    return sizes
+
+
+def _wall_time(final: Path) -> float:
+    import h5py
+
+    with h5py.File(final, "r") as f:
+        return float(np.ravel(f.attrs["wall_time_s"])[0])
 
 
 def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, target: int, n_chunks: int) -> bool:
@@ -83,20 +135,24 @@ def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, targ
                          "or discard it with --restart")
     if resume and not part.exists() and final.exists():
         with open_dataset(final, lazy=True) as ds:
-            if ds.attrs.get("scene_canonical") != scene.canonical():
+            if not scene.same_as(ds.attrs.get("scene_canonical")):
                 raise StoreError(f"{final} holds a finished run of a different scene; use --restart to "
                                  "replace it")
         return True
     if part.exists() and not restart:
         journal = Journal.read(part)
-        if not journal.empty and (why := journal.matches(scene.canonical(), target, n_chunks)) is not None:
+        canonical = scene.canonical()
+        if not journal.empty and scene.same_as(journal.meta["scene_canonical"]):
+            canonical = journal.meta["scene_canonical"]  # the same scene, perhaps in an older version's form
+        if not journal.empty and (why := journal.matches(canonical, target, n_chunks)) is not None:
             raise StoreError(why)
     return False
 
 
 def _compute(scene: Scene, final: Path, restart: bool, threads, progress, scheduler, target: int,
-             chunks: list[Chunk]) -> None:
-    """Compute the missing chunks into the journal, then assemble the dataset."""
+             chunks: ChunkPlan) -> dict[int, int]:
+    """Compute the missing chunks into the journal, then assemble the dataset; returns the
+    points per status code."""
     part = partial_path(final)
     journal = Journal.read(part) if part.exists() and not restart else None
     if journal is None or journal.empty:  # none, discarded, or killed before its first word
@@ -104,7 +160,7 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
         journal = Journal.create(part, canonical=scene.canonical(), text=scene.text, chunk_target=target,
                                  n_chunks=len(chunks), attrs=provenance(scene, chunks))
     done = journal.done_chunks()
-    todo = [c for c in chunks if not done[c.index]]
+    todo = [chunks[int(i)] for i in np.flatnonzero(~done)]  # at most grid.MAX_CHUNKS
     with _threads(None if scheduler else threads):
         where = (f"dask scheduler {scheduler}, {threads or 'all'} numba threads per worker" if scheduler
                  else f"local, {numba.get_num_threads()} threads")
@@ -117,17 +173,19 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
         attrs = {**journal.meta["attrs"], "execution": where}
         if not scheduler:
             attrs["threads"] = numba.get_num_threads()
-    _finish(journal, scene, chunks, final, attrs)
+    return _finish(journal, scene, chunks, final, attrs)
 
 
-def _finish(journal: Journal, scene: Scene, chunks: list[Chunk], final: Path, attrs: dict) -> None:
-    """Assemble the dataset next to the journal, move it into place by one rename, drop the journal."""
+def _finish(journal: Journal, scene: Scene, chunks: ChunkPlan, final: Path, attrs: dict) -> dict[int, int]:
+    """Assemble the dataset next to the journal, move it into place by one rename, drop the journal.
+    Returns the points per status code."""
     tmp = journal.folder / "assembly.h5"
-    assemble(journal, scene, layout(scene, len(chunks)), chunks, tmp, attrs)
+    counts = assemble(journal, scene, layout(scene, len(chunks)), chunks, tmp, attrs)
     with open(tmp, "rb+") as f:
         os.fsync(f.fileno())
     os.replace(tmp, final)
     drop(final)
+    return counts
 
 
 def check_target(final: Path) -> None:
@@ -347,7 +405,7 @@ def _threads(n: int | None):
         numba.set_num_threads(before)
 
 
-def provenance(scene: Scene, chunks: list[Chunk]) -> dict:
+def provenance(scene: Scene, chunks: ChunkPlan) -> dict:
     attrs = {
         "title": scene.name,
         "model": scene.model.name,
@@ -361,7 +419,7 @@ def provenance(scene: Scene, chunks: list[Chunk]) -> dict:
         "numpy_version": np.__version__,
         "xarray_version": xr.__version__,
         "python_version": platform.python_version(),
-        "chunk_size": max(c.size for c in chunks),
+        "chunk_size": chunks.max_size,
         "wall_time_s": 0.0,
         "Conventions": "CF-1.10",
     }

@@ -24,7 +24,10 @@ from .models import MODELS, ModelSpec
 
 SECTIONS = ("scene", "axes", "fixed", "solver", "storage", "execution")
 MAX_POINTS = 2**40  # beyond this a flat int64 index and any disk are hopeless
-MAX_AXIS_POINTS = 10**8
+# Values per axis. The grid itself is never expanded (a chunk is computed from the axes' ranges),
+# but a reader of the dataset (xarray) loads each axis's coordinate in full when it opens it:
+# 8 bytes per value, 80 MB at this limit. Grids beyond it are built from more axes.
+MAX_AXIS_POINTS = 10**7
 MAX_KEY_DEPTH = 32  # dotted keys a.b.c...: tomllib's time grows with the square of the depth
 _DEEP_KEY = re.compile(r"(?<![A-Za-z0-9_-])(?:(?:[A-Za-z0-9_-]++|\"[^\"\n]*+\"|'[^'\n]*+')[ \t]*+\.[ \t]*+)"
                        + "{" + str(MAX_KEY_DEPTH) + ",}")
@@ -42,13 +45,90 @@ class SceneError(InputError):
 
 @dataclass(frozen=True)
 class Axis:
+    """One axis of the grid.
+
+    A range axis is kept as the user wrote it, ``(start, stop, num, spacing)``, and never expanded
+    here: ``array(lo, hi)`` computes any stretch of its values on demand, so a scene, its
+    canonical form and the chunk plan stay small whatever ``num`` is. Its values are those of
+    ``numpy.linspace(start, stop, num)`` (``spacing = "linear"``) or ``numpy.geomspace`` (``"log"``),
+    bit for bit, with both ends exactly as written. A list axis keeps its values as written.
+    """
+
     name: str
-    values: tuple  # floats, or strings for a categorical parameter
     spacing: str  # "linear", "log" or "list"
+    start: float | None = None  # range axes
+    stop: float | None = None
+    num: int = 0
+    items: tuple = ()  # list axes: floats, or strings for a categorical parameter
+
+    @classmethod
+    def of_list(cls, name: str, values) -> "Axis":
+        return cls(name, "list", items=tuple(values))
+
+    @classmethod
+    def of_range(cls, name: str, start: float, stop: float, num: int, spacing: str = "linear") -> "Axis":
+        return cls(name, spacing, start=float(start), stop=float(stop), num=int(num))
 
     @property
     def size(self) -> int:
-        return len(self.values)
+        return len(self.items) if self.spacing == "list" else self.num
+
+    @property
+    def ends(self) -> tuple:
+        """First and last value (of a range: its extremes, a range being monotone)."""
+        return (self.items[0], self.items[-1]) if self.spacing == "list" else (self.start, self.stop)
+
+    def array(self, lo: int = 0, hi: int | None = None) -> np.ndarray:
+        """Values ``lo`` to ``hi - 1`` (float64; a categorical list gives its strings as objects).
+        Memory is that of the stretch asked for, not of the axis."""
+        n = self.size
+        hi = n if hi is None else hi
+        lo, hi = max(0, min(lo, n)), max(0, min(hi, n))
+        if self.spacing == "list":
+            part = self.items[lo:hi]
+            return np.array(part, dtype=object if part and isinstance(part[0], str) else float)
+        return _range_values(self.start, self.stop, self.num, self.spacing, lo, hi)
+
+    @property
+    def values(self) -> np.ndarray:
+        """All values at once: 8 bytes per value. The engine itself uses ``array(lo, hi)``."""
+        return self.array()
+
+    def spec(self):
+        """JSON form: a list axis as its list, a range axis as its four numbers."""
+        if self.spacing == "list":
+            return list(self.items)
+        return {"start": self.start, "stop": self.stop, "num": self.num, "spacing": self.spacing}
+
+
+def _range_values(start: float, stop: float, num: int, spacing: str, lo: int, hi: int) -> np.ndarray:
+    """Values lo..hi-1 of numpy.linspace(start, stop, num) or numpy.geomspace(start, stop, num),
+    computed as numpy does (value i = i * step + start, the last one = stop; log: 10 ** that in
+    log10), without making the others."""
+    div = num - 1
+    if spacing == "log":
+        a, b = float(np.log10(start)), float(np.log10(stop))
+    else:
+        a, b = start, stop
+    i = np.arange(lo, hi, dtype=np.float64)
+    with np.errstate(over="ignore", invalid="ignore"):
+        delta = np.float64(b) - np.float64(a)
+        if div > 0:
+            step = delta / div
+            if step == 0:  # numpy's path for subnormal steps
+                y = (i / div) * delta
+            else:
+                y = i * step
+        else:
+            y = i * delta
+        y += a
+        if spacing == "log":
+            y = np.power(10.0, y)
+    if lo == 0 and hi > 0 and spacing == "log":
+        y[0] = start
+    if num > 1 and hi == num and hi > lo:
+        y[-1] = stop
+    return y
 
 
 @dataclass(frozen=True)
@@ -118,17 +198,51 @@ class Scene:
         return self.model.closure(self.outputs)
 
     def canonical(self) -> str:
-        """A normalised JSON form: two scenes that compute the same dataset compare equal."""
-        return json.dumps(
-            {
-                "model": self.model.name,
-                "outputs": list(self.outputs),
-                "axes": [[a.name, list(a.values)] for a in self.axes],
-                "fixed": {k: self.fixed[k] for k in sorted(self.fixed)},
-                "solver": None if self.solver is None else self.solver.as_dict(),
-            },
-            sort_keys=True,
-        )
+        """A normalised JSON form: two scenes that compute the same dataset compare equal.
+
+        A range axis appears as its (start, stop, num, spacing), never expanded, so the form
+        stays a few kB for any grid; a list axis as its list."""
+        return json.dumps(self._canonical_dict(), sort_keys=True)
+
+    def _canonical_dict(self) -> dict:
+        return {
+            "model": self.model.name,
+            "outputs": list(self.outputs),
+            "axes": [[a.name, a.spec()] for a in self.axes],
+            "fixed": {k: self.fixed[k] for k in sorted(self.fixed)},
+            "solver": None if self.solver is None else self.solver.as_dict(),
+        }
+
+    def same_as(self, stored: str) -> bool:
+        """Whether the canonical form ``stored`` (of a journal or a dataset) describes this scene.
+        Also accepts the form of mechsweep versions before 2026-11-23, in which range axes were
+        written out value by value (compared here axis by axis, as floats, bit for bit)."""
+        if stored == self.canonical():
+            return True
+        if not isinstance(stored, str) or not stored.startswith("{"):
+            return False
+        try:
+            old = json.loads(stored)
+        except ValueError:
+            return False
+        new = self._canonical_dict()
+        if not isinstance(old, dict) or set(old) != set(new) or not isinstance(old.get("axes"), list):
+            return False
+        if any(json.dumps(old[k], sort_keys=True) != json.dumps(new[k], sort_keys=True) for k in new if k != "axes"):
+            return False
+        if len(old["axes"]) != len(self.axes):
+            return False
+        for item, axis in zip(old["axes"], self.axes):
+            if not (isinstance(item, list) and len(item) == 2 and item[0] == axis.name and isinstance(item[1], list)):
+                return False
+            if axis.spacing == "list":
+                if item[1] != list(axis.items):
+                    return False
+            elif len(item[1]) != axis.size or not all(isinstance(v, (int, float)) for v in item[1]):
+                return False
+            elif not np.array_equal(np.array(item[1], dtype=float), axis.array()):
+                return False
+        return True
 
 
 # ----------------------------------------------------------------------------- loading
@@ -201,7 +315,8 @@ def validate(data: Mapping, *, text: str, label: str = "scene") -> Scene:
             p.add(f"fixed.{prm.name}", f"missing; {model.name} needs {prm.name} "
                   f"({prm.long_name}, {prm.allowed()}) as an axis or a fixed value")
     if model.check is not None and not p.items:
-        values = {a.name: a.values for a in axes} | {k: (v,) for k, v in fixed.items()}
+        # list axes give their values; a range axis its two ends (a range is monotone: its extremes)
+        values = {a.name: a.items if a.spacing == "list" else a.ends for a in axes} | {k: (v,) for k, v in fixed.items()}
         p.items.extend(model.check(values))
     for out in outputs:
         missing = [q for q in model.output(out).needs_params if q not in given]
@@ -215,6 +330,8 @@ def validate(data: Mapping, *, text: str, label: str = "scene") -> Scene:
         n = math.prod(a.size for a in axes)
         if n > MAX_POINTS:
             p.add("axes", f"the grid has {n:.3g} points; at most {MAX_POINTS:.3g} are allowed")
+        elif storage.chunk_size is not None:
+            _check_chunk_count(tuple(a.size for a in axes), storage.chunk_size, p)
     if p.items:
         raise SceneError(p.items, label)
     return Scene(
@@ -363,7 +480,7 @@ def _list_axis(key, name, values, prm, p) -> Axis | None:
         p.add(key, "values repeat; each grid value must be distinct")
         return None
     vals = tuple(values) if prm.categorical else tuple(float(v) for v in values)
-    return Axis(name, vals, "list")
+    return Axis.of_list(name, vals)
 
 
 def _range_axis(key, name, spec, prm, p) -> Axis | None:
@@ -398,23 +515,45 @@ def _range_axis(key, name, spec, prm, p) -> Axis | None:
     if num > 1 and start == stop:
         p.add(key, f"start = stop = {start:g} with num = {num}: the values would repeat")
         return None
-    if spacing == "log":
-        if start <= 0 or stop <= 0:
-            p.add(key, f"log spacing needs start > 0 and stop > 0, got start = {start:g}, stop = {stop:g}")
-            return None
-        values = np.geomspace(start, stop, num)
-        values[0], values[-1] = start, stop  # exact ends, as the user wrote them
-    else:
-        with np.errstate(over="ignore", invalid="ignore"):
-            values = np.linspace(start, stop, num)
-    if not np.isfinite(values).all():
+    if spacing == "log" and (start <= 0 or stop <= 0):
+        p.add(key, f"log spacing needs start > 0 and stop > 0, got start = {start:g}, stop = {stop:g}")
+        return None
+    axis = Axis.of_range(name, start, stop, num, spacing)
+    ends = (math.log10(start), math.log10(stop)) if spacing == "log" else (start, stop)
+    if not all(math.isfinite(v) for v in (start, stop) + ends) or not math.isfinite(ends[1] - ends[0]):
         p.add(key, f"start = {start:g}, stop = {stop:g}: the span overflows a float; narrow the range")
         return None
-    if num > 1 and not (np.diff(values) != 0).all():
+    if num > 1 and _repeats(axis):
         p.add(key, f"start = {start!r}, stop = {stop!r} with num = {num}: the values repeat at float precision; "
               "widen the range or lower num")
         return None
-    return Axis(name, tuple(float(v) for v in values), spacing)
+    return axis
+
+
+_BLOCK = 2**20  # values per block when an axis is scanned
+
+
+def _repeats(axis: Axis) -> bool:
+    """Whether two neighbouring values of a range axis are equal at float precision. Decided from
+    the step when it is far above the rounding of the values (always, for sensible grids); else by
+    scanning the values block by block (memory of one block, whatever num is)."""
+    a, b = (float(np.log10(axis.start)), float(np.log10(axis.stop))) if axis.spacing == "log" else (axis.start, axis.stop)
+    step = abs(b - a) / (axis.num - 1)
+    # each value i * step + a is within 2 ulp of max(|a|, |b|) of exact (product, sum); 10 ** y adds
+    # 1 ulp relative and turns an error e in y into a relative error e ln 10
+    rounding = 4 * math.ulp(max(abs(a), abs(b)))
+    if axis.spacing == "log":
+        if step * math.log(10) > 8 * (rounding * math.log(10) + 4 * sys.float_info.epsilon):
+            return False
+    elif step > 2 * rounding:
+        return False
+    last = None
+    for lo in range(0, axis.num, _BLOCK):
+        v = axis.array(lo, min(axis.num, lo + _BLOCK))
+        if (last is not None and v[0] == last) or (v.size > 1 and not (np.diff(v) != 0).all()):
+            return True
+        last = v[-1]
+    return False
 
 
 def _fixed(table: Mapping, model: ModelSpec, axis_names: set, p: _Problems) -> dict:
@@ -486,6 +625,16 @@ def _storage(table: Mapping, name: str, p: _Problems) -> Storage:
         p.add("storage.chunk_size", f"{_short(chunk)} is not allowed; expected a whole number in [1, 2147483648]")
         chunk = None
     return Storage(path=path, chunk_size=chunk)
+
+
+def _check_chunk_count(shape: tuple[int, ...], chunk_size: int, p: _Problems) -> None:
+    from .grid import MAX_CHUNKS, ChunkPlan, least_target
+
+    n = len(ChunkPlan(shape, chunk_size))
+    if n > MAX_CHUNKS:
+        p.add("storage.chunk_size", f"{chunk_size:,} points per chunk cut the grid of {math.prod(shape):,} points "
+              f"({' x '.join(map(str, shape))}) into {n:,} chunks; at most {MAX_CHUNKS:,} are allowed (each is "
+              f"a file written and synced): give chunk_size >= {least_target(shape):,}, or leave it out")
 
 
 SCHEDULER_FORMS = "an address such as 'tcp://10.0.0.5:8786' or 'localhost:8786'"

@@ -55,26 +55,66 @@ def layout(scene: Scene, n_chunks: int) -> Layout:
     )
 
 
-def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, attrs: dict) -> None:
+def assemble(journal: Journal, scene: Scene, lay: Layout, chunks, target, attrs: dict) -> dict[int, int]:
     """Write the dataset of a journal to ``target`` (a path or a file object): every variable
     defined, each journaled chunk written into its region, one chunk in memory at a time.
     Chunks not in the journal keep the fill values (NaN, status PENDING). The attribute
-    ``wall_time_s`` is the sum of the journaled chunks' wall times."""
+    ``wall_time_s`` is the sum of the journaled chunks' wall times. Returns the number of
+    points per status code, counted as the chunks pass (PENDING for chunks not in the journal)."""
     with h5netcdf.File(target, "w") as f:
         _define(f, scene, lay, attrs)
     with h5py.File(target, "a") as f:
         names = list(lay.outputs) + ["status"] + (["n_steps", "n_rhs"] if lay.integrated else [])
         variables = {name: f[name] for name in names}
         wall_time = 0.0
-        for i in np.flatnonzero(journal.done_chunks()):
+        counts = Counts()
+        done = journal.done_chunks()
+        for i in np.flatnonzero(done):
             chunk = chunks[int(i)]
             arrays, seconds = journal.read_chunk(int(i))
             wall_time += seconds
+            counts.add(arrays["status"])
             shape = _region_shape(chunk.region, lay.shape)
             for name, var in variables.items():
                 values = arrays[name]
                 var[chunk.region + (slice(None),) * (values.ndim - 1)] = values.reshape(shape + values.shape[1:])
         f.attrs["wall_time_s"] = wall_time
+    missing = int(np.prod(lay.shape, dtype=np.int64)) - counts.total
+    if missing:
+        counts.codes[st.PENDING] = counts.codes.get(st.PENDING, 0) + missing
+    return dict(sorted(counts.codes.items()))
+
+
+class Counts:
+    """Points per status code, added up array by array."""
+
+    def __init__(self):
+        self.codes: dict[int, int] = {}
+        self.total = 0
+
+    def add(self, status: np.ndarray) -> None:
+        codes, n = np.unique(np.asarray(status), return_counts=True)
+        for c, k in zip(codes.tolist(), n.tolist()):
+            self.codes[c] = self.codes.get(c, 0) + k
+        self.total += int(np.asarray(status).size)
+
+
+def status_counts(path: str | Path) -> dict[int, int]:
+    """Points per status code of a stored dataset, read block by block (memory of one block,
+    whatever the grid)."""
+    counts = Counts()
+    with h5py.File(path, "r") as f:
+        var = f["status"]
+        if var.ndim == 0:
+            counts.add(var[()])
+        else:
+            rows = max(1, READ_BLOCK // max(1, int(np.prod(var.shape[1:], dtype=np.int64))))
+            for lo in range(0, var.shape[0], rows):
+                counts.add(var[lo:lo + rows])
+    return dict(sorted(counts.codes.items()))
+
+
+READ_BLOCK = 2**22  # values per block when a variable is read or written in pieces
 
 
 def _scalar(value) -> float:
@@ -93,10 +133,12 @@ def _define(f: h5netcdf.File, scene: Scene, lay: Layout, attrs: dict) -> None:
         prm = model.param(axis.name)
         if prm.categorical:
             v = f.create_variable(axis.name, (axis.name,), dtype=h5py.string_dtype())
-            v[:] = np.array(axis.values, dtype=object)
-        else:
+            v[:] = axis.array()
+        else:  # written block by block: a range axis is never expanded at once
             v = f.create_variable(axis.name, (axis.name,), dtype="f8")
-            v[:] = np.array(axis.values)
+            for lo in range(0, axis.size, READ_BLOCK):
+                hi = min(axis.size, lo + READ_BLOCK)
+                v[lo:hi] = axis.array(lo, hi)
         _describe(v, prm.unit, prm.long_name, prm.symbol)
         v.attrs["spacing"] = axis.spacing
     for name, value in scene.fixed.items():

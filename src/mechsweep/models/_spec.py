@@ -125,7 +125,9 @@ class ModelSpec:
     int8 (n,) prefilled OK, ``n_steps``/``n_rhs`` int64 (n,) to add counts to.
 
     ``check(given)`` (optional) receives {parameter: tuple of the values the scene
-    gives it} and returns problems of cross-parameter rules as "key: message".
+    gives it} and returns problems of cross-parameter rules as "key: message". A range axis
+    gives only its two ends (a range is monotone: they are its extremes), so that a check
+    never expands a grid.
     ``methods``: the values of ``solver.method`` this model's integrated outputs support.
     """
 

@@ -937,7 +937,7 @@ def check(given):
 
 def _show(values):
     values = tuple(values)
-    return f"{values[0]:g}" if len(values) == 1 else f"[{values[0]:g} ... {values[-1]:g}] ({len(values)} values)"
+    return f"{values[0]:g}" if len(values) == 1 else f"[{values[0]:g} ... {values[-1]:g}]"
 
 
 # ----------------------------------------------------------------------------- declarations
