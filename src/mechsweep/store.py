@@ -114,7 +114,7 @@ def status_counts(path: str | Path) -> dict[int, int]:
     return dict(sorted(counts.codes.items()))
 
 
-READ_BLOCK = 2**22  # values per block when a variable is read or written in pieces
+READ_BLOCK = 2**18  # values per block when a variable is read or written in pieces (2 MiB of float64)
 
 
 def _scalar(value) -> float:

@@ -1,18 +1,26 @@
 """`mechsweep bench memory`: peak resident memory of a run against the size of its dataset.
 
-Each case runs `mechsweep.run` in a fresh process (JIT cache loaded, not compiled: a warm-up
-process runs first) and reports that process's peak resident set size (``ru_maxrss``, which
-includes the interpreter, numba, numpy, xarray and h5py themselves) next to the dataset's size
-on disk. The criterion of issue 6 is peak RSS <= dataset size + 300 MiB; the stronger property
-shown is that the peak does not grow with the grid (memory is bounded by the chunk size).
+Each case runs in a fresh process (JIT cache loaded, not compiled: a warm-up process runs first)
+and reports that process's peak resident set size (``ru_maxrss``, which includes the interpreter,
+numba, numpy, xarray and h5py themselves) next to the dataset's size on disk. Two paths:
+
+- ``run``: ``mechsweep.run(scene, load=False)`` in the process (it opens the result lazily, which
+  reads the axes' coordinates: 8 bytes per axis value);
+- ``command``: the command ``mechsweep run SCENE -o PATH`` (``python -m mechsweep.cli``), started
+  from a wrapper process that reads the command's peak with ``getrusage(RUSAGE_CHILDREN)`` (its
+  only child). The command prints the status counts without opening the dataset.
+
+The criterion of issue 6 is peak RSS <= dataset size + 300 MiB; the stronger property shown is
+that the peak does not grow with the grid, whatever its shape (one long axis, several short ones):
+the column "over 10^3" is the peak minus that of the same path on a 1,000-point grid.
 
 Cases: Duffing closed-form periods (algebraic, ``period_exact``) and integrated periods
-(``period``, DOP853) over grids of growing size. The returned dataset is not loaded (``load=False``):
-what is measured is the run.
+(``period``, DOP853), grids given by their shape (axes A, mu, omega in that order of use).
 """
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 import tempfile
@@ -23,34 +31,91 @@ from pathlib import Path
 MiB = 2**20
 ALLOWANCE = 300 * MiB
 
-CHILD = textwrap.dedent("""
+RUN_CHILD = textwrap.dedent("""
     import json, resource, sys, time
     import mechsweep
-    from mechsweep.bench.duffing import grid_scene
-    points, output, path = int(sys.argv[1]), sys.argv[2], sys.argv[3]
-    scene = grid_scene(points, 5e-11, 1e-12, outputs=(output,))
+    from mechsweep.bench.memory import scene
+    shape, output, path = json.loads(sys.argv[1]), sys.argv[2], sys.argv[3]
     t0 = time.perf_counter()
-    ds = mechsweep.run(scene, output=path, progress=False, load=False)
+    ds = mechsweep.run(scene(shape, output), output=path, progress=False, load=False)
     seconds = time.perf_counter() - t0
-    shape = dict(ds.sizes)
     ds.close()
     print(json.dumps({"peak_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
-                      "seconds": seconds, "shape": shape}))
+                      "seconds": seconds}))
 """)
 
-FULL = (("period_exact", (10**6, 10**7, 10**8)), ("period", (10**5, 10**6, 10**7)))
-QUICK = (("period_exact", (10**5, 10**6)), ("period", (10**4, 10**5)))
-
-
-def _case(output: str, points: int, folder: Path) -> dict:
-    path = folder / f"{output}_{points}.h5"
+# The wrapper's only child is the command, so RUSAGE_CHILDREN is the command's own peak.
+COMMAND_WRAPPER = textwrap.dedent("""
+    import json, resource, subprocess, sys, time
     t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-c", CHILD, str(points), output, str(path)],
-                          capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise RuntimeError(f"memory case {output} x {points} failed:\n{proc.stderr[-2000:]}")
-    result = json.loads(proc.stdout.strip().splitlines()[-1])
-    result.update(output=output, points=points, disk=path.stat().st_size,
+    proc = subprocess.run(sys.argv[1:], capture_output=True, text=True)
+    print(json.dumps({"peak_rss": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024,
+                      "seconds": time.perf_counter() - t0, "returncode": proc.returncode,
+                      "stdout": proc.stdout[-1000:], "stderr": proc.stderr[-2000:]}))
+""")
+
+# (path, output, shape)
+FULL = (
+    ("run", "period_exact", (10**3,)),
+    ("run", "period_exact", (10**3, 10**3)),
+    ("run", "period_exact", (10**4, 10**3)),
+    ("run", "period_exact", (10**7,)),
+    ("run", "period_exact", (100, 10**3, 100)),
+    ("run", "period_exact", (10**4, 10**4)),
+    ("run", "period", (10**3,)),
+    ("run", "period", (10**3, 10**3)),
+    ("run", "period", (10**4, 10**3)),
+    ("command", "period_exact", (10**3,)),
+    ("command", "period_exact", (10**4, 10**3)),
+    ("command", "period_exact", (10**7,)),
+)
+QUICK = (
+    ("run", "period_exact", (10**3,)),
+    ("run", "period_exact", (10**3, 10**2)),
+    ("run", "period_exact", (10**5,)),
+    ("run", "period", (10**3,)),
+    ("run", "period", (10**2, 10**2)),
+    ("command", "period_exact", (10**3,)),
+    ("command", "period_exact", (10**3, 10**2)),
+    ("command", "period_exact", (10**5,)),
+)
+
+
+def scene(shape, output: str) -> dict:
+    """A Duffing scene whose grid has ``shape``: axes A (linear), mu (log), omega (linear), in
+    that order, as many as ``shape`` has entries (one axis: mu alone)."""
+    shape = tuple(int(n) for n in shape)
+    ranges = {"A": {"start": 0.01, "stop": 1.0}, "mu": {"start": 1e-3, "stop": 1e3, "spacing": "log"},
+              "omega": {"start": 0.5, "stop": 2.0}}
+    names = ("mu",) if len(shape) == 1 else ("A", "mu", "omega")[: len(shape)]
+    axes = {name: {**ranges[name], "num": n} for name, n in zip(names, shape)}
+    fixed = {k: v for k, v in {"A": 0.5, "omega": 1.0}.items() if k not in axes}
+    return {
+        "scene": {"name": "bench-memory", "model": "duffing", "outputs": [output]},
+        "axes": axes,
+        "fixed": fixed,
+        "solver": {"method": "dop853", "rtol": 5e-11, "atol": 1e-12},
+    }
+
+
+def _case(how: str, output: str, shape: tuple, folder: Path) -> dict:
+    name = f"{how}_{output}_{'x'.join(map(str, shape))}"
+    path = folder / f"{name}.h5"
+    t0 = time.perf_counter()
+    if how == "run":
+        argv = [sys.executable, "-c", RUN_CHILD, json.dumps(list(shape)), output, str(path)]
+    else:
+        from ..scene import to_toml
+
+        toml = folder / f"{name}.toml"
+        toml.write_text(to_toml(scene(shape, output)))
+        argv = [sys.executable, "-c", COMMAND_WRAPPER, sys.executable, "-m", "mechsweep.cli", "run", str(toml),
+                "-o", str(path), "--no-progress"]
+    proc = subprocess.run(argv, capture_output=True, text=True)
+    result = json.loads(proc.stdout.strip().splitlines()[-1]) if proc.returncode == 0 and proc.stdout.strip() else {}
+    if proc.returncode != 0 or result.get("returncode", 0) != 0:
+        raise RuntimeError(f"memory case {name} failed:\n{(proc.stderr or result.get('stderr', ''))[-2000:]}")
+    result.update(how=how, output=output, shape=shape, points=math.prod(shape), disk=path.stat().st_size,
                   process_s=time.perf_counter() - t0)
     path.unlink()
     return result
@@ -59,20 +124,30 @@ def _case(output: str, points: int, folder: Path) -> dict:
 def main(quick: bool = False, folder: str | None = None) -> list[dict]:
     cases = QUICK if quick else FULL
     rows = []
+    base = {}
     with tempfile.TemporaryDirectory(dir=folder) as tmp:
         tmp = Path(tmp)
-        _case("period", 1000, tmp)  # warm-up: compile or load the kernels once
-        print(f"mechsweep bench memory: peak resident memory of `mechsweep.run` in a fresh process "
-              f"(interpreter and libraries included) against the dataset on disk; criterion: peak <= disk + "
-              f"{ALLOWANCE // MiB} MiB")
-        print(f"  {'output':<13} {'points':>12} {'run s':>8} {'disk MiB':>10} {'peak RSS MiB':>13} "
-              f"{'RSS - disk MiB':>15}  criterion")
-        for output, sizes in cases:
-            for points in sizes:
-                r = _case(output, points, tmp)
-                r["ok"] = r["peak_rss"] <= r["disk"] + ALLOWANCE
-                rows.append(r)
-                print(f"  {output:<13} {points:>12,} {r['seconds']:8.1f} {r['disk'] / MiB:10.1f} "
-                      f"{r['peak_rss'] / MiB:13.1f} {(r['peak_rss'] - r['disk']) / MiB:15.1f}  "
-                      f"{'met' if r['ok'] else 'NOT met'}", flush=True)
+        _case("run", "period", (1000,), tmp)  # warm-up: compile or load the kernels once
+        _case("run", "period_exact", (1000,), tmp)
+        print(f"mechsweep bench memory: peak resident memory of a run in a fresh process (interpreter and "
+              f"libraries included) against the dataset on disk; criterion: peak <= disk + "
+              f"{ALLOWANCE // MiB} MiB; 'over 10^3': peak minus that of the same path at 1,000 points")
+        print(f"  {'path':<8} {'output':<13} {'grid':>15} {'points':>12} {'run s':>7} {'disk MiB':>9} "
+              f"{'peak RSS MiB':>13} {'over 10^3':>10}  criterion")
+        for how, output, shape in cases:
+            r = _case(how, output, shape, tmp)
+            if r["points"] == 1000:
+                base.setdefault((how, output), r["peak_rss"])
+            r["over_base"] = r["peak_rss"] - base.get((how, output), r["peak_rss"])
+            r["ok"] = r["peak_rss"] <= r["disk"] + ALLOWANCE
+            rows.append(r)
+            grid = " x ".join(_power(n) for n in shape)
+            print(f"  {how:<8} {output:<13} {grid:>15} {r['points']:>12,} {r['seconds']:7.1f} "
+                  f"{r['disk'] / MiB:9.1f} {r['peak_rss'] / MiB:13.1f} {r['over_base'] / MiB:10.1f}  "
+                  f"{'met' if r['ok'] else 'NOT met'}", flush=True)
     return rows
+
+
+def _power(n: int) -> str:
+    k = round(math.log10(n)) if n > 0 else 0
+    return f"10^{k}" if 10**k == n and k > 1 else str(n)
