@@ -108,7 +108,10 @@ def test_values_repeating_at_float_precision_are_found_without_expanding(monkeyp
     with pytest.raises(SceneError, match="repeat at float precision"):
         load_scene(duffing({"mu": {"start": 1.0, "stop": 1.0 + 2e-12, "num": 50_000}}))
     assert spans and max(spans) <= 1000
-    load_scene(duffing(LONG))  # a sensible range is decided from its step alone
+    spans.clear()
+    load_scene(duffing(LONG))
+    load_scene(duffing({"mu": {"start": -1.0, "stop": 1.0, "num": 10**7}}))
+    assert not spans  # a sensible range is decided from its step alone
 
 
 @pytest.mark.parametrize("axes, fixed", [(LONG, None), (MANY, {})])
