@@ -166,7 +166,8 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--workers", type=int, default=None, help="up to this many worker processes (default: cores)")
     b.add_argument("--chunk", type=int, default=8192, help="points per chunk, i.e. per task (default 8192)")
     b.set_defaults(func=_cmd_bench_cluster)
-    b = bsub.add_parser("memory", help="peak resident memory of runs up to 10^8 points against their dataset size")
+    b = bsub.add_parser("memory", help="peak resident memory of runs up to 10^8 points (one long axis, several short ones; "
+                        "mechsweep.run and the `mechsweep run` command) against their dataset size")
     b.add_argument("--quick", action="store_true", help="small grids only (10^4 ... 10^6 points)")
     b.add_argument("--dir", default=None, help="folder for the temporary datasets (default: the system's temp)")
     b.set_defaults(func=_cmd_bench_memory)
