@@ -5,7 +5,7 @@ and reports that process's peak resident set size (``ru_maxrss``, which includes
 numba, numpy, xarray and h5py themselves) next to the dataset's size on disk. Two paths:
 
 - ``run``: ``mechsweep.run(scene, load=False)`` in the process (it opens the result lazily, which
-  reads the axes' coordinates: 8 bytes per axis value);
+  reads the axes' coordinates: 8 bytes per axis value, about twice that with xarray's index);
 - ``command``: the command ``mechsweep run SCENE -o PATH`` (``python -m mechsweep.cli``), started
   from a wrapper process that reads the command's peak with ``getrusage(RUSAGE_CHILDREN)`` (its
   only child). The command prints the status counts without opening the dataset.
