@@ -62,7 +62,8 @@ def run(
     ``progress`` shows a progress bar (default: only on a terminal). ``scheduler`` (or the scene's
     ``[execution] scheduler``) runs the chunks on that dask.distributed cluster instead of here.
     ``load``: the returned dataset is in memory (True), opened lazily (False), or loaded when it
-    is at most store.LOAD_LIMIT_BYTES (None, default).
+    is at most store.LOAD_LIMIT_BYTES (None, default). ``compute`` does the same without opening
+    the result (for status counts and sizes only).
     """
     lazy = None if load is None else not load
     summary = compute(scene_or_path, output=output, resume=resume, restart=restart, threads=threads,

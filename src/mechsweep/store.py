@@ -68,8 +68,7 @@ def assemble(journal: Journal, scene: Scene, lay: Layout, chunks, target, attrs:
         variables = {name: f[name] for name in names}
         wall_time = 0.0
         counts = Counts()
-        done = journal.done_chunks()
-        for i in np.flatnonzero(done):
+        for i in np.flatnonzero(journal.done_chunks()):
             chunk = chunks[int(i)]
             arrays, seconds = journal.read_chunk(int(i))
             wall_time += seconds
