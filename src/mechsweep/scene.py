@@ -436,7 +436,7 @@ def _outputs(value, model: ModelSpec, p: _Problems) -> tuple[str, ...]:
 
 def _axes(table: Mapping, model: ModelSpec, p: _Problems) -> list[Axis]:
     axes = []
-    # refuse a hopeless grid before building its axes (10^8 values take seconds and gigabytes)
+    # refuse a hopeless grid before validating its axes one by one, naming every axis size
     sizes = [spec.get("num") if isinstance(spec, Mapping) else len(spec) if isinstance(spec, list) else 1
              for spec in table.values()]
     n = math.prod(k if isinstance(k, int) and not isinstance(k, bool) and k >= 1 else 1 for k in sizes)
