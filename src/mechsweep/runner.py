@@ -161,7 +161,7 @@ def _out_of_space(exc: WriteFailed, scene: Scene, final: Path, n_chunks: int) ->
 
 
 def _mib(n: float) -> str:
-    return f"{n / 2**20:.1f} MiB"
+    return f"{n / 2**20:.3g} MiB"
 
 
 def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, target: int, n_chunks: int) -> bool:
