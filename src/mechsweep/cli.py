@@ -34,6 +34,9 @@ The grid is cut into chunks; each finished chunk is saved at once to the journal
 assembled and renamed to PATH, so an existing PATH is never left half overwritten. If the run is
 interrupted (Ctrl-C, kill, power cut), `--resume` computes only the missing chunks; the result is
 identical to an uninterrupted run. A second run on the same PATH is refused while one is writing.
+SIGTERM stops a run like Ctrl-C (exit 143). A failed write (disk full, ulimit -f, quota, I/O error)
+ends it with a message and exit 2, the journal kept for --resume; a damaged chunk file in the
+journal is removed and computed again.
 
 With --scheduler (or [execution] scheduler in the scene) the chunks run as tasks on a
 dask.distributed cluster (pip install "mechsweep[distributed]"); this process still writes the

@@ -27,6 +27,7 @@ from .errors import ClusterLost, InputError
 IN_FLIGHT_PER_THREAD = 2
 CONNECT_TIMEOUT_S = 20
 HEALTH_CHECK_S = 1.0  # how often the client asks the scheduler for its workers while it waits
+RESULT_WAIT_S = 5.0  # at least this long for one attempt to fetch a finished chunk
 
 
 def dask_results(scene, todo, scheduler: str, threads: int | None = None, *, worker_timeout: float = 120.0):
@@ -121,10 +122,11 @@ def _next_done(futures, health: "_Health"):
 
 def _result(fut, health: "_Health"):
     """A finished future's result. Fetching it from a worker that died meanwhile waits for the
-    chunk to be computed again, so ``health`` is checked while it waits."""
+    chunk to be computed again, so ``health`` is checked between attempts (each long enough for a
+    large chunk to arrive: a timed-out attempt starts the transfer over)."""
     while True:
         try:
-            return fut.result(timeout=HEALTH_CHECK_S)
+            return fut.result(timeout=max(RESULT_WAIT_S, health.timeout / 2))
         except TimeoutError:
             if fut.status == "error":  # the task itself raised it
                 raise

@@ -74,7 +74,10 @@ class RunLock:
 
     def acquire(self) -> "RunLock":
         while True:
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as exc:  # e.g. no inode left on a full disk
+                raise WriteFailed(self.path, exc) from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError as exc:
@@ -341,7 +344,11 @@ def drop(output: Path) -> None:
     folder, trash = partial_path(output), discard_path(output)
     shutil.rmtree(trash, ignore_errors=True)
     if folder.is_dir():
-        os.replace(folder, trash)
+        try:
+            os.replace(folder, trash)
+        except OSError:  # the rename failed (a full disk can refuse it): remove it in place
+            shutil.rmtree(folder, ignore_errors=True)
+            return
         shutil.rmtree(trash, ignore_errors=True)
     elif folder.exists():  # an older version's one-file partial
         folder.unlink()
