@@ -234,7 +234,7 @@ def small_disk(tmp_path):
         subprocess.run(["umount", "-l", str(mount)], capture_output=True)
 
 
-@pytest.mark.parametrize("when", ["chunk", "assembly"])
+@pytest.mark.parametrize("when", [pytest.param("chunk", marks=pytest.mark.slow), "assembly"])
 def test_a_really_full_disk_keeps_the_journal_and_resumes_identically(small_disk, reference, when):
     """A real ENOSPC from the kernel: the disk is filled after two chunks, or just before the
     assembly leaving less room than the dataset needs (more than its float outputs)."""
