@@ -196,3 +196,38 @@ def test_a_lost_cluster_ends_with_a_message_and_the_run_resumes_identically(in_t
     monkeypatch.undo()
     ds = mechsweep.run(SCENE, output="data/runs/dist.h5", progress=False, resume=True, threads=2)
     assert_identical(ds, reference)
+
+
+@pytest.mark.slow
+def test_a_scheduler_killed_with_sigkill_ends_with_a_message(in_tmp, reference, monkeypatch):
+    """A real `dask scheduler` process killed mid-run (the connection resets, the tasks are
+    cancelled): a message naming it, the journal kept, no traceback; a local --resume completes it."""
+    import json
+    import subprocess
+    import sys
+
+    spec = in_tmp / "scheduler.json"
+    scheduler = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--port", "0",
+                                  "--no-dashboard", "--scheduler-file", str(spec)], stderr=subprocess.DEVNULL)
+    worker = None
+    try:
+        deadline = time.monotonic() + 60
+        while not spec.exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(0.2)
+        address = json.loads(spec.read_text())["address"]
+        worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
+                                   "--no-nanny", "--no-dashboard"], stderr=subprocess.DEVNULL)
+        saved = _saving_counter(monkeypatch)
+        _when_saved(saved, 2, scheduler.kill)
+        with watchdog(), pytest.raises(ClusterLost, match=f"lost the dask scheduler at {re.escape(address)}") as caught:
+            mechsweep.run(SCENE, output="data/runs/dist.h5", progress=False, scheduler=address, threads=1,
+                          worker_timeout=5)
+    finally:
+        scheduler.kill()
+        if worker is not None:
+            worker.kill()
+    assert "run again with --resume" in str(caught.value)
+    monkeypatch.undo()
+    ds = mechsweep.run(SCENE, output="data/runs/dist.h5", progress=False, resume=True, threads=2)
+    assert_identical(ds, reference)
