@@ -77,7 +77,10 @@ def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, 
     assembly ends, the file is removed and ``KeyboardInterrupt`` raised."""
     if not isinstance(target, (str, os.PathLike)):
         return _assemble(journal, scene, lay, chunks, target, attrs, lambda: False)
-    guard = _GuardedFile(target)
+    try:
+        guard = _GuardedFile(target)
+    except OSError as exc:  # e.g. no inode left
+        raise WriteFailed(target, exc) from None
     stop = stop or (lambda: False)
     try:
         bad = _assemble(journal, scene, lay, chunks, guard, attrs, lambda: guard.error is not None or stop())
