@@ -316,10 +316,14 @@ def test_info_on_a_journal_with_a_damaged_chunk_shows_it_pending_without_traceba
     assert "run.json is unreadable" in capsys.readouterr().err
 
 
-def test_a_chunk_file_of_an_older_version_without_checksum_still_counts(scene_file, reference, monkeypatch):
+def test_a_journal_of_an_older_version_without_checksums_is_still_resumed(scene_file, reference, monkeypatch):
+    """Journal format 1: chunk files named NNNNNNN.npz; they count when numpy can read them."""
+    import json
+
     files = interrupted_run(scene_file, after=5)
-    legacy = files[0].with_name(files[0].name.split("-")[0] + ".npz")
-    files[0].rename(legacy)
+    files[0].rename(files[0].with_name(files[0].name.split("-")[0] + ".npz"))
+    meta = partial_path(scene_file.parent / OUT) / "run.json"
+    meta.write_text(json.dumps({**json.loads(meta.read_text()), "format": 1}))
     computed = []
     real = runner.evaluate_chunk
     monkeypatch.setattr(runner, "evaluate_chunk", lambda scene, chunk, *r: computed.append(chunk.index) or

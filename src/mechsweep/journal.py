@@ -40,7 +40,10 @@ import numpy as np
 
 from .errors import StoreError, WriteFailed
 
-FORMAT = 1
+# 2: chunk files named with their size and CRC-32. A journal of format 1 (names without them) is
+# still read; an older mechsweep refuses format 2 instead of not seeing its chunk files.
+FORMAT = 2
+READABLE_FORMATS = (1, 2)
 _CHUNK_NAME = re.compile(r"^(\d{7,})(?:-(\d+)-([0-9a-f]{8}))?\.npz$")
 
 
@@ -186,9 +189,10 @@ class Journal:
             meta = None  # killed between creating the folder and writing run.json: nothing saved
         except (OSError, ValueError) as exc:
             raise StoreError(f"{folder / 'run.json'} is unreadable ({exc}); start over with --restart") from None
-        if meta is not None and meta.get("format") != FORMAT:
+        if meta is not None and meta.get("format") not in READABLE_FORMATS:
             raise StoreError(f"{folder} was written by another mechsweep version (journal format "
-                               f"{meta.get('format')}, this one reads {FORMAT}); start over with --restart")
+                               f"{meta.get('format')}, this one reads {', '.join(map(str, READABLE_FORMATS))}); "
+                               "start over with --restart")
         return cls(folder, meta)
 
     def matches(self, canonical: str, chunk_target: int, n_chunks: int) -> str | None:
