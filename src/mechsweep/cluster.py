@@ -79,7 +79,7 @@ def dask_results(scene, todo, scheduler: str, threads: int | None = None, *, wor
                 submit(following)
             yield chunk, result
     except BaseException:
-        lost = lost or "workers"
+        lost = lost or "stopped"  # no worker, an interruption, or a failed write here
         raise
     finally:
         _disconnect(client, live, quiet=bool(lost), cancel=lost != "scheduler")
