@@ -1,6 +1,9 @@
 """Runs on a dask.distributed cluster: the same dataset as a local run, bit for bit, and a worker
 killed mid-run loses nothing and duplicates nothing."""
+import _thread
+import contextlib
 import os
+import re
 import signal
 import threading
 import time
@@ -10,7 +13,7 @@ import pytest
 
 import mechsweep
 from mechsweep import cluster, runner
-from mechsweep.errors import InputError
+from mechsweep.errors import ClusterLost, InputError
 from mechsweep.journal import partial_path
 
 distributed = pytest.importorskip("distributed")
@@ -120,3 +123,111 @@ def test_threads_apply_to_the_worker_task(local_cluster):
             got = client.submit(_threads_after_a_chunk, scene.text, chunk, threads, pure=False).result()
             most = client.submit(lambda: __import__("numba").config.NUMBA_NUM_THREADS, pure=False).result()
             assert got == (expected or most)
+
+
+# ----------------------------------------------------------------------------- a lost cluster
+@contextlib.contextmanager
+def watchdog(seconds=60):
+    """Interrupt the main thread (as Ctrl-C does) if the run waits longer than ``seconds``: a run
+    that would wait forever fails the test instead of hanging it."""
+    timer = threading.Timer(seconds, _thread.interrupt_main)
+    timer.start()
+    try:
+        yield
+    finally:
+        timer.cancel()
+
+
+def test_a_cluster_without_workers_stops_after_the_worker_timeout(in_tmp):
+    with distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as empty:
+        address = empty.scheduler_address
+        started = time.monotonic()
+        with watchdog(), pytest.raises(ClusterLost, match=f"the dask scheduler at {re.escape(address)} has had no "
+                                                          r"worker for 1 s \(\[execution\] worker_timeout\)"):
+            mechsweep.run(SCENE, output="data/runs/dist.h5", progress=False, scheduler=address, threads=1,
+                          worker_timeout=1)
+        assert time.monotonic() - started < 30
+    assert partial_path(in_tmp / "data/runs/dist.h5").is_dir(), "the journal is kept"
+
+
+def _saving_counter(monkeypatch):
+    saved = []
+    write = runner.Journal.write_chunk
+
+    def counting(self, index, arrays, wall):
+        write(self, index, arrays, wall)
+        saved.append(index)
+
+    monkeypatch.setattr(runner.Journal, "write_chunk", counting)
+    return saved
+
+
+def _when_saved(saved, n, action):
+    def run():
+        deadline = time.monotonic() + 60
+        while len(saved) < n and time.monotonic() < deadline:
+            time.sleep(0.002)
+        action()
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    return thread
+
+
+@pytest.mark.parametrize("loss", ["workers", "scheduler"])
+def test_a_lost_cluster_ends_with_a_message_and_the_run_resumes_identically(in_tmp, reference, monkeypatch, loss):
+    """All workers gone (the run waits worker_timeout, then stops), or the scheduler closed (its
+    tasks are cancelled: the run stops at once); either way the saved chunks are kept and a
+    local --resume completes the dataset bit for bit."""
+    saved = _saving_counter(monkeypatch)
+    cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0")
+    address = cluster.scheduler_address
+    try:
+        _when_saved(saved, 2, (lambda: cluster.scale(0)) if loss == "workers" else cluster.close)
+        expected = "has had no worker for 1 s" if loss == "workers" else "lost the dask scheduler at"
+        with watchdog(), pytest.raises(ClusterLost, match=re.escape(expected)) as caught:
+            mechsweep.run(SCENE, output="data/runs/dist.h5", progress=False, scheduler=address, threads=1,
+                          worker_timeout=1)
+    finally:
+        cluster.close()
+    message = str(caught.value)
+    assert address in message and "chunks in flight were not computed" in message
+    assert f"chunks saved in data/runs/dist.h5.partial); run again with --resume" in message
+    assert len(saved) >= 2
+    monkeypatch.undo()
+    ds = mechsweep.run(SCENE, output="data/runs/dist.h5", progress=False, resume=True, threads=2)
+    assert_identical(ds, reference)
+
+
+@pytest.mark.slow
+def test_a_scheduler_killed_with_sigkill_ends_with_a_message(in_tmp, reference, monkeypatch):
+    """A real `dask scheduler` process killed mid-run (the connection resets, the tasks are
+    cancelled): a message naming it, the journal kept, no traceback; a local --resume completes it."""
+    import json
+    import subprocess
+    import sys
+
+    spec = in_tmp / "scheduler.json"
+    scheduler = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--port", "0",
+                                  "--no-dashboard", "--scheduler-file", str(spec)], stderr=subprocess.DEVNULL)
+    worker = None
+    try:
+        deadline = time.monotonic() + 60
+        while not spec.exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(0.2)
+        address = json.loads(spec.read_text())["address"]
+        worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
+                                   "--no-nanny", "--no-dashboard"], stderr=subprocess.DEVNULL)
+        saved = _saving_counter(monkeypatch)
+        _when_saved(saved, 2, scheduler.kill)
+        with watchdog(), pytest.raises(ClusterLost, match=f"lost the dask scheduler at {re.escape(address)}") as caught:
+            mechsweep.run(SCENE, output="data/runs/dist.h5", progress=False, scheduler=address, threads=1,
+                          worker_timeout=5)
+    finally:
+        scheduler.kill()
+        if worker is not None:
+            worker.kill()
+    assert "run again with --resume" in str(caught.value)
+    monkeypatch.undo()
+    ds = mechsweep.run(SCENE, output="data/runs/dist.h5", progress=False, resume=True, threads=2)
+    assert_identical(ds, reference)

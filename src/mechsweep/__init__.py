@@ -10,13 +10,16 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
+from .errors import ClusterLost  # noqa: E402
 from .models import MODELS  # noqa: E402
-from .runner import RunInterrupted, run  # noqa: E402
+from .runner import OutOfSpace, RunInterrupted, run  # noqa: E402
 from .scene import Scene, SceneError, load_scene  # noqa: E402
 from .store import StoreError, open_dataset  # noqa: E402
 
 __all__ = [
+    "ClusterLost",
     "MODELS",
+    "OutOfSpace",
     "RunInterrupted",
     "Scene",
     "SceneError",

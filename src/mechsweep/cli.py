@@ -3,11 +3,12 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 from pathlib import Path
 
 EXIT_INVALID = 2
-EXIT_INTERRUPTED = 130
+EXIT_INTERRUPTED = 130  # 128 + SIGINT; a SIGTERM exits with 128 + 15 = 143
 
 DESCRIPTION = """\
 Parameter sweeps over the dynamics of machine mechanisms, compiled with numba.
@@ -23,7 +24,8 @@ typical session:
   mechsweep info data/runs/quickstart.h5
   mechsweep models                                 # every model, parameter and output
 
-exit codes: 0 done, 1 unexpected error, 2 invalid input (nothing written), 130 interrupted
+exit codes: 0 done, 1 unexpected error, 2 invalid input (nothing written) or a failed write
+(disk full: the journal is kept for --resume), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM)
 """
 
 RUN_EPILOG = """\
@@ -32,6 +34,9 @@ The grid is cut into chunks; each finished chunk is saved at once to the journal
 assembled and renamed to PATH, so an existing PATH is never left half overwritten. If the run is
 interrupted (Ctrl-C, kill, power cut), `--resume` computes only the missing chunks; the result is
 identical to an uninterrupted run. A second run on the same PATH is refused while one is writing.
+SIGTERM stops a run like Ctrl-C (exit 143). A failed write (disk full, ulimit -f, quota, I/O error)
+ends it with a message and exit 2, the journal kept for --resume; a damaged chunk file in the
+journal is removed and computed again.
 
 With --scheduler (or [execution] scheduler in the scene) the chunks run as tasks on a
 dask.distributed cluster (pip install "mechsweep[distributed]"); this process still writes the
@@ -53,17 +58,33 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_INVALID
     from .errors import InputError
 
+    import threading
+
+    main_thread = threading.current_thread() is threading.main_thread()  # only it may set handlers
+    previous = signal.signal(signal.SIGTERM, _terminate) if main_thread else None  # SIGTERM stops like Ctrl-C
     try:
         return args.func(args)
     except (InputError, FileNotFoundError) as exc:
         print(f"mechsweep {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_INVALID
-    except KeyboardInterrupt:
-        print(f"mechsweep {args.command}: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as exc:
+        signum = exc.signum if isinstance(exc, _Terminated) else signal.SIGINT
+        print(f"mechsweep {args.command}: interrupted ({signal.Signals(signum).name})", file=sys.stderr)
+        return 128 + signum
     except BrokenPipeError:  # `mechsweep models | head`: the reader left, nothing is wrong
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
         return 0
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, previous if previous is not None else signal.SIG_DFL)
+
+
+class _Terminated(KeyboardInterrupt):
+    signum = signal.SIGTERM
+
+
+def _terminate(signum, frame):
+    raise _Terminated
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -86,6 +107,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run the chunks on this dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 "
                         "(default: the scene's [execution] scheduler, else local threads)")
+    p.add_argument("--worker-timeout", type=float, metavar="SECONDS",
+                   help="with --scheduler: stop (journal kept) when the scheduler is lost or has no worker "
+                        "for this long (default: the scene's [execution] worker_timeout, else 120)")
     p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser("plot", help="draw the nomogram of a stored dataset",
@@ -186,10 +210,10 @@ def _cmd_run(args) -> int:
     try:  # the dataset is not opened: its status counts were added up as its chunks were assembled
         summary = compute(scene, output=args.output, resume=args.resume, restart=args.restart,
                           threads=args.threads, progress=False if args.no_progress else None,
-                          scheduler=args.scheduler)
+                          scheduler=args.scheduler, worker_timeout=args.worker_timeout)
     except RunInterrupted as exc:
         print(f"mechsweep run: {exc}", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return 128 + exc.signum
     path = args.output or scene.storage.path
     print(f"wrote {path}: {summary.sizes}, outputs {', '.join(scene.outputs)}; "
           f"status {summary.status_names()}; wall time {summary.wall_time_s:.2f} s")

@@ -7,6 +7,9 @@ journal as it arrives (in any order), so a failure loses at most the chunks in f
 IN_FLIGHT_PER_THREAD tasks per worker thread are submitted at a time, so the client's memory stays
 bounded by that many chunks, whatever the grid. If a worker dies, the scheduler runs its tasks
 again on another worker; a chunk is saved once, when its result arrives, whichever worker made it.
+If the scheduler goes away (its tasks are cancelled), does not answer, or has no worker at all for
+``worker_timeout`` seconds, the run stops with ``ClusterLost``, naming the scheduler and the
+chunks lost; the chunks already saved stay in the journal for a --resume.
 
 Needs the optional packages ``dask`` and ``distributed`` (``pip install "mechsweep[distributed]"``)
 on the client and on every worker, with the same mechsweep version.
@@ -14,20 +17,25 @@ on the client and on every worker, with the same mechsweep version.
 from __future__ import annotations
 
 import functools
+from concurrent.futures import CancelledError
 import itertools
+import time
 import uuid
 
-from .errors import InputError
+from .errors import ClusterLost, InputError
 
 IN_FLIGHT_PER_THREAD = 2
 CONNECT_TIMEOUT_S = 20
+HEALTH_CHECK_S = 1.0  # how often the client asks the scheduler for its workers while it waits
+RESULT_WAIT_S = 5.0  # at least this long for one attempt to fetch a finished chunk
 
 
-def dask_results(scene, todo, scheduler: str, threads: int | None = None):
+def dask_results(scene, todo, scheduler: str, threads: int | None = None, *, worker_timeout: float = 120.0):
     """Yield ``(chunk, result)`` as the cluster at ``scheduler`` finishes them. Closing the
-    generator cancels the tasks still in flight and disconnects."""
+    generator cancels the tasks still in flight and disconnects. ``ClusterLost`` when the
+    scheduler is lost, or has no worker for ``worker_timeout`` seconds."""
     try:
-        from distributed import Client, as_completed
+        from distributed import Client, KilledWorker, as_completed
     except ImportError:
         raise InputError("running on a dask cluster needs the optional packages dask and distributed: "
                          "pip install \"mechsweep[distributed]\"") from None
@@ -37,6 +45,7 @@ def dask_results(scene, todo, scheduler: str, threads: int | None = None):
         raise InputError(f"cannot reach the dask scheduler at {scheduler!r} within {CONNECT_TIMEOUT_S} s "
                          f"({exc}); start one with `dask scheduler` and workers with `dask worker ADDRESS`") from None
     run_id = uuid.uuid4().hex[:12]
+    lost = False
     futures = as_completed(loop=client.loop)
     live = {}  # key -> (future, chunk), submitted and not yet handed out
 
@@ -50,18 +59,117 @@ def dask_results(scene, todo, scheduler: str, threads: int | None = None):
         pending = iter(todo)
         for chunk in itertools.islice(pending, IN_FLIGHT_PER_THREAD * slots):
             submit(chunk)
-        for fut in futures:
-            result = fut.result()
+        health = _Health(client, scheduler, worker_timeout, live)
+        while (fut := _next_done(futures, health)) is not None:
+            try:
+                result = _result(fut, health)
+            except KilledWorker as exc:
+                raise ClusterLost(f"the dask workers at {scheduler} died while computing a chunk, too many "
+                                  f"times ({exc}); {_lost(live)}") from None
+            except Exception as exc:
+                if fut.status == "error":  # the task itself failed on its worker: a real error, shown as is
+                    raise
+                lost = "scheduler"
+                why = "its tasks were cancelled" if isinstance(exc, CancelledError) else f"{type(exc).__name__}: {exc}"
+                raise ClusterLost(f"lost the dask scheduler at {scheduler} ({why}); {_lost(live)}") from None
             _, chunk = live.pop(fut.key)
             fut.release()
             following = next(pending, None)
             if following is not None:
                 submit(following)
             yield chunk, result
+    except BaseException:
+        lost = lost or "stopped"  # no worker, an interruption, or a failed write here
+        raise
     finally:
-        if live:
+        _disconnect(client, live, quiet=bool(lost), cancel=lost != "scheduler")
+
+
+def _disconnect(client, live: dict, quiet: bool, cancel: bool) -> None:
+    """Cancel what is in flight and close the client. After a lost cluster or an interruption
+    the process is about to report and stop: the tracebacks that distributed and asyncio log
+    about the connection the client can no longer make (some of them later, from the client's
+    event loop) are silenced for the rest of the process."""
+    import logging
+
+    if quiet:
+        for name in ("distributed.client", "distributed.core", "asyncio"):
+            logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+    try:
+        if live and cancel and client.status == "running":
             client.cancel([f for f, _ in live.values()])
-        client.close()
+        client.close(timeout=CONNECT_TIMEOUT_S)
+    except Exception:  # the scheduler is gone: nothing left to cancel or to say goodbye to
+        pass
+
+
+def _lost(live: dict) -> str:
+    chunks = sorted(chunk.index for _, chunk in live.values())
+    shown = ", ".join(map(str, chunks[:8])) + (", ..." if len(chunks) > 8 else "")
+    return f"{len(chunks)} chunks in flight were not computed: {shown}" if chunks else "no chunk in flight"
+
+
+def _next_done(futures, health: "_Health"):
+    """The next finished future, or None when all are handed out; meanwhile ``health`` is checked."""
+    while not futures.has_ready():
+        if futures.is_empty():
+            return None
+        time.sleep(0.01)
+        health.check()
+    health.ok()
+    return next(futures)
+
+
+def _result(fut, health: "_Health"):
+    """A finished future's result. Fetching it from a worker that died meanwhile waits for the
+    chunk to be computed again, so ``health`` is checked between attempts (each long enough for a
+    large chunk to arrive: a timed-out attempt starts the transfer over)."""
+    while True:
+        try:
+            return fut.result(timeout=max(RESULT_WAIT_S, health.timeout / 2))
+        except TimeoutError:
+            if fut.status == "error":  # the task itself raised it
+                raise
+            health.check(now=True)
+
+
+class _Health:
+    """Every HEALTH_CHECK_S the scheduler is asked for its workers; one that does not answer, or
+    has none, for ``timeout`` seconds raises ``ClusterLost``."""
+
+    def __init__(self, client, scheduler: str, timeout: float, live: dict):
+        self.client, self.scheduler, self.timeout, self.live = client, scheduler, timeout, live
+        self.trouble_since = None
+        self.next_check = time.monotonic() + HEALTH_CHECK_S
+
+    def ok(self) -> None:
+        self.trouble_since = None
+
+    def check(self, now: bool = False) -> None:
+        if not now and time.monotonic() < self.next_check:
+            return
+        why = _trouble(self.client, self.timeout)
+        self.next_check = time.monotonic() + HEALTH_CHECK_S
+        if why is None:
+            self.trouble_since = None
+            return
+        self.trouble_since = self.trouble_since or time.monotonic()
+        if time.monotonic() - self.trouble_since >= self.timeout:
+            raise ClusterLost(f"the dask scheduler at {self.scheduler} {why} for {self.timeout:g} s "
+                              f"([execution] worker_timeout); {_lost(self.live)}")
+
+
+def _trouble(client, timeout: float) -> str | None:
+    """What keeps the cluster from computing (no connection, no worker), or None."""
+    if client.status != "running":
+        return "has been unreachable (connection lost)"
+    try:
+        nthreads = client.nthreads(callback_timeout=max(1.0, min(timeout, CONNECT_TIMEOUT_S)))
+    except Exception:
+        return "has not answered"
+    if not nthreads:
+        return "has had no worker"
+    return None
 
 
 def compute_chunk(scene_text: str, chunk, threads: int | None = None):

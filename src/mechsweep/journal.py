@@ -4,8 +4,12 @@ A run of output ``PATH`` keeps its finished chunks in the folder ``PATH.partial/
 
 - ``run.json``: the scene (canonical form and text), the number of chunks and the provenance,
   written before any chunk;
-- ``chunks/NNNNNNN.npz``: one file per finished chunk (its outputs, status, step counts and the
-  wall time it took), written to a temporary name, synced and renamed into place.
+- ``chunks/NNNNNNN-SIZE-CRC.npz``: one file per finished chunk (its outputs, status, step counts
+  and the wall time it took), written to a temporary name, synced and renamed into place. Its name
+  carries the file's size in bytes and the CRC-32 of its bytes (8 hex digits): a chunk file that
+  does not match them (truncated, zeroed, damaged by the disk) is not counted as finished; a
+  resumed run removes it and computes that chunk again, keeping the others. (Files named
+  ``NNNNNNN.npz``, from an older version, carry no checksum: they count when numpy can read them.)
 
 A rename is atomic, so at any moment (a SIGKILL, a power cut after the sync) every chunk file is
 either complete or absent, and a resumed run computes exactly the chunks that have no file. The
@@ -17,6 +21,9 @@ a file the library cannot open again, a chunk file cannot.
 The lock is ``.PATH.lock`` beside the output, held with ``flock`` for the whole run (the kernel
 releases it when the process dies, however it dies), so a second run on the same output is refused
 at once instead of interleaving its writes.
+
+Every write here (lock, run.json, chunk files, folder syncs) turns a system error (disk full, file
+size limit, quota, I/O error) into ``WriteFailed`` and leaves the journal as it was before it.
 """
 from __future__ import annotations
 
@@ -26,14 +33,18 @@ import json
 import os
 import re
 import shutil
+import zlib
 from pathlib import Path
 
 import numpy as np
 
-from .errors import StoreError
+from .errors import StoreError, WriteFailed
 
-FORMAT = 1
-_CHUNK_NAME = re.compile(r"^(\d{7,})\.npz$")
+# 2: chunk files named with their size and CRC-32. A journal of format 1 (names without them) is
+# still read; an older mechsweep refuses format 2 instead of not seeing its chunk files.
+FORMAT = 2
+READABLE_FORMATS = (1, 2)
+_CHUNK_NAME = re.compile(r"^(\d{7,})(?:-(\d+)-([0-9a-f]{8}))?\.npz$")
 
 
 def partial_path(path: str | os.PathLike) -> Path:
@@ -66,7 +77,10 @@ class RunLock:
 
     def acquire(self) -> "RunLock":
         while True:
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as exc:  # e.g. no inode left on a full disk
+                raise WriteFailed(self.path, exc) from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError as exc:
@@ -81,9 +95,13 @@ class RunLock:
             except FileNotFoundError:
                 same = False
             if same:
-                os.ftruncate(fd, 0)
-                os.write(fd, str(os.getpid()).encode())
                 self.fd = fd
+                try:
+                    os.ftruncate(fd, 0)
+                    os.write(fd, str(os.getpid()).encode())
+                except OSError as exc:
+                    self.release()
+                    raise WriteFailed(self.path, exc) from None
                 return self
             os.close(fd)  # the holder removed it while we waited: lock the new one
 
@@ -135,6 +153,8 @@ class Journal:
         self.folder = folder
         self.meta = meta
         self.chunks = folder / "chunks"
+        self.files: dict[int, Path] = {}  # index -> its file, from the last done_chunks()
+        self.removed: list[str] = []  # damaged chunk files done_chunks(repair=True) removed, with why
 
     # -- creation and reopening ----------------------------------------------------
     @classmethod
@@ -142,10 +162,16 @@ class Journal:
                attrs: dict) -> "Journal":
         meta = {"format": FORMAT, "scene_canonical": canonical, "scene": text, "chunk_target": chunk_target,
                 "n_chunks": n_chunks, "attrs": attrs}
-        folder.mkdir()
+        try:
+            folder.mkdir()
+        except OSError as exc:
+            raise WriteFailed(folder, exc) from None
         try:
             (folder / "chunks").mkdir()
             _write_atomic(folder / "run.json", json.dumps(meta, indent=1).encode())
+        except OSError as exc:
+            shutil.rmtree(folder, ignore_errors=True)
+            raise WriteFailed(folder / "run.json", exc) from None
         except BaseException:
             shutil.rmtree(folder, ignore_errors=True)
             raise
@@ -163,9 +189,10 @@ class Journal:
             meta = None  # killed between creating the folder and writing run.json: nothing saved
         except (OSError, ValueError) as exc:
             raise StoreError(f"{folder / 'run.json'} is unreadable ({exc}); start over with --restart") from None
-        if meta is not None and meta.get("format") != FORMAT:
+        if meta is not None and meta.get("format") not in READABLE_FORMATS:
             raise StoreError(f"{folder} was written by another mechsweep version (journal format "
-                               f"{meta.get('format')}, this one reads {FORMAT}); start over with --restart")
+                               f"{meta.get('format')}, this one reads {', '.join(map(str, READABLE_FORMATS))}); "
+                               "start over with --restart")
         return cls(folder, meta)
 
     def matches(self, canonical: str, chunk_target: int, n_chunks: int) -> str | None:
@@ -186,37 +213,115 @@ class Journal:
         return self.meta is None
 
     # -- chunks ----------------------------------------------------------------------
-    def chunk_file(self, index: int) -> Path:
-        return self.chunks / f"{index:07d}.npz"
+    def chunk_file(self, index: int) -> Path | None:
+        """The file of chunk ``index`` found by the last ``done_chunks``, or None."""
+        return self.files.get(index)
 
-    def done_chunks(self) -> np.ndarray:
-        """Boolean per chunk: its file is in the journal. Leftover temporary files are removed."""
+    def done_chunks(self, repair: bool = False) -> np.ndarray:
+        """Boolean per chunk: its file is in the journal and has the size its name says (the
+        checksum is verified when it is read). With ``repair`` (only under the run's lock) leftover
+        temporary files and chunk files that do not verify are removed (listed in ``removed``), so
+        that those chunks are computed again; without it they are only not counted."""
         done = np.zeros(self.meta["n_chunks"], dtype=bool)
+        self.files, self.removed = {}, []
         for entry in os.scandir(self.chunks):
             m = _CHUNK_NAME.match(entry.name)
             if m and int(m.group(1)) < done.size:
-                done[int(m.group(1))] = True
-            elif entry.name.endswith(".tmp"):
-                os.unlink(entry.path)  # a write that a kill interrupted
+                index = int(m.group(1))
+                why = _size_problem(entry, None if m.group(2) is None else int(m.group(2)))
+                if why is None and index not in self.files:
+                    done[index] = True
+                    self.files[index] = Path(entry.path)
+                    continue
+                why = why or "a second file for the same chunk"
+                if repair:
+                    self.discard(Path(entry.path), why)
+            elif entry.name.endswith(".tmp") and repair:
+                _unlink(entry.path)  # a write that a kill interrupted
         return done
 
+    def discard(self, path: Path, why: str) -> None:
+        """Remove a chunk file that does not verify (under the run's lock), noting why."""
+        _unlink(path)
+        self.removed.append(f"{path.name}: {why}")
+
     def write_chunk(self, index: int, arrays: dict[str, np.ndarray], wall_time_s: float) -> None:
-        """Save one finished chunk: complete, or (if killed) not at all."""
+        """Save one finished chunk: complete, or (if killed or the write fails) not at all."""
         payload = dict(arrays)
         payload["__wall_time_s"] = np.float64(wall_time_s)
-        target = self.chunk_file(index)
-        tmp = target.with_name(target.name + ".tmp")
-        with open(tmp, "wb") as f:
-            np.savez(f, **payload)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, target)
-        _sync_dir(self.chunks)
+        tmp = self.chunks / f"{index:07d}.npz.tmp"
+        try:
+            with open(tmp, "wb") as f:
+                np.savez(f, **payload)
+                f.flush()
+                os.fsync(f.fileno())
+            size, crc = _file_crc(tmp)
+            target = self.chunks / f"{index:07d}-{size}-{crc:08x}.npz"
+            os.replace(tmp, target)
+            _sync_dir(self.chunks)
+        except OSError as exc:
+            _unlink(tmp)
+            raise WriteFailed(tmp, exc) from None
+        self.files[index] = target
 
     def read_chunk(self, index: int) -> tuple[dict[str, np.ndarray], float]:
-        with np.load(self.chunk_file(index)) as z:
-            arrays = {k: z[k] for k in z.files if k != "__wall_time_s"}
-            return arrays, float(z["__wall_time_s"])
+        """The arrays and wall time of chunk ``index``, verified against its size and checksum;
+        ``BadChunk`` if they do not match or the file cannot be read."""
+        import io
+
+        path = self.files.get(index)
+        if path is None:
+            raise BadChunk(index, self.chunks / f"{index:07d}.npz", "no file")
+        m = _CHUNK_NAME.match(path.name)
+        try:
+            data = path.read_bytes()
+        except OSError as exc:
+            raise BadChunk(index, path, f"unreadable ({exc.strerror})") from None
+        if m.group(2) is not None:
+            if len(data) != int(m.group(2)):
+                raise BadChunk(index, path, f"{len(data)} bytes, its name says {m.group(2)}")
+            if (crc := zlib.crc32(data)) != int(m.group(3), 16):
+                raise BadChunk(index, path, f"checksum {crc:08x}, its name says {m.group(3)}")
+        try:
+            with np.load(io.BytesIO(data)) as z:
+                arrays = {k: z[k] for k in z.files if k != "__wall_time_s"}
+                return arrays, float(z["__wall_time_s"])
+        except Exception as exc:  # a damaged file of an older version (no checksum in its name)
+            raise BadChunk(index, path, f"unreadable ({type(exc).__name__}: {exc})") from None
+
+
+class BadChunk(StoreError):
+    """A chunk file of the journal does not verify (size, checksum, or format)."""
+
+    def __init__(self, index: int, path: Path, why: str):
+        self.index, self.path, self.why = index, path, why
+        super().__init__(f"chunk file {path} is damaged: {why}")
+
+
+def _size_problem(entry: os.DirEntry, expected: int | None) -> str | None:
+    try:
+        size = entry.stat().st_size
+    except OSError as exc:
+        return f"unreadable ({exc.strerror})"
+    if expected is None:
+        return "empty file" if size == 0 else None
+    return None if size == expected else f"{size} bytes, its name says {expected}"
+
+
+def _file_crc(path: Path) -> tuple[int, int]:
+    crc, size = 0, 0
+    with open(path, "rb") as f:
+        while block := f.read(1 << 20):
+            crc = zlib.crc32(block, crc)
+            size += len(block)
+    return size, crc
+
+
+def _unlink(path) -> None:
+    try:
+        os.unlink(path)
+    except FileNotFoundError:
+        pass
 
 
 def _write_atomic(path: Path, data: bytes) -> None:
@@ -243,7 +348,11 @@ def drop(output: Path) -> None:
     folder, trash = partial_path(output), discard_path(output)
     shutil.rmtree(trash, ignore_errors=True)
     if folder.is_dir():
-        os.replace(folder, trash)
+        try:
+            os.replace(folder, trash)
+        except OSError:  # the rename failed (a full disk can refuse it): remove it in place
+            shutil.rmtree(folder, ignore_errors=True)
+            return
         shutil.rmtree(trash, ignore_errors=True)
     elif folder.exists():  # an older version's one-file partial
         folder.unlink()

@@ -2,9 +2,14 @@
 from __future__ import annotations
 
 import datetime as _dt
+import errno
 import os
 import platform
+import resource
 import shutil
+import signal
+import sys
+import threading
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -17,15 +22,30 @@ import xarray as xr
 
 from . import __version__
 from . import status as st
-from .errors import InputError
+from .errors import ClusterLost, InputError, WriteFailed
 from .grid import Chunk, ChunkPlan, ParameterMatrix, chunk_target, plan_chunks
-from .journal import Journal, RunLock, discard_path, drop, partial_path
-from .scene import Scene, check_scheduler, load_scene
+from .journal import BadChunk, Journal, RunLock, discard_path, drop, partial_path
+from .scene import Scene, check_scheduler, check_worker_timeout, load_scene
 from .store import StoreError, assemble, layout, open_dataset, status_counts
 
 
 class RunInterrupted(RuntimeError):
-    """The run stopped (Ctrl-C) after saving every finished chunk; resume with --resume."""
+    """The run stopped (Ctrl-C, SIGTERM) after saving every finished chunk; resume with --resume.
+    ``signum`` is the signal that stopped it (SIGINT for Ctrl-C)."""
+
+    def __init__(self, message: str, signum: int = signal.SIGINT):
+        super().__init__(message)
+        self.signum = signum
+
+
+class OutOfSpace(StoreError):
+    """A write of the run failed (disk full, file-size limit, quota, I/O error); the journal of
+    finished chunks is kept, so the run can be completed with --resume once there is room."""
+
+
+# A chunk file found damaged at assembly is computed again; if chunks keep going bad after this
+# many rounds the disk is not to be trusted and the run stops.
+REPAIR_ROUNDS = 3
 
 
 @dataclass(frozen=True)
@@ -52,6 +72,7 @@ def run(
     progress: bool | None = None,
     scheduler: str | None = None,
     load: bool | None = None,
+    worker_timeout: float | None = None,
 ) -> xr.Dataset:
     """Compute a scene's grid and return the stored dataset.
 
@@ -62,12 +83,17 @@ def run(
     ``progress`` shows a progress bar (default: only on a terminal). ``scheduler`` (or the scene's
     ``[execution] scheduler``) runs the chunks on that dask.distributed cluster instead of here.
     ``load``: the returned dataset is in memory (True), opened lazily (False), or loaded when it
-    is at most store.LOAD_LIMIT_BYTES (None, default). ``compute`` does the same without opening
-    the result (for status counts and sizes only).
+    is at most store.LOAD_LIMIT_BYTES (None, default).
+    ``worker_timeout`` (or ``[execution] worker_timeout``): on a cluster, seconds to wait for a lost
+    scheduler or with no worker before the run stops with its journal kept.
+
+    A failed write (disk full, file-size limit) raises ``OutOfSpace`` with the journal kept;
+    SIGINT and SIGTERM raise ``RunInterrupted`` (when run in the main thread). ``compute`` does
+    the same without opening the result (for status counts and sizes only).
     """
     lazy = None if load is None else not load
     summary = compute(scene_or_path, output=output, resume=resume, restart=restart, threads=threads,
-                      progress=progress, scheduler=scheduler)
+                      progress=progress, scheduler=scheduler, worker_timeout=worker_timeout)
     return open_dataset(summary.path, lazy=lazy)
 
 
@@ -80,10 +106,14 @@ def compute(
     threads: int | None = None,
     progress: bool | None = None,
     scheduler: str | None = None,
+    worker_timeout: float | None = None,
 ) -> RunSummary:
     """``run`` without opening the result: compute the scene into its file and return a
     :class:`RunSummary` (path, sizes, status counts, wall time). Memory stays bounded by the
     chunk, whatever the grid; the status counts are added up as the chunks are assembled."""
+    if resume and restart:
+        raise InputError("resume and restart (--resume --restart) together are refused: --resume keeps the "
+                         "finished chunks of an unfinished run, --restart discards them; choose one")
     scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path)
     if output is not None and str(output).endswith(("/", os.sep)):
         raise StoreError(f"output path {output} ends with a path separator; give a file path such as "
@@ -94,20 +124,34 @@ def compute(
         raise InputError(f"scheduler {why}")
     scheduler = scheduler if scheduler is not None else scene.execution.scheduler
     _check_threads(threads, here=scheduler is None)  # before any file is created
+    if worker_timeout is not None and (why := check_worker_timeout(worker_timeout)) is not None:
+        raise InputError(f"worker timeout {why}")
+    worker_timeout = worker_timeout if worker_timeout is not None else scene.execution.worker_timeout
     target = chunk_target(scene)
     check_size(scene, final, min(target, scene.n_points), saved_bytes(final) if not restart else 0)
+    check_file_limit(scene, final)
     # Conflicts are refused before the lock (taking it touches the folder), and checked again
     # under it: another run may have changed the files meanwhile.
     RunLock(final).refuse_if_held()
     chunks = plan_chunks(scene.shape, target)
     _check_existing(scene, final, resume, restart, target, len(chunks))
-    with RunLock(final):  # from here to the end, no other run touches final or its journal
-        shutil.rmtree(discard_path(final), ignore_errors=True)  # what a killed clean-up left
-        if not _check_existing(scene, final, resume, restart, target, len(chunks)):  # True: finished
-            counts = _compute(scene, final, restart, threads, progress, scheduler, target, chunks)
-        else:
-            counts = status_counts(final)
-        wall_time = _wall_time(final)
+    with _Signals() as signals:
+        try:
+            with RunLock(final):  # from here to the end, no other run touches final or its journal
+                shutil.rmtree(discard_path(final), ignore_errors=True)  # what a killed clean-up left
+                if not _check_existing(scene, final, resume, restart, target, len(chunks)):  # True: finished
+                    counts = _compute(scene, final, restart, threads, progress, scheduler, target, chunks,
+                                      signals, worker_timeout)
+                else:
+                    counts = status_counts(final)
+                wall_time = _wall_time(final)
+        except WriteFailed as exc:
+            raise OutOfSpace(_out_of_space(exc, scene, final, len(chunks))) from None
+        except ClusterLost as exc:
+            raise ClusterLost(f"{exc}; {_kept(final)}") from None
+        except KeyboardInterrupt:
+            raise RunInterrupted(_interrupted(final, signals.signum or signal.SIGINT),
+                                 signals.signum or signal.SIGINT) from None
     return RunSummary(final, _sizes(scene), counts, wall_time)
 
 
@@ -125,6 +169,53 @@ def _wall_time(final: Path) -> float:
 
     with h5py.File(final, "r") as f:
         return float(np.ravel(f.attrs["wall_time_s"])[0])
+
+
+def _interrupted(final: Path, signum: int) -> str:
+    return f"interrupted ({signal.Signals(signum).name}): {_kept(final)}"
+
+
+def _kept(final: Path) -> str:
+    """What an unfinished run of ``final`` keeps, and how to go on."""
+    part = partial_path(final)
+    try:
+        journal = Journal.read(part) if part.is_dir() else None
+    except StoreError:
+        journal = None
+    if journal is None or journal.empty:
+        return "no chunk was saved; run again"
+    done = journal.done_chunks()
+    return (f"journal kept ({int(done.sum())} of {done.size} chunks saved in {part}); "
+            "run again with --resume to complete it")
+
+
+def _out_of_space(exc: WriteFailed, scene: Scene, final: Path, n_chunks: int) -> str:
+    """The message of a failed write: what failed, how much the run still needs, what is kept."""
+    from .errors import why_write_failed
+
+    part = partial_path(final)
+    data = bytes_per_point(scene) * scene.n_points
+    try:
+        journal = Journal.read(part) if part.is_dir() else None
+    except StoreError:
+        journal = None
+    if journal is None or journal.empty:
+        need = 2 * data
+    else:
+        done = journal.done_chunks()
+        need = int(data * (1 - done.sum() / max(1, done.size)) + data)  # the chunks to come and the dataset
+    kept = _kept(final)
+    reason = why_write_failed(exc.errno, exc.strerror)
+    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    if exc.errno == errno.EFBIG and soft != resource.RLIM_INFINITY:
+        need_text = f"the limit is {_mib(soft)}, the dataset needs up to {_mib(data)}"
+    else:
+        need_text = f"{_mib(need)} needed on the disk of {final.parent.resolve()}"
+    return f"{reason}: {need_text}; writing {exc.path} failed; {kept}"
+
+
+def _mib(n: float) -> str:
+    return f"{n / 2**20:.3g} MiB"
 
 
 def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, target: int, n_chunks: int) -> bool:
@@ -151,42 +242,137 @@ def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, targ
 
 
 def _compute(scene: Scene, final: Path, restart: bool, threads, progress, scheduler, target: int,
-             chunks: ChunkPlan) -> dict[int, int]:
-    """Compute the missing chunks into the journal, then assemble the dataset; returns the
-    points per status code."""
+             chunks: ChunkPlan, signals: "_Signals", worker_timeout: float) -> dict[int, int]:
+    """Compute the missing chunks into the journal, then assemble the dataset; returns the points
+    per status code. Chunk files that do not verify (found now, or while assembling) are removed
+    and computed again."""
     part = partial_path(final)
     journal = Journal.read(part) if part.exists() and not restart else None
     if journal is None or journal.empty:  # none, discarded, or killed before its first word
         drop(final)
         journal = Journal.create(part, canonical=scene.canonical(), text=scene.text, chunk_target=target,
                                  n_chunks=len(chunks), attrs=provenance(scene, chunks))
-    done = journal.done_chunks()
-    todo = [chunks[int(i)] for i in np.flatnonzero(~done)]  # at most grid.MAX_CHUNKS
-    with _threads(None if scheduler else threads):
-        where = (f"dask scheduler {scheduler}, {threads or 'all'} numba threads per worker" if scheduler
-                 else f"local, {numba.get_num_threads()} threads")
-        results = (_dask_results(scene, todo, scheduler, threads) if scheduler else _local_results(scene, todo))
-        try:
+    for _ in range(REPAIR_ROUNDS):
+        done = journal.done_chunks(repair=True)
+        _report_removed(journal)
+        todo = [chunks[int(i)] for i in np.flatnonzero(~done)]  # at most grid.MAX_CHUNKS
+        with _threads(None if scheduler else threads):
+            where = (f"dask scheduler {scheduler}, {threads or 'all'} numba threads per worker" if scheduler
+                     else f"local, {numba.get_num_threads()} threads")
+            results = (_dask_results(scene, todo, scheduler, threads, worker_timeout) if scheduler
+                       else _local_results(scene, todo))
             _save_chunks(scene, journal, results, todo, scene.n_points - sum(c.size for c in todo), progress)
-        except KeyboardInterrupt:
-            raise RunInterrupted(f"interrupted: finished chunks are saved in {part}; "
-                                 "run again with --resume to complete it") from None
-        attrs = {**journal.meta["attrs"], "execution": where}
-        if not scheduler:
-            attrs["threads"] = numba.get_num_threads()
-    return _finish(journal, scene, chunks, final, attrs)
+            attrs = {**journal.meta["attrs"], "execution": where}
+            if not scheduler:
+                attrs["threads"] = numba.get_num_threads()
+        bad, counts = _finish(journal, scene, chunks, final, attrs, signals)
+        if not bad:
+            return counts
+        for exc in bad:
+            journal.discard(exc.path, exc.why)
+        _report_removed(journal)
+    raise StoreError(f"chunk files in {journal.chunks} were found damaged again after {REPAIR_ROUNDS} rounds of "
+                     "computing them anew; the disk may be failing: check it, then run again with --resume")
 
 
-def _finish(journal: Journal, scene: Scene, chunks: ChunkPlan, final: Path, attrs: dict) -> dict[int, int]:
+def _report_removed(journal: Journal) -> None:
+    for line in journal.removed:
+        print(f"mechsweep: chunk file {line}: removed, it is computed again", file=sys.stderr)
+    journal.removed = []
+
+
+def _finish(journal: Journal, scene: Scene, chunks: ChunkPlan, final: Path, attrs: dict,
+            signals: "_Signals") -> tuple[list[BadChunk], dict[int, int]]:
     """Assemble the dataset next to the journal, move it into place by one rename, drop the journal.
-    Returns the points per status code."""
+    Signals wait until a chunk is written (the files are closed before the run stops). Returns the
+    chunk files that did not verify (then nothing is moved into place) and the points per status."""
     tmp = journal.folder / "assembly.h5"
-    counts = assemble(journal, scene, layout(scene, len(chunks)), chunks, tmp, attrs)
-    with open(tmp, "rb+") as f:
-        os.fsync(f.fileno())
-    os.replace(tmp, final)
-    drop(final)
-    return counts
+    check_free_space(scene, tmp)
+    with signals.deferred():
+        bad, counts = assemble(journal, scene, layout(scene, len(chunks)), chunks, tmp, attrs,
+                               stop=signals.pending)
+        if bad:
+            os.unlink(tmp)
+            return bad, counts
+        try:
+            os.replace(tmp, final)
+        except OSError as exc:
+            os.unlink(tmp)
+            raise WriteFailed(final, exc) from None
+        drop(final)
+    return [], counts
+
+
+class _Signals:
+    """SIGINT and SIGTERM stop a run the same way (KeyboardInterrupt, the journal kept; the
+    signal is in ``signum``). Inside ``deferred()`` a signal is only noted (``pending()`` says
+    so), and raised when the block ends, so files being written are closed first. SIGXFSZ is
+    ignored, so that a write over the file-size limit fails with EFBIG instead of killing the
+    process. Handlers are only installed from the main thread (Python allows no other)."""
+
+    def __init__(self):
+        self.signum: int | None = None
+        self._defer = 0
+        self._previous = {}
+
+    def __enter__(self) -> "_Signals":
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._previous[sig] = signal.signal(sig, self._handle)
+            if hasattr(signal, "SIGXFSZ"):
+                self._previous[signal.SIGXFSZ] = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
+
+    def _handle(self, signum, frame) -> None:
+        self.signum = self.signum or signum
+        if not self._defer:
+            raise KeyboardInterrupt
+
+    def pending(self) -> bool:
+        return self.signum is not None
+
+    @contextmanager
+    def deferred(self):
+        self._defer += 1
+        try:
+            yield
+        finally:
+            self._defer -= 1
+        if self.signum is not None and not self._defer:
+            raise KeyboardInterrupt
+
+
+def check_file_limit(scene: Scene, final: Path) -> None:
+    """Refuse, before any file is made, a run whose dataset cannot fit under the process's file-size
+    limit (``ulimit -f``). Counted are only the float outputs, which are stored uncompressed: the
+    dataset is at least that large, so no run that would fit is refused."""
+    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    if soft == resource.RLIM_INFINITY:
+        return
+    least = _least_bytes(scene)
+    if least > soft:
+        raise StoreError(f"file size limit reached (ulimit -f): the dataset {final} needs at least {_mib(least)}, "
+                         f"the limit is {_mib(soft)}; raise the limit (ulimit -f unlimited) or make the grid coarser")
+
+
+def check_free_space(scene: Scene, tmp: Path) -> None:
+    """Before the assembly: refuse at once when the disk cannot hold even the dataset's float
+    outputs (a lower bound of its size), instead of failing part way."""
+    try:
+        free = shutil.disk_usage(tmp.parent).free
+    except OSError:
+        return
+    least = _least_bytes(scene)
+    if least > free:
+        raise WriteFailed(tmp, OSError(errno.ENOSPC, os.strerror(errno.ENOSPC)))
+
+
+def _least_bytes(scene: Scene) -> int:
+    return 8 * scene.n_points * sum(int(np.prod(extra_shape(scene, name), dtype=np.int64)) for name in scene.outputs)
 
 
 def check_target(final: Path) -> None:
@@ -333,10 +519,10 @@ def _local_results(scene: Scene, todo: list[Chunk]):
         yield chunk, evaluate_chunk(scene, chunk, params)
 
 
-def _dask_results(scene: Scene, todo: list[Chunk], scheduler: str, threads: int | None):
+def _dask_results(scene: Scene, todo: list[Chunk], scheduler: str, threads: int | None, worker_timeout: float):
     from .cluster import dask_results
 
-    return dask_results(scene, todo, scheduler, threads)
+    return dask_results(scene, todo, scheduler, threads, worker_timeout=worker_timeout)
 
 
 def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], already: int, progress) -> None:

@@ -170,6 +170,8 @@ class Storage:
 @dataclass(frozen=True)
 class Execution:
     scheduler: str | None = None  # dask.distributed scheduler address; None = local threads
+    # seconds a cluster run waits for a lost scheduler, or with no worker, before it stops
+    worker_timeout: float = 120.0
 
 
 @dataclass(frozen=True)
@@ -649,15 +651,30 @@ def check_scheduler(address) -> str | None:
     return None
 
 
+WORKER_TIMEOUT_RANGE = (1.0, 86400.0)
+
+
+def check_worker_timeout(value) -> str | None:
+    """Why ``value`` is not a worker timeout in seconds, or None."""
+    lo, hi = WORKER_TIMEOUT_RANGE
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not lo <= value <= hi:
+        return f"{_short(value)} is not allowed; expected a number of seconds in [{lo:g}, {hi:g}]"
+    return None
+
+
 def _execution(table: Mapping, p: _Problems) -> Execution:
     for k in table:
-        if k != "scheduler":
-            p.unknown(f"execution.{k}", k, ("scheduler",), "execution key")
+        if k not in ("scheduler", "worker_timeout"):
+            p.unknown(f"execution.{k}", k, ("scheduler", "worker_timeout"), "execution key")
     scheduler = table.get("scheduler")
     if scheduler is not None and (why := check_scheduler(scheduler)) is not None:
         p.add("execution.scheduler", why)
         scheduler = None
-    return Execution(scheduler=scheduler)
+    timeout = table.get("worker_timeout", Execution.worker_timeout)
+    if (why := check_worker_timeout(timeout)) is not None:
+        p.add("execution.worker_timeout", why)
+        timeout = Execution.worker_timeout
+    return Execution(scheduler=scheduler, worker_timeout=float(timeout))
 
 
 def _slug(name: str) -> str:

@@ -4,9 +4,18 @@
 A run saves its finished chunks in a journal (``journal.py``); ``assemble`` writes the dataset
 from it, chunk by chunk (memory bounded by one chunk), into a temporary file that replaces the
 output by one rename. A finished file is therefore never half overwritten.
+
+HDF5 must never see a failed write: after one (disk full, file-size limit, I/O error) the library
+is left with an open file it cannot flush, and it crashes the interpreter at exit (exit 139). So
+``assemble`` hands HDF5 a file object (``_GuardedFile``) that does the writes itself: the first
+failure is recorded, and what HDF5 writes after it is kept in memory (at most about one chunk:
+the assembly stops at the next chunk), so the library closes its file normally. The file is then
+removed and ``WriteFailed`` raised; the journal it was assembled from is untouched.
 """
 from __future__ import annotations
 
+import os
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,9 +25,9 @@ import numpy as np
 import xarray as xr
 
 from . import status as st
-from .errors import StoreError  # noqa: F401  (raised by the runner, part of this module's API)
+from .errors import StoreError, WriteFailed  # noqa: F401  (StoreError: part of this module's API)
 from .grid import plan_chunks
-from .journal import Journal, partial_path  # noqa: F401  (partial_path: part of this module's API)
+from .journal import BadChunk, Journal, partial_path  # noqa: F401  (partial_path: part of this module's API)
 from .scene import Scene, load_scene_text
 
 # Datasets up to this size are loaded into memory by open_dataset(lazy=None); larger ones are
@@ -55,22 +64,62 @@ def layout(scene: Scene, n_chunks: int) -> Layout:
     )
 
 
-def assemble(journal: Journal, scene: Scene, lay: Layout, chunks, target, attrs: dict) -> dict[int, int]:
-    """Write the dataset of a journal to ``target`` (a path or a file object): every variable
-    defined, each journaled chunk written into its region, one chunk in memory at a time.
-    Chunks not in the journal keep the fill values (NaN, status PENDING). The attribute
-    ``wall_time_s`` is the sum of the journaled chunks' wall times. Returns the number of
-    points per status code, counted as the chunks pass (PENDING for chunks not in the journal)."""
+def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, attrs: dict, *,
+             stop=None) -> tuple[list[BadChunk], dict[int, int]]:
+    """Write the dataset of a journal to ``target`` (a path, or a file object for an in-memory
+    view): every variable defined, each journaled chunk written into its region, one chunk in
+    memory at a time. Chunks not in the journal keep the fill values (NaN, status PENDING), and so
+    do chunk files that do not verify: they are returned (the file is still complete). The
+    attribute ``wall_time_s`` is the sum of the written chunks' wall times. Also returned: the
+    number of points per status code, counted as the chunks pass (PENDING for chunks not written).
+
+    To a path the file is written through ``_GuardedFile`` and synced; a failed write raises
+    ``WriteFailed`` after the file is removed. ``stop()`` is asked between chunks: when true, the
+    assembly ends, the file is removed and ``KeyboardInterrupt`` raised."""
+    if not isinstance(target, (str, os.PathLike)):
+        return _assemble(journal, scene, lay, chunks, target, attrs, lambda: False)
+    try:
+        guard = _GuardedFile(target)
+    except OSError as exc:  # e.g. no inode left
+        raise WriteFailed(target, exc) from None
+    stop = stop or (lambda: False)
+    try:
+        bad, counts = _assemble(journal, scene, lay, chunks, guard, attrs,
+                                lambda: guard.error is not None or stop())
+        if guard.error is None:
+            guard.sync()
+    except BaseException:
+        guard.close()
+        _remove(target)
+        raise
+    guard.close()
+    if guard.error is not None:
+        _remove(target)
+        raise WriteFailed(target, guard.error)
+    if stop():
+        _remove(target)
+        raise KeyboardInterrupt
+    return bad, counts
+
+
+def _assemble(journal, scene, lay, chunks, target, attrs, stop) -> tuple[list[BadChunk], dict[int, int]]:
     with h5netcdf.File(target, "w") as f:
         _define(f, scene, lay, attrs)
+    bad = []
     with h5py.File(target, "a") as f:
         names = list(lay.outputs) + ["status"] + (["n_steps", "n_rhs"] if lay.integrated else [])
         variables = {name: f[name] for name in names}
         wall_time = 0.0
         counts = Counts()
         for i in np.flatnonzero(journal.done_chunks()):
+            if stop():
+                break
             chunk = chunks[int(i)]
-            arrays, seconds = journal.read_chunk(int(i))
+            try:
+                arrays, seconds = journal.read_chunk(int(i))
+            except BadChunk as exc:
+                bad.append(exc)
+                continue
             wall_time += seconds
             counts.add(arrays["status"])
             shape = _region_shape(chunk.region, lay.shape)
@@ -81,7 +130,7 @@ def assemble(journal: Journal, scene: Scene, lay: Layout, chunks, target, attrs:
     missing = int(np.prod(lay.shape, dtype=np.int64)) - counts.total
     if missing:
         counts.codes[st.PENDING] = counts.codes.get(st.PENDING, 0) + missing
-    return dict(sorted(counts.codes.items()))
+    return bad, dict(sorted(counts.codes.items()))
 
 
 class Counts:
@@ -114,6 +163,116 @@ def status_counts(path: str | Path) -> dict[int, int]:
 
 
 READ_BLOCK = 2**18  # values per block when a variable is read or written in pieces (2 MiB of float64)
+
+
+def _remove(path) -> None:
+    try:
+        os.unlink(path)
+    except FileNotFoundError:
+        pass
+
+
+class _GuardedFile:
+    """A file for HDF5's ``fileobj`` driver that never reports a failed write to HDF5.
+
+    Writes go to the disk with ``os.pwrite``. The first one that fails is kept in ``error``; from
+    then on writes (and truncations) only go to an in-memory overlay that reads see, so HDF5 can
+    finish and close its file as if nothing happened. The caller stops writing data once
+    ``error`` is set, which bounds the overlay, then removes the file and reports the error."""
+
+    def __init__(self, path):
+        self.path = path
+        self.fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o644)
+        self.pos = 0
+        self.error: OSError | None = None
+        self.overlay: list[tuple[int, bytes]] = []  # (offset, data) written after the failure
+        self.size: int | None = None  # the file's size as HDF5 sees it after the failure
+
+    def seekable(self) -> bool:
+        return True
+
+    def readable(self) -> bool:
+        return True
+
+    def writable(self) -> bool:
+        return True
+
+    def seek(self, offset: int, whence: int = 0) -> int:
+        self.pos = offset if whence == 0 else self.pos + offset if whence == 1 else self._eof() + offset
+        return self.pos
+
+    def tell(self) -> int:
+        return self.pos
+
+    def _eof(self) -> int:
+        real = os.fstat(self.fd).st_size
+        if self.error is None:
+            return real
+        return max([real if self.size is None else self.size] + [o + len(d) for o, d in self.overlay])
+
+    def readinto(self, buffer) -> int:
+        view = memoryview(buffer).cast("B")
+        n = len(view)
+        data = os.pread(self.fd, n, self.pos)
+        view[:len(data)] = data
+        got = len(data)
+        if self.error is not None:
+            end = max(0, min(n, self._eof() - self.pos))
+            view[got:end] = bytes(max(0, end - got))
+            got = max(got, end)
+            for offset, blob in self.overlay:  # later writes win
+                lo, hi = max(offset, self.pos), min(offset + len(blob), self.pos + n)
+                if lo < hi:
+                    view[lo - self.pos:hi - self.pos] = blob[lo - offset:hi - offset]
+        self.pos += got
+        return got
+
+    def read(self, n: int = -1) -> bytes:
+        if n is None or n < 0:
+            n = max(0, self._eof() - self.pos)
+        buffer = bytearray(n)
+        return bytes(buffer[:self.readinto(buffer)])
+
+    def write(self, data) -> int:
+        view = memoryview(data).cast("B")
+        n = len(view)
+        if self.error is None:
+            done = 0
+            try:
+                while done < n:
+                    done += os.pwrite(self.fd, view[done:], self.pos + done)
+            except OSError as exc:
+                self.error = exc
+        if self.error is not None:
+            self.overlay.append((self.pos, bytes(view)))
+        self.pos += n
+        return n
+
+    def truncate(self, size: int | None = None) -> int:
+        size = self.pos if size is None else size
+        if self.error is None:
+            try:
+                os.ftruncate(self.fd, size)
+                return size
+            except OSError as exc:
+                self.error = exc
+        self.size = size
+        self.overlay = [(o, d[:max(0, size - o)]) for o, d in self.overlay if o < size]
+        return size
+
+    def flush(self) -> None:
+        pass
+
+    def sync(self) -> None:
+        try:
+            os.fsync(self.fd)
+        except OSError as exc:
+            self.error = exc
+
+    def close(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
 
 
 def _scalar(value) -> float:
@@ -240,7 +399,9 @@ def _open_partial(part: Path) -> xr.Dataset:
     chunks = plan_chunks(scene.shape, journal.meta["chunk_target"])
     lay = layout(scene, len(chunks))
     buffer = io.BytesIO()
-    assemble(journal, scene, lay, chunks, buffer, journal.meta["attrs"])
+    bad_chunks, _ = assemble(journal, scene, lay, chunks, buffer, journal.meta["attrs"])
+    for bad in bad_chunks:
+        print(f"mechsweep: {bad}; shown as pending, a --resume computes it again", file=sys.stderr)
     buffer.seek(0)
     with xr.open_dataset(buffer, engine="h5netcdf") as ds:
         return ds.load()
