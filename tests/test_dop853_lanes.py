@@ -142,6 +142,6 @@ def test_benchmark_runs_and_compares_the_same_steps():
     from mechsweep.bench import autobalancer as bench
 
     r = bench.main(n_omega=2, n_ratio=2, sim_points=4, scipy_points=1, threads=1)
-    assert r["one_at_a_time_same_steps"]
+    assert r["one_at_a_time_same_steps"] and r["auto_same_steps_elsewhere"]
     assert r["ours_steps_same_trajectories"][0] == pytest.approx(r["scipy_mean_steps"], rel=0.5)
     assert r["max_residual_difference_m"] < 1e-9

@@ -919,10 +919,11 @@ def _simulate(wants, solver, pp, feasible, isolated, Omega, a, code, out, n_step
         out[name][:] = v
 
 
-def integrate(method, pp, run, settings, histories, rtol, atol, max_steps, n_steps, n_rhs):
+def integrate(method, pp, run, settings, histories, rtol, atol, max_steps, n_steps, n_rhs, lanes=True):
     """The perturbed-balanced-state simulations of the points with run[i], by ``method`` at
     (rtol, atol); steps and evaluations are added to n_steps, n_rhs. Returns (meas, hist, code):
-    the measurements (N_MEAS per point), the history samples (n, 4, k) and the status per point."""
+    the measurements (N_MEAS per point), the history samples (n, 4, k) and the status per point.
+    DOP853 runs in SIMD lanes unless ``lanes`` is False (the same results, bitwise)."""
     n = pp.shape[0]
     t_eval, n_rev1, n_early, i_prev, i_late, hist_idx, meas_rows = sample_grid(settings, histories)
     hist = np.full((n, 4, hist_idx.size), np.nan) if histories else np.empty((n, 4, 0))
@@ -930,7 +931,7 @@ def integrate(method, pp, run, settings, histories, rtol, atol, max_steps, n_ste
     scode = np.zeros(n, dtype=np.int8)
     args = (pp, run, float(settings["perturbation"]), t_eval, n_rev1, n_early, i_prev, i_late, rtol, atol,
             max_steps, float(settings["settle_threshold"]), hist_idx, meas_rows, hist, meas, scode, n_steps, n_rhs)
-    lanes = simulation_lanes(t_eval.size)
+    lanes = simulation_lanes(t_eval.size) if lanes else 0
     if run.any():
         if method == "dop853" and lanes:
             simulate_lanes(lanes, *args)
@@ -1071,7 +1072,7 @@ SETTINGS = (
     Setting("floquet_margin", 1e-8, "1", "|floquet_max - 1| within which stable_floquet is undecided", 0.0, 0.1),
     # simulated outputs are re-integrated at rtol / 100 where they may be chaotic (see TIGHTEN)
     Setting("reproducibility_factor", 1000.0, "1",
-            "a simulated output moving by more than this times (rtol |value| + atol) at rtol / 100 is "
+            "a simulated output moving by more than this times (rtol abs(value) + atol) at rtol / 100 is "
             "not_reproducible (0: no check)", 0.0, 1e12),
 )
 
