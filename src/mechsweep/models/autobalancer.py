@@ -480,8 +480,12 @@ trajectory = compile_time_switch("trajectory", {DOP853: _trajectory_dop853, RADA
                                                 AUTO: _trajectory_auto})
 
 # Columns of the per-point measurement table of the simulation kernel.
-M_E0, M_ELATE, M_RREF, M_RLATE, M_EFINAL, M_TSETTLE, M_EPREV = range(7)
-N_MEAS = 7
+M_E0, M_ELATE, M_RREF, M_RLATE, M_EFINAL, M_TSETTLE, M_EPREV, M_LOCK = range(8)
+N_MEAS = 8
+# Bits of sample_grid's meas_rows: a row of the measurement grid; a whole revolution of the
+# second half of the horizon (the once-per-revolution map, M_LOCK).
+ROW_MEASURE = 1
+ROW_REVOLUTION = 2
 
 
 @jit_noalloc
@@ -533,7 +537,7 @@ def measure(traj, p, t_eval, n_rev1, n_early, i_prev, i_late, settle, hist_idx, 
     """The measurements of one simulated trajectory (samples traj[k] at t_eval[k]) into meas and,
     if hist has columns, hist[4, k]. Returns OK, or NONFINITE for a non-finite sample.
 
-    Only the rows with meas_rows[k] (the measurement grid, the same whichever outputs are asked
+    Only the rows with meas_rows[k] & ROW_MEASURE (the measurement grid, the same whichever outputs are asked
     for) enter the measurements; the rows added for the histories do not, so that no output
     depends on whether histories are requested (the trajectory itself never does: samples come
     from the dense output and do not change the steps)."""
@@ -546,13 +550,28 @@ def measure(traj, p, t_eval, n_rev1, n_early, i_prev, i_late, settle, hist_idx, 
     r_ref = 0.0
     r_late = 0.0
     last_above = -1
+    k_rev = -1  # previous whole-revolution row
+    n_rev = 0
+    lock = 0.0
     k_prev = -1
     k_next = -1
     e_prev = 0.0
     e_last_above = 0.0
     e_next = 0.0
     for k in range(n_eval):
-        if not meas_rows[k]:
+        if meas_rows[k] & ROW_REVOLUTION:
+            # M_LOCK: largest change of the state over one revolution (the pendulum angles less
+            # one turn) in the second half: ~0 once the motion is locked to the crank period
+            if k_rev >= 0:
+                for i in range(8):
+                    dz = traj[k, i] - traj[k_rev, i]
+                    if i == 2 or i == 3:
+                        dz -= t_eval[k] - t_eval[k_rev]
+                    if not abs(dz) <= lock:  # NaN propagates
+                        lock = abs(dz)
+            k_rev = k
+            n_rev += 1
+        if not meas_rows[k] & ROW_MEASURE:
             continue
         tau = t_eval[k]
         e1, e2 = phase_errors(tau, traj[k, 2], traj[k, 3], th1, th2)
@@ -583,6 +602,7 @@ def measure(traj, p, t_eval, n_rev1, n_early, i_prev, i_late, settle, hist_idx, 
     meas[M_RLATE] = r_late
     meas[M_EFINAL] = e_prev
     meas[M_EPREV] = e_before
+    meas[M_LOCK] = lock if n_rev >= 2 else math.inf
     if last_above == k_prev:
         meas[M_TSETTLE] = math.nan  # never settled within the horizon
     elif last_above < 0:
@@ -715,8 +735,9 @@ def simulate_lanes(lanes, pp, run, *args):
 def sample_grid(settings, histories: bool):
     """The tau instants of the simulation samples (identical for every point) and the row
     indices the kernel needs: (t_eval, n_rev1, n_early, i_prev, i_late, hist_idx, meas_rows).
-    meas_rows[k] is 1 for the rows of the measurement grid, which depends on the settings only,
-    0 for rows only the histories need (measure() skips them)."""
+    meas_rows[k] has the bit ROW_MEASURE for the rows of the measurement grid, which depends on
+    the settings only (rows only the histories need have not: measure() skips them), and
+    ROW_REVOLUTION for the whole revolutions of the second half of the horizon (M_LOCK)."""
     H = float(settings["horizon_revolutions"])
     tau_end = TWO_PI * H
     per_rev = int(settings["monitor_samples_per_revolution"])
@@ -726,14 +747,16 @@ def sample_grid(settings, histories: bool):
              np.linspace(tau_late, tau_end, max(2, int(math.ceil(dense * LATE_FRACTION * H)) + 1)),
              np.linspace(0.0, TWO_PI * min(1.0, H), per_rev + 1)]
     hist_tau = TWO_PI * history_revolutions(settings) if histories else np.empty(0)
-    t_eval = np.unique(np.concatenate(parts + [hist_tau]))
+    rev_tau = TWO_PI * np.arange(math.ceil(0.5 * H), math.floor(H) + 1)  # whole revolutions, second half
+    t_eval = np.unique(np.concatenate(parts + [hist_tau, rev_tau]))
     n_rev1 = int(np.searchsorted(t_eval, TWO_PI * min(1.0, H), side="right"))
     n_early = int(np.searchsorted(t_eval, EARLY_FRACTION * tau_end, side="right"))
     i_late = int(np.searchsorted(t_eval, tau_late, side="left"))
     i_prev = int(np.searchsorted(t_eval, (1.0 - 2.0 * LATE_FRACTION) * tau_end, side="left"))
     hist_idx = np.searchsorted(t_eval, hist_tau).astype(np.int64)
-    meas_rows = np.isin(t_eval, np.concatenate(parts)).astype(np.int8)
-    return t_eval, n_rev1, n_early, i_prev, i_late, hist_idx, meas_rows
+    meas_rows = np.where(np.isin(t_eval, np.concatenate(parts)), ROW_MEASURE, 0)
+    meas_rows |= np.where(np.isin(t_eval, rev_tau), ROW_REVOLUTION, 0)
+    return t_eval, n_rev1, n_early, i_prev, i_late, hist_idx, meas_rows.astype(np.int8)
 
 
 def history_revolutions(settings) -> np.ndarray:
@@ -900,7 +923,7 @@ def _simulate(wants, solver, pp, feasible, isolated, Omega, a, code, out, n_step
     values, vcode = sim_values(wants, s, meas, hist, good, bal)
     code[:] = _worse(code, vcode)
     factor = float(s["reproducibility_factor"])
-    check = good & recheck_needed(s, meas, good) & (factor > 0.0)
+    check = good & recheck_needed(s, meas, good, solver.rtol, solver.atol) & (factor > 0.0)
     if check.any():
         tight = tighter_rtol(solver.rtol)
         meas2, hist2, scode2 = integrate(solver.method, pp, check, s, histories, tight, solver.atol,
@@ -946,7 +969,7 @@ def sim_values(wants, s, meas, hist, good, bal):
     n = meas.shape[0]
     code = np.zeros(n, dtype=np.int8)
     values = {}
-    e0, e_late, r_ref, r_late, e_final, t_settle, e_before = meas.T
+    e0, e_late, r_ref, r_late, e_final, t_settle, e_before, _ = meas.T
     if "residual_amplitude" in wants:
         values["residual_amplitude"] = np.where(good, r_late, np.nan)
     if "phase_error" in wants:
@@ -983,9 +1006,9 @@ def sim_values(wants, s, meas, hist, good, bal):
 # units of a, angles in rad, time in tau = Omega t; histories sample by sample), whose stable_sim
 # verdict changes, or whose tighter integration fails, gets NOT_REPRODUCIBLE. The first values
 # are kept (bitwise as without the check); only the status says that their digits are not all
-# meaningful. Not re-integrated: trajectories that settled (phase error below settle_threshold
-# and staying there) within the first SETTLED_FRACTION of the horizon; they end on an
-# attracting periodic motion, on which integration errors decay (measured: see recheck_needed).
+# meaningful. Not re-integrated (recheck_needed): trajectories that settled within the first
+# SETTLED_FRACTION of the horizon, or whose state repeats from revolution to revolution through
+# the second half; they end on an attracting periodic motion, on which integration errors decay.
 TIGHTEN = 100.0
 RTOL_TIGHT_FLOOR = 1e-14
 SETTLED_FRACTION = 0.5
@@ -997,15 +1020,21 @@ def tighter_rtol(rtol):
     return min(rtol, max(rtol / TIGHTEN, RTOL_TIGHT_FLOOR))
 
 
-def recheck_needed(settings, meas, good):
+def recheck_needed(settings, meas, good, rtol, atol):
     """Points whose simulation is integrated again for the reproducibility check: every
-    successful trajectory except those settled early (see TIGHTEN). A function of the point's
-    own measurements only, so the decision does not depend on the other points or outputs."""
+    successful trajectory except those that settled early (phase error below settle_threshold
+    from the first SETTLED_FRACTION of the horizon on) and those locked to the crank period
+    through the whole second half (the state changes by at most reproducibility_factor
+    (rtol + atol) per revolution, M_LOCK): both end on an attracting periodic motion. A function
+    of the point's own measurements only, so the decision does not depend on the other points
+    or outputs."""
     tau_end = TWO_PI * float(settings["horizon_revolutions"])
+    factor = float(settings["reproducibility_factor"])
     t_settle = meas[:, M_TSETTLE]
     with np.errstate(invalid="ignore"):
         early = np.isfinite(t_settle) & (t_settle <= SETTLED_FRACTION * tau_end)
-    return good & ~early
+        locked = meas[:, M_LOCK] <= factor * (rtol + atol)
+    return good & ~early & ~locked
 
 
 def _moved(v, v2, rtol, atol, factor):
