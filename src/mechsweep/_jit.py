@@ -24,6 +24,10 @@ Options and why:
   that calls an integrator from another module would keep stale machine code
   after that module changed. Keying the directory on all sources makes any edit
   start a fresh cache. ``MECHSWEEP_NO_CACHE=1`` turns caching off.
+- Closures made by a factory (a solver for one right-hand side) get a qualified name that
+  says what they close over (:func:`_distinct_qualname`): numba's symbol names would otherwise
+  coincide between cached kernels compiled by different processes, and one kernel would run
+  another's closure (it happened: results depended on what ran earlier in the process).
 """
 from __future__ import annotations
 
