@@ -336,7 +336,7 @@ def test_stiff_corners_end_with_a_status_not_a_wrong_verdict():
     assert (status[1:] == st.MAX_STEPS).all() and np.isnan(out["stable_sim"][1:]).all()
     decided = np.isfinite(out["stable_sim"])
     assert (out["stable_sim"][decided] == out["stable_floquet"][decided]).all()
-    assert (ns <= 2 * 20_000 + 10).all()
+    assert (ns <= 3 * 20_000 + 10).all()  # Floquet, simulation, reproducibility check: each its budget
 
 
 def test_degenerate_ends_are_not_balanceable_for_stability():

@@ -63,13 +63,13 @@ def simulate(pp, lanes, max_steps=100_000, histories=True, run=None, threads=Non
     points: (meas, hist, code, n_steps, n_rhs)."""
     s = Solver.for_model(ab.SPEC, horizon_revolutions=40.0, max_steps=max_steps)
     n = pp.shape[0]
-    t_eval, n_rev1, n_early, i_prev, i_late, hist_idx = ab.sample_grid(s.settings, histories)
+    t_eval, n_rev1, n_early, i_prev, i_late, hist_idx, meas_rows = ab.sample_grid(s.settings, histories)
     hist = np.full((n, 4, hist_idx.size), np.nan)
     meas = np.full((n, ab.N_MEAS), np.nan)
     code, n_steps, n_rhs = np.zeros(n, np.int8), np.zeros(n, np.int64), np.zeros(n, np.int64)
     run = np.ones(n, bool) if run is None else run
     args = (pp, run, s.settings["perturbation"], t_eval, n_rev1, n_early, i_prev, i_late, s.rtol, s.atol, max_steps,
-            s.settings["settle_threshold"], hist_idx, hist, meas, code, n_steps, n_rhs)
+            s.settings["settle_threshold"], hist_idx, meas_rows, hist, meas, code, n_steps, n_rhs)
     before = numba.get_num_threads()
     numba.set_num_threads(threads or before)
     try:
@@ -142,6 +142,6 @@ def test_benchmark_runs_and_compares_the_same_steps():
     from mechsweep.bench import autobalancer as bench
 
     r = bench.main(n_omega=2, n_ratio=2, sim_points=4, scipy_points=1, threads=1)
-    assert r["one_at_a_time_same_steps"]
+    assert r["one_at_a_time_same_steps"] and r["auto_same_steps_elsewhere"]
     assert r["ours_steps_same_trajectories"][0] == pytest.approx(r["scipy_mean_steps"], rel=0.5)
     assert r["max_residual_difference_m"] < 1e-9

@@ -31,12 +31,13 @@ INTEGRATION = {st.MAX_STEPS, st.STEP_UNDERFLOW, st.NONFINITE, st.NO_EVENT, st.ST
 DOCUMENTED = {
     "duffing": {st.OK, st.INFEASIBLE, st.NOT_OSCILLATORY, st.NO_MOTION} | INTEGRATION,
     "torsional_circuit": {st.OK, st.INFEASIBLE, st.SINGULAR, st.NOT_OSCILLATORY, st.NO_MOTION} | INTEGRATION,
-    "autobalancer": {st.OK, st.INFEASIBLE, st.SINGULAR, st.NOT_BALANCEABLE, st.UNDECIDED} | INTEGRATION,
+    "autobalancer": {st.OK, st.INFEASIBLE, st.SINGULAR, st.NOT_BALANCEABLE, st.UNDECIDED, st.NOT_REPRODUCIBLE}
+    | INTEGRATION,
     "fourbar_balancing": {st.OK, st.INFEASIBLE, st.SINGULAR, st.NONFINITE},
     "slidercrank_balancing": {st.OK, st.INFEASIBLE, st.SINGULAR, st.NONFINITE},
 }
 # integrations per point: a point's n_steps sums them, each has its own budget
-INTEGRATIONS = {"duffing": 1, "torsional_circuit": 2, "autobalancer": 2}
+INTEGRATIONS = {"duffing": 1, "torsional_circuit": 2, "autobalancer": 3}  # autobalancer: Floquet, simulation, check
 
 # the test-size grid of each scene: indices into the full scene's axis values (all if absent)
 SMALL = {
@@ -369,7 +370,8 @@ def test_autobalancer_stiff_platform_flagged_or_consistent(ran):
     sim, flo = ds["stable_sim"].values, ds["stable_floquet"].values
     both = np.isfinite(sim) & np.isfinite(flo)
     assert (sim[both] == flo[both]).all()
-    assert set(status[~ok].tolist()) <= {st.MAX_STEPS, st.STIFF, st.UNDECIDED, st.STEP_UNDERFLOW, st.NO_EVENT}
+    assert set(status[~ok].tolist()) <= {st.MAX_STEPS, st.STIFF, st.UNDECIDED, st.STEP_UNDERFLOW, st.NO_EVENT,
+                                         st.NOT_REPRODUCIBLE}
     # Omega far below omega_xi: the first approximation says unstable
     assert (ds["stable_first_approx"].values == 0).all()
 
@@ -380,7 +382,8 @@ def test_autobalancer_damping_range(ran):
     both = np.isfinite(sim) & np.isfinite(flo)
     assert both.any() and (sim[both] == flo[both]).all()
     st_ = ds["status"].values
-    assert (np.isnan(ds["settling_time"].values[st_ != st.OK])).all()
+    kept = (st_ == st.OK) | (st_ == st.NOT_REPRODUCIBLE)  # not_reproducible: the value is stored
+    assert (np.isnan(ds["settling_time"].values[~kept])).all()
     assert (ds["settling_time"].values[st_ == st.OK] > 0).all()
 
 

@@ -28,3 +28,34 @@ def test_noalloc_and_inline_functions_work_on_caller_arrays():
     v = np.arange(5.0)
     assert f(v, 2.0) == g(v, 2.0) == 20.0
     assert f(v[::2], 1.0) == 6.0  # views of caller arrays are fine
+
+
+NAMES_CODE = """
+from mechsweep.models import autobalancer as ab
+from mechsweep.ode import dop853, radau
+print(dop853._make_start(ab.rhs).py_func.__qualname__)
+print(dop853._make_start(ab.variational_rhs).py_func.__qualname__)
+print(dop853.make_solver(ab.variational_rhs).py_func.__qualname__)
+print(dop853.make_solver(ab.variational_rhs, stiffness_test=True).py_func.__qualname__)
+print(radau.make_trajectory_solver(ab.rhs, ab.jacobian).py_func.__qualname__)
+"""
+
+
+def test_closures_of_one_factory_get_distinct_names_the_same_in_every_process():
+    """numba names compiled code by qualified name, argument types and a per-process counter: two
+    closures of one factory (the solver of one right-hand side and of another) compiled into
+    cached kernels by different processes could get the same symbol, and a process loading both
+    kernels then ran one closure's code in the other kernel (the simulation lanes started with
+    the Floquet system's first step after a Floquet run). Their names must differ, and be the
+    same in every process (cached kernels are found by them)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import mechsweep
+
+    env = {**__import__("os").environ, "PYTHONPATH": str(Path(mechsweep.__file__).resolve().parents[1])}
+    runs = [subprocess.run([sys.executable, "-c", NAMES_CODE], capture_output=True, text=True, env=env, check=True)
+            .stdout.split() for _ in range(2)]
+    assert runs[0] == runs[1]
+    assert len(set(runs[0])) == len(runs[0]), runs[0]

@@ -24,6 +24,10 @@ Options and why:
   that calls an integrator from another module would keep stale machine code
   after that module changed. Keying the directory on all sources makes any edit
   start a fresh cache. ``MECHSWEEP_NO_CACHE=1`` turns caching off.
+- Closures made by a factory (a solver for one right-hand side) get a qualified name that
+  says what they close over (:func:`_distinct_qualname`): numba's symbol names would otherwise
+  coincide between cached kernels compiled by different processes, and one kernel would run
+  another's closure (it happened: results depended on what ran earlier in the process).
 """
 from __future__ import annotations
 
@@ -72,7 +76,52 @@ def _make_cache_dir() -> str | None:
 cache_dir = _make_cache_dir()
 
 
+def _describe(value) -> str:
+    """A description of a closure variable that is the same in every process: what the
+    function's machine code depends on (jitted functions by module and qualified name, which
+    _distinct_qualname has already made distinct; plain values by repr; arrays by content)."""
+    py_func = getattr(value, "py_func", None)
+    if py_func is not None or callable(value) and hasattr(value, "__qualname__"):
+        f = py_func if py_func is not None else value
+        return f"{getattr(f, '__module__', '')}.{f.__qualname__}"
+    if isinstance(value, (bool, int, float, complex, str, bytes, type(None))):
+        return repr(value)
+    if isinstance(value, (tuple, list)):
+        return "(" + ",".join(_describe(v) for v in value) + ")"
+    if hasattr(value, "tobytes") and hasattr(value, "dtype"):
+        return f"array:{value.dtype}:{getattr(value, 'shape', '')}:{hashlib.sha256(value.tobytes()).hexdigest()}"
+    return type(value).__qualname__
+
+
+def _distinct_qualname(func) -> None:
+    """Give a closure made by a factory (e.g. a solver made for one right-hand side) a qualified
+    name that says what it closes over.
+
+    numba names a compiled function by module, qualified name, argument types and a counter of
+    the compiling process. Two closures from the same factory share the qualified name; when
+    each was compiled into a cached kernel by a different process, the counters can coincide,
+    and the two kernels then define the same symbol with different machine code. Loaded into one
+    process, every reference binds to whichever kernel was loaded first: e.g. the simulation
+    lanes started their trajectories with the first-step selection of the Floquet variational
+    system after a Floquet run (results then depended on which outputs a scene asked for and on
+    what ran earlier in the process; measured, tests/test_autobalancer_reproducible.py).
+    A suffix from the closure's variables, identical in every process, keeps the symbols apart.
+    """
+    cells = func.__closure__
+    if not cells or "__c" in func.__qualname__.rsplit(".", 1)[-1]:
+        return
+    parts = []
+    for name, cell in zip(func.__code__.co_freevars, cells):
+        try:
+            parts.append(f"{name}={_describe(cell.cell_contents)}")
+        except ValueError:  # an empty cell (a variable assigned later)
+            parts.append(f"{name}=?")
+    tag = hashlib.sha256("|".join(parts).encode()).hexdigest()[:12]
+    func.__qualname__ = f"{func.__qualname__}__c{tag}"
+
+
 def _decorate(func, **extra):
+    _distinct_qualname(func)
     if cache_dir is None:
         return numba.njit(**_OPTIONS, **extra)(func)
     # numba reads config.CACHE_DIR when the dispatcher is created; set it only
@@ -132,6 +181,9 @@ def compile_time_switch(name: str, cases: dict):
 
         def impl(code, *args):
             return case(*args)
+        # one name per switch and case (see _distinct_qualname): the impls of different
+        # switches with the same argument types must not share a symbol
+        impl.__qualname__ = f"{name}__case{code.literal_value}__{_describe(case)}".replace(".", "_").replace("<", "").replace(">", "")
         return impl
 
     return switch

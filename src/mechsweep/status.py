@@ -22,6 +22,7 @@ NOT_BALANCEABLE = 9  # no balanced state (A0 > 2 m a or A1 != 0): balanced-state
 UNDECIDED = 10  # stability undecided (simulation inconclusive, or |multiplier| within margin of 1)
 STIFF = 11  # the explicit method detected stiffness and no implicit method was allowed to take over
 ILL_CONDITIONED = 12  # the output is too sensitive here to reach the tolerance in double precision
+NOT_REPRODUCIBLE = 13  # the value moved by more than its tolerance when integrated again at a tighter one
 
 MEANINGS: dict[int, str] = {
     PENDING: "pending",
@@ -38,6 +39,7 @@ MEANINGS: dict[int, str] = {
     UNDECIDED: "undecided",
     STIFF: "stiff",
     ILL_CONDITIONED: "ill_conditioned",
+    NOT_REPRODUCIBLE: "not_reproducible",
 }
 
 DESCRIPTIONS: dict[int, str] = {
@@ -55,6 +57,9 @@ DESCRIPTIONS: dict[int, str] = {
     UNDECIDED: "stability could not be decided: the simulation neither settled nor diverged within the horizon, or floquet_max is within solver.floquet_margin of 1",
     ILL_CONDITIONED: "the output is too sensitive here to reach solver.rtol in double precision (the Duffing period within ~1e-6 of the soft separatrix); the closed form, where there is one, is still given",
     STIFF: "the problem is stiff at this point and the explicit method stopped (use method = \"auto\" or \"radau\")",
+    NOT_REPRODUCIBLE: "integrated again at a tighter tolerance, an output moved by more than the tolerance it "
+                      "claims (or the second integration failed): the value is stored but its trailing digits "
+                      "are not meaningful (chaotic or transient-dominated motion)",
 }
 
 DTYPE = np.int8

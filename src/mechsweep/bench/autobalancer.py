@@ -11,7 +11,12 @@
    REPEATS runs each. The points are a sweep's worth per thread (512 by default; on 2 threads the
    shipped scenes give a thread 180-3,000): a thread's lanes idle at the end of its queue, which a
    handful of points would overstate. For comparison, once, the same points one trajectory at a
-   time (method "auto": the same DOP853 steps plus the stiffness test).
+   time (the same DOP853 without lanes: it must take the same steps, and the bench says if not),
+   and with method "auto" (the same DOP853 steps plus the stiffness test; a point it finds stiff is
+   integrated again with radau, so its step count legitimately adds both integrations: the number
+   of such points is printed). The simulation times include the model's reproducibility check
+   (points whose trajectory did not settle early are integrated again at rtol / 100, see
+   models/autobalancer.py, TIGHTEN); its steps count in the steps per second.
    scipy.integrate.solve_ivp(method="DOP853", t_eval=the model's samples; the same equations
    written in Python with math/numpy, the same tolerances) integrates a sample of the same
    trajectories in the same process, each the best of REPEATS runs too; its step count comes from
@@ -227,24 +232,34 @@ def _main(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
     Pall = P[np.sort(rng.choice(n, size=min(4 * sim_points, n), replace=False))]
     sim_all_s, (_, _, ans, _) = _best_of(REPEATS, run_outputs, Pall, sim_outputs, solver)
     ours_all_steps_per_s = ans.sum() / sim_all_s
-    # one trajectory at a time, once (slower: a few seconds)
-    numba.set_num_threads(1)
-    try:
-        auto = Solver.for_model(ab.SPEC, rtol=rtol, atol=atol, method="auto")
-        run_outputs(Psim[:2], sim_outputs, auto)  # compile or load
-        t0 = time.perf_counter()
-        _, _, one_ns, _ = run_outputs(Psim, sim_outputs, auto)
-        one_steps_per_s = one_ns.sum() / (time.perf_counter() - t0)
-    finally:
-        numba.set_num_threads(n_threads)
-
-    # scipy on the first scipy_points of those trajectories
     t_eval, *_ = ab.sample_grid(solver.settings, histories=False)
     col = {name: Psim[:, j] for j, name in enumerate(ab.PARAM_NAMES)}
     pf = ab.platform(Psim)
     theta = np.arccos(-col["A0"] / (2 * col["m"] * col["a"]))
     pp = ab.scaled_parameters(col["Omega"], col["M"], col["m"], col["a"], col["I_B"], col["A0"], 0.0, 0.0,
                               pf["c_xi"], pf["c_eta"], pf["b_xi"], pf["b_eta"], col["h"], theta, -theta)
+
+    # one trajectory at a time, once (slower: a few seconds): the same DOP853 must take the same
+    # steps as the lanes; method auto takes them too, unless its stiffness test hands a point to
+    # radau (then its count adds both integrations: counted and printed, not a disagreement)
+    def first_integration(method, lanes, points):
+        counts = np.zeros(points.shape[0], np.int64)
+        ab.integrate(method, points, np.ones(points.shape[0], bool), solver.settings, False, rtol, atol,
+                     solver.max_steps, counts, np.zeros_like(counts), lanes=lanes)
+        return counts
+
+    numba.set_num_threads(1)
+    try:
+        lane_ns = first_integration("dop853", True, pp)
+        first_integration("dop853", False, pp[:1])  # compile or load
+        t0 = time.perf_counter()
+        one_ns = first_integration("dop853", False, pp)
+        one_steps_per_s = one_ns.sum() / (time.perf_counter() - t0)
+        auto_ns = first_integration("auto", False, pp)
+    finally:
+        numba.set_num_threads(n_threads)
+
+    # scipy on the first scipy_points of those trajectories
     delta = solver.settings["perturbation"]
     k_sp = min(scipy_points, pick.size)
     sp_steps, sp_time, diffs = [], 0.0, []
@@ -277,13 +292,15 @@ def _main(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
         "sim_ok_fraction": float((sstatus == st.OK).mean()),
         "scipy_trajectories": k_sp,
         "scipy_mean_steps": float(np.mean(sp_steps)),
-        "ours_steps_same_trajectories": [int(s) for s in sns[:k_sp]],
+        "ours_steps_same_trajectories": [int(s) for s in lane_ns[:k_sp]],  # first integration, as scipy's
         "scipy_steps_per_s": float(scipy_steps_per_s),
         "ratio_vs_scipy_per_core": float(ours_steps_per_s / scipy_steps_per_s),
         "sim_steps_per_s_all_threads": float(ours_all_steps_per_s),
         "ratio_vs_scipy_all_threads": float(ours_all_steps_per_s / scipy_steps_per_s),
         "one_at_a_time_steps_per_s": float(one_steps_per_s),
-        "one_at_a_time_same_steps": bool(np.array_equal(one_ns, sns)),
+        "one_at_a_time_same_steps": bool(np.array_equal(one_ns, lane_ns)),
+        "auto_radau_handoffs": int((auto_ns != one_ns).sum()),
+        "auto_same_steps_elsewhere": bool((auto_ns >= one_ns).all()),
         "rhs_ns": rhs_cost,
         "lane_rhs_ns": lane_rhs_cost,
         "lanes": ab.LANES,
@@ -312,9 +329,11 @@ def _print(r: dict, solver) -> None:
     print(f"  scipy solve_ivp DOP853 (Python rhs), {r['scipy_trajectories']} of the same trajectories, best of {REPEATS} runs each: "
           f"{r['scipy_steps_per_s']:,.0f} steps/s ({r['scipy_mean_steps']:.0f} steps/trajectory; ours "
           f"{r['ours_steps_same_trajectories']})")
-    print(f"  the same points one trajectory at a time (method auto): {r['one_at_a_time_steps_per_s']:,.0f} steps/s "
-          f"on 1 thread, lanes {r['sim_steps_per_s_per_core'] / r['one_at_a_time_steps_per_s']:.1f}x faster"
-          f"{'' if r['one_at_a_time_same_steps'] else ' (step counts DIFFER)'}")
+    print(f"  the same points one trajectory at a time (DOP853 without lanes): {r['one_at_a_time_steps_per_s']:,.0f} "
+          f"steps/s on 1 thread, lanes {r['sim_steps_per_s_per_core'] / r['one_at_a_time_steps_per_s']:.1f}x faster; "
+          f"step counts {'the same' if r['one_at_a_time_same_steps'] else 'DIFFER (a bug: the lanes must take the same steps)'}"
+          f"; method auto: {r['auto_radau_handoffs']} of {r['sim_points']} points found stiff and integrated again "
+          f"with radau (their counts add both integrations), the others the same steps")
     print(f"  right-hand side: {r['rhs_ns']:.0f} ns alone, {r['lane_rhs_ns']:.1f} ns per lane in {r['lanes']} lanes; "
           f"{r['rhs_per_step']:.1f} per step (counted as one trajectory would: lanes compute the dense "
           f"output's 3 whenever any lane needs them); a step takes {1e6 / r['sim_steps_per_s_per_core']:.2f} us "
