@@ -23,19 +23,36 @@ IN_FLIGHT_PER_THREAD = 2
 CONNECT_TIMEOUT_S = 20
 
 
-def dask_results(scene, todo, scheduler: str, threads: int | None = None):
-    """Yield ``(chunk, result)`` as the cluster at ``scheduler`` finishes them. Closing the
-    generator cancels the tasks still in flight and disconnects."""
+NEEDS_DISTRIBUTED = ("running on a dask cluster needs the optional packages dask and distributed: "
+                     "pip install \"mechsweep[distributed]\"")
+
+
+def connect(scheduler: str):
+    """A client of the dask scheduler at ``scheduler``; InputError if the packages are missing or
+    the scheduler does not answer within CONNECT_TIMEOUT_S. A run calls this before it creates
+    any file, so an unreachable cluster leaves nothing behind."""
     try:
-        from distributed import Client, as_completed
+        from distributed import Client
     except ImportError:
-        raise InputError("running on a dask cluster needs the optional packages dask and distributed: "
-                         "pip install \"mechsweep[distributed]\"") from None
+        raise InputError(NEEDS_DISTRIBUTED) from None
     try:
-        client = Client(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
+        return Client(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
         raise InputError(f"cannot reach the dask scheduler at {scheduler!r} within {CONNECT_TIMEOUT_S} s "
                          f"({exc}); start one with `dask scheduler` and workers with `dask worker ADDRESS`") from None
+
+
+def dask_results(scene, todo, scheduler: str, threads: int | None = None, client=None):
+    """Yield ``(chunk, result)`` as the cluster at ``scheduler`` finishes them. Closing the
+    generator cancels the tasks still in flight (and disconnects, unless ``client`` was given:
+    its owner closes it)."""
+    try:
+        from distributed import as_completed
+    except ImportError:
+        raise InputError(NEEDS_DISTRIBUTED) from None
+    owner = client is None
+    if owner:
+        client = connect(scheduler)
     run_id = uuid.uuid4().hex[:12]
     futures = as_completed(loop=client.loop)
     live = {}  # key -> (future, chunk), submitted and not yet handed out
@@ -61,7 +78,8 @@ def dask_results(scene, todo, scheduler: str, threads: int | None = None):
     finally:
         if live:
             client.cancel([f for f, _ in live.values()])
-        client.close()
+        if owner:
+            client.close()
 
 
 def compute_chunk(scene_text: str, chunk, threads: int | None = None):

@@ -387,6 +387,17 @@ def main(model: str, scene_path: str | None = None, points: int = 64, positions=
     from ..errors import InputError
     from .workprecision import sample
 
+    from . import _args
+
+    if not isinstance(model, str) or model not in CASES:
+        raise InputError(f"no linkage work-precision case for model {model!r}; cases: {', '.join(CASES)}")
+    points = _args.count("points", points, 1, 10**6)
+    repeats = _args.count("repeats", repeats, 1, 1000)
+    out_dir = _args.folder("out", out_dir)
+    positions = tuple(positions)
+    if not positions:
+        raise InputError("the ladder of crank positions is empty; give at least one")
+    positions = tuple(_args.count("positions", n, 4, 10**6) for n in positions)
     case = CASES[model]
     spec = MODELS[model]
     scene = load_scene(scene_path or ROOT / case.scene)
