@@ -138,6 +138,10 @@ WRONG_KIND = {
     "journal_chunks_file": "chunks is a regular file, not a folder",
     "journal_chunk_fifo": "0000000.npz is not a chunk file",
     "discard_file": "out.h5.partial.discard (the run's journal being deleted) is a regular file, not a folder",
+    "run_json_list": "run.json is not a run's journal (a JSON list",
+    "run_json_not_json": "run.json is unreadable",
+    "run_json_missing_keys": "run.json is damaged (entries scene_canonical, scene, chunk_target, n_chunks, attrs",
+    "run_json_zero_chunks": "run.json is damaged",
 }
 
 
@@ -159,6 +163,11 @@ def test_run_refuses_lock_and_journal_paths_of_the_wrong_kind(what, work, capsys
         (part / "chunks").mkdir(parents=True)
         if what == "journal_file_run_json_fifo":
             os.mkfifo(part / "run.json")  # reading it would block forever
+        elif what.startswith("run_json"):
+            (part / "run.json").write_text({"run_json_list": "[1, 2]", "run_json_not_json": "{not json",
+                                            "run_json_missing_keys": '{"format": 1}',
+                                            "run_json_zero_chunks": '{"format": 1, "scene_canonical": "", "scene": "", '
+                                                                    '"chunk_target": 0, "n_chunks": 0, "attrs": {}}'}[what])
         elif what == "journal_chunks_file":
             (part / "chunks").rmdir()
             (part / "chunks").write_text("x")
@@ -167,7 +176,7 @@ def test_run_refuses_lock_and_journal_paths_of_the_wrong_kind(what, work, capsys
             os.mkfifo(part / "chunks" / "0000000.npz")
     flags = [] if what.startswith(("lock", "discard")) else ["--resume"]
     refused(capsys, ["run", "valid.toml", "-o", str(out), "--no-progress", *flags], work, WRONG_KIND[what])
-    if what.startswith("journal_"):
+    if what.startswith(("journal_", "run_json")):
         refused(capsys, ["info", str(out)], work, WRONG_KIND[what])  # the unfinished-run view too
 
 

@@ -310,11 +310,38 @@ def check_journal_files(part: Path, contents: bool = True) -> None:
         if os.path.lexists(entry) and not test(entry.stat().st_mode):
             raise StoreError(f"{entry} is {file_kind(entry.stat().st_mode)}, not {want} as a run writes it; "
                              "start over with --restart")
+    _check_run_json(part / "run.json")
     chunks = part / "chunks"
     if chunks.is_dir():
         for e in os.scandir(chunks):
             if not e.is_file(follow_symlinks=False):
                 raise StoreError(f"{e.path} is not a chunk file a run writes; start over with --restart")
+
+
+RUN_JSON_KEYS = {"scene_canonical": str, "scene": str, "chunk_target": int, "n_chunks": int, "attrs": dict}
+
+
+def _check_run_json(path: Path) -> None:
+    """Refuse a journal's run.json that is not what a run writes (edited, damaged, foreign)."""
+    import json
+
+    from .journal import FORMAT
+
+    if not path.is_file():
+        return
+    try:
+        meta = json.loads(path.read_bytes())
+    except ValueError as exc:
+        raise StoreError(f"{path} is unreadable ({_first_line(exc)}); start over with --restart") from None
+    if not isinstance(meta, dict):
+        raise StoreError(f"{path} is not a run's journal (a JSON {type(meta).__name__}, not an object); "
+                         "start over with --restart")
+    if meta.get("format") != FORMAT:
+        return  # another version's journal: Journal.read says so
+    bad = [k for k, kind in RUN_JSON_KEYS.items() if not isinstance(meta.get(k), kind) or isinstance(meta.get(k), bool)]
+    if bad or meta["n_chunks"] < 1 or meta["chunk_target"] < 1:
+        raise StoreError(f"{path} is damaged (entries {', '.join(bad) or 'n_chunks, chunk_target'} missing or of the "
+                         "wrong kind); start over with --restart")
 
 
 def _assemble_partial(part: Path) -> xr.Dataset:
