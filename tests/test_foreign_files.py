@@ -294,7 +294,8 @@ BENCH = [
     (["workprecision", "duffing", "--rtol", "5"], "rtol = 5.0"),
     (["workprecision", "duffing", "--rtol", "1e-8", "inf"], "rtol = inf"),
     (["workprecision", "nosuchmodel"], "no work-precision case for model 'nosuchmodel'"),
-    (["workprecision", "fourbar_balancing", "--positions", "2"], "positions = 2"),
+    (["workprecision", "fourbar_balancing", "--positions", "2"], "need at least 4 crank positions"),
+    (["workprecision", "fourbar_balancing", "--positions", "12", "-3"], "positions = -3"),
     (["workprecision", "fourbar_balancing", "--points", "-1"], "points = -1"),
     (["workprecision", "fourbar_balancing", "--repeats", "0"], "repeats = 0"),
     (["workprecision", "duffing", "--out", "a_file"], "a_file is a file, not a folder"),
@@ -343,6 +344,14 @@ def test_bench_functions_refuse_bad_arguments_too():
         autobalancer.main(sim_points=2.5)
     with pytest.raises(InputError, match="designs = True"):
         linkage.main(designs=True)
+    from mechsweep.bench import workprecision, workprecision_linkage
+
+    with pytest.raises(InputError, match="rtol = 'x'"):
+        workprecision.main("duffing", ladder="x")
+    with pytest.raises(InputError, match="need at least 4 crank positions"):
+        workprecision_linkage.main("fourbar_balancing", positions=np.int64(3))
+    with pytest.raises(InputError, match="no linkage work-precision case"):
+        workprecision_linkage.main(["fourbar_balancing"])
 
 
 def test_bench_cluster_without_dask_is_a_clear_error(work, capsys, monkeypatch):

@@ -38,6 +38,13 @@ def tolerance(name: str, value, lo: float, hi: float) -> float:
     return float(value)
 
 
+def sequence(value) -> tuple:
+    """A ladder given as one value or as a sequence of them."""
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
+        return (value,)
+    return tuple(value)
+
+
 def folder(name: str, value) -> Path:
     """An output folder: absent (it is created) or a folder, not a file."""
     path = Path(value)

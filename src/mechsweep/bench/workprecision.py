@@ -284,7 +284,7 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     if model not in workprecision_linkage.CASES:
         from ..scene import SOLVER_LIMITS
 
-        ladder = tuple(ladder)
+        ladder = _args.sequence(ladder)
         if not ladder:
             raise InputError("the tolerance ladder is empty; give at least one rtol")
         ladder = tuple(_args.tolerance("rtol", r, *SOLVER_LIMITS["rtol"]) for r in ladder)
