@@ -43,8 +43,18 @@ FOREIGN = {
 }
 
 
+LOOKALIKE = "lookalike_strings.h5"  # a run's attributes and variables, not their layout
+
+
 def test_every_foreign_file_has_an_expectation():
-    assert {p.name for p in FILES.iterdir() if p.suffix in (".h5", ".nc")} == set(FOREIGN)
+    assert {p.name for p in FILES.iterdir() if p.suffix in (".h5", ".nc")} == set(FOREIGN) | {LOOKALIKE}
+
+
+def test_lookalike_dataset_is_refused_not_a_traceback(work, capsys):
+    path = _copy(LOOKALIKE, work)
+    refused(capsys, ["info", path], work, "is not laid out as a mechsweep dataset")
+    refused(capsys, ["plot", path, "--point", "x=1"], work, "give a value for y, z too")
+    refused(capsys, ["plot", path, "-o", "fig.png"], work, "no figure fits this dataset")
 
 
 def _copy(name: str, work: Path) -> str:
@@ -115,6 +125,11 @@ def test_readers_refuse_what_is_not_a_file(kind, work, capsys):
         mechsweep.open_dataset(path)
 
 
+def test_nul_in_a_dataset_path_is_refused():
+    with pytest.raises(StoreError, match="NUL character"):
+        mechsweep.open_dataset("data/a\0b.h5")
+
+
 def test_broken_link_is_a_missing_dataset(work, capsys):
     path = _broken_link(work)
     refused(capsys, ["info", path], work, "link.h5 does not exist")
@@ -138,6 +153,7 @@ WRONG_KIND = {
     "journal_chunks_file": "chunks is a regular file, not a folder",
     "journal_chunk_fifo": "0000000.npz is not a chunk file",
     "discard_file": "out.h5.partial.discard (the run's journal being deleted) is a regular file, not a folder",
+    "journal_assembly_fifo": "assembly.h5 is a named pipe (FIFO), not a file a run writes",
     "run_json_list": "run.json is not a run's journal (a JSON list",
     "run_json_not_json": "run.json is unreadable",
     "run_json_missing_keys": "run.json is damaged (entries scene_canonical, scene, chunk_target, n_chunks, attrs",
@@ -168,6 +184,8 @@ def test_run_refuses_lock_and_journal_paths_of_the_wrong_kind(what, work, capsys
                                             "run_json_missing_keys": '{"format": 1}',
                                             "run_json_zero_chunks": '{"format": 1, "scene_canonical": "", "scene": "", '
                                                                     '"chunk_target": 0, "n_chunks": 0, "attrs": {}}'}[what])
+        elif what == "journal_assembly_fifo":
+            os.mkfifo(part / "assembly.h5")  # the run's last step would block writing into it
         elif what == "journal_chunks_file":
             (part / "chunks").rmdir()
             (part / "chunks").write_text("x")
@@ -371,6 +389,11 @@ def test_api_takes_numpy_numbers(small_duffing):
     assert scene.shape == (4, 2) and scene.fixed["omega"] == 2.0
     assert scene.solver.max_steps == 1000 and scene.storage.chunk_size == 10
     assert mechsweep.scene.load_scene_text(scene.text).canonical() == scene.canonical()
+    omega = mechsweep.MODELS["duffing"].param("omega")
+    assert omega.problem(np.float32(2.0)) is None and omega.problem(np.int64(2)) is None
+    assert "is not a number" in omega.problem(np.bool_(True))
+    horizon = mechsweep.MODELS["autobalancer"].settings[1]
+    assert horizon.problem(np.int16(300)) is None
 
 
 def test_extreme_parameters_give_no_numpy_warnings():

@@ -5,6 +5,7 @@ import argparse
 import math
 import os
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 EXIT_INVALID = 2
@@ -208,9 +209,10 @@ def _cmd_plot(args) -> int:
     from .store import open_dataset
 
     ds = open_dataset(args.dataset)
-    if args.point:
-        ds = select_point(ds, args.point)
-    kinds = figures.available(ds)
+    with _laid_out(args.dataset):
+        if args.point:
+            ds = select_point(ds, args.point)
+        kinds = figures.available(ds)
     if args.list:
         for k, doc in kinds.items():
             print(f"{k}: {doc}")
@@ -221,7 +223,8 @@ def _cmd_plot(args) -> int:
     out = Path(args.output) if args.output else Path(args.dataset).with_suffix("." + fmt)
     for target in figures.targets(ds, out, kind=args.kind, fmt=fmt):
         _check_figure_path(target, Path(args.dataset))
-    written = figures.save(ds, out, kind=args.kind, fmt=fmt)
+    with _laid_out(args.dataset):
+        written = figures.save(ds, out, kind=args.kind, fmt=fmt)
     for path in written:
         print(f"wrote {path}")
     return 0
@@ -305,8 +308,26 @@ def _cmd_info(args) -> int:
     if not is_run_dataset(ds):
         raise InputError(f"{args.dataset} is a mechsweep benchmark dataset ({ds.attrs.get('mechsweep_kind')}), "
                          "not a run; `mechsweep plot` draws it, `info` summarises runs")
-    print(describe(ds))
+    with _laid_out(args.dataset):
+        text = describe(ds)
+    print(text)
     return 0
+
+
+@contextmanager
+def _laid_out(path):
+    """A file that passed the opener's checks (a run's attributes and variables) but whose
+    contents are not laid out as a run writes them (edited, or made elsewhere to look alike):
+    say so in one line, exit 2."""
+    from .errors import InputError
+
+    try:
+        yield
+    except InputError:
+        raise
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError) as exc:
+        raise InputError(f"{path} is not laid out as a mechsweep dataset ({type(exc).__name__}: "
+                         f"{str(exc).splitlines()[0][:200] if str(exc) else ''}); was it written by `mechsweep run`?") from None
 
 
 def _cmd_models(args) -> int:

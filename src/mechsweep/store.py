@@ -178,6 +178,8 @@ def open_dataset(path: str | Path, *, allow_partial: bool = False, lazy: bool | 
     Anything that is not a dataset mechsweep wrote (a folder, a device, an empty, text or damaged
     file, an HDF5 or netCDF file from elsewhere) raises StoreError saying what the file is not.
     """
+    if "\0" in str(path):
+        raise StoreError(f"dataset path {str(path)!r} contains a NUL character")
     path = Path(path)
     if not os.path.lexists(path):
         part = partial_path(path)
@@ -309,6 +311,10 @@ def check_journal_files(part: Path, contents: bool = True) -> None:
         entry = part / name
         if os.path.lexists(entry) and not test(entry.stat().st_mode):
             raise StoreError(f"{entry} is {file_kind(entry.stat().st_mode)}, not {want} as a run writes it; "
+                             "start over with --restart")
+    for e in os.scandir(part):  # e.g. assembly.h5: a pipe there would block the run's last step
+        if e.name not in ("run.json", "chunks") and not e.is_file(follow_symlinks=False):
+            raise StoreError(f"{e.path} is {file_kind(os.lstat(e.path).st_mode)}, not a file a run writes; "
                              "start over with --restart")
     _check_run_json(part / "run.json")
     chunks = part / "chunks"

@@ -40,6 +40,9 @@ def main() -> None:
         f.create_group("g").create_dataset("d", data=np.arange(4))
     run_like(HERE / "run_without_status.h5", variables=["status"])
     run_like(HERE / "run_without_scene_canonical.h5", attrs=["scene_canonical"])
+    xr.Dataset({"period_exact": ("x", np.array(["a", "b"])), "status": (("y", "z"), np.zeros((2, 2)))},
+               attrs={"model": "nosuch", "outputs": "period_exact", "scene_canonical": "{}", "scene": "zz"}).to_netcdf(
+        HERE / "lookalike_strings.h5", engine="h5netcdf")  # a run's attributes, not its layout
     run_like(HERE / "_whole.h5")
     data = (HERE / "_whole.h5").read_bytes()
     (HERE / "truncated_dataset.h5").write_bytes(data[: len(data) // 2])
