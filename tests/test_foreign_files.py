@@ -180,10 +180,10 @@ def test_run_refuses_lock_and_journal_paths_of_the_wrong_kind(what, work, capsys
         if what == "journal_file_run_json_fifo":
             os.mkfifo(part / "run.json")  # reading it would block forever
         elif what.startswith("run_json"):
+            zero = '{"format": 1, "scene_canonical": "", "scene": "", "chunk_target": 0, "n_chunks": 0, "attrs": {}}'
             (part / "run.json").write_text({"run_json_list": "[1, 2]", "run_json_not_json": "{not json",
                                             "run_json_missing_keys": '{"format": 1}',
-                                            "run_json_zero_chunks": '{"format": 1, "scene_canonical": "", "scene": "", '
-                                                                    '"chunk_target": 0, "n_chunks": 0, "attrs": {}}'}[what])
+                                            "run_json_zero_chunks": zero}[what])
         elif what == "journal_assembly_fifo":
             os.mkfifo(part / "assembly.h5")  # the run's last step would block writing into it
         elif what == "journal_chunks_file":
@@ -394,6 +394,13 @@ def test_api_takes_numpy_numbers(small_duffing):
     assert "is not a number" in omega.problem(np.bool_(True))
     horizon = mechsweep.MODELS["autobalancer"].settings[1]
     assert horizon.problem(np.int16(300)) is None
+
+
+@pytest.mark.parametrize("threads", [1.0, np.float64(1.0), "1", True])
+def test_api_thread_count_must_be_a_whole_number(threads, in_tmp, small_duffing):
+    with pytest.raises(mechsweep.errors.InputError, match="threads = .* is not allowed; expected a whole number"):
+        mechsweep.run(small_duffing, output="data/runs/t.h5", threads=threads)
+    assert list((in_tmp / "data" / "runs").iterdir()) == []
 
 
 def test_extreme_parameters_give_no_numpy_warnings():

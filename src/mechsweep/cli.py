@@ -326,8 +326,9 @@ def _laid_out(path):
     except InputError:
         raise
     except (KeyError, IndexError, TypeError, ValueError, AttributeError) as exc:
-        raise InputError(f"{path} is not laid out as a mechsweep dataset ({type(exc).__name__}: "
-                         f"{str(exc).splitlines()[0][:200] if str(exc) else ''}); was it written by `mechsweep run`?") from None
+        detail = str(exc).splitlines()[0][:200] if str(exc) else ""
+        raise InputError(f"{path} is not laid out as a mechsweep dataset ({type(exc).__name__}: {detail}); "
+                         "was it written by `mechsweep run`?") from None
 
 
 def _cmd_models(args) -> int:

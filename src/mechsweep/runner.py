@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import datetime as _dt
+import numbers
 import os
 import platform
 import shutil
@@ -146,11 +147,6 @@ def same_scene(attrs: Mapping, scene: Scene) -> bool:
         return load_scene_text(text, label="stored scene").canonical() == scene.canonical()
     except InputError:
         return False
-    if part.exists() and not restart:
-        journal = Journal.read(part)
-        if not journal.empty and (why := journal.matches(scene.canonical(), target, n_chunks)) is not None:
-            raise StoreError(why)
-    return False
 
 
 def _compute(scene: Scene, final: Path, restart: bool, threads, progress, scheduler, target: int,
@@ -403,6 +399,8 @@ def _check_threads(n: int | None, here: bool = True) -> None:
     (each worker uses at most its own)."""
     if n is None:
         return
+    if isinstance(n, bool) or not isinstance(n, numbers.Integral):
+        raise InputError(f"threads = {n!r} is not allowed; expected a whole number (numba threads)")
     if here and not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
         raise InputError(f"threads = {n} is outside [1, {numba.config.NUMBA_NUM_THREADS}] (cores available)")
     if not here and n < 1:
