@@ -209,6 +209,33 @@ def test_unreachable_scheduler_leaves_nothing_behind(work, capsys, monkeypatch):
             "cannot reach the dask scheduler at 'tcp://127.0.0.1:9'")
 
 
+@pytest.mark.parametrize("address, said", [
+    ("foo://x:1", "unknown address scheme 'foo'"),
+    ("tcp://127.0.0.1:99999", "port 99999"),
+    ("tcp://host", "missing port number"),
+    ("tcp://[::1", "invalid address"),
+    ("inproc://x", "cannot reach the dask scheduler"),
+])
+def test_scheduler_addresses_dask_cannot_use_are_refused_before_any_file(address, said, work, capsys):
+    pytest.importorskip("distributed")
+    (work / "valid.toml").write_text(VALID)
+    refused(capsys, ["run", "valid.toml", "--no-progress", "--scheduler", address], work, said)
+
+
+def test_a_failed_connection_prints_one_line(in_tmp):
+    """distributed's clean-up of a Client that failed to start waited 40 s at exit and printed a
+    traceback ("Exception ignored in Client.__del__") after the error line."""
+    pytest.importorskip("distributed")
+    import subprocess
+
+    (in_tmp / "valid.toml").write_text(VALID)
+    proc = subprocess.run([sys.executable, "-m", "mechsweep.cli", "run", "valid.toml", "--no-progress",
+                           "--scheduler", "inproc://x"], capture_output=True, text=True, cwd=in_tmp, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.count("\n") == 1 and "cannot reach the dask scheduler" in proc.stderr, proc.stderr
+    assert list((in_tmp / "data" / "runs").iterdir()) == []
+
+
 # ----------------------------------------------------------------------------- item 7: replacing datasets
 OTHER = VALID.replace("mu = 1.0", "mu = 2.0")
 

@@ -35,11 +35,46 @@ def connect(scheduler: str):
         from distributed import Client
     except ImportError:
         raise InputError(NEEDS_DISTRIBUTED) from None
+    _check_address(scheduler)
+
+    class QuietClient(Client):
+        """A Client whose failed construction leaves nothing to clean up at exit (distributed's
+        own clean-up of a half-made client waits 40 s and prints a traceback)."""
+
+        def __init__(self, *args, **kwargs):
+            self._mechsweep_failed = True
+            super().__init__(*args, **kwargs)
+            self._mechsweep_failed = False
+
+        def __del__(self):
+            if not getattr(self, "_mechsweep_failed", False):
+                super().__del__()
+
     try:
-        return Client(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
-    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        return QuietClient(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+    except Exception as exc:  # OSError, TimeoutError, tornado's TimeoutError, ValueError for a bad address...
         raise InputError(f"cannot reach the dask scheduler at {scheduler!r} within {CONNECT_TIMEOUT_S} s "
                          f"({exc}); start one with `dask scheduler` and workers with `dask worker ADDRESS`") from None
+
+
+def _check_address(scheduler: str) -> None:
+    """Refuse an address dask cannot parse (unknown scheme, no host, a port out of range) before a
+    Client is made: a Client that fails on it is left half made, and its clean-up at exit prints a
+    traceback after a 40 s wait."""
+    from distributed.comm import parse_address
+    from distributed.comm.addressing import parse_host_port
+    from distributed.comm.registry import get_backend
+
+    try:
+        scheme, location = parse_address(scheduler)
+        get_backend(scheme)
+        if scheme in ("tcp", "tls", "ws", "wss"):
+            host, port = parse_host_port(location)
+            if not host or not 0 < int(port) < 65536:
+                raise ValueError(f"host {host!r}, port {port} (expected 1-65535)")
+    except Exception as exc:
+        raise InputError(f"scheduler {scheduler!r} is not a dask scheduler address ({exc}); expected an address "
+                         "such as 'tcp://10.0.0.5:8786' or 'localhost:8786'") from None
 
 
 def dask_results(scene, todo, scheduler: str, threads: int | None = None, client=None):
