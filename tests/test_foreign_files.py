@@ -350,6 +350,9 @@ BENCH = [
     (["cluster", "--chunk", "0"], "chunk = 0"),
     (["memory", "--dir", "a_file"], "a_file is a file, not a folder"),
     (["memory", "--dir", "no_such_folder"], "does not exist"),
+    (["quickstart", "--scene", "a_file"], "missing section [scene]"),
+    (["quickstart", "--scene", "data"], "is a directory, not a scene file"),
+    (["quickstart", "--scene", "nothing.toml"], "does not exist"),
 ]
 
 
@@ -361,7 +364,8 @@ def no_bench_work(work, monkeypatch):
     def tripwire(*args, **kwargs):
         raise AssertionError("the benchmark started despite a bad option")
 
-    from mechsweep.bench import autobalancer, cluster, duffing, linkage, memory, workprecision, workprecision_linkage
+    from mechsweep.bench import (autobalancer, cluster, duffing, linkage, memory, quickstart, workprecision,
+                                 workprecision_linkage)
 
     monkeypatch.setattr(numba, "set_num_threads", tripwire)
     for mod in (duffing, workprecision, workprecision_linkage):
@@ -370,6 +374,7 @@ def no_bench_work(work, monkeypatch):
     monkeypatch.setattr(linkage, "design_family", tripwire)
     monkeypatch.setattr(cluster, "run", tripwire)
     monkeypatch.setattr(memory, "_case", tripwire)
+    monkeypatch.setattr(quickstart, "_timed", tripwire)
     (work / "a_file").write_text("x")
     return work
 
