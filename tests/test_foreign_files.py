@@ -350,7 +350,7 @@ BENCH = [
     (["cluster", "--chunk", "0"], "chunk = 0"),
     (["memory", "--dir", "a_file"], "a_file is a file, not a folder"),
     (["memory", "--dir", "no_such_folder"], "does not exist"),
-    (["quickstart", "--scene", "a_file"], "missing section [scene]"),
+    (["quickstart", "--scene", "a_file"], "TOML syntax error"),
     (["quickstart", "--scene", "data"], "is a directory, not a scene file"),
     (["quickstart", "--scene", "nothing.toml"], "does not exist"),
 ]
