@@ -272,6 +272,23 @@ def test_run_onto_existing_datasets(in_tmp, capsys):
     assert mechsweep.open_dataset(out).attrs["model"] == "duffing"
 
 
+def test_benchmark_dataset_is_not_a_run(work, capsys):
+    import xarray as xr
+
+    xr.Dataset({"error": ("rtol", np.ones(2))}, coords={"rtol": [1e-6, 1e-8]},
+               attrs={"mechsweep_kind": "workprecision"}).to_netcdf(work / "wp.h5", engine="h5netcdf")
+    (work / "valid.toml").write_text(VALID)
+    refused(capsys, ["info", "wp.h5"], work, "wp.h5 is a mechsweep benchmark dataset (workprecision), not a run")
+    refused(capsys, ["run", "valid.toml", "-o", "wp.h5"], work, "benchmark dataset, not a run", "--overwrite")
+
+
+def test_run_help_documents_overwrite(capsys):
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "--overwrite" in text and "a dataset of a different scene" in text
+
+
 def test_same_scene_is_recognised_through_its_stored_text():
     """A dataset whose stored canonical form differs in spelling (e.g. an older version's) but
     whose stored scene text is the same scene counts as the same scene."""
