@@ -221,3 +221,31 @@ def test_fuzzed_scenes_exit_0_or_2_and_change_nothing(monkeypatch, capsys):
     assert sum(n for (_, verdict), n in seen.items() if verdict == "accepted") >= 25, sorted(seen.items())
     for model in MODELS:
         assert seen[(model, "accepted")] >= 1 and seen[(model, "refused")] >= 10, sorted(seen.items())
+
+
+POINT_VALUES = st.one_of(st.floats(allow_nan=True, allow_infinity=True).map(repr), st.integers().map(str),
+                         st.sampled_from(["", " ", "nan", "-inf", "1e999", "0x10", "1_0", "0.5", "1.2", "½", "tension"]),
+                         st.text(max_size=5))
+
+
+@settings(max_examples=100, derandomize=True, deadline=None, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(items=st.lists(st.tuples(st.sampled_from(["A", "B", "", "status", "A "]), POINT_VALUES), max_size=3),
+       sep=st.sampled_from([",", ";", ", "]))
+def test_fuzzed_plot_points_exit_0_or_2_and_change_nothing(tmp_path, capsys, items, sep):
+    """`plot DATASET --point ... --list` on a small dataset: exit 0 (a point on the grid, within half a
+    step of it) or 2, never a traceback, no file written."""
+    dataset = tmp_path / "d.h5"
+    if not dataset.exists():
+        existing_dataset(dataset)  # A = 0.1, 0.5, 1.0
+    point = sep.join(f"{k}={v}" for k, v in items)
+    state = snapshot(tmp_path)
+    capsys.readouterr()
+    code = main(["plot", str(dataset), "--point", point, "--list"])
+    out, err = capsys.readouterr()
+    assert code in (0, 2) and "Traceback" not in out + err, (point, err)
+    assert snapshot(tmp_path) == state
+    if code == 0:
+        values = {k.strip(): v for k, _, v in (p.partition("=") for p in point.split(",") if p.strip())}
+        if "A" in values:
+            assert -0.1 <= float(values["A"]) <= 1.25, point  # never snapped from far outside the grid
