@@ -272,6 +272,31 @@ def test_run_onto_existing_datasets(in_tmp, capsys):
     assert mechsweep.open_dataset(out).attrs["model"] == "duffing"
 
 
+def test_damaged_data_is_refused_however_the_dataset_is_opened(work, capsys, monkeypatch):
+    """Header and attributes intact, one compressed storage chunk overwritten: loading fails, and so
+    does reading it lazily (datasets above LOAD_LIMIT_BYTES) while info summarises it."""
+    import h5py
+    import xarray as xr
+
+    from mechsweep import store
+
+    n = 5000
+    xr.Dataset({"period_exact": ("A", np.linspace(1, 2, n)), "status": ("A", np.zeros(n, np.int8))},
+               coords={"A": np.linspace(0, 1, n)},
+               attrs={"model": "duffing", "outputs": "period_exact", "scene_canonical": "{}", "scene": ""}
+               ).to_netcdf(work / "z.h5", engine="h5netcdf",
+                           encoding={v: {"zlib": True, "chunksizes": (1000,)} for v in ("period_exact", "status")})
+    with h5py.File(work / "z.h5") as f:
+        offset = f["period_exact"].id.get_chunk_info(1).byte_offset
+    data = bytearray((work / "z.h5").read_bytes())
+    data[offset:offset + 50] = b"\xff" * 50
+    (work / "z.h5").write_bytes(bytes(data))
+    refused(capsys, ["info", "z.h5"], work, "z.h5 is not a readable mechsweep dataset", "filter returned failure")
+    refused(capsys, ["plot", "z.h5"], work, "z.h5 is not a readable mechsweep dataset")
+    monkeypatch.setattr(store, "LOAD_LIMIT_BYTES", 0)  # info opens it lazily
+    refused(capsys, ["info", "z.h5"], work, "z.h5 cannot be read, it is damaged", "filter returned failure")
+
+
 def test_benchmark_dataset_is_not_a_run(work, capsys):
     import xarray as xr
 

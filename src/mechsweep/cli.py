@@ -325,6 +325,8 @@ def _laid_out(path):
         yield
     except InputError:
         raise
+    except OSError as exc:  # a lazily opened dataset whose data turn out damaged when read
+        raise InputError(f"{path} cannot be read, it is damaged ({str(exc).splitlines()[0][:200]})") from None
     except (KeyError, IndexError, TypeError, ValueError, AttributeError) as exc:
         detail = str(exc).splitlines()[0][:200] if str(exc) else ""
         raise InputError(f"{path} is not laid out as a mechsweep dataset ({type(exc).__name__}: {detail}); "
