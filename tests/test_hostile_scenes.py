@@ -87,6 +87,9 @@ CORPUS = {
     "axis_list_of_strings.toml": ["axes.A[0]", "'0.1' is not a number"],
     "axis_nested_list.toml": ["axes.A[0]", "[0.1, 0.2] is not a number"],
     "axis_duplicate_values.toml": ["axes.A", "values repeat"],
+    "axis_list_collapses_at_float_precision.toml": ["axes.A", "9007199254740992 and 9007199254740993",
+                                                    "same value at float precision"],
+    "axis_list_collapses_huge_ints.toml": ["axes.mu", "same value at float precision"],
     "axis_unknown_param.toml": ["axes.omgea", "did you mean 'omega'"],
     "axis_and_fixed_same_param.toml": ["fixed.A", "both as an axis and as a fixed value"],
     "axes_not_table.toml": ["axes: expected a table [axes], got list [1, 2]"],
@@ -144,6 +147,10 @@ CORPUS = {
     "autobalancer_setting_of_other_model.toml": ["solver.t_max_periods", "unknown solver setting of 'autobalancer'"],
     "autobalancer_horizon_huge_int.toml": ["solver.horizon_revolutions", "too large for a float", "[1, 100000]"],
     "solver_not_table.toml": ["solver: expected a table [solver], got str 'dop853'"],
+    "solver_garbage_without_integration.toml": ["solver.method", "'euler'", "solver.rtol", "-1",
+                                                "solver.tolerance", "unknown solver setting"],
+    "fourbar_solver_garbage.toml": ["solver.rtol", "'tight'", "solver.steps", "unknown solver setting"],
+    "solver_not_table_without_integration.toml": ["solver: expected a table [solver], got int 5"],
     # [storage]
     "storage_path_int.toml": ["storage.path: 5 is not allowed"],
     "storage_path_empty.toml": ["storage.path: '' is not allowed"],
@@ -222,8 +229,10 @@ def refused(capsys, argv, root: Path, *fragments) -> str:
 
 def existing_dataset(path: Path) -> bytes:
     """A small finished-looking dataset at path (written directly, no sweep)."""
-    ds = xr.Dataset({"period_exact": ("A", np.array([6.2, 6.1, 5.9]))}, coords={"A": [0.1, 0.5, 1.0]},
-                    attrs={"title": "earlier run", "scene_canonical": "{}"})
+    ds = xr.Dataset({"period_exact": ("A", np.array([6.2, 6.1, 5.9])), "status": ("A", np.zeros(3, np.int8))},
+                    coords={"A": [0.1, 0.5, 1.0]},
+                    attrs={"title": "earlier run", "model": "duffing", "outputs": "period_exact",
+                           "scene_canonical": "{}", "scene": ""})
     ds.to_netcdf(path, engine="h5netcdf")
     return path.read_bytes()
 

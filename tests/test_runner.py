@@ -102,8 +102,10 @@ def test_failed_run_leaves_finished_dataset_untouched(in_tmp, small_duffing):
     before = (in_tmp / "data/runs/keep.h5").read_bytes()
     changed = copy.deepcopy(small_duffing)
     changed["fixed"]["omega"] = 3.0
-    with interrupt_after(1), pytest.raises(mechsweep.RunInterrupted):
+    with pytest.raises(StoreError, match="different scene"):  # refused: it would replace another scene's run
         mechsweep.run(changed, output="data/runs/keep.h5")
+    with interrupt_after(1), pytest.raises(mechsweep.RunInterrupted):
+        mechsweep.run(changed, output="data/runs/keep.h5", overwrite=True)
     assert (in_tmp / "data/runs/keep.h5").read_bytes() == before
     np.testing.assert_array_equal(mechsweep.open_dataset("data/runs/keep.h5")["period"], first["period"])
 

@@ -2,9 +2,11 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import signal
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 EXIT_INVALID = 2
@@ -37,6 +39,9 @@ identical to an uninterrupted run. A second run on the same PATH is refused whil
 SIGTERM stops a run like Ctrl-C (exit 143). A failed write (disk full, ulimit -f, quota, I/O error)
 ends it with a message and exit 2, the journal kept for --resume; a damaged chunk file in the
 journal is removed and computed again.
+An existing PATH is replaced by a run of the same scene; a dataset of a different scene, or a file
+mechsweep did not write, is kept and the run refused unless --overwrite. PATH, its lock
+.PATH.lock and its journal must be regular files and folders (not pipes, sockets or devices).
 
 With --scheduler (or [execution] scheduler in the scene) the chunks run as tasks on a
 dask.distributed cluster (pip install "mechsweep[distributed]"); this process still writes the
@@ -101,6 +106,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", metavar="PATH", help="output file (default: [storage] path of the scene)")
     p.add_argument("--resume", action="store_true", help="complete an interrupted run of the same scene")
     p.add_argument("--restart", action="store_true", help="discard an unfinished run and start over")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing PATH that holds a run of a different scene, or a file mechsweep "
+                        "did not write (refused without it; re-running the same scene needs no flag)")
     p.add_argument("--threads", type=int, metavar="N",
                    help="numba threads (default: all cores); with --scheduler, per dask worker")
     p.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
@@ -210,7 +218,8 @@ def _cmd_run(args) -> int:
     try:  # the dataset is not opened: its status counts were added up as its chunks were assembled
         summary = compute(scene, output=args.output, resume=args.resume, restart=args.restart,
                           threads=args.threads, progress=False if args.no_progress else None,
-                          scheduler=args.scheduler, worker_timeout=args.worker_timeout)
+                          scheduler=args.scheduler, worker_timeout=args.worker_timeout,
+                          overwrite=args.overwrite)
     except RunInterrupted as exc:
         print(f"mechsweep run: {exc}", file=sys.stderr)
         return 128 + exc.signum
@@ -226,9 +235,10 @@ def _cmd_plot(args) -> int:
     from .store import open_dataset
 
     ds = open_dataset(args.dataset)
-    if args.point:
-        ds = select_point(ds, args.point)
-    kinds = figures.available(ds)
+    with _laid_out(args.dataset):
+        if args.point:
+            ds = select_point(ds, args.point)
+        kinds = figures.available(ds)
     if args.list:
         for k, doc in kinds.items():
             print(f"{k}: {doc}")
@@ -237,10 +247,31 @@ def _cmd_plot(args) -> int:
     if fmt not in ("png", "svg", "pdf"):
         raise InputError(f"figure format {fmt!r} is not allowed; expected png, svg or pdf")
     out = Path(args.output) if args.output else Path(args.dataset).with_suffix("." + fmt)
-    written = figures.save(ds, out, kind=args.kind, fmt=fmt)
+    for target in figures.targets(ds, out, kind=args.kind, fmt=fmt):
+        _check_figure_path(target, Path(args.dataset))
+    with _laid_out(args.dataset):
+        written = figures.save(ds, out, kind=args.kind, fmt=fmt)
     for path in written:
         print(f"wrote {path}")
     return 0
+
+
+def _check_figure_path(target: Path, dataset: Path) -> None:
+    """Refuse a figure path that would overwrite the dataset it is drawn from, another HDF5 file,
+    or something that is not a regular file."""
+    from .errors import InputError
+
+    if not os.path.lexists(target):
+        return
+    if os.path.exists(target) and os.path.samefile(target, dataset):
+        raise InputError(f"figure path {target} is the dataset {dataset} itself; drawing would overwrite it: "
+                         "give another figure path with -o")
+    if not target.is_file():
+        raise InputError(f"figure path {target} exists and is not a regular file; give another path with -o")
+    with open(target, "rb") as f:
+        if f.read(8) == b"\x89HDF\r\n\x1a\n":
+            raise InputError(f"figure path {target} is an HDF5 file (a dataset?); drawing would overwrite it: "
+                             "give another figure path with -o")
 
 
 def select_point(ds, text: str):
@@ -256,9 +287,13 @@ def select_point(ds, text: str):
                              f"{', '.join(ds.dims)}")
         if ds[key].dtype.kind in "fiu":
             try:
-                wanted[key] = [float(value)]
+                number = float(value)
             except ValueError:
                 raise InputError(f"--point: {key} needs a number, got {value!r}") from None
+            if not math.isfinite(number):
+                raise InputError(f"--point: {key} = {value.strip()} is not a finite number")
+            _check_in_grid(key, number, ds[key].values)
+            wanted[key] = [number]
         elif value.strip() not in ds[key].values:
             raise InputError(f"--point: {key} = {value!r} is not in the grid ({', '.join(map(str, ds[key].values))})")
         else:
@@ -272,11 +307,56 @@ def select_point(ds, text: str):
     return ds.sel(numeric, method="nearest").sel(other)
 
 
-def _cmd_info(args) -> int:
-    from .store import open_dataset
+def _check_in_grid(key: str, value: float, grid) -> None:
+    """Refuse a --point value beyond the grid by more than half the spacing at that end (the
+    nearest grid value would be a silent guess), or off a one-value axis."""
+    import numpy as np
 
-    print(describe(open_dataset(args.dataset, allow_partial=True, lazy=None)))
+    from .errors import InputError
+
+    grid = np.sort(np.asarray(grid, dtype=float))
+    lo, hi = float(grid[0]), float(grid[-1])
+    if grid.size > 1:
+        slack_lo, slack_hi = (grid[1] - grid[0]) / 2, (grid[-1] - grid[-2]) / 2
+    else:
+        slack_lo = slack_hi = 1e-9 * max(1.0, abs(lo))
+    if not lo - slack_lo <= value <= hi + slack_hi:
+        span = f"{lo:g} .. {hi:g}" if grid.size > 1 else f"only {lo:g}"
+        raise InputError(f"--point: {key} = {value:g} is outside the grid ({span}); "
+                         "give a value within it")
+
+
+def _cmd_info(args) -> int:
+    from .errors import InputError
+    from .store import is_run_dataset, open_dataset
+
+    ds = open_dataset(args.dataset, allow_partial=True, lazy=None)
+    if not is_run_dataset(ds):
+        raise InputError(f"{args.dataset} is a mechsweep benchmark dataset ({ds.attrs.get('mechsweep_kind')}), "
+                         "not a run; `mechsweep plot` draws it, `info` summarises runs")
+    with _laid_out(args.dataset):
+        text = describe(ds)
+    print(text)
     return 0
+
+
+@contextmanager
+def _laid_out(path):
+    """A file that passed the opener's checks (a run's attributes and variables) but whose
+    contents are not laid out as a run writes them (edited, or made elsewhere to look alike):
+    say so in one line, exit 2."""
+    from .errors import InputError
+
+    try:
+        yield
+    except InputError:
+        raise
+    except OSError as exc:  # a lazily opened dataset whose data turn out damaged when read
+        raise InputError(f"{path} cannot be read, it is damaged ({str(exc).splitlines()[0][:200]})") from None
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError) as exc:
+        detail = str(exc).splitlines()[0][:200] if str(exc) else ""
+        raise InputError(f"{path} is not laid out as a mechsweep dataset ({type(exc).__name__}: {detail}); "
+                         "was it written by `mechsweep run`?") from None
 
 
 def _cmd_models(args) -> int:
@@ -311,7 +391,8 @@ def _cmd_bench(args) -> int:
     from .scene import Solver
 
     bench_duffing.main(points=args.points, scipy_points=args.scipy_points, threads=args.threads,
-                       rtol=args.rtol or Solver.rtol, atol=args.atol or Solver.atol)
+                       rtol=Solver.rtol if args.rtol is None else args.rtol,
+                       atol=Solver.atol if args.atol is None else args.atol)
     return 0
 
 
@@ -328,7 +409,7 @@ def _cmd_bench_linkage(args) -> int:
     from .bench import linkage
 
     linkage.main(designs=args.designs, numpy_designs=args.numpy_designs,
-                 threads=args.threads or numba.config.NUMBA_NUM_THREADS)
+                 threads=numba.config.NUMBA_NUM_THREADS if args.threads is None else args.threads)
     return 0
 
 
@@ -352,10 +433,11 @@ def _cmd_bench_workprecision(args) -> int:
     if linkage:
         workprecision_linkage.main(args.model, args.scene, points=args.points,
                                    positions=tuple(args.positions or workprecision_linkage.POSITIONS),
-                                   repeats=args.repeats or 5, out_dir=args.out)
+                                   repeats=5 if args.repeats is None else args.repeats, out_dir=args.out)
         return 0
     workprecision.main(args.model, args.scene, points=args.points, scipy_points=args.scipy_points,
-                       ladder=tuple(args.rtol) if args.rtol else workprecision.LADDER, repeats=args.repeats or 3,
+                       ladder=tuple(args.rtol) if args.rtol else workprecision.LADDER,
+                       repeats=3 if args.repeats is None else args.repeats,
                        out_dir=args.out)
     return 0
 

@@ -30,20 +30,73 @@ HEALTH_CHECK_S = 1.0  # how often the client asks the scheduler for its workers 
 RESULT_WAIT_S = 5.0  # at least this long for one attempt to fetch a finished chunk
 
 
-def dask_results(scene, todo, scheduler: str, threads: int | None = None, *, worker_timeout: float = 120.0):
-    """Yield ``(chunk, result)`` as the cluster at ``scheduler`` finishes them. Closing the
-    generator cancels the tasks still in flight and disconnects. ``ClusterLost`` when the
-    scheduler is lost, or has no worker for ``worker_timeout`` seconds."""
+NEEDS_DISTRIBUTED = ("running on a dask cluster needs the optional packages dask and distributed: "
+                     "pip install \"mechsweep[distributed]\"")
+
+
+def connect(scheduler: str):
+    """A client of the dask scheduler at ``scheduler``; InputError if the packages are missing or
+    the scheduler does not answer within CONNECT_TIMEOUT_S. A run calls this before it creates
+    any file, so an unreachable cluster leaves nothing behind."""
     try:
-        from distributed import Client, KilledWorker, as_completed
+        from distributed import Client
     except ImportError:
-        raise InputError("running on a dask cluster needs the optional packages dask and distributed: "
-                         "pip install \"mechsweep[distributed]\"") from None
+        raise InputError(NEEDS_DISTRIBUTED) from None
+    _check_address(scheduler)
+
+    class QuietClient(Client):
+        """A Client whose failed construction leaves nothing to clean up at exit (distributed's
+        own clean-up of a half-made client waits 40 s and prints a traceback)."""
+
+        def __init__(self, *args, **kwargs):
+            self._mechsweep_failed = True
+            super().__init__(*args, **kwargs)
+            self._mechsweep_failed = False
+
+        def __del__(self):
+            if not getattr(self, "_mechsweep_failed", False):
+                super().__del__()
+
     try:
-        client = Client(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
+        return QuietClient(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+    except Exception as exc:  # OSError, TimeoutError, tornado's TimeoutError, ValueError for a bad address...
         raise InputError(f"cannot reach the dask scheduler at {scheduler!r} within {CONNECT_TIMEOUT_S} s "
                          f"({exc}); start one with `dask scheduler` and workers with `dask worker ADDRESS`") from None
+
+
+def _check_address(scheduler: str) -> None:
+    """Refuse an address dask cannot parse (unknown scheme, no host, a port out of range) before a
+    Client is made: a Client that fails on it is left half made, and its clean-up at exit prints a
+    traceback after a 40 s wait."""
+    from distributed.comm import parse_address
+    from distributed.comm.addressing import parse_host_port
+    from distributed.comm.registry import get_backend
+
+    try:
+        scheme, location = parse_address(scheduler)
+        get_backend(scheme)
+        if scheme in ("tcp", "tls", "ws", "wss"):
+            host, port = parse_host_port(location)
+            if not host or not 0 < int(port) < 65536:
+                raise ValueError(f"host {host!r}, port {port} (expected 1-65535)")
+    except Exception as exc:
+        raise InputError(f"scheduler {scheduler!r} is not a dask scheduler address ({exc}); expected an address "
+                         "such as 'tcp://10.0.0.5:8786' or 'localhost:8786'") from None
+
+
+def dask_results(scene, todo, scheduler: str, threads: int | None = None, *, worker_timeout: float = 120.0,
+                 client=None):
+    """Yield ``(chunk, result)`` as the cluster at ``scheduler`` finishes them. Closing the
+    generator cancels the tasks still in flight (and disconnects, unless ``client`` was given:
+    its owner closes it). ``ClusterLost`` when the scheduler is lost, or has no worker for
+    ``worker_timeout`` seconds."""
+    try:
+        from distributed import KilledWorker, as_completed
+    except ImportError:
+        raise InputError(NEEDS_DISTRIBUTED) from None
+    owner = client is None
+    if owner:
+        client = connect(scheduler)
     run_id = uuid.uuid4().hex[:12]
     lost = False
     futures = as_completed(loop=client.loop)
@@ -82,11 +135,12 @@ def dask_results(scene, todo, scheduler: str, threads: int | None = None, *, wor
         lost = lost or "stopped"  # no worker, an interruption, or a failed write here
         raise
     finally:
-        _disconnect(client, live, quiet=bool(lost), cancel=lost != "scheduler")
+        _disconnect(client, live, quiet=bool(lost), cancel=lost != "scheduler", close=owner)
 
 
-def _disconnect(client, live: dict, quiet: bool, cancel: bool) -> None:
-    """Cancel what is in flight and close the client. After a lost cluster or an interruption
+def _disconnect(client, live: dict, quiet: bool, cancel: bool, close: bool = True) -> None:
+    """Cancel what is in flight and close the client (if ``close``: a client given by the caller
+    is closed by the caller, with ``disconnect``). After a lost cluster or an interruption
     the process is about to report and stop: the tracebacks that distributed and asyncio log
     about the connection the client can no longer make (some of them later, from the client's
     event loop) are silenced for the rest of the process."""
@@ -98,8 +152,17 @@ def _disconnect(client, live: dict, quiet: bool, cancel: bool) -> None:
     try:
         if live and cancel and client.status == "running":
             client.cancel([f for f, _ in live.values()])
-        client.close(timeout=CONNECT_TIMEOUT_S)
+        if close:
+            client.close(timeout=CONNECT_TIMEOUT_S)
     except Exception:  # the scheduler is gone: nothing left to cancel or to say goodbye to
+        pass
+
+
+def disconnect(client) -> None:
+    """Close a client made by ``connect``; a scheduler that has gone meanwhile is not waited for."""
+    try:
+        client.close(timeout=CONNECT_TIMEOUT_S)
+    except Exception:
         pass
 
 

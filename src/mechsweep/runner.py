@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import errno
+import numbers
 import os
 import platform
 import resource
@@ -24,9 +25,10 @@ from . import __version__
 from . import status as st
 from .errors import ClusterLost, InputError, WriteFailed
 from .grid import Chunk, ChunkPlan, ParameterMatrix, chunk_target, plan_chunks
-from .journal import BadChunk, Journal, RunLock, discard_path, drop, partial_path
-from .scene import Scene, check_scheduler, check_worker_timeout, load_scene
-from .store import StoreError, assemble, layout, open_dataset, status_counts
+from .journal import BadChunk, Journal, RunLock, discard_path, drop, lock_path, partial_path
+from .scene import Scene, check_scheduler, check_worker_timeout, load_scene, load_scene_text
+from .store import (StoreError, assemble, check_journal_files, file_kind, is_run_dataset, layout, open_dataset,
+                    status_counts)
 
 
 class RunInterrupted(RuntimeError):
@@ -73,6 +75,7 @@ def run(
     scheduler: str | None = None,
     load: bool | None = None,
     worker_timeout: float | None = None,
+    overwrite: bool = False,
 ) -> xr.Dataset:
     """Compute a scene's grid and return the stored dataset.
 
@@ -90,10 +93,13 @@ def run(
     A failed write (disk full, file-size limit) raises ``OutOfSpace`` with the journal kept;
     SIGINT and SIGTERM raise ``RunInterrupted`` (when run in the main thread). ``compute`` does
     the same without opening the result (for status counts and sizes only).
+
+    An existing ``output`` is replaced only by a run of the same scene (a re-run), unless
+    ``overwrite``: a dataset of another scene, or a file mechsweep did not write, is refused.
     """
     lazy = None if load is None else not load
     summary = compute(scene_or_path, output=output, resume=resume, restart=restart, threads=threads,
-                      progress=progress, scheduler=scheduler, worker_timeout=worker_timeout)
+                      progress=progress, scheduler=scheduler, worker_timeout=worker_timeout, overwrite=overwrite)
     return open_dataset(summary.path, lazy=lazy)
 
 
@@ -107,6 +113,7 @@ def compute(
     progress: bool | None = None,
     scheduler: str | None = None,
     worker_timeout: float | None = None,
+    overwrite: bool = False,
 ) -> RunSummary:
     """``run`` without opening the result: compute the scene into its file and return a
     :class:`RunSummary` (path, sizes, status counts, wall time). Memory stays bounded by the
@@ -134,24 +141,30 @@ def compute(
     # under it: another run may have changed the files meanwhile.
     RunLock(final).refuse_if_held()
     chunks = plan_chunks(scene.shape, target)
-    _check_existing(scene, final, resume, restart, target, len(chunks))
-    with _Signals() as signals:
-        try:
-            with RunLock(final):  # from here to the end, no other run touches final or its journal
-                shutil.rmtree(discard_path(final), ignore_errors=True)  # what a killed clean-up left
-                if not _check_existing(scene, final, resume, restart, target, len(chunks)):  # True: finished
-                    counts = _compute(scene, final, restart, threads, progress, scheduler, target, chunks,
-                                      signals, worker_timeout)
-                else:
-                    counts = status_counts(final)
-                wall_time = _wall_time(final)
-        except WriteFailed as exc:
-            raise OutOfSpace(_out_of_space(exc, scene, final, len(chunks))) from None
-        except ClusterLost as exc:
-            raise ClusterLost(f"{exc}; {_kept(final)}") from None
-        except KeyboardInterrupt:
-            raise RunInterrupted(_interrupted(final, signals.signum or signal.SIGINT),
-                                 signals.signum or signal.SIGINT) from None
+    finished = _check_existing(scene, final, resume, restart, target, len(chunks), overwrite)
+    # A cluster that does not answer is refused here, before the lock and the journal exist.
+    client = _connect(scheduler) if scheduler and not finished else None
+    try:
+        with _Signals() as signals:
+            try:
+                with RunLock(final):  # from here to the end, no other run touches final or its journal
+                    shutil.rmtree(discard_path(final), ignore_errors=True)  # what a killed clean-up left
+                    if not _check_existing(scene, final, resume, restart, target, len(chunks), overwrite):
+                        counts = _compute(scene, final, restart, threads, progress, scheduler, target, chunks,
+                                          signals, worker_timeout, client)
+                    else:  # True: a resume found the run finished
+                        counts = status_counts(final)
+                    wall_time = _wall_time(final)
+            except WriteFailed as exc:
+                raise OutOfSpace(_out_of_space(exc, scene, final, len(chunks))) from None
+            except ClusterLost as exc:
+                raise ClusterLost(f"{exc}; {_kept(final)}") from None
+            except KeyboardInterrupt:
+                raise RunInterrupted(_interrupted(final, signals.signum or signal.SIGINT),
+                                     signals.signum or signal.SIGINT) from None
+    finally:
+        if client is not None:
+            _disconnect(client)
     return RunSummary(final, _sizes(scene), counts, wall_time)
 
 
@@ -218,18 +231,30 @@ def _mib(n: float) -> str:
     return f"{n / 2**20:.3g} MiB"
 
 
-def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, target: int, n_chunks: int) -> bool:
-    """Refuse what would mix runs: an unfinished run without --resume/--restart, a resume with
-    another scene. True when ``resume`` finds the run already finished."""
+def _connect(scheduler: str):
+    from .cluster import connect
+
+    return connect(scheduler)
+
+
+def _disconnect(client) -> None:
+    from .cluster import disconnect
+
+    disconnect(client)
+
+
+def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, target: int, n_chunks: int,
+                    overwrite: bool = False) -> bool:
+    """Refuse what would mix runs or lose results: an unfinished run without --resume/--restart,
+    a resume with another scene, an existing dataset of another scene (or a file mechsweep did
+    not write) without ``overwrite``. True when ``resume`` finds the run already finished."""
     part = partial_path(final)
+    check_journal_files(part, contents=not restart)  # --restart discards what the folder holds
     if part.exists() and not (resume or restart):
         raise StoreError(f"an unfinished run of this output exists: {part}; continue it with --resume "
                          "or discard it with --restart")
-    if resume and not part.exists() and final.exists():
-        with open_dataset(final, lazy=True) as ds:
-            if not scene.same_as(ds.attrs.get("scene_canonical")):
-                raise StoreError(f"{final} holds a finished run of a different scene; use --restart to "
-                                 "replace it")
+    same = _holds_same_scene(final, scene, overwrite)  # None: no dataset there (or an empty file)
+    if resume and not part.exists() and same:
         return True
     if part.exists() and not restart:
         journal = Journal.read(part)
@@ -241,11 +266,50 @@ def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, targ
     return False
 
 
+def _holds_same_scene(final: Path, scene: Scene, overwrite: bool) -> bool | None:
+    """Whether the dataset at ``final`` is a run of ``scene``; None when there is no dataset
+    (absent or an empty file). A dataset of another scene, or a file that is not a mechsweep
+    dataset, is refused unless ``overwrite`` (then False)."""
+    if not final.exists() or final.stat().st_size == 0:
+        return None
+    try:
+        with open_dataset(final, lazy=True) as ds:
+            same = same_scene(ds.attrs, scene) if is_run_dataset(ds) else None
+    except StoreError as exc:
+        if overwrite:
+            return False
+        raise StoreError(f"{exc}; a run would replace it: use --overwrite to replace it anyway, "
+                         "or choose another path with -o") from None
+    if same is None and not overwrite:
+        raise StoreError(f"{final} is a mechsweep benchmark dataset, not a run; use --overwrite to replace it, "
+                         "or choose another path with -o")
+    if same is False and not overwrite:
+        raise StoreError(f"{final} holds a finished run of a different scene (model, outputs, axes, fixed "
+                         "values or solver settings differ); use --overwrite to replace it, or choose "
+                         "another path with -o")
+    return bool(same)
+
+
+def same_scene(attrs: Mapping, scene: Scene) -> bool:
+    """Whether a dataset's attributes describe a run of ``scene``: its stored canonical form equals
+    the scene's, or its stored scene text, read by this version, has the same canonical form
+    (the form may change between versions; the text stays the user's)."""
+    if scene.same_as(attrs.get("scene_canonical")):
+        return True
+    text = attrs.get("scene")
+    if not isinstance(text, str):
+        return False
+    try:
+        return load_scene_text(text, label="stored scene").canonical() == scene.canonical()
+    except InputError:
+        return False
+
+
 def _compute(scene: Scene, final: Path, restart: bool, threads, progress, scheduler, target: int,
-             chunks: ChunkPlan, signals: "_Signals", worker_timeout: float) -> dict[int, int]:
+             chunks: ChunkPlan, signals: "_Signals", worker_timeout: float, client=None) -> dict[int, int]:
     """Compute the missing chunks into the journal, then assemble the dataset; returns the points
     per status code. Chunk files that do not verify (found now, or while assembling) are removed
-    and computed again."""
+    and computed again. ``client``: a connected dask client when ``scheduler`` is given."""
     part = partial_path(final)
     journal = Journal.read(part) if part.exists() and not restart else None
     if journal is None or journal.empty:  # none, discarded, or killed before its first word
@@ -259,7 +323,7 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
         with _threads(None if scheduler else threads):
             where = (f"dask scheduler {scheduler}, {threads or 'all'} numba threads per worker" if scheduler
                      else f"local, {numba.get_num_threads()} threads")
-            results = (_dask_results(scene, todo, scheduler, threads, worker_timeout) if scheduler
+            results = (_dask_results(scene, todo, scheduler, threads, worker_timeout, client) if scheduler
                        else _local_results(scene, todo))
             _save_chunks(scene, journal, results, todo, scene.n_points - sum(c.size for c in todo), progress)
             attrs = {**journal.meta["attrs"], "execution": where}
@@ -395,6 +459,14 @@ def check_target(final: Path) -> None:
         raise StoreError(f"output path {str(final)[:80]}...: {exc.strerror}") from None
     if final.is_dir():
         raise StoreError(f"output path {final} is a directory; give a file path such as {final / 'run.h5'}")
+    if os.path.lexists(final) and not final.is_file():
+        raise StoreError(f"output path {final} is {_kind(final)}, not a regular file; a run writes only a "
+                         "new file or replaces a dataset: choose another path with -o")
+    for path, want, ok in ((lock_path(final), "a file", os.path.isfile),
+                           (discard_path(final), "a folder", os.path.isdir)):
+        if os.path.lexists(path) and not ok(path):
+            raise StoreError(f"{path} (the run's {'lock' if want == 'a file' else 'journal being deleted'}) is "
+                             f"{_kind(path)}, not {want} mechsweep made; move it away or choose another path with -o")
     parent = final.parent
     if parent.exists() and not parent.is_dir():
         raise StoreError(f"{parent} (in output path {final}) is a file, not a folder; choose another path with -o")
@@ -480,6 +552,14 @@ def _size(n: float) -> str:
     return f"{n:.1f} PB"
 
 
+def _kind(path: Path) -> str:
+    """What a file system entry is, for a message."""
+    try:
+        return file_kind(os.stat(path).st_mode)
+    except OSError:
+        return "a broken link"
+
+
 def _writable(path: Path) -> bool:
     """Write permission, and not marked read-only (root passes os.access even then)."""
     return os.access(path, os.W_OK) and bool(path.stat().st_mode & 0o222)
@@ -500,7 +580,8 @@ def evaluate_chunk(scene: Scene, chunk: Chunk, params: ParameterMatrix | None = 
     status = np.zeros(n, dtype=st.DTYPE)
     n_steps = np.zeros(n, dtype=np.int64)
     n_rhs = np.zeros(n, dtype=np.int64)
-    scene.model.evaluate(P, computed, scene.solver, out, status, n_steps, n_rhs)
+    with np.errstate(all="ignore"):  # an overflow at an extreme point is its status, not a warning
+        scene.model.evaluate(P, computed, scene.solver, out, status, n_steps, n_rhs)
     requested = {name: out[name] for name in scene.outputs}
     # A point is ok only if everything asked of it is finite (never a NaN with status ok).
     # An overflow (inf) is never stored as a value: it becomes NaN, the point NONFINITE.
@@ -519,10 +600,11 @@ def _local_results(scene: Scene, todo: list[Chunk]):
         yield chunk, evaluate_chunk(scene, chunk, params)
 
 
-def _dask_results(scene: Scene, todo: list[Chunk], scheduler: str, threads: int | None, worker_timeout: float):
+def _dask_results(scene: Scene, todo: list[Chunk], scheduler: str, threads: int | None, worker_timeout: float,
+                  client=None):
     from .cluster import dask_results
 
-    return dask_results(scene, todo, scheduler, threads, worker_timeout=worker_timeout)
+    return dask_results(scene, todo, scheduler, threads, worker_timeout=worker_timeout, client=client)
 
 
 def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], already: int, progress) -> None:
@@ -572,6 +654,8 @@ def _check_threads(n: int | None, here: bool = True) -> None:
     (each worker uses at most its own)."""
     if n is None:
         return
+    if isinstance(n, bool) or not isinstance(n, numbers.Integral):
+        raise InputError(f"threads = {n!r} is not allowed; expected a whole number (numba threads)")
     if here and not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
         raise InputError(f"threads = {n} is outside [1, {numba.config.NUMBA_NUM_THREADS}] (cores available)")
     if not here and n < 1:

@@ -251,6 +251,7 @@ class Scene:
 def load_scene(source: str | Path | Mapping) -> Scene:
     """Load and validate a scene from a TOML path or a dict with the same structure."""
     if isinstance(source, Mapping):
+        source = _plain(source)
         return validate(source, text=to_toml(source), label="scene")
     path = Path(source)
     label = str(path)
@@ -267,6 +268,20 @@ def load_scene(source: str | Path | Mapping) -> Scene:
     except UnicodeDecodeError as exc:
         raise SceneError([f"{label!r} is not UTF-8 text (byte {exc.start})"], label) from None
     return load_scene_text(text, label)
+
+
+def _plain(value):
+    """A scene dict with numpy scalars and arrays made plain Python values (np.float64(2.0) is a
+    number, like 2.0), as a TOML file would give them."""
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return [_plain(v) for v in value.tolist()] if value.ndim else _plain(value.item())
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
 
 
 def load_scene_text(text: str, label: str = "scene") -> Scene:
@@ -319,13 +334,17 @@ def validate(data: Mapping, *, text: str, label: str = "scene") -> Scene:
     if model.check is not None and not p.items:
         # list axes give their values; a range axis its two ends (a range is monotone: its extremes)
         values = {a.name: a.items if a.spacing == "list" else a.ends for a in axes} | {k: (v,) for k, v in fixed.items()}
-        p.items.extend(model.check(values))
+        with np.errstate(all="ignore"):  # extreme values are judged by the check, not warned about
+            p.items.extend(model.check(values))
     for out in outputs:
         missing = [q for q in model.output(out).needs_params if q not in given]
         if missing:
             p.add("scene.outputs", f"output {out!r} needs parameter(s) {', '.join(missing)}; "
                   "give them in [axes] or [fixed]")
-    solver = _solver(_table(data, "solver", p), model, p) if model.needs_integration(outputs) else None
+    # [solver] is checked whether or not an output needs it: garbage there is refused either way
+    solver = _solver(_table(data, "solver", p), model, p)
+    if not model.needs_integration(outputs):
+        solver = None
     storage = _storage(_table(data, "storage", p), name if isinstance(name, str) else "scene", p)
     execution = _execution(_table(data, "execution", p), p)
     if axes:
@@ -482,6 +501,11 @@ def _list_axis(key, name, values, prm, p) -> Axis | None:
         p.add(key, "values repeat; each grid value must be distinct")
         return None
     vals = tuple(values) if prm.categorical else tuple(float(v) for v in values)
+    if len(set(vals)) != len(vals):  # e.g. 2**53 and 2**53 + 1: distinct integers, one float
+        same = next(i for i, v in enumerate(vals) if vals.index(v) != i)
+        p.add(key, f"{_short(values[vals.index(vals[same])])} and {_short(values[same])} are the same value "
+              f"at float precision ({vals[same]!r}); each grid value must be distinct")
+        return None
     return Axis.of_list(name, vals)
 
 

@@ -15,6 +15,7 @@ removed and ``WriteFailed`` raised; the journal it was assembled from is untouch
 from __future__ import annotations
 
 import os
+import stat
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -360,6 +361,10 @@ def _describe(var, unit: str, long_name: str, symbol: str) -> None:
         var.attrs["symbol"] = symbol
 
 
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+RUN_ATTRS = ("scene_canonical", "model", "outputs")  # every dataset `mechsweep run` writes has them
+
+
 def open_dataset(path: str | Path, *, allow_partial: bool = False, lazy: bool | None = False) -> xr.Dataset:
     """Open a mechsweep dataset.
 
@@ -368,9 +373,14 @@ def open_dataset(path: str | Path, *, allow_partial: bool = False, lazy: bool | 
     ``lazy=None`` loads datasets up to LOAD_LIMIT_BYTES and opens larger ones lazily.
     ``allow_partial`` opens an unfinished run (its missing chunks NaN, status pending) when the
     finished file does not exist yet; that view is always loaded.
+
+    Anything that is not a dataset mechsweep wrote (a folder, a device, an empty, text or damaged
+    file, an HDF5 or netCDF file from elsewhere) raises StoreError saying what the file is not.
     """
+    if "\0" in str(path):
+        raise StoreError(f"dataset path {str(path)!r} contains a NUL character")
     path = Path(path)
-    if not path.exists():
+    if not os.path.lexists(path):
         part = partial_path(path)
         if allow_partial and part.exists():
             return _open_partial(part)
@@ -380,16 +390,166 @@ def open_dataset(path: str | Path, *, allow_partial: bool = False, lazy: bool | 
                 "`mechsweep run SCENE --resume`, or open it with allow_partial=True"
             )
         raise FileNotFoundError(f"{path} does not exist")
+    check_dataset_file(path)
     if lazy is None:
         lazy = path.stat().st_size > LOAD_LIMIT_BYTES
-    if lazy:
-        return xr.open_dataset(path, engine="h5netcdf", chunks={} if _have_dask() else None)
-    with xr.open_dataset(path, engine="h5netcdf") as ds:
-        return ds.load()
+    try:
+        if lazy:
+            return xr.open_dataset(path, engine="h5netcdf", chunks={} if _have_dask() else None)
+        with xr.open_dataset(path, engine="h5netcdf") as ds:
+            return ds.load()
+    except (OSError, ValueError, KeyError, TypeError, RuntimeError) as exc:
+        raise StoreError(f"{path} is not a readable mechsweep dataset: {_first_line(exc)}") from None
+
+
+def check_dataset_file(path: str | Path) -> None:
+    """Raise StoreError unless ``path`` is a regular HDF5 file that mechsweep wrote: a run's
+    dataset (its scene, model and outputs attributes and a status variable) or a benchmark's
+    (a ``mechsweep_kind`` attribute). Reads the file's header only, never blocks on a pipe."""
+    path = Path(path)
+    what = f"{path} is not a mechsweep dataset"
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{path} does not exist (a broken link)") from None
+    except OSError as exc:
+        raise StoreError(f"{what}: it cannot be read ({exc.strerror})") from None
+    if not stat.S_ISREG(mode):
+        raise StoreError(f"{what}: it is {file_kind(mode)}, not a file")
+    try:
+        with open(path, "rb") as f:
+            head = f.read(8)
+    except OSError as exc:
+        raise StoreError(f"{what}: it cannot be read ({exc.strerror})") from None
+    if not head:
+        raise StoreError(f"{what}: it is an empty file")
+    if head != HDF5_SIGNATURE:
+        kind = ("a netCDF-3 file" if head.startswith(b"CDF") else
+                "a text file" if _looks_like_text(path) else "a file of another format")
+        raise StoreError(f"{what}: it is {kind}, not HDF5 (it starts with {head[:8]!r})")
+    try:
+        with h5py.File(path, "r") as f:
+            attrs = set(f.attrs)
+            names = set(f.keys())
+            outputs = _text(f.attrs.get("outputs", "")).split() if "outputs" in attrs else []
+    except Exception as exc:  # h5py raises OSError, and others for damaged internals
+        raise StoreError(f"{what}: it is an HDF5 file that cannot be read, damaged or truncated "
+                         f"({_first_line(exc)})") from None
+    if "mechsweep_kind" in attrs:
+        return
+    missing = [a for a in RUN_ATTRS if a not in attrs]
+    if missing:
+        raise StoreError(f"{what}: it is an HDF5/netCDF file without the attribute(s) {', '.join(missing)} "
+                         "that `mechsweep run` writes")
+    absent = [v for v in ["status", *outputs] if v not in names]
+    if absent:
+        raise StoreError(f"{what}: it lacks the variable(s) {', '.join(absent)} that a run writes")
+
+
+def is_run_dataset(ds: xr.Dataset) -> bool:
+    """A dataset of `mechsweep run` (not a benchmark's)."""
+    return all(a in ds.attrs for a in RUN_ATTRS) and "status" in ds
+
+
+def _text(value) -> str:
+    if isinstance(value, bytes):
+        return value.decode(errors="replace")
+    return value if isinstance(value, str) else str(value)
+
+
+def file_kind(mode: int) -> str:
+    """What a file system entry of this st_mode is, for a message."""
+    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a named pipe (FIFO)"),
+                       (stat.S_ISSOCK, "a socket"), (stat.S_ISREG, "a regular file")):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def _looks_like_text(path: Path) -> bool:
+    with open(path, "rb") as f:
+        block = f.read(4096)
+    try:
+        block.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        if exc.start < len(block) - 4:  # not just a character cut at the block's end
+            return False
+    return b"\0" not in block
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return (text[0][:200] if text else type(exc).__name__)
 
 
 def _open_partial(part: Path) -> xr.Dataset:
     """An unfinished run as a Dataset, assembled in memory from its journal."""
+    check_journal_files(part)
+    try:
+        return _assemble_partial(part)
+    except (StoreError, FileNotFoundError):
+        raise
+    except Exception as exc:  # a journal someone edited or damaged: say so, no traceback
+        raise StoreError(f"{part} is not a readable unfinished run ({type(exc).__name__}: {_first_line(exc)}); "
+                         "start it over with --restart") from None
+
+
+def check_journal_files(part: Path, contents: bool = True) -> None:
+    """Raise StoreError if the journal folder ``part`` (when it exists) or, with ``contents``, what
+    it holds is not of the kind a run makes: a folder, a file run.json, a folder chunks of files.
+    A pipe or a device there would block or be replaced."""
+    if not os.path.lexists(part):
+        return
+    if part.is_file():  # an older version's one-file journal: Journal.read says so
+        return
+    if not part.is_dir():
+        raise StoreError(f"{part} (the journal of unfinished runs) is {file_kind(part.stat().st_mode)}, "
+                         "not a folder mechsweep made; move it away")
+    for name, want, test in (("run.json", "a file", stat.S_ISREG), ("chunks", "a folder", stat.S_ISDIR)):
+        entry = part / name
+        if os.path.lexists(entry) and not test(entry.stat().st_mode):
+            raise StoreError(f"{entry} is {file_kind(entry.stat().st_mode)}, not {want} as a run writes it; "
+                             "start over with --restart")
+    for e in os.scandir(part):  # e.g. assembly.h5: a pipe there would block the run's last step
+        if e.name not in ("run.json", "chunks") and not e.is_file(follow_symlinks=False):
+            raise StoreError(f"{e.path} is {file_kind(os.lstat(e.path).st_mode)}, not a file a run writes; "
+                             "start over with --restart")
+    _check_run_json(part / "run.json")
+    chunks = part / "chunks"
+    if chunks.is_dir():
+        for e in os.scandir(chunks):
+            if not e.is_file(follow_symlinks=False):
+                raise StoreError(f"{e.path} is not a chunk file a run writes; start over with --restart")
+
+
+RUN_JSON_KEYS = {"scene_canonical": str, "scene": str, "chunk_target": int, "n_chunks": int, "attrs": dict}
+
+
+def _check_run_json(path: Path) -> None:
+    """Refuse a journal's run.json that is not what a run writes (edited, damaged, foreign)."""
+    import json
+
+    from .journal import FORMAT
+
+    if not path.is_file():
+        return
+    try:
+        meta = json.loads(path.read_bytes())
+    except ValueError as exc:
+        raise StoreError(f"{path} is unreadable ({_first_line(exc)}); start over with --restart") from None
+    if not isinstance(meta, dict):
+        raise StoreError(f"{path} is not a run's journal (a JSON {type(meta).__name__}, not an object); "
+                         "start over with --restart")
+    if meta.get("format") != FORMAT:
+        return  # another version's journal: Journal.read says so
+    bad = [k for k, kind in RUN_JSON_KEYS.items() if not isinstance(meta.get(k), kind) or isinstance(meta.get(k), bool)]
+    if bad or meta["n_chunks"] < 1 or meta["chunk_target"] < 1:
+        raise StoreError(f"{path} is damaged (entries {', '.join(bad) or 'n_chunks, chunk_target'} missing or of the "
+                         "wrong kind); start over with --restart")
+
+
+def _assemble_partial(part: Path) -> xr.Dataset:
     import io
 
     journal = Journal.read(part)

@@ -77,6 +77,14 @@ def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = N
          rtol: float = Solver.rtol, atol: float = Solver.atol, seed: int = 0) -> dict:
     import numba
 
+    from ..scene import SOLVER_LIMITS
+    from . import _args
+
+    points = _args.count("points", points)
+    scipy_points = _args.count("scipy_points", scipy_points, 1, points)
+    threads = _args.threads("threads", threads)
+    rtol = _args.tolerance("rtol", rtol, *SOLVER_LIMITS["rtol"])
+    atol = _args.tolerance("atol", atol, *SOLVER_LIMITS["atol"])
     scene = load_scene(grid_scene(points, rtol, atol))
     stored = ("period", "period_exact", "period_error", "v_max", "a_max")
     with _threads(threads):

@@ -25,6 +25,9 @@ def main(scene: str = "sweeps/quickstart.toml") -> dict:
     scene_path = Path(scene).resolve()
     if not scene_path.exists():
         raise FileNotFoundError(f"{scene} does not exist (run from the repository root)")
+    from ..scene import load_scene
+
+    load_scene(scene_path)  # an invalid scene is refused here, not as a failed child process
     result = {}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)

@@ -273,6 +273,21 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
 
     from . import workprecision_linkage
 
+    from . import _args
+
+    points = _args.count("points", points, 1, 10**6)
+    scipy_points = _args.count("scipy_points", scipy_points, 1, points)
+    repeats = _args.count("repeats", repeats, 1, 1000)
+    out_dir = _args.folder("out", out_dir)
+    if not isinstance(model, str):
+        raise InputError(f"model {model!r} is not allowed; cases: {', '.join(all_cases())}")
+    if model not in workprecision_linkage.CASES:
+        from ..scene import SOLVER_LIMITS
+
+        ladder = _args.sequence(ladder)
+        if not ladder:
+            raise InputError("the tolerance ladder is empty; give at least one rtol")
+        ladder = tuple(_args.tolerance("rtol", r, *SOLVER_LIMITS["rtol"]) for r in ladder)
     if model in workprecision_linkage.CASES:  # algebraic: a ladder of crank positions, not of tolerances
         return workprecision_linkage.main(model, scene_path, points=points, repeats=max(repeats, 5), out_dir=out_dir,
                                           quiet=quiet)

@@ -387,14 +387,24 @@ def main(model: str, scene_path: str | None = None, points: int = 64, positions=
     from ..errors import InputError
     from .workprecision import sample
 
+    from . import _args
+
+    if not isinstance(model, str) or model not in CASES:
+        raise InputError(f"no linkage work-precision case for model {model!r}; cases: {', '.join(CASES)}")
+    points = _args.count("points", points, 1, 10**6)
+    repeats = _args.count("repeats", repeats, 1, 1000)
+    out_dir = _args.folder("out", out_dir)
+    positions = _args.sequence(positions)
+    if not positions:
+        raise InputError("the ladder of crank positions is empty; give at least one")
+    positions = tuple(_args.count("positions", n, 1, 10**6) for n in positions)
+    if min(positions) < 4:
+        raise InputError(f"need at least 4 crank positions per cycle, got {min(positions)}")
     case = CASES[model]
     spec = MODELS[model]
     scene = load_scene(scene_path or ROOT / case.scene)
     if scene.model.name != model:
         raise InputError(f"scene {scene_path} is for model {scene.model.name!r}, not {model!r}")
-    positions = tuple(int(n) for n in positions)
-    if min(positions) < 4:
-        raise InputError(f"need at least 4 crank positions per cycle, got {min(positions)}")
     outputs = tuple(case.outputs)
     P = sample(scene, points, seed)
     before = numba.get_num_threads()

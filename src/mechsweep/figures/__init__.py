@@ -43,6 +43,15 @@ def draw(ds, kind: str):
     raise ValueError(f"unknown figure {kind!r}")
 
 
+def targets(ds, path, *, kind: str | None = None, fmt: str = "png") -> list[Path]:
+    """The files ``save`` writes: ``path`` with the format's suffix for one figure, or
+    ``<stem>_<kind>.<fmt>`` beside it for each of several."""
+    chosen = [kind] if kind else list(available(ds))
+    path = Path(path)
+    return [path.with_suffix(f".{fmt}") if len(chosen) == 1 else path.with_name(f"{path.stem}_{k}.{fmt}")
+            for k in chosen]
+
+
 def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150) -> list[Path]:
     """Write one figure (``kind``) or every figure that fits (``kind=None``).
 
@@ -58,11 +67,8 @@ def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150)
                          f"{', '.join(kinds) or 'nothing'}")
     if not kinds:
         raise InputError("no figure fits this dataset (it needs one or two numeric axes)")
-    chosen = [kind] if kind else list(kinds)
-    path = Path(path)
     written = []
-    for k in chosen:
-        out = path.with_suffix(f".{fmt}") if len(chosen) == 1 else path.with_name(f"{path.stem}_{k}.{fmt}")
+    for k, out in zip([kind] if kind else list(kinds), targets(ds, path, kind=kind, fmt=fmt)):
         fig = draw(ds, k)
         fig.savefig(out, format=fmt, dpi=dpi)
         plt.close(fig)

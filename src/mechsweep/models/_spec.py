@@ -6,6 +6,7 @@ A model module declares a :class:`ModelSpec` beside its kernels. Everything else
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -46,7 +47,7 @@ class Param:
             if not isinstance(value, str) or value not in self.choices:
                 return f"{value!r} is not allowed; expected {self.allowed()}"
             return None
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):  # numpy numbers are numbers
             return f"{value!r} is not a number; expected {self.allowed()}"
         v = float(value)
         if not math.isfinite(v):
@@ -77,7 +78,8 @@ class Setting:
 
     def problem(self, value) -> str | None:
         kind = "a whole number" if self.integer else "a number"
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or (self.integer and not isinstance(value, int)):
+        if isinstance(value, bool) or not isinstance(value, numbers.Real) or (
+                self.integer and not isinstance(value, numbers.Integral)):
             return f"{value!r} is not allowed; expected {kind} in [{_fmt(self.lo)}, {_fmt(self.hi)}]"
         if not math.isfinite(float(value)) or not self.lo <= value <= self.hi:
             return f"{value!r} is outside the allowed range [{_fmt(self.lo)}, {_fmt(self.hi)}] ({self.long_name})"
