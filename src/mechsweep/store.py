@@ -530,7 +530,7 @@ def _check_run_json(path: Path) -> None:
     """Refuse a journal's run.json that is not what a run writes (edited, damaged, foreign)."""
     import json
 
-    from .journal import FORMAT
+    from .journal import READABLE_FORMATS
 
     if not path.is_file():
         return
@@ -541,7 +541,7 @@ def _check_run_json(path: Path) -> None:
     if not isinstance(meta, dict):
         raise StoreError(f"{path} is not a run's journal (a JSON {type(meta).__name__}, not an object); "
                          "start over with --restart")
-    if meta.get("format") != FORMAT:
+    if meta.get("format") not in READABLE_FORMATS:
         return  # another version's journal: Journal.read says so
     bad = [k for k, kind in RUN_JSON_KEYS.items() if not isinstance(meta.get(k), kind) or isinstance(meta.get(k), bool)]
     if bad or meta["n_chunks"] < 1 or meta["chunk_target"] < 1:
