@@ -1,5 +1,6 @@
 """Duffing model: closed forms against independent references, integrated period against the
 closed form, statuses of meaningless points."""
+import functools
 import math
 
 import mpmath as mp
@@ -152,6 +153,7 @@ SEPARATRIX_GAPS = np.geomspace(1e-2, 1e-12, 21)  # 1 + epsilon
 SEPARATRIX_OMEGA_A = [(1.0, 1.0), (7.123457, 0.0871), (0.03, 5.0)]
 
 
+@functools.cache
 def separatrix_grid():
     P = np.array([(om, -(1.0 - g) * om**2 / A**2, A) for om, A in SEPARATRIX_OMEGA_A for g in SEPARATRIX_GAPS])
     ref = np.array([float(exact_period(*row)) for row in P])
