@@ -254,3 +254,35 @@ def test_exact_moment_near_its_humps_is_right_or_ill_conditioned():
             T = cols["period_exact_moment"][i]
             assert abs(T - ref) <= rtol * ref, (rtol, rows[i], abs(T - ref) / ref / rtol)
         assert ok.sum() >= 20 and (~ok).sum() >= 6
+
+
+def test_two_term_period_near_its_separatrix_is_right_or_ill_conditioned():
+    """The torsional circuit's two-term period near the cubic's soft separatrix (1 + epsilon from
+    1e-2 to 1e-10): ok points within 2 rtol (README: 1e-10 at the default 5e-11) of the elliptic
+    closed form of chi, xi evaluated in 50 digits from the float inputs; the rest ill_conditioned,
+    where the sensitivities of chi and xi to lambda1, lambda2, s0_over_r make the period too
+    sensitive for rtol."""
+    gaps = np.geomspace(1e-2, 1e-10, 9)
+    rows, refs = [], []
+    for lam1, lam2, s in ((0.3, 1.5, 1.6), (0.3, 0.8, 1.0)):
+        with mp.workdps(50):
+            l1, l2, S = mp.mpf(lam1), mp.mpf(lam2), mp.mpf(s)
+            D0 = (1 - l1) ** 2 + l2**2
+            chi = l1 * S / mp.sqrt(D0)
+            xi = l1 * (3 * l1 - S * (D0 + 3 * l1) / mp.sqrt(D0)) / (6 * D0)
+            assert xi < 0
+            for g in gaps:
+                A = float(mp.sqrt(-(1 - g) * chi / xi))
+                k = mp.mpf(0.11) ** 2 * mp.mpf(530.0) / mp.mpf(2.2e-3)
+                w2, mu, a = k * chi, k * xi, mp.mpf(A)
+                s_ = w2 + mu * a * a
+                rows.append(("tension", lam1, lam2, s, 0.11, 530.0, 2.2e-3, A))
+                refs.append(float(4 * mp.ellipk(mu * a * a / (2 * s_)) / mp.sqrt(s_)))
+    refs = np.array(refs)
+    for rtol in (5e-11, 1e-9):
+        cols, status = evaluate(rows, ("period",), Solver.for_model(tc.SPEC, rtol=rtol, atol=rtol / 50))
+        ok = status == st.OK
+        assert (status[~ok] == st.ILL_CONDITIONED).all() and np.isnan(cols["period"][~ok]).all()
+        err = np.abs(cols["period"] - refs) / refs
+        assert (err[ok] <= 2 * rtol).all(), (rtol, err[ok].max() / rtol)
+        assert ok.sum() >= 6 and (~ok).sum() >= 2
