@@ -53,7 +53,7 @@ DESCRIPTIONS: dict[int, str] = {
     NO_EVENT: "an event the output needs (a period crossing, settling) did not happen within the horizon",
     NOT_BALANCEABLE: "no balanced state exists (A0 > 2 m a, A0 = 0 or A1 != 0): balanced-state outputs are NaN",
     UNDECIDED: "stability could not be decided: the simulation neither settled nor diverged within the horizon, or floquet_max is within solver.floquet_margin of 1",
-    ILL_CONDITIONED: "the output is too sensitive here to reach solver.rtol in double precision: its condition number with respect to the inputs times round-off exceeds rtol (the Duffing period within ~5e-7 of the soft separatrix at the default rtol, the exact-moment period next to a hump of the spring's potential); the closed form, where there is one, is still given",
+    ILL_CONDITIONED: "the output is too sensitive here to reach solver.rtol in double precision: its condition number with respect to the inputs times round-off exceeds rtol (the Duffing period below 1 + epsilon = 6.8e-7 at the default rtol, the exact-moment period next to a hump of the spring's potential); the closed form, where there is one, is still given",
     STIFF: "the problem is stiff at this point and the explicit method stopped (use method = \"auto\" or \"radau\")",
 }
 
