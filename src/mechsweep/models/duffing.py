@@ -258,7 +258,7 @@ def integrate_period(method, omega2, mu, A, rtol, atol, max_steps, t_max_periods
     """Integrated period of the two-term Duffing model. Returns (status, T, n_steps, n_rhs).
     k_omega2, k_q: sensitivities of omega^2 and mu A^2 to the caller's inputs (period_condition);
     ILL_CONDITIONED where the period's condition number times round-off exceeds rtol."""
-    if period_condition(omega2, mu, A, k_omega2, k_q) * UNIT_ROUNDOFF > rtol:
+    if not period_condition(omega2, mu, A, k_omega2, k_q) * UNIT_ROUNDOFF <= rtol:  # NaN-safe: a NaN bound flags
         return st.ILL_CONDITIONED, math.nan, 0, 0
     muA2 = mu * A * A
     w2 = omega2 + abs(muA2)

@@ -171,7 +171,7 @@ def integrate_exact_period(method, sigma, lam1, lam2, s, k, chi, xi, A, rtol, at
     p[1] = lam1
     p[3] = L0
     top = A > 0.5 * math.pi
-    theta0 = (math.pi - A) + PI_LO  # math.pi - A is exact here (Sterbenz)
+    theta0 = (math.pi - A) + PI_LO  # pi - A; math.pi - A is exact for A >= pi / 2 (Sterbenz)
     if top:
         # theta'' = -k m(theta; -sigma, D_pi): the same moment with sigma -> -sigma, D0 -> D_pi
         d = 1.0 + sigma * lam1
@@ -225,15 +225,18 @@ def integrate_exact_period(method, sigma, lam1, lam2, s, k, chi, xi, A, rtol, at
                 + abs(lam1 * ((dD1 + 4.0 * sigma * sA * sA) / (2.0 * lA) - dD1 / (2.0 * r)))
                 + abs(lam2 * (lam2 / lA - lam2 / r)) + abs(2.0 * s))
         kappa = max(kappa, gain * abs(dE) * sens / abs(F))
-    if kappa * duf.UNIT_ROUNDOFF > rtol:
+    if not kappa * duf.UNIT_ROUNDOFF <= rtol:  # NaN-safe
         return st.ILL_CONDITIONED, math.nan, ns, nr
-    if amp > 1.0:
-        if rtol / amp < RTOL_FLOOR:
+    if not amp <= 1.0:
+        if not rtol / amp >= RTOL_FLOOR:
             return st.ILL_CONDITIONED, math.nan, ns, nr
+        if ns >= max_steps:
+            return st.MAX_STEPS, math.nan, ns, nr
         y[0] = 1.0
         y[1] = 0.0
-        code, tau_q, ns2, nr2 = exact_quarter_period(method, y, p, t_max, rtol / amp, atol / amp, max_steps, work,
-                                                     rwork, swork, q, v)
+        # the second pass gets what is left of the step budget: one output, one budget
+        code, tau_q, ns2, nr2 = exact_quarter_period(method, y, p, t_max, rtol / amp, atol / amp, max_steps - ns,
+                                                     work, rwork, swork, q, v)
         ns += ns2
         nr += nr2
         if code != st.OK:
