@@ -241,7 +241,9 @@ def test_exact_moment_near_its_humps_is_right_or_ill_conditioned():
         sig = 1 if spring == "tension" else -1
         D0 = (1 - sig * lam1) ** 2 + lam2**2
         L0 = math.sqrt(D0) - sig * s
-        gap = lambda A: abs(math.sqrt(D0 + 4 * sig * lam1 * math.sin(A / 2) ** 2) - L0) - abs(math.sqrt(D0) - L0)  # noqa: E731
+
+        def gap(A, D0=D0, L0=L0, sig=sig, lam1=lam1):  # V(A) - V(0), up to a positive factor
+            return abs(math.sqrt(D0 + 4 * sig * lam1 * math.sin(A / 2) ** 2) - L0) - abs(math.sqrt(D0) - L0)
         A_star = brentq(gap, 1e-3, 3.0, xtol=1e-15)  # V(A*) = V(0): beyond it the lever crawls over phi = 0
         rows += [(spring, lam1, lam2, s, 0.11, 530.0, 2.2e-3, A_star * (1 + g)) for g in np.geomspace(1e-1, 1e-8, 8)]
     refs = {}
