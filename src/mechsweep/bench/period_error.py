@@ -50,7 +50,7 @@ def plain_period_error(gap: float, rtol: float) -> float:
     equation x = phi / A with rtol, atol = rtol / 50 (not the saddle coordinates the model uses)."""
     omega2, mu, A = 1.0, -(1.0 - gap), 1.0
     w2 = omega2 + abs(mu)
-    p = np.array([omega2 / w2, mu / w2, 0.0, 0.0, 1.0])
+    p = np.array([omega2 / w2, mu / w2, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])  # plain formulation, duffing.N_P slots
     y = np.array([1.0, 0.0])
     code, tq, _, _ = duffing.quarter_period_solver(0.0, y, p, 200 * math.pi, rtol, rtol / 50, 0.0, 10**6,
                                                    duffing.dop853.workspace(2))

@@ -89,8 +89,8 @@ def _quarter_period(rhs, p, method, rtol, atol, t_max, jac=None):
 def _duffing_scaled(row):
     omega, mu, A = row[:3]
     w2 = omega * omega + abs(mu) * A * A
-    # duffing._scaled_rhs's plain formulation: (a, b, quadratic 0, event level 0, direction 1)
-    return np.array([omega * omega / w2, mu * A * A / w2, 0.0, 0.0, 1.0]), math.sqrt(w2)
+    # duffing._scaled_rhs's plain formulation: (a, b, quadratic 0, unused, event level 0, direction 1)
+    return np.array([omega * omega / w2, mu * A * A / w2, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]), math.sqrt(w2)
 
 
 def _duffing_scipy(row, method, rtol, atol):

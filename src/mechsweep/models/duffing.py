@@ -103,11 +103,14 @@ def fill_closed_forms(omega2, mu, A, want, row):
 
 # --------------------------------------------------------------------------- integrated period
 # One scaled oscillator serves both formulations (see integrate_period):
-#   y'' = -(p0 y + p1 y^3 + p2 y^2),  event  p4 (y - p3) from > 0 to <= 0.
-# The plain formulation is x = phi / A with p = (a, b, 0, 0, 1): x'' = -a x - b x^3, event x = 0
-# (the quadratic term and the level are exact zeros, so its results are those of the two-term rhs).
-# The saddle formulation near the soft separatrix has p2 != 0, p3 = event level, p4 = -1.
-N_P = 5
+#   y'' = -(p0 y + p1 y^3 + p2 y^2),  event  p7 (y - p6) from > 0 to <= 0.
+# The plain formulation is x = phi / A with p = (a, b, 0, ., ., ., 0, 1): x'' = -a x - b x^3, event
+# x = 0 (the quadratic term and the level are exact zeros, so its results are those of the two-term
+# rhs). The saddle formulation near the soft separatrix has p2 != 0, p6 = event level, p7 = -1.
+# The event reads the same slots (6, 7) as torsional_circuit's, so that the two models' event
+# functions are the same code: numba's disk cache was once seen (one cache folder, not reproduced)
+# to link one model's event into the other's cached kernel, harmless only while they are equal.
+N_P = 8
 
 
 @jit
@@ -118,7 +121,7 @@ def _scaled_rhs(t, y, p, dydt):
 
 @jit
 def _phi_event(t, y, p):
-    return p[4] * (y[0] - p[3])
+    return p[7] * (y[0] - p[6])
 
 
 @jit_noalloc
@@ -136,7 +139,7 @@ def _scaled_accel(t, q, p, a):
 
 @jit_noalloc
 def _q_event(t, q, v, p):
-    return p[4] * (q[0] - p[3])
+    return p[7] * (q[0] - p[6])
 
 
 quarter_period_solver = dop853.make_event_solver(_scaled_rhs, _phi_event)
@@ -271,14 +274,14 @@ def integrate_period(method, omega2, mu, A, rtol, atol, max_steps, t_max_periods
         p[0] = -2.0 * (delta + bneg)
         p[1] = -bneg * u0 * u0
         p[2] = 3.0 * bneg * xs * u0
-        p[3] = xs / u0
-        p[4] = -1.0
+        p[6] = xs / u0
+        p[7] = -1.0
     else:
         p[0] = omega2 / w2
         p[1] = muA2 / w2
         p[2] = 0.0
-        p[3] = 0.0
-        p[4] = 1.0
+        p[6] = 0.0
+        p[7] = 1.0
     y[0] = 1.0
     y[1] = 0.0
     code, tau_q, ns, nr = quarter_period(method, y, p, t_max_periods * 2.0 * math.pi, rtol, atol, max_steps,
