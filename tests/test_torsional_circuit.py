@@ -2,6 +2,7 @@
 arithmetic), the exact-moment period against quadrature, the truncation error's order."""
 import math
 
+import mpmath as mp
 import numpy as np
 import pytest
 import scipy.integrate as si
@@ -120,3 +121,173 @@ def test_hardness_sign():
     cols, _ = evaluate([("tension", 0.8, 0.5, 0.0, 1, 1, 1, math.nan), ("tension", 0.8, 0.5, 0.3, 1, 1, 1, math.nan)],
                        ("hardness", "xi"))
     assert list(cols["hardness"]) == list(np.sign(cols["xi"]))
+
+
+# ----------------------------------------------------------------------------- oscillation by the exact moment
+def quadrature_period(spring, lam1, lam2, s, R, c, I, A, dps=30):
+    """Independent reference: T = 4 int_0^A dphi / sqrt(2 k (V(A) - V(phi))), V = (l - L0)^2 / 2, in
+    30-digit mpmath (tanh-sinh on 8 pieces), phi = A sin(theta), V(A) - V(phi) without cancellation.
+    NaN where V(A) - V(phi) <= 0 somewhere on (0, A): the lever does not reach phi = 0."""
+    sig = 1 if spring == "tension" else -1
+    with mp.workdps(dps):
+        l1, l2, S, a = (mp.mpf(x) for x in (lam1, lam2, s, A))
+        k = mp.mpf(R) ** 2 * mp.mpf(c) / mp.mpf(I)
+        D0 = (1 - sig * l1) ** 2 + l2**2
+        L0 = mp.sqrt(D0) - sig * S
+        ell = lambda p: mp.sqrt(D0 + 4 * sig * l1 * mp.sin(p / 2) ** 2)  # noqa: E731
+        lA = ell(a)
+
+        def drop(p):  # (V(A) - V(p)) / (A - p) > 0 is required on [0, A)
+            lp = ell(p)
+            return 2 * sig * l1 * mp.sin((a + p) / 2) / (lA + lp) * (lA + lp - 2 * L0)
+        if min(drop(a * mp.mpf(j) / 64) for j in range(64)) <= 0:
+            return math.nan
+
+        def f(th):
+            p = a * mp.sin(th)
+            lp = ell(p)
+            dl = 4 * sig * l1 * mp.sin((a + p) / 2) * mp.sin(a * mp.sin(mp.pi / 4 - th / 2) ** 2) / (lA + lp)
+            return a * mp.cos(th) / mp.sqrt(k * dl * (lA + lp - 2 * L0))
+        return float(4 * mp.quad(f, mp.linspace(0, mp.pi / 2, 9)))
+
+
+def reaches_zero(spring, lam1, lam2, s, R, c, I, A):
+    """Second, integration-based opinion: does phi reach 0 within 5 s (scipy DOP853; the periods
+    here are below 3 s, and a lever that stays in its well keeps swinging inside it)?"""
+    sig = 1.0 if spring == "tension" else -1.0
+    D0 = (1.0 - sig * lam1) ** 2 + lam2**2
+    L0 = math.sqrt(D0) - sig * s
+    k = R * R * c / I
+
+    def f(t, y):
+        ell = math.sqrt(D0 + 4.0 * sig * lam1 * math.sin(0.5 * y[0]) ** 2)
+        return [y[1], -k * sig * lam1 * math.sin(y[0]) * (1.0 - L0 / ell)]
+
+    def zero(t, y):
+        return y[0]
+    zero.terminal, zero.direction = True, -1
+    sol = si.solve_ivp(f, (0.0, 5.0), [A, 0.0], method="DOP853", rtol=1e-10, atol=1e-12, events=zero)
+    return bool(sol.t_events[0].size)
+
+
+ISSUE_POINT = ("tension", 0.3, 1.5, 1.6, 0.11, 530.0, 2.2e-3, 2.5)
+
+
+def test_issue_point_exact_moment_oscillates_past_the_cubic_separatrix():
+    """Issue 12 item 3: the two-term model is past its soft separatrix (epsilon < -1), the exact
+    moment brings the lever back: T = 0.354280 s."""
+    ref = quadrature_period(*ISSUE_POINT)
+    assert ref == pytest.approx(0.354280, abs=5e-7)
+    cols, status = evaluate([ISSUE_POINT], ("period_exact_moment",))
+    assert status[0] == st.OK
+    assert cols["period_exact_moment"][0] == pytest.approx(ref, rel=1e-10)
+    # asked together with two-term outputs: those are NaN and say why; the exact period is still given
+    cols, status = evaluate([ISSUE_POINT], ("period_exact_moment", "truncation_error", "period", "chi", "xi"))
+    assert status[0] == st.NOT_OSCILLATORY
+    assert cols["xi"][0] * ISSUE_POINT[-1] ** 2 / cols["chi"][0] < -1.0  # epsilon: past the cubic's separatrix
+    assert np.isnan(cols["period"][0]) and np.isnan(cols["period_exact"][0]) and np.isnan(cols["truncation_error"][0])
+    assert cols["period_exact_moment"][0] == pytest.approx(ref, rel=1e-10)
+
+
+CLASS_ROWS = [(spring, lam1, lam2, s, 0.11, 530.0, 2.2e-3, A)
+              for spring, lam1, lam2 in (("tension", 0.3, 1.5), ("tension", 0.8, 0.3), ("compression", 0.8, 0.5),
+                                         ("compression", 1.7, 0.2))
+              for s in (-0.5, -0.1, 0.0, 1.6)
+              for A in (0.3, 1.0, 2.5)
+              if math.sqrt((1 - (1 if spring == "tension" else -1) * lam1) ** 2 + lam2**2)
+              - (1 if spring == "tension" else -1) * s > 0]  # free length > 0
+
+
+def test_exact_moment_oscillation_decided_by_the_exact_moment():
+    """A sweep over A and s0_over_r, both springs, where the cubic is past its separatrix or has
+    omega^2 <= 0: period_exact_moment is ok and right (quadrature) wherever the exact moment
+    oscillates, and not_oscillatory exactly where it does not (quadrature impossible, and scipy
+    never sees phi reach 0)."""
+    cols, status = evaluate(CLASS_ROWS, ("period_exact_moment",))
+    two_term, _ = evaluate(CLASS_ROWS, ("period_exact", "chi"))
+    cubic_fails = np.isnan(two_term["period_exact"])
+    n_saved = n_truly_not = 0
+    for row, T, code, fails in zip(CLASS_ROWS, cols["period_exact_moment"], status, cubic_fails):
+        ref = quadrature_period(*row, dps=20)
+        if np.isfinite(ref):
+            assert code == st.OK, (row, code)
+            assert T == pytest.approx(ref, rel=1e-10), row
+            n_saved += bool(fails)
+        else:
+            assert code == st.NOT_OSCILLATORY and np.isnan(T), (row, code)
+            assert not reaches_zero(*row), row
+            n_truly_not += 1
+    assert n_saved >= 15 and n_truly_not >= 8  # both kinds of point are in the sweep
+
+
+def _near(rows_of, gaps):
+    return [r for g in gaps for r in rows_of(g)]
+
+
+def test_exact_moment_near_its_humps_is_right_or_ill_conditioned():
+    """Released next to the top phi = pi (pi - A from 1e-1 to 1e-9, and A = math.pi itself), and
+    swinging over the hump at phi = 0 with a small energy excess (s0_over_r < 0; A / A* - 1 from 1e-1
+    to 1e-8, V(A*) = V(0)), also both at once: ok points within
+    rtol of the quadrature (phi / A integration once gave 4e5 rtol there with status ok), the
+    others ill_conditioned."""
+    from scipy.optimize import brentq
+
+    rows = [(spring, 0.8, 0.5, s, 0.11, 530.0, 2.2e-3, math.pi - g)
+            for spring, s in (("tension", 1.6 - 1.3), ("compression", 0.1)) for g in np.geomspace(1e-1, 1e-9, 9)]
+    rows.append(("tension", 0.8, 0.5, 0.1, 0.11, 530.0, 2.2e-3, math.pi))
+    # the last: A* = 1.87 > pi / 2, integrated from the top and crawling over phi = 0 at the end
+    for spring, lam1, lam2, s in (("tension", 0.8, 0.3, -0.1), ("compression", 0.8, 0.5, -0.1),
+                                  ("compression", 1.7, 0.2, -0.5)):
+        sig = 1 if spring == "tension" else -1
+        D0 = (1 - sig * lam1) ** 2 + lam2**2
+        L0 = math.sqrt(D0) - sig * s
+
+        def gap(A, D0=D0, L0=L0, sig=sig, lam1=lam1):  # V(A) - V(0), up to a positive factor
+            return abs(math.sqrt(D0 + 4 * sig * lam1 * math.sin(A / 2) ** 2) - L0) - abs(math.sqrt(D0) - L0)
+        A_star = brentq(gap, 1e-3, 3.0, xtol=1e-15)  # V(A*) = V(0): beyond it the lever crawls over phi = 0
+        rows += [(spring, lam1, lam2, s, 0.11, 530.0, 2.2e-3, A_star * (1 + g)) for g in np.geomspace(1e-1, 1e-8, 8)]
+    refs = {}
+    for rtol in (5e-11, 1e-9):
+        cols, status = evaluate(rows, ("period_exact_moment",), Solver.for_model(tc.SPEC, rtol=rtol, atol=rtol / 50))
+        ok = status == st.OK
+        assert (status[~ok] == st.ILL_CONDITIONED).all(), status
+        assert status[18] == st.ILL_CONDITIONED  # A = math.pi: 1.2e-16 below the top
+        for i in np.nonzero(ok)[0]:
+            if i not in refs:
+                refs[i] = quadrature_period(*rows[i])
+            ref = refs[i]
+            T = cols["period_exact_moment"][i]
+            assert abs(T - ref) <= rtol * ref, (rtol, rows[i], abs(T - ref) / ref / rtol)
+        assert ok.sum() >= 24 and (~ok).sum() >= 8
+
+
+def test_two_term_period_near_its_separatrix_is_right_or_ill_conditioned():
+    """The torsional circuit's two-term period near the cubic's soft separatrix (1 + epsilon from
+    1e-2 to 1e-10): ok points within 2 rtol (README: 1e-10 at the default 5e-11) of the elliptic
+    closed form of chi, xi evaluated in 50 digits from the float inputs; the rest ill_conditioned,
+    where the sensitivities of chi and xi to lambda1, lambda2, s0_over_r make the period too
+    sensitive for rtol."""
+    gaps = np.geomspace(1e-2, 1e-10, 9)
+    rows, refs = [], []
+    for lam1, lam2, s in ((0.3, 1.5, 1.6), (0.3, 0.8, 1.0)):
+        with mp.workdps(50):
+            l1, l2, S = mp.mpf(lam1), mp.mpf(lam2), mp.mpf(s)
+            D0 = (1 - l1) ** 2 + l2**2
+            chi = l1 * S / mp.sqrt(D0)
+            xi = l1 * (3 * l1 - S * (D0 + 3 * l1) / mp.sqrt(D0)) / (6 * D0)
+            assert xi < 0
+            for g in gaps:
+                A = float(mp.sqrt(-(1 - g) * chi / xi))
+                k = mp.mpf(0.11) ** 2 * mp.mpf(530.0) / mp.mpf(2.2e-3)
+                w2, mu, a = k * chi, k * xi, mp.mpf(A)
+                s_ = w2 + mu * a * a
+                rows.append(("tension", lam1, lam2, s, 0.11, 530.0, 2.2e-3, A))
+                refs.append(float(4 * mp.ellipk(mu * a * a / (2 * s_)) / mp.sqrt(s_)))
+    refs = np.array(refs)
+    for rtol in (5e-11, 1e-9):
+        cols, status = evaluate(rows, ("period",), Solver.for_model(tc.SPEC, rtol=rtol, atol=rtol / 50))
+        ok = status == st.OK
+        assert (status[~ok] == st.ILL_CONDITIONED).all() and np.isnan(cols["period"][~ok]).all()
+        err = np.abs(cols["period"] - refs) / refs
+        assert (err[ok] <= 2 * rtol).all(), (rtol, err[ok].max() / rtol)
+        assert ok.sum() >= 6 and (~ok).sum() >= 2

@@ -15,7 +15,7 @@ STEP_UNDERFLOW = 2  # step size fell below round-off of t
 NONFINITE = 3  # NaN or inf appeared in the state or an output
 INFEASIBLE = 4  # parameters outside the model's physical domain at this point
 SINGULAR = 5  # a formula is singular here (e.g. D0 -> 0)
-NOT_OSCILLATORY = 6  # the motion is not an oscillation about phi = 0
+NOT_OSCILLATORY = 6  # the motion is not an oscillation about phi = 0 (decided by each model for its outputs)
 NO_MOTION = 7  # amplitude A = 0: period-based ratios are undefined
 NO_EVENT = 8  # an event (period crossing, settling) did not happen within the horizon
 NOT_BALANCEABLE = 9  # no balanced state (A0 > 2 m a or A1 != 0): balanced-state outputs are NaN
@@ -50,12 +50,12 @@ DESCRIPTIONS: dict[int, str] = {
     NONFINITE: "NaN or inf appeared in the state or an output",
     INFEASIBLE: "parameters outside the model's physical domain at this point",
     SINGULAR: "a formula of the model is singular at this point",
-    NOT_OSCILLATORY: "the motion is not an oscillation about phi = 0 (beyond the separatrix)",
+    NOT_OSCILLATORY: "the motion is not an oscillation about phi = 0: the two-term model at or beyond its soft separatrix, or the exact spring moment never brings the lever back (each model decides for its own outputs; period_exact_moment is still given when only the two-term model fails)",
     NO_MOTION: "amplitude A = 0: there is no motion, ratios to A are undefined",
     NO_EVENT: "an event the output needs (a period crossing, settling) did not happen within the horizon",
     NOT_BALANCEABLE: "no balanced state exists (A0 > 2 m a, A0 = 0 or A1 != 0): balanced-state outputs are NaN",
     UNDECIDED: "stability could not be decided: the simulation neither settled nor diverged within the horizon, or floquet_max is within solver.floquet_margin of 1",
-    ILL_CONDITIONED: "the output is too sensitive here to reach solver.rtol in double precision (the Duffing period within ~1e-6 of the soft separatrix); the closed form, where there is one, is still given",
+    ILL_CONDITIONED: "the output is too sensitive here to reach solver.rtol in double precision: its condition number with respect to the inputs times round-off exceeds rtol (the Duffing period below 1 + epsilon = 6.8e-7 at the default rtol, the exact-moment period next to a hump of the spring's potential); the closed form, where there is one, is still given",
     STIFF: "the problem is stiff at this point and the explicit method stopped (use method = \"auto\" or \"radau\")",
     NOT_REPRODUCIBLE: "integrated again at a tighter tolerance, an output moved by more than the tolerance it "
                       "claims (or the second integration failed): the value is stored but its trailing digits "

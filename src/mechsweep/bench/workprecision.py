@@ -89,7 +89,8 @@ def _quarter_period(rhs, p, method, rtol, atol, t_max, jac=None):
 def _duffing_scaled(row):
     omega, mu, A = row[:3]
     w2 = omega * omega + abs(mu) * A * A
-    return np.array([omega * omega / w2, mu * A * A / w2]), math.sqrt(w2)
+    # duffing._scaled_rhs's plain formulation: (a, b, quadratic 0, unused, event level 0, direction 1)
+    return np.array([omega * omega / w2, mu * A * A / w2, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]), math.sqrt(w2)
 
 
 def _duffing_scipy(row, method, rtol, atol):
@@ -113,7 +114,7 @@ def _torsional_scaled(P, i):
     from ..models import torsional_circuit as tc
 
     code, sigma, lam1, lam2, s, k, chi, xi, A = tc._point_coefficients(P, i)
-    w2 = k * (chi + abs(xi) * A * A)  # as integrate_exact_period
+    w2 = k * (abs(chi) + abs(xi) * A * A)  # as integrate_exact_period (plain formulation, A <= pi / 2)
     D0 = tc.rest_length_squared(sigma, lam1, lam2)
     p = np.array([sigma, lam1, D0, math.sqrt(D0) - sigma * s, A, k / (w2 * A)])
     return code, p, math.sqrt(w2)
