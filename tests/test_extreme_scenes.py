@@ -217,9 +217,10 @@ def exact_chi_xi(spring, lam1, lam2, s):
         return float(chi), float(xi), float(D0)
 
 
-def exact_moment_period(spring, lam1, lam2, s, R, c, I, A):
-    """Period with the exact spring moment: scipy DOP853 at rtol 1e-13, length written without
-    cancellation, l^2 = (1 - sigma lambda1)^2 + lambda2^2 + 4 sigma lambda1 sin^2(phi / 2)."""
+def exact_moment_rhs(spring, lam1, lam2, s, R, c, I):
+    """The lever with the exact spring moment as a first-order system for scipy; the free length
+    L0 in 50 digits and the length written without cancellation,
+    l^2 = (1 - sigma lambda1)^2 + lambda2^2 + 4 sigma lambda1 sin^2(phi / 2)."""
     sig = 1.0 if spring == "tension" else -1.0
     with mp.workdps(50):
         L0 = float(mp.sqrt((1 - sig * mp.mpf(lam1)) ** 2 + mp.mpf(lam2) ** 2) - sig * mp.mpf(s))
@@ -229,12 +230,22 @@ def exact_moment_period(spring, lam1, lam2, s, R, c, I, A):
     def f(t, y):
         ell = math.sqrt(D0 + 4.0 * sig * lam1 * math.sin(0.5 * y[0]) ** 2)
         return [y[1], -k * sig * lam1 * math.sin(y[0]) * (1.0 - L0 / ell)]
+    return f
 
+
+def first_zero_crossing(f, A, t_end, rtol, atol):
+    """Time at which phi first falls through 0 from phi(0) = A at rest (nan if not by t_end)."""
     def crossing(t, y):
         return y[0]
     crossing.terminal, crossing.direction = True, -1
-    sol = solve_ivp(f, (0.0, 1e3), [A, 0.0], method="DOP853", rtol=1e-13, atol=1e-15 * A, events=crossing)
-    return 4.0 * sol.t_events[0][0] if sol.t_events[0].size else math.nan
+    sol = solve_ivp(f, (0.0, t_end), [A, 0.0], method="DOP853", rtol=rtol, atol=atol, events=crossing)
+    return sol.t_events[0][0] if sol.t_events[0].size else math.nan
+
+
+def exact_moment_period(spring, lam1, lam2, s, R, c, I, A):
+    """Period with the exact spring moment: scipy DOP853 at rtol 1e-13."""
+    f = exact_moment_rhs(spring, lam1, lam2, s, R, c, I)
+    return 4.0 * first_zero_crossing(f, A, 1e3, 1e-13, 1e-15 * A)
 
 
 def torsional_rows(scene, ds):
