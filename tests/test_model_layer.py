@@ -15,6 +15,7 @@ from scipy.special import ellipk
 
 from mechsweep import status as st
 from mechsweep.cli import main
+from mechsweep.errors import InputError
 from mechsweep.scene import load_scene
 
 HERE = Path(__file__).resolve().parent
@@ -41,14 +42,20 @@ def _scene(ref, outputs, rtol, atol):
                        "solver": {"rtol": rtol, "atol": atol}})
 
 
-W = np.array([0.5, 1.0, 1.7, 3.0, 5.0])
+W = np.array([0.5, 1.0, 1.7, 3.0, 5.0, 10.0])
 A = 0.7
 LIN = np.column_stack([W, np.full(W.size, A)])
+ALL = ("period", "period_short", "x_at_2", "v_max", "x_min", "t_up2", "t_half_down")  # as in user_models/linear.toml
 
 
-def test_linear_oscillator_period_state_and_extrema_match_closed_forms():
-    out, status, ns, nr = evaluate(f"{MODELS}:LINEAR", ("period", "x_at_2", "v_max", "x_min"), LIN)
-    assert (status == st.OK).all() and (ns > 0).all() and (nr > ns).all()
+def test_linear_oscillator_measurements_match_closed_forms():
+    out, status, ns, nr = evaluate(f"{MODELS}:LINEAR", ALL, LIN)
+    # period_short has t_max = 1 s, the second crossing comes at 1.25 T: within it only for w = 10
+    assert status.tolist() == [st.NO_EVENT] * 5 + [st.OK]
+    assert np.isnan(out["period_short"][:5]).all()
+    assert out["period_short"][5] == pytest.approx(2 * np.pi / 10, rel=1e-9)
+    assert (ns > 0).all() and (nr > ns).all()
+    # the other measurements are written whatever period_short's status
     np.testing.assert_allclose(out["period"], 2 * np.pi / W, rtol=1e-9, atol=0)
     np.testing.assert_allclose(out["x_at_2"], A * np.cos(2.0 * W), rtol=0, atol=1e-10)
     np.testing.assert_allclose(out["v_max"], A * W, rtol=1e-9, atol=0)  # max of x' = -A w sin(w t) over [0, 10]
@@ -58,6 +65,17 @@ def test_linear_oscillator_period_state_and_extrema_match_closed_forms():
     inside = (W * t[0] < np.pi) & (np.pi < W * t[1])
     np.testing.assert_allclose(out["x_min"], np.where(inside, -A, ends), rtol=0, atol=1e-10)
     assert inside.any() and (~inside).any()  # both cases are exercised
+    # crossings: x = 0 upwards at 3T/4, 7T/4 (the second is asked for); x = A/2 downwards at w t = pi/3
+    np.testing.assert_allclose(out["t_up2"], 1.75 * 2 * np.pi / W, rtol=1e-9, atol=0)
+    np.testing.assert_allclose(out["t_half_down"], np.pi / 3 / W, rtol=1e-9, atol=0)
+
+
+def test_module_path_reference_and_its_errors():
+    spec = load_scene({"scene": {"name": "m", "model": "tests.user_models.oscillators:PENDULUM", "outputs": ["period"]},
+                       "axes": {"A": {"start": 0.1, "stop": 1.0, "num": 2}}, "fixed": {"g": 9.81, "L": 1.0}}).model
+    assert spec.name == "pendulum" and spec.output("period").integrated and spec.param_names() == ("g", "L", "A")
+    with pytest.raises(InputError, match="module 'no_such_pkg.models' is not importable"):
+        load_scene({"scene": {"name": "m", "model": "no_such_pkg.models:X", "outputs": ["period"]}})
 
 
 def test_pendulum_period_matches_elliptic_closed_form():
@@ -70,27 +88,15 @@ def test_pendulum_period_matches_elliptic_closed_form():
     np.testing.assert_allclose(out["period"], exact, rtol=1e-9, atol=0)
 
 
-def test_period_beyond_the_horizon_is_no_event():
-    # period_short has t_max = 1 s: the second crossing comes at 1.25 T (w = 10: 0.785 s; w = 2: 3.9 s)
-    P = np.array([[10.0, A], [2.0, A]])
-    out, status, _, _ = evaluate(f"{MODELS}:LINEAR", ("period_short",), P)
-    assert status.tolist() == [st.OK, st.NO_EVENT]
-    assert out["period_short"][0] == pytest.approx(2 * np.pi / 10, rel=1e-9) and np.isnan(out["period_short"][1])
-
-
 def test_cli_runs_a_user_model_named_relative_to_the_scene(in_tmp):
-    (in_tmp / "models").mkdir()
-    (in_tmp / "models" / "osc.py").write_text(MODELS.read_text())
-    (in_tmp / "study.toml").write_text(
-        '[scene]\nname = "lin"\nmodel = "models/osc.py:LINEAR"\noutputs = ["period"]\n'
-        '[axes]\nw = { start = 1.0, stop = 2.0, num = 3 }\n[fixed]\nA = 0.5\n[solver]\nrtol = 1e-12\natol = 1e-14\n')
-    os.chdir(in_tmp / "data")  # the model path is relative to the scene file, not to the cwd
-    assert main(["run", str(in_tmp / "study.toml"), "-o", str(in_tmp / "lin.h5"), "--no-progress",
+    # cwd is an empty folder: "oscillators.py" is found next to the scene, not in the cwd
+    assert main(["run", str(HERE / "user_models" / "linear.toml"), "-o", "lin.h5", "--no-progress",
                  "--threads", "1"]) == 0
     import xarray as xr
     with xr.open_dataset(in_tmp / "lin.h5") as ds:
-        np.testing.assert_allclose(ds["period"].values, 2 * np.pi / np.array([1.0, 1.5, 2.0]), rtol=1e-9)
-        assert (ds["status"].values == st.OK).all()
+        np.testing.assert_allclose(ds["period"].values, 2 * np.pi / W, rtol=1e-9)
+        assert ds["status"].values.tolist() == [st.NO_EVENT] * 5 + [st.OK]
+        assert ds["period"].attrs["units"] == "s"
 
 
 # ---------------------------------------------------------------- bad user models: exit 2, file and line named

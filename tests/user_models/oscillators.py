@@ -5,7 +5,7 @@ theta'' + (g / L) sin(theta) = 0 from theta = A: period 4 K(sin^2(A/2)) sqrt(L/g
 """
 import math
 
-from mechsweep.model import Extremum, OdeModel, Param, Period, StateAt
+from mechsweep.model import Crossing, Extremum, OdeModel, Param, Period, StateAt
 
 
 def linear_rhs(t, y, p, dydt):
@@ -32,6 +32,8 @@ LINEAR = OdeModel(
         StateAt("x_at_2", "x", t=2.0, unit="m"),
         Extremum("v_max", "v", t0=0.0, t1=10.0, kind="max", unit="m/s"),
         Extremum("x_min", "x", t0=0.3, t1=0.9, kind="min", unit="m"),
+        Crossing("t_up2", "x", level=0.0, direction="up", n=2),  # 7 T / 4
+        Crossing("t_half_down", "x", level=0.35, direction="down", n=1),  # x = A/2 first at w t = pi/3
     ),
 )
 
