@@ -36,6 +36,8 @@ def evaluate(ref, outputs, P, rtol=1e-12, atol=1e-14):
 def _scene(ref, outputs, rtol, atol):
     if ref.endswith("LINEAR"):
         axes, fixed = {"w": {"start": 0.5, "stop": 3.0, "num": 3}}, {"A": 0.7}
+    elif ref.endswith("MATHIEU"):
+        axes, fixed = {"a": {"start": 0.0, "stop": 1.0, "num": 2}}, {"q": 1.0}
     else:
         axes, fixed = {"A": {"start": 0.1, "stop": 3.0, "num": 3}}, {"g": 9.81, "L": 1.0}
     return load_scene({"scene": {"name": "t", "model": ref, "outputs": list(outputs)}, "axes": axes, "fixed": fixed,
@@ -97,6 +99,28 @@ def test_cli_runs_a_user_model_named_relative_to_the_scene(in_tmp):
         np.testing.assert_allclose(ds["period"].values, 2 * np.pi / W, rtol=1e-9)
         assert ds["status"].values.tolist() == [st.NO_EVENT] * 5 + [st.OK]
         assert ds["period"].attrs["units"] == "s"
+
+
+def test_floquet_multiplier_leaves_the_unit_circle_on_the_mathieu_boundaries():
+    """On each side of a boundary a = a_n(q) or b_n(q): the stable side has |multiplier| = 1 to the
+    integration error, the unstable side |multiplier| - 1 ~ sqrt(delta) well above it."""
+    from scipy.special import mathieu_a, mathieu_b
+    delta = 1e-6
+    rows, stable = [], []
+    for q in (0.5, 1.5):
+        # q > 0: a_0 < b_1 < a_1 < b_2; stable for a_0 < a < b_1 and a_1 < a < b_2
+        for edge, stable_above in ((mathieu_a(0, q), True), (mathieu_b(1, q), False),
+                                   (mathieu_a(1, q), True), (mathieu_b(2, q), False)):
+            for side in (-1.0, 1.0):
+                rows.append((edge + side * delta, q))
+                stable.append((side > 0) == stable_above)
+    out, status, ns, nr = evaluate(f"{HERE / 'user_models' / 'mathieu.py'}:MATHIEU", ("max_multiplier",),
+                                   np.array(rows))
+    assert (status == st.OK).all() and (nr == 5 * (nr // 5)).all()  # 2 n + 1 = 5 rhs calls per evaluation
+    m = out["max_multiplier"]
+    stable = np.array(stable)
+    assert np.abs(m[stable] - 1.0).max() < 1e-9, m[stable] - 1.0
+    assert (m[~stable] - 1.0).min() > 1e-5, m[~stable] - 1.0
 
 
 # ---------------------------------------------------------------- bad user models: exit 2, file and line named

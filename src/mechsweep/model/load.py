@@ -186,13 +186,33 @@ def check(model, ref: str, file: str) -> None:
         if unwritten:
             raise InputError(f"{label}: {what} did not write {', '.join(unwritten)} (it must write all "
                              f"{n_s} components)")
-    for what, func in (("initial", model.initial), ("rhs", model.rhs)):
+    if model.forcing_period is not None:
+        func = getattr(model.forcing_period, "py_func", model.forcing_period)
+        try:
+            T = func(p)
+        except IndexError as exc:
+            raise InputError(f"{label}: forcing_period indexes beyond the {n_p} declared parameter(s): "
+                             f"{_where(exc, file)}") from None
+        except Exception as exc:
+            raise InputError(f"{label}: forcing_period raised at the probe point p = {p.tolist()}: "
+                             f"{_where(exc, file)}") from None
+        if not isinstance(T, (int, float, np.floating, np.integer)):
+            raise InputError(f"{label}: forcing_period returned {T!r}; expected a number")
+    funcs = (("initial", model.initial), ("rhs", model.rhs))
+    if model.forcing_period is not None:
+        funcs += (("forcing_period", model.forcing_period),)
+    for what, func in funcs:
         module, path, qual = function_ref(func, what, model.name)
         try:
             disp = jitted(module, path, qual)
             a, b = np.zeros(n_s), np.zeros(n_s)
             pp = np.concatenate([p, np.zeros(n_s)])
-            disp(pp, a) if what == "initial" else disp(0.0, y0.copy(), pp, b)
+            if what == "initial":
+                disp(pp, a)
+            elif what == "rhs":
+                disp(0.0, y0.copy(), pp, b)
+            else:
+                disp(pp)
         except Exception as exc:
             text = _ANSI.sub("", str(exc))
             line = None

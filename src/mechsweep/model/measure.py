@@ -259,4 +259,101 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
 """
 
 
-MEASUREMENTS = (Crossing, Period, StateAt, Extremum)
+@dataclass(frozen=True)
+class Floquet:
+    """Largest modulus of the Floquet multipliers of the model linearised about its motion from
+    ``initial(p)`` over one forcing period T = ``forcing_period(p)`` (the model must declare it).
+
+    The monodromy matrix is integrated from the variational equations Phi' = J(t, y) Phi,
+    Phi(0) = I, together with the state (n + n^2 equations); J is the rhs's Jacobian by central
+    differences (step cbrt(eps) max(1, |y_j|), exact up to round-off for an rhs linear in y),
+    2 n + 1 rhs calls per evaluation. The multipliers are the eigenvalues of Phi(T) (LAPACK).
+    The value is the largest |multiplier|: <= 1 (within the integration error) for a stable
+    linearisation. Near a stability boundary it is sensitive: a double multiplier +-1 moves like the
+    square root of any error, so the boundary is where the value leaves 1, not a value to compare
+    to 1 at tolerance.
+    Status: INFEASIBLE when T is not finite and > 0; integration failures as reported; NONFINITE
+    for a non-finite monodromy. Cost: one integration of n + n^2 equations over [0, T];
+    n_rhs counts calls of the user's rhs."""
+
+    name: str
+    unit: str = "1"
+    long_name: str = ""
+    needs_forcing = True
+
+    def output(self) -> Output:
+        return Output(self.name, "max |λ|", self.unit,
+                      self.long_name or "largest modulus of the Floquet multipliers over one forcing period",
+                      integrated=True)
+
+    def validate(self, states):
+        pass
+
+    def scratch(self, n: int) -> int:
+        return 3 * n + n * n
+
+    def source(self, k: int, states, n_p: int = 0) -> str:
+        n = len(states)
+        N = n + n * n
+        o_yp, o_fp, o_fm, o_J = n_p, n_p + n, n_p + 2 * n, n_p + 3 * n
+        return f"""
+@jit
+def var_rhs{k}(t, z, p, dz):
+    # z = (y, Phi row by row); dz = (f(t, y), J Phi), J by central differences
+    rhs(t, z[:{n}], p, dz[:{n}])
+    yp = p[{o_yp}:{o_yp + n}]
+    fp = p[{o_fp}:{o_fp + n}]
+    fm = p[{o_fm}:{o_fm + n}]
+    for j in range({n}):
+        for i in range({n}):
+            yp[i] = z[i]
+        h = 6.055454452393343e-06 * max(1.0, abs(z[j]))  # cbrt(eps)
+        up = z[j] + h
+        dn = z[j] - h
+        yp[j] = up
+        rhs(t, yp, p, fp)
+        yp[j] = dn
+        rhs(t, yp, p, fm)
+        for i in range({n}):
+            p[{o_J} + i * {n} + j] = (fp[i] - fm[i]) / (up - dn)
+    for i in range({n}):
+        for j in range({n}):
+            acc = 0.0
+            for m in range({n}):
+                acc += p[{o_J} + i * {n} + m] * z[{n} + m * {n} + j]
+            dz[{n} + i * {n} + j] = acc
+
+
+solve{k}_var = dop853.make_solver(var_rhs{k})
+
+
+@jit
+def measure{k}(y, p, rtol, atol, max_steps, work):
+    T = forcing(p)
+    if not (math.isfinite(T) and T > 0.0):
+        return st.INFEASIBLE, math.nan, 0, 0
+    z = np.zeros({N})
+    for i in range({n}):
+        z[i] = y[i]
+        z[{n} + i * {n} + i] = 1.0
+    wz = dop853.workspace({N})
+    code, ns, nr = solve{k}_var(0.0, z, p, T, rtol, atol, 0.0, max_steps, wz)
+    nr = nr * {2 * n + 1}
+    if code != st.OK:
+        return code, math.nan, ns, nr
+    M = np.empty(({n}, {n}), dtype=np.complex128)
+    for i in range({n}):
+        for j in range({n}):
+            v = z[{n} + i * {n} + j]
+            if not math.isfinite(v):
+                return st.NONFINITE, math.nan, ns, nr
+            M[i, j] = v
+    lam = np.linalg.eigvals(M)
+    big = 0.0
+    for i in range({n}):
+        big = max(big, abs(lam[i]))
+    return st.OK, big, ns, nr
+"""
+
+
+MEASUREMENTS = (Crossing, Period, StateAt, Extremum, Floquet)

@@ -48,6 +48,8 @@ class OdeModel:
             raise ValueError(f"model {self.name!r}: measurement names repeat: {names}")
         for m in self.measurements:
             m.validate(self.states)
+            if getattr(m, "needs_forcing", False) and self.forcing_period is None:
+                raise ValueError(f"model {self.name!r}: measurement {m.name!r} needs forcing_period(p)")
 
     def spec(self, *, origin: str = "", module: str = "", attr: str = "") -> ModelSpec:
         """The ModelSpec the engine runs. ``module``/``attr`` say where the declaration can be
