@@ -136,6 +136,10 @@ BAD = {
     "raises": ("    raise ValueError('negative stiffness')", "M", ["rhs raised", "negative stiffness", "line 13"]),
     "unwritten": ("    pass", "M", ["did not write v"]),
     "syntax_error": ("    dydt[1] = = y[0]", "M", ["importing", "SyntaxError", "line 13"]),
+    "floquet_without_forcing": (
+        "    dydt[1] = -y[0]\n\n\nfrom mechsweep.model import Floquet\n"
+        "M2 = OdeModel(name='f', description='d', params=(), states=('x',), rhs=rhs, initial=initial, "
+        "measurements=(Floquet('m'),))", "M", ["importing", "needs forcing_period(p)", "line 17"]),
     "missing_name": ("    dydt[1] = -y[0]", "NOPE", ["does not define 'NOPE'", "models it defines: M"]),
     "not_a_model": ("    dydt[1] = -y[0]", "NOT_A_MODEL", ["is a int, not a mechsweep.model.OdeModel"]),
 }
