@@ -267,7 +267,7 @@ def load_scene(source: str | Path | Mapping) -> Scene:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise SceneError([f"{label!r} is not UTF-8 text (byte {exc.start})"], label) from None
-    return load_scene_text(text, label)
+    return load_scene_text(text, label, base=path.resolve().parent)
 
 
 def _plain(value):
@@ -284,8 +284,9 @@ def _plain(value):
     return value
 
 
-def load_scene_text(text: str, label: str = "scene") -> Scene:
-    """Load and validate a scene from its TOML text (e.g. the copy stored with a run)."""
+def load_scene_text(text: str, label: str = "scene", base: Path | None = None) -> Scene:
+    """Load and validate a scene from its TOML text (e.g. the copy stored with a run).
+    ``base``: the folder a user model file path ("my_models.py:NAME") is relative to (default: cwd)."""
     if text.startswith("\ufeff"):
         raise SceneError([(f"{label!r} starts with a byte-order mark (BOM, bytes EF BB BF); "
                            "save it as UTF-8 without BOM")], label)
@@ -302,10 +303,10 @@ def load_scene_text(text: str, label: str = "scene") -> Scene:
         raise SceneError(["TOML nesting too deep"], label) from None
     except ValueError as exc:  # e.g. an integer of more than 4300 digits
         raise SceneError([f"TOML value not readable ({str(exc).split(';')[0]})"], label) from None
-    return validate(data, text=text, label=label)
+    return validate(data, text=text, label=label, base=base)
 
 
-def validate(data: Mapping, *, text: str, label: str = "scene") -> Scene:
+def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | None = None) -> Scene:
     p = _Problems()
     if not isinstance(data, Mapping):
         raise SceneError([f"a scene is a table of sections, got {type(data).__name__}"], label)
@@ -319,7 +320,7 @@ def validate(data: Mapping, *, text: str, label: str = "scene") -> Scene:
     for key in head:
         if key not in ("name", "model", "outputs", "description"):
             p.unknown(f"scene.{key}", key, ("name", "model", "outputs", "description"), "key")
-    model = _model(head.get("model"), p)
+    model = _model(head.get("model"), p, base)
     if model is None:
         raise SceneError(p.items, label)
     outputs = _outputs(head.get("outputs"), model, p)
@@ -428,10 +429,17 @@ def _table(data: Mapping, key: str, p: _Problems, required: bool = False) -> Map
     return value
 
 
-def _model(name, p: _Problems) -> ModelSpec | None:
+def _model(name, p: _Problems, base: Path | None = None) -> ModelSpec | None:
     if name is None:
         p.add("scene.model", f"missing; expected one of {', '.join(MODELS)}")
         return None
+    if isinstance(name, str) and ":" in name:  # a user model: "file.py:NAME" or "package.module:NAME"
+        from .model import load
+        try:
+            return load.resolve(name, base)
+        except InputError as exc:
+            p.add("scene.model", str(exc))
+            return None
     if not isinstance(name, str) or name not in MODELS:
         p.unknown("scene.model", name, tuple(MODELS), "model")
         return None

@@ -1,0 +1,236 @@
+"""User models: ``"my_models.py:NAME"`` (a path relative to the scene file) or
+``"package.module:NAME"``. Loading a model file executes it, as any Python import does.
+
+Every problem is an :class:`~mechsweep.errors.InputError` naming the file (and the line, where
+Python or numba gives one), raised while the scene is loaded, before any file is written:
+missing file, a file that fails to import, NAME not defined or not an OdeModel, an rhs or initial
+that raises, reads a parameter beyond the declared ones or writes beyond the state (found by
+running them once in plain Python at a probe point), leaves a component unwritten, or that numba
+cannot compile.
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import math
+import re
+import sys
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+from .. import _jit
+from ..errors import InputError
+
+_FILES: dict[str, str] = {}  # module name -> path of a user model file loaded by path
+_JITTED: dict[tuple, object] = {}
+_RESOLVED: dict[tuple, object] = {}
+
+
+def _module_name(path: Path) -> str:
+    stem = re.sub(r"\W", "_", path.stem)
+    return f"mechsweep_user_{stem}_{hashlib.sha256(str(path).encode()).hexdigest()[:12]}"
+
+
+def import_module(module: str, path: str = ""):
+    """The user's module (loaded by path under ``module`` when ``path`` is given)."""
+    if module in sys.modules:
+        return sys.modules[module]
+    if not path:
+        return importlib.import_module(module)
+    spec = importlib.util.spec_from_file_location(module, path)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[module] = mod
+    try:
+        spec.loader.exec_module(mod)
+    except BaseException:
+        del sys.modules[module]
+        raise
+    _FILES[module] = path
+    return mod
+
+
+def module_source(module: str, path: str = "") -> bytes:
+    file = path or getattr(sys.modules.get(module), "__file__", None) or ""
+    try:
+        return Path(file).read_bytes()
+    except OSError:
+        return b""
+
+
+def function_ref(func, what: str, model_name: str) -> tuple[str, str, str]:
+    """(module, path, qualified name) by which a generated module imports ``func``."""
+    func = getattr(func, "py_func", func)
+    qual = getattr(func, "__qualname__", "")
+    module = getattr(func, "__module__", "") or ""
+    if not callable(func) or not qual or "<" in qual or not module or module == "__main__":
+        raise InputError(f"model {model_name!r}: {what} must be a function defined at the top level of an "
+                         f"importable module or model file (got {func!r})")
+    return module, _FILES.get(module, ""), qual
+
+
+def jitted(module: str, path: str, qualname: str):
+    """The numba dispatcher (mechsweep's options, disk cache) of a user function."""
+    key = (module, path, qualname)
+    if key not in _JITTED:
+        obj = import_module(module, path)
+        for part in qualname.split("."):
+            obj = getattr(obj, part)
+        _JITTED[key] = _jit.jit(getattr(obj, "py_func", obj))
+    return _JITTED[key]
+
+
+def resolve(ref: str, base: Path | None = None):
+    """The ModelSpec of a user model reference (cached per file and name in this process)."""
+    from .ode import OdeModel
+
+    left, _, name = ref.rpartition(":")
+    if not left or not name:
+        raise InputError(f"{ref!r}: expected a built-in model name, 'file.py:NAME' or 'package.module:NAME'")
+    if left.endswith(".py") or "/" in left or "\\" in left:
+        path = Path(left)
+        if not path.is_absolute():
+            path = (base or Path.cwd()) / path
+        path = path.resolve()
+        where = str(path)
+        if not path.is_file():
+            raise InputError(f"{ref!r}: model file {where} does not exist")
+        module, file = _module_name(path), where
+    else:
+        module, file, where = left, "", left
+    key = (module, file, name, module_source(module, file) if file else b"")
+    if key in _RESOLVED:
+        return _RESOLVED[key]
+    try:
+        mod = import_module(module, file)
+    except ModuleNotFoundError as exc:
+        if not file and exc.name and left.startswith(exc.name):
+            raise InputError(f"{ref!r}: module {left!r} is not importable ({exc})") from None
+        raise InputError(f"{ref!r}: importing {where} failed: {_where(exc, file)}") from None
+    except Exception as exc:  # the user's code raised on import
+        raise InputError(f"{ref!r}: importing {where} failed: {_where(exc, file)}") from None
+    file = file or getattr(mod, "__file__", "") or ""
+    if not hasattr(mod, name):
+        found = [k for k, v in vars(mod).items() if isinstance(v, OdeModel)]
+        raise InputError(f"{ref!r}: {where} does not define {name!r}"
+                         f" (models it defines: {', '.join(found) if found else 'none'})")
+    model = getattr(mod, name)
+    if not isinstance(model, OdeModel):
+        raise InputError(f"{ref!r}: {name!r} in {where} is a {type(model).__name__}, "
+                         "not a mechsweep.model.OdeModel")
+    check(model, ref, file)
+    spec = model.spec(origin=f"{where}:{name}")
+    _RESOLVED[key] = spec
+    return spec
+
+
+def _where(exc: BaseException, file: str) -> str:
+    """'ExcType: message (file, line N)' with the deepest frame in the user's file."""
+    line = None
+    for frame in traceback.extract_tb(exc.__traceback__):
+        if file and Path(frame.filename).resolve() == Path(file).resolve():
+            line = frame.lineno
+    if line is None and isinstance(exc, SyntaxError) and exc.lineno:
+        line = exc.lineno
+    msg = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}".rstrip(": ")
+    return f"{msg} ({file}, line {line})" if line else msg
+
+
+def probe_params(model) -> np.ndarray:
+    """One admissible parameter point: the default, else 1 clipped into the declared range."""
+    values = []
+    for prm in model.params:
+        if prm.categorical:
+            values.append(0.0)
+            continue
+        if prm.default is not None:
+            values.append(float(prm.default))
+            continue
+        lo, hi = prm.lo, prm.hi
+        v = 1.0
+        if v < lo or (prm.lo_open and v <= lo):
+            v = lo + 1.0 if math.isfinite(lo) else v
+        if v > hi or (prm.hi_open and v >= hi):
+            v = 0.5 * (lo + hi) if math.isfinite(lo) else hi - 1.0
+        values.append(v)
+    return np.array(values, dtype=np.float64)
+
+
+_ANSI = re.compile(r"\x1b\[[0-9;]*m")
+
+
+def check(model, ref: str, file: str) -> None:
+    """Run initial and rhs once in plain Python at a probe point (parameters array of exactly the
+    declared length: an undeclared parameter read is an IndexError), then compile them with numba."""
+    label = f"{ref!r}: model {model.name!r} in {file}"
+    n_p, n_s = len(model.params), len(model.states)
+    p = probe_params(model)
+    y0 = np.full(n_s, np.nan)
+    dydt = np.full(n_s, np.nan)
+    for what, func, args, result in (("initial", model.initial, (p, y0), y0),
+                                     ("rhs", model.rhs, (0.0, y0, p, dydt), dydt)):
+        func = getattr(func, "py_func", func)
+        try:
+            with np.errstate(all="ignore"):
+                func(*args)
+        except IndexError as exc:
+            raise InputError(f"{label}: {what} indexes beyond its arrays at the probe point p = {p.tolist()} "
+                             f"(the model declares {n_p} parameter(s) and {n_s} state(s)): "
+                             f"{_where(exc, file)}") from None
+        except Exception as exc:
+            raise InputError(f"{label}: {what} raised at the probe point p = {p.tolist()}: "
+                             f"{_where(exc, file)}") from None
+        unwritten = [model.states[i] for i in range(n_s) if np.isnan(result[i]) and not _writes_nan(func, args, i)]
+        if unwritten:
+            raise InputError(f"{label}: {what} did not write {', '.join(unwritten)} (it must write all "
+                             f"{n_s} components)")
+    if model.forcing_period is not None:
+        func = getattr(model.forcing_period, "py_func", model.forcing_period)
+        try:
+            T = func(p)
+        except IndexError as exc:
+            raise InputError(f"{label}: forcing_period indexes beyond the {n_p} declared parameter(s): "
+                             f"{_where(exc, file)}") from None
+        except Exception as exc:
+            raise InputError(f"{label}: forcing_period raised at the probe point p = {p.tolist()}: "
+                             f"{_where(exc, file)}") from None
+        if not isinstance(T, (int, float, np.floating, np.integer)):
+            raise InputError(f"{label}: forcing_period returned {T!r}; expected a number")
+    funcs = (("initial", model.initial), ("rhs", model.rhs))
+    if model.forcing_period is not None:
+        funcs += (("forcing_period", model.forcing_period),)
+    for what, func in funcs:
+        module, path, qual = function_ref(func, what, model.name)
+        try:
+            disp = jitted(module, path, qual)
+            a, b = np.zeros(n_s), np.zeros(n_s)
+            pp = np.concatenate([p, np.zeros(n_s)])
+            if what == "initial":
+                disp(pp, a)
+            elif what == "rhs":
+                disp(0.0, y0.copy(), pp, b)
+            else:
+                disp(pp)
+        except Exception as exc:
+            text = _ANSI.sub("", str(exc))
+            line = None
+            for m in re.finditer(r'File "([^"]+)", line (\d+)', text):
+                if file and Path(m.group(1)).name == Path(file).name:
+                    line = int(m.group(2))
+            lines = [s.strip() for s in text.splitlines() if s.strip()
+                     and not s.startswith(("Failed in", "During:", "File ", "^", "<source"))]
+            why = lines[0] if lines else type(exc).__name__
+            at = f" ({file}, line {line})" if line else ""
+            raise InputError(f"{label}: numba cannot compile {what}{at}: {why}") from None
+
+
+def _writes_nan(func, args, i) -> bool:
+    """Whether component i really is computed as NaN (written) rather than left unwritten."""
+    args = tuple(a.copy() if isinstance(a, np.ndarray) else a for a in args)
+    out = args[-1]
+    out[:] = 12345.678
+    with np.errstate(all="ignore"):
+        func(*args)
+    return out[i] != 12345.678

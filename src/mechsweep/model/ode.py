@@ -1,0 +1,81 @@
+"""OdeModel: a declarative ODE model. The user writes the physics and what to measure; the engine
+writes the chunk kernel (compile.py) and the ModelSpec the runner, store and scene read."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ..models._spec import ModelSpec, Param, Setting
+
+
+@dataclass(frozen=True)
+class OdeModel:
+    """A model y' = rhs(t, y, p) released from ``initial(p, y0)`` at t = 0.
+
+    - ``params``: :class:`Param` declarations; ``p`` holds their values in this order (a
+      categorical parameter as the index of its choice). ``p`` may be longer than the declared
+      parameters (the engine keeps scratch after them): read only ``p[0] .. p[len(params) - 1]``.
+    - ``states``: names of the components of y.
+    - ``rhs(t, y, p, dydt)``: plain numba-compilable Python (no decorator needed) writing every
+      ``dydt[i]``; returns nothing. ``initial(p, y0)``: writes every ``y0[i]``.
+    - ``measurements``: instances of the classes in :mod:`mechsweep.model.measure`; each gives
+      one output named by its ``name``.
+    - ``forcing_period``: optional ``f(p) -> T`` of a T-periodic forcing (declared for the
+      measurements that will use it; none of this stage's measurements does).
+    """
+
+    name: str
+    description: str
+    params: tuple[Param, ...]
+    states: tuple[str, ...]
+    rhs: Callable = field(repr=False)
+    initial: Callable = field(repr=False)
+    measurements: tuple = ()
+    forcing_period: Callable | None = field(default=None, repr=False)
+    source: str = ""
+    settings: tuple[Setting, ...] = ()
+
+    def __post_init__(self):
+        object.__setattr__(self, "params", tuple(self.params))
+        object.__setattr__(self, "states", tuple(self.states))
+        object.__setattr__(self, "measurements", tuple(self.measurements))
+        if not self.states:
+            raise ValueError(f"model {self.name!r}: states is empty")
+        names = [m.name for m in self.measurements]
+        if len(set(names)) != len(names):
+            raise ValueError(f"model {self.name!r}: measurement names repeat: {names}")
+        for m in self.measurements:
+            m.validate(self.states)
+            if getattr(m, "needs_forcing", False) and self.forcing_period is None:
+                raise ValueError(f"model {self.name!r}: measurement {m.name!r} needs forcing_period(p)")
+
+    def spec(self, *, origin: str = "", module: str = "", attr: str = "") -> ModelSpec:
+        """The ModelSpec the engine runs. ``module``/``attr`` say where the declaration can be
+        imported from in another process (compile.py generates a module that imports it)."""
+        from .compile import kernel_for
+
+        model = self
+
+        def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
+            chosen = tuple(m for m in model.measurements if m.name in wanted)
+            if not chosen:
+                return
+            kernel = kernel_for(model, chosen, origin=origin, module=module, attr=attr)
+            table = np.full((P.shape[0], len(chosen)), np.nan)
+            kernel(np.ascontiguousarray(P, dtype=np.float64), solver.rtol, solver.atol, solver.max_steps, table,
+                   status, n_steps, n_rhs)
+            for j, m in enumerate(chosen):
+                out[m.name][:] = table[:, j]
+
+        return ModelSpec(
+            name=self.name,
+            description=self.description,
+            params=self.params,
+            outputs=tuple(m.output() for m in self.measurements),
+            evaluate=evaluate,
+            source=self.source or origin,
+            settings=self.settings,
+            methods=("dop853",),
+        )

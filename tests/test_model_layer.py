@@ -1,0 +1,185 @@
+"""The declarative model layer (mechsweep.model): user models from a file, generic measurements
+against closed forms, bad user models refused with the file and line named, disk cache reuse."""
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.special import ellipk
+
+from mechsweep import status as st
+from mechsweep.cli import main
+from mechsweep.errors import InputError
+from mechsweep.scene import load_scene
+
+HERE = Path(__file__).resolve().parent
+MODELS = HERE / "user_models" / "oscillators.py"
+
+
+def evaluate(ref, outputs, P, rtol=1e-12, atol=1e-14):
+    """Evaluate outputs of a user model on the rows of P (the scene only supplies the model and solver)."""
+    scene = _scene(ref, outputs, rtol, atol)
+    spec = scene.model
+    n = P.shape[0]
+    out = {name: np.full(n, np.nan) for name in outputs}
+    status, ns, nr = np.zeros(n, st.DTYPE), np.zeros(n, np.int64), np.zeros(n, np.int64)
+    spec.evaluate(np.asarray(P, dtype=float), tuple(outputs), scene.solver, out, status, ns, nr)
+    return out, status, ns, nr
+
+
+def _scene(ref, outputs, rtol, atol):
+    if ref.endswith("LINEAR"):
+        axes, fixed = {"w": {"start": 0.5, "stop": 3.0, "num": 3}}, {"A": 0.7}
+    elif ref.endswith("MATHIEU"):
+        axes, fixed = {"a": {"start": 0.0, "stop": 1.0, "num": 2}}, {"q": 1.0}
+    else:
+        axes, fixed = {"A": {"start": 0.1, "stop": 3.0, "num": 3}}, {"g": 9.81, "L": 1.0}
+    return load_scene({"scene": {"name": "t", "model": ref, "outputs": list(outputs)}, "axes": axes, "fixed": fixed,
+                       "solver": {"rtol": rtol, "atol": atol}})
+
+
+W = np.array([0.5, 1.0, 1.7, 3.0, 5.0, 10.0])
+A = 0.7
+LIN = np.column_stack([W, np.full(W.size, A)])
+ALL = ("period", "period_short", "x_at_2", "v_max", "x_min", "t_up2", "t_half_down")  # as in user_models/linear.toml
+
+
+def test_linear_oscillator_measurements_match_closed_forms():
+    out, status, ns, nr = evaluate(f"{MODELS}:LINEAR", ALL, LIN)
+    # period_short has t_max = 1 s, the second crossing comes at 1.25 T: within it only for w = 10
+    assert status.tolist() == [st.NO_EVENT] * 5 + [st.OK]
+    assert np.isnan(out["period_short"][:5]).all()
+    assert out["period_short"][5] == pytest.approx(2 * np.pi / 10, rel=1e-9)
+    assert (ns > 0).all() and (nr > ns).all()
+    # the other measurements are written whatever period_short's status
+    np.testing.assert_allclose(out["period"], 2 * np.pi / W, rtol=1e-9, atol=0)
+    np.testing.assert_allclose(out["x_at_2"], A * np.cos(2.0 * W), rtol=0, atol=1e-10)
+    np.testing.assert_allclose(out["v_max"], A * W, rtol=1e-9, atol=0)  # max of x' = -A w sin(w t) over [0, 10]
+    # min of A cos(w t) over [0.3, 0.9]: an end point, or -A where w t = pi inside the window
+    t = np.array([0.3, 0.9])
+    ends = np.minimum(A * np.cos(W * t[0]), A * np.cos(W * t[1]))
+    inside = (W * t[0] < np.pi) & (np.pi < W * t[1])
+    np.testing.assert_allclose(out["x_min"], np.where(inside, -A, ends), rtol=0, atol=1e-10)
+    assert inside.any() and (~inside).any()  # both cases are exercised
+    # crossings: x = 0 upwards at 3T/4, 7T/4 (the second is asked for); x = A/2 downwards at w t = pi/3
+    np.testing.assert_allclose(out["t_up2"], 1.75 * 2 * np.pi / W, rtol=1e-9, atol=0)
+    np.testing.assert_allclose(out["t_half_down"], np.pi / 3 / W, rtol=1e-9, atol=0)
+
+
+def test_module_path_reference_and_its_errors():
+    spec = load_scene({"scene": {"name": "m", "model": "tests.user_models.oscillators:PENDULUM", "outputs": ["period"]},
+                       "axes": {"A": {"start": 0.1, "stop": 1.0, "num": 2}}, "fixed": {"g": 9.81, "L": 1.0}}).model
+    assert spec.name == "pendulum" and spec.output("period").integrated and spec.param_names() == ("g", "L", "A")
+    with pytest.raises(InputError, match="module 'no_such_pkg.models' is not importable"):
+        load_scene({"scene": {"name": "m", "model": "no_such_pkg.models:X", "outputs": ["period"]}})
+
+
+def test_pendulum_period_matches_elliptic_closed_form():
+    amp = np.array([0.1, 1.0, 2.0, 3.0])
+    g, L = 9.81, 0.8
+    P = np.column_stack([np.full(amp.size, g), np.full(amp.size, L), amp])
+    out, status, _, _ = evaluate(f"{MODELS}:PENDULUM", ("period",), P)
+    exact = 4.0 * ellipk(np.sin(amp / 2) ** 2) * math.sqrt(L / g)
+    assert (status == st.OK).all()
+    np.testing.assert_allclose(out["period"], exact, rtol=1e-9, atol=0)
+
+
+def test_cli_runs_a_user_model_named_relative_to_the_scene(in_tmp):
+    # cwd is an empty folder: "oscillators.py" is found next to the scene, not in the cwd
+    assert main(["run", str(HERE / "user_models" / "linear.toml"), "-o", "lin.h5", "--no-progress",
+                 "--threads", "1"]) == 0
+    import xarray as xr
+    with xr.open_dataset(in_tmp / "lin.h5") as ds:
+        np.testing.assert_allclose(ds["period"].values, 2 * np.pi / W, rtol=1e-9)
+        assert ds["status"].values.tolist() == [st.NO_EVENT] * 5 + [st.OK]
+        assert ds["period"].attrs["units"] == "s"
+
+
+def test_floquet_multiplier_leaves_the_unit_circle_on_the_mathieu_boundaries():
+    """On each side of a boundary a = a_n(q) or b_n(q): the stable side has |multiplier| = 1 to the
+    integration error, the unstable side |multiplier| - 1 ~ sqrt(delta) well above it."""
+    from scipy.special import mathieu_a, mathieu_b
+    delta = 1e-6
+    rows, stable = [], []
+    for q in (0.5, 1.5):
+        # q > 0: a_0 < b_1 < a_1 < b_2; stable for a_0 < a < b_1 and a_1 < a < b_2
+        for edge, stable_above in ((mathieu_a(0, q), True), (mathieu_b(1, q), False),
+                                   (mathieu_a(1, q), True), (mathieu_b(2, q), False)):
+            for side in (-1.0, 1.0):
+                rows.append((edge + side * delta, q))
+                stable.append((side > 0) == stable_above)
+    out, status, ns, nr = evaluate(f"{HERE / 'user_models' / 'mathieu.py'}:MATHIEU", ("max_multiplier",),
+                                   np.array(rows))
+    assert (status == st.OK).all() and (nr == 5 * (nr // 5)).all()  # 2 n + 1 = 5 rhs calls per evaluation
+    m = out["max_multiplier"]
+    stable = np.array(stable)
+    assert np.abs(m[stable] - 1.0).max() < 1e-9, m[stable] - 1.0
+    assert (m[~stable] - 1.0).min() > 1e-5, m[~stable] - 1.0
+
+
+# ---------------------------------------------------------------- bad user models: exit 2, file and line named
+HEAD = ("import math\nimport fractions\nfrom mechsweep.model import OdeModel, Param, Period\n\n\n"
+        "def initial(p, y0):\n    y0[0] = p[0]\n    y0[1] = 0.0\n\n\n"  # lines 6-8
+        "def rhs(t, y, p, dydt):\n    dydt[0] = y[1]\n")  # lines 11-12; line 13 is the body under test
+TAIL = ('\n\nM = OdeModel(name="bad", description="d", params=(Param("k", "k", "1", "k", lo=0.0),), '
+        'states=("x", "v"), rhs=rhs, initial=initial, measurements=(Period("period", "x"),))\nNOT_A_MODEL = 3\n')
+BAD = {
+    "does_not_compile": ("    dydt[1] = -float(fractions.Fraction(1, 2)) * y[0]", "M", ["numba cannot compile rhs", "line 13"]),
+    "undeclared_param": ("    dydt[1] = -p[1] * y[0]", "M", ["rhs indexes beyond", "1 parameter(s)", "line 13"]),
+    "wrong_length": ("    dydt[1] = -y[0]\n    dydt[2] = 0.0", "M", ["rhs indexes beyond", "line 14"]),
+    "raises": ("    raise ValueError('negative stiffness')", "M", ["rhs raised", "negative stiffness", "line 13"]),
+    "unwritten": ("    pass", "M", ["did not write v"]),
+    "syntax_error": ("    dydt[1] = = y[0]", "M", ["importing", "SyntaxError", "line 13"]),
+    "floquet_without_forcing": (
+        "    dydt[1] = -y[0]\n\n\nfrom mechsweep.model import Floquet\n"
+        "M2 = OdeModel(name='f', description='d', params=(), states=('x',), rhs=rhs, initial=initial, "
+        "measurements=(Floquet('m'),))", "M", ["importing", "needs forcing_period(p)", "line 17"]),
+    "missing_name": ("    dydt[1] = -y[0]", "NOPE", ["does not define 'NOPE'", "models it defines: M"]),
+    "not_a_model": ("    dydt[1] = -y[0]", "NOT_A_MODEL", ["is a int, not a mechsweep.model.OdeModel"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD) + ["missing_file"])
+def test_bad_user_model_exits_2_naming_the_file_and_writes_nothing(case, in_tmp, capsys):
+    path = in_tmp / f"bad_{case}.py"
+    if case != "missing_file":
+        body, name, expected = BAD[case]
+        path.write_text(HEAD + body + TAIL)
+    else:
+        name, expected = "M", ["does not exist"]
+    scene = in_tmp / "s.toml"
+    scene.write_text(f'[scene]\nname = "bad"\nmodel = "{path.name}:{name}"\noutputs = ["period"]\n'
+                     '[axes]\nk = { start = 1.0, stop = 2.0, num = 2 }\n')
+    before = sorted(p.relative_to(in_tmp) for p in in_tmp.rglob("*") if "__pycache__" not in p.parts)
+    assert main(["run", str(scene), "--no-progress", "--threads", "1"]) == 2
+    err = capsys.readouterr().err
+    assert str(path) in err, err
+    for piece in expected:
+        assert piece in err, err
+    assert "Traceback" not in err
+    after = sorted(p.relative_to(in_tmp) for p in in_tmp.rglob("*") if "__pycache__" not in p.parts)
+    assert after == before
+
+
+# ---------------------------------------------------------------- disk cache
+def test_second_process_compiles_nothing_for_a_user_model(tmp_path):
+    """numba's cache statistics (not timing): the generated kernel and the user's functions are all
+    loaded from the disk cache in a second fresh process."""
+    env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(tmp_path), PYTHONPATH=str(HERE.parent / "src"))
+    runs = []
+    for _ in range(2):
+        res = subprocess.run([sys.executable, str(HERE / "user_models" / "cache_probe.py"), f"{MODELS}:LINEAR"],
+                             capture_output=True, text=True, env=env, cwd=tmp_path)
+        assert res.returncode == 0, res.stderr
+        runs.append(json.loads(res.stdout.strip().splitlines()[-1]))
+    first, second = runs
+    assert first["misses"] > 0  # the first process did compile (an empty cache)
+    assert second["misses"] == 0 and second["hits"] == second["n"] == 3
+    assert second["period"] == first["period"]
+    assert list((tmp_path).rglob("mechsweep_gen_*.py"))  # the kernel's module lives in the cache folder

@@ -1,0 +1,21 @@
+"""Run a user model in this (fresh) process and print what numba compiled (used by
+tests/test_model_layer.py): cache misses of the generated kernel and of the user's functions."""
+import json
+import sys
+
+import numpy as np
+
+from mechsweep.scene import load_scene
+from mechsweep.model import compile as mc, load
+
+scene = load_scene({"scene": {"name": "probe", "model": sys.argv[1], "outputs": ["period"]},
+                    "axes": {"w": {"start": 1.0, "stop": 2.0, "num": 3}}, "fixed": {"A": 0.5}})
+P = np.array([[1.0, 0.5], [2.0, 0.5]])
+out = {"period": np.full(2, np.nan)}
+status, ns, nr = np.zeros(2, np.int8), np.zeros(2, np.int64), np.zeros(2, np.int64)
+scene.model.evaluate(P, ("period",), scene.solver, out, status, ns, nr)
+dispatchers = list(mc._KERNELS.values()) + list(load._JITTED.values())
+print(json.dumps({"period": out["period"].tolist(),
+                  "misses": sum(sum(d.stats.cache_misses.values()) for d in dispatchers),
+                  "hits": sum(sum(d.stats.cache_hits.values()) for d in dispatchers),
+                  "n": len(dispatchers)}))
