@@ -41,6 +41,8 @@ def _bases() -> dict[str, dict]:
     for path in sorted(SWEEPS.glob("*.toml")):
         data = tomllib.loads(path.read_text())
         model = data["scene"]["model"]
+        if ":" in model:  # a user model file (the guide's worked example): fuzzed by its own tests, not here
+            continue
         if model not in bases:
             data.pop("execution", None)
             data["storage"] = {"path": "out.h5"}
