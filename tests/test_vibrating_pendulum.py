@@ -94,6 +94,7 @@ def test_shipped_scene_runs_and_agrees_with_mathieu(in_tmp):
         assert ds["max_multiplier"].attrs["units"] == "1"
         m = ds["max_multiplier"].transpose("a", "w", "position").values
         a, w = np.meshgrid(ds["a"].values, ds["w"].values, indexing="ij")
+        _check_stability_map(ds, m)
     q = 2.0 * a / L
     a_m = 4.0 * G / (L * w ** 2)
     # reference verdicts from Mathieu's curves, for points not within 1e-3 of a boundary
@@ -108,3 +109,25 @@ def test_shipped_scene_runs_and_agrees_with_mathieu(in_tmp):
         assert (verdict == reference)[~skip].all()
     # the scene shows both phenomena: a parametric-resonance tongue and Kapitza stabilisation
     assert hang_unstable.any() and inv_stable.any() and (~inv_stable).any()
+
+
+def _check_stability_map(ds, m):
+    """The generic figure is chosen from the declared output kind, and draws the verdicts of the
+    data (stable at max |multiplier| <= 1 + 1e-6), one panel per position, w on a log axis."""
+    import matplotlib.pyplot as plt
+
+    from mechsweep import figures
+
+    assert ds["max_multiplier"].attrs["mechsweep_kind"] == "floquet_max"
+    assert list(figures.available(ds)) == ["stability_map"]
+    fig = figures.draw(ds, "stability_map")
+    try:
+        panels = [ax for ax in fig.axes if ax.get_visible() and ax.collections]
+        assert [ax.get_title() for ax in panels] == ["position = hanging", "position = inverted"]
+        for k, ax in enumerate(panels):
+            assert ax.get_xscale() == "log" and ax.get_yscale() == "linear"
+            shading = np.asarray(ax.collections[0].get_array()).reshape(m.shape[:2])
+            np.testing.assert_array_equal(shading, (m[..., k] <= 1.0 + 1e-6).astype(float))
+            assert len(ax.collections) >= 2  # the boundary contour
+    finally:
+        plt.close(fig)

@@ -326,6 +326,8 @@ def _define(f: h5netcdf.File, scene: Scene, lay: Layout, attrs: dict) -> None:
         _describe(v, out.unit, out.long_name, out.symbol)
         if out.integrated:
             v.attrs["integrated"] = 1
+        if out.kind:
+            v.attrs["mechsweep_kind"] = out.kind
         if fixed_coords:
             v.attrs["coordinates"] = fixed_coords
     s = f.create_variable("status", lay.dims, dtype=st.DTYPE, fillvalue=st.PENDING, chunks=chunks,

@@ -22,6 +22,7 @@ FIGURES = (
     ("balancing_map", linkage.can_balancing_map, linkage.balancing_map),
     ("slider_residual", linkage.can_slider_residual, linkage.slider_residual),
     ("pareto", linkage.can_pareto, linkage.pareto),
+    ("stability_map", generic.can_stability_map, generic.stability_map),
 )
 FALLBACK = ("outputs", generic.can_outputs, generic.outputs)
 

@@ -284,7 +284,7 @@ class Floquet:
     def output(self) -> Output:
         return Output(self.name, "max |λ|", self.unit,
                       self.long_name or "largest modulus of the Floquet multipliers over one forcing period",
-                      integrated=True)
+                      integrated=True, kind="floquet_max")
 
     def validate(self, states):
         pass

@@ -102,7 +102,8 @@ class ExtraDim:
 class Output:
     """A model output. ``needs`` lists outputs it is derived from (computed, not stored,
     unless requested); ``needs_params`` lists optional parameters it requires;
-    ``extra_dims`` the dimensions it has beyond the grid's."""
+    ``extra_dims`` the dimensions it has beyond the grid's; ``kind`` (one of OUTPUT_KINDS, or "")
+    tells generic figures what the value means."""
 
     name: str
     symbol: str
@@ -112,6 +113,12 @@ class Output:
     needs: tuple[str, ...] = ()
     needs_params: tuple[str, ...] = ()
     extra_dims: tuple[ExtraDim, ...] = ()
+    kind: str = ""  # what the value is, for generic figures: OUTPUT_KINDS names the known ones
+
+
+# Kinds of output the generic figures know (stored as the variable's ``mechsweep_kind``):
+# "floquet_max": the largest modulus of the Floquet multipliers; below 1 the motion is stable.
+OUTPUT_KINDS = ("floquet_max",)
 
 
 @dataclass(frozen=True)
