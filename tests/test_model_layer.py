@@ -72,6 +72,19 @@ def test_linear_oscillator_measurements_match_closed_forms():
     np.testing.assert_allclose(out["t_half_down"], np.pi / 3 / W, rtol=1e-9, atol=0)
 
 
+def test_measurements_of_a_point_share_one_trajectory():
+    """All seven LINEAR measurements observe one integration: it stops at the largest time still
+    needed. For w >= 1.7 that is v_max's t1 = 10 (the periods and crossings are done before), so it
+    takes exactly the steps of v_max alone (no measurement forces a step to land on its time); for
+    w = 0.5 and 1, t_up2 = 1.75 T lies beyond 10 and the trajectory goes on to it."""
+    _, _, ns_all, nr_all = evaluate(f"{MODELS}:LINEAR", ALL, LIN)
+    out, status, ns_one, nr_one = evaluate(f"{MODELS}:LINEAR", ("v_max",), LIN)
+    assert (status == st.OK).all()
+    np.testing.assert_array_equal(ns_all[2:], ns_one[2:])
+    assert (ns_all[:2] > ns_one[:2]).all()
+    assert (nr_all >= nr_one).all()  # extra dense outputs and root searches, no extra steps
+
+
 def test_module_path_reference_and_its_errors():
     spec = load_scene({"scene": {"name": "m", "model": "tests.user_models.oscillators:PENDULUM", "outputs": ["period"]},
                        "axes": {"A": {"start": 0.1, "stop": 1.0, "num": 2}}, "fixed": {"g": 9.81, "L": 1.0}}).model

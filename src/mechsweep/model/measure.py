@@ -5,13 +5,19 @@ source, one jitted function ``measure(y, p, rtol, atol, max_steps, work) -> (sta
 n_rhs)`` for the generated chunk kernel (see compile.py). ``y`` holds the initial state on entry and
 is scratch afterwards; ``p`` is the point's parameter row followed by ``len(states)`` scratch slots
 (the user's rhs only reads its declared parameters). Every measurement integrates from t = 0 with
-the DOP853 of ``mechsweep.ode.dop853``; each one integrates on its own (no trajectory is shared).
+the DOP853 of ``mechsweep.ode.dop853``. In the generated kernel Crossing, Period, StateAt and
+Extremum do not use their ``source``: they are rows (``shared_row``) of one shared integration per
+point (``make_shared``); ``source`` is kept for ``compile.kernel_for(..., shared=False)`` (one
+integration per measurement, for comparison). Floquet always integrates on its own.
 Nothing raises: a failure is a status code of :mod:`mechsweep.status` and a NaN value.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
+
+import numpy as np
 
 from ..models._spec import Output
 
@@ -356,4 +362,234 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
 """
 
 
+
+
+
+# ---------------------------------------------------------------- one shared trajectory
+# Crossing, Period, StateAt and Extremum of one point observe ONE DOP853 integration from t = 0
+# (make_shared). Each is a row of a float table: (kind, state index, sign, level, n, ta, tb).
+K_CROSSING, K_PERIOD, K_STATE_AT, K_EXTREMUM = 0.0, 1.0, 2.0, 3.0
+SHARED_COLS = 7
+
+
+def _row_crossing(m, states):
+    sign = 1.0 if m.direction == "down" else -1.0
+    return (K_CROSSING, float(states.index(m.state)), sign, float(m.level), float(m.n), float(m.t_max), 0.0)
+
+
+def _row_period(m, states):
+    sign = 1.0 if m.direction == "down" else -1.0
+    return (K_PERIOD, float(states.index(m.state)), sign, float(m.level), 2.0, float(m.t_max), 0.0)
+
+
+def _row_state_at(m, states):
+    return (K_STATE_AT, float(states.index(m.state)), 1.0, 0.0, 0.0, float(m.t), 0.0)
+
+
+def _row_extremum(m, states):
+    sign = 1.0 if m.kind == "max" else -1.0
+    return (K_EXTREMUM, float(states.index(m.state)), sign, 0.0, 0.0, float(m.t0), float(m.t1))
+
+
+Crossing.shared_row = _row_crossing
+Period.shared_row = _row_period
+StateAt.shared_row = _row_state_at
+Extremum.shared_row = _row_extremum
+
+
+@functools.cache
+def make_shared(rhs):
+    """Jitted ``shared(y, p, M, rtol, atol, max_steps, work, values, codes) -> (n_steps, n_rhs)``:
+    every measurement row of ``M`` (see ``shared_row``) observes one DOP853 integration from
+    t = 0 (y: the initial state on entry, scratch after). The integration runs towards the
+    largest time any row needs and stops as soon as every row is done. No step is forced to land
+    on a measurement's time: values inside a step come from the step's 7th-order dense output
+    (built at most once per step, 3 rhs calls), roots from Brent's method on it. Only the horizon
+    clips the last step. ``max_steps`` bounds the shared integration; a failure gives its status
+    to every row not yet done (rows done before keep their values)."""
+    from ..ode import dop853 as d
+    from ..ode._common import ROOT_RTOL, make_brent
+    from .._jit import jit
+    from .. import status as st_
+
+    start = d._make_start(rhs)
+    advance = d._make_advance(rhs)
+    dense_output = d._make_dense_output(rhs)
+    interpolate = d._interpolate
+    commit = d._commit
+    Y_STAGE, Y_NEW, K_FSAL = d.Y_STAGE, d.Y_NEW, d.K_FSAL
+    N_ST = d.N_STAGES
+    N_DENSE = d.N_STAGES_EXTENDED - d.N_STAGES - 1
+    OK, NO_EVENT = st_.OK, st_.NO_EVENT
+
+    @jit
+    def g_on_interpolant(t, ctx):
+        t_old, h, y_old, p, work, idx, sign, level, turn, fs = ctx
+        y_at = work[Y_STAGE]  # free once the dense output is built
+        interpolate((t - t_old) / h, y_old, work, y_at)
+        if turn:
+            rhs(t, y_at, p, fs)
+            return sign * fs[idx]
+        return sign * (y_at[idx] - level)
+
+    brent = make_brent(g_on_interpolant)
+
+    @jit
+    def shared(y, p, M, rtol, atol, max_steps, work, values, codes):
+        m = M.shape[0]
+        n = y.size
+        ya = np.empty(n)
+        fa = np.empty(n)
+        g_old = np.zeros(m)
+        count = np.zeros(m)
+        t_first = np.zeros(m)
+        best = np.zeros(m)
+        started = np.zeros(m, dtype=np.bool_)
+        done = np.zeros(m, dtype=np.bool_)
+        t_end = 0.0
+        for i in range(m):
+            values[i] = math.nan
+            codes[i] = OK
+            t_end = max(t_end, M[i, 6] if M[i, 0] == K_EXTREMUM else M[i, 5])
+        status, h_abs, n_rhs = start(0.0, y, p, t_end, rtol, atol, 0.0, work)
+        n_steps = 0
+        if status != OK:
+            for i in range(m):
+                codes[i] = status
+            return n_steps, n_rhs
+        left = m
+        f0 = work[0]
+        for i in range(m):  # what t = 0 already tells
+            kind = M[i, 0]
+            idx = int(M[i, 1])
+            s = M[i, 2]
+            if kind == K_CROSSING or kind == K_PERIOD:
+                g_old[i] = s * (y[idx] - M[i, 3])
+            elif kind == K_STATE_AT:
+                if M[i, 5] <= 0.0:
+                    values[i] = y[idx]
+                    done[i] = True
+                    left -= 1
+            elif M[i, 5] <= 0.0:  # extremum from t0 = 0
+                best[i] = s * y[idx]
+                g_old[i] = s * f0[idx]
+                started[i] = True
+        t = 0.0
+        attempts = 0
+        while left > 0 and t < t_end:
+            status, t_new, h_abs, a = advance(t, y, p, t_end, h_abs, rtol, atol, work, max_steps - attempts)
+            attempts += a
+            n_rhs += N_ST * a
+            if status != OK:
+                break
+            n_steps += 1
+            h = t_new - t
+            dense = False
+            y_new = work[Y_NEW]
+            f_new = work[K_FSAL]
+            for i in range(m):
+                if done[i]:
+                    continue
+                kind = M[i, 0]
+                idx = int(M[i, 1])
+                s = M[i, 2]
+                ta = M[i, 5]
+                if kind == K_CROSSING or kind == K_PERIOD:
+                    g = s * (y_new[idx] - M[i, 3])
+                    if g_old[i] > 0.0 and g <= 0.0:
+                        if not dense:
+                            dense_output(t, h, y, p, work)
+                            n_rhs += N_DENSE
+                            dense = True
+                        tr = brent(t, g_old[i], t_new, g, ROOT_RTOL * abs(h),
+                                   (t, h, y, p, work, idx, s, M[i, 3], False, fa))
+                        if tr > ta:
+                            codes[i] = NO_EVENT
+                            done[i] = True
+                        else:
+                            count[i] += 1.0
+                            if count[i] == 1.0:
+                                t_first[i] = tr
+                            if count[i] == M[i, 4]:
+                                values[i] = tr if kind == K_CROSSING else tr - t_first[i]
+                                done[i] = True
+                    if not done[i] and t_new >= ta:
+                        codes[i] = NO_EVENT
+                        done[i] = True
+                    g_old[i] = g
+                elif kind == K_STATE_AT:
+                    if ta <= t_new:
+                        if ta == t_new:
+                            values[i] = y_new[idx]
+                        else:
+                            if not dense:
+                                dense_output(t, h, y, p, work)
+                                n_rhs += N_DENSE
+                                dense = True
+                            interpolate((ta - t) / h, y, work, ya)
+                            values[i] = ya[idx]
+                        done[i] = True
+                else:  # extremum of s * y[idx] over [ta, tb]
+                    tb = M[i, 6]
+                    if not started[i]:
+                        if ta > t_new:
+                            continue
+                        if ta == t_new:
+                            best[i] = s * y_new[idx]
+                            g_old[i] = s * f_new[idx]
+                            started[i] = True
+                            continue
+                        if not dense:
+                            dense_output(t, h, y, p, work)
+                            n_rhs += N_DENSE
+                            dense = True
+                        interpolate((ta - t) / h, y, work, ya)
+                        rhs(ta, ya, p, fa)
+                        n_rhs += 1
+                        best[i] = s * ya[idx]
+                        g_old[i] = s * fa[idx]
+                        started[i] = True
+                        lo = ta
+                    else:
+                        lo = t
+                    if tb >= t_new:
+                        hi = t_new
+                        g = s * f_new[idx]
+                        y_hi = y_new[idx]
+                    else:
+                        if not dense:
+                            dense_output(t, h, y, p, work)
+                            n_rhs += N_DENSE
+                            dense = True
+                        hi = tb
+                        interpolate((tb - t) / h, y, work, ya)
+                        rhs(tb, ya, p, fa)
+                        n_rhs += 1
+                        g = s * fa[idx]
+                        y_hi = ya[idx]
+                    if g_old[i] > 0.0 and g <= 0.0:
+                        if not dense:
+                            dense_output(t, h, y, p, work)
+                            n_rhs += N_DENSE
+                            dense = True
+                        tr = brent(lo, g_old[i], hi, g, ROOT_RTOL * abs(h),
+                                   (t, h, y, p, work, idx, s, 0.0, True, fa))
+                        interpolate((tr - t) / h, y, work, ya)
+                        best[i] = max(best[i], s * ya[idx])
+                    g_old[i] = g
+                    if tb <= t_new:
+                        best[i] = max(best[i], s * y_hi)
+                        values[i] = s * best[i]
+                        done[i] = True
+                if done[i]:
+                    left -= 1
+            commit(y, work)
+            t = t_new
+        for i in range(m):
+            if not done[i]:
+                values[i] = math.nan
+                codes[i] = status if status != OK else NO_EVENT
+        return n_steps, n_rhs
+
+    return shared
 MEASUREMENTS = (Crossing, Period, StateAt, Extremum, Floquet)
