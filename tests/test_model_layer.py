@@ -36,6 +36,8 @@ def evaluate(ref, outputs, P, rtol=1e-12, atol=1e-14):
 def _scene(ref, outputs, rtol, atol):
     if ref.endswith("LINEAR"):
         axes, fixed = {"w": {"start": 0.5, "stop": 3.0, "num": 3}}, {"A": 0.7}
+    elif ref.endswith("MATHIEU_JAC"):
+        axes, fixed = {"a": {"start": 0.0, "stop": 1.0, "num": 2}}, {"q": 1.0, "c": 0.0}
     elif ref.endswith("MATHIEU"):
         axes, fixed = {"a": {"start": 0.0, "stop": 1.0, "num": 2}}, {"q": 1.0}
     else:
@@ -134,6 +136,52 @@ def test_floquet_multiplier_leaves_the_unit_circle_on_the_mathieu_boundaries():
     stable = np.array(stable)
     assert np.abs(m[stable] - 1.0).max() < 1e-9, m[stable] - 1.0
     assert (m[~stable] - 1.0).min() > 1e-5, m[~stable] - 1.0
+
+
+MATHIEU_FILE = HERE / "user_models" / "mathieu.py"
+FLOQUET = ("max_multiplier", "max_multiplier_stable", "max_multiplier_kind")
+
+
+def test_floquet_verdict_and_kind_on_the_mathieu_boundaries():
+    """Unstable side of a_n, b_n (n even: a pi-periodic solution, critical multiplier +1; n odd:
+    2 pi-periodic, -1): kind = +1 / -1 and verdict 0. Undamped stable side: both multipliers on the
+    unit circle, |mu| = 1 to round-off, so the verdict is UNDECIDED (NaN). Damped (c = 0.2) inside a
+    stability region: |mu| = exp(-c pi / 2) for both (their product is exp(-c pi)), verdict 1."""
+    from scipy.special import mathieu_a, mathieu_b
+    delta, c = 1e-6, 0.2
+    rows, kinds, unstable = [], [], []
+    for q in (0.5, 1.5):
+        for edge, n, unstable_side in ((mathieu_a(0, q), 0, -1.0), (mathieu_b(1, q), 1, 1.0),
+                                       (mathieu_a(1, q), 1, -1.0), (mathieu_b(2, q), 2, 1.0)):
+            for side in (-1.0, 1.0):
+                rows.append((edge + side * delta, q, 0.0))
+                unstable.append(side == unstable_side)
+                kinds.append(1.0 if n % 2 == 0 else -1.0)
+        rows.append((0.5 * (mathieu_a(0, q) + mathieu_b(1, q)), q, c))  # damped, inside the first region
+        unstable.append(False)
+        kinds.append(np.nan)
+    out, status, _, _ = evaluate(f"{MATHIEU_FILE}:MATHIEU_JAC", FLOQUET, np.array(rows))
+    unstable, kinds = np.array(unstable), np.array(kinds)
+    damped = np.array(rows)[:, 2] > 0
+    neutral = ~unstable & ~damped
+    np.testing.assert_array_equal(out["max_multiplier_kind"][unstable], kinds[unstable])
+    assert (out["max_multiplier_stable"][unstable] == 0.0).all() and (status[unstable] == st.OK).all()
+    assert np.isnan(out["max_multiplier_stable"][neutral]).all() and (status[neutral] == st.UNDECIDED).all()
+    assert np.abs(out["max_multiplier"][neutral] - 1.0).max() < 1e-9  # the value is still given
+    assert (out["max_multiplier_stable"][damped] == 1.0).all() and (status[damped] == st.OK).all()
+    np.testing.assert_allclose(out["max_multiplier"][damped], math.exp(-c * math.pi / 2), rtol=1e-9)
+
+
+def test_floquet_with_analytic_jacobian_agrees_with_finite_differences():
+    rows = np.array([(-0.5, 0.5), (1.0, 1.0), (3.0, 2.0), (0.3, 0.5), (6.0, 1.0)])  # unstable +1, -1; ...
+    fd, s_fd, _, nr_fd = evaluate(f"{MATHIEU_FILE}:MATHIEU", FLOQUET, rows)
+    an, s_an, _, nr_an = evaluate(f"{MATHIEU_FILE}:MATHIEU_JAC", FLOQUET,
+                                  np.column_stack([rows, np.zeros(len(rows))]))
+    np.testing.assert_array_equal(s_fd, s_an)
+    np.testing.assert_allclose(an["max_multiplier"], fd["max_multiplier"], rtol=1e-10)
+    np.testing.assert_array_equal(an["max_multiplier_kind"], fd["max_multiplier_kind"])
+    assert (fd["max_multiplier"][:2] > 1.1).all() and fd["max_multiplier_kind"][:2].tolist() == [1.0, -1.0]
+    assert (nr_fd == 5 * nr_an).all()  # the Jacobian costs no rhs call (2 n + 1 = 5 with differences)
 
 
 # ---------------------------------------------------------------- bad user models: exit 2, file and line named

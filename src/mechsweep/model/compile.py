@@ -36,7 +36,18 @@ def _folder() -> Path:
     return path
 
 
-def kernel_source(model, chosen, rhs_ref, initial_ref, origin: str, forcing_ref=None, shared: bool = True) -> str:
+def columns(chosen) -> list[int]:
+    """First column of each chosen measurement in the kernel's table (a measurement with
+    ``n_values`` > 1, Floquet, has that many columns)."""
+    cols, c = [], 0
+    for m in chosen:
+        cols.append(c)
+        c += getattr(m, "n_values", 1)
+    return cols + [c]
+
+
+def kernel_source(model, chosen, rhs_ref, initial_ref, origin: str, forcing_ref=None, shared: bool = True,
+                  jac_ref=None) -> str:
     """Source of the generated module. With ``shared`` (the default) the measurements that can
     (those with ``shared_row``: Crossing, Period, StateAt, Extremum) observe one integration per
     point (measure.make_shared); the others (Floquet) integrate on their own. ``shared=False``
@@ -55,6 +66,7 @@ def kernel_source(model, chosen, rhs_ref, initial_ref, origin: str, forcing_ref=
         f"rhs = jitted{rhs_ref!r}\n"
         f"initial = jitted{initial_ref!r}\n"
         + (f"forcing = jitted{forcing_ref!r}\n" if forcing_ref else "")
+        + (f"jac = jitted{jac_ref!r}\n" if jac_ref else "")
         + f"NP = {n_p}\nNS = {n_s}\nNSCR = {n_scr}\n"
     ]
     if group:
@@ -66,7 +78,9 @@ def kernel_source(model, chosen, rhs_ref, initial_ref, origin: str, forcing_ref=
         if k in group:
             continue
         parts.append(f"\n# ---- measurement {k}: {m!r}\n")
-        parts.append(m.source(k, model.states, n_p) if hasattr(m, "scratch") else m.source(k, model.states))
+        parts.append(m.source(k, model.states, n_p, jac_ref is not None) if hasattr(m, "scratch")
+                     else m.source(k, model.states))
+    cols = columns(chosen)
     body = []
     if group:
         body.append("""
@@ -82,6 +96,14 @@ def kernel_source(model, chosen, rhs_ref, initial_ref, origin: str, forcing_ref=
             body.append(f"""
         c = scodes[{j}]
         v = svals[{j}]""")
+        elif getattr(chosen[k], "n_values", 1) == 2:
+            body.append(f"""
+        initial(p, y)
+        c, v, v2, a, b = measure{k}(y, p, rtol, atol, max_steps, work)
+        n_steps[i] += a
+        n_rhs[i] += b
+        if c == st.OK:
+            table[i, {cols[k] + 1}] = v2""")
         else:
             body.append(f"""
         initial(p, y)
@@ -92,7 +114,7 @@ def kernel_source(model, chosen, rhs_ref, initial_ref, origin: str, forcing_ref=
         if c == st.OK and not math.isfinite(v):
             c = st.NONFINITE
         if c == st.OK:
-            table[i, {k}] = v
+            table[i, {cols[k]}] = v
         elif code == st.OK:
             code = c""")
     parts.append(f"""
@@ -122,8 +144,9 @@ def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str =
     initial_ref = load.function_ref(model.initial, "initial", model.name)
     forcing_ref = (load.function_ref(model.forcing_period, "forcing_period", model.name)
                    if model.forcing_period is not None else None)
+    jac_ref = load.function_ref(model.jac, "jac", model.name) if getattr(model, "jac", None) is not None else None
     key = hashlib.sha256()
-    for ref in (rhs_ref, initial_ref) + ((forcing_ref,) if forcing_ref else ()):
+    for ref in (rhs_ref, initial_ref) + ((forcing_ref,) if forcing_ref else ()) + ((jac_ref,) if jac_ref else ()):
         key.update(repr(ref).encode())
         key.update(load.module_source(ref[0], ref[1]))
     key.update(repr((model.name, len(model.params), len(model.states), chosen, shared)).encode())
@@ -131,7 +154,8 @@ def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str =
     if name in _KERNELS:
         return _KERNELS[name]
     path = _folder() / f"{name}.py"
-    source = kernel_source(model, chosen, rhs_ref, initial_ref, origin or f"{rhs_ref[0]}", forcing_ref, shared)
+    source = kernel_source(model, chosen, rhs_ref, initial_ref, origin or f"{rhs_ref[0]}", forcing_ref, shared,
+                           jac_ref)
     if not path.exists() or path.read_text() != source:  # written once: its mtime keys numba's cache index
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(source)

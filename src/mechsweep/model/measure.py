@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..models._spec import Output
+from ..models._spec import Output, Setting
 
 DIRECTIONS = ("down", "up")
 
@@ -267,30 +267,51 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
 
 @dataclass(frozen=True)
 class Floquet:
-    """Largest modulus of the Floquet multipliers of the model linearised about its motion from
-    ``initial(p)`` over one forcing period T = ``forcing_period(p)`` (the model must declare it).
+    """Floquet multipliers of the model linearised about its motion from ``initial(p)`` over one
+    forcing period T = ``forcing_period(p)`` (the model must declare it). Three outputs:
+
+    - ``name``: the largest modulus of the multipliers: <= 1 (within the integration error) for a
+      stable linearisation;
+    - ``name_stable``: 1 if it is below 1 - margin, 0 if above 1 + margin, else NaN with status
+      UNDECIDED; margin = max(``solver.floquet_margin``, 100 rtol) (the setting is added to the
+      model's settings, default 1e-8, unless the model declares its own);
+    - ``name_kind``: how the critical multiplier (the one of largest modulus) sits on or leaves the
+      unit circle: +1 (real, positive: T-periodic mode, e.g. a saddle-node or symmetry-breaking
+      loss of stability), -1 (real, negative: period doubling), 0 (a complex pair: Neimark-Sacker,
+      or on the stable side an oscillating mode). Real means |Im| <= 1e-8 |mu| (eigenvalues of a
+      real matrix computed in complex arithmetic: a real one carries an imaginary part of round-off).
 
     The monodromy matrix is integrated from the variational equations Phi' = J(t, y) Phi,
-    Phi(0) = I, together with the state (n + n^2 equations); J is the rhs's Jacobian by central
-    differences (step cbrt(eps) max(1, |y_j|), exact up to round-off for an rhs linear in y),
-    2 n + 1 rhs calls per evaluation. The multipliers are the eigenvalues of Phi(T) (LAPACK).
-    The value is the largest |multiplier|: <= 1 (within the integration error) for a stable
-    linearisation. Near a stability boundary it is sensitive: a double multiplier +-1 moves like the
-    square root of any error, so the boundary is where the value leaves 1, not a value to compare
-    to 1 at tolerance.
+    Phi(0) = I, together with the state (n + n^2 equations). J is the model's ``jac(t, y, p, J)``
+    when it declares one, else the rhs's Jacobian by central differences (step cbrt(eps)
+    max(1, |y_j|), exact up to round-off for an rhs linear in y; 2 n + 1 rhs calls per
+    evaluation). The multipliers are the eigenvalues of Phi(T) (LAPACK). Near a stability boundary
+    the modulus is sensitive: a double multiplier +-1 moves like the square root of any error, so
+    the boundary is where the value leaves 1, not a value to compare to 1 at tolerance.
     Status: INFEASIBLE when T is not finite and > 0; integration failures as reported; NONFINITE
-    for a non-finite monodromy. Cost: one integration of n + n^2 equations over [0, T];
-    n_rhs counts calls of the user's rhs."""
+    for a non-finite monodromy; UNDECIDED (only when ``name_stable`` is asked for, and only on a
+    point whose status is still OK) within the margin. Cost: one integration of n + n^2 equations
+    over [0, T]; n_rhs counts calls of the user's rhs (not of jac)."""
 
     name: str
     unit: str = "1"
     long_name: str = ""
     needs_forcing = True
+    n_values = 2  # the largest modulus and the kind
 
     def output(self) -> Output:
         return Output(self.name, "max |λ|", self.unit,
                       self.long_name or "largest modulus of the Floquet multipliers over one forcing period",
                       integrated=True)
+
+    def outputs(self) -> tuple[Output, ...]:
+        return (self.output(),
+                Output(f"{self.name}_stable", "stable", "1",
+                       f"1 if {self.name} < 1 - margin, 0 if > 1 + margin (margin = max(floquet_margin, 100 rtol); "
+                       "NaN and status undecided within it)", integrated=True, needs=(self.name,)),
+                Output(f"{self.name}_kind", "kind", "1",
+                       "critical Floquet multiplier: +1 real positive, -1 real negative, 0 complex pair",
+                       integrated=True, needs=(self.name,)))
 
     def validate(self, states):
         pass
@@ -298,16 +319,32 @@ class Floquet:
     def scratch(self, n: int) -> int:
         return 3 * n + n * n
 
-    def source(self, k: int, states, n_p: int = 0) -> str:
+    def finish(self, values, wanted, solver, out, status):
+        """Python's reading of the kernel's two columns (modulus, kind): the outputs and UNDECIDED."""
+        from .. import status as st
+        big, kind = values[:, 0], values[:, 1]
+        good = np.isfinite(big)
+        if self.name in out:
+            out[self.name][:] = big
+        if f"{self.name}_kind" in out:
+            out[f"{self.name}_kind"][:] = np.where(good, kind, np.nan)
+        if f"{self.name}_stable" in wanted:
+            margin = max(float(solver.settings.get("floquet_margin", 1e-8)), 100.0 * solver.rtol)
+            decided = good & (np.abs(big - 1.0) > margin)
+            out[f"{self.name}_stable"][:] = np.where(decided, (big < 1.0).astype(float), np.nan)
+            status[:] = np.where((status == st.OK) & good & ~decided, st.UNDECIDED, status)
+
+    def source(self, k: int, states, n_p: int = 0, has_jac: bool = False) -> str:
         n = len(states)
         N = n + n * n
         o_yp, o_fp, o_fm, o_J = n_p, n_p + n, n_p + 2 * n, n_p + 3 * n
-        return f"""
-@jit
-def var_rhs{k}(t, z, p, dz):
-    # z = (y, Phi row by row); dz = (f(t, y), J Phi), J by central differences
-    rhs(t, z[:{n}], p, dz[:{n}])
-    yp = p[{o_yp}:{o_yp + n}]
+        per_eval = 1 if has_jac else 2 * n + 1
+        if has_jac:
+            jac_code = f"""    J = p[{o_J}:{o_J + n * n}].reshape(({n}, {n}))
+    jac(t, z[:{n}], p, J)
+"""
+        else:
+            jac_code = f"""    yp = p[{o_yp}:{o_yp + n}]
     fp = p[{o_fp}:{o_fp + n}]
     fm = p[{o_fm}:{o_fm + n}]
     for j in range({n}):
@@ -322,7 +359,13 @@ def var_rhs{k}(t, z, p, dz):
         rhs(t, yp, p, fm)
         for i in range({n}):
             p[{o_J} + i * {n} + j] = (fp[i] - fm[i]) / (up - dn)
-    for i in range({n}):
+"""
+        return f"""
+@jit
+def var_rhs{k}(t, z, p, dz):
+    # z = (y, Phi row by row); dz = (f(t, y), J Phi), J {"from the model's jac" if has_jac else "by central differences"}
+    rhs(t, z[:{n}], p, dz[:{n}])
+{jac_code}    for i in range({n}):
         for j in range({n}):
             acc = 0.0
             for m in range({n}):
@@ -337,32 +380,41 @@ solve{k}_var = dop853.make_solver(var_rhs{k})
 def measure{k}(y, p, rtol, atol, max_steps, work):
     T = forcing(p)
     if not (math.isfinite(T) and T > 0.0):
-        return st.INFEASIBLE, math.nan, 0, 0
+        return st.INFEASIBLE, math.nan, math.nan, 0, 0
     z = np.zeros({N})
     for i in range({n}):
         z[i] = y[i]
         z[{n} + i * {n} + i] = 1.0
     wz = dop853.workspace({N})
     code, ns, nr = solve{k}_var(0.0, z, p, T, rtol, atol, 0.0, max_steps, wz)
-    nr = nr * {2 * n + 1}
+    nr = nr * {per_eval}
     if code != st.OK:
-        return code, math.nan, ns, nr
+        return code, math.nan, math.nan, ns, nr
     M = np.empty(({n}, {n}), dtype=np.complex128)
     for i in range({n}):
         for j in range({n}):
             v = z[{n} + i * {n} + j]
             if not math.isfinite(v):
-                return st.NONFINITE, math.nan, ns, nr
+                return st.NONFINITE, math.nan, math.nan, ns, nr
             M[i, j] = v
     lam = np.linalg.eigvals(M)
-    big = 0.0
+    big = -1.0
+    crit = lam[0]
     for i in range({n}):
-        big = max(big, abs(lam[i]))
-    return st.OK, big, ns, nr
+        if abs(lam[i]) > big:
+            big = abs(lam[i])
+            crit = lam[i]
+    if abs(crit.imag) <= 1e-8 * big:
+        kind = 1.0 if crit.real > 0.0 else -1.0
+    else:
+        kind = 0.0
+    return st.OK, big, kind, ns, nr
 """
 
 
-
+FLOQUET_MARGIN = Setting("floquet_margin", 1e-8, "1",
+                         "|max multiplier - 1| within which a Floquet measurement's stable verdict is undecided "
+                         "(the margin used is max(floquet_margin, 100 rtol))", 0.0, 0.1)
 
 
 # ---------------------------------------------------------------- one shared trajectory
