@@ -22,9 +22,9 @@ HERE = Path(__file__).resolve().parent
 MODELS = HERE / "user_models" / "oscillators.py"
 
 
-def evaluate(ref, outputs, P, rtol=1e-12, atol=1e-14):
+def evaluate(ref, outputs, P, rtol=1e-12, atol=1e-14, **settings):
     """Evaluate outputs of a user model on the rows of P (the scene only supplies the model and solver)."""
-    scene = _scene(ref, outputs, rtol, atol)
+    scene = _scene(ref, outputs, rtol, atol, settings)
     spec = scene.model
     n = P.shape[0]
     out = {name: np.full(n, np.nan) for name in outputs}
@@ -33,7 +33,7 @@ def evaluate(ref, outputs, P, rtol=1e-12, atol=1e-14):
     return out, status, ns, nr
 
 
-def _scene(ref, outputs, rtol, atol):
+def _scene(ref, outputs, rtol, atol, settings=None):
     if ref.endswith("LINEAR"):
         axes, fixed = {"w": {"start": 0.5, "stop": 3.0, "num": 3}}, {"A": 0.7}
     elif ref.endswith("MATHIEU_JAC"):
@@ -43,7 +43,7 @@ def _scene(ref, outputs, rtol, atol):
     else:
         axes, fixed = {"A": {"start": 0.1, "stop": 3.0, "num": 3}}, {"g": 9.81, "L": 1.0}
     return load_scene({"scene": {"name": "t", "model": ref, "outputs": list(outputs)}, "axes": axes, "fixed": fixed,
-                       "solver": {"rtol": rtol, "atol": atol}})
+                       "solver": {"rtol": rtol, "atol": atol, **(settings or {})}})
 
 
 W = np.array([0.5, 1.0, 1.7, 3.0, 5.0, 10.0])
@@ -170,6 +170,11 @@ def test_floquet_verdict_and_kind_on_the_mathieu_boundaries():
     assert np.abs(out["max_multiplier"][neutral] - 1.0).max() < 1e-9  # the value is still given
     assert (out["max_multiplier_stable"][damped] == 1.0).all() and (status[damped] == st.OK).all()
     np.testing.assert_allclose(out["max_multiplier"][damped], math.exp(-c * math.pi / 2), rtol=1e-9)
+    # a wider solver.floquet_margin (0.1) leaves every undamped point undecided (|mu| - 1 <= 2e-2
+    # there), the damped one (|mu| = 0.73) decided
+    wide, wstatus, _, _ = evaluate(f"{MATHIEU_FILE}:MATHIEU_JAC", FLOQUET, np.array(rows), floquet_margin=0.1)
+    assert (wstatus[~damped] == st.UNDECIDED).all() and np.isnan(wide["max_multiplier_stable"][~damped]).all()
+    assert (wide["max_multiplier_stable"][damped] == 1.0).all() and (wstatus[damped] == st.OK).all()
 
 
 def test_floquet_with_analytic_jacobian_agrees_with_finite_differences():
