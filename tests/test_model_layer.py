@@ -22,9 +22,9 @@ HERE = Path(__file__).resolve().parent
 MODELS = HERE / "user_models" / "oscillators.py"
 
 
-def evaluate(ref, outputs, P, rtol=1e-12, atol=1e-14):
+def evaluate(ref, outputs, P, rtol=1e-12, atol=1e-14, **settings):
     """Evaluate outputs of a user model on the rows of P (the scene only supplies the model and solver)."""
-    scene = _scene(ref, outputs, rtol, atol)
+    scene = _scene(ref, outputs, rtol, atol, settings)
     spec = scene.model
     n = P.shape[0]
     out = {name: np.full(n, np.nan) for name in outputs}
@@ -33,15 +33,17 @@ def evaluate(ref, outputs, P, rtol=1e-12, atol=1e-14):
     return out, status, ns, nr
 
 
-def _scene(ref, outputs, rtol, atol):
+def _scene(ref, outputs, rtol, atol, settings=None):
     if ref.endswith("LINEAR"):
         axes, fixed = {"w": {"start": 0.5, "stop": 3.0, "num": 3}}, {"A": 0.7}
+    elif ref.endswith("MATHIEU_JAC"):
+        axes, fixed = {"a": {"start": 0.0, "stop": 1.0, "num": 2}}, {"q": 1.0, "c": 0.0}
     elif ref.endswith("MATHIEU"):
         axes, fixed = {"a": {"start": 0.0, "stop": 1.0, "num": 2}}, {"q": 1.0}
     else:
         axes, fixed = {"A": {"start": 0.1, "stop": 3.0, "num": 3}}, {"g": 9.81, "L": 1.0}
     return load_scene({"scene": {"name": "t", "model": ref, "outputs": list(outputs)}, "axes": axes, "fixed": fixed,
-                       "solver": {"rtol": rtol, "atol": atol}})
+                       "solver": {"rtol": rtol, "atol": atol, **(settings or {})}})
 
 
 W = np.array([0.5, 1.0, 1.7, 3.0, 5.0, 10.0])
@@ -70,6 +72,19 @@ def test_linear_oscillator_measurements_match_closed_forms():
     # crossings: x = 0 upwards at 3T/4, 7T/4 (the second is asked for); x = A/2 downwards at w t = pi/3
     np.testing.assert_allclose(out["t_up2"], 1.75 * 2 * np.pi / W, rtol=1e-9, atol=0)
     np.testing.assert_allclose(out["t_half_down"], np.pi / 3 / W, rtol=1e-9, atol=0)
+
+
+def test_measurements_of_a_point_share_one_trajectory():
+    """All seven LINEAR measurements observe one integration: it stops at the largest time still
+    needed. For w >= 1.7 that is v_max's t1 = 10 (the periods and crossings are done before), so it
+    takes exactly the steps of v_max alone (no measurement forces a step to land on its time); for
+    w = 0.5 and 1, t_up2 = 1.75 T lies beyond 10 and the trajectory goes on to it."""
+    _, _, ns_all, nr_all = evaluate(f"{MODELS}:LINEAR", ALL, LIN)
+    out, status, ns_one, nr_one = evaluate(f"{MODELS}:LINEAR", ("v_max",), LIN)
+    assert (status == st.OK).all()
+    np.testing.assert_array_equal(ns_all[2:], ns_one[2:])
+    assert (ns_all[:2] > ns_one[:2]).all()
+    assert (nr_all >= nr_one).all()  # extra dense outputs and root searches, no extra steps
 
 
 def test_module_path_reference_and_its_errors():
@@ -121,6 +136,57 @@ def test_floquet_multiplier_leaves_the_unit_circle_on_the_mathieu_boundaries():
     stable = np.array(stable)
     assert np.abs(m[stable] - 1.0).max() < 1e-9, m[stable] - 1.0
     assert (m[~stable] - 1.0).min() > 1e-5, m[~stable] - 1.0
+
+
+MATHIEU_FILE = HERE / "user_models" / "mathieu.py"
+FLOQUET = ("max_multiplier", "max_multiplier_stable", "max_multiplier_kind")
+
+
+def test_floquet_verdict_and_kind_on_the_mathieu_boundaries():
+    """Unstable side of a_n, b_n (n even: a pi-periodic solution, critical multiplier +1; n odd:
+    2 pi-periodic, -1): kind = +1 / -1 and verdict 0. Undamped stable side: both multipliers on the
+    unit circle, |mu| = 1 to round-off, so the verdict is UNDECIDED (NaN). Damped (c = 0.2) inside a
+    stability region: |mu| = exp(-c pi / 2) for both (their product is exp(-c pi)), verdict 1."""
+    from scipy.special import mathieu_a, mathieu_b
+    delta, c = 1e-6, 0.2
+    rows, kinds, unstable = [], [], []
+    for q in (0.5, 1.5):
+        for edge, n, unstable_side in ((mathieu_a(0, q), 0, -1.0), (mathieu_b(1, q), 1, 1.0),
+                                       (mathieu_a(1, q), 1, -1.0), (mathieu_b(2, q), 2, 1.0)):
+            for side in (-1.0, 1.0):
+                rows.append((edge + side * delta, q, 0.0))
+                unstable.append(side == unstable_side)
+                kinds.append(1.0 if n % 2 == 0 else -1.0)
+        rows.append((0.5 * (mathieu_a(0, q) + mathieu_b(1, q)), q, c))  # damped, inside the first region
+        unstable.append(False)
+        kinds.append(np.nan)
+    out, status, _, _ = evaluate(f"{MATHIEU_FILE}:MATHIEU_JAC", FLOQUET, np.array(rows))
+    unstable, kinds = np.array(unstable), np.array(kinds)
+    damped = np.array(rows)[:, 2] > 0
+    neutral = ~unstable & ~damped
+    np.testing.assert_array_equal(out["max_multiplier_kind"][unstable], kinds[unstable])
+    assert (out["max_multiplier_stable"][unstable] == 0.0).all() and (status[unstable] == st.OK).all()
+    assert np.isnan(out["max_multiplier_stable"][neutral]).all() and (status[neutral] == st.UNDECIDED).all()
+    assert np.abs(out["max_multiplier"][neutral] - 1.0).max() < 1e-9  # the value is still given
+    assert (out["max_multiplier_stable"][damped] == 1.0).all() and (status[damped] == st.OK).all()
+    np.testing.assert_allclose(out["max_multiplier"][damped], math.exp(-c * math.pi / 2), rtol=1e-9)
+    # a wider solver.floquet_margin (0.1) leaves every undamped point undecided (|mu| - 1 <= 2e-2
+    # there), the damped one (|mu| = 0.73) decided
+    wide, wstatus, _, _ = evaluate(f"{MATHIEU_FILE}:MATHIEU_JAC", FLOQUET, np.array(rows), floquet_margin=0.1)
+    assert (wstatus[~damped] == st.UNDECIDED).all() and np.isnan(wide["max_multiplier_stable"][~damped]).all()
+    assert (wide["max_multiplier_stable"][damped] == 1.0).all() and (wstatus[damped] == st.OK).all()
+
+
+def test_floquet_with_analytic_jacobian_agrees_with_finite_differences():
+    rows = np.array([(-0.5, 0.5), (1.0, 1.0), (3.0, 2.0), (0.3, 0.5), (6.0, 1.0)])  # unstable +1, -1; ...
+    fd, s_fd, _, nr_fd = evaluate(f"{MATHIEU_FILE}:MATHIEU", FLOQUET, rows)
+    an, s_an, _, nr_an = evaluate(f"{MATHIEU_FILE}:MATHIEU_JAC", FLOQUET,
+                                  np.column_stack([rows, np.zeros(len(rows))]))
+    np.testing.assert_array_equal(s_fd, s_an)
+    np.testing.assert_allclose(an["max_multiplier"], fd["max_multiplier"], rtol=1e-10)
+    np.testing.assert_array_equal(an["max_multiplier_kind"], fd["max_multiplier_kind"])
+    assert (fd["max_multiplier"][:2] > 1.1).all() and fd["max_multiplier_kind"][:2].tolist() == [1.0, -1.0]
+    assert (nr_fd == 5 * nr_an).all()  # the Jacobian costs no rhs call (2 n + 1 = 5 with differences)
 
 
 # ---------------------------------------------------------------- bad user models: exit 2, file and line named

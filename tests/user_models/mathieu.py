@@ -30,3 +30,31 @@ MATHIEU = OdeModel(
     forcing_period=period,
     measurements=(Floquet("max_multiplier"),),
 )
+
+
+def damped_rhs(t, y, p, dydt):
+    dydt[0] = y[1]
+    dydt[1] = -p[2] * y[1] - (p[0] - 2.0 * p[1] * math.cos(2.0 * t)) * y[0]
+
+
+def damped_jac(t, y, p, J):
+    J[0, 0] = 0.0
+    J[0, 1] = 1.0
+    J[1, 0] = -(p[0] - 2.0 * p[1] * math.cos(2.0 * t))
+    J[1, 1] = -p[2]
+
+
+# x'' + c x' + (a - 2 q cos 2t) x = 0 with its analytic Jacobian: the product of the two multipliers
+# is exp(-c pi) (Liouville), so inside a stability region both have modulus exp(-c pi / 2).
+MATHIEU_JAC = OdeModel(
+    name="mathieu_damped",
+    description="damped Mathieu equation x'' + c x' + (a - 2 q cos 2t) x = 0, analytic Jacobian",
+    params=(Param("a", "a", "1", "characteristic parameter"), Param("q", "q", "1", "forcing parameter"),
+            Param("c", "c", "1", "damping", lo=0.0)),
+    states=("x", "v"),
+    rhs=damped_rhs,
+    initial=initial,
+    forcing_period=period,
+    jac=damped_jac,
+    measurements=(Floquet("max_multiplier"),),
+)

@@ -201,6 +201,8 @@ def check(model, ref: str, file: str) -> None:
     funcs = (("initial", model.initial), ("rhs", model.rhs))
     if model.forcing_period is not None:
         funcs += (("forcing_period", model.forcing_period),)
+    if getattr(model, "jac", None) is not None:
+        funcs += (("jac", model.jac),)
     for what, func in funcs:
         module, path, qual = function_ref(func, what, model.name)
         try:
@@ -211,6 +213,8 @@ def check(model, ref: str, file: str) -> None:
                 disp(pp, a)
             elif what == "rhs":
                 disp(0.0, y0.copy(), pp, b)
+            elif what == "jac":
+                disp(0.0, y0.copy(), pp, np.zeros((n_s, n_s)))
             else:
                 disp(pp)
         except Exception as exc:

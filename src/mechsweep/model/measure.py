@@ -5,15 +5,21 @@ source, one jitted function ``measure(y, p, rtol, atol, max_steps, work) -> (sta
 n_rhs)`` for the generated chunk kernel (see compile.py). ``y`` holds the initial state on entry and
 is scratch afterwards; ``p`` is the point's parameter row followed by ``len(states)`` scratch slots
 (the user's rhs only reads its declared parameters). Every measurement integrates from t = 0 with
-the DOP853 of ``mechsweep.ode.dop853``; each one integrates on its own (no trajectory is shared).
+the DOP853 of ``mechsweep.ode.dop853``. In the generated kernel Crossing, Period, StateAt and
+Extremum do not use their ``source``: they are rows (``shared_row``) of one shared integration per
+point (``make_shared``); ``source`` is kept for ``compile.kernel_for(..., shared=False)`` (one
+integration per measurement, for comparison). Floquet always integrates on its own.
 Nothing raises: a failure is a status code of :mod:`mechsweep.status` and a NaN value.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
-from ..models._spec import Output
+import numpy as np
+
+from ..models._spec import Output, Setting
 
 DIRECTIONS = ("down", "up")
 
@@ -261,30 +267,51 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
 
 @dataclass(frozen=True)
 class Floquet:
-    """Largest modulus of the Floquet multipliers of the model linearised about its motion from
-    ``initial(p)`` over one forcing period T = ``forcing_period(p)`` (the model must declare it).
+    """Floquet multipliers of the model linearised about its motion from ``initial(p)`` over one
+    forcing period T = ``forcing_period(p)`` (the model must declare it). Three outputs:
+
+    - ``name``: the largest modulus of the multipliers: <= 1 (within the integration error) for a
+      stable linearisation;
+    - ``name_stable``: 1 if it is below 1 - margin, 0 if above 1 + margin, else NaN with status
+      UNDECIDED; margin = max(``solver.floquet_margin``, 100 rtol) (the setting is added to the
+      model's settings, default 1e-8, unless the model declares its own);
+    - ``name_kind``: how the critical multiplier (the one of largest modulus) sits on or leaves the
+      unit circle: +1 (real, positive: T-periodic mode, e.g. a saddle-node or symmetry-breaking
+      loss of stability), -1 (real, negative: period doubling), 0 (a complex pair: Neimark-Sacker,
+      or on the stable side an oscillating mode). Real means |Im| <= 1e-8 |mu| (eigenvalues of a
+      real matrix computed in complex arithmetic: a real one carries an imaginary part of round-off).
 
     The monodromy matrix is integrated from the variational equations Phi' = J(t, y) Phi,
-    Phi(0) = I, together with the state (n + n^2 equations); J is the rhs's Jacobian by central
-    differences (step cbrt(eps) max(1, |y_j|), exact up to round-off for an rhs linear in y),
-    2 n + 1 rhs calls per evaluation. The multipliers are the eigenvalues of Phi(T) (LAPACK).
-    The value is the largest |multiplier|: <= 1 (within the integration error) for a stable
-    linearisation. Near a stability boundary it is sensitive: a double multiplier +-1 moves like the
-    square root of any error, so the boundary is where the value leaves 1, not a value to compare
-    to 1 at tolerance.
+    Phi(0) = I, together with the state (n + n^2 equations). J is the model's ``jac(t, y, p, J)``
+    when it declares one, else the rhs's Jacobian by central differences (step cbrt(eps)
+    max(1, |y_j|), exact up to round-off for an rhs linear in y; 2 n + 1 rhs calls per
+    evaluation). The multipliers are the eigenvalues of Phi(T) (LAPACK). Near a stability boundary
+    the modulus is sensitive: a double multiplier +-1 moves like the square root of any error, so
+    the boundary is where the value leaves 1, not a value to compare to 1 at tolerance.
     Status: INFEASIBLE when T is not finite and > 0; integration failures as reported; NONFINITE
-    for a non-finite monodromy. Cost: one integration of n + n^2 equations over [0, T];
-    n_rhs counts calls of the user's rhs."""
+    for a non-finite monodromy; UNDECIDED (only when ``name_stable`` is asked for, and only on a
+    point whose status is still OK) within the margin. Cost: one integration of n + n^2 equations
+    over [0, T]; n_rhs counts calls of the user's rhs (not of jac)."""
 
     name: str
     unit: str = "1"
     long_name: str = ""
     needs_forcing = True
+    n_values = 2  # the largest modulus and the kind
 
     def output(self) -> Output:
         return Output(self.name, "max |λ|", self.unit,
                       self.long_name or "largest modulus of the Floquet multipliers over one forcing period",
                       integrated=True, kind="floquet_max")
+
+    def outputs(self) -> tuple[Output, ...]:
+        return (self.output(),
+                Output(f"{self.name}_stable", "stable", "1",
+                       f"1 if {self.name} < 1 - margin, 0 if > 1 + margin (margin = max(floquet_margin, 100 rtol); "
+                       "NaN and status undecided within it)", integrated=True, needs=(self.name,)),
+                Output(f"{self.name}_kind", "kind", "1",
+                       "critical Floquet multiplier: +1 real positive, -1 real negative, 0 complex pair",
+                       integrated=True, needs=(self.name,)))
 
     def validate(self, states):
         pass
@@ -292,16 +319,32 @@ class Floquet:
     def scratch(self, n: int) -> int:
         return 3 * n + n * n
 
-    def source(self, k: int, states, n_p: int = 0) -> str:
+    def finish(self, values, wanted, solver, out, status):
+        """Python's reading of the kernel's two columns (modulus, kind): the outputs and UNDECIDED."""
+        from .. import status as st
+        big, kind = values[:, 0], values[:, 1]
+        good = np.isfinite(big)
+        if self.name in out:
+            out[self.name][:] = big
+        if f"{self.name}_kind" in out:
+            out[f"{self.name}_kind"][:] = np.where(good, kind, np.nan)
+        if f"{self.name}_stable" in wanted:
+            margin = max(float(solver.settings.get("floquet_margin", 1e-8)), 100.0 * solver.rtol)
+            decided = good & (np.abs(big - 1.0) > margin)
+            out[f"{self.name}_stable"][:] = np.where(decided, (big < 1.0).astype(float), np.nan)
+            status[:] = np.where((status == st.OK) & good & ~decided, st.UNDECIDED, status)
+
+    def source(self, k: int, states, n_p: int = 0, has_jac: bool = False) -> str:
         n = len(states)
         N = n + n * n
         o_yp, o_fp, o_fm, o_J = n_p, n_p + n, n_p + 2 * n, n_p + 3 * n
-        return f"""
-@jit
-def var_rhs{k}(t, z, p, dz):
-    # z = (y, Phi row by row); dz = (f(t, y), J Phi), J by central differences
-    rhs(t, z[:{n}], p, dz[:{n}])
-    yp = p[{o_yp}:{o_yp + n}]
+        per_eval = 1 if has_jac else 2 * n + 1
+        if has_jac:
+            jac_code = f"""    J = p[{o_J}:{o_J + n * n}].reshape(({n}, {n}))
+    jac(t, z[:{n}], p, J)
+"""
+        else:
+            jac_code = f"""    yp = p[{o_yp}:{o_yp + n}]
     fp = p[{o_fp}:{o_fp + n}]
     fm = p[{o_fm}:{o_fm + n}]
     for j in range({n}):
@@ -316,7 +359,13 @@ def var_rhs{k}(t, z, p, dz):
         rhs(t, yp, p, fm)
         for i in range({n}):
             p[{o_J} + i * {n} + j] = (fp[i] - fm[i]) / (up - dn)
-    for i in range({n}):
+"""
+        return f"""
+@jit
+def var_rhs{k}(t, z, p, dz):
+    # z = (y, Phi row by row); dz = (f(t, y), J Phi), J {"from the model's jac" if has_jac else "by central differences"}
+    rhs(t, z[:{n}], p, dz[:{n}])
+{jac_code}    for i in range({n}):
         for j in range({n}):
             acc = 0.0
             for m in range({n}):
@@ -331,29 +380,268 @@ solve{k}_var = dop853.make_solver(var_rhs{k})
 def measure{k}(y, p, rtol, atol, max_steps, work):
     T = forcing(p)
     if not (math.isfinite(T) and T > 0.0):
-        return st.INFEASIBLE, math.nan, 0, 0
+        return st.INFEASIBLE, math.nan, math.nan, 0, 0
     z = np.zeros({N})
     for i in range({n}):
         z[i] = y[i]
         z[{n} + i * {n} + i] = 1.0
     wz = dop853.workspace({N})
     code, ns, nr = solve{k}_var(0.0, z, p, T, rtol, atol, 0.0, max_steps, wz)
-    nr = nr * {2 * n + 1}
+    nr = nr * {per_eval}
     if code != st.OK:
-        return code, math.nan, ns, nr
+        return code, math.nan, math.nan, ns, nr
     M = np.empty(({n}, {n}), dtype=np.complex128)
     for i in range({n}):
         for j in range({n}):
             v = z[{n} + i * {n} + j]
             if not math.isfinite(v):
-                return st.NONFINITE, math.nan, ns, nr
+                return st.NONFINITE, math.nan, math.nan, ns, nr
             M[i, j] = v
     lam = np.linalg.eigvals(M)
-    big = 0.0
+    big = -1.0
+    crit = lam[0]
     for i in range({n}):
-        big = max(big, abs(lam[i]))
-    return st.OK, big, ns, nr
+        if abs(lam[i]) > big:
+            big = abs(lam[i])
+            crit = lam[i]
+    if abs(crit.imag) <= 1e-8 * big:
+        kind = 1.0 if crit.real > 0.0 else -1.0
+    else:
+        kind = 0.0
+    return st.OK, big, kind, ns, nr
 """
 
 
+FLOQUET_MARGIN = Setting("floquet_margin", 1e-8, "1",
+                         "|max multiplier - 1| within which a Floquet measurement's stable verdict is undecided "
+                         "(the margin used is max(floquet_margin, 100 rtol))", 0.0, 0.1)
+
+
+# ---------------------------------------------------------------- one shared trajectory
+# Crossing, Period, StateAt and Extremum of one point observe ONE DOP853 integration from t = 0
+# (make_shared). Each is a row of a float table: (kind, state index, sign, level, n, ta, tb).
+K_CROSSING, K_PERIOD, K_STATE_AT, K_EXTREMUM = 0.0, 1.0, 2.0, 3.0
+SHARED_COLS = 7
+
+
+def _row_crossing(m, states):
+    sign = 1.0 if m.direction == "down" else -1.0
+    return (K_CROSSING, float(states.index(m.state)), sign, float(m.level), float(m.n), float(m.t_max), 0.0)
+
+
+def _row_period(m, states):
+    sign = 1.0 if m.direction == "down" else -1.0
+    return (K_PERIOD, float(states.index(m.state)), sign, float(m.level), 2.0, float(m.t_max), 0.0)
+
+
+def _row_state_at(m, states):
+    return (K_STATE_AT, float(states.index(m.state)), 1.0, 0.0, 0.0, float(m.t), 0.0)
+
+
+def _row_extremum(m, states):
+    sign = 1.0 if m.kind == "max" else -1.0
+    return (K_EXTREMUM, float(states.index(m.state)), sign, 0.0, 0.0, float(m.t0), float(m.t1))
+
+
+Crossing.shared_row = _row_crossing
+Period.shared_row = _row_period
+StateAt.shared_row = _row_state_at
+Extremum.shared_row = _row_extremum
+
+
+@functools.cache
+def make_shared(rhs):
+    """Jitted ``shared(y, p, M, rtol, atol, max_steps, work, values, codes) -> (n_steps, n_rhs)``:
+    every measurement row of ``M`` (see ``shared_row``) observes one DOP853 integration from
+    t = 0 (y: the initial state on entry, scratch after). The integration runs towards the
+    largest time any row needs and stops as soon as every row is done. No step is forced to land
+    on a measurement's time: values inside a step come from the step's 7th-order dense output
+    (built at most once per step, 3 rhs calls), roots from Brent's method on it. Only the horizon
+    clips the last step. ``max_steps`` bounds the shared integration; a failure gives its status
+    to every row not yet done (rows done before keep their values)."""
+    from ..ode import dop853 as d
+    from ..ode._common import ROOT_RTOL, make_brent
+    from .._jit import jit
+    from .. import status as st_
+
+    start = d._make_start(rhs)
+    advance = d._make_advance(rhs)
+    dense_output = d._make_dense_output(rhs)
+    interpolate = d._interpolate
+    commit = d._commit
+    Y_STAGE, Y_NEW, K_FSAL = d.Y_STAGE, d.Y_NEW, d.K_FSAL
+    N_ST = d.N_STAGES
+    N_DENSE = d.N_STAGES_EXTENDED - d.N_STAGES - 1
+    OK, NO_EVENT = st_.OK, st_.NO_EVENT
+
+    @jit
+    def g_on_interpolant(t, ctx):
+        t_old, h, y_old, p, work, idx, sign, level, turn, fs = ctx
+        y_at = work[Y_STAGE]  # free once the dense output is built
+        interpolate((t - t_old) / h, y_old, work, y_at)
+        if turn:
+            rhs(t, y_at, p, fs)
+            return sign * fs[idx]
+        return sign * (y_at[idx] - level)
+
+    brent = make_brent(g_on_interpolant)
+
+    @jit
+    def shared(y, p, M, rtol, atol, max_steps, work, values, codes):
+        m = M.shape[0]
+        n = y.size
+        ya = np.empty(n)
+        fa = np.empty(n)
+        g_old = np.zeros(m)
+        count = np.zeros(m)
+        t_first = np.zeros(m)
+        best = np.zeros(m)
+        started = np.zeros(m, dtype=np.bool_)
+        done = np.zeros(m, dtype=np.bool_)
+        t_end = 0.0
+        for i in range(m):
+            values[i] = math.nan
+            codes[i] = OK
+            t_end = max(t_end, M[i, 6] if M[i, 0] == K_EXTREMUM else M[i, 5])
+        status, h_abs, n_rhs = start(0.0, y, p, t_end, rtol, atol, 0.0, work)
+        n_steps = 0
+        if status != OK:
+            for i in range(m):
+                codes[i] = status
+            return n_steps, n_rhs
+        left = m
+        f0 = work[0]
+        for i in range(m):  # what t = 0 already tells
+            kind = M[i, 0]
+            idx = int(M[i, 1])
+            s = M[i, 2]
+            if kind == K_CROSSING or kind == K_PERIOD:
+                g_old[i] = s * (y[idx] - M[i, 3])
+            elif kind == K_STATE_AT:
+                if M[i, 5] <= 0.0:
+                    values[i] = y[idx]
+                    done[i] = True
+                    left -= 1
+            elif M[i, 5] <= 0.0:  # extremum from t0 = 0
+                best[i] = s * y[idx]
+                g_old[i] = s * f0[idx]
+                started[i] = True
+        t = 0.0
+        attempts = 0
+        while left > 0 and t < t_end:
+            status, t_new, h_abs, a = advance(t, y, p, t_end, h_abs, rtol, atol, work, max_steps - attempts)
+            attempts += a
+            n_rhs += N_ST * a
+            if status != OK:
+                break
+            n_steps += 1
+            h = t_new - t
+            dense = False
+            y_new = work[Y_NEW]
+            f_new = work[K_FSAL]
+            for i in range(m):
+                if done[i]:
+                    continue
+                kind = M[i, 0]
+                idx = int(M[i, 1])
+                s = M[i, 2]
+                ta = M[i, 5]
+                if kind == K_CROSSING or kind == K_PERIOD:
+                    g = s * (y_new[idx] - M[i, 3])
+                    if g_old[i] > 0.0 and g <= 0.0:
+                        if not dense:
+                            dense_output(t, h, y, p, work)
+                            n_rhs += N_DENSE
+                            dense = True
+                        tr = brent(t, g_old[i], t_new, g, ROOT_RTOL * abs(h),
+                                   (t, h, y, p, work, idx, s, M[i, 3], False, fa))
+                        if tr > ta:
+                            codes[i] = NO_EVENT
+                            done[i] = True
+                        else:
+                            count[i] += 1.0
+                            if count[i] == 1.0:
+                                t_first[i] = tr
+                            if count[i] == M[i, 4]:
+                                values[i] = tr if kind == K_CROSSING else tr - t_first[i]
+                                done[i] = True
+                    if not done[i] and t_new >= ta:
+                        codes[i] = NO_EVENT
+                        done[i] = True
+                    g_old[i] = g
+                elif kind == K_STATE_AT:
+                    if ta <= t_new:
+                        if ta == t_new:
+                            values[i] = y_new[idx]
+                        else:
+                            if not dense:
+                                dense_output(t, h, y, p, work)
+                                n_rhs += N_DENSE
+                                dense = True
+                            interpolate((ta - t) / h, y, work, ya)
+                            values[i] = ya[idx]
+                        done[i] = True
+                else:  # extremum of s * y[idx] over [ta, tb]
+                    tb = M[i, 6]
+                    if not started[i]:
+                        if ta > t_new:
+                            continue
+                        if ta == t_new:
+                            best[i] = s * y_new[idx]
+                            g_old[i] = s * f_new[idx]
+                            started[i] = True
+                            continue
+                        if not dense:
+                            dense_output(t, h, y, p, work)
+                            n_rhs += N_DENSE
+                            dense = True
+                        interpolate((ta - t) / h, y, work, ya)
+                        rhs(ta, ya, p, fa)
+                        n_rhs += 1
+                        best[i] = s * ya[idx]
+                        g_old[i] = s * fa[idx]
+                        started[i] = True
+                        lo = ta
+                    else:
+                        lo = t
+                    if tb >= t_new:
+                        hi = t_new
+                        g = s * f_new[idx]
+                        y_hi = y_new[idx]
+                    else:
+                        if not dense:
+                            dense_output(t, h, y, p, work)
+                            n_rhs += N_DENSE
+                            dense = True
+                        hi = tb
+                        interpolate((tb - t) / h, y, work, ya)
+                        rhs(tb, ya, p, fa)
+                        n_rhs += 1
+                        g = s * fa[idx]
+                        y_hi = ya[idx]
+                    if g_old[i] > 0.0 and g <= 0.0:
+                        if not dense:
+                            dense_output(t, h, y, p, work)
+                            n_rhs += N_DENSE
+                            dense = True
+                        tr = brent(lo, g_old[i], hi, g, ROOT_RTOL * abs(h),
+                                   (t, h, y, p, work, idx, s, 0.0, True, fa))
+                        interpolate((tr - t) / h, y, work, ya)
+                        best[i] = max(best[i], s * ya[idx])
+                    g_old[i] = g
+                    if tb <= t_new:
+                        best[i] = max(best[i], s * y_hi)
+                        values[i] = s * best[i]
+                        done[i] = True
+                if done[i]:
+                    left -= 1
+            commit(y, work)
+            t = t_new
+        for i in range(m):
+            if not done[i]:
+                values[i] = math.nan
+                codes[i] = status if status != OK else NO_EVENT
+        return n_steps, n_rhs
+
+    return shared
 MEASUREMENTS = (Crossing, Period, StateAt, Extremum, Floquet)

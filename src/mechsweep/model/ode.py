@@ -8,6 +8,12 @@ from typing import Callable
 import numpy as np
 
 from ..models._spec import ModelSpec, Param, Setting
+from .measure import FLOQUET_MARGIN, Floquet
+
+
+def _outputs(m):
+    """The outputs of one measurement (most have one; Floquet has three)."""
+    return m.outputs() if hasattr(m, "outputs") else (m.output(),)
 
 
 @dataclass(frozen=True)
@@ -22,8 +28,9 @@ class OdeModel:
       ``dydt[i]``; returns nothing. ``initial(p, y0)``: writes every ``y0[i]``.
     - ``measurements``: instances of the classes in :mod:`mechsweep.model.measure`; each gives
       one output named by its ``name``.
-    - ``forcing_period``: optional ``f(p) -> T`` of a T-periodic forcing (declared for the
-      measurements that will use it; none of this stage's measurements does).
+    - ``forcing_period``: optional ``f(p) -> T`` of a T-periodic forcing (Floquet needs it).
+    - ``jac``: optional ``jac(t, y, p, J)`` writing every ``J[i, j]`` = d dydt[i] / d y[j] (J is
+      n x n); Floquet uses it instead of central differences of ``rhs``.
     """
 
     name: str
@@ -34,6 +41,7 @@ class OdeModel:
     initial: Callable = field(repr=False)
     measurements: tuple = ()
     forcing_period: Callable | None = field(default=None, repr=False)
+    jac: Callable | None = field(default=None, repr=False)
     source: str = ""
     settings: tuple[Setting, ...] = ()
 
@@ -43,9 +51,9 @@ class OdeModel:
         object.__setattr__(self, "measurements", tuple(self.measurements))
         if not self.states:
             raise ValueError(f"model {self.name!r}: states is empty")
-        names = [m.name for m in self.measurements]
+        names = [o.name for m in self.measurements for o in _outputs(m)]
         if len(set(names)) != len(names):
-            raise ValueError(f"model {self.name!r}: measurement names repeat: {names}")
+            raise ValueError(f"model {self.name!r}: measurement (output) names repeat: {names}")
         for m in self.measurements:
             m.validate(self.states)
             if getattr(m, "needs_forcing", False) and self.forcing_period is None:
@@ -54,28 +62,34 @@ class OdeModel:
     def spec(self, *, origin: str = "", module: str = "", attr: str = "") -> ModelSpec:
         """The ModelSpec the engine runs. ``module``/``attr`` say where the declaration can be
         imported from in another process (compile.py generates a module that imports it)."""
-        from .compile import kernel_for
+        from .compile import columns, kernel_for
 
         model = self
 
         def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
-            chosen = tuple(m for m in model.measurements if m.name in wanted)
+            chosen = tuple(m for m in model.measurements if any(o.name in wanted for o in _outputs(m)))
             if not chosen:
                 return
             kernel = kernel_for(model, chosen, origin=origin, module=module, attr=attr)
-            table = np.full((P.shape[0], len(chosen)), np.nan)
+            cols = columns(chosen)
+            table = np.full((P.shape[0], cols[-1]), np.nan)
             kernel(np.ascontiguousarray(P, dtype=np.float64), solver.rtol, solver.atol, solver.max_steps, table,
                    status, n_steps, n_rhs)
             for j, m in enumerate(chosen):
-                out[m.name][:] = table[:, j]
+                if hasattr(m, "finish"):
+                    m.finish(table[:, cols[j]:cols[j + 1]], wanted, solver, out, status)
+                else:
+                    out[m.name][:] = table[:, cols[j]]
 
         return ModelSpec(
             name=self.name,
             description=self.description,
             params=self.params,
-            outputs=tuple(m.output() for m in self.measurements),
+            outputs=tuple(o for m in self.measurements for o in _outputs(m)),
             evaluate=evaluate,
             source=self.source or origin,
-            settings=self.settings,
+            settings=self.settings + tuple(
+                FLOQUET_MARGIN for _ in (0,) if any(isinstance(m, Floquet) for m in self.measurements)
+                and FLOQUET_MARGIN.name not in {s.name for s in self.settings}),
             methods=("dop853",),
         )
