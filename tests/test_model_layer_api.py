@@ -160,3 +160,19 @@ def test_rhs_raising_at_a_point_the_probe_did_not_see_is_a_status(in_tmp):
     assert ds["status"].values.tolist() == [st.OK, st.NONFINITE, st.OK]
     assert math.isnan(ds["x_at_1"].values[1])
     np.testing.assert_allclose(ds["x_at_1"].values[[0, 2]], np.cos([1.0, 2.0]), atol=1e-9)
+
+
+@pytest.mark.slow  # a worker process and its JIT load: ~15-25 s on 2 cores
+def test_dask_worker_imports_the_user_model_file_relative_to_the_scene(tmp_path, monkeypatch):
+    """The worker gets the scene text ("api_models.py:OSC") and the scene's absolute folder; its
+    own working directory (here: another folder) plays no part."""
+    distributed = pytest.importorskip("distributed")
+    folder = _scene_folder(tmp_path)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as c:
+        ds = mechsweep.run(folder / "s.toml", output=elsewhere / "d.h5", scheduler=c.scheduler_address, threads=1,
+                           progress=False)
+    _check(ds)
+    assert ds.attrs["execution"].startswith("dask scheduler")
