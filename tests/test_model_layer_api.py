@@ -6,7 +6,8 @@ All tests share one user model (tests/user_models/api_models.py, one StateAt mea
 its kernel is compiled once per cache."""
 import math
 import os
-import shutil
+import subprocess
+import sys
 from importlib import metadata
 from pathlib import Path
 
@@ -43,8 +44,10 @@ atol = 1e-14
 
 @pytest.fixture(scope="module")
 def osc():
-    """The OdeModel object, imported from its file as a user's script would import it."""
-    return load.import_module("api_models_under_test", str(FILE)).OSC
+    """The OdeModel object, imported from its file (the module mechsweep makes of that file, so
+    every test here shares one compiled kernel)."""
+    load.resolve(f"{FILE}:OSC")
+    return load.import_module(load._module_name(FILE.resolve())).OSC
 
 
 def _check(ds, w=(0.5, 1.0, 1.5, 2.0)):
@@ -53,13 +56,17 @@ def _check(ds, w=(0.5, 1.0, 1.5, 2.0)):
     assert (ds["status"].values == st.OK).all()
 
 
-def _scene_folder(root: Path, model="api_models.py:OSC") -> Path:
-    """A scene file with the model file beside it, in root/scenes."""
+def _scene_folder(root: Path) -> Path:
+    """root/scenes/s.toml naming tests/user_models/api_models.py by a path relative to root/scenes
+    (not copied: one model file, one kernel for all tests)."""
     folder = root / "scenes"
     folder.mkdir()
-    shutil.copy(FILE, folder / "api_models.py")
-    (folder / "s.toml").write_text(SCENE_TEXT.format(model=model))
+    (folder / "s.toml").write_text(SCENE_TEXT.format(model=_ref(folder)))
     return folder
+
+
+def _ref(folder: Path) -> str:
+    return f"{os.path.relpath(FILE.resolve(), folder.resolve())}:OSC"
 
 
 def test_run_accepts_an_ode_model_from_python(in_tmp, osc):
@@ -86,8 +93,8 @@ def test_run_accepts_an_ode_model_from_python(in_tmp, osc):
 
 @pytest.fixture
 def entry_point(monkeypatch):
-    """An installed package registering tests/user_models/api_models.py:OSC as "ep_osc"."""
-    ep = metadata.EntryPoint(name="ep_osc", value="tests.user_models.api_models:OSC", group=load.ENTRY_POINT_GROUP)
+    """An installed package registering tests/user_models/ep_models.py:OSC as "ep_osc"."""
+    ep = metadata.EntryPoint(name="ep_osc", value="tests.user_models.ep_models:OSC", group=load.ENTRY_POINT_GROUP)
     real = metadata.entry_points
 
     def entry_points(**kw):
@@ -105,14 +112,29 @@ def test_entry_point_model_runs_and_is_listed(in_tmp, entry_point, capsys):
     capsys.readouterr()
     assert main(["models"]) == 0
     out = capsys.readouterr().out
-    assert "duffing:" in out and "api_oscillator: x'' + w^2 x = 0" in out and "x_at_1" in out
+    assert "duffing:" in out and "ep_oscillator: x'' + w^2 x = 0" in out and "x_at_1" in out
     assert main(["models", "ep_osc"]) == 0
-    assert capsys.readouterr().out.startswith("api_oscillator:")
+    assert capsys.readouterr().out.startswith("ep_oscillator:")
+
+
+def test_one_file_under_two_module_names_shares_no_disk_cache_entry(tmp_path):
+    """A model file the user imported under one name in one process (run(models=...)), then named
+    by path in a scene in the next: before, numba loaded the first name's disk-cache entry and
+    failed with "numba cannot compile initial: No module named ..." (exit 2 for ever after)."""
+    path = tmp_path / "twice.py"
+    path.write_text(FILE.read_text().replace("api_oscillator", "twice_oscillator"))
+    first = (f"from mechsweep.model import load; "
+             f"load.from_object('twice', load.import_module('twice_alias', {str(path)!r}).OSC)")
+    second = f"from mechsweep.model import load; print(load.resolve({str(path) + ':OSC'!r}).name)"
+    for code in (first, second):
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
+        assert out.returncode == 0, out.stderr[-500:]
+    assert out.stdout.strip() == "twice_oscillator"
 
 
 def test_models_command_shows_a_user_model_by_file_or_scene(in_tmp, capsys):
     folder = _scene_folder(in_tmp)
-    assert main(["models", "scenes/api_models.py:OSC"]) == 0
+    assert main(["models", f"{FILE}:OSC"]) == 0
     out = capsys.readouterr().out
     assert out.startswith("api_oscillator:") and "w          [rad/s]" in out and "x_at_1" in out
     assert main(["models", "--scene", str(folder / "s.toml")]) == 0  # found relative to the scene
@@ -138,9 +160,9 @@ def test_unfinished_run_reads_and_resumes_from_another_directory(tmp_path, monke
         mp.setattr(runner, "evaluate_chunk", flaky)
         with pytest.raises(mechsweep.RunInterrupted):
             mechsweep.run("s.toml")
-    elsewhere = tmp_path / "elsewhere"
-    elsewhere.mkdir()
-    monkeypatch.chdir(elsewhere)  # the stored scene text says "api_models.py:OSC": not here
+    elsewhere = tmp_path / "elsewhere" / "deeper"
+    elsewhere.mkdir(parents=True)
+    monkeypatch.chdir(elsewhere)  # the stored scene text's relative model path leads nowhere from here
     partial = mechsweep.open_dataset(folder / "out.h5", allow_partial=True)
     assert (partial["status"].values == st.PENDING).sum() == 2
     ds = mechsweep.run(folder / "s.toml", output=folder / "out.h5", resume=True)
@@ -153,7 +175,7 @@ def test_rhs_raising_at_a_point_the_probe_did_not_see_is_a_status(in_tmp):
     """The probe (w = 1) passes; at w = 3 the compiled rhs raises inside the parallel loop. Today
     numba does not propagate it: the point ends NONFINITE (no crash, no traceback), the others OK."""
     _scene_folder(in_tmp)
-    text = SCENE_TEXT.format(model="api_models.py:OSC").replace("[0.5, 1.0, 1.5, 2.0]", "[1.0, 3.0, 2.0]")
+    text = SCENE_TEXT.format(model=_ref(in_tmp / "scenes")).replace("[0.5, 1.0, 1.5, 2.0]", "[1.0, 3.0, 2.0]")
     (in_tmp / "scenes" / "r.toml").write_text(text)
     assert main(["run", "scenes/r.toml", "-o", "r.h5"]) == 0
     ds = mechsweep.open_dataset("r.h5")
@@ -164,12 +186,12 @@ def test_rhs_raising_at_a_point_the_probe_did_not_see_is_a_status(in_tmp):
 
 @pytest.mark.slow  # a worker process and its JIT load: ~15-25 s on 2 cores
 def test_dask_worker_imports_the_user_model_file_relative_to_the_scene(tmp_path, monkeypatch):
-    """The worker gets the scene text ("api_models.py:OSC") and the scene's absolute folder; its
-    own working directory (here: another folder) plays no part."""
+    """The worker gets the scene text (a model path relative to the scene) and the scene's absolute
+    folder; its own working directory (here: another folder) plays no part."""
     distributed = pytest.importorskip("distributed")
     folder = _scene_folder(tmp_path)
-    elsewhere = tmp_path / "elsewhere"
-    elsewhere.mkdir()
+    elsewhere = tmp_path / "elsewhere" / "deeper"
+    elsewhere.mkdir(parents=True)
     monkeypatch.chdir(elsewhere)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as c:
         ds = mechsweep.run(folder / "s.toml", output=elsewhere / "d.h5", scheduler=c.scheduler_address, threads=1,

@@ -17,6 +17,7 @@ import math
 import re
 import sys
 import traceback
+import types
 from pathlib import Path
 
 import numpy as np
@@ -78,8 +79,21 @@ def jitted(module: str, path: str, qualname: str):
         obj = import_module(module, path)
         for part in qualname.split("."):
             obj = getattr(obj, part)
-        _JITTED[key] = _jit.jit(getattr(obj, "py_func", obj))
+        _JITTED[key] = _jit.jit(_renamed(getattr(obj, "py_func", obj), module))
     return _JITTED[key]
+
+
+def _renamed(func, module: str):
+    """``func`` with its qualified name suffixed by a hash of ``module``. numba names a function's
+    disk-cache entry after its file and qualified name only, and a cached entry re-imports the
+    module it was compiled in: one file loaded under two module names (by path in a scene, and as
+    a module, an entry point or the user's own import for run(models=...)) would otherwise load
+    the other name's entry and fail with "No module named ..." in every later process."""
+    g = types.FunctionType(func.__code__, func.__globals__, func.__name__, func.__defaults__, func.__closure__)
+    g.__kwdefaults__ = func.__kwdefaults__
+    g.__module__ = func.__module__
+    g.__qualname__ = f"{func.__qualname__}__{hashlib.sha256(module.encode()).hexdigest()[:8]}"
+    return g
 
 
 ENTRY_POINT_GROUP = "mechsweep.models"
