@@ -25,9 +25,24 @@ typical session:
   mechsweep plot data/runs/quickstart.h5           # -> data/runs/quickstart.png
   mechsweep info data/runs/quickstart.h5
   mechsweep models                                 # every model, parameter and output
+  mechsweep models my_models.py:NAME               # a model of your own (see `models --help`)
 
 exit codes: 0 done, 1 unexpected error, 2 invalid input (nothing written) or a failed write
 (disk full: the journal is kept for --resume), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM)
+"""
+
+MODELS_EPILOG = """\
+Lists the built-in models, then the models installed packages register (entry-point group
+mechsweep.models), with their parameters and outputs. A user model comes in by one of four doors:
+  model = "my_models.py:NAME"       in a scene: a file path relative to the scene file
+  model = "mypkg.models:NAME"       in a scene: an importable module
+  model = "NAME"                    registered by an installed package, in its pyproject.toml:
+                                      [project.entry-points."mechsweep.models"]
+                                      NAME = "mypkg.models:NAME"
+  mechsweep.run(scene, models={"NAME": my_ode_model})   from Python (runs locally only)
+`mechsweep models my_models.py:NAME` or `mechsweep models --scene S.toml` shows one user model.
+Loading a model file or module executes it: only name code you trust. A model that fails to
+load is reported with its file and line (exit 2).
 """
 
 RUN_EPILOG = """\
@@ -137,8 +152,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("dataset", metavar="DATASET")
     p.set_defaults(func=_cmd_info)
 
-    p = sub.add_parser("models", help="list models with their parameters and outputs (name, unit, range)")
-    p.add_argument("model", nargs="?", help="one model only")
+    p = sub.add_parser("models", help="list models with their parameters and outputs (name, unit, range)",
+                       description=MODELS_EPILOG, formatter_class=fmt)
+    p.add_argument("model", nargs="?", help="one model only: a built-in or registered name, 'file.py:NAME' "
+                   "(relative to the current directory) or 'package.module:NAME'")
+    p.add_argument("--scene", metavar="SCENE", help="the model the scene file SCENE names (a user model "
+                   "file is found relative to the scene)")
     p.add_argument("--markdown", action="store_true", help="print the glossary tables used in README.md")
     p.set_defaults(func=_cmd_models)
 
@@ -361,14 +380,46 @@ def _laid_out(path):
 
 def _cmd_models(args) -> int:
     from .errors import InputError
+    from .model import load
     from .models import MODELS
 
-    names = [args.model] if args.model else list(MODELS)
-    for name in names:
-        if name not in MODELS:
-            raise InputError(f"unknown model {name!r}; models: {', '.join(MODELS)}")
-        print(model_markdown(MODELS[name]) if args.markdown else model_text(MODELS[name]))
+    if args.scene and args.model:
+        raise InputError("give either a MODEL or --scene SCENE, not both")
+    if args.scene:
+        from .scene import load_scene
+
+        specs = [load_scene(args.scene).model]
+    elif args.model:
+        name = args.model
+        if name in MODELS:
+            specs = [MODELS[name]]
+        elif ":" in name:
+            specs = [load.resolve(name)]
+        else:
+            points = load.entry_points()
+            if name not in points:
+                known = list(MODELS) + sorted(set(points) - set(MODELS))
+                raise InputError(f"unknown model {name!r}; models: {', '.join(known)} (or 'file.py:NAME', "
+                                 "'package.module:NAME')")
+            specs = [_entry_point_model(name, points[name])]
+    else:
+        points = load.entry_points()
+        specs = list(MODELS.values()) + [_entry_point_model(n, ep) for n, ep in points.items() if n not in MODELS]
+    for spec in specs:
+        print(model_markdown(spec) if args.markdown else model_text(spec))
     return 0
+
+
+def _entry_point_model(name: str, ep):
+    from .errors import InputError
+    from .model import load
+
+    dist = getattr(getattr(ep, "dist", None), "name", None)
+    try:
+        return load.resolve(ep.value)
+    except InputError as exc:
+        raise InputError(f"entry point {name!r} (group {load.ENTRY_POINT_GROUP}"
+                         f"{', package ' + dist if dist else ''}): {exc}") from None
 
 
 def _cmd_check(args) -> int:

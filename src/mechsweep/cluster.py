@@ -103,7 +103,7 @@ def dask_results(scene, todo, scheduler: str, threads: int | None = None, *, wor
     live = {}  # key -> (future, chunk), submitted and not yet handed out
 
     def submit(chunk) -> None:
-        fut = client.submit(compute_chunk, scene.text, chunk, threads, key=f"mechsweep-{run_id}-{chunk.index}")
+        fut = client.submit(compute_chunk, scene.text, chunk, threads, scene.base, key=f"mechsweep-{run_id}-{chunk.index}")
         live[fut.key] = (fut, chunk)
         futures.add(fut)
 
@@ -235,23 +235,25 @@ def _trouble(client, timeout: float) -> str | None:
     return None
 
 
-def compute_chunk(scene_text: str, chunk, threads: int | None = None):
+def compute_chunk(scene_text: str, chunk, threads: int | None = None, base: str = ""):
     """A worker's task: the chunk's (outputs, status, n_steps, n_rhs), as a local run computes them,
-    on ``threads`` numba threads (at most the worker's; default all of them)."""
+    on ``threads`` numba threads (at most the worker's; default all of them). ``base``: the absolute
+    folder of the client's scene file, against which a user model file path in the scene is
+    resolved (the worker's own working directory plays no part; the file must be readable there)."""
     import numba
 
     from .runner import evaluate_chunk
 
-    scene, params = _scene(scene_text)
+    scene, params = _scene(scene_text, base)
     # numba's thread count is per calling thread: set it for this task's thread, every time
     numba.set_num_threads(min(threads or numba.config.NUMBA_NUM_THREADS, numba.config.NUMBA_NUM_THREADS))
     return evaluate_chunk(scene, chunk, params)
 
 
 @functools.lru_cache(maxsize=4)
-def _scene(text: str):
+def _scene(text: str, base: str = ""):
     from .grid import ParameterMatrix
     from .scene import load_scene_text
 
-    scene = load_scene_text(text, label="scene sent by the mechsweep client")
+    scene = load_scene_text(text, label="scene sent by the mechsweep client", base=base or None)
     return scene, ParameterMatrix(scene)

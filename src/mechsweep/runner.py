@@ -76,6 +76,7 @@ def run(
     load: bool | None = None,
     worker_timeout: float | None = None,
     overwrite: bool = False,
+    models: Mapping | None = None,
 ) -> xr.Dataset:
     """Compute a scene's grid and return the stored dataset.
 
@@ -96,10 +97,16 @@ def run(
 
     An existing ``output`` is replaced only by a run of the same scene (a re-run), unless
     ``overwrite``: a dataset of another scene, or a file mechsweep did not write, is refused.
+
+    ``models``: model name -> ``mechsweep.model.OdeModel`` (or a ``ModelSpec``) defined in Python,
+    for a scene whose ``model`` is that name. Such a model lives only in this process: it runs
+    locally (a dask cluster is refused; name the model as "file.py:NAME" or "package.module:NAME"
+    in the scene for that).
     """
     lazy = None if load is None else not load
     summary = compute(scene_or_path, output=output, resume=resume, restart=restart, threads=threads,
-                      progress=progress, scheduler=scheduler, worker_timeout=worker_timeout, overwrite=overwrite)
+                      progress=progress, scheduler=scheduler, worker_timeout=worker_timeout, overwrite=overwrite,
+                      models=models)
     return open_dataset(summary.path, lazy=lazy)
 
 
@@ -114,6 +121,7 @@ def compute(
     scheduler: str | None = None,
     worker_timeout: float | None = None,
     overwrite: bool = False,
+    models: Mapping | None = None,
 ) -> RunSummary:
     """``run`` without opening the result: compute the scene into its file and return a
     :class:`RunSummary` (path, sizes, status counts, wall time). Memory stays bounded by the
@@ -121,7 +129,9 @@ def compute(
     if resume and restart:
         raise InputError("resume and restart (--resume --restart) together are refused: --resume keeps the "
                          "finished chunks of an unfinished run, --restart discards them; choose one")
-    scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path)
+    if models is not None and not isinstance(models, Mapping):
+        raise InputError(f"models must be a mapping of model name -> OdeModel, got {type(models).__name__}")
+    scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path, models=models)
     if output is not None and str(output).endswith(("/", os.sep)):
         raise StoreError(f"output path {output} ends with a path separator; give a file path such as "
                          f"{Path(output) / 'run.h5'}")
@@ -130,6 +140,10 @@ def compute(
     if scheduler is not None and (why := check_scheduler(scheduler)) is not None:
         raise InputError(f"scheduler {why}")
     scheduler = scheduler if scheduler is not None else scene.execution.scheduler
+    if scheduler and models and _from_python(scene, models):
+        raise InputError(f"model {scene.model.name!r} was given from Python (models=...); a dask worker cannot "
+                         "import it: name it in the scene as 'file.py:NAME' or 'package.module:NAME' to run it "
+                         f"on the cluster {scheduler}, or run without a scheduler")
     _check_threads(threads, here=scheduler is None)  # before any file is created
     if worker_timeout is not None and (why := check_worker_timeout(worker_timeout)) is not None:
         raise InputError(f"worker timeout {why}")
@@ -166,6 +180,19 @@ def compute(
         if client is not None:
             _disconnect(client)
     return RunSummary(final, _sizes(scene), counts, wall_time)
+
+
+def _from_python(scene: Scene, models: Mapping) -> bool:
+    """Whether the scene's model is one of ``models`` (given from Python, not importable elsewhere)."""
+    from .model.load import from_object
+
+    for name, obj in models.items():
+        try:
+            if scene.model is obj or scene.model is from_object(name, obj):
+                return True
+        except InputError:
+            continue
+    return False
 
 
 def _sizes(scene: Scene) -> dict:
@@ -300,7 +327,8 @@ def same_scene(attrs: Mapping, scene: Scene) -> bool:
     if not isinstance(text, str):
         return False
     try:
-        return load_scene_text(text, label="stored scene").canonical() == scene.canonical()
+        return load_scene_text(text, label="stored scene", base=attrs.get("scene_folder") or None,
+                               ).canonical() == scene.canonical()
     except InputError:
         return False
 
@@ -684,6 +712,7 @@ def provenance(scene: Scene, chunks: ChunkPlan) -> dict:
         "outputs": " ".join(scene.outputs),
         "scene": scene.text,
         "scene_canonical": scene.canonical(),
+        **({"scene_folder": scene.base} if scene.base else {}),
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "mechsweep_version": __version__,
         "numba_version": numba.__version__,

@@ -185,6 +185,10 @@ class Scene:
     storage: Storage
     text: str  # the scene as the user wrote it (TOML), stored with the dataset
     execution: Execution = Execution()
+    # absolute folder a user model file path of ``model`` ("file.py:NAME") was resolved against;
+    # "" when the model is not named by a file path. Stored with a run and sent to dask workers,
+    # so the stored text is re-read against it from any working directory.
+    base: str = ""
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -248,11 +252,12 @@ class Scene:
 
 
 # ----------------------------------------------------------------------------- loading
-def load_scene(source: str | Path | Mapping) -> Scene:
-    """Load and validate a scene from a TOML path or a dict with the same structure."""
+def load_scene(source: str | Path | Mapping, models: Mapping | None = None) -> Scene:
+    """Load and validate a scene from a TOML path or a dict with the same structure.
+    ``models``: model name -> OdeModel or ModelSpec given from Python, for a scene naming one."""
     if isinstance(source, Mapping):
         source = _plain(source)
-        return validate(source, text=to_toml(source), label="scene")
+        return validate(source, text=to_toml(source), label="scene", models=models)
     path = Path(source)
     label = str(path)
     try:
@@ -267,7 +272,7 @@ def load_scene(source: str | Path | Mapping) -> Scene:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise SceneError([f"{label!r} is not UTF-8 text (byte {exc.start})"], label) from None
-    return load_scene_text(text, label, base=path.resolve().parent)
+    return load_scene_text(text, label, base=path.resolve().parent, models=models)
 
 
 def _plain(value):
@@ -284,7 +289,8 @@ def _plain(value):
     return value
 
 
-def load_scene_text(text: str, label: str = "scene", base: Path | None = None) -> Scene:
+def load_scene_text(text: str, label: str = "scene", base: Path | str | None = None,
+                    models: Mapping | None = None) -> Scene:
     """Load and validate a scene from its TOML text (e.g. the copy stored with a run).
     ``base``: the folder a user model file path ("my_models.py:NAME") is relative to (default: cwd)."""
     if text.startswith("\ufeff"):
@@ -303,10 +309,11 @@ def load_scene_text(text: str, label: str = "scene", base: Path | None = None) -
         raise SceneError(["TOML nesting too deep"], label) from None
     except ValueError as exc:  # e.g. an integer of more than 4300 digits
         raise SceneError([f"TOML value not readable ({str(exc).split(';')[0]})"], label) from None
-    return validate(data, text=text, label=label, base=base)
+    return validate(data, text=text, label=label, base=base, models=models)
 
 
-def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | None = None) -> Scene:
+def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str | None = None,
+             models: Mapping | None = None) -> Scene:
     p = _Problems()
     if not isinstance(data, Mapping):
         raise SceneError([f"a scene is a table of sections, got {type(data).__name__}"], label)
@@ -320,7 +327,7 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | Non
     for key in head:
         if key not in ("name", "model", "outputs", "description"):
             p.unknown(f"scene.{key}", key, ("name", "model", "outputs", "description"), "key")
-    model = _model(head.get("model"), p, base)
+    model = _model(head.get("model"), p, base, models)
     if model is None:
         raise SceneError(p.items, label)
     outputs = _outputs(head.get("outputs"), model, p)
@@ -366,6 +373,7 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | Non
         storage=storage,
         text=text,
         execution=execution,
+        base=_model_folder(head.get("model"), base),
     )
 
 
@@ -429,21 +437,51 @@ def _table(data: Mapping, key: str, p: _Problems, required: bool = False) -> Map
     return value
 
 
-def _model(name, p: _Problems, base: Path | None = None) -> ModelSpec | None:
+def _model(name, p: _Problems, base: Path | str | None = None, models: Mapping | None = None) -> ModelSpec | None:
+    from .model import load
+
     if name is None:
         p.add("scene.model", f"missing; expected one of {', '.join(MODELS)}")
         return None
-    if isinstance(name, str) and ":" in name:  # a user model: "file.py:NAME" or "package.module:NAME"
-        from .model import load
+    if models and isinstance(name, str) and name in models:  # given from Python: run(scene, models={...})
         try:
-            return load.resolve(name, base)
+            return load.from_object(name, models[name])
         except InputError as exc:
             p.add("scene.model", str(exc))
             return None
+    if isinstance(name, str) and ":" in name:  # a user model: "file.py:NAME" or "package.module:NAME"
+        try:
+            return load.resolve(name, Path(base) if base else None)
+        except InputError as exc:
+            p.add("scene.model", str(exc))
+            return None
+    if isinstance(name, str) and name not in MODELS:
+        try:
+            points = load.entry_points()
+        except InputError as exc:
+            p.add("scene.model", str(exc))
+            return None
+        if name in points:  # registered by an installed package (entry-point group mechsweep.models)
+            try:
+                return load.resolve(points[name].value)
+            except InputError as exc:
+                p.add("scene.model", f"entry point {name!r} ({load.ENTRY_POINT_GROUP}): {exc}")
+                return None
     if not isinstance(name, str) or name not in MODELS:
-        p.unknown("scene.model", name, tuple(MODELS), "model")
+        known = tuple(MODELS) + tuple(sorted(set(load.entry_points(quiet=True)) - set(MODELS)))
+        known += tuple(sorted(set(models or ()) - set(known)))
+        p.unknown("scene.model", name, known, "model")
         return None
     return MODELS[name]
+
+
+def _model_folder(name, base) -> str:
+    """The absolute folder a file-path model reference is relative to ("" for other models)."""
+    from .model import load
+
+    if isinstance(name, str) and load.is_file_ref(name):
+        return str(Path(base).resolve() if base else Path.cwd())
+    return ""
 
 
 def _outputs(value, model: ModelSpec, p: _Problems) -> tuple[str, ...]:

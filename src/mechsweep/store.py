@@ -557,7 +557,9 @@ def _assemble_partial(part: Path) -> xr.Dataset:
     journal = Journal.read(part)
     if journal.empty:
         raise FileNotFoundError(f"{part} holds no finished chunk yet")
-    scene = load_scene_text(journal.meta["scene"], label=str(part / "run.json"))
+    attrs = journal.meta.get("attrs") if isinstance(journal.meta.get("attrs"), dict) else {}
+    scene = load_scene_text(journal.meta["scene"], label=str(part / "run.json"),
+                            base=attrs.get("scene_folder") or None)
     chunks = plan_chunks(scene.shape, journal.meta["chunk_target"])
     lay = layout(scene, len(chunks))
     buffer = io.BytesIO()

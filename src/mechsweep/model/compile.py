@@ -36,6 +36,39 @@ def _folder() -> Path:
     return path
 
 
+# An exception the user's code raises inside the parallel loop (at a point the load-time probe did
+# not see) must not escape the kernel: numba then either loses it or leaves the Python error
+# indicator set (SystemError, a traceback). The guards catch it and write NaN, so the point ends
+# NONFINITE (forcing_period: NaN, so Floquet says INFEASIBLE) and the other points are computed.
+_GUARDS = """
+
+@jit
+def rhs(t, y, p, dydt):
+    try:
+        user_rhs(t, y, p, dydt)
+    except Exception:
+        dydt[:] = np.nan
+
+
+@jit
+def initial(p, y0):
+    try:
+        user_initial(p, y0)
+    except Exception:
+        y0[:] = np.nan
+
+"""
+_FORCING_GUARD = """
+@jit
+def forcing(p):
+    try:
+        return user_forcing(p)
+    except Exception:
+        return np.nan
+
+"""
+
+
 def columns(chosen) -> list[int]:
     """First column of each chosen measurement in the kernel's table (a measurement with
     ``n_values`` > 1, Floquet, has that many columns)."""
@@ -63,10 +96,11 @@ def kernel_source(model, chosen, rhs_ref, initial_ref, origin: str, forcing_ref=
         "from mechsweep._jit import jit, pjit, prange\n"
         "from mechsweep.ode import dop853\n"
         "from mechsweep.model.load import jitted\n\n"
-        f"rhs = jitted{rhs_ref!r}\n"
-        f"initial = jitted{initial_ref!r}\n"
-        + (f"forcing = jitted{forcing_ref!r}\n" if forcing_ref else "")
+        f"user_rhs = jitted{rhs_ref!r}\n"
+        f"user_initial = jitted{initial_ref!r}\n"
+        + (f"user_forcing = jitted{forcing_ref!r}\n" if forcing_ref else "")
         + (f"jac = jitted{jac_ref!r}\n" if jac_ref else "")
+        + _GUARDS + (_FORCING_GUARD if forcing_ref else "")
         + f"NP = {n_p}\nNS = {n_s}\nNSCR = {n_scr}\n"
     ]
     if group:

@@ -17,6 +17,7 @@ import math
 import re
 import sys
 import traceback
+import types
 from pathlib import Path
 
 import numpy as np
@@ -78,8 +79,69 @@ def jitted(module: str, path: str, qualname: str):
         obj = import_module(module, path)
         for part in qualname.split("."):
             obj = getattr(obj, part)
-        _JITTED[key] = _jit.jit(getattr(obj, "py_func", obj))
+        _JITTED[key] = _jit.jit(_renamed(getattr(obj, "py_func", obj), module))
     return _JITTED[key]
+
+
+def _renamed(func, module: str):
+    """``func`` with its qualified name suffixed by a hash of ``module``. numba names a function's
+    disk-cache entry after its file and qualified name only, and a cached entry re-imports the
+    module it was compiled in: one file loaded under two module names (by path in a scene, and as
+    a module, an entry point or the user's own import for run(models=...)) would otherwise load
+    the other name's entry and fail with "No module named ..." in every later process."""
+    g = types.FunctionType(func.__code__, func.__globals__, func.__name__, func.__defaults__, func.__closure__)
+    g.__kwdefaults__ = func.__kwdefaults__
+    g.__module__ = func.__module__
+    g.__qualname__ = f"{func.__qualname__}__{hashlib.sha256(module.encode()).hexdigest()[:8]}"
+    return g
+
+
+ENTRY_POINT_GROUP = "mechsweep.models"
+
+
+def is_file_ref(ref: str) -> bool:
+    """Whether a model reference names a file path ("file.py:NAME", "dir/file.py:NAME")."""
+    left = ref.rpartition(":")[0]
+    return bool(left) and (left.endswith(".py") or "/" in left or "\\" in left)
+
+
+def entry_points(quiet: bool = False) -> dict:
+    """Models installed packages register: name -> importlib.metadata.EntryPoint of the group
+    ``mechsweep.models`` (value "package.module:NAME"). Two packages registering one name is an
+    InputError naming both (unless ``quiet``: then the first is kept)."""
+    from importlib import metadata
+
+    found: dict = {}
+    for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
+        if ep.name in found and found[ep.name].value != ep.value and not quiet:
+            raise InputError(f"model {ep.name!r} is registered twice in entry-point group {ENTRY_POINT_GROUP!r}: "
+                             f"{found[ep.name].value!r} and {ep.value!r}; uninstall one of the packages")
+        found.setdefault(ep.name, ep)
+    return found
+
+
+def from_object(name: str, obj):
+    """The ModelSpec of a model given from Python (``run(scene, models={name: obj})``): an OdeModel
+    (checked as a model file's is) or a ModelSpec (used as is)."""
+    from ..models import MODELS, ModelSpec
+    from .ode import OdeModel
+
+    if name in MODELS:
+        raise InputError(f"models[{name!r}]: {name!r} is a built-in model; give your model another name")
+    if isinstance(obj, ModelSpec):
+        return obj
+    if not isinstance(obj, OdeModel):
+        raise InputError(f"models[{name!r}] is a {type(obj).__name__}; expected a mechsweep.model.OdeModel "
+                         "or a mechsweep.models.ModelSpec")
+    key = ("object", id(obj))
+    if key in _RESOLVED and _RESOLVED[key][0] is obj:
+        return _RESOLVED[key][1]
+    module = getattr(getattr(obj.rhs, "py_func", obj.rhs), "__module__", "") or ""
+    file = _FILES.get(module) or getattr(sys.modules.get(module), "__file__", "") or module
+    check(obj, f"models[{name!r}]", file)
+    spec = obj.spec(origin=f"{module}:{name}")
+    _RESOLVED[key] = (obj, spec)
+    return spec
 
 
 def resolve(ref: str, base: Path | None = None):
@@ -89,7 +151,7 @@ def resolve(ref: str, base: Path | None = None):
     left, _, name = ref.rpartition(":")
     if not left or not name:
         raise InputError(f"{ref!r}: expected a built-in model name, 'file.py:NAME' or 'package.module:NAME'")
-    if left.endswith(".py") or "/" in left or "\\" in left:
+    if is_file_ref(ref):
         path = Path(left)
         if not path.is_absolute():
             path = (base or Path.cwd()) / path
