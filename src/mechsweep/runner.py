@@ -514,7 +514,7 @@ def check_target(final: Path) -> None:
 
 
 # Memory a chunk needs, in units of its output arrays: the chunk being computed (outputs and the
-# model's scratch of the same size, e.g. the autobalancer's trajectory samples) and the previous
+# model's scratch of the same size, e.g. a simulation's trajectory samples) and the previous
 # chunk waiting to be written.
 CHUNK_MEMORY_FACTOR = 3
 
