@@ -188,6 +188,13 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--numpy-designs", type=int, default=20_000, help="designs for numpy (default 20000)")
     b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
     b.set_defaults(func=_cmd_bench_linkage)
+    b = bsub.add_parser("user-model", help="the Duffing oscillator declared as a user model against the built-in "
+                                           "kernel: points/s and period error, side by side")
+    b.add_argument("--points", type=int, default=200_000, help="grid points (default 200000)")
+    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
+    b.add_argument("--rtol", type=float, default=None, help="default: the solver default")
+    b.add_argument("--atol", type=float, default=None, help="default: the solver default")
+    b.set_defaults(func=_cmd_bench_user_model)
     b = bsub.add_parser("period-error", help="worst Duffing period error over epsilon for a ladder of tolerances")
     b.set_defaults(func=_cmd_bench_period_error)
     b = bsub.add_parser("workprecision", formatter_class=fmt,
@@ -461,6 +468,13 @@ def _cmd_bench_linkage(args) -> int:
 
     linkage.main(designs=args.designs, numpy_designs=args.numpy_designs,
                  threads=numba.config.NUMBA_NUM_THREADS if args.threads is None else args.threads)
+    return 0
+
+
+def _cmd_bench_user_model(args) -> int:
+    from .bench import user_duffing
+
+    user_duffing.main(points=args.points, threads=args.threads, rtol=args.rtol, atol=args.atol)
     return 0
 
 
