@@ -191,7 +191,7 @@ def test_a_lost_cluster_ends_with_a_message_and_the_run_resumes_identically(in_t
         cluster.close()
     message = str(caught.value)
     assert address in message and "chunks in flight were not computed" in message
-    assert f"chunks saved in data/runs/dist.h5.partial); run again with --resume" in message
+    assert "chunks saved in data/runs/dist.h5.partial); run again with --resume" in message
     assert len(saved) >= 2
     monkeypatch.undo()
     ds = mechsweep.run(SCENE, output="data/runs/dist.h5", progress=False, resume=True, threads=2)

@@ -14,7 +14,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
 from scipy.special import mathieu_a, mathieu_b
 
 from mechsweep import status as st
