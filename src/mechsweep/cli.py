@@ -142,7 +142,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", metavar="FIGURE", help="figure file (default: DATASET with the format's suffix)")
     p.add_argument("--format", choices=("png", "svg", "pdf"), default=None, help="figure format (default png)")
     p.add_argument("--kind", default=None, help="which figure, when a dataset has several (see --list)")
-    p.add_argument("--list", action="store_true", help="list the figures this dataset can draw")
+    p.add_argument("--list", action="store_true", help="list the figures this dataset can draw (those drawn by default, then generic ones drawn only with --kind)")
     p.add_argument("--point", metavar="KEY=VALUE,...",
                    help="select one grid point (nearest values), e.g. --point Omega=12.5,m=0.2; "
                         "draws its time histories when the dataset stores them")
@@ -265,9 +265,12 @@ def _cmd_plot(args) -> int:
         if args.point:
             ds = select_point(ds, args.point)
         kinds = figures.available(ds)
+        extra = figures.on_request(ds) if args.list else {}
     if args.list:
         for k, doc in kinds.items():
             print(f"{k}: {doc}")
+        for k, doc in extra.items():
+            print(f"{k} (on request: --kind {k}): {doc}")
         return 0
     fmt = args.format or (Path(args.output).suffix.lstrip(".") if args.output else "png")
     if fmt not in ("png", "svg", "pdf"):

@@ -1,47 +1,59 @@
 """Figures read a stored Dataset and label themselves from its attributes; they never compute.
 
-``available(ds)`` lists the figures a dataset can draw; ``save(ds, path)`` writes them.
+Which figures a dataset gets is decided from what it declares, never from variable names here:
+
+1. figures for a model: each figure module lists ``FIGURES`` (:class:`~._registry.ModelFigure`
+   entries) saying which ``model`` attribute (or benchmark ``mechsweep_kind``) it is for, which
+   outputs it needs and which it draws, and what dimensions it fits;
+2. generic figures for the outputs no fitting figure of step 1 draws (:func:`.generic.choose`:
+   from the outputs' declared kinds, dimensions and the axes' spacing).
+
+Step 2's figures are drawn by default when no figure of step 1 fits (a model the package has no
+figures for, e.g. a user's own); otherwise they are listed as on request (``--kind NAME``), so the
+figures of the built-in models' scenes stay the ones their modules draw.
+
+``available(ds)`` lists the figures drawn by default, ``on_request(ds)`` the others;
+``draw(ds, kind)`` returns one as a matplotlib Figure (made without pyplot); ``save(ds, path)``
+writes them.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
 from . import autobalancer, duffing, generic, linkage, torsional, workprecision
+from ._registry import ModelFigure
 
-# (name, can_draw, draw), most specific first; draw(ds) -> matplotlib Figure
-FIGURES = (
-    ("workprecision", workprecision.can_workprecision, workprecision.workprecision),
-    ("coefficients", torsional.can_coefficients, torsional.coefficients),
-    ("truncation_error", torsional.can_truncation_error, torsional.truncation_error),
-    ("amplitude_period", duffing.can_amplitude_period, duffing.amplitude_period),
-    ("kinematic_coefficients", duffing.can_kinematic_coefficients, duffing.kinematic_coefficients),
-    ("stability_chart", autobalancer.can_stability_chart, autobalancer.stability_chart),
-    ("residual", autobalancer.can_residual, autobalancer.residual),
-    ("time_history", autobalancer.can_time_history, autobalancer.time_history),
-    ("moment_methods", linkage.can_moment_methods, linkage.moment_methods),
-    ("balancing_map", linkage.can_balancing_map, linkage.balancing_map),
-    ("slider_residual", linkage.can_slider_residual, linkage.slider_residual),
-    ("pareto", linkage.can_pareto, linkage.pareto),
-    ("stability_map", generic.can_stability_map, generic.stability_map),
-)
-FALLBACK = ("outputs", generic.can_outputs, generic.outputs)
+# figures for a model, most specific first
+MODEL_FIGURES: tuple[ModelFigure, ...] = (workprecision.FIGURES + torsional.FIGURES + duffing.FIGURES
+                                          + autobalancer.FIGURES + linkage.FIGURES)
+
+
+def _plan(ds) -> list[tuple[str, str, object, bool]]:
+    """(name, description, draw(ds) -> Figure, drawn by default) for every figure that fits."""
+    model = [f for f in MODEL_FIGURES if f.fits_dataset(ds)]
+    drawn = set().union(*(f.drawn(ds) for f in model))
+    plan = [(f.name, f.description, f.draw, True) for f in model]
+    plan += [(c.name, c.description, c.draw, not model) for c in generic.choose(ds, drawn)]
+    return plan
 
 
 def available(ds) -> dict[str, str]:
-    """Figure kinds this dataset can draw, with one line saying what each shows."""
-    kinds = {name: (draw.__doc__ or "").strip().splitlines()[0] for name, can, draw in FIGURES if can(ds)}
-    if not kinds and FALLBACK[1](ds):
-        kinds[FALLBACK[0]] = FALLBACK[2].__doc__.strip().splitlines()[0]
-    return kinds
+    """Figures drawn by default for this dataset, with a sentence saying what each shows."""
+    return {name: text for name, text, _, default in _plan(ds) if default}
+
+
+def on_request(ds) -> dict[str, str]:
+    """Generic figures that fit this dataset but are drawn only when asked for by name (the dataset's
+    model has figures of its own that fit)."""
+    return {name: text for name, text, _, default in _plan(ds) if not default}
 
 
 def draw(ds, kind: str):
-    for name, can, fn in FIGURES + (FALLBACK,):
+    for name, _, fn, _ in _plan(ds):
         if name == kind:
-            if not can(ds):
-                raise ValueError(f"figure {kind!r} does not fit this dataset")
             return fn(ds)
-    raise ValueError(f"unknown figure {kind!r}")
+    raise ValueError(f"figure {kind!r} does not fit this dataset; it can draw: "
+                     f"{', '.join(name for name, *_ in _plan(ds)) or 'nothing'}")
 
 
 def targets(ds, path, *, kind: str | None = None, fmt: str = "png") -> list[Path]:
@@ -54,24 +66,23 @@ def targets(ds, path, *, kind: str | None = None, fmt: str = "png") -> list[Path
 
 
 def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150) -> list[Path]:
-    """Write one figure (``kind``) or every figure that fits (``kind=None``).
+    """Write one figure (``kind``, any listed by ``available`` or ``on_request``) or every figure
+    drawn by default (``kind=None``).
 
     With several figures, each goes to ``<stem>_<kind>.<fmt>`` beside ``path``.
     """
-    import matplotlib.pyplot as plt
-
     from ..errors import InputError
 
+    plan = {name: fn for name, _, fn, _ in _plan(ds)}
     kinds = available(ds)
-    if kind is not None and kind not in kinds:
+    if kind is not None and kind not in plan:
         raise InputError(f"figure {kind!r} does not fit this dataset; it can draw: "
-                         f"{', '.join(kinds) or 'nothing'}")
-    if not kinds:
-        raise InputError("no figure fits this dataset (it needs one or two numeric axes)")
+                         f"{', '.join(plan) or 'nothing'}")
+    if not kinds and kind is None:
+        raise InputError("no figure fits this dataset (a generic figure needs a float output over at least one "
+                         "numeric axis with more than one value)")
     written = []
     for k, out in zip([kind] if kind else list(kinds), targets(ds, path, kind=kind, fmt=fmt)):
-        fig = draw(ds, k)
-        fig.savefig(out, format=fmt, dpi=dpi)
-        plt.close(fig)
+        plan[k](ds).savefig(out, format=fmt, dpi=dpi)
         written.append(out)
     return written

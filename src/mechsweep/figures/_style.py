@@ -1,13 +1,14 @@
-"""Labels and style shared by every figure; everything comes from dataset attributes."""
+"""Labels and style shared by every figure; everything comes from dataset attributes.
+
+Figures are made as ``matplotlib.figure.Figure`` objects, not through pyplot: drawing one changes
+no matplotlib global state (backend, rcParams, pyplot's list of open figures), so it works headless
+and inside a user's own session alike."""
 from __future__ import annotations
 
 import textwrap
 
-import matplotlib
-
-matplotlib.use("Agg")  # figures are files; never need a display
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import numpy as np
+from matplotlib.figure import Figure
 
 STATUS_OK = 0
 
@@ -43,8 +44,8 @@ def ok_values(ds, name):
 
 
 def new_figure(nrows=1, ncols=1, width=6.4, height=4.2):
-    fig, axes = plt.subplots(nrows, ncols, figsize=(width * ncols, height * nrows), squeeze=False,
-                             constrained_layout=True)
+    fig = Figure(figsize=(width * ncols, height * nrows), layout="constrained")
+    axes = fig.subplots(nrows, ncols, squeeze=False)
     return fig, axes
 
 

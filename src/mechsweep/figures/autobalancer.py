@@ -5,7 +5,10 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.colors import ListedColormap
 
+from ._registry import ModelFigure
 from ._style import flag_note, label, new_figure, title
+
+MODELS = ("autobalancer",)
 
 STABLE_COLORS = ListedColormap(["#f4c7c3", "#c8e6c9"])  # unstable, stable
 
@@ -35,7 +38,8 @@ def _y(ds, dim):
 
 
 def can_stability_chart(ds) -> bool:
-    return "Omega" in ds.dims and "stable_floquet" in ds and _y_dim(ds, "stable_floquet") is not None
+    """Crank speed Omega and exactly one more axis with more than one value."""
+    return "Omega" in ds.dims and _y_dim(ds, "stable_floquet") is not None
 
 
 def stability_chart(ds):
@@ -103,7 +107,8 @@ def _scalar(ds, name):
 
 
 def can_residual(ds) -> bool:
-    return "Omega" in ds.dims and any(n in ds for n in ("residual_amplitude", "settling_time"))
+    """Crank speed Omega is an axis."""
+    return "Omega" in ds.dims
 
 
 def residual(ds):
@@ -148,8 +153,6 @@ HISTORIES = ("xi_history", "eta_history", "phase_error1_history", "phase_error2_
 
 def can_time_history(ds) -> bool:
     """Drawn for one grid point: every grid dimension must be selected down to one value."""
-    if not any(n in ds for n in HISTORIES):
-        return False
     return all(ds.sizes[d] == 1 for d in ds[next(n for n in HISTORIES if n in ds)].dims if d != "revolution")
 
 
@@ -178,3 +181,12 @@ def time_history(ds):
     where = ", ".join(f"{d} = {float(point[d]):g}" for d in ds.dims if d != "revolution" and d in point.coords)
     title(fig, point, f"Time history at {where}" if where else "Time history")
     return fig
+
+
+FIGURES = (
+    ModelFigure("stability_chart", stability_chart, models=MODELS, needs=("stable_floquet",),
+                draws=("floquet_max", "P_approx", "stable_sim", "omega_p"), fits=can_stability_chart),
+    ModelFigure("residual", residual, models=MODELS, any_of=("residual_amplitude", "settling_time"),
+                draws=("phase_error", "omega_p"), fits=can_residual),
+    ModelFigure("time_history", time_history, models=MODELS, any_of=HISTORIES, fits=can_time_history),
+)

@@ -3,7 +3,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._registry import ModelFigure
 from ._style import flag_note, label, log_or_symlog, new_figure, ok_values, title
+
+MODELS = ("duffing", "torsional_circuit")  # the torsional circuit stores Duffing's outputs too
 
 
 def _flat(da):
@@ -17,7 +20,8 @@ def _omega(ds):
 
 
 def can_amplitude_period(ds) -> bool:
-    return "epsilon" in ds and ("period" in ds or "period_exact" in ds) and _omega(ds) is not None
+    """Needs the linear frequency omega (a parameter of the Duffing model) to scale the period."""
+    return _omega(ds) is not None
 
 
 def amplitude_period(ds):
@@ -61,10 +65,6 @@ def amplitude_period(ds):
     return fig
 
 
-def can_kinematic_coefficients(ds) -> bool:
-    return "epsilon" in ds and ("kv" in ds or "ka" in ds)
-
-
 def kinematic_coefficients(ds):
     """k_v = v_max T / A and k_a = a_max T^2 / A against epsilon (2 pi and 4 pi^2 when linear)."""
     names = [n for n in ("kv", "ka") if n in ds]
@@ -85,3 +85,11 @@ def kinematic_coefficients(ds):
         flag_note(ax, ds)
     title(fig, ds, "Kinematic invariants of the Duffing oscillator")
     return fig
+
+
+FIGURES = (
+    ModelFigure("amplitude_period", amplitude_period, models=MODELS, needs=("epsilon",),
+                any_of=("period", "period_exact"), draws=("period_error",), fits=can_amplitude_period),
+    ModelFigure("kinematic_coefficients", kinematic_coefficients, models=MODELS, needs=("epsilon",),
+                any_of=("kv", "ka")),
+)

@@ -1,65 +1,441 @@
-"""Figures for any model, chosen by what its outputs declare (``mechsweep_kind``), and the fallback
-for any dataset: lines over one axis."""
+"""Figures for any model, chosen from what the dataset declares, never from variable names.
+
+Three drawings, each on one matplotlib ``Axes`` (``ax=``; a new figure when omitted), returning its
+artists and changing no matplotlib global state:
+
+- :func:`heatmap`: one output over two numeric axes, colour map with labelled contours;
+- :func:`nomogram`: one output against one axis, one labelled curve per value of a second axis
+  (a single curve when no second axis is given);
+- :func:`stability_panel` (via :func:`stability_map`): stable / unstable shading of an output of
+  kind ``floquet_max`` with the boundary where it crosses 1.
+
+Labels come from the attributes (``long_name``, ``units``, ``symbol``); an axis whose ``spacing``
+attribute is ``"log"`` is drawn on a log scale. Heatmaps and nomograms draw every finite value, also
+at points whose status is not ok (a point's status covers all its outputs; one that failed may leave
+the others valid) and mark those points lightly; NaN is never drawn.
+
+Which figures a dataset gets (:func:`choose`), per output that no figure for its model draws:
+
+- kind ``floquet_max`` and two or more numeric axes: ``stability_map`` (``stability_map_<output>``
+  for a second such output);
+- any other float output over the grid (outputs with extra dimensions, e.g. time histories, are
+  left out), with the numeric axes that have more than one value, in the scene's order:
+
+  - one numeric axis: ``nomogram_<output>`` when another axis (numeric or a list of names) has at
+    most ``FAMILY_MAX`` values, a curve per value; else ``curve_<output>``;
+  - two or more: ``heatmap_<output>`` over the first two (the first is y, the second x), and also
+    ``nomogram_<output>`` when one of the two has at most ``FAMILY_MAX`` values (the one with fewer
+    values gives the curves, the other is x);
+  - no numeric axis: nothing.
+
+  Axes a figure does not use give one panel per value, at most ``MAX_PANELS`` panels (the first
+  values); the panel titles say which slice each is, and the figure title says when panels were
+  left out.
+"""
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 
+import matplotlib
+import matplotlib.patheffects as patheffects
 import numpy as np
-from matplotlib.colors import ListedColormap
+from matplotlib.colors import ListedColormap, LogNorm, Normalize
+from matplotlib.ticker import LogLocator, MaxNLocator
 
-from ._style import STATUS_OK, flag_note, label, log_or_symlog, new_figure, ok_values, title
+from ._style import STATUS_OK, label, new_figure, ok_values, title
 
 STABLE_COLORS = ListedColormap(["#f4c7c3", "#c8e6c9"])  # unstable, stable
 FLOQUET_SLACK = 1e-6  # a modulus within this of 1 counts as on the unit circle (stable, undamped)
-MAX_PANELS = 6
+MAX_PANELS = 4  # panels per generic figure (one per value of the axes the figure does not use)
+FAMILY_MAX = 10  # an axis with at most this many values can give a family of curves
+LEGEND_MAX = 5  # up to this many curves: a legend; more: a colour scale and labels at the curve ends
+MAX_CURVES = 12  # more values than this on the family axis: every k-th value is drawn (said in the title)
+LOG_DECADES = 3  # a positive colour scale or y axis spanning at least this many decades is logarithmic
+HALO = [patheffects.withStroke(linewidth=2.4, foreground="white")]  # keeps black lines visible on dark colours
+FLAG_STYLE = dict(marker="x", s=14, color="0.45", linewidths=0.7, alpha=0.8, zorder=4)
 
 
-def _numeric_dims(ds):
-    return [d for d in ds.dims if ds[d].dtype.kind in "fiu" and ds.sizes[d] > 1]
+# ----------------------------------------------------------------------------- what the dataset declares
+def grid_dims(ds) -> list[str]:
+    """The dataset's grid dimensions (those of ``status`` in a run, else all dimensions)."""
+    return list(ds["status"].dims) if "status" in ds else list(ds.dims)
 
 
-def can_outputs(ds) -> bool:
-    return 1 <= len(_numeric_dims(ds)) <= 2 and bool(ds.attrs.get("outputs"))
+def is_numeric(ds, dim) -> bool:
+    return ds[dim].dtype.kind in "fiu"
 
 
-def outputs(ds):
-    """Each output against the first axis (lines, one per value of a second axis) ."""
-    names = ds.attrs["outputs"].split()
-    dims = _numeric_dims(ds)
-    x = dims[-1]
-    fig, axes = new_figure(len(names), 1, width=6.4, height=3.0)
-    for r, name in enumerate(names):
-        ax = axes[r, 0]
-        da = ok_values(ds, name)
-        rest = [d for d in da.dims if d != x]
-        flat = da.transpose(*rest, x).values.reshape(-1, ds.sizes[x]) if rest else da.values[None, :]
-        step = max(1, flat.shape[0] // 12)
-        for row in flat[::step]:
-            ax.plot(ds[x].values, row, lw=1.0)
-        log_or_symlog(ax, ds[x].values)
-        ax.set_xlabel(label(ds[x]))
-        ax.set_ylabel(label(ds[name]))
-        ax.grid(True, alpha=0.3)
-        flag_note(ax, ds)
-    title(fig, ds, "Outputs")
+def is_log(ds, dim) -> bool:
+    """True when the axis was swept log-spaced (the ``spacing`` attribute a run stores)."""
+    return ds[dim].attrs.get("spacing") == "log" and bool((np.asarray(ds[dim].values, dtype=float) > 0).all())
+
+
+def float_outputs(ds) -> list[str]:
+    """Float outputs defined over the grid only: the run's declared ``outputs`` attribute (every
+    float data variable when there is none), in declared order."""
+    declared = ds.attrs.get("outputs")
+    names = str(declared).split() if declared else list(ds.data_vars)
+    grid = set(grid_dims(ds))
+    return [n for n in names if n in ds.data_vars and ds[n].dtype.kind == "f" and set(ds[n].dims) <= grid]
+
+
+def _axes(ds, name) -> list[str]:
+    """The output's grid dimensions with more than one value, in the scene's order."""
+    return [d for d in grid_dims(ds) if d in ds[name].dims and ds.sizes[d] > 1]
+
+
+@dataclass(frozen=True)
+class Choice:
+    """One generic figure: ``kind`` (heatmap, nomogram, curve, stability_map) of ``output`` with
+    ``x`` and ``y`` (the heatmap's y axis or the nomogram's family axis)."""
+
+    name: str
+    kind: str
+    output: str
+    x: str
+    y: str | None
+    description: str
+
+    def draw(self, ds):
+        if self.kind == "stability_map":
+            return stability_map(ds, self.output)
+        return _panel_figure(ds, self)
+
+
+def choose(ds, drawn=frozenset()) -> list[Choice]:
+    """The generic figures for ``ds``, leaving out outputs in ``drawn`` (shown by a figure for the
+    model). The rule is the module docstring's."""
+    choices = []
+    floquet = [n for n in float_outputs(ds) if n not in drawn and ds[n].attrs.get("mechsweep_kind") == "floquet_max"
+               and len([d for d in _axes(ds, n) if is_numeric(ds, d)]) >= 2]
+    for k, name in enumerate(floquet):
+        y, x = [d for d in _axes(ds, name) if is_numeric(ds, d)][:2]
+        choices.append(Choice("stability_map" if k == 0 else f"stability_map_{name}", "stability_map", name, x, y,
+                              f"Floquet stability of {_what(ds, name)} over {_ax(ds, x)} and {_ax(ds, y)}: "
+                              f"stable where it is at most 1, boundary drawn{_panels_text(ds, name, (x, y))}."))
+    for name in float_outputs(ds):
+        if name in drawn or name in floquet:
+            continue
+        axes = _axes(ds, name)
+        numeric = [d for d in axes if is_numeric(ds, d)]
+        if not numeric:
+            continue
+        if len(numeric) == 1:
+            x = numeric[0]
+            family = next((d for d in axes if d != x and ds.sizes[d] <= FAMILY_MAX), None)
+            choices.append(_nomogram_choice(ds, name, x, family))
+            continue
+        y, x = numeric[:2]
+        choices.append(Choice(f"heatmap_{name}", "heatmap", name, x, y,
+                              f"{_what(ds, name)} over {_ax(ds, x)} and {_ax(ds, y)}: colour map with labelled "
+                              f"contours{_panels_text(ds, name, (x, y))}."))
+        if min(ds.sizes[x], ds.sizes[y]) <= FAMILY_MAX:
+            family, x = (y, x) if ds.sizes[y] <= ds.sizes[x] else (x, y)
+            choices.append(_nomogram_choice(ds, name, x, family))
+    return choices
+
+
+def _nomogram_choice(ds, name, x, family) -> Choice:
+    if family is None:
+        return Choice(f"curve_{name}", "curve", name, x, None,
+                      f"{_what(ds, name)} against {_ax(ds, x)}{_panels_text(ds, name, (x,))}.")
+    return Choice(f"nomogram_{name}", "nomogram", name, x, family,
+                  f"{_what(ds, name)} against {_ax(ds, x)}, one labelled curve per value of {_ax(ds, family)}"
+                  f"{_panels_text(ds, name, (x, family))}.")
+
+
+def _what(ds, name) -> str:
+    unit = ds[name].attrs.get("units", "")
+    return f"{name} ({ds[name].attrs.get('long_name', name)}" + (f" [{unit}])" if unit not in ("", "1") else ")")
+
+
+def _ax(ds, dim) -> str:
+    return dim + (" (log axis)" if is_log(ds, dim) else "")
+
+
+def _panels_text(ds, name, used) -> str:
+    rest = [d for d in _axes(ds, name) if d not in used]
+    if not rest:
+        return ""
+    n = int(np.prod([ds.sizes[d] for d in rest]))
+    return (f"; one panel per value of {', '.join(rest)}" if n <= MAX_PANELS
+            else f"; one panel per value of {', '.join(rest)} (the first {MAX_PANELS} of {n})")
+
+
+# ----------------------------------------------------------------------------- drawing on one Axes
+def _new_axes(ax, width=6.4, height=4.4):
+    if ax is not None:
+        return ax
+    _, axes = new_figure(1, 1, width=width, height=height)
+    return axes[0, 0]
+
+
+def _slice(ds, name, used, at):
+    """The output (and status) with every dimension outside ``used`` reduced to one value: ``at``'s
+    (labels), else the first. Returns (data, status or None, {dim: value})."""
+    at = dict(at or {})
+    unknown = [d for d in at if d not in ds[name].dims or d in used]
+    if unknown:
+        raise ValueError(f"at: {', '.join(unknown)} is not one of the dimensions {name} is sliced along "
+                         f"({', '.join(d for d in ds[name].dims if d not in used) or 'none'})")
+    where = {}
+    for d in ds[name].dims:
+        if d not in used:
+            where[d] = at[d] if d in at else ds[d].values[0]
+    da = ds[name].sel(where) if where else ds[name]
+    status = None
+    if "status" in ds:
+        st = ds["status"]
+        status = st.sel({d: v for d, v in where.items() if d in st.dims})
+    return da, status, where
+
+
+def _edges(values, log):
+    """Cell edges around sorted centres (geometric midpoints on a log axis)."""
+    v = np.log(values) if log else np.asarray(values, dtype=float)
+    if v.size == 1:
+        e = np.array([v[0] - 0.5, v[0] + 0.5])
+    else:
+        mid = (v[1:] + v[:-1]) / 2
+        e = np.concatenate([[v[0] - (mid[0] - v[0])], mid, [v[-1] + (v[-1] - mid[-1])]])
+    return np.exp(e) if log else e
+
+
+def _spans_decades(v) -> bool:
+    v = v[np.isfinite(v)]
+    return v.size > 0 and bool((v > 0).all()) and v.max() / v.min() >= 10.0**LOG_DECADES
+
+
+def contour_levels(vmin: float, vmax: float, log: bool) -> np.ndarray:
+    """Readable contour levels strictly inside (vmin, vmax): round numbers (1, 2, 2.5, 5 x 10^k
+    steps, about 6 of them), or decades on a logarithmic scale (with 2 and 5 when few decades)."""
+    if not (np.isfinite(vmin) and np.isfinite(vmax)) or vmax <= vmin:
+        return np.array([])
+    if log:
+        levels = LogLocator(base=10, subs=(1.0,)).tick_values(vmin, vmax)
+        inside = levels[(levels > vmin) & (levels < vmax)]
+        if inside.size < 3:
+            levels = LogLocator(base=10, subs=(1.0, 2.0, 5.0)).tick_values(vmin, vmax)
+    else:
+        levels = MaxNLocator(nbins=7, steps=[1, 2, 2.5, 5, 10]).tick_values(vmin, vmax)
+    return levels[(levels > vmin) & (levels < vmax)]
+
+
+def _level_text(v: float) -> str:
+    return f"{v:.3g}"
+
+
+def heatmap(ds, name, *, x, y, at=None, ax=None, colorbar=True, contours=True):
+    """``name`` over the numeric axes ``x`` and ``y`` as a colour map with labelled contours.
+
+    ``at`` picks the value of every other dimension (labels, e.g. ``{"position": "inverted"}``;
+    the first value of each when omitted). Returns a dict of the artists: ``mesh``, ``contours``
+    (ContourSet or None), ``contour_labels`` (list of Text), ``colorbar`` (or None), ``flagged``
+    (the markers of points whose status is not ok, or None), ``note`` (Text or None) and ``where``
+    (the slice drawn, {dim: value}).
+    """
+    ax = _new_axes(ax)
+    da, status, where = _slice(ds, name, (x, y), at)
+    da = da.sortby([y, x]).transpose(y, x)
+    xv, yv = np.asarray(ds[x].sortby(x).values, float), np.asarray(ds[y].sortby(y).values, float)
+    v = np.asarray(da.values, dtype=float)
+    finite = np.isfinite(v)
+    log = _spans_decades(v)
+    vmin, vmax = (float(v[finite].min()), float(v[finite].max())) if finite.any() else (0.0, 1.0)
+    norm = LogNorm(vmin, vmax) if log else (Normalize(vmin, vmax) if vmax > vmin else Normalize(vmin - 0.5, vmin + 0.5))
+    xlog, ylog = is_log(ds, x), is_log(ds, y)
+    mesh = ax.pcolormesh(_edges(xv, xlog), _edges(yv, ylog), np.ma.masked_invalid(v), norm=norm,
+                         cmap="viridis", rasterized=True)
+    art = {"mesh": mesh, "contours": None, "contour_labels": [], "colorbar": None, "flagged": None,
+           "note": None, "where": where}
+    levels = contour_levels(vmin, vmax, log) if contours and finite.sum() >= 4 else np.array([])
+    if levels.size:
+        cs = ax.contour(xv, yv, np.ma.masked_invalid(v), levels=levels, colors="k", linewidths=0.9)
+        cs.set_path_effects(HALO)
+        texts = ax.clabel(cs, fmt=_level_text, fontsize=8, inline=True)
+        for t in texts:
+            t.set_path_effects(HALO)
+        art["contours"], art["contour_labels"] = cs, list(texts)
+    if colorbar:
+        cb = ax.figure.colorbar(mesh, ax=ax)
+        cb.set_label(label(ds[name], width=34))
+        if art["contours"] is not None:
+            cb.add_lines(art["contours"])
+        art["colorbar"] = cb
+    if status is not None:
+        bad = (status.sortby([y, x]).transpose(y, x).values != STATUS_OK)
+        if bad.any():
+            yy, xx = np.meshgrid(yv, xv, indexing="ij")
+            art["flagged"] = ax.scatter(xx[bad], yy[bad], **FLAG_STYLE)
+            art["note"] = _flag_note(ax, int(bad.sum()), int((bad & finite).sum()))
+    if xlog:
+        ax.set_xscale("log")
+    if ylog:
+        ax.set_yscale("log")
+    ax.set_xlim(_edges(xv, xlog)[[0, -1]])
+    ax.set_ylim(_edges(yv, ylog)[[0, -1]])
+    ax.set_xlabel(label(ds[x]))
+    ax.set_ylabel(label(ds[y]))
+    return art
+
+
+def nomogram(ds, name, *, x, family=None, at=None, ax=None):
+    """``name`` against the numeric axis ``x``, one labelled curve per value of ``family`` (a
+    single curve when None). Up to ``LEGEND_MAX`` curves: a legend; more: colours from a scale (a
+    colour bar when the family axis is numeric) and a label at the end of each curve. At most
+    ``MAX_CURVES`` curves (every k-th value beyond that).
+
+    ``at`` picks the value of every other dimension (the first when omitted). Returns a dict of
+    the artists: ``lines`` (one Line2D per curve), ``end_labels`` (Text), ``legend``, ``colorbar``,
+    ``flagged`` (markers on finite values at points whose status is not ok), ``note``, ``where``.
+    """
+    ax = _new_axes(ax)
+    used = (x,) if family is None else (x, family)
+    da, status, where = _slice(ds, name, used, at)
+    order = np.argsort(np.asarray(ds[x].values, dtype=float), kind="stable")
+    xv = np.asarray(ds[x].values, dtype=float)[order]
+    members = [None] if family is None else list(ds[family].values)
+    step = max(1, -(-len(members) // MAX_CURVES))
+    members = members[::step]
+    many = len(members) > LEGEND_MAX
+    colors, cmap_norm = _family_colors(ds, family, members)
+    art = {"lines": [], "end_labels": [], "legend": None, "colorbar": None, "flagged": [], "note": None,
+           "where": where}
+    n_bad = n_bad_drawn = 0
+    ends = []
+    for member, color in zip(members, colors):
+        sel = {} if member is None else {family: member}
+        yv = np.asarray(da.sel(sel).values, dtype=float)[order]
+        text = None if member is None else _member_text(ds, family, member)
+        (line,) = ax.plot(xv, yv, color=color, lw=1.4, label=text, marker="." if xv.size <= 25 else None, ms=4)
+        art["lines"].append(line)
+        if status is not None:
+            flags = np.asarray(status.sel({k: v for k, v in sel.items() if k in status.dims}).values) != STATUS_OK
+            bad = np.broadcast_to(flags, yv.shape) if flags.ndim == 0 else flags[order]
+            shown = bad & np.isfinite(yv)
+            n_bad += int(bad.sum())
+            n_bad_drawn += int(shown.sum())
+            if shown.any():
+                art["flagged"].append(ax.scatter(xv[shown], yv[shown], **FLAG_STYLE))
+        k = np.flatnonzero(np.isfinite(yv))
+        if text is not None and k.size:
+            ends.append((xv[k[-1]], yv[k[-1]], text if not many else _value(member), color))
+    if not np.isfinite(np.asarray([ln.get_ydata() for ln in art["lines"]], dtype=float)).any():
+        art["note"] = ax.text(0.5, 0.5, "no finite value to draw", transform=ax.transAxes, ha="center",
+                              color="0.35")
+    if is_log(ds, x):
+        ax.set_xscale("log")
+    if _spans_decades(np.concatenate([ln.get_ydata() for ln in art["lines"]])):
+        ax.set_yscale("log")
+    if family is not None and not many:
+        art["legend"] = ax.legend(fontsize=7, title=label(ds[family], width=30), title_fontsize=7)
+    elif family is not None:
+        art["end_labels"] = _end_labels(ax, ends)
+        if cmap_norm is not None:
+            sm = matplotlib.cm.ScalarMappable(norm=cmap_norm[1], cmap=cmap_norm[0])
+            cb = ax.figure.colorbar(sm, ax=ax, pad=0.09)
+            cb.set_label(label(ds[family], width=30))
+            art["colorbar"] = cb
+    if n_bad:
+        art["note"] = _flag_note(ax, n_bad, n_bad_drawn)
+    ax.set_xlabel(label(ds[x]))
+    ax.set_ylabel(label(ds[name]))
+    ax.grid(True, alpha=0.3)
+    return art
+
+
+def _family_colors(ds, family, members):
+    """Colours for the curves: a scale over a numeric family (log when its axis is), else the cycle."""
+    if family is None:
+        return ["C0"], None
+    if len(members) <= LEGEND_MAX or not is_numeric(ds, family):
+        return [f"C{k % 10}" for k in range(len(members))], None
+    values = np.asarray(members, dtype=float)
+    norm = (LogNorm if is_log(ds, family) else Normalize)(values.min(), values.max())
+    cmap = matplotlib.colormaps["viridis"]
+    return [cmap(0.9 * norm(v)) for v in values], (matplotlib.colors.ListedColormap(cmap(np.linspace(0, 0.9, 256))),
+                                                   norm)
+
+
+def _member_text(ds, family, member) -> str:
+    sym = ds[family].attrs.get("symbol") or family
+    if not is_numeric(ds, family):
+        return str(member)
+    unit = ds[family].attrs.get("units", "")
+    return f"{sym} = {_value(member)}" + (f" {unit}" if unit not in ("", "1") else "")
+
+
+def _end_labels(ax, ends):
+    """A label beside the last finite point of each curve, moved apart vertically so none overlap."""
+    if not ends:
+        return []
+    ylo, yhi = ax.get_ylim()
+    log = ax.get_yscale() == "log"
+
+    def frac(v):
+        if log:
+            return (np.log10(v) - np.log10(ylo)) / (np.log10(yhi) - np.log10(ylo))
+        return (v - ylo) / (yhi - ylo)
+
+    order = sorted(range(len(ends)), key=lambda k: frac(ends[k][1]))
+    pos = [frac(ends[k][1]) for k in order]
+    gap = min(0.05, 1.0 / max(1, len(pos)))
+    for i in range(1, len(pos)):
+        pos[i] = max(pos[i], pos[i - 1] + gap)
+    shift = max(0.0, pos[-1] - 1.0)
+    pos = [p - shift for p in pos]
+    texts = []
+    for k, p in zip(order, pos):
+        xe, ye, text, color = ends[k]
+        texts.append(ax.annotate(f" {text}", xy=(xe, ye), xytext=(1.01, p), textcoords="axes fraction",
+                                 ha="left", va="center", fontsize=7, color=color, annotation_clip=False,
+                                 arrowprops=dict(arrowstyle="-", color=color, lw=0.5, alpha=0.6)))
+    return texts
+
+
+def _flag_note(ax, n_bad, n_drawn):
+    return ax.text(0.01, 0.01, f"{n_bad} point(s) flagged (status not ok), marked ×; {n_drawn} of them have a "
+                   "finite value, drawn", transform=ax.transAxes, fontsize=7, color="0.35", ha="left", va="bottom")
+
+
+# ----------------------------------------------------------------------------- whole figures
+def _panel_figure(ds, choice: Choice):
+    """One panel per value of the axes the figure does not use (at most MAX_PANELS)."""
+    used = (choice.x,) if choice.y is None else (choice.x, choice.y)
+    rest = [d for d in _axes(ds, choice.output) if d not in used]
+    members = list(itertools.product(*(list(ds[d].values) for d in rest)))
+    shown = members[:MAX_PANELS]
+    ncols = min(2, len(shown))
+    nrows = -(-len(shown) // ncols)
+    heat = choice.kind == "heatmap"
+    fig, axes = new_figure(nrows, ncols, width=6.0 if heat else 6.6, height=4.6 if heat else 4.0)
+    for k, values in enumerate(shown):
+        ax = axes[k // ncols, k % ncols]
+        at = dict(zip(rest, values))
+        if heat:
+            heatmap(ds, choice.output, x=choice.x, y=choice.y, at=at, ax=ax)
+        else:
+            nomogram(ds, choice.output, x=choice.x, family=choice.y, at=at, ax=ax)
+        if at:
+            ax.set_title(", ".join(f"{d} = {_value(v)}" for d, v in at.items()), fontsize=9)
+    for k in range(len(shown), nrows * ncols):
+        axes[k // ncols, k % ncols].set_visible(False)
+    what = {"heatmap": "Map", "nomogram": "Nomogram", "curve": "Curve"}[choice.kind]
+    long = ds[choice.output].attrs.get("long_name", choice.output)
+    cut = f" (first {len(shown)} of {len(members)} slices of {', '.join(rest)})" if len(members) > len(shown) else ""
+    title(fig, ds, f"{what}: {long}{cut}")
     return fig
 
 
-def _floquet_outputs(ds) -> list[str]:
-    return [n for n in ds.data_vars if ds[n].attrs.get("mechsweep_kind") == "floquet_max"]
-
-
-def can_stability_map(ds) -> bool:
-    return bool(_floquet_outputs(ds)) and len(_numeric_dims(ds)) >= 2
-
-
-def stability_map(ds):
+def stability_map(ds, name=None):
     """Floquet stability over two axes (stable where the largest multiplier modulus is at most 1),
     one panel per value of the other axes, boundary drawn."""
-    name = _floquet_outputs(ds)[0]
-    ydim, xdim = _numeric_dims(ds)[:2]
+    if name is None:
+        name = next(c.output for c in choose(ds) if c.kind == "stability_map")
+    ydim, xdim = [d for d in _axes(ds, name) if is_numeric(ds, d)][:2]
     others = [d for d in ds[name].dims if d not in (xdim, ydim)]
-    members = list(itertools.product(*(range(ds.sizes[d]) for d in others)))[:MAX_PANELS]
+    members = list(itertools.product(*(range(ds.sizes[d]) for d in others)))[:6]
     ncols = min(2, len(members))
     nrows = -(-len(members) // ncols)
     fig, axes = new_figure(nrows, ncols, width=5.2, height=4.0)
@@ -68,10 +444,10 @@ def stability_map(ds):
         ax = axes[k // ncols, k % ncols]
         sel = dict(zip(others, idx))
         values = ok_values(ds, name).isel(sel).transpose(ydim, xdim).values
-        _stability_panel(ax, x, y, values)
-        if ds[xdim].attrs.get("spacing") == "log":
+        stability_panel(ax, x, y, values)
+        if is_log(ds, xdim):
             ax.set_xscale("log")
-        if ds[ydim].attrs.get("spacing") == "log":
+        if is_log(ds, ydim):
             ax.set_yscale("log")
         ax.set_xlabel(label(ds[xdim]))
         ax.set_ylabel(label(ds[ydim]))
@@ -91,7 +467,7 @@ def stability_map(ds):
     return fig
 
 
-def _stability_panel(ax, x, y, values) -> None:
+def stability_panel(ax, x, y, values) -> None:
     """Stable/unstable shading of one map and the boundary between them (contour of the modulus
     at 1 + FLOQUET_SLACK, so that an undamped stable side, at 1 up to round-off, counts as stable)."""
     verdict = np.where(np.isfinite(values), (values <= 1.0 + FLOQUET_SLACK).astype(float), np.nan)

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._registry import ModelFigure
 from ._style import flag_note, label, new_figure, ok_values, title
+
+FOURBAR, SLIDER = "fourbar_balancing", "slidercrank_balancing"
 
 METHOD_CURVES = (
     ("M_static_phi", "complete force balancing (method 1)", "R_static"),
@@ -21,7 +24,8 @@ def _members(ds, skip):
 
 
 def can_moment_methods(ds) -> bool:
-    if "M_static_phi" not in ds or "phi" not in ds.dims:
+    """Crank angle phi is a dimension and the grid has at most four points (one panel each)."""
+    if "phi" not in ds.dims:
         return False
     _, members = _members(ds, ("phi",))
     return len(members) <= 4
@@ -69,8 +73,8 @@ def _map_dims(ds):
 
 
 def can_balancing_map(ds) -> bool:
-    return ds.attrs.get("model") == "fourbar_balancing" and _map_dims(ds) is not None and any(
-        n in ds for n in MAP_OUTPUTS)
+    """Exactly two float axes with more than one value."""
+    return _map_dims(ds) is not None
 
 
 def balancing_map(ds):
@@ -100,7 +104,8 @@ def balancing_map(ds):
 
 
 def can_slider_residual(ds) -> bool:
-    return "k" in ds.dims and any(n in ds for n in ("F_max", "Fx_max", "Fy_max"))
+    """The balanced fraction k is an axis."""
+    return "k" in ds.dims
 
 
 def slider_residual(ds):
@@ -145,10 +150,6 @@ def slider_residual(ds):
 PARETO_INDICES = ("Fx_range", "Fy_range", "M_range", "T_range")
 
 
-def can_pareto(ds) -> bool:
-    return all(n in ds for n in PARETO_INDICES)
-
-
 def pareto(ds):
     """Pareto front of the four balancing indices f1..f4 over a counterweight sweep, coloured by
     the counterweight mass, with the weighted-sum optimum of equal weights on indices scaled by
@@ -179,3 +180,14 @@ def pareto(ds):
                     "are Pareto-optimal", transform=axes[0, 1].transAxes, ha="right", va="top", fontsize=8)
     title(fig, ds, "Comprehensive balancing: Pareto front of the four indices")
     return fig
+
+
+FIGURES = (
+    ModelFigure("moment_methods", moment_methods, models=(FOURBAR,), needs=("M_static_phi",),
+                draws=tuple(c[0] for c in METHOD_CURVES) + tuple(c[2] for c in METHOD_CURVES),
+                fits=can_moment_methods),
+    ModelFigure("balancing_map", balancing_map, models=(FOURBAR,), any_of=MAP_OUTPUTS, fits=can_balancing_map),
+    ModelFigure("slider_residual", slider_residual, models=(SLIDER,), any_of=("F_max", "Fx_max", "Fy_max"),
+                draws=("F_tb_error_rel", "F_max_unbalanced"), fits=can_slider_residual),
+    ModelFigure("pareto", pareto, models=(FOURBAR, SLIDER), needs=PARETO_INDICES, draws=("cw_mass",)),
+)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.colors import LogNorm
 
+from ._registry import ModelFigure
 from ._style import flag_note, label, new_figure, ok_values, title
 
 
@@ -14,7 +15,8 @@ def _family_dim(ds, x="lambda2"):
 
 
 def can_coefficients(ds) -> bool:
-    if not ("lambda2" in ds.dims and ("chi" in ds or "xi" in ds)):
+    """lambda2 is an axis and at most one more axis (the family) besides the spring kind."""
+    if "lambda2" not in ds.dims:
         return False
     extra = [d for d in ds.dims if d not in ("lambda2", "spring")]
     return len(extra) <= 1
@@ -64,7 +66,8 @@ def _map_dims(ds, name):
 
 
 def can_truncation_error(ds) -> bool:
-    return "truncation_error" in ds and _map_dims(ds, "truncation_error") is not None
+    """Exactly two axes with more than one value."""
+    return _map_dims(ds, "truncation_error") is not None
 
 
 def truncation_error(ds):
@@ -89,3 +92,11 @@ def truncation_error(ds):
     flag_note(ax, ds)
     title(fig, ds, "Period error of the two-term (Duffing) spring model")
     return fig
+
+
+FIGURES = (
+    ModelFigure("coefficients", coefficients, models=("torsional_circuit",), any_of=("chi", "xi"),
+                fits=can_coefficients),
+    ModelFigure("truncation_error", truncation_error, models=("torsional_circuit",), needs=("truncation_error",),
+                fits=can_truncation_error),
+)

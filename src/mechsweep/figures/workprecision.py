@@ -5,13 +5,10 @@ import textwrap
 
 import numpy as np
 
+from ._registry import ModelFigure
 from ._style import label, new_figure
 
 MARKERS = "os^vD<>ph*"
-
-
-def can_workprecision(ds) -> bool:
-    return ds.attrs.get("mechsweep_kind") in ("workprecision", "workprecision_positions")
 
 
 def workprecision(ds):
@@ -100,3 +97,8 @@ def _positions(ds):
     ref = f"reference: {ds.attrs['reference']}; {ds.attrs['points']} points of {ds.attrs['scene']}"
     fig.suptitle(head + "\n" + textwrap.fill(ref, 120), fontsize=9)
     return fig
+
+
+FIGURES = (
+    ModelFigure("workprecision", workprecision, dataset_kinds=("workprecision", "workprecision_positions")),
+)
