@@ -53,7 +53,8 @@ LEGEND_MAX = 5  # up to this many curves: a legend; more: a colour scale and lab
 MAX_CURVES = 12  # more values than this on the family axis: every k-th value is drawn (said in the title)
 LOG_DECADES = 3  # a positive colour scale or y axis spanning at least this many decades is logarithmic
 HALO = [patheffects.withStroke(linewidth=2.4, foreground="white")]  # keeps black lines visible on dark colours
-FLAG_STYLE = dict(marker="x", s=14, color="0.45", linewidths=0.7, alpha=0.8, zorder=4)
+FLAG_STYLE = dict(marker="x", s=14, color="0.5", linewidths=0.8, zorder=4,  # grey, haloed: seen on any colour
+                  path_effects=[patheffects.withStroke(linewidth=1.8, foreground="white")])
 
 
 # ----------------------------------------------------------------------------- what the dataset declares
@@ -208,8 +209,10 @@ def _spans_decades(v) -> bool:
 
 
 def contour_levels(vmin: float, vmax: float, log: bool) -> np.ndarray:
-    """Readable contour levels strictly inside (vmin, vmax): round numbers (1, 2, 2.5, 5 x 10^k
-    steps, about 6 of them), or decades on a logarithmic scale (with 2 and 5 when few decades)."""
+    """Readable contour levels inside (vmin, vmax): round numbers (1, 2, 2.5, 5 x 10^k steps, at
+    most about 7 of them), or decades on a logarithmic scale (with 2 and 5 when few decades); none
+    within 0.1 % of the range from either end (a level at a plateau, e.g. a multiplier modulus of
+    1 up to round-off, would draw round-off noise)."""
     if not (np.isfinite(vmin) and np.isfinite(vmax)) or vmax <= vmin:
         return np.array([])
     if log:
@@ -219,11 +222,13 @@ def contour_levels(vmin: float, vmax: float, log: bool) -> np.ndarray:
             levels = LogLocator(base=10, subs=(1.0, 2.0, 5.0)).tick_values(vmin, vmax)
     else:
         levels = MaxNLocator(nbins=7, steps=[1, 2, 2.5, 5, 10]).tick_values(vmin, vmax)
-    return levels[(levels > vmin) & (levels < vmax)]
+    margin = 1e-3 * (np.log10(vmax / vmin) if log else vmax - vmin)  # a level at a plateau draws round-off
+    lo, hi = (vmin * 10**margin, vmax / 10**margin) if log else (vmin + margin, vmax - margin)
+    return levels[(levels > lo) & (levels < hi)]
 
 
 def _level_text(v: float) -> str:
-    return f"{v:.3g}"
+    return f"{v:.4g}"  # 1000 rather than 1e+03; levels are round numbers, so 4 digits are never cut
 
 
 def heatmap(ds, name, *, x, y, at=None, ax=None, colorbar=True, contours=True):
@@ -395,8 +400,9 @@ def _end_labels(ax, ends):
 
 
 def _flag_note(ax, n_bad, n_drawn):
-    return ax.text(0.01, 0.01, f"{n_bad} point(s) flagged (status not ok), marked ×; {n_drawn} of them have a "
-                   "finite value, drawn", transform=ax.transAxes, fontsize=7, color="0.35", ha="left", va="bottom")
+    return ax.text(0.01, 0.01, f"{n_bad} point(s) flagged (status not ok), marked ×; drawn where finite: {n_drawn}",
+                   transform=ax.transAxes, fontsize=7, color="0.25", ha="left", va="bottom",
+                   bbox=dict(facecolor="white", alpha=0.7, edgecolor="none", pad=1.0))
 
 
 # ----------------------------------------------------------------------------- whole figures

@@ -1,0 +1,230 @@
+"""Generic figures for a model the package has never heard of: chosen from the dataset's declared
+attributes (model, output kinds, dimensions, axis spacing), labelled from them, drawn on a given
+``Axes`` without touching matplotlib's global state."""
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+from matplotlib.figure import Figure
+
+import mechsweep
+from mechsweep import figures
+from mechsweep.cli import main
+from mechsweep.errors import InputError
+from mechsweep.figures import generic
+from mechsweep.figures._style import label
+
+HERE = Path(__file__).parent
+
+
+@pytest.fixture(autouse=True)
+def mpl_state():
+    """Every test here checks that drawing changed no matplotlib global state: rcParams (the backend
+    included, read raw so as not to resolve it) and pyplot's list of figures. The figures are made
+    without pyplot, so no backend needs choosing and nothing is set for the tests that run after."""
+    import matplotlib
+
+    before = dict(dict.items(matplotlib.rcParams))
+    plt = sys.modules.get("matplotlib.pyplot")
+    figs = plt.get_fignums() if plt else None
+    yield
+    assert dict(dict.items(matplotlib.rcParams)) == before
+    if plt is not None:
+        assert plt.get_fignums() == figs
+
+
+def cam(n_speed=30, n_preload=6, contacts=("steel", "bronze"), model="cam_follower"):
+    """A dataset as a run of a model unknown to the package stores it: speed log-spaced, preload
+    linear, a categorical axis; an output of no declared kind, one of kind floquet_max and one with
+    an extra (time) dimension. Two flagged points: one keeps a finite value, one is NaN."""
+    speed = np.geomspace(1.0, 1000.0, n_speed)
+    preload = np.linspace(0.0, 50.0, n_preload)
+    S, P = np.meshgrid(speed, preload, indexing="ij")
+    lift = np.stack([np.sqrt(S) * (1 + P / 25) * (1 + 0.3 * k) for k in range(len(contacts))], axis=-1)
+    floquet = np.stack([0.5 + S / 400 - P / 100 + 0.1 * k for k in range(len(contacts))], axis=-1)
+    status = np.zeros(lift.shape, np.int8)
+    status[3, 2, 0] = 1  # flagged, lift still finite (another output failed there)
+    status[5, 4, 0] = 4
+    lift[5, 4, 0] = np.nan  # flagged, no value
+    dims = ("speed", "preload", "contact")
+    ds = xr.Dataset(
+        {"lift": (dims, lift, {"units": "mm", "long_name": "follower lift-off height", "symbol": "h"}),
+         "floquet": (dims, floquet, {"units": "1", "long_name": "largest Floquet multiplier modulus",
+                                     "mechsweep_kind": "floquet_max"}),
+         "lift_history": (dims + ("t",), np.zeros(lift.shape + (4,)), {"units": "mm", "long_name": "lift over time"}),
+         "status": (dims, status)},
+        coords={"speed": ("speed", speed, {"units": "rad/s", "long_name": "speed of the cam", "symbol": "Ω",
+                                           "spacing": "log"}),
+                "preload": ("preload", preload, {"units": "N", "long_name": "spring preload", "symbol": "F0",
+                                                 "spacing": "linear"}),
+                "contact": ("contact", list(contacts), {"units": "", "long_name": "contact material",
+                                                        "spacing": "list"}),
+                "t": ("t", np.arange(4.0), {"units": "s", "long_name": "time"})},
+        attrs={"model": model, "outputs": "lift floquet lift_history", "title": "cam follower",
+               "scene_canonical": "{}", "scene": ""})
+    return ds
+
+
+def _axes_of(ds, *keep):
+    """ds with every grid axis not in ``keep`` cut down to its first value (a dimension of size 1)."""
+    return ds.isel({d: slice(0, 1) for d in ("speed", "preload", "contact") if d not in keep})
+
+
+def test_figures_of_an_unknown_model_are_chosen_from_declared_kinds_and_axes():
+    ds = cam()
+    assert list(figures.available(ds)) == ["stability_map", "heatmap_lift", "nomogram_lift"]
+    assert figures.on_request(ds) == {}  # no figure of its own: every generic figure is drawn
+    choice = {c.name: c for c in generic.choose(ds)}
+    # heatmap: the first numeric axis is y, the second x; nomogram: curves over the axis with <= 10 values
+    assert (choice["heatmap_lift"].y, choice["heatmap_lift"].x) == ("speed", "preload")
+    assert (choice["nomogram_lift"].x, choice["nomogram_lift"].y) == ("speed", "preload")
+    assert "lift_history" not in " ".join(figures.available(ds))  # extra dimension: not drawn generically
+
+
+@pytest.mark.parametrize("keep,expected", [
+    (("speed",), ["curve_lift", "curve_floquet"]),  # one numeric axis (a stability map needs two)
+    (("speed", "contact"), ["nomogram_lift", "nomogram_floquet"]),  # + a few names: a curve per name
+    (("speed", "preload"), ["stability_map", "heatmap_lift", "nomogram_lift"]),
+])
+def test_selection_follows_the_axes(keep, expected):
+    assert list(figures.available(_axes_of(cam(), *keep))) == expected
+
+
+def test_no_family_of_curves_over_an_axis_with_many_values():
+    ds = cam(n_preload=11)  # both numeric axes have more than FAMILY_MAX values
+    assert list(figures.available(ds)) == ["stability_map", "heatmap_lift"]
+
+
+def test_no_numeric_axis_no_figure(tmp_path):
+    ds = _axes_of(cam(), "contact")
+    assert figures.available(ds) == {}
+    with pytest.raises(InputError, match="no figure fits this dataset"):
+        figures.save(ds, tmp_path / "x.png")
+
+
+def test_model_figures_follow_the_model_attribute_not_variable_names():
+    """Outputs named like the built-in Duffing model's do not bring its figures to another model;
+    for that model, its figure is drawn and the generic ones are on request."""
+    A = np.linspace(0.1, 1.0, 5)
+    data = {n: ("A", A * k, {"units": "1", "long_name": n}) for k, n in ((1.0, "epsilon"), (2.0, "kv"))}
+    ds = xr.Dataset({**data, "status": ("A", np.zeros(5, np.int8))},
+                    coords={"A": ("A", A, {"units": "rad", "long_name": "amplitude"})},
+                    attrs={"model": "my_own", "outputs": "epsilon kv"})
+    assert list(figures.available(ds)) == ["curve_epsilon", "curve_kv"]
+    ds.attrs["model"] = "duffing"
+    assert list(figures.available(ds)) == ["kinematic_coefficients"]
+    assert list(figures.on_request(ds)) == []  # kinematic_coefficients draws both
+    ds.attrs["outputs"] = "epsilon kv"
+    ds["other"] = ("A", A, {"units": "m", "long_name": "other"})
+    ds.attrs["outputs"] = "epsilon kv other"
+    assert list(figures.on_request(ds)) == ["curve_other"]
+
+
+def test_the_figure_front_names_no_model_and_no_variable():
+    import mechsweep.figures as front
+    from mechsweep.models import MODELS
+
+    source = Path(front.__file__).read_text()
+    names = set(MODELS) | {o.name for spec in MODELS.values() for o in spec.outputs}
+    assert not [n for n in names if f'"{n}"' in source or f"'{n}'" in source]
+
+
+def test_heatmap_on_a_given_axes_returns_its_artists_labelled_from_attributes():
+    ds = cam()
+    fig = Figure()
+    ax = fig.add_subplot()
+    art = generic.heatmap(ds, "lift", x="preload", y="speed", at={"contact": "bronze"}, ax=ax)
+    assert art["mesh"].axes is ax and art["contours"].axes is ax and art["where"] == {"contact": "bronze"}
+    assert ax.get_yscale() == "log" and ax.get_xscale() == "linear"  # speed was swept log-spaced
+    assert ax.get_ylabel() == label(ds["speed"]) and "speed of the cam [rad/s]" in ax.get_ylabel()
+    assert "spring preload [N]" in ax.get_xlabel()
+    assert art["colorbar"].ax.get_ylabel() == label(ds["lift"])
+    np.testing.assert_array_equal(np.asarray(art["mesh"].get_array()).reshape(30, 6),
+                                  ds["lift"].sel(contact="bronze").values)
+    levels = art["contours"].levels
+    values = ds["lift"].sel(contact="bronze").values
+    assert len(levels) >= 3 and (levels > values.min()).all() and (levels < values.max()).all()
+    labelled = {float(t.get_text()) for t in art["contour_labels"]}
+    assert labelled and labelled <= set(np.round(levels, 12))
+    assert art["flagged"] is None  # no flagged point in the bronze slice
+
+
+def test_contour_levels_are_round_numbers():
+    np.testing.assert_allclose(generic.contour_levels(0.013, 0.087, False), [0.02, 0.04, 0.06, 0.08])
+    np.testing.assert_allclose(generic.contour_levels(-3.3, 11.9, False), [-2.5, 0, 2.5, 5, 7.5, 10])
+    np.testing.assert_allclose(generic.contour_levels(3e-7, 0.2, True), [1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1])
+    assert generic.contour_levels(2.0, 2.0, False).size == 0
+
+
+def test_flagged_points_are_marked_and_finite_values_drawn():
+    ds = cam()
+    art = generic.heatmap(ds, "lift", x="preload", y="speed")  # contact = steel, the first
+    shown = np.ma.asarray(art["mesh"].get_array()).reshape(30, 6)
+    assert not np.ma.is_masked(shown[3, 2]) and shown[3, 2] == ds["lift"].values[3, 2, 0]
+    assert np.ma.getmaskarray(shown)[5, 4] and np.ma.getmaskarray(shown).sum() == 1  # only the NaN
+    marks = art["flagged"].get_offsets()
+    np.testing.assert_allclose(sorted(map(tuple, marks)), sorted([(ds.preload.values[2], ds.speed.values[3]),
+                                                                  (ds.preload.values[4], ds.speed.values[5])]))
+    assert "2 point(s) flagged" in art["note"].get_text() and "drawn where finite: 1" in art["note"].get_text()
+    curves = generic.nomogram(ds, "lift", x="speed", family="preload")
+    flagged = np.concatenate([m.get_offsets() for m in curves["flagged"]])
+    np.testing.assert_allclose(flagged, [(ds.speed.values[3], ds["lift"].values[3, 2, 0])])
+
+
+def test_nomogram_many_curves_get_a_colour_scale_and_end_labels():
+    ds = cam()
+    ds["lift"][-1] = 50.0  # every curve ends at the same value: their labels must be moved apart
+    fig = Figure()
+    ax = fig.add_subplot()
+    art = generic.nomogram(ds, "lift", x="speed", family="preload", ax=ax)
+    assert len(art["lines"]) == 6 and all(line.axes is ax for line in art["lines"])
+    assert ax.get_xscale() == "log" and "follower lift-off height [mm]" in ax.get_ylabel()
+    assert [t.get_text().strip() for t in art["end_labels"]] == ["0", "10", "20", "30", "40", "50"]
+    ys = sorted(t.xyann[1] for t in art["end_labels"])
+    assert min(np.diff(ys)) >= 0.05 - 1e-12  # moved apart (by 5 % of the axes height): none overlaps the next
+    assert art["legend"] is None and art["colorbar"].ax.get_ylabel() == label(ds["preload"])
+
+
+def test_nomogram_few_curves_get_a_legend():
+    ds = cam()
+    art = generic.nomogram(ds, "lift", x="speed", family="contact", at={"preload": 20.0})
+    assert [t.get_text() for t in art["legend"].get_texts()] == ["steel", "bronze"]
+    assert art["colorbar"] is None and art["end_labels"] == [] and art["where"] == {"preload": 20.0}
+    np.testing.assert_array_equal(art["lines"][1].get_ydata(), ds["lift"].sel(preload=20.0, contact="bronze").values)
+
+
+def test_panels_for_the_axes_a_figure_does_not_use():
+    fig = figures.draw(cam(), "heatmap_lift")
+    titles = [ax.get_title() for ax in fig.axes if ax.get_title()]
+    assert titles == ["contact = steel", "contact = bronze"]
+    fig = figures.draw(cam(contacts=tuple("abcdef")), "heatmap_lift")
+    assert "first 4 of 6 slices of contact" in fig.get_suptitle()
+
+
+def test_plot_lists_full_descriptions_and_draws_the_generic_figures(tmp_path, capsys):
+    path = tmp_path / "cam.h5"
+    cam(n_speed=12, contacts=("steel",)).to_netcdf(path, engine="h5netcdf")  # small: one panel per figure
+    assert main(["plot", str(path), "--list"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split(":")[0] for line in lines] == ["stability_map", "heatmap_lift", "nomogram_lift"]
+    assert all(line.endswith(".") for line in lines)  # whole sentences, never cut
+    assert main(["plot", str(path)]) == 0
+    assert sorted(p.name for p in tmp_path.glob("*.png")) == ["cam_heatmap_lift.png", "cam_nomogram_lift.png",
+                                                              "cam_stability_map.png"]
+
+
+def test_a_user_model_run_is_plotted_with_generic_figures(tmp_path, capsys):
+    """The user-model scene of tests/test_model_layer.py (same outputs: its compiled kernel is reused):
+    one list axis, so one curve per output; the period is drawn at every point although five points
+    are flagged (another output, period_short, finds no event there)."""
+    scene = mechsweep.load_scene(HERE / "user_models" / "linear.toml")
+    ds = mechsweep.run(scene, output=tmp_path / "lin.h5", progress=False)
+    assert list(figures.available(ds)) == [f"curve_{n}" for n in scene.outputs]
+    fig = figures.draw(ds, "curve_period")
+    line = fig.axes[0].lines[0]
+    np.testing.assert_allclose(line.get_ydata(), ds["period"].values)
+    assert np.isfinite(line.get_ydata()).all() and (ds["status"].values != 0).sum() == 5
+    assert main(["plot", str(tmp_path / "lin.h5"), "--kind", "curve_period"]) == 0
+    assert (tmp_path / "lin.png").stat().st_size > 10_000
