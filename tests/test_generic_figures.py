@@ -151,6 +151,16 @@ def test_heatmap_on_a_given_axes_returns_its_artists_labelled_from_attributes():
     assert art["flagged"] is None  # no flagged point in the bronze slice
 
 
+def test_drawing_arguments_are_checked():
+    ds = cam()
+    with pytest.raises(ValueError, match="'contact' holds names"):
+        generic.heatmap(ds, "lift", x="contact", y="speed")
+    with pytest.raises(ValueError, match="'t' is not a dimension of 'lift'"):
+        generic.nomogram(ds, "lift", x="t")
+    with pytest.raises(ValueError, match="at: speed is not one of the dimensions"):
+        generic.nomogram(ds, "lift", x="speed", at={"speed": 1.0})
+
+
 def test_contour_levels_are_round_numbers():
     np.testing.assert_allclose(generic.contour_levels(0.013, 0.087, False), [0.02, 0.04, 0.06, 0.08])
     np.testing.assert_allclose(generic.contour_levels(-3.3, 11.9, False), [-2.5, 0, 2.5, 5, 7.5, 10])

@@ -175,6 +175,9 @@ def _new_axes(ax, width=6.4, height=4.4):
 def _slice(ds, name, used, at):
     """The output (and status) with every dimension outside ``used`` reduced to one value: ``at``'s
     (labels), else the first. Returns (data, status or None, {dim: value})."""
+    for d in used:
+        if d not in ds[name].dims:
+            raise ValueError(f"{d!r} is not a dimension of {name!r} (its dimensions: {', '.join(ds[name].dims)})")
     at = dict(at or {})
     unknown = [d for d in at if d not in ds[name].dims or d in used]
     if unknown:
@@ -240,6 +243,9 @@ def heatmap(ds, name, *, x, y, at=None, ax=None, colorbar=True, contours=True):
     (the markers of points whose status is not ok, or None), ``note`` (Text or None) and ``where``
     (the slice drawn, {dim: value}).
     """
+    for d in (x, y):
+        if d in ds.dims and not is_numeric(ds, d):
+            raise ValueError(f"heatmap: axis {d!r} holds names, not numbers; give it as nomogram's family")
     ax = _new_axes(ax)
     da, status, where = _slice(ds, name, (x, y), at)
     da = da.sortby([y, x]).transpose(y, x)
@@ -295,6 +301,8 @@ def nomogram(ds, name, *, x, family=None, at=None, ax=None):
     the artists: ``lines`` (one Line2D per curve), ``end_labels`` (Text), ``legend``, ``colorbar``,
     ``flagged`` (markers on finite values at points whose status is not ok), ``note``, ``where``.
     """
+    if x in ds.dims and not is_numeric(ds, x):
+        raise ValueError(f"nomogram: axis {x!r} holds names, not numbers; give it as the family")
     ax = _new_axes(ax)
     used = (x,) if family is None else (x, family)
     da, status, where = _slice(ds, name, used, at)
@@ -449,7 +457,7 @@ def stability_map(ds, name=None):
     for k, idx in enumerate(members):
         ax = axes[k // ncols, k % ncols]
         sel = dict(zip(others, idx))
-        values = ok_values(ds, name).isel(sel).transpose(ydim, xdim).values
+        values = (ok_values(ds, name) if "status" in ds else ds[name]).isel(sel).transpose(ydim, xdim).values
         stability_panel(ax, x, y, values)
         if is_log(ds, xdim):
             ax.set_xscale("log")
@@ -459,7 +467,7 @@ def stability_map(ds, name=None):
         ax.set_ylabel(label(ds[ydim]))
         if others:
             ax.set_title(", ".join(f"{d} = {_value(ds[d].values[i])}" for d, i in sel.items()), fontsize=10)
-        flagged = int((ds["status"].isel(sel).values != STATUS_OK).sum())
+        flagged = int((ds["status"].isel(sel).values != STATUS_OK).sum()) if "status" in ds else 0
         if flagged:
             ax.text(0.01, 0.01, f"{flagged} flagged point(s) not drawn", transform=ax.transAxes, fontsize=8,
                     color="0.35")
