@@ -64,10 +64,11 @@ def test_each_dataset_gets_its_figures(datasets, name, kinds):
                                   "autobalancer_damping", "autobalancer_residual", "fourbar_methods",
                                   "fourbar_geometry_family", "fourbar_pareto", "slidercrank_partial"])
 def test_axes_are_labelled_with_units(datasets, name):
-    """Every axis has labels; a label naming a dimensional variable carries its [unit]."""
+    """Every axis has labels; a label naming a dimensional variable carries its [unit]. Also for
+    the generic figures drawn on request (outputs the model's own figures do not show)."""
     ds = datasets[name]
     variables = [ds[v] for v in list(ds.coords) + list(ds.data_vars)]
-    for kind in figures.available(ds):
+    for kind in list(figures.available(ds)) + list(figures.on_request(ds)):
         fig = figures.draw(ds, kind)
         for ax in fig.axes:
             if ax.get_label() == "<colorbar>":

@@ -213,6 +213,22 @@ def test_panels_for_the_axes_a_figure_does_not_use():
     assert "first 4 of 6 slices of contact" in fig.get_suptitle()
 
 
+def test_descriptions_are_whole_sentences():
+    """`plot --list` prints each figure's description whole (it used to print the first line of a
+    docstring, cut mid-sentence)."""
+    texts = [f.description for f in figures.MODEL_FIGURES] + list(figures.available(cam()).values())
+    assert all(t.endswith((".", ".)")) and "\n" not in t for t in texts), texts
+
+
+def test_an_output_without_a_finite_value_is_drawn_empty():
+    ds = cam()
+    ds["lift"][:] = np.nan
+    art = generic.heatmap(ds, "lift", x="preload", y="speed")
+    assert np.ma.getmaskarray(art["mesh"].get_array()).all() and art["contours"] is None
+    art = generic.nomogram(ds, "lift", x="speed", family="contact")
+    assert all(np.isnan(line.get_ydata()).all() for line in art["lines"])
+
+
 def test_plot_lists_full_descriptions_and_draws_the_generic_figures(tmp_path, capsys):
     path = tmp_path / "cam.h5"
     cam(n_speed=12, contacts=("steel",)).to_netcdf(path, engine="h5netcdf")  # small: one panel per figure

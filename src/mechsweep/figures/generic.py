@@ -434,7 +434,7 @@ def _panel_figure(ds, choice: Choice):
         if at:
             ax.set_title(", ".join(f"{d} = {_value(v)}" for d, v in at.items()), fontsize=9)
     for k in range(len(shown), nrows * ncols):
-        axes[k // ncols, k % ncols].set_visible(False)
+        fig.delaxes(axes[k // ncols, k % ncols])
     what = {"heatmap": "Map", "nomogram": "Nomogram", "curve": "Curve"}[choice.kind]
     long = ds[choice.output].attrs.get("long_name", choice.output)
     cut = f" (first {len(shown)} of {len(members)} slices of {', '.join(rest)})" if len(members) > len(shown) else ""
@@ -472,7 +472,7 @@ def stability_map(ds, name=None):
             ax.text(0.01, 0.01, f"{flagged} flagged point(s) not drawn", transform=ax.transAxes, fontsize=8,
                     color="0.35")
     for k in range(len(members), nrows * ncols):
-        axes[k // ncols, k % ncols].set_visible(False)
+        fig.delaxes(axes[k // ncols, k % ncols])
     handles = [axes[0, 0].fill_between([], [], color=STABLE_COLORS.colors[1], label="stable"),
                axes[0, 0].fill_between([], [], color=STABLE_COLORS.colors[0], label="unstable"),
                axes[0, 0].plot([], [], color="k", lw=1.2, label=f"{ds[name].attrs.get('symbol', name)} = 1")[0]]
