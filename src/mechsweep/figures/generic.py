@@ -173,8 +173,9 @@ def _new_axes(ax, width=6.4, height=4.4):
 
 
 def _slice(ds, name, used, at):
-    """The output (and status) with every dimension outside ``used`` reduced to one value: ``at``'s
-    (labels), else the first. Returns (data, status or None, {dim: value})."""
+    """The output with every dimension outside ``used`` reduced to one value: ``at``'s (labels), else
+    the first. Returns (data, flagged or None, {dim: value}); ``flagged`` is True where the status
+    is not ok (over the dimensions in ``used``)."""
     for d in used:
         if d not in ds[name].dims:
             raise ValueError(f"{d!r} is not a dimension of {name!r} (its dimensions: {', '.join(ds[name].dims)})")
@@ -188,11 +189,12 @@ def _slice(ds, name, used, at):
         if d not in used:
             where[d] = at[d] if d in at else ds[d].values[0]
     da = ds[name].sel(where) if where else ds[name]
-    status = None
+    flagged = None
     if "status" in ds:
         st = ds["status"]
-        status = st.sel({d: v for d, v in where.items() if d in st.dims})
-    return da, status, where
+        flagged = st.sel({d: v for d, v in where.items() if d in st.dims}) != STATUS_OK
+        flagged = flagged.any([d for d in flagged.dims if d not in used])  # any over dims the output lacks
+    return da, flagged, where
 
 
 def _edges(values, log):
@@ -247,7 +249,7 @@ def heatmap(ds, name, *, x, y, at=None, ax=None, colorbar=True, contours=True):
         if d in ds.dims and not is_numeric(ds, d):
             raise ValueError(f"heatmap: axis {d!r} holds names, not numbers; give it as nomogram's family")
     ax = _new_axes(ax)
-    da, status, where = _slice(ds, name, (x, y), at)
+    da, flagged, where = _slice(ds, name, (x, y), at)
     da = da.sortby([y, x]).transpose(y, x)
     xv, yv = np.asarray(ds[x].sortby(x).values, float), np.asarray(ds[y].sortby(y).values, float)
     v = np.asarray(da.values, dtype=float)
@@ -274,8 +276,8 @@ def heatmap(ds, name, *, x, y, at=None, ax=None, colorbar=True, contours=True):
         if art["contours"] is not None:
             cb.add_lines(art["contours"])
         art["colorbar"] = cb
-    if status is not None:
-        bad = (status.sortby([y, x]).transpose(y, x).values != STATUS_OK)
+    if flagged is not None:
+        bad = flagged.broadcast_like(da).sortby([y, x]).transpose(y, x).values
         if bad.any():
             yy, xx = np.meshgrid(yv, xv, indexing="ij")
             art["flagged"] = ax.scatter(xx[bad], yy[bad], **FLAG_STYLE)
@@ -305,7 +307,7 @@ def nomogram(ds, name, *, x, family=None, at=None, ax=None):
         raise ValueError(f"nomogram: axis {x!r} holds names, not numbers; give it as the family")
     ax = _new_axes(ax)
     used = (x,) if family is None else (x, family)
-    da, status, where = _slice(ds, name, used, at)
+    da, flagged, where = _slice(ds, name, used, at)
     order = np.argsort(np.asarray(ds[x].values, dtype=float), kind="stable")
     xv = np.asarray(ds[x].values, dtype=float)[order]
     members = [None] if family is None else list(ds[family].values)
@@ -323,9 +325,8 @@ def nomogram(ds, name, *, x, family=None, at=None, ax=None):
         text = None if member is None else _member_text(ds, family, member)
         (line,) = ax.plot(xv, yv, color=color, lw=1.4, label=text, marker="." if xv.size <= 25 else None, ms=4)
         art["lines"].append(line)
-        if status is not None:
-            flags = np.asarray(status.sel({k: v for k, v in sel.items() if k in status.dims}).values) != STATUS_OK
-            bad = np.broadcast_to(flags, yv.shape) if flags.ndim == 0 else flags[order]
+        if flagged is not None:
+            bad = np.asarray(flagged.broadcast_like(da).sel(sel).values)[order]
             shown = bad & np.isfinite(yv)
             n_bad += int(bad.sum())
             n_bad_drawn += int(shown.sum())
