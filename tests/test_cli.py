@@ -78,3 +78,51 @@ def test_output_cut_short_by_a_pipe_is_not_an_error():
                           text=True, timeout=120)
     assert proc.stdout.startswith("duffing")
     assert "Traceback" not in proc.stderr and "BrokenPipe" not in proc.stderr
+
+
+def _dataset(model, outputs, kinds=True, notes=None):
+    """A small run-like dataset built by hand: a grid of 6 points, outputs named by the caller."""
+    import json
+
+    import numpy as np
+    import xarray as xr
+
+    from mechsweep import status as st
+
+    status = np.array([st.OK, st.OK, st.OK, st.UNDECIDED, st.NO_EVENT, st.OK], dtype=st.DTYPE)
+    values = {"v1": [1.0, 0.0, 1.0, np.nan, np.nan, 1.0], "v2": [1.0, 1.0, 1.0, 0.0, np.nan, np.nan],
+              "x": [0.5, 0.25, 2.0, 3.0, np.nan, 1.0]}
+    ds = xr.Dataset(coords={"k": ("k", np.arange(6.0), {"units": "1"})},
+                    attrs={"title": "t", "model": model, "outputs": " ".join(outputs)})
+    for name, value in zip(outputs, values.values()):
+        kind = {"mechsweep_kind": "verdict"} if kinds and name != outputs[-1] else {}
+        ds[name] = ("k", np.array(value), {"units": "1", "long_name": name, **kind})
+    ds["status"] = ("k", status, {"status_notes": json.dumps(notes)} if notes else {})
+    return ds
+
+
+def test_info_compares_any_two_verdicts_and_says_where_values_are_missing():
+    """A model info has never heard of: its verdict outputs (declared kind) are compared, every
+    output says how many points hold a value and why the others do not, and the model's own
+    status notes stored with the dataset are shown."""
+    from mechsweep.cli import describe
+
+    ds = _dataset("some_user_model", ["ok_a", "ok_b", "x"], notes={"undecided": "the pendulum dithers"})
+    text = describe(ds)
+    assert ("verdicts: ok_a and ok_b agree at 2 of 3 points with both verdicts; disagree at 1 (ok_a 1, ok_b 0: 0; "
+            "ok_a 0, ok_b 1: 1); 1 points have ok_a only, 1 ok_b only") in text
+    assert "values at 4 of 6 points; missing: no_event 1, undecided 1" in text  # ok_a
+    assert "values at 5 of 6 points; missing: no_event 1" in text  # x
+    assert "undecided: the pendulum dithers" in text
+    assert "verdicts: ok_a and x" not in text  # x is not a verdict
+
+
+def test_info_reads_the_declared_kinds_of_a_built_in_model_for_an_old_dataset():
+    """A dataset written before kinds were stored: the built-in declaration says which outputs are
+    verdicts (none is named in the reader), and its status notes are shown."""
+    from mechsweep.cli import describe
+
+    ds = _dataset("autobalancer", ["stable_floquet", "stable_sim", "floquet_max"], kinds=False)
+    text = describe(ds)
+    assert "verdicts: stable_floquet and stable_sim agree at 2 of 3" in text
+    assert "undecided: the simulation neither settled nor diverged" in text

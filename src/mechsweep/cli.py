@@ -554,16 +554,25 @@ def describe(ds) -> str:
         lines.append("fixed: " + ", ".join(f"{k} = {ds[k].values} {ds[k].attrs.get('units', '')}".strip()
                                            for k in fixed))
     lines.append("outputs:")
-    ok = ds["status"] == 0
-    for name in ds.attrs.get("outputs", "").split():
+    status = ds["status"]
+    ok = status == 0
+    counts = _status_counts(ds)
+    total = status.size
+    for name in _outputs(ds):
         v = ds[name].where(ok)  # chunk by chunk when the dataset is opened lazily
         lo, hi = float(v.min()), float(v.max())
         rng = f"{lo:.6g} .. {hi:.6g}" if np.isfinite(lo) else "no ok points"
         lines.append(f"  {name:<20} [{ds[name].attrs.get('units', '')}]  {rng}  {ds[name].attrs.get('long_name', '')}")
-    if "stable_floquet" in ds and "stable_sim" in ds:
-        lines.append("verdicts: " + verdict_agreement(ds))
-    total = ds["status"].size
-    lines.append("status: " + ", ".join(f"{k} {n} ({100 * n / total:.3g}%)" for k, n in _status_counts(ds).items()))
+        lines.append(f"  {'':<20} {_presence(ds, name, counts)}")
+    verdicts = [n for n in _outputs(ds) if output_kind(ds, n) == "verdict"]
+    for i, a in enumerate(verdicts):
+        for b in verdicts[i + 1:]:
+            lines.append("verdicts: " + verdict_agreement(ds, a, b))
+    lines.append("status: " + ", ".join(f"{k} {n} ({100 * n / total:.3g}%)" for k, n in counts.items()))
+    notes = _status_notes(ds)
+    for meaning in counts:
+        if meaning in notes:
+            lines.append(f"  {meaning}: {notes[meaning]}")
     if "n_steps" in ds:
         lines.append(f"cost: {int(ds['n_steps'].sum())} steps, {int(ds['n_rhs'].sum())} rhs evaluations, "
                      f"mean {float(ds['n_steps'].mean()):.1f} steps/point")
@@ -576,17 +585,73 @@ def describe(ds) -> str:
     return "\n".join(lines)
 
 
-def verdict_agreement(ds) -> str:
-    """How often the Floquet and simulation verdicts agree, over points where both exist."""
+def _outputs(ds) -> list[str]:
+    return [n for n in ds.attrs.get("outputs", "").split() if n in ds]
+
+
+def _builtin_spec(ds):
+    """The declaration of the dataset's model when it is a built-in one (for datasets written
+    before an attribute existed), else None."""
+    from .models import MODELS
+
+    return MODELS.get(ds.attrs.get("model"))
+
+
+def output_kind(ds, name: str) -> str:
+    """What an output is (``Output.kind``): the variable's ``mechsweep_kind``; for a dataset written
+    before kinds were stored, the built-in model's declaration."""
+    kind = ds[name].attrs.get("mechsweep_kind")
+    if kind is None and (spec := _builtin_spec(ds)) is not None and name in spec.output_names():
+        kind = spec.output(name).kind
+    return str(kind or "")
+
+
+def _status_notes(ds) -> dict[str, str]:
+    """The model's notes on its statuses, {meaning: text}: stored with the dataset, else (a dataset
+    written before notes were stored) the built-in model's declaration."""
+    from . import status as st
+
+    notes = st.stored_notes(ds["status"].attrs)
+    if not notes and "status_notes" not in ds["status"].attrs and (spec := _builtin_spec(ds)) is not None:
+        notes = {st.MEANINGS.get(c, str(c)): t for c, t in spec.status_notes}
+    return notes
+
+
+def _presence(ds, name: str, counts: dict[str, int]) -> str:
+    """'values at N of M points; missing: status k, ...': a point holds a value when the output is
+    finite there (at every sample of its extra dimensions)."""
     import numpy as np
 
-    fl, sim = ds["stable_floquet"].values.ravel(), ds["stable_sim"].values.ravel()
-    both = np.isfinite(fl) & np.isfinite(sim)
-    agree = int((fl[both] == sim[both]).sum())
-    fl_only = int((np.isfinite(fl) & ~np.isfinite(sim)).sum())
-    return (f"Floquet and simulation agree at {agree} of {int(both.sum())} points with both verdicts; "
-            f"disagree at {int(both.sum()) - agree} (Floquet stable, simulation unstable: "
-            f"{int(((fl == 1) & (sim == 0)).sum())}); {fl_only} points have a Floquet verdict only")
+    from . import status as st
+
+    status = ds["status"]
+    v = ds[name]
+    extra = [d for d in v.dims if d not in status.dims]
+    held = np.isfinite(v).all(extra) if extra else np.isfinite(v)
+    n_held = int(held.sum())
+    missing = []
+    for meaning in counts:
+        code = next((c for c, m in st.MEANINGS.items() if m == meaning), None)
+        if code is None:
+            continue
+        n = int(((status == code) & ~held).sum())
+        if n:
+            missing.append(f"{meaning} {n}")
+    text = f"values at {n_held} of {status.size} points"
+    return text + (f"; missing: {', '.join(missing)}" if missing else "")
+
+
+def verdict_agreement(ds, a: str, b: str) -> str:
+    """How often two verdict outputs (1 = stable, 0 = not) agree, over points where both exist."""
+    import numpy as np
+
+    x, y = ds[a].values.ravel(), ds[b].values.ravel()
+    both = np.isfinite(x) & np.isfinite(y)
+    agree = int((x[both] == y[both]).sum())
+    return (f"{a} and {b} agree at {agree} of {int(both.sum())} points with both verdicts; "
+            f"disagree at {int(both.sum()) - agree} ({a} 1, {b} 0: {int(((x == 1) & (y == 0)).sum())}; "
+            f"{a} 0, {b} 1: {int(((x == 0) & (y == 1)).sum())}); {int((np.isfinite(x) & ~np.isfinite(y)).sum())} "
+            f"points have {a} only, {int((~np.isfinite(x) & np.isfinite(y)).sum())} {b} only")
 
 
 def model_text(spec) -> str:
