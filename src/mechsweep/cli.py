@@ -158,7 +158,9 @@ def _parser() -> argparse.ArgumentParser:
                    "(relative to the current directory) or 'package.module:NAME'")
     p.add_argument("--scene", metavar="SCENE", help="the model the scene file SCENE names (a user model "
                    "file is found relative to the scene)")
-    p.add_argument("--markdown", action="store_true", help="print the glossary tables used in README.md")
+    p.add_argument("--markdown", action="store_true", help="print the glossary section of README.md (built-in "
+                   "models and status codes), or one model's tables; `python -m mechsweep.docs README.md` "
+                   "rewrites it in place")
     p.set_defaults(func=_cmd_models)
 
     p = sub.add_parser("check", help="validate scene files without running them")
@@ -409,6 +411,11 @@ def _cmd_models(args) -> int:
                 raise InputError(f"unknown model {name!r}; models: {', '.join(known)} (or 'file.py:NAME', "
                                  "'package.module:NAME')")
             specs = [_entry_point_model(name, points[name])]
+    elif args.markdown:  # the README's glossary section: the built-in models and the status codes
+        from .docs import glossary
+
+        print(glossary(), end="")
+        return 0
     else:
         points = load.entry_points()
         specs = list(MODELS.values()) + [_entry_point_model(n, ep) for n, ep in points.items() if n not in MODELS]
@@ -674,30 +681,18 @@ def model_text(spec) -> str:
         for st in spec.settings:
             lines.append(f"    {st.name:<20} [{st.unit}] {st.long_name}; default {st.default:g}, "
                          f"allowed [{st.lo:g}, {st.hi:g}]")
+    from . import status
+
+    lines.append("  statuses: " + ", ".join(status.MEANINGS.get(c, str(c)) for c in spec.possible_statuses()))
+    lines += [f"    {status.MEANINGS.get(c, str(c)):<20} {t}" for c, t in spec.status_notes]
     return "\n".join(lines)
 
 
 def model_markdown(spec) -> str:
     """Glossary tables of one model (README.md embeds them; a test keeps them in sync)."""
-    lines = [f"### `{spec.name}`: {spec.description}", "", f"Source: {spec.source}.", "",
-             "| parameter | symbol | meaning | unit | allowed |", "|---|---|---|---|---|"]
-    for p in spec.params:
-        opt = " (optional)" if not p.required else ""
-        lines.append(f"| `{p.name}` | {p.symbol or '-'} | {p.long_name}{opt} | {p.unit or '-'} | {p.allowed()} |")
-    lines += ["", "| output | symbol | meaning | unit |", "|---|---|---|---|"]
-    for o in spec.outputs:
-        how = " (integrated)" if o.integrated else ""
-        how += f" (per {', '.join(d.name for d in o.extra_dims)})" if o.extra_dims else ""
-        sym = o.symbol.replace("|", "\\|")  # a bare | would end the table cell
-        lines.append(f"| `{o.name}` | {sym} | {o.long_name}{how} | {o.unit} |")
-    if any(o.integrated for o in spec.outputs):
-        lines += ["", "`solver.method`: " + ", ".join(f"`{m}`" for m in spec.methods) + " (default `dop853`)."]
-    if spec.settings:
-        lines += ["", "| solver setting | meaning | unit | default | allowed |", "|---|---|---|---|---|"]
-        for st in spec.settings:
-            lines.append(f"| `{st.name}` | {st.long_name} | {st.unit} | {st.default:g} | [{st.lo:g}, {st.hi:g}] |")
-    return "\n".join(lines) + "\n"
+    from .docs import model_markdown as markdown
 
+    return markdown(spec)
 
 if __name__ == "__main__":
     sys.exit(main())
