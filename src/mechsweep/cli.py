@@ -208,8 +208,11 @@ def _parser() -> argparse.ArgumentParser:
                                     "linkage models (fourbar_balancing, slidercrank_balancing) are evaluated over "
                                     "a ladder of crank positions per cycle instead (--positions), against a "
                                     "continuous-angle reference, with a plain numpy implementation timed alongside.")
-    b.add_argument("model", help="duffing, torsional_circuit, autobalancer, fourbar_balancing or "
-                                 "slidercrank_balancing")
+    b.add_argument("model", help="duffing, torsional_circuit, autobalancer, fourbar_balancing, "
+                                 "slidercrank_balancing, or a model declared as a mechsweep.model.OdeModel: "
+                                 "'file.py:NAME' (relative to the current directory), 'package.module:NAME' or an "
+                                 "entry-point name, with --scene S.toml naming the same model; scipy then "
+                                 "integrates the model's own rhs")
     b.add_argument("--scene", default=None, help="draw the sample from this scene (default: the model's reference scene)")
     b.add_argument("--points", type=int, default=64, help="sample points for mechsweep (default 64)")
     b.add_argument("--scipy-points", type=int, default=6, help="of those, solved with scipy (default 6)")
@@ -220,6 +223,8 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--repeats", type=int, default=None,
                    help="timing repetitions, the fastest counts (default 3; linkage models 5)")
     b.add_argument("--out", default="data/bench", help="output folder (default data/bench)")
+    b.add_argument("--output", default=None, metavar="NAME",
+                   help="a model of your own: the measured output to compare (default: its first measurement)")
     b.set_defaults(func=_cmd_bench_workprecision)
     b = bsub.add_parser("cluster", help="throughput locally and on a dask LocalCluster of 1..W workers; identical datasets")
     b.add_argument("--points", type=int, default=400_000, help="Duffing grid points (default 400000)")
@@ -510,7 +515,7 @@ def _cmd_bench_workprecision(args) -> int:
     workprecision.main(args.model, args.scene, points=args.points, scipy_points=args.scipy_points,
                        ladder=tuple(args.rtol) if args.rtol else workprecision.LADDER,
                        repeats=3 if args.repeats is None else args.repeats,
-                       out_dir=args.out)
+                       out_dir=args.out, output=args.output)
     return 0
 
 
