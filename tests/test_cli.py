@@ -126,3 +126,41 @@ def test_info_reads_the_declared_kinds_of_a_built_in_model_for_an_old_dataset():
     text = describe(ds)
     assert "verdicts: stable_floquet and stable_sim agree at 2 of 3" in text
     assert "undecided: the simulation neither settled nor diverged" in text
+
+
+def test_status_texts_name_no_model():
+    """The generic status texts (status.py) name no model, none of a built-in model's parameters or
+    outputs; what a status means for one model is that model's status_notes."""
+    import re
+
+    from mechsweep import status as st
+    from mechsweep.models import MODELS
+
+    text = " ".join(st.DESCRIPTIONS.values()).lower()
+    names = {"duffing", "autobalancer", "pendulum", "lever", "spring", "phi", "crank", "linkage"}
+    for spec in MODELS.values():
+        names |= {spec.name.lower(), *spec.name.lower().split("_")}
+        names |= {n.lower() for n in spec.param_names() + spec.output_names() if len(n) > 2 or "_" in n}
+    found = sorted(n for n in names if re.search(rf"(?<![\w.]){re.escape(n)}(?!\w)", text))
+    assert not found, found
+    assert all(spec.status_notes for spec in MODELS.values())
+
+
+def test_a_run_stores_its_model_status_notes_and_info_shows_those_it_met(in_tmp, capsys):
+    import json
+
+    import mechsweep
+    from mechsweep import status as st
+
+    scene = {"scene": {"name": "notes", "model": "duffing", "outputs": ["period"]},
+             "axes": {"A": [0.0, 0.5, 2.0]}, "fixed": {"omega": 1.0, "mu": -1.0}}
+    ds = mechsweep.run(mechsweep.load_scene(scene), output=in_tmp / "notes.h5", progress=False)
+    assert sorted(ds["status"].values.tolist()) == [st.OK, st.NOT_OSCILLATORY, st.NO_MOTION]
+    notes = json.loads(ds["status"].attrs["status_notes"])
+    spec = mechsweep.load_scene(scene).model
+    assert notes == {st.MEANINGS[c]: t for c, t in spec.status_notes}
+    assert main(["info", str(in_tmp / "notes.h5")]) == 0
+    info = capsys.readouterr().out
+    assert f"  not_oscillatory: {spec.status_note(st.NOT_OSCILLATORY)}" in info
+    assert f"  no_motion: {spec.status_note(st.NO_MOTION)}" in info
+    assert "values at 1 of 3 points; missing: not_oscillatory 1, no_motion 1" in info
