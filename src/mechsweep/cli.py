@@ -569,13 +569,14 @@ def describe(ds) -> str:
     status = ds["status"]
     ok = status == 0
     counts = _status_counts(ds)
+    codes = status.values
     total = status.size
     for name in _outputs(ds):
         v = ds[name].where(ok)  # chunk by chunk when the dataset is opened lazily
         lo, hi = float(v.min()), float(v.max())
         rng = f"{lo:.6g} .. {hi:.6g}" if np.isfinite(lo) else "no ok points"
         lines.append(f"  {name:<20} [{ds[name].attrs.get('units', '')}]  {rng}  {ds[name].attrs.get('long_name', '')}")
-        lines.append(f"  {'':<20} {_presence(ds, name, counts)}")
+        lines.append(f"  {'':<20} {_presence(ds, name, codes)}")
     verdicts = [n for n in _outputs(ds) if output_kind(ds, n) == "verdict"]
     for i, a in enumerate(verdicts):
         for b in verdicts[i + 1:]:
@@ -629,27 +630,20 @@ def _status_notes(ds) -> dict[str, str]:
     return notes
 
 
-def _presence(ds, name: str, counts: dict[str, int]) -> str:
+def _presence(ds, name: str, codes) -> str:
     """'values at N of M points; missing: status k, ...': a point holds a value when the output is
-    finite there (at every sample of its extra dimensions)."""
+    finite there (at every sample of its extra dimensions). ``codes``: the status array (grid order)."""
     import numpy as np
 
     from . import status as st
 
-    status = ds["status"]
     v = ds[name]
-    extra = [d for d in v.dims if d not in status.dims]
-    held = np.isfinite(v).all(extra) if extra else np.isfinite(v)
-    n_held = int(held.sum())
-    missing = []
-    for meaning in counts:
-        code = next((c for c, m in st.MEANINGS.items() if m == meaning), None)
-        if code is None:
-            continue
-        n = int(((status == code) & ~held).sum())
-        if n:
-            missing.append(f"{meaning} {n}")
-    text = f"values at {n_held} of {status.size} points"
+    extra = [d for d in v.dims if d not in ds["status"].dims]
+    held = np.isfinite(v).all(extra) if extra else np.isfinite(v)  # one pass, chunk by chunk when lazy
+    held = np.asarray(held.transpose(*ds["status"].dims).values, dtype=bool)
+    missing_codes, counts = np.unique(codes[~held], return_counts=True)
+    missing = [f"{st.MEANINGS.get(int(c), str(c))} {int(n)}" for c, n in zip(missing_codes, counts)]
+    text = f"values at {int(held.sum())} of {codes.size} points"
     return text + (f"; missing: {', '.join(missing)}" if missing else "")
 
 
