@@ -296,6 +296,9 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     if model in CASES:
         case = CASES[model]
         spec = MODELS[model]
+        if scene_path is None and not (ROOT / case.scene).is_file():
+            raise InputError(f"the reference scene {case.scene} of {model} ships with the repository, not with "
+                             f"the installed package (looked in {ROOT}); give a scene with --scene S.toml")
         scene = load_scene(scene_path or ROOT / case.scene)
         if scene.model.name != model:
             raise InputError(f"scene {scene_path} is for model {scene.model.name!r}, not {model!r}")
