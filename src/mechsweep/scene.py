@@ -487,7 +487,9 @@ def _model_source_key(name, spec: ModelSpec, base, models) -> str:
     """sha256 of the source file a user model is declared in: the model file ("file.py:NAME",
     resolved as load.resolve does), the module ("package.module:NAME", an entry point's target) or,
     for a model given from Python, the module its rhs (an OdeModel) or evaluate (a ModelSpec) is
-    defined in; when no file can be read, of the declaration's parameters, outputs and settings.
+    defined in; followed by the declaration (parameters, outputs, settings, methods; and the
+    ``source`` of a ModelSpec given from Python, whose evaluate may live in mechsweep itself).
+    Nothing that depends on where the file lies: the same file is the same model from any folder.
     "" for a built-in model."""
     import hashlib
 
@@ -516,8 +518,9 @@ def _model_source_key(name, spec: ModelSpec, base, models) -> str:
         data = Path(file).read_bytes() if file else b""
     except OSError:
         data = b""
-    if not data:
-        data = repr((spec.name, spec.params, spec.outputs, spec.settings, spec.methods)).encode()
+    given_spec = bool(models and name in models and isinstance(models[name], ModelSpec))
+    data += repr((spec.name, spec.params, spec.outputs, spec.settings, spec.methods,
+                  spec.source if given_spec else "")).encode()
     return hashlib.sha256(data).hexdigest()
 
 
