@@ -286,11 +286,11 @@ def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, targ
     if part.exists() and not restart:
         journal = Journal.read(part)
         canonical = scene.canonical()
-        stored = journal.meta["scene_canonical"]
-        if not journal.empty and same_scene({"scene_canonical": stored, "scene": journal.meta.get("scene"),
+        if not journal.empty and same_scene({"scene_canonical": journal.meta["scene_canonical"],
+                                             "scene": journal.meta.get("scene"),
                                              "scene_folder": journal.meta.get("attrs", {}).get("scene_folder")},
                                             scene):
-            canonical = stored  # the same scene, perhaps in an older version's form
+            canonical = journal.meta["scene_canonical"]  # the same scene, perhaps in an older version's form
         if not journal.empty and (why := journal.matches(canonical, target, n_chunks)) is not None:
             raise StoreError(why)
     return False
