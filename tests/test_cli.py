@@ -78,3 +78,89 @@ def test_output_cut_short_by_a_pipe_is_not_an_error():
                           text=True, timeout=120)
     assert proc.stdout.startswith("duffing")
     assert "Traceback" not in proc.stderr and "BrokenPipe" not in proc.stderr
+
+
+def _dataset(model, outputs, kinds=True, notes=None):
+    """A small run-like dataset built by hand: a grid of 6 points, outputs named by the caller."""
+    import json
+
+    import numpy as np
+    import xarray as xr
+
+    from mechsweep import status as st
+
+    status = np.array([st.OK, st.OK, st.OK, st.UNDECIDED, st.NO_EVENT, st.OK], dtype=st.DTYPE)
+    values = {"v1": [1.0, 0.0, 1.0, np.nan, np.nan, 1.0], "v2": [1.0, 1.0, 1.0, 0.0, np.nan, np.nan],
+              "x": [0.5, 0.25, 2.0, 3.0, np.nan, 1.0]}
+    ds = xr.Dataset(coords={"k": ("k", np.arange(6.0), {"units": "1"})},
+                    attrs={"title": "t", "model": model, "outputs": " ".join(outputs)})
+    for name, value in zip(outputs, values.values()):
+        kind = {"mechsweep_kind": "verdict"} if kinds and name != outputs[-1] else {}
+        ds[name] = ("k", np.array(value), {"units": "1", "long_name": name, **kind})
+    ds["status"] = ("k", status, {"status_notes": json.dumps(notes)} if notes else {})
+    return ds
+
+
+def test_info_compares_any_two_verdicts_and_says_where_values_are_missing():
+    """A model info has never heard of: its verdict outputs (declared kind) are compared, every
+    output says how many points hold a value and why the others do not, and the model's own
+    status notes stored with the dataset are shown."""
+    from mechsweep.cli import describe
+
+    ds = _dataset("some_user_model", ["ok_a", "ok_b", "x"], notes={"undecided": "the pendulum dithers"})
+    text = describe(ds)
+    assert ("verdicts: ok_a and ok_b agree at 2 of 3 points with both verdicts; disagree at 1 (ok_a 1, ok_b 0: 0; "
+            "ok_a 0, ok_b 1: 1); 1 points have ok_a only, 1 ok_b only") in text
+    assert "values at 4 of 6 points; missing: no_event 1, undecided 1" in text  # ok_a
+    assert "values at 5 of 6 points; missing: no_event 1" in text  # x
+    assert "undecided: the pendulum dithers" in text
+    assert "verdicts: ok_a and x" not in text  # x is not a verdict
+
+
+def test_info_reads_the_declared_kinds_of_a_built_in_model_for_an_old_dataset():
+    """A dataset written before kinds were stored: the built-in declaration says which outputs are
+    verdicts (none is named in the reader), and its status notes are shown."""
+    from mechsweep.cli import describe
+
+    ds = _dataset("autobalancer", ["stable_floquet", "stable_sim", "floquet_max"], kinds=False)
+    text = describe(ds)
+    assert "verdicts: stable_floquet and stable_sim agree at 2 of 3" in text
+    assert "undecided: the simulation neither settled nor diverged" in text
+
+
+def test_status_texts_name_no_model():
+    """The generic status texts (status.py) name no model, none of a built-in model's parameters or
+    outputs; what a status means for one model is that model's status_notes."""
+    import re
+
+    from mechsweep import status as st
+    from mechsweep.models import MODELS
+
+    text = " ".join(st.DESCRIPTIONS.values()).lower()
+    names = {"duffing", "autobalancer", "pendulum", "lever", "spring", "phi", "crank", "linkage"}
+    for spec in MODELS.values():
+        names |= {spec.name.lower(), *spec.name.lower().split("_")}
+        names |= {n.lower() for n in spec.param_names() + spec.output_names() if len(n) > 2 or "_" in n}
+    found = sorted(n for n in names if re.search(rf"(?<![\w.]){re.escape(n)}(?!\w)", text))
+    assert not found, found
+    assert all(spec.status_notes for spec in MODELS.values())
+
+
+def test_a_run_stores_its_model_status_notes_and_info_shows_those_it_met(in_tmp, capsys):
+    import json
+
+    import mechsweep
+    from mechsweep import status as st
+
+    scene = {"scene": {"name": "notes", "model": "duffing", "outputs": ["period"]},
+             "axes": {"A": [0.0, 0.5, 2.0]}, "fixed": {"omega": 1.0, "mu": -1.0}}
+    ds = mechsweep.run(mechsweep.load_scene(scene), output=in_tmp / "notes.h5", progress=False)
+    assert sorted(ds["status"].values.tolist()) == [st.OK, st.NOT_OSCILLATORY, st.NO_MOTION]
+    notes = json.loads(ds["status"].attrs["status_notes"])
+    spec = mechsweep.load_scene(scene).model
+    assert notes == {st.MEANINGS[c]: t for c, t in spec.status_notes}
+    assert main(["info", str(in_tmp / "notes.h5")]) == 0
+    info = capsys.readouterr().out
+    assert f"  not_oscillatory: {spec.status_note(st.NOT_OSCILLATORY)}" in info
+    assert f"  no_motion: {spec.status_note(st.NO_MOTION)}" in info
+    assert "values at 1 of 3 points; missing: not_oscillatory 1, no_motion 1" in info

@@ -19,7 +19,7 @@ from scipy.integrate import solve_ivp
 import mechsweep
 from mechsweep import status as st
 
-from .conftest import SWEEPS
+from .conftest import REPO, SWEEPS
 
 EXTREME = SWEEPS / "extreme"
 SCENE_FILES = sorted(EXTREME.glob("*.toml"))
@@ -27,15 +27,8 @@ SCENE_FILES = sorted(EXTREME.glob("*.toml"))
 PERIOD_PROMISE = 2e-10  # Duffing period error at the default rtol 5e-11 (README: <= 1e-10 measured)
 K_HALF = 4.0 * float(sp.ellipk(0.5))  # 4 K(1/2) = 7.41629870...
 
-INTEGRATION = {st.MAX_STEPS, st.STEP_UNDERFLOW, st.NONFINITE, st.NO_EVENT, st.STIFF, st.ILL_CONDITIONED}
-DOCUMENTED = {
-    "duffing": {st.OK, st.INFEASIBLE, st.NOT_OSCILLATORY, st.NO_MOTION} | INTEGRATION,
-    "torsional_circuit": {st.OK, st.INFEASIBLE, st.SINGULAR, st.NOT_OSCILLATORY, st.NO_MOTION} | INTEGRATION,
-    "autobalancer": {st.OK, st.INFEASIBLE, st.SINGULAR, st.NOT_BALANCEABLE, st.UNDECIDED, st.NOT_REPRODUCIBLE}
-    | INTEGRATION,
-    "fourbar_balancing": {st.OK, st.INFEASIBLE, st.SINGULAR, st.NONFINITE},
-    "slidercrank_balancing": {st.OK, st.INFEASIBLE, st.SINGULAR, st.NONFINITE},
-}
+# The statuses a point may have are the model's declaration (ModelSpec.statuses, or for a model
+# that declares none, those its outputs imply: ModelSpec.possible_statuses); nothing here names them.
 # integrations per point: a point's n_steps sums them, each has its own budget
 INTEGRATIONS = {"duffing": 1, "torsional_circuit": 2, "autobalancer": 3}  # autobalancer: Floquet, simulation, check
 
@@ -113,7 +106,8 @@ def test_full_size_scene_validates(stem):
 def check_points(scene, ds, allow_inf_when_flagged=False):
     status = ds["status"].values
     model = scene.model.name
-    assert set(np.unique(status).tolist()) <= DOCUMENTED[model], np.unique(status)
+    declared = set(scene.model.possible_statuses())
+    assert set(np.unique(status).tolist()) <= declared, (np.unique(status), sorted(declared))
     ok = status == st.OK
     for name in scene.outputs:
         v = ds[name].values
@@ -121,8 +115,35 @@ def check_points(scene, ds, allow_inf_when_flagged=False):
         if not allow_inf_when_flagged:
             assert not np.isinf(v[~ok]).any(), name  # what could not be computed is NaN
     if "n_steps" in ds:
-        budget = scene.solver.max_steps * INTEGRATIONS[model]
+        budget = scene.solver.max_steps * INTEGRATIONS.get(model, 1)  # a user model: one shared trajectory
         assert int(ds["n_steps"].max()) <= budget
+
+
+def test_every_built_in_model_declares_its_statuses():
+    """A built-in model's statuses are declared, not derived: a derived set would widen with its outputs."""
+    from mechsweep.models import MODELS
+
+    for spec in MODELS.values():
+        assert spec.statuses, spec.name
+        assert st.OK in spec.possible_statuses() and st.PENDING not in spec.possible_statuses()
+
+
+def test_a_user_model_in_its_corners_gives_only_the_statuses_its_outputs_imply(tmp_path):
+    """A model the test has never heard of (tests/user_models/oscillators.py, no statuses declared),
+    driven into a step budget it cannot finish in and a horizon too short for its period: every
+    status it gives is in the set derived from its declaration, and the corners are really hit."""
+    model = str(REPO / "tests" / "user_models" / "oscillators.py") + ":LINEAR"
+    outputs = ["period", "period_short", "x_at_2", "v_max", "x_min", "t_up2", "t_half_down"]  # as linear.toml
+    scene = mechsweep.load_scene({
+        "scene": {"name": "user_corners", "model": model, "outputs": outputs},
+        "axes": {"w": [1.0, 10.0, 400.0]}, "fixed": {"A": 0.7},
+        "solver": {"rtol": 1e-12, "atol": 1e-14, "max_steps": 2000}})
+    ds = mechsweep.run(scene, output=tmp_path / "corners.h5", progress=False).load()
+    status = ds["status"].values
+    assert st.NO_EVENT in status and st.MAX_STEPS in status and st.OK in status, status
+    check_points(scene, ds)
+    assert set(scene.model.possible_statuses()) == {st.OK, st.MAX_STEPS, st.STEP_UNDERFLOW, st.NONFINITE,
+                                                    st.NO_EVENT}
 
 
 @pytest.mark.parametrize("stem", [s for s in GENERIC_IDS if s != "duffing_cubic_limit"])

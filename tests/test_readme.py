@@ -1,7 +1,7 @@
 """README.md promises: the glossary matches the models, and the two set-up commands exist."""
 import re
 
-from mechsweep.cli import model_markdown
+from mechsweep import docs
 from mechsweep.models import MODELS
 
 from .conftest import REPO
@@ -10,8 +10,46 @@ README = (REPO / "README.md").read_text()
 
 
 def test_glossary_is_generated_from_the_models():
+    """The whole README section, word for word, is what the declarations generate."""
+    assert docs.readme_section(README) == docs.glossary(), \
+        "README.md's Glossary differs from the declarations: regenerate it with `python -m mechsweep.docs README.md`"
+
+
+def test_glossary_covers_every_built_in_model_and_status():
+    from mechsweep import status as st
+
+    text = docs.glossary()
     for spec in MODELS.values():
-        assert model_markdown(spec) in README, f"regenerate with `mechsweep models --markdown` ({spec.name})"
+        assert f"### `{spec.name}`" in text
+        for name in spec.param_names() + spec.output_names():
+            assert f"| `{name}` |" in text, (spec.name, name)
+    for code, meaning in st.MEANINGS.items():
+        assert f"| {code} | `{meaning}` | {st.DESCRIPTIONS[code]} |" in text
+
+
+def test_glossary_of_a_model_it_has_never_heard_of():
+    """A user model (tests/user_models/mathieu.py): its parameters, outputs, the setting its Floquet
+    measurement adds and the statuses derived from its outputs (none declared)."""
+    from mechsweep import status as st
+    from mechsweep.model import load
+
+    spec = load.resolve(str(REPO / "tests" / "user_models" / "mathieu.py") + ":MATHIEU")
+    text = docs.glossary([spec])
+    assert text.startswith("## Glossary\n") and f"### `{spec.name}`: {spec.description}" in text
+    for name in spec.param_names() + spec.output_names() + tuple(s.name for s in spec.settings):
+        assert f"| `{name}` |" in text, name
+    derived = spec.possible_statuses()
+    assert st.UNDECIDED in derived and st.INFEASIBLE in derived and st.MAX_STEPS in derived
+    assert "Statuses (derived from its outputs): " + ", ".join(f"`{st.MEANINGS[c]}`" for c in derived) in text
+
+
+def test_regenerating_the_readme_section_restores_it(tmp_path):
+    readme = tmp_path / "README.md"
+    readme.write_text(README.replace("| `omega` | ω |", "| `omega` | w |", 1))
+    assert docs.readme_section(readme.read_text()) != docs.glossary()
+    assert docs.write_readme(readme) is True
+    assert readme.read_text() == README
+    assert docs.write_readme(readme) is False
 
 
 def test_ci_runs_the_readme_test_command():

@@ -158,7 +158,9 @@ def _parser() -> argparse.ArgumentParser:
                    "(relative to the current directory) or 'package.module:NAME'")
     p.add_argument("--scene", metavar="SCENE", help="the model the scene file SCENE names (a user model "
                    "file is found relative to the scene)")
-    p.add_argument("--markdown", action="store_true", help="print the glossary tables used in README.md")
+    p.add_argument("--markdown", action="store_true", help="print the glossary section of README.md (built-in "
+                   "models and status codes), or one model's tables; `python -m mechsweep.docs README.md` "
+                   "rewrites it in place")
     p.set_defaults(func=_cmd_models)
 
     p = sub.add_parser("check", help="validate scene files without running them")
@@ -206,8 +208,11 @@ def _parser() -> argparse.ArgumentParser:
                                     "linkage models (fourbar_balancing, slidercrank_balancing) are evaluated over "
                                     "a ladder of crank positions per cycle instead (--positions), against a "
                                     "continuous-angle reference, with a plain numpy implementation timed alongside.")
-    b.add_argument("model", help="duffing, torsional_circuit, autobalancer, fourbar_balancing or "
-                                 "slidercrank_balancing")
+    b.add_argument("model", help="duffing, torsional_circuit, autobalancer, fourbar_balancing, "
+                                 "slidercrank_balancing, or a model declared as a mechsweep.model.OdeModel: "
+                                 "'file.py:NAME' (relative to the current directory), 'package.module:NAME' or an "
+                                 "entry-point name, with --scene S.toml naming the same model; scipy then "
+                                 "integrates the model's own rhs")
     b.add_argument("--scene", default=None, help="draw the sample from this scene (default: the model's reference scene)")
     b.add_argument("--points", type=int, default=64, help="sample points for mechsweep (default 64)")
     b.add_argument("--scipy-points", type=int, default=6, help="of those, solved with scipy (default 6)")
@@ -218,6 +223,8 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--repeats", type=int, default=None,
                    help="timing repetitions, the fastest counts (default 3; linkage models 5)")
     b.add_argument("--out", default="data/bench", help="output folder (default data/bench)")
+    b.add_argument("--output", default=None, metavar="NAME",
+                   help="a model of your own: the measured output to compare (default: its first measurement)")
     b.set_defaults(func=_cmd_bench_workprecision)
     b = bsub.add_parser("cluster", help="throughput locally and on a dask LocalCluster of 1..W workers; identical datasets")
     b.add_argument("--points", type=int, default=400_000, help="Duffing grid points (default 400000)")
@@ -412,6 +419,11 @@ def _cmd_models(args) -> int:
                 raise InputError(f"unknown model {name!r}; models: {', '.join(known)} (or 'file.py:NAME', "
                                  "'package.module:NAME')")
             specs = [_entry_point_model(name, points[name])]
+    elif args.markdown:  # the README's glossary section: the built-in models and the status codes
+        from .docs import glossary
+
+        print(glossary(), end="")
+        return 0
     else:
         points = load.entry_points()
         specs = list(MODELS.values()) + [_entry_point_model(n, ep) for n, ep in points.items() if n not in MODELS]
@@ -506,7 +518,7 @@ def _cmd_bench_workprecision(args) -> int:
     workprecision.main(args.model, args.scene, points=args.points, scipy_points=args.scipy_points,
                        ladder=tuple(args.rtol) if args.rtol else workprecision.LADDER,
                        repeats=3 if args.repeats is None else args.repeats,
-                       out_dir=args.out)
+                       out_dir=args.out, output=args.output)
     return 0
 
 
@@ -557,16 +569,26 @@ def describe(ds) -> str:
         lines.append("fixed: " + ", ".join(f"{k} = {ds[k].values} {ds[k].attrs.get('units', '')}".strip()
                                            for k in fixed))
     lines.append("outputs:")
-    ok = ds["status"] == 0
-    for name in ds.attrs.get("outputs", "").split():
+    status = ds["status"]
+    ok = status == 0
+    counts = _status_counts(ds)
+    codes = status.values
+    total = status.size
+    for name in _outputs(ds):
         v = ds[name].where(ok)  # chunk by chunk when the dataset is opened lazily
         lo, hi = float(v.min()), float(v.max())
         rng = f"{lo:.6g} .. {hi:.6g}" if np.isfinite(lo) else "no ok points"
         lines.append(f"  {name:<20} [{ds[name].attrs.get('units', '')}]  {rng}  {ds[name].attrs.get('long_name', '')}")
-    if "stable_floquet" in ds and "stable_sim" in ds:
-        lines.append("verdicts: " + verdict_agreement(ds))
-    total = ds["status"].size
-    lines.append("status: " + ", ".join(f"{k} {n} ({100 * n / total:.3g}%)" for k, n in _status_counts(ds).items()))
+        lines.append(f"  {'':<20} {_presence(ds, name, codes)}")
+    verdicts = [n for n in _outputs(ds) if output_kind(ds, n) == "verdict"]
+    for i, a in enumerate(verdicts):
+        for b in verdicts[i + 1:]:
+            lines.append("verdicts: " + verdict_agreement(ds, a, b))
+    lines.append("status: " + ", ".join(f"{k} {n} ({100 * n / total:.3g}%)" for k, n in counts.items()))
+    notes = _status_notes(ds)
+    for meaning in counts:
+        if meaning in notes:
+            lines.append(f"  {meaning}: {notes[meaning]}")
     if "n_steps" in ds:
         lines.append(f"cost: {int(ds['n_steps'].sum())} steps, {int(ds['n_rhs'].sum())} rhs evaluations, "
                      f"mean {float(ds['n_steps'].mean()):.1f} steps/point")
@@ -579,17 +601,66 @@ def describe(ds) -> str:
     return "\n".join(lines)
 
 
-def verdict_agreement(ds) -> str:
-    """How often the Floquet and simulation verdicts agree, over points where both exist."""
+def _outputs(ds) -> list[str]:
+    return ds.attrs.get("outputs", "").split()  # one not in the file: KeyError, "not laid out as" (_laid_out)
+
+
+def _builtin_spec(ds):
+    """The declaration of the dataset's model when it is a built-in one (for datasets written
+    before an attribute existed), else None."""
+    from .models import MODELS
+
+    return MODELS.get(ds.attrs.get("model"))
+
+
+def output_kind(ds, name: str) -> str:
+    """What an output is (``Output.kind``): the variable's ``mechsweep_kind``; for a dataset written
+    before kinds were stored, the built-in model's declaration."""
+    kind = ds[name].attrs.get("mechsweep_kind")
+    if kind is None and (spec := _builtin_spec(ds)) is not None and name in spec.output_names():
+        kind = spec.output(name).kind
+    return str(kind or "")
+
+
+def _status_notes(ds) -> dict[str, str]:
+    """The model's notes on its statuses, {meaning: text}: stored with the dataset, else (a dataset
+    written before notes were stored) the built-in model's declaration."""
+    from . import status as st
+
+    notes = st.stored_notes(ds["status"].attrs)
+    if not notes and "status_notes" not in ds["status"].attrs and (spec := _builtin_spec(ds)) is not None:
+        notes = {st.MEANINGS.get(c, str(c)): t for c, t in spec.status_notes}
+    return notes
+
+
+def _presence(ds, name: str, codes) -> str:
+    """'values at N of M points; missing: status k, ...': a point holds a value when the output is
+    finite there (at every sample of its extra dimensions). ``codes``: the status array (grid order)."""
     import numpy as np
 
-    fl, sim = ds["stable_floquet"].values.ravel(), ds["stable_sim"].values.ravel()
-    both = np.isfinite(fl) & np.isfinite(sim)
-    agree = int((fl[both] == sim[both]).sum())
-    fl_only = int((np.isfinite(fl) & ~np.isfinite(sim)).sum())
-    return (f"Floquet and simulation agree at {agree} of {int(both.sum())} points with both verdicts; "
-            f"disagree at {int(both.sum()) - agree} (Floquet stable, simulation unstable: "
-            f"{int(((fl == 1) & (sim == 0)).sum())}); {fl_only} points have a Floquet verdict only")
+    from . import status as st
+
+    v = ds[name]
+    extra = [d for d in v.dims if d not in ds["status"].dims]
+    held = np.isfinite(v).all(extra) if extra else np.isfinite(v)  # one pass, chunk by chunk when lazy
+    held = np.asarray(held.transpose(*ds["status"].dims).values, dtype=bool)
+    missing_codes, counts = np.unique(codes[~held], return_counts=True)
+    missing = [f"{st.MEANINGS.get(int(c), str(c))} {int(n)}" for c, n in zip(missing_codes, counts)]
+    text = f"values at {int(held.sum())} of {codes.size} points"
+    return text + (f"; missing: {', '.join(missing)}" if missing else "")
+
+
+def verdict_agreement(ds, a: str, b: str) -> str:
+    """How often two verdict outputs (1 = stable, 0 = not) agree, over points where both exist."""
+    import numpy as np
+
+    x, y = ds[a].values.ravel(), ds[b].values.ravel()
+    both = np.isfinite(x) & np.isfinite(y)
+    agree = int((x[both] == y[both]).sum())
+    return (f"{a} and {b} agree at {agree} of {int(both.sum())} points with both verdicts; "
+            f"disagree at {int(both.sum()) - agree} ({a} 1, {b} 0: {int(((x == 1) & (y == 0)).sum())}; "
+            f"{a} 0, {b} 1: {int(((x == 0) & (y == 1)).sum())}); {int((np.isfinite(x) & ~np.isfinite(y)).sum())} "
+            f"points have {a} only, {int((~np.isfinite(x) & np.isfinite(y)).sum())} {b} only")
 
 
 def model_text(spec) -> str:
@@ -612,30 +683,18 @@ def model_text(spec) -> str:
         for st in spec.settings:
             lines.append(f"    {st.name:<20} [{st.unit}] {st.long_name}; default {st.default:g}, "
                          f"allowed [{st.lo:g}, {st.hi:g}]")
+    from . import status
+
+    lines.append("  statuses: " + ", ".join(status.MEANINGS.get(c, str(c)) for c in spec.possible_statuses()))
+    lines += [f"    {status.MEANINGS.get(c, str(c)):<20} {t}" for c, t in spec.status_notes]
     return "\n".join(lines)
 
 
 def model_markdown(spec) -> str:
     """Glossary tables of one model (README.md embeds them; a test keeps them in sync)."""
-    lines = [f"### `{spec.name}`: {spec.description}", "", f"Source: {spec.source}.", "",
-             "| parameter | symbol | meaning | unit | allowed |", "|---|---|---|---|---|"]
-    for p in spec.params:
-        opt = " (optional)" if not p.required else ""
-        lines.append(f"| `{p.name}` | {p.symbol or '-'} | {p.long_name}{opt} | {p.unit or '-'} | {p.allowed()} |")
-    lines += ["", "| output | symbol | meaning | unit |", "|---|---|---|---|"]
-    for o in spec.outputs:
-        how = " (integrated)" if o.integrated else ""
-        how += f" (per {', '.join(d.name for d in o.extra_dims)})" if o.extra_dims else ""
-        sym = o.symbol.replace("|", "\\|")  # a bare | would end the table cell
-        lines.append(f"| `{o.name}` | {sym} | {o.long_name}{how} | {o.unit} |")
-    if any(o.integrated for o in spec.outputs):
-        lines += ["", "`solver.method`: " + ", ".join(f"`{m}`" for m in spec.methods) + " (default `dop853`)."]
-    if spec.settings:
-        lines += ["", "| solver setting | meaning | unit | default | allowed |", "|---|---|---|---|---|"]
-        for st in spec.settings:
-            lines.append(f"| `{st.name}` | {st.long_name} | {st.unit} | {st.default:g} | [{st.lo:g}, {st.hi:g}] |")
-    return "\n".join(lines) + "\n"
+    from .docs import model_markdown as markdown
 
+    return markdown(spec)
 
 if __name__ == "__main__":
     sys.exit(main())

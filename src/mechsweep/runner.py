@@ -286,7 +286,10 @@ def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, targ
     if part.exists() and not restart:
         journal = Journal.read(part)
         canonical = scene.canonical()
-        if not journal.empty and scene.same_as(journal.meta["scene_canonical"]):
+        if not journal.empty and same_scene({"scene_canonical": journal.meta["scene_canonical"],
+                                             "scene": journal.meta.get("scene"),
+                                             "scene_folder": journal.meta.get("attrs", {}).get("scene_folder")},
+                                            scene):
             canonical = journal.meta["scene_canonical"]  # the same scene, perhaps in an older version's form
         if not journal.empty and (why := journal.matches(canonical, target, n_chunks)) is not None:
             raise StoreError(why)

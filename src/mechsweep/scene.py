@@ -189,6 +189,10 @@ class Scene:
     # "" when the model is not named by a file path. Stored with a run and sent to dask workers,
     # so the stored text is re-read against it from any working directory.
     base: str = ""
+    # sha256 of the source a user model is declared in (its model file or module; see
+    # _model_source_key); "" for a built-in model. Part of the canonical form: two files declaring
+    # a model of one name are two scenes, the same file is the same scene.
+    model_key: str = ""
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -211,13 +215,16 @@ class Scene:
         return json.dumps(self._canonical_dict(), sort_keys=True)
 
     def _canonical_dict(self) -> dict:
-        return {
+        form = {
             "model": self.model.name,
             "outputs": list(self.outputs),
             "axes": [[a.name, a.spec()] for a in self.axes],
             "fixed": {k: self.fixed[k] for k in sorted(self.fixed)},
             "solver": None if self.solver is None else self.solver.as_dict(),
         }
+        if self.model_key:  # a user model (a built-in's form is unchanged, so older datasets match)
+            form["model_source_sha256"] = self.model_key
+        return form
 
     def same_as(self, stored: str) -> bool:
         """Whether the canonical form ``stored`` (of a journal or a dataset) describes this scene.
@@ -374,6 +381,7 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
         text=text,
         execution=execution,
         base=_model_folder(head.get("model"), base),
+        model_key=_model_source_key(head.get("model"), model, base, models),
     )
 
 
@@ -473,6 +481,47 @@ def _model(name, p: _Problems, base: Path | str | None = None, models: Mapping |
         p.unknown("scene.model", name, known, "model")
         return None
     return MODELS[name]
+
+
+def _model_source_key(name, spec: ModelSpec, base, models) -> str:
+    """sha256 of the source file a user model is declared in: the model file ("file.py:NAME",
+    resolved as load.resolve does), the module ("package.module:NAME", an entry point's target) or,
+    for a model given from Python, the module its rhs (an OdeModel) or evaluate (a ModelSpec) is
+    defined in; followed by the declaration (parameters, outputs, settings, methods; and the
+    ``source`` of a ModelSpec given from Python, whose evaluate may live in mechsweep itself).
+    Nothing that depends on where the file lies: the same file is the same model from any folder.
+    "" for a built-in model."""
+    import hashlib
+
+    from .model import load
+
+    if not isinstance(name, str) or (name in MODELS and MODELS[name] is spec and not (models and name in models)):
+        return ""
+    file, module = "", ""
+    if models and name in models:
+        obj = models[name]
+        func = getattr(obj, "rhs", None) or getattr(obj, "evaluate", None)
+        module = getattr(getattr(func, "py_func", func), "__module__", "") or ""
+    elif ":" in name:
+        left = name.rpartition(":")[0]
+        if load.is_file_ref(name):
+            path = Path(left)
+            file = str((path if path.is_absolute() else Path(base or Path.cwd()) / path).resolve())
+        else:
+            module = left
+    else:
+        ep = load.entry_points(quiet=True).get(name)
+        module = ep.value.rpartition(":")[0] if ep is not None else ""
+    if module:
+        file = load._FILES.get(module) or getattr(sys.modules.get(module), "__file__", "") or ""
+    try:
+        data = Path(file).read_bytes() if file else b""
+    except OSError:
+        data = b""
+    given_spec = bool(models and name in models and isinstance(models[name], ModelSpec))
+    data += repr((spec.name, spec.params, spec.outputs, spec.settings, spec.methods,
+                  spec.source if given_spec else "")).encode()
+    return hashlib.sha256(data).hexdigest()
 
 
 def _model_folder(name, base) -> str:

@@ -6,6 +6,8 @@ a point with status ``OK`` never has a NaN or inf output (tests check this).
 """
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
 PENDING = -1  # not computed yet (only seen in an unfinished file)
@@ -14,15 +16,18 @@ MAX_STEPS = 1  # integration hit the step budget
 STEP_UNDERFLOW = 2  # step size fell below round-off of t
 NONFINITE = 3  # NaN or inf appeared in the state or an output
 INFEASIBLE = 4  # parameters outside the model's physical domain at this point
-SINGULAR = 5  # a formula is singular here (e.g. D0 -> 0)
-NOT_OSCILLATORY = 6  # the motion is not an oscillation about phi = 0 (decided by each model for its outputs)
-NO_MOTION = 7  # amplitude A = 0: period-based ratios are undefined
-NO_EVENT = 8  # an event (period crossing, settling) did not happen within the horizon
-NOT_BALANCEABLE = 9  # no balanced state (A0 > 2 m a or A1 != 0): balanced-state outputs are NaN
+SINGULAR = 5  # a formula is singular here
+NOT_OSCILLATORY = 6  # the motion is not the oscillation an output measures (each model decides for its outputs)
+NO_MOTION = 7  # zero amplitude: outputs relative to the amplitude are undefined
+NO_EVENT = 8  # an event (a crossing, settling) did not happen within the horizon
+NOT_BALANCEABLE = 9  # no balanced state: balanced-state outputs are NaN
 UNDECIDED = 10  # stability undecided (simulation inconclusive, or |multiplier| within margin of 1)
 STIFF = 11  # the explicit method detected stiffness and no implicit method was allowed to take over
 ILL_CONDITIONED = 12  # the output is too sensitive here to reach the tolerance in double precision
 NOT_REPRODUCIBLE = 13  # the value moved by more than its tolerance when integrated again at a tighter one
+
+# what an integration (or a tolerance it cannot reach) can end with, for models to declare
+INTEGRATION_FAILURES = (MAX_STEPS, STEP_UNDERFLOW, NONFINITE, NO_EVENT, STIFF, ILL_CONDITIONED)
 
 MEANINGS: dict[int, str] = {
     PENDING: "pending",
@@ -50,12 +55,16 @@ DESCRIPTIONS: dict[int, str] = {
     NONFINITE: "NaN or inf appeared in the state or an output",
     INFEASIBLE: "parameters outside the model's physical domain at this point",
     SINGULAR: "a formula of the model is singular at this point",
-    NOT_OSCILLATORY: "the motion is not an oscillation about phi = 0: the two-term model at or beyond its soft separatrix, or the exact spring moment never brings the lever back (each model decides for its own outputs; period_exact_moment is still given when only the two-term model fails)",
-    NO_MOTION: "amplitude A = 0: there is no motion, ratios to A are undefined",
-    NO_EVENT: "an event the output needs (a period crossing, settling) did not happen within the horizon",
-    NOT_BALANCEABLE: "no balanced state exists (A0 > 2 m a, A0 = 0 or A1 != 0): balanced-state outputs are NaN",
-    UNDECIDED: "stability could not be decided: the simulation neither settled nor diverged within the horizon, or floquet_max is within solver.floquet_margin of 1",
-    ILL_CONDITIONED: "the output is too sensitive here to reach solver.rtol in double precision: its condition number with respect to the inputs times round-off exceeds rtol (the Duffing period below 1 + epsilon = 6.8e-7 at the default rtol, the exact-moment period next to a hump of the spring's potential); the closed form, where there is one, is still given",
+    NOT_OSCILLATORY: "the motion is not the oscillation an output measures (each model decides for its own "
+                     "outputs; an output that does not need that oscillation may still be given)",
+    NO_MOTION: "the amplitude is zero: there is no motion, outputs relative to the amplitude are undefined",
+    NO_EVENT: "an event an output needs (a crossing, settling) did not happen within the horizon",
+    NOT_BALANCEABLE: "no balanced state exists: balanced-state outputs are NaN",
+    UNDECIDED: "stability could not be decided: a simulation neither settled nor diverged within the horizon, "
+               "or the largest Floquet multiplier modulus is within solver.floquet_margin of 1",
+    ILL_CONDITIONED: "the output is too sensitive here to reach solver.rtol in double precision: its condition "
+                     "number with respect to the inputs times round-off exceeds rtol; a closed form, where there "
+                     "is one, is still given",
     STIFF: "the problem is stiff at this point and the explicit method stopped (use method = \"auto\" or \"radau\")",
     NOT_REPRODUCIBLE: "integrated again at a tighter tolerance, an output moved by more than the tolerance it "
                       "claims (or the second integration failed): the value is stored but its trailing digits "
@@ -65,12 +74,26 @@ DESCRIPTIONS: dict[int, str] = {
 DTYPE = np.int8
 
 
-def cf_attrs() -> dict:
-    """CF flag attributes for the ``status`` variable."""
+def cf_attrs(notes=()) -> dict:
+    """CF flag attributes for the ``status`` variable. ``notes``: a model's (code, text) pairs
+    (``ModelSpec.status_notes``), kept as the attribute ``status_notes`` (JSON, by meaning)."""
     codes = sorted(MEANINGS)
-    return {
+    attrs = {
         "long_name": "status of the grid point",
         "flag_values": np.array(codes, dtype=DTYPE),
         "flag_meanings": " ".join(MEANINGS[c] for c in codes),
         "comment": "; ".join(f"{MEANINGS[c]}: {DESCRIPTIONS[c]}" for c in codes),
     }
+    if notes:
+        attrs["status_notes"] = json.dumps({MEANINGS.get(int(c), str(c)): str(t) for c, t in notes})
+    return attrs
+
+
+def stored_notes(status_attrs) -> dict[str, str]:
+    """A dataset's status notes {meaning: text} from its ``status`` variable's attributes ({} for a
+    dataset written before models declared notes, or an unreadable attribute)."""
+    try:
+        notes = json.loads(status_attrs.get("status_notes", "{}"))
+    except (TypeError, ValueError):
+        return {}
+    return {str(k): str(v) for k, v in notes.items()} if isinstance(notes, dict) else {}

@@ -333,7 +333,7 @@ def _define(f: h5netcdf.File, scene: Scene, lay: Layout, attrs: dict) -> None:
     s = f.create_variable("status", lay.dims, dtype=st.DTYPE, fillvalue=st.PENDING, chunks=chunks,
                           **_compressed(lay.shape))
     del s.attrs["_FillValue"]  # keep int8 on reading (xarray would mask it to float)
-    for k, val in st.cf_attrs().items():
+    for k, val in st.cf_attrs(model.status_notes).items():
         s.attrs[k] = val
     if lay.integrated:
         for name, long_name in (("n_steps", "accepted integration steps"),

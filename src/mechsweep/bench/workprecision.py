@@ -26,6 +26,7 @@ The result is an xarray Dataset (dims integrator x rtol) written to DIR/workprec
 from __future__ import annotations
 
 import math
+import re
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -267,7 +268,7 @@ def _error(values, reference, kind):
 
 def main(model: str, scene_path: str | None = None, points: int = 64, scipy_points: int = 6,
          ladder=LADDER, repeats: int = 3, out_dir: str | Path = "data/bench", quiet: bool = False,
-         scipy_budget_s: float = 1.0):
+         scipy_budget_s: float = 1.0, output: str | None = None):
     import xarray as xr
 
     from ..errors import InputError
@@ -292,13 +293,21 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     if model in workprecision_linkage.CASES:  # algebraic: a ladder of crank positions, not of tolerances
         return workprecision_linkage.main(model, scene_path, points=points, repeats=max(repeats, 5), out_dir=out_dir,
                                           quiet=quiet)
-    if model not in CASES:
-        raise InputError(f"no work-precision case for model {model!r}; cases: {', '.join(all_cases())}")
-    case = CASES[model]
-    spec = MODELS[model]
-    scene = load_scene(scene_path or ROOT / case.scene)
-    if scene.model.name != model:
-        raise InputError(f"scene {scene_path} is for model {scene.model.name!r}, not {model!r}")
+    if model in CASES:
+        case = CASES[model]
+        spec = MODELS[model]
+        if scene_path is None and not (ROOT / case.scene).is_file():
+            raise InputError(f"the reference scene {case.scene} of {model} ships with the repository, not with "
+                             f"the installed package (looked in {ROOT}); give a scene with --scene S.toml")
+        scene = load_scene(scene_path or ROOT / case.scene)
+        if scene.model.name != model:
+            raise InputError(f"scene {scene_path} is for model {scene.model.name!r}, not {model!r}")
+        if output not in (None, case.output):
+            raise InputError(f"--output: the {model} case measures {case.output!r}; a model declared as an "
+                             "OdeModel lets you choose")
+    else:  # any model declared as an OdeModel: scipy runs its own rhs (bench/workprecision_ode.py)
+        case, spec, scene = _ode_case(model, scene_path, output)
+    model = spec.name
     P = sample(scene, points)
     t0 = time.perf_counter()
     reference = case.reference(P)
@@ -363,9 +372,11 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
                "scipy_points": k, "repeats": repeats, "skipped": "; ".join(skipped) or "none", "scene": str(scene_path or case.scene),
                "compile_or_cache_load_s": ", ".join(f"{m} {s:.2f}" for m, s in compile_s.items()),
                "threads": 1, "scipy_rhs": "the model's jitted right-hand side; Radau/LSODA with the analytic "
-               "Jacobian where the model has one (duffing, autobalancer), else finite differences"},
+               "Jacobian where the model has one (duffing, autobalancer), else finite differences"
+               if case in CASES.values() else "the model's own rhs (its compiled function, wrapped); Radau/LSODA "
+               "with scipy's finite-difference Jacobian"},
     )
-    if model == "duffing":
+    if case is CASES.get("duffing"):  # the energy drift of the built-in Duffing
         names, drift, cost = energy_drift()
         ds["energy_error"] = (("drift_run", "periods"), drift,
                               {"units": "1", "long_name": "relative energy error |E - E0| / E0"})
@@ -376,7 +387,7 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
         ds.attrs["drift_problem"] = "x'' = -x/2 - x^3/2, x(0) = 1, x'(0) = 0, one integration over 10^4 periods"
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / f"workprecision_{model}.h5"
+    path = out_dir / f"workprecision_{re.sub(r'[^A-Za-z0-9_.-]', '_', model)}.h5"
     ds.to_netcdf(path, engine="h5netcdf")
     table = [name for name in ds.data_vars if ds[name].dims == ("integrator", "rtol")]
     ds[table].to_dataframe().to_csv(path.with_suffix(".csv"))
@@ -385,6 +396,33 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     if not quiet:
         _print(ds, path)
     return ds
+
+
+def _ode_case(model: str, scene_path, output):
+    """The case of a model declared as an OdeModel, from its declaration and the scene --scene."""
+    from ..errors import InputError
+    from ..model import load
+    from . import workprecision_ode as wo
+
+    if ":" not in model and model not in load.entry_points(quiet=True):
+        raise InputError(f"no work-precision case for model {model!r}; cases: {', '.join(all_cases())}, or a "
+                         "model declared as a mechsweep.model.OdeModel ('file.py:NAME' or 'package.module:NAME' "
+                         "with --scene S.toml)")
+    if scene_path is None:
+        raise InputError(f"{model!r}: a model of your own has no reference scene; give one with --scene S.toml "
+                         "(the sample is drawn from its grid)")
+    named = wo.declaration(model)
+    scene = load_scene(scene_path)
+    if wo.scene_declaration(scene) is not named:
+        raise InputError(f"scene {scene_path} is for model {scene.model.name!r} ({scene.model.source}), "
+                         f"not {model!r}")
+    output = output or wo.default_output(named)
+    if output not in scene.model.output_names():
+        raise InputError(f"--output {output!r} is not an output of model {named.name!r}; "
+                         f"expected one of {', '.join(scene.model.output_names())}")
+    ref = wo.OdeReference(named, output)
+    case = Case(str(scene_path), output, ref.error, ref.norm, ref.reference, ref.reference_name, ref.value)
+    return case, scene.model, scene
 
 
 def _scene_settings(scene: Scene) -> dict:

@@ -308,7 +308,8 @@ class Floquet:
         return (self.output(),
                 Output(f"{self.name}_stable", "stable", "1",
                        f"1 if {self.name} < 1 - margin, 0 if > 1 + margin (margin = max(floquet_margin, 100 rtol); "
-                       "NaN and status undecided within it)", integrated=True, needs=(self.name,)),
+                       "NaN and status undecided within it)", integrated=True, needs=(self.name,),
+                       kind="verdict"),
                 Output(f"{self.name}_kind", "kind", "1",
                        "critical Floquet multiplier: +1 real positive, -1 real negative, 0 complex pair",
                        integrated=True, needs=(self.name,)))

@@ -44,11 +44,15 @@ class OdeModel:
     jac: Callable | None = field(default=None, repr=False)
     source: str = ""
     settings: tuple[Setting, ...] = ()
+    statuses: tuple[int, ...] = ()  # ModelSpec.statuses: empty = derived from the outputs
+    status_notes: object = ()  # ModelSpec.status_notes: {code: what the status means for this model}
 
     def __post_init__(self):
         object.__setattr__(self, "params", tuple(self.params))
         object.__setattr__(self, "states", tuple(self.states))
         object.__setattr__(self, "measurements", tuple(self.measurements))
+        notes = self.status_notes
+        object.__setattr__(self, "status_notes", tuple(sorted(dict(notes).items())))
         if not self.states:
             raise ValueError(f"model {self.name!r}: states is empty")
         names = [o.name for m in self.measurements for o in _outputs(m)]
@@ -92,4 +96,6 @@ class OdeModel:
                 FLOQUET_MARGIN for _ in (0,) if any(isinstance(m, Floquet) for m in self.measurements)
                 and FLOQUET_MARGIN.name not in {s.name for s in self.settings}),
             methods=("dop853",),
+            statuses=self.statuses,
+            status_notes=self.status_notes,
         )

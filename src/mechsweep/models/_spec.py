@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import dataclass, field
+from collections.abc import Mapping
 from typing import Callable
 
 import numpy as np
@@ -118,7 +119,8 @@ class Output:
 
 # Kinds of output the generic figures know (stored as the variable's ``mechsweep_kind``):
 # "floquet_max": the largest modulus of the Floquet multipliers; below 1 the motion is stable.
-OUTPUT_KINDS = ("floquet_max",)
+# "verdict": 1 = stable (or feasible), 0 = not; NaN where undecided. `mechsweep info` compares any two.
+OUTPUT_KINDS = ("floquet_max", "verdict")
 
 
 @dataclass(frozen=True)
@@ -138,6 +140,10 @@ class ModelSpec:
     gives only its two ends (a range is monotone: they are its extremes), so that a check
     never expands a grid.
     ``methods``: the values of ``solver.method`` this model's integrated outputs support.
+    ``statuses``: the status codes (:mod:`mechsweep.status`) a point of this model can get besides
+    OK; empty: derived from the outputs (:meth:`possible_statuses`). ``status_notes``: what a
+    status means for this model, {code: text} (given as a mapping or as (code, text) pairs; kept
+    as sorted pairs), shown with the generic text where this model's datasets and docs are described.
     """
 
     name: str
@@ -149,6 +155,40 @@ class ModelSpec:
     settings: tuple[Setting, ...] = ()
     check: Callable | None = field(default=None, repr=False)
     methods: tuple[str, ...] = ("dop853",)  # integration methods `evaluate` offers (solver.method)
+    statuses: tuple[int, ...] = ()  # status codes besides OK a point can get; empty: derived
+    status_notes: tuple[tuple[int, str], ...] = ()  # (code, what the status means for this model)
+
+    def __post_init__(self):
+        notes = self.status_notes
+        pairs = notes.items() if isinstance(notes, Mapping) else notes
+        object.__setattr__(self, "status_notes", tuple(sorted((int(c), str(t)) for c, t in pairs)))
+        object.__setattr__(self, "statuses", tuple(sorted({int(c) for c in self.statuses})))
+
+    def possible_statuses(self) -> tuple[int, ...]:
+        """The status codes a point of this model can get: OK and the declared ``statuses``; a
+        model that declares none gets those its outputs imply: NONFINITE (a value that is not
+        finite); for integrated outputs the integrator's failures (MAX_STEPS, STEP_UNDERFLOW,
+        NO_EVENT, and STIFF when it offers more than one method); for a "floquet_max" output
+        INFEASIBLE (no admissible forcing period) and for a "verdict" output UNDECIDED."""
+        from .. import status as st
+
+        codes = {st.OK, *self.statuses}
+        if not self.statuses:
+            codes.add(st.NONFINITE)
+            if any(o.integrated for o in self.outputs):
+                codes |= {st.MAX_STEPS, st.STEP_UNDERFLOW, st.NO_EVENT}
+                if len(self.methods) > 1:
+                    codes.add(st.STIFF)
+            kinds = {o.kind for o in self.outputs}
+            if "floquet_max" in kinds:
+                codes.add(st.INFEASIBLE)
+            if "verdict" in kinds:
+                codes.add(st.UNDECIDED)
+        return tuple(sorted(codes))
+
+    def status_note(self, code: int) -> str:
+        """What status ``code`` means for this model ("" when it declares nothing)."""
+        return dict(self.status_notes).get(int(code), "")
 
     def param(self, name: str) -> Param:
         return self._params_by_name()[name]

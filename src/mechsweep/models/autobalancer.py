@@ -1147,16 +1147,17 @@ SPEC = ModelSpec(
                needs_params=("m4", "S4", "m5", "S_k", "l4")),
         Output("omega_p", "ω_p", "rad/s", "first-approximation boundary sqrt((omega_xi^2 + omega_eta^2) / 2)"),
         Output("stable_first_approx", "stable (1st approx.)", "1",
-               "1 if omega_lo < Omega < omega_p or Omega > omega_hi (source's rule, corrected)"),
+               "1 if omega_lo < Omega < omega_p or Omega > omega_hi (source's rule, corrected)", kind="verdict"),
         Output("P_approx", "P(Ω)", "m/N", "Re(H_xi + H_eta), receptance sum of the damped platform"),
         Output("stable_damped_approx", "P(Ω) < 0", "1", "1 if P(Omega) < 0 (first approximation with damping)",
-               needs=("P_approx",)),
+               needs=("P_approx",), kind="verdict"),
         Output("floquet_max", "max |ρ|", "1", "largest Floquet multiplier modulus of the balanced state",
                integrated=True),
         Output("stable_floquet", "stable (Floquet)", "1", "1 if floquet_max < 1", integrated=True,
-               needs=("floquet_max",)),
+               needs=("floquet_max",), kind="verdict"),
         Output("stable_sim", "stable (simulation)", "1",
-               "1 if the perturbed balanced state settles, 0 if it departs (direct simulation)", integrated=True),
+               "1 if the perturbed balanced state settles, 0 if it departs (direct simulation)", integrated=True,
+               kind="verdict"),
         Output("residual_amplitude", "r_res", "m",
                "max platform displacement sqrt(xi^2 + eta^2) over the last 10 % of the simulation", integrated=True),
         Output("phase_error", "δγ", "rad", "final pendulum phase error max_i |gamma_i - Omega t - Theta_i|",
@@ -1176,4 +1177,21 @@ SPEC = ModelSpec(
     settings=SETTINGS,
     check=check,
     methods=("dop853", "radau", "auto"),
+    statuses=(st.INFEASIBLE, st.SINGULAR, st.NOT_BALANCEABLE, st.UNDECIDED, st.NOT_REPRODUCIBLE,
+              *st.INTEGRATION_FAILURES),
+    status_notes={
+        st.INFEASIBLE: "I_B < m a^2, M <= 2 m, l3 >= l4, A1 != 0 without l3 and l4, or a platform parameter "
+                       "pair not given (all outputs NaN)",
+        st.SINGULAR: "an undamped resonance of the platform (c_j = M Omega^2, b_j = 0): P_approx is NaN, "
+                     "Floquet is still computed",
+        st.NOT_BALANCEABLE: "no isolated balanced state (A0 > 2 m a, A0 = 0, A0 = 2 m a, A1 != 0): balanced-state "
+                            "outputs are NaN, residuals are kept",
+        st.NO_EVENT: "the pendulums did not settle within the simulation (settling_time)",
+        st.UNDECIDED: "the simulation neither settled nor diverged, or floquet_max is within "
+                      "solver.floquet_margin of 1",
+        st.NOT_REPRODUCIBLE: "integrated again at rtol / 100, a simulated output moved by more than "
+                             "reproducibility_factor (rtol |value| + atol), or the second integration failed: the "
+                             "value is stored, only its leading digits mean something (chaotic or "
+                             "transient-dominated motion; simulations that did not settle early)",
+    },
 )

@@ -378,4 +378,13 @@ SPEC = ModelSpec(
     evaluate=evaluate,
     settings=(T_MAX_PERIODS,),
     methods=("dop853", "radau", "symplectic", "auto"),
+    statuses=(st.INFEASIBLE, st.NOT_OSCILLATORY, st.NO_MOTION, *st.INTEGRATION_FAILURES),
+    status_notes={
+        st.INFEASIBLE: "omega^2 <= 0: no stable equilibrium at phi = 0 to oscillate about",
+        st.NOT_OSCILLATORY: "at or beyond the soft separatrix |mu| A^2 >= omega^2 (mu < 0)",
+        st.NO_MOTION: "A = 0: no motion, ratios to A undefined",
+        st.NO_EVENT: "the quarter-period crossing did not happen within the horizon",
+        st.ILL_CONDITIONED: "the period below 1 + epsilon = 6.8e-7 at the default rtol (next to the soft "
+                            "separatrix); the closed form period_exact is still given",
+    },
 )

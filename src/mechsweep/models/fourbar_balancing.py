@@ -55,6 +55,7 @@ import operator
 
 import numpy as np
 
+from .. import status as st
 from . import _linkage as L
 from ._spec import ExtraDim, ModelSpec, Output, Param, wanted_flags
 
@@ -227,4 +228,9 @@ SPEC = ModelSpec(
     outputs=tuple(Output(k, *v) for k, v in SCALARS.items())
     + tuple(Output(k, *v, extra_dims=(PHI_DIM,)) for k, v in CURVES.items()),
     evaluate=evaluate,
+    statuses=(st.INFEASIBLE, st.SINGULAR, st.NONFINITE),
+    status_notes={
+        st.INFEASIBLE: "the linkage does not assemble over a full turn (no Grashof crank)",
+        st.SINGULAR: "a toggle (sin of the transmission angle below 1e-3) in the cycle, e.g. a change-point linkage",
+    },
 )

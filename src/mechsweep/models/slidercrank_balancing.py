@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 
+from .. import status as st
 from . import _linkage as L
 from ._spec import ModelSpec, Output, Param
 from .fourbar_balancing import PHI_DIM, fill_outputs
@@ -132,4 +133,9 @@ SPEC = ModelSpec(
     + tuple(Output(k, *v, extra_dims=(PHI_DIM,)) for k, v in CURVES.items()),
     evaluate=evaluate,
     check=check,
+    statuses=(st.INFEASIBLE, st.SINGULAR, st.NONFINITE),
+    status_notes={
+        st.INFEASIBLE: "the linkage does not assemble over a full turn",
+        st.SINGULAR: "a toggle (sin of the transmission angle below 1e-3) in the cycle",
+    },
 )

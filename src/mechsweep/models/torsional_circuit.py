@@ -434,4 +434,15 @@ SPEC = ModelSpec(
     evaluate=evaluate,
     settings=(duf.T_MAX_PERIODS,),
     methods=duf.SPEC.methods,
+    statuses=(st.INFEASIBLE, st.SINGULAR, st.NOT_OSCILLATORY, st.NO_MOTION, *st.INTEGRATION_FAILURES),
+    status_notes={
+        st.INFEASIBLE: "spring free length <= 0, or omega^2 <= 0 for the two-term outputs",
+        st.SINGULAR: "D0 = (L(0)/R)^2 <= 1e-12: a spring of zero length at rest",
+        st.NOT_OSCILLATORY: "the two-term model at or beyond its soft separatrix, or the exact spring moment never "
+                            "brings the lever back through phi = 0 (period_exact_moment is still given when only "
+                            "the two-term model fails)",
+        st.NO_MOTION: "A = 0: no motion, ratios to A undefined",
+        st.ILL_CONDITIONED: "the two-term period next to its separatrix, or the exact-moment period next to a hump "
+                            "of the spring's potential",
+    },
 )

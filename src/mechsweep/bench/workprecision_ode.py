@@ -1,0 +1,252 @@
+"""The work-precision case of any model declared as a :class:`mechsweep.model.OdeModel` (a user's or
+a built-in one), built from its declaration: scipy's ``solve_ivp`` gets the model's OWN right-hand
+side (its numba-compiled ``rhs``, wrapped as ``f(t, y)``), its own ``initial(p, y0)`` and, for
+Floquet, its own ``jac`` when it declares one; each generic measurement is re-done with scipy's
+tools (events, dense output, the variational equations), so nothing is copied by hand.
+
+- Crossing / Period: event times (``terminal`` = the crossing's count), relative error;
+- StateAt: the state at t, absolute error;
+- Extremum: the state at t0, t1 and at the roots of its derivative (events on the rhs component)
+  in [t0, t1], absolute error;
+- Floquet: the largest modulus of the eigenvalues of the monodromy matrix integrated from the
+  variational equations (n + n^2 equations) with the model's ``jac``, else central differences of
+  its rhs (step cbrt(eps) max(1, |y_j|): exact for an rhs linear in y, otherwise ~1e-10 relative,
+  which then bounds the reference), absolute error.
+
+The reference is scipy DOP853 at rtol 1e-13 (atol 1e-15). Used by ``mechsweep bench workprecision
+file.py:NAME --scene S.toml`` (workprecision.main).
+"""
+from __future__ import annotations
+
+import importlib
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+REFERENCE_RTOL = 1e-13
+REFERENCE_ATOL = 1e-15
+
+
+def declaration(ref: str, base: str | Path | None = None):
+    """The OdeModel object a model reference names: "file.py:NAME" (relative to ``base``, default
+    the cwd), "package.module:NAME" or an entry-point name. Loads it the way a scene does (with its
+    checks), so the object is the one the engine runs."""
+    from ..model import load
+    from ..model.ode import OdeModel
+    from ..models import MODELS
+
+    if ":" not in ref:
+        points = load.entry_points()
+        if ref in MODELS or ref not in points:
+            raise InputError(f"model {ref!r} is not declared as a mechsweep.model.OdeModel that this bench can "
+                             "find; give 'file.py:NAME', 'package.module:NAME' or an entry-point name")
+        ref = points[ref].value
+    load.resolve(ref, Path(base) if base else None)  # the checks; imports the module
+    left, _, name = ref.rpartition(":")
+    if load.is_file_ref(ref):
+        path = Path(left)
+        path = ((Path(base) if base else Path.cwd()) / path if not path.is_absolute() else path).resolve()
+        module = load.import_module(load._module_name(path), str(path))
+    else:
+        module = importlib.import_module(left)
+    model = getattr(module, name)
+    if not isinstance(model, OdeModel):
+        raise InputError(f"{ref!r} is not a mechsweep.model.OdeModel")
+    return model
+
+
+def scene_declaration(scene):
+    """The OdeModel a scene names (its model reference re-read from the scene text, resolved
+    against the scene's folder); None when the scene's model is not such a declaration."""
+    try:
+        ref = tomllib.loads(scene.text)["scene"]["model"]
+    except (tomllib.TOMLDecodeError, KeyError, TypeError):
+        return None
+    if not isinstance(ref, str):
+        return None
+    try:
+        return declaration(ref, scene.base or None)
+    except InputError:
+        return None
+
+
+class OdeReference:
+    """scipy's version of one measured output of an OdeModel."""
+
+    def __init__(self, model, output: str):
+        from ..model import load
+        from ..model import measure as ms
+
+        self.model = model
+        chosen = None
+        for m in model.measurements:
+            names = [o.name for o in (m.outputs() if hasattr(m, "outputs") else (m.output(),))]
+            if output in names:
+                chosen = m
+        if chosen is None:
+            raise InputError(f"model {model.name!r} has no measured output {output!r}")
+        if isinstance(chosen, ms.Floquet) and output != chosen.name:
+            raise InputError(f"output {output!r} is derived from {chosen.name!r}; measure {chosen.name!r} instead")
+        kinds = (ms.Crossing, ms.Period, ms.StateAt, ms.Extremum, ms.Floquet)
+        if not isinstance(chosen, kinds):
+            raise InputError(f"output {output!r} is measured by {type(chosen).__name__}, which this bench has no "
+                             f"scipy version of (it has: {', '.join(k.__name__ for k in kinds)})")
+        self.m = chosen
+        self.output = output
+        self.n = len(model.states)
+
+        def compiled(func, what):
+            module, path, qual = load.function_ref(func, what, model.name)
+            return load.jitted(module, path, qual)
+        self._rhs = compiled(model.rhs, "rhs")
+        self._initial = compiled(model.initial, "initial")
+        self._jac = compiled(model.jac, "jac") if model.jac is not None else None
+        self.error = "relative" if isinstance(chosen, (ms.Crossing, ms.Period)) else "absolute"
+        what = {ms.Crossing: "time of the crossing", ms.Period: "period", ms.StateAt: "state value",
+                ms.Extremum: "extremum", ms.Floquet: "largest Floquet multiplier modulus"}[type(chosen)]
+        self.norm = f"{self.error} error of {output} ({what})"
+        jac = "the model's jac" if self._jac is not None else "central differences of the model's rhs"
+        self.reference_name = (f"scipy DOP853 at rtol {REFERENCE_RTOL:g}, atol {REFERENCE_ATOL:g}, on the model's "
+                               "own rhs" + (f" (variational equations with {jac})"
+                                            if isinstance(chosen, ms.Floquet) else ""))
+
+    # ------------------------------------------------------------------ the model's own functions
+    def f(self, p):
+        rhs = self._rhs
+
+        def f(t, y):
+            d = np.empty(y.shape[0])
+            rhs(t, y, p, d)
+            return d
+        return f
+
+    def y0(self, p):
+        y = np.empty(self.n)
+        self._initial(p, y)
+        return y
+
+    # ------------------------------------------------------------------ one point
+    def value(self, row, method, rtol, atol):
+        """(value, rhs evaluations, accepted steps) at parameter row ``row`` with scipy ``method``."""
+        from ..model import measure as ms
+
+        p = np.ascontiguousarray(row, dtype=np.float64)
+        m = self.m
+        if isinstance(m, (ms.Crossing, ms.Period)):
+            return self._crossing(p, method, rtol, atol)
+        if isinstance(m, ms.StateAt):
+            return self._state_at(p, method, rtol, atol)
+        if isinstance(m, ms.Extremum):
+            return self._extremum(p, method, rtol, atol)
+        return self._floquet(p, method, rtol, atol)
+
+    def _solve(self, p, t_end, method, rtol, atol, **kw):
+        from scipy.integrate import solve_ivp
+
+        return solve_ivp(self.f(p), (0.0, t_end), self.y0(p), method=method, rtol=rtol, atol=atol, **kw)
+
+    def _crossing(self, p, method, rtol, atol):
+        from ..model import measure as ms
+
+        m = self.m
+        i = self.model.states.index(m.state)
+        count = m.n if isinstance(m, ms.Crossing) else 2
+
+        def event(t, y):
+            return y[i] - m.level
+        event.direction = -1.0 if m.direction == "down" else 1.0
+        event.terminal = count
+        sol = self._solve(p, m.t_max, method, rtol, atol, events=event)
+        times = sol.t_events[0]
+        steps = sol.t.size - 1
+        if sol.status < 0 or times.size < count:
+            return math.nan, sol.nfev, steps
+        value = times[count - 1] if isinstance(m, ms.Crossing) else times[1] - times[0]
+        return float(value), sol.nfev, steps
+
+    def _state_at(self, p, method, rtol, atol):
+        m = self.m
+        i = self.model.states.index(m.state)
+        if m.t == 0.0:
+            return float(self.y0(p)[i]), 0, 0
+        sol = self._solve(p, m.t, method, rtol, atol)
+        if sol.status != 0:
+            return math.nan, sol.nfev, sol.t.size - 1
+        return float(sol.y[i, -1]), sol.nfev, sol.t.size - 1
+
+    def _extremum(self, p, method, rtol, atol):
+        m = self.m
+        i = self.model.states.index(m.state)
+        rhs = self._rhs
+        s = 1.0 if m.kind == "max" else -1.0
+        d = np.empty(self.n)
+
+        def turn(t, y):  # s * dy_i/dt through zero from + to -: a maximum of s * y_i
+            rhs(t, y, p, d)
+            return s * d[i]
+        turn.direction = -1.0
+        sol = self._solve(p, m.t1, method, rtol, atol, events=turn, dense_output=True)
+        if sol.status != 0:
+            return math.nan, sol.nfev, sol.t.size - 1
+        candidates = [s * sol.y[i, -1], s * (sol.sol(m.t0)[i] if m.t0 > 0 else self.y0(p)[i])]
+        for t_e, y_e in zip(sol.t_events[0], sol.y_events[0]):
+            if m.t0 <= t_e <= m.t1:
+                candidates.append(s * y_e[i])
+        return float(s * max(candidates)), sol.nfev, sol.t.size - 1
+
+    def _floquet(self, p, method, rtol, atol):
+        from scipy.integrate import solve_ivp
+
+        n = self.n
+        T = float(getattr(self.model.forcing_period, "py_func", self.model.forcing_period)(p))
+        if not (math.isfinite(T) and T > 0):
+            return math.nan, 0, 0
+        rhs, jac = self._rhs, self._jac
+        J = np.empty((n, n))
+        d0, d1 = np.empty(n), np.empty(n)
+        eps = np.finfo(float).eps ** (1.0 / 3.0)
+
+        def jacobian(t, y):
+            if jac is not None:
+                jac(t, y, p, J)
+                return J
+            for j in range(n):
+                h = eps * max(1.0, abs(y[j]))
+                yp, ym = y.copy(), y.copy()
+                yp[j] += h
+                ym[j] -= h
+                rhs(t, yp, p, d1)
+                rhs(t, ym, p, d0)
+                J[:, j] = (d1 - d0) / (yp[j] - ym[j])
+            return J
+
+        def f(t, z):
+            y = z[:n]
+            dz = np.empty_like(z)
+            rhs(t, y, p, d0)
+            dz[:n] = d0
+            dz[n:] = (jacobian(t, y) @ z[n:].reshape(n, n)).ravel()
+            return dz
+        z0 = np.concatenate([self.y0(p), np.eye(n).ravel()])
+        sol = solve_ivp(f, (0.0, T), z0, method=method, rtol=rtol, atol=atol)
+        if sol.status != 0:
+            return math.nan, sol.nfev, sol.t.size - 1
+        mono = sol.y[n:, -1].reshape(n, n)
+        return float(np.abs(np.linalg.eigvals(mono)).max()), sol.nfev, sol.t.size - 1
+
+    def reference(self, P):
+        return np.array([self.value(r, "DOP853", REFERENCE_RTOL, REFERENCE_ATOL)[0] for r in P])
+
+
+def default_output(model) -> str:
+    """The first measured output this bench has a scipy version of."""
+    from ..model import measure as ms
+
+    for m in model.measurements:
+        if isinstance(m, (ms.Crossing, ms.Period, ms.StateAt, ms.Extremum, ms.Floquet)):
+            return m.name
+    raise InputError(f"model {model.name!r} has no measurement this bench has a scipy version of")

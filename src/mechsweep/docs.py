@@ -1,0 +1,108 @@
+"""Documentation generated from the declarations: the README glossary (every model's parameters,
+outputs, solver settings and statuses, and the status codes) reads the ModelSpecs only, so it
+covers any model, built-in or a user's.
+
+    python -m mechsweep.docs README.md     # rewrite README.md's "## Glossary" section in place
+    mechsweep models --markdown            # print the same section
+    mechsweep models my_models.py:NAME --markdown   # one model's tables (a user model too)
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+HEADING = "## Glossary"
+INTRO = ("Symbols, meanings and units of every parameter, output and model-specific solver setting, and the\n"
+         "statuses each model's points can get (generated from the model declarations by\n"
+         "`mechsweep models --markdown` or `python -m mechsweep.docs README.md`; a test keeps this section\n"
+         "in sync with the code).")
+
+
+def _cell(text: str) -> str:
+    return str(text).replace("|", "\\|")  # a bare | would end the table cell
+
+
+def status_table() -> str:
+    """The status codes and their generic meaning (status.py)."""
+    from . import status as st
+
+    lines = ["### Status codes", "", "| code | status | meaning |", "|---|---|---|"]
+    for code in sorted(st.MEANINGS):
+        lines.append(f"| {code} | `{st.MEANINGS[code]}` | {_cell(st.DESCRIPTIONS[code])} |")
+    return "\n".join(lines) + "\n"
+
+
+def model_markdown(spec) -> str:
+    """Glossary tables of one model: parameters, outputs, methods, settings, statuses."""
+    from . import status as st
+
+    lines = [f"### `{spec.name}`: {spec.description}", "", f"Source: {spec.source}.", "",
+             "| parameter | symbol | meaning | unit | allowed |", "|---|---|---|---|---|"]
+    for p in spec.params:
+        opt = " (optional)" if not p.required else ""
+        lines.append(f"| `{p.name}` | {_cell(p.symbol or '-')} | {_cell(p.long_name)}{opt} | {p.unit or '-'} | "
+                     f"{p.allowed()} |")
+    lines += ["", "| output | symbol | meaning | unit |", "|---|---|---|---|"]
+    for o in spec.outputs:
+        how = " (integrated)" if o.integrated else ""
+        how += f" (per {', '.join(d.name for d in o.extra_dims)})" if o.extra_dims else ""
+        lines.append(f"| `{o.name}` | {_cell(o.symbol)} | {_cell(o.long_name)}{how} | {o.unit} |")
+    if any(o.integrated for o in spec.outputs):
+        lines += ["", "`solver.method`: " + ", ".join(f"`{m}`" for m in spec.methods) + " (default `dop853`)."]
+    if spec.settings:
+        lines += ["", "| solver setting | meaning | unit | default | allowed |", "|---|---|---|---|---|"]
+        for s in spec.settings:
+            lines.append(f"| `{s.name}` | {_cell(s.long_name)} | {s.unit} | {s.default:g} | [{s.lo:g}, {s.hi:g}] |")
+    codes = spec.possible_statuses()
+    how = "declared" if spec.statuses else "derived from its outputs"
+    lines += ["", f"Statuses ({how}): " + ", ".join(f"`{st.MEANINGS.get(c, c)}`" for c in codes) + "."]
+    notes = [(c, t) for c, t in spec.status_notes]
+    if notes:
+        lines += ["", "| status | for this model |", "|---|---|"]
+        lines += [f"| `{st.MEANINGS.get(c, c)}` | {_cell(t)} |" for c, t in notes]
+    return "\n".join(lines) + "\n"
+
+
+def glossary(specs=None) -> str:
+    """The README's glossary section: the status codes, then every model of ``specs`` (default:
+    the built-in models, in their table's order)."""
+    if specs is None:
+        from .models import MODELS
+
+        specs = MODELS.values()
+    parts = [f"{HEADING}\n\n{INTRO}\n", status_table()] + [model_markdown(s) for s in specs]
+    return "\n".join(parts)
+
+
+def readme_section(text: str) -> str:
+    """The glossary section of a README's text, from its heading to the next level-2 heading or
+    the end ("" when there is none)."""
+    start = text.find(f"\n{HEADING}\n")
+    if start < 0:
+        return ""
+    start += 1
+    end = text.find("\n## ", start + len(HEADING))
+    return text[start:] if end < 0 else text[start:end + 1]
+
+
+def write_readme(path: str | Path) -> bool:
+    """Replace the glossary section of the README at ``path`` by the generated one; True if changed."""
+    path = Path(path)
+    text = path.read_text()
+    old = readme_section(text)
+    if not old:
+        raise SystemExit(f"{path} has no '{HEADING}' section")
+    new = glossary()
+    if old.endswith("\n\n") and not new.endswith("\n\n"):
+        new += "\n"  # keep the blank line before the next section
+    if old == new:
+        return False
+    path.write_text(text.replace(old, new, 1))
+    return True
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 2:
+        print("usage: python -m mechsweep.docs README.md", file=sys.stderr)
+        sys.exit(2)
+    print(f"{sys.argv[1]}: {'rewritten' if write_readme(sys.argv[1]) else 'already up to date'}")

@@ -1,0 +1,78 @@
+"""`mechsweep bench workprecision FILE.py:NAME --scene S.toml`: the work-precision report of a model
+the bench has never heard of, against scipy running the model's OWN rhs and initial state."""
+import math
+
+import numpy as np
+import pytest
+
+from mechsweep.bench import workprecision as wp
+from mechsweep.bench import workprecision_ode as wo
+from mechsweep.errors import InputError
+
+from .conftest import REPO
+
+USER = REPO / "tests" / "user_models"
+LINEAR = f"{USER / 'oscillators.py'}:LINEAR"
+PENDULUM = f"{USER / 'oscillators.py'}:PENDULUM"  # its period kernel is the one tests/test_model_layer.py compiles
+
+SCENE = """
+[scene]
+name = "lin"
+model = "{model}"
+outputs = ["period"]
+[axes]
+w = {{ start = 0.5, stop = 10.0, num = 40 }}
+[fixed]
+A = 0.7
+"""
+
+
+def test_scipy_versions_of_the_measurements_match_the_closed_forms():
+    """Each generic measurement re-done by scipy on the model's own functions (DOP853, rtol 1e-13):
+    period 2 pi / w, x(2) = A cos 2w, max v = A w, the pendulum's period 4 K(sin^2(A/2)) sqrt(L/g),
+    the Floquet modulus of Mathieu's equation (central differences; the model's jac)."""
+    from scipy.special import ellipk
+
+    lin = wo.declaration(LINEAR)
+    P = np.array([[w, 0.7] for w in (0.5, 1.7, 10.0)])
+    w = P[:, 0]
+    np.testing.assert_allclose(wo.OdeReference(lin, "period").reference(P), 2 * np.pi / w, rtol=1e-11)
+    np.testing.assert_allclose(wo.OdeReference(lin, "x_at_2").reference(P), 0.7 * np.cos(2 * w), atol=1e-11)
+    np.testing.assert_allclose(wo.OdeReference(lin, "v_max").reference(P), 0.7 * w, rtol=1e-11)
+    np.testing.assert_allclose(wo.OdeReference(lin, "t_half_down").reference(P), np.pi / 3 / w, rtol=1e-11)
+    pend = wo.declaration(f"{USER / 'oscillators.py'}:PENDULUM")
+    A = 2.5
+    ref = wo.OdeReference(pend, "period").reference(np.array([[9.81, 0.5, A]]))[0]
+    assert ref == pytest.approx(4 * ellipk(math.sin(A / 2) ** 2) * math.sqrt(0.5 / 9.81), rel=1e-11)
+    # undamped, inside the first stability region: both multipliers on the unit circle
+    undamped = wo.OdeReference(wo.declaration(f"{USER / 'mathieu.py'}:MATHIEU"), "max_multiplier")
+    assert undamped.reference(np.array([[0.2, 0.5]]))[0] == pytest.approx(1.0, abs=1e-10)
+    damped = wo.OdeReference(wo.declaration(f"{USER / 'mathieu.py'}:MATHIEU_JAC"), "max_multiplier")
+    assert "the model's jac" in damped.reference_name
+    assert damped.reference(np.array([[0.2, 0.5, 0.2]]))[0] == pytest.approx(math.exp(-0.2 * math.pi / 2), rel=1e-10)
+
+
+def test_report_of_a_user_model(tmp_path):
+    scene = tmp_path / "pendulum.toml"
+    scene.write_text(SCENE.format(model=PENDULUM).replace("w = {", "A = {").replace("stop = 10.0", "stop = 3.0")
+                     .replace("A = 0.7", "g = 9.81\nL = 0.5"))
+    ds = wp.main(PENDULUM, str(scene), points=4, scipy_points=2, ladder=(1e-6, 1e-10), repeats=1, out_dir=tmp_path,
+                 quiet=True)
+    assert (tmp_path / "workprecision_pendulum.h5").is_file()
+    assert ds.attrs["model"] == "pendulum" and ds.attrs["output"] == "period"
+    ours, scipy = ds.sel(integrator="mechsweep dop853"), ds.sel(integrator="scipy DOP853")
+    assert (ours.ok_fraction.values == 1).all() and (scipy.ok_fraction.values == 1).all()
+    assert ours.error_max.values[1] < 1e-3 * ours.error_max.values[0] and ours.error_max.values[1] < 1e-9
+    # the same method and step control on the same equations: the errors agree to a few percent
+    np.testing.assert_allclose(ours.error_max.values, scipy.error_max.values, rtol=0.1)
+
+
+def test_bad_requests_are_input_errors(tmp_path):
+    scene = tmp_path / "lin.toml"
+    scene.write_text(SCENE.format(model=LINEAR))
+    with pytest.raises(InputError, match="has no reference scene; give one with --scene"):
+        wp.main(LINEAR)
+    with pytest.raises(InputError, match="is for model 'linear_oscillator'.*not .*PENDULUM"):
+        wp.main(f"{USER / 'oscillators.py'}:PENDULUM", str(scene))
+    with pytest.raises(InputError, match="--output 'nothing' is not an output of model 'linear_oscillator'"):
+        wp.main(LINEAR, str(scene), output="nothing")
