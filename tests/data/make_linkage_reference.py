@@ -124,46 +124,63 @@ def scene_outputs(path: str) -> list[str]:
     return list(tomllib.loads((REPO / path).read_text())["scene"]["outputs"])
 
 
-def record() -> dict:
+def record_scene(path: str, folder) -> dict:
+    """Run one shipped scene into ``folder``: {key: hash or sample} of every stored variable."""
     import mechsweep
+
+    data = {}
+    ds = mechsweep.run(str(REPO / path), output=str(Path(folder) / (Path(path).stem + ".h5")), progress=False,
+                       load=True)
+    for name in sorted(ds.data_vars):
+        a = ds[name].values
+        data[f"scene/{path}/{name}/sha256"] = np.array(digest(a))
+        data[f"scene/{path}/{name}/sample"] = a.reshape(-1)[::SUBSAMPLE].copy()
+    return data
+
+
+def record_grid(model: str, data_P=None) -> dict:
+    """Every design-grid case of one model (``data_P``: the stored P matrices, else made here)."""
     from mechsweep.models import fourbar_balancing as fb
     from mechsweep.models import slidercrank_balancing as sc
 
+    spec = {"fourbar_balancing": fb.SPEC, "slidercrank_balancing": sc.SPEC}[model]
+    if data_P is not None:
+        P, Pc = data_P
+    elif model == "fourbar_balancing":
+        P, Pc = fourbar_designs(N_DESIGNS, 1), fourbar_designs(N_CURVE_DESIGNS, 2)
+    else:
+        P, Pc = slider_designs(N_DESIGNS, 3), slider_designs(N_CURVE_DESIGNS, 4)
+    scenes = [s for s in SCENES if ("fourbar" if model == "fourbar_balancing" else "slider") in s]
+    m = spec.name
+    data = {f"grid/{m}/P": P, f"grid/{m}/P_curves": Pc}
+    scalars = [o.name for o in spec.outputs if not o.extra_dims]
+    curves = [o.name for o in spec.outputs if o.extra_dims]
+    cases = {"all": (P, scalars, 360), "all_curves": (Pc, scalars + curves, 360)}
+    for o in scalars:
+        cases[f"alone:{o}"] = (P, [o], 360)
+    for o in curves:
+        cases[f"alone:{o}"] = (Pc, [o], 360)
+    for s in scenes:
+        cases[f"scene_outputs:{s}"] = (P, scene_outputs(s), 360)
+    for npos in (4, 37, 1000):
+        cases[f"positions:{npos}"] = (Pc, scalars + curves, npos)
+    for case, (PP, wanted, npos) in cases.items():
+        out, status = evaluate(spec, PP, wanted, npos)
+        data[f"grid/{m}/{case}/status"] = status
+        for o, v in out.items():
+            data[f"grid/{m}/{case}/{o}/sha256"] = np.array(digest(v))
+            if case == "all":
+                data[f"grid/{m}/{case}/{o}"] = v
+    return data
+
+
+def record() -> dict:
     data: dict[str, np.ndarray] = {}
     with tempfile.TemporaryDirectory() as tmp:
         for path in SCENES:
-            ds = mechsweep.run(str(REPO / path), output=str(Path(tmp) / (Path(path).stem + ".h5")), progress=False,
-                               load=True)
-            for name in sorted(ds.data_vars):
-                a = ds[name].values
-                data[f"scene/{path}/{name}/sha256"] = np.array(digest(a))
-                data[f"scene/{path}/{name}/sample"] = a.reshape(-1)[::SUBSAMPLE].copy()
-    for spec, P, Pc, scenes in (
-            (fb.SPEC, fourbar_designs(N_DESIGNS, 1), fourbar_designs(N_CURVE_DESIGNS, 2),
-             [s for s in SCENES if "fourbar" in s]),
-            (sc.SPEC, slider_designs(N_DESIGNS, 3), slider_designs(N_CURVE_DESIGNS, 4),
-             [s for s in SCENES if "slider" in s])):
-        m = spec.name
-        data[f"grid/{m}/P"] = P
-        data[f"grid/{m}/P_curves"] = Pc
-        scalars = [o.name for o in spec.outputs if not o.extra_dims]
-        curves = [o.name for o in spec.outputs if o.extra_dims]
-        cases = {"all": (P, scalars, 360), "all_curves": (Pc, scalars + curves, 360)}
-        for o in scalars:
-            cases[f"alone:{o}"] = (P, [o], 360)
-        for o in curves:
-            cases[f"alone:{o}"] = (Pc, [o], 360)
-        for s in scenes:
-            cases[f"scene_outputs:{s}"] = (P, scene_outputs(s), 360)
-        for npos in (4, 37, 1000):
-            cases[f"positions:{npos}"] = (Pc, scalars + curves, npos)
-        for case, (PP, wanted, npos) in cases.items():
-            out, status = evaluate(spec, PP, wanted, npos)
-            data[f"grid/{m}/{case}/status"] = status
-            for o, v in out.items():
-                data[f"grid/{m}/{case}/{o}/sha256"] = np.array(digest(v))
-                if case == "all":
-                    data[f"grid/{m}/{case}/{o}"] = v
+            data.update(record_scene(path, tmp))
+    for model in ("fourbar_balancing", "slidercrank_balancing"):
+        data.update(record_grid(model))
     return data
 
 
@@ -171,7 +188,8 @@ if __name__ == "__main__":
     data = record()
     if "--check" in sys.argv:
         ref = np.load(OUT)
-        bad = [k for k in ref.files if k.endswith("sha256") and str(ref[k]) != str(data.get(k))]
+        bad = [k for k in ref.files if (k.endswith("sha256") and str(ref[k]) != str(data.get(k)))
+               or (k.endswith("/status") and not np.array_equal(ref[k], data.get(k)))]
         print(f"{len(bad)} differing of {sum(k.endswith('sha256') for k in ref.files)}: {bad[:10]}")
     else:
         np.savez_compressed(OUT, **data)

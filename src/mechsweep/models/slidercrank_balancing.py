@@ -27,9 +27,18 @@ from __future__ import annotations
 
 import math
 
+from .. import status as st
+from .._jit import jit
+from ..model.closed import ClosedFormModel
 from . import _linkage as L
-from ._spec import ModelSpec, Output, Param
-from .fourbar_balancing import PHI_DIM, fill_outputs
+from ._linkage import (  # the per-design function's helpers and layout constants
+    D_FX, D_FXTB, D_FY, D_FYTB, D_M, D_T, Q_CW, Q_CWA, Q_CWM, Q_FMAX, Q_FMAX_UNB, Q_FXMAX, Q_FXRANGE, Q_FXRMS,
+    Q_FYMAX, Q_FYRANGE, Q_FYRMS, Q_MA, Q_MB, Q_MMAX, Q_MRANGE, Q_MRMS, Q_TB_ERR, Q_TB_REL, Q_TMAX, Q_TRANGE,
+    Q_TRANS, Q_TRMS, SB_FX, SB_FX0, SB_FXTB, SB_FY, SB_FY0, SB_FYTB, SB_M, SB_T, S_BRANCH, S_DELTA, S_E,
+    S_FLOAD, S_G, S_K, S_OMEGA, S_R, S_RCW, branch_sign, cycle_stats, max_force, slider_assembly,
+    slider_conrod_length, slider_counterweight, slider_kinematics_cycle, slider_links, slider_loads_cycle)
+from ._spec import Output, Param
+from .fourbar_balancing import PHI_DIM, positions
 
 _ANGLE = dict(lo=-2.0 * math.pi, hi=2.0 * math.pi)
 
@@ -106,10 +115,91 @@ CURVES = {
 assert tuple(SCALARS) == L.SLIDER_OUTPUTS and tuple(CURVES) == L.SLIDER_CURVES
 
 
-def evaluate(P, wanted, solver, out, status, n_steps, n_rhs, n_positions=L.N_POSITIONS):
-    """Engine entry point (algebraic: solver is None and unused); n_positions as for
-    fourbar_balancing.evaluate."""
-    fill_outputs(L.slider_kernel, P, wanted, L.SLIDER_OUTPUTS, L.SLIDER_CURVES, status, out, n_positions)
+def crank_data(n_positions: int):
+    """The data every design shares (ClosedFormModel.data): cosines and sines of the n uniform
+    crank positions."""
+    c, s, _ = positions(n_positions)
+    return c, s
+
+
+@jit
+def slider_design(p, want, row, crv, slot, buf, cos_phi, sin_phi):
+    """The model's per-design function (ClosedFormModel.compute; the engine owns the chunk loop):
+    all requested outputs of one slider-crank design over the N uniform crank positions with
+    cosines cos_phi and sines sin_phi (crank_positions). buf: (N_SBUF, N) scratch. Returns a
+    status."""
+    N = cos_phi.shape[0]
+    r = p[S_R]
+    l = slider_conrod_length(p)
+    e = p[S_E]
+    code, smin = slider_assembly(r, l, e)
+    if code != st.OK:
+        return code
+    sigma = branch_sign(p[S_BRANCH])
+    omega = p[S_OMEGA]
+    g = p[S_G]
+    F_load = p[S_FLOAD]
+    k = p[S_K]
+    r_cw = p[S_RCW] if not math.isnan(p[S_RCW]) else r
+    cwx, cwy, mA, mB = slider_counterweight(p, l)
+    need_tb = want[Q_TB_ERR] or want[Q_TB_REL] or slot[D_FXTB] >= 0 or slot[D_FYTB] >= 0
+    if want[Q_TB_REL] and not abs(mB) > 0.0:
+        return st.SINGULAR  # no reciprocating mass: the relative error has no scale
+    if want[Q_TRANS]:
+        row[Q_TRANS] = math.asin(min(smin, 1.0))
+    row[Q_MA] = mA
+    row[Q_MB] = mB
+    row[Q_CW] = math.hypot(cwx, cwy)
+    row[Q_CWA] = math.atan2(cwy + 0.0, cwx)
+    U1x, U1y, J1, m2, V2x, V2y, J2A, m3, mtot, cwm = slider_links(p, cwx, cwy, r_cw)
+    row[Q_CWM] = cwm
+    slider_kinematics_cycle(r, l, e, sigma, omega, p[S_DELTA], cos_phi, sin_phi, buf)
+    slider_loads_cycle(r, e, U1x, U1y, J1, m2, V2x, V2y, J2A, m3, mtot, g, F_load, cos_phi, sin_phi, buf, SB_FX)
+    Fx = buf[SB_FX]
+    Fy = buf[SB_FY]
+    lo, hi, rms = cycle_stats(Fx)
+    row[Q_FXMAX] = max(hi, -lo)
+    row[Q_FXRMS] = rms
+    row[Q_FXRANGE] = hi - lo
+    lo, hi, rms = cycle_stats(Fy)
+    row[Q_FYMAX] = max(hi, -lo)
+    row[Q_FYRMS] = rms
+    row[Q_FYRANGE] = hi - lo
+    row[Q_FMAX] = max_force(Fx, Fy, 0.0)
+    lo, hi, rms = cycle_stats(buf[SB_M])
+    row[Q_MMAX] = max(hi, -lo)
+    row[Q_MRMS] = rms
+    row[Q_MRANGE] = hi - lo
+    lo, hi, rms = cycle_stats(buf[SB_T])
+    row[Q_TMAX] = max(hi, -lo)
+    row[Q_TRMS] = rms
+    row[Q_TRANGE] = hi - lo
+    if want[Q_FMAX_UNB]:
+        bU1x, bU1y, bJ1, _, _, _, _, _, bmtot, _ = slider_links(p, 0.0, 0.0, r_cw)
+        slider_loads_cycle(r, e, bU1x, bU1y, bJ1, m2, V2x, V2y, J2A, m3, bmtot, g, F_load, cos_phi, sin_phi, buf,
+                           SB_FX0)
+        row[Q_FMAX_UNB] = max_force(buf[SB_FX0], buf[SB_FY0], 0.0)
+    if need_tb:
+        # textbook residual (physics.md section 4), mean speed omega, plus the static weight -g M:
+        # Fx = (1 - k) m_B r w^2 cos phi + lambda m_B r w^2 cos 2 phi,  Fy = -k m_B r w^2 sin phi
+        amp = mB * r * omega * omega
+        lam = r / l
+        for j in range(N):
+            c1 = cos_phi[j]
+            s1 = sin_phi[j]
+            buf[SB_FXTB, j] = (1.0 - k) * amp * c1 + lam * amp * (c1 * c1 - s1 * s1)
+            buf[SB_FYTB, j] = -k * amp * s1 - g * mtot
+        for j in range(N):  # the error, in the rows of the unbalanced force (free now)
+            buf[SB_FX0, j] = Fx[j] - buf[SB_FXTB, j]
+            buf[SB_FY0, j] = Fy[j] - buf[SB_FYTB, j]
+        err = max_force(buf[SB_FX0], buf[SB_FY0], 0.0)
+        row[Q_TB_ERR] = err
+        if want[Q_TB_REL]:
+            row[Q_TB_REL] = err / abs(amp)
+    for c, b in ((D_FX, SB_FX), (D_FY, SB_FY), (D_FXTB, SB_FXTB), (D_FYTB, SB_FYTB), (D_M, SB_M), (D_T, SB_T)):
+        if slot[c] >= 0:
+            crv[slot[c], :] = buf[b]
+    return st.OK
 
 
 def check(given):
@@ -121,7 +211,7 @@ def check(given):
     return []
 
 
-SPEC = ModelSpec(
+MODEL = ClosedFormModel(
     name="slidercrank_balancing",
     description="Slider-crank with a crank counterweight balancing the rotating mass and a fraction k of the "
                 "reciprocating mass: exact residual shaking force, moment, input torque and the error of the "
@@ -130,6 +220,12 @@ SPEC = ModelSpec(
     params=PARAMS,
     outputs=tuple(Output(k, *v) for k, v in SCALARS.items())
     + tuple(Output(k, *v, extra_dims=(PHI_DIM,)) for k, v in CURVES.items()),
-    evaluate=evaluate,
+    compute=slider_design,
+    size=L.N_POSITIONS,
+    data=crank_data,
+    scratch=L.N_SBUF,
     check=check,
 )
+SPEC = MODEL.spec()
+# the engine entry point, as fourbar_balancing.evaluate (n_positions as its 8th argument)
+evaluate = SPEC.evaluate
