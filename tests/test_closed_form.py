@@ -265,3 +265,36 @@ def test_second_process_compiles_nothing_for_a_closed_form_user_model(tmp_path):
     assert second["misses"] == 0 and second["hits"] == second["n"] == 2
     assert second["a_max"] == first["a_max"]
     assert list(tmp_path.rglob("mechsweep_closed_*.py"))  # the kernel's module lives in the cache folder
+
+
+BUILTIN_PROBE = """
+import json
+import numpy as np
+from mechsweep.bench import linkage as bl
+from mechsweep.model import closed, load
+
+out, status = bl.mechsweep_residuals(bl.design_family(50, 1))
+dispatchers = list(closed._KERNELS.values()) + list(load._JITTED.values())
+print(json.dumps({"R_axis": out["R_axis"].tolist(),
+                  "misses": sum(sum(d.stats.cache_misses.values()) for d in dispatchers),
+                  "kernel_hits": sum(sum(d.stats.cache_hits.values()) for d in closed._KERNELS.values()),
+                  "n_kernels": len(closed._KERNELS)}))
+"""
+
+
+@pytest.mark.slow  # compiles the four-bar model from an empty cache (about 20 s)
+def test_second_process_compiles_nothing_for_the_builtin_fourbar(tmp_path):
+    """The built-in linkage models go through the same generated module: in a second process the
+    kernel comes from numba's disk cache (the per-design function is compiled into it: not
+    compiled again either)."""
+    env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(tmp_path), PYTHONPATH=str(HERE.parent / "src"))
+    runs = []
+    for _ in range(2):
+        res = subprocess.run([sys.executable, "-c", BUILTIN_PROBE], capture_output=True, text=True, env=env,
+                             cwd=tmp_path)
+        assert res.returncode == 0, res.stderr
+        runs.append(json.loads(res.stdout.strip().splitlines()[-1]))
+    first, second = runs
+    assert first["misses"] > 0
+    assert second["misses"] == 0 and second["kernel_hits"] == second["n_kernels"] == 1
+    assert second["R_axis"] == first["R_axis"]
