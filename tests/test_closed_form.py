@@ -298,3 +298,26 @@ def test_second_process_compiles_nothing_for_the_builtin_fourbar(tmp_path):
     assert first["misses"] > 0
     assert second["misses"] == 0 and second["kernel_hits"] == second["n_kernels"] == 1
     assert second["R_axis"] == first["R_axis"]
+
+
+@pytest.mark.slow  # a worker process and its JIT load: ~15-25 s on 2 cores
+def test_dask_worker_runs_a_closed_form_user_model(tmp_path, monkeypatch):
+    """The worker resolves the model file relative to the scene's folder, as for ODE models."""
+    import shutil
+
+    distributed = pytest.importorskip("distributed")
+    (tmp_path / "models").mkdir()
+    shutil.copy(CAM, tmp_path / "models" / "cam.py")
+    (tmp_path / "s.toml").write_text(
+        '[scene]\nname = "cam"\nmodel = "models/cam.py:CAM"\n'
+        'outputs = ["v_max", "a_max", "pressure_angle_max", "s_u", "a_u"]\n'
+        '[axes]\nbeta = { start = 0.6, stop = 2.0, num = 8 }\nlaw = ["cycloidal", "harmonic"]\n'
+        '[fixed]\nh = 0.02\nomega = 30.0\nrb = 0.04\n[storage]\nchunk_size = 4\n')
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as c:
+        ds = mechsweep.run(tmp_path / "s.toml", output=elsewhere / "d.h5", scheduler=c.scheduler_address, threads=1,
+                           progress=False)
+    assert ds.attrs["execution"].startswith("dask scheduler")
+    check_cam(ds)
