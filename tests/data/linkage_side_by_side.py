@@ -18,8 +18,6 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
-from pathlib import Path
 
 TIMING = """
 import json, sys, time
@@ -70,8 +68,7 @@ def main(before: str, after: str, rounds: int = 5) -> None:
                 res = json.loads(run(src, TIMING, str(threads)).strip().splitlines()[-1])
                 print(f"round {r + 1} {label:6s} {threads} thread(s): best {res['best']:>9,.0f}  median "
                       f"{res['median']:>9,.0f} designs/s  (load average {os.getloadavg()[0]:.2f})", flush=True)
-    with tempfile.TemporaryDirectory():
-        asm = [run(src, ASM, env={"MECHSWEEP_NO_CACHE": "1"}).splitlines() for src in (before, after)]
+    asm = [run(src, ASM, env={"MECHSWEEP_NO_CACHE": "1"}).splitlines() for src in (before, after)]
     import difflib
 
     ops = [op for op in difflib.SequenceMatcher(None, asm[0], asm[1], autojunk=False).get_opcodes()
