@@ -123,7 +123,7 @@ def entry_points(quiet: bool = False) -> dict:
 
 def from_object(name: str, obj):
     """The ModelSpec of a model given from Python (``run(scene, models={name: obj})``): an OdeModel
-    (checked as a model file's is) or a ModelSpec (used as is)."""
+    or a ClosedFormModel (checked as a model file's is) or a ModelSpec (used as is)."""
     from ..models import MODELS, ModelSpec
     from .closed import ClosedFormModel
     from .ode import OdeModel

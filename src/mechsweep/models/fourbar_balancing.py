@@ -3,13 +3,16 @@
 Sources: physics.md section 4 (a Chinese machine-dynamics textbook: complete shaking-force
 balancing by linearly independent vectors, added rocker inertia, optimisation-based
 comprehensive balancing with the indices f1..f4) and section 3 (Dzhavakhyan & Arakelyan 1988:
-partial dynamic balancing by moving the crank counterweight's axis). Kernels, equations and
+partial dynamic balancing by moving the crank counterweight's axis). Equations, numba helpers and
 conventions: :mod:`mechsweep.models._linkage` (frame on the x axis from the crank pivot O_A to
 the rocker pivot O_B, gravity along -y, crank speed omega(phi) = omega (1 + delta sin phi)).
+The model is a closed-form model of the model layer (:class:`mechsweep.model.ClosedFormModel`):
+this module declares it (``MODEL``, ``SPEC``) and holds its per-design function
+``fourbar_design``; the engine generates the chunk loop.
 
 Every per-design output is evaluated at N_POSITIONS = 360 uniform crank positions
-phi_i = 2 pi i / 360 (a fixed constant: algebraic scenes have no solver settings; the kernels and
-``evaluate(..., n_positions=N)`` take any N, for convergence studies). RMS values are
+phi_i = 2 pi i / 360 (a fixed constant: algebraic scenes have no solver settings; the per-design
+function and ``evaluate(..., n_positions=N)`` take any N, for convergence studies). RMS values are
 over those positions (uniform in phi, as the source's sums over computed positions), maxima and
 ranges too (``mechsweep bench workprecision fourbar_balancing`` measures their error).
 Per-position outputs (``*_phi``) have the extra dimension ``phi`` with these positions and are
