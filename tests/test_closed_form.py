@@ -321,3 +321,9 @@ def test_dask_worker_runs_a_closed_form_user_model(tmp_path, monkeypatch):
                            progress=False)
     assert ds.attrs["execution"].startswith("dask scheduler")
     check_cam(ds)
+
+
+def test_mechsweep_models_describes_a_closed_form_user_model(capsys):
+    assert main(["models", f"{CAM}:CAM"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("cam_rise:") and "s_u" in out and "(per u)" in out and "law" in out
