@@ -152,6 +152,7 @@ class ClosedFormModel:
 
 _DATA: dict[int, tuple] = {}
 _KERNELS: dict[str, object] = {}
+_BY_MODEL: dict[tuple, tuple] = {}  # (id(model), number of data arrays) -> (model, kernel)
 _TMP: list[str] = []
 
 
@@ -226,6 +227,9 @@ def kernel(P, want, slot, table, curves, status{data_args}):
 
 def kernel_for(model: ClosedFormModel, n_data: int, *, origin: str = ""):
     """The compiled chunk kernel of ``model`` (cached in-process and on disk)."""
+    known = _BY_MODEL.get((id(model), n_data))
+    if known is not None and known[0] is model:  # no file read and hash per chunk
+        return known[1]
     ref = load.function_ref(model.compute, "compute", model.name)
     key = hashlib.sha256()
     key.update(repr(ref).encode())
@@ -233,6 +237,7 @@ def kernel_for(model: ClosedFormModel, n_data: int, *, origin: str = ""):
     key.update(repr(("closed", model.name, len(model.params), n_data, model.scratch, BLOCK)).encode())
     name = "mechsweep_closed_" + key.hexdigest()[:20]
     if name in _KERNELS:
+        _BY_MODEL[(id(model), n_data)] = (model, _KERNELS[name])
         return _KERNELS[name]
     path = _folder() / f"{name}.py"
     source = kernel_source(model, ref, n_data, origin or ref[0])
@@ -245,6 +250,7 @@ def kernel_for(model: ClosedFormModel, n_data: int, *, origin: str = ""):
     sys.modules[name] = mod
     spec.loader.exec_module(mod)
     _KERNELS[name] = mod.kernel
+    _BY_MODEL[(id(model), n_data)] = (model, mod.kernel)
     return mod.kernel
 
 
