@@ -611,28 +611,28 @@ def test_jitted_kernels_agree_with_python():
     assert L.dot4(x, x[::-1].copy()) == pytest.approx(L.dot4.py_func(x, x[::-1].copy()), rel=1e-15)
 
 
-@pytest.mark.parametrize("model,kernel,design,n_buf", [
-    (fb, "fourbar_kernel", "fourbar_design", L.N_BUF), (sc, "slider_kernel", "slider_design", L.N_SBUF)])
-def test_design_kernels_agree_with_python(model, kernel, design, n_buf):
-    spec = model.SPEC
+@pytest.mark.parametrize("model", [fb, sc])
+def test_design_functions_agree_with_python(model):
+    """The engine's compiled chunk kernel (ClosedFormModel) against the model's per-design function
+    run as plain Python, every output asked for."""
+    spec, decl = model.SPEC, model.MODEL
     if spec is fb.SPEC:
         P, _ = B._matrix("fourbar_balancing", dict(GEO, omega=20.0, delta=0.2))
     else:
         P, _ = B._matrix("slidercrank_balancing", dict(SLIDER, omega=30.0, delta=0.2))
     names = spec.output_names()
-    scalars = L.FOURBAR_OUTPUTS if spec is fb.SPEC else L.SLIDER_OUTPUTS
-    curves = L.FOURBAR_CURVES if spec is fb.SPEC else L.SLIDER_CURVES
+    out = {k: np.full((1, L.N_POSITIONS) if spec.output(k).extra_dims else 1, np.nan) for k in names}
     status = np.zeros(1, np.int8)
-    table, crv, _ = fb.run_kernel(getattr(L, kernel), P, names, scalars, curves, status)
-    want = np.ones(len(scalars), bool)
-    slot = np.arange(len(curves))
-    row = np.full(len(scalars), np.nan)
-    crv_py = np.full((len(curves), L.N_POSITIONS), np.nan)
-    positions = (L.COS_PHI, L.SIN_PHI, L.SUMS, np.ones(L.N_POSITIONS)) if spec is fb.SPEC else (L.COS_PHI, L.SIN_PHI)
-    args = (P[0], want, row, crv_py, slot, np.empty((n_buf, L.N_POSITIONS))) + positions
-    assert getattr(L, design).py_func(*args) == status[0] == st.OK
-    np.testing.assert_allclose(row, table[0], rtol=1e-13)
-    np.testing.assert_allclose(crv_py, crv[0], rtol=1e-13, atol=1e-13 * np.abs(crv[0]).max())
+    spec.evaluate(P, names, None, out, status, None, None)
+    want = np.ones(len(decl.scalars), bool)
+    slot = np.arange(len(decl.curves))
+    row = np.full(len(decl.scalars), np.nan)
+    crv_py = np.full((len(decl.curves), L.N_POSITIONS), np.nan)
+    args = (P[0], want, row, crv_py, slot, np.empty((decl.scratch, L.N_POSITIONS))) + decl.shared_data(L.N_POSITIONS)
+    assert decl.compute.py_func(*args) == status[0] == st.OK
+    np.testing.assert_allclose(row, [out[k][0] for k in decl.scalars], rtol=1e-13)
+    crv = np.array([out[k][0] for k in decl.curves])
+    np.testing.assert_allclose(crv_py, crv, rtol=1e-13, atol=1e-13 * np.abs(crv).max())
 
 
 # ============================================================================= end to end

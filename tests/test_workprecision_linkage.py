@@ -66,16 +66,23 @@ def test_curves_have_n_positions_and_360_stays_bitwise_the_default():
     # the curve at N = 90 is the curve at 360 every 4th position (same positions, same expressions)
     full, _ = B.evaluate("fourbar_balancing", ["M_static_phi"], **FOURBAR)
     np.testing.assert_array_equal(out["M_static_phi"], full["M_static_phi"][::4])
+    # the module's constant positions (the default) against positions built afresh, through the
+    # engine's kernel of the closed-form model
+    from mechsweep.model import closed
+
     P, _ = B._matrix("fourbar_balancing", FOURBAR)
     names = fb.SPEC.output_names()
     status = np.zeros(1, st.DTYPE)
-    default = fb.run_kernel(L.fourbar_kernel, P, names, L.FOURBAR_OUTPUTS, L.FOURBAR_CURVES, status)
+    default = {k: np.full((1, 360) if fb.SPEC.output(k).extra_dims else 1, np.nan) for k in names}
+    fb.SPEC.evaluate(P, names, None, default, status, None, None)
     c, s = L.crank_positions(360)[1:]
-    rebuilt = np.full_like(default[0], np.nan), np.full_like(default[1], np.nan)
-    slot = np.arange(len(L.FOURBAR_CURVES))
-    L.fourbar_kernel(P, np.ones(len(L.FOURBAR_OUTPUTS), bool), slot, *rebuilt, status, c, s, L.position_sums(c, s))
-    np.testing.assert_array_equal(rebuilt[0], default[0])
-    np.testing.assert_array_equal(rebuilt[1], default[1])
+    table = np.full((1, len(fb.MODEL.scalars)), np.nan)
+    curves = np.full((1, len(fb.MODEL.curves), 360), np.nan)
+    kernel = closed.kernel_for(fb.MODEL, 4)
+    kernel(P, np.ones(len(fb.MODEL.scalars), bool), np.arange(len(fb.MODEL.curves)), table, curves, status, c, s,
+           L.position_sums(c, s), np.ones(360))
+    np.testing.assert_array_equal(table[0], [default[k][0] for k in fb.MODEL.scalars])
+    np.testing.assert_array_equal(curves[0], [default[k][0] for k in fb.MODEL.curves])
 
 
 # ============================================================================= references

@@ -1,7 +1,9 @@
-"""The declarative model layer: declare an ODE model and what to measure; the engine writes the
-chunk kernel. See docs/model-layer.md."""
-from ..models._spec import Param, Setting
+"""The declarative model layer: declare an ODE model and what to measure, or a closed-form model
+and its per-design function; the engine writes the chunk kernel. See docs/model-layer.md."""
+from ..models._spec import ExtraDim, Output, Param, Setting
+from .closed import ClosedFormModel
 from .measure import Crossing, Extremum, Floquet, Period, StateAt
 from .ode import OdeModel
 
-__all__ = ["OdeModel", "Param", "Setting", "Crossing", "Period", "StateAt", "Extremum", "Floquet"]
+__all__ = ["OdeModel", "ClosedFormModel", "Param", "Setting", "Output", "ExtraDim", "Crossing", "Period", "StateAt",
+           "Extremum", "Floquet"]

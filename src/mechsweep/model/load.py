@@ -3,7 +3,8 @@
 
 Every problem is an :class:`~mechsweep.errors.InputError` naming the file (and the line, where
 Python or numba gives one), raised while the scene is loaded, before any file is written:
-missing file, a file that fails to import, NAME not defined or not an OdeModel, an rhs or initial
+missing file, a file that fails to import, NAME not defined or not an OdeModel (or ClosedFormModel: its
+checks are closed.check), an rhs or initial
 that raises, reads a parameter beyond the declared ones or writes beyond the state (found by
 running them once in plain Python at a probe point), leaves a component unwritten, or that numba
 cannot compile.
@@ -122,23 +123,25 @@ def entry_points(quiet: bool = False) -> dict:
 
 def from_object(name: str, obj):
     """The ModelSpec of a model given from Python (``run(scene, models={name: obj})``): an OdeModel
-    (checked as a model file's is) or a ModelSpec (used as is)."""
+    or a ClosedFormModel (checked as a model file's is) or a ModelSpec (used as is)."""
     from ..models import MODELS, ModelSpec
+    from .closed import ClosedFormModel
     from .ode import OdeModel
 
     if name in MODELS:
         raise InputError(f"models[{name!r}]: {name!r} is a built-in model; give your model another name")
     if isinstance(obj, ModelSpec):
         return obj
-    if not isinstance(obj, OdeModel):
+    if not isinstance(obj, (OdeModel, ClosedFormModel)):
         raise InputError(f"models[{name!r}] is a {type(obj).__name__}; expected a mechsweep.model.OdeModel "
-                         "or a mechsweep.models.ModelSpec")
+                         "or ClosedFormModel, or a mechsweep.models.ModelSpec")
     key = ("object", id(obj))
     if key in _RESOLVED and _RESOLVED[key][0] is obj:
         return _RESOLVED[key][1]
-    module = getattr(getattr(obj.rhs, "py_func", obj.rhs), "__module__", "") or ""
+    func = obj.compute if isinstance(obj, ClosedFormModel) else obj.rhs
+    module = getattr(getattr(func, "py_func", func), "__module__", "") or ""
     file = _FILES.get(module) or getattr(sys.modules.get(module), "__file__", "") or module
-    check(obj, f"models[{name!r}]", file)
+    _check_any(obj, f"models[{name!r}]", file)
     spec = obj.spec(origin=f"{module}:{name}")
     _RESOLVED[key] = (obj, spec)
     return spec
@@ -146,6 +149,7 @@ def from_object(name: str, obj):
 
 def resolve(ref: str, base: Path | None = None):
     """The ModelSpec of a user model reference (cached per file and name in this process)."""
+    from .closed import ClosedFormModel
     from .ode import OdeModel
 
     left, _, name = ref.rpartition(":")
@@ -175,17 +179,24 @@ def resolve(ref: str, base: Path | None = None):
         raise InputError(f"{ref!r}: importing {where} failed: {_where(exc, file)}") from None
     file = file or getattr(mod, "__file__", "") or ""
     if not hasattr(mod, name):
-        found = [k for k, v in vars(mod).items() if isinstance(v, OdeModel)]
+        found = [k for k, v in vars(mod).items() if isinstance(v, (OdeModel, ClosedFormModel))]
         raise InputError(f"{ref!r}: {where} does not define {name!r}"
                          f" (models it defines: {', '.join(found) if found else 'none'})")
     model = getattr(mod, name)
-    if not isinstance(model, OdeModel):
+    if not isinstance(model, (OdeModel, ClosedFormModel)):
         raise InputError(f"{ref!r}: {name!r} in {where} is a {type(model).__name__}, "
-                         "not a mechsweep.model.OdeModel")
-    check(model, ref, file)
+                         "not a mechsweep.model.OdeModel or ClosedFormModel")
+    _check_any(model, ref, file)
     spec = model.spec(origin=f"{where}:{name}")
     _RESOLVED[key] = spec
     return spec
+
+
+def _check_any(model, ref: str, file: str) -> None:
+    """check() for an OdeModel, closed.check() for a ClosedFormModel."""
+    from . import closed
+
+    (closed.check if isinstance(model, closed.ClosedFormModel) else check)(model, ref, file)
 
 
 def _where(exc: BaseException, file: str) -> str:

@@ -1,8 +1,10 @@
-"""Planar four-bar and slider-crank: closed-form kinematics, inertia loads and balancing kernels.
+"""Planar four-bar and slider-crank: closed-form kinematics, inertia loads and balancing helpers.
 
 Pure numba functions on floats and arrays; they write into caller-owned arrays and return status
-codes (never raise). No units, no xarray, no scene: the models ``fourbar_balancing`` and
-``slidercrank_balancing`` and the plain functions of :mod:`mechsweep.balancing` call them.
+codes (never raise). No units, no xarray, no scene: the per-design functions of the models
+``fourbar_balancing`` and ``slidercrank_balancing`` (closed-form models on the model layer, which
+owns the chunk loop: mechsweep.model.closed) and the plain functions of :mod:`mechsweep.balancing`
+call them.
 
 Conventions (SI, angles in rad, counter-clockwise positive, gravity g along -y)
 ------------------------------------------------------------------------------
@@ -18,7 +20,7 @@ Slider-crank: crank O A (r, angle phi), conrod A B (l, angle phi2), slider B on 
 y = e (offset e), sigma = +1: slider on the +x side of the crank pin, x_B = r cos phi + l cos phi2.
 
 Crank motion: phi' = w1, phi'' = al1 are inputs of every position function (any prescribed
-motion). The sweep kernels use the speed law omega(phi) = omega (1 + delta sin phi), so
+motion). The sweep models use the speed law omega(phi) = omega (1 + delta sin phi), so
 phi'' = omega(phi) d omega / d phi = omega^2 (1 + delta sin phi) delta cos phi; delta = 0 is the
 constant speed of the sources.
 
@@ -45,7 +47,7 @@ import math
 import numpy as np
 
 from .. import status as st
-from .._jit import jit, pjit, prange
+from .._jit import jit
 
 # ----------------------------------------------------------------------------- positions
 N_POSITIONS = 360  # crank positions per cycle of the stored curves and of every sweep
@@ -86,8 +88,6 @@ ASSEMBLY_RTOL = 1e-12
 SUMS = position_sums(COS_PHI, SIN_PHI)  # sums over the positions for formula (1)
 SUM_CC, SUM_SS, SUM_SC = (float(v) for v in SUMS)
 
-BLOCK = 64  # designs per scratch-space allocation in the parallel kernels
-
 # ----------------------------------------------------------------------------- four-bar layout
 # parameter columns (the model's ModelSpec declares its Params in exactly this order)
 FOURBAR_PARAMS = (
@@ -102,7 +102,7 @@ FOURBAR_PARAMS = (
  P_M3, P_R3, P_TH3, P_I3, P_OMEGA, P_DELTA, P_G, P_MLOAD,
  P_CW1, P_CW1A, P_RCW1, P_CW3, P_CW3A, P_RCW3) = range(len(FOURBAR_PARAMS))
 
-# scalar outputs (columns of the kernel's table)
+# scalar outputs (columns of a design's row; the model declares its Outputs in this order)
 FOURBAR_OUTPUTS = (
     "transmission_min",
     # the mechanism as given (links + counterweights cw1_*, cw3_* of the parameters): method 5 indices
@@ -699,205 +699,6 @@ def max_force(fx, fy, fy_offset):
     return math.sqrt(m)
 
 
-@jit
-def fourbar_design(p, want, row, crv, slot, buf, cos_phi, sin_phi, sums, unit):
-    """All requested outputs of one four-bar design (row p of the parameter matrix) over the
-    N uniform crank positions with cosines cos_phi and sines sin_phi (crank_positions).
-    row: the design's scalar outputs (prefilled NaN); crv: (n_curve_slots, N) the design's
-    curves; slot[c] = row of curve c in crv or -1; buf: (N_BUF, N) scratch; sums: position_sums
-    of the positions; unit: N ones (the positions' weights). Returns a status; outputs of a
-    non-OK design stay NaN."""
-    N = cos_phi.shape[0]
-    a1, a2, a3, a4 = p[P_A1], p[P_A2], p[P_A3], p[P_A4]
-    code, smin = fourbar_assembly(a1, a2, a3, a4)
-    if code != st.OK:
-        return code
-    sigma = branch_sign(p[P_BRANCH])
-    omega = p[P_OMEGA]
-    delta = p[P_DELTA]
-    g = p[P_G]
-    M_load = p[P_MLOAD]
-    r_cw1, r_cw3 = fourbar_cw_radii(p)
-
-    need_axis = want[K_AX] or want[K_AY] or want[K_DMRMS_AX] or want[K_DMMAX_AX] or want[K_R_AX] or slot[C_DM_AX] >= 0
-    need_h1 = want[K_H1X] or want[K_H1Y] or want[K_DMRMS_H1] or want[K_DMMAX_H1] or want[K_R_H1] or slot[C_DM_H1] >= 0
-    need_in = (want[K_JR] or want[K_DMRMS_IN] or want[K_DMMAX_IN] or want[K_R_IN] or want[K_TRMS_IN]
-               or want[K_TMAX_IN] or slot[C_DM_IN] >= 0)
-    need_static = need_axis or need_h1 or need_in or slot[C_MS] >= 0 or slot[C_TS] >= 0
-    for k in range(K_CW1_S, K_TRANGE_S + 1):
-        need_static = need_static or want[k]
-    need_given = slot[C_FX] >= 0 or slot[C_FY] >= 0 or slot[C_M] >= 0 or slot[C_T] >= 0
-    for k in range(K_FX_RANGE, K_CW_MASS + 1):
-        need_given = need_given or want[k]
-
-    if want[K_TRANS]:
-        row[K_TRANS] = math.asin(min(smin, 1.0))
-    Fx = buf[B_FX]
-    Fy = buf[B_FY]
-    Ms = buf[B_M]
-    Ts = buf[B_T]
-
-    m_links = p[P_M1] + p[P_M2] + p[P_M3]
-    if need_given or need_static:
-        fourbar_kinematics_cycle(a1, a2, a3, a4, sigma, omega, delta, cos_phi, sin_phi, buf)  # shared by both
-    # ---- the mechanism as given (method 5 indices)
-    if need_given:
-        U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, cwm = fourbar_links(
-            p, p[P_CW1] * math.cos(p[P_CW1A]), p[P_CW1] * math.sin(p[P_CW1A]),
-            p[P_CW3] * math.cos(p[P_CW3A]), p[P_CW3] * math.sin(p[P_CW3A]), r_cw1, r_cw3)
-        fourbar_loads_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, g, M_load,
-                            cos_phi, sin_phi, buf)
-        # method 5: the textbook's four indices f1..f4 and their RMS
-        lo, hi, rms = cycle_stats(Fx)
-        row[K_FX_RANGE] = hi - lo
-        row[K_FX_RMS] = rms
-        lo, hi, rms = cycle_stats(Fy)
-        row[K_FY_RANGE] = hi - lo
-        row[K_FY_RMS] = rms
-        lo, hi, rms = cycle_stats(Ms)
-        row[K_M_RANGE] = hi - lo
-        row[K_M_RMS] = rms
-        row[K_M_MAX] = max(hi, -lo)
-        lo, hi, rms = cycle_stats(Ts)
-        row[K_T_RANGE] = hi - lo
-        row[K_T_RMS] = rms
-        row[K_T_MAX] = max(hi, -lo)
-        row[K_F_MAX] = max_force(Fx, Fy, 0.0)
-        row[K_CW_MASS] = cwm
-        for c, b in ((C_FX, B_FX), (C_FY, B_FY), (C_M, B_M), (C_T, B_T)):
-            if slot[c] >= 0:
-                crv[slot[c], :] = buf[b]
-
-    if not need_static:
-        return st.OK
-    # ---- method 1: complete shaking-force balancing (physics.md section 4)
-    C1x, C1y, C3x, C3y = fourbar_static_counterweights(
-        a1, a2, a3, p[P_M1], p[P_R1], p[P_TH1], p[P_M2], p[P_R2], p[P_TH2], p[P_M3], p[P_R3], p[P_TH3])
-    U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, cwm = fourbar_links(p, C1x, C1y, C3x, C3y, r_cw1, r_cw3)
-    need_T = (want[K_TRMS_S] or want[K_TMAX_S] or want[K_TRANGE_S] or slot[C_TS] >= 0
-              or want[K_TRMS_IN] or want[K_TMAX_IN])
-    need_F = want[K_FMAX_S]
-    if need_T or need_F:
-        fourbar_loads_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, g, M_load,
-                            cos_phi, sin_phi, buf)
-    else:
-        fourbar_moment_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, g, cos_phi, sin_phi, buf)
-    S = math.hypot(C1x, C1y)  # static moment of the crank counterweight
-    row[K_CW1_S] = S
-    row[K_CW1A_S] = math.atan2(C1y + 0.0, C1x)  # + 0.0: no -pi from a -0.0
-    row[K_CW3_S] = math.hypot(C3x, C3y)
-    row[K_CW3A_S] = math.atan2(C3y + 0.0, C3x)
-    row[K_CWM_S] = cwm
-    row[K_MASSR_S] = (m_links + cwm) / m_links
-    if need_F:
-        row[K_FMAX_S] = max_force(Fx, Fy, g * mtot)  # the dynamic part (the weight is static)
-    lo, hi, rms = cycle_stats(Ms)
-    dm1_max = max(hi, -lo)  # max |dM_1|: the residual of plain static balancing
-    row[K_MRMS_S] = rms
-    row[K_MMAX_S] = dm1_max
-    row[K_MRANGE_S] = hi - lo
-    if need_T:
-        lo, hi, rms = cycle_stats(Ts)
-        row[K_TRMS_S] = rms
-        row[K_TMAX_S] = max(hi, -lo)
-        row[K_TRANGE_S] = hi - lo
-    if slot[C_MS] >= 0:
-        crv[slot[C_MS], :] = Ms
-    if slot[C_TS] >= 0:
-        crv[slot[C_TS], :] = Ts
-    if (need_axis or need_h1 or need_in) and not dm1_max > 0.0:
-        return st.SINGULAR  # nothing to balance: efficiencies R_j = 0 / 0
-
-    # ---- method 2: move the crank counterweight's axis to O1(x, y) (physics.md section 3)
-    if need_axis or need_h1:
-        cb = C1x / S if S > 0.0 else 1.0  # cos(beta), sin(beta)
-        sb = C1y / S if S > 0.0 else 0.0
-        W1 = buf[R_W1]
-        AL1 = buf[R_AL1]
-        for method in range(2):
-            if method == 0:
-                if not need_axis:
-                    continue
-                kx, ky, krms, kmax, kr, cslot = K_AX, K_AY, K_DMRMS_AX, K_DMMAX_AX, K_R_AX, slot[C_DM_AX]
-            else:
-                if not need_h1:
-                    continue
-                kx, ky, krms, kmax, kr, cslot = K_H1X, K_H1Y, K_DMRMS_H1, K_DMMAX_H1, K_R_H1, slot[C_DM_H1]
-            dM = buf[B_DM] if cslot < 0 else crv[cslot]
-            if method == 0 and delta == 0.0:
-                # constant speed, symmetric uniform positions: sum sin(psi) cos(psi) = 0, so the
-                # source's formula (1) is the exact solution of the normal equations (and cheaper)
-                if S == 0.0:
-                    x, y = 0.0, 0.0
-                else:
-                    x, y = axis_formula1_sums(dot4(Ms, cos_phi), dot4(Ms, sin_phi), sums[0], sums[1], sums[2],
-                                              S, omega, cb, sb)
-                rms, mx = axis_residual_const(cos_phi, sin_phi, Ms, S * omega * omega, cb, sb, x, y, dM)
-            else:
-                ok, x, y = axis_fit(cos_phi, sin_phi, W1, AL1, Ms, unit, S, cb, sb, method == 1)
-                if not ok:
-                    return st.SINGULAR
-                rms, mx = axis_residual(cos_phi, sin_phi, W1, AL1, Ms, S, cb, sb, x, y, dM)
-            row[kx] = x
-            row[ky] = y
-            row[krms] = rms
-            row[kmax] = mx
-            row[kr] = (dm1_max - mx) / dm1_max * 100.0  # R_j of physics.md section 3
-
-    # ---- method 4: inertia J on the rocker (J < 0: counter-rotating 1:-1 gear pair of inertia |J|)
-    if need_in:
-        A3 = buf[R_AL3]
-        Q3 = buf[B_Q3]
-        saa = sma = 0.0
-        for j in range(N):
-            saa += A3[j] * A3[j]
-            sma += Ms[j] * A3[j]
-        J = sma / saa if saa > 0.0 else 0.0  # minimise sum (M_i - J al3_i)^2
-        ss = 0.0
-        mx = 0.0
-        t_ss = 0.0
-        t_mx = 0.0
-        cslot = slot[C_DM_IN]
-        for j in range(N):
-            dm = Ms[j] - J * A3[j]
-            ss += dm * dm
-            mx = max(mx, abs(dm))
-            T = Ts[j] + abs(J) * A3[j] * Q3[j]  # kinetic energy of the added inertia is |J| w3^2 / 2
-            t_ss += T * T
-            t_mx = max(t_mx, abs(T))
-            if cslot >= 0:
-                crv[cslot, j] = dm
-        row[K_JR] = J
-        row[K_DMRMS_IN] = math.sqrt(ss / N)
-        row[K_DMMAX_IN] = mx
-        row[K_R_IN] = (dm1_max - mx) / dm1_max * 100.0
-        row[K_TRMS_IN] = math.sqrt(t_ss / N)
-        row[K_TMAX_IN] = t_mx
-    return st.OK
-
-
-@pjit
-def fourbar_kernel(P, want, slot, table, curves, status, cos_phi, sin_phi, sums):
-    """prange over designs (rows of P); one scratch buffer per block of BLOCK designs. The crank
-    positions are arguments (crank_positions, position_sums): N_POSITIONS in sweeps."""
-    n = P.shape[0]
-    N = cos_phi.shape[0]
-    n_blocks = (n + BLOCK - 1) // BLOCK
-    use_curves = curves.shape[0] == n
-    unit = np.ones(N)
-    for b in prange(n_blocks):
-        buf = np.empty((N_BUF, N))
-        dummy = np.empty((0, N))
-        for i in range(b * BLOCK, min(n, (b + 1) * BLOCK)):
-            crv = curves[i] if use_curves else dummy
-            code = fourbar_design(P[i], want, table[i], crv, slot, buf, cos_phi, sin_phi, sums, unit)
-            if code != st.OK:
-                status[i] = code
-                table[i, :] = math.nan
-                if use_curves:
-                    crv[:, :] = math.nan
-
-
 # ============================================================================= slider-crank
 @jit
 def slider_assembly(r, l, e):
@@ -1088,103 +889,3 @@ def slider_loads_cycle(r, e, U1x, U1y, J1, m2, V2x, V2y, J2A, m3, mtot, g, F_loa
         buf[first + 1, j] = Fy
         buf[first + 2, j] = M
         buf[first + 3, j] = T
-
-
-@jit
-def slider_design(p, want, row, crv, slot, buf, cos_phi, sin_phi):
-    """All requested outputs of one slider-crank design over the N uniform crank positions with
-    cosines cos_phi and sines sin_phi (crank_positions). buf: (N_SBUF, N) scratch. Returns a
-    status."""
-    N = cos_phi.shape[0]
-    r = p[S_R]
-    l = slider_conrod_length(p)
-    e = p[S_E]
-    code, smin = slider_assembly(r, l, e)
-    if code != st.OK:
-        return code
-    sigma = branch_sign(p[S_BRANCH])
-    omega = p[S_OMEGA]
-    g = p[S_G]
-    F_load = p[S_FLOAD]
-    k = p[S_K]
-    r_cw = p[S_RCW] if not math.isnan(p[S_RCW]) else r
-    cwx, cwy, mA, mB = slider_counterweight(p, l)
-    need_tb = want[Q_TB_ERR] or want[Q_TB_REL] or slot[D_FXTB] >= 0 or slot[D_FYTB] >= 0
-    if want[Q_TB_REL] and not abs(mB) > 0.0:
-        return st.SINGULAR  # no reciprocating mass: the relative error has no scale
-    if want[Q_TRANS]:
-        row[Q_TRANS] = math.asin(min(smin, 1.0))
-    row[Q_MA] = mA
-    row[Q_MB] = mB
-    row[Q_CW] = math.hypot(cwx, cwy)
-    row[Q_CWA] = math.atan2(cwy + 0.0, cwx)
-    U1x, U1y, J1, m2, V2x, V2y, J2A, m3, mtot, cwm = slider_links(p, cwx, cwy, r_cw)
-    row[Q_CWM] = cwm
-    slider_kinematics_cycle(r, l, e, sigma, omega, p[S_DELTA], cos_phi, sin_phi, buf)
-    slider_loads_cycle(r, e, U1x, U1y, J1, m2, V2x, V2y, J2A, m3, mtot, g, F_load, cos_phi, sin_phi, buf, SB_FX)
-    Fx = buf[SB_FX]
-    Fy = buf[SB_FY]
-    lo, hi, rms = cycle_stats(Fx)
-    row[Q_FXMAX] = max(hi, -lo)
-    row[Q_FXRMS] = rms
-    row[Q_FXRANGE] = hi - lo
-    lo, hi, rms = cycle_stats(Fy)
-    row[Q_FYMAX] = max(hi, -lo)
-    row[Q_FYRMS] = rms
-    row[Q_FYRANGE] = hi - lo
-    row[Q_FMAX] = max_force(Fx, Fy, 0.0)
-    lo, hi, rms = cycle_stats(buf[SB_M])
-    row[Q_MMAX] = max(hi, -lo)
-    row[Q_MRMS] = rms
-    row[Q_MRANGE] = hi - lo
-    lo, hi, rms = cycle_stats(buf[SB_T])
-    row[Q_TMAX] = max(hi, -lo)
-    row[Q_TRMS] = rms
-    row[Q_TRANGE] = hi - lo
-    if want[Q_FMAX_UNB]:
-        bU1x, bU1y, bJ1, _, _, _, _, _, bmtot, _ = slider_links(p, 0.0, 0.0, r_cw)
-        slider_loads_cycle(r, e, bU1x, bU1y, bJ1, m2, V2x, V2y, J2A, m3, bmtot, g, F_load, cos_phi, sin_phi, buf,
-                           SB_FX0)
-        row[Q_FMAX_UNB] = max_force(buf[SB_FX0], buf[SB_FY0], 0.0)
-    if need_tb:
-        # textbook residual (physics.md section 4), mean speed omega, plus the static weight -g M:
-        # Fx = (1 - k) m_B r w^2 cos phi + lambda m_B r w^2 cos 2 phi,  Fy = -k m_B r w^2 sin phi
-        amp = mB * r * omega * omega
-        lam = r / l
-        for j in range(N):
-            c1 = cos_phi[j]
-            s1 = sin_phi[j]
-            buf[SB_FXTB, j] = (1.0 - k) * amp * c1 + lam * amp * (c1 * c1 - s1 * s1)
-            buf[SB_FYTB, j] = -k * amp * s1 - g * mtot
-        for j in range(N):  # the error, in the rows of the unbalanced force (free now)
-            buf[SB_FX0, j] = Fx[j] - buf[SB_FXTB, j]
-            buf[SB_FY0, j] = Fy[j] - buf[SB_FYTB, j]
-        err = max_force(buf[SB_FX0], buf[SB_FY0], 0.0)
-        row[Q_TB_ERR] = err
-        if want[Q_TB_REL]:
-            row[Q_TB_REL] = err / abs(amp)
-    for c, b in ((D_FX, SB_FX), (D_FY, SB_FY), (D_FXTB, SB_FXTB), (D_FYTB, SB_FYTB), (D_M, SB_M), (D_T, SB_T)):
-        if slot[c] >= 0:
-            crv[slot[c], :] = buf[b]
-    return st.OK
-
-
-@pjit
-def slider_kernel(P, want, slot, table, curves, status, cos_phi, sin_phi, sums):
-    """prange over designs (rows of P); one scratch buffer per block of BLOCK designs. The crank
-    positions are arguments as for fourbar_kernel (sums unused: the same signature)."""
-    n = P.shape[0]
-    N = cos_phi.shape[0]
-    n_blocks = (n + BLOCK - 1) // BLOCK
-    use_curves = curves.shape[0] == n
-    for b in prange(n_blocks):
-        buf = np.empty((N_SBUF, N))
-        dummy = np.empty((0, N))
-        for i in range(b * BLOCK, min(n, (b + 1) * BLOCK)):
-            crv = curves[i] if use_curves else dummy
-            code = slider_design(P[i], want, table[i], crv, slot, buf, cos_phi, sin_phi)
-            if code != st.OK:
-                status[i] = code
-                table[i, :] = math.nan
-                if use_curves:
-                    crv[:, :] = math.nan

@@ -3,13 +3,16 @@
 Sources: physics.md section 4 (a Chinese machine-dynamics textbook: complete shaking-force
 balancing by linearly independent vectors, added rocker inertia, optimisation-based
 comprehensive balancing with the indices f1..f4) and section 3 (Dzhavakhyan & Arakelyan 1988:
-partial dynamic balancing by moving the crank counterweight's axis). Kernels, equations and
+partial dynamic balancing by moving the crank counterweight's axis). Equations, numba helpers and
 conventions: :mod:`mechsweep.models._linkage` (frame on the x axis from the crank pivot O_A to
 the rocker pivot O_B, gravity along -y, crank speed omega(phi) = omega (1 + delta sin phi)).
+The model is a closed-form model of the model layer (:class:`mechsweep.model.ClosedFormModel`):
+this module declares it (``MODEL``, ``SPEC``) and holds its per-design function
+``fourbar_design``; the engine generates the chunk loop.
 
 Every per-design output is evaluated at N_POSITIONS = 360 uniform crank positions
-phi_i = 2 pi i / 360 (a fixed constant: algebraic scenes have no solver settings; the kernels and
-``evaluate(..., n_positions=N)`` take any N, for convergence studies). RMS values are
+phi_i = 2 pi i / 360 (a fixed constant: algebraic scenes have no solver settings; the per-design
+function and ``evaluate(..., n_positions=N)`` take any N, for convergence studies). RMS values are
 over those positions (uniform in phi, as the source's sums over computed positions), maxima and
 ranges too (``mechsweep bench workprecision fourbar_balancing`` measures their error).
 Per-position outputs (``*_phi``) have the extra dimension ``phi`` with these positions and are
@@ -56,8 +59,21 @@ import operator
 import numpy as np
 
 from .. import status as st
+from .._jit import jit
+from ..model.closed import ClosedFormModel
 from . import _linkage as L
-from ._spec import ExtraDim, ModelSpec, Output, Param, wanted_flags
+from ._linkage import (  # the per-design function's helpers and layout constants
+    B_DM, B_FX, B_FY, B_M, B_Q3, B_T, C_DM_AX, C_DM_H1, C_DM_IN, C_FX, C_FY, C_M, C_MS, C_T, C_TS, K_AX, K_AY,
+    K_CW1A_S, K_CW1_S, K_CW3A_S, K_CW3_S, K_CWM_S, K_CW_MASS, K_DMMAX_AX, K_DMMAX_H1, K_DMMAX_IN, K_DMRMS_AX,
+    K_DMRMS_H1, K_DMRMS_IN, K_FMAX_S, K_FX_RANGE, K_FX_RMS, K_FY_RANGE, K_FY_RMS, K_F_MAX, K_H1X, K_H1Y, K_JR,
+    K_MASSR_S, K_MMAX_S, K_MRANGE_S, K_MRMS_S, K_M_MAX, K_M_RANGE, K_M_RMS, K_R_AX, K_R_H1, K_R_IN, K_TMAX_IN,
+    K_TMAX_S, K_TRANGE_S, K_TRANS, K_TRMS_IN, K_TRMS_S, K_T_MAX, K_T_RANGE, K_T_RMS, P_A1, P_A2, P_A3, P_A4,
+    P_BRANCH, P_CW1, P_CW1A, P_CW3, P_CW3A, P_DELTA, P_G, P_M1, P_M2, P_M3, P_MLOAD, P_OMEGA, P_R1, P_R2,
+    P_R3, P_TH1, P_TH2, P_TH3, R_AL1, R_AL3, R_W1, axis_fit, axis_formula1_sums, axis_residual,
+    axis_residual_const, branch_sign, cycle_stats, dot4, fourbar_assembly, fourbar_cw_radii,
+    fourbar_kinematics_cycle, fourbar_links, fourbar_loads_cycle, fourbar_moment_cycle,
+    fourbar_static_counterweights, max_force)
+from ._spec import ExtraDim, Output, Param
 
 N_POSITIONS = L.N_POSITIONS
 PHI_DIM = ExtraDim("phi", "rad", "crank angle (360 uniform positions 2 pi i / 360)",
@@ -174,26 +190,9 @@ CURVES = {
 assert tuple(SCALARS) == L.FOURBAR_OUTPUTS and tuple(CURVES) == L.FOURBAR_CURVES
 
 
-def evaluate(P, wanted, solver, out, status, n_steps, n_rhs, n_positions=N_POSITIONS):
-    """Engine entry point (algebraic: solver is None and unused). ``n_positions``: crank
-    positions per cycle (sweeps: N_POSITIONS; other values for convergence studies, curves then
-    have that length)."""
-    fill_outputs(L.fourbar_kernel, P, wanted, L.FOURBAR_OUTPUTS, L.FOURBAR_CURVES, status, out, n_positions)
-
-
-def fill_outputs(kernel, P, wanted, scalar_names, curve_names, status, out, n_positions=N_POSITIONS):
-    """Run a linkage chunk kernel and copy the wanted scalars and curves into ``out``."""
-    table, curves, names = run_kernel(kernel, P, wanted, scalar_names, curve_names, status, n_positions)
-    for name in wanted:
-        if name in curve_names:
-            out[name][:] = curves[:, names.index(name), :]
-        else:
-            out[name][:] = table[:, scalar_names.index(name)]
-
-
 def positions(n_positions: int = N_POSITIONS):
-    """(cos phi, sin phi, position sums) of n uniform crank positions, the kernels' last three
-    arguments; the module's constants for N_POSITIONS (built once)."""
+    """(cos phi, sin phi, position sums) of n uniform crank positions; the module's constants for
+    N_POSITIONS (built once)."""
     if n_positions == N_POSITIONS:
         return L.COS_PHI, L.SIN_PHI, L.SUMS
     n = operator.index(n_positions)
@@ -201,24 +200,193 @@ def positions(n_positions: int = N_POSITIONS):
     return c, s, L.position_sums(c, s)
 
 
-def run_kernel(kernel, P, wanted, scalar_names, curve_names, status, n_positions=N_POSITIONS):
-    """Call a linkage chunk kernel at n_positions uniform crank positions: (table [n, scalars],
-    curves [n, wanted curves, n_positions], their names)."""
-    cos_phi, sin_phi, sums = positions(n_positions)
+def crank_data(n_positions: int):
+    """The data every design shares (ClosedFormModel.data): cosines and sines of the n uniform
+    crank positions, their sums for formula (1) and the positions' weights (ones)."""
+    c, s, sums = positions(n_positions)
+    return c, s, sums, np.ones(c.shape[0])
+
+
+
+@jit
+def fourbar_design(p, want, row, crv, slot, buf, cos_phi, sin_phi, sums, unit):
+    """The model's per-design function (ClosedFormModel.compute; the engine owns the chunk loop):
+    all requested outputs of one four-bar design (row p of the parameter matrix) over the
+    N uniform crank positions with cosines cos_phi and sines sin_phi (crank_positions).
+    row: the design's scalar outputs (prefilled NaN); crv: (n_curve_slots, N) the design's
+    curves; slot[c] = row of curve c in crv or -1; buf: (N_BUF, N) scratch; sums: position_sums
+    of the positions; unit: N ones (the positions' weights). Returns a status; outputs of a
+    non-OK design stay NaN."""
     N = cos_phi.shape[0]
-    P = np.ascontiguousarray(P, dtype=np.float64)
-    n = P.shape[0]
-    want = wanted_flags(scalar_names, tuple(wanted))
-    names = [c for c in curve_names if c in wanted]
-    slot = np.array([names.index(c) if c in names else -1 for c in curve_names], dtype=np.int64)
-    table = np.full((n, len(scalar_names)), np.nan)
-    shape = (n, len(names), N) if names else (0, 0, N)
-    curves = np.full(shape, np.nan)
-    kernel(P, want, slot, table, curves, status, cos_phi, sin_phi, sums)
-    return table, curves, names
+    a1, a2, a3, a4 = p[P_A1], p[P_A2], p[P_A3], p[P_A4]
+    code, smin = fourbar_assembly(a1, a2, a3, a4)
+    if code != st.OK:
+        return code
+    sigma = branch_sign(p[P_BRANCH])
+    omega = p[P_OMEGA]
+    delta = p[P_DELTA]
+    g = p[P_G]
+    M_load = p[P_MLOAD]
+    r_cw1, r_cw3 = fourbar_cw_radii(p)
+
+    need_axis = want[K_AX] or want[K_AY] or want[K_DMRMS_AX] or want[K_DMMAX_AX] or want[K_R_AX] or slot[C_DM_AX] >= 0
+    need_h1 = want[K_H1X] or want[K_H1Y] or want[K_DMRMS_H1] or want[K_DMMAX_H1] or want[K_R_H1] or slot[C_DM_H1] >= 0
+    need_in = (want[K_JR] or want[K_DMRMS_IN] or want[K_DMMAX_IN] or want[K_R_IN] or want[K_TRMS_IN]
+               or want[K_TMAX_IN] or slot[C_DM_IN] >= 0)
+    need_static = need_axis or need_h1 or need_in or slot[C_MS] >= 0 or slot[C_TS] >= 0
+    for k in range(K_CW1_S, K_TRANGE_S + 1):
+        need_static = need_static or want[k]
+    need_given = slot[C_FX] >= 0 or slot[C_FY] >= 0 or slot[C_M] >= 0 or slot[C_T] >= 0
+    for k in range(K_FX_RANGE, K_CW_MASS + 1):
+        need_given = need_given or want[k]
+
+    if want[K_TRANS]:
+        row[K_TRANS] = math.asin(min(smin, 1.0))
+    Fx = buf[B_FX]
+    Fy = buf[B_FY]
+    Ms = buf[B_M]
+    Ts = buf[B_T]
+
+    m_links = p[P_M1] + p[P_M2] + p[P_M3]
+    if need_given or need_static:
+        fourbar_kinematics_cycle(a1, a2, a3, a4, sigma, omega, delta, cos_phi, sin_phi, buf)  # shared by both
+    # ---- the mechanism as given (method 5 indices)
+    if need_given:
+        U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, cwm = fourbar_links(
+            p, p[P_CW1] * math.cos(p[P_CW1A]), p[P_CW1] * math.sin(p[P_CW1A]),
+            p[P_CW3] * math.cos(p[P_CW3A]), p[P_CW3] * math.sin(p[P_CW3A]), r_cw1, r_cw3)
+        fourbar_loads_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, g, M_load,
+                            cos_phi, sin_phi, buf)
+        # method 5: the textbook's four indices f1..f4 and their RMS
+        lo, hi, rms = cycle_stats(Fx)
+        row[K_FX_RANGE] = hi - lo
+        row[K_FX_RMS] = rms
+        lo, hi, rms = cycle_stats(Fy)
+        row[K_FY_RANGE] = hi - lo
+        row[K_FY_RMS] = rms
+        lo, hi, rms = cycle_stats(Ms)
+        row[K_M_RANGE] = hi - lo
+        row[K_M_RMS] = rms
+        row[K_M_MAX] = max(hi, -lo)
+        lo, hi, rms = cycle_stats(Ts)
+        row[K_T_RANGE] = hi - lo
+        row[K_T_RMS] = rms
+        row[K_T_MAX] = max(hi, -lo)
+        row[K_F_MAX] = max_force(Fx, Fy, 0.0)
+        row[K_CW_MASS] = cwm
+        for c, b in ((C_FX, B_FX), (C_FY, B_FY), (C_M, B_M), (C_T, B_T)):
+            if slot[c] >= 0:
+                crv[slot[c], :] = buf[b]
+
+    if not need_static:
+        return st.OK
+    # ---- method 1: complete shaking-force balancing (physics.md section 4)
+    C1x, C1y, C3x, C3y = fourbar_static_counterweights(
+        a1, a2, a3, p[P_M1], p[P_R1], p[P_TH1], p[P_M2], p[P_R2], p[P_TH2], p[P_M3], p[P_R3], p[P_TH3])
+    U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, cwm = fourbar_links(p, C1x, C1y, C3x, C3y, r_cw1, r_cw3)
+    need_T = (want[K_TRMS_S] or want[K_TMAX_S] or want[K_TRANGE_S] or slot[C_TS] >= 0
+              or want[K_TRMS_IN] or want[K_TMAX_IN])
+    need_F = want[K_FMAX_S]
+    if need_T or need_F:
+        fourbar_loads_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, g, M_load,
+                            cos_phi, sin_phi, buf)
+    else:
+        fourbar_moment_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, g, cos_phi, sin_phi, buf)
+    S = math.hypot(C1x, C1y)  # static moment of the crank counterweight
+    row[K_CW1_S] = S
+    row[K_CW1A_S] = math.atan2(C1y + 0.0, C1x)  # + 0.0: no -pi from a -0.0
+    row[K_CW3_S] = math.hypot(C3x, C3y)
+    row[K_CW3A_S] = math.atan2(C3y + 0.0, C3x)
+    row[K_CWM_S] = cwm
+    row[K_MASSR_S] = (m_links + cwm) / m_links
+    if need_F:
+        row[K_FMAX_S] = max_force(Fx, Fy, g * mtot)  # the dynamic part (the weight is static)
+    lo, hi, rms = cycle_stats(Ms)
+    dm1_max = max(hi, -lo)  # max |dM_1|: the residual of plain static balancing
+    row[K_MRMS_S] = rms
+    row[K_MMAX_S] = dm1_max
+    row[K_MRANGE_S] = hi - lo
+    if need_T:
+        lo, hi, rms = cycle_stats(Ts)
+        row[K_TRMS_S] = rms
+        row[K_TMAX_S] = max(hi, -lo)
+        row[K_TRANGE_S] = hi - lo
+    if slot[C_MS] >= 0:
+        crv[slot[C_MS], :] = Ms
+    if slot[C_TS] >= 0:
+        crv[slot[C_TS], :] = Ts
+    if (need_axis or need_h1 or need_in) and not dm1_max > 0.0:
+        return st.SINGULAR  # nothing to balance: efficiencies R_j = 0 / 0
+
+    # ---- method 2: move the crank counterweight's axis to O1(x, y) (physics.md section 3)
+    if need_axis or need_h1:
+        cb = C1x / S if S > 0.0 else 1.0  # cos(beta), sin(beta)
+        sb = C1y / S if S > 0.0 else 0.0
+        W1 = buf[R_W1]
+        AL1 = buf[R_AL1]
+        for method in range(2):
+            if method == 0:
+                if not need_axis:
+                    continue
+                kx, ky, krms, kmax, kr, cslot = K_AX, K_AY, K_DMRMS_AX, K_DMMAX_AX, K_R_AX, slot[C_DM_AX]
+            else:
+                if not need_h1:
+                    continue
+                kx, ky, krms, kmax, kr, cslot = K_H1X, K_H1Y, K_DMRMS_H1, K_DMMAX_H1, K_R_H1, slot[C_DM_H1]
+            dM = buf[B_DM] if cslot < 0 else crv[cslot]
+            if method == 0 and delta == 0.0:
+                # constant speed, symmetric uniform positions: sum sin(psi) cos(psi) = 0, so the
+                # source's formula (1) is the exact solution of the normal equations (and cheaper)
+                if S == 0.0:
+                    x, y = 0.0, 0.0
+                else:
+                    x, y = axis_formula1_sums(dot4(Ms, cos_phi), dot4(Ms, sin_phi), sums[0], sums[1], sums[2],
+                                              S, omega, cb, sb)
+                rms, mx = axis_residual_const(cos_phi, sin_phi, Ms, S * omega * omega, cb, sb, x, y, dM)
+            else:
+                ok, x, y = axis_fit(cos_phi, sin_phi, W1, AL1, Ms, unit, S, cb, sb, method == 1)
+                if not ok:
+                    return st.SINGULAR
+                rms, mx = axis_residual(cos_phi, sin_phi, W1, AL1, Ms, S, cb, sb, x, y, dM)
+            row[kx] = x
+            row[ky] = y
+            row[krms] = rms
+            row[kmax] = mx
+            row[kr] = (dm1_max - mx) / dm1_max * 100.0  # R_j of physics.md section 3
+
+    # ---- method 4: inertia J on the rocker (J < 0: counter-rotating 1:-1 gear pair of inertia |J|)
+    if need_in:
+        A3 = buf[R_AL3]
+        Q3 = buf[B_Q3]
+        saa = sma = 0.0
+        for j in range(N):
+            saa += A3[j] * A3[j]
+            sma += Ms[j] * A3[j]
+        J = sma / saa if saa > 0.0 else 0.0  # minimise sum (M_i - J al3_i)^2
+        ss = 0.0
+        mx = 0.0
+        t_ss = 0.0
+        t_mx = 0.0
+        cslot = slot[C_DM_IN]
+        for j in range(N):
+            dm = Ms[j] - J * A3[j]
+            ss += dm * dm
+            mx = max(mx, abs(dm))
+            T = Ts[j] + abs(J) * A3[j] * Q3[j]  # kinetic energy of the added inertia is |J| w3^2 / 2
+            t_ss += T * T
+            t_mx = max(t_mx, abs(T))
+            if cslot >= 0:
+                crv[cslot, j] = dm
+        row[K_JR] = J
+        row[K_DMRMS_IN] = math.sqrt(ss / N)
+        row[K_DMMAX_IN] = mx
+        row[K_R_IN] = (dm1_max - mx) / dm1_max * 100.0
+        row[K_TRMS_IN] = math.sqrt(t_ss / N)
+        row[K_TMAX_IN] = t_mx
+    return st.OK
 
 
-SPEC = ModelSpec(
+MODEL = ClosedFormModel(
     name="fourbar_balancing",
     description="Four-bar linkage: shaking force, shaking moment and input torque left by each balancing "
                 "method (complete force balancing, moved counterweight axis, first harmonic, added rocker "
@@ -227,10 +395,18 @@ SPEC = ModelSpec(
     params=PARAMS,
     outputs=tuple(Output(k, *v) for k, v in SCALARS.items())
     + tuple(Output(k, *v, extra_dims=(PHI_DIM,)) for k, v in CURVES.items()),
-    evaluate=evaluate,
+    compute=fourbar_design,
+    size=N_POSITIONS,
+    data=crank_data,
+    scratch=L.N_BUF,
     statuses=(st.INFEASIBLE, st.SINGULAR, st.NONFINITE),
     status_notes={
         st.INFEASIBLE: "the linkage does not assemble over a full turn (no Grashof crank)",
         st.SINGULAR: "a toggle (sin of the transmission angle below 1e-3) in the cycle, e.g. a change-point linkage",
     },
 )
+SPEC = MODEL.spec()
+# the engine entry point: evaluate(P, wanted, solver, out, status, n_steps, n_rhs, n_positions=N_POSITIONS)
+# (algebraic: solver, n_steps and n_rhs are unused; n_positions: crank positions per cycle, for
+# convergence studies; curves then have that length)
+evaluate = SPEC.evaluate

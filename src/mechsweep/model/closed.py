@@ -1,0 +1,346 @@
+"""ClosedFormModel: a model whose outputs are closed forms of its parameters (no integration).
+
+The user writes one per-design function in plain numba-compilable Python; the engine owns the
+rest: the parallel chunk loop over designs, the scratch space per thread, which outputs are
+wanted, status codes, the NaN fill of failed designs, the extra dimension of curve outputs and
+the data every design shares (e.g. crank positions). See docs/your-own-model.md, "Closed-form
+models".
+
+The contract of ``compute(p, want, row, curves, slot, scratch, *data) -> status``:
+
+- ``p``: the design's parameters in declared order (a categorical one as its choice's index);
+  exactly ``len(params)`` long.
+- ``want``: booleans over the scalar outputs (declaration order): the outputs a scene asks for
+  (with their ``needs``). Writing an output that is not wanted is allowed (it is ignored).
+- ``row``: float64 over the scalar outputs, prefilled NaN: write ``row[k]`` for wanted output k.
+- ``curves``: float64 (number of wanted curves, n); ``slot[c]`` is the row of curve output c
+  (declaration order of the curve outputs) in ``curves``, or -1 when it is not wanted.
+- ``scratch``: float64 (``scratch``, n), the same array for the designs of one block on one
+  thread: contents left by the previous design, never NaN-filled.
+- ``data``: the arrays ``data(n)`` returned, once per chunk (cached per n), shared read-only.
+- returns a status code of :mod:`mechsweep.status` (``st.OK`` = 0); any other code makes the
+  engine store it and fill the design's row and curves with NaN.
+
+n is the length of the extra dimension (``size``; :meth:`spec`'s ``evaluate`` takes another as
+its 8th argument, for convergence studies).
+
+Compilation: as for OdeModel (compile.py), the parallel kernel is a generated module file in the
+cache folder that imports ``compute`` by module path (``load.jitted``) and is compiled with
+``cache=True``: a second process loads it from numba's disk cache (measured in
+tests/test_closed_form.py). The file name is keyed by a hash of the compute function's module
+source, its name, the numbers of parameters and data arrays, the scratch rows and the block size.
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import math
+import operator
+import os
+import re
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .. import _jit
+from .. import status as st
+from ..errors import InputError
+from ..models._spec import ExtraDim, ModelSpec, Output, Param, Setting, wanted_flags
+from . import load
+
+BLOCK = 64  # designs per scratch allocation (one prange iteration)
+
+
+@dataclass(frozen=True)
+class ClosedFormModel:
+    """A model whose outputs are closed forms of its parameters, computed per design by
+    ``compute(p, want, row, curves, slot, scratch, *data) -> status`` (module docstring).
+
+    - ``params``: :class:`Param` declarations, in the order of ``p``.
+    - ``outputs``: :class:`Output` declarations: scalars (no ``extra_dims``) and curves over ONE
+      :class:`ExtraDim` shared by all curve outputs (``extra_dims=(dim,)``); ``row`` follows the
+      scalars' order, ``slot`` the curves'.
+    - ``size``: n, the length of the extra dimension (its ``values`` must have that length), of
+      the scratch rows and ``data(n)``'s argument. A model without curves may use it too
+      (e.g. sample points for maxima); default 1.
+    - ``data``: optional ``data(n) -> tuple of numpy arrays`` shared by every design (plain
+      Python, run once per n); passed to ``compute`` after ``scratch``.
+    - ``scratch``: rows of the per-thread scratch array (``scratch`` x n floats).
+    - ``check``: optional cross-parameter rule ``check(given) -> [problems]`` (as ModelSpec.check).
+    """
+
+    name: str
+    description: str
+    params: tuple[Param, ...]
+    outputs: tuple[Output, ...]
+    compute: Callable = field(repr=False)
+    size: int = 1
+    data: Callable | None = field(default=None, repr=False)
+    scratch: int = 0
+    check: Callable | None = field(default=None, repr=False)
+    source: str = ""
+    settings: tuple[Setting, ...] = ()
+    statuses: tuple[int, ...] = ()  # ModelSpec.statuses: empty = derived from the outputs
+    status_notes: object = ()  # ModelSpec.status_notes: {code: what the status means for this model}
+
+    def __post_init__(self):
+        object.__setattr__(self, "params", tuple(self.params))
+        object.__setattr__(self, "outputs", tuple(self.outputs))
+        object.__setattr__(self, "status_notes", tuple(sorted(dict(self.status_notes).items())))
+        names = [o.name for o in self.outputs]
+        if len(set(names)) != len(names):
+            raise ValueError(f"model {self.name!r}: output names repeat: {names}")
+        dims = {o.extra_dims for o in self.outputs if o.extra_dims}
+        if len(dims) > 1 or any(len(d) != 1 for d in dims):
+            raise ValueError(f"model {self.name!r}: every curve output must have the same single extra "
+                             f"dimension (got {sorted(tuple(x.name for x in d) for d in dims)})")
+        if isinstance(self.size, bool) or not isinstance(self.size, int) or self.size < 1:
+            raise ValueError(f"model {self.name!r}: size must be a whole number >= 1, got {self.size!r}")
+        if isinstance(self.scratch, bool) or not isinstance(self.scratch, int) or self.scratch < 0:
+            raise ValueError(f"model {self.name!r}: scratch must be a whole number >= 0, got {self.scratch!r}")
+
+    @property
+    def scalars(self) -> tuple[str, ...]:
+        return tuple(o.name for o in self.outputs if not o.extra_dims)
+
+    @property
+    def curves(self) -> tuple[str, ...]:
+        return tuple(o.name for o in self.outputs if o.extra_dims)
+
+    @property
+    def dim(self) -> ExtraDim | None:
+        return next((o.extra_dims[0] for o in self.outputs if o.extra_dims), None)
+
+    def shared_data(self, n: int) -> tuple:
+        """``data(n)`` as contiguous arrays, built once per n in this process."""
+        cache = _DATA.setdefault(id(self), (self, {}))[1]
+        if n not in cache:
+            arrays = () if self.data is None else self.data(n)
+            cache[n] = tuple(np.ascontiguousarray(a) for a in arrays)
+        return cache[n]
+
+    def spec(self, *, origin: str = "") -> ModelSpec:
+        """The ModelSpec the runner, store and scene read. Its ``evaluate`` takes an optional 8th
+        argument ``size`` (the extra dimension's length; default ``self.size``)."""
+        model = self
+        scalars, curves = self.scalars, self.curves
+
+        def evaluate(P, wanted, solver, out, status, n_steps=None, n_rhs=None, size=None):
+            n_ext = model.size if size is None else operator.index(size)
+            if n_ext < 1:
+                raise ValueError(f"size must be >= 1, got {n_ext}")
+            data = model.shared_data(n_ext)
+            kernel = kernel_for(model, len(data), origin=origin)
+            P = np.ascontiguousarray(P, dtype=np.float64)
+            n = P.shape[0]
+            want = wanted_flags(scalars, tuple(wanted))
+            names = [c for c in curves if c in wanted]
+            slot = np.array([names.index(c) if c in names else -1 for c in curves], dtype=np.int64)
+            table = np.full((n, len(scalars)), np.nan)
+            crv = np.full((n, len(names), n_ext) if names else (0, 0, n_ext), np.nan)
+            kernel(P, want, slot, table, crv, status, *data)
+            for name in wanted:
+                if name in names:
+                    out[name][:] = crv[:, names.index(name), :]
+                elif name in scalars:
+                    out[name][:] = table[:, scalars.index(name)]
+
+        return ModelSpec(name=self.name, description=self.description, params=self.params, outputs=self.outputs,
+                         evaluate=evaluate, source=self.source or origin, settings=self.settings, check=self.check,
+                         statuses=self.statuses, status_notes=self.status_notes)
+
+
+_DATA: dict[int, tuple] = {}
+_KERNELS: dict[str, object] = {}
+_BY_MODEL: dict[tuple, tuple] = {}  # (id(model), number of data arrays) -> (model, kernel)
+_TMP: list[str] = []
+
+
+def _folder() -> Path:
+    """The folder of generated kernel modules (compile.py's: <cache>/models)."""
+    if _jit.cache_dir is not None:
+        path = Path(_jit.cache_dir) / "models"
+    else:  # caching off: a private folder for this process
+        if not _TMP:
+            _TMP.append(tempfile.mkdtemp(prefix="mechsweep-closed-"))
+        path = Path(_TMP[0])
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _guarded(ref) -> bool:
+    """A user's function gets an exception guard in the kernel; mechsweep's own never raise."""
+    return not ref[0].startswith("mechsweep.")
+
+
+def kernel_source(model: ClosedFormModel, compute_ref, n_data: int, origin: str) -> str:
+    """Source of the generated module: the prange loop over blocks of BLOCK designs, one scratch
+    array per block, the NaN fill of a design whose status is not OK."""
+    data_args = "".join(f", d{k}" for k in range(n_data))
+    guard = _guarded(compute_ref)
+    parts = [
+        f'"""Generated by mechsweep.model.closed for model {model.name!r} ({origin}).\n'
+        'Do not edit: a changed model gets a new file."""\n'
+        "import math\n\nimport numpy as np\n\n"
+        "from mechsweep import status as st\n"
+        "from mechsweep._jit import jit, pjit, prange\n"
+        "from mechsweep.model.load import jitted\n\n"
+        f"user_compute = jitted{compute_ref!r}\n"
+        f"NSCR = {model.scratch}\nBLOCK = {BLOCK}\n"
+    ]
+    if guard:
+        # An exception the user's code raises inside the parallel loop (at a design the load-time
+        # probe did not see) must not escape the kernel: that design ends NONFINITE, NaN.
+        parts.append(f"""
+
+@jit
+def compute(p, want, row, crv, slot, scratch{data_args}):
+    try:
+        return user_compute(p, want, row, crv, slot, scratch{data_args})
+    except Exception:
+        return st.NONFINITE
+""")
+    else:
+        parts.append("compute = user_compute\n")
+    parts.append(f"""
+
+@pjit
+def kernel(P, want, slot, table, curves, status{data_args}):
+    n = P.shape[0]
+    N = curves.shape[2]
+    n_blocks = (n + BLOCK - 1) // BLOCK
+    use_curves = curves.shape[0] == n
+    for b in prange(n_blocks):
+        scratch = np.empty((NSCR, N))
+        dummy = np.empty((0, N))
+        for i in range(b * BLOCK, min(n, (b + 1) * BLOCK)):
+            crv = curves[i] if use_curves else dummy
+            code = compute(P[i], want, table[i], crv, slot, scratch{data_args})
+            if code != st.OK:
+                status[i] = code
+                table[i, :] = math.nan
+                if use_curves:
+                    crv[:, :] = math.nan
+""")
+    return "".join(parts)
+
+
+def kernel_for(model: ClosedFormModel, n_data: int, *, origin: str = ""):
+    """The compiled chunk kernel of ``model`` (cached in-process and on disk)."""
+    known = _BY_MODEL.get((id(model), n_data))
+    if known is not None and known[0] is model:  # no file read and hash per chunk
+        return known[1]
+    ref = load.function_ref(model.compute, "compute", model.name)
+    key = hashlib.sha256()
+    key.update(repr(ref).encode())
+    key.update(load.module_source(ref[0], ref[1]))
+    key.update(repr(("closed", model.name, len(model.params), n_data, model.scratch, BLOCK)).encode())
+    name = "mechsweep_closed_" + key.hexdigest()[:20]
+    if name in _KERNELS:
+        _BY_MODEL[(id(model), n_data)] = (model, _KERNELS[name])
+        return _KERNELS[name]
+    path = _folder() / f"{name}.py"
+    source = kernel_source(model, ref, n_data, origin or ref[0])
+    if not path.exists() or path.read_text() != source:  # written once: its mtime keys numba's cache index
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(source)
+        os.replace(tmp, path)
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    spec.loader.exec_module(mod)
+    _KERNELS[name] = mod.kernel
+    _BY_MODEL[(id(model), n_data)] = (model, mod.kernel)
+    return mod.kernel
+
+
+# ============================================================================= checks of a user model
+_ANSI = re.compile(r"\x1b\[[0-9;]*m")
+_SENTINEL = 12345.678
+
+
+def _probe_arrays(model: ClosedFormModel, p, fill: float):
+    n = model.size
+    return (p, np.ones(len(model.scalars), dtype=np.bool_), np.full(len(model.scalars), fill),
+            np.full((len(model.curves), n), fill), np.arange(len(model.curves), dtype=np.int64),
+            np.zeros((model.scratch, n)))
+
+
+def check(model: ClosedFormModel, ref: str, file: str) -> None:
+    """The checks that make a bad closed-form model an InputError naming the file (and the line)
+    at scene loading, before anything is written: ``data(n)`` that raises or returns no tuple of
+    arrays, an extra dimension whose values are not n long, ``compute`` that raises, indexes
+    beyond its arrays (an undeclared parameter, an output or curve beyond the declared ones, a
+    scratch row beyond ``scratch``), returns no status code, or (status OK, every output wanted)
+    leaves an output or a curve value unwritten, all found by running it once in plain Python at
+    a probe point; then ``compute`` that numba cannot compile."""
+    label = f"{ref!r}: model {model.name!r} in {file}"
+    dim = model.dim
+    if dim is not None:
+        settings = {s.name: s.default for s in model.settings}
+        try:
+            values = np.asarray(dim.values(settings))
+        except Exception as exc:
+            raise InputError(f"{label}: the values of extra dimension {dim.name!r} raised: "
+                             f"{load._where(exc, file)}") from None
+        if values.shape != (model.size,):
+            raise InputError(f"{label}: extra dimension {dim.name!r} has {values.shape} values; expected "
+                             f"size = {model.size} (the model's size)")
+    try:
+        data = () if model.data is None else model.data(model.size)
+    except Exception as exc:
+        raise InputError(f"{label}: data({model.size}) raised: {load._where(exc, file)}") from None
+    if not isinstance(data, tuple) or not all(isinstance(a, np.ndarray) for a in data):
+        raise InputError(f"{label}: data({model.size}) returned {type(data).__name__}; expected a tuple of "
+                         "numpy arrays")
+    data = tuple(np.ascontiguousarray(a) for a in data)
+    p = load.probe_params(model)
+    func = getattr(model.compute, "py_func", model.compute)
+    sizes = (f"the model declares {len(model.params)} parameter(s), {len(model.scalars)} scalar output(s), "
+             f"{len(model.curves)} curve(s) of {model.size} values and {model.scratch} scratch row(s)")
+    results = []
+    for fill in (math.nan, _SENTINEL):
+        args = _probe_arrays(model, p.copy(), fill)
+        try:
+            with np.errstate(all="ignore"):
+                code = func(*args, *[a.copy() for a in data])
+        except IndexError as exc:
+            raise InputError(f"{label}: compute indexes beyond its arrays at the probe point p = {p.tolist()} "
+                             f"({sizes}): {load._where(exc, file)}") from None
+        except Exception as exc:
+            raise InputError(f"{label}: compute raised at the probe point p = {p.tolist()}: "
+                             f"{load._where(exc, file)}") from None
+        if isinstance(code, (bool, np.bool_)) or not isinstance(code, (int, np.integer)) \
+                or int(code) not in st.MEANINGS or int(code) < 0:
+            raise InputError(f"{label}: compute returned {code!r} at the probe point p = {p.tolist()}; expected "
+                             f"a status code of mechsweep.status ({', '.join(f'{c} {n}' for c, n in sorted(st.MEANINGS.items()) if c >= 0)})")
+        results.append(args)
+    if int(code) == st.OK:
+        row, crv = results[1][2], results[1][3]
+        unwritten = [model.scalars[k] for k in range(row.size) if row[k] == _SENTINEL]
+        unwritten += [f"{model.curves[c]}[{', '.join(str(j) for j in np.flatnonzero(crv[c] == _SENTINEL)[:5])}"
+                      f"{', ...' if (crv[c] == _SENTINEL).sum() > 5 else ''}]"
+                      for c in range(crv.shape[0]) if (crv[c] == _SENTINEL).any()]
+        if unwritten:
+            raise InputError(f"{label}: compute returned OK without writing {', '.join(unwritten)} at the probe "
+                             f"point p = {p.tolist()} with every output wanted (write row[k] for each wanted "
+                             "scalar k and every value of curves[slot[c]] for each wanted curve c)")
+    module, path, qual = load.function_ref(model.compute, "compute", model.name)
+    try:
+        disp = load.jitted(module, path, qual)
+        disp(*_probe_arrays(model, p.copy(), math.nan), *data)
+    except Exception as exc:
+        text = _ANSI.sub("", str(exc))
+        line = None
+        for m in re.finditer(r'File "([^"]+)", line (\d+)', text):
+            if file and Path(m.group(1)).name == Path(file).name:
+                line = int(m.group(2))
+        lines = [s.strip() for s in text.splitlines() if s.strip()
+                 and not s.startswith(("Failed in", "During:", "File ", "^", "<source"))]
+        why = lines[0] if lines else type(exc).__name__
+        at = f" ({file}, line {line})" if line else ""
+        raise InputError(f"{label}: numba cannot compile compute{at}: {why}") from None
