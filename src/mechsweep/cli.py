@@ -161,6 +161,20 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--markdown", action="store_true", help="print the glossary tables used in README.md")
     p.set_defaults(func=_cmd_models)
 
+    p = sub.add_parser("boundaries", help="locate the boundaries a scene's [boundaries] section asks for",
+                       formatter_class=fmt,
+                       description="Locate where a criterion crosses its level (or the status changes) along one "
+                                   "axis, for every combination of the other axes: bracketed on the scene's grid "
+                                   "(computed first, or completed, unless its dataset is finished), refined to "
+                                   "[boundaries] rtol. Writes DATA.boundaries.h5 (atomically; the grid's dataset is "
+                                   "only read). See docs/boundaries.md.")
+    p.add_argument("scene", metavar="SCENE", help="scene TOML file with a [boundaries] section")
+    p.add_argument("-o", "--output", metavar="PATH", help="output file (default: DATA.boundaries.h5)")
+    p.add_argument("--data", metavar="DATA", help="the grid's dataset (default: [storage] path of the scene)")
+    p.add_argument("--threads", type=int, metavar="N", help="numba threads (default: all cores)")
+    p.add_argument("--no-progress", action="store_true", help="do not show the progress bar of the grid")
+    p.set_defaults(func=_cmd_boundaries)
+
     p = sub.add_parser("check", help="validate scene files without running them")
     p.add_argument("scenes", nargs="+", metavar="SCENE")
     p.set_defaults(func=_cmd_check)
@@ -252,6 +266,22 @@ def _cmd_run(args) -> int:
     path = args.output or scene.storage.path
     print(f"wrote {path}: {summary.sizes}, outputs {', '.join(scene.outputs)}; "
           f"status {summary.status_names()}; wall time {summary.wall_time_s:.2f} s")
+    return 0
+
+
+def _cmd_boundaries(args) -> int:
+    from .boundaries import BOUND_MEANINGS, run_boundaries
+    from .scene import load_scene
+
+    scene = load_scene(args.scene)
+    path, ds = run_boundaries(scene, data=args.data, output=args.output, threads=args.threads,
+                              progress=False if args.no_progress else None)
+    bound = ds["boundary_bound"].values
+    counts = {BOUND_MEANINGS[c]: int((bound == c).sum()) for c in sorted(BOUND_MEANINGS) if (bound == c).any()}
+    print(f"wrote {path}: {ds.attrs['located']} boundaries located along {ds.attrs['along']} ({counts}); "
+          f"{ds.attrs['evaluations_per_point_mean']:.1f} evaluations per point (max "
+          f"{ds.attrs['evaluations_per_point_max']}) in {ds.attrs['evaluate_calls']} calls, "
+          f"{ds.attrs['wall_time_s']:.2f} s")
     return 0
 
 
