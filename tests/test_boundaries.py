@@ -1,0 +1,202 @@
+"""Located boundaries (mechsweep.boundaries): against closed forms and published characteristic values,
+for built-in models and a user model, through the API and the `mechsweep boundaries` command."""
+from __future__ import annotations
+
+import hashlib
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from mechsweep import boundaries as bd
+from mechsweep.cli import main
+from mechsweep.scene import load_scene
+
+HERE = Path(__file__).resolve().parent
+MATHIEU_FILE = HERE / "user_models" / "mathieu.py"
+
+
+def _locate(scene_dict):
+    """Locate a scene's boundaries on its grid evaluated here (no file written)."""
+    scene = load_scene(scene_dict)
+    rows, col, others = bd.base_rows(scene, scene.boundaries.along)
+    axis = next(a for a in scene.axes if a.name == scene.boundaries.along)
+    res = bd.locate(scene, bd.criterion_of(scene), rows, col, axis.array(), rtol=scene.boundaries.rtol)
+    return scene, rows, res
+
+
+def test_duffing_soft_separatrix_located_to_1e_10():
+    """Status ok -> not_oscillatory along A at fixed omega, mu < 0: A* = omega / sqrt(-mu) (the soft
+    separatrix omega^2 + mu A^2 = 0); a hard spring (mu > 0) has no boundary."""
+    omega, mus = 2.0, [-0.5, -1.3, -3.0, 1.0]
+    scene, rows, res = _locate({
+        "scene": {"name": "sep", "model": "duffing", "outputs": ["period_exact"]},
+        "axes": {"A": {"start": 0.1, "stop": 3.0, "num": 30}, "mu": mus}, "fixed": {"omega": omega},
+        "boundaries": {"along": "A", "status_change": ["ok", "not_oscillatory"]}})
+    exact = omega / np.sqrt(-np.array(mus[:3]))
+    assert res.location.shape == (4, 1)
+    np.testing.assert_allclose(res.location[:3, 0], exact, rtol=1e-10, atol=0)
+    assert (res.bound[:3, 0] == bd.PARAMETER).all() and (res.direction[:3, 0] == 1).all()
+    assert (res.width[:3, 0] <= 1e-10 * exact * (1 + 1e-9)).all() and (res.width[:3, 0] > 0).all()
+    assert (res.evaluations[:3, 0] <= 30).all(), res.evaluations  # bisection from a grid cell of 0.1
+    assert np.isnan(res.location[3, 0]) and res.bound[3, 0] == -1
+
+
+def test_torsional_free_length_limit_located_to_1e_10():
+    """Status ok -> infeasible along s0_over_r: the free length L0 = R (sqrt(D0) - sigma s) reaches 0 at
+    s = sigma sqrt(D0), D0 = (1 - sigma lambda1)^2 + lambda2^2 (physics.md, Domain)."""
+    lam1, lam2 = [0.3, 1.0, 1.7], 0.4
+    scene, rows, res = _locate({
+        "scene": {"name": "free", "model": "torsional_circuit", "outputs": ["chi"]},
+        "axes": {"s0_over_r": {"start": -3.0, "stop": 3.0, "num": 25}, "lambda1": lam1,
+                 "spring": ["tension", "compression"]},
+        "fixed": {"lambda2": lam2},
+        "boundaries": {"along": "s0_over_r", "status_change": ["ok", "infeasible"]}})
+    sigma = np.array([1.0, -1.0])[None, :]
+    exact = sigma * np.sqrt((1 - sigma * np.array(lam1)[:, None]) ** 2 + lam2 ** 2)
+    loc = res.location[:, 0].reshape(3, 2)
+    np.testing.assert_allclose(loc, exact, rtol=1e-10, atol=0)
+    # tension: feasible below the limit (ok -> infeasible as s grows); compression: the reverse
+    np.testing.assert_array_equal(res.direction[:, 0].reshape(3, 2), np.tile([1, -1], (3, 1)))
+
+
+def _mathieu_scene(tmp, c, extra=None):
+    text = f"""
+[scene]
+name = "mathieu"
+model = "{MATHIEU_FILE}:MATHIEU_JAC"
+outputs = ["max_multiplier"]
+[axes]
+a = {{ start = -1.0, stop = 5.0, num = 31 }}
+q = [0.5, 1.5]
+[fixed]
+c = {c!r}
+[solver]
+rtol = 1e-12
+atol = 1e-14
+[storage]
+path = "{tmp / 'mathieu.h5'}"
+[boundaries]
+along = "a"
+criterion = "max_multiplier"
+{extra or ''}
+"""
+    path = tmp / "mathieu.toml"
+    path.write_text(text)
+    return path
+
+
+def test_mathieu_boundaries_match_characteristic_values(tmp_path, capsys):
+    """Undamped Mathieu x'' + (a - 2 q cos 2t) x = 0 as a user model: the largest Floquet multiplier
+    is 1 on the stable side and leaves it on the unstable side, so each boundary is a band edge;
+    located through `mechsweep boundaries` (the grid run first), they are a_0, b_1, a_1, b_2, a_2 of
+    scipy.special to 1e-8, the critical multiplier +1 for a_n, b_n with n even, -1 for n odd."""
+    from scipy.special import mathieu_a, mathieu_b
+
+    scene = _mathieu_scene(tmp_path, 0.0)
+    assert main(["boundaries", str(scene), "--no-progress", "--threads", "1"]) == 0
+    assert "boundaries located along a" in capsys.readouterr().out
+    data, sib = tmp_path / "mathieu.h5", tmp_path / "mathieu.boundaries.h5"
+    before = hashlib.sha256(data.read_bytes()).hexdigest()
+    with xr.open_dataset(sib) as ds:
+        assert ds["boundary"].dims == ("q", "crossing") and ds["boundary"].attrs["units"] == "1"
+        assert "max_multiplier = 1" in ds["boundary"].attrs["long_name"]
+        assert ds.attrs["mechsweep_kind"] == "boundaries" and ds.attrs["along"] == "a"
+        for i, q in enumerate(ds["q"].values):
+            ref = [mathieu_a(0, q), mathieu_b(1, q), mathieu_a(1, q), mathieu_b(2, q), mathieu_a(2, q)]
+            order = np.argsort(ref)
+            np.testing.assert_allclose(ds["boundary"].values[i], np.array(ref)[order], rtol=1e-8, atol=1e-8)
+            np.testing.assert_array_equal(ds["boundary_kind"].values[i], np.array([1, -1, -1, 1, 1])[order])
+            assert (ds["boundary_bound"].values[i] == bd.BAND_EDGE).all()
+            # a_n: unstable below (the criterion falls to its level as a grows), b_n: unstable above
+            np.testing.assert_array_equal(ds["boundary_direction"].values[i], np.array([-1, 1, -1, 1, -1])[order])
+        evaluations = ds["boundary_evaluations"].values
+    assert evaluations.max() <= 36  # bisection from a grid cell of 0.2 down to 1e-10 |a|
+    # a re-run replaces the boundaries, never the grid's dataset (finished: not computed again)
+    sib.write_bytes(b"\x89HDF\r\n\x1a\nstale")
+    assert main(["boundaries", str(scene), "--no-progress", "--threads", "1"]) == 0
+    assert hashlib.sha256(data.read_bytes()).hexdigest() == before
+    with xr.open_dataset(sib) as ds:
+        assert ds["boundary"].shape == (2, 5)
+
+
+def test_damped_mathieu_boundaries_by_illinois_bracket_the_crossing():
+    """Damped (c = 0.1): the multiplier crosses 1 transversally, so Illinois refines a sign change;
+    with the criterion's accuracy given as 1e-12 the bracket reaches 1e-10 |a| in about a dozen
+    evaluations, and the criterion has opposite signs on either side of it."""
+    from mechsweep import status as st
+
+    scene, rows, res = _locate({
+        "scene": {"name": "md", "model": f"{MATHIEU_FILE}:MATHIEU_JAC", "outputs": ["max_multiplier"]},
+        "axes": {"a": {"start": -1.0, "stop": 5.0, "num": 31}, "q": [1.5]}, "fixed": {"c": 0.1},
+        "solver": {"rtol": 1e-12, "atol": 1e-14},
+        "boundaries": {"along": "a", "criterion": "max_multiplier", "criterion_accuracy": 1e-12}})
+    loc, width = res.location[0], res.width[0]
+    assert loc.size == 5 and (res.bound[0] == bd.PARAMETER).all()
+    assert (width <= 1.01e-10 * np.abs(loc)).all() and (width > 0).all()
+    assert res.evaluations.max() <= 20, res.evaluations
+    P = np.repeat(rows[:1], 2 * loc.size, axis=0)
+    P[:, 0] = np.concatenate([loc - width, loc + width])
+    out = {"max_multiplier": np.full(P.shape[0], np.nan)}
+    status = np.zeros(P.shape[0], st.DTYPE)
+    n = np.zeros(P.shape[0], np.int64)
+    scene.model.evaluate(P, ("max_multiplier",), scene.solver, out, status, n, n.copy())
+    g = out["max_multiplier"] - 1.0
+    below, above = g[:loc.size], g[loc.size:]
+    assert (np.sign(below) == -np.sign(above)).all() and (np.sign(above) == res.direction[0]).all()
+
+
+BASE = {"scene": {"name": "b", "model": "duffing", "outputs": ["period_exact"]},
+        "axes": {"A": {"start": 0.1, "stop": 3.0, "num": 5}, "mu": [-1.0]}, "fixed": {"omega": 2.0}}
+
+
+@pytest.mark.parametrize("section, key, words", [
+    ({"along": "A", "status_change": ["ok", "not_oscillatory"], "levle": 1}, "boundaries.levle", "did you mean 'level'"),
+    ({"along": "omega", "status_change": ["ok", "not_oscillatory"]}, "boundaries.along", "allowed: A"),
+    ({"status_change": ["ok", "not_oscillatory"]}, "boundaries.along", "missing"),
+    ({"along": "A", "criterion": "period", "level": 1.0}, "boundaries.criterion", "allowed: period_exact"),
+    ({"along": "A", "criterion": "period_exact"}, "boundaries.level", "missing"),
+    ({"along": "A", "criterion": "period_exact", "level": "one"}, "boundaries.level", "finite number"),
+    ({"along": "A", "criterion": "period_exact", "level": 3.0, "status_change": ["ok", "no_motion"]},
+     "boundaries", "exactly one of criterion"),
+    ({"along": "A", "status_change": ["ok", "not_oscilatory"]}, "boundaries.status_change", "not_oscillatory"),
+    ({"along": "A", "status_change": ["ok"]}, "boundaries.status_change", "two status names"),
+    ({"along": "A", "status_change": ["ok", "not_oscillatory"], "rtol": 0.5}, "boundaries.rtol", "[1e-15, 0.01]"),
+    ({"along": "A", "criterion": "period_exact", "level": 3.0, "criterion_accuracy": -1},
+     "boundaries.criterion_accuracy", ">= 0"),
+])
+def test_bad_boundaries_section_exits_2_naming_the_key(in_tmp, capsys, section, key, words):
+    scene = in_tmp / "bad.toml"
+    from mechsweep.scene import to_toml
+    scene.write_text(to_toml({**BASE, "boundaries": section}))
+    assert main(["boundaries", str(scene), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert f"{key}:" in err and words in err, err
+    assert sorted(p.name for p in in_tmp.iterdir()) == ["bad.toml", "data"]  # nothing written
+    assert not any((in_tmp / "data" / "runs").iterdir())
+
+
+def test_scene_without_boundaries_is_refused_and_a_failed_write_keeps_the_old_file(in_tmp, capsys, monkeypatch):
+    from mechsweep.scene import to_toml
+    (in_tmp / "none.toml").write_text(to_toml(BASE))
+    assert main(["boundaries", "none.toml"]) == 2
+    assert "has no [boundaries] section" in capsys.readouterr().err
+    scene = {**BASE, "boundaries": {"along": "A", "status_change": ["ok", "not_oscillatory"]},
+             "storage": {"path": "grid.h5"}}
+    (in_tmp / "s.toml").write_text(to_toml(scene))
+    assert main(["boundaries", "s.toml", "--no-progress", "--threads", "1"]) == 0
+    old = (in_tmp / "grid.boundaries.h5").read_bytes()
+
+    def broken(self, path, *args, **kwargs):
+        Path(path).write_bytes(b"half")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(xr.Dataset, "to_netcdf", broken)
+    with pytest.raises(OSError):
+        bd.run_boundaries(load_scene(in_tmp / "s.toml"), threads=1)
+    assert (in_tmp / "grid.boundaries.h5").read_bytes() == old  # replaced whole or not at all
+    assert sorted(p.name for p in in_tmp.iterdir()) == ["data", "grid.boundaries.h5", "grid.h5", "none.toml", "s.toml"]
+    with xr.open_dataset(in_tmp / "grid.boundaries.h5") as ds:
+        assert ds["boundary"].values[0, 0] == pytest.approx(2.0, rel=1e-10)
