@@ -148,6 +148,24 @@ def test_damped_mathieu_boundaries_by_illinois_bracket_the_crossing():
     assert (np.sign(below) == -np.sign(above)).all() and (np.sign(above) == res.direction[0]).all()
 
 
+def test_bound_says_which_accuracy_limited_the_bracket():
+    """With the criterion's default accuracy (the Floquet margin 1e-8, far above the integration error
+    at rtol 1e-12) the band |g| <= 1e-8 is wider than 1e-10 |a|: those brackets are marked
+    "criterion"; a point marked "parameter" has its bracket within rtol of the larger end."""
+    scene, rows, res = _locate({
+        "scene": {"name": "md", "model": f"{MATHIEU_FILE}:MATHIEU_JAC", "outputs": ["max_multiplier"]},
+        "axes": {"a": {"start": -1.0, "stop": 5.0, "num": 31}, "q": [0.5, 1.5]}, "fixed": {"c": 0.1},
+        "solver": {"rtol": 1e-12, "atol": 1e-14},
+        "boundaries": {"along": "a", "criterion": "max_multiplier"}})
+    found = res.bound >= 0
+    loc, width, bound = res.location[found], res.width[found], res.bound[found]
+    assert found.sum() == 8 and set(bound.tolist()) <= {bd.PARAMETER, bd.CRITERION}
+    within = width <= 1e-10 * (np.abs(loc) + width)
+    np.testing.assert_array_equal(bound == bd.PARAMETER, within)
+    assert (bound == bd.CRITERION).sum() >= 4
+    assert (width < 1e-7 * np.abs(loc)).all()  # the band: 2 eps / slope, slope O(1)
+
+
 BASE = {"scene": {"name": "b", "model": "duffing", "outputs": ["period_exact"]},
         "axes": {"A": {"start": 0.1, "stop": 3.0, "num": 5}, "mu": [-1.0]}, "fixed": {"omega": 2.0}}
 

@@ -10,9 +10,9 @@ chunk kernels run them in parallel):
   ends: Illinois (modified regula falsi), kept at least tol / 2 inside the bracket and bisected
   when the bracket does not halve in three rounds, so the bracket itself shrinks to
   tol = rtol * |x|. A point inside the band |g| <= eps is a root within the criterion's accuracy:
-  two probes around it, at twice the band's half width eps / |slope| plus tol / 2 (widened
+  two probes around it, at twice the band's half width eps / |slope| plus 0.45 tol (widened
   fourfold while a probe is still in the band), close the bracket; the criterion's bound applied
-  when the band, not tol, set the probes' distance.
+  when that bracket is wider than tol.
 - a criterion at its level within its accuracy over a stretch and leaving it (e.g. the largest
   Floquet multiplier of an undamped system: 1 on the stable side, 1 + C sqrt(distance) beyond):
   bisection on "inside the band or not" down to tol; the boundary is the edge of the band.
@@ -316,7 +316,6 @@ def locate(scene, crit: Criterion, rows: np.ndarray, col: int, grid: np.ndarray,
         rounds = np.zeros(ill.size, dtype=np.int64)
         probe_x = np.full(ill.size, np.nan)  # a point found inside the band: probe around it
         probe_h = np.full(ill.size, np.nan)
-        probe_crit = np.zeros(ill.size, dtype=bool)  # the probe width was set by the criterion's accuracy
         active = np.ones(ill.size, dtype=bool)
         while active.any():
             idx = np.nonzero(active)[0]
@@ -368,8 +367,7 @@ def locate(scene, crit: Criterion, rows: np.ndarray, col: int, grid: np.ndarray,
                     half = eps_x[band] / slope
                 half = np.where(np.isfinite(half), half, 0.0)
                 probe_x[k] = x[band]
-                probe_h[k] = 2.0 * half + 0.5 * t[band]  # |g| ~ 2 eps at the probes: clean sides
-                probe_crit[k] = half > 0.5 * t[band]
+                probe_h[k] = 2.0 * half + 0.45 * t[band]  # |g| ~ 2 eps at the probes: clean sides
             to_b = (sx == sb[pi])
             to_a = (sx == sa[pi])
             k = pi[to_b]
@@ -402,11 +400,11 @@ def locate(scene, crit: Criterion, rows: np.ndarray, col: int, grid: np.ndarray,
                 kind_b[ill[k]] = np.where(left, kl, kr)[move_b]
                 last[qi] = 0
                 k = qi[closed]
-                bound[ill[k]] = np.where(probe_crit[k], CRITERION, PARAMETER)
+                # the parameter's bound if the probes' bracket is within tol, else the criterion's
+                bound[ill[k]] = np.where(pr[closed] - pl[closed] <= tol_of(pl[closed], pr[closed]), PARAMETER, CRITERION)
                 active[k] = False
                 probe_x[qi[left | right]] = np.nan
                 probe_h[qi[widen]] *= 4.0
-                probe_crit[qi[widen]] = True
                 nanp = widen & ((sl == -9) | (sr == -9))
                 bound[ill[qi[nanp]]] = INTERRUPTED
                 active[qi[nanp]] = False

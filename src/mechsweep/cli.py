@@ -233,6 +233,15 @@ def _parser() -> argparse.ArgumentParser:
                    help="timing repetitions, the fastest counts (default 3; linkage models 5)")
     b.add_argument("--out", default="data/bench", help="output folder (default data/bench)")
     b.set_defaults(func=_cmd_bench_workprecision)
+    b = bsub.add_parser("boundaries", help="auto-balancer stability boundaries against 2 m / M: located vs "
+                                           "grid-and-contour at the same precision")
+    b.add_argument("--values", type=int, default=200, help="mass ratios 2 m / M in [0.0005, 0.35] (default 200)")
+    b.add_argument("--grid", type=int, default=35, help="Omega values of the bracketing grid (default 35)")
+    b.add_argument("--contour", type=int, nargs="+", default=[100, 200, 400], metavar="N",
+                   help="Omega values of the contour grids (default 100 200 400)")
+    b.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance in Omega (default 1e-8)")
+    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
+    b.set_defaults(func=_cmd_bench_boundaries)
     b = bsub.add_parser("cluster", help="throughput locally and on a dask LocalCluster of 1..W workers; identical datasets")
     b.add_argument("--points", type=int, default=400_000, help="Duffing grid points (default 400000)")
     b.add_argument("--workers", type=int, default=None, help="up to this many worker processes (default: cores)")
@@ -488,6 +497,18 @@ def _cmd_bench_autobalancer(args) -> int:
     from .bench import autobalancer
 
     autobalancer.main(sim_points=args.sim_points, scipy_points=args.scipy_points, threads=args.threads)
+    return 0
+
+
+def _cmd_bench_boundaries(args) -> int:
+    from .bench import _args, boundaries
+
+    contour = [_args.count("--contour", n, 3, 10**6) for n in args.contour]
+    if len(contour) < 2:
+        from .errors import InputError
+        raise InputError("--contour needs at least two grid sizes (the error's order is fitted between the last two)")
+    boundaries.main(values=_args.count("--values", args.values, 1, 10**5), grid=_args.count("--grid", args.grid, 3, 10**6),
+                    contour=tuple(contour), rtol=_args.tolerance("--rtol", args.rtol, 1e-15, 1e-2), threads=_args.threads("--threads", args.threads))
     return 0
 
 

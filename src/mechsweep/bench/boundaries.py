@@ -1,0 +1,134 @@
+"""`mechsweep bench boundaries`: located boundaries against grid-and-contour, side by side.
+
+The three Floquet stability boundaries of the pendulum auto-balancer along Omega (the lower one
+near omega_xi, the one near omega_p, the upper one near omega_eta; omega_xi = 1, omega_eta =
+1.5 rad/s, zeta = 0.02, A0 = m a, h = m a^2 x 1 rad/s, as tests/test_autobalancer.py) for
+``values`` mass ratios 2 m / M from 0.0005 to 0.35 (log spaced; m = 0.5 kg fixed, M varies),
+through the model's scene interface only (mechsweep.boundaries on ModelSpec.evaluate):
+
+1. located: a coarse Omega grid (``grid`` values in [0.6, 4] rad/s) brackets every crossing of
+   floquet_max = 1, refined to ``rtol`` in Omega (mechsweep.boundaries.locate); wall time of
+   grid and refinement together, evaluations per located point;
+2. grid and contour: floquet_max on finer Omega grids (``contour`` values each), crossings by
+   linear interpolation between neighbouring grid values (what a contour line does); their error
+   against the located boundaries measured, its order p fitted (error ~ h^p) between the two
+   finest grids, and the grid that ``rtol`` would need (and its time, from the measured time
+   per point) extrapolated from it.
+
+Both routes run in this process on the same threads, one after the other; the JIT compilation is
+done before any timing.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from .. import boundaries as bd
+from ..scene import load_scene
+
+OMEGA = (0.6, 4.0)
+RATIO = (0.0005, 0.35)
+M_PENDULUM = 0.5  # kg: 2 m = 1, so 2 m / M = 1 / M
+# floquet_max's accuracy is taken as 100 solver rtol (boundaries.criterion_accuracy): 1e-10 here, so
+# that the criterion does not limit the located boundaries above 1e-8 (at the default rtol 5e-11 it
+# did for half of them: brackets up to 7.7e-7 |Omega|, measured 2026-11-23)
+SOLVER_RTOL, SOLVER_ATOL = 1e-12, 1e-14
+
+
+def scene_dict(values: int, grid: int, rtol: float) -> dict:
+    return {
+        "scene": {"name": "bench-boundaries", "model": "autobalancer", "outputs": ["floquet_max"]},
+        "axes": {"Omega": {"start": OMEGA[0], "stop": OMEGA[1], "num": grid},
+                 "M": {"start": 2 * M_PENDULUM / RATIO[1], "stop": 2 * M_PENDULUM / RATIO[0], "num": values,
+                       "spacing": "log"}},
+        "fixed": {"m": M_PENDULUM, "a": 0.1, "I_B": M_PENDULUM * 0.01, "A0": M_PENDULUM * 0.1,
+                  "h": M_PENDULUM * 0.01, "omega_xi": 1.0, "omega_eta": 1.5, "zeta_xi": 0.02, "zeta_eta": 0.02},
+        "solver": {"rtol": SOLVER_RTOL, "atol": SOLVER_ATOL},
+        "boundaries": {"along": "Omega", "criterion": "floquet_max", "level": 1.0, "rtol": rtol},
+    }
+
+
+def contour_crossings(x: np.ndarray, g: np.ndarray) -> list[np.ndarray]:
+    """Per line (row of g), the crossings of 0 by linear interpolation between grid values."""
+    out = []
+    for row in g:
+        i = np.nonzero((np.sign(row[:-1]) * np.sign(row[1:]) < 0))[0]
+        out.append(x[i] - row[i] * (x[i + 1] - x[i]) / (row[i + 1] - row[i]))
+    return out
+
+
+def contour_error(located: np.ndarray, crossings: list[np.ndarray]) -> tuple[float, int]:
+    """Largest relative distance of a located boundary to the nearest contour crossing of its line,
+    and the number of located boundaries the contour grid missed (no crossing within 1 %)."""
+    worst, missed = 0.0, 0
+    for loc, cr in zip(located, crossings):
+        for x in loc[np.isfinite(loc)]:
+            d = np.abs(cr - x) / abs(x) if cr.size else np.array([np.inf])
+            if d.min() > 0.01:
+                missed += 1
+            else:
+                worst = max(worst, float(d.min()))
+    return worst, missed
+
+
+def main(values: int = 200, grid: int = 35, contour=(100, 200, 400), rtol: float = 1e-8,
+         threads: int | None = None) -> dict:
+    from ..runner import _threads
+
+    scene = load_scene(scene_dict(values, grid, rtol))
+    crit = bd.criterion_of(scene)
+    rows, col, _ = bd.base_rows(scene, "Omega")
+    ratio = 2 * M_PENDULUM / rows[:, [p.name for p in scene.model.params].index("M")]
+    report = {}
+    with _threads(threads):
+        import numba
+
+        n_threads = numba.get_num_threads()
+        ev = bd._Evaluator(scene, crit, rows, col)
+        ev(np.zeros(2, dtype=np.int64), np.array([1.0, 1.3]))  # compile before timing
+        t0 = time.perf_counter()
+        res = bd.locate(scene, crit, rows, col, np.linspace(*OMEGA, grid), rtol=rtol)
+        t_loc = time.perf_counter() - t0
+        found = (res.bound == bd.PARAMETER) | (res.bound == bd.CRITERION)
+        n_found = int(found.sum())
+        per_line = found.sum(axis=1)
+        evals = res.evaluations[found]
+        width_rel = float(np.max(res.width[found] / np.abs(res.location[found])))
+        report.update(located_s=t_loc, located=n_found, grid_points=values * grid, refine_points=res.points,
+                      refine_calls=res.calls, evaluations_mean=float(evals.mean()), evaluations_max=int(evals.max()),
+                      width_rel_max=width_rel, three=int((per_line == 3).sum()),
+                      bounds={bd.BOUND_MEANINGS[c]: int((res.bound == c).sum()) for c in (bd.PARAMETER, bd.CRITERION)})
+        print(f"mechsweep bench boundaries: auto-balancer floquet_max = 1 along Omega in [{OMEGA[0]}, {OMEGA[1]}] rad/s, "
+              f"{values} mass ratios 2 m / M in [{RATIO[0]}, {RATIO[1]}] (log), {n_threads} thread(s), rtol {rtol:g}")
+        print(f"  located: grid {grid} x {values} = {values * grid:,} points + refinement {res.points:,} points in "
+              f"{res.calls} calls: {t_loc:.2f} s; {n_found} boundaries ({report['three']} mass ratios with all "
+              f"three, the others one: the window omega_xi < Omega < omega_p has closed); "
+              f"{evals.mean():.1f} evaluations per located point (max {evals.max()}); "
+              f"bracket width <= {width_rel:.2g} |Omega|; bounds {report['bounds']}")
+        located = np.where(found, res.location, np.nan)
+        errors, times = [], []
+        for n in contour:
+            x = np.linspace(*OMEGA, n)
+            line = np.repeat(np.arange(values), n)
+            t0 = time.perf_counter()
+            g, _, _ = ev(line, np.tile(x, values))
+            t = time.perf_counter() - t0
+            err, missed = contour_error(located, contour_crossings(x, g.reshape(values, n)))
+            errors.append(err)
+            times.append(t)
+            print(f"  grid and contour: {n} x {values} = {n * values:,} points in {t:.2f} s "
+                  f"({n * values / t:,.0f} points/s): largest error {err:.2e} relative, {missed} boundaries missed")
+        h = (OMEGA[1] - OMEGA[0]) / (np.array(contour) - 1)
+        p = math.log(errors[-2] / errors[-1]) / math.log(h[-2] / h[-1]) if errors[-1] > 0 and errors[-2] > 0 else 2.0
+        target = max(rtol, width_rel)  # the precision the located boundaries reached
+        need = (contour[-1] - 1) * (errors[-1] / target) ** (1 / p) + 1
+        t_need = times[-1] * need / contour[-1]
+        report.update(target=target, contour=list(contour), contour_s=times, contour_error=errors, order=p, needed_grid=int(math.ceil(need)),
+                      needed_s=t_need)
+        print(f"  the contour error falls like h^{p:.2f}: {target:.2g} would need about {int(math.ceil(need)):,} Omega values "
+              f"per mass ratio ({int(math.ceil(need)) * values:,} points), about {t_need:,.0f} s at the measured "
+              f"rate; located: {t_loc:.2f} s ({t_need / t_loc:,.0f}x less)")
+        report["ratio"] = ratio
+    return report
