@@ -218,3 +218,79 @@ def test_scene_without_boundaries_is_refused_and_a_failed_write_keeps_the_old_fi
     assert sorted(p.name for p in in_tmp.iterdir()) == ["data", "grid.boundaries.h5", "grid.h5", "none.toml", "s.toml"]
     with xr.open_dataset(in_tmp / "grid.boundaries.h5") as ds:
         assert ds["boundary"].values[0, 0] == pytest.approx(2.0, rel=1e-10)
+
+
+# ---------------------------------------------------------------- a built-in model: the auto-balancer
+def _balancer(ratios, outputs=("floquet_max",), rtol=1e-10, num=35, **solver):
+    from mechsweep.bench.boundaries import scene_dict
+
+    d = scene_dict(len(ratios), num, rtol)
+    d["solver"].update(solver)
+    d["axes"]["M"] = [1.0 / r for r in ratios]  # m = 0.5: 2 m / M = 1 / M
+    d["scene"]["outputs"] = list(outputs)
+    return _locate(d)
+
+
+def test_autobalancer_located_boundaries_agree_with_brentq_and_converge_on_the_first_approximation():
+    """Floquet boundaries of the balanced state along Omega (omega_xi = 1, omega_eta = 1.5, zeta = 0.02):
+    located by Illinois, scipy's brentq on the same criterion (xtol 1e-13) finds its root inside their
+    brackets;
+    as 2 m / M goes from 0.02 to 0.0005 (40x lighter) their distance to the damped first
+    approximation's roots P(Omega) = 0 shrinks 30 to 60x (linear convergence), as
+    tests/test_autobalancer.py measures on its own grid."""
+    from scipy.optimize import brentq
+
+    from mechsweep import status as st
+    from mechsweep.models import autobalancer as ab
+
+    scene, rows, res = _balancer([0.02, 0.0005])
+    assert np.isin(res.bound, (bd.PARAMETER, bd.CRITERION)).all() and res.location.shape == (2, 3)
+    # the criterion's accuracy 100 rtol = 1e-10 limits some: near omega_p at 2 m / M = 0.0005 the
+    # multiplier leaves 1 slowly (2e-8 |Omega| measured)
+    assert (res.width <= 5e-8 * res.location).all()
+    assert res.evaluations.max() <= 15, res.evaluations
+
+    def g(row, x):
+        P = row[None, :].copy()
+        P[0, 0] = x
+        out = {"floquet_max": np.full(1, np.nan)}
+        n = np.zeros(1, np.int64)
+        scene.model.evaluate(P, ("floquet_max",), scene.solver, out, np.zeros(1, st.DTYPE), n, n.copy())
+        return out["floquet_max"][0] - 1.0
+
+    for i in range(2):
+        for x, w in zip(res.location[i], res.width[i]):
+            ref = brentq(lambda v: g(rows[i], v), x - 1e-3, x + 1e-3, xtol=1e-13, rtol=1e-14)
+            assert abs(x - ref) <= max(w, 1e-10 * x), (x, ref, w)  # brentq's root is inside the bracket
+    roots = np.array([brentq(lambda v: ab.receptance_sum(v, 1.0, 1.0, 2.25, 0.04, 0.06), lo, hi, xtol=1e-13)
+                      for lo, hi in ((0.9, 1.1), (1.2, 1.35), (1.4, 1.55))])
+    dist = (res.location - roots) / roots
+    np.testing.assert_allclose(dist[0], [0.1244, 0.0036, 0.1866], atol=0.002)
+    ratio = dist[0] / dist[1]
+    assert ((ratio > 30) & (ratio < 60)).all(), ratio
+
+
+def test_autobalancer_heavy_pendulum_boundaries_confirmed_by_direct_simulation():
+    """Heavy pendulums (2 m / M = 0.05 and 0.2): on either side of every located boundary (2 % off)
+    the direct simulation of the kicked balanced state (stable_sim, over 1500 revolutions: at 0.2 the
+    default 300 leave both sides of the upper boundary undecided) settles on the side where the
+    criterion falls below 1 and departs on the other."""
+    from mechsweep import status as st
+
+    # the window at 0.05 is 0.04 rad/s wide; near the boundaries the kick decays or grows slowly
+    scene, rows, res = _balancer([0.05, 0.2], rtol=1e-8, num=200, horizon_revolutions=1500)
+    found = np.isfinite(res.location)
+    assert found.sum(axis=1).tolist() == [3, 1], res.location
+    line, slot = np.nonzero(found)
+    x, d = res.location[found], res.direction[found]
+    P = np.repeat(rows[line], 2, axis=0)
+    P[:, 0] = np.column_stack([x * 0.98, x * 1.02]).ravel()
+    n = P.shape[0]
+    out = {"stable_sim": np.full(n, np.nan)}
+    status = np.zeros(n, st.DTYPE)
+    c = np.zeros(n, np.int64)
+    scene.model.evaluate(P, ("stable_sim",), scene.solver, out, status, c, c.copy())
+    sim = out["stable_sim"].reshape(-1, 2)
+    # direction +1: floquet_max rises through 1 as Omega grows: stable below, unstable above
+    expected = np.where(d[:, None] > 0, [[1.0, 0.0]], [[0.0, 1.0]])
+    np.testing.assert_array_equal(sim, expected, err_msg=f"{status.reshape(-1, 2)} {x}")

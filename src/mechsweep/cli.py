@@ -236,7 +236,7 @@ def _parser() -> argparse.ArgumentParser:
     b = bsub.add_parser("boundaries", help="auto-balancer stability boundaries against 2 m / M: located vs "
                                            "grid-and-contour at the same precision")
     b.add_argument("--values", type=int, default=200, help="mass ratios 2 m / M in [0.0005, 0.35] (default 200)")
-    b.add_argument("--grid", type=int, default=35, help="Omega values of the bracketing grid (default 35)")
+    b.add_argument("--grid", type=int, default=100, help="Omega values of the bracketing grid (default 100)")
     b.add_argument("--contour", type=int, nargs="+", default=[100, 200, 400], metavar="N",
                    help="Omega values of the contour grids (default 100 200 400)")
     b.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance in Omega (default 1e-8)")
