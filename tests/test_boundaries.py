@@ -294,3 +294,16 @@ def test_autobalancer_heavy_pendulum_boundaries_confirmed_by_direct_simulation()
     # direction +1: floquet_max rises through 1 as Omega grows: stable below, unstable above
     expected = np.where(d[:, None] > 0, [[1.0, 0.0]], [[0.0, 1.0]])
     np.testing.assert_array_equal(sim, expected, err_msg=f"{status.reshape(-1, 2)} {x}")
+
+
+def test_bench_boundaries_small(capsys):
+    assert main(["bench", "boundaries", "--contour", "100"]) == 2
+    assert "--contour needs at least two" in capsys.readouterr().err
+    assert main(["bench", "boundaries", "--values", "0"]) == 2
+    from mechsweep.bench import boundaries as bench
+
+    r = bench.main(values=2, grid=100, contour=(50, 400), threads=1)
+    out = capsys.readouterr().out
+    assert "located: grid 100 x 2" in out and out.count("grid and contour:") == 2
+    assert r["per_line"].tolist() == [1, 3]  # 2 m / M = 0.35: the window has closed; 0.0005: all three
+    assert r["contour_median_error"][1] < r["contour_median_error"][0] / 4 and r["needed_grid"] > 400

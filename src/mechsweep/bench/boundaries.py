@@ -109,7 +109,7 @@ def main(values: int = 200, grid: int = 100, contour=(100, 200, 400), rtol: floa
         print(f"mechsweep bench boundaries: auto-balancer floquet_max = 1 along Omega in [{OMEGA[0]}, {OMEGA[1]}] rad/s, "
               f"{values} mass ratios 2 m / M in [{RATIO[0]}, {RATIO[1]}] (log), {n_threads} thread(s), rtol {rtol:g}")
         print(f"  located: grid {grid} x {values} = {values * grid:,} points + refinement {res.points:,} points in "
-              f"{res.calls} calls: {t_loc:.2f} s; {n_found} boundaries ({k: n} = "
+              f"{res.calls} calls: {t_loc:.2f} s; {n_found} boundaries ({{k: n}} = "
               f"{ {int(k): int(v) for k, v in zip(*np.unique(per_line, return_counts=True))} } mass ratios with k "
               f"boundaries: the window "
               f"omega_xi < Omega < omega_p closes for heavy pendulums); "
