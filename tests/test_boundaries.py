@@ -307,3 +307,54 @@ def test_bench_boundaries_small(capsys):
     assert "located: grid 100 x 2" in out and out.count("grid and contour:") == 2
     assert r["per_line"].tolist() == [1, 3]  # 2 m / M = 0.35: the window has closed; 0.0005: all three
     assert r["contour_median_error"][1] < r["contour_median_error"][0] / 4 and r["needed_grid"] > 400
+
+
+# ---------------------------------------------------------------- continuation in two parameters
+def test_continuation_follows_the_damped_mathieu_tongue_through_its_fold():
+    """Damped Mathieu (c = 0.1) in the (a, q) chart: the first instability tongue's boundary, started
+    at its left edge located along a at q = 0.6, is followed down through the tongue's tip (a fold in
+    q: the two boundaries of a search along a meet there; for small c the tip is near a = 1, q = c)
+    and back up to the chart's edge q = 0.6, where it ends on the tongue's right edge as located
+    along a. Every point is on the boundary: re-evaluated, |max_multiplier - 1| <= 1e-9."""
+    from mechsweep import status as st
+
+    scene = load_scene({
+        "scene": {"name": "tongue", "model": f"{MATHIEU_FILE}:MATHIEU_JAC", "outputs": ["max_multiplier"]},
+        "axes": {"a": {"start": 0.3, "stop": 1.7, "num": 29}, "q": {"start": 0.0, "stop": 0.6, "num": 7}},
+        "fixed": {"c": 0.1}, "solver": {"rtol": 1e-12, "atol": 1e-14},
+        "boundaries": {"along": "a", "criterion": "max_multiplier", "criterion_accuracy": 1e-11}})
+    crit = bd.criterion_of(scene)
+    rows, col, _ = bd.base_rows(scene, "a")
+    res = bd.locate(scene, crit, rows[-1:], col, np.linspace(0.3, 1.7, 29), rtol=1e-10)
+    left, right = res.location[0]
+    curve = bd.continue_boundary(scene, crit, rows[-1], "a", "q", (left, 0.6))
+    pts = curve.points
+    assert curve.stop == "edge" and pts[-1, 1] == pytest.approx(0.6, abs=1e-12)
+    assert pts[-1, 0] == pytest.approx(right, rel=1e-9)
+    assert len(curve.folds) == 1 and curve.folds[0][2] == "q"
+    a_fold, q_fold = curve.folds[0][:2]
+    assert abs(a_fold - 1.0) < 0.01 and 0.09 < q_fold < 0.11, curve.folds
+    assert pts[:, 1].min() == pytest.approx(q_fold, abs=1e-3)
+    P = np.repeat(rows[-1:], len(pts), axis=0)
+    P[:, 0], P[:, 1] = pts[:, 0], pts[:, 1]
+    out = {"max_multiplier": np.full(len(pts), np.nan)}
+    n = np.zeros(len(pts), np.int64)
+    scene.model.evaluate(P, ("max_multiplier",), scene.solver, out, np.zeros(len(pts), st.DTYPE), n, n.copy())
+    assert np.abs(out["max_multiplier"] - 1.0).max() <= 1e-9
+    assert np.diff(pts, axis=0).max() < 0.05 * 1.4 and len(pts) < 300  # steps adapt, within step_max
+
+
+def test_continuation_reproduces_a_closed_form_curve():
+    """Duffing, epsilon = mu A^2 / omega^2 = 0.5 in the (A, mu) chart: mu = 0.5 omega^2 / A^2 at every
+    point to 1e-10, from the chart's top edge to its right edge."""
+    scene = load_scene({
+        "scene": {"name": "eps", "model": "duffing", "outputs": ["epsilon"]},
+        "axes": {"A": {"start": 0.2, "stop": 2.0, "num": 10}, "mu": {"start": 0.1, "stop": 20.0, "num": 10}},
+        "fixed": {"omega": 2.0}, "boundaries": {"along": "A", "criterion": "epsilon", "level": 0.5}})
+    crit = bd.criterion_of(scene)
+    row = np.array([2.0, np.nan, np.nan])
+    A0 = math.sqrt(0.5 * 4.0 / 20.0)  # where the curve meets mu = 20
+    curve = bd.continue_boundary(scene, crit, row, "A", "mu", (A0, 20.0))
+    A, mu = curve.points[:, 0], curve.points[:, 1]
+    assert curve.stop == "edge" and A[-1] == pytest.approx(2.0, abs=1e-12) and len(curve.folds) == 0
+    np.testing.assert_allclose(mu, 0.5 * 4.0 / A**2, rtol=1e-10)

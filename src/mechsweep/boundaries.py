@@ -131,9 +131,13 @@ class _Evaluator:
 
     def __call__(self, line: np.ndarray, x: np.ndarray):
         """(g or NaN, status, kind or NaN) at the points."""
-        n = x.size
         P = self.rows[line].copy()
         P[:, self.col] = x
+        return self.at(P)
+
+    def at(self, P: np.ndarray):
+        """(g or NaN, status, kind or NaN) at the parameter rows P."""
+        n = P.shape[0]
         self.calls += 1
         self.points += n
         kind = np.full(n, np.nan)
@@ -618,3 +622,134 @@ def run_boundaries(scene_or_path, *, data=None, output=None, threads=None, progr
     with _threads(threads):
         out = locate_dataset(scene, ds)
     return write_atomic(out, target), out
+
+
+# ----------------------------------------------------------------------------- continuation in two parameters
+@dataclass
+class Curve:
+    """A boundary followed in two parameters: points (x, y) in order, the folds met (where the
+    curve turns back along x or along y: two boundaries of a one-axis search meet there), why it
+    stopped, and its cost."""
+
+    points: np.ndarray  # (n, 2)
+    folds: list  # (x, y, axis name): the tangent's component along that axis changes sign
+    stop: str  # "edge", "closed", "max_points", "step_too_small", "no_value"
+    evaluations: int
+    calls: int
+
+
+def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_name: str, start, *,
+                      box=None, step: float = 0.02, step_min: float = 1e-7, step_max: float = 0.05,
+                      max_points: int = 2000, tol: float = 1e-10, direction: int = 0) -> Curve:
+    """Follow g(x, y) = criterion - level = 0 from ``start`` (a point on it, e.g. located along one
+    axis) by pseudo-arclength continuation, through folds, until it leaves ``box`` ((x_lo, x_hi),
+    (y_lo, y_hi); default: the scene's axes) or closes.
+
+    Works in the box's scaled coordinates (both spans 1). Predictor: a step ``step`` along the unit
+    tangent; corrector: Newton on (g = 0, tangent . (p - predicted) = 0) with the gradient by forward
+    differences (step 1e-7 of the span), its three evaluations in one call; converged when the
+    Newton step is below ``tol`` (of the span) and |g| within the criterion's accuracy. The step grows
+    1.5x after a corrector of at most 2 iterations, and halves (down to ``step_min``) when the
+    corrector fails or the tangent turns by more than 30 degrees. The last point is on the box's
+    edge (Newton with that coordinate fixed). Only criteria that change sign (not band edges or
+    status changes) can be continued this way. ``direction``: +1 / -1 along the tangent (-g_y, g_x),
+    0 (default) away from the box's nearest edge."""
+    names = scene.model.param_names()
+    cx, cy = names.index(x_name), names.index(y_name)
+    if box is None:
+        box = tuple(tuple(sorted(float(v) for v in next(a for a in scene.axes if a.name == n).ends))
+                    for n in (x_name, y_name))
+    lo = np.array([box[0][0], box[1][0]])
+    span = np.array([box[0][1] - box[0][0], box[1][1] - box[1][0]])
+    ev = _Evaluator(scene, crit, np.asarray(row, dtype=float)[None, :], cx)
+    h = 1e-7
+
+    def evaluate(us):
+        P = np.repeat(ev.rows, len(us), axis=0)
+        xy = lo + np.asarray(us) * span
+        P[:, cx], P[:, cy] = xy[:, 0], xy[:, 1]
+        g, _, _ = ev.at(P)
+        return g
+
+    def g_grad(u):
+        g = evaluate([u, u + [h, 0.0], u + [0.0, h]])
+        return g[0], np.array([(g[1] - g[0]) / h, (g[2] - g[0]) / h])
+
+    def eps_of(g):
+        return criterion_accuracy(scene.model, scene.solver, crit, np.array([g + crit.level]))[0]
+
+    def correct(u, t, pred, fixed=None):
+        """Newton from u; returns (point, gradient, iterations) or None."""
+        for it in range(1, 9):
+            g0, G = g_grad(u)
+            if not (np.isfinite(g0) and np.isfinite(G).all()):
+                return None
+            if fixed is None:
+                J = np.array([G, t])
+                rhs = -np.array([g0, t @ (u - pred)])
+            else:  # one coordinate held on the box's edge
+                J = np.array([G, [1.0, 0.0] if fixed == 0 else [0.0, 1.0]])
+                rhs = -np.array([g0, 0.0])
+            try:
+                du = np.linalg.solve(J, rhs)
+            except np.linalg.LinAlgError:
+                return None
+            u = u + du
+            if np.abs(du).max() <= tol and abs(g0) <= eps_of(g0):
+                return u, G, it
+        return None
+
+    def tangent(G, previous):
+        t = np.array([-G[1], G[0]]) / np.hypot(*G)
+        return t if previous @ t >= 0 else -t
+
+    u = (np.asarray(start, dtype=float) - lo) / span
+    g0, G = g_grad(u)
+    t = np.array([-G[1], G[0]]) / np.hypot(*G)
+    if direction == 0:  # into the box: away from the nearest edge
+        near = np.where(u - 0.5 > 0, 1.0 - u, u)
+        k = int(np.argmin(near))
+        inward = -1.0 if u[k] > 0.5 else 1.0
+        direction = 1 if t[k] * inward >= 0 else -1
+    t = t * (1 if direction > 0 else -1)
+    pts, folds, stop = [u.copy()], [], "max_points"
+    s = step
+    while len(pts) < max_points:
+        pred = u + s * t
+        got = correct(pred.copy(), t, pred)
+        if got is not None:
+            q, Gq, it = got
+            tq = tangent(Gq, t)
+            if tq @ t < math.cos(math.radians(30)):
+                got = None
+        if got is None:
+            s *= 0.5
+            if s < step_min:
+                stop = "step_too_small" if g_grad(u)[0] == g_grad(u)[0] else "no_value"
+                break
+            continue
+        outside = (q < 0) | (q > 1)
+        if outside.any():
+            k = int(np.argmax(outside))  # the coordinate that left the box first
+            edge = 0.0 if q[k] < 0 else 1.0
+            f = (edge - u[k]) / (q[k] - u[k])
+            e = u + f * (q - u)
+            e[k] = edge
+            got = correct(e, t, e, fixed=k)
+            if got is not None:
+                pts.append(got[0])
+            stop = "edge"
+            break
+        for k, name in ((0, x_name), (1, y_name)):
+            if tq[k] * t[k] < 0:  # the curve turned back along this axis between u and q
+                f = t[k] / (t[k] - tq[k])
+                folds.append(tuple(lo + (u + f * (q - u)) * span) + (name,))
+        if len(pts) > 3 and np.hypot(*(q - pts[0])) < s:
+            pts.append(q)
+            stop = "closed"
+            break
+        pts.append(q)
+        u, t = q, tq
+        if it <= 2:
+            s = min(1.5 * s, step_max)
+    return Curve(points=lo + np.array(pts) * span, folds=folds, stop=stop, evaluations=ev.points, calls=ev.calls)
