@@ -307,6 +307,13 @@ def test_bench_boundaries_small(capsys):
     assert "located: grid 100 x 2" in out and out.count("grid and contour:") == 2
     assert r["per_line"].tolist() == [1, 3]  # 2 m / M = 0.35: the window has closed; 0.0005: all three
     assert r["contour_median_error"][1] < r["contour_median_error"][0] / 4 and r["needed_grid"] > 400
+    # continued from 2 m / M = 0.0005, the lower and the omega_p boundary end at one point: the window
+    # omega_xi < Omega < omega_p closes there (2 m / M = 0.0578, Omega = 1.2896 rad/s, measured); the
+    # upper one turns back in Omega and leaves the chart at 2 m / M = 0.35
+    lower, mid, upper = r["curves"]
+    assert lower.stop == mid.stop == "step_too_small" and upper.stop == "edge"
+    np.testing.assert_allclose(lower.points[-1], mid.points[-1], rtol=1e-5)
+    assert 0.05 < 1.0 / lower.points[-1][1] < 0.065 and len(upper.folds) == 1
 
 
 # ---------------------------------------------------------------- continuation in two parameters

@@ -640,12 +640,13 @@ class Curve:
 
 def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_name: str, start, *,
                       box=None, step: float = 0.02, step_min: float = 1e-7, step_max: float = 0.05,
-                      max_points: int = 2000, tol: float = 1e-10, direction: int = 0) -> Curve:
+                      max_points: int = 2000, tol: float = 1e-10, direction: int = 0, log=None) -> Curve:
     """Follow g(x, y) = criterion - level = 0 from ``start`` (a point on it, e.g. located along one
     axis) by pseudo-arclength continuation, through folds, until it leaves ``box`` ((x_lo, x_hi),
     (y_lo, y_hi); default: the scene's axes) or closes.
 
-    Works in the box's scaled coordinates (both spans 1). Predictor: a step ``step`` along the unit
+    Works in the box's scaled coordinates (both spans 1; log10 of a coordinate whose scene axis is
+    log-spaced, or as ``log`` = (bool, bool) says). Predictor: a step ``step`` along the unit
     tangent; corrector: Newton on (g = 0, tangent . (p - predicted) = 0) with the gradient by forward
     differences (step 1e-7 of the span), its three evaluations in one call; converged when the
     Newton step is below ``tol`` (of the span) and |g| within the criterion's accuracy. The step grows
@@ -659,14 +660,22 @@ def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_na
     if box is None:
         box = tuple(tuple(sorted(float(v) for v in next(a for a in scene.axes if a.name == n).ends))
                     for n in (x_name, y_name))
-    lo = np.array([box[0][0], box[1][0]])
-    span = np.array([box[0][1] - box[0][0], box[1][1] - box[1][0]])
+    if log is None:  # log coordinates along an axis the scene spaces logarithmically
+        log = tuple(any(a.name == n and a.spacing == "log" for a in scene.axes) for n in (x_name, y_name))
+    logs = np.array(log, dtype=bool)
+    edges = np.array(box, dtype=float)
+    edges[logs] = np.log10(edges[logs])
+    lo, span = edges[:, 0], edges[:, 1] - edges[:, 0]
     ev = _Evaluator(scene, crit, np.asarray(row, dtype=float)[None, :], cx)
     h = 1e-7
 
+    def to_xy(us):
+        xy = lo + np.asarray(us) * span
+        return np.where(logs, 10.0 ** xy, xy)
+
     def evaluate(us):
         P = np.repeat(ev.rows, len(us), axis=0)
-        xy = lo + np.asarray(us) * span
+        xy = to_xy(us)
         P[:, cx], P[:, cy] = xy[:, 0], xy[:, 1]
         g, _, _ = ev.at(P)
         return g
@@ -703,7 +712,8 @@ def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_na
         t = np.array([-G[1], G[0]]) / np.hypot(*G)
         return t if previous @ t >= 0 else -t
 
-    u = (np.asarray(start, dtype=float) - lo) / span
+    start = np.asarray(start, dtype=float)
+    u = (np.where(logs, np.log10(np.abs(start)), start) - lo) / span
     g0, G = g_grad(u)
     t = np.array([-G[1], G[0]]) / np.hypot(*G)
     if direction == 0:  # into the box: away from the nearest edge
@@ -743,7 +753,7 @@ def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_na
         for k, name in ((0, x_name), (1, y_name)):
             if tq[k] * t[k] < 0:  # the curve turned back along this axis between u and q
                 f = t[k] / (t[k] - tq[k])
-                folds.append(tuple(lo + (u + f * (q - u)) * span) + (name,))
+                folds.append(tuple(to_xy(u + f * (q - u))) + (name,))
         if len(pts) > 3 and np.hypot(*(q - pts[0])) < s:
             pts.append(q)
             stop = "closed"
@@ -752,4 +762,4 @@ def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_na
         u, t = q, tq
         if it <= 2:
             s = min(1.5 * s, step_max)
-    return Curve(points=lo + np.array(pts) * span, folds=folds, stop=stop, evaluations=ev.points, calls=ev.calls)
+    return Curve(points=to_xy(np.array(pts)), folds=folds, stop=stop, evaluations=ev.points, calls=ev.calls)

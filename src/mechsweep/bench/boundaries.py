@@ -17,6 +17,10 @@ through the model's scene interface only (mechsweep.boundaries on ModelSpec.eval
    finest grids, and the grid that ``rtol`` would need (and its time, from the measured time
    per point) extrapolated from it.
 
+3. continuation: the boundaries located at the lightest pendulums followed in (Omega, M) (log M)
+   by mechsweep.boundaries.continue_boundary, through folds, to where they end: two that end at
+   the same point meet there (the window omega_xi < Omega < omega_p closes).
+
 Both routes run in this process on the same threads, one after the other; the JIT compilation is
 done before any timing.
 """
@@ -144,4 +148,26 @@ def main(values: int = 200, grid: int = 100, contour=(100, 200, 400), rtol: floa
               f"be needed, about {t_need:,.0f} s at the measured rate (the largest error, near the closing window, "
               f"falls more slowly); located: {t_loc:.2f} s")
         report["ratio"] = ratio
+        # 3. continuation: the three boundaries followed in (Omega, M) from the lightest pendulums
+        t0 = time.perf_counter()
+        light = bd.locate(scene, crit, rows[-1:], col, np.linspace(*OMEGA, grid), rtol=1e-10)
+        curves = [bd.continue_boundary(scene, crit, rows[-1], "Omega", "M", (x, 2 * M_PENDULUM / RATIO[0]))
+                  for x in light.location[0] if np.isfinite(x)]
+        t_cont = time.perf_counter() - t0
+        report.update(continuation_s=t_cont, curves=curves)
+        print(f"  continuation from 2 m / M = {RATIO[0]} (rtol 1e-10 start, Newton to 1e-10 of the chart): "
+              f"{t_cont:.2f} s, {sum(c.evaluations for c in curves):,} points in {sum(c.calls for c in curves)} calls")
+        for c in curves:
+            end = c.points[-1]
+            folds = "; ".join(f"turns back in {f[2]} at Omega = {f[0]:.6f}, 2 m / M = {2 * M_PENDULUM / f[1]:.6f}"
+                              for f in c.folds) or "no fold"
+            print(f"    from Omega = {c.points[0][0]:.6f}: {len(c.points)} points, {folds}; stops ({c.stop}) at "
+                  f"Omega = {end[0]:.6f}, 2 m / M = {2 * M_PENDULUM / end[1]:.6f}")
+        ends = [c.points[-1] for c in curves if c.stop == "step_too_small"]
+        for i in range(len(ends)):
+            for j in range(i + 1, len(ends)):
+                if np.all(np.abs(ends[i] - ends[j]) <= 1e-4 * np.abs(ends[i])):
+                    print(f"    boundaries {i} and {j} end at the same point: they meet at Omega = {ends[i][0]:.6f}, "
+                          f"2 m / M = {2 * M_PENDULUM / ends[i][1]:.6f} (a corner of floquet_max, where the largest "
+                          "multiplier changes: the window closes there)")
     return report
