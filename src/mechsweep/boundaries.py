@@ -527,14 +527,15 @@ def locate_dataset(scene, ds, spec=None):
         return (odims, values.reshape(shape), {"units": unit, "long_name": long_name, **attrs})
 
     codes = np.array(sorted(BOUND_MEANINGS), dtype=np.int8)
+    rising = ("the criterion rises through its level" if crit.output else
+              f"status {b.status_change[0]} below, {b.status_change[1]} above")
     data = {
         "boundary": var(res.location, prm.unit, f"{along} ({prm.long_name}) where {what}"),
         "boundary_width": var(res.width, prm.unit, f"width of the final bracket of {along} (both ends evaluated)"),
         "boundary_bound": var(res.bound, "1", "which accuracy bound applied (-1: no crossing)",
                               flag_values=codes, flag_meanings=" ".join(BOUND_MEANINGS[c] for c in codes),
                               comment="; ".join(f"{BOUND_MEANINGS[c]}: {BOUND_DESCRIPTIONS[c]}" for c in codes)),
-        "boundary_direction": var(res.direction, "1",
-                                  f"+1: {'the criterion rises through its level' if crit.output else 'status ' + b.status_change[0] + ' below, ' + b.status_change[1] + ' above'} as {along} grows; -1 the reverse; 0 no crossing"),
+        "boundary_direction": var(res.direction, "1", f"+1: {rising} as {along} grows; -1 the reverse; 0 no crossing"),
         "boundary_evaluations": var(res.evaluations, "1", "criterion evaluations spent locating this crossing "
                                     "(after the grid)"),
     }
@@ -564,7 +565,6 @@ def locate_dataset(scene, ds, spec=None):
         "evaluations_per_point_max": int(ev.max()) if ev.size else 0,
     }
     if crit.output is not None:
-        acc = crit.accuracy
         attrs["criterion_accuracy"] = accuracy_text(scene, crit)
     if scene.solver is not None:
         for k, v in scene.solver.as_dict().items():
