@@ -167,7 +167,7 @@ def test_bound_says_which_accuracy_limited_the_bracket():
 
 
 BASE = {"scene": {"name": "b", "model": "duffing", "outputs": ["period_exact"]},
-        "axes": {"A": {"start": 0.1, "stop": 3.0, "num": 5}, "mu": [-1.0]}, "fixed": {"omega": 2.0}}
+        "axes": {"A": {"start": 0.1, "stop": 3.0, "num": 5}, "mu": [-1.0, -2.0]}, "fixed": {"omega": 2.0}}
 
 
 @pytest.mark.parametrize("section, key, words", [
@@ -184,6 +184,10 @@ BASE = {"scene": {"name": "b", "model": "duffing", "outputs": ["period_exact"]},
     ({"along": "A", "status_change": ["ok", "not_oscillatory"], "rtol": 0.5}, "boundaries.rtol", "[1e-15, 0.01]"),
     ({"along": "A", "criterion": "period_exact", "level": 3.0, "criterion_accuracy": -1},
      "boundaries.criterion_accuracy", ">= 0"),
+    ({"along": "A", "status_change": ["ok", "not_oscillatory"], "continue_in": "mu"}, "boundaries.continue_in",
+     "a change of status cannot be continued"),
+    ({"along": "A", "criterion": "period_exact", "level": 3.0, "continue_in": "A"}, "boundaries.continue_in",
+     "allowed: mu"),
 ])
 def test_bad_boundaries_section_exits_2_naming_the_key(in_tmp, capsys, section, key, words):
     scene = in_tmp / "bad.toml"
@@ -365,3 +369,41 @@ def test_continuation_reproduces_a_closed_form_curve():
     A, mu = curve.points[:, 0], curve.points[:, 1]
     assert curve.stop == "edge" and A[-1] == pytest.approx(2.0, abs=1e-12) and len(curve.folds) == 0
     np.testing.assert_allclose(mu, 0.5 * 4.0 / A**2, rtol=1e-10)
+
+
+def test_scene_continue_in_stores_the_tongue_with_its_fold(tmp_path, capsys):
+    """[boundaries] continue_in = "q": the boundaries located along a at the ends of the q axis are
+    followed in (a, q); the tongue's two edges at q = 0.6 are one curve (the second start lies on
+    the first curve and is not followed again), stored with its fold and why it stopped."""
+    scene = tmp_path / "tongue.toml"
+    scene.write_text(f"""
+[scene]
+name = "tongue"
+model = "{MATHIEU_FILE}:MATHIEU_JAC"
+outputs = ["max_multiplier"]
+[axes]
+a = {{ start = 0.3, stop = 1.7, num = 29 }}
+q = {{ start = 0.0, stop = 0.6, num = 7 }}
+[fixed]
+c = 0.1
+[solver]
+rtol = 1e-12
+atol = 1e-14
+[storage]
+path = "{tmp_path / 'tongue.h5'}"
+[boundaries]
+along = "a"
+criterion = "max_multiplier"
+criterion_accuracy = 1e-11
+continue_in = "q"
+""")
+    assert main(["boundaries", str(scene), "--no-progress", "--threads", "1"]) == 0
+    assert "continued in q: 1 curve(s), 1 fold(s)" in capsys.readouterr().out
+    with xr.open_dataset(tmp_path / "tongue.boundaries.h5") as ds:
+        assert ds["curve_a"].dims == ("curve", "point") and ds["curve_q"].attrs["units"] == "1"
+        a, q = ds["curve_a"].values[0], ds["curve_q"].values[0]
+        a, q = a[np.isfinite(a)], q[np.isfinite(q)]
+        assert q[0] == q[-1] == pytest.approx(0.6, abs=1e-12)
+        np.testing.assert_allclose([a[0], a[-1]], ds["boundary"].sel(q=0.6).values, rtol=1e-9)
+        assert ds["curve_stop"].values.tolist() == [0]  # edge
+        assert ds["fold_axis"].values.tolist() == [[1]] and 0.09 < float(ds["fold_q"].values[0, 0]) < 0.11

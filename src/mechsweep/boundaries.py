@@ -566,6 +566,13 @@ def locate_dataset(scene, ds, spec=None):
     }
     if crit.output is not None:
         attrs["criterion_accuracy"] = accuracy_text(scene, crit)
+    if b.continue_in is not None:
+        t0 = time.perf_counter()
+        cdata, ccoords, n_eval, n_calls = _continue_all(scene, crit, b, res, rows, others)
+        data.update(cdata)
+        coords.update(ccoords)
+        attrs.update(continue_in=b.continue_in, continuation_wall_time_s=time.perf_counter() - t0,
+                     continuation_evaluated_points=n_eval, continuation_calls=n_calls)
     if scene.solver is not None:
         for k, v in scene.solver.as_dict().items():
             attrs[f"solver_{k}"] = v
@@ -763,3 +770,75 @@ def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_na
         if it <= 2:
             s = min(1.5 * s, step_max)
     return Curve(points=to_xy(np.array(pts)), folds=folds, stop=stop, evaluations=ev.points, calls=ev.calls)
+
+
+CURVE_STOPS = ("edge", "closed", "max_points", "step_too_small", "no_value")
+
+
+def _continue_all(scene, crit, b, res: Located, rows: np.ndarray, others: tuple):
+    """Follow, for every combination of the axes other than (along, continue_in), each boundary
+    located (by a sign change) on the lines at both ends of the continue_in axis, skipping a start
+    that lies on a curve already followed. Returns (variables, coordinates, points, calls)."""
+    along, cont = b.along, b.continue_in
+    names = [a.name for a in others]
+    ci = names.index(cont)
+    sizes = [a.size for a in others]
+    C = res.location.shape[1]
+    loc = np.moveaxis(res.location.reshape(sizes + [C]), ci, -2)
+    ok = np.moveaxis(np.isin(res.bound, (PARAMETER, CRITERION)).reshape(sizes + [C]), ci, -2)
+    R = np.moveaxis(rows.reshape(sizes + [rows.shape[1]]), ci, -2)
+    cvals = _encoded(scene, others[ci])
+    rest = loc.shape[:-2]
+    box = tuple(tuple(sorted(float(v) for v in next(a for a in scene.axes if a.name == n).ends)) for n in (along, cont))
+    span = np.array([box[0][1] - box[0][0], box[1][1] - box[1][0]])
+    found, n_eval, n_calls = {}, 0, 0
+    for r in np.ndindex(*rest):
+        curves = []
+        for end in (0, -1):
+            for x in loc[r][end][ok[r][end]]:
+                start = np.array([x, cvals[end]])
+                if any(np.min(np.hypot(*((c.points - start) / span).T)) < 1e-6 for c in curves):
+                    continue  # already on a curve followed from elsewhere
+                c = continue_boundary(scene, crit, R[r][end], along, cont, start, box=box)
+                n_eval += c.evaluations
+                n_calls += c.calls
+                curves.append(c)
+        found[r] = curves
+    K = max([len(c) for c in found.values()] + [0])
+    N = max([len(c.points) for cs in found.values() for c in cs] + [0])
+    F = max([len(c.folds) for cs in found.values() for c in cs] + [0])
+    cx, cy = np.full(rest + (K, N), np.nan), np.full(rest + (K, N), np.nan)
+    stop = np.full(rest + (K,), -1, dtype=np.int8)
+    fx, fy = np.full(rest + (K, F), np.nan), np.full(rest + (K, F), np.nan)
+    faxis = np.full(rest + (K, F), -1, dtype=np.int8)
+    for r, cs in found.items():
+        for k, c in enumerate(cs):
+            cx[r + (k, slice(0, len(c.points)))] = c.points[:, 0]
+            cy[r + (k, slice(0, len(c.points)))] = c.points[:, 1]
+            stop[r + (k,)] = CURVE_STOPS.index(c.stop)
+            for j, (x, y, ax) in enumerate(c.folds):
+                fx[r + (k, j)], fy[r + (k, j)], faxis[r + (k, j)] = x, y, 0 if ax == along else 1
+    rest_dims = tuple(n for n in names if n != cont)
+    pa, pc = scene.model.param(along), scene.model.param(cont)
+    codes = np.arange(len(CURVE_STOPS), dtype=np.int8)
+    data = {
+        f"curve_{along}": (rest_dims + ("curve", "point"), cx,
+                           {"units": pa.unit, "long_name": f"{along} along the continued boundary (NaN after its end)"}),
+        f"curve_{cont}": (rest_dims + ("curve", "point"), cy,
+                          {"units": pc.unit, "long_name": f"{cont} along the continued boundary (NaN after its end)"}),
+        "curve_stop": (rest_dims + ("curve",), stop,
+                       {"units": "1", "long_name": "why the continuation stopped (-1: no curve)", "flag_values": codes,
+                        "flag_meanings": " ".join(CURVE_STOPS),
+                        "comment": "edge: it left the chart (last point on its edge); closed: it came back to its "
+                                   "start; step_too_small: the boundary ends or has a corner here (two boundaries "
+                                   "ending at one point meet there)"}),
+        f"fold_{along}": (rest_dims + ("curve", "fold"), fx, {"units": pa.unit, "long_name": f"{along} at a fold"}),
+        f"fold_{cont}": (rest_dims + ("curve", "fold"), fy, {"units": pc.unit, "long_name": f"{cont} at a fold"}),
+        "fold_axis": (rest_dims + ("curve", "fold"), faxis,
+                      {"units": "1", "long_name": f"the axis the curve turns back along at the fold: 0 {along}, "
+                                                  f"1 {cont} (-1: no fold)"}),
+    }
+    coords = {"curve": ("curve", np.arange(K), {"units": "1", "long_name": "index of the continued boundary"}),
+              "point": ("point", np.arange(N), {"units": "1", "long_name": "index of the point along the curve"}),
+              "fold": ("fold", np.arange(F), {"units": "1", "long_name": "index of the fold along the curve"})}
+    return data, coords, n_eval, n_calls

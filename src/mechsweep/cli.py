@@ -291,6 +291,11 @@ def _cmd_boundaries(args) -> int:
           f"{ds.attrs['evaluations_per_point_mean']:.1f} evaluations per point (max "
           f"{ds.attrs['evaluations_per_point_max']}) in {ds.attrs['evaluate_calls']} calls, "
           f"{ds.attrs['wall_time_s']:.2f} s")
+    if "curve_stop" in ds:
+        stops = ds["curve_stop"].values
+        print(f"  continued in {ds.attrs['continue_in']}: {int((stops >= 0).sum())} curve(s), "
+              f"{int((ds['fold_axis'].values >= 0).sum())} fold(s), {ds.attrs['continuation_evaluated_points']:,} points "
+              f"in {ds.attrs['continuation_calls']:,} calls, {ds.attrs['continuation_wall_time_s']:.2f} s")
     return 0
 
 

@@ -189,9 +189,12 @@ class Boundaries:
     status_change: tuple[str, str] | None = None
     rtol: float = 1e-10
     criterion_accuracy: float | None = None
+    continue_in: str | None = None  # a second axis: follow each located boundary in (along, continue_in)
 
     def as_dict(self) -> dict:
         d = {"along": self.along, "rtol": self.rtol}
+        if self.continue_in is not None:
+            d["continue_in"] = self.continue_in
         if self.criterion is not None:
             d.update(criterion=self.criterion, level=self.level)
             if self.criterion_accuracy is not None:
@@ -201,7 +204,7 @@ class Boundaries:
         return d
 
 
-BOUNDARY_KEYS = ("along", "criterion", "level", "status_change", "rtol", "criterion_accuracy")
+BOUNDARY_KEYS = ("along", "criterion", "level", "status_change", "rtol", "criterion_accuracy", "continue_in")
 BOUNDARY_RTOL = (1e-15, 1e-2)
 
 
@@ -845,6 +848,13 @@ def _boundaries(table: Mapping, model: ModelSpec, axes: list, outputs: tuple, p:
             if change[0] == change[1]:
                 p.add("boundaries.status_change", f"{change[0]!r} twice; expected two different statuses")
             pair = (change[0], change[1])
+    cont = table.get("continue_in")
+    if cont is not None:
+        if cont not in [a for a in ranged if a != along]:
+            p.unknown("boundaries.continue_in", cont, [a for a in ranged if a != along] or
+                      ("(none: give a second axis of at least 2 numeric values)",), "axis to continue boundaries in")
+        elif change is not None:
+            p.add("boundaries.continue_in", "needs a criterion: a change of status cannot be continued")
     rtol = table.get("rtol", Boundaries.rtol)
     lo, hi = BOUNDARY_RTOL
     if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not lo <= rtol <= hi:
@@ -854,7 +864,7 @@ def _boundaries(table: Mapping, model: ModelSpec, axes: list, outputs: tuple, p:
     if len(p.items) > n0:
         return None
     return Boundaries(along=along, criterion=crit, level=level, status_change=pair, rtol=float(rtol),
-                      criterion_accuracy=criterion_accuracy)
+                      criterion_accuracy=criterion_accuracy, continue_in=cont)
 
 
 def _slug(name: str) -> str:
