@@ -407,3 +407,39 @@ continue_in = "q"
         np.testing.assert_allclose([a[0], a[-1]], ds["boundary"].sel(q=0.6).values, rtol=1e-9)
         assert ds["curve_stop"].values.tolist() == [0]  # edge
         assert ds["fold_axis"].values.tolist() == [[1]] and 0.09 < float(ds["fold_q"].values[0, 0]) < 0.11
+
+
+def test_the_speck_of_stability_in_the_damping_chart_is_a_real_island():
+    """sweeps/autobalancer_damping.toml shows a speck of 'stable' near Omega / omega_xi = 1.38,
+    zeta_xi = 0.025. Located along Omega at zeta_xi = 0.025 it has two boundaries; followed in
+    (Omega, zeta_xi) both ways from both, the four curves end at one point (a corner of floquet_max,
+    where the largest multiplier changes) and enclose an island Omega in [27.632, 27.851] rad/s,
+    zeta_xi in [0.02154, 0.02861] (measured 2026-11-23): the speck is real."""
+    import tomllib
+
+    from .conftest import SWEEPS
+
+    d = tomllib.loads((SWEEPS / "autobalancer_damping.toml").read_text())
+    d["scene"]["outputs"] = ["floquet_max"]
+    d["axes"] = {"Omega": {"start": 27.0, "stop": 28.4, "num": 15}, "zeta_xi": {"start": 0.015, "stop": 0.04, "num": 2}}
+    d["boundaries"] = {"along": "Omega", "criterion": "floquet_max", "level": 1.0, "rtol": 1e-8}
+    scene = load_scene(d)
+    crit = bd.criterion_of(scene)
+    rows, col, _ = bd.base_rows(scene, "Omega")
+    row = rows[0].copy()
+    names = scene.model.param_names()
+    row[names.index("zeta_xi")] = 0.025
+    res = bd.locate(scene, crit, row[None, :], col, np.linspace(27.0, 28.4, 15), rtol=1e-8)
+    assert np.isfinite(res.location).sum() == 2 and res.direction[0].tolist() == [-1, 1]  # stable between
+    ends, pts = [], []
+    for x in res.location[0]:
+        for d in (1, -1):
+            c = bd.continue_boundary(scene, crit, row, "Omega", "zeta_xi", (x, 0.025), step=0.005, step_max=0.01,
+                                     direction=d)
+            assert c.stop == "step_too_small"
+            ends.append(c.points[-1])
+            pts.append(c.points)
+    np.testing.assert_allclose(np.array(ends), np.repeat(ends[:1], 4, axis=0), rtol=1e-5)
+    pts = np.vstack(pts)
+    np.testing.assert_allclose(pts.min(axis=0), [27.632, 0.02154], rtol=2e-4)
+    np.testing.assert_allclose(pts.max(axis=0), [27.851, 0.02861], rtol=2e-4)
