@@ -314,6 +314,7 @@ def test_bench_boundaries_small(capsys):
     # continued from 2 m / M = 0.0005, the lower and the omega_p boundary end at one point: the window
     # omega_xi < Omega < omega_p closes there (2 m / M = 0.0578, Omega = 1.2896 rad/s, measured); the
     # upper one turns back in Omega and leaves the chart at 2 m / M = 0.35
+    np.testing.assert_allclose(r["movement"][0.02], [0.12443, 0.00363, 0.18658], atol=2e-5)  # README's 12, 0.4, 19 %
     lower, mid, upper = r["curves"]
     assert lower.stop == mid.stop == "step_too_small" and upper.stop == "edge"
     np.testing.assert_allclose(lower.points[-1], mid.points[-1], rtol=1e-5)

@@ -83,6 +83,13 @@ def contour_error(located: np.ndarray, crossings: list[np.ndarray]) -> tuple[flo
     return float(errs.max()), float(np.median(errs)), differ, more, fewer
 
 
+def _rows_at(rows: np.ndarray, ratios, m_col: int) -> np.ndarray:
+    """Parameter rows like ``rows[0]`` at the mass ratios 2 m / M = ``ratios`` (M in column m_col)."""
+    out = np.repeat(rows[:1], len(ratios), axis=0)
+    out[:, m_col] = 2 * M_PENDULUM / np.asarray(ratios)
+    return out
+
+
 def main(values: int = 200, grid: int = 100, contour=(100, 200, 400), rtol: float = 1e-8,
          threads: int | None = None) -> dict:
     from ..runner import _threads
@@ -148,6 +155,24 @@ def main(values: int = 200, grid: int = 100, contour=(100, 200, 400), rtol: floa
               f"be needed, about {t_need:,.0f} s at the measured rate (the largest error, near the closing window, "
               f"falls more slowly); located: {t_loc:.2f} s")
         report["ratio"] = ratio
+        # the boundaries' movement from the damped first approximation's roots P(Omega) = 0
+        from scipy.optimize import brentq
+
+        from ..models import autobalancer as ab
+
+        roots = np.array([brentq(lambda v: ab.receptance_sum(v, 1.0, 1.0, 2.25, 0.04, 0.06), lo_, hi_, xtol=1e-14)
+                          for lo_, hi_ in ((0.9, 1.1), (1.2, 1.35), (1.4, 1.55))])
+        probe = bd.locate(scene, crit, _rows_at(rows, [0.02, 0.0005], scene.model.param_names().index("M")), col,
+                          np.linspace(*OMEGA, grid), rtol=rtol)
+        report["movement"] = {}
+        for k, r in enumerate((0.02, 0.0005)):
+            if np.isfinite(probe.location[k]).sum() == 3:
+                move = (probe.location[k] - roots) / roots
+                report["movement"][r] = move
+                print(f"  at 2 m / M = {r}: boundaries {np.array2string(probe.location[k], precision=8)} rad/s, moved "
+                      f"{', '.join(f'{100 * v:.4f} %' for v in move)} from the first approximation's roots "
+                      f"{np.array2string(roots, precision=8)} (brackets <= "
+                      f"{np.nanmax(probe.width[k] / probe.location[k]):.2g})")
         # 3. continuation: the three boundaries followed in (Omega, M) from the lightest pendulums
         t0 = time.perf_counter()
         light = bd.locate(scene, crit, rows[-1:], col, np.linspace(*OMEGA, grid), rtol=1e-10)
