@@ -163,6 +163,20 @@ def _parser() -> argparse.ArgumentParser:
                    "rewrites it in place")
     p.set_defaults(func=_cmd_models)
 
+    p = sub.add_parser("boundaries", help="locate the boundaries a scene's [boundaries] section asks for",
+                       formatter_class=fmt,
+                       description="Locate where a criterion crosses its level (or the status changes) along one "
+                                   "axis, for every combination of the other axes: bracketed on the scene's grid "
+                                   "(computed first, or completed, unless its dataset is finished), refined to "
+                                   "[boundaries] rtol. Writes DATA.boundaries.h5 (atomically; the grid's dataset is "
+                                   "only read). See docs/boundaries.md.")
+    p.add_argument("scene", metavar="SCENE", help="scene TOML file with a [boundaries] section")
+    p.add_argument("-o", "--output", metavar="PATH", help="output file (default: DATA.boundaries.h5)")
+    p.add_argument("--data", metavar="DATA", help="the grid's dataset (default: [storage] path of the scene)")
+    p.add_argument("--threads", type=int, metavar="N", help="numba threads (default: all cores)")
+    p.add_argument("--no-progress", action="store_true", help="do not show the progress bar of the grid")
+    p.set_defaults(func=_cmd_boundaries)
+
     p = sub.add_parser("check", help="validate scene files without running them")
     p.add_argument("scenes", nargs="+", metavar="SCENE")
     p.set_defaults(func=_cmd_check)
@@ -226,6 +240,15 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--output", default=None, metavar="NAME",
                    help="a model of your own: the measured output to compare (default: its first measurement)")
     b.set_defaults(func=_cmd_bench_workprecision)
+    b = bsub.add_parser("boundaries", help="auto-balancer stability boundaries against 2 m / M: located vs "
+                                           "grid-and-contour at the same precision")
+    b.add_argument("--values", type=int, default=200, help="mass ratios 2 m / M in [0.0005, 0.35] (default 200)")
+    b.add_argument("--grid", type=int, default=100, help="Omega values of the bracketing grid (default 100)")
+    b.add_argument("--contour", type=int, nargs="+", default=[100, 200, 400], metavar="N",
+                   help="Omega values of the contour grids (default 100 200 400)")
+    b.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance in Omega (default 1e-8)")
+    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
+    b.set_defaults(func=_cmd_bench_boundaries)
     b = bsub.add_parser("cluster", help="throughput locally and on a dask LocalCluster of 1..W workers; identical datasets")
     b.add_argument("--points", type=int, default=400_000, help="Duffing grid points (default 400000)")
     b.add_argument("--workers", type=int, default=None, help="up to this many worker processes (default: cores)")
@@ -259,6 +282,27 @@ def _cmd_run(args) -> int:
     path = args.output or scene.storage.path
     print(f"wrote {path}: {summary.sizes}, outputs {', '.join(scene.outputs)}; "
           f"status {summary.status_names()}; wall time {summary.wall_time_s:.2f} s")
+    return 0
+
+
+def _cmd_boundaries(args) -> int:
+    from .boundaries import BOUND_MEANINGS, run_boundaries
+    from .scene import load_scene
+
+    scene = load_scene(args.scene)
+    path, ds = run_boundaries(scene, data=args.data, output=args.output, threads=args.threads,
+                              progress=False if args.no_progress else None)
+    bound = ds["boundary_bound"].values
+    counts = {BOUND_MEANINGS[c]: int((bound == c).sum()) for c in sorted(BOUND_MEANINGS) if (bound == c).any()}
+    print(f"wrote {path}: {ds.attrs['located']} boundaries located along {ds.attrs['along']} ({counts}); "
+          f"{ds.attrs['evaluations_per_point_mean']:.1f} evaluations per point (max "
+          f"{ds.attrs['evaluations_per_point_max']}) in {ds.attrs['evaluate_calls']} calls, "
+          f"{ds.attrs['wall_time_s']:.2f} s")
+    if "curve_stop" in ds:
+        stops = ds["curve_stop"].values
+        print(f"  continued in {ds.attrs['continue_in']}: {int((stops >= 0).sum())} curve(s), "
+              f"{int((ds['fold_axis'].values >= 0).sum())} fold(s), {ds.attrs['continuation_evaluated_points']:,} points "
+              f"in {ds.attrs['continuation_calls']:,} calls, {ds.attrs['continuation_wall_time_s']:.2f} s")
     return 0
 
 
@@ -473,6 +517,18 @@ def _cmd_bench_autobalancer(args) -> int:
     from .bench import autobalancer
 
     autobalancer.main(sim_points=args.sim_points, scipy_points=args.scipy_points, threads=args.threads)
+    return 0
+
+
+def _cmd_bench_boundaries(args) -> int:
+    from .bench import _args, boundaries
+
+    contour = [_args.count("--contour", n, 3, 10**6) for n in args.contour]
+    if len(contour) < 2:
+        from .errors import InputError
+        raise InputError("--contour needs at least two grid sizes (the error's order is fitted between the last two)")
+    boundaries.main(values=_args.count("--values", args.values, 1, 10**5), grid=_args.count("--grid", args.grid, 3, 10**6),
+                    contour=tuple(contour), rtol=_args.tolerance("--rtol", args.rtol, 1e-15, 1e-2), threads=_args.threads("--threads", args.threads))
     return 0
 
 

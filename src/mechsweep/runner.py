@@ -604,9 +604,15 @@ def extra_shape(scene: Scene, name: str) -> tuple[int, ...]:
 
 def evaluate_chunk(scene: Scene, chunk: Chunk, params: ParameterMatrix | None = None):
     """Compute one chunk. Returns (requested outputs by name, status, n_steps, n_rhs)."""
-    P = (params or ParameterMatrix(scene))(chunk.start, chunk.stop)
+    return evaluate_rows(scene, (params or ParameterMatrix(scene))(chunk.start, chunk.stop))
+
+
+def evaluate_rows(scene: Scene, P: np.ndarray):
+    """Compute the scene's outputs on any parameter rows ``P`` (float64 [n, n_params]), exactly as a
+    chunk of its grid is computed (same outputs asked, same status rules). Returns (requested
+    outputs by name, status, n_steps, n_rhs)."""
     computed = scene.computed_outputs
-    n = chunk.size
+    n = P.shape[0]
     out = {name: np.full((n,) + extra_shape(scene, name), np.nan) for name in computed}
     status = np.zeros(n, dtype=st.DTYPE)
     n_steps = np.zeros(n, dtype=np.int64)

@@ -22,7 +22,7 @@ import numpy as np
 from .errors import InputError
 from .models import MODELS, ModelSpec
 
-SECTIONS = ("scene", "axes", "fixed", "solver", "storage", "execution")
+SECTIONS = ("scene", "axes", "fixed", "solver", "storage", "execution", "boundaries")
 MAX_POINTS = 2**40  # beyond this a flat int64 index and any disk are hopeless
 # Values per axis. The grid itself is never expanded (a chunk is computed from the axes' ranges),
 # but a reader of the dataset (xarray) loads each axis's coordinate in full when it opens it:
@@ -175,6 +175,40 @@ class Execution:
 
 
 @dataclass(frozen=True)
+class Boundaries:
+    """The scene's [boundaries] section: where a criterion crosses along one axis (boundaries.py).
+
+    Either ``criterion`` (an output of the scene) crossing ``level``, or ``status_change`` (two
+    status names: the boundary between points of the first and of the second). ``rtol``: relative
+    tolerance in the parameter; ``criterion_accuracy``: absolute accuracy of the criterion in its
+    unit (None: from the solver, see boundaries.criterion_accuracy)."""
+
+    along: str
+    criterion: str | None = None
+    level: float = math.nan
+    status_change: tuple[str, str] | None = None
+    rtol: float = 1e-10
+    criterion_accuracy: float | None = None
+    continue_in: str | None = None  # a second axis: follow each located boundary in (along, continue_in)
+
+    def as_dict(self) -> dict:
+        d = {"along": self.along, "rtol": self.rtol}
+        if self.continue_in is not None:
+            d["continue_in"] = self.continue_in
+        if self.criterion is not None:
+            d.update(criterion=self.criterion, level=self.level)
+            if self.criterion_accuracy is not None:
+                d["criterion_accuracy"] = self.criterion_accuracy
+        else:
+            d["status_change"] = list(self.status_change)
+        return d
+
+
+BOUNDARY_KEYS = ("along", "criterion", "level", "status_change", "rtol", "criterion_accuracy", "continue_in")
+BOUNDARY_RTOL = (1e-15, 1e-2)
+
+
+@dataclass(frozen=True)
 class Scene:
     name: str
     model: ModelSpec
@@ -193,6 +227,9 @@ class Scene:
     # _model_source_key); "" for a built-in model. Part of the canonical form: two files declaring
     # a model of one name are two scenes, the same file is the same scene.
     model_key: str = ""
+    # the [boundaries] section, None without one; not part of the canonical form (it does not
+    # change the grid's dataset: boundaries are located in a separate pass, boundaries.py)
+    boundaries: Boundaries | None = None
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -362,6 +399,7 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
         solver = None
     storage = _storage(_table(data, "storage", p), name if isinstance(name, str) else "scene", p)
     execution = _execution(_table(data, "execution", p), p)
+    boundaries = _boundaries(_table(data, "boundaries", p), model, axes, outputs, p) if "boundaries" in data else None
     if axes:
         n = math.prod(a.size for a in axes)
         if n > MAX_POINTS:
@@ -382,6 +420,7 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
         execution=execution,
         base=_model_folder(head.get("model"), base),
         model_key=_model_source_key(head.get("model"), model, base, models),
+        boundaries=boundaries,
     )
 
 
@@ -794,6 +833,87 @@ def _execution(table: Mapping, p: _Problems) -> Execution:
         p.add("execution.worker_timeout", why)
         timeout = Execution.worker_timeout
     return Execution(scheduler=scheduler, worker_timeout=float(timeout))
+
+
+def _boundaries(table: Mapping, model: ModelSpec, axes: list, outputs: tuple, p: _Problems) -> Boundaries | None:
+    """The [boundaries] section; every problem names its key and what is allowed."""
+    from . import status as st
+
+    n0 = len(p.items)
+    for k in table:
+        if k not in BOUNDARY_KEYS:
+            p.unknown(f"boundaries.{k}", k, BOUNDARY_KEYS, "boundaries key")
+    ranged = [a.name for a in axes if a.size >= 2 and not model.param(a.name).categorical]
+    along = table.get("along")
+    if along is None:
+        p.add("boundaries.along", f"missing; expected the name of an axis of at least 2 numeric values "
+              f"({', '.join(ranged) or 'this scene has none'})")
+    elif along not in ranged:
+        p.unknown("boundaries.along", along, ranged or ("(none: give an axis of at least 2 numeric values)",),
+                  "axis to locate boundaries along")
+    crit, change = table.get("criterion"), table.get("status_change")
+    level, criterion_accuracy, pair = math.nan, None, None
+    if (crit is None) == (change is None):
+        p.add("boundaries", "give exactly one of criterion (an output crossing a level) and status_change "
+              "(a pair of status names)")
+    scalar = [o for o in outputs if not model.output(o).extra_dims]
+    if crit is not None:
+        if crit not in scalar:
+            p.unknown("boundaries.criterion", crit, scalar or ("(none: request a scalar output)",),
+                      "criterion (a scalar output in scene.outputs)")
+            crit = None
+        lv = table.get("level")
+        if lv is None:
+            if crit is not None and model.output(crit).kind == "floquet_max":
+                lv = 1.0  # the unit circle
+            else:
+                p.add("boundaries.level", f"missing; the value of {crit or 'the criterion'} at the boundary "
+                      "(a finite number)")
+        if lv is not None:
+            if isinstance(lv, bool) or not isinstance(lv, (int, float)) or not math.isfinite(lv):
+                p.add("boundaries.level", f"{_short(lv)} is not allowed; expected a finite number")
+            else:
+                level = float(lv)
+        acc = table.get("criterion_accuracy")
+        if acc is not None:
+            if isinstance(acc, bool) or not isinstance(acc, (int, float)) or not (math.isfinite(acc) and acc >= 0):
+                p.add("boundaries.criterion_accuracy", f"{_short(acc)} is not allowed; expected a finite number >= 0 "
+                      "(absolute, in the criterion's unit)")
+            else:
+                criterion_accuracy = float(acc)
+    else:
+        for k in ("level", "criterion_accuracy"):
+            if k in table:
+                p.add(f"boundaries.{k}", "is only allowed with criterion, not with status_change")
+    if change is not None:
+        names = tuple(v for k, v in sorted(st.MEANINGS.items()) if k != st.PENDING)
+        if not isinstance(change, list) or len(change) != 2:
+            p.add("boundaries.status_change", f"{_short(change)} is not allowed; expected two status names, "
+                  f"e.g. [\"ok\", \"not_oscillatory\"], from {', '.join(names)}")
+        else:
+            for item in change:
+                if item not in names:
+                    p.unknown("boundaries.status_change", item, names, "status")
+            if change[0] == change[1]:
+                p.add("boundaries.status_change", f"{change[0]!r} twice; expected two different statuses")
+            pair = (change[0], change[1])
+    cont = table.get("continue_in")
+    if cont is not None:
+        if cont not in [a for a in ranged if a != along]:
+            p.unknown("boundaries.continue_in", cont, [a for a in ranged if a != along] or
+                      ("(none: give a second axis of at least 2 numeric values)",), "axis to continue boundaries in")
+        elif change is not None:
+            p.add("boundaries.continue_in", "needs a criterion: a change of status cannot be continued")
+    rtol = table.get("rtol", Boundaries.rtol)
+    lo, hi = BOUNDARY_RTOL
+    if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not lo <= rtol <= hi:
+        p.add("boundaries.rtol", f"{_short(rtol)} is not allowed; expected a number in [{lo:g}, {hi:g}] "
+              "(relative tolerance in the parameter)")
+        rtol = Boundaries.rtol
+    if len(p.items) > n0:
+        return None
+    return Boundaries(along=along, criterion=crit, level=level, status_change=pair, rtol=float(rtol),
+                      criterion_accuracy=criterion_accuracy, continue_in=cont)
 
 
 def _slug(name: str) -> str:
