@@ -138,6 +138,8 @@ class ModelSpec:
     gives only its two ends (a range is monotone: they are its extremes), so that a check
     never expands a grid.
     ``methods``: the values of ``solver.method`` this model's integrated outputs support.
+    ``methods_for(outputs)`` (optional): the methods a choice of outputs (closed under ``needs``)
+    supports, when some outputs offer fewer than ``methods``; a scene asking another is refused.
     """
 
     name: str
@@ -149,6 +151,7 @@ class ModelSpec:
     settings: tuple[Setting, ...] = ()
     check: Callable | None = field(default=None, repr=False)
     methods: tuple[str, ...] = ("dop853",)  # integration methods `evaluate` offers (solver.method)
+    methods_for: Callable | None = field(default=None, repr=False)
 
     def param(self, name: str) -> Param:
         return self._params_by_name()[name]
