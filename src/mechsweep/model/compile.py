@@ -143,7 +143,7 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
         scr.append(3 * n_s)
     scr += [m.scratch(n_s) for m in chosen if hasattr(m, "scratch")]
     n_scr = max(scr)
-    uses = {"dop853": method in ("dop853", "auto") or not direct,
+    uses = {"dop853": bool(chosen) and (method in ("dop853", "auto") or not direct),
             "radau": direct and method in ("radau", "auto"),
             "symplectic": direct and method == "symplectic"}
     lines = [
