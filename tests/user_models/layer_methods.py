@@ -78,3 +78,25 @@ LINEAR = OdeModel(
     closed_forms=(ClosedForm("period_exact", period_exact, "T_exact", "s"),
                   ClosedForm("period_error", error, "err", "1", needs=("period", "period_exact"))),
 )
+
+
+def raising_closed_form(p):
+    if p[0] > 2.0:
+        raise ValueError("w too large for this formula")
+    return 1.0 / p[0]
+
+
+def raising_event(t, y, p):
+    if p[0] > 3.0:
+        raise ValueError("w too large for this event")
+    return p[4] * y[0]
+
+
+RAISING = OdeModel(
+    name="layer_raising",
+    description="LINEAR whose closed form raises for w > 2 and whose event raises for w > 3",
+    params=LINEAR.params, settings=LINEAR.settings, internal=LINEAR.internal, states=LINEAR.states,
+    prepare=prepare, rhs=rhs, initial=initial,
+    measurements=(FirstEvent("period", raising_event, t_max=horizon, value=period_from_quarter),),
+    closed_forms=(ClosedForm("inverse", raising_closed_form),),
+)

@@ -54,31 +54,32 @@ def _folder() -> Path:
 
 # An exception the user's code raises inside the parallel loop (at a point the load-time probe did
 # not see) must not escape the kernel: numba then either loses it or leaves the Python error
-# indicator set (SystemError, a traceback). The guards catch it and write NaN, so the point ends
-# NONFINITE (forcing_period: NaN, so Floquet says INFEASIBLE) and the other points are computed.
+# indicator set (SystemError, a traceback). The guards catch it, write NaN (or return USER_ERROR
+# from classify/prepare) and raise the point's flag p[NPI] (the slot after the internal ones); the
+# kernel gives the point status USER_ERROR and computes the other points.
 _GUARD = {
     "rhs": "@jit\ndef rhs(t, y, p, dydt):\n    try:\n        user_rhs(t, y, p, dydt)\n    except Exception:\n"
-           "        dydt[:] = np.nan\n",
+           "        dydt[:] = np.nan\n        p[NPI] = 1.0\n",
     "initial": "@jit\ndef initial(p, y0):\n    try:\n        user_initial(p, y0)\n    except Exception:\n"
-               "        y0[:] = np.nan\n",
+               "        y0[:] = np.nan\n        p[NPI] = 1.0\n",
     "forcing": "@jit\ndef forcing(p):\n    try:\n        return user_forcing(p)\n    except Exception:\n"
-               "        return np.nan\n",
+               "        p[NPI] = 1.0\n        return np.nan\n",
     "jac": "@jit\ndef jac(t, y, p, J):\n    try:\n        user_jac(t, y, p, J)\n    except Exception:\n"
-           "        J[:, :] = np.nan\n",
+           "        J[:, :] = np.nan\n        p[NPI] = 1.0\n",
     "accel": "@jit\ndef accel(t, q, p, a):\n    try:\n        user_accel(t, q, p, a)\n    except Exception:\n"
-             "        a[:] = np.nan\n",
+             "        a[:] = np.nan\n        p[NPI] = 1.0\n",
     "classify": "@jit\ndef classify(p):\n    try:\n        return user_classify(p)\n    except Exception:\n"
-                "        return st.NONFINITE\n",
+                "        return st.USER_ERROR\n",
     "prepare": "@jit\ndef prepare(p, rtol):\n    try:\n        return user_prepare(p, rtol)\n    except Exception:\n"
-               "        return st.NONFINITE\n",
+               "        return st.USER_ERROR\n",
     "symplectic_step": "@jit\ndef symplectic_step(p, rtol):\n    try:\n        return user_symplectic_step(p, rtol)\n"
-                       "    except Exception:\n        return np.nan\n",
+                       "    except Exception:\n        p[NPI] = 1.0\n        return np.nan\n",
 }
 
 
-def _guard_call(name: str, args: str, what: str = "np.nan") -> str:
+def _guard_call(name: str, args: str) -> str:
     return (f"@jit\ndef {name}({args}):\n    try:\n        return user_{name}({args})\n    except Exception:\n"
-            f"        return {what}\n")
+            f"        p[NPI] = 1.0\n        return np.nan\n")
 
 
 def columns(chosen) -> list[int]:
@@ -160,7 +161,8 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
     for name in refs:
         if name in _GUARD:
             lines.append(_GUARD[name] + "\n")
-    lines.append(f"NP = {n_p}\nNSET = {n_set}\nNPI = {npi}\nNS = {n_s}\nNQ = {n_q}\nNSCR = {n_scr}\n"
+    lines.append(f"NP = {n_p}\nNSET = {n_set}\nNPI = {npi}  # p[NPI]: the point's user-error flag\nSCR = NPI + 1\n"
+                 f"NS = {n_s}\nNQ = {n_q}\nNSCR = {n_scr}\n"
                  f"BLOCK = {BLOCK}\n")
     for j, c in enumerate(closed):
         args = ", ".join(["p"] + [f"x{i}" for i in range(len(c.needs))])
@@ -171,9 +173,9 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
 @jit
 def jac(t, y, p, J):
     # engine-built Jacobian: central differences of rhs, step cbrt(eps) max(1, |y_j|) (scratch in p)
-    yp = p[NPI:NPI + NS]
-    fp = p[NPI + NS:NPI + 2 * NS]
-    fm = p[NPI + 2 * NS:NPI + 3 * NS]
+    yp = p[SCR:SCR + NS]
+    fp = p[SCR + NS:SCR + 2 * NS]
+    fm = p[SCR + 2 * NS:SCR + 3 * NS]
     for j in range(NS):
         for i in range(NS):
             yp[i] = y[i]
@@ -213,7 +215,7 @@ def jac(t, y, p, J):
 
 @jit
 def qevent{k}(t, q, v, p):  # the event on y = (q, v), copied into scratch
-    yb = p[NPI:NPI + NS]
+    yb = p[SCR:SCR + NS]
     for j in range(NQ):
         yb[j] = q[j]
         yb[NQ + j] = v[j]
@@ -232,7 +234,7 @@ solve{k}_s = symplectic.make_event_solver(accel, qevent{k}, {int(model.symplecti
             if k in group:
                 continue
             lines.append(f"\n# ---- measurement {k}: {_describe(m)}\n")
-            lines.append(m.source(k, model.states, npi, "jac" in refs) if hasattr(m, "scratch")
+            lines.append(m.source(k, model.states, npi + 1, "jac" in refs) if hasattr(m, "scratch")
                          else m.source(k, model.states))
     cols = columns(chosen)
     closed_col = {c.name: cols[-1] + j for j, c in enumerate(closed)}
@@ -252,7 +254,7 @@ solve{k}_s = symplectic.make_event_solver(accel, qevent{k}, {int(model.symplecti
                 table[i, {closed_col[c.name]}] = cf{j}""")
         return "".join(out)
 
-    scratch = ["\n        p = np.empty(NPI + NSCR)", "\n        y = np.empty(NS)"]
+    scratch = ["\n        p = np.empty(SCR + NSCR)", "\n        y = np.empty(NS)"]
     if uses["dop853"]:
         scratch.append("\n        work = dop853.workspace(NS)")
     if uses["radau"]:
@@ -341,6 +343,8 @@ solve{k}_s = symplectic.make_event_solver(accel, qevent{k}, {int(model.symplecti
                 if c == st.OK:
                     val = value{k}(p, val)""")
             meas.append(f"""
+                if p[NPI] != 0.0:
+                    c = st.USER_ERROR
                 if c == st.OK and not math.isfinite(val):
                     c = st.NONFINITE
                 if c == st.OK:
@@ -364,9 +368,11 @@ def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
                 p[j] = P[i, j]
             for j in range(NSET):
                 p[NP + j] = S[j]
-            for j in range(NP + NSET, NPI + NSCR):
+            for j in range(NP + NSET, SCR + NSCR):
                 p[j] = 0.0
             code = st.OK{''.join(body)}
+            if p[NPI] != 0.0 and code == st.OK:
+                code = st.USER_ERROR
             status[i] = code
 """)
     return "".join(lines)
