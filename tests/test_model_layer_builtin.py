@@ -140,3 +140,45 @@ def test_an_exception_in_the_models_code_at_run_time_is_user_error():
     assert status.tolist() == [st.OK, st.OK, st.USER_ERROR] and np.isnan(out["period"][2])
     np.testing.assert_allclose(out["period"][:2], 2 * np.pi / P[:2, 0], rtol=1e-8)
     assert st.MEANINGS[st.USER_ERROR] == "user_error"
+
+
+_BUILTIN_PROBE = """
+import json
+import numpy as np
+from mechsweep.model import compile as mc, load
+from mechsweep.models import duffing
+P = np.array([[1.0, 0.5, 0.5], [2.0, -0.1, 1.0]])
+wanted = ("period", "period_exact", "kv")
+out = {k: np.full(2, np.nan) for k in wanted}
+status, ns, nr = np.zeros(2, np.int8), np.zeros(2, np.int64), np.zeros(2, np.int64)
+from mechsweep.scene import Solver
+duffing.evaluate(P, wanted, Solver.for_model(duffing.SPEC), out, status, ns, nr)
+ds = list(mc._KERNELS.values()) + list(load._JITTED.values())
+print(json.dumps({"period": out["period"].tolist(), "n": len(ds),
+                  "kernel_hits": sum(sum(k.stats.cache_hits.values()) for k in mc._KERNELS.values()),
+                  "misses": sum(sum(d.stats.cache_misses.values()) for d in ds),
+                  "hits": sum(sum(d.stats.cache_hits.values()) for d in ds)}))
+"""
+
+
+@slow
+def test_second_process_compiles_nothing_for_the_built_in_duffing(tmp_path):
+    """The built-in model takes the generated-module route too: a second fresh process loads its
+    kernel and the model's functions from numba's disk cache (cache statistics, not timing)."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(tmp_path),
+               PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
+    runs = []
+    for _ in range(2):
+        res = subprocess.run([sys.executable, "-c", _BUILTIN_PROBE], capture_output=True, text=True, env=env,
+                             cwd=tmp_path)
+        assert res.returncode == 0, res.stderr
+        runs.append(json.loads(res.stdout.strip().splitlines()[-1]))
+    first, second = runs
+    assert first["misses"] > 0
+    assert second["misses"] == 0 and second["kernel_hits"] == 1  # the model's functions: not even loaded
+    assert second["period"] == first["period"]
