@@ -1,5 +1,7 @@
 """Generic measurements of an :class:`~mechsweep.model.ode.OdeModel`.
 
+FirstEvent (an event function, any method) and ClosedForm (a formula output) are at the end.
+
 Each measurement declares its output (name, unit, long name) and knows how to write, as Python
 source, one jitted function ``measure(y, p, rtol, atol, max_steps, work) -> (status, value, n_steps,
 n_rhs)`` for the generated chunk kernel (see compile.py). ``y`` holds the initial state on entry and
@@ -474,14 +476,14 @@ class FirstEvent:
 @dataclass(frozen=True)
 class ClosedForm:
     """An output given by a formula: ``func(p, *needed) -> float``, plain numba-compilable Python
-    of the point's parameters (and settings, internal slots after ``prepare``... no: before it;
-    see below) and of the values of the outputs named in ``needs`` (closed forms or
-    measurements, in that order), e.g. kv = v_max T / A or period_error = |T - T_exact| / T_exact.
+    of the point's parameters and settings (``p[0 .. len(params) + len(settings) - 1]``) and of the
+    values of the outputs named in ``needs`` (other closed forms or measurements), passed in the
+    order of ``needs``; e.g. kv = v_max T / A or period_error = |T - T_exact| / T_exact.
 
     Computed in the generated kernel only when wanted (or needed by a wanted output), after the
-    model's ``classify`` (a point it rejects gets NaN) and before ``prepare``: ``func`` reads
-    ``p[0 .. len(params) + len(settings) - 1]`` only. One that needs a measurement is computed
-    after the measurements (NaN when a needed value is NaN).
+    model's ``classify`` (a point it rejects gets NaN) and before ``prepare`` (so the internal
+    slots are not written yet). One that needs a measurement is computed after the measurements
+    (NaN when a needed value is NaN).
     ``output_needs``: what the ModelSpec says the output needs (the runner then computes those
     too and a describe shows them); default: ``needs``. Give ``()`` for a formula whose inputs
     are internal to it (kv needs v_max and period_exact to be computed, not to be stored).

@@ -178,7 +178,9 @@ class OdeModel:
             if method not in allowed:
                 raise InputError(f"solver.method: {method!r} is not offered by model {model.name!r} for the outputs "
                                  f"{', '.join(wanted)} (allowed: {', '.join(allowed)})")
-            computable = model.computable_closed_forms(chosen)
+            # closed forms by a run-time mask (one kernel for every choice of them), or none at all
+            # when none is wanted (a lean kernel: a cold compile of a period-only scene compiles no formula)
+            computable = model.computable_closed_forms(chosen) if closed else ()
             kernel = kernel_for(model, chosen, origin=origin, module=module, attr=attr, closed=computable,
                                 method=method)
             wanted_closed = {c.name for c in closed}
