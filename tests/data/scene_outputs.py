@@ -45,7 +45,8 @@ def main(mode: str, folder: str) -> int:
                 continue
             ref = np.load(f)
             same = set(ref.files) == set(arrays) and all(
-                np.array_equal(ref[k], arrays[k], equal_nan=True) and ref[k].dtype == arrays[k].dtype for k in ref.files)
+                np.array_equal(ref[k], arrays[k], equal_nan=True) and ref[k].dtype == arrays[k].dtype
+                for k in ref.files)
             bad += not same
             print(f"{path.stem} {method}: {'bitwise identical' if same else 'DIFFERENT'} "
                   f"({len(ref.files)} arrays, {arrays['status'].size} points)")

@@ -168,7 +168,7 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
         args = ", ".join(["p"] + [f"x{i}" for i in range(len(c.needs))])
         lines.append("\n" + _guard_call(f"closed{j}", args))
     if direct and uses["radau"] and "jac" not in refs:
-        lines.append(f"""
+        lines.append("""
 
 @jit
 def jac(t, y, p, J):

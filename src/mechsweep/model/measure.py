@@ -455,7 +455,8 @@ class FirstEvent:
             raise ValueError(f"{self.name}: event must be a function event(t, y, p) -> float")
         if not callable(self.t_max) and not (isinstance(self.t_max, (int, float)) and math.isfinite(self.t_max)
                                              and self.t_max > 0):
-            raise ValueError(f"{self.name}: t_max = {self.t_max!r}; expected a finite number > 0 or a function t_max(p)")
+            raise ValueError(f"{self.name}: t_max = {self.t_max!r}; expected a finite number > 0 "
+                             "or a function t_max(p)")
         if self.value is not None and not callable(self.value):
             raise ValueError(f"{self.name}: value must be a function value(p, t) -> float")
 

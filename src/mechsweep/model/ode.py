@@ -202,7 +202,8 @@ class OdeModel:
                 if c.name in out:
                     out[c.name][:] = table[:, cols[-1] + j]
 
-        outputs = tuple(o for m in self.measurements for o in _outputs(m)) + tuple(c.output() for c in self.closed_forms)
+        outputs = (tuple(o for m in self.measurements for o in _outputs(m))
+                   + tuple(c.output() for c in self.closed_forms))
         if self.output_order:
             by_name = {o.name: o for o in outputs}
             outputs = tuple(by_name[n] for n in self.output_order)
