@@ -75,7 +75,7 @@ def _evaluate(spec, P, wanted, **solver):
     return out, status, ns, nr
 
 
-@pytest.mark.parametrize("method", ["dop853", "radau", pytest.param("symplectic", marks=slow),
+@pytest.mark.parametrize("method", ["dop853", pytest.param("radau", marks=slow), pytest.param("symplectic", marks=slow),
                                     pytest.param("auto", marks=slow)])
 def test_user_model_methods_prepare_and_closed_forms(method):
     spec = _user()
