@@ -172,14 +172,15 @@ def test_unfinished_run_reads_and_resumes_from_another_directory(tmp_path, monke
 
 
 def test_rhs_raising_at_a_point_the_probe_did_not_see_is_a_status(in_tmp):
-    """The probe (w = 1) passes; at w = 3 the compiled rhs raises inside the parallel loop. Today
-    numba does not propagate it: the point ends NONFINITE (no crash, no traceback), the others OK."""
+    """The probe (w = 1) passes; at w = 3 the compiled rhs raises inside the parallel loop. numba does
+    not propagate it; the generated guard flags the point: status USER_ERROR (no crash, no
+    traceback), the others OK."""
     _scene_folder(in_tmp)
     text = SCENE_TEXT.format(model=_ref(in_tmp / "scenes")).replace("[0.5, 1.0, 1.5, 2.0]", "[1.0, 3.0, 2.0]")
     (in_tmp / "scenes" / "r.toml").write_text(text)
     assert main(["run", "scenes/r.toml", "-o", "r.h5"]) == 0
     ds = mechsweep.open_dataset("r.h5")
-    assert ds["status"].values.tolist() == [st.OK, st.NONFINITE, st.OK]
+    assert ds["status"].values.tolist() == [st.OK, st.USER_ERROR, st.OK]
     assert math.isnan(ds["x_at_1"].values[1])
     np.testing.assert_allclose(ds["x_at_1"].values[[0, 2]], np.cos([1.0, 2.0]), atol=1e-9)
 

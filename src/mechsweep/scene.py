@@ -397,6 +397,11 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
     solver = _solver(_table(data, "solver", p), model, p)
     if not model.needs_integration(outputs):
         solver = None
+    elif model.methods_for is not None and not p.items:
+        allowed = model.methods_for(model.closure(outputs))
+        if solver.method not in allowed:
+            p.add("solver.method", f"{solver.method!r} is not offered by model {model.name!r} for the outputs "
+                  f"{', '.join(outputs)} (allowed for them: {', '.join(allowed)})")
     storage = _storage(_table(data, "storage", p), name if isinstance(name, str) else "scene", p)
     execution = _execution(_table(data, "execution", p), p)
     boundaries = _boundaries(_table(data, "boundaries", p), model, axes, outputs, p) if "boundaries" in data else None

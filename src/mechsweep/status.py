@@ -25,6 +25,7 @@ UNDECIDED = 10  # stability undecided (simulation inconclusive, or |multiplier| 
 STIFF = 11  # the explicit method detected stiffness and no implicit method was allowed to take over
 ILL_CONDITIONED = 12  # the output is too sensitive here to reach the tolerance in double precision
 NOT_REPRODUCIBLE = 13  # the value moved by more than its tolerance when integrated again at a tighter one
+USER_ERROR = 14  # the model's own code (a user model's function) raised at this point
 
 # what an integration (or a tolerance it cannot reach) can end with, for models to declare
 INTEGRATION_FAILURES = (MAX_STEPS, STEP_UNDERFLOW, NONFINITE, NO_EVENT, STIFF, ILL_CONDITIONED)
@@ -45,6 +46,7 @@ MEANINGS: dict[int, str] = {
     STIFF: "stiff",
     ILL_CONDITIONED: "ill_conditioned",
     NOT_REPRODUCIBLE: "not_reproducible",
+    USER_ERROR: "user_error",
 }
 
 DESCRIPTIONS: dict[int, str] = {
@@ -69,6 +71,8 @@ DESCRIPTIONS: dict[int, str] = {
     NOT_REPRODUCIBLE: "integrated again at a tighter tolerance, an output moved by more than the tolerance it "
                       "claims (or the second integration failed): the value is stored but its trailing digits "
                       "are not meaningful (chaotic or transient-dominated motion)",
+    USER_ERROR: "the model's own code raised at this point (an exception in a function of a model declared on "
+                "the model layer, inside the compiled kernel; its message is lost): its outputs are NaN",
 }
 
 DTYPE = np.int8

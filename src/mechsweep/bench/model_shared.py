@@ -30,8 +30,9 @@ def main(argv=None) -> None:
     for shared in (False, True):
         t0 = time.perf_counter()
         kernel = kernel_for(model, chosen, shared=shared)
+        S, need = np.zeros(0), np.zeros(0, dtype=bool)  # no settings, no closed forms
         table = np.full((2, len(chosen)), np.nan)
-        kernel(P[:2].copy(), rtol, atol, max_steps, table, np.zeros(2, st.DTYPE), np.zeros(2, np.int64),
+        kernel(P[:2].copy(), S, need, rtol, atol, max_steps, table, np.zeros(2, st.DTYPE), np.zeros(2, np.int64),
                np.zeros(2, np.int64))
         t_compile = time.perf_counter() - t0
         best = np.inf
@@ -39,7 +40,7 @@ def main(argv=None) -> None:
             table = np.full((n, len(chosen)), np.nan)
             status, ns, nr = np.zeros(n, st.DTYPE), np.zeros(n, np.int64), np.zeros(n, np.int64)
             t0 = time.perf_counter()
-            kernel(P, rtol, atol, max_steps, table, status, ns, nr)
+            kernel(P, S, need, rtol, atol, max_steps, table, status, ns, nr)
             best = min(best, time.perf_counter() - t0)
         results[shared] = table
         print(f"{'shared  ' if shared else 'separate'}: compile+first call {t_compile:6.1f} s, {n} points in "

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from ..models import duffing
+from ..models import _duffing_scaled, duffing
 from ..scene import Solver
 
 LADDER = ((1e-8, 1e-10), (1e-9, 1e-11), (1e-10, 1e-12), (1e-10, 1e-13), (5e-11, 1e-12), (2e-11, 1e-13),
@@ -50,10 +50,10 @@ def plain_period_error(gap: float, rtol: float) -> float:
     equation x = phi / A with rtol, atol = rtol / 50 (not the saddle coordinates the model uses)."""
     omega2, mu, A = 1.0, -(1.0 - gap), 1.0
     w2 = omega2 + abs(mu)
-    p = np.array([omega2 / w2, mu / w2, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])  # plain formulation, duffing.N_P slots
+    p = np.array([omega2 / w2, mu / w2, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])  # plain formulation, _duffing_scaled.N_P slots
     y = np.array([1.0, 0.0])
-    code, tq, _, _ = duffing.quarter_period_solver(0.0, y, p, 200 * math.pi, rtol, rtol / 50, 0.0, 10**6,
-                                                   duffing.dop853.workspace(2))
+    code, tq, _, _ = _duffing_scaled.quarter_period_solver(0.0, y, p, 200 * math.pi, rtol, rtol / 50, 0.0, 10**6,
+                                                   _duffing_scaled.dop853.workspace(2))
     exact = duffing.period_closed_form(omega2, mu, A)
     return abs(4.0 * tq / math.sqrt(w2) - exact) / exact if code == 0 else math.nan
 

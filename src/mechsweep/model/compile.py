@@ -1,13 +1,27 @@
-"""Declaration + wanted measurements -> one parallel chunk kernel, written as a real module file.
+"""Declaration + wanted outputs + method -> one parallel chunk kernel, written as a real module file.
 
 numba's disk cache misses, in every new process, for a parallel kernel that receives a user's
 dispatcher as an argument or closes over it. So the kernel's source is generated as a module file
-in the cache folder (``<mechsweep cache>/models/mechsweep_gen_<hash>.py``) that imports the user's
-rhs and initial by module path and is compiled with ``cache=True`` (via ``_jit.pjit``). The file name
-is keyed by a hash of the user's module source, the functions' names, the number of parameters and
-states and the wanted measurements (with all their settings): a changed model or a different choice
-of outputs gets a new file, an unchanged one the same file and, in a new process, numba's cached
-machine code. The folder itself is keyed by the package sources (see _jit.py).
+in the cache folder (``<mechsweep cache>/models/mechsweep_gen_<hash>.py``) that imports the model's
+functions by module path and is compiled with ``cache=True`` (via ``_jit.pjit``). The file name
+is keyed by a hash of the model's module sources, the functions' names, the layout of ``p`` (number
+of parameters, settings, internal slots, states), the wanted measurements (with all their settings),
+the wanted closed forms and the method: a changed model or a different choice of outputs or method
+gets a new file, an unchanged one the same file and, in a new process, numba's cached machine code.
+The folder itself is keyed by the package sources (see _jit.py). Built-in models (mechsweep.models)
+take the same route.
+
+The kernel (one per choice; see docs/model-layer.md):
+
+    for each block of BLOCK points (prange; points of a block strided over the grid):
+        scratch of the block: p, y, the method's workspace(s)
+        for each point: p = (parameters, settings, internal slots = 0, scratch = 0)
+            status = classify(p)                         -> non-OK: every output NaN, next point
+            closed forms that need no measurement        (only those wanted or needed: need[j])
+            status = prepare(p)                          -> non-OK: measurements NaN, closed forms kept
+            measurements: a FirstEvent (or a lone first Crossing) calls the method's event solver
+                          directly; the others observe one shared DOP853 trajectory (dop853 only)
+            closed forms that need a measurement
 """
 from __future__ import annotations
 
@@ -24,6 +38,8 @@ from . import load
 _KERNELS: dict[str, object] = {}
 _TMP: list[str] = []
 
+BLOCK = 16  # points per scratch allocation inside the parallel loop
+
 
 def _folder() -> Path:
     if _jit.cache_dir is not None:
@@ -38,35 +54,32 @@ def _folder() -> Path:
 
 # An exception the user's code raises inside the parallel loop (at a point the load-time probe did
 # not see) must not escape the kernel: numba then either loses it or leaves the Python error
-# indicator set (SystemError, a traceback). The guards catch it and write NaN, so the point ends
-# NONFINITE (forcing_period: NaN, so Floquet says INFEASIBLE) and the other points are computed.
-_GUARDS = """
+# indicator set (SystemError, a traceback). The guards catch it, write NaN (or return USER_ERROR
+# from classify/prepare) and raise the point's flag p[NPI] (the slot after the internal ones); the
+# kernel gives the point status USER_ERROR and computes the other points.
+_GUARD = {
+    "rhs": "@jit\ndef rhs(t, y, p, dydt):\n    try:\n        user_rhs(t, y, p, dydt)\n    except Exception:\n"
+           "        dydt[:] = np.nan\n        p[NPI] = 1.0\n",
+    "initial": "@jit\ndef initial(p, y0):\n    try:\n        user_initial(p, y0)\n    except Exception:\n"
+               "        y0[:] = np.nan\n        p[NPI] = 1.0\n",
+    "forcing": "@jit\ndef forcing(p):\n    try:\n        return user_forcing(p)\n    except Exception:\n"
+               "        p[NPI] = 1.0\n        return np.nan\n",
+    "jac": "@jit\ndef jac(t, y, p, J):\n    try:\n        user_jac(t, y, p, J)\n    except Exception:\n"
+           "        J[:, :] = np.nan\n        p[NPI] = 1.0\n",
+    "accel": "@jit\ndef accel(t, q, p, a):\n    try:\n        user_accel(t, q, p, a)\n    except Exception:\n"
+             "        a[:] = np.nan\n        p[NPI] = 1.0\n",
+    "classify": "@jit\ndef classify(p):\n    try:\n        return user_classify(p)\n    except Exception:\n"
+                "        return st.USER_ERROR\n",
+    "prepare": "@jit\ndef prepare(p, rtol):\n    try:\n        return user_prepare(p, rtol)\n    except Exception:\n"
+               "        return st.USER_ERROR\n",
+    "symplectic_step": "@jit\ndef symplectic_step(p, rtol):\n    try:\n        return user_symplectic_step(p, rtol)\n"
+                       "    except Exception:\n        p[NPI] = 1.0\n        return np.nan\n",
+}
 
-@jit
-def rhs(t, y, p, dydt):
-    try:
-        user_rhs(t, y, p, dydt)
-    except Exception:
-        dydt[:] = np.nan
 
-
-@jit
-def initial(p, y0):
-    try:
-        user_initial(p, y0)
-    except Exception:
-        y0[:] = np.nan
-
-"""
-_FORCING_GUARD = """
-@jit
-def forcing(p):
-    try:
-        return user_forcing(p)
-    except Exception:
-        return np.nan
-
-"""
+def _guard_call(name: str, args: str) -> str:
+    return (f"@jit\ndef {name}({args}):\n    try:\n        return user_{name}({args})\n    except Exception:\n"
+            f"        p[NPI] = 1.0\n        return np.nan\n")
 
 
 def columns(chosen) -> list[int]:
@@ -79,117 +92,319 @@ def columns(chosen) -> list[int]:
     return cols + [c]
 
 
-def kernel_source(model, chosen, rhs_ref, initial_ref, origin: str, forcing_ref=None, shared: bool = True,
-                  jac_ref=None) -> str:
-    """Source of the generated module. With ``shared`` (the default) the measurements that can
-    (those with ``shared_row``: Crossing, Period, StateAt, Extremum) observe one integration per
-    point (measure.make_shared); the others (Floquet) integrate on their own. ``shared=False``
-    gives every measurement its own integration (the first stage's kernel, kept for the bench)."""
-    n_p, n_s = len(model.params), len(model.states)
-    group = [k for k, m in enumerate(chosen) if shared and hasattr(m, "shared_row")]
-    n_scr = max([n_s] + [m.scratch(n_s) for m in chosen if hasattr(m, "scratch")])
-    parts = [
-        f'"""Generated by mechsweep.model.compile for model {model.name!r} ({origin}).\n'
+def _describe(m) -> str:
+    """A measurement as the generated source names it: the same text in every process (no
+    function addresses, which would rewrite the file and void numba's cache index)."""
+    return repr(m.key()) if hasattr(m, "key") else repr(m)
+
+
+def is_direct(chosen) -> bool:
+    """Whether the chosen measurements integrate on their own with any method: FirstEvents, or one
+    Crossing with n = 1 alone (no shared trajectory to build for a single first crossing)."""
+    if not chosen:
+        return False
+    if all(getattr(m, "direct", False) for m in chosen):
+        return True
+    return len(chosen) == 1 and type(chosen[0]).__name__ == "Crossing" and chosen[0].n == 1
+
+
+def layout(model) -> tuple[int, int, int]:
+    """(parameters, settings, internal slots): p[0:a] parameters, p[a:a+b] settings, p[a+b:a+b+c]
+    internal slots written by prepare, then scratch."""
+    return len(model.params), len(model.settings), len(model.internal)
+
+
+def _functions(model, chosen, closed) -> list[tuple[str, object]]:
+    """(name in the generated module, user function) of everything the kernel calls."""
+    f = [("rhs", model.rhs), ("initial", model.initial)]
+    for role in ("forcing", "jac", "accel", "classify", "prepare", "symplectic_step"):
+        func = getattr(model, "forcing_period" if role == "forcing" else role, None)
+        if func is not None:
+            f.append((role, func))
+    for k, m in enumerate(chosen):
+        for role, func in getattr(m, "functions", lambda: ())():
+            f.append((f"{role}{k}", func))
+    for j, c in enumerate(closed):
+        f.append((f"closed{j}", c.func))
+    return f
+
+
+def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, closed=(), method: str = "dop853",
+                  direct: bool | None = None) -> str:
+    """Source of the generated module. ``refs``: name -> (module, path, qualname) of every function
+    in _functions. ``closed``: the closed forms to compute, in dependency order."""
+    n_p, n_set, n_int = layout(model)
+    n_s = len(model.states)
+    n_q = n_s // 2
+    npi = n_p + n_set + n_int
+    direct = is_direct(chosen) if direct is None else direct
+    group = [] if direct else [k for k, m in enumerate(chosen) if shared and hasattr(m, "shared_row")]
+    scr = [n_s]
+    if direct and method in ("radau", "auto") and "jac" not in refs:
+        scr.append(3 * n_s)
+    scr += [m.scratch(n_s) for m in chosen if hasattr(m, "scratch")]
+    n_scr = max(scr)
+    uses = {"dop853": bool(chosen) and (method in ("dop853", "auto") or not direct),
+            "radau": direct and method in ("radau", "auto"),
+            "symplectic": direct and method == "symplectic"}
+    lines = [
+        f'"""Generated by mechsweep.model.compile for model {model.name!r} ({origin}), method {method}.\n'
         'Do not edit: a changed model gets a new file."""\n'
         "import math\n\nimport numpy as np\n\n"
         "from mechsweep import status as st\n"
         "from mechsweep._jit import jit, pjit, prange\n"
-        "from mechsweep.ode import dop853\n"
-        "from mechsweep.model.load import jitted\n\n"
-        f"user_rhs = jitted{rhs_ref!r}\n"
-        f"user_initial = jitted{initial_ref!r}\n"
-        + (f"user_forcing = jitted{forcing_ref!r}\n" if forcing_ref else "")
-        + (f"jac = jitted{jac_ref!r}\n" if jac_ref else "")
-        + _GUARDS + (_FORCING_GUARD if forcing_ref else "")
-        + f"NP = {n_p}\nNS = {n_s}\nNSCR = {n_scr}\n"
-    ]
-    if group:
-        rows = ",\n    ".join(repr(tuple(chosen[k].shared_row(model.states))) for k in group)
-        parts.append(f"\n# ---- measurements {group} on one shared trajectory\n"
-                     "from mechsweep.model.measure import make_shared\n\n"
-                     f"shared = make_shared(rhs)\nSHARED_M = np.array([\n    {rows}])\nNSH = {len(group)}\n")
-    for k, m in enumerate(chosen):
-        if k in group:
-            continue
-        parts.append(f"\n# ---- measurement {k}: {m!r}\n")
-        parts.append(m.source(k, model.states, n_p, jac_ref is not None) if hasattr(m, "scratch")
-                     else m.source(k, model.states))
+        "from mechsweep.ode import dop853, radau, symplectic\n"
+        "from mechsweep.model.load import jitted\n\n"]
+    for name, ref in refs.items():
+        lines.append(f"user_{name} = jitted{ref!r}\n")
+    lines.append("\n")
+    for name in refs:
+        if name in _GUARD:
+            lines.append(_GUARD[name] + "\n")
+    lines.append(f"NP = {n_p}\nNSET = {n_set}\nNPI = {npi}  # p[NPI]: the point's user-error flag\nSCR = NPI + 1\n"
+                 f"NS = {n_s}\nNQ = {n_q}\nNSCR = {n_scr}\n"
+                 f"BLOCK = {BLOCK}\n")
+    for j, c in enumerate(closed):
+        args = ", ".join(["p"] + [f"x{i}" for i in range(len(c.needs))])
+        lines.append("\n" + _guard_call(f"closed{j}", args))
+    if direct and uses["radau"] and "jac" not in refs:
+        lines.append("""
+
+@jit
+def jac(t, y, p, J):
+    # engine-built Jacobian: central differences of rhs, step cbrt(eps) max(1, |y_j|) (scratch in p)
+    yp = p[SCR:SCR + NS]
+    fp = p[SCR + NS:SCR + 2 * NS]
+    fm = p[SCR + 2 * NS:SCR + 3 * NS]
+    for j in range(NS):
+        for i in range(NS):
+            yp[i] = y[i]
+        h = 6.055454452393343e-06 * max(1.0, abs(y[j]))
+        up = y[j] + h
+        dn = y[j] - h
+        yp[j] = up
+        rhs(t, yp, p, fp)
+        yp[j] = dn
+        rhs(t, yp, p, fm)
+        for i in range(NS):
+            J[i, j] = (fp[i] - fm[i]) / (up - dn)
+""")
+    # ---- measurements
+    if direct:
+        for k, m in enumerate(chosen):
+            lines.append(f"\n# ---- measurement {k}: {_describe(m)}, direct, {method}\n")
+            if type(m).__name__ == "Crossing":
+                sign = 1.0 if m.direction == "down" else -1.0
+                idx = model.states.index(m.state)
+                lines.append(f"@jit\ndef event{k}(t, y, p):\n    return {sign!r} * (y[{idx}] - {float(m.level)!r})\n\n")
+            else:
+                lines.append(_guard_call(f"event{k}", "t, y, p"))
+                if f"t_max{k}" in refs:
+                    lines.append(_guard_call(f"t_max{k}", "p"))
+                if f"value{k}" in refs:
+                    lines.append(_guard_call(f"value{k}", "p, t"))
+            if method == "dop853":
+                lines.append(f"solve{k} = dop853.make_event_solver(rhs, event{k})\n")
+            elif method == "auto":
+                lines.append(f"solve{k}_st = dop853.make_event_solver(rhs, event{k}, stiffness_test=True)\n"
+                             f"solve{k}_r = radau.make_event_solver(rhs, jac, event{k})\n")
+            elif method == "radau":
+                lines.append(f"solve{k}_r = radau.make_event_solver(rhs, jac, event{k})\n")
+            elif method == "symplectic":
+                lines.append(f"""
+
+@jit
+def qevent{k}(t, q, v, p):  # the event on y = (q, v), copied into scratch
+    yb = p[SCR:SCR + NS]
+    for j in range(NQ):
+        yb[j] = q[j]
+        yb[NQ + j] = v[j]
+    return event{k}(t, yb, p)
+
+
+solve{k}_s = symplectic.make_event_solver(accel, qevent{k}, {int(model.symplectic_order)})
+""")
+    else:
+        if group:
+            rows = ",\n    ".join(repr(tuple(chosen[k].shared_row(model.states))) for k in group)
+            lines.append(f"\n# ---- measurements {group} on one shared trajectory\n"
+                         "from mechsweep.model.measure import make_shared\n\n"
+                         f"shared = make_shared(rhs)\nSHARED_M = np.array([\n    {rows}])\nNSH = {len(group)}\n")
+        for k, m in enumerate(chosen):
+            if k in group:
+                continue
+            lines.append(f"\n# ---- measurement {k}: {_describe(m)}\n")
+            lines.append(m.source(k, model.states, npi + 1, "jac" in refs) if hasattr(m, "scratch")
+                         else m.source(k, model.states))
     cols = columns(chosen)
-    body = []
+    closed_col = {c.name: cols[-1] + j for j, c in enumerate(closed)}
+    mnames = {m.name: k for k, m in enumerate(chosen)}
+
+    def closed_code(which):
+        out = []
+        for j, c in enumerate(closed):
+            if which != any(x in mnames for x in c.needs):
+                continue
+            args = ", ".join(["p"] + [f"m{mnames[x]}" if x in mnames else f"cf{[d.name for d in closed].index(x)}"
+                                      for x in c.needs])
+            out.append(f"""
+            cf{j} = math.nan
+            if need[{j}]:
+                cf{j} = closed{j}({args})
+                table[i, {closed_col[c.name]}] = cf{j}""")
+        return "".join(out)
+
+    scratch = ["\n        p = np.empty(SCR + NSCR)", "\n        y = np.empty(NS)"]
+    if uses["dop853"]:
+        scratch.append("\n        work = dop853.workspace(NS)")
+    if uses["radau"]:
+        scratch.append("\n        rwork = radau.workspace(NS)")
+    if uses["symplectic"]:
+        scratch.append("\n        q = np.empty(NQ)\n        v = np.empty(NQ)\n        swork = symplectic.workspace(NQ)")
     if group:
+        scratch.append("\n        svals = np.empty(NSH)\n        scodes = np.empty(NSH, dtype=np.int64)")
+    body = []
+    if "classify" in refs:
         body.append("""
-        svals = np.empty(NSH)
-        scodes = np.empty(NSH, dtype=np.int64)
-        initial(p, y)
-        a, b = shared(y, p, SHARED_M, rtol, atol, max_steps, work, svals, scodes)
-        n_steps[i] += a
-        n_rhs[i] += b""")
-    for k in range(len(chosen)):
-        if k in group:
-            j = group.index(k)
-            body.append(f"""
-        c = scodes[{j}]
-        v = svals[{j}]""")
-        elif getattr(chosen[k], "n_values", 1) == 2:
-            body.append(f"""
-        initial(p, y)
-        c, v, v2, a, b = measure{k}(y, p, rtol, atol, max_steps, work)
-        n_steps[i] += a
-        n_rhs[i] += b
-        if c == st.OK:
-            table[i, {cols[k] + 1}] = v2""")
-        else:
-            body.append(f"""
-        initial(p, y)
-        c, v, a, b = measure{k}(y, p, rtol, atol, max_steps, work)
-        n_steps[i] += a
-        n_rhs[i] += b""")
-        body.append(f"""
-        if c == st.OK and not math.isfinite(v):
-            c = st.NONFINITE
-        if c == st.OK:
-            table[i, {cols[k]}] = v
-        elif code == st.OK:
-            code = c""")
-    parts.append(f"""
+            c = classify(p)
+            if c != st.OK:
+                status[i] = c
+                continue""")
+    body.append(closed_code(False))
+    if chosen:
+        for k in range(len(chosen)):
+            body.append(f"\n            m{k} = math.nan")
+        body.append("\n            c = prepare(p, rtol)" if "prepare" in refs else "\n            c = st.OK")
+        body.append("""
+            if c != st.OK:
+                code = c
+            else:""")
+        meas = []
+        if group:
+            meas.append("""
+                initial(p, y)
+                a, b_ = shared(y, p, SHARED_M, rtol, atol, max_steps, work, svals, scodes)
+                n_steps[i] += a
+                n_rhs[i] += b_""")
+        for k, m in enumerate(chosen):
+            tm = ""
+            if direct:
+                tm = f"t_max{k}(p)" if f"t_max{k}" in refs else repr(float(m.t_max))
+            if k in group:
+                j = group.index(k)
+                meas.append(f"""
+                c = scodes[{j}]
+                val = svals[{j}]""")
+            elif direct and method == "dop853":
+                meas.append(f"""
+                initial(p, y)
+                c, val, a, b_ = solve{k}(0.0, y, p, {tm}, rtol, atol, 0.0, max_steps, work)""")
+            elif direct and method == "radau":
+                meas.append(f"""
+                initial(p, y)
+                c, val, a, b_ = solve{k}_r(0.0, y, p, {tm}, rtol, atol, 0.0, max_steps, rwork)""")
+            elif direct and method == "auto":
+                meas.append(f"""
+                tm = {tm}
+                initial(p, y)
+                c, val, a, b_ = solve{k}_st(0.0, y, p, tm, rtol, atol, 0.0, max_steps, work)
+                if c == st.STIFF:  # a stiff point starts again with radau; the costs add up
+                    initial(p, y)
+                    c, val, a2, b2 = solve{k}_r(0.0, y, p, tm, rtol, atol, 0.0, max_steps, rwork)
+                    a += a2
+                    b_ += b2""")
+            elif direct and method == "symplectic":
+                meas.append(f"""
+                initial(p, y)
+                for j in range(NQ):
+                    q[j] = y[j]
+                    v[j] = y[NQ + j]
+                h = symplectic_step(p, rtol)
+                if not h > 0.0:
+                    c, val, a, b_ = st.NONFINITE, math.nan, 0, 0
+                else:
+                    c, val, a, b_ = solve{k}_s(0.0, q, v, p, h, {tm}, max_steps, swork)""")
+            elif getattr(m, "n_values", 1) == 2:
+                meas.append(f"""
+                initial(p, y)
+                c, val, val2, a, b_ = measure{k}(y, p, rtol, atol, max_steps, work)
+                if c == st.OK:
+                    table[i, {cols[k] + 1}] = val2""")
+            else:
+                meas.append(f"""
+                initial(p, y)
+                c, val, a, b_ = measure{k}(y, p, rtol, atol, max_steps, work)""")
+            if not (k in group):
+                meas.append("""
+                n_steps[i] += a
+                n_rhs[i] += b_""")
+            if direct and f"value{k}" in refs:
+                meas.append(f"""
+                if c == st.OK:
+                    val = value{k}(p, val)""")
+            meas.append(f"""
+                if p[NPI] != 0.0:
+                    c = st.USER_ERROR
+                if c == st.OK and not math.isfinite(val):
+                    c = st.NONFINITE
+                if c == st.OK:
+                    table[i, {cols[k]}] = val
+                    m{k} = val
+                elif code == st.OK:
+                    code = c""")
+        body.append("".join(meas))
+        body.append(closed_code(True))
+    lines.append(f"""
 
 @pjit
-def kernel(P, rtol, atol, max_steps, table, status, n_steps, n_rhs):
-    for i in prange(P.shape[0]):
-        if status[i] != st.OK:
-            continue
-        p = np.empty(NP + NSCR)  # the parameters, then scratch the measurements may use
-        for j in range(NP):
-            p[j] = P[i, j]
-        for j in range(NSCR):
-            p[NP + j] = 0.0
-        y = np.empty(NS)
-        work = dop853.workspace(NS)
-        code = st.OK{''.join(body)}
-        status[i] = code
+def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
+    n = P.shape[0]
+    n_blocks = (n + BLOCK - 1) // BLOCK
+    for blk in prange(n_blocks):{''.join(scratch)}
+        for i in range(blk, n, n_blocks):  # strided: prange splits blocks statically, and cost varies along the grid
+            if status[i] != st.OK:
+                continue
+            for j in range(NP):
+                p[j] = P[i, j]
+            for j in range(NSET):
+                p[NP + j] = S[j]
+            for j in range(NP + NSET, SCR + NSCR):
+                p[j] = 0.0
+            code = st.OK{''.join(body)}
+            if p[NPI] != 0.0 and code == st.OK:
+                code = st.USER_ERROR
+            status[i] = code
 """)
-    return "".join(parts)
+    return "".join(lines)
 
 
-def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str = "", shared: bool = True):
-    """The compiled chunk kernel of ``model`` for the measurements ``chosen`` (cached in-process
-    and on disk). ``shared=False``: every measurement integrates on its own (for comparison)."""
-    rhs_ref = load.function_ref(model.rhs, "rhs", model.name)
-    initial_ref = load.function_ref(model.initial, "initial", model.name)
-    forcing_ref = (load.function_ref(model.forcing_period, "forcing_period", model.name)
-                   if model.forcing_period is not None else None)
-    jac_ref = load.function_ref(model.jac, "jac", model.name) if getattr(model, "jac", None) is not None else None
+def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str = "", shared: bool = True,
+               closed=(), method: str = "dop853"):
+    """The compiled chunk kernel ``kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps,
+    n_rhs)`` of ``model`` for the measurements ``chosen`` and the closed forms ``closed`` (dependency
+    order; closed form j is computed where ``need[j]``, a run-time choice: one kernel serves every
+    choice of closed forms) by ``method`` (cached in-process and on disk); S: the model's settings
+    in declared order.
+    ``shared=False``: every shared-path measurement integrates on its own (for comparison)."""
+    refs = {}
+    for name, func in _functions(model, chosen, closed):
+        refs[name] = load.function_ref(func, name, model.name)
+    direct = is_direct(chosen)
+    if not direct:
+        method = "dop853"  # the shared path integrates with dop853 only (ModelSpec.methods_for)
     key = hashlib.sha256()
-    for ref in (rhs_ref, initial_ref) + ((forcing_ref,) if forcing_ref else ()) + ((jac_ref,) if jac_ref else ()):
+    for name, ref in refs.items():
+        key.update(name.encode())
         key.update(repr(ref).encode())
         key.update(load.module_source(ref[0], ref[1]))
-    key.update(repr((model.name, len(model.params), len(model.states), chosen, shared)).encode())
+    key.update(repr((model.name, layout(model), len(model.states), getattr(model, "symplectic_order", 0),
+                     tuple(getattr(m, "key", lambda: m)() for m in chosen),
+                     tuple((c.name, c.needs) for c in closed), shared, method)).encode())
     name = "mechsweep_gen_" + key.hexdigest()[:20]
     if name in _KERNELS:
         return _KERNELS[name]
     path = _folder() / f"{name}.py"
-    source = kernel_source(model, chosen, rhs_ref, initial_ref, origin or f"{rhs_ref[0]}", forcing_ref, shared,
-                           jac_ref)
+    source = kernel_source(model, chosen, refs, origin or f"{refs['rhs'][0]}", shared, closed, method, direct)
     if not path.exists() or path.read_text() != source:  # written once: its mtime keys numba's cache index
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(source)

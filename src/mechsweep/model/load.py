@@ -234,62 +234,98 @@ def probe_params(model) -> np.ndarray:
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
 
 
+def _probe_layout(model) -> np.ndarray:
+    """The probe row of p: parameters, settings at their defaults, internal slots 0 (exactly the
+    declared length: reading beyond it is an IndexError at the probe)."""
+    settings = [float(s.default) for s in getattr(model, "settings", ())]
+    return np.concatenate([probe_params(model), np.array(settings, dtype=np.float64),
+                           np.zeros(len(getattr(model, "internal", ())))])
+
+
+def _extra_functions(model):
+    """(what, function, args builder) of the optional functions the kernel calls besides initial,
+    rhs, forcing_period and jac; args builder: (p, y0) -> arguments of one call."""
+    n_s = len(model.states)
+    out = []
+    if getattr(model, "classify", None) is not None:
+        out.append(("classify", model.classify, lambda p, y: (p,)))
+    if getattr(model, "accel", None) is not None:
+        out.append(("accel", model.accel, lambda p, y: (0.0, y[:n_s // 2].copy(), p, np.zeros(n_s // 2))))
+        out.append(("symplectic_step", model.symplectic_step, lambda p, y: (p, 1e-10)))
+    for m in model.measurements:
+        for role, func in getattr(m, "functions", lambda: ())():
+            if role == "event":
+                out.append((f"{m.name}.event", func, lambda p, y: (0.0, y.copy(), p)))
+            elif role == "t_max":
+                out.append((f"{m.name}.t_max", func, lambda p, y: (p,)))
+            elif role == "value":
+                out.append((f"{m.name}.value", func, lambda p, y: (p, 1.0)))
+    for c in getattr(model, "closed_forms", ()):
+        out.append((f"closed form {c.name}", c.func, lambda p, y, k=len(c.needs): (p,) + (1.0,) * k))
+    return out
+
+
 def check(model, ref: str, file: str) -> None:
-    """Run initial and rhs once in plain Python at a probe point (parameters array of exactly the
-    declared length: an undeclared parameter read is an IndexError), then compile them with numba."""
+    """Run the model's functions once in plain Python at a probe point (p of exactly the declared
+    length: parameters, settings, internal slots; an undeclared read is an IndexError): classify,
+    prepare, initial, rhs, then the others; then compile them with numba."""
     label = f"{ref!r}: model {model.name!r} in {file}"
     n_p, n_s = len(model.params), len(model.states)
-    p = probe_params(model)
+    p = _probe_layout(model)
+    layout = (f"the model declares {n_p} parameter(s), {len(getattr(model, 'settings', ()))} setting(s), "
+              f"{len(getattr(model, 'internal', ()))} internal slot(s) and {n_s} state(s)")
     y0 = np.full(n_s, np.nan)
     dydt = np.full(n_s, np.nan)
-    for what, func, args, result in (("initial", model.initial, (p, y0), y0),
-                                     ("rhs", model.rhs, (0.0, y0, p, dydt), dydt)):
+
+    def probe(what, func, args):
         func = getattr(func, "py_func", func)
         try:
             with np.errstate(all="ignore"):
-                func(*args)
+                return func(*args)
         except IndexError as exc:
             raise InputError(f"{label}: {what} indexes beyond its arrays at the probe point p = {p.tolist()} "
-                             f"(the model declares {n_p} parameter(s) and {n_s} state(s)): "
-                             f"{_where(exc, file)}") from None
+                             f"({layout}): {_where(exc, file)}") from None
         except Exception as exc:
             raise InputError(f"{label}: {what} raised at the probe point p = {p.tolist()}: "
                              f"{_where(exc, file)}") from None
-        unwritten = [model.states[i] for i in range(n_s) if np.isnan(result[i]) and not _writes_nan(func, args, i)]
+
+    for what in ("classify", "prepare"):
+        func = getattr(model, what, None)
+        if func is not None:
+            code = probe(what, func, (p,) if what == "classify" else (p, 1e-10))
+            if not isinstance(code, (int, np.integer)) or isinstance(code, bool):
+                raise InputError(f"{label}: {what} returned {code!r}; expected a status code (an int of "
+                                 "mechsweep.status)")
+    for what, func, args, result in (("initial", model.initial, (p, y0), y0),
+                                     ("rhs", model.rhs, (0.0, y0, p, dydt), dydt)):
+        probe(what, func, args)
+        unwritten = [model.states[i] for i in range(n_s) if np.isnan(result[i])
+                     and not _writes_nan(getattr(func, "py_func", func), args, i)]
         if unwritten:
             raise InputError(f"{label}: {what} did not write {', '.join(unwritten)} (it must write all "
                              f"{n_s} components)")
     if model.forcing_period is not None:
-        func = getattr(model.forcing_period, "py_func", model.forcing_period)
-        try:
-            T = func(p)
-        except IndexError as exc:
-            raise InputError(f"{label}: forcing_period indexes beyond the {n_p} declared parameter(s): "
-                             f"{_where(exc, file)}") from None
-        except Exception as exc:
-            raise InputError(f"{label}: forcing_period raised at the probe point p = {p.tolist()}: "
-                             f"{_where(exc, file)}") from None
+        T = probe("forcing_period", model.forcing_period, (p,))
         if not isinstance(T, (int, float, np.floating, np.integer)):
             raise InputError(f"{label}: forcing_period returned {T!r}; expected a number")
-    funcs = (("initial", model.initial), ("rhs", model.rhs))
+    extra = _extra_functions(model)
+    for what, func, build in extra:
+        value = probe(what, func, build(p, y0))
+        if what != "accel" and not isinstance(value, (int, float, np.floating, np.integer)):
+            raise InputError(f"{label}: {what} returned {value!r}; expected a number")
+    pp = np.concatenate([p, np.zeros(3 * n_s + n_s * n_s)])
+    funcs = [("initial", model.initial, (pp, np.zeros(n_s))), ("rhs", model.rhs, (0.0, y0.copy(), pp, np.zeros(n_s)))]
     if model.forcing_period is not None:
-        funcs += (("forcing_period", model.forcing_period),)
+        funcs.append(("forcing_period", model.forcing_period, (pp,)))
     if getattr(model, "jac", None) is not None:
-        funcs += (("jac", model.jac),)
-    for what, func in funcs:
+        funcs.append(("jac", model.jac, (0.0, y0.copy(), pp, np.zeros((n_s, n_s)))))
+    if getattr(model, "prepare", None) is not None:
+        funcs.append(("prepare", model.prepare, (pp.copy(), 1e-10)))
+    funcs += [(what, func, build(pp, y0)) for what, func, build in extra]
+    for what, func, args in funcs:
         module, path, qual = function_ref(func, what, model.name)
         try:
-            disp = jitted(module, path, qual)
-            a, b = np.zeros(n_s), np.zeros(n_s)
-            pp = np.concatenate([p, np.zeros(n_s)])
-            if what == "initial":
-                disp(pp, a)
-            elif what == "rhs":
-                disp(0.0, y0.copy(), pp, b)
-            elif what == "jac":
-                disp(0.0, y0.copy(), pp, np.zeros((n_s, n_s)))
-            else:
-                disp(pp)
+            jitted(module, path, qual)(*args)
         except Exception as exc:
             text = _ANSI.sub("", str(exc))
             line = None

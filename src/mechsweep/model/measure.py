@@ -1,5 +1,7 @@
 """Generic measurements of an :class:`~mechsweep.model.ode.OdeModel`.
 
+FirstEvent (an event function, any method) and ClosedForm (a formula output) are at the end.
+
 Each measurement declares its output (name, unit, long name) and knows how to write, as Python
 source, one jitted function ``measure(y, p, rtol, atol, max_steps, work) -> (status, value, n_steps,
 n_rhs)`` for the generated chunk kernel (see compile.py). ``y`` holds the initial state on entry and
@@ -15,7 +17,8 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -413,6 +416,95 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
 """
 
 
+# ---------------------------------------------------------------- methods-aware measurements
+@dataclass(frozen=True)
+class FirstEvent:
+    """The value at the first root of an event function: ``event(t, y, p)`` going from > 0 to
+    <= 0, searched on [0, t_max] from ``initial(p, y0)`` (after ``prepare``).
+
+    - ``event(t, y, p) -> float``: plain numba-compilable Python; it may read the model's
+      parameters, settings and internal slots (``p``), so the level and direction may depend on
+      the point (e.g. the Duffing saddle formulation's level).
+    - ``t_max``: a number, or ``t_max(p) -> float`` (e.g. a horizon from a setting and a time scale).
+    - ``value(p, t) -> float`` (optional): the output from the root's time ``t`` (e.g. the period
+      T = 4 tau_q / w of a quarter period in scaled time); default: ``t`` itself.
+
+    Offered by every method the model declares (dop853, radau, auto; symplectic when the model
+    declares ``accel``): the generated kernel calls that method's event solver directly, one
+    integration per point and measurement. The root is located on the method's own interpolant
+    (dop853: 7th-order dense output; radau: the collocation polynomial; symplectic: the quintic
+    Hermite interpolant of each fixed step), so values differ between methods by their errors.
+    Status: NO_EVENT when no root before t_max; integration failures as the integrator reports
+    them (MAX_STEPS, STEP_UNDERFLOW, NONFINITE; STIFF is never final: auto restarts with radau).
+    """
+
+    name: str
+    event: Callable = field(repr=False, compare=False)
+    t_max: object = field(default=100.0, compare=False)
+    value: Callable | None = field(default=None, repr=False, compare=False)
+    symbol: str = ""
+    unit: str = ""
+    long_name: str = ""
+    direct = True  # integrates on its own with solver.method (compile.py)
+
+    def output(self) -> Output:
+        return Output(self.name, self.symbol or self.name, self.unit,
+                      self.long_name or f"value at the first root of {self.name}'s event", integrated=True)
+
+    def validate(self, states):
+        if not callable(self.event):
+            raise ValueError(f"{self.name}: event must be a function event(t, y, p) -> float")
+        if not callable(self.t_max) and not (isinstance(self.t_max, (int, float)) and math.isfinite(self.t_max)
+                                             and self.t_max > 0):
+            raise ValueError(f"{self.name}: t_max = {self.t_max!r}; expected a finite number > 0 "
+                             "or a function t_max(p)")
+        if self.value is not None and not callable(self.value):
+            raise ValueError(f"{self.name}: value must be a function value(p, t) -> float")
+
+    def functions(self):
+        """(role, function) pairs the generated module imports."""
+        out = [("event", self.event)]
+        if callable(self.t_max):
+            out.append(("t_max", self.t_max))
+        if self.value is not None:
+            out.append(("value", self.value))
+        return tuple(out)
+
+    def key(self) -> tuple:
+        """What the generated code depends on (with the functions' names, compile.py adds their sources)."""
+        return ("FirstEvent", self.name, None if callable(self.t_max) else float(self.t_max))
+
+
+@dataclass(frozen=True)
+class ClosedForm:
+    """An output given by a formula: ``func(p, *needed) -> float``, plain numba-compilable Python
+    of the point's parameters and settings (``p[0 .. len(params) + len(settings) - 1]``) and of the
+    values of the outputs named in ``needs`` (other closed forms or measurements), passed in the
+    order of ``needs``; e.g. kv = v_max T / A or period_error = |T - T_exact| / T_exact.
+
+    Computed in the generated kernel only when wanted (or needed by a wanted output), after the
+    model's ``classify`` (a point it rejects gets NaN) and before ``prepare`` (so the internal
+    slots are not written yet). One that needs a measurement is computed after the measurements
+    (NaN when a needed value is NaN).
+    ``output_needs``: what the ModelSpec says the output needs (the runner then computes those
+    too and a describe shows them); default: ``needs``. Give ``()`` for a formula whose inputs
+    are internal to it (kv needs v_max and period_exact to be computed, not to be stored).
+    """
+
+    name: str
+    func: Callable = field(repr=False, compare=False)
+    symbol: str = ""
+    unit: str = ""
+    long_name: str = ""
+    needs: tuple[str, ...] = ()
+    output_needs: tuple[str, ...] | None = None
+
+    def output(self) -> Output:
+        return Output(self.name, self.symbol or self.name, self.unit, self.long_name or self.name,
+                      needs=tuple(self.needs if self.output_needs is None else self.output_needs))
+
+
+
 FLOQUET_MARGIN = Setting("floquet_margin", 1e-8, "1",
                          "|max multiplier - 1| within which a Floquet measurement's stable verdict is undecided "
                          "(the margin used is max(floquet_margin, 100 rtol))", 0.0, 0.1)
@@ -645,4 +737,4 @@ def make_shared(rhs):
         return n_steps, n_rhs
 
     return shared
-MEASUREMENTS = (Crossing, Period, StateAt, Extremum, Floquet)
+MEASUREMENTS = (Crossing, Period, StateAt, Extremum, Floquet, FirstEvent)

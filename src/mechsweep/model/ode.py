@@ -7,8 +7,11 @@ from typing import Callable
 
 import numpy as np
 
+from ..errors import InputError
 from ..models._spec import ModelSpec, Param, Setting
-from .measure import FLOQUET_MARGIN, Floquet
+from .measure import FLOQUET_MARGIN, ClosedForm, Floquet
+
+SYMPLECTIC_ORDERS = (2, 4, 6, 8)
 
 
 def _outputs(m):
@@ -20,17 +23,38 @@ def _outputs(m):
 class OdeModel:
     """A model y' = rhs(t, y, p) released from ``initial(p, y0)`` at t = 0.
 
-    - ``params``: :class:`Param` declarations; ``p`` holds their values in this order (a
-      categorical parameter as the index of its choice). ``p`` may be longer than the declared
-      parameters (the engine keeps scratch after them): read only ``p[0] .. p[len(params) - 1]``.
+    The layout of ``p`` (float64, one row per point): ``p[0 .. P-1]`` the declared ``params`` in
+    order (a categorical parameter as the index of its choice), ``p[P .. P+S-1]`` the values of the
+    declared ``settings`` (solver settings of this model, e.g. a horizon), ``p[P+S .. P+S+I-1]`` the
+    ``internal`` slots (written by ``prepare``, zero before), then scratch the engine uses: read
+    nothing beyond ``P + S + I``.
+
     - ``states``: names of the components of y.
     - ``rhs(t, y, p, dydt)``: plain numba-compilable Python (no decorator needed) writing every
       ``dydt[i]``; returns nothing. ``initial(p, y0)``: writes every ``y0[i]``.
     - ``measurements``: instances of the classes in :mod:`mechsweep.model.measure`; each gives
-      one output named by its ``name``.
+      its output(s) named by its ``name``.
+    - ``closed_forms``: :class:`~mechsweep.model.measure.ClosedForm` outputs (formulas of p and of
+      other outputs), computed only when wanted.
     - ``forcing_period``: optional ``f(p) -> T`` of a T-periodic forcing (Floquet needs it).
-    - ``jac``: optional ``jac(t, y, p, J)`` writing every ``J[i, j]`` = d dydt[i] / d y[j] (J is
-      n x n); Floquet uses it instead of central differences of ``rhs``.
+    - ``jac``: optional ``jac(t, y, p, J)`` writing every ``J[i, j]`` = d dydt[i] / d y[j]; radau
+      and Floquet use it, else the engine differentiates ``rhs`` (central differences).
+    - ``accel``: optional separable form for the symplectic method: y = (q, v), q' = v and
+      ``accel(t, q, p, a)`` writes v' (len(states) even, q the first half); together with
+      ``symplectic_step(p, rtol) -> h`` (the fixed step for a tolerance) and ``symplectic_order``
+      (2, 4, 6 or 8). Only then is ``symplectic`` one of the model's methods.
+    - ``classify(p) -> status``: optional; a status code of :mod:`mechsweep.status` before any
+      computation (non-OK: every output NaN with that status; e.g. NO_MOTION, INFEASIBLE).
+    - ``prepare(p) -> status``: optional; runs before the measurements of each point (after the
+      closed forms): writes the ``internal`` slots the rhs, event and value read (e.g. a scaling)
+      and may refuse the integration (non-OK: measurements NaN with that status; closed forms kept).
+    - ``output_order``: optional order of the outputs in the ModelSpec (default: measurements, then
+      closed forms).
+
+    Methods (``solver.method``): dop853, radau, auto (dop853 with the stiffness test; a stiff point
+    is integrated again by radau) and, with ``accel``, symplectic. FirstEvent measurements (and a
+    lone first Crossing) offer them all; the other measurements observe one DOP853 trajectory and
+    offer dop853 only (a scene asking another method for them is refused when it is loaded).
     """
 
     name: str
@@ -46,22 +70,100 @@ class OdeModel:
     settings: tuple[Setting, ...] = ()
     statuses: tuple[int, ...] = ()  # ModelSpec.statuses: empty = derived from the outputs
     status_notes: object = ()  # ModelSpec.status_notes: {code: what the status means for this model}
+    closed_forms: tuple[ClosedForm, ...] = ()
+    internal: tuple[str, ...] = ()
+    classify: Callable | None = field(default=None, repr=False)
+    prepare: Callable | None = field(default=None, repr=False)
+    accel: Callable | None = field(default=None, repr=False)
+    symplectic_step: Callable | None = field(default=None, repr=False)
+    symplectic_order: int = 8
+    output_order: tuple[str, ...] = ()
 
     def __post_init__(self):
-        object.__setattr__(self, "params", tuple(self.params))
-        object.__setattr__(self, "states", tuple(self.states))
-        object.__setattr__(self, "measurements", tuple(self.measurements))
-        notes = self.status_notes
-        object.__setattr__(self, "status_notes", tuple(sorted(dict(notes).items())))
+        for name in ("params", "states", "measurements", "closed_forms", "internal", "settings", "output_order"):
+            object.__setattr__(self, name, tuple(getattr(self, name)))
+        object.__setattr__(self, "status_notes", tuple(sorted(dict(self.status_notes).items())))
         if not self.states:
             raise ValueError(f"model {self.name!r}: states is empty")
-        names = [o.name for m in self.measurements for o in _outputs(m)]
+        names = [o.name for m in self.measurements for o in _outputs(m)] + [c.name for c in self.closed_forms]
         if len(set(names)) != len(names):
-            raise ValueError(f"model {self.name!r}: measurement (output) names repeat: {names}")
+            raise ValueError(f"model {self.name!r}: output names repeat: {names}")
         for m in self.measurements:
             m.validate(self.states)
             if getattr(m, "needs_forcing", False) and self.forcing_period is None:
                 raise ValueError(f"model {self.name!r}: measurement {m.name!r} needs forcing_period(p)")
+        for c in self.closed_forms:
+            bad = [x for x in c.needs if x not in names or x == c.name]
+            if bad:
+                raise ValueError(f"model {self.name!r}: closed form {c.name!r} needs {bad}, which are not other "
+                                 f"outputs of the model ({names})")
+        if self.accel is not None:
+            if len(self.states) % 2:
+                raise ValueError(f"model {self.name!r}: accel needs y = (q, v), an even number of states "
+                                 f"(got {len(self.states)})")
+            if self.symplectic_step is None:
+                raise ValueError(f"model {self.name!r}: accel is given without symplectic_step(p, rtol) -> h")
+            if self.symplectic_order not in SYMPLECTIC_ORDERS:
+                raise ValueError(f"model {self.name!r}: symplectic_order = {self.symplectic_order!r}; "
+                                 f"expected one of {SYMPLECTIC_ORDERS}")
+        if self.output_order and sorted(self.output_order) != sorted(names):
+            raise ValueError(f"model {self.name!r}: output_order {self.output_order} must list every output once "
+                             f"({names})")
+
+    @property
+    def methods(self) -> tuple[str, ...]:
+        """The values of solver.method the declaration offers."""
+        return ("dop853", "radau") + (("symplectic",) if self.accel is not None else ()) + ("auto",)
+
+    def _plan(self, wanted):
+        """(measurements, closed forms in dependency order) to compute for the outputs ``wanted``."""
+        by_name = {c.name: c for c in self.closed_forms}
+        need = set(wanted)
+        stack = list(wanted)
+        while stack:
+            x = stack.pop()
+            for y in (by_name[x].needs if x in by_name else ()):
+                if y not in need:
+                    need.add(y)
+                    stack.append(y)
+        chosen = tuple(m for m in self.measurements if any(o.name in need for o in _outputs(m)))
+        order, done = [], set()
+
+        def visit(c):
+            if c.name in done:
+                return
+            done.add(c.name)
+            for y in c.needs:
+                if y in by_name:
+                    visit(by_name[y])
+            order.append(c)
+
+        for c in self.closed_forms:
+            if c.name in need:
+                visit(c)
+        return chosen, tuple(order)
+
+    def computable_closed_forms(self, chosen) -> tuple:
+        """The closed forms a kernel for the measurements ``chosen`` can compute (those whose
+        measurement needs are among them), in dependency order."""
+        _, order = self._plan(tuple(c.name for c in self.closed_forms))
+        have = {o.name for m in chosen for o in _outputs(m)}
+        meas = {o.name for m in self.measurements for o in _outputs(m)}
+        ok, done = [], set()
+        for c in order:
+            if all((x in have) if x in meas else (x in done) for x in c.needs):
+                ok.append(c)
+                done.add(c.name)
+        return tuple(ok)
+
+    def methods_for(self, outputs) -> tuple[str, ...]:
+        """The methods that the chosen outputs can be computed by (see the class docstring)."""
+        from .compile import is_direct
+
+        chosen, _ = self._plan(outputs)
+        if not chosen or is_direct(chosen):
+            return self.methods
+        return ("dop853",)
 
     def spec(self, *, origin: str = "", module: str = "", attr: str = "") -> ModelSpec:
         """The ModelSpec the engine runs. ``module``/``attr`` say where the declaration can be
@@ -71,31 +173,55 @@ class OdeModel:
         model = self
 
         def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
-            chosen = tuple(m for m in model.measurements if any(o.name in wanted for o in _outputs(m)))
-            if not chosen:
+            chosen, closed = model._plan(wanted)
+            if not chosen and not closed:
                 return
-            kernel = kernel_for(model, chosen, origin=origin, module=module, attr=attr)
+            method = solver.method if (solver is not None and chosen) else "dop853"
+            allowed = model.methods_for(wanted)
+            if method not in allowed:
+                raise InputError(f"solver.method: {method!r} is not offered by model {model.name!r} for the outputs "
+                                 f"{', '.join(wanted)} (allowed: {', '.join(allowed)})")
+            # closed forms by a run-time mask (one kernel for every choice of them), or none at all
+            # when none is wanted (a lean kernel: a cold compile of a period-only scene compiles no formula)
+            computable = model.computable_closed_forms(chosen) if closed else ()
+            kernel = kernel_for(model, chosen, origin=origin, module=module, attr=attr, closed=computable,
+                                method=method)
+            wanted_closed = {c.name for c in closed}
+            need = np.array([c.name in wanted_closed for c in computable], dtype=np.bool_)
             cols = columns(chosen)
-            table = np.full((P.shape[0], cols[-1]), np.nan)
-            kernel(np.ascontiguousarray(P, dtype=np.float64), solver.rtol, solver.atol, solver.max_steps, table,
-                   status, n_steps, n_rhs)
+            table = np.full((P.shape[0], cols[-1] + len(computable)), np.nan)
+            settings = solver.settings if solver is not None else {}
+            S = np.array([float(settings.get(s.name, s.default)) for s in model.settings], dtype=np.float64)
+            rtol, atol, max_steps = ((solver.rtol, solver.atol, solver.max_steps) if solver is not None
+                                     else (1e-10, 1e-12, 1))
+            kernel(np.ascontiguousarray(P, dtype=np.float64), S, need, rtol, atol, max_steps, table, status, n_steps,
+                   n_rhs)
             for j, m in enumerate(chosen):
                 if hasattr(m, "finish"):
                     m.finish(table[:, cols[j]:cols[j + 1]], wanted, solver, out, status)
-                else:
+                elif m.name in out:
                     out[m.name][:] = table[:, cols[j]]
+            for j, c in enumerate(computable):
+                if c.name in out:
+                    out[c.name][:] = table[:, cols[-1] + j]
 
+        outputs = (tuple(o for m in self.measurements for o in _outputs(m))
+                   + tuple(c.output() for c in self.closed_forms))
+        if self.output_order:
+            by_name = {o.name: o for o in outputs}
+            outputs = tuple(by_name[n] for n in self.output_order)
         return ModelSpec(
             name=self.name,
             description=self.description,
             params=self.params,
-            outputs=tuple(o for m in self.measurements for o in _outputs(m)),
+            outputs=outputs,
             evaluate=evaluate,
             source=self.source or origin,
             settings=self.settings + tuple(
                 FLOQUET_MARGIN for _ in (0,) if any(isinstance(m, Floquet) for m in self.measurements)
                 and FLOQUET_MARGIN.name not in {s.name for s in self.settings}),
-            methods=("dop853",),
+            methods=self.methods,
+            methods_for=self.methods_for,
             statuses=self.statuses,
             status_notes=self.status_notes,
         )

@@ -144,6 +144,8 @@ class ModelSpec:
     OK; empty: derived from the outputs (:meth:`possible_statuses`). ``status_notes``: what a
     status means for this model, {code: text} (given as a mapping or as (code, text) pairs; kept
     as sorted pairs), shown with the generic text where this model's datasets and docs are described.
+    ``methods_for(outputs)`` (optional): the methods a choice of outputs (closed under ``needs``)
+    supports, when some outputs offer fewer than ``methods``; a scene asking another is refused.
     """
 
     name: str
@@ -174,7 +176,7 @@ class ModelSpec:
 
         codes = {st.OK, *self.statuses}
         if not self.statuses:
-            codes.add(st.NONFINITE)
+            codes |= {st.NONFINITE, st.USER_ERROR}
             if any(o.integrated for o in self.outputs):
                 codes |= {st.MAX_STEPS, st.STEP_UNDERFLOW, st.NO_EVENT}
                 if len(self.methods) > 1:
@@ -189,6 +191,7 @@ class ModelSpec:
     def status_note(self, code: int) -> str:
         """What status ``code`` means for this model ("" when it declares nothing)."""
         return dict(self.status_notes).get(int(code), "")
+    methods_for: Callable | None = field(default=None, repr=False)
 
     def param(self, name: str) -> Param:
         return self._params_by_name()[name]

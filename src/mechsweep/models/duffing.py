@@ -1,4 +1,6 @@
-"""Undamped Duffing oscillator phi'' + omega^2 phi + mu phi^3 = 0, phi(0) = A, phi'(0) = 0.
+"""Undamped Duffing oscillator phi'' + omega^2 phi + mu phi^3 = 0, phi(0) = A, phi'(0) = 0,
+declared on the model layer (mechsweep.model): the engine generates its chunk kernel for the
+scene's method and outputs (model/compile.py), as for any user model.
 
 Source: Klyuchkovskyi, torsional oscillating circuits, equation (3); closed forms from
 ../shared/physics.md section 1 (amplitude-period relation and kinematic invariants).
@@ -9,33 +11,28 @@ A = 10 rad:  x'' = -a x - b x^3,  a = omega^2 / w^2,  b = mu A^2 / w^2,  |a| + |
 By symmetry of the motion the first zero of x is a quarter period: T = 4 tau_q / w.
 Within 2e-3 of the soft separatrix the same quarter period is integrated in coordinates centred on
 the saddle, and points whose period is too sensitive to the inputs for rtol are ILL_CONDITIONED
-(see integrate_period).
+(see prepare). All of this is the declaration's ``prepare`` (per point: the scaling, the
+formulation, the conditioning test), ``rhs``/``jac``/``accel`` (the scaled equation), the event
+and the value T = 4 tau_q / w; the closed forms are ClosedForm outputs.
 """
 from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from .. import status as st
-from .._jit import call_with_literal, compile_time_switch, jit, jit_noalloc, literally, pjit, prange
-from ..ode import AUTO, DOP853, METHOD_CODES, RADAU, SYMPLECTIC, dop853, radau, symplectic
+from .._jit import jit, jit_noalloc
+from ..model.measure import ClosedForm, FirstEvent
+from ..model.ode import OdeModel
 from ..special import ellipk
-from ._spec import ModelSpec, Output, Param, Setting
+from ._spec import Param, Setting
 
 # Integration horizon of the period event, in linearised periods 2 pi / w (w^2 = omega^2 + |mu| A^2):
 # near the soft separatrix T grows like log(1 / distance), so 100 is reached only ~e^-200 from it.
 T_MAX_PERIODS = Setting("t_max_periods", 100.0, "1", "integration horizon in linearised periods", 1e-3, 1e9)
 
-# Full output layout of this model's kernels (column k of the internal table).
-OUTPUTS = ("period", "period_exact", "period_error", "v_max", "a_max", "kv", "ka", "epsilon")
-K_PERIOD, K_PERIOD_EXACT, K_PERIOD_ERROR, K_VMAX, K_AMAX, K_KV, K_KA, K_EPS = range(8)
-
 # sum over the inputs (omega, mu, A) of |d ln omega^2 / d ln p| and |d ln(mu A^2) / d ln p|
 K_OMEGA2 = 2.0
 K_Q = 3.0
-
-BLOCK = 16  # points per scratch-space allocation inside the parallel loop
 
 # method "symplectic": McLachlan's 8th-order composition with ceil(SYMPLECTIC_C rtol^(-1/8)) fixed
 # steps per linearised period 2 pi of the scaled equation
@@ -78,124 +75,6 @@ def a_max_closed_form(omega2, mu, A):
     if mu >= 0.0 or 3.0 * (-mu) * A * A <= omega2:
         return A * (omega2 + mu * A * A)
     return 2.0 * omega2 * math.sqrt(omega2) / (3.0 * math.sqrt(-3.0 * mu))
-
-
-@jit
-def fill_closed_forms(omega2, mu, A, want, row):
-    """Write the algebraic outputs a caller wants into ``row`` (full layout)."""
-    need_T = want[K_PERIOD_EXACT] or want[K_KV] or want[K_KA] or want[K_PERIOD_ERROR]
-    T = period_closed_form(omega2, mu, A) if need_T else math.nan
-    if want[K_PERIOD_EXACT]:
-        row[K_PERIOD_EXACT] = T
-    vmax = v_max_closed_form(omega2, mu, A) if (want[K_VMAX] or want[K_KV]) else math.nan
-    amax = a_max_closed_form(omega2, mu, A) if (want[K_AMAX] or want[K_KA]) else math.nan
-    if want[K_VMAX]:
-        row[K_VMAX] = vmax
-    if want[K_AMAX]:
-        row[K_AMAX] = amax
-    if want[K_KV]:
-        row[K_KV] = vmax * T / A  # 2 pi for the linear oscillator
-    if want[K_KA]:
-        row[K_KA] = amax * T * T / A  # 4 pi^2 for the linear oscillator
-    if want[K_EPS]:
-        row[K_EPS] = mu * A * A / omega2
-
-
-# --------------------------------------------------------------------------- integrated period
-# One scaled oscillator serves both formulations (see integrate_period):
-#   y'' = -(p0 y + p1 y^3 + p2 y^2),  event  p7 (y - p6) from > 0 to <= 0.
-# The plain formulation is x = phi / A with p = (a, b, 0, ., ., ., 0, 1): x'' = -a x - b x^3, event
-# x = 0 (the quadratic term and the level are exact zeros, so its results are those of the two-term
-# rhs). The saddle formulation near the soft separatrix has p2 != 0, p6 = event level, p7 = -1.
-# The event reads the same slots (6, 7) as torsional_circuit's, so that the two models' event
-# functions are the same code: numba's disk cache was once seen (one cache folder, not reproduced)
-# to link one model's event into the other's cached kernel, harmless only while they are equal.
-N_P = 8
-
-
-@jit
-def _scaled_rhs(t, y, p, dydt):
-    dydt[0] = y[1]
-    dydt[1] = -p[0] * y[0] - p[1] * y[0] * y[0] * y[0] - p[2] * y[0] * y[0]
-
-
-@jit
-def _phi_event(t, y, p):
-    return p[7] * (y[0] - p[6])
-
-
-@jit_noalloc
-def _scaled_jac(t, y, p, J):
-    J[0, 0] = 0.0
-    J[0, 1] = 1.0
-    J[1, 0] = -p[0] - 3.0 * p[1] * y[0] * y[0] - 2.0 * p[2] * y[0]
-    J[1, 1] = 0.0
-
-
-@jit_noalloc
-def _scaled_accel(t, q, p, a):
-    a[0] = -p[0] * q[0] - p[1] * q[0] * q[0] * q[0] - p[2] * q[0] * q[0]
-
-
-@jit_noalloc
-def _q_event(t, q, v, p):
-    return p[7] * (q[0] - p[6])
-
-
-quarter_period_solver = dop853.make_event_solver(_scaled_rhs, _phi_event)
-quarter_period_stiffness_test = dop853.make_event_solver(_scaled_rhs, _phi_event, stiffness_test=True)
-quarter_period_radau = radau.make_event_solver(_scaled_rhs, _scaled_jac, _phi_event)
-quarter_period_symplectic = symplectic.make_event_solver(_scaled_accel, _q_event, SYMPLECTIC_ORDER)
-
-
-@jit_noalloc
-def symplectic_step(rtol):
-    """Fixed step (scaled time) of the symplectic method for a tolerance: SYMPLECTIC_STEPS(rtol)
-    steps per linearised period 2 pi, calibrated so that the period error stays below rtol over
-    epsilon in [-0.99, 1e4] (measured by `mechsweep bench workprecision duffing`)."""
-    return 2.0 * math.pi / math.ceil(SYMPLECTIC_C * rtol ** (-1.0 / SYMPLECTIC_ORDER))
-
-
-def make_quarter_period(name, explicit, explicit_stiffness_test, implicit, composed):
-    """``name(method, y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v) -> (status, tau,
-    n_steps, n_rhs)``: tau of the first zero of x from y = (1, 0) by solver.method, for an
-    oscillator whose dop853, dop853-with-stiffness-test, radau and symplectic event solvers are
-    given; only the method's solver is compiled into a kernel. auto: dop853 with the stiffness
-    test, and a stiff point starts again with radau (costs add up)."""
-    @jit_noalloc
-    def by_dop853(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
-        return explicit(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, work)
-
-    @jit_noalloc
-    def by_radau(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
-        return implicit(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, rwork)
-
-    @jit_noalloc
-    def by_symplectic(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
-        q[0] = y[0]
-        v[0] = y[1]
-        code, tq, ns, nr = composed(0.0, q, v, p, symplectic_step(rtol), t_max, max_steps, swork)
-        y[0] = q[0]
-        y[1] = v[0]
-        return code, tq, ns, nr
-
-    @jit_noalloc
-    def by_auto(y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v):
-        y0, y1 = y[0], y[1]
-        code, tq, ns, nr = explicit_stiffness_test(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, work)
-        if code != st.STIFF:
-            return code, tq, ns, nr
-        y[0] = y0
-        y[1] = y1
-        code, tq, ns2, nr2 = implicit(0.0, y, p, t_max, rtol, atol, 0.0, max_steps, rwork)
-        return code, tq, ns + ns2, nr + nr2
-
-    return compile_time_switch(name, {DOP853: by_dop853, RADAU: by_radau, SYMPLECTIC: by_symplectic,
-                                      AUTO: by_auto})
-
-
-quarter_period = make_quarter_period("quarter_period", quarter_period_solver, quarter_period_stiffness_test,
-                                     quarter_period_radau, quarter_period_symplectic)
 
 
 # Near the soft separatrix (delta = (omega^2 + mu A^2) / w^2 -> 0) the motion starts next to the
@@ -255,107 +134,128 @@ def period_condition(omega2, mu, A, k_omega2, k_q):
     return f * k_omega2 + abs(f - 0.5) * k_q
 
 
+
+
 @jit_noalloc
-def integrate_period(method, omega2, mu, A, rtol, atol, max_steps, t_max_periods, y, p, work, rwork, swork, q, v,
-                     k_omega2, k_q):
-    """Integrated period of the two-term Duffing model. Returns (status, T, n_steps, n_rhs).
-    k_omega2, k_q: sensitivities of omega^2 and mu A^2 to the caller's inputs (period_condition);
-    ILL_CONDITIONED where the period's condition number times round-off exceeds rtol."""
-    if not period_condition(omega2, mu, A, k_omega2, k_q) * UNIT_ROUNDOFF <= rtol:  # NaN-safe: a NaN bound flags
-        return st.ILL_CONDITIONED, math.nan, 0, 0
+def symplectic_step(rtol):
+    """Fixed step (scaled time) of the symplectic method for a tolerance: SYMPLECTIC_STEPS(rtol)
+    steps per linearised period 2 pi, calibrated so that the period error stays below rtol over
+    epsilon in [-0.99, 1e4] (measured by `mechsweep bench workprecision duffing`)."""
+    return 2.0 * math.pi / math.ceil(SYMPLECTIC_C * rtol ** (-1.0 / SYMPLECTIC_ORDER))
+
+
+# --------------------------------------------------------------------------- the declaration
+# p = (omega, mu, A | t_max_periods | a, b, c, level, direction, w): parameters, the setting, and the
+# internal slots prepare writes. One scaled oscillator serves both formulations (see prepare):
+#   y'' = -(a y + b y^3 + c y^2),  event  direction (y - level) from > 0 to <= 0.
+# The plain formulation is x = phi / A with (a, b, c, level, direction) = (omega^2/w^2, mu A^2/w^2,
+# 0, 0, 1): x'' = -a x - b x^3, event x = 0 (the quadratic term and the level are exact zeros, so
+# its results are those of the two-term rhs). The saddle formulation near the soft separatrix has
+# c != 0, level = x_s / u0, direction = -1.
+OMEGA, MU, AMP, T_MAX = 0, 1, 2, 3
+IA, IB, IC, ILEVEL, IDIR, IW = 4, 5, 6, 7, 8, 9
+
+
+def duffing_classify(p):
+    return classify(p[OMEGA] * p[OMEGA], p[MU], p[AMP])
+
+
+def prepare(p, rtol):
+    """Per point: ILL_CONDITIONED where the period's condition number times round-off exceeds rtol
+    (the closed forms are still given); else the scaled equation's coefficients, the event and w."""
+    omega2 = p[OMEGA] * p[OMEGA]
+    mu = p[MU]
+    A = p[AMP]
+    if not period_condition(omega2, mu, A, K_OMEGA2, K_Q) * UNIT_ROUNDOFF <= rtol:  # NaN-safe: a NaN bound flags
+        return st.ILL_CONDITIONED
     muA2 = mu * A * A
     w2 = omega2 + abs(muA2)
-    w = math.sqrt(w2)
     delta = (omega2 + muA2) / w2
     if mu < 0.0 and delta < SADDLE_DELTA:
         bneg = -muA2 / w2  # -b > 0
         xs = math.sqrt(1.0 + delta / bneg)  # saddle, x_s^2 = a / -b with a = delta - b
         u0 = delta / (bneg * (xs + 1.0))  # x_s - 1
-        p[0] = -2.0 * (delta + bneg)
-        p[1] = -bneg * u0 * u0
-        p[2] = 3.0 * bneg * xs * u0
-        p[6] = xs / u0
-        p[7] = -1.0
+        p[IA] = -2.0 * (delta + bneg)
+        p[IB] = -bneg * u0 * u0
+        p[IC] = 3.0 * bneg * xs * u0
+        p[ILEVEL] = xs / u0
+        p[IDIR] = -1.0
     else:
-        p[0] = omega2 / w2
-        p[1] = muA2 / w2
-        p[2] = 0.0
-        p[6] = 0.0
-        p[7] = 1.0
-    y[0] = 1.0
-    y[1] = 0.0
-    code, tau_q, ns, nr = quarter_period(method, y, p, t_max_periods * 2.0 * math.pi, rtol, atol, max_steps,
-                                         work, rwork, swork, q, v)
-    if code != st.OK:
-        return code, math.nan, ns, nr
-    return st.OK, 4.0 * tau_q / w, ns, nr
+        p[IA] = omega2 / w2
+        p[IB] = muA2 / w2
+        p[IC] = 0.0
+        p[ILEVEL] = 0.0
+        p[IDIR] = 1.0
+    p[IW] = math.sqrt(w2)
+    return st.OK
 
 
-@jit
-def workspaces():
-    """Scratch of every method for one thread: (dop853, radau, symplectic, y, p, q, v)."""
-    return (dop853.workspace(2), radau.workspace(2), symplectic.workspace(1), np.empty(2), np.empty(N_P),
-            np.empty(1), np.empty(1))
+def initial(p, y0):
+    y0[0] = 1.0
+    y0[1] = 0.0
 
 
-# --------------------------------------------------------------------------- chunk kernels
-@pjit
-def algebraic_kernel(omega, mu, A, want, table, status):
-    for i in prange(omega.shape[0]):
-        code = classify(omega[i] * omega[i], mu[i], A[i])
-        if code != st.OK:
-            status[i] = code
-            continue
-        fill_closed_forms(omega[i] * omega[i], mu[i], A[i], want, table[i])
+def rhs(t, y, p, dydt):
+    dydt[0] = y[1]
+    dydt[1] = -p[IA] * y[0] - p[IB] * y[0] * y[0] * y[0] - p[IC] * y[0] * y[0]
 
 
-@pjit
-def period_kernel(method, omega, mu, A, rtol, atol, max_steps, t_max_periods, table, status, n_steps, n_rhs):
-    literally(method)  # one cached kernel per method
-    n = omega.shape[0]
-    n_blocks = (n + BLOCK - 1) // BLOCK
-    for b in prange(n_blocks):
-        work, rwork, swork, y, p, q, v = workspaces()
-        for i in range(b, n, n_blocks):  # strided: prange splits blocks statically, and cost varies along the grid
-            if status[i] != st.OK:
-                continue
-            code = classify(omega[i] * omega[i], mu[i], A[i])
-            if code != st.OK:
-                status[i] = code
-                continue
-            code, T, ns, nr = integrate_period(
-                method, omega[i] * omega[i], mu[i], A[i], rtol, atol, max_steps, t_max_periods, y, p, work,
-                rwork, swork, q, v, K_OMEGA2, K_Q,
-            )
-            n_steps[i] += ns
-            n_rhs[i] += nr
-            status[i] = code
-            table[i, K_PERIOD] = T
+def jac(t, y, p, J):
+    J[0, 0] = 0.0
+    J[0, 1] = 1.0
+    J[1, 0] = -p[IA] - 3.0 * p[IB] * y[0] * y[0] - 2.0 * p[IC] * y[0]
+    J[1, 1] = 0.0
 
 
-# --------------------------------------------------------------------------- engine entry point
-def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
-    omega, mu, A = (np.ascontiguousarray(P[:, j]) for j in range(3))
-    table = np.full((P.shape[0], len(OUTPUTS)), np.nan)
-    want = np.array([name in wanted for name in OUTPUTS])
-    if want[[K_PERIOD_EXACT, K_VMAX, K_AMAX, K_KV, K_KA, K_EPS]].any():
-        algebraic_kernel(omega, mu, A, want, table, status)
-    if want[K_PERIOD]:
-        call_with_literal(
-            period_kernel, METHOD_CODES[solver.method], omega, mu, A, solver.rtol, solver.atol, solver.max_steps,
-            solver.settings["t_max_periods"], table, status, n_steps, n_rhs,
-        )
-    if want[K_PERIOD_ERROR]:
-        table[:, K_PERIOD_ERROR] = relative_error(table[:, K_PERIOD], table[:, K_PERIOD_EXACT])
-    for name in wanted:
-        out[name][:] = table[:, OUTPUTS.index(name)]
+def accel(t, q, p, a):
+    a[0] = -p[IA] * q[0] - p[IB] * q[0] * q[0] * q[0] - p[IC] * q[0] * q[0]
 
 
-def relative_error(value, reference):
-    return np.abs(value - reference) / np.abs(reference)
+def step_for(p, rtol):
+    return symplectic_step(rtol)
 
 
-SPEC = ModelSpec(
+def quarter_event(t, y, p):
+    return p[IDIR] * (y[0] - p[ILEVEL])
+
+
+def horizon(p):
+    return p[T_MAX] * 2.0 * math.pi
+
+
+def period_from_quarter(p, tau_q):
+    return 4.0 * tau_q / p[IW]
+
+
+def period_exact(p):
+    return period_closed_form(p[OMEGA] * p[OMEGA], p[MU], p[AMP])
+
+
+def v_max(p):
+    return v_max_closed_form(p[OMEGA] * p[OMEGA], p[MU], p[AMP])
+
+
+def a_max(p):
+    return a_max_closed_form(p[OMEGA] * p[OMEGA], p[MU], p[AMP])
+
+
+def kv(p, vmax, T):
+    return vmax * T / p[AMP]  # 2 pi for the linear oscillator
+
+
+def ka(p, amax, T):
+    return amax * T * T / p[AMP]  # 4 pi^2 for the linear oscillator
+
+
+def epsilon(p):
+    return p[MU] * p[AMP] * p[AMP] / (p[OMEGA] * p[OMEGA])
+
+
+def relative_error(p, value, reference):
+    return abs(value - reference) / abs(reference)
+
+
+MODEL = OdeModel(
     name="duffing",
     description="Undamped Duffing oscillator phi'' + omega^2 phi + mu phi^3 = 0 released from rest at phi = A",
     source="Klyuchkovskyi, torsional oscillating circuits, eq. (3); physics.md section 1",
@@ -364,20 +264,34 @@ SPEC = ModelSpec(
         Param("mu", "μ", "1/(rad^2 s^2)", "cubic stiffness coefficient (>0 hard, <0 soft)"),
         Param("A", "A", "rad", "amplitude, phi(0) = A, phi'(0) = 0", lo=0.0),
     ),
-    outputs=(
-        Output("period", "T", "s", "period of the free oscillation", integrated=True),
-        Output("period_exact", "T_exact", "s", "period (elliptic closed form)"),
-        Output("period_error", "|T - T_exact| / T_exact", "1", "relative error of the integrated period",
-               needs=("period", "period_exact")),
-        Output("v_max", "v_max", "rad/s", "maximum angular velocity"),
-        Output("a_max", "a_max", "rad/s^2", "maximum angular acceleration"),
-        Output("kv", "k_v = v_max T / A", "1", "velocity coefficient v_max T / A (2 pi when linear)"),
-        Output("ka", "k_a = a_max T^2 / A", "1", "acceleration coefficient a_max T^2 / A (4 pi^2 when linear)"),
-        Output("epsilon", "ε = μ A² / ω²", "1", "nonlinearity parameter mu A^2 / omega^2"),
-    ),
-    evaluate=evaluate,
     settings=(T_MAX_PERIODS,),
-    methods=("dop853", "radau", "symplectic", "auto"),
+    internal=("a", "b", "c", "level", "direction", "w"),
+    states=("x", "dx"),
+    classify=duffing_classify,
+    prepare=prepare,
+    initial=initial,
+    rhs=rhs,
+    jac=jac,
+    accel=accel,
+    symplectic_step=step_for,
+    symplectic_order=SYMPLECTIC_ORDER,
+    measurements=(
+        FirstEvent("period", quarter_event, t_max=horizon, value=period_from_quarter, symbol="T", unit="s",
+                   long_name="period of the free oscillation"),
+    ),
+    closed_forms=(
+        ClosedForm("period_exact", period_exact, "T_exact", "s", "period (elliptic closed form)"),
+        ClosedForm("period_error", relative_error, "|T - T_exact| / T_exact", "1",
+                   "relative error of the integrated period", needs=("period", "period_exact")),
+        ClosedForm("v_max", v_max, "v_max", "rad/s", "maximum angular velocity"),
+        ClosedForm("a_max", a_max, "a_max", "rad/s^2", "maximum angular acceleration"),
+        ClosedForm("kv", kv, "k_v = v_max T / A", "1", "velocity coefficient v_max T / A (2 pi when linear)",
+                   needs=("v_max", "period_exact"), output_needs=()),
+        ClosedForm("ka", ka, "k_a = a_max T^2 / A", "1",
+                   "acceleration coefficient a_max T^2 / A (4 pi^2 when linear)",
+                   needs=("a_max", "period_exact"), output_needs=()),
+        ClosedForm("epsilon", epsilon, "ε = μ A² / ω²", "1", "nonlinearity parameter mu A^2 / omega^2"),
+    ),
     statuses=(st.INFEASIBLE, st.NOT_OSCILLATORY, st.NO_MOTION, *st.INTEGRATION_FAILURES),
     status_notes={
         st.INFEASIBLE: "omega^2 <= 0: no stable equilibrium at phi = 0 to oscillate about",
@@ -388,3 +302,6 @@ SPEC = ModelSpec(
                             "separatrix); the closed form period_exact is still given",
     },
 )
+
+SPEC = MODEL.spec(module=__name__, attr="MODEL")
+evaluate = SPEC.evaluate

@@ -22,7 +22,8 @@ import numpy as np
 from .. import status as st
 from .._jit import call_with_literal, jit, jit_noalloc, literally, pjit, prange
 from ..ode import METHOD_CODES, dop853, radau, symplectic
-from . import duffing as duf
+from . import _duffing_scaled as duf
+from . import duffing
 from ._spec import ModelSpec, Output, Param
 
 OUTPUTS = ("chi", "xi", "omega2", "mu", "hardness") + duf.OUTPUTS + ("period_exact_moment", "truncation_error")
@@ -423,7 +424,7 @@ SPEC = ModelSpec(
         Output("mu", "μ", "1/(rad^2 s^2)", "cubic stiffness coefficient mu", needs_params=_DIMENSIONAL),
         Output("hardness", "sign ξ", "1", "characteristic: +1 hard, 0 linear, -1 soft"),
     )
-    + tuple(_duffing_output(o) for o in duf.SPEC.outputs)
+    + tuple(_duffing_output(o) for o in duffing.SPEC.outputs)
     + (
         Output("period_exact_moment", "T_M", "s", "period with the exact spring moment",
                integrated=True, needs_params=("A",) + _DIMENSIONAL),
@@ -433,7 +434,7 @@ SPEC = ModelSpec(
     ),
     evaluate=evaluate,
     settings=(duf.T_MAX_PERIODS,),
-    methods=duf.SPEC.methods,
+    methods=duffing.SPEC.methods,
     statuses=(st.INFEASIBLE, st.SINGULAR, st.NOT_OSCILLATORY, st.NO_MOTION, *st.INTEGRATION_FAILURES),
     status_notes={
         st.INFEASIBLE: "spring free length <= 0, or omega^2 <= 0 for the two-term outputs",
