@@ -142,8 +142,10 @@ def test_a_user_model_in_its_corners_gives_only_the_statuses_its_outputs_imply(t
     status = ds["status"].values
     assert st.NO_EVENT in status and st.MAX_STEPS in status and st.OK in status, status
     check_points(scene, ds)
+    # the model offers more than one method (dop853, radau, auto), so STIFF (auto's explicit
+    # stage) is possible; USER_ERROR: its own code may raise at a point the probe did not see
     assert set(scene.model.possible_statuses()) == {st.OK, st.MAX_STEPS, st.STEP_UNDERFLOW, st.NONFINITE,
-                                                    st.NO_EVENT}
+                                                    st.NO_EVENT, st.STIFF, st.USER_ERROR}
 
 
 @pytest.mark.parametrize("stem", [s for s in GENERIC_IDS if s != "duffing_cubic_limit"])

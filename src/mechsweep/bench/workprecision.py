@@ -314,7 +314,9 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     ref_s = time.perf_counter() - t0
     usable = np.isfinite(reference)
     P, reference = P[usable], reference[usable]
-    methods = [f"mechsweep {m}" for m in spec.methods] + [f"scipy {m}" for m in SCIPY_METHODS]
+    ours = (spec.methods_for(spec.closure((case.output,))) if spec.methods_for is not None  # what this output offers
+            else spec.methods)
+    methods = [f"mechsweep {m}" for m in ours] + [f"scipy {m}" for m in SCIPY_METHODS]
     shape = (len(methods), len(ladder))
     res = {k: np.full(shape, np.nan) for k in ("error_max", "error_median", "error_max_sample", "time_per_point",
                                                  "steps_per_point", "rhs_per_point", "ok_fraction")}
@@ -323,7 +325,7 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     before = numba.get_num_threads()
     numba.set_num_threads(1)
     try:
-        for a, method in enumerate(spec.methods):
+        for a, method in enumerate(ours):
             for b, rtol in enumerate(ladder):
                 solver = Solver.for_model(spec, **{**_scene_settings(scene), "method": method, "rtol": rtol,
                                                    "atol": rtol * ATOL_RATIO})
@@ -347,7 +349,7 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     finally:
         numba.set_num_threads(before)
     skipped = []
-    for a, method in enumerate(SCIPY_METHODS, start=len(spec.methods)):
+    for a, method in enumerate(SCIPY_METHODS, start=len(ours)):
         case.scipy_value(P[0], method, ladder[0], ladder[0] * ATOL_RATIO)  # first-call costs are not timed
         for b, rtol in enumerate(ladder):
             if b and res["time_per_point"][a, b - 1] > scipy_budget_s:
