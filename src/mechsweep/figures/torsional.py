@@ -50,7 +50,7 @@ def coefficients(ds, boundaries=None):
                     pick = {d: v for d, v in (("spring", spring), (fam, val)) if d is not None and d in b.dims}
                     for x in np.asarray(b.sel(pick).values, dtype=float).ravel():
                         if np.isfinite(x):
-                            ax.axvline(x, color=colors[k], lw=1.0, ls=(0, (1, 1)))
+                            ax.axvline(x, color=colors[k], lw=1.0, ls=":")
             ax.axhline(0.0, color="0.3", lw=0.6)
             if name == "xi":
                 ylo, yhi = ax.get_ylim()
