@@ -6,6 +6,7 @@ import textwrap
 
 import numpy as np
 from matplotlib.colors import ListedColormap
+from matplotlib.ticker import MaxNLocator
 
 from . import located
 from ._registry import ModelFigure
@@ -103,8 +104,23 @@ def stability_chart(ds, boundaries=None):
                                   label="simulation: unstable"))
     if boundaries is not None and boundaries.attrs.get("along") == "Omega":
         line_dim = ydim if ydim in boundaries["boundary"].dims else None
-        handles += [a for a in located.overlay(ax, boundaries, line_dim=line_dim, xmap=lambda v: np.asarray(v) / scale,
-                                               ymap=ymap) if a.get_label() and not a.get_label().startswith("_")]
+        xmap = lambda v: np.asarray(v) / scale  # noqa: E731
+        handles += [a for a in located.overlay(ax, boundaries, line_dim=line_dim, xmap=xmap, ymap=ymap)
+                    if a.get_label() and not a.get_label().startswith("_")]
+        small = located.small_curves(boundaries, ((x.min(), x.max()), (y.min(), y.max())), xmap=xmap, ymap=ymap)
+        if small is not None:  # an island too small to see: a magnified view of it
+            (x0, x1), (y0, y1) = small
+            dx, dy = 0.15 * (x1 - x0), 0.15 * (y1 - y0)
+            inset = ax.inset_axes([0.04, 0.5, 0.36, 0.36])
+            inset.pcolormesh(x, y, verdict, cmap=STABLE_COLORS, vmin=0, vmax=1, shading="nearest")
+            located.overlay(inset, boundaries, line_dim=line_dim, xmap=xmap, ymap=ymap)
+            inset.set_xlim(x0 - dx, x1 + dx)
+            inset.set_ylim(y0 - dy, y1 + dy)
+            inset.tick_params(labelsize=6)
+            inset.xaxis.set_major_locator(MaxNLocator(3))
+            inset.yaxis.set_major_locator(MaxNLocator(4))
+            inset.set_title("magnified: a boundary closed inside the chart", fontsize=7)
+            ax.indicate_inset_zoom(inset, edgecolor="0.3")
     ax.set_xlabel(xlab)
     ax.set_ylabel(ylab)
     ax.set_xlim(x.min(), x.max())

@@ -120,6 +120,35 @@ def overlay(ax, bds, *, line_dim=None, sel=None, xmap=None, ymap=None, color=Non
     return artists
 
 
+def small_curves(bds, box, *, xmap=None, ymap=None, frac=0.05):
+    """The extent ((x0, x1), (y0, y1)), in chart coordinates, of the continued curves that begin and
+    end inside the chart and span less than ``frac`` of ``box`` ((x0, x1), (y0, y1)) both ways (an
+    island too small to see on the chart), all of them together; None when there is none."""
+    along, cont = bds.attrs.get("along"), bds.attrs.get("continue_in")
+    if not cont or f"curve_{along}" not in bds:
+        return None
+    xmap = xmap or (lambda v: v)
+    ymap = ymap or (lambda v: v)
+    cx = np.asarray(bds[f"curve_{along}"].values, dtype=float).reshape(-1, bds.sizes["point"])
+    cy = np.asarray(bds[f"curve_{cont}"].values, dtype=float).reshape(-1, bds.sizes["point"])
+    (bx0, bx1), (by0, by1) = box
+    logy = by0 > 0 and by1 / by0 > 50
+    span = lambda lo, hi, log: (np.log10(hi) - np.log10(lo)) if log else (hi - lo)  # noqa: E731
+    xs, ys = [], []
+    for px, py in zip(cx, cy):
+        ok = np.isfinite(px) & np.isfinite(py)
+        if ok.sum() < 2:
+            continue
+        x, y = xmap(px[ok]), ymap(py[ok])
+        if (span(x.min(), x.max(), False) < frac * abs(bx1 - bx0)
+                and span(y.min(), y.max(), logy) < frac * abs(span(min(by0, by1), max(by0, by1), logy))):
+            xs += [x.min(), x.max()]
+            ys += [y.min(), y.max()]
+    if not xs:
+        return None
+    return (min(xs), max(xs)), (min(ys), max(ys))
+
+
 def _line_dim(bds):
     """The first numeric dim (other than crossing) with more than one value, else None."""
     for d in bds["boundary"].dims:
