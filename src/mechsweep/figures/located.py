@@ -6,6 +6,8 @@ Nothing here computes a boundary: the curves are read from the boundaries datase
 """
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 
 from ._registry import ModelFigure
@@ -90,8 +92,9 @@ def overlay(ax, bds, *, line_dim=None, sel=None, xmap=None, ymap=None, color=Non
         y = np.repeat(np.asarray(bds[line_dim].values, dtype=float)[:, None], lines.sizes["crossing"], axis=1)
         x = np.asarray(lines.values, dtype=float)
         ok = np.isfinite(x)
-        artists.append(ax.scatter(xmap(x[ok]), ymap(y[ok]), s=9, marker="D", color=color or LOCATED_COLOR,
-                                  linewidths=0, zorder=4, label=text))
+        if ok.any():
+            artists.append(ax.scatter(xmap(x[ok]), ymap(y[ok]), s=9, marker="D", color=color or LOCATED_COLOR,
+                                      linewidths=0, zorder=4, label=text))
     cont = bds.attrs.get("continue_in")
     if cont and f"curve_{along}" in bds:
         cx = bds[f"curve_{along}"].isel({k: v for k, v in sel.items() if k in bds[f"curve_{along}"].dims})
@@ -167,7 +170,7 @@ def boundaries(ds):
     against another axis of the scene, one colour per combination of the remaining axes."""
     along = ds.attrs["along"]
     line_dim = _line_dim(ds)
-    fig, axes = new_figure(1, 1, width=7.5, height=5.0)
+    fig, axes = new_figure(1, 1, width=9.5, height=5.0)
     ax = axes[0, 0]
     rest = [d for d in ds["boundary"].dims if d not in (line_dim, "crossing")]
     combos = list(np.ndindex(*(ds.sizes[d] for d in rest)))
@@ -186,7 +189,9 @@ def boundaries(ds):
         ax.set_yticks([])
         ax.set_ylabel("(no other axis)")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7, loc="best")
+    handles, labels = ax.get_legend_handles_labels()
+    ax.legend(handles, ["\n".join(textwrap.wrap(lab, 44)) for lab in labels], fontsize=7, loc="upper left",
+              bbox_to_anchor=(1.01, 1.0))
     n = int(ds.attrs.get("located", 0))
     fig.suptitle(f"Boundaries located along {along}: {criterion_text(ds)}\n"
                  f"{ds.attrs.get('title', '')}: {n} located", fontsize=11)
