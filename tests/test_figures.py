@@ -213,3 +213,30 @@ def test_info_and_plot_of_a_boundaries_dataset(located, tmp_path, capsys):
     drawn = np.vstack([c.get_offsets() for c in fig.axes[0].collections])
     x = np.asarray(bds["boundary"].values, dtype=float)
     np.testing.assert_allclose(np.sort(drawn[:, 0]), np.sort(x[np.isfinite(x)]), rtol=1e-12)
+
+
+def test_an_island_too_small_to_see_is_drawn_magnified(tmp_path):
+    """The damping chart's island (Omega in [27.632, 27.851] rad/s, zeta_xi in [0.02154, 0.02861])
+    on a wide, coarse chart: its continued outline is drawn in an inset zoomed on it; the chart
+    without boundaries has no inset."""
+    import tomllib
+
+    from mechsweep.boundaries import run_boundaries
+    from mechsweep.scene import load_scene
+
+    d = tomllib.loads((REPO / "sweeps" / "autobalancer_damping.toml").read_text())
+    d["scene"]["outputs"] = ["floquet_max", "stable_floquet"]
+    d["axes"] = {"Omega": [27.0, 27.7, 27.75, 28.4, 40.0], "zeta_xi": [0.001, 0.025, 0.5]}
+    d["boundaries"]["rtol"] = 1e-6
+    d["storage"] = {"path": str(tmp_path / "wide.h5")}
+    _, bds = run_boundaries(load_scene(d))
+    ds = mechsweep.open_dataset(tmp_path / "wide.h5")
+    ax = figures.draw(ds, "stability_chart", boundaries=bds).axes[0]
+    assert len(ax.child_axes) == 1
+    inset = ax.child_axes[0]
+    (x0, x1), (y0, y1) = inset.get_xlim(), inset.get_ylim()
+    scale = float(ds["omega_xi"])
+    assert x0 < 27.632 / scale and 27.851 / scale < x1 and x1 - x0 < 0.02  # the island, magnified
+    assert y0 < 0.02154 and 0.02861 < y1 and y1 - y0 < 0.01
+    assert any("continued" in line.get_label() for line in inset.lines)
+    assert not figures.draw(ds, "stability_chart").axes[0].child_axes
