@@ -7,6 +7,9 @@ work-precision reports of the integrated models (tolerance ladder) and of the li
     python docs/make_figures.py workprecision # only the work-precision reports
     python docs/make_figures.py workprecision_fourbar_balancing  # only that model's report
 
+A scene with a [boundaries] section also gets its located boundaries (`mechsweep boundaries`,
+DATA.boundaries.h5 beside the dataset), drawn over the charts that show them.
+
 Datasets go to data/runs/ and data/bench/ (git-ignored), figures to docs/figures/ (committed).
 """
 from __future__ import annotations
@@ -28,7 +31,13 @@ def main(filters: list[str]) -> None:
             continue
         scene = mechsweep.load_scene(path)
         ds = mechsweep.run(scene, output=ROOT / scene.storage.path, restart=True, progress=False)
-        for written in figures.save(ds, OUT / f"{path.stem}.png"):
+        bds = None
+        if scene.boundaries is not None:
+            from mechsweep.boundaries import run_boundaries
+
+            where, bds = run_boundaries(scene, data=ROOT / scene.storage.path)
+            print(f"{path.name} -> {where.relative_to(ROOT)}: {bds.attrs['located']} boundaries located")
+        for written in figures.save(ds, OUT / f"{path.stem}.png", boundaries=bds):
             print(f"{path.name} -> {written.relative_to(ROOT)}")
     from mechsweep.bench import workprecision
 

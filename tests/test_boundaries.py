@@ -444,3 +444,29 @@ def test_the_speck_of_stability_in_the_damping_chart_is_a_real_island():
     pts = np.vstack(pts)
     np.testing.assert_allclose(pts.min(axis=0), [27.632, 0.02154], rtol=2e-4)
     np.testing.assert_allclose(pts.max(axis=0), [27.851, 0.02861], rtol=2e-4)
+
+
+def test_scene_continue_in_follows_an_island_touching_neither_end_line(tmp_path):
+    """[boundaries] continue_in also starts from a crossing located on an inner line of the
+    continue_in axis that no curve followed so far passes through (both ways): the damping chart's
+    island (Omega in [27.632, 27.851] rad/s, zeta_xi in [0.02154, 0.02861], see the test above) is
+    found from the middle one of three zeta_xi lines, and stored as continued curves, its second
+    crossing on that line not followed again."""
+    import tomllib
+
+    from .conftest import SWEEPS
+
+    d = tomllib.loads((SWEEPS / "autobalancer_damping.toml").read_text())
+    d["scene"]["outputs"] = ["floquet_max"]
+    d["axes"] = {"Omega": {"start": 27.0, "stop": 28.4, "num": 15}, "zeta_xi": [0.015, 0.025, 0.035]}
+    d["boundaries"] = {"along": "Omega", "criterion": "floquet_max", "level": 1.0, "rtol": 1e-8,
+                       "continue_in": "zeta_xi"}
+    d["storage"] = {"path": str(tmp_path / "island.h5")}
+    _, ds = bd.run_boundaries(load_scene(d))
+    loc = ds["boundary"].values
+    assert np.isfinite(loc[1]).sum() == 2 and not np.isfinite(loc[[0, 2]]).any()  # only the inner line crosses it
+    x, y = ds["curve_Omega"].values, ds["curve_zeta_xi"].values
+    assert x.shape[0] == 2  # both ways from the first crossing; the second lies on them
+    ok = np.isfinite(x)
+    np.testing.assert_allclose([x[ok].min(), y[ok].min()], [27.632, 0.02154], rtol=2e-4)
+    np.testing.assert_allclose([x[ok].max(), y[ok].max()], [27.851, 0.02861], rtol=2e-4)

@@ -775,10 +775,24 @@ def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_na
 CURVE_STOPS = ("edge", "closed", "max_points", "step_too_small", "no_value")
 
 
+def _crosses_near(points: np.ndarray, x: float, y: float, span_x: float) -> bool:
+    """Whether the polyline ``points`` (n, 2) crosses the line at ``y`` within 1e-3 of the span plus
+    the crossing segment's own extent along x of ``x`` (the start lies on a curve already followed)."""
+    px, py = points[:, 0], points[:, 1]
+    for k in np.flatnonzero((py[:-1] - y) * (py[1:] - y) <= 0):
+        dy = py[k + 1] - py[k]
+        xc = px[k] if dy == 0 else px[k] + (y - py[k]) / dy * (px[k + 1] - px[k])
+        if abs(xc - x) <= 1e-3 * span_x + abs(px[k + 1] - px[k]):
+            return True
+    return False
+
+
 def _continue_all(scene, crit, b, res: Located, rows: np.ndarray, others: tuple):
     """Follow, for every combination of the axes other than (along, continue_in), each boundary
     located (by a sign change) on the lines at both ends of the continue_in axis, skipping a start
-    that lies on a curve already followed. Returns (variables, coordinates, points, calls)."""
+    that lies on a curve already followed; then, both ways, each one located on an inner line that
+    no curve followed so far crosses (a boundary touching neither end line, e.g. an island).
+    Returns (variables, coordinates, points, calls)."""
     along, cont = b.along, b.continue_in
     names = [a.name for a in others]
     ci = names.index(cont)
@@ -803,6 +817,18 @@ def _continue_all(scene, crit, b, res: Located, rows: np.ndarray, others: tuple)
                 n_eval += c.evaluations
                 n_calls += c.calls
                 curves.append(c)
+        # then a boundary touching neither end line (e.g. an island): from a crossing located on an
+        # inner line that no curve followed so far passes through, both ways
+        for j in range(1, len(cvals) - 1):
+            for x in loc[r][j][ok[r][j]]:
+                if any(_crosses_near(c.points, x, cvals[j], span[0]) for c in curves):
+                    continue
+                for d in (1, -1):
+                    c = continue_boundary(scene, crit, R[r][j], along, cont, np.array([x, cvals[j]]), box=box,
+                                          direction=d)
+                    n_eval += c.evaluations
+                    n_calls += c.calls
+                    curves.append(c)
         found[r] = curves
     K = max([len(c) for c in found.values()] + [0])
     N = max([len(c.points) for cs in found.values() for c in cs] + [0])

@@ -146,6 +146,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--point", metavar="KEY=VALUE,...",
                    help="select one grid point (nearest values), e.g. --point Omega=12.5,m=0.2; "
                         "draws its time histories when the dataset stores them")
+    p.add_argument("--boundaries", metavar="PATH",
+                   help="located boundaries (`mechsweep boundaries`) to draw over the charts that show them "
+                        "(default: DATASET.boundaries.h5 beside the dataset, when it exists)")
+    p.add_argument("--no-boundaries", action="store_true", help="draw the charts without located boundaries")
     p.set_defaults(func=_cmd_plot)
 
     p = sub.add_parser("info", help="summarise a stored dataset: dims, outputs, status counts, cost, provenance")
@@ -312,6 +316,7 @@ def _cmd_plot(args) -> int:
     from .store import open_dataset
 
     ds = open_dataset(args.dataset)
+    bds = _boundaries_for(ds, args)
     with _laid_out(args.dataset):
         if args.point:
             ds = select_point(ds, args.point)
@@ -330,10 +335,35 @@ def _cmd_plot(args) -> int:
     for target in figures.targets(ds, out, kind=args.kind, fmt=fmt):
         _check_figure_path(target, Path(args.dataset))
     with _laid_out(args.dataset):
-        written = figures.save(ds, out, kind=args.kind, fmt=fmt)
+        written = figures.save(ds, out, kind=args.kind, fmt=fmt, boundaries=bds)
     for path in written:
         print(f"wrote {path}")
     return 0
+
+
+def _boundaries_for(ds, args):
+    """The located boundaries to draw over a run's charts: --boundaries PATH (refused, exit 2, when
+    they were not located on this dataset's grid), else DATASET.boundaries.h5 when it exists (left
+    out with a note when it does not fit), else None."""
+    from . import figures
+    from .errors import InputError
+    from .store import is_run_dataset, open_dataset
+
+    if args.no_boundaries or not is_run_dataset(ds):
+        if args.boundaries and args.no_boundaries:
+            raise InputError("give either --boundaries PATH or --no-boundaries, not both")
+        return None
+    path = Path(args.boundaries) if args.boundaries else figures.sibling_boundaries(args.dataset)
+    if path is None:
+        return None
+    bds = open_dataset(path)
+    why = figures.boundaries_mismatch(ds, bds)
+    if why is None:
+        return bds
+    if args.boundaries:
+        raise InputError(f"--boundaries {path}: not located on the grid of {args.dataset}: {why}")
+    print(f"note: {path} not drawn: {why}", file=sys.stderr)
+    return None
 
 
 def _check_figure_path(target: Path, dataset: Path) -> None:
@@ -411,6 +441,11 @@ def _cmd_info(args) -> int:
     from .store import is_run_dataset, open_dataset
 
     ds = open_dataset(args.dataset, allow_partial=True, lazy=None)
+    if ds.attrs.get("mechsweep_kind") == "boundaries" and "boundary" in ds:
+        with _laid_out(args.dataset):
+            text = describe_boundaries(ds)
+        print(text)
+        return 0
     if not is_run_dataset(ds):
         raise InputError(f"{args.dataset} is a mechsweep benchmark dataset ({ds.attrs.get('mechsweep_kind')}), "
                          "not a run; `mechsweep plot` draws it, `info` summarises runs")
@@ -418,6 +453,48 @@ def _cmd_info(args) -> int:
         text = describe(ds)
     print(text)
     return 0
+
+
+def describe_boundaries(ds) -> str:
+    """A boundaries dataset (`mechsweep boundaries`) in a few lines: what was located along which
+    axis, how many, which accuracy bound stopped each, the cost, the continued curves."""
+    import numpy as np
+
+    from .boundaries import BOUND_MEANINGS, CURVE_STOPS
+
+    a = ds.attrs
+    what = (f"{a['criterion']} = {float(a.get('level', 1.0)):g}" if a.get("criterion", "status") != "status"
+            else "status " + " -> ".join(str(a.get("status_change", "")).split()))
+    dims = ", ".join(f"{d} ({ds.sizes[d]})" for d in ds["boundary"].dims)
+    bound = np.asarray(ds["boundary_bound"].values)
+    loc, width = np.asarray(ds["boundary"].values, float), np.asarray(ds["boundary_width"].values, float)
+    lines = [f"{a.get('title', 'boundaries')}",
+             f"  model {a.get('model')}: {what}, located along {a.get('along')}; dims {dims}",
+             f"  located: {a.get('located', 0)} boundaries, rtol {float(a.get('rtol', np.nan)):.0e} in "
+             f"{a.get('along')}" + (f"; criterion accuracy: {a['criterion_accuracy']}" if "criterion_accuracy" in a
+                                    else "")]
+    counts = ", ".join(f"{BOUND_MEANINGS[c]} {int((bound == c).sum())}" for c in sorted(BOUND_MEANINGS)
+                       if (bound == c).any())
+    lines.append(f"  accuracy bound met: {counts or 'none'} (parameter: bracket <= rtol |x|; criterion: the "
+                 "criterion's accuracy band is wider; band_edge: edge of that band)")
+    ok = np.isfinite(loc) & np.isfinite(width) & (loc != 0)
+    if ok.any():
+        rel = width[ok] / np.abs(loc[ok])
+        lines.append(f"  bracket width relative to the boundary: median {np.median(rel):.1e}, largest {rel.max():.1e}")
+    lines.append(f"  evaluations: {a.get('evaluated_points', 0)} points in {a.get('evaluate_calls', 0)} calls after "
+                 f"the grid, {float(a.get('evaluations_per_point_mean', 0)):.1f} per located point (max "
+                 f"{a.get('evaluations_per_point_max', 0)}), {float(a.get('wall_time_s', 0)):.2f} s")
+    if "curve_stop" in ds:
+        stops = np.asarray(ds["curve_stop"].values)
+        kinds = ", ".join(f"{CURVE_STOPS[c]} {int((stops == c).sum())}" for c in range(len(CURVE_STOPS))
+                          if (stops == c).any())
+        folds = int(np.isfinite(np.asarray(ds[f"fold_{a['along']}"].values, float)).sum())
+        lines.append(f"  continued in ({a.get('along')}, {a.get('continue_in')}): {int((stops >= 0).sum())} "
+                     f"curve(s) (stopped: {kinds or 'none'}), {folds} fold(s); "
+                     f"{a.get('continuation_evaluated_points', 0)} points in {a.get('continuation_calls', 0)} "
+                     f"calls, {float(a.get('continuation_wall_time_s', 0)):.2f} s")
+    lines.append(f"  created {a.get('created', '?')} by mechsweep {a.get('mechsweep_version', '?')}")
+    return "\n".join(lines)
 
 
 @contextmanager

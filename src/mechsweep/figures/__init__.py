@@ -14,25 +14,50 @@ figures of the built-in models' scenes stay the ones their modules draw.
 
 ``available(ds)`` lists the figures drawn by default, ``on_request(ds)`` the others;
 ``draw(ds, kind)`` returns one as a matplotlib Figure (made without pyplot); ``save(ds, path)``
-writes them.
+writes them. Both take ``boundaries=``: the located boundaries dataset of the same grid
+(DATA.boundaries.h5, see :func:`sibling_boundaries`), drawn over the charts that declare they draw
+boundaries; a boundaries dataset itself gets the figure of :mod:`.located`.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
-from . import autobalancer, duffing, generic, linkage, torsional, workprecision
+from . import autobalancer, duffing, generic, linkage, located, torsional, workprecision
 from ._registry import ModelFigure
 
 # figures for a model, most specific first
 MODEL_FIGURES: tuple[ModelFigure, ...] = (workprecision.FIGURES + torsional.FIGURES + duffing.FIGURES
-                                          + autobalancer.FIGURES + linkage.FIGURES)
+                                          + autobalancer.FIGURES + linkage.FIGURES + located.FIGURES)
 
 
-def _plan(ds) -> list[tuple[str, str, object, bool]]:
+def sibling_boundaries(path):
+    """The located boundaries written beside the dataset ``path`` by ``mechsweep boundaries``
+    (DATA.boundaries.h5), or None when there is no such file."""
+    from ..boundaries import sibling_path
+
+    target = sibling_path(path)
+    return target if target.is_file() else None
+
+
+def boundaries_mismatch(ds, bds) -> str | None:
+    """Why ``bds`` cannot be drawn over the charts of ``ds`` (None: it can)."""
+    return located.mismatch(ds, bds)
+
+
+def _draw_fn(f, boundaries):
+    """The figure's draw(ds); a figure that draws boundaries gets ``boundaries`` when they were
+    located on the grid of ds (else None: the chart alone)."""
+    if not f.boundaries:
+        return f.draw
+    return lambda ds: f.draw(ds, boundaries=boundaries if boundaries is not None
+                             and located.mismatch(ds, boundaries) is None else None)
+
+
+def _plan(ds, boundaries=None) -> list[tuple[str, str, object, bool]]:
     """(name, description, draw(ds) -> Figure, drawn by default) for every figure that fits."""
     model = [f for f in MODEL_FIGURES if f.fits_dataset(ds)]
     drawn = set().union(*(f.drawn(ds) for f in model))
-    plan = [(f.name, f.description, f.draw, True) for f in model]
+    plan = [(f.name, f.description, _draw_fn(f, boundaries), True) for f in model]
     plan += [(c.name, c.description, c.draw, not model) for c in generic.choose(ds, drawn)]
     return plan
 
@@ -48,8 +73,8 @@ def on_request(ds) -> dict[str, str]:
     return {name: text for name, text, _, default in _plan(ds) if not default}
 
 
-def draw(ds, kind: str):
-    for name, _, fn, _ in _plan(ds):
+def draw(ds, kind: str, *, boundaries=None):
+    for name, _, fn, _ in _plan(ds, boundaries):
         if name == kind:
             return fn(ds)
     raise ValueError(f"figure {kind!r} does not fit this dataset; it can draw: "
@@ -65,7 +90,7 @@ def targets(ds, path, *, kind: str | None = None, fmt: str = "png") -> list[Path
             for k in chosen]
 
 
-def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150) -> list[Path]:
+def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150, boundaries=None) -> list[Path]:
     """Write one figure (``kind``, any listed by ``available`` or ``on_request``) or every figure
     drawn by default (``kind=None``).
 
@@ -73,7 +98,7 @@ def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150)
     """
     from ..errors import InputError
 
-    plan = {name: fn for name, _, fn, _ in _plan(ds)}
+    plan = {name: fn for name, _, fn, _ in _plan(ds, boundaries)}
     kinds = available(ds)
     if kind is not None and kind not in plan:
         raise InputError(f"figure {kind!r} does not fit this dataset; it can draw: "

@@ -16,6 +16,8 @@ class ModelFigure:
     of ``any_of`` (when given), and for which ``fits(ds)`` (when given: conditions on dimensions)
     is true. ``draws`` lists every output the figure shows: the generic figures leave them to it.
     ``draw(ds)`` returns a matplotlib Figure; the first paragraph of its docstring describes it.
+    With ``boundaries`` true it is called ``draw(ds, boundaries=BDS)``: BDS is the located boundaries
+    dataset of the same grid (``mechsweep boundaries``), or None, and is drawn over the chart.
     """
 
     name: str
@@ -26,6 +28,7 @@ class ModelFigure:
     any_of: tuple[str, ...] = ()
     draws: tuple[str, ...] = ()
     fits: Callable | None = field(default=None, repr=False)
+    boundaries: bool = False
 
     def fits_dataset(self, ds) -> bool:
         attrs = ds.attrs

@@ -2,9 +2,13 @@
 vibration against crank speed, and time histories of one grid point."""
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 from matplotlib.colors import ListedColormap
+from matplotlib.ticker import MaxNLocator
 
+from . import located
 from ._registry import ModelFigure
 from ._style import flag_note, label, new_figure, title
 
@@ -29,12 +33,20 @@ def _y_dim(ds, name):
 
 def _y(ds, dim):
     """Second chart axis; a pendulum or platform mass axis is shown as the mass ratio 2 m / M."""
+    ymap, ylab = _y_map(ds, dim)
+    return ymap(np.asarray(ds[dim].values, dtype=float)), ylab
+
+
+def _y_map(ds, dim):
+    """(values of ``dim`` -> chart coordinate, label) for the second chart axis."""
     ratio = "2 m / M, pendulum mass ratio [1]"
     if dim == "m" and "M" in ds.coords and ds["M"].ndim == 0:
-        return 2.0 * ds["m"].values / float(ds["M"]), ratio
+        M = float(ds["M"])
+        return (lambda v: 2.0 * np.asarray(v) / M), ratio
     if dim == "M" and "m" in ds.coords and ds["m"].ndim == 0:
-        return 2.0 * float(ds["m"]) / ds["M"].values, ratio
-    return ds[dim].values, label(ds[dim])
+        m = float(ds["m"])
+        return (lambda v: 2.0 * m / np.asarray(v)), ratio
+    return (lambda v: np.asarray(v)), label(ds[dim])
 
 
 def can_stability_chart(ds) -> bool:
@@ -42,12 +54,14 @@ def can_stability_chart(ds) -> bool:
     return "Omega" in ds.dims and _y_dim(ds, "stable_floquet") is not None
 
 
-def stability_chart(ds):
+def stability_chart(ds, boundaries=None):
     """Floquet stability region over crank speed and a second axis, with the first-approximation
-    boundaries and simulation verdicts."""
+    boundaries and simulation verdicts; the located and continued stability boundaries over it
+    when they were computed (`mechsweep boundaries`, DATA.boundaries.h5)."""
     ydim = _y_dim(ds, "stable_floquet")
     x, xlab, scale = _x(ds)
     y, ylab = _y(ds, ydim)
+    ymap, _ = _y_map(ds, ydim)
     fig, axes = new_figure(1, 1, width=8.0, height=5.6)
     ax = axes[0, 0]
     verdict = ds["stable_floquet"].where(ds["status"] == 0).transpose(ydim, "Omega").values
@@ -62,8 +76,12 @@ def stability_chart(ds):
     if "floquet_max" in ds:
         fm = ds["floquet_max"].transpose(ydim, "Omega").values
         if np.isfinite(fm).any() and np.nanmin(fm) < 1 < np.nanmax(fm):
-            ax.contour(x, y, fm, levels=[1.0], colors="k", linewidths=1.2)
-            handles.append(ax.plot([], [], color="k", lw=1.2, label="max |Floquet multiplier| = 1")[0])
+            ax.contour(x, y, fm, levels=[1.0], colors="k", linewidths=1.2 if boundaries is None else 0.7,
+                       linestyles="solid" if boundaries is None else "dashed")
+            handles.append(ax.plot([], [], color="k", lw=1.2 if boundaries is None else 0.7,
+                                   ls="-" if boundaries is None else "--",
+                                   label="max |Floquet multiplier| = 1: contour of the grid "
+                                         f"({len(x)} x {len(y)}; precision ~ its spacing)")[0])
     for name, style, text in (("omega_xi", "--", "ω_ξ"), ("omega_eta", ":", "ω_η"), ("omega_p", "-.", "ω_p")):
         value = _scalar(ds, name)
         if value is not None:
@@ -84,11 +102,33 @@ def stability_chart(ds):
                                   edgecolors="k", lw=0.8, label="simulation: stable"))
         handles.append(ax.scatter(xs[s == 0], ys[s == 0], marker="x", s=14, color="k", lw=0.8,
                                   label="simulation: unstable"))
+    if boundaries is not None and boundaries.attrs.get("along") == "Omega":
+        line_dim = ydim if ydim in boundaries["boundary"].dims else None
+        xmap = lambda v: np.asarray(v) / scale  # noqa: E731
+        handles += [a for a in located.overlay(ax, boundaries, line_dim=line_dim, xmap=xmap, ymap=ymap)
+                    if a.get_label() and not a.get_label().startswith("_")]
+        small = located.small_curves(boundaries, ((x.min(), x.max()), (y.min(), y.max())), xmap=xmap, ymap=ymap)
+        if small is not None:  # an island too small to see: a magnified view of it
+            (x0, x1), (y0, y1) = small
+            dx, dy = 0.15 * (x1 - x0), 0.15 * (y1 - y0)
+            inset = ax.inset_axes([0.04, 0.5, 0.36, 0.36])
+            inset.pcolormesh(x, y, verdict, cmap=STABLE_COLORS, vmin=0, vmax=1, shading="nearest")
+            located.overlay(inset, boundaries, line_dim=line_dim, xmap=xmap, ymap=ymap)
+            inset.set_xlim(x0 - dx, x1 + dx)
+            inset.set_ylim(y0 - dy, y1 + dy)
+            inset.tick_params(labelsize=6)
+            inset.xaxis.set_major_locator(MaxNLocator(3))
+            inset.yaxis.set_major_locator(MaxNLocator(4))
+            inset.set_title("magnified: a boundary closed inside the chart", fontsize=7)
+            ax.indicate_inset_zoom(inset, edgecolor="0.3")
     ax.set_xlabel(xlab)
     ax.set_ylabel(ylab)
     ax.set_xlim(x.min(), x.max())
+    ax.set_ylim(y.min(), y.max())
     if ds[ydim].attrs.get("spacing") == "log":
         ax.set_yscale("log")
+    for h in handles:  # a narrow legend leaves the chart its width
+        h.set_label("\n".join(textwrap.wrap(h.get_label(), 44)))
     ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     flag_note(ax, ds)
     title(fig, ds, "Stability of the balanced state of the pendulum auto-balancer")
@@ -185,7 +225,8 @@ def time_history(ds):
 
 FIGURES = (
     ModelFigure("stability_chart", stability_chart, models=MODELS, needs=("stable_floquet",),
-                draws=("floquet_max", "P_approx", "stable_sim", "omega_p"), fits=can_stability_chart),
+                draws=("floquet_max", "P_approx", "stable_sim", "omega_p"), fits=can_stability_chart,
+                boundaries=True),
     ModelFigure("residual", residual, models=MODELS, any_of=("residual_amplitude", "settling_time"),
                 draws=("phase_error", "omega_p"), fits=can_residual),
     ModelFigure("time_history", time_history, models=MODELS, any_of=HISTORIES, fits=can_time_history),

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.colors import LogNorm
 
+from . import located
 from ._registry import ModelFigure
 from ._style import flag_note, label, new_figure, ok_values, title
 
@@ -22,9 +23,13 @@ def can_coefficients(ds) -> bool:
     return len(extra) <= 1
 
 
-def coefficients(ds):
+def coefficients(ds, boundaries=None):
     """chi and xi against lambda2, one curve per value of the family axis (e.g. S0/R);
-    columns for tension / compression; xi panels shaded hard (xi > 0) and soft (xi < 0)."""
+    columns for tension / compression; xi panels shaded hard (xi > 0) and soft (xi < 0); the
+    located feasibility limits along lambda2 (e.g. the spring's free length reaching 0) as vertical
+    lines in the curve's colour when they were computed (`mechsweep boundaries`)."""
+    if boundaries is not None and boundaries.attrs.get("along") != "lambda2":
+        boundaries = None
     rows = [n for n in ("chi", "xi") if n in ds]
     springs = list(ds["spring"].values) if "spring" in ds.dims else [None]
     fam = _family_dim(ds)
@@ -40,6 +45,12 @@ def coefficients(ds):
                 line = da.sel({fam: val}) if fam else da
                 lab = f"{val:g}" if fam else None
                 ax.plot(sub["lambda2"].values, line.values, color=colors[k], lw=1.4, label=lab)
+                if boundaries is not None:
+                    b = boundaries["boundary"]
+                    pick = {d: v for d, v in (("spring", spring), (fam, val)) if d is not None and d in b.dims}
+                    for x in np.asarray(b.sel(pick).values, dtype=float).ravel():
+                        if np.isfinite(x):
+                            ax.axvline(x, color=colors[k], lw=1.0, ls=":")
             ax.axhline(0.0, color="0.3", lw=0.6)
             if name == "xi":
                 ylo, yhi = ax.get_ylim()
@@ -56,6 +67,10 @@ def coefficients(ds):
             flag_note(ax, sub)
         if fam:
             axes[0, c].legend(fontsize=7, title=label(ds[fam], width=30), title_fontsize=7, ncols=2)
+    if boundaries is not None:
+        fig.supxlabel(f"dotted vertical lines: {located.criterion_text(boundaries)} located along lambda2 "
+                 f"({located.tolerance_text(boundaries)}) for the curve of that colour; the curves are the "
+                 "grid's feasible points", fontsize=8, color=located.LOCATED_COLOR)
     title(fig, ds, "Duffing coefficients of the torsional oscillating circuit")
     return fig
 
@@ -96,7 +111,7 @@ def truncation_error(ds):
 
 FIGURES = (
     ModelFigure("coefficients", coefficients, models=("torsional_circuit",), any_of=("chi", "xi"),
-                fits=can_coefficients),
+                fits=can_coefficients, boundaries=True),
     ModelFigure("truncation_error", truncation_error, models=("torsional_circuit",), needs=("truncation_error",),
                 fits=can_truncation_error),
 )

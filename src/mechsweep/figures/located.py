@@ -1,0 +1,203 @@
+"""Located and continued boundaries (a ``mechsweep boundaries`` dataset, DATA.boundaries.h5) drawn
+over a chart of the grid they were located on, or alone.
+
+Nothing here computes a boundary: the curves are read from the boundaries dataset, and every label
+(what was located, to what tolerance, along which axis) from its attributes and variables.
+"""
+from __future__ import annotations
+
+import textwrap
+
+import numpy as np
+
+from ._registry import ModelFigure
+from ._style import label, new_figure
+
+KIND = "boundaries"
+LOCATED_COLOR = "#6a1b9a"
+CONTINUED_COLOR = "#0d47a1"
+
+
+def is_boundaries(ds) -> bool:
+    return ds is not None and ds.attrs.get("mechsweep_kind") == KIND and "boundary" in ds
+
+
+def mismatch(ds, bds) -> str | None:
+    """Why the boundaries dataset ``bds`` was not located on the grid of ``ds`` (None: it was, as
+    far as the stored attributes and coordinates tell: same model, the axis it was located along
+    and every other axis in the grid, with the same values)."""
+    if not is_boundaries(bds):
+        return "it is not a boundaries dataset (mechsweep_kind = 'boundaries')"
+    if bds.attrs.get("model") != ds.attrs.get("model"):
+        return f"its model {bds.attrs.get('model')!r} is not the dataset's {ds.attrs.get('model')!r}"
+    along = bds.attrs.get("along")
+    if along not in ds.dims:
+        return f"it was located along {along!r}, which is not a dimension of the dataset"
+    for d in bds["boundary"].dims:
+        if d == "crossing":
+            continue
+        if d not in ds.dims or ds.sizes[d] != bds.sizes[d] or not np.array_equal(ds[d].values, bds[d].values):
+            return f"its axis {d!r} is not the dataset's (other values or missing)"
+    return None
+
+
+def criterion_text(bds) -> str:
+    """'floquet_max = 1' or 'status infeasible -> ok'."""
+    if bds.attrs.get("criterion", "status") == "status":
+        a, b = str(bds.attrs.get("status_change", "? ?")).split()[:2]
+        return f"status {a} → {b}"
+    return f"{bds.attrs['criterion']} = {float(bds.attrs.get('level', 1.0)):g}"
+
+
+def tolerance_text(bds) -> str:
+    """How precisely the stored boundaries were located: the rtol asked for and the widest final
+    bracket relative to the boundary (both read from the dataset)."""
+    loc = np.asarray(bds["boundary"].values, dtype=float)
+    w = np.asarray(bds["boundary_width"].values, dtype=float)
+    ok = np.isfinite(loc) & np.isfinite(w) & (loc != 0)
+    widest = f", widest bracket {np.max(w[ok] / np.abs(loc[ok])):.1e}" if ok.any() else ""
+    return f"rtol {float(bds.attrs.get('rtol', np.nan)):.0e}{widest}"
+
+
+def _lines(bds, line_dim):
+    """(selection of the remaining dims, DataArray over (line_dim, crossing)) for every combination
+    of the boundaries' dims other than line_dim and crossing."""
+    da = bds["boundary"]
+    rest = [d for d in da.dims if d not in (line_dim, "crossing")]
+    for idx in np.ndindex(*(bds.sizes[d] for d in rest)):
+        sel = dict(zip(rest, idx))
+        yield sel, da.isel(sel)
+
+
+def overlay(ax, bds, *, line_dim=None, sel=None, xmap=None, ymap=None, color=None, label_prefix=""):
+    """Draw the boundaries of ``bds`` on ``ax``: the located ones as points at (boundary, line) for
+    every value of ``line_dim`` (an axis other than the one located along; None: vertical lines at
+    the boundaries), the continued ones as curves. ``sel`` picks the other dims (isel); ``xmap`` /
+    ``ymap`` map the stored values to the chart's coordinates. Returns the artists (the first of
+    each kind carries a legend label saying what it is and to what tolerance)."""
+    xmap = xmap or (lambda v: v)
+    ymap = ymap or (lambda v: v)
+    sel = sel or {}
+    along = bds.attrs["along"]
+    artists = []
+    located = bds["boundary"].isel({k: v for k, v in sel.items() if k in bds["boundary"].dims})
+    text = f"{label_prefix}located along {along}: {criterion_text(bds)} ({tolerance_text(bds)})"
+    if line_dim is None:
+        xs = np.asarray(located.values, dtype=float).ravel()
+        for k, x in enumerate(xs[np.isfinite(xs)]):
+            artists.append(ax.axvline(xmap(x), color=color or LOCATED_COLOR, lw=1.0, ls=(0, (1, 1)),
+                                      label=text if k == 0 else None))
+    else:
+        lines = located.transpose(line_dim, "crossing")
+        y = np.repeat(np.asarray(bds[line_dim].values, dtype=float)[:, None], lines.sizes["crossing"], axis=1)
+        x = np.asarray(lines.values, dtype=float)
+        ok = np.isfinite(x)
+        if ok.any():
+            artists.append(ax.scatter(xmap(x[ok]), ymap(y[ok]), s=9, marker="D", color=color or LOCATED_COLOR,
+                                      linewidths=0, zorder=4, label=text))
+    cont = bds.attrs.get("continue_in")
+    if cont and f"curve_{along}" in bds:
+        cx = bds[f"curve_{along}"].isel({k: v for k, v in sel.items() if k in bds[f"curve_{along}"].dims})
+        cy = bds[f"curve_{cont}"].isel({k: v for k, v in sel.items() if k in bds[f"curve_{cont}"].dims})
+        first = True
+        for k in range(cx.sizes["curve"]):
+            px = np.asarray(cx.isel(curve=k).values, dtype=float)
+            py = np.asarray(cy.isel(curve=k).values, dtype=float)
+            ok = np.isfinite(px) & np.isfinite(py)
+            if ok.sum() < 2:
+                continue
+            (line,) = ax.plot(xmap(px[ok]), ymap(py[ok]), color=color or CONTINUED_COLOR, lw=1.6, zorder=3,
+                              label=(f"{label_prefix}continued in ({along}, {cont}) from the located ones "
+                                     f"(pseudo-arclength; every point on {criterion_text(bds)} to the "
+                                     "criterion's accuracy)") if first else None)
+            artists.append(line)
+            first = False
+        if f"fold_{along}" in bds:
+            fx = np.asarray(bds[f"fold_{along}"].values, dtype=float).ravel()
+            fy = np.asarray(bds[f"fold_{cont}"].values, dtype=float).ravel()
+            ok = np.isfinite(fx) & np.isfinite(fy)
+            if ok.any():
+                artists.append(ax.scatter(xmap(fx[ok]), ymap(fy[ok]), s=28, marker="o", facecolors="none",
+                                          edgecolors=color or CONTINUED_COLOR, zorder=5,
+                                          label=f"{label_prefix}fold of a continued boundary"))
+    return artists
+
+
+def small_curves(bds, box, *, xmap=None, ymap=None, frac=0.05):
+    """The extent ((x0, x1), (y0, y1)), in chart coordinates, of the continued curves that begin and
+    end inside the chart and span less than ``frac`` of ``box`` ((x0, x1), (y0, y1)) both ways (an
+    island too small to see on the chart), all of them together; None when there is none."""
+    along, cont = bds.attrs.get("along"), bds.attrs.get("continue_in")
+    if not cont or f"curve_{along}" not in bds:
+        return None
+    xmap = xmap or (lambda v: v)
+    ymap = ymap or (lambda v: v)
+    cx = np.asarray(bds[f"curve_{along}"].values, dtype=float).reshape(-1, bds.sizes["point"])
+    cy = np.asarray(bds[f"curve_{cont}"].values, dtype=float).reshape(-1, bds.sizes["point"])
+    (bx0, bx1), (by0, by1) = box
+    logy = by0 > 0 and by1 / by0 > 50
+    span = lambda lo, hi, log: (np.log10(hi) - np.log10(lo)) if log else (hi - lo)  # noqa: E731
+    xs, ys = [], []
+    for px, py in zip(cx, cy):
+        ok = np.isfinite(px) & np.isfinite(py)
+        if ok.sum() < 2:
+            continue
+        x, y = xmap(px[ok]), ymap(py[ok])
+        if (span(x.min(), x.max(), False) < frac * abs(bx1 - bx0)
+                and span(y.min(), y.max(), logy) < frac * abs(span(min(by0, by1), max(by0, by1), logy))):
+            xs += [x.min(), x.max()]
+            ys += [y.min(), y.max()]
+    if not xs:
+        return None
+    return (min(xs), max(xs)), (min(ys), max(ys))
+
+
+def _line_dim(bds):
+    """The first numeric dim (other than crossing) with more than one value, else None."""
+    for d in bds["boundary"].dims:
+        if d != "crossing" and bds.sizes[d] > 1 and bds[d].dtype.kind in "fiu":
+            return d
+    return None
+
+
+def can_boundaries(ds) -> bool:
+    """A boundaries dataset with at least one located boundary."""
+    return is_boundaries(ds) and bool(np.isfinite(np.asarray(ds["boundary"].values, dtype=float)).any())
+
+
+def boundaries(ds):
+    """The located boundaries (and the continued ones) alone: the axis they were located along
+    against another axis of the scene, one colour per combination of the remaining axes."""
+    along = ds.attrs["along"]
+    line_dim = _line_dim(ds)
+    fig, axes = new_figure(1, 1, width=9.5, height=5.0)
+    ax = axes[0, 0]
+    rest = [d for d in ds["boundary"].dims if d not in (line_dim, "crossing")]
+    combos = list(np.ndindex(*(ds.sizes[d] for d in rest)))
+    for k, idx in enumerate(combos[:10]):  # at most 10 colours stay readable
+        sel = dict(zip(rest, idx))
+        name = ", ".join(f"{d} = {ds[d].values[i]}" for d, i in sel.items())
+        overlay(ax, ds, line_dim=line_dim, sel=sel, color=f"C{k % 10}" if len(combos) > 1 else None,
+                label_prefix=f"{name}: " if name else "")
+    unit = ds["boundary"].attrs.get("units", "")
+    ax.set_xlabel(f"{along} [{unit}]" if unit not in ("", "1") else along)
+    if line_dim is not None:
+        ax.set_ylabel(label(ds[line_dim]))
+        if ds[line_dim].attrs.get("spacing") == "log":
+            ax.set_yscale("log")
+    else:
+        ax.set_yticks([])
+        ax.set_ylabel("(no other axis)")
+    ax.grid(True, alpha=0.3)
+    handles, labels = ax.get_legend_handles_labels()
+    ax.legend(handles, ["\n".join(textwrap.wrap(lab, 44)) for lab in labels], fontsize=7, loc="upper left",
+              bbox_to_anchor=(1.01, 1.0))
+    n = int(ds.attrs.get("located", 0))
+    fig.suptitle(f"Boundaries located along {along}: {criterion_text(ds)}\n"
+                 f"{ds.attrs.get('title', '')}: {n} located", fontsize=11)
+    return fig
+
+
+FIGURES = (
+    ModelFigure("boundaries", boundaries, dataset_kinds=(KIND,), needs=("boundary",), fits=can_boundaries),
+)
