@@ -32,7 +32,7 @@ def test_a_measurement_integrates_its_own_system_with_its_own_prepare(method):
     np.testing.assert_allclose(out["half"][:2], np.pi / P[:2, 0], rtol=1e-8)  # the System's equation
     # the System's prepare refuses w > 5: only its measurement is NaN, with that status
     assert np.isnan(out["half"][2]) and status.tolist() == [st.OK, st.OK, st.INFEASIBLE]
-    alone, _, ns_period, _ = _evaluate(P, ("period",), method=method, rtol=1e-10, atol=1e-12)
+    _, _, ns_period, _ = _evaluate(P, ("period",), method=method, rtol=1e-10, atol=1e-12)
     assert (ns[:2] > ns_period[:2]).all() and ns[2] == ns_period[2]  # both integrations counted
 
 

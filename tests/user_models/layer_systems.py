@@ -4,8 +4,6 @@ quarter period times 4: 2 pi / w), a System x'' = -4 w^2 x of its own (measureme
 period pi / w; its prepare refuses w > 5 with INFEASIBLE), and a FirstEvent "refined" on the
 model's equation whose refine asks for rtol / tighten (inf: ILL_CONDITIONED). A closed form
 "inverse" = 1 / A that does not apply where A < 0 (classify: NO_MOTION)."""
-import math
-
 from mechsweep.model import ClosedForm, FirstEvent, OdeModel, Param, System
 
 OK, INFEASIBLE, NO_MOTION = 0, 4, 7

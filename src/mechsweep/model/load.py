@@ -327,7 +327,8 @@ def check(model, ref: str, file: str) -> None:
     extra = _extra_functions(model)
     for what, func, build in extra:
         value = probe(what, func, build(p, y0))
-        if what != "accel" and not what.endswith((".rhs", ".initial", ".jac", ".accel")) and not isinstance(value, (int, float, np.floating, np.integer)):
+        writes = what == "accel" or what.endswith((".rhs", ".initial", ".jac", ".accel"))  # return nothing
+        if not writes and not isinstance(value, (int, float, np.floating, np.integer)):
             raise InputError(f"{label}: {what} returned {value!r}; expected a number")
     pp = np.concatenate([p, np.zeros(3 * n_s + n_s * n_s)])
     funcs = [("initial", model.initial, (pp, np.zeros(n_s))), ("rhs", model.rhs, (0.0, y0.copy(), pp, np.zeros(n_s)))]

@@ -23,8 +23,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from .. import status as st
 from .._jit import jit, jit_noalloc
 from ..model.measure import ClosedForm, FirstEvent, System
