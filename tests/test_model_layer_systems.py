@@ -24,7 +24,11 @@ def _evaluate(P, wanted, **solver):
     return out, status, ns, nr
 
 
-@pytest.mark.parametrize("method", ["dop853", pytest.param("radau", marks=pytest.mark.slow)])
+# The two integrating tests compile two kernels each (~13 s cold on the shared 2-core machine): slow.
+# The default run covers the same generated code through the built-in torsional circuit
+# (tests/test_torsional_circuit.py: two Systems, and the refined pass near the hump at phi = 0).
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["dop853", "radau"])
 def test_a_measurement_integrates_its_own_system_with_its_own_prepare(method):
     P = np.array([[1.0, 0.5, 1.0], [2.0, 0.3, 1.0], [6.0, 0.5, 1.0]])
     out, status, ns, _ = _evaluate(P, ("period", "half"), method=method, rtol=1e-10, atol=1e-12)
@@ -36,6 +40,7 @@ def test_a_measurement_integrates_its_own_system_with_its_own_prepare(method):
     assert (ns[:2] > ns_period[:2]).all() and ns[2] == ns_period[2]  # both integrations counted
 
 
+@pytest.mark.slow
 def test_refine_integrates_again_at_the_tightened_tolerance():
     # powers of two: rtol / factor is exact, the second pass's tolerance is that of a plain run
     P = np.array([[1.0, 0.5, 1.0], [1.0, 0.5, 2.0 ** 13], [1.0, 0.5, np.inf], [1.0, 0.5, 0.5]])
