@@ -1,6 +1,7 @@
 """Whole shipped scenes of a model, every method: ``python tests/data/scene_outputs.py record DIR``
 writes each scene's outputs, status, n_steps and n_rhs (in memory, no HDF5) to DIR; ``... compare
-DIR`` computes them again with the current code and reports whether every array is bitwise equal.
+DIR`` computes them again with the current code and reports whether every array is bitwise equal;
+an optional third argument keeps only the scenes whose file name starts with it (e.g. torsional).
 Used once to check that moving the built-in Duffing and torsional circuit onto the model layer
 changed no value of sweeps/duffing_*.toml and sweeps/torsional_circuit_*.toml (too slow for a test).
 """
@@ -31,11 +32,11 @@ def compute(path: Path, method: str) -> dict:
     return {**cols, "status": status, "n_steps": n_steps, "n_rhs": n_rhs}
 
 
-def main(mode: str, folder: str) -> int:
+def main(mode: str, folder: str, prefix: str = "") -> int:
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     bad = 0
-    for path in SCENES:
+    for path in [s for s in SCENES if s.name.startswith(prefix)]:
         for method in METHODS:
             arrays = compute(path, method)
             f = folder / f"{path.stem}-{method}.npz"
@@ -54,4 +55,4 @@ def main(mode: str, folder: str) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1], sys.argv[2]))
+    sys.exit(main(*sys.argv[1:4]))

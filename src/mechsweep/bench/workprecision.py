@@ -115,7 +115,7 @@ def _torsional_scaled(P, i):
     from ..models import torsional_circuit as tc
 
     code, sigma, lam1, lam2, s, k, chi, xi, A = tc._point_coefficients(P, i)
-    w2 = k * (abs(chi) + abs(xi) * A * A)  # as integrate_exact_period (plain formulation, A <= pi / 2)
+    w2 = k * (abs(chi) + abs(xi) * A * A)  # as torsional_circuit.exact_prepare (plain formulation, A <= pi / 2)
     D0 = tc.rest_length_squared(sigma, lam1, lam2)
     p = np.array([sigma, lam1, D0, math.sqrt(D0) - sigma * s, A, k / (w2 * A)])
     return code, p, math.sqrt(w2)

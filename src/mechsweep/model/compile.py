@@ -77,6 +77,51 @@ _GUARD = {
 }
 
 
+_SYSTEM_ROLES = ("rhs", "initial", "jac", "accel", "symplectic_step", "prepare")
+
+
+def _guard_numbered(name: str) -> str:
+    """The guard of a numbered function: a measurement's System function (rhs0, prepare2, ...) or a
+    closed form's classify (cfclassify1), as the model's own guard of that role."""
+    base = name.rstrip("0123456789")
+    role = "classify" if base == "cfclassify" else base
+    return _GUARD[role].replace(f"def {role}(", f"def {name}(").replace(f"user_{role}(", f"user_{name}(")
+
+
+def _system(m):
+    """The System a measurement integrates instead of the model's equation, or None."""
+    return getattr(m, "system", None)
+
+
+def _own(m) -> bool:
+    """Whether a measurement's integration is a function pass<k> of its own (a System or refine)."""
+    return _system(m) is not None or getattr(m, "refine", None) is not None
+
+
+def _fd_jac(name: str, rhs: str) -> str:
+    return f"""
+
+@jit
+def {name}(t, y, p, J):
+    # engine-built Jacobian: central differences of {rhs}, step cbrt(eps) max(1, |y_j|) (scratch in p)
+    yp = p[SCR:SCR + NS]
+    fp = p[SCR + NS:SCR + 2 * NS]
+    fm = p[SCR + 2 * NS:SCR + 3 * NS]
+    for j in range(NS):
+        for i in range(NS):
+            yp[i] = y[i]
+        h = 6.055454452393343e-06 * max(1.0, abs(y[j]))
+        up = y[j] + h
+        dn = y[j] - h
+        yp[j] = up
+        {rhs}(t, yp, p, fp)
+        yp[j] = dn
+        {rhs}(t, yp, p, fm)
+        for i in range(NS):
+            J[i, j] = (fp[i] - fm[i]) / (up - dn)
+"""
+
+
 def _guard_call(name: str, args: str) -> str:
     return (f"@jit\ndef {name}({args}):\n    try:\n        return user_{name}({args})\n    except Exception:\n"
             f"        p[NPI] = 1.0\n        return np.nan\n")
@@ -126,6 +171,8 @@ def _functions(model, chosen, closed) -> list[tuple[str, object]]:
             f.append((f"{role}{k}", func))
     for j, c in enumerate(closed):
         f.append((f"closed{j}", c.func))
+        if getattr(c, "classify", None) is not None:
+            f.append((f"cfclassify{j}", c.classify))
     return f
 
 
@@ -140,7 +187,8 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
     direct = is_direct(chosen) if direct is None else direct
     group = [] if direct else [k for k, m in enumerate(chosen) if shared and hasattr(m, "shared_row")]
     scr = [n_s]
-    if direct and method in ("radau", "auto") and "jac" not in refs:
+    fd_own = [k for k, m in enumerate(chosen) if _system(m) is not None and _system(m).jac is None]
+    if direct and method in ("radau", "auto") and ("jac" not in refs or fd_own):
         scr.append(3 * n_s)
     scr += [m.scratch(n_s) for m in chosen if hasattr(m, "scratch")]
     n_scr = max(scr)
@@ -161,6 +209,8 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
     for name in refs:
         if name in _GUARD:
             lines.append(_GUARD[name] + "\n")
+        elif name.rstrip("0123456789") in _SYSTEM_ROLES + ("cfclassify",) and name[-1].isdigit():
+            lines.append(_guard_numbered(name) + "\n")
     lines.append(f"NP = {n_p}\nNSET = {n_set}\nNPI = {npi}  # p[NPI]: the point's user-error flag\nSCR = NPI + 1\n"
                  f"NS = {n_s}\nNQ = {n_q}\nNSCR = {n_scr}\n"
                  f"BLOCK = {BLOCK}\n")
@@ -168,27 +218,10 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
         args = ", ".join(["p"] + [f"x{i}" for i in range(len(c.needs))])
         lines.append("\n" + _guard_call(f"closed{j}", args))
     if direct and uses["radau"] and "jac" not in refs:
-        lines.append("""
-
-@jit
-def jac(t, y, p, J):
-    # engine-built Jacobian: central differences of rhs, step cbrt(eps) max(1, |y_j|) (scratch in p)
-    yp = p[SCR:SCR + NS]
-    fp = p[SCR + NS:SCR + 2 * NS]
-    fm = p[SCR + 2 * NS:SCR + 3 * NS]
-    for j in range(NS):
-        for i in range(NS):
-            yp[i] = y[i]
-        h = 6.055454452393343e-06 * max(1.0, abs(y[j]))
-        up = y[j] + h
-        dn = y[j] - h
-        yp[j] = up
-        rhs(t, yp, p, fp)
-        yp[j] = dn
-        rhs(t, yp, p, fm)
-        for i in range(NS):
-            J[i, j] = (fp[i] - fm[i]) / (up - dn)
-""")
+        lines.append(_fd_jac("jac", "rhs"))
+    if direct and uses["radau"]:
+        for k in fd_own:
+            lines.append(_fd_jac(f"jac{k}", f"rhs{k}"))
     # ---- measurements
     if direct:
         for k, m in enumerate(chosen):
@@ -203,13 +236,17 @@ def jac(t, y, p, J):
                     lines.append(_guard_call(f"t_max{k}", "p"))
                 if f"value{k}" in refs:
                     lines.append(_guard_call(f"value{k}", "p, t"))
+            if f"refine{k}" in refs:
+                lines.append(_guard_call(f"refine{k}", "p, rtol, x"))
+            own = "" if _system(m) is None else str(k)  # the suffix of this measurement's equation
+            rhs, jac, accel = f"rhs{own}", f"jac{own}", f"accel{own}"
             if method == "dop853":
-                lines.append(f"solve{k} = dop853.make_event_solver(rhs, event{k})\n")
+                lines.append(f"solve{k} = dop853.make_event_solver({rhs}, event{k})\n")
             elif method == "auto":
-                lines.append(f"solve{k}_st = dop853.make_event_solver(rhs, event{k}, stiffness_test=True)\n"
-                             f"solve{k}_r = radau.make_event_solver(rhs, jac, event{k})\n")
+                lines.append(f"solve{k}_st = dop853.make_event_solver({rhs}, event{k}, stiffness_test=True)\n"
+                             f"solve{k}_r = radau.make_event_solver({rhs}, {jac}, event{k})\n")
             elif method == "radau":
-                lines.append(f"solve{k}_r = radau.make_event_solver(rhs, jac, event{k})\n")
+                lines.append(f"solve{k}_r = radau.make_event_solver({rhs}, {jac}, event{k})\n")
             elif method == "symplectic":
                 lines.append(f"""
 
@@ -222,8 +259,11 @@ def qevent{k}(t, q, v, p):  # the event on y = (q, v), copied into scratch
     return event{k}(t, yb, p)
 
 
-solve{k}_s = symplectic.make_event_solver(accel, qevent{k}, {int(model.symplectic_order)})
+solve{k}_s = symplectic.make_event_solver({accel}, qevent{k}, {int(model.symplectic_order)})
 """)
+            if _own(m):
+                lines.append(_pass_source(k, method, own, "t_max" + str(k) + "(p)" if f"t_max{k}" in refs
+                                          else repr(float(m.t_max)), _scratch_args(uses)))
     else:
         if group:
             rows = ",\n    ".join(repr(tuple(chosen[k].shared_row(model.states))) for k in group)
@@ -247,6 +287,18 @@ solve{k}_s = symplectic.make_event_solver(accel, qevent{k}, {int(model.symplecti
                 continue
             args = ", ".join(["p"] + [f"m{mnames[x]}" if x in mnames else f"cf{[d.name for d in closed].index(x)}"
                                       for x in c.needs])
+            if f"cfclassify{j}" in refs:  # the formula applies only where its classify says OK
+                out.append(f"""
+            cf{j} = math.nan
+            if need[{j}]:
+                cc = cfclassify{j}(p)
+                if cc != st.OK:
+                    if code == st.OK:
+                        code = cc
+                else:
+                    cf{j} = closed{j}({args})
+                    table[i, {closed_col[c.name]}] = cf{j}""")
+                continue
             out.append(f"""
             cf{j} = math.nan
             if need[{j}]:
@@ -295,6 +347,8 @@ solve{k}_s = symplectic.make_event_solver(accel, qevent{k}, {int(model.symplecti
                 meas.append(f"""
                 c = scodes[{j}]
                 val = svals[{j}]""")
+            elif direct and _own(m):
+                meas.append(_own_body(k, refs, _scratch_args(uses)))
             elif direct and method == "dop853":
                 meas.append(f"""
                 initial(p, y)
@@ -334,11 +388,11 @@ solve{k}_s = symplectic.make_event_solver(accel, qevent{k}, {int(model.symplecti
                 meas.append(f"""
                 initial(p, y)
                 c, val, a, b_ = measure{k}(y, p, rtol, atol, max_steps, work)""")
-            if not (k in group):
+            if not (k in group) and not (direct and _own(m)):
                 meas.append("""
                 n_steps[i] += a
                 n_rhs[i] += b_""")
-            if direct and f"value{k}" in refs:
+            if direct and f"value{k}" in refs and not _own(m):
                 meas.append(f"""
                 if c == st.OK:
                     val = value{k}(p, val)""")
@@ -376,6 +430,68 @@ def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
             status[i] = code
 """)
     return "".join(lines)
+
+
+def _scratch_args(uses) -> str:
+    """The method workspaces a pass function receives (those the kernel allocates)."""
+    return ", ".join((["work"] if uses["dop853"] else []) + (["rwork"] if uses["radau"] else [])
+                     + (["q", "v", "swork"] if uses["symplectic"] else []))
+
+
+def _pass_source(k: int, method: str, own: str, tm: str, args: str) -> str:
+    """``pass<k>(p, y, rtol, atol, max_steps, <workspaces>) -> (status, t, n_steps, n_rhs)``: one
+    integration of measurement k from its initial state by the method (auto: dop853 with the
+    stiffness test, a stiff point again by radau, the costs added)."""
+    head = f"\n\n@jit\ndef pass{k}(p, y, rtol, atol, max_steps, {args}):\n    tm = {tm}\n    initial{own}(p, y)\n"
+    if method == "dop853":
+        body = f"    return solve{k}(0.0, y, p, tm, rtol, atol, 0.0, max_steps, work)\n"
+    elif method == "radau":
+        body = f"    return solve{k}_r(0.0, y, p, tm, rtol, atol, 0.0, max_steps, rwork)\n"
+    elif method == "auto":
+        body = (f"    c, val, a, b_ = solve{k}_st(0.0, y, p, tm, rtol, atol, 0.0, max_steps, work)\n"
+                f"    if c == st.STIFF:  # a stiff point starts again with radau; the costs add up\n"
+                f"        initial{own}(p, y)\n"
+                f"        c, val, a2, b2 = solve{k}_r(0.0, y, p, tm, rtol, atol, 0.0, max_steps, rwork)\n"
+                f"        a += a2\n        b_ += b2\n    return c, val, a, b_\n")
+    else:
+        body = (f"    for j in range(NQ):\n        q[j] = y[j]\n        v[j] = y[NQ + j]\n"
+                f"    h = symplectic_step{own}(p, rtol)\n    if not h > 0.0:\n"
+                f"        return st.NONFINITE, math.nan, 0, 0\n"
+                f"    return solve{k}_s(0.0, q, v, p, h, tm, max_steps, swork)\n")
+    return head + body
+
+
+def _own_body(k: int, refs: dict, args: str) -> str:
+    """Kernel code of a measurement with its own pass function: its System's prepare, a pass, its
+    value and, where refine asks for it, a second pass at the tightened tolerance."""
+    value = f"value{k}" in refs
+    out = "\n                val = math.nan"
+    ind = "                "
+    if f"prepare{k}" in refs:
+        out += f"\n                c = prepare{k}(p, rtol)\n                if c == st.OK:"
+        ind = "                    "
+    out += f"""
+{ind}c, val, a, b_ = pass{k}(p, y, rtol, atol, max_steps, {args})
+{ind}n_steps[i] += a
+{ind}n_rhs[i] += b_"""
+    if value:
+        out += f"\n{ind}if c == st.OK:\n{ind}    val = value{k}(p, val)"
+    if f"refine{k}" in refs:
+        out += f"""
+{ind}if c == st.OK:
+{ind}    f = refine{k}(p, rtol, val)
+{ind}    if not f <= 1.0:  # NaN-safe: not a number is ILL_CONDITIONED below
+{ind}        if not math.isfinite(f):
+{ind}            c = st.ILL_CONDITIONED
+{ind}        elif a >= max_steps:
+{ind}            c = st.MAX_STEPS
+{ind}        else:  # once more at the tightened tolerance, with what is left of the step budget
+{ind}            c, val, a2, b2 = pass{k}(p, y, rtol / f, atol / f, max_steps - a, {args})
+{ind}            n_steps[i] += a2
+{ind}            n_rhs[i] += b2"""
+        if value:
+            out += f"\n{ind}            if c == st.OK:\n{ind}                val = value{k}(p, val)"
+    return out
 
 
 def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str = "", shared: bool = True,

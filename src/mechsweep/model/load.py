@@ -242,6 +242,16 @@ def _probe_layout(model) -> np.ndarray:
                            np.zeros(len(getattr(model, "internal", ())))])
 
 
+def _system_args(role, n_s):
+    """Args builder of one call of a System function at the probe point."""
+    return {"rhs": lambda p, y: (0.0, np.zeros(n_s), p, np.zeros(n_s)),
+            "initial": lambda p, y: (p, np.zeros(n_s)),
+            "jac": lambda p, y: (0.0, np.zeros(n_s), p, np.zeros((n_s, n_s))),
+            "accel": lambda p, y: (0.0, np.zeros(n_s // 2), p, np.zeros(n_s // 2)),
+            "symplectic_step": lambda p, y: (p, 1e-10),
+            "prepare": lambda p, y: (p, 1e-10)}[role]
+
+
 def _extra_functions(model):
     """(what, function, args builder) of the optional functions the kernel calls besides initial,
     rhs, forcing_period and jac; args builder: (p, y0) -> arguments of one call."""
@@ -260,8 +270,14 @@ def _extra_functions(model):
                 out.append((f"{m.name}.t_max", func, lambda p, y: (p,)))
             elif role == "value":
                 out.append((f"{m.name}.value", func, lambda p, y: (p, 1.0)))
+            elif role == "refine":
+                out.append((f"{m.name}.refine", func, lambda p, y: (p, 1e-10, 1.0)))
+            elif role in ("rhs", "initial", "jac", "accel", "symplectic_step", "prepare"):
+                out.append((f"{m.name}.system.{role}", func, _system_args(role, n_s)))
     for c in getattr(model, "closed_forms", ()):
         out.append((f"closed form {c.name}", c.func, lambda p, y, k=len(c.needs): (p,) + (1.0,) * k))
+        if getattr(c, "classify", None) is not None:
+            out.append((f"closed form {c.name}.classify", c.classify, lambda p, y: (p,)))
     return out
 
 
@@ -311,7 +327,8 @@ def check(model, ref: str, file: str) -> None:
     extra = _extra_functions(model)
     for what, func, build in extra:
         value = probe(what, func, build(p, y0))
-        if what != "accel" and not isinstance(value, (int, float, np.floating, np.integer)):
+        writes = what == "accel" or what.endswith((".rhs", ".initial", ".jac", ".accel"))  # return nothing
+        if not writes and not isinstance(value, (int, float, np.floating, np.integer)):
             raise InputError(f"{label}: {what} returned {value!r}; expected a number")
     pp = np.concatenate([p, np.zeros(3 * n_s + n_s * n_s)])
     funcs = [("initial", model.initial, (pp, np.zeros(n_s))), ("rhs", model.rhs, (0.0, y0.copy(), pp, np.zeros(n_s)))]

@@ -418,6 +418,28 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
 
 # ---------------------------------------------------------------- methods-aware measurements
 @dataclass(frozen=True)
+class System:
+    """A second equation of a model, integrated by the FirstEvent measurements that name it
+    (``FirstEvent(..., system=S)``): the same states and the same ``p`` (parameters, settings,
+    internal slots) as the model, its own ``rhs(t, y, p, dydt)`` and ``initial(p, y0)``, optional
+    ``jac`` (else central differences of its rhs for radau), ``accel`` + ``symplectic_step`` (the
+    symplectic method; required when the model declares ``accel``) and ``prepare(p, rtol) ->
+    status`` (run just before the measurement; non-OK: that measurement is NaN with that status,
+    the others are computed)."""
+
+    rhs: Callable = field(repr=False, compare=False)
+    initial: Callable = field(repr=False, compare=False)
+    jac: Callable | None = field(default=None, repr=False, compare=False)
+    accel: Callable | None = field(default=None, repr=False, compare=False)
+    symplectic_step: Callable | None = field(default=None, repr=False, compare=False)
+    prepare: Callable | None = field(default=None, repr=False, compare=False)
+
+    def functions(self):
+        return tuple((role, getattr(self, role)) for role in ("rhs", "initial", "jac", "accel", "symplectic_step",
+                                                              "prepare") if getattr(self, role) is not None)
+
+
+@dataclass(frozen=True)
 class FirstEvent:
     """The value at the first root of an event function: ``event(t, y, p)`` going from > 0 to
     <= 0, searched on [0, t_max] from ``initial(p, y0)`` (after ``prepare``).
@@ -436,6 +458,17 @@ class FirstEvent:
     Hermite interpolant of each fixed step), so values differ between methods by their errors.
     Status: NO_EVENT when no root before t_max; integration failures as the integrator reports
     them (MAX_STEPS, STEP_UNDERFLOW, NONFINITE; STIFF is never final: auto restarts with radau).
+
+    - ``system`` (optional): a :class:`System`, a second equation of the same model (its own rhs,
+      initial state, jac, accel/symplectic_step and prepare) that this measurement integrates
+      instead of the model's; e.g. a truncated and an exact form of one mechanism, measured at the
+      same point. Its ``prepare`` runs just before this measurement (after the model's).
+    - ``refine(p, rtol, value) -> factor`` (optional): after a successful pass, a bound on how much
+      the integration error is amplified in ``value`` at this point. ``factor <= 1``: the value
+      stands; a finite ``factor > 1``: the measurement is integrated once more from the start at
+      ``rtol / factor``, ``atol / factor`` with what is left of ``max_steps`` (none left: MAX_STEPS),
+      and that pass's value (or status) is the result; not a finite number (e.g. ``math.inf``):
+      ILL_CONDITIONED (no tolerance can give ``rtol`` here). Both passes count in n_steps/n_rhs.
     """
 
     name: str
@@ -445,11 +478,15 @@ class FirstEvent:
     symbol: str = ""
     unit: str = ""
     long_name: str = ""
+    system: System | None = field(default=None, repr=False, compare=False)
+    refine: Callable | None = field(default=None, repr=False, compare=False)
+    needs_params: tuple[str, ...] = ()  # Output.needs_params: optional parameters the value requires
     direct = True  # integrates on its own with solver.method (compile.py)
 
     def output(self) -> Output:
         return Output(self.name, self.symbol or self.name, self.unit,
-                      self.long_name or f"value at the first root of {self.name}'s event", integrated=True)
+                      self.long_name or f"value at the first root of {self.name}'s event", integrated=True,
+                      needs_params=tuple(self.needs_params))
 
     def validate(self, states):
         if not callable(self.event):
@@ -460,6 +497,10 @@ class FirstEvent:
                              "or a function t_max(p)")
         if self.value is not None and not callable(self.value):
             raise ValueError(f"{self.name}: value must be a function value(p, t) -> float")
+        if self.system is not None and not isinstance(self.system, System):
+            raise ValueError(f"{self.name}: system must be a mechsweep.model.System (got {self.system!r})")
+        if self.refine is not None and not callable(self.refine):
+            raise ValueError(f"{self.name}: refine must be a function refine(p, rtol, value) -> float")
 
     def functions(self):
         """(role, function) pairs the generated module imports."""
@@ -468,6 +509,10 @@ class FirstEvent:
             out.append(("t_max", self.t_max))
         if self.value is not None:
             out.append(("value", self.value))
+        if self.refine is not None:
+            out.append(("refine", self.refine))
+        if self.system is not None:
+            out += self.system.functions()
         return tuple(out)
 
     def key(self) -> tuple:
@@ -489,6 +534,10 @@ class ClosedForm:
     ``output_needs``: what the ModelSpec says the output needs (the runner then computes those
     too and a describe shows them); default: ``needs``. Give ``()`` for a formula whose inputs
     are internal to it (kv needs v_max and period_exact to be computed, not to be stored).
+    ``classify(p) -> status`` (optional): where the formula does not apply (e.g. the Duffing
+    closed forms of a model whose two-term approximation is past its separatrix): non-OK, the
+    output is NaN and, when the closed form is computed, the point gets that status (the first
+    failure in the kernel's order: classify, these closed forms, the measurements).
     """
 
     name: str
@@ -498,10 +547,13 @@ class ClosedForm:
     long_name: str = ""
     needs: tuple[str, ...] = ()
     output_needs: tuple[str, ...] | None = None
+    classify: Callable | None = field(default=None, repr=False, compare=False)
+    needs_params: tuple[str, ...] = ()  # Output.needs_params: optional parameters the formula requires
 
     def output(self) -> Output:
         return Output(self.name, self.symbol or self.name, self.unit, self.long_name or self.name,
-                      needs=tuple(self.needs if self.output_needs is None else self.output_needs))
+                      needs=tuple(self.needs if self.output_needs is None else self.output_needs),
+                      needs_params=tuple(self.needs_params))
 
 
 

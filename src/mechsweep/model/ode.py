@@ -106,6 +106,12 @@ class OdeModel:
             if self.symplectic_order not in SYMPLECTIC_ORDERS:
                 raise ValueError(f"model {self.name!r}: symplectic_order = {self.symplectic_order!r}; "
                                  f"expected one of {SYMPLECTIC_ORDERS}")
+        for m in self.measurements:
+            system = getattr(m, "system", None)
+            if system is not None and self.accel is not None and (system.accel is None
+                                                                  or system.symplectic_step is None):
+                raise ValueError(f"model {self.name!r}: measurement {m.name!r} integrates a System without "
+                                 "accel and symplectic_step, but the model offers the symplectic method (accel)")
         if self.output_order and sorted(self.output_order) != sorted(names):
             raise ValueError(f"model {self.name!r}: output_order {self.output_order} must list every output once "
                              f"({names})")

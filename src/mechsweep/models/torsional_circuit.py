@@ -12,29 +12,25 @@ Nondimensional form used by the kernels (s = S0 / R = s0_over_r, sigma = +1 tens
                   l(phi)^2 = 1 + lambda1^2 + lambda2^2 - 2 sigma lambda1 cos(phi)     [beyond]
 (D0 + 3 sigma lambda1 is the source's lambda2^2 + lambda1^2 + 1 +/- lambda1.)
 Without R, c, I the time unit is sqrt(I / (R^2 c)); outputs with dimensional units need them.
+
+Declared on the model layer (mechsweep.model): two equations are integrated per point, each by a
+FirstEvent with its own System (rhs, initial state, prepare): the two-term (Duffing) equation for
+`period` and the exact spring moment for `period_exact_moment`; the latter's `refine` runs a second
+pass at a tightened tolerance next to the hump of the potential at phi = 0. The Duffing closed forms
+are ClosedForms whose `classify` is the two-term model's. No chunk loop, no method switch.
 """
 from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from .. import status as st
-from .._jit import call_with_literal, jit, jit_noalloc, literally, pjit, prange
-from ..ode import METHOD_CODES, dop853, radau, symplectic
-from . import _duffing_scaled as duf
+from .._jit import jit, jit_noalloc
+from ..model.measure import ClosedForm, FirstEvent, System
+from ..model.ode import OdeModel
 from . import duffing
-from ._spec import ModelSpec, Output, Param
-
-OUTPUTS = ("chi", "xi", "omega2", "mu", "hardness") + duf.OUTPUTS + ("period_exact_moment", "truncation_error")
-K_CHI, K_XI, K_OMEGA2, K_MU, K_HARD = range(5)
-OFF = 5  # Duffing outputs occupy columns OFF .. OFF + 7 in the same order as duffing.OUTPUTS
-K_EXACT_MOMENT = OFF + len(duf.OUTPUTS)
-K_TRUNC = K_EXACT_MOMENT + 1
+from ._spec import Param
 
 SINGULAR_D0 = 1e-12  # (L(0)/R)^2 below this: spring of zero length at rest, formulas singular
-
-BLOCK = 16
 
 
 @jit
@@ -81,15 +77,10 @@ def exact_moment(phi, sigma, lam1, D0, L0):
 
 @jit
 def _exact_rhs(t, y, p, dydt):
-    # x = phi / A, tau = w t:  x'' = -coef * m(A x);  p = (sigma, lambda1, D0, L0, A, coef)
+    # the scaled exact-moment equation in plain slots p = (sigma, lambda1, D0, L0, A, coef): bench
+    # workprecision's scipy reference integrates it (the model's own is exact_rhs below)
     dydt[0] = y[1]
     dydt[1] = -p[5] * exact_moment(p[4] * y[0], p[0], p[1], p[2], p[3])
-
-
-@jit
-def _phi_event(t, y, p):
-    # p[6] = level of phi = 0 in the scaled coordinate, p[7] = +1 (y falls to it) or -1 (y rises to it)
-    return p[7] * (y[0] - p[6])
 
 
 @jit_noalloc
@@ -99,151 +90,6 @@ def exact_moment_slope(phi, sigma, lam1, D0, L0):
     sin_phi = math.sin(phi)
     return sigma * lam1 * (math.cos(phi) * (1.0 - L0 / length)
                            + sigma * lam1 * L0 * sin_phi * sin_phi / (length * length * length))
-
-
-@jit_noalloc
-def _exact_jac(t, y, p, J):
-    J[0, 0] = 0.0
-    J[0, 1] = 1.0
-    J[1, 0] = -p[5] * p[4] * exact_moment_slope(p[4] * y[0], p[0], p[1], p[2], p[3])
-    J[1, 1] = 0.0
-
-
-@jit_noalloc
-def _exact_accel(t, q, p, a):
-    a[0] = -p[5] * exact_moment(p[4] * q[0], p[0], p[1], p[2], p[3])
-
-
-@jit_noalloc
-def _q_event(t, q, v, p):
-    return p[7] * (q[0] - p[6])
-
-
-exact_quarter_period_solver = dop853.make_event_solver(_exact_rhs, _phi_event)
-exact_quarter_period_stiffness_test = dop853.make_event_solver(_exact_rhs, _phi_event, stiffness_test=True)
-exact_quarter_period_radau = radau.make_event_solver(_exact_rhs, _exact_jac, _phi_event)
-exact_quarter_period_symplectic = symplectic.make_event_solver(_exact_accel, _q_event, duf.SYMPLECTIC_ORDER)
-
-
-# as duffing.quarter_period, for the exact spring moment
-exact_quarter_period = duf.make_quarter_period(
-    "exact_quarter_period", exact_quarter_period_solver, exact_quarter_period_stiffness_test,
-    exact_quarter_period_radau, exact_quarter_period_symplectic)
-
-
-N_P = 8  # parameters of the scaled exact-moment equation: (sigma', lambda1, D, L0, scale, coef, level, direction)
-PI_LO = 1.2246467991473532e-16  # pi - math.pi: pi = math.pi + PI_LO to twice double precision
-# Tightened tolerances below this are not tried: the point is ILL_CONDITIONED (as the old Duffing floor)
-RTOL_FLOOR = 5e-14
-
-
-@jit_noalloc
-def integrate_exact_period(method, sigma, lam1, lam2, s, k, chi, xi, A, rtol, atol, max_steps, t_max_periods, y, p,
-                           work, rwork, swork, q, v):
-    """Period with the exact spring moment (k = R^2 c / I). Returns (status, T, n_steps, n_rhs).
-
-    Whether the lever oscillates about phi = 0 is decided by the exact moment's potential alone
-    (exact_classify), never by the two-term model: the cubic's soft separatrix is an artefact of
-    the truncation (a stretched tension spring, for instance, always brings the lever back).
-
-    The potential V = (l - L0)^2 / 2 has its humps at phi = pi (where the spring is stretched, or
-    compressed, beyond its free length there) and, when chi < 0, at phi = 0; near them the period
-    diverges logarithmically and, as for the Duffing separatrix, errors are amplified:
-    - released near the top (A > pi / 2): integrated in theta = pi - phi, theta(0) = (pi - A)
-      formed to twice double precision, so that the tolerance is relative to the distance from the
-      top (in phi / A the error grew as pi - A shrank: 4e5 rtol at pi - A = 1e-8, measured);
-      what is left is the sensitivity to A itself, d ln T / d ln A = 4 A / (lambda_pi (pi - A) T);
-    - swinging over the hump at 0 with a small energy excess dE = V(A) - V(0): the energy error of
-      the integration (of order rtol V(A)) is amplified by at most V(A) |d T / d E| / T, which is
-      2 V(A) / (lambda_0 T dE) for dE -> 0, so the tolerance is tightened by that bound
-      and a second pass is run (untightened: 5e4 rtol at A / A* - 1 = 1e-8; tightened: within
-      0.33 rtol from 1e-1 to 1e-8, measured against quadrature); where the tightened
-      tolerance would be below RTOL_FLOOR, or the inputs' round-off alone moves T by more than rtol
-      (condition number with respect to A, lambda1, lambda2, s0_over_r times round-off), the point is
-      ILL_CONDITIONED."""
-    D0 = rest_length_squared(sigma, lam1, lam2)
-    L0 = math.sqrt(D0) - sigma * s
-    code = exact_classify(sigma, lam1, D0, L0, A)
-    if code != st.OK:
-        return code, math.nan, 0, 0
-    # time scale of the scaled equation: as the two-term model's, with |chi| (chi < 0 is allowed
-    # here: the lever may swing over the hump at phi = 0); |chi| + |xi| A^2 > 0 for every feasible A > 0
-    w2 = k * (abs(chi) + abs(xi) * A * A)
-    p[1] = lam1
-    p[3] = L0
-    top = A > 0.5 * math.pi
-    theta0 = (math.pi - A) + PI_LO  # pi - A; math.pi - A is exact for A >= pi / 2 (Sterbenz)
-    if top:
-        # theta'' = -k m(theta; -sigma, D_pi): the same moment with sigma -> -sigma, D0 -> D_pi
-        d = 1.0 + sigma * lam1
-        p[0] = -sigma
-        p[2] = d * d + lam2 * lam2
-        p[4] = theta0
-        p[5] = k / (w2 * theta0)
-        p[6] = math.pi / theta0
-        p[7] = -1.0
-    else:
-        p[0] = sigma
-        p[2] = D0
-        p[4] = A
-        p[5] = k / (w2 * A)
-        p[6] = 0.0
-        p[7] = 1.0
-    t_max = t_max_periods * 2.0 * math.pi
-    y[0] = 1.0
-    y[1] = 0.0
-    # NO_EVENT now means the lever does come back, later than the horizon: raise t_max_periods
-    code, tau_q, ns, nr = exact_quarter_period(method, y, p, t_max, rtol, atol, max_steps, work, rwork, swork, q, v)
-    if code != st.OK:
-        return code, math.nan, ns, nr
-    T = 4.0 * tau_q / math.sqrt(w2)
-    # sensitivity to the inputs near either hump, and the integration's amplification at the hump at 0
-    lam_pi2 = k * sigma * lam1 * (1.0 - L0 / spring_length(math.pi, sigma, lam1, D0))
-    kappa = 0.0
-    if lam_pi2 > 0.0:  # phi = pi is a hump of V
-        kappa = 4.0 * A / (math.sqrt(lam_pi2) * theta0 * T)
-    amp = 1.0
-    if chi < 0.0:  # phi = 0 is a hump of V
-        lam0 = math.sqrt(-k * chi)
-        lA = spring_length(A, sigma, lam1, D0)
-        r = math.sqrt(D0)
-        sA = math.sin(0.5 * A)
-        dl = 4.0 * sigma * lam1 * sA * sA / (lA + r)  # l(A) - l(0), no cancellation
-        F = dl + 2.0 * sigma * s  # l(A) + l(0) - 2 L0 (the lever passes 0 iff F dl > 0)
-        dE = 0.5 * dl * F  # V(A) - V(0) > 0
-        # |d T / d E| / T from the time spent over the hump, t = asinh(lam0 phi_w / sqrt(2 k dE)) / lam0
-        # (4 such crossings per period), phi_w = the well's bottom, l(phi_w) = L0: 2 / (lam0 dE) for
-        # dE -> 0, the ballistic value for a vanishing hump (lam0 -> 0, s0_over_r -> 0-)
-        h = (L0 * L0 - D0) / (4.0 * sigma * lam1)  # sin^2(phi_w / 2)
-        phi_w = 2.0 * math.asin(math.sqrt(h)) if 0.0 < h < 1.0 else A
-        phi_w = min(phi_w, A)
-        gain = 2.0 * phi_w / (T * dE * math.sqrt(2.0 * k * dE + lam0 * lam0 * phi_w * phi_w))
-        vA = lA - L0
-        amp = max(1.0, gain * 0.5 * vA * vA)  # relative energy error rtol V(A) -> relative period error
-        # d F / d ln p for p = A, lambda1, lambda2, s0_over_r
-        dD1 = -2.0 * sigma * (1.0 - sigma * lam1)
-        sens = (abs(A * sigma * lam1 * math.sin(A) / lA)
-                + abs(lam1 * ((dD1 + 4.0 * sigma * sA * sA) / (2.0 * lA) - dD1 / (2.0 * r)))
-                + abs(lam2 * (lam2 / lA - lam2 / r)) + abs(2.0 * s))
-        kappa = max(kappa, gain * abs(dE) * sens / abs(F))
-    if not kappa * duf.UNIT_ROUNDOFF <= rtol:  # NaN-safe
-        return st.ILL_CONDITIONED, math.nan, ns, nr
-    if not amp <= 1.0:
-        if not rtol / amp >= RTOL_FLOOR:
-            return st.ILL_CONDITIONED, math.nan, ns, nr
-        if ns >= max_steps:
-            return st.MAX_STEPS, math.nan, ns, nr
-        y[0] = 1.0
-        y[1] = 0.0
-        # the second pass gets what is left of the step budget: one output, one budget
-        code, tau_q, ns2, nr2 = exact_quarter_period(method, y, p, t_max, rtol / amp, atol / amp, max_steps - ns,
-                                                     work, rwork, swork, q, v)
-        ns += ns2
-        nr += nr2
-        if code != st.OK:
-            return code, math.nan, ns, nr
-        T = 4.0 * tau_q / math.sqrt(w2)
-    return st.OK, T, ns, nr
 
 
 @jit_noalloc
@@ -279,30 +125,6 @@ def _point_coefficients(P, i):
     return code, sigma, lam1, lam2, s, k, chi, xi, P[i, 7]
 
 
-@pjit
-def algebraic_kernel(P, want, want_duffing, table, status):
-    for i in prange(P.shape[0]):
-        code, sigma, lam1, lam2, s, k, chi, xi, A = _point_coefficients(P, i)
-        if code != st.OK:
-            status[i] = code
-            continue
-        row = table[i]
-        row[K_CHI] = chi
-        row[K_XI] = xi
-        if want[K_OMEGA2]:
-            row[K_OMEGA2] = k * chi
-        if want[K_MU]:
-            row[K_MU] = k * xi
-        if want[K_HARD]:
-            row[K_HARD] = 1.0 if xi > 0.0 else (-1.0 if xi < 0.0 else 0.0)
-        if want_duffing:
-            code = duf.classify(k * chi, k * xi, A)
-            if code != st.OK:
-                status[i] = code
-                continue
-            duf.fill_closed_forms(k * chi, k * xi, A, want[OFF:K_EXACT_MOMENT], row[OFF:K_EXACT_MOMENT])
-
-
 @jit_noalloc
 def cubic_sensitivities(sigma, lam1, lam2, s, D0):
     """(k_omega2, k_q) of duffing.period_condition for this model's inputs: the sums over
@@ -323,84 +145,318 @@ def cubic_sensitivities(sigma, lam1, lam2, s, D0):
     return k_omega2, k_q
 
 
-@pjit
-def integrated_kernel(method, P, want_period, want_exact, rtol, atol, max_steps, t_max_periods, table, status, n_steps,
-                      n_rhs):
-    """The two-term period (want_period) and the exact-moment period (want_exact) of each point.
-    Each is decided by its own model: a point whose two-term model is past its separatrix still gets
-    period_exact_moment when the exact moment oscillates (its status stays not_oscillatory, which
-    the algebraic stage or the two-term classification set, because the two-term outputs are NaN)."""
-    literally(method)  # one cached kernel per method
-    n = P.shape[0]
-    n_blocks = (n + BLOCK - 1) // BLOCK
-    for b in prange(n_blocks):
-        work, rwork, swork, y, _, q, v = duf.workspaces()
-        p = np.empty(N_P)
-        for i in range(b, n, n_blocks):  # strided: prange splits blocks statically, and cost varies along the grid
-            code, sigma, lam1, lam2, s, k, chi, xi, A = _point_coefficients(P, i)
-            if code != st.OK:
-                status[i] = code  # no coefficients, no motion of either model
-                continue
-            final = status[i]  # the algebraic stage's verdict on the two-term outputs (or OK)
-            if want_period:
-                code = duf.classify(k * chi, k * xi, A)
-                if code == st.OK:
-                    k_omega2, k_q = cubic_sensitivities(sigma, lam1, lam2, s, rest_length_squared(sigma, lam1, lam2))
-                    code, T, ns, nr = duf.integrate_period(
-                        method, k * chi, k * xi, A, rtol, atol, max_steps, t_max_periods, y, p, work, rwork, swork,
-                        q, v, k_omega2, k_q,
-                    )
-                    n_steps[i] += ns
-                    n_rhs[i] += nr
-                    table[i, OFF + duf.K_PERIOD] = T
-                if final == st.OK:
-                    final = code
-            if want_exact:
-                code, T, ns, nr = integrate_exact_period(
-                    method, sigma, lam1, lam2, s, k, chi, xi, A, rtol, atol, max_steps, t_max_periods, y, p, work,
-                    rwork, swork, q, v,
-                )
-                n_steps[i] += ns
-                n_rhs[i] += nr
-                table[i, K_EXACT_MOMENT] = T
-                if final == st.OK:
-                    final = code
-            status[i] = final
+
+# --------------------------------------------------------------------------- the declaration
+# p = (spring, lambda1, lambda2, s0_over_r, R, c, I, A | t_max_periods | internal slots).
+# Internal slots: the two-term system's (a, b, c, level, direction, w) as duffing's, then the exact
+# system's (sigma', lambda1, D, L0, scale, coef, level, direction, w2). Each system's prepare writes
+# its own slots just before its measurement.
+SPRING, LAM1, LAM2, S0R, RR, CC, II, AMP, T_MAX = range(9)
+IA, IB, IC, ILEVEL, IDIR, IW = range(9, 15)
+ES, EL1, ED, EL0, ESCALE, ECOEF, ELEVEL, EDIR, EW2 = range(15, 24)
+PI_LO = 1.2246467991473532e-16  # pi - math.pi: pi = math.pi + PI_LO to twice double precision
+# Tightened tolerances below this are not tried: the point is ILL_CONDITIONED (as the old Duffing floor)
+RTOL_FLOOR = 5e-14
 
 
-def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
-    table = np.full((P.shape[0], len(OUTPUTS)), np.nan)
-    want = np.array([name in wanted for name in OUTPUTS])
-    want_duffing_closed = bool(want[OFF:K_EXACT_MOMENT].any())
-    # chi, xi are the base of everything: the algebraic stage always runs (it is cheap).
-    algebraic_kernel(P, want, want_duffing_closed, table, status)
-    want_period = bool(want[OFF + duf.K_PERIOD])
-    want_exact = bool(want[K_EXACT_MOMENT])
-    if want_period or want_exact:
-        call_with_literal(
-            integrated_kernel, METHOD_CODES[solver.method], P, want_period, want_exact, solver.rtol, solver.atol,
-            solver.max_steps, solver.settings["t_max_periods"], table, status, n_steps, n_rhs,
-        )
-    if want[OFF + duf.K_PERIOD_ERROR]:
-        table[:, OFF + duf.K_PERIOD_ERROR] = duf.relative_error(
-            table[:, OFF + duf.K_PERIOD], table[:, OFF + duf.K_PERIOD_EXACT]
-        )
-    if want[K_TRUNC]:
-        table[:, K_TRUNC] = duf.relative_error(table[:, OFF + duf.K_PERIOD_EXACT], table[:, K_EXACT_MOMENT])
-    for name in wanted:
-        out[name][:] = table[:, OUTPUTS.index(name)]
+@jit
+def point_coefficients(p):
+    """(status, sigma, lam1, lam2, s, k, chi, xi, A) of a point; k = R^2 c / I."""
+    sigma = spring_sign(p[SPRING])
+    lam1, lam2, s = p[LAM1], p[LAM2], p[S0R]
+    k = p[RR] * p[RR] * p[CC] / p[II]
+    code, chi, xi, _ = coefficients(sigma, lam1, lam2, s)
+    return code, sigma, lam1, lam2, s, k, chi, xi, p[AMP]
+
+
+def model_classify(p):
+    """SINGULAR or INFEASIBLE where formulas (4)-(7) give no coefficients: every output NaN."""
+    return point_coefficients(p)[0]
+
+
+def two_term_classify(p):
+    """The two-term (Duffing) model's status (duffing.classify of omega^2 = k chi, mu = k xi)."""
+    _, _, _, _, _, k, chi, xi, A = point_coefficients(p)
+    return duffing.classify(k * chi, k * xi, A)
+
+
+# ---- closed forms: the coefficients, and the Duffing closed forms of the two-term model
+def chi_of(p):
+    return point_coefficients(p)[6]
+
+
+def xi_of(p):
+    return point_coefficients(p)[7]
+
+
+def omega2_of(p):
+    _, _, _, _, _, k, chi, xi, A = point_coefficients(p)
+    return k * chi
+
+
+def mu_of(p):
+    _, _, _, _, _, k, chi, xi, A = point_coefficients(p)
+    return k * xi
+
+
+def hardness_of(p):
+    xi = point_coefficients(p)[7]
+    return 1.0 if xi > 0.0 else (-1.0 if xi < 0.0 else 0.0)
+
+
+def period_exact(p):
+    _, _, _, _, _, k, chi, xi, A = point_coefficients(p)
+    return duffing.period_closed_form(k * chi, k * xi, A)
+
+
+def v_max(p):
+    _, _, _, _, _, k, chi, xi, A = point_coefficients(p)
+    return duffing.v_max_closed_form(k * chi, k * xi, A)
+
+
+def a_max(p):
+    _, _, _, _, _, k, chi, xi, A = point_coefficients(p)
+    return duffing.a_max_closed_form(k * chi, k * xi, A)
+
+
+def kv(p, vmax, T):
+    return vmax * T / p[AMP]  # 2 pi for the linear oscillator
+
+
+def ka(p, amax, T):
+    return amax * T * T / p[AMP]  # 4 pi^2 for the linear oscillator
+
+
+def epsilon(p):
+    _, _, _, _, _, k, chi, xi, A = point_coefficients(p)
+    mu = k * xi
+    return mu * A * A / (k * chi)
+
+
+def relative_error(p, value, reference):
+    return abs(value - reference) / abs(reference)
+
+
+# ---- the two-term system: duffing's scaled equation (plain or saddle formulation) in slots IA..IW
+def two_term_prepare(p, rtol):
+    """The two-term model's status, then, as duffing.prepare, ILL_CONDITIONED where the period's
+    condition number (with this model's sensitivities, cubic_sensitivities) times round-off exceeds
+    rtol; else the scaled equation's coefficients, the event and w."""
+    _, sigma, lam1, lam2, s, k, chi, xi, A = point_coefficients(p)
+    omega2 = k * chi
+    mu = k * xi
+    code = duffing.classify(omega2, mu, A)
+    if code != st.OK:
+        return code
+    k_omega2, k_q = cubic_sensitivities(sigma, lam1, lam2, s, rest_length_squared(sigma, lam1, lam2))
+    if not duffing.period_condition(omega2, mu, A, k_omega2, k_q) * duffing.UNIT_ROUNDOFF <= rtol:  # NaN-safe
+        return st.ILL_CONDITIONED
+    muA2 = mu * A * A
+    w2 = omega2 + abs(muA2)
+    delta = (omega2 + muA2) / w2
+    if mu < 0.0 and delta < duffing.SADDLE_DELTA:
+        bneg = -muA2 / w2  # -b > 0
+        xs = math.sqrt(1.0 + delta / bneg)  # saddle, x_s^2 = a / -b with a = delta - b
+        u0 = delta / (bneg * (xs + 1.0))  # x_s - 1
+        p[IA] = -2.0 * (delta + bneg)
+        p[IB] = -bneg * u0 * u0
+        p[IC] = 3.0 * bneg * xs * u0
+        p[ILEVEL] = xs / u0
+        p[IDIR] = -1.0
+    else:
+        p[IA] = omega2 / w2
+        p[IB] = muA2 / w2
+        p[IC] = 0.0
+        p[ILEVEL] = 0.0
+        p[IDIR] = 1.0
+    p[IW] = math.sqrt(w2)
+    return st.OK
+
+
+def at_rest_at_one(p, y0):
+    y0[0] = 1.0
+    y0[1] = 0.0
+
+
+def two_term_rhs(t, y, p, dydt):
+    dydt[0] = y[1]
+    dydt[1] = -p[IA] * y[0] - p[IB] * y[0] * y[0] * y[0] - p[IC] * y[0] * y[0]
+
+
+def two_term_jac(t, y, p, J):
+    J[0, 0] = 0.0
+    J[0, 1] = 1.0
+    J[1, 0] = -p[IA] - 3.0 * p[IB] * y[0] * y[0] - 2.0 * p[IC] * y[0]
+    J[1, 1] = 0.0
+
+
+def two_term_accel(t, q, p, a):
+    a[0] = -p[IA] * q[0] - p[IB] * q[0] * q[0] * q[0] - p[IC] * q[0] * q[0]
+
+
+def step_for(p, rtol):
+    return duffing.symplectic_step(rtol)
+
+
+def two_term_event(t, y, p):
+    return p[IDIR] * (y[0] - p[ILEVEL])
+
+
+def horizon(p):
+    return p[T_MAX] * 2.0 * math.pi
+
+
+def two_term_period(p, tau_q):
+    return 4.0 * tau_q / p[IW]
+
+
+# ---- the exact system: the scaled exact-moment equation in slots ES..EW2
+def exact_prepare(p, rtol):
+    """Whether the lever oscillates about phi = 0 is decided by the exact moment's potential alone
+    (exact_classify), never by the two-term model; then the scaled equation, in phi / A, or, released
+    near the top (A > pi / 2), in theta = pi - phi (see exact_refine)."""
+    _, sigma, lam1, lam2, s, k, chi, xi, A = point_coefficients(p)
+    D0 = rest_length_squared(sigma, lam1, lam2)
+    L0 = math.sqrt(D0) - sigma * s
+    code = exact_classify(sigma, lam1, D0, L0, A)
+    if code != st.OK:
+        return code
+    # time scale of the scaled equation: as the two-term model's, with |chi| (chi < 0 is allowed
+    # here: the lever may swing over the hump at phi = 0); |chi| + |xi| A^2 > 0 for every feasible A > 0
+    w2 = k * (abs(chi) + abs(xi) * A * A)
+    p[EL1] = lam1
+    p[EL0] = L0
+    theta0 = (math.pi - A) + PI_LO  # pi - A; math.pi - A is exact for A >= pi / 2 (Sterbenz)
+    if A > 0.5 * math.pi:
+        # theta'' = -k m(theta; -sigma, D_pi): the same moment with sigma -> -sigma, D0 -> D_pi
+        d = 1.0 + sigma * lam1
+        p[ES] = -sigma
+        p[ED] = d * d + lam2 * lam2
+        p[ESCALE] = theta0
+        p[ECOEF] = k / (w2 * theta0)
+        p[ELEVEL] = math.pi / theta0
+        p[EDIR] = -1.0
+    else:
+        p[ES] = sigma
+        p[ED] = D0
+        p[ESCALE] = A
+        p[ECOEF] = k / (w2 * A)
+        p[ELEVEL] = 0.0
+        p[EDIR] = 1.0
+    p[EW2] = w2
+    return st.OK
+
+
+def exact_rhs(t, y, p, dydt):
+    # x = phi / A (or theta / theta0), tau = w t:  x'' = -coef * m(scale x)
+    dydt[0] = y[1]
+    dydt[1] = -p[ECOEF] * exact_moment(p[ESCALE] * y[0], p[ES], p[EL1], p[ED], p[EL0])
+
+
+def exact_jac(t, y, p, J):
+    J[0, 0] = 0.0
+    J[0, 1] = 1.0
+    J[1, 0] = -p[ECOEF] * p[ESCALE] * exact_moment_slope(p[ESCALE] * y[0], p[ES], p[EL1], p[ED], p[EL0])
+    J[1, 1] = 0.0
+
+
+def exact_accel(t, q, p, a):
+    a[0] = -p[ECOEF] * exact_moment(p[ESCALE] * q[0], p[ES], p[EL1], p[ED], p[EL0])
+
+
+def exact_event(t, y, p):
+    # level of phi = 0 in the scaled coordinate; +1: y falls to it, -1: y rises to it
+    return p[EDIR] * (y[0] - p[ELEVEL])
+
+
+def exact_period(p, tau_q):
+    return 4.0 * tau_q / math.sqrt(p[EW2])
+
+
+def exact_refine(p, rtol, T):
+    """The refine bound of the exact-moment period T (k = R^2 c / I): math.inf where the point is
+    ILL_CONDITIONED, else the factor the tolerance is tightened by (1: none).
+
+    Whether the lever oscillates about phi = 0 is decided by the exact moment's potential alone
+    (exact_classify), never by the two-term model: the cubic's soft separatrix is an artefact of
+    the truncation (a stretched tension spring, for instance, always brings the lever back).
+
+    The potential V = (l - L0)^2 / 2 has its humps at phi = pi (where the spring is stretched, or
+    compressed, beyond its free length there) and, when chi < 0, at phi = 0; near them the period
+    diverges logarithmically and, as for the Duffing separatrix, errors are amplified:
+    - released near the top (A > pi / 2): integrated in theta = pi - phi, theta(0) = (pi - A)
+      formed to twice double precision, so that the tolerance is relative to the distance from the
+      top (in phi / A the error grew as pi - A shrank: 4e5 rtol at pi - A = 1e-8, measured);
+      what is left is the sensitivity to A itself, d ln T / d ln A = 4 A / (lambda_pi (pi - A) T);
+    - swinging over the hump at 0 with a small energy excess dE = V(A) - V(0): the energy error of
+      the integration (of order rtol V(A)) is amplified by at most V(A) |d T / d E| / T, which is
+      2 V(A) / (lambda_0 T dE) for dE -> 0, so the tolerance is tightened by that bound
+      and a second pass is run (untightened: 5e4 rtol at A / A* - 1 = 1e-8; tightened: within
+      0.33 rtol from 1e-1 to 1e-8, measured against quadrature); where the tightened
+      tolerance would be below RTOL_FLOOR, or the inputs' round-off alone moves T by more than rtol
+      (condition number with respect to A, lambda1, lambda2, s0_over_r times round-off), the point is
+      ILL_CONDITIONED.
+    """
+    _, sigma, lam1, lam2, s, k, chi, xi, A = point_coefficients(p)
+    D0 = rest_length_squared(sigma, lam1, lam2)
+    L0 = math.sqrt(D0) - sigma * s
+    theta0 = (math.pi - A) + PI_LO
+    # sensitivity to the inputs near either hump, and the integration's amplification at the hump at 0
+    lam_pi2 = k * sigma * lam1 * (1.0 - L0 / spring_length(math.pi, sigma, lam1, D0))
+    kappa = 0.0
+    if lam_pi2 > 0.0:  # phi = pi is a hump of V
+        kappa = 4.0 * A / (math.sqrt(lam_pi2) * theta0 * T)
+    amp = 1.0
+    if chi < 0.0:  # phi = 0 is a hump of V
+        lam0 = math.sqrt(-k * chi)
+        lA = spring_length(A, sigma, lam1, D0)
+        r = math.sqrt(D0)
+        sA = math.sin(0.5 * A)
+        dl = 4.0 * sigma * lam1 * sA * sA / (lA + r)  # l(A) - l(0), no cancellation
+        F = dl + 2.0 * sigma * s  # l(A) + l(0) - 2 L0 (the lever passes 0 iff F dl > 0)
+        dE = 0.5 * dl * F  # V(A) - V(0) > 0
+        # |d T / d E| / T from the time spent over the hump, t = asinh(lam0 phi_w / sqrt(2 k dE)) / lam0
+        # (4 such crossings per period), phi_w = the well's bottom, l(phi_w) = L0: 2 / (lam0 dE) for
+        # dE -> 0, the ballistic value for a vanishing hump (lam0 -> 0, s0_over_r -> 0-)
+        h = (L0 * L0 - D0) / (4.0 * sigma * lam1)  # sin^2(phi_w / 2)
+        phi_w = 2.0 * math.asin(math.sqrt(h)) if 0.0 < h < 1.0 else A
+        phi_w = min(phi_w, A)
+        gain = 2.0 * phi_w / (T * dE * math.sqrt(2.0 * k * dE + lam0 * lam0 * phi_w * phi_w))
+        vA = lA - L0
+        amp = max(1.0, gain * 0.5 * vA * vA)  # relative energy error rtol V(A) -> relative period error
+        # d F / d ln p for p = A, lambda1, lambda2, s0_over_r
+        dD1 = -2.0 * sigma * (1.0 - sigma * lam1)
+        sens = (abs(A * sigma * lam1 * math.sin(A) / lA)
+                + abs(lam1 * ((dD1 + 4.0 * sigma * sA * sA) / (2.0 * lA) - dD1 / (2.0 * r)))
+                + abs(lam2 * (lam2 / lA - lam2 / r)) + abs(2.0 * s))
+        kappa = max(kappa, gain * abs(dE) * sens / abs(F))
+    if not kappa * duffing.UNIT_ROUNDOFF <= rtol:  # NaN-safe
+        return math.inf
+    if not amp <= 1.0:
+        if not rtol / amp >= RTOL_FLOOR:
+            return math.inf
+        return amp
+    return 1.0
 
 
 _DIMENSIONAL = ("R", "c", "I")
+_DUF = {o.name: o for o in duffing.SPEC.outputs}
 
 
-def _duffing_output(o: Output) -> Output:
-    """Re-declare a Duffing output for this model: needs A, and R, c, I when it has a unit."""
-    needs_params = ("A",) + (_DIMENSIONAL if o.unit != "1" else ())
-    return Output(o.name, o.symbol, o.unit, o.long_name, o.integrated, o.needs, needs_params)
+def _duffing_closed(name, func, needs=(), output_needs=None):
+    """A Duffing closed form of the two-term model: duffing's output, needing A (and R, c, I when it
+    has a unit), NaN with the two-term status where the two-term model does not oscillate."""
+    o = _DUF[name]
+    return ClosedForm(name, func, o.symbol, o.unit, o.long_name, needs=needs, output_needs=output_needs,
+                      classify=two_term_classify, needs_params=("A",) + (_DIMENSIONAL if o.unit != "1" else ()))
 
 
-SPEC = ModelSpec(
+TWO_TERM = System(rhs=two_term_rhs, initial=at_rest_at_one, jac=two_term_jac, accel=two_term_accel,
+                  symplectic_step=step_for, prepare=two_term_prepare)
+EXACT = System(rhs=exact_rhs, initial=at_rest_at_one, jac=exact_jac, accel=exact_accel, symplectic_step=step_for,
+               prepare=exact_prepare)
+
+MODEL = OdeModel(
     name="torsional_circuit",
     description="Rocking lever with an out-of-plane spring: Duffing coefficients, nomograms, amplitude-period",
     source="Klyuchkovskyi, torsional oscillating circuits, formulas (4)-(7); physics.md section 1",
@@ -417,24 +473,47 @@ SPEC = ModelSpec(
         Param("A", "A", "rad", "amplitude, phi(0) = A, phi'(0) = 0", lo=0.0, hi=math.pi,
               required=False, default=math.nan),
     ),
-    outputs=(
-        Output("chi", "χ = ω² I / (R² c)", "1", "linear stiffness coefficient chi"),
-        Output("xi", "ξ = μ I / (R² c)", "1", "cubic stiffness coefficient xi"),
-        Output("omega2", "ω²", "1/s^2", "squared linear natural frequency", needs_params=_DIMENSIONAL),
-        Output("mu", "μ", "1/(rad^2 s^2)", "cubic stiffness coefficient mu", needs_params=_DIMENSIONAL),
-        Output("hardness", "sign ξ", "1", "characteristic: +1 hard, 0 linear, -1 soft"),
-    )
-    + tuple(_duffing_output(o) for o in duffing.SPEC.outputs)
-    + (
-        Output("period_exact_moment", "T_M", "s", "period with the exact spring moment",
-               integrated=True, needs_params=("A",) + _DIMENSIONAL),
-        Output("truncation_error", "|T_exact - T_M| / T_M", "1",
-               "relative period error of the two-term (Duffing) model against the exact moment",
-               needs=("period_exact", "period_exact_moment"), needs_params=("A",)),
+    settings=(duffing.T_MAX_PERIODS,),
+    internal=("a", "b", "c", "level", "direction", "w",
+              "exact_sigma", "exact_lambda1", "exact_D", "exact_L0", "exact_scale", "exact_coef", "exact_level",
+              "exact_direction", "exact_w2"),
+    states=("x", "dx"),
+    classify=model_classify,
+    initial=at_rest_at_one,
+    rhs=two_term_rhs,
+    jac=two_term_jac,
+    accel=two_term_accel,
+    symplectic_step=step_for,
+    symplectic_order=duffing.SYMPLECTIC_ORDER,
+    measurements=(
+        FirstEvent("period", two_term_event, t_max=horizon, value=two_term_period, symbol=_DUF["period"].symbol,
+                   unit=_DUF["period"].unit, long_name=_DUF["period"].long_name, system=TWO_TERM,
+                   needs_params=("A",) + _DIMENSIONAL),
+        FirstEvent("period_exact_moment", exact_event, t_max=horizon, value=exact_period, symbol="T_M", unit="s",
+                   long_name="period with the exact spring moment", system=EXACT, refine=exact_refine,
+                   needs_params=("A",) + _DIMENSIONAL),
     ),
-    evaluate=evaluate,
-    settings=(duf.T_MAX_PERIODS,),
-    methods=duffing.SPEC.methods,
+    closed_forms=(
+        ClosedForm("chi", chi_of, "χ = ω² I / (R² c)", "1", "linear stiffness coefficient chi"),
+        ClosedForm("xi", xi_of, "ξ = μ I / (R² c)", "1", "cubic stiffness coefficient xi"),
+        ClosedForm("omega2", omega2_of, "ω²", "1/s^2", "squared linear natural frequency",
+                   needs_params=_DIMENSIONAL),
+        ClosedForm("mu", mu_of, "μ", "1/(rad^2 s^2)", "cubic stiffness coefficient mu", needs_params=_DIMENSIONAL),
+        ClosedForm("hardness", hardness_of, "sign ξ", "1", "characteristic: +1 hard, 0 linear, -1 soft"),
+        _duffing_closed("period_exact", period_exact),
+        ClosedForm("period_error", relative_error, _DUF["period_error"].symbol, "1", _DUF["period_error"].long_name,
+                   needs=("period", "period_exact"), needs_params=("A",)),
+        _duffing_closed("v_max", v_max),
+        _duffing_closed("a_max", a_max),
+        _duffing_closed("kv", kv, needs=("v_max", "period_exact"), output_needs=()),
+        _duffing_closed("ka", ka, needs=("a_max", "period_exact"), output_needs=()),
+        _duffing_closed("epsilon", epsilon),
+        ClosedForm("truncation_error", relative_error, "|T_exact - T_M| / T_M", "1",
+                   "relative period error of the two-term (Duffing) model against the exact moment",
+                   needs=("period_exact", "period_exact_moment"), needs_params=("A",)),
+    ),
+    output_order=("chi", "xi", "omega2", "mu", "hardness", "period", "period_exact", "period_error", "v_max",
+                  "a_max", "kv", "ka", "epsilon", "period_exact_moment", "truncation_error"),
     statuses=(st.INFEASIBLE, st.SINGULAR, st.NOT_OSCILLATORY, st.NO_MOTION, *st.INTEGRATION_FAILURES),
     status_notes={
         st.INFEASIBLE: "spring free length <= 0, or omega^2 <= 0 for the two-term outputs",
@@ -447,3 +526,6 @@ SPEC = ModelSpec(
                             "of the spring's potential",
     },
 )
+
+SPEC = MODEL.spec(module=__name__, attr="MODEL")
+evaluate = SPEC.evaluate
