@@ -134,8 +134,6 @@ def period_condition(omega2, mu, A, k_omega2, k_q):
     return f * k_omega2 + abs(f - 0.5) * k_q
 
 
-
-
 @jit_noalloc
 def symplectic_step(rtol):
     """Fixed step (scaled time) of the symplectic method for a tolerance: SYMPLECTIC_STEPS(rtol)
