@@ -33,24 +33,18 @@ source, its name, the numbers of parameters and data arrays, the scratch rows an
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import math
 import operator
-import os
-import re
-import sys
-import tempfile
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from .. import _jit
 from .. import status as st
 from ..errors import InputError
 from ..models._spec import ExtraDim, ModelSpec, Output, Param, Setting, wanted_flags
 from . import load
+from .compile import load_generated
 
 BLOCK = 64  # designs per scratch allocation (one prange iteration)
 
@@ -157,19 +151,6 @@ class ClosedFormModel:
 _DATA: dict[int, tuple] = {}
 _KERNELS: dict[str, object] = {}
 _BY_MODEL: dict[tuple, tuple] = {}  # (id(model), number of data arrays) -> (model, kernel)
-_TMP: list[str] = []
-
-
-def _folder() -> Path:
-    """The folder of generated kernel modules (compile.py's: <cache>/models)."""
-    if _jit.cache_dir is not None:
-        path = Path(_jit.cache_dir) / "models"
-    else:  # caching off: a private folder for this process
-        if not _TMP:
-            _TMP.append(tempfile.mkdtemp(prefix="mechsweep-closed-"))
-        path = Path(_TMP[0])
-    path.mkdir(parents=True, exist_ok=True)
-    return path
 
 
 def _guarded(ref) -> bool:
@@ -243,23 +224,13 @@ def kernel_for(model: ClosedFormModel, n_data: int, *, origin: str = ""):
     if name in _KERNELS:
         _BY_MODEL[(id(model), n_data)] = (model, _KERNELS[name])
         return _KERNELS[name]
-    path = _folder() / f"{name}.py"
-    source = kernel_source(model, ref, n_data, origin or ref[0])
-    if not path.exists() or path.read_text() != source:  # written once: its mtime keys numba's cache index
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(source)
-        os.replace(tmp, path)
-    spec = importlib.util.spec_from_file_location(name, path)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[name] = mod
-    spec.loader.exec_module(mod)
+    mod = load_generated(name, kernel_source(model, ref, n_data, origin or ref[0]))
     _KERNELS[name] = mod.kernel
     _BY_MODEL[(id(model), n_data)] = (model, mod.kernel)
     return mod.kernel
 
 
 # ============================================================================= checks of a user model
-_ANSI = re.compile(r"\x1b\[[0-9;]*m")
 _SENTINEL = 12345.678
 
 
@@ -334,13 +305,4 @@ def check(model: ClosedFormModel, ref: str, file: str) -> None:
         disp = load.jitted(module, path, qual)
         disp(*_probe_arrays(model, p.copy(), math.nan), *data)
     except Exception as exc:
-        text = _ANSI.sub("", str(exc))
-        line = None
-        for m in re.finditer(r'File "([^"]+)", line (\d+)', text):
-            if file and Path(m.group(1)).name == Path(file).name:
-                line = int(m.group(2))
-        lines = [s.strip() for s in text.splitlines() if s.strip()
-                 and not s.startswith(("Failed in", "During:", "File ", "^", "<source"))]
-        why = lines[0] if lines else type(exc).__name__
-        at = f" ({file}, line {line})" if line else ""
-        raise InputError(f"{label}: numba cannot compile compute{at}: {why}") from None
+        raise load.compile_failure(exc, file, label, "compute") from None

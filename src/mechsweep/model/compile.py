@@ -519,9 +519,16 @@ def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str =
     name = "mechsweep_gen_" + key.hexdigest()[:20]
     if name in _KERNELS:
         return _KERNELS[name]
-    path = _folder() / f"{name}.py"
     source = kernel_source(model, chosen, refs, origin or f"{refs['rhs'][0]}", shared, closed, method, direct)
-    if not path.exists() or path.read_text() != source:  # written once: its mtime keys numba's cache index
+    _KERNELS[name] = load_generated(name, source).kernel
+    return _KERNELS[name]
+
+
+def load_generated(name: str, source: str):
+    """Write a generated kernel module ``name`` into the cache folder (only when absent or
+    different: its mtime keys numba's cache index) and import it."""
+    path = _folder() / f"{name}.py"
+    if not path.exists() or path.read_text() != source:
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(source)
         os.replace(tmp, path)
@@ -529,5 +536,4 @@ def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str =
     mod = importlib.util.module_from_spec(spec)
     sys.modules[name] = mod
     spec.loader.exec_module(mod)
-    _KERNELS[name] = mod.kernel
-    return mod.kernel
+    return mod

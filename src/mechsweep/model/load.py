@@ -344,16 +344,21 @@ def check(model, ref: str, file: str) -> None:
         try:
             jitted(module, path, qual)(*args)
         except Exception as exc:
-            text = _ANSI.sub("", str(exc))
-            line = None
-            for m in re.finditer(r'File "([^"]+)", line (\d+)', text):
-                if file and Path(m.group(1)).name == Path(file).name:
-                    line = int(m.group(2))
-            lines = [s.strip() for s in text.splitlines() if s.strip()
-                     and not s.startswith(("Failed in", "During:", "File ", "^", "<source"))]
-            why = lines[0] if lines else type(exc).__name__
-            at = f" ({file}, line {line})" if line else ""
-            raise InputError(f"{label}: numba cannot compile {what}{at}: {why}") from None
+            raise compile_failure(exc, file, label, what) from None
+
+
+def compile_failure(exc: Exception, file: str | None, label: str, what: str) -> InputError:
+    """numba's compile error, trimmed to its first line and the line of the user's file."""
+    text = _ANSI.sub("", str(exc))
+    line = None
+    for m in re.finditer(r'File "([^"]+)", line (\d+)', text):
+        if file and Path(m.group(1)).name == Path(file).name:
+            line = int(m.group(2))
+    lines = [s.strip() for s in text.splitlines() if s.strip()
+             and not s.startswith(("Failed in", "During:", "File ", "^", "<source"))]
+    why = lines[0] if lines else type(exc).__name__
+    at = f" ({file}, line {line})" if line else ""
+    return InputError(f"{label}: numba cannot compile {what}{at}: {why}")
 
 
 def _writes_nan(func, args, i) -> bool:
