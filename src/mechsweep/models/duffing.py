@@ -166,6 +166,15 @@ def prepare(p, rtol):
     A = p[AMP]
     if not period_condition(omega2, mu, A, K_OMEGA2, K_Q) * UNIT_ROUNDOFF <= rtol:  # NaN-safe: a NaN bound flags
         return st.ILL_CONDITIONED
+    scale_into(omega2, mu, A, p, IA)
+    return st.OK
+
+
+@jit_noalloc
+def scale_into(omega2, mu, A, p, ia):
+    """The scaled equation's (a, b, c, level, direction, w) into p[ia:ia + 6]: the plain
+    formulation, or the saddle-centred one within SADDLE_DELTA of the soft separatrix (shared with
+    torsional_circuit's two-term system, whose slots start elsewhere)."""
     muA2 = mu * A * A
     w2 = omega2 + abs(muA2)
     delta = (omega2 + muA2) / w2
@@ -173,19 +182,18 @@ def prepare(p, rtol):
         bneg = -muA2 / w2  # -b > 0
         xs = math.sqrt(1.0 + delta / bneg)  # saddle, x_s^2 = a / -b with a = delta - b
         u0 = delta / (bneg * (xs + 1.0))  # x_s - 1
-        p[IA] = -2.0 * (delta + bneg)
-        p[IB] = -bneg * u0 * u0
-        p[IC] = 3.0 * bneg * xs * u0
-        p[ILEVEL] = xs / u0
-        p[IDIR] = -1.0
+        p[ia] = -2.0 * (delta + bneg)
+        p[ia + 1] = -bneg * u0 * u0
+        p[ia + 2] = 3.0 * bneg * xs * u0
+        p[ia + 3] = xs / u0
+        p[ia + 4] = -1.0
     else:
-        p[IA] = omega2 / w2
-        p[IB] = muA2 / w2
-        p[IC] = 0.0
-        p[ILEVEL] = 0.0
-        p[IDIR] = 1.0
-    p[IW] = math.sqrt(w2)
-    return st.OK
+        p[ia] = omega2 / w2
+        p[ia + 1] = muA2 / w2
+        p[ia + 2] = 0.0
+        p[ia + 3] = 0.0
+        p[ia + 4] = 1.0
+    p[ia + 5] = math.sqrt(w2)
 
 
 def initial(p, y0):

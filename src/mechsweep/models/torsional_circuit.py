@@ -251,25 +251,7 @@ def two_term_prepare(p, rtol):
     k_omega2, k_q = cubic_sensitivities(sigma, lam1, lam2, s, rest_length_squared(sigma, lam1, lam2))
     if not duffing.period_condition(omega2, mu, A, k_omega2, k_q) * duffing.UNIT_ROUNDOFF <= rtol:  # NaN-safe
         return st.ILL_CONDITIONED
-    muA2 = mu * A * A
-    w2 = omega2 + abs(muA2)
-    delta = (omega2 + muA2) / w2
-    if mu < 0.0 and delta < duffing.SADDLE_DELTA:
-        bneg = -muA2 / w2  # -b > 0
-        xs = math.sqrt(1.0 + delta / bneg)  # saddle, x_s^2 = a / -b with a = delta - b
-        u0 = delta / (bneg * (xs + 1.0))  # x_s - 1
-        p[IA] = -2.0 * (delta + bneg)
-        p[IB] = -bneg * u0 * u0
-        p[IC] = 3.0 * bneg * xs * u0
-        p[ILEVEL] = xs / u0
-        p[IDIR] = -1.0
-    else:
-        p[IA] = omega2 / w2
-        p[IB] = muA2 / w2
-        p[IC] = 0.0
-        p[ILEVEL] = 0.0
-        p[IDIR] = 1.0
-    p[IW] = math.sqrt(w2)
+    duffing.scale_into(omega2, mu, A, p, IA)
     return st.OK
 
 
