@@ -109,6 +109,7 @@ def test_mathieu_boundaries_match_characteristic_values(tmp_path, capsys):
             order = np.argsort(ref)
             np.testing.assert_allclose(ds["boundary"].values[i], np.array(ref)[order], rtol=1e-8, atol=1e-8)
             np.testing.assert_array_equal(ds["boundary_kind"].values[i], np.array([1, -1, -1, 1, 1])[order])
+            np.testing.assert_array_equal(ds["boundary_angle"].values[i], np.pi * np.array([0, 1, 1, 0, 0])[order])
             assert (ds["boundary_bound"].values[i] == bd.BAND_EDGE).all()
             # a_n: unstable below (the criterion falls to its level as a grows), b_n: unstable above
             np.testing.assert_array_equal(ds["boundary_direction"].values[i], np.array([-1, 1, -1, 1, -1])[order])

@@ -20,8 +20,9 @@ chunk kernels run them in parallel):
 
 Every located point stores its bracket width (a true bracket: both ends evaluated), which bound
 applied (BOUND_MEANINGS), the direction of the crossing, the evaluations it cost and, for a
-criterion of kind "floquet_max" whose model gives ``<name>_kind``, the kind of the critical
-multiplier on the unstable side. Two crossings within one grid cell (no sign change between grid
+criterion of kind "floquet_max" whose model gives ``<name>_angle``, the critical multiplier on the
+unstable side: its argument (on the boundary the multiplier is exp(+-i angle)) and the kind of
+crossing that follows from it (+1, -1, complex pair). Two crossings within one grid cell (no sign change between grid
 values) are not seen: the grid must resolve the boundaries it is asked to locate.
 """
 from __future__ import annotations
@@ -70,7 +71,9 @@ class Criterion:
     level: float = math.nan
     status_change: tuple[int, int] | None = None
     accuracy: float | None = None
-    kind_output: str | None = None  # "<output>_kind" of a floquet_max output, when the model has it
+    angle_output: str | None = None  # "<output>_angle" of a floquet_max output, when the model has it:
+    # the critical multiplier's argument (0 real positive, pi real negative, else a complex pair),
+    # from which the kind of crossing follows
 
 
 def criterion_accuracy(model, solver, crit: Criterion, values: np.ndarray) -> np.ndarray:
@@ -113,6 +116,7 @@ class Located:
     direction: np.ndarray  # (L, C) int8: +1 when the criterion rises above its level (status a -> b) with x
     kind: np.ndarray  # (L, C) Floquet crossing kind (+1, -1, 0) or NaN
     evaluations: np.ndarray  # (L, C) int32: criterion evaluations spent refining this crossing
+    angle: np.ndarray | None = None  # (L, C) argument of the critical multiplier on the unstable side, rad
     calls: int = 0  # evaluate calls (rounds)
     points: int = 0  # points evaluated in refinement in all
 
@@ -126,17 +130,17 @@ class _Evaluator:
         self.calls = 0
         self.points = 0
         if crit.output is not None:
-            want = (crit.output,) + ((crit.kind_output,) if crit.kind_output else ())
+            want = (crit.output,) + ((crit.angle_output,) if crit.angle_output else ())
             self.wanted = self.model.closure(want)
 
     def __call__(self, line: np.ndarray, x: np.ndarray):
-        """(g or NaN, status, kind or NaN) at the points."""
+        """(g or NaN, status, critical angle or NaN) at the points."""
         P = self.rows[line].copy()
         P[:, self.col] = x
         return self.at(P)
 
     def at(self, P: np.ndarray):
-        """(g or NaN, status, kind or NaN) at the parameter rows P."""
+        """(g or NaN, status, critical angle or NaN) at the parameter rows P."""
         n = P.shape[0]
         self.calls += 1
         self.points += n
@@ -154,8 +158,8 @@ class _Evaluator:
             self.model.evaluate(P, self.wanted, solver, out, status, ns, nr)
         g = out[self.crit.output] - self.crit.level
         g[~np.isfinite(g)] = np.nan
-        if self.crit.kind_output:
-            kind = out[self.crit.kind_output]
+        if self.crit.angle_output:
+            kind = out[self.crit.angle_output]
         return g, status, kind
 
 
@@ -201,13 +205,13 @@ def _brackets_of_line(s: np.ndarray) -> list[tuple[int, int, int]]:
 
 def locate(scene, crit: Criterion, rows: np.ndarray, col: int, grid: np.ndarray, *, rtol: float = 1e-10,
            grid_g: np.ndarray | None = None, grid_status: np.ndarray | None = None,
-           grid_kind: np.ndarray | None = None) -> Located:
+           grid_angle: np.ndarray | None = None) -> Located:
     """Locate every crossing along ``grid`` (the axis's values, any order) for each of the L base
     parameter rows ``rows`` (float64 [L, n_params]; column ``col`` is the axis, overwritten).
 
     ``grid_g`` / ``grid_status`` (L, G): the criterion minus level / the status on the grid, when
-    known (from a stored dataset); else the grid is evaluated here (one call). ``grid_kind`` (L, G):
-    the crossing kind there, if stored."""
+    known (from a stored dataset); else the grid is evaluated here (one call). ``grid_angle`` (L, G):
+    the critical multiplier's argument there (``<floquet>_angle``), if stored."""
     rows = np.asarray(rows, dtype=float)
     grid = np.asarray(grid, dtype=float)
     order = np.argsort(grid, kind="stable")
@@ -216,14 +220,14 @@ def locate(scene, crit: Criterion, rows: np.ndarray, col: int, grid: np.ndarray,
     ev = _Evaluator(scene, crit, rows, col)
     if grid_g is None and grid_status is None:
         line = np.repeat(np.arange(L), G)
-        g, status, kind = ev(line, np.tile(xs, L))
-        grid_g, grid_status, grid_kind = g.reshape(L, G), status.reshape(L, G), kind.reshape(L, G)
+        g, status, ang = ev(line, np.tile(xs, L))
+        grid_g, grid_status, grid_angle = g.reshape(L, G), status.reshape(L, G), ang.reshape(L, G)
         ev.calls, ev.points = 0, 0  # the grid pass is not refinement
     else:
         grid_g = None if grid_g is None else np.asarray(grid_g, dtype=float)[:, order]
         grid_status = None if grid_status is None else np.asarray(grid_status)[:, order]
-    if grid_kind is not None:
-        grid_kind = np.asarray(grid_kind, dtype=float)[:, order]
+    if grid_angle is not None:
+        grid_angle = np.asarray(grid_angle, dtype=float)[:, order]
     span = float(xs[-1] - xs[0]) if G > 1 else 1.0
 
     # brackets on the grid: (line, i, j) between xs[i] and xs[j]; mode 0 sign, 1 band edge, 2 status
@@ -244,7 +248,8 @@ def locate(scene, crit: Criterion, rows: np.ndarray, col: int, grid: np.ndarray,
     C = int(per_line.max()) if L and nb else 0
     res = Located(location=np.full((L, C), np.nan), width=np.full((L, C), np.nan),
                   bound=np.full((L, C), -1, dtype=np.int8), direction=np.zeros((L, C), dtype=np.int8),
-                  kind=np.full((L, C), np.nan), evaluations=np.zeros((L, C), dtype=np.int32))
+                  kind=np.full((L, C), np.nan), evaluations=np.zeros((L, C), dtype=np.int32),
+                  angle=np.full((L, C), np.nan))
     if nb == 0:
         return res
     srt = np.lexsort((br_lo, br_line))  # crossing index within each line, in order of x
@@ -252,8 +257,8 @@ def locate(scene, crit: Criterion, rows: np.ndarray, col: int, grid: np.ndarray,
     slot = np.arange(nb) - np.searchsorted(br_line, br_line, side="left")
 
     A, B = xs[br_lo].astype(float), xs[br_hi].astype(float)  # the bracket, refined in place
-    kind_a = grid_kind[br_line, br_lo] if grid_kind is not None else np.full(nb, np.nan)
-    kind_b = grid_kind[br_line, br_hi] if grid_kind is not None else np.full(nb, np.nan)
+    ang_a = grid_angle[br_line, br_lo] if grid_angle is not None else np.full(nb, np.nan)
+    ang_b = grid_angle[br_line, br_hi] if grid_angle is not None else np.full(nb, np.nan)
     n_eval = np.zeros(nb, dtype=np.int64)
     loc = np.full(nb, np.nan)
     bound = np.full(nb, -1, dtype=np.int8)
@@ -293,15 +298,15 @@ def locate(scene, crit: Criterion, rows: np.ndarray, col: int, grid: np.ndarray,
                 break
             j = bis[idx]
             mid = 0.5 * (A[j] + B[j])
-            g, status, kind = ev(br_line[j], mid)
+            g, status, ang = ev(br_line[j], mid)
             n_eval[j] += 1
             if crit.output is None:
                 to_a, to_b = status == code_a[idx], status == code_b[idx]
             else:
                 sm = _sides(g, accuracy(g))
                 to_a, to_b = sm == side_a[idx], sm == side_b[idx]
-            A[j[to_a]], kind_a[j[to_a]] = mid[to_a], kind[to_a]
-            B[j[to_b]], kind_b[j[to_b]] = mid[to_b], kind[to_b]
+            A[j[to_a]], ang_a[j[to_a]] = mid[to_a], ang[to_a]
+            B[j[to_b]], ang_b[j[to_b]] = mid[to_b], ang[to_b]
             bad = ~to_a & ~to_b  # a third status, or a value on neither side: two boundaries in one cell
             bound[j[bad]] = INTERRUPTED
             active[idx[bad]] = False
@@ -351,12 +356,12 @@ def locate(scene, crit: Criterion, rows: np.ndarray, col: int, grid: np.ndarray,
             jq = ill[qi]
             pl = np.maximum(probe_x[qi] - probe_h[qi], A[jq])  # at an end at worst: a clean side
             pr = np.minimum(probe_x[qi] + probe_h[qi], B[jq])
-            g, _, kind = ev(np.concatenate([br_line[j], br_line[jq], br_line[jq]]), np.concatenate([x, pl, pr]))
+            g, _, ang = ev(np.concatenate([br_line[j], br_line[jq], br_line[jq]]), np.concatenate([x, pl, pr]))
             n_eval[j] += 1
             n_eval[jq] += 2
             m, q = pi.size, qi.size
-            gx, kx = g[:m], kind[:m]
-            gl, gr, kl, kr = g[m:m + q], g[m + q:], kind[m:m + q], kind[m + q:]
+            gx, ax_ = g[:m], ang[:m]
+            gl, gr, al, ar = g[m:m + q], g[m + q:], ang[m:m + q], ang[m + q:]
             # -- Illinois updates
             eps_x = accuracy(gx)
             sx = _sides(gx, eps_x)
@@ -375,11 +380,11 @@ def locate(scene, crit: Criterion, rows: np.ndarray, col: int, grid: np.ndarray,
             to_b = (sx == sb[pi])
             to_a = (sx == sa[pi])
             k = pi[to_b]
-            B[ill[k]], gb[k], Fb[k], kind_b[ill[k]] = x[to_b], gx[to_b], gx[to_b], kx[to_b]
+            B[ill[k]], gb[k], Fb[k], ang_b[ill[k]] = x[to_b], gx[to_b], gx[to_b], ax_[to_b]
             Fa[k[last[k] == 1]] *= 0.5
             last[k] = 1
             k = pi[to_a]
-            A[ill[k]], ga[k], Fa[k], kind_a[ill[k]] = x[to_a], gx[to_a], gx[to_a], kx[to_a]
+            A[ill[k]], ga[k], Fa[k], ang_a[ill[k]] = x[to_a], gx[to_a], gx[to_a], ax_[to_a]
             Fb[k[last[k] == -1]] *= 0.5
             last[k] = -1
             rounds[pi] += 1
@@ -397,11 +402,11 @@ def locate(scene, crit: Criterion, rows: np.ndarray, col: int, grid: np.ndarray,
                 k = qi[move_a]
                 A[ill[k]] = new_a[move_a]
                 ga[k] = Fa[k] = np.where(right, gr, gl)[move_a]
-                kind_a[ill[k]] = np.where(right, kr, kl)[move_a]
+                ang_a[ill[k]] = np.where(right, ar, al)[move_a]
                 k = qi[move_b]
                 B[ill[k]] = new_b[move_b]
                 gb[k] = Fb[k] = np.where(left, gl, gr)[move_b]
-                kind_b[ill[k]] = np.where(left, kl, kr)[move_b]
+                ang_b[ill[k]] = np.where(left, al, ar)[move_b]
                 last[qi] = 0
                 k = qi[closed]
                 # the parameter's bound if the probes' bracket is within tol, else the criterion's
@@ -421,24 +426,32 @@ def locate(scene, crit: Criterion, rows: np.ndarray, col: int, grid: np.ndarray,
 
     width = B - A
     width[bound == INTERRUPTED] = np.nan
-    kind = np.where(above_b, kind_b, np.where(above_a, kind_a, np.nan))
-    if crit.kind_output:
-        missing = np.nonzero(np.isnan(kind) & (above_a | above_b) & ~np.isnan(loc))[0]
-        if missing.size:  # an end never evaluated here (a grid value whose kind is not stored): one call
+    ang = np.where(above_b, ang_b, np.where(above_a, ang_a, np.nan))
+    if crit.angle_output:
+        missing = np.nonzero(np.isnan(ang) & (above_a | above_b) & ~np.isnan(loc))[0]
+        if missing.size:  # an end never evaluated here (a grid value whose angle is not stored): one call
             _, _, k = ev(br_line[missing], np.where(above_b[missing], B[missing], A[missing]))
             n_eval[missing] += 1
-            kind[missing] = k
+            ang[missing] = k
     res.location[br_line, slot] = loc
     res.width[br_line, slot] = width
     res.bound[br_line, slot] = bound
     res.direction[br_line, slot] = direction
-    res.kind[br_line, slot] = kind
+    res.angle[br_line, slot] = ang
+    res.kind[br_line, slot] = kind_of_angle(ang)
     res.evaluations[br_line, slot] = n_eval
     res.calls, res.points = ev.calls, ev.points
     return res
 
 
 # ----------------------------------------------------------------------------- a scene's boundaries
+def kind_of_angle(angle: np.ndarray) -> np.ndarray:
+    """The crossing kind (+1, -1, 0 complex pair, NaN) of a critical multiplier's argument (exactly
+    0 or pi for a real one: the Floquet measurement snaps it with the same test as its kind)."""
+    angle = np.asarray(angle, dtype=float)
+    return np.where(angle == 0.0, 1.0, np.where(angle == np.pi, -1.0, np.where(np.isnan(angle), np.nan, 0.0)))
+
+
 def criterion_of(scene, spec=None) -> Criterion:
     """The :class:`Criterion` of a scene's [boundaries] section (or of ``spec``, a scene.Boundaries)."""
     b = spec if spec is not None else scene.boundaries
@@ -446,9 +459,9 @@ def criterion_of(scene, spec=None) -> Criterion:
         codes = {name: code for code, name in st.MEANINGS.items()}
         return Criterion(status_change=(codes[b.status_change[0]], codes[b.status_change[1]]))
     kind = None
-    if scene.model.output(b.criterion).kind == "floquet_max" and f"{b.criterion}_kind" in scene.model.output_names():
-        kind = f"{b.criterion}_kind"
-    return Criterion(output=b.criterion, level=b.level, accuracy=b.criterion_accuracy, kind_output=kind)
+    if scene.model.output(b.criterion).kind == "floquet_max" and f"{b.criterion}_angle" in scene.model.output_names():
+        kind = f"{b.criterion}_angle"
+    return Criterion(output=b.criterion, level=b.level, accuracy=b.criterion_accuracy, angle_output=kind)
 
 
 def sibling_path(data: str | os.PathLike) -> Path:
@@ -508,7 +521,7 @@ def locate_dataset(scene, ds, spec=None):
     if crit.output is not None:
         res = locate(scene, crit, rows, col, _encoded(scene, axis), rtol=b.rtol,
                      grid_g=grid_of(crit.output) - crit.level,
-                     grid_kind=grid_of(crit.kind_output) if crit.kind_output and crit.kind_output in ds else None)
+                     grid_angle=grid_of(crit.angle_output) if crit.angle_output and crit.angle_output in ds else None)
     else:
         res = locate(scene, crit, rows, col, _encoded(scene, axis), rtol=b.rtol, grid_status=grid_of("status"))
     wall = time.perf_counter() - t0
@@ -539,9 +552,11 @@ def locate_dataset(scene, ds, spec=None):
         "boundary_evaluations": var(res.evaluations, "1", "criterion evaluations spent locating this crossing "
                                     "(after the grid)"),
     }
-    if crit.kind_output:
+    if crit.angle_output:
         data["boundary_kind"] = var(res.kind, "1", "critical Floquet multiplier on the unstable side: +1 real "
                                     "positive, -1 real negative, 0 complex pair")
+        data["boundary_angle"] = var(res.angle, "rad", "argument of the critical Floquet multiplier on the unstable "
+                                     "side, in [0, pi]: on the boundary the multiplier is exp(+-i angle)")
     located = res.bound[(res.bound == PARAMETER) | (res.bound == CRITERION) | (res.bound == BAND_EDGE)]
     ev = res.evaluations[res.bound >= 0]
     attrs = {

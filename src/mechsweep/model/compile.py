@@ -378,12 +378,13 @@ solve{k}_s = symplectic.make_event_solver({accel}, qevent{k}, {int(model.symplec
                     c, val, a, b_ = st.NONFINITE, math.nan, 0, 0
                 else:
                     c, val, a, b_ = solve{k}_s(0.0, q, v, p, h, {tm}, max_steps, swork)""")
-            elif getattr(m, "n_values", 1) == 2:
+            elif getattr(m, "n_values", 1) > 1:  # the first value, then the others into their own columns
+                extra = range(1, m.n_values)
                 meas.append(f"""
                 initial(p, y)
-                c, val, val2, a, b_ = measure{k}(y, p, rtol, atol, max_steps, work)
-                if c == st.OK:
-                    table[i, {cols[k] + 1}] = val2""")
+                c, val, {"".join(f"val_{e}, " for e in extra)}a, b_ = measure{k}(y, p, rtol, atol, max_steps, work)
+                if c == st.OK:""" + "".join(f"""
+                    table[i, {cols[k] + e}] = val_{e}""" for e in extra))
             else:
                 meas.append(f"""
                 initial(p, y)
