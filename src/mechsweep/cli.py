@@ -6,6 +6,7 @@ import math
 import os
 import signal
 import sys
+import warnings
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -83,7 +84,9 @@ def main(argv: list[str] | None = None) -> int:
     main_thread = threading.current_thread() is threading.main_thread()  # only it may set handlers
     previous = signal.signal(signal.SIGTERM, _terminate) if main_thread else None  # SIGTERM stops like Ctrl-C
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning(args.command, warnings.showwarning)
+            return args.func(args)
     except (InputError, FileNotFoundError) as exc:
         print(f"mechsweep {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_INVALID
@@ -97,6 +100,18 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if main_thread:
             signal.signal(signal.SIGTERM, previous if previous is not None else signal.SIG_DFL)
+
+
+def _show_warning(command, default):
+    """A user model's warning as one line on stderr (no source line of mechsweep's); others as usual."""
+    from .errors import UserModelWarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, UserModelWarning):
+            print(f"mechsweep {command}: warning: {message}", file=sys.stderr)
+        else:
+            default(message, category, filename, lineno, file, line)
+    return show
 
 
 class _Terminated(KeyboardInterrupt):
