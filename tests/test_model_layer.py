@@ -139,7 +139,7 @@ def test_floquet_multiplier_leaves_the_unit_circle_on_the_mathieu_boundaries():
 
 
 MATHIEU_FILE = HERE / "user_models" / "mathieu.py"
-FLOQUET = ("max_multiplier", "max_multiplier_stable", "max_multiplier_kind")
+FLOQUET = ("max_multiplier", "max_multiplier_stable", "max_multiplier_kind", "max_multiplier_angle")
 
 
 def test_floquet_verdict_and_kind_on_the_mathieu_boundaries():
@@ -165,6 +165,7 @@ def test_floquet_verdict_and_kind_on_the_mathieu_boundaries():
     damped = np.array(rows)[:, 2] > 0
     neutral = ~unstable & ~damped
     np.testing.assert_array_equal(out["max_multiplier_kind"][unstable], kinds[unstable])
+    np.testing.assert_array_equal(out["max_multiplier_angle"][unstable], np.where(kinds[unstable] > 0, 0.0, np.pi))
     assert (out["max_multiplier_stable"][unstable] == 0.0).all() and (status[unstable] == st.OK).all()
     assert np.isnan(out["max_multiplier_stable"][neutral]).all() and (status[neutral] == st.UNDECIDED).all()
     assert np.abs(out["max_multiplier"][neutral] - 1.0).max() < 1e-9  # the value is still given
@@ -177,6 +178,20 @@ def test_floquet_verdict_and_kind_on_the_mathieu_boundaries():
     assert (wide["max_multiplier_stable"][damped] == 1.0).all() and (wstatus[damped] == st.OK).all()
 
 
+def test_floquet_critical_multiplier_angle_of_a_damped_oscillator():
+    """q = 0: x'' + c x' + a x = 0 over T = pi has the multipliers exp(pi (-c/2 +- i w)), w =
+    sqrt(a - c^2/4): modulus exp(-c pi / 2), argument pi w folded into [0, pi], a complex pair."""
+    c = 0.2
+    a = np.array([0.5, 2.0, 3.0])
+    out, status, _, _ = evaluate(f"{MATHIEU_FILE}:MATHIEU_JAC", FLOQUET,
+                                 np.column_stack([a, np.zeros(a.size), np.full(a.size, c)]))
+    w = np.sqrt(a - c * c / 4)
+    folded = np.abs(np.angle(np.exp(1j * np.pi * w)))
+    assert (status == st.OK).all() and (out["max_multiplier_kind"] == 0.0).all()
+    np.testing.assert_allclose(out["max_multiplier_angle"], folded, rtol=1e-9)
+    np.testing.assert_allclose(out["max_multiplier"], math.exp(-c * math.pi / 2), rtol=1e-9)
+
+
 def test_floquet_with_analytic_jacobian_agrees_with_finite_differences():
     rows = np.array([(-0.5, 0.5), (1.0, 1.0), (3.0, 2.0), (0.3, 0.5), (6.0, 1.0)])  # unstable +1, -1; ...
     fd, s_fd, _, nr_fd = evaluate(f"{MATHIEU_FILE}:MATHIEU", FLOQUET, rows)
@@ -185,6 +200,7 @@ def test_floquet_with_analytic_jacobian_agrees_with_finite_differences():
     np.testing.assert_array_equal(s_fd, s_an)
     np.testing.assert_allclose(an["max_multiplier"], fd["max_multiplier"], rtol=1e-10)
     np.testing.assert_array_equal(an["max_multiplier_kind"], fd["max_multiplier_kind"])
+    np.testing.assert_allclose(an["max_multiplier_angle"], fd["max_multiplier_angle"], rtol=1e-9, atol=1e-12)
     assert (fd["max_multiplier"][:2] > 1.1).all() and fd["max_multiplier_kind"][:2].tolist() == [1.0, -1.0]
     assert (nr_fd == 5 * nr_an).all()  # the Jacobian costs no rhs call (2 n + 1 = 5 with differences)
 

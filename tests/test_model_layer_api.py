@@ -171,14 +171,21 @@ def test_unfinished_run_reads_and_resumes_from_another_directory(tmp_path, monke
     assert not partial_path(folder / "out.h5").exists()
 
 
-def test_rhs_raising_at_a_point_the_probe_did_not_see_is_a_status(in_tmp):
+def test_rhs_raising_at_a_point_the_probe_did_not_see_is_a_status(in_tmp, capsys):
     """The probe (w = 1) passes; at w = 3 the compiled rhs raises inside the parallel loop. numba does
     not propagate it; the generated guard flags the point: status USER_ERROR (no crash, no
-    traceback), the others OK."""
+    traceback), the others OK, and one warning line says why."""
     _scene_folder(in_tmp)
     text = SCENE_TEXT.format(model=_ref(in_tmp / "scenes")).replace("[0.5, 1.0, 1.5, 2.0]", "[1.0, 3.0, 2.0]")
     (in_tmp / "scenes" / "r.toml").write_text(text)
+    from mechsweep.model import ode
+    ode._EXPLAINED.clear()  # warned once per cause in a process
     assert main(["run", "scenes/r.toml", "-o", "r.h5"]) == 0
+    err = capsys.readouterr().err
+    # the replay in plain Python names the exception, the user's file and line, and the point
+    assert "mechsweep run: warning: model 'api_oscillator': its own code raised (status user_error" in err
+    assert "first seen at w = 3: rhs at t = 0 raised ValueError: w too large for this model" in err
+    assert "api_models.py, line 9, in rhs" in err
     ds = mechsweep.open_dataset("r.h5")
     assert ds["status"].values.tolist() == [st.OK, st.USER_ERROR, st.OK]
     assert math.isnan(ds["x_at_1"].values[1])

@@ -131,12 +131,18 @@ def _load(scene, root):
 def test_an_exception_in_the_models_code_at_run_time_is_user_error():
     """The probe (w = 1) passes; inside the kernel the closed form raises for w > 2 and the event for
     w > 3: those points get USER_ERROR (not NONFINITE) and NaN, the others are computed."""
+    from mechsweep.errors import UserModelWarning
+    from mechsweep.model import ode
+    ode._EXPLAINED.clear()  # warned once per cause in a process
     spec = load.resolve(f"{USER}:RAISING")
     P = np.array([[1.0, 0.5], [2.5, 0.5], [4.0, 0.5]])
-    out, status, _, _ = _evaluate(spec, P, ("inverse",))
+    with pytest.warns(UserModelWarning, match=r"at w = 2.5, .*closed form inverse raised ValueError: w too large "
+                      r"for this formula \(.*layer_methods.py, line 85, in raising_closed_form\)"):
+        out, status, _, _ = _evaluate(spec, P, ("inverse",))
     assert status.tolist() == [st.OK, st.USER_ERROR, st.USER_ERROR] and out["inverse"][0] == 1.0
     assert np.isnan(out["inverse"][1:]).all()
-    out, status, _, _ = _evaluate(spec, P, ("period",), rtol=1e-10, atol=1e-12)
+    with pytest.warns(UserModelWarning, match=r"period: event at t = 0 raised ValueError: w too large for this event"):
+        out, status, _, _ = _evaluate(spec, P, ("period",), rtol=1e-10, atol=1e-12)
     assert status.tolist() == [st.OK, st.OK, st.USER_ERROR] and np.isnan(out["period"][2])
     np.testing.assert_allclose(out["period"][:2], 2 * np.pi / P[:2, 0], rtol=1e-8)
     assert st.MEANINGS[st.USER_ERROR] == "user_error"

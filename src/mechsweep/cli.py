@@ -6,6 +6,7 @@ import math
 import os
 import signal
 import sys
+import warnings
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -83,7 +84,9 @@ def main(argv: list[str] | None = None) -> int:
     main_thread = threading.current_thread() is threading.main_thread()  # only it may set handlers
     previous = signal.signal(signal.SIGTERM, _terminate) if main_thread else None  # SIGTERM stops like Ctrl-C
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning(args.command, warnings.showwarning)
+            return args.func(args)
     except (InputError, FileNotFoundError) as exc:
         print(f"mechsweep {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_INVALID
@@ -97,6 +100,18 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if main_thread:
             signal.signal(signal.SIGTERM, previous if previous is not None else signal.SIG_DFL)
+
+
+def _show_warning(command, default):
+    """A user model's warning as one line on stderr (no source line of mechsweep's); others as usual."""
+    from .errors import UserModelWarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, UserModelWarning):
+            print(f"mechsweep {command}: warning: {message}", file=sys.stderr)
+        else:
+            default(message, category, filename, lineno, file, line)
+    return show
 
 
 class _Terminated(KeyboardInterrupt):
@@ -190,82 +205,9 @@ def _parser() -> argparse.ArgumentParser:
                        description="Benchmarks print measured numbers of this machine, with ratios "
                                    "against the alternatives measured in the same run.")
     bsub = p.add_subparsers(dest="bench", metavar="BENCH")
-    b = bsub.add_parser("duffing", help="amplitude-period sweep: points/s, ratio to scipy solve_ivp, error")
-    b.add_argument("--points", type=int, default=200_000, help="grid points for mechsweep (default 200000)")
-    b.add_argument("--scipy-points", type=int, default=200, help="points solved with scipy (default 200)")
-    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
-    b.add_argument("--rtol", type=float, default=None, help="default: the solver default")
-    b.add_argument("--atol", type=float, default=None, help="default: the solver default")
-    b.set_defaults(func=_cmd_bench)
-    b = bsub.add_parser("autobalancer", help="Floquet chart time (200 x 200) and simulation throughput vs scipy")
-    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
-    b.add_argument("--sim-points", type=int, default=512,
-                   help="trajectories simulated by mechsweep on one thread (4x on all threads; default 512)")
-    b.add_argument("--scipy-points", type=int, default=3, help="of those, solved with scipy too (default 3)")
-    b.set_defaults(func=_cmd_bench_autobalancer)
-    b = bsub.add_parser("linkage", help="four-bar residual sweep (360 positions/design): designs/s vs vectorised numpy")
-    b.add_argument("--designs", type=int, default=200_000, help="designs for mechsweep (default 200000)")
-    b.add_argument("--numpy-designs", type=int, default=20_000, help="designs for numpy (default 20000)")
-    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
-    b.set_defaults(func=_cmd_bench_linkage)
-    b = bsub.add_parser("user-model", help="the Duffing oscillator declared as a user model against the built-in "
-                                           "kernel: points/s and period error, side by side")
-    b.add_argument("--points", type=int, default=200_000, help="grid points (default 200000)")
-    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
-    b.add_argument("--rtol", type=float, default=None, help="default: the solver default")
-    b.add_argument("--atol", type=float, default=None, help="default: the solver default")
-    b.set_defaults(func=_cmd_bench_user_model)
-    b = bsub.add_parser("period-error", help="worst Duffing period error over epsilon for a ladder of tolerances")
-    b.set_defaults(func=_cmd_bench_period_error)
-    b = bsub.add_parser("workprecision", formatter_class=fmt,
-                        help="error against run time for every method, ours and scipy's (DOP853, Radau, LSODA)",
-                        description="Integrate a fixed sample of a scene's grid points with every method the "
-                                    "model offers and with scipy's solve_ivp, over a ladder of tolerances; print "
-                                    "error against time per point and write DIR/workprecision_MODEL.h5 and .csv "
-                                    "(draw it with `mechsweep plot DIR/workprecision_MODEL.h5`). The algebraic "
-                                    "linkage models (fourbar_balancing, slidercrank_balancing) are evaluated over "
-                                    "a ladder of crank positions per cycle instead (--positions), against a "
-                                    "continuous-angle reference, with a plain numpy implementation timed alongside.")
-    b.add_argument("model", help="duffing, torsional_circuit, autobalancer, fourbar_balancing, "
-                                 "slidercrank_balancing, or a model declared as a mechsweep.model.OdeModel: "
-                                 "'file.py:NAME' (relative to the current directory), 'package.module:NAME' or an "
-                                 "entry-point name, with --scene S.toml naming the same model; scipy then "
-                                 "integrates the model's own rhs")
-    b.add_argument("--scene", default=None, help="draw the sample from this scene (default: the model's reference scene)")
-    b.add_argument("--points", type=int, default=64, help="sample points for mechsweep (default 64)")
-    b.add_argument("--scipy-points", type=int, default=6, help="of those, solved with scipy (default 6)")
-    b.add_argument("--rtol", type=float, nargs="+", default=None, metavar="RTOL",
-                   help="tolerance ladder (default 1e-4 ... 1e-13, one per decade)")
-    b.add_argument("--positions", type=int, nargs="+", default=None, metavar="N",
-                   help="linkage models: crank positions per cycle (default 12 24 45 90 180 360 720 1440 2880)")
-    b.add_argument("--repeats", type=int, default=None,
-                   help="timing repetitions, the fastest counts (default 3; linkage models 5)")
-    b.add_argument("--out", default="data/bench", help="output folder (default data/bench)")
-    b.add_argument("--output", default=None, metavar="NAME",
-                   help="a model of your own: the measured output to compare (default: its first measurement)")
-    b.set_defaults(func=_cmd_bench_workprecision)
-    b = bsub.add_parser("boundaries", help="auto-balancer stability boundaries against 2 m / M: located vs "
-                                           "grid-and-contour at the same precision")
-    b.add_argument("--values", type=int, default=200, help="mass ratios 2 m / M in [0.0005, 0.35] (default 200)")
-    b.add_argument("--grid", type=int, default=100, help="Omega values of the bracketing grid (default 100)")
-    b.add_argument("--contour", type=int, nargs="+", default=[100, 200, 400], metavar="N",
-                   help="Omega values of the contour grids (default 100 200 400)")
-    b.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance in Omega (default 1e-8)")
-    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
-    b.set_defaults(func=_cmd_bench_boundaries)
-    b = bsub.add_parser("cluster", help="throughput locally and on a dask LocalCluster of 1..W workers; identical datasets")
-    b.add_argument("--points", type=int, default=400_000, help="Duffing grid points (default 400000)")
-    b.add_argument("--workers", type=int, default=None, help="up to this many worker processes (default: cores)")
-    b.add_argument("--chunk", type=int, default=8192, help="points per chunk, i.e. per task (default 8192)")
-    b.set_defaults(func=_cmd_bench_cluster)
-    b = bsub.add_parser("memory", help="peak resident memory of runs up to 10^8 points (one long axis, several short ones; "
-                        "mechsweep.run and the `mechsweep run` command) against their dataset size")
-    b.add_argument("--quick", action="store_true", help="small grids only (10^4 ... 10^6 points)")
-    b.add_argument("--dir", default=None, help="folder for the temporary datasets (default: the system's temp)")
-    b.set_defaults(func=_cmd_bench_memory)
-    b = bsub.add_parser("quickstart", help="time the quickstart (run + plot) in fresh processes, cold and warm JIT cache")
-    b.add_argument("--scene", default="sweeps/quickstart.toml")
-    b.set_defaults(func=_cmd_bench_quickstart)
+    from .bench import commands as bench_commands
+
+    bench_commands.add_parsers(bsub, fmt)
     p.set_defaults(func=lambda a: (p.print_help(), EXIT_INVALID)[1])
     return parser
 
@@ -577,103 +519,6 @@ def _cmd_check(args) -> int:
             bad += 1
             print(f"{path}: {exc}", file=sys.stderr)
     return EXIT_INVALID if bad else 0
-
-
-def _cmd_bench(args) -> int:
-    from .bench import duffing as bench_duffing
-
-    from .scene import Solver
-
-    bench_duffing.main(points=args.points, scipy_points=args.scipy_points, threads=args.threads,
-                       rtol=Solver.rtol if args.rtol is None else args.rtol,
-                       atol=Solver.atol if args.atol is None else args.atol)
-    return 0
-
-
-def _cmd_bench_autobalancer(args) -> int:
-    from .bench import autobalancer
-
-    autobalancer.main(sim_points=args.sim_points, scipy_points=args.scipy_points, threads=args.threads)
-    return 0
-
-
-def _cmd_bench_boundaries(args) -> int:
-    from .bench import _args, boundaries
-
-    contour = [_args.count("--contour", n, 3, 10**6) for n in args.contour]
-    if len(contour) < 2:
-        from .errors import InputError
-        raise InputError("--contour needs at least two grid sizes (the error's order is fitted between the last two)")
-    boundaries.main(values=_args.count("--values", args.values, 1, 10**5), grid=_args.count("--grid", args.grid, 3, 10**6),
-                    contour=tuple(contour), rtol=_args.tolerance("--rtol", args.rtol, 1e-15, 1e-2), threads=_args.threads("--threads", args.threads))
-    return 0
-
-
-def _cmd_bench_linkage(args) -> int:
-    import numba
-
-    from .bench import linkage
-
-    linkage.main(designs=args.designs, numpy_designs=args.numpy_designs,
-                 threads=numba.config.NUMBA_NUM_THREADS if args.threads is None else args.threads)
-    return 0
-
-
-def _cmd_bench_user_model(args) -> int:
-    from .bench import user_duffing
-
-    user_duffing.main(points=args.points, threads=args.threads, rtol=args.rtol, atol=args.atol)
-    return 0
-
-
-def _cmd_bench_period_error(args) -> int:
-    from .bench import period_error
-
-    period_error.main()
-    return 0
-
-
-def _cmd_bench_workprecision(args) -> int:
-    from .bench import workprecision, workprecision_linkage
-    from .errors import InputError
-
-    linkage = args.model in workprecision_linkage.CASES
-    if linkage and args.rtol:
-        raise InputError(f"{args.model} is algebraic: it has no tolerance (--rtol); its ladder is --positions")
-    if args.positions and not linkage:
-        raise InputError(f"--positions is for the linkage models ({', '.join(workprecision_linkage.CASES)}), "
-                         f"not {args.model}")
-    if linkage:
-        workprecision_linkage.main(args.model, args.scene, points=args.points,
-                                   positions=tuple(args.positions or workprecision_linkage.POSITIONS),
-                                   repeats=5 if args.repeats is None else args.repeats, out_dir=args.out)
-        return 0
-    workprecision.main(args.model, args.scene, points=args.points, scipy_points=args.scipy_points,
-                       ladder=tuple(args.rtol) if args.rtol else workprecision.LADDER,
-                       repeats=3 if args.repeats is None else args.repeats,
-                       out_dir=args.out, output=args.output)
-    return 0
-
-
-def _cmd_bench_cluster(args) -> int:
-    from .bench import cluster
-
-    cluster.main(points=args.points, workers=args.workers, chunk=args.chunk)
-    return 0
-
-
-def _cmd_bench_memory(args) -> int:
-    from .bench import memory
-
-    rows = memory.main(quick=args.quick, folder=args.dir)
-    return 0 if all(r["ok"] for r in rows) else 1
-
-
-def _cmd_bench_quickstart(args) -> int:
-    from .bench import quickstart
-
-    quickstart.main(args.scene)
-    return 0
 
 
 # ----------------------------------------------------------------------------- text helpers

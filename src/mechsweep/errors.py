@@ -8,6 +8,11 @@ class InputError(ValueError):
     """Invalid input: a message for the user, no traceback."""
 
 
+class UserModelWarning(UserWarning):
+    """A model's own code raised at some points (status user_error): where and why, from a replay
+    in plain Python (``mechsweep.model.diagnose``)."""
+
+
 class StoreError(InputError):
     """A problem with the output file or an unfinished run (exists, locked, from another scene, unwritable)."""
 

@@ -30,12 +30,15 @@ import importlib.util
 import os
 import sys
 import tempfile
+import threading
 from pathlib import Path
 
 from .. import _jit
 from . import load
 
 _KERNELS: dict[str, object] = {}
+_LOADED: dict[str, object] = {}  # generated modules imported in this process (load_generated)
+_LOAD_LOCK = threading.Lock()
 _TMP: list[str] = []
 
 BLOCK = 16  # points per scratch allocation inside the parallel loop
@@ -378,12 +381,13 @@ solve{k}_s = symplectic.make_event_solver({accel}, qevent{k}, {int(model.symplec
                     c, val, a, b_ = st.NONFINITE, math.nan, 0, 0
                 else:
                     c, val, a, b_ = solve{k}_s(0.0, q, v, p, h, {tm}, max_steps, swork)""")
-            elif getattr(m, "n_values", 1) == 2:
+            elif getattr(m, "n_values", 1) > 1:  # the first value, then the others into their own columns
+                extra = range(1, m.n_values)
                 meas.append(f"""
                 initial(p, y)
-                c, val, val2, a, b_ = measure{k}(y, p, rtol, atol, max_steps, work)
-                if c == st.OK:
-                    table[i, {cols[k] + 1}] = val2""")
+                c, val, {"".join(f"val_{e}, " for e in extra)}a, b_ = measure{k}(y, p, rtol, atol, max_steps, work)
+                if c == st.OK:""" + "".join(f"""
+                    table[i, {cols[k] + e}] = val_{e}""" for e in extra))
             else:
                 meas.append(f"""
                 initial(p, y)
@@ -526,14 +530,20 @@ def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str =
 
 def load_generated(name: str, source: str):
     """Write a generated kernel module ``name`` into the cache folder (only when absent or
-    different: its mtime keys numba's cache index) and import it."""
-    path = _folder() / f"{name}.py"
-    if not path.exists() or path.read_text() != source:
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(source)
-        os.replace(tmp, path)
-    spec = importlib.util.spec_from_file_location(name, path)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[name] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    different: its mtime keys numba's cache index) and import it, once per process: threads that
+    ask for the same kernel at once (dask's threaded scheduler) wait for the first and share its
+    module instead of racing on the file and importing it twice."""
+    with _LOAD_LOCK:
+        if name in _LOADED:
+            return _LOADED[name]
+        path = _folder() / f"{name}.py"
+        if not path.exists() or path.read_text() != source:
+            tmp = path.with_suffix(f".{os.getpid()}.{threading.get_ident()}.tmp")
+            tmp.write_text(source)
+            os.replace(tmp, path)
+        spec = importlib.util.spec_from_file_location(name, path)
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[name] = mod
+        spec.loader.exec_module(mod)
+        _LOADED[name] = mod
+        return mod

@@ -282,7 +282,10 @@ class Floquet:
       unit circle: +1 (real, positive: T-periodic mode, e.g. a saddle-node or symmetry-breaking
       loss of stability), -1 (real, negative: period doubling), 0 (a complex pair: Neimark-Sacker,
       or on the stable side an oscillating mode). Real means |Im| <= 1e-8 |mu| (eigenvalues of a
-      real matrix computed in complex arithmetic: a real one carries an imaginary part of round-off).
+      real matrix computed in complex arithmetic: a real one carries an imaginary part of round-off);
+    - ``name_angle``: the argument of the critical multiplier, in rad, folded to [0, pi] (a complex
+      pair is mu = |mu| exp(+-i angle)): exactly 0 for kind +1 and pi for kind -1 (the same test);
+      on a boundary |mu| = 1, so the critical multiplier there is exp(+-i angle).
 
     The monodromy matrix is integrated from the variational equations Phi' = J(t, y) Phi,
     Phi(0) = I, together with the state (n + n^2 equations). J is the model's ``jac(t, y, p, J)``
@@ -300,7 +303,7 @@ class Floquet:
     unit: str = "1"
     long_name: str = ""
     needs_forcing = True
-    n_values = 2  # the largest modulus and the kind
+    n_values = 3  # the largest modulus, the kind and the critical multiplier's argument
 
     def output(self) -> Output:
         return Output(self.name, "max |λ|", self.unit,
@@ -315,7 +318,10 @@ class Floquet:
                        kind="verdict"),
                 Output(f"{self.name}_kind", "kind", "1",
                        "critical Floquet multiplier: +1 real positive, -1 real negative, 0 complex pair",
-                       integrated=True, needs=(self.name,)))
+                       integrated=True, needs=(self.name,)),
+                Output(f"{self.name}_angle", "arg μ", "rad",
+                       "argument of the critical Floquet multiplier, folded to [0, pi]: 0 real positive, pi real "
+                       "negative, else a complex pair |mu| exp(+-i angle)", integrated=True, needs=(self.name,)))
 
     def validate(self, states):
         pass
@@ -324,14 +330,17 @@ class Floquet:
         return 3 * n + n * n
 
     def finish(self, values, wanted, solver, out, status):
-        """Python's reading of the kernel's two columns (modulus, kind): the outputs and UNDECIDED."""
+        """Python's reading of the kernel's three columns (modulus, kind, angle): the outputs and
+        UNDECIDED."""
         from .. import status as st
-        big, kind = values[:, 0], values[:, 1]
+        big, kind, angle = values[:, 0], values[:, 1], values[:, 2]
         good = np.isfinite(big)
         if self.name in out:
             out[self.name][:] = big
         if f"{self.name}_kind" in out:
             out[f"{self.name}_kind"][:] = np.where(good, kind, np.nan)
+        if f"{self.name}_angle" in out:
+            out[f"{self.name}_angle"][:] = np.where(good, angle, np.nan)
         if f"{self.name}_stable" in wanted:
             margin = max(float(solver.settings.get("floquet_margin", 1e-8)), 100.0 * solver.rtol)
             decided = good & (np.abs(big - 1.0) > margin)
@@ -384,7 +393,7 @@ solve{k}_var = dop853.make_solver(var_rhs{k})
 def measure{k}(y, p, rtol, atol, max_steps, work):
     T = forcing(p)
     if not (math.isfinite(T) and T > 0.0):
-        return st.INFEASIBLE, math.nan, math.nan, 0, 0
+        return st.INFEASIBLE, math.nan, math.nan, math.nan, 0, 0
     z = np.zeros({N})
     for i in range({n}):
         z[i] = y[i]
@@ -393,13 +402,13 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
     code, ns, nr = solve{k}_var(0.0, z, p, T, rtol, atol, 0.0, max_steps, wz)
     nr = nr * {per_eval}
     if code != st.OK:
-        return code, math.nan, math.nan, ns, nr
+        return code, math.nan, math.nan, math.nan, ns, nr
     M = np.empty(({n}, {n}), dtype=np.complex128)
     for i in range({n}):
         for j in range({n}):
             v = z[{n} + i * {n} + j]
             if not math.isfinite(v):
-                return st.NONFINITE, math.nan, math.nan, ns, nr
+                return st.NONFINITE, math.nan, math.nan, math.nan, ns, nr
             M[i, j] = v
     lam = np.linalg.eigvals(M)
     big = -1.0
@@ -410,9 +419,11 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
             crit = lam[i]
     if abs(crit.imag) <= 1e-8 * big:
         kind = 1.0 if crit.real > 0.0 else -1.0
+        angle = 0.0 if crit.real > 0.0 else math.pi
     else:
         kind = 0.0
-    return st.OK, big, kind, ns, nr
+        angle = abs(math.atan2(crit.imag, crit.real))
+    return st.OK, big, kind, angle, ns, nr
 """
 
 

@@ -19,6 +19,29 @@ def _outputs(m):
     return m.outputs() if hasattr(m, "outputs") else (m.output(),)
 
 
+_EXPLAINED: set = set()  # (model, explanation) already warned about in this process
+
+
+def _warn_user_error(model, P, status, S, rtol) -> None:
+    """Points with status USER_ERROR: replay the first in plain Python and warn (once per model and
+    cause in a process) with the exception, its file and line, and the point."""
+    from .. import status as st
+    bad = np.nonzero(status == st.USER_ERROR)[0]
+    if not bad.size:
+        return
+    from .diagnose import explain
+    why = explain(model, P[bad[0]], S, rtol)
+    if (model.name, why) in _EXPLAINED:
+        return
+    _EXPLAINED.add((model.name, why))
+    import warnings
+
+    from ..errors import UserModelWarning
+    at = ", ".join(f"{q.name} = {v:g}" for q, v in zip(model.params, P[bad[0]]))
+    warnings.warn(f"model {model.name!r}: its own code raised (status user_error; the run's status counts say "
+                  f"how often); first seen at {at}: {why}", UserModelWarning, stacklevel=2)
+
+
 @dataclass(frozen=True)
 class OdeModel:
     """A model y' = rhs(t, y, p) released from ``initial(p, y0)`` at t = 0.
@@ -202,6 +225,7 @@ class OdeModel:
                                      else (1e-10, 1e-12, 1))
             kernel(np.ascontiguousarray(P, dtype=np.float64), S, need, rtol, atol, max_steps, table, status, n_steps,
                    n_rhs)
+            _warn_user_error(model, P, status, S, rtol)
             for j, m in enumerate(chosen):
                 if hasattr(m, "finish"):
                     m.finish(table[:, cols[j]:cols[j + 1]], wanted, solver, out, status)

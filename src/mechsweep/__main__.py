@@ -1,0 +1,6 @@
+"""`python -m mechsweep ...`: the same as the `mechsweep` command."""
+import sys
+
+from .cli import main
+
+sys.exit(main())

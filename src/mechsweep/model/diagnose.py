@@ -1,0 +1,73 @@
+"""Why a point has status USER_ERROR: replay the model's own functions at that point in plain
+Python. The compiled guards only flag the point (numba keeps no exception object in a parallel
+loop); the replay runs what happens first at the point, in order: classify, prepare, initial, the
+right-hand side and Jacobian at t = 0, the forcing period, each measurement's horizon and its
+event at t = 0, and the closed forms that need no measurement. The first exception gives its type,
+message, and the file and line in the model's code. Code reached only later in the integration
+(at t > 0, in a refinement, or in a formula of measured values) is not replayed: the answer then
+says so."""
+from __future__ import annotations
+
+import traceback
+
+import numpy as np
+
+SCRATCH = 64  # zero slots beyond the declared ones: a function that reads past them gets zeros
+
+
+def _py(func):
+    """The plain Python function behind a numba dispatcher (or the function itself)."""
+    return getattr(func, "py_func", func)
+
+
+def _where(exc: BaseException) -> str:
+    """'file, line N, in name' of the innermost frame of the traceback."""
+    frames = traceback.extract_tb(exc.__traceback__)
+    if not frames:
+        return "unknown place"
+    f = frames[-1]
+    return f"{f.filename}, line {f.lineno}, in {f.name}"
+
+
+def _calls(model, p, y0, rtol):
+    """(what, thunk) in the order the kernel meets them."""
+    n = len(model.states)
+    dydt, J = np.zeros(n), np.zeros((n, n))
+    out = []
+    if model.classify is not None:
+        out.append(("classify", lambda: _py(model.classify)(p)))
+    if model.prepare is not None:
+        out.append(("prepare", lambda: _py(model.prepare)(p, rtol)))
+    out.append(("initial", lambda: _py(model.initial)(p, y0)))
+    out.append(("rhs at t = 0", lambda: _py(model.rhs)(0.0, y0, p, dydt)))
+    if model.jac is not None:
+        out.append(("jac at t = 0", lambda: _py(model.jac)(0.0, y0, p, J)))
+    if model.forcing_period is not None:
+        out.append(("forcing_period", lambda: _py(model.forcing_period)(p)))
+    for m in model.measurements:
+        roles = dict(getattr(m, "functions", lambda: ())())
+        if "t_max" in roles:
+            out.append((f"{m.name}: t_max", lambda f=roles["t_max"]: _py(f)(p)))
+        if "event" in roles:
+            out.append((f"{m.name}: event at t = 0", lambda f=roles["event"]: _py(f)(0.0, y0, p)))
+    for c in model.closed_forms:
+        if not c.needs:
+            out.append((f"closed form {c.name}", lambda f=c.func: _py(f)(p)))
+    return out
+
+
+def explain(model, row: np.ndarray, settings: np.ndarray, rtol: float) -> str:
+    """One line: the first exception the model's functions raise at the point (parameters ``row``,
+    settings values ``settings``), or that none does before the integration starts."""
+    n_p, n_s = len(model.params), len(settings)
+    p = np.zeros(n_p + n_s + len(model.internal) + SCRATCH)
+    p[:n_p] = row
+    p[n_p:n_p + n_s] = settings
+    y0 = np.zeros(len(model.states))
+    for what, call in _calls(model, p, y0, rtol):
+        try:
+            call()
+        except Exception as e:  # noqa: BLE001 - the user's exception is the answer
+            return f"{what} raised {type(e).__name__}: {e} ({_where(e)})"
+    return ("no exception in plain Python up to the start of the integration: it raised later (at t > 0, "
+            "in a refinement or in a formula of measured values)")
