@@ -1,7 +1,7 @@
 """Declarations of model parameters and outputs: one place for names, units and ranges.
 
 A model module declares a :class:`ModelSpec` beside its kernels. Everything else
-(scene validation, dataset attributes, README glossary, figure labels) reads it.
+(scene validation, dataset attributes, the docs glossary, figure labels) reads it.
 """
 from __future__ import annotations
 
