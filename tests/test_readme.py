@@ -75,3 +75,10 @@ def test_readme_is_a_front_door():
     assert README.count("![") <= 6
     assert "python -m sphinx -W --keep-going -b html docs docs/_build/html" in README
     assert "docs/_build/html/index.html" in README
+
+
+def test_models_markdown_prints_the_glossary_page(capsys):
+    from mechsweep.cli import main
+
+    assert main(["models", "--markdown"]) == 0
+    assert capsys.readouterr().out == GLOSSARY.read_text()
