@@ -24,7 +24,6 @@ html_static_path = []
 html_title = "mechsweep"
 autodoc_member_order = "bysource"
 autodoc_typehints = "none"
-autodoc_default_options = {"members": False}
 nitpicky = False
 
 

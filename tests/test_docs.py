@@ -75,7 +75,7 @@ def test_api_reference_is_generated_from_the_docstrings(site):
 
     first_line = mechsweep.run.__doc__.strip().splitlines()[0]
     assert 'id="mechsweep.run"' in html and first_line.split()[0] in html
-    assert 'id="mechsweep.model.OdeModel"' in html
+    assert 'id="mechsweep.model.OdeModel"' in html and 'id="mechsweep.balancing.rms_axis_offset"' in html
 
 
 def test_gallery_shows_every_committed_figure_of_a_shipped_scene(site):

@@ -356,7 +356,7 @@ def slidercrank_curves(phi, phi_d, phi_dd=0.0, *, balanced: bool = True, **param
 def evaluate(model: str, outputs, *, n_positions: int = N_POSITIONS, **params) -> tuple[dict, np.ndarray]:
     """Outputs of a linkage model for parameters given as scalars or broadcastable arrays
     (categorical ones by name), without a scene. Returns ({output: array [..., n_positions for
-    *_phi]}, status array) in the broadcast shape. n_positions: uniform crank positions per cycle
+    ``*_phi``]}, status array) in the broadcast shape. n_positions: uniform crank positions per cycle
     behind the maxima, RMS values, fits and curves (default 360, as in every sweep)."""
     spec = _spec(model)
     outputs = (outputs,) if isinstance(outputs, str) else tuple(outputs)
