@@ -31,7 +31,7 @@ def test_invalid_scene_exit_2_no_traceback_no_file(in_tmp):
     out = run_cli("run", "bad.toml", cwd=in_tmp)
     assert out.returncode == 2
     assert "Traceback" not in out.stderr
-    assert "fixed.omega: -2.0 rad/s is outside the physical range; expected a finite number in (0, inf)" in out.stderr
+    assert "fixed.omega: -2.0 rad s-1 is outside the physical range; expected a finite number in (0, inf)" in out.stderr
     assert sorted(p.name for p in (in_tmp / "data" / "runs").iterdir()) == before
 
 
@@ -66,7 +66,7 @@ def test_check_and_models(capsys):
     assert main(["check", *map(str, sorted((REPO / "sweeps").glob("*.toml")))]) == 0
     assert main(["models", "duffing"]) == 0
     text = capsys.readouterr().out
-    assert "omega" in text and "[rad/s]" in text
+    assert "omega" in text and "[rad s-1]" in text
 
 
 def test_output_cut_short_by_a_pipe_is_not_an_error():

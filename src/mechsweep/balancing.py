@@ -1,25 +1,36 @@
 """Linkage balancing as plain functions: numpy in, numpy out, the same numba kernels as the models
 ``fourbar_balancing`` and ``slidercrank_balancing`` (:mod:`mechsweep.models._linkage`).
 
-Partial dynamic balancing by moving the crank counterweight's axis (physics.md section 3)
+Partial dynamic balancing by moving the crank counterweight's axis (physics.md section 3)::
+
     rms_axis_offset(phi, moment, S, omega)            RMS-optimal axis O1 = (x, y)
     first_harmonic_axis_offset(phi, moment, S, omega) axis cancelling the first harmonic
     axis_moment(phi, x, y, S, omega)                  the moment Delta M(phi) the move adds
     efficiency(dM_static, dM_method)                  R_j in percent
-Comprehensive balancing (physics.md section 4), post-processing of a stored sweep
+
+Comprehensive balancing (physics.md section 4), post-processing of a stored sweep::
+
     pareto_front(indices) -> mask,  weighted_optimum(indices, weights) -> index
-Mass substitution and counterweights (physics.md section 4)
+
+Mass substitution and counterweights (physics.md section 4)::
+
     static_two_point, dynamic_two_point, fourbar_counterweights, slidercrank_counterweight
-Curves of one linkage at any crank positions and speed law
+
+Curves of one linkage at any crank positions and speed law::
+
     fourbar_curves(phi, phi_d, phi_dd, **params), slidercrank_curves(...)
-A few designs of a model without a scene
+
+A few designs of a model without a scene::
+
     evaluate("fourbar_balancing", outputs, **params) -> (dict of arrays, status)
 
 Sign convention of the moment (physics.md section 3): M is the principal moment of the inertia
 forces about the crank axis, M = -dH/dt (H the angular momentum about that axis); moving a
 counterweight of static moment S = m r, whose centre is at angle ``cw_angle`` from the crank
-(default pi: opposite the crank), from the crank axis to O1 = (x, y) adds
+(default pi: opposite the crank), from the crank axis to O1 = (x, y) adds::
+
     Delta M = -S [phi'^2 (y cos psi - x sin psi) + phi'' (x cos psi + y sin psi)],  psi = phi + cw_angle,
+
 which for cw_angle = pi is the formula printed in physics.md section 3.
 """
 from __future__ import annotations
@@ -345,7 +356,7 @@ def slidercrank_curves(phi, phi_d, phi_dd=0.0, *, balanced: bool = True, **param
 def evaluate(model: str, outputs, *, n_positions: int = N_POSITIONS, **params) -> tuple[dict, np.ndarray]:
     """Outputs of a linkage model for parameters given as scalars or broadcastable arrays
     (categorical ones by name), without a scene. Returns ({output: array [..., n_positions for
-    *_phi]}, status array) in the broadcast shape. n_positions: uniform crank positions per cycle
+    ``*_phi``]}, status array) in the broadcast shape. n_positions: uniform crank positions per cycle
     behind the maxima, RMS values, fits and curves (default 360, as in every sweep)."""
     spec = _spec(model)
     outputs = (outputs,) if isinstance(outputs, str) else tuple(outputs)

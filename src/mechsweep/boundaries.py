@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import cf
 from . import status as st
 
 # which bound stopped a located point (stored as the variable boundary_bound)
@@ -660,8 +661,12 @@ def locate_dataset(scene, ds, spec=None):
                                      "side, in [0, pi]: on the boundary the multiplier is exp(+-i angle)")
     located = res.bound[(res.bound == PARAMETER) | (res.bound == CRITERION) | (res.bound == BAND_EDGE)]
     ev = res.evaluations[res.bound >= 0]
+    created = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
     attrs = {
+        "Conventions": cf.CONVENTIONS,
         "title": f"boundaries of {scene.name} along {along}",
+        "history": cf.history(created, f"mechsweep.boundaries.run_boundaries(scene {scene.name!r})", __version__),
+        "references": cf.references(scene.model),
         "mechsweep_kind": "boundaries",
         "model": scene.model.name,
         "along": along,
@@ -671,7 +676,7 @@ def locate_dataset(scene, ds, spec=None):
         "boundaries": str(b.as_dict()),
         "scene": scene.text,
         "scene_canonical": scene.canonical(),
-        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "created": created,
         "mechsweep_version": __version__,
         "wall_time_s": wall,
         "evaluate_calls": res.calls,

@@ -177,9 +177,9 @@ def _parser() -> argparse.ArgumentParser:
                    "(relative to the current directory) or 'package.module:NAME'")
     p.add_argument("--scene", metavar="SCENE", help="the model the scene file SCENE names (a user model "
                    "file is found relative to the scene)")
-    p.add_argument("--markdown", action="store_true", help="print the glossary section of README.md (built-in "
-                   "models and status codes), or one model's tables; `python -m mechsweep.docs README.md` "
-                   "rewrites it in place")
+    p.add_argument("--markdown", action="store_true", help="print the glossary page of the documentation "
+                   "(built-in models and status codes), or one model's tables; `python -m mechsweep.docs "
+                   "docs/glossary.md` rewrites it in place")
     p.set_defaults(func=_cmd_models)
 
     p = sub.add_parser("boundaries", help="locate the boundaries a scene's [boundaries] section asks for",
@@ -482,7 +482,7 @@ def _cmd_models(args) -> int:
                 raise InputError(f"unknown model {name!r}; models: {', '.join(known)} (or 'file.py:NAME', "
                                  "'package.module:NAME')")
             specs = [_entry_point_model(name, points[name])]
-    elif args.markdown:  # the README's glossary section: the built-in models and the status codes
+    elif args.markdown:  # the docs' glossary page: the built-in models and the status codes
         from .docs import glossary
 
         print(glossary(), end="")
@@ -669,7 +669,7 @@ def model_text(spec) -> str:
 
 
 def model_markdown(spec) -> str:
-    """Glossary tables of one model (README.md embeds them; a test keeps them in sync)."""
+    """Glossary tables of one model (docs/glossary.md embeds them; a test keeps them in sync)."""
     from .docs import model_markdown as markdown
 
     return markdown(spec)

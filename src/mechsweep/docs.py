@@ -1,9 +1,9 @@
-"""Documentation generated from the declarations: the README glossary (every model's parameters,
-outputs, solver settings and statuses, and the status codes) reads the ModelSpecs only, so it
-covers any model, built-in or a user's.
+"""Documentation generated from the declarations: the glossary page of the documentation
+(docs/glossary.md: every model's parameters, outputs, solver settings and statuses, and the status
+codes) reads the ModelSpecs only, so it covers any model, built-in or a user's.
 
-    python -m mechsweep.docs README.md     # rewrite README.md's "## Glossary" section in place
-    mechsweep models --markdown            # print the same section
+    python -m mechsweep.docs docs/glossary.md   # rewrite the page's "# Glossary" section in place
+    mechsweep models --markdown                 # print the same section
     mechsweep models my_models.py:NAME --markdown   # one model's tables (a user model too)
 """
 from __future__ import annotations
@@ -11,22 +11,26 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-HEADING = "## Glossary"
+HEADING = "# Glossary"
 INTRO = ("Symbols, meanings and units of every parameter, output and model-specific solver setting, and the\n"
          "statuses each model's points can get (generated from the model declarations by\n"
-         "`mechsweep models --markdown` or `python -m mechsweep.docs README.md`; a test keeps this section\n"
-         "in sync with the code).")
+         "`mechsweep models --markdown` or `python -m mechsweep.docs docs/glossary.md`; a test keeps this\n"
+         "page in sync with the code). Units are UDUNITS-2 strings, as the datasets store them.")
 
 
 def _cell(text: str) -> str:
     return str(text).replace("|", "\\|")  # a bare | would end the table cell
 
 
+def _unit(unit: str) -> str:
+    return f"`{unit}`" if unit else "(not declared)"
+
+
 def status_table() -> str:
     """The status codes and their generic meaning (status.py)."""
     from . import status as st
 
-    lines = ["### Status codes", "", "| code | status | meaning |", "|---|---|---|"]
+    lines = ["## Status codes", "", "| code | status | meaning |", "|---|---|---|"]
     for code in sorted(st.MEANINGS):
         lines.append(f"| {code} | `{st.MEANINGS[code]}` | {_cell(st.DESCRIPTIONS[code])} |")
     return "\n".join(lines) + "\n"
@@ -36,23 +40,26 @@ def model_markdown(spec) -> str:
     """Glossary tables of one model: parameters, outputs, methods, settings, statuses."""
     from . import status as st
 
-    lines = [f"### `{spec.name}`: {spec.description}", "", f"Source: {spec.source}.", "",
+    lines = [f"## `{spec.name}`: {spec.description}", "", f"Source: {spec.source}.", ""]
+    if spec.references:
+        lines += ["References: " + "; ".join(spec.references) + ".", ""]
+    lines += [
              "| parameter | symbol | meaning | unit | allowed |", "|---|---|---|---|---|"]
     for p in spec.params:
         opt = " (optional)" if not p.required else ""
-        lines.append(f"| `{p.name}` | {_cell(p.symbol or '-')} | {_cell(p.long_name)}{opt} | {p.unit or '-'} | "
+        lines.append(f"| `{p.name}` | {_cell(p.symbol or '-')} | {_cell(p.long_name)}{opt} | {_unit(p.unit)} | "
                      f"{p.allowed()} |")
     lines += ["", "| output | symbol | meaning | unit |", "|---|---|---|---|"]
     for o in spec.outputs:
         how = " (integrated)" if o.integrated else ""
         how += f" (per {', '.join(d.name for d in o.extra_dims)})" if o.extra_dims else ""
-        lines.append(f"| `{o.name}` | {_cell(o.symbol)} | {_cell(o.long_name)}{how} | {o.unit} |")
+        lines.append(f"| `{o.name}` | {_cell(o.symbol)} | {_cell(o.long_name)}{how} | {_unit(o.unit)} |")
     if any(o.integrated for o in spec.outputs):
         lines += ["", "`solver.method`: " + ", ".join(f"`{m}`" for m in spec.methods) + " (default `dop853`)."]
     if spec.settings:
         lines += ["", "| solver setting | meaning | unit | default | allowed |", "|---|---|---|---|---|"]
         for s in spec.settings:
-            lines.append(f"| `{s.name}` | {_cell(s.long_name)} | {s.unit} | {s.default:g} | [{s.lo:g}, {s.hi:g}] |")
+            lines.append(f"| `{s.name}` | {_cell(s.long_name)} | {_unit(s.unit)} | {s.default:g} | [{s.lo:g}, {s.hi:g}] |")
     codes = spec.possible_statuses()
     how = "declared" if spec.statuses else "derived from its outputs"
     lines += ["", f"Statuses ({how}): " + ", ".join(f"`{st.MEANINGS.get(c, c)}`" for c in codes) + "."]
@@ -64,7 +71,7 @@ def model_markdown(spec) -> str:
 
 
 def glossary(specs=None) -> str:
-    """The README's glossary section: the status codes, then every model of ``specs`` (default:
+    """The glossary page: the status codes, then every model of ``specs`` (default:
     the built-in models, in their table's order)."""
     if specs is None:
         from .models import MODELS
@@ -74,22 +81,21 @@ def glossary(specs=None) -> str:
     return "\n".join(parts)
 
 
-def readme_section(text: str) -> str:
-    """The glossary section of a README's text, from its heading to the next level-2 heading or
-    the end ("" when there is none)."""
-    start = text.find(f"\n{HEADING}\n")
-    if start < 0:
+def glossary_section(text: str) -> str:
+    """The generated section of a page's text, from its "# Glossary" heading to the next level-1
+    heading or the end ("" when there is none)."""
+    start = 0 if text.startswith(f"{HEADING}\n") else text.find(f"\n{HEADING}\n") + 1
+    if start == 0 and not text.startswith(f"{HEADING}\n"):
         return ""
-    start += 1
-    end = text.find("\n## ", start + len(HEADING))
+    end = text.find("\n# ", start + len(HEADING))
     return text[start:] if end < 0 else text[start:end + 1]
 
 
-def write_readme(path: str | Path) -> bool:
-    """Replace the glossary section of the README at ``path`` by the generated one; True if changed."""
+def write_page(path: str | Path) -> bool:
+    """Replace the glossary section of the page at ``path`` by the generated one; True if changed."""
     path = Path(path)
     text = path.read_text()
-    old = readme_section(text)
+    old = glossary_section(text)
     if not old:
         raise SystemExit(f"{path} has no '{HEADING}' section")
     new = glossary()
@@ -103,6 +109,6 @@ def write_readme(path: str | Path) -> bool:
 
 if __name__ == "__main__":
     if len(sys.argv) != 2:
-        print("usage: python -m mechsweep.docs README.md", file=sys.stderr)
+        print("usage: python -m mechsweep.docs docs/glossary.md", file=sys.stderr)
         sys.exit(2)
-    print(f"{sys.argv[1]}: {'rewritten' if write_readme(sys.argv[1]) else 'already up to date'}")
+    print(f"{sys.argv[1]}: {'rewritten' if write_page(sys.argv[1]) else 'already up to date'}")

@@ -22,6 +22,7 @@ import numpy as np
 import xarray as xr
 
 from . import __version__
+from . import cf
 from . import status as st
 from .errors import ClusterLost, InputError, WriteFailed
 from .grid import Chunk, ChunkPlan, ParameterMatrix, chunk_target, plan_chunks
@@ -714,6 +715,7 @@ def _threads(n: int | None):
 
 
 def provenance(scene: Scene, chunks: ChunkPlan) -> dict:
+    created = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
     attrs = {
         "title": scene.name,
         "model": scene.model.name,
@@ -722,7 +724,7 @@ def provenance(scene: Scene, chunks: ChunkPlan) -> dict:
         "scene": scene.text,
         "scene_canonical": scene.canonical(),
         **({"scene_folder": scene.base} if scene.base else {}),
-        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "created": created,
         "mechsweep_version": __version__,
         "numba_version": numba.__version__,
         "numpy_version": np.__version__,
@@ -730,7 +732,9 @@ def provenance(scene: Scene, chunks: ChunkPlan) -> dict:
         "python_version": platform.python_version(),
         "chunk_size": chunks.max_size,
         "wall_time_s": 0.0,
-        "Conventions": "CF-1.10",
+        "Conventions": cf.CONVENTIONS,
+        "history": cf.history(created, f"mechsweep.run(scene {scene.name!r})", __version__),
+        "references": cf.references(scene.model),
     }
     if scene.solver is not None:
         for k, v in scene.solver.as_dict().items():

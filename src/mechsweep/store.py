@@ -25,6 +25,7 @@ import h5py
 import numpy as np
 import xarray as xr
 
+from . import cf
 from . import status as st
 from .errors import StoreError, WriteFailed  # noqa: F401  (StoreError: part of this module's API)
 from .grid import plan_chunks
@@ -300,6 +301,8 @@ def _define(f: h5netcdf.File, scene: Scene, lay: Layout, attrs: dict) -> None:
                 v[lo:hi] = axis.array(lo, hi)
         _describe(v, prm.unit, prm.long_name, prm.symbol)
         v.attrs["spacing"] = axis.spacing
+        if axis.spacing == "log":  # CF has no attribute for it: say it to a reader (docs: datasets)
+            v.attrs["comment"] = cf.LOG_AXIS_COMMENT
     for name, value in scene.fixed.items():
         prm = model.param(name)
         if prm.categorical:
@@ -357,7 +360,8 @@ def _storage_chunks(shape: tuple[int, ...]):
 
 
 def _describe(var, unit: str, long_name: str, symbol: str) -> None:
-    var.attrs["units"] = unit
+    if unit:  # a UDUNITS string; a measurement declared without one gets no units (CF: unknown), never ""
+        var.attrs["units"] = unit
     var.attrs["long_name"] = long_name
     if symbol:
         var.attrs["symbol"] = symbol

@@ -39,8 +39,8 @@ from .. import status as st
 from ..grid import ParameterMatrix
 from ..models import MODELS
 from ..scene import Scene, Solver, load_scene
+from . import scenes
 
-ROOT = Path(__file__).resolve().parents[3]
 LADDER = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13)
 ATOL_RATIO = 1e-2  # atol = 1e-2 rtol: the scaled states are O(1)
 SCIPY_METHODS = ("DOP853", "Radau", "LSODA")
@@ -53,7 +53,7 @@ TIMED_CALL_S = 0.05  # ... or until one call takes this long
 class Case:
     """What is measured for one model."""
 
-    scene: str  # default scene the sample is drawn from
+    scene: str  # default scene the sample is drawn from: a packaged copy of sweeps/<scene> (bench/scenes)
     output: str  # integrated output whose error is measured
     error: str  # "relative" or "absolute"
     norm: str  # what the error means, for the report
@@ -178,13 +178,13 @@ def _floquet_reference(P):
 
 
 CASES = {
-    "duffing": Case("sweeps/duffing_amplitude_period.toml", "period", "relative",
+    "duffing": Case("duffing_amplitude_period.toml", "period", "relative",
                     "relative period error |T - T_exact| / T_exact", _duffing_reference,
                     "closed form 4 K(m) / sqrt(omega^2 + mu A^2)", _duffing_scipy),
-    "torsional_circuit": Case("sweeps/torsional_circuit_truncation.toml", "period_exact_moment", "relative",
+    "torsional_circuit": Case("torsional_circuit_truncation.toml", "period_exact_moment", "relative",
                               "relative error of the period with the exact spring moment", _torsional_reference,
                               f"scipy DOP853 at rtol {REFERENCE_RTOL:g}", _torsional_scipy),
-    "autobalancer": Case("sweeps/autobalancer_stability_chart.toml", "floquet_max", "absolute",
+    "autobalancer": Case("autobalancer_stability_chart.toml", "floquet_max", "absolute",
                          "absolute error of the largest Floquet multiplier modulus", _floquet_reference,
                          f"scipy DOP853 at rtol {REFERENCE_RTOL:g}", _floquet_scipy),
 }
@@ -296,10 +296,7 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     if model in CASES:
         case = CASES[model]
         spec = MODELS[model]
-        if scene_path is None and not (ROOT / case.scene).is_file():
-            raise InputError(f"the reference scene {case.scene} of {model} ships with the repository, not with "
-                             f"the installed package (looked in {ROOT}); give a scene with --scene S.toml")
-        scene = load_scene(scene_path or ROOT / case.scene)
+        scene = load_scene(scene_path or scenes.path(case.scene))
         if scene.model.name != model:
             raise InputError(f"scene {scene_path} is for model {scene.model.name!r}, not {model!r}")
         if output not in (None, case.output):
@@ -371,7 +368,7 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
                 "rtol": ("rtol", np.array(ladder), {"units": "1", "long_name": "relative tolerance (atol = 1e-2 rtol)"})},
         attrs={"mechsweep_kind": "workprecision", "model": model, "output": case.output, "norm": case.norm,
                "reference": case.reference_name, "reference_time_s": ref_s, "points": P.shape[0],
-               "scipy_points": k, "repeats": repeats, "skipped": "; ".join(skipped) or "none", "scene": str(scene_path or case.scene),
+               "scipy_points": k, "repeats": repeats, "skipped": "; ".join(skipped) or "none", "scene": str(scene_path or f"sweeps/{case.scene}"),
                "compile_or_cache_load_s": ", ".join(f"{m} {s:.2f}" for m, s in compile_s.items()),
                "threads": 1, "scipy_rhs": "the model's jitted right-hand side; Radau/LSODA with the analytic "
                "Jacobian where the model has one (duffing, autobalancer), else finite differences"

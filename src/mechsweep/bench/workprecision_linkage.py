@@ -49,8 +49,8 @@ from ..models import MODELS
 from ..models import _linkage as L
 from ..models import fourbar_balancing as fb
 from ..scene import load_scene
+from . import scenes
 
-ROOT = Path(__file__).resolve().parents[3]
 POSITIONS = (12, 24, 45, 90, 180, 360, 720, 1440, 2880)
 TIMED_POINTS = 1024  # our time per point: the sample repeated up to this many points ...
 TIMED_CALL_S = 0.05  # ... or until one call takes this long
@@ -64,7 +64,7 @@ GL_PANELS = (256, 512)  # coarse (error estimate) and fine (reference)
 class LinkageCase:
     """What is measured for one linkage model."""
 
-    scene: str  # default scene the sample is drawn from
+    scene: str  # default scene the sample is drawn from: a packaged copy of sweeps/<scene> (bench/scenes)
     outputs: dict  # output -> what kind of quantity it is (for the report)
     reference: Callable  # P row -> ({output: exact value}, error estimate of the reference)
     reference_name: str
@@ -303,7 +303,7 @@ def numpy_fourbar(P: np.ndarray, n_positions: int) -> dict:
 
 CASES = {
     "fourbar_balancing": LinkageCase(
-        "sweeps/fourbar_geometry_family.toml",
+        "fourbar_geometry_family.toml",
         {"M_max_static": "maximum", "M_rms_static": "RMS", "dM_rms_axis": "optimised (RMS-optimal axis), RMS",
          "dM_max_axis": "optimised (RMS-optimal axis), maximum"},
         fourbar_reference,
@@ -311,7 +311,7 @@ CASES = {
         f"RMS values and the axis, maxima by Brent's method from a {SEARCH_POSITIONS}-position grid",
         numpy_fourbar),
     "slidercrank_balancing": LinkageCase(
-        "sweeps/slidercrank_partial.toml",
+        "slidercrank_partial.toml",
         {"F_max": "maximum (partial-balancing residual)", "Fx_rms": "RMS", "F_tb_error_rel": "maximum"},
         slider_reference,
         "closed form: harmonic series of the slider position (RMS by Parseval), maxima by Brent's method from "
@@ -402,7 +402,7 @@ def main(model: str, scene_path: str | None = None, points: int = 64, positions=
         raise InputError(f"need at least 4 crank positions per cycle, got {min(positions)}")
     case = CASES[model]
     spec = MODELS[model]
-    scene = load_scene(scene_path or ROOT / case.scene)
+    scene = load_scene(scene_path or scenes.path(case.scene))
     if scene.model.name != model:
         raise InputError(f"scene {scene_path} is for model {scene.model.name!r}, not {model!r}")
     outputs = tuple(case.outputs)
@@ -418,7 +418,7 @@ def main(model: str, scene_path: str | None = None, points: int = 64, positions=
         if model == "slidercrank_balancing":
             P = _closed_form_rows(P)
         if P.shape[0] == 0:
-            raise InputError(f"no usable design point among the {drawn} drawn from {scene_path or case.scene}")
+            raise InputError(f"no usable design point among the {drawn} drawn from {scene_path or scenes.path(case.scene)}")
         t0 = time.perf_counter()
         refs, estimates = zip(*(case.reference(p) for p in P))
         ref_s = time.perf_counter() - t0
@@ -475,7 +475,7 @@ def main(model: str, scene_path: str | None = None, points: int = 64, positions=
                "norm": "relative error |value - reference| / |reference|", "reference": case.reference_name,
                "reference_error_estimate": float(max(estimates)), "reference_time_s": ref_s,
                "points": P.shape[0], "points_drawn": drawn, "seed": seed, "repeats": repeats,
-               "scene": str(scene_path or case.scene), "compile_or_cache_load_s": first_call_s, "threads": 1,
+               "scene": str(scene_path or f"sweeps/{case.scene}"), "compile_or_cache_load_s": first_call_s, "threads": 1,
                "default_positions": L.N_POSITIONS,
                "numpy": f"vectorised numpy on [designs, N] arrays, blocks of {NUMPY_BLOCK} designs, same outputs"},
     )

@@ -80,6 +80,7 @@ class ClosedFormModel:
     settings: tuple[Setting, ...] = ()
     statuses: tuple[int, ...] = ()  # ModelSpec.statuses: empty = derived from the outputs
     status_notes: object = ()  # ModelSpec.status_notes: {code: what the status means for this model}
+    references: tuple[str, ...] = ()  # ModelSpec.references: the source documents
 
     def __post_init__(self):
         object.__setattr__(self, "params", tuple(self.params))
@@ -145,7 +146,7 @@ class ClosedFormModel:
 
         return ModelSpec(name=self.name, description=self.description, params=self.params, outputs=self.outputs,
                          evaluate=evaluate, source=self.source or origin, settings=self.settings, check=self.check,
-                         statuses=self.statuses, status_notes=self.status_notes)
+                         statuses=self.statuses, status_notes=self.status_notes, references=self.references)
 
 
 _DATA: dict[int, tuple] = {}

@@ -101,6 +101,7 @@ class OdeModel:
     symplectic_step: Callable | None = field(default=None, repr=False)
     symplectic_order: int = 8
     output_order: tuple[str, ...] = ()
+    references: tuple[str, ...] = ()  # ModelSpec.references: the source documents
 
     def __post_init__(self):
         for name in ("params", "states", "measurements", "closed_forms", "internal", "settings", "output_order"):
@@ -254,4 +255,5 @@ class OdeModel:
             methods_for=self.methods_for,
             statuses=self.statuses,
             status_notes=self.status_notes,
+            references=self.references,
         )

@@ -1,7 +1,7 @@
 """Declarations of model parameters and outputs: one place for names, units and ranges.
 
 A model module declares a :class:`ModelSpec` beside its kernels. Everything else
-(scene validation, dataset attributes, README glossary, figure labels) reads it.
+(scene validation, dataset attributes, the docs glossary, figure labels) reads it.
 """
 from __future__ import annotations
 
@@ -144,6 +144,8 @@ class ModelSpec:
     OK; empty: derived from the outputs (:meth:`possible_statuses`). ``status_notes``: what a
     status means for this model, {code: text} (given as a mapping or as (code, text) pairs; kept
     as sorted pairs), shown with the generic text where this model's datasets and docs are described.
+    ``references``: the source documents the model implements (stored as the CF ``references``
+    attribute of its datasets; ``source`` when empty).
     ``methods_for(outputs)`` (optional): the methods a choice of outputs (closed under ``needs``)
     supports, when some outputs offer fewer than ``methods``; a scene asking another is refused.
     """
@@ -159,12 +161,15 @@ class ModelSpec:
     methods: tuple[str, ...] = ("dop853",)  # integration methods `evaluate` offers (solver.method)
     statuses: tuple[int, ...] = ()  # status codes besides OK a point can get; empty: derived
     status_notes: tuple[tuple[int, str], ...] = ()  # (code, what the status means for this model)
+    references: tuple[str, ...] = ()  # source documents (a dataset's CF `references`; default: source)
 
     def __post_init__(self):
         notes = self.status_notes
         pairs = notes.items() if isinstance(notes, Mapping) else notes
         object.__setattr__(self, "status_notes", tuple(sorted((int(c), str(t)) for c, t in pairs)))
         object.__setattr__(self, "statuses", tuple(sorted({int(c) for c in self.statuses})))
+        refs = self.references
+        object.__setattr__(self, "references", (refs,) if isinstance(refs, str) else tuple(refs))
 
     def possible_statuses(self) -> tuple[int, ...]:
         """The status codes a point of this model can get: OK and the declared ``statuses``; a

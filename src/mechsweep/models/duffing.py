@@ -265,9 +265,14 @@ MODEL = OdeModel(
     name="duffing",
     description="Undamped Duffing oscillator phi'' + omega^2 phi + mu phi^3 = 0 released from rest at phi = A",
     source="Klyuchkovskyi, torsional oscillating circuits, eq. (3); physics.md section 1",
+    references=(
+        'Klyuchkovskyi, "Synthesis of motion laws of the rocking link of spatial torsional oscillating circuits" '
+        "(printing-machine automata)",
+        "mechsweep docs/physics.md section 1: the checks and corrections made to the source",
+    ),
     params=(
-        Param("omega", "ω", "rad/s", "linear natural frequency", lo=0.0, lo_open=True),
-        Param("mu", "μ", "1/(rad^2 s^2)", "cubic stiffness coefficient (>0 hard, <0 soft)"),
+        Param("omega", "ω", "rad s-1", "linear natural frequency", lo=0.0, lo_open=True),
+        Param("mu", "μ", "rad-2 s-2", "cubic stiffness coefficient (>0 hard, <0 soft)"),
         Param("A", "A", "rad", "amplitude, phi(0) = A, phi'(0) = 0", lo=0.0),
     ),
     settings=(T_MAX_PERIODS,),
@@ -289,8 +294,8 @@ MODEL = OdeModel(
         ClosedForm("period_exact", period_exact, "T_exact", "s", "period (elliptic closed form)"),
         ClosedForm("period_error", relative_error, "|T - T_exact| / T_exact", "1",
                    "relative error of the integrated period", needs=("period", "period_exact")),
-        ClosedForm("v_max", v_max, "v_max", "rad/s", "maximum angular velocity"),
-        ClosedForm("a_max", a_max, "a_max", "rad/s^2", "maximum angular acceleration"),
+        ClosedForm("v_max", v_max, "v_max", "rad s-1", "maximum angular velocity"),
+        ClosedForm("a_max", a_max, "a_max", "rad s-2", "maximum angular acceleration"),
         ClosedForm("kv", kv, "k_v = v_max T / A", "1", "velocity coefficient v_max T / A (2 pi when linear)",
                    needs=("v_max", "period_exact"), output_needs=()),
         ClosedForm("ka", ka, "k_a = a_max T^2 / A", "1",

@@ -88,7 +88,7 @@ def _link(i: int, name: str, joint: str):
         Param(f"r{i}", f"r{i}", "m", f"distance of the {name}'s centre of mass from {joint}", lo=0.0),
         Param(f"theta{i}", f"θ{i}", "rad", f"angle of the {name}'s centre of mass from the {name} line "
               f"(seen from {joint}, ccw)", required=False, default=0.0, **_ANGLE),
-        Param(f"I{i}", f"I{i}", "kg m^2", f"{name} moment of inertia about its centre of mass", lo=0.0),
+        Param(f"I{i}", f"I{i}", "kg m2", f"{name} moment of inertia about its centre of mass", lo=0.0),
     )
 
 
@@ -102,11 +102,11 @@ PARAMS = (
     *_link(1, "crank", "O_A"),
     *_link(2, "coupler", "A"),
     *_link(3, "rocker", "O_B"),
-    Param("omega", "ω", "rad/s", "mean crank speed; phi' = omega (1 + delta sin phi)", lo=0.0, lo_open=True),
+    Param("omega", "ω", "rad s-1", "mean crank speed; phi' = omega (1 + delta sin phi)", lo=0.0, lo_open=True),
     Param("delta", "δ", "1", "crank speed modulation: phi' = omega (1 + delta sin phi), "
           "phi'' = omega^2 (1 + delta sin phi) delta cos phi", lo=-1.0, hi=1.0, lo_open=True, hi_open=True,
           required=False, default=0.0),
-    Param("g", "g", "m/s^2", "gravitational acceleration along -y (0: no gravity)", lo=0.0, hi=100.0,
+    Param("g", "g", "m s-2", "gravitational acceleration along -y (0: no gravity)", lo=0.0, hi=100.0,
           required=False, default=0.0),
     Param("M_load", "M_load", "N m", "constant useful-load torque applied to the rocker (ccw positive)",
           required=False, default=0.0),
@@ -166,7 +166,7 @@ SCALARS = {
     "dM_rms_h1": ("RMS dM_h1", "N m", "RMS of the residual shaking moment, first-harmonic axis"),
     "dM_max_h1": ("max|dM_h1|", "N m", "largest |residual shaking moment|, first-harmonic axis"),
     "R_h1": ("R_h1", "%", "efficiency of first-harmonic balancing against static balancing"),
-    "J_rocker": ("J_r", "kg m^2", "RMS-optimal inertia added to the rocker after force balancing "
+    "J_rocker": ("J_r", "kg m2", "RMS-optimal inertia added to the rocker after force balancing "
                                   "(<0: counter-rotating gear pair)"),
     "dM_rms_inertia": ("RMS dM_4", "N m", "RMS of the residual shaking moment with the added rocker inertia"),
     "dM_max_inertia": ("max|dM_4|", "N m", "largest |residual shaking moment| with the added rocker inertia"),
@@ -392,6 +392,12 @@ MODEL = ClosedFormModel(
                 "method (complete force balancing, moved counterweight axis, first harmonic, added rocker "
                 "inertia) and the indices f1..f4 of given counterweights; 360 crank positions per design",
     source="physics.md sections 3 (Dzhavakhyan & Arakelyan 1988) and 4 (machine-dynamics textbook, balancing)",
+    references=(
+        "Dzhavakhyan & Arakelyan, partial dynamic balancing of linkages by a moved counterweight axis, "
+        "Izv. AN ArmSSR, 1988",
+        "Balancing of planar mechanisms, a textbook chapter on machine dynamics",
+        "mechsweep docs/physics.md sections 3 and 4: the checks and corrections made to the sources",
+    ),
     params=PARAMS,
     outputs=tuple(Output(k, *v) for k, v in SCALARS.items())
     + tuple(Output(k, *v, extra_dims=(PHI_DIM,)) for k, v in CURVES.items()),

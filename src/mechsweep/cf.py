@@ -1,0 +1,37 @@
+"""CF metadata every dataset mechsweep writes carries (CF-1.10): ``Conventions``, ``history`` (what
+wrote it, when, with which version) and ``references`` (the source documents of the model, from
+its declaration); units are UDUNITS-2 strings declared with each parameter and output
+(``kg m2``, ``rad s-1``, ``1`` for dimensionless). A log-spaced axis says so in its ``spacing``
+attribute (the package's figures draw it on a log axis) and in a ``comment`` telling a user of
+xarray to plot it with ``xscale="log"``.
+"""
+from __future__ import annotations
+
+import shlex
+import sys
+from pathlib import Path
+
+CONVENTIONS = "CF-1.10"
+LOG_AXIS_COMMENT = ("log-spaced axis (equal ratios between neighbouring values): draw it on a log axis, "
+                    "e.g. ds[VARIABLE].plot(x=AXIS, xscale=\"log\")")
+
+
+def command(what: str) -> str:
+    """The command that is writing a dataset: the ``mechsweep`` command line when the CLI runs,
+    else the Python call ``what`` and the program that made it."""
+    prog = Path(sys.argv[0]).name if sys.argv and sys.argv[0] else ""
+    if prog in ("mechsweep", "__main__.py", "cli.py"):
+        return " ".join(shlex.quote(a) for a in ["mechsweep", *sys.argv[1:]])
+    return f"{what} (Python, {prog or 'interactive'})"
+
+
+def history(created: str, what: str, version: str) -> str:
+    """A CF ``history`` line: time stamp, command, and the mechsweep version that wrote the data."""
+    return f"{created}: {command(what)} (mechsweep {version})"
+
+
+def references(spec) -> str:
+    """The model's source documents (``references`` of its declaration; its ``source`` when it
+    declares none), one per line."""
+    refs = tuple(getattr(spec, "references", ()) or ())
+    return "\n".join(refs) if refs else (spec.source or f"model {spec.name}")
