@@ -23,7 +23,7 @@ its nomogram, `info` summarises a stored run.
 
 typical session:
   mechsweep run sweeps/quickstart.toml             # -> data/runs/quickstart.h5
-  mechsweep plot data/runs/quickstart.h5           # -> data/runs/quickstart.png
+  mechsweep plot data/runs/quickstart.h5           # -> data/runs/quickstart_<figure>.png
   mechsweep info data/runs/quickstart.h5
   mechsweep models                                 # every model, parameter and output
   mechsweep models my_models.py:NAME               # a model of your own (see `models --help`)
@@ -654,8 +654,15 @@ def model_text(spec) -> str:
     if any(o.integrated for o in spec.outputs):
         from .ode import METHOD_HELP
 
+        by_output = [(o.name, tuple(spec.methods_for(spec.closure((o.name,)))) if spec.methods_for else spec.methods)
+                     for o in spec.outputs if o.integrated]
+        offered = [m for m in spec.methods if any(m in ms for _, ms in by_output)]
         lines.append("  solver.method:")
-        lines += [f"    {m:<12} {METHOD_HELP[m]}" for m in spec.methods]
+        lines += [f"    {m:<12} {METHOD_HELP[m]}" for m in offered]
+        narrower = [(n, ms) for n, ms in by_output if ms != tuple(offered)]
+        if narrower:  # a scene asking for these outputs may choose only among their methods
+            lines.append("    methods by output (a scene with several outputs gets the methods they all offer):")
+            lines += [f"      {n:<20} {', '.join(m)}" for n, m in narrower]
     if spec.settings:
         lines.append("  solver settings (besides method, rtol, atol, max_steps):")
         for st in spec.settings:
