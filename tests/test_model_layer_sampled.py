@@ -1,0 +1,109 @@
+"""The sampled-trajectory measurements of the model layer (Steady, Kick, History;
+model/trajectory.py) against closed forms, on user models written as a user would
+(tests/user_models/forced.py)."""
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mechsweep import status as st
+from mechsweep.model import load
+from mechsweep.scene import Solver
+
+USER = Path(__file__).resolve().parent / "user_models" / "forced.py"
+
+
+@pytest.fixture(scope="module")
+def forced():
+    return load.resolve(f"{USER}:FORCED")
+
+
+@pytest.fixture(scope="module")
+def decay():
+    return load.resolve(f"{USER}:DECAY")
+
+
+def _evaluate(spec, P, wanted, **solver):
+    n = P.shape[0]
+    slv = Solver.for_model(spec, **solver)
+    out = {}
+    for k in wanted:
+        o = spec.output(k)
+        out[k] = np.full((n,) + tuple(len(d.values(slv.settings)) for d in o.extra_dims), np.nan)
+    status, ns, nr = np.zeros(n, np.int8), np.zeros(n, np.int64), np.zeros(n, np.int64)
+    spec.evaluate(P, wanted, slv, out, status, ns, nr)
+    return out, status, ns, nr
+
+
+def _forced_closed(w, zeta, F, W):
+    A = F / np.hypot(w * w - W * W, 2 * zeta * w * W)
+    return A, np.arctan2(2 * zeta * w * W, w * w - W * W)
+
+
+WANTED = ("amp", "amp_h1", "amp_phase", "speed_amp", "x_hist")  # one kernel for the FORCED tests
+
+
+@pytest.mark.parametrize("method", ["dop853", pytest.param("radau", marks=pytest.mark.slow),
+                                    pytest.param("auto", marks=pytest.mark.slow)])
+def test_steady_amplitude_and_phase_of_a_forced_damped_oscillator(forced, method):
+    # below, near and above resonance; damping 0.05 .. 0.3 (settled within 200 periods)
+    P = np.array([[1.0, 0.1, 1.0, 0.5], [1.0, 0.05, 2.0, 0.97], [2.0, 0.3, 1.0, 5.0], [1.5, 0.2, -0.5, 1.5]])
+    out, status, ns, nr = _evaluate(forced, P, WANTED, method=method,
+                                    rtol=1e-10, atol=1e-12, max_steps=10**7)
+    A, phi = _forced_closed(*P.T)
+    assert (status == st.OK).all() and (ns > 0).all() and (nr > ns).all()
+    np.testing.assert_allclose(out["amp_h1"], np.abs(A), rtol=2e-7)
+    # F < 0 is the same motion shifted by half a period: the phase by pi
+    expect = np.where(P[:, 2] < 0, np.angle(np.exp(1j * (phi + math.pi))), phi)
+    np.testing.assert_allclose(out["amp_phase"], expect, atol=2e-7)
+    # the sampled peak: below the amplitude by at most 1 - cos(pi / 64)
+    assert ((out["amp"] <= np.abs(A) * (1 + 1e-7)) & (out["amp"] >= np.abs(A) * math.cos(math.pi / 64))).all()
+    np.testing.assert_allclose(out["speed_amp_h1"] if "speed_amp_h1" in out else out["speed_amp"],
+                               np.abs(A) * P[:, 3], rtol=math.pi ** 2 / 64 ** 2)
+    # History: 11 samples over 200 periods, x(0) = 0 from rest; the last, steady, on the closed form
+    assert out["x_hist"].shape == (4, 11)
+    assert (out["x_hist"][:, 0] == 0.0).all()
+    T = 2 * math.pi / P[:, 3]
+    np.testing.assert_allclose(out["x_hist"][:, -1], A * np.cos(P[:, 3] * 200 * T - phi), atol=1e-7)
+
+
+def test_steady_reports_no_event_when_the_transient_has_not_died_out(forced):
+    # zeta = 0.001 near resonance: the beat decays over ~1/(zeta w) = 1000 s = 160 periods
+    P = np.array([[1.0, 0.001, 1.0, 0.9], [1.0, 0.2, 1.0, 0.9]])
+    out, status, _, _ = _evaluate(forced, P, WANTED, rtol=1e-9, atol=1e-12, horizon_periods=20.0)
+    assert status.tolist() == [st.NO_EVENT, st.OK]
+    assert np.isnan(out["amp"][0]) and np.isnan(out["amp_phase"][0]) and np.isfinite(out["amp"][1])
+    # the peak without a settling check (speed_amp) is given where the other is not
+    assert np.isfinite(out["speed_amp"]).all() and np.isfinite(out["x_hist"]).all()
+
+
+def test_the_horizon_setting_moves_the_window(forced):
+    P = np.array([[1.0, 0.1, 1.0, 0.5]])
+    a, _, n1, _ = _evaluate(forced, P, WANTED, rtol=1e-10, atol=1e-12, horizon_periods=100.0)
+    b, _, n2, _ = _evaluate(forced, P, WANTED, rtol=1e-10, atol=1e-12, horizon_periods=300.0)
+    assert n2[0] > 2 * n1[0]
+    np.testing.assert_allclose(a["amp_h1"], b["amp_h1"], rtol=1e-8)
+
+
+@pytest.mark.parametrize("method", ["dop853", pytest.param("radau", marks=pytest.mark.slow)])
+def test_kick_verdict_settling_time_and_history_of_an_exponential(decay, method):
+    lam = np.array([0.5, 0.2, -0.05, 1e-6, 30.0])
+    P = np.column_stack([lam, np.full(5, 0.1)])
+    out, status, _, _ = _evaluate(decay, P, ("stable", "stable_settling", "stable_final", "y_hist"), method=method,
+                                  rtol=1e-11, atol=1e-14, max_steps=10**7)
+    assert out["stable"][:3].tolist() == [1.0, 1.0, 0.0]
+    assert np.isnan(out["stable"][3]) and status[3] == st.UNDECIDED  # neither decays nor grows in 40 s
+    t_s = np.log(0.1 / 0.01) / lam[:2]
+    # linear interpolation between samples 1/8 s apart: relative error <= (lam / 8)^2 / 8
+    np.testing.assert_allclose(out["stable_settling"][:2], t_s, rtol=(0.5 / 8) ** 2 / 8)
+    assert np.isnan(out["stable_settling"][2]) and status[2] == st.NO_EVENT  # grows: never settles
+    np.testing.assert_allclose(out["stable_final"][:3], 0.1 * np.exp(-lam[:3] * 40.0), rtol=1e-8, atol=1e-15)
+    np.testing.assert_allclose(out["y_hist"], 0.1 * np.exp(-np.outer(lam, np.linspace(0, 40, 9))), rtol=1e-8,
+                               atol=1e-12)  # lam = 30: at the noise floor of atol
+    assert out["stable"][4] == 1.0 and status[4] == st.OK
+
+
+def test_sampled_measurements_offer_the_trajectory_methods_only(forced, decay):
+    assert forced.methods_for(("amp",)) == ("dop853", "radau", "auto")
+    assert decay.output("y_hist").extra_dims[0].name == "time"

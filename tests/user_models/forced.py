@@ -1,0 +1,75 @@
+"""User models with closed forms for the sampled-trajectory measurements (Steady, Kick, History),
+written as a user would (outside the package).
+
+FORCED: x'' + 2 zeta w x' + w^2 x = F cos(W t) from rest; the steady motion is
+x = A cos(W t - phi), A = F / sqrt((w^2 - W^2)^2 + (2 zeta w W)^2), phi = atan2(2 zeta w W, w^2 - W^2).
+DECAY: y' = -lam y from y0: y = y0 exp(-lam t); |y| falls below thr at t = ln(y0 / thr) / lam.
+"""
+import math
+
+from mechsweep.model import History, Kick, OdeModel, Param, Setting, Steady
+
+
+def forced_rhs(t, y, p, dydt):
+    dydt[0] = y[1]
+    dydt[1] = p[2] * math.cos(p[3] * t) - 2.0 * p[1] * p[0] * y[1] - p[0] * p[0] * y[0]
+
+
+def forced_initial(p, y0):
+    y0[0] = 0.0
+    y0[1] = 0.0
+
+
+def forced_period(p):
+    return 2.0 * math.pi / p[3]
+
+
+def speed(t, y, p):
+    return y[1]
+
+
+FORCED = OdeModel(
+    name="forced_oscillator",
+    description="x'' + 2 zeta w x' + w^2 x = F cos(W t) from rest",
+    params=(Param("w", "w", "rad/s", "natural frequency", lo=0.0, lo_open=True),
+            Param("zeta", "zeta", "1", "damping ratio", lo=0.0),
+            Param("F", "F", "m/s^2", "forcing amplitude"),
+            Param("W", "W", "rad/s", "forcing frequency", lo=0.0, lo_open=True)),
+    states=("x", "v"),
+    rhs=forced_rhs,
+    initial=forced_initial,
+    forcing_period=forced_period,
+    settings=(Setting("horizon_periods", 200.0, "1", "simulated forcing periods", 1.0, 1e5),),
+    measurements=(
+        Steady("amp", "x", horizon="horizon_periods", window=0.1, samples_per_period=64, unit="m"),
+        Steady("speed_amp", speed, horizon="horizon_periods", settle_rtol=None, unit="m/s"),
+        History("x_hist", "x", horizon="horizon_periods", samples=11, unit="m"),
+    ),
+)
+
+
+def decay_rhs(t, y, p, dydt):
+    dydt[0] = -p[0] * y[0]
+
+
+def decay_initial(p, y0):
+    y0[0] = p[1]
+
+
+def decay_error(t, y, p):
+    return abs(y[0])
+
+
+DECAY = OdeModel(
+    name="decay",
+    description="y' = -lam y from y0: a kick that decays (lam > 0) or grows (lam < 0)",
+    params=(Param("lam", "lam", "1/s", "decay rate"),
+            Param("y0", "y0", "1", "kick", lo=0.0, lo_open=True)),
+    states=("y",),
+    rhs=decay_rhs,
+    initial=decay_initial,
+    measurements=(
+        Kick("stable", decay_error, horizon=40.0, settle_threshold=0.01, monitor_per_period=8, dense_per_period=64),
+        History("y_hist", "y", horizon=40.0, samples=9, dim="time", dim_long_name="time t"),
+    ),
+)
