@@ -107,3 +107,38 @@ def test_kick_verdict_settling_time_and_history_of_an_exponential(decay, method)
 def test_sampled_measurements_offer_the_trajectory_methods_only(forced, decay):
     assert forced.methods_for(("amp",)) == ("dop853", "radau", "auto")
     assert decay.output("y_hist").extra_dims[0].name == "time"
+
+
+def test_floquet_alone_offers_radau_and_auto():
+    cubic = load.resolve(f"{USER}:CUBIC")
+    assert cubic.methods_for(("mu",)) == ("dop853", "radau", "auto")
+    assert cubic.methods_for(("mu", "rest_stable")) == ("dop853", "radau", "auto")
+
+
+@pytest.mark.slow  # about 30 s of compilation per method
+@pytest.mark.parametrize("method", ["dop853", "radau", "auto"])
+def test_floquet_by_every_method_and_about_its_own_orbit_start(method):
+    cubic = load.resolve(f"{USER}:CUBIC")
+    P = np.array([[0.5, 2.0], [2.0, 0.3], [1.0, 5.0]])
+    out, status, ns, _ = _evaluate(cubic, P, ("mu", "mu_stable", "mu_rest", "rest_stable", "rest_kind"), method=method,
+                                   rtol=1e-11, atol=1e-13)
+    np.testing.assert_allclose(out["mu"], (1 + 2 * P[:, 0] ** 2 * P[:, 1]) ** -1.5, rtol=1e-8)
+    assert (out["mu_stable"] == 1.0).all()
+    # about rest (the measurement's own initial): exactly 1, undecided; the kind is +1 (real, positive)
+    np.testing.assert_allclose(out["mu_rest"], 1.0, rtol=1e-12)
+    assert np.isnan(out["rest_stable"]).all() and (status == st.UNDECIDED).all() and (out["rest_kind"] == 1.0).all()
+    assert (ns > 0).all()
+
+
+def test_a_sampled_user_model_runs_and_stores_its_history(in_tmp):
+    import mechsweep
+
+    scene = {"scene": {"name": "forced", "model": f"{USER}:FORCED", "outputs": list(WANTED)},
+             "axes": {"W": [0.5, 0.97]}, "fixed": {"w": 1.0, "zeta": 0.1, "F": 1.0},
+             "solver": {"rtol": 1e-10, "atol": 1e-12}}
+    ds = mechsweep.run(scene, output="data/runs/forced.h5")
+    assert ds["x_hist"].dims == ("W", "period")
+    np.testing.assert_allclose(ds["period"].values, np.linspace(0, 200, 11))
+    A, phi = _forced_closed(1.0, 0.1, 1.0, np.array([0.5, 0.97]))
+    np.testing.assert_allclose(ds["amp_h1"].values, A, rtol=2e-7)
+    assert (ds["status"].values == st.OK).all()

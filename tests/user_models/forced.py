@@ -7,7 +7,7 @@ DECAY: y' = -lam y from y0: y = y0 exp(-lam t); |y| falls below thr at t = ln(y0
 """
 import math
 
-from mechsweep.model import History, Kick, OdeModel, Param, Setting, Steady
+from mechsweep.model import Floquet, History, Kick, OdeModel, Param, Setting, Steady
 
 
 def forced_rhs(t, y, p, dydt):
@@ -72,4 +72,40 @@ DECAY = OdeModel(
         Kick("stable", decay_error, horizon=40.0, settle_threshold=0.01, monitor_per_period=8, dense_per_period=64),
         History("y_hist", "y", horizon=40.0, samples=9, dim="time", dim_long_name="time t"),
     ),
+)
+
+
+def cubic_rhs(t, y, p, dydt):
+    dydt[0] = -y[0] * y[0] * y[0]
+
+
+def cubic_initial(p, y0):
+    y0[0] = p[0]
+
+
+def cubic_rest(p, y0):
+    y0[0] = 0.0
+
+
+def cubic_jac(t, y, p, J):
+    J[0, 0] = -3.0 * y[0] * y[0]
+
+
+def cubic_period(p):
+    return p[1]
+
+
+# y' = -y^3 from y0: y = y0 / sqrt(1 + 2 y0^2 t); linearised about it, phi' = -3 y^2 phi, so the
+# multiplier over [0, T] is (1 + 2 y0^2 T)^(-3/2); about the rest state y = 0 it is exactly 1.
+CUBIC = OdeModel(
+    name="cubic_decay",
+    description="y' = -y^3; Floquet about the motion from y0 and about rest",
+    params=(Param("y0", "y0", "1", "initial value"), Param("T", "T", "s", "period", lo=0.0, lo_open=True)),
+    states=("y",),
+    rhs=cubic_rhs,
+    initial=cubic_initial,
+    forcing_period=cubic_period,
+    jac=cubic_jac,
+    measurements=(Floquet("mu"), Floquet("mu_rest", initial=cubic_rest, stable_name="rest_stable",
+                                          kind_name="rest_kind")),
 )

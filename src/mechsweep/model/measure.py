@@ -291,6 +291,7 @@ class Floquet:
     evaluation). The multipliers are the eigenvalues of Phi(T) (LAPACK). Near a stability boundary
     the modulus is sensitive: a double multiplier +-1 moves like the square root of any error, so
     the boundary is where the value leaves 1, not a value to compare to 1 at tolerance.
+    ``initial(p, y0)`` (optional): the start of the orbit when it is not the model's initial state.
     Status: INFEASIBLE when T is not finite and > 0; integration failures as reported; NONFINITE
     for a non-finite monodromy; UNDECIDED (only when ``name_stable`` is asked for, and only on a
     point whose status is still OK) within the margin. Cost: one integration of n + n^2 equations
@@ -299,7 +300,18 @@ class Floquet:
     name: str
     unit: str = "1"
     long_name: str = ""
+    initial: Callable | None = field(default=None, repr=False, compare=False)
+    stable_name: str = ""  # the verdict output's name; default name + "_stable"
+    kind_name: str = ""  # the kind output's name; default name + "_kind"
     needs_forcing = True
+
+    @property
+    def stable(self) -> str:
+        return self.stable_name or f"{self.name}_stable"
+
+    @property
+    def kind(self) -> str:
+        return self.kind_name or f"{self.name}_kind"
     n_values = 2  # the largest modulus and the kind
 
     def output(self) -> Output:
@@ -309,19 +321,71 @@ class Floquet:
 
     def outputs(self) -> tuple[Output, ...]:
         return (self.output(),
-                Output(f"{self.name}_stable", "stable", "1",
+                Output(self.stable, "stable", "1",
                        f"1 if {self.name} < 1 - margin, 0 if > 1 + margin (margin = max(floquet_margin, 100 rtol); "
                        "NaN and status undecided within it)", integrated=True, needs=(self.name,),
                        kind="verdict"),
-                Output(f"{self.name}_kind", "kind", "1",
+                Output(self.kind, "kind", "1",
                        "critical Floquet multiplier: +1 real positive, -1 real negative, 0 complex pair",
                        integrated=True, needs=(self.name,)))
 
     def validate(self, states):
-        pass
+        if self.initial is not None and not callable(self.initial):
+            raise ValueError(f"{self.name}: initial must be a function initial(p, y0) (the start of the orbit)")
+
+    def functions(self):
+        """``initial``: where the linearisation starts when it is not the model's ``initial(p)``
+        (e.g. the exact periodic orbit, while the model's initial state is a kicked one)."""
+        return () if self.initial is None else (("initial", self.initial),)
 
     def scratch(self, n: int) -> int:
         return 3 * n + n * n
+
+    @staticmethod
+    def _solvers(k, n, jac_code, method):
+        """The variational system's solver(s) for ``method``; radau's Newton matrix is block
+        diagonal, J(t, y) on the state and on every column of Phi (the second derivatives of the
+        rhs, d(J Phi)/dy, are left out: they only steer Newton's convergence, not the result)."""
+        out = []
+        if method in ("dop853", "auto"):
+            out.append(f"solve{k}_var = dop853.make_solver(var_rhs{k}, stiffness_test={method == 'auto'})")
+        if method in ("radau", "auto"):
+            out.append(f"""
+
+@jit
+def var_jac{k}(t, z, p, JJ):
+{jac_code}    JJ[:, :] = 0.0
+    for i in range({n}):
+        for m in range({n}):
+            JJ[i, m] = p[O_J{k} + i * {n} + m]
+            for j in range({n}):
+                JJ[{n} + i * {n} + j, {n} + m * {n} + j] = p[O_J{k} + i * {n} + m]
+
+
+solve{k}_var_r = radau.make_solver(var_rhs{k}, var_jac{k})""")
+        return "\n".join(out)
+
+    @staticmethod
+    def _integrate(k, n, N, method):
+        """Kernel code: the variational integration over [0, T] by the method (auto: dop853 with the
+        stiffness test; a stiff point again from the start by radau, the costs added)."""
+        if method == "dop853":
+            return (f"    wz = dop853.workspace({N})\n"
+                    f"    code, ns, nr = solve{k}_var(0.0, z, p, T, rtol, atol, 0.0, max_steps, wz)\n")
+        radau_call = (f"    rz = radau.workspace({N})\n"
+                      f"    code, ns, nr = solve{k}_var_r(0.0, z, p, T, rtol, atol, 0.0, max_steps, rz)\n")
+        if method == "radau":
+            return radau_call
+        return (f"    wz = dop853.workspace({N})\n"
+                f"    code, ns, nr = solve{k}_var(0.0, z, p, T, rtol, atol, 0.0, max_steps, wz)\n"
+                f"    if code == st.STIFF:\n"
+                f"        z[:] = 0.0\n"
+                f"        for i in range({n}):\n"
+                f"            z[i] = y[i]\n"
+                f"            z[{n} + i * {n} + i] = 1.0\n"
+                f"        ns0, nr0 = ns, nr\n"
+                + radau_call.replace("\n    ", "\n        ").replace("    rz", "        rz", 1)
+                + "        ns += ns0\n        nr += nr0\n")
 
     def finish(self, values, wanted, solver, out, status):
         """Python's reading of the kernel's two columns (modulus, kind): the outputs and UNDECIDED."""
@@ -330,15 +394,15 @@ class Floquet:
         good = np.isfinite(big)
         if self.name in out:
             out[self.name][:] = big
-        if f"{self.name}_kind" in out:
-            out[f"{self.name}_kind"][:] = np.where(good, kind, np.nan)
-        if f"{self.name}_stable" in wanted:
+        if self.kind in out:
+            out[self.kind][:] = np.where(good, kind, np.nan)
+        if self.stable in wanted:
             margin = max(float(solver.settings.get("floquet_margin", 1e-8)), 100.0 * solver.rtol)
             decided = good & (np.abs(big - 1.0) > margin)
-            out[f"{self.name}_stable"][:] = np.where(decided, (big < 1.0).astype(float), np.nan)
+            out[self.stable][:] = np.where(decided, (big < 1.0).astype(float), np.nan)
             status[:] = np.where((status == st.OK) & good & ~decided, st.UNDECIDED, status)
 
-    def source(self, k: int, states, n_p: int = 0, has_jac: bool = False) -> str:
+    def source(self, k: int, states, n_p: int = 0, has_jac: bool = False, method: str = "dop853") -> str:
         n = len(states)
         N = n + n * n
         o_yp, o_fp, o_fm, o_J = n_p, n_p + n, n_p + 2 * n, n_p + 3 * n
@@ -365,6 +429,9 @@ class Floquet:
             p[{o_J} + i * {n} + j] = (fp[i] - fm[i]) / (up - dn)
 """
         return f"""
+O_J{k} = {o_J}
+
+
 @jit
 def var_rhs{k}(t, z, p, dz):
     # z = (y, Phi row by row); dz = (f(t, y), J Phi), J {"from the model's jac" if has_jac else "by central differences"}
@@ -377,21 +444,19 @@ def var_rhs{k}(t, z, p, dz):
             dz[{n} + i * {n} + j] = acc
 
 
-solve{k}_var = dop853.make_solver(var_rhs{k})
+{self._solvers(k, n, jac_code, method)}
 
 
 @jit
 def measure{k}(y, p, rtol, atol, max_steps, work):
-    T = forcing(p)
+{"    initial" + str(k) + "(p, y)" + chr(10) if self.initial is not None else ""}    T = forcing(p)
     if not (math.isfinite(T) and T > 0.0):
         return st.INFEASIBLE, math.nan, math.nan, 0, 0
     z = np.zeros({N})
     for i in range({n}):
         z[i] = y[i]
         z[{n} + i * {n} + i] = 1.0
-    wz = dop853.workspace({N})
-    code, ns, nr = solve{k}_var(0.0, z, p, T, rtol, atol, 0.0, max_steps, wz)
-    nr = nr * {per_eval}
+{self._integrate(k, n, N, method)}    nr = nr * {per_eval}
     if code != st.OK:
         return code, math.nan, math.nan, ns, nr
     M = np.empty(({n}, {n}), dtype=np.complex128)

@@ -176,11 +176,16 @@ class OdeModel:
 
     def methods_for(self, outputs) -> tuple[str, ...]:
         """The methods that the chosen outputs can be computed by (see the class docstring)."""
-        from .compile import is_direct
+        from .compile import floquet_only, is_direct
 
         chosen, _ = self._plan(outputs)
         rest = tuple(m for m in chosen if not getattr(m, "sampled", False))
-        methods = self.methods if not rest or is_direct(rest) else ("dop853",)
+        if not rest or is_direct(rest):
+            methods = self.methods
+        elif floquet_only(rest):  # the variational integration: dop853, radau, auto
+            methods = tuple(x for x in self.methods if x != "symplectic")
+        else:
+            methods = ("dop853",)
         if len(rest) < len(chosen):  # a sampled trajectory: dop853, radau, auto (trajectory.METHODS)
             methods = tuple(x for x in methods if x in ("dop853", "radau", "auto"))
         return methods
