@@ -142,3 +142,25 @@ def test_a_sampled_user_model_runs_and_stores_its_history(in_tmp):
     A, phi = _forced_closed(1.0, 0.1, 1.0, np.array([0.5, 0.97]))
     np.testing.assert_allclose(ds["amp_h1"].values, A, rtol=2e-7)
     assert (ds["status"].values == st.OK).all()
+
+
+@pytest.mark.slow  # compiles the lane solver (about 20 s)
+def test_lanes_give_the_one_trajectory_results_bitwise(forced, monkeypatch):
+    from mechsweep.model import trajectory
+
+    calls = []
+    run_lanes = trajectory._run_lanes
+    monkeypatch.setattr(trajectory, "_run_lanes", lambda *a: calls.append(1) or run_lanes(*a))
+
+    lanes = load.resolve(f"{USER}:FORCED_LANES")
+    rng = np.random.default_rng(3)
+    n = 70  # more points than lanes; forcing periods of three values (one lane group each)
+    P = np.column_stack([rng.uniform(0.5, 2, n), rng.uniform(0.05, 0.3, n), rng.uniform(-1, 1, n),
+                         rng.choice([0.5, 1.3, 4.0], n)])
+    a = _evaluate(lanes, P, WANTED, rtol=1e-9, atol=1e-12, horizon_periods=50.0)
+    b = _evaluate(forced, P, WANTED, rtol=1e-9, atol=1e-12, horizon_periods=50.0)
+    for x, y in zip(a[1:], b[1:]):
+        assert np.array_equal(x, y)
+    for k in WANTED:
+        assert np.array_equal(a[0][k], b[0][k], equal_nan=True), k
+    assert calls == [1]  # FORCED_LANES went through the lanes, FORCED did not

@@ -43,6 +43,10 @@ def rhs(t, z, p, dz):
     ab.rhs(t, z, p[OFF:OFF + ab.NP], dz)
 
 
+def rhs_lanes(t, Z, P, dZ):
+    ab.rhs_lanes(t, Z, P[OFF:OFF + ab.NP], dZ)
+
+
 def jac(t, z, p, J):
     ab.jacobian(t, z, p[OFF:OFF + ab.NP], J)
 
@@ -120,7 +124,7 @@ MODEL = OdeModel(
     name="autobalancer_layer", description="the auto-balancer's dynamics on the layer (experiment)",
     params=ab.SPEC.params, settings=ab.SETTINGS, internal=tuple(f"q{j}" for j in range(ab.NP)),
     states=("x", "y", "g1", "g2", "xd", "yd", "w1", "w2"), rhs=rhs, initial=initial, jac=jac,
-    forcing_period=forcing, prepare=prepare,
+    forcing_period=forcing, prepare=prepare, rhs_lanes=rhs_lanes,
     measurements=(
         Floquet("floquet", initial=balanced),
         Kick("sim", phase_error, platform, horizon=H, settle_threshold="settle_threshold",

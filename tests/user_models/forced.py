@@ -15,6 +15,13 @@ def forced_rhs(t, y, p, dydt):
     dydt[1] = p[2] * math.cos(p[3] * t) - 2.0 * p[1] * p[0] * y[1] - p[0] * p[0] * y[0]
 
 
+def forced_rhs_lanes(t, Y, P, dY):
+    # the lane form of forced_rhs: the same floats per lane (column)
+    for l in range(t.size):
+        dY[0, l] = Y[1, l]
+        dY[1, l] = P[2, l] * math.cos(P[3, l] * t[l]) - 2.0 * P[1, l] * P[0, l] * Y[1, l] - P[0, l] * P[0, l] * Y[0, l]
+
+
 def forced_initial(p, y0):
     y0[0] = 0.0
     y0[1] = 0.0
@@ -28,24 +35,28 @@ def speed(t, y, p):
     return y[1]
 
 
-FORCED = OdeModel(
-    name="forced_oscillator",
-    description="x'' + 2 zeta w x' + w^2 x = F cos(W t) from rest",
-    params=(Param("w", "w", "rad/s", "natural frequency", lo=0.0, lo_open=True),
-            Param("zeta", "zeta", "1", "damping ratio", lo=0.0),
-            Param("F", "F", "m/s^2", "forcing amplitude"),
-            Param("W", "W", "rad/s", "forcing frequency", lo=0.0, lo_open=True)),
-    states=("x", "v"),
-    rhs=forced_rhs,
-    initial=forced_initial,
-    forcing_period=forced_period,
-    settings=(Setting("horizon_periods", 200.0, "1", "simulated forcing periods", 1.0, 1e5),),
-    measurements=(
-        Steady("amp", "x", horizon="horizon_periods", window=0.1, samples_per_period=64, unit="m"),
-        Steady("speed_amp", speed, horizon="horizon_periods", settle_rtol=None, unit="m/s"),
-        History("x_hist", "x", horizon="horizon_periods", samples=11, unit="m"),
-    ),
-)
+def _forced(**kw):
+    return OdeModel(
+        name="forced_oscillator",
+        description="x'' + 2 zeta w x' + w^2 x = F cos(W t) from rest",
+        params=(Param("w", "w", "rad/s", "natural frequency", lo=0.0, lo_open=True),
+                Param("zeta", "zeta", "1", "damping ratio", lo=0.0),
+                Param("F", "F", "m/s^2", "forcing amplitude"),
+                Param("W", "W", "rad/s", "forcing frequency", lo=0.0, lo_open=True)),
+        states=("x", "v"),
+        rhs=forced_rhs,
+        initial=forced_initial,
+        forcing_period=forced_period,
+        settings=(Setting("horizon_periods", 200.0, "1", "simulated forcing periods", 1.0, 1e5),),
+        measurements=(
+            Steady("amp", "x", horizon="horizon_periods", window=0.1, samples_per_period=64, unit="m"),
+            Steady("speed_amp", speed, horizon="horizon_periods", settle_rtol=None, unit="m/s"),
+            History("x_hist", "x", horizon="horizon_periods", samples=11, unit="m"),
+        ), **kw)
+
+
+FORCED = _forced()
+FORCED_LANES = _forced(rhs_lanes=forced_rhs_lanes)  # the same model, its trajectories in DOP853 lanes
 
 
 def decay_rhs(t, y, p, dydt):

@@ -51,6 +51,10 @@ class OdeModel:
       and may refuse the integration (non-OK: measurements NaN with that status; closed forms kept).
     - ``output_order``: optional order of the outputs in the ModelSpec (default: measurements, then
       closed forms).
+    - ``rhs_lanes(t, Y, P, dY)``: optional lane form of ``rhs`` for the sampled-trajectory
+      measurements by dop853 (model/trajectory.py, ``mechsweep.ode.dop853_lanes``): column l of
+      Y, P, dY and t[l] are one trajectory's state, full ``p`` row and time; it must give the
+      same floats as ``rhs`` per lane (then the results are bitwise the one-trajectory ones).
 
     Methods (``solver.method``): dop853, radau, auto (dop853 with the stiffness test; a stiff point
     is integrated again by radau) and, with ``accel``, symplectic. FirstEvent measurements (and a
@@ -79,6 +83,7 @@ class OdeModel:
     symplectic_step: Callable | None = field(default=None, repr=False)
     symplectic_order: int = 8
     output_order: tuple[str, ...] = ()
+    rhs_lanes: Callable | None = field(default=None, repr=False)
 
     def __post_init__(self):
         for name in ("params", "states", "measurements", "closed_forms", "internal", "settings", "output_order"):

@@ -224,9 +224,17 @@ def kernel_source(model, chosen, refs, method) -> str:
                 lines.append(_obs_source(f"response{k}", m.response, model.states))
         else:
             lines.append(_obs_source(f"of{k}", m.of, model.states))
+    body = _observe_body(chosen)
+    OBSERVE[:] = [b.replace("\n            ", "\n    ") for b in body]
+    lines.append(_lanes_source(model, refs) if "rhs_lanes" in refs else "")
+    return _kernel_tail(lines, body, refs, method)
+
+
+def _observe_body(chosen) -> list[str]:
+    """Kernel code: every measurement's observables on its rows and its observer (12 spaces
+    indent; reads te, traj, p, s, bits, K, hoff, ob, ob2; writes vals[i], hist[i], code)."""
     cols = columns(chosen)
     body = []
-    h_off = 0
     for k, m in enumerate(chosen):
         kind = type(m).__name__
         if kind == "Steady":
@@ -257,6 +265,10 @@ def kernel_source(model, chosen, refs, method) -> str:
         body.append("""
             if c != st.OK and code == st.OK:
                 code = c""")
+    return body
+
+
+def _kernel_tail(lines, body, refs, method) -> str:
     if method == "dop853":
         integrate = """
             c, a, b_ = traj_d(0.0, y, p, te, rtol, atol, 0.0, max_steps, work, traj)"""
@@ -327,6 +339,96 @@ def kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, status, n_
     return "".join(lines)
 
 
+def _lanes_source(model, refs) -> str:
+    """The DOP853 lanes path (a model that declares ``rhs_lanes``): ``setup`` prepares every point
+    (p, status, T, initial state) in parallel, ``queue`` runs a queue of points of one forcing
+    period through ``dop853_lanes`` and observes each trajectory as it ends (the same observers,
+    the same floats as the one-trajectory kernel: the lanes give dop853's steps bitwise)."""
+    classify = """
+        c = classify(p)
+        if c != st.OK:
+            status[i] = c
+            continue""" if "classify" in refs else ""
+    prepare = """
+        c = prepare(p, rtol)
+        if c != st.OK:
+            status[i] = c
+            continue""" if "prepare" in refs else ""
+    forcing = "forcing(p)" if "forcing" in refs else "1.0"
+    return f"""
+
+from mechsweep.ode import dop853_lanes
+
+lane_load, lane_run = dop853_lanes.make_lane_trajectory_solver(user_rhs_lanes, rhs)
+
+
+@pjit
+def setup(P, S, rtol, PF, Z0, TT, status):
+    n = P.shape[0]
+    for i in prange(n):
+        if status[i] != st.OK:
+            continue
+        p = PF[i]
+        for j in range(NP):
+            p[j] = P[i, j]
+        for j in range(NSET):
+            p[NP + j] = S[j]
+        for j in range(NP + NSET, p.size):
+            p[j] = 0.0{classify}{prepare}
+        T = {forcing}
+        if not (math.isfinite(T) and T > 0.0):
+            status[i] = st.INFEASIBLE
+            continue
+        TT[i] = T
+        initial(p, Z0[i])
+
+
+@jit
+def observe(i, p, te, traj, s, bits, K, hoff, vals, hist, ob, ob2):
+    ns_ = s.size
+    code = st.OK{''.join(OBSERVE)}
+    if p[NPI] != 0.0:
+        code = st.USER_ERROR
+    return code
+
+
+@jit
+def queue(lanes, idx, first, step, PF, Z0, te, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, status,
+          n_steps, n_rhs):
+    ws = dop853_lanes.workspace(NS, PF.shape[1], lanes, te.size)
+    traj = ws[dop853_lanes.TRAJ]
+    ob = np.zeros(s.size)
+    ob2 = np.zeros(s.size)
+    nxt = first
+    m = idx.size
+    for lane in range(lanes):
+        if nxt < m:
+            lane_load(ws, lane, nxt, 0.0, Z0[idx[nxt]], PF[idx[nxt]], te, rtol, atol)
+            nxt += step
+        else:
+            dop853_lanes.idle(ws, lane)
+    while True:
+        lane = lane_run(ws, te, rtol, atol, max_steps)
+        if lane < 0:
+            return
+        j, c, a, b_ = dop853_lanes.lane_result(ws, lane)
+        i = idx[j]
+        if c == st.OK:
+            c = observe(i, PF[i], te, traj[lane], s, bits, K, hoff, vals, hist, ob, ob2)
+        status[i] = c
+        n_steps[i] += a
+        n_rhs[i] += b_
+        if nxt < m:
+            lane_load(ws, lane, nxt, 0.0, Z0[idx[nxt]], PF[idx[nxt]], te, rtol, atol)
+            nxt += step
+        else:
+            dop853_lanes.idle(ws, lane)
+"""
+
+
+OBSERVE: list[str] = []  # set by kernel_source for _lanes_source (the observation body, 4 spaces indent)
+
+
 def kernel_for(model, chosen, method):
     from .compile import _functions, load_generated
 
@@ -335,6 +437,8 @@ def kernel_for(model, chosen, method):
     for k, m in enumerate(chosen):
         for role, func in m.functions():
             funcs.append((f"{role}{k}", func))
+    if method == "dop853" and getattr(model, "rhs_lanes", None) is not None:
+        funcs.append(("rhs_lanes", model.rhs_lanes))
     refs = {name: load.function_ref(func, name, model.name) for name, func in funcs}
     key = hashlib.sha256()
     for name, ref in refs.items():
@@ -344,7 +448,7 @@ def kernel_for(model, chosen, method):
     key.update(repr((model.name, _layout(model), len(model.states), tuple(m.key() for m in chosen), method)).encode())
     name = "mechsweep_traj_" + key.hexdigest()[:20]
     if name not in _KERNELS:
-        _KERNELS[name] = load_generated(name, kernel_source(model, chosen, refs, method)).kernel
+        _KERNELS[name] = load_generated(name, kernel_source(model, chosen, refs, method))
     return _KERNELS[name]
 
 
@@ -353,8 +457,9 @@ def _layout(model):
     return layout(model)
 
 
-def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs):
-    """Run the sampled measurements ``chosen`` on the points still OK in ``status``."""
+def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lanes=True):
+    """Run the sampled measurements ``chosen`` on the points still OK in ``status``; by DOP853
+    lanes when the model declares ``rhs_lanes`` (unless ``lanes`` is False: the same values)."""
     method = solver.method
     settings = dict(solver.settings)
     s, bits, K = grid(chosen, settings)
@@ -369,10 +474,14 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs):
     vals = np.full((n, cols[-1]), np.nan)
     hist = np.full((n, n_hist), np.nan)
     S = np.array([float(settings.get(x.name, x.default)) for x in model.settings], dtype=np.float64)
-    kernel = kernel_for(model, chosen, method)
+    mod = kernel_for(model, chosen, method)
     code = status.copy()
-    kernel(np.ascontiguousarray(P, dtype=np.float64), S, s, bits, K, hoff, solver.rtol, solver.atol,
-           solver.max_steps, vals, hist, code, n_steps, n_rhs)
+    P = np.ascontiguousarray(P, dtype=np.float64)
+    if hasattr(mod, "queue") and lanes and lane_count(s.size, model):
+        _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, n_steps, n_rhs)
+    else:
+        mod.kernel(P, S, s, bits, K, hoff, solver.rtol, solver.atol, solver.max_steps, vals, hist, code, n_steps,
+                   n_rhs)
     good = code == st.OK
     for k, m in enumerate(chosen):
         if m.n_values == 0:
@@ -383,3 +492,53 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs):
             v = np.where(good[:, None], vals[:, cols[k]:cols[k + 1]], np.nan)
             m.finish(v, wanted, solver, out, code)
     status[:] = code
+
+
+# The lanes (a model with rhs_lanes, method dop853): as the hand-written auto-balancer kernels
+# chose them. Each lane keeps its trajectory's samples (n_samples x n_states floats) until it
+# ends: with long horizons or dense sampling fewer lanes, so that a queue's samples stay within
+# LANE_SAMPLES_BYTES (32, 16, then 8 lanes, else the one-trajectory kernel).
+LANES = (32, 16, 8)
+LANE_SAMPLES_BYTES = 256 * 2**20
+
+
+def lane_count(n_samples: int, model) -> int:
+    for lanes in LANES:
+        if lanes * n_samples * len(model.states) * 8 <= LANE_SAMPLES_BYTES:
+            return lanes
+    return 0
+
+
+def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, n_steps, n_rhs):
+    """setup in parallel, then per forcing period the points' queues through the lanes, one queue
+    per thread (numba.get_num_threads() Python threads running the nogil queue)."""
+    import numba
+
+    from .compile import layout
+
+    n = P.shape[0]
+    n_s = len(model.states)
+    n_p, n_set, n_int = layout(model)
+    PF = np.zeros((n, n_p + n_set + n_int + 1 + 3 * n_s))
+    Z0 = np.zeros((n, n_s))
+    TT = np.full(n, np.nan)
+    mod.setup(P, S, solver.rtol, PF, Z0, TT, code)
+    lanes = lane_count(s.size, model)
+    ok = code == st.OK
+    for T in np.unique(TT[ok]):
+        idx = np.flatnonzero(ok & (TT == T)).astype(np.int64)
+        te = T * s  # the same products as the one-trajectory kernel's te[j] = T * s[j]
+        n_queues = max(1, min(numba.get_num_threads(), -(-idx.size // max(1, lanes // 2))))
+
+        def queue(b, idx=idx, te=te, n_queues=n_queues):
+            mod.queue(lanes, idx, b, n_queues, PF, Z0, te, s, bits, K, hoff, solver.rtol, solver.atol,
+                      solver.max_steps, vals, hist, code, n_steps, n_rhs)
+
+        if n_queues == 1:
+            queue(0)
+            continue
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=n_queues, thread_name_prefix="mechsweep-lanes") as pool:
+            for _ in pool.map(queue, range(n_queues)):
+                pass
