@@ -29,4 +29,4 @@ def test_layer_measurements_reproduce_the_hand_written_autobalancer_simulation()
     same, n, worst, nan = r["floquet_max"]
     assert nan == 0 and worst <= 1e-9
     steps_equal, rhs_equal, status_equal, n = r["steps"]
-    assert steps_equal == n and status_equal == n and rhs_equal >= n - 4
+    assert steps_equal == n and status_equal == n and rhs_equal == n

@@ -954,12 +954,17 @@ class Steady:
         (1: the last window, 2: the window before it)."""
         H, w = _number(self.horizon, settings), _number(self.window, settings)
         n = max(2, int(math.ceil(_number(self.samples_per_period, settings) * w * H)) + 1)
-        return [(np.linspace((1.0 - w) * H, H, n), 1), (np.linspace((1.0 - 2.0 * w) * H, (1.0 - w) * H, n), 2)]
+        out = [(np.linspace((1.0 - w) * H, H, n), 1)]
+        if self.settle_rtol is not None:  # the window before, for the settling test
+            out.append((np.linspace((1.0 - 2.0 * w) * H, (1.0 - w) * H, n), 2))
+        return out
 
     def constants(self, settings):
         """The numbers the kernel's observer reads (K row)."""
         check = self.settle_rtol is not None
-        return (_number(self.settle_rtol, settings) if check else -1.0, _number(self.settle_atol, settings))
+        # the third: whether the first harmonic is computed (trajectory.evaluate clears it when
+        # neither name_h1 nor name_phase is asked for: no cos/sin per sample then)
+        return (_number(self.settle_rtol, settings) if check else -1.0, _number(self.settle_atol, settings), 1.0)
 
     def finish(self, values, wanted, solver, out, status):
         from .. import status as st

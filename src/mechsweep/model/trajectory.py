@@ -68,7 +68,8 @@ def grid(chosen, settings):
 def steady_observe(ob, s, bits, K, out):
     """Steady: out = (peak, first-harmonic amplitude, phase lag, settled 1/0) from the observable
     ob on the rows with bit 1 (last window) and bit 2 (the window before); K = (settle_rtol (< 0:
-    no check), settle_atol). Returns OK or NONFINITE."""
+    no check), settle_atol, harmonic wanted (0: amplitude and phase NaN, no cos/sin)). Returns OK
+    or NONFINITE."""
     peak = 0.0
     prev = 0.0
     a = 0.0
@@ -89,9 +90,12 @@ def steady_observe(ob, s, bits, K, out):
             if not math.isfinite(x):
                 return st.NONFINITE
             peak = max(peak, abs(x))
-            ph = TWO_PI * s[j]
-            c = x * math.cos(ph)
-            d = x * math.sin(ph)
+            c = 0.0
+            d = 0.0
+            if K[2] != 0.0:
+                ph = TWO_PI * s[j]
+                c = x * math.cos(ph)
+                d = x * math.sin(ph)
             if started:
                 a += 0.5 * (s[j] - s_old) * (c_old + c)
                 b += 0.5 * (s[j] - s_old) * (d_old + d)
@@ -106,8 +110,8 @@ def steady_observe(ob, s, bits, K, out):
     a1 = 2.0 * a / length
     b1 = 2.0 * b / length
     out[0] = peak
-    out[1] = math.sqrt(a1 * a1 + b1 * b1)
-    out[2] = math.atan2(b1, a1)
+    out[1] = math.sqrt(a1 * a1 + b1 * b1) if K[2] != 0.0 else math.nan
+    out[2] = math.atan2(b1, a1) if K[2] != 0.0 else math.nan
     settled = True
     if K[0] >= 0.0:
         settled = abs(peak - prev) <= K[0] * max(peak, prev) + K[1]
@@ -463,6 +467,9 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
     method = solver.method
     settings = dict(solver.settings)
     s, bits, K = grid(chosen, settings)
+    for k, m in enumerate(chosen):
+        if type(m).__name__ == "Steady" and not {f"{m.name}_h1", f"{m.name}_phase"} & set(wanted):
+            K[k, 2] = 0.0  # no first harmonic asked for: the observer skips its cos/sin per sample
     hoff = np.zeros(len(chosen), dtype=np.int64)
     n_hist = 0
     for k, m in enumerate(chosen):
