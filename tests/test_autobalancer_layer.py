@@ -30,3 +30,5 @@ def test_layer_measurements_reproduce_the_hand_written_autobalancer_simulation()
     assert nan == 0 and worst <= 1e-9
     steps_equal, rhs_equal, status_equal, n = r["steps"]
     assert steps_equal == n and status_equal == n and rhs_equal == n
+    # Floquet and the sampled measurements asked for together: each one's values, steps added
+    assert mod.mixed() == (True, True, True)

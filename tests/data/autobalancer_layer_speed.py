@@ -1,7 +1,8 @@
 """Side by side in one process: the auto-balancer's simulated outputs (stable_sim,
 residual_amplitude) by the hand-written kernels (DOP853 lanes) and by the layer's sampled
 trajectory (tests/data/autobalancer_on_layer.py: one trajectory at a time), the same points, warm
-caches, alternating: ``python tests/data/autobalancer_layer_speed.py [points]``."""
+caches, alternating: ``python tests/data/autobalancer_layer_speed.py [points] [sim]`` (sim: stable_sim
+alone)."""
 import sys
 import time
 from pathlib import Path
@@ -33,10 +34,12 @@ def run(spec, wanted):
     return time.perf_counter() - t, ns.sum(), out
 
 
-run(old, ("stable_sim", "residual_amplitude"))
-run(new, ("sim", "residual"))
+OLD, NEW = (("stable_sim",), ("sim",)) if sys.argv[2:3] == ["sim"] else (("stable_sim", "residual_amplitude"),
+                                                                         ("sim", "residual"))
+run(old, OLD)
+run(new, NEW)
 for r in range(3):
-    to, so, oo = run(old, ("stable_sim", "residual_amplitude"))
-    tn, sn, on = run(new, ("sim", "residual"))
+    to, so, oo = run(old, OLD)
+    tn, sn, on = run(new, NEW)
     print(f"run {r}: old {n / to:8.1f} points/s, layer {n / tn:8.1f} points/s, ratio {to / tn:.3f}; steps {so} {sn}; "
           f"same values {np.array_equal(oo['stable_sim'], on['sim'], equal_nan=True)}")

@@ -191,6 +191,34 @@ def compare(method="dop853"):
     return result
 
 
+def mixed():
+    """Floquet (the main kernel) and the sampled measurements asked for together give the values
+    and statuses of each asked alone, and their steps add up: (all values equal, steps add up,
+    statuses of the sampled request kept where Floquet was OK)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import record_autobalancer as rec
+    from mechsweep.model import load
+    from mechsweep.scene import Solver
+
+    spec = load.resolve(f"{Path(__file__).resolve()}:MODEL")
+    P = rec.design_points()
+    n = P.shape[0]
+    slv = Solver.for_model(spec, rtol=1e-8, atol=1e-10, horizon_revolutions=rec.HORIZON)
+
+    def ev(wanted):
+        out = {k: np.full(n, np.nan) for k in wanted}
+        status, ns, nr = np.zeros(n, np.int8), np.zeros(n, np.int64), np.zeros(n, np.int64)
+        with np.errstate(all="ignore"):
+            spec.evaluate(P, wanted, slv, out, status, ns, nr)
+        return out, status, ns
+
+    both, f, g = ev(("floquet", "stable_floquet", "sim", "residual")), ev(("floquet", "stable_floquet")), \
+        ev(("sim", "residual"))
+    same = all(np.array_equal(both[0][k], (f if k in f[0] else g)[0][k], equal_nan=True) for k in both[0])
+    status_ok = np.array_equal(both[1], np.where(f[1] == 0, g[1], f[1]))
+    return same, bool(np.array_equal(both[2], f[2] + g[2])), bool(status_ok)
+
+
 def main(method="dop853"):
     for name, r in compare(method).items():
         if name == "steps":
