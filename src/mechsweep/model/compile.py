@@ -156,6 +156,12 @@ def is_direct(chosen) -> bool:
     return len(chosen) == 1 and type(chosen[0]).__name__ == "Crossing" and chosen[0].n == 1
 
 
+def floquet_only(chosen) -> bool:
+    """Whether the chosen measurements are Floquet measurements only (they offer dop853, radau and
+    auto: their variational integration has its own method switch, Floquet._integrate)."""
+    return bool(chosen) and all(type(m).__name__ == "Floquet" for m in chosen)
+
+
 def layout(model) -> tuple[int, int, int]:
     """(parameters, settings, internal slots): p[0:a] parameters, p[a:a+b] settings, p[a+b:a+b+c]
     internal slots written by prepare, then scratch."""
@@ -277,7 +283,7 @@ solve{k}_s = symplectic.make_event_solver({accel}, qevent{k}, {int(model.symplec
             if k in group:
                 continue
             lines.append(f"\n# ---- measurement {k}: {_describe(m)}\n")
-            lines.append(m.source(k, model.states, npi + 1, "jac" in refs) if hasattr(m, "scratch")
+            lines.append(m.source(k, model.states, npi + 1, "jac" in refs, method) if hasattr(m, "scratch")
                          else m.source(k, model.states))
     cols = columns(chosen)
     closed_col = {c.name: cols[-1] + j for j, c in enumerate(closed)}
@@ -510,7 +516,7 @@ def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str =
     for name, func in _functions(model, chosen, closed):
         refs[name] = load.function_ref(func, name, model.name)
     direct = is_direct(chosen)
-    if not direct:
+    if not direct and not (floquet_only(chosen) and method in ("radau", "auto")):
         method = "dop853"  # the shared path integrates with dop853 only (ModelSpec.methods_for)
     key = hashlib.sha256()
     for name, ref in refs.items():

@@ -294,6 +294,7 @@ class Floquet:
     evaluation). The multipliers are the eigenvalues of Phi(T) (LAPACK). Near a stability boundary
     the modulus is sensitive: a double multiplier +-1 moves like the square root of any error, so
     the boundary is where the value leaves 1, not a value to compare to 1 at tolerance.
+    ``initial(p, y0)`` (optional): the start of the orbit when it is not the model's initial state.
     Status: INFEASIBLE when T is not finite and > 0; integration failures as reported; NONFINITE
     for a non-finite monodromy; UNDECIDED (only when ``name_stable`` is asked for, and only on a
     point whose status is still OK) within the margin. Cost: one integration of n + n^2 equations
@@ -302,8 +303,19 @@ class Floquet:
     name: str
     unit: str = "1"
     long_name: str = ""
+    initial: Callable | None = field(default=None, repr=False, compare=False)
+    stable_name: str = ""  # the verdict output's name; default name + "_stable"
+    kind_name: str = ""  # the kind output's name; default name + "_kind"
     needs_forcing = True
     n_values = 3  # the largest modulus, the kind and the critical multiplier's argument
+
+    @property
+    def stable(self) -> str:
+        return self.stable_name or f"{self.name}_stable"
+
+    @property
+    def kind(self) -> str:
+        return self.kind_name or f"{self.name}_kind"
 
     def output(self) -> Output:
         return Output(self.name, "max |λ|", self.unit,
@@ -312,11 +324,11 @@ class Floquet:
 
     def outputs(self) -> tuple[Output, ...]:
         return (self.output(),
-                Output(f"{self.name}_stable", "stable", "1",
+                Output(self.stable, "stable", "1",
                        f"1 if {self.name} < 1 - margin, 0 if > 1 + margin (margin = max(floquet_margin, 100 rtol); "
                        "NaN and status undecided within it)", integrated=True, needs=(self.name,),
                        kind="verdict"),
-                Output(f"{self.name}_kind", "kind", "1",
+                Output(self.kind, "kind", "1",
                        "critical Floquet multiplier: +1 real positive, -1 real negative, 0 complex pair",
                        integrated=True, needs=(self.name,)),
                 Output(f"{self.name}_angle", "arg μ", "rad",
@@ -324,10 +336,62 @@ class Floquet:
                        "negative, else a complex pair |mu| exp(+-i angle)", integrated=True, needs=(self.name,)))
 
     def validate(self, states):
-        pass
+        if self.initial is not None and not callable(self.initial):
+            raise ValueError(f"{self.name}: initial must be a function initial(p, y0) (the start of the orbit)")
+
+    def functions(self):
+        """``initial``: where the linearisation starts when it is not the model's ``initial(p)``
+        (e.g. the exact periodic orbit, while the model's initial state is a kicked one)."""
+        return () if self.initial is None else (("initial", self.initial),)
 
     def scratch(self, n: int) -> int:
         return 3 * n + n * n
+
+    @staticmethod
+    def _solvers(k, n, jac_code, method):
+        """The variational system's solver(s) for ``method``; radau's Newton matrix is block
+        diagonal, J(t, y) on the state and on every column of Phi (the second derivatives of the
+        rhs, d(J Phi)/dy, are left out: they only steer Newton's convergence, not the result)."""
+        out = []
+        if method in ("dop853", "auto"):
+            out.append(f"solve{k}_var = dop853.make_solver(var_rhs{k}, stiffness_test={method == 'auto'})")
+        if method in ("radau", "auto"):
+            out.append(f"""
+
+@jit
+def var_jac{k}(t, z, p, JJ):
+{jac_code}    JJ[:, :] = 0.0
+    for i in range({n}):
+        for m in range({n}):
+            JJ[i, m] = p[O_J{k} + i * {n} + m]
+            for j in range({n}):
+                JJ[{n} + i * {n} + j, {n} + m * {n} + j] = p[O_J{k} + i * {n} + m]
+
+
+solve{k}_var_r = radau.make_solver(var_rhs{k}, var_jac{k})""")
+        return "\n".join(out)
+
+    @staticmethod
+    def _integrate(k, n, N, method):
+        """Kernel code: the variational integration over [0, T] by the method (auto: dop853 with the
+        stiffness test; a stiff point again from the start by radau, the costs added)."""
+        if method == "dop853":
+            return (f"    wz = dop853.workspace({N})\n"
+                    f"    code, ns, nr = solve{k}_var(0.0, z, p, T, rtol, atol, 0.0, max_steps, wz)\n")
+        radau_call = (f"    rz = radau.workspace({N})\n"
+                      f"    code, ns, nr = solve{k}_var_r(0.0, z, p, T, rtol, atol, 0.0, max_steps, rz)\n")
+        if method == "radau":
+            return radau_call
+        return (f"    wz = dop853.workspace({N})\n"
+                f"    code, ns, nr = solve{k}_var(0.0, z, p, T, rtol, atol, 0.0, max_steps, wz)\n"
+                f"    if code == st.STIFF:\n"
+                f"        z[:] = 0.0\n"
+                f"        for i in range({n}):\n"
+                f"            z[i] = y[i]\n"
+                f"            z[{n} + i * {n} + i] = 1.0\n"
+                f"        ns0, nr0 = ns, nr\n"
+                + radau_call.replace("\n    ", "\n        ").replace("    rz", "        rz", 1)
+                + "        ns += ns0\n        nr += nr0\n")
 
     def finish(self, values, wanted, solver, out, status):
         """Python's reading of the kernel's three columns (modulus, kind, angle): the outputs and
@@ -337,17 +401,17 @@ class Floquet:
         good = np.isfinite(big)
         if self.name in out:
             out[self.name][:] = big
-        if f"{self.name}_kind" in out:
-            out[f"{self.name}_kind"][:] = np.where(good, kind, np.nan)
+        if self.kind in out:
+            out[self.kind][:] = np.where(good, kind, np.nan)
         if f"{self.name}_angle" in out:
             out[f"{self.name}_angle"][:] = np.where(good, angle, np.nan)
-        if f"{self.name}_stable" in wanted:
+        if self.stable in wanted:
             margin = max(float(solver.settings.get("floquet_margin", 1e-8)), 100.0 * solver.rtol)
             decided = good & (np.abs(big - 1.0) > margin)
-            out[f"{self.name}_stable"][:] = np.where(decided, (big < 1.0).astype(float), np.nan)
+            out[self.stable][:] = np.where(decided, (big < 1.0).astype(float), np.nan)
             status[:] = np.where((status == st.OK) & good & ~decided, st.UNDECIDED, status)
 
-    def source(self, k: int, states, n_p: int = 0, has_jac: bool = False) -> str:
+    def source(self, k: int, states, n_p: int = 0, has_jac: bool = False, method: str = "dop853") -> str:
         n = len(states)
         N = n + n * n
         o_yp, o_fp, o_fm, o_J = n_p, n_p + n, n_p + 2 * n, n_p + 3 * n
@@ -374,6 +438,9 @@ class Floquet:
             p[{o_J} + i * {n} + j] = (fp[i] - fm[i]) / (up - dn)
 """
         return f"""
+O_J{k} = {o_J}
+
+
 @jit
 def var_rhs{k}(t, z, p, dz):
     # z = (y, Phi row by row); dz = (f(t, y), J Phi), J {"from the model's jac" if has_jac else "by central differences"}
@@ -386,21 +453,19 @@ def var_rhs{k}(t, z, p, dz):
             dz[{n} + i * {n} + j] = acc
 
 
-solve{k}_var = dop853.make_solver(var_rhs{k})
+{self._solvers(k, n, jac_code, method)}
 
 
 @jit
 def measure{k}(y, p, rtol, atol, max_steps, work):
-    T = forcing(p)
+{"    initial" + str(k) + "(p, y)" + chr(10) if self.initial is not None else ""}    T = forcing(p)
     if not (math.isfinite(T) and T > 0.0):
         return st.INFEASIBLE, math.nan, math.nan, math.nan, 0, 0
     z = np.zeros({N})
     for i in range({n}):
         z[i] = y[i]
         z[{n} + i * {n} + i] = 1.0
-    wz = dop853.workspace({N})
-    code, ns, nr = solve{k}_var(0.0, z, p, T, rtol, atol, 0.0, max_steps, wz)
-    nr = nr * {per_eval}
+{self._integrate(k, n, N, method)}    nr = nr * {per_eval}
     if code != st.OK:
         return code, math.nan, math.nan, math.nan, ns, nr
     M = np.empty(({n}, {n}), dtype=np.complex128)
@@ -800,4 +865,281 @@ def make_shared(rhs):
         return n_steps, n_rhs
 
     return shared
-MEASUREMENTS = (Crossing, Period, StateAt, Extremum, Floquet, FirstEvent)
+
+
+# ---------------------------------------------------------------- sampled-trajectory measurements
+# Steady, Kick and History observe ONE sampled trajectory per point (model/trajectory.py): the
+# integration from initial(p) to horizon forcing periods, sampled at instants given in forcing
+# periods s (t = T s, T = forcing_period(p), or T = 1 for a model without one); the union of the
+# chosen measurements' instants is one grid shared by every point. Offered by dop853, radau and
+# auto (the engine's one method switch). A number field may instead name one of the model's
+# settings (a str): its value is read from the scene's solver settings.
+
+
+def _number(x, settings) -> float:
+    """A measurement field: a number, or the name of one of the model's settings."""
+    return float(settings[x]) if isinstance(x, str) else float(x)
+
+
+def _observable(x, states, what):
+    """A state name (checked) or a function ``f(t, y, p) -> float``."""
+    if isinstance(x, str):
+        _check_state(x, states, what)
+    elif not callable(x):
+        raise ValueError(f"{what}: expected a state name or a function f(t, y, p) -> float (got {x!r})")
+
+
+def _check_numbers(m, fields):
+    for f in fields:
+        x = getattr(m, f)
+        if not isinstance(x, str) and not (isinstance(x, (int, float)) and math.isfinite(x)):
+            raise ValueError(f"{m.name}: {f} = {x!r}; expected a finite number or the name of a setting")
+
+
+@dataclass(frozen=True)
+class Steady:
+    """Steady-state amplitude of an observable ``of`` (a state name or ``f(t, y, p)``) after a
+    transient, over the last ``window`` (a fraction) of a simulation of ``horizon`` forcing periods.
+    Four outputs:
+
+    - ``name``: the peak, max |of| over the window's samples (``samples_per_period`` per period;
+      a sampled maximum: it underestimates a sinusoid's amplitude by at most 1 - cos(pi /
+      samples_per_period), 1.2e-3 relative at 64);
+    - ``name_h1``: the amplitude of the first harmonic of the forcing period T over the window,
+      sqrt(a1^2 + b1^2) with a1 = (2 / L) int of cos(2 pi t / T) dt, b1 with sin (trapezoid rule
+      over the samples; exact to round-off for a T-periodic signal when the window is a whole
+      number of periods);
+    - ``name_phase``: its phase lag atan2(b1, a1) in (-pi, pi]: of = A cos(2 pi t / T - phase);
+    - ``name_settled``: internal (not an output): whether it settled.
+
+    Settling (``settle_rtol`` not None): the peak over the window before the last one (same
+    length) must agree with the last one to settle_rtol max(peaks) + settle_atol; otherwise the
+    point is NO_EVENT (the transient has not died out within the horizon) and the outputs NaN.
+    Status: integration failures as reported; NONFINITE for a non-finite sample.
+    Cost: one integration over the horizon (shared with the other sampled measurements) plus one
+    dense-output evaluation (3 rhs calls) per step that contains a sample."""
+
+    name: str
+    of: object
+    horizon: object = 100.0
+    window: object = 0.1
+    samples_per_period: object = 64
+    settle_rtol: object = 1e-3
+    settle_atol: object = 0.0
+    unit: str = ""
+    long_name: str = ""
+    sampled = True
+    n_values = 4
+
+    def outputs(self) -> tuple[Output, ...]:
+        what = self.of if isinstance(self.of, str) else self.name
+        return (Output(self.name, f"max |{what}|", self.unit,
+                       self.long_name or f"steady-state peak of |{what}| over the last {self.window} of the horizon",
+                       integrated=True),
+                Output(f"{self.name}_h1", "A1", self.unit, f"first-harmonic amplitude of {what} (forcing period)",
+                       integrated=True),
+                Output(f"{self.name}_phase", "phase", "rad",
+                       f"phase lag of the first harmonic of {what}: {what} = A1 cos(2 pi t / T - phase)",
+                       integrated=True))
+
+    def validate(self, states):
+        _observable(self.of, states, self.name)
+        _check_numbers(self, ("horizon", "window", "samples_per_period", "settle_atol"))
+        if self.settle_rtol is not None:
+            _check_numbers(self, ("settle_rtol",))
+        if not isinstance(self.window, str) and not 0.0 < self.window <= 0.5:
+            raise ValueError(f"{self.name}: window = {self.window!r}; expected a fraction in (0, 0.5]")
+
+    def setting_names(self):
+        return tuple(x for x in (self.horizon, self.window, self.samples_per_period, self.settle_rtol,
+                                 self.settle_atol) if isinstance(x, str))
+
+    def functions(self):
+        return () if isinstance(self.of, str) else (("of", self.of),)
+
+    def key(self) -> tuple:
+        return ("Steady", self.name, self.of if isinstance(self.of, str) else None)
+
+    def instants(self, settings):
+        """(s, bits): this measurement's sample instants in forcing periods and their roles
+        (1: the last window, 2: the window before it)."""
+        H, w = _number(self.horizon, settings), _number(self.window, settings)
+        n = max(2, int(math.ceil(_number(self.samples_per_period, settings) * w * H)) + 1)
+        out = [(np.linspace((1.0 - w) * H, H, n), 1)]
+        if self.settle_rtol is not None:  # the window before, for the settling test
+            out.append((np.linspace((1.0 - 2.0 * w) * H, (1.0 - w) * H, n), 2))
+        return out
+
+    def constants(self, settings):
+        """The numbers the kernel's observer reads (K row)."""
+        check = self.settle_rtol is not None
+        # the third: whether the first harmonic is computed (trajectory.evaluate clears it when
+        # neither name_h1 nor name_phase is asked for: no cos/sin per sample then)
+        return (_number(self.settle_rtol, settings) if check else -1.0, _number(self.settle_atol, settings), 1.0)
+
+    def finish(self, values, wanted, solver, out, status):
+        from .. import status as st
+        settled = values[:, 3] == 1.0
+        unsettled = np.isfinite(values[:, 0]) & ~settled
+        for j, suffix in enumerate(("", "_h1", "_phase")):
+            if self.name + suffix in out:
+                out[self.name + suffix][:] = np.where(settled, values[:, j], np.nan)
+        if any(self.name + s in wanted for s in ("", "_h1", "_phase")):
+            status[:] = np.where((status == st.OK) & unsettled, st.NO_EVENT, status)
+
+
+@dataclass(frozen=True)
+class Kick:
+    """Stability verdict of a motion from a kick: the model's ``initial(p)`` is the kicked state,
+    ``error(t, y, p) >= 0`` the distance from the reference motion (e.g. a phase error), optional
+    ``response(t, y, p) >= 0`` a second quantity that must decay too (e.g. a platform amplitude);
+    both sampled ``monitor_per_period`` times per forcing period over ``horizon`` periods and
+    ``dense_per_period`` times in the last ``late`` fraction. With e0 = max error over the first
+    period, e_late / e_before = max error over the last ``late`` fraction / the one before it,
+    r_ref / r_late = max response over the first ``early`` fraction / the last ``late`` fraction:
+
+    - stable (1): e_late <= settle_threshold, e_late <= decay_ratio e0, r_late <= decay_ratio r_ref,
+      and not growing at the end (e_late <= e_before, or e_late <= 1e-3 settle_threshold);
+    - unstable (0): e_late >= growth_ratio e0 and e_before >= growth_ratio e0;
+    - otherwise NaN with status UNDECIDED (slow convergence or slow growth within the horizon).
+
+    Outputs: ``name`` (the verdict), ``name_settling`` (the time after which the error stays below
+    settle_threshold, linear interpolation between samples; 0 if it never exceeds it; NaN with
+    status NO_EVENT if it is above it at the end), ``name_final`` (the error at the last sample).
+    Status: integration failures as reported; NONFINITE for a non-finite error or response sample.
+    Cost: one integration over the horizon (shared), one dense output per step with a sample."""
+
+    name: str
+    error: Callable = field(repr=False, compare=False)
+    response: Callable | None = field(default=None, repr=False, compare=False)
+    horizon: object = 300.0
+    settle_threshold: object = 0.01
+    decay_ratio: object = 0.5
+    growth_ratio: object = 2.0
+    monitor_per_period: object = 8
+    dense_per_period: object = 64
+    late: float = 0.1
+    early: float = 0.1
+    unit: str = ""
+    time_unit: str = "s"
+    sampled = True
+    n_values = 3
+
+    def outputs(self) -> tuple[Output, ...]:
+        return (Output(self.name, "stable (kick)", "1",
+                       "1 if the kicked motion settles back, 0 if it departs (direct simulation)", integrated=True,
+                       kind="verdict"),
+                Output(f"{self.name}_settling", "t_s", self.time_unit,
+                       "time after which the error stays below settle_threshold", integrated=True),
+                Output(f"{self.name}_final", "e_end", self.unit, "error at the end of the simulation",
+                       integrated=True))
+
+    def validate(self, states):
+        _observable(self.error, states, self.name)
+        if self.response is not None:
+            _observable(self.response, states, self.name)
+        _check_numbers(self, ("horizon", "settle_threshold", "decay_ratio", "growth_ratio", "monitor_per_period",
+                              "dense_per_period"))
+
+    def setting_names(self):
+        return tuple(x for x in (self.horizon, self.settle_threshold, self.decay_ratio, self.growth_ratio,
+                                 self.monitor_per_period, self.dense_per_period) if isinstance(x, str))
+
+    def functions(self):
+        out = [] if isinstance(self.error, str) else [("error", self.error)]
+        if self.response is not None and not isinstance(self.response, str):
+            out.append(("response", self.response))
+        return tuple(out)
+
+    def key(self) -> tuple:
+        return ("Kick", self.name, self.error if isinstance(self.error, str) else None,
+                self.response if isinstance(self.response, str) else None, self.response is None,
+                float(self.late), float(self.early))
+
+    def instants(self, settings):
+        """(s, bits): 1 every monitor row, 2 the first period, 4 the first ``early`` fraction, 8 the
+        last ``late`` fraction, 16 the ``late`` fraction before it (bits 2-16 only on monitor rows)."""
+        H = _number(self.horizon, settings)
+        mon = int(_number(self.monitor_per_period, settings))
+        dense = int(_number(self.dense_per_period, settings))
+        late0 = (1.0 - self.late) * H
+        parts = [np.linspace(0.0, H, max(2, int(math.ceil(mon * H)) + 1)),
+                 np.linspace(late0, H, max(2, int(math.ceil(dense * self.late * H)) + 1)),
+                 np.linspace(0.0, min(1.0, H), mon + 1)]
+        return [(x, self._bits) for x in parts]
+
+    def _bits(self, s, settings):
+        H = _number(self.horizon, settings)
+        late0, before0 = (1.0 - self.late) * H, (1.0 - 2.0 * self.late) * H
+        return (1 | np.where(s <= min(1.0, H), 2, 0) | np.where(s <= self.early * H, 4, 0)
+                | np.where(s >= late0, 8, 0) | np.where((s >= before0) & (s < late0), 16, 0))
+
+    def constants(self, settings):
+        return tuple(_number(x, settings) for x in (self.settle_threshold, self.decay_ratio, self.growth_ratio))
+
+    def finish(self, values, wanted, solver, out, status):
+        from .. import status as st
+        ok = np.isfinite(values[:, 2])
+        verdict, t_settle = values[:, 0], values[:, 1]
+        for j, suffix in enumerate(("", "_settling", "_final")):
+            if self.name + suffix in out:
+                out[self.name + suffix][:] = values[:, j]
+        if self.name in wanted:
+            status[:] = np.where((status == st.OK) & ok & np.isnan(verdict), st.UNDECIDED, status)
+        if f"{self.name}_settling" in wanted:
+            status[:] = np.where((status == st.OK) & ok & np.isnan(t_settle), st.NO_EVENT, status)
+
+
+@dataclass(frozen=True)
+class History:
+    """Samples of an observable ``of`` (a state name or ``f(t, y, p)``) at ``samples`` instants
+    evenly spread over [0, horizon] forcing periods: an output with one extra dimension ``dim``
+    (coordinate: the instants in forcing periods; every History of a model with the same ``dim``
+    must use the same horizon and samples). Status: integration failures as reported; NONFINITE
+    for a non-finite sample. Cost: shared integration, one dense output per step with a sample."""
+
+    name: str
+    of: object
+    horizon: object = 100.0
+    samples: object = 200
+    dim: str = "period"
+    dim_long_name: str = "time in forcing periods t / T"
+    unit: str = ""
+    long_name: str = ""
+    sampled = True
+    n_values = 0
+
+    def coordinate(self, settings) -> np.ndarray:
+        return np.linspace(0.0, _number(self.horizon, settings), int(_number(self.samples, settings)))
+
+    def outputs(self) -> tuple[Output, ...]:
+        from ..models._spec import ExtraDim
+        what = self.of if isinstance(self.of, str) else self.name
+        dim = ExtraDim(self.dim, "1", self.dim_long_name, self._coordinate_defaults)
+        return (Output(self.name, f"{what}(t)", self.unit, self.long_name or f"{what} over the simulation",
+                       integrated=True, extra_dims=(dim,)),)
+
+    def _coordinate_defaults(self, settings):
+        return self.coordinate(settings)
+
+    def validate(self, states):
+        _observable(self.of, states, self.name)
+        _check_numbers(self, ("horizon", "samples"))
+
+    def setting_names(self):
+        return tuple(x for x in (self.horizon, self.samples) if isinstance(x, str))
+
+    def functions(self):
+        return () if isinstance(self.of, str) else (("of", self.of),)
+
+    def key(self) -> tuple:
+        return ("History", self.name, self.of if isinstance(self.of, str) else None)
+
+    def instants(self, settings):
+        return [(self.coordinate(settings), 1)]
+
+    def constants(self, settings):
+        return ()
+
+
+MEASUREMENTS = (Crossing, Period, StateAt, Extremum, Floquet, FirstEvent, Steady, Kick, History)

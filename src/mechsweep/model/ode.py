@@ -7,6 +7,7 @@ from typing import Callable
 
 import numpy as np
 
+from .. import status as st
 from ..errors import InputError
 from ..models._spec import ModelSpec, Param, Setting
 from .measure import FLOQUET_MARGIN, ClosedForm, Floquet
@@ -73,6 +74,10 @@ class OdeModel:
       and may refuse the integration (non-OK: measurements NaN with that status; closed forms kept).
     - ``output_order``: optional order of the outputs in the ModelSpec (default: measurements, then
       closed forms).
+    - ``rhs_lanes(t, Y, P, dY)``: optional lane form of ``rhs`` for the sampled-trajectory
+      measurements by dop853 (model/trajectory.py, ``mechsweep.ode.dop853_lanes``): column l of
+      Y, P, dY and t[l] are one trajectory's state, full ``p`` row and time; it must give the
+      same floats as ``rhs`` per lane (then the results are bitwise the one-trajectory ones).
 
     Methods (``solver.method``): dop853, radau, auto (dop853 with the stiffness test; a stiff point
     is integrated again by radau) and, with ``accel``, symplectic. FirstEvent measurements (and a
@@ -102,6 +107,7 @@ class OdeModel:
     symplectic_order: int = 8
     output_order: tuple[str, ...] = ()
     references: tuple[str, ...] = ()  # ModelSpec.references: the source documents
+    rhs_lanes: Callable | None = field(default=None, repr=False)
 
     def __post_init__(self):
         for name in ("params", "states", "measurements", "closed_forms", "internal", "settings", "output_order"):
@@ -136,6 +142,17 @@ class OdeModel:
                                                                   or system.symplectic_step is None):
                 raise ValueError(f"model {self.name!r}: measurement {m.name!r} integrates a System without "
                                  "accel and symplectic_step, but the model offers the symplectic method (accel)")
+        known = {x.name for x in self.settings}
+        for m in self.measurements:
+            bad = [x for x in getattr(m, "setting_names", lambda: ())() if x not in known]
+            if bad:
+                raise ValueError(f"model {self.name!r}: measurement {m.name!r} reads settings {bad}, which the model "
+                                 f"does not declare (settings: {sorted(known)})")
+        sampled = {o.name for m in self.measurements if getattr(m, "sampled", False) for o in _outputs(m)}
+        for c in self.closed_forms:
+            if sampled & set(c.needs):
+                raise ValueError(f"model {self.name!r}: closed form {c.name!r} needs the sampled-trajectory outputs "
+                                 f"{sorted(sampled & set(c.needs))}, which closed forms cannot read yet")
         if self.output_order and sorted(self.output_order) != sorted(names):
             raise ValueError(f"model {self.name!r}: output_order {self.output_order} must list every output once "
                              f"({names})")
@@ -188,12 +205,19 @@ class OdeModel:
 
     def methods_for(self, outputs) -> tuple[str, ...]:
         """The methods that the chosen outputs can be computed by (see the class docstring)."""
-        from .compile import is_direct
+        from .compile import floquet_only, is_direct
 
         chosen, _ = self._plan(outputs)
-        if not chosen or is_direct(chosen):
-            return self.methods
-        return ("dop853",)
+        rest = tuple(m for m in chosen if not getattr(m, "sampled", False))
+        if not rest or is_direct(rest):
+            methods = self.methods
+        elif floquet_only(rest):  # the variational integration: dop853, radau, auto
+            methods = tuple(x for x in self.methods if x != "symplectic")
+        else:
+            methods = ("dop853",)
+        if len(rest) < len(chosen):  # a sampled trajectory: dop853, radau, auto (trajectory.METHODS)
+            methods = tuple(x for x in methods if x in ("dop853", "radau", "auto"))
+        return methods
 
     def spec(self, *, origin: str = "", module: str = "", attr: str = "") -> ModelSpec:
         """The ModelSpec the engine runs. ``module``/``attr`` say where the declaration can be
@@ -205,6 +229,21 @@ class OdeModel:
         def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
             chosen, closed = model._plan(wanted)
             if not chosen and not closed:
+                return
+            sampled = tuple(m for m in chosen if getattr(m, "sampled", False))
+            if sampled:  # one sampled trajectory per point (model/trajectory.py), after the other outputs
+                from . import trajectory
+                allowed = model.methods_for(wanted)
+                if solver.method not in allowed:
+                    raise InputError(f"solver.method: {solver.method!r} is not offered by model {model.name!r} for "
+                                     f"the outputs {', '.join(wanted)} (allowed: {', '.join(allowed)})")
+                before = status.copy()
+                rest = [o for o in wanted if not any(o == x.name for m in sampled for x in _outputs(m))]
+                if rest:
+                    evaluate(P, tuple(rest), solver, out, status, n_steps, n_rhs)
+                code = before.copy()
+                trajectory.evaluate(model, sampled, P, wanted, solver, out, code, n_steps, n_rhs)
+                status[:] = np.where(status == st.OK, code, status)
                 return
             method = solver.method if (solver is not None and chosen) else "dop853"
             allowed = model.methods_for(wanted)

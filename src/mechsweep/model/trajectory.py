@@ -1,0 +1,551 @@
+"""The sampled-trajectory path of the model layer: Steady, Kick and History (measure.py) observe
+ONE integration per point from ``initial(p)``, sampled on one grid of instants.
+
+The grid is built in Python from the solver settings (``grid``): the union of the chosen
+measurements' instants in forcing periods s, with a column of role bits per measurement; it is
+the same for every point, so it does not depend on the point or on which other outputs are asked
+for beyond adding rows (the integrators' steps do not depend on the sample instants: samples come
+from the dense output; only the last instant, the horizon, ends the integration). Each point's
+instants are t = T s, T = ``forcing_period(p)`` (after ``prepare``), or T = 1 for a model without
+one.
+
+The generated kernel (``kernel_source``; a module file in the cache folder, as compile.py's):
+
+    for each block of BLOCK points (prange; strided), scratch: p, y, the method's workspace(s),
+    the trajectory (n_samples x n_states), the observables:
+        status = classify(p), prepare(p)      -> non-OK: that status, outputs NaN
+        T = forcing(p) (or 1)                 -> not finite > 0: INFEASIBLE
+        trajectory by the method              (auto: dop853 with the stiffness test; a stiff point
+                                               again from initial(p) by radau, the costs added:
+                                               the engine's one method switch for trajectories)
+        for each measurement: its observable on its rows, then its generic jitted observer
+        (steady_observe, kick_observe, or the history copy) -> its columns of the value table
+
+Python's ``finish`` of each measurement turns the value columns into outputs and statuses
+(NO_EVENT, UNDECIDED), as Floquet's does.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+
+import numpy as np
+
+from .. import status as st
+from .._jit import jit
+from . import load
+
+BLOCK = 8  # points per scratch allocation (a block holds one trajectory of n_samples x n_states)
+METHODS = ("dop853", "radau", "auto")
+TWO_PI = 2.0 * math.pi
+_KERNELS: dict[str, object] = {}
+
+
+def is_sampled(m) -> bool:
+    return getattr(m, "sampled", False)
+
+
+def grid(chosen, settings):
+    """(s, bits, K, hist_rows): the sample instants in forcing periods (sorted, unique), bits[j, k]
+    the roles of instant j for measurement k (0: not its instant), K[k] its constants, and for
+    each History the number of its rows."""
+    parts = [(m, inst) for m in chosen for inst in m.instants(settings)]
+    s = np.unique(np.concatenate([x for _, (x, _) in parts]))
+    bits = np.zeros((s.size, len(chosen)), dtype=np.int64)
+    for k, m in enumerate(chosen):
+        for x, b in m.instants(settings):
+            rows = np.isin(s, x)
+            bits[:, k] |= np.where(rows, b(s, settings) if callable(b) else b, 0)
+    width = max([len(m.constants(settings)) for m in chosen] + [1])
+    K = np.zeros((len(chosen), width))
+    for k, m in enumerate(chosen):
+        c = m.constants(settings)
+        K[k, :len(c)] = c
+    return s, bits, K
+
+
+@jit
+def steady_observe(ob, s, bits, K, out):
+    """Steady: out = (peak, first-harmonic amplitude, phase lag, settled 1/0) from the observable
+    ob on the rows with bit 1 (last window) and bit 2 (the window before); K = (settle_rtol (< 0:
+    no check), settle_atol, harmonic wanted (0: amplitude and phase NaN, no cos/sin)). Returns OK
+    or NONFINITE."""
+    peak = 0.0
+    prev = 0.0
+    a = 0.0
+    b = 0.0
+    s_first = math.nan
+    s_last = math.nan
+    s_old = 0.0
+    c_old = 0.0
+    d_old = 0.0
+    started = False
+    for j in range(s.size):
+        if bits[j] & 2:
+            if not math.isfinite(ob[j]):
+                return st.NONFINITE
+            prev = max(prev, abs(ob[j]))
+        if bits[j] & 1:
+            x = ob[j]
+            if not math.isfinite(x):
+                return st.NONFINITE
+            peak = max(peak, abs(x))
+            c = 0.0
+            d = 0.0
+            if K[2] != 0.0:
+                ph = TWO_PI * s[j]
+                c = x * math.cos(ph)
+                d = x * math.sin(ph)
+            if started:
+                a += 0.5 * (s[j] - s_old) * (c_old + c)
+                b += 0.5 * (s[j] - s_old) * (d_old + d)
+            else:
+                s_first = s[j]
+                started = True
+            s_old = s[j]
+            c_old = c
+            d_old = d
+            s_last = s[j]
+    length = s_last - s_first
+    a1 = 2.0 * a / length
+    b1 = 2.0 * b / length
+    out[0] = peak
+    out[1] = math.sqrt(a1 * a1 + b1 * b1) if K[2] != 0.0 else math.nan
+    out[2] = math.atan2(b1, a1) if K[2] != 0.0 else math.nan
+    settled = True
+    if K[0] >= 0.0:
+        settled = abs(peak - prev) <= K[0] * max(peak, prev) + K[1]
+    out[3] = 1.0 if settled else 0.0
+    return st.OK
+
+
+@jit
+def kick_observe(e, r, has_r, t, bits, K, out):
+    """Kick: out = (verdict 1 / 0 / NaN, settling time or NaN, final error) from the error e and
+    the response r on the monitor rows (bit 1); bits 2 first period, 4 early, 8 late, 16 before
+    late; K = (settle_threshold, decay_ratio, growth_ratio). Returns OK or NONFINITE."""
+    settle, decay, growth = K[0], K[1], K[2]
+    e0 = 0.0
+    e_late = 0.0
+    e_before = 0.0
+    r_ref = 0.0
+    r_late = 0.0
+    last_above = -1
+    k_prev = -1
+    k_next = -1
+    e_prev = 0.0
+    e_last_above = 0.0
+    e_next = 0.0
+    for k in range(t.size):
+        bk = bits[k]
+        if not bk & 1:
+            continue
+        ek = e[k]
+        rk = r[k] if has_r else 0.0
+        if not (math.isfinite(ek) and math.isfinite(rk)):
+            return st.NONFINITE
+        if bk & 2:
+            e0 = max(e0, ek)
+        if bk & 4:
+            r_ref = max(r_ref, rk)
+        if bk & 8:
+            e_late = max(e_late, ek)
+            r_late = max(r_late, rk)
+        elif bk & 16:
+            e_before = max(e_before, ek)
+        if ek > settle:
+            last_above = k
+            e_last_above = ek
+        elif last_above >= 0 and last_above == k_prev:
+            e_next = ek
+            k_next = k
+        e_prev = ek
+        k_prev = k
+    if last_above == k_prev:
+        out[1] = math.nan  # never settled within the horizon
+    elif last_above < 0:
+        out[1] = 0.0
+    else:  # linear interpolation of the last crossing of the threshold
+        t0 = t[last_above]
+        t1 = t[k_next]
+        out[1] = t0 + (t1 - t0) * (e_last_above - settle) / (e_last_above - e_next)
+    stable = e_late <= settle and e_late <= decay * e0 and r_late <= decay * r_ref
+    stable = stable and (e_late <= e_before or e_late <= 1e-3 * settle)
+    unstable = e_late >= growth * e0 and e_before >= growth * e0
+    out[0] = 1.0 if stable else (0.0 if unstable else math.nan)
+    out[2] = e_prev
+    return st.OK
+
+
+def columns(chosen):
+    cols, c = [], 0
+    for m in chosen:
+        cols.append(c)
+        c += m.n_values
+    return cols + [c]
+
+
+def _obs_source(name, x, states):
+    """A generated observable: a state read, or the guarded user function."""
+    if isinstance(x, str):
+        return f"@jit\ndef {name}(t, y, p):\n    return y[{states.index(x)}]\n\n"
+    return (f"@jit\ndef {name}(t, y, p):\n    try:\n        return user_{name}(t, y, p)\n    except Exception:\n"
+            f"        p[NPI] = 1.0\n        return np.nan\n\n")
+
+
+def kernel_source(model, chosen, refs, method) -> str:
+    from .compile import _GUARD, layout
+
+    n_p, n_set, n_int = layout(model)
+    n_s = len(model.states)
+    npi = n_p + n_set + n_int
+    lines = [f'"""Generated by mechsweep.model.trajectory for model {model.name!r}, method {method}: one\n'
+             'sampled trajectory per point. Do not edit: a changed model gets a new file."""\n'
+             "import math\n\nimport numpy as np\n\n"
+             "from mechsweep import status as st\n"
+             "from mechsweep._jit import jit, pjit, prange\n"
+             "from mechsweep.ode import dop853, radau\n"
+             "from mechsweep.model.load import jitted\n"
+             "from mechsweep.model.trajectory import kick_observe, steady_observe\n\n"]
+    for name, ref in refs.items():
+        lines.append(f"user_{name} = jitted{ref!r}\n")
+    lines.append(f"\nNP = {n_p}\nNSET = {n_set}\nNPI = {npi}\nSCR = NPI + 1\nNS = {n_s}\nBLOCK = {BLOCK}\n\n")
+    for name in refs:
+        if name in _GUARD:
+            lines.append(_GUARD[name] + "\n")
+    if method in ("radau", "auto") and "jac" not in refs:
+        from .compile import _fd_jac
+        lines.append(_fd_jac("jac", "rhs") + "\n")
+    if method in ("dop853", "auto"):
+        lines.append(f"traj_d = dop853.make_trajectory_solver(rhs, stiffness_test={method == 'auto'})\n")
+    if method in ("radau", "auto"):
+        lines.append("traj_r = radau.make_trajectory_solver(rhs, jac)\n")
+    for k, m in enumerate(chosen):
+        kind = type(m).__name__
+        if kind == "Kick":
+            lines.append(_obs_source(f"error{k}", m.error, model.states))
+            if m.response is not None:
+                lines.append(_obs_source(f"response{k}", m.response, model.states))
+        else:
+            lines.append(_obs_source(f"of{k}", m.of, model.states))
+    body = _observe_body(chosen)
+    OBSERVE[:] = [b.replace("\n            ", "\n    ") for b in body]
+    lines.append(_lanes_source(model, refs) if "rhs_lanes" in refs else "")
+    return _kernel_tail(lines, body, refs, method)
+
+
+def _observe_body(chosen) -> list[str]:
+    """Kernel code: every measurement's observables on its rows and its observer (12 spaces
+    indent; reads te, traj, p, s, bits, K, hoff, ob, ob2; writes vals[i], hist[i], code)."""
+    cols = columns(chosen)
+    body = []
+    for k, m in enumerate(chosen):
+        kind = type(m).__name__
+        if kind == "Steady":
+            body.append(f"""
+            for j in range(ns_):
+                if bits[j, {k}]:
+                    ob[j] = of{k}(te[j], traj[j], p)
+            c = steady_observe(ob, s, bits[:, {k}], K[{k}], vals[i, {cols[k]}:{cols[k + 1]}])""")
+        elif kind == "Kick":
+            has_r = m.response is not None
+            body.append(f"""
+            for j in range(ns_):
+                if bits[j, {k}]:
+                    ob[j] = error{k}(te[j], traj[j], p)""" + (f"""
+                    ob2[j] = response{k}(te[j], traj[j], p)""" if has_r else "") + f"""
+            c = kick_observe(ob, ob2, {has_r}, te, bits[:, {k}], K[{k}], vals[i, {cols[k]}:{cols[k + 1]}])""")
+        else:  # History: its rows in order into hist[i, offset ...]
+            body.append(f"""
+            c = st.OK
+            h = hoff[{k}]
+            for j in range(ns_):
+                if bits[j, {k}]:
+                    v = of{k}(te[j], traj[j], p)
+                    if not math.isfinite(v):
+                        c = st.NONFINITE
+                    hist[i, h] = v
+                    h += 1""")
+        body.append("""
+            if c != st.OK and code == st.OK:
+                code = c""")
+    return body
+
+
+def _kernel_tail(lines, body, refs, method) -> str:
+    if method == "dop853":
+        integrate = """
+            c, a, b_ = traj_d(0.0, y, p, te, rtol, atol, 0.0, max_steps, work, traj)"""
+    elif method == "radau":
+        integrate = """
+            c, a, b_ = traj_r(0.0, y, p, te, rtol, atol, 0.0, max_steps, rwork, traj)"""
+    else:
+        integrate = """
+            c, a, b_ = traj_d(0.0, y, p, te, rtol, atol, 0.0, max_steps, work, traj)
+            if c == st.STIFF:  # a stiff point starts again with radau; the costs add up
+                initial(p, y)
+                c, a2, b2 = traj_r(0.0, y, p, te, rtol, atol, 0.0, max_steps, rwork, traj)
+                a += a2
+                b_ += b2"""
+    scratch = "\n        work = dop853.workspace(NS)" if method != "radau" else ""
+    scratch += "\n        rwork = radau.workspace(NS)" if method != "dop853" else ""
+    classify = """
+            c = classify(p)
+            if c != st.OK:
+                status[i] = c
+                continue""" if "classify" in refs else ""
+    prepare = """
+            c = prepare(p, rtol)
+            if c != st.OK:
+                status[i] = c
+                continue""" if "prepare" in refs else ""
+    forcing = "forcing(p)" if "forcing" in refs else "1.0"
+    lines.append(f"""
+
+@pjit
+def kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, status, n_steps, n_rhs):
+    n = P.shape[0]
+    ns_ = s.size
+    n_blocks = (n + BLOCK - 1) // BLOCK
+    for blk in prange(n_blocks):
+        p = np.empty(SCR + 3 * NS)
+        y = np.empty(NS)
+        te = np.empty(ns_)
+        ob = np.zeros(ns_)
+        ob2 = np.zeros(ns_)
+        traj = np.empty((ns_, NS)){scratch}
+        for i in range(blk, n, n_blocks):
+            if status[i] != st.OK:
+                continue
+            for j in range(NP):
+                p[j] = P[i, j]
+            for j in range(NSET):
+                p[NP + j] = S[j]
+            for j in range(NP + NSET, p.size):
+                p[j] = 0.0{classify}{prepare}
+            T = {forcing}
+            if not (math.isfinite(T) and T > 0.0):
+                status[i] = st.INFEASIBLE
+                continue
+            for j in range(ns_):
+                te[j] = T * s[j]
+            initial(p, y){integrate}
+            n_steps[i] += a
+            n_rhs[i] += b_
+            if c != st.OK:
+                status[i] = c
+                continue
+            code = st.OK{''.join(body)}
+            if p[NPI] != 0.0:
+                code = st.USER_ERROR
+            status[i] = code
+""")
+    return "".join(lines)
+
+
+def _lanes_source(model, refs) -> str:
+    """The DOP853 lanes path (a model that declares ``rhs_lanes``): ``setup`` prepares every point
+    (p, status, T, initial state) in parallel, ``queue`` runs a queue of points of one forcing
+    period through ``dop853_lanes`` and observes each trajectory as it ends (the same observers,
+    the same floats as the one-trajectory kernel: the lanes give dop853's steps bitwise)."""
+    classify = """
+        c = classify(p)
+        if c != st.OK:
+            status[i] = c
+            continue""" if "classify" in refs else ""
+    prepare = """
+        c = prepare(p, rtol)
+        if c != st.OK:
+            status[i] = c
+            continue""" if "prepare" in refs else ""
+    forcing = "forcing(p)" if "forcing" in refs else "1.0"
+    return f"""
+
+from mechsweep.ode import dop853_lanes
+
+lane_load, lane_run = dop853_lanes.make_lane_trajectory_solver(user_rhs_lanes, rhs)
+
+
+@pjit
+def setup(P, S, rtol, PF, Z0, TT, status):
+    n = P.shape[0]
+    for i in prange(n):
+        if status[i] != st.OK:
+            continue
+        p = PF[i]
+        for j in range(NP):
+            p[j] = P[i, j]
+        for j in range(NSET):
+            p[NP + j] = S[j]
+        for j in range(NP + NSET, p.size):
+            p[j] = 0.0{classify}{prepare}
+        T = {forcing}
+        if not (math.isfinite(T) and T > 0.0):
+            status[i] = st.INFEASIBLE
+            continue
+        TT[i] = T
+        initial(p, Z0[i])
+
+
+@jit
+def observe(i, p, te, traj, s, bits, K, hoff, vals, hist, ob, ob2):
+    ns_ = s.size
+    code = st.OK{''.join(OBSERVE)}
+    if p[NPI] != 0.0:
+        code = st.USER_ERROR
+    return code
+
+
+@jit
+def queue(lanes, idx, first, step, PF, Z0, te, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, status,
+          n_steps, n_rhs):
+    ws = dop853_lanes.workspace(NS, PF.shape[1], lanes, te.size)
+    traj = ws[dop853_lanes.TRAJ]
+    ob = np.zeros(s.size)
+    ob2 = np.zeros(s.size)
+    nxt = first
+    m = idx.size
+    for lane in range(lanes):
+        if nxt < m:
+            lane_load(ws, lane, nxt, 0.0, Z0[idx[nxt]], PF[idx[nxt]], te, rtol, atol)
+            nxt += step
+        else:
+            dop853_lanes.idle(ws, lane)
+    while True:
+        lane = lane_run(ws, te, rtol, atol, max_steps)
+        if lane < 0:
+            return
+        j, c, a, b_ = dop853_lanes.lane_result(ws, lane)
+        i = idx[j]
+        if c == st.OK:
+            c = observe(i, PF[i], te, traj[lane], s, bits, K, hoff, vals, hist, ob, ob2)
+        status[i] = c
+        n_steps[i] += a
+        n_rhs[i] += b_
+        if nxt < m:
+            lane_load(ws, lane, nxt, 0.0, Z0[idx[nxt]], PF[idx[nxt]], te, rtol, atol)
+            nxt += step
+        else:
+            dop853_lanes.idle(ws, lane)
+"""
+
+
+OBSERVE: list[str] = []  # set by kernel_source for _lanes_source (the observation body, 4 spaces indent)
+
+
+def kernel_for(model, chosen, method):
+    from .compile import _functions, load_generated
+
+    funcs = [(n, f) for n, f in _functions(model, (), ()) if n in ("rhs", "initial", "forcing", "jac", "classify",
+                                                                      "prepare")]
+    for k, m in enumerate(chosen):
+        for role, func in m.functions():
+            funcs.append((f"{role}{k}", func))
+    if method == "dop853" and getattr(model, "rhs_lanes", None) is not None:
+        funcs.append(("rhs_lanes", model.rhs_lanes))
+    refs = {name: load.function_ref(func, name, model.name) for name, func in funcs}
+    key = hashlib.sha256()
+    for name, ref in refs.items():
+        key.update(name.encode())
+        key.update(repr(ref).encode())
+        key.update(load.module_source(ref[0], ref[1]))
+    key.update(repr((model.name, _layout(model), len(model.states), tuple(m.key() for m in chosen), method)).encode())
+    name = "mechsweep_traj_" + key.hexdigest()[:20]
+    if name not in _KERNELS:
+        _KERNELS[name] = load_generated(name, kernel_source(model, chosen, refs, method))
+    return _KERNELS[name]
+
+
+def _layout(model):
+    from .compile import layout
+    return layout(model)
+
+
+def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lanes=True):
+    """Run the sampled measurements ``chosen`` on the points still OK in ``status``; by DOP853
+    lanes when the model declares ``rhs_lanes`` (unless ``lanes`` is False: the same values)."""
+    method = solver.method
+    settings = dict(solver.settings)
+    s, bits, K = grid(chosen, settings)
+    for k, m in enumerate(chosen):
+        if type(m).__name__ == "Steady" and not {f"{m.name}_h1", f"{m.name}_phase"} & set(wanted):
+            K[k, 2] = 0.0  # no first harmonic asked for: the observer skips its cos/sin per sample
+    hoff = np.zeros(len(chosen), dtype=np.int64)
+    n_hist = 0
+    for k, m in enumerate(chosen):
+        if m.n_values == 0:
+            hoff[k] = n_hist
+            n_hist += int(np.count_nonzero(bits[:, k]))
+    cols = columns(chosen)
+    n = P.shape[0]
+    vals = np.full((n, cols[-1]), np.nan)
+    hist = np.full((n, n_hist), np.nan)
+    S = np.array([float(settings.get(x.name, x.default)) for x in model.settings], dtype=np.float64)
+    mod = kernel_for(model, chosen, method)
+    code = status.copy()
+    P = np.ascontiguousarray(P, dtype=np.float64)
+    if hasattr(mod, "queue") and lanes and lane_count(s.size, model):
+        _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, n_steps, n_rhs)
+    else:
+        mod.kernel(P, S, s, bits, K, hoff, solver.rtol, solver.atol, solver.max_steps, vals, hist, code, n_steps,
+                   n_rhs)
+    good = code == st.OK
+    for k, m in enumerate(chosen):
+        if m.n_values == 0:
+            if m.name in out:
+                w = int(np.count_nonzero(bits[:, k]))
+                out[m.name][:] = np.where(good[:, None], hist[:, hoff[k]:hoff[k] + w], np.nan)
+        else:
+            v = np.where(good[:, None], vals[:, cols[k]:cols[k + 1]], np.nan)
+            m.finish(v, wanted, solver, out, code)
+    status[:] = code
+
+
+# The lanes (a model with rhs_lanes, method dop853): as the hand-written auto-balancer kernels
+# chose them. Each lane keeps its trajectory's samples (n_samples x n_states floats) until it
+# ends: with long horizons or dense sampling fewer lanes, so that a queue's samples stay within
+# LANE_SAMPLES_BYTES (32, 16, then 8 lanes, else the one-trajectory kernel).
+LANES = (32, 16, 8)
+LANE_SAMPLES_BYTES = 256 * 2**20
+
+
+def lane_count(n_samples: int, model) -> int:
+    for lanes in LANES:
+        if lanes * n_samples * len(model.states) * 8 <= LANE_SAMPLES_BYTES:
+            return lanes
+    return 0
+
+
+def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, n_steps, n_rhs):
+    """setup in parallel, then per forcing period the points' queues through the lanes, one queue
+    per thread (numba.get_num_threads() Python threads running the nogil queue)."""
+    import numba
+
+    from .compile import layout
+
+    n = P.shape[0]
+    n_s = len(model.states)
+    n_p, n_set, n_int = layout(model)
+    PF = np.zeros((n, n_p + n_set + n_int + 1 + 3 * n_s))
+    Z0 = np.zeros((n, n_s))
+    TT = np.full(n, np.nan)
+    mod.setup(P, S, solver.rtol, PF, Z0, TT, code)
+    lanes = lane_count(s.size, model)
+    ok = code == st.OK
+    for T in np.unique(TT[ok]):
+        idx = np.flatnonzero(ok & (TT == T)).astype(np.int64)
+        te = T * s  # the same products as the one-trajectory kernel's te[j] = T * s[j]
+        n_queues = max(1, min(numba.get_num_threads(), -(-idx.size // max(1, lanes // 2))))
+
+        def queue(b, idx=idx, te=te, n_queues=n_queues):
+            mod.queue(lanes, idx, b, n_queues, PF, Z0, te, s, bits, K, hoff, solver.rtol, solver.atol,
+                      solver.max_steps, vals, hist, code, n_steps, n_rhs)
+
+        if n_queues == 1:
+            queue(0)
+            continue
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=n_queues, thread_name_prefix="mechsweep-lanes") as pool:
+            for _ in pool.map(queue, range(n_queues)):
+                pass

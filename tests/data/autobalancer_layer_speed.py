@@ -1,0 +1,45 @@
+"""Side by side in one process: the auto-balancer's simulated outputs (stable_sim,
+residual_amplitude) by the hand-written kernels (DOP853 lanes) and by the layer's sampled
+trajectory (tests/data/autobalancer_on_layer.py: one trajectory at a time), the same points, warm
+caches, alternating: ``python tests/data/autobalancer_layer_speed.py [points] [sim]`` (sim: stable_sim
+alone)."""
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+import record_autobalancer as rec  # noqa: E402
+
+from mechsweep.model import load  # noqa: E402
+from mechsweep.models import MODELS  # noqa: E402
+from mechsweep.scene import Solver  # noqa: E402
+
+old = MODELS["autobalancer"]
+new = load.resolve(f"{HERE / 'autobalancer_on_layer.py'}:MODEL")
+n = int(sys.argv[1]) if len(sys.argv) > 1 else 256
+P = np.repeat(rec.design_points()[2][None, :], n, axis=0)
+P[:, 0] = np.linspace(6.0, 60.0, n)  # Omega
+kw = dict(method="dop853", rtol=1e-8, atol=1e-10, horizon_revolutions=300.0, reproducibility_factor=0.0)
+
+
+def run(spec, wanted):
+    slv = Solver.for_model(spec, **kw)
+    out = {k: np.full(n, np.nan) for k in wanted}
+    status, ns, nr = np.zeros(n, np.int8), np.zeros(n, np.int64), np.zeros(n, np.int64)
+    t = time.perf_counter()
+    spec.evaluate(P, wanted, slv, out, status, ns, nr)
+    return time.perf_counter() - t, ns.sum(), out
+
+
+OLD, NEW = (("stable_sim",), ("sim",)) if sys.argv[2:3] == ["sim"] else (("stable_sim", "residual_amplitude"),
+                                                                         ("sim", "residual"))
+run(old, OLD)
+run(new, NEW)
+for r in range(3):
+    to, so, oo = run(old, OLD)
+    tn, sn, on = run(new, NEW)
+    print(f"run {r}: old {n / to:8.1f} points/s, layer {n / tn:8.1f} points/s, ratio {to / tn:.3f}; steps {so} {sn}; "
+          f"same values {np.array_equal(oo['stable_sim'], on['sim'], equal_nan=True)}")

@@ -1,0 +1,172 @@
+"""Record the auto-balancer's values before it moves onto the model layer:
+``python tests/data/record_autobalancer.py [record|compare]``.
+
+``record`` writes tests/data/autobalancer_reference.npz with the CURRENT code; it was run once on
+commit 016a0b6 (the hand-written kernels of models/autobalancer.py). ``compare`` computes every
+case again and reports, per array, whether it is bitwise equal to the file (and the largest
+relative difference where it is not). Cases (outputs, status, n_steps, n_rhs of each):
+- a 40-point design grid with every status the model gives (INFEASIBLE, SINGULAR, NOT_BALANCEABLE,
+  UNDECIDED, NO_EVENT, NOT_REPRODUCIBLE, MAX_STEPS; A1 != 0 with the conrod; c/b parametrisation),
+  all outputs (with 7 history samples), each simulated output alone, by dop853, radau and auto,
+  at a short horizon (20 revolutions); a step budget; a tight and a loose tolerance;
+- small versions of every shipped auto-balancer scene (sweeps/autobalancer_*.toml and
+  sweeps/extreme/autobalancer_*.toml): each range axis cut to at most 4 values, horizon 20
+  revolutions, by dop853, radau and auto.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+import sys
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parents[1]
+FILE = HERE / "autobalancer_reference.npz"
+METHODS = ("dop853", "radau", "auto")
+SCENES = sorted(REPO.glob("sweeps/autobalancer_*.toml")) + sorted(REPO.glob("sweeps/extreme/autobalancer_*.toml"))
+HORIZON = 20.0
+ALL = ("theta", "balanceable", "m_k", "omega_p", "stable_first_approx", "P_approx", "stable_damped_approx",
+       "floquet_max", "stable_floquet", "stable_sim", "residual_amplitude", "phase_error", "settling_time",
+       "xi_history", "eta_history", "phase_error1_history", "phase_error2_history")
+SIM = ("stable_sim", "residual_amplitude", "phase_error", "settling_time", "xi_history")
+
+
+def design_points() -> np.ndarray:
+    from mechsweep.models.autobalancer import PARAM_NAMES
+
+    nan = math.nan
+    base = dict(Omega=25.0, M=20.0, m=1.0, a=0.1, I_B=0.012, A0=0.1, h=0.02, omega_xi=20.0, omega_eta=30.0,
+                zeta_xi=0.05, zeta_eta=0.05, c_xi=nan, c_eta=nan, b_xi=nan, b_eta=nan, A1=0.0, l3=nan, l4=nan,
+                m4=nan, S4=nan, m5=nan, S_k=nan)
+    rows = []
+    for Om, h in itertools.product((8.0, 15.0, 25.0, 45.0), (0.002, 0.02, 0.5)):  # stable and unstable
+        rows.append(dict(base, Omega=Om, h=h))
+    for A0 in (0.0, 0.1999999998, 0.2, 0.3):  # NOT_BALANCEABLE ends and beyond the limit
+        rows.append(dict(base, A0=A0, Omega=40.0))
+    rows.append(dict(base, A1=0.02, l3=0.05, l4=0.2, m4=0.5, S4=0.1, m5=0.3, S_k=0.05))  # uncorrected conrod
+    rows.append(dict(base, A1=0.02, l3=0.05, l4=0.2, Omega=45.0, A0=0.3))
+    rows.append(dict(base, I_B=0.005))  # INFEASIBLE: I_B < m a^2
+    rows.append(dict(base, M=1.5))  # INFEASIBLE: M <= 2 m
+    rows.append(dict(base, A1=0.02))  # INFEASIBLE: A1 without l3, l4
+    rows.append(dict(base, omega_xi=nan))  # INFEASIBLE: pair not given
+    rows.append(dict(base, Omega=20.0, zeta_xi=0.0))  # SINGULAR: undamped resonance
+    rows.append(dict(base, omega_xi=nan, omega_eta=nan, c_xi=8000.0, c_eta=18000.0, zeta_xi=nan, zeta_eta=nan,
+                     b_xi=20.0, b_eta=30.0))  # the c/b parametrisation
+    rows.append(dict(base, m=1e-5, I_B=1e-7, A0=1e-6, h=2e-6))  # light pendulum: UNDECIDED
+    rows.append(dict(base, Omega=3.0, omega_xi=400.0, omega_eta=600.0, h=1e4))  # stiff platform
+    rows.append(dict(base, Omega=3.0, omega_xi=400.0, omega_eta=600.0, h=1e-6))
+    rows.append(dict(base, h=1e-6, Omega=15.0))
+    rows.append(dict(base, M=4.0, Omega=35.0, h=0.005))  # heavy pendulums
+    rows.append(dict(base, M=5.0, Omega=12.0, h=0.02))
+    for Om in (22.0, 26.0, 31.0):
+        rows.append(dict(base, M=6.0, Omega=Om, h=0.01))
+    return np.array([[r[k] for k in PARAM_NAMES] for r in rows], dtype=float)
+
+
+def design_cases():
+    P = design_points()
+    out = []
+    hist = dict(trajectory_samples=7)
+    for method in METHODS:
+        kw = dict(method=method, rtol=1e-8, atol=1e-10, horizon_revolutions=HORIZON, **hist)
+        out.append((f"grid-{method}-all", P, ALL, kw))
+        for name in SIM:
+            out.append((f"grid-{method}-{name}", P, (name,), kw))
+        out.append((f"grid-{method}-floquet", P, ("floquet_max", "stable_floquet"), kw))
+        out.append((f"grid-{method}-maxsteps", P, ("floquet_max", "residual_amplitude", "stable_sim"),
+                    dict(kw, max_steps=300)))
+    out.append(("grid-dop853-loose", P, ALL, dict(method="dop853", rtol=1e-5, atol=1e-8, horizon_revolutions=HORIZON,
+                                                     **hist)))
+    out.append(("grid-dop853-tight", P, ALL, dict(method="dop853", rtol=1e-11, atol=1e-13,
+                                                     horizon_revolutions=HORIZON, **hist)))
+    out.append(("grid-dop853-norecheck", P, SIM, dict(method="dop853", rtol=1e-8, atol=1e-10,
+                                                         horizon_revolutions=HORIZON, reproducibility_factor=0.0)))
+    return out
+
+
+def small_scene(path: Path, method: str) -> dict:
+    raw = tomllib.loads(path.read_text())
+    for name, ax in raw["axes"].items():
+        if isinstance(ax, dict):
+            ax["num"] = min(int(ax["num"]), 4)
+    raw.pop("storage", None)
+    raw.pop("boundaries", None)
+    solver = raw.setdefault("solver", {})
+    solver["method"] = method
+    solver["horizon_revolutions"] = HORIZON
+    return raw
+
+
+def scene_cases():
+    return [(f"scene-{p.stem}-{m}", p, m) for p in SCENES for m in METHODS]
+
+
+def evaluate_case(P, wanted, kw):
+    from mechsweep.models import MODELS
+    from mechsweep.scene import Solver
+
+    spec = MODELS["autobalancer"]
+    solver = Solver.for_model(spec, **kw)
+    n = P.shape[0]
+    out = {}
+    for name in wanted:
+        o = spec.output(name)
+        extra = tuple(len(d.values(solver.settings)) for d in o.extra_dims)
+        out[name] = np.full((n,) + extra, np.nan)
+    status = np.zeros(n, dtype=np.int8)
+    n_steps = np.zeros(n, dtype=np.int64)
+    n_rhs = np.zeros(n, dtype=np.int64)
+    with np.errstate(all="ignore"):
+        spec.evaluate(P, wanted, solver, out, status, n_steps, n_rhs)
+    return {**out, "status": status, "n_steps": n_steps, "n_rhs": n_rhs}
+
+
+def evaluate_scene(path, method):
+    from mechsweep.grid import Chunk
+    from mechsweep.runner import evaluate_chunk
+    from mechsweep.scene import load_scene
+
+    scene = load_scene(small_scene(path, method))
+    cols, status, n_steps, n_rhs = evaluate_chunk(scene, Chunk(0, 0, scene.n_points, ()))
+    return {**cols, "status": status, "n_steps": n_steps, "n_rhs": n_rhs}
+
+
+def all_arrays(select=None):
+    for label, P, wanted, kw in design_cases():
+        if select is None or select(label):
+            yield label, evaluate_case(P, wanted, kw)
+    for label, path, method in scene_cases():
+        if select is None or select(label):
+            yield label, evaluate_scene(path, method)
+
+
+def main(mode="compare", prefix=""):
+    select = (lambda label: label.startswith(prefix)) if prefix else None
+    if mode == "record":
+        arrays = {f"{label}/{k}": v for label, res in all_arrays() for k, v in res.items()}
+        np.savez_compressed(FILE, **arrays)
+        print("wrote", FILE, len(arrays), "arrays")
+        return 0
+    ref = np.load(FILE)
+    bad = 0
+    for label, res in all_arrays(select):
+        for k, v in res.items():
+            e = ref[f"{label}/{k}"]
+            if e.dtype == v.dtype and np.array_equal(e, v, equal_nan=True):
+                continue
+            bad += 1
+            with np.errstate(all="ignore"):
+                both = np.isfinite(e) & np.isfinite(v)
+                rel = np.nanmax(np.abs(v - e)[both] / np.maximum(np.abs(e[both]), 1e-300)) if both.any() else 0.0
+                nan_moved = int((np.isnan(e) != np.isnan(v)).sum())
+            print(f"{label} {k}: DIFFERENT (max rel {rel:.3g}, NaN moved at {nan_moved} of {e.size})")
+    print("bitwise identical" if not bad else f"{bad} arrays differ")
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(*sys.argv[1:3]))

@@ -1,0 +1,166 @@
+"""The sampled-trajectory measurements of the model layer (Steady, Kick, History;
+model/trajectory.py) against closed forms, on user models written as a user would
+(tests/user_models/forced.py)."""
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mechsweep import status as st
+from mechsweep.model import load
+from mechsweep.scene import Solver
+
+USER = Path(__file__).resolve().parent / "user_models" / "forced.py"
+
+
+@pytest.fixture(scope="module")
+def forced():
+    return load.resolve(f"{USER}:FORCED")
+
+
+@pytest.fixture(scope="module")
+def decay():
+    return load.resolve(f"{USER}:DECAY")
+
+
+def _evaluate(spec, P, wanted, **solver):
+    n = P.shape[0]
+    slv = Solver.for_model(spec, **solver)
+    out = {}
+    for k in wanted:
+        o = spec.output(k)
+        out[k] = np.full((n,) + tuple(len(d.values(slv.settings)) for d in o.extra_dims), np.nan)
+    status, ns, nr = np.zeros(n, np.int8), np.zeros(n, np.int64), np.zeros(n, np.int64)
+    spec.evaluate(P, wanted, slv, out, status, ns, nr)
+    return out, status, ns, nr
+
+
+def _forced_closed(w, zeta, F, W):
+    A = F / np.hypot(w * w - W * W, 2 * zeta * w * W)
+    return A, np.arctan2(2 * zeta * w * W, w * w - W * W)
+
+
+WANTED = ("amp", "amp_h1", "amp_phase", "speed_amp", "x_hist")  # one kernel for the FORCED tests
+
+
+@pytest.mark.parametrize("method", ["dop853", pytest.param("radau", marks=pytest.mark.slow),
+                                    pytest.param("auto", marks=pytest.mark.slow)])
+def test_steady_amplitude_and_phase_of_a_forced_damped_oscillator(forced, method):
+    # below, near and above resonance; damping 0.05 .. 0.3 (settled within 200 periods)
+    P = np.array([[1.0, 0.1, 1.0, 0.5], [1.0, 0.05, 2.0, 0.97], [2.0, 0.3, 1.0, 5.0], [1.5, 0.2, -0.5, 1.5]])
+    out, status, ns, nr = _evaluate(forced, P, WANTED, method=method,
+                                    rtol=1e-10, atol=1e-12, max_steps=10**7)
+    A, phi = _forced_closed(*P.T)
+    assert (status == st.OK).all() and (ns > 0).all() and (nr > ns).all()
+    np.testing.assert_allclose(out["amp_h1"], np.abs(A), rtol=2e-7)
+    # F < 0 is the same motion shifted by half a period: the phase by pi
+    expect = np.where(P[:, 2] < 0, np.angle(np.exp(1j * (phi + math.pi))), phi)
+    np.testing.assert_allclose(out["amp_phase"], expect, atol=2e-7)
+    # the sampled peak: below the amplitude by at most 1 - cos(pi / 64)
+    assert ((out["amp"] <= np.abs(A) * (1 + 1e-7)) & (out["amp"] >= np.abs(A) * math.cos(math.pi / 64))).all()
+    np.testing.assert_allclose(out["speed_amp_h1"] if "speed_amp_h1" in out else out["speed_amp"],
+                               np.abs(A) * P[:, 3], rtol=math.pi ** 2 / 64 ** 2)
+    # History: 11 samples over 200 periods, x(0) = 0 from rest; the last, steady, on the closed form
+    assert out["x_hist"].shape == (4, 11)
+    assert (out["x_hist"][:, 0] == 0.0).all()
+    T = 2 * math.pi / P[:, 3]
+    np.testing.assert_allclose(out["x_hist"][:, -1], A * np.cos(P[:, 3] * 200 * T - phi), atol=1e-7)
+
+
+def test_steady_reports_no_event_when_the_transient_has_not_died_out(forced):
+    # zeta = 0.001 near resonance: the beat decays over ~1/(zeta w) = 1000 s = 160 periods
+    P = np.array([[1.0, 0.001, 1.0, 0.9], [1.0, 0.2, 1.0, 0.9]])
+    out, status, _, _ = _evaluate(forced, P, WANTED, rtol=1e-9, atol=1e-12, horizon_periods=20.0)
+    assert status.tolist() == [st.NO_EVENT, st.OK]
+    assert np.isnan(out["amp"][0]) and np.isnan(out["amp_phase"][0]) and np.isfinite(out["amp"][1])
+    # the peak without a settling check (speed_amp) is given where the other is not
+    assert np.isfinite(out["speed_amp"]).all() and np.isfinite(out["x_hist"]).all()
+
+
+def test_the_horizon_setting_moves_the_window(forced):
+    P = np.array([[1.0, 0.1, 1.0, 0.5]])
+    a, _, n1, _ = _evaluate(forced, P, WANTED, rtol=1e-10, atol=1e-12, horizon_periods=100.0)
+    b, _, n2, _ = _evaluate(forced, P, WANTED, rtol=1e-10, atol=1e-12, horizon_periods=300.0)
+    assert n2[0] > 2 * n1[0]
+    np.testing.assert_allclose(a["amp_h1"], b["amp_h1"], rtol=1e-8)
+
+
+@pytest.mark.parametrize("method", ["dop853", pytest.param("radau", marks=pytest.mark.slow)])
+def test_kick_verdict_settling_time_and_history_of_an_exponential(decay, method):
+    lam = np.array([0.5, 0.2, -0.05, 1e-6, 30.0])
+    P = np.column_stack([lam, np.full(5, 0.1)])
+    out, status, _, _ = _evaluate(decay, P, ("stable", "stable_settling", "stable_final", "y_hist"), method=method,
+                                  rtol=1e-11, atol=1e-14, max_steps=10**7)
+    assert out["stable"][:3].tolist() == [1.0, 1.0, 0.0]
+    assert np.isnan(out["stable"][3]) and status[3] == st.UNDECIDED  # neither decays nor grows in 40 s
+    t_s = np.log(0.1 / 0.01) / lam[:2]
+    # linear interpolation between samples 1/8 s apart: relative error <= (lam / 8)^2 / 8
+    np.testing.assert_allclose(out["stable_settling"][:2], t_s, rtol=(0.5 / 8) ** 2 / 8)
+    assert np.isnan(out["stable_settling"][2]) and status[2] == st.NO_EVENT  # grows: never settles
+    np.testing.assert_allclose(out["stable_final"][:3], 0.1 * np.exp(-lam[:3] * 40.0), rtol=1e-8, atol=1e-15)
+    np.testing.assert_allclose(out["y_hist"], 0.1 * np.exp(-np.outer(lam, np.linspace(0, 40, 9))), rtol=1e-8,
+                               atol=1e-12)  # lam = 30: at the noise floor of atol
+    assert out["stable"][4] == 1.0 and status[4] == st.OK
+
+
+def test_sampled_measurements_offer_the_trajectory_methods_only(forced, decay):
+    assert forced.methods_for(("amp",)) == ("dop853", "radau", "auto")
+    assert decay.output("y_hist").extra_dims[0].name == "time"
+
+
+def test_floquet_alone_offers_radau_and_auto():
+    cubic = load.resolve(f"{USER}:CUBIC")
+    assert cubic.methods_for(("mu",)) == ("dop853", "radau", "auto")
+    assert cubic.methods_for(("mu", "rest_stable")) == ("dop853", "radau", "auto")
+
+
+@pytest.mark.slow  # about 30 s of compilation per method
+@pytest.mark.parametrize("method", ["dop853", "radau", "auto"])
+def test_floquet_by_every_method_and_about_its_own_orbit_start(method):
+    cubic = load.resolve(f"{USER}:CUBIC")
+    P = np.array([[0.5, 2.0], [2.0, 0.3], [1.0, 5.0]])
+    out, status, ns, _ = _evaluate(cubic, P, ("mu", "mu_stable", "mu_rest", "rest_stable", "rest_kind"), method=method,
+                                   rtol=1e-11, atol=1e-13)
+    np.testing.assert_allclose(out["mu"], (1 + 2 * P[:, 0] ** 2 * P[:, 1]) ** -1.5, rtol=1e-8)
+    assert (out["mu_stable"] == 1.0).all()
+    # about rest (the measurement's own initial): exactly 1, undecided; the kind is +1 (real, positive)
+    np.testing.assert_allclose(out["mu_rest"], 1.0, rtol=1e-12)
+    assert np.isnan(out["rest_stable"]).all() and (status == st.UNDECIDED).all() and (out["rest_kind"] == 1.0).all()
+    assert (ns > 0).all()
+
+
+def test_a_sampled_user_model_runs_and_stores_its_history(in_tmp):
+    import mechsweep
+
+    scene = {"scene": {"name": "forced", "model": f"{USER}:FORCED", "outputs": list(WANTED)},
+             "axes": {"W": [0.5, 0.97]}, "fixed": {"w": 1.0, "zeta": 0.1, "F": 1.0},
+             "solver": {"rtol": 1e-10, "atol": 1e-12}}
+    ds = mechsweep.run(scene, output="data/runs/forced.h5")
+    assert ds["x_hist"].dims == ("W", "period")
+    np.testing.assert_allclose(ds["period"].values, np.linspace(0, 200, 11))
+    A, phi = _forced_closed(1.0, 0.1, 1.0, np.array([0.5, 0.97]))
+    np.testing.assert_allclose(ds["amp_h1"].values, A, rtol=2e-7)
+    assert (ds["status"].values == st.OK).all()
+
+
+@pytest.mark.slow  # compiles the lane solver (about 20 s)
+def test_lanes_give_the_one_trajectory_results_bitwise(forced, monkeypatch):
+    from mechsweep.model import trajectory
+
+    calls = []
+    run_lanes = trajectory._run_lanes
+    monkeypatch.setattr(trajectory, "_run_lanes", lambda *a: calls.append(1) or run_lanes(*a))
+
+    lanes = load.resolve(f"{USER}:FORCED_LANES")
+    rng = np.random.default_rng(3)
+    n = 70  # more points than lanes; forcing periods of three values (one lane group each)
+    P = np.column_stack([rng.uniform(0.5, 2, n), rng.uniform(0.05, 0.3, n), rng.uniform(-1, 1, n),
+                         rng.choice([0.5, 1.3, 4.0], n)])
+    a = _evaluate(lanes, P, WANTED, rtol=1e-9, atol=1e-12, horizon_periods=50.0)
+    b = _evaluate(forced, P, WANTED, rtol=1e-9, atol=1e-12, horizon_periods=50.0)
+    for x, y in zip(a[1:], b[1:]):
+        assert np.array_equal(x, y)
+    for k in WANTED:
+        assert np.array_equal(a[0][k], b[0][k], equal_nan=True), k
+    assert calls == [1]  # FORCED_LANES went through the lanes, FORCED did not

@@ -1,0 +1,122 @@
+"""User models with closed forms for the sampled-trajectory measurements (Steady, Kick, History),
+written as a user would (outside the package).
+
+FORCED: x'' + 2 zeta w x' + w^2 x = F cos(W t) from rest; the steady motion is
+x = A cos(W t - phi), A = F / sqrt((w^2 - W^2)^2 + (2 zeta w W)^2), phi = atan2(2 zeta w W, w^2 - W^2).
+DECAY: y' = -lam y from y0: y = y0 exp(-lam t); |y| falls below thr at t = ln(y0 / thr) / lam.
+"""
+import math
+
+from mechsweep.model import Floquet, History, Kick, OdeModel, Param, Setting, Steady
+
+
+def forced_rhs(t, y, p, dydt):
+    dydt[0] = y[1]
+    dydt[1] = p[2] * math.cos(p[3] * t) - 2.0 * p[1] * p[0] * y[1] - p[0] * p[0] * y[0]
+
+
+def forced_rhs_lanes(t, Y, P, dY):
+    # the lane form of forced_rhs: the same floats per lane (column)
+    for l in range(t.size):
+        dY[0, l] = Y[1, l]
+        dY[1, l] = P[2, l] * math.cos(P[3, l] * t[l]) - 2.0 * P[1, l] * P[0, l] * Y[1, l] - P[0, l] * P[0, l] * Y[0, l]
+
+
+def forced_initial(p, y0):
+    y0[0] = 0.0
+    y0[1] = 0.0
+
+
+def forced_period(p):
+    return 2.0 * math.pi / p[3]
+
+
+def speed(t, y, p):
+    return y[1]
+
+
+def _forced(**kw):
+    return OdeModel(
+        name="forced_oscillator",
+        description="x'' + 2 zeta w x' + w^2 x = F cos(W t) from rest",
+        params=(Param("w", "w", "rad/s", "natural frequency", lo=0.0, lo_open=True),
+                Param("zeta", "zeta", "1", "damping ratio", lo=0.0),
+                Param("F", "F", "m/s^2", "forcing amplitude"),
+                Param("W", "W", "rad/s", "forcing frequency", lo=0.0, lo_open=True)),
+        states=("x", "v"),
+        rhs=forced_rhs,
+        initial=forced_initial,
+        forcing_period=forced_period,
+        settings=(Setting("horizon_periods", 200.0, "1", "simulated forcing periods", 1.0, 1e5),),
+        measurements=(
+            Steady("amp", "x", horizon="horizon_periods", window=0.1, samples_per_period=64, unit="m"),
+            Steady("speed_amp", speed, horizon="horizon_periods", settle_rtol=None, unit="m/s"),
+            History("x_hist", "x", horizon="horizon_periods", samples=11, unit="m"),
+        ), **kw)
+
+
+FORCED = _forced()
+FORCED_LANES = _forced(rhs_lanes=forced_rhs_lanes)  # the same model, its trajectories in DOP853 lanes
+
+
+def decay_rhs(t, y, p, dydt):
+    dydt[0] = -p[0] * y[0]
+
+
+def decay_initial(p, y0):
+    y0[0] = p[1]
+
+
+def decay_error(t, y, p):
+    return abs(y[0])
+
+
+DECAY = OdeModel(
+    name="decay",
+    description="y' = -lam y from y0: a kick that decays (lam > 0) or grows (lam < 0)",
+    params=(Param("lam", "lam", "1/s", "decay rate"),
+            Param("y0", "y0", "1", "kick", lo=0.0, lo_open=True)),
+    states=("y",),
+    rhs=decay_rhs,
+    initial=decay_initial,
+    measurements=(
+        Kick("stable", decay_error, horizon=40.0, settle_threshold=0.01, monitor_per_period=8, dense_per_period=64),
+        History("y_hist", "y", horizon=40.0, samples=9, dim="time", dim_long_name="time t"),
+    ),
+)
+
+
+def cubic_rhs(t, y, p, dydt):
+    dydt[0] = -y[0] * y[0] * y[0]
+
+
+def cubic_initial(p, y0):
+    y0[0] = p[0]
+
+
+def cubic_rest(p, y0):
+    y0[0] = 0.0
+
+
+def cubic_jac(t, y, p, J):
+    J[0, 0] = -3.0 * y[0] * y[0]
+
+
+def cubic_period(p):
+    return p[1]
+
+
+# y' = -y^3 from y0: y = y0 / sqrt(1 + 2 y0^2 t); linearised about it, phi' = -3 y^2 phi, so the
+# multiplier over [0, T] is (1 + 2 y0^2 T)^(-3/2); about the rest state y = 0 it is exactly 1.
+CUBIC = OdeModel(
+    name="cubic_decay",
+    description="y' = -y^3; Floquet about the motion from y0 and about rest",
+    params=(Param("y0", "y0", "1", "initial value"), Param("T", "T", "s", "period", lo=0.0, lo_open=True)),
+    states=("y",),
+    rhs=cubic_rhs,
+    initial=cubic_initial,
+    forcing_period=cubic_period,
+    jac=cubic_jac,
+    measurements=(Floquet("mu"), Floquet("mu_rest", initial=cubic_rest, stable_name="rest_stable",
+                                          kind_name="rest_kind")),
+)
