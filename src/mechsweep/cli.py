@@ -283,9 +283,9 @@ def _cmd_run(args) -> int:
     except RunInterrupted as exc:
         print(f"mechsweep run: {exc}", file=sys.stderr)
         return 128 + exc.signum
-    path = args.output or scene.storage.path
-    print(f"wrote {path}: {summary.sizes}, outputs {', '.join(scene.outputs)}; "
-          f"status {summary.status_names()}; wall time {summary.wall_time_s:.2f} s")
+    print(f"wrote {summary.path.resolve()}: {summary.sizes}, outputs {', '.join(scene.outputs)}; "
+          f"status {summary.status_names()}; wall time {summary.wall_time_s:.2f} s "
+          f"(compile {summary.compile_time_s:.2f} s, compute {summary.compute_time_s:.2f} s)")
     return 0
 
 
