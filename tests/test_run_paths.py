@@ -155,3 +155,24 @@ def test_default_folder_under_a_file_is_refused(tmp_path, monkeypatch, capsys):
     assert "not a folder" in err and "Traceback" not in err
     assert (tmp_path / "data").read_text() == "a file where the folder would go"
     assert not os.path.isdir(tmp_path / "data")
+
+
+def test_plot_point_and_output_folder_names(in_tmp, small_duffing, capsys):
+    mechsweep.run(small_duffing, output="data/runs/d.h5")
+    plot = ["plot", "data/runs/d.h5", "--kind", "amplitude_period", "--format", "svg"]
+    assert main(plot) == 0
+    full = in_tmp / "data/runs/d.svg"
+    drawn = full.read_bytes()
+    capsys.readouterr()
+    # a one-point figure gets names of its own, the full grid's figure is left as it was
+    assert main(plot + ["--point", "A=0.4,mu=2"]) == 0
+    point = in_tmp / "data/runs/d_at_A0.4_mu2.0625.svg"
+    assert f"wrote {point.relative_to(in_tmp)}" in capsys.readouterr().out
+    assert point.is_file() and full.read_bytes() == drawn
+    # -o an existing folder: the figures go into it under their default names
+    (in_tmp / "figs").mkdir()
+    assert main(["plot", "data/runs/d.h5", "-o", "figs"]) == 0, capsys.readouterr().err
+    names = sorted(p.name for p in (in_tmp / "figs").iterdir())
+    assert names == ["d_amplitude_period.png", "d_kinematic_coefficients.png"]
+    assert main(["plot", "data/runs/d.h5", "-o", "nofolder/"]) == 2
+    assert "nofolder/: the folder does not exist" in capsys.readouterr().err
