@@ -176,3 +176,20 @@ def test_plot_point_and_output_folder_names(in_tmp, small_duffing, capsys):
     assert names == ["d_amplitude_period.png", "d_kinematic_coefficients.png"]
     assert main(["plot", "data/runs/d.h5", "-o", "nofolder/"]) == 2
     assert "nofolder/: the folder does not exist" in capsys.readouterr().err
+
+
+def test_reading_a_dataset_imports_no_kernels(in_tmp, small_duffing):
+    """`mechsweep plot` and open_dataset import neither numba nor the models (the package's names
+    are imported when first used): a warm plot does not pay for them."""
+    import subprocess
+    import sys
+
+    mechsweep.run(small_duffing, output="data/runs/s.h5")
+    code = ("import sys, mechsweep; from mechsweep.cli import main; mechsweep.open_dataset('data/runs/s.h5'); "
+            "assert main(['plot', 'data/runs/s.h5', '--list']) == 0; "
+            "print(sorted(m for m in ('numba', 'mechsweep.models', 'mechsweep.runner') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=in_tmp,
+                         env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip().splitlines()[-1] == "[]"
+    assert mechsweep.run is runner.run and mechsweep.open_dataset is mechsweep.store.open_dataset

@@ -263,6 +263,15 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--quick", action="store_true", help="small grids only (10^4 ... 10^6 points)")
     b.add_argument("--dir", default=None, help="folder for the temporary datasets (default: the system's temp)")
     b.set_defaults(func=_cmd_bench_memory)
+    b = bsub.add_parser("startup", help="fixed costs and cold start against their targets: warm runs of 10^3 and 10^4 "
+                                        "points (in memory and to a file), quickstart run + plot cold and warm, cost per "
+                                        "point 10^4 .. 10^6 (--full: 10^7, 10^8 closed form) with the command's peak memory")
+    b.add_argument("--full", action="store_true", help="scale to 10^7 integrated and 10^8 closed-form points (minutes)")
+    b.add_argument("--repeats", type=int, default=3, help="measurements per figure, at least 3 (default 3)")
+    b.add_argument("--scene", default="sweeps/quickstart.toml", help="the quickstart scene (default sweeps/quickstart.toml)")
+    b.add_argument("--only", choices=("warm", "quickstart", "scaling"), nargs="+", default=None,
+                   help="measure only these parts (default: all)")
+    b.set_defaults(func=_cmd_bench_startup)
     b = bsub.add_parser("quickstart", help="time the quickstart (run + plot) in fresh processes, cold and warm JIT cache")
     b.add_argument("--scene", default="sweeps/quickstart.toml")
     b.set_defaults(func=_cmd_bench_quickstart)
@@ -328,8 +337,10 @@ def _cmd_plot(args) -> int:
         for k, doc in extra.items():
             print(f"{k} (on request: --kind {k}): {doc}")
         return 0
-    folder = None  # -o naming an existing folder: the figures go into it under their default names
-    if args.output and os.path.isdir(args.output):
+    # -o naming an existing folder: the figures go into it under their default names (a folder named
+    # like a figure file, x.png, is taken as a figure path and refused below: not a regular file)
+    folder = None
+    if args.output and os.path.isdir(args.output) and Path(args.output).suffix.lower() not in (".png", ".svg", ".pdf"):
         folder = Path(args.output)
     elif args.output and args.output.endswith(("/", os.sep)):
         raise InputError(f"-o {args.output}: the folder does not exist; create it first (mkdir -p {args.output}) "
@@ -693,6 +704,14 @@ def _cmd_bench_memory(args) -> int:
 
     rows = memory.main(quick=args.quick, folder=args.dir)
     return 0 if all(r["ok"] for r in rows) else 1
+
+
+def _cmd_bench_startup(args) -> int:
+    from .bench import startup
+
+    startup.main(full=args.full, repeats=args.repeats, scene=args.scene,
+                 parts=tuple(args.only) if args.only else ("warm", "quickstart", "scaling"))
+    return 0
 
 
 def _cmd_bench_quickstart(args) -> int:

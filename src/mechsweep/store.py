@@ -19,6 +19,7 @@ import stat
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import h5netcdf
 import h5py
@@ -29,7 +30,9 @@ from . import status as st
 from .errors import StoreError, WriteFailed  # noqa: F401  (StoreError: part of this module's API)
 from .grid import plan_chunks
 from .journal import BadChunk, Journal, partial_path  # noqa: F401  (partial_path: part of this module's API)
-from .scene import Scene, load_scene_text
+
+if TYPE_CHECKING:  # not imported at run time: reading a dataset (plot, info) needs no model or numba
+    from .scene import Scene
 
 # Datasets up to this size are loaded into memory by open_dataset(lazy=None); larger ones are
 # opened lazily, so that the memory a run or a plot needs stays bounded by a chunk, not the grid.
@@ -572,6 +575,8 @@ def _assemble_partial(part: Path) -> xr.Dataset:
     if journal.empty:
         raise FileNotFoundError(f"{part} holds no finished chunk yet")
     attrs = journal.meta.get("attrs") if isinstance(journal.meta.get("attrs"), dict) else {}
+    from .scene import load_scene_text
+
     scene = load_scene_text(journal.meta["scene"], label=str(part / "run.json"),
                             base=attrs.get("scene_folder") or None)
     chunks = plan_chunks(scene.shape, journal.meta["chunk_target"])

@@ -1,0 +1,185 @@
+"""`mechsweep bench startup`: the fixed costs of a run, its cold start, and its cost per point.
+
+Each figure is printed with its target beside it (issue 15, goals 2, 3 and 5), as the median of
+``repeats`` (>= 3) measurements and their spread (min .. max):
+
+- warm ``mechsweep.run`` of 10^3 and 10^4 Duffing points (integrated period, DOP853, rtol 1e-10),
+  in memory (``output=None``; targets 10 ms and 25 ms) and to a file (no target: the file route
+  adds the journal, its fsyncs, the HDF5 assembly and the opening of the result);
+- the quickstart (``mechsweep run sweeps/quickstart.toml`` then ``mechsweep plot``) in fresh
+  processes, cold (an empty JIT cache folder of its own for each repetition; target 8 s) and
+  warm (target 2.5 s); the run's own compile and compute times are read from its dataset;
+- the cost per point of ``mechsweep.run`` to a file from 10^4 to 10^6 integrated points (--full:
+  to 10^7 integrated and 10^8 closed-form points), warm, and the peak resident memory of the
+  command ``mechsweep run`` on the same grid (a fresh process, interpreter included; bench memory
+  explains the measurement).
+"""
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from . import memory
+
+TARGET_WARM_MS = {10**3: 10.0, 10**4: 25.0}
+TARGET_COLD_S = 8.0
+TARGET_WARM_S = 2.5
+RTOL, ATOL = 1e-10, 1e-12
+
+
+def duffing(n: int, output: str = "period") -> dict:
+    """A Duffing scene of ``n`` points (one axis, mu), the bench's standard small grid."""
+    data = memory.scene((n,), output)
+    data["scene"]["name"] = "bench-startup"
+    data["solver"].update(rtol=RTOL, atol=ATOL)
+    return data
+
+
+def _spread(values: list[float], unit: str, scale: float = 1.0, fmt: str = ".1f") -> str:
+    v = [x * scale for x in values]
+    return f"{statistics.median(v):{fmt}} {unit} ({min(v):{fmt}} .. {max(v):{fmt}}, {len(v)} runs)"
+
+
+def _verdict(value: float, target: float) -> str:
+    return "met" if value <= target else "NOT met"
+
+
+def warm_small(repeats: int, folder: Path) -> dict:
+    """Seconds of warm runs of 10^3 and 10^4 points, in memory and to a file: {(n, route): [s]}."""
+    import mechsweep
+    from mechsweep.scene import load_scene
+
+    out = {}
+    for n in TARGET_WARM_MS:
+        scene = load_scene(duffing(n))
+        path = folder / f"warm{n}.h5"
+        mechsweep.run(scene, output=None)  # compile or load the kernels first
+        mechsweep.run(scene, output=path, progress=False)
+        for route in ("memory", "file"):
+            times = []
+            for _ in range(repeats):
+                t0 = time.perf_counter()
+                if route == "memory":
+                    mechsweep.run(scene, output=None)
+                else:
+                    mechsweep.run(scene, output=path, progress=False)
+                times.append(time.perf_counter() - t0)
+            out[n, route] = times
+    return out
+
+
+def _command(args: list[str], env: dict, cwd: Path) -> float:
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "mechsweep.cli", *args], env=env, cwd=cwd, capture_output=True,
+                          text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"mechsweep {' '.join(args)} failed:\n{proc.stderr[-2000:]}")
+    return time.perf_counter() - t0
+
+
+def quickstart(scene: Path, repeats: int, folder: Path) -> dict:
+    """Cold and warm quickstart (run + plot) in fresh processes: {label: [(run s, plot s, compile s)]}."""
+    import h5py
+
+    result = {"cold": [], "warm": []}
+    out = folder / "quickstart.h5"
+    for label in ("cold", "warm"):
+        for i in range(repeats):
+            cache = folder / (f"cache-cold-{i}" if label == "cold" else "cache-cold-0")  # warm: filled by cold 0
+            env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(cache))
+            run_s = _command(["run", str(scene), "-o", str(out), "--no-progress", "--overwrite"], env, folder)
+            plot_s = _command(["plot", str(out)], env, folder)
+            with h5py.File(out, "r") as f:
+                compile_s = float(f.attrs.get("compile_time_s", float("nan")))
+            result[label].append((run_s, plot_s, compile_s))
+    return result
+
+
+def scaling(sizes: list[tuple[int, str]], repeats: int, folder: Path) -> list[dict]:
+    """Warm cost per point of ``compute`` to a file, and the peak RSS of the command on the same grid."""
+    from mechsweep.runner import compute
+    from mechsweep.scene import load_scene
+
+    rows = []
+    for n, output in sizes:
+        scene = load_scene(duffing(n, output))
+        path = folder / f"scale{n}.h5"
+        compute(load_scene(duffing(1000, output)), output=folder / "w.h5", progress=False, overwrite=True)
+        times = []
+        for _ in range(repeats if n <= 10**6 else 1):
+            t0 = time.perf_counter()
+            compute(scene, output=path, progress=False, overwrite=True)
+            times.append(time.perf_counter() - t0)
+        path.unlink()
+        command = memory._case("command", output, (n,), folder)
+        rows.append({"points": n, "output": output, "seconds": times, "peak_rss": command["peak_rss"],
+                     "disk": command["disk"], "command_s": command["process_s"]})
+    return rows
+
+
+def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.toml",
+         parts: tuple[str, ...] = ("warm", "quickstart", "scaling")) -> dict:
+    from . import _args
+
+    repeats = _args.count("--repeats", repeats, 3, 100)
+    scene_path = Path(scene).resolve()
+    if "quickstart" in parts:
+        if not scene_path.is_file():
+            raise _args.InputError(f"--scene {scene} does not exist (run from the repository root, or give its path)")
+        from mechsweep.scene import load_scene
+
+        load_scene(scene_path)  # an invalid scene is refused here, not as a failed child process
+    import numba
+
+    report = {}
+    print(f"mechsweep bench startup: {numba.get_num_threads()} threads, median of {repeats} runs (min .. max)")
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        if "warm" in parts:
+            warm = warm_small(repeats, tmp)
+            report["warm"] = {f"{n}_{route}": v for (n, route), v in warm.items()}
+            print(f"  warm mechsweep.run, Duffing period (DOP853, rtol {RTOL:g}):")
+            for (n, route), v in warm.items():
+                med = statistics.median(v) * 1e3
+                target = (f"target <= {TARGET_WARM_MS[n]:g} ms: {_verdict(med, TARGET_WARM_MS[n])}"
+                          if route == "memory" else "no target (journal, fsyncs, HDF5 assembly, opening)")
+                where = "in memory (output=None)" if route == "memory" else "to a file"
+                print(f"    {n:>6,} points {where:<24} {_spread(v, 'ms', 1e3):<34} {target}", flush=True)
+        if "quickstart" in parts:
+            q = quickstart(scene_path, repeats, tmp)
+            report["quickstart"] = q
+            print(f"  quickstart ({scene}) run + plot in fresh processes:")
+            for label, target, what in (("cold", TARGET_COLD_S, "empty JIT cache"), ("warm", TARGET_WARM_S, "JIT cache filled")):
+                totals = [r + p for r, p, _ in q[label]]
+                med = statistics.median(totals)
+                print(f"    {label} ({what:<15}) total {_spread(totals, 's', fmt='.2f'):<30} target <= {target:g} s: "
+                      f"{_verdict(med, target)}", flush=True)
+                print(f"      run {_spread([r for r, _, _ in q[label]], 's', fmt='.2f')}, of which compile "
+                      f"{_spread([c for _, _, c in q[label]], 's', fmt='.2f')}; plot "
+                      f"{_spread([p for _, p, _ in q[label]], 's', fmt='.2f')}")
+        if "scaling" in parts:
+            sizes = [(10**4, "period"), (10**5, "period"), (10**6, "period")]
+            if full:
+                sizes += [(10**7, "period"), (10**8, "period_exact")]
+            rows = scaling(sizes, repeats, tmp)
+            report["scaling"] = rows
+            base = statistics.median(rows[0]["seconds"]) / rows[0]["points"]
+            print("  cost per point of mechsweep.run to a file (warm), peak RSS of the command `mechsweep run` "
+                  "(fresh process, interpreter included); target: linear in points, peak within chunk + interpreter:")
+            for r in rows:
+                per = [s / r["points"] * 1e6 for s in r["seconds"]]
+                ratio = statistics.median(r["seconds"]) / r["points"] / base if r["output"] == "period" else float("nan")
+                print(f"    {r['points']:>11,} {r['output']:<13} {_spread(per, 'us/point', fmt='.3f'):<40} "
+                      f"x{ratio:.2f} of 10^4's per point; command peak RSS {r['peak_rss'] / 2**20:.0f} MiB "
+                      f"(dataset {r['disk'] / 2**20:.1f} MiB)", flush=True)
+    return report
+
+
+if __name__ == "__main__":
+    print(json.dumps(main(), default=str))
