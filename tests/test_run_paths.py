@@ -66,6 +66,7 @@ def test_in_memory_route_refuses_file_options(in_tmp, small_duffing, option):
 def _slow_compile(monkeypatch, offset=1000.0, sleep=0.0):
     """The first evaluation of a run (the compile phase) moves the run's clock on by ``offset`` s."""
     shift = [0.0]
+    monkeypatch.setattr(runner, "_WARM", set())  # as in a fresh process: the compile phase runs
     real = runner.evaluate_rows
     calls = [0]
 

@@ -801,6 +801,17 @@ COMPILE_NOTE_AFTER = 0.5
 COMPILE_NOTE = "compiling kernels (first run only, cached afterwards)"
 
 
+# The kernels warm_up has compiled or loaded in this process, by _kernel_key.
+_WARM: set = set()
+
+
+def _kernel_key(scene: Scene) -> tuple:
+    """What selects a scene's kernels: the model (and the source of a user's model), the outputs
+    computed and the method. A user model file edited in the process changes ``model_key``."""
+    return (scene.model.name, scene.model_key, scene.model.source, scene.computed_outputs,
+            scene.solver.method if scene.solver is not None else None)
+
+
 def _clock() -> float:
     return time.perf_counter()
 
@@ -820,7 +831,11 @@ def warm_up(scene: Scene, params: ParameterMatrix, progress: bool | None, chunk:
     computing one point of ``chunk`` (the first of the grid by default), before the timed chunks
     and the progress bar. Its result is thrown away: the chunk computes the point again, with the
     same result. When the phase lasts longer than COMPILE_NOTE_AFTER seconds and a progress bar
-    is shown, it is announced on stderr (with its time when it ends). Returns its seconds."""
+    is shown, it is announced on stderr (with its time when it ends). Returns its seconds (0 when
+    this process has compiled or loaded the same kernels before: then nothing is computed)."""
+    key = _kernel_key(scene)
+    if key in _WARM:  # compiled (or loaded) in this process already: nothing to do, no extra launch
+        return 0.0
     start = 0 if chunk is None else chunk.start
     shown = _shows_progress(progress)
     noted = threading.Event()
@@ -840,6 +855,7 @@ def warm_up(scene: Scene, params: ParameterMatrix, progress: bool | None, chunk:
         if timer is not None:
             timer.cancel()
     seconds = _clock() - t0
+    _WARM.add(key)
     if noted.is_set():
         print(f"mechsweep: kernels compiled in {seconds:.1f} s", file=sys.stderr, flush=True)
     return seconds
