@@ -194,3 +194,8 @@ def test_reading_a_dataset_imports_no_kernels(in_tmp, small_duffing):
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip().splitlines()[-1] == "[]"
     assert mechsweep.run is runner.run and mechsweep.open_dataset is mechsweep.store.open_dataset
+
+
+def test_bench_startup_refuses_fewer_than_three_repeats(capsys):
+    assert main(["bench", "startup", "--repeats", "2", "--only", "warm"]) == 2
+    assert "--repeats = 2 is not allowed; expected a whole number in [3, 100]" in capsys.readouterr().err
