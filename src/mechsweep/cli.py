@@ -269,8 +269,9 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--full", action="store_true", help="scale to 10^7 integrated and 10^8 closed-form points (minutes)")
     b.add_argument("--repeats", type=int, default=3, help="measurements per figure, at least 3 (default 3)")
     b.add_argument("--scene", default="sweeps/quickstart.toml", help="the quickstart scene (default sweeps/quickstart.toml)")
-    b.add_argument("--only", choices=("warm", "quickstart", "scaling"), nargs="+", default=None,
-                   help="measure only these parts (default: all)")
+    b.add_argument("--only", choices=("warm", "quickstart", "scaling", "breakdown"), nargs="+", default=None,
+                   help="measure only these parts (default: warm quickstart scaling; breakdown: where the time "
+                        "goes, by function: the file route's fixed costs, chunk launches, a cold compile)")
     b.set_defaults(func=_cmd_bench_startup)
     b = bsub.add_parser("quickstart", help="time the quickstart (run + plot) in fresh processes, cold and warm JIT cache")
     b.add_argument("--scene", default="sweeps/quickstart.toml")

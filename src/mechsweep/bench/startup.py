@@ -131,13 +131,108 @@ def scaling(sizes: list[tuple[int, str]], repeats: int, folder: Path) -> list[di
     return rows
 
 
+COMPILE_CHILD = """
+import json, sys, time
+from numba.core import event
+rows, starts = [], {}
+class Listener(event.Listener):
+    def on_start(self, ev):
+        starts[id(ev.data["dispatcher"]), str(ev.data["args"])] = time.perf_counter()
+    def on_end(self, ev):
+        d = ev.data["dispatcher"]
+        rows.append((time.perf_counter() - starts[id(d), str(ev.data["args"])],
+                     d.py_func.__module__.split(".")[-1] + "." + d.py_func.__qualname__.split(".<locals>.")[-1]))
+event.register("numba:compile", Listener())
+import mechsweep
+ds = mechsweep.run(sys.argv[1], output=None)
+print(json.dumps({"rows": sorted(rows, reverse=True), "compile_time_s": ds.attrs["compile_time_s"]}))
+"""
+
+
+def breakdown(scene: Path, folder: Path, repeats: int) -> None:
+    """Where the time goes: the file route's fixed costs by function (10^3 points, warm), chunk
+    launches (10^4 points in 1 or 20 calls), and the compile of ``scene`` by function (numba's
+    compile events, in a fresh process with an empty JIT cache; times include what each calls)."""
+    import collections
+    import functools
+
+    import numpy as np
+
+    import mechsweep
+    from mechsweep import journal, runner, store
+    from mechsweep.grid import ParameterMatrix
+    from mechsweep.scene import load_scene
+
+    spent = collections.defaultdict(float)
+
+    def timed(owner, name, label):
+        original = getattr(owner, name)
+
+        @functools.wraps(original)
+        def wrapper(*a, **k):
+            t0 = time.perf_counter()
+            try:
+                return original(*a, **k)
+            finally:
+                spent[label] += time.perf_counter() - t0
+        return original, wrapper
+
+    patches = [(runner, n, n) for n in ("_check_existing", "_save_chunks", "_finish", "open_dataset", "drop",
+                                        "warm_up")]
+    patches += [(store, "_define", "store._define"), (journal.Journal, "create", "Journal.create"),
+                (journal.Journal, "write_chunk", "Journal.write_chunk")]
+    small = load_scene(duffing(10**3))
+    path = folder / "breakdown.h5"
+    mechsweep.run(small, output=path, progress=False)
+    originals = []
+    for owner, name, label in patches:
+        original, wrapper = timed(owner, name, label)
+        originals.append((owner, name, original))
+        setattr(owner, name, wrapper)
+    try:
+        t0 = time.perf_counter()
+        for _ in range(repeats):
+            mechsweep.run(small, output=path, progress=False)
+        total = (time.perf_counter() - t0) / repeats
+    finally:
+        for owner, name, original in originals:
+            setattr(owner, name, original)
+    print(f"  file route, 10^3 points, warm: {total * 1e3:.1f} ms a run (mean of {repeats}); inside it, ms a run "
+          "(nested: _finish holds store._define, _save_chunks holds Journal.write_chunk):")
+    for label, seconds in sorted(spent.items(), key=lambda kv: -kv[1]):
+        print(f"    {label:<22} {seconds / repeats * 1e3:8.1f}")
+    big = load_scene(duffing(10**4))
+    P = ParameterMatrix(big)(0, 10**4)
+    runner.evaluate_rows(big, P)
+    launches = {1: [], 20: []}
+    for _ in range(repeats):
+        for k in launches:
+            t0 = time.perf_counter()
+            for part in np.array_split(np.arange(10**4), k):
+                runner.evaluate_rows(big, P[part[0]:part[-1] + 1])
+            launches[k].append(time.perf_counter() - t0)
+    print("  10^4 points in 1 kernel call: " + _spread(launches[1], "ms", 1e3) + "; in 20 calls: "
+          + _spread(launches[20], "ms", 1e3))
+    env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(folder / "cache-breakdown"))
+    proc = subprocess.run([sys.executable, "-c", COMPILE_CHILD, str(scene)], env=env, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"compile breakdown failed:\n{proc.stderr[-2000:]}")
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    print(f"  cold compile of {scene.name}: {result['compile_time_s']:.1f} s, {len(result['rows'])} functions "
+          "compiled; the longest (s, including what each calls):")
+    for seconds, name in result["rows"][:15]:
+        print(f"    {seconds:7.2f}  {name}")
+
+
 def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.toml",
          parts: tuple[str, ...] = ("warm", "quickstart", "scaling")) -> dict:
+    """Measure and print ``parts``: "warm", "quickstart", "scaling" (the default), "breakdown"
+    (where the time goes; see :func:`breakdown`)."""
     from . import _args
 
     repeats = _args.count("--repeats", repeats, 3, 100)
     scene_path = Path(scene).resolve()
-    if "quickstart" in parts:
+    if "quickstart" in parts or "breakdown" in parts:
         if not scene_path.is_file():
             raise _args.InputError(f"--scene {scene} does not exist (run from the repository root, or give its path)")
         from mechsweep.scene import load_scene
@@ -187,6 +282,9 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
                 print(f"    {r['points']:>11,} {r['output']:<13} {_spread(per, 'us/point', fmt='.3f'):<40} "
                       f"x{ratio:.2f} of 10^4's per point; command peak RSS {r['peak_rss'] / 2**20:.0f} MiB "
                       f"(dataset {r['disk'] / 2**20:.1f} MiB)", flush=True)
+        if "breakdown" in parts:
+            print("  where the time goes:")
+            breakdown(scene_path, tmp, repeats)
     return report
 
 
