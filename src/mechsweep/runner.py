@@ -107,6 +107,11 @@ def run(
     ``worker_timeout`` (or ``[execution] worker_timeout``): on a cluster, seconds to wait for a lost
     scheduler or with no worker before the run stops with its journal kept.
 
+    The dataset's attributes ``compile_time_s`` (compiling the kernels, or loading them from the
+    JIT cache, before the first chunk; 0 when this process compiled them already; on a dask
+    cluster the workers compile inside their first chunk, counted as compute), ``compute_time_s``
+    (the chunks) and ``wall_time_s`` (their sum) say how long the run took.
+
     A failed write (disk full, file-size limit) raises ``OutOfSpace`` with the journal kept;
     SIGINT and SIGTERM raise ``RunInterrupted`` (when run in the main thread). ``compute`` does
     the same without opening the result (for status counts and sizes only).
