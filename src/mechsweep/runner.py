@@ -27,7 +27,7 @@ from .errors import ClusterLost, InputError, WriteFailed
 from .grid import Chunk, ChunkPlan, ParameterMatrix, chunk_target, plan_chunks
 from .journal import BadChunk, Journal, RunLock, discard_path, drop, lock_path, partial_path
 from .scene import Scene, check_scheduler, check_worker_timeout, load_scene, load_scene_text
-from .store import (COMPILE_KEY, StoreError, assemble, check_journal_files, file_kind, is_run_dataset, layout, open_dataset,
+from .store import (COMPILE_KEY, StoreError, assemble, check_journal_files, file_kind, layout, open_dataset,
                     status_counts)
 
 
@@ -96,10 +96,10 @@ def run(
     created when missing). ``output=None`` is the in-memory route: the grid is computed here and
     returned as an in-memory Dataset, and nothing is written (no file, journal or lock; for
     exploratory use: the values are bitwise those the file route stores; ``resume``, ``restart``,
-    ``overwrite``, ``load`` and a scheduler do not apply to it and are refused). With ``resume`` an unfinished run of the same
-    scene (``<path>.partial``) is completed, computing only its missing chunks; ``restart``
-    discards such a run. ``threads`` sets numba's thread count (default: all cores; on a dask
-    cluster: per worker, at most its cores).
+    ``overwrite``, ``load`` and a scheduler do not apply to it and are refused).
+    With ``resume`` an unfinished run of the same scene (``<path>.partial``) is completed,
+    computing only its missing chunks; ``restart`` discards such a run. ``threads`` sets numba's
+    thread count (default: all cores; on a dask cluster: per worker, at most its cores).
     ``progress`` shows a progress bar (default: only on a terminal). ``scheduler`` (or the scene's
     ``[execution] scheduler``) runs the chunks on that dask.distributed cluster instead of here.
     ``load``: the returned dataset is in memory (True), opened lazily (False), or loaded when it
@@ -221,10 +221,11 @@ def compute(
 
 def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, scheduler, load, worker_timeout,
                    overwrite, models) -> xr.Dataset:
-    """``run(output=None)``: the grid computed here, chunk by chunk as the file route computes it
-    (same chunks, same kernels, so bitwise the same values), into an in-memory Dataset described by
-    the code that describes a file (store._define). Nothing is written: no file, journal, lock or
-    folder, and no signal handler is installed (Ctrl-C raises KeyboardInterrupt; nothing is kept)."""
+    """``run(output=None)``: the grid computed here by the kernels the file route uses (a point's
+    result does not depend on the chunk it is in: bitwise the values the file route stores), into an
+    in-memory Dataset described by the code that describes a file (store._define). Nothing is
+    written: no file, journal, lock or folder, and no signal handler is installed (Ctrl-C raises
+    KeyboardInterrupt; nothing is kept)."""
     from .store import memory_store, time_attrs, write_memory
 
     given = [name for name, value in (("resume", resume), ("restart", restart), ("overwrite", overwrite))
@@ -249,7 +250,9 @@ def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, schedul
     shown = _shows_progress(progress)
     # Without a progress bar to feed, chunks only bound the scratch memory: as few as that allows
     # (each chunk is one parallel launch, costly on a busy machine). Results do not depend on the cut.
-    target = chunk_target(scene) if shown or scene.storage.chunk_size else max(chunk_target(scene), min(scene.n_points, _values_bound(scene)))
+    target = chunk_target(scene)
+    if not (shown or scene.storage.chunk_size):
+        target = max(target, min(scene.n_points, _values_bound(scene)))
     chunks = plan_chunks(scene.shape, target)
     lay = layout(scene, len(chunks))
     store = memory_store(scene, lay, provenance(scene, chunks))

@@ -259,7 +259,8 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
             q = quickstart(scene_path, repeats, tmp)
             report["quickstart"] = q
             print(f"  quickstart ({scene}) run + plot in fresh processes:")
-            for label, target, what in (("cold", TARGET_COLD_S, "empty JIT cache"), ("warm", TARGET_WARM_S, "JIT cache filled")):
+            for label, target, what in (("cold", TARGET_COLD_S, "empty JIT cache"),
+                                        ("warm", TARGET_WARM_S, "JIT cache filled")):
                 totals = [r + p for r, p, _ in q[label]]
                 med = statistics.median(totals)
                 print(f"    {label} ({what:<15}) total {_spread(totals, 's', fmt='.2f'):<30} target <= {target:g} s: "
@@ -278,7 +279,8 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
                   "(fresh process, interpreter included); target: linear in points, peak within chunk + interpreter:")
             for r in rows:
                 per = [s / r["points"] * 1e6 for s in r["seconds"]]
-                ratio = statistics.median(r["seconds"]) / r["points"] / base if r["output"] == "period" else float("nan")
+                per_point = statistics.median(r["seconds"]) / r["points"]
+                ratio = per_point / base if r["output"] == "period" else float("nan")
                 print(f"    {r['points']:>11,} {r['output']:<13} {_spread(per, 'us/point', fmt='.3f'):<40} "
                       f"x{ratio:.2f} of 10^4's per point; command peak RSS {r['peak_rss'] / 2**20:.0f} MiB "
                       f"(dataset {r['disk'] / 2**20:.1f} MiB)", flush=True)
