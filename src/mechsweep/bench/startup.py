@@ -149,6 +149,25 @@ print(json.dumps({"rows": sorted(rows, reverse=True), "compile_time_s": ds.attrs
 """
 
 
+WARM_LOAD_CHILD = """
+import cProfile, json, pstats, sys, time
+import mechsweep
+from mechsweep.grid import ParameterMatrix
+from mechsweep.runner import evaluate_rows
+scene = mechsweep.load_scene(sys.argv[1])
+P = ParameterMatrix(scene)(0, 1)
+profile = cProfile.Profile()
+t0 = time.perf_counter()
+profile.runcall(evaluate_rows, scene, P)
+total = time.perf_counter() - t0
+stats = pstats.Stats(profile).stats
+def cumulative(name):
+    return sum(v[3] for k, v in stats.items() if k[2] == name)
+print(json.dumps({"total": total, "registries": cumulative("load_additional_registries"),
+                  "blas": cumulative("ensure_blas")}))
+"""
+
+
 def breakdown(scene: Path, folder: Path, repeats: int) -> None:
     """Where the time goes: the file route's fixed costs by function (10^3 points, warm), chunk
     launches (10^4 points in 1 or 20 calls), and the compile of ``scene`` by function (numba's
@@ -222,6 +241,13 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
           "compiled; the longest (s, including what each calls):")
     for seconds, name in result["rows"][:15]:
         print(f"    {seconds:7.2f}  {name}")
+    proc = subprocess.run([sys.executable, "-c", WARM_LOAD_CHILD, str(scene)], env=env, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"warm load breakdown failed:\n{proc.stderr[-2000:]}")
+    w = json.loads(proc.stdout.strip().splitlines()[-1])
+    print(f"  warm compile phase of {scene.name} (JIT cache filled, fresh process, first one-point call, under "
+          f"cProfile): {w['total']:.2f} s, of which numba's target initialisation (load_additional_registries) "
+          f"{w['registries']:.2f} s, within it numba's BLAS check importing scipy.linalg (ensure_blas) {w['blas']:.2f} s")
 
 
 def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.toml",
