@@ -38,7 +38,7 @@ def test_invalid_scene_exit_2_no_traceback_no_file(in_tmp):
 def test_run_info_plot(in_tmp, capsys):
     scene = REPO / "sweeps" / "quickstart.toml"
     assert main(["run", str(scene), "-o", "data/runs/q.h5", "--no-progress", "--threads", "1"]) == 0
-    assert "wrote data/runs/q.h5" in capsys.readouterr().out
+    assert f"wrote {in_tmp / 'data/runs/q.h5'}:" in capsys.readouterr().out
     assert main(["info", "data/runs/q.h5"]) == 0
     info = capsys.readouterr().out
     for piece in ("dimensions:", "A ", "[rad]", "status: ok 1000", "steps", "solver: method=dop853", "wall time"):

@@ -3,29 +3,48 @@
 Public API::
 
     ds = mechsweep.run("sweeps/quickstart.toml")        # or a dict with the same structure
+    ds = mechsweep.run("sweeps/quickstart.toml", output=None)   # in memory, nothing written
     ds = mechsweep.open_dataset("data/runs/quickstart.h5")
     scene = mechsweep.load_scene("sweeps/quickstart.toml")
+
+The names are imported when first used (PEP 562): reading a dataset (``open_dataset``, ``mechsweep
+plot``) does not import numba and the models' kernels.
 """
 from __future__ import annotations
 
+import importlib
+
 __version__ = "0.1.0"
 
-from .errors import ClusterLost  # noqa: E402
-from .models import MODELS  # noqa: E402
-from .runner import OutOfSpace, RunInterrupted, run  # noqa: E402
-from .scene import Scene, SceneError, load_scene  # noqa: E402
-from .store import StoreError, open_dataset  # noqa: E402
+_EXPORTS = {
+    "ClusterLost": "errors",
+    "MODELS": "models",
+    "OutOfSpace": "runner",
+    "RunInterrupted": "runner",
+    "run": "runner",
+    "Scene": "scene",
+    "SceneError": "scene",
+    "load_scene": "scene",
+    "StoreError": "store",
+    "open_dataset": "store",
+}
 
-__all__ = [
-    "ClusterLost",
-    "MODELS",
-    "OutOfSpace",
-    "RunInterrupted",
-    "Scene",
-    "SceneError",
-    "StoreError",
-    "__version__",
-    "load_scene",
-    "open_dataset",
-    "run",
-]
+__all__ = sorted([*_EXPORTS, "__version__"])
+
+
+def __getattr__(name: str):
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    if not name.startswith("_"):  # a submodule not imported yet (mechsweep.store, ...), as before
+        try:
+            return importlib.import_module(f".{name}", __name__)
+        except ModuleNotFoundError as exc:
+            if exc.name != f"{__name__}.{name}":
+                raise
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_EXPORTS))

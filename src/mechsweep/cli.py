@@ -225,9 +225,9 @@ def _cmd_run(args) -> int:
     except RunInterrupted as exc:
         print(f"mechsweep run: {exc}", file=sys.stderr)
         return 128 + exc.signum
-    path = args.output or scene.storage.path
-    print(f"wrote {path}: {summary.sizes}, outputs {', '.join(scene.outputs)}; "
-          f"status {summary.status_names()}; wall time {summary.wall_time_s:.2f} s")
+    print(f"wrote {summary.path.resolve()}: {summary.sizes}, outputs {', '.join(scene.outputs)}; "
+          f"status {summary.status_names()}; wall time {summary.wall_time_s:.2f} s "
+          f"(compile {summary.compile_time_s:.2f} s, compute {summary.compute_time_s:.2f} s)")
     return 0
 
 
@@ -270,10 +270,25 @@ def _cmd_plot(args) -> int:
         for k, doc in extra.items():
             print(f"{k} (on request: --kind {k}): {doc}")
         return 0
-    fmt = args.format or (Path(args.output).suffix.lstrip(".") if args.output else "png")
+    # -o naming an existing folder: the figures go into it under their default names (a folder named
+    # like a figure file, x.png, is taken as a figure path and refused below: not a regular file)
+    folder = None
+    if args.output and os.path.isdir(args.output) and Path(args.output).suffix.lower() not in (".png", ".svg", ".pdf"):
+        folder = Path(args.output)
+    elif args.output and args.output.endswith(("/", os.sep)):
+        raise InputError(f"-o {args.output}: the folder does not exist; create it first (mkdir -p {args.output}) "
+                         "or give a figure file such as figure.png")
+    fmt = args.format or (Path(args.output).suffix.lstrip(".") if args.output and folder is None else "png")
     if fmt not in ("png", "svg", "pdf"):
-        raise InputError(f"figure format {fmt!r} is not allowed; expected png, svg or pdf")
-    out = Path(args.output) if args.output else Path(args.dataset).with_suffix("." + fmt)
+        raise InputError(f"figure format {fmt!r} (the suffix of -o {args.output}) is not allowed; expected png, svg "
+                         "or pdf (or -o an existing folder)" if args.output and not args.format else
+                         f"figure format {fmt!r} is not allowed; expected png, svg or pdf")
+    # a one-point figure has names of its own (never those of the full grid's figures): STEM_at_<point>
+    stem = Path(args.dataset).stem + (f"_at_{point_slug(ds)}" if args.point else "")
+    if args.output and folder is None:
+        out = Path(args.output)
+    else:
+        out = (folder if folder is not None else Path(args.dataset).parent) / f"{stem}.{fmt}"
     for target in figures.targets(ds, out, kind=args.kind, fmt=fmt):
         _check_figure_path(target, Path(args.dataset))
     with _laid_out(args.dataset):
@@ -357,6 +372,19 @@ def select_point(ds, text: str):
     numeric = {k: v for k, v in wanted.items() if ds[k].dtype.kind in "fiu"}
     other = {k: v for k, v in wanted.items() if k not in numeric}
     return ds.sel(numeric, method="nearest").sel(other)
+
+
+def point_slug(ds) -> str:
+    """The grid point a --point selection holds, for file names: 'A0.5_mu1.47' (its grid values,
+    '%g'; a categorical value as it is, characters unsafe in names replaced)."""
+    import re
+
+    parts = []
+    for dim in ds["status"].dims:  # each of size 1 after select_point
+        value = ds[dim].values.ravel()[0]
+        text = f"{float(value):.6g}" if ds[dim].dtype.kind in "fiu" else str(value)
+        parts.append(f"{dim}{text}")
+    return re.sub(r"[^A-Za-z0-9_.+-]", "-", "_".join(parts)) or "point"
 
 
 def _check_in_grid(key: str, value: float, grid) -> None:

@@ -11,10 +11,12 @@ import math
 import operator
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .scene import Scene
+if TYPE_CHECKING:  # not imported at run time: reading a dataset (plot, info) needs no model or numba
+    from .scene import Scene
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ from .errors import ClusterLost, InputError, WriteFailed
 from .grid import Chunk, ChunkPlan, ParameterMatrix, chunk_target, plan_chunks
 from .journal import BadChunk, Journal, RunLock, discard_path, drop, lock_path, partial_path
 from .scene import Scene, check_scheduler, check_worker_timeout, load_scene, load_scene_text
-from .store import (StoreError, assemble, check_journal_files, file_kind, is_run_dataset, layout, open_dataset,
+from .store import (COMPILE_KEY, StoreError, assemble, check_journal_files, file_kind, layout, open_dataset,
                     status_counts)
 
 
@@ -58,17 +58,29 @@ class RunSummary:
     path: Path
     sizes: dict  # dimension -> size: the grid's axes, then the outputs' extra dimensions
     status: dict  # status code -> number of points, counted chunk by chunk
-    wall_time_s: float
+    wall_time_s: float  # compile_time_s + compute_time_s
+    compile_time_s: float = 0.0  # JIT compilation (or loading the JIT cache) before the chunks
+    compute_time_s: float = 0.0  # the chunks: kernels and the writes of the journal
 
     def status_names(self) -> dict[str, int]:
         """Counts by status name ("ok", "max_steps", ...)."""
         return {st.MEANINGS.get(code, str(code)): n for code, n in self.status.items()}
 
 
+class _ScenePath:
+    """The default of ``run(output=...)``: the scene's ``[storage] path``."""
+
+    def __repr__(self) -> str:
+        return "<the scene's [storage] path>"
+
+
+SCENE_PATH = _ScenePath()
+
+
 def run(
     scene_or_path: str | os.PathLike | Mapping | Scene,
     *,
-    output: str | os.PathLike | None = None,
+    output: str | os.PathLike | None | _ScenePath = SCENE_PATH,
     resume: bool = False,
     restart: bool = False,
     threads: int | None = None,
@@ -81,16 +93,25 @@ def run(
 ) -> xr.Dataset:
     """Compute a scene's grid and return the stored dataset.
 
-    ``output`` overrides ``[storage] path``. With ``resume`` an unfinished run of the same
-    scene (``<path>.partial``) is completed, computing only its missing chunks; ``restart``
-    discards such a run. ``threads`` sets numba's thread count (default: all cores; on a dask
-    cluster: per worker, at most its cores).
+    ``output`` overrides ``[storage] path`` (by default the dataset goes there; its folder is
+    created when missing). ``output=None`` is the in-memory route: the grid is computed here and
+    returned as an in-memory Dataset, and nothing is written (no file, journal or lock; for
+    exploratory use: the values are bitwise those the file route stores; ``resume``, ``restart``,
+    ``overwrite``, ``load`` and a scheduler do not apply to it and are refused).
+    With ``resume`` an unfinished run of the same scene (``<path>.partial``) is completed,
+    computing only its missing chunks; ``restart`` discards such a run. ``threads`` sets numba's
+    thread count (default: all cores; on a dask cluster: per worker, at most its cores).
     ``progress`` shows a progress bar (default: only on a terminal). ``scheduler`` (or the scene's
     ``[execution] scheduler``) runs the chunks on that dask.distributed cluster instead of here.
     ``load``: the returned dataset is in memory (True), opened lazily (False), or loaded when it
     is at most store.LOAD_LIMIT_BYTES (None, default).
     ``worker_timeout`` (or ``[execution] worker_timeout``): on a cluster, seconds to wait for a lost
     scheduler or with no worker before the run stops with its journal kept.
+
+    The dataset's attributes ``compile_time_s`` (compiling the kernels, or loading them from the
+    JIT cache, before the first chunk; 0 when this process compiled them already; on a dask
+    cluster the workers compile inside their first chunk, counted as compute), ``compute_time_s``
+    (the chunks) and ``wall_time_s`` (their sum) say how long the run took.
 
     A failed write (disk full, file-size limit) raises ``OutOfSpace`` with the journal kept;
     SIGINT and SIGTERM raise ``RunInterrupted`` (when run in the main thread). ``compute`` does
@@ -104,6 +125,12 @@ def run(
     locally (a dask cluster is refused; name the model as "file.py:NAME" or "package.module:NAME"
     in the scene for that).
     """
+    if output is None:
+        return _run_in_memory(scene_or_path, resume=resume, restart=restart, threads=threads, progress=progress,
+                              scheduler=scheduler, load=load, worker_timeout=worker_timeout, overwrite=overwrite,
+                              models=models)
+    if isinstance(output, _ScenePath):
+        output = None
     lazy = None if load is None else not load
     summary = compute(scene_or_path, output=output, resume=resume, restart=restart, threads=threads,
                       progress=progress, scheduler=scheduler, worker_timeout=worker_timeout, overwrite=overwrite,
@@ -137,7 +164,10 @@ def compute(
         raise StoreError(f"output path {output} ends with a path separator; give a file path such as "
                          f"{Path(output) / 'run.h5'}")
     final = Path(output if output is not None else scene.storage.path)
-    check_target(final)
+    # the scene's default folder (data/runs/ relative to the working directory) is created when
+    # missing; a folder given with output= must exist (a typo there is refused, not created)
+    make_folder = output is None and not os.path.lexists(final.parent)
+    check_target(final, create_folder=make_folder)
     if scheduler is not None and (why := check_scheduler(scheduler)) is not None:
         raise InputError(f"scheduler {why}")
     scheduler = scheduler if scheduler is not None else scene.execution.scheduler
@@ -159,6 +189,13 @@ def compute(
     finished = _check_existing(scene, final, resume, restart, target, len(chunks), overwrite)
     # A cluster that does not answer is refused here, before the lock and the journal exist.
     client = _connect(scheduler) if scheduler and not finished else None
+    if make_folder:  # every check passed: only now is anything created
+        try:
+            final.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            if client is not None:
+                _disconnect(client)
+            raise StoreError(f"cannot create the folder {final.parent} for output {final}: {exc.strerror}") from None
     try:
         with _Signals() as signals:
             try:
@@ -169,7 +206,7 @@ def compute(
                                           signals, worker_timeout, client)
                     else:  # True: a resume found the run finished
                         counts = status_counts(final)
-                    wall_time = _wall_time(final)
+                    times = _times(final)
             except WriteFailed as exc:
                 raise OutOfSpace(_out_of_space(exc, scene, final, len(chunks))) from None
             except ClusterLost as exc:
@@ -180,7 +217,87 @@ def compute(
     finally:
         if client is not None:
             _disconnect(client)
-    return RunSummary(final, _sizes(scene), counts, wall_time)
+    return RunSummary(final, _sizes(scene), counts, *times)
+
+
+def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, scheduler, load, worker_timeout,
+                   overwrite, models) -> xr.Dataset:
+    """``run(output=None)``: the grid computed here by the kernels the file route uses (a point's
+    result does not depend on the chunk it is in: bitwise the values the file route stores), into an
+    in-memory Dataset described by the code that describes a file (store._define). Nothing is
+    written: no file, journal, lock or folder, and no signal handler is installed (Ctrl-C raises
+    KeyboardInterrupt; nothing is kept)."""
+    from .store import memory_store, time_attrs, write_memory
+
+    given = [name for name, value in (("resume", resume), ("restart", restart), ("overwrite", overwrite))
+             if value] + [name for name, value in (("load", load), ("scheduler", scheduler),
+                                                    ("worker_timeout", worker_timeout)) if value is not None]
+    if given:
+        raise InputError(f"output=None (the in-memory route) computes here and writes nothing: {', '.join(given)} "
+                         "does not apply to it; give an output path to use it")
+    if models is not None and not isinstance(models, Mapping):
+        raise InputError(f"models must be a mapping of model name -> OdeModel, got {type(models).__name__}")
+    scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path, models=models)
+    if scene.execution.scheduler:
+        raise InputError(f"output=None (the in-memory route) runs here; the scene's [execution] scheduler "
+                         f"{scene.execution.scheduler} is not used by it: give an output path to run on the cluster")
+    _check_threads(threads)
+    need = _memory_bytes(scene)
+    available = _available_memory()
+    if available is not None and need > available:
+        raise StoreError(f"the dataset of {scene.n_points:,} points would need about {_size(need)} of memory, "
+                         f"{_size(available)} is available; give an output path (the file route keeps memory "
+                         "bounded by a chunk) or make the grid coarser")
+    shown = _shows_progress(progress)
+    # Without a progress bar to feed, chunks only bound the scratch memory: as few as that allows
+    # (each chunk is one parallel launch, costly on a busy machine). Results do not depend on the cut.
+    target = chunk_target(scene)
+    if not (shown or scene.storage.chunk_size):
+        target = max(target, min(scene.n_points, _values_bound(scene)))
+    chunks = plan_chunks(scene.shape, target)
+    lay = layout(scene, len(chunks))
+    store = memory_store(scene, lay, provenance(scene, chunks))
+    params = ParameterMatrix(scene)
+    bar = None
+    with _threads(threads):
+        threads_used = numba.get_num_threads()
+        compile_s = warm_up(scene, params, progress)
+        t0 = _clock()
+        if shown:
+            from tqdm.auto import tqdm
+
+            bar = tqdm(total=scene.n_points, unit="pt", unit_scale=scene.n_points >= 100_000, dynamic_ncols=True,
+                       desc=scene.name, smoothing=0.1)
+        try:
+            for chunk in chunks:
+                columns, status, n_steps, n_rhs = evaluate_chunk(scene, chunk, params)
+                arrays = {**columns, "status": status}
+                if scene.solver is not None:
+                    arrays.update(n_steps=n_steps, n_rhs=n_rhs)
+                write_memory(store, chunk.region, arrays, lay.shape)
+                if bar is not None:
+                    bar.update(chunk.size)
+        finally:
+            if bar is not None:
+                bar.close()
+        compute_s = _clock() - t0
+    store.attrs.update({"execution": f"local, {threads_used} threads", "threads": threads_used})
+    store.attrs.update(time_attrs(compile_s, compute_s))
+    return store.dataset()
+
+
+def _values_bound(scene: Scene) -> int:
+    """Points whose computed values fill grid.CHUNK_VALUES (the largest default chunk)."""
+    from .grid import CHUNK_VALUES
+
+    per_point = sum(int(np.prod(extra_shape(scene, name), dtype=np.int64)) for name in scene.computed_outputs)
+    return max(1, CHUNK_VALUES // max(1, per_point))
+
+
+def _memory_bytes(scene: Scene) -> int:
+    """Memory of an in-memory dataset: its variables, and the chunk being computed."""
+    return bytes_per_point(scene) * scene.n_points + CHUNK_MEMORY_FACTOR * bytes_per_point(scene) * min(
+        chunk_target(scene), scene.n_points)
 
 
 def _from_python(scene: Scene, models: Mapping) -> bool:
@@ -205,11 +322,16 @@ def _sizes(scene: Scene) -> dict:
     return sizes
 
 
-def _wall_time(final: Path) -> float:
+def _times(final: Path) -> tuple[float, float, float]:
+    """(wall, compile, compute) seconds stored with a dataset (compile 0 and compute = wall for a
+    dataset written before they were stored apart)."""
     import h5py
 
     with h5py.File(final, "r") as f:
-        return float(np.ravel(f.attrs["wall_time_s"])[0])
+        wall = float(np.ravel(f.attrs["wall_time_s"])[0])
+        compile_s = float(np.ravel(f.attrs.get("compile_time_s", 0.0))[0])
+        compute_s = float(np.ravel(f.attrs.get("compute_time_s", wall))[0])
+    return wall, compile_s, compute_s
 
 
 def _interrupted(final: Path, signum: int) -> str:
@@ -304,8 +426,7 @@ def _holds_same_scene(final: Path, scene: Scene, overwrite: bool) -> bool | None
     if not final.exists() or final.stat().st_size == 0:
         return None
     try:
-        with open_dataset(final, lazy=True) as ds:
-            same = same_scene(ds.attrs, scene) if is_run_dataset(ds) else None
+        same = _stored_same_scene(final, scene)
     except StoreError as exc:
         if overwrite:
             return False
@@ -319,6 +440,34 @@ def _holds_same_scene(final: Path, scene: Scene, overwrite: bool) -> bool | None
                          "values or solver settings differ); use --overwrite to replace it, or choose "
                          "another path with -o")
     return bool(same)
+
+
+def _stored_same_scene(final: Path, scene: Scene) -> bool | None:
+    """Whether the dataset at ``final`` is a run of ``scene`` (None: a benchmark's dataset), from its
+    attributes alone (read with h5py: a re-run does not pay for opening the dataset with xarray).
+    StoreError when it is not a dataset mechsweep wrote."""
+    import h5py
+
+    from .store import RUN_ATTRS, check_dataset_file
+
+    check_dataset_file(final)  # a regular HDF5 file with a run's (or a benchmark's) attributes
+    try:
+        with h5py.File(final, "r") as f:
+            keys = ("scene_canonical", "scene", "scene_folder") + RUN_ATTRS
+            attrs = {k: _attr_text(f.attrs[k]) for k in keys if k in f.attrs}
+            run = all(a in attrs for a in RUN_ATTRS) and "status" in f
+    except Exception as exc:  # damaged internals: as check_dataset_file says it
+        raise StoreError(f"{final} is not a mechsweep dataset: it is an HDF5 file that cannot be read "
+                         f"({str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__})") from None
+    return same_scene(attrs, scene) if run else None
+
+
+def _attr_text(value):
+    if isinstance(value, bytes):
+        return value.decode(errors="replace")
+    if isinstance(value, np.ndarray) and value.size == 1:
+        return _attr_text(value.ravel()[0])
+    return value
 
 
 def same_scene(attrs: Mapping, scene: Scene) -> bool:
@@ -355,9 +504,14 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
         with _threads(None if scheduler else threads):
             where = (f"dask scheduler {scheduler}, {threads or 'all'} numba threads per worker" if scheduler
                      else f"local, {numba.get_num_threads()} threads")
+            # here the kernels are compiled (or loaded from the JIT cache) before the timed chunks;
+            # dask workers compile inside their first chunk (counted as compute time)
+            params = ParameterMatrix(scene)
+            compile_s = warm_up(scene, params, progress, todo[0]) if todo and not scheduler else 0.0
             results = (_dask_results(scene, todo, scheduler, threads, worker_timeout, client) if scheduler
-                       else _local_results(scene, todo))
-            _save_chunks(scene, journal, results, todo, scene.n_points - sum(c.size for c in todo), progress)
+                       else _local_results(scene, todo, params))
+            _save_chunks(scene, journal, results, todo, scene.n_points - sum(c.size for c in todo), progress,
+                         compile_s)
             attrs = {**journal.meta["attrs"], "execution": where}
             if not scheduler:
                 attrs["threads"] = numba.get_num_threads()
@@ -471,8 +625,18 @@ def _least_bytes(scene: Scene) -> int:
     return 8 * scene.n_points * sum(int(np.prod(extra_shape(scene, name), dtype=np.int64)) for name in scene.outputs)
 
 
-def check_target(final: Path) -> None:
-    """Refuse an output path that cannot work, before any computation."""
+def _existing_ancestor(path: Path) -> Path:
+    """The nearest folder (or file) on the way up from ``path`` that exists."""
+    path = Path(os.path.abspath(path))
+    while not os.path.lexists(path) and path != path.parent:
+        path = path.parent
+    return path
+
+
+def check_target(final: Path, create_folder: bool = False) -> None:
+    """Refuse an output path that cannot work, before any computation. ``create_folder``: the
+    folder of ``final`` is missing and will be created (then its nearest existing ancestor must
+    be a writable folder)."""
     if "\0" in str(final):
         raise StoreError(f"output path {str(final)!r} contains a NUL character")
     try:
@@ -500,6 +664,15 @@ def check_target(final: Path) -> None:
             raise StoreError(f"{path} (the run's {'lock' if want == 'a file' else 'journal being deleted'}) is "
                              f"{_kind(path)}, not {want} mechsweep made; move it away or choose another path with -o")
     parent = final.parent
+    if create_folder and not os.path.lexists(parent):
+        base = _existing_ancestor(parent)
+        if not base.is_dir():
+            raise StoreError(f"{base} (in output path {final}) is {_kind(base)}, not a folder; the folder {parent} "
+                             "cannot be created there: choose another path with -o")
+        if not _writable(base):
+            raise StoreError(f"cannot create the folder {parent} for output {final}: {base} is not writable "
+                             "(permission denied)")
+        return
     if parent.exists() and not parent.is_dir():
         raise StoreError(f"{parent} (in output path {final}) is a file, not a folder; choose another path with -o")
     if not parent.is_dir():
@@ -545,7 +718,7 @@ def check_size(scene: Scene, final: Path, chunk_points: int, saved: int) -> None
                          f"(at most {max(1, available // (CHUNK_MEMORY_FACTOR * per_point)):,} points)")
     data = per_point * scene.n_points
     need = max(0, 2 * data - saved)
-    free = shutil.disk_usage(final.parent).free + (final.stat().st_size if final.exists() else 0)
+    free = shutil.disk_usage(_existing_ancestor(final.parent)).free + (final.stat().st_size if final.exists() else 0)
     if need > free:
         raise StoreError(f"the dataset {final} would need {_size(data)} ({scene.n_points:,} points x "
                          f"{_size(per_point)}), and {_size(need)} free until the run ends (its journal of "
@@ -631,9 +804,75 @@ def evaluate_rows(scene: Scene, P: np.ndarray):
     return requested, status, n_steps, n_rhs
 
 
-def _local_results(scene: Scene, todo: list[Chunk]):
+# The compile phase is announced only when it lasts longer than this (seconds): a warm JIT cache
+# loads in a fraction of it, and then nothing is printed.
+COMPILE_NOTE_AFTER = 0.5
+COMPILE_NOTE = "compiling kernels (first run only, cached afterwards)"
+
+
+# The kernels warm_up has compiled or loaded in this process, by _kernel_key.
+_WARM: set = set()
+
+
+def _kernel_key(scene: Scene) -> tuple:
+    """What selects a scene's kernels: the model (and the source of a user's model), the outputs
+    computed and the method. A user model file edited in the process changes ``model_key``."""
+    return (scene.model.name, scene.model_key, scene.model.source, scene.computed_outputs,
+            scene.solver.method if scene.solver is not None else None)
+
+
+def _clock() -> float:
+    return time.perf_counter()
+
+
+def _shows_progress(progress: bool | None) -> bool:
+    """Whether a progress bar is shown: ``progress``, or by default when stderr is a terminal."""
+    if progress is not None:
+        return bool(progress)
+    try:
+        return sys.stderr.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
+def warm_up(scene: Scene, params: ParameterMatrix, progress: bool | None, chunk: Chunk | None = None) -> float:
+    """Compile the scene's kernels (numba compiles, or loads from its disk cache, on first call) by
+    computing one point of ``chunk`` (the first of the grid by default), before the timed chunks
+    and the progress bar. Its result is thrown away: the chunk computes the point again, with the
+    same result. When the phase lasts longer than COMPILE_NOTE_AFTER seconds and a progress bar
+    is shown, it is announced on stderr (with its time when it ends). Returns its seconds (0 when
+    this process has compiled or loaded the same kernels before: then nothing is computed)."""
+    key = _kernel_key(scene)
+    if key in _WARM:  # compiled (or loaded) in this process already: nothing to do, no extra launch
+        return 0.0
+    start = 0 if chunk is None else chunk.start
+    shown = _shows_progress(progress)
+    noted = threading.Event()
+
+    def note():
+        noted.set()
+        print(f"mechsweep: {COMPILE_NOTE} ...", file=sys.stderr, flush=True)
+
+    timer = threading.Timer(COMPILE_NOTE_AFTER, note) if shown else None
+    t0 = _clock()
+    if timer is not None:
+        timer.daemon = True
+        timer.start()
+    try:
+        evaluate_rows(scene, params(start, start + 1))
+    finally:
+        if timer is not None:
+            timer.cancel()
+    seconds = _clock() - t0
+    _WARM.add(key)
+    if noted.is_set():
+        print(f"mechsweep: kernels compiled in {seconds:.1f} s", file=sys.stderr, flush=True)
+    return seconds
+
+
+def _local_results(scene: Scene, todo: list[Chunk], params: ParameterMatrix | None = None):
     """Chunks computed here, in order, each by the numba kernels on all threads."""
-    params = ParameterMatrix(scene)
+    params = params or ParameterMatrix(scene)
     for chunk in todo:
         yield chunk, evaluate_chunk(scene, chunk, params)
 
@@ -645,10 +884,13 @@ def _dask_results(scene: Scene, todo: list[Chunk], scheduler: str, threads: int 
     return dask_results(scene, todo, scheduler, threads, worker_timeout=worker_timeout, client=client)
 
 
-def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], already: int, progress) -> None:
+def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], already: int, progress,
+                 compile_s: float = 0.0) -> None:
     """Save each computed chunk to the journal as it arrives; the write of one chunk overlaps the
     computation of the next (kernels release the GIL). At most one chunk waits to be written, so
-    memory stays bounded by the chunk size."""
+    memory stays bounded by the chunk size. Each chunk file carries its compute time (since the
+    previous chunk); the first of this session also ``compile_s``, the compile phase before it
+    (kept apart: store.assemble sums both kinds into the dataset's attributes)."""
     from concurrent.futures import ThreadPoolExecutor
 
     from tqdm.auto import tqdm
@@ -657,14 +899,17 @@ def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], alr
                dynamic_ncols=True, desc=scene.name, disable=(None if progress is None else not progress),
                smoothing=0.1)
     pending = None
-    clock = {"last": time.perf_counter()}
+    clock = {"last": _clock(), "compile": compile_s}
 
     def write(chunk, result):
         columns, status, n_steps, n_rhs = result
         arrays = {**columns, "status": status}
         if scene.solver is not None:
             arrays.update(n_steps=n_steps, n_rhs=n_rhs)
-        now = time.perf_counter()  # the wall time up to this chunk is saved with it (survives a kill)
+        if clock["compile"]:
+            arrays[COMPILE_KEY] = np.float64(clock["compile"])
+            clock["compile"] = 0.0
+        now = _clock()  # the wall time up to this chunk is saved with it (survives a kill)
         journal.write_chunk(chunk.index, arrays, now - clock["last"])
         clock["last"] = now
 

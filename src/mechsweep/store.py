@@ -19,6 +19,7 @@ import stat
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import h5netcdf
 import h5py
@@ -30,7 +31,9 @@ from . import status as st
 from .errors import StoreError, WriteFailed  # noqa: F401  (StoreError: part of this module's API)
 from .grid import plan_chunks
 from .journal import BadChunk, Journal, partial_path  # noqa: F401  (partial_path: part of this module's API)
-from .scene import Scene, load_scene_text
+
+if TYPE_CHECKING:  # not imported at run time: reading a dataset (plot, info) needs no model or numba
+    from .scene import Scene
 
 # Datasets up to this size are loaded into memory by open_dataset(lazy=None); larger ones are
 # opened lazily, so that the memory a run or a plot needs stays bounded by a chunk, not the grid.
@@ -72,7 +75,8 @@ def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, 
     view): every variable defined, each journaled chunk written into its region, one chunk in
     memory at a time. Chunks not in the journal keep the fill values (NaN, status PENDING), and so
     do chunk files that do not verify: they are returned (the file is still complete). The
-    attribute ``wall_time_s`` is the sum of the written chunks' wall times. Also returned: the
+    attributes ``compute_time_s`` (the sum of the written chunks' wall times), ``compile_time_s``
+    (the compile phases the chunk files carry) and ``wall_time_s`` (their sum). Also returned: the
     number of points per status code, counted as the chunks pass (PENDING for chunks not written).
 
     To a path the file is written through ``_GuardedFile`` and synced; a failed write raises
@@ -111,7 +115,7 @@ def _assemble(journal, scene, lay, chunks, target, attrs, stop) -> tuple[list[Ba
     with h5py.File(target, "a") as f:
         names = list(lay.outputs) + ["status"] + (["n_steps", "n_rhs"] if lay.integrated else [])
         variables = {name: f[name] for name in names}
-        wall_time = 0.0
+        wall_time = compile_time = 0.0
         counts = Counts()
         for i in np.flatnonzero(journal.done_chunks()):
             if stop():
@@ -123,16 +127,29 @@ def _assemble(journal, scene, lay, chunks, target, attrs, stop) -> tuple[list[Ba
                 bad.append(exc)
                 continue
             wall_time += seconds
+            compile_time += float(arrays.pop(COMPILE_KEY, 0.0))
             counts.add(arrays["status"])
             shape = _region_shape(chunk.region, lay.shape)
             for name, var in variables.items():
                 values = arrays[name]
                 var[chunk.region + (slice(None),) * (values.ndim - 1)] = values.reshape(shape + values.shape[1:])
-        f.attrs["wall_time_s"] = wall_time
+        f.attrs.update(time_attrs(compile_time, wall_time))
     missing = int(np.prod(lay.shape, dtype=np.int64)) - counts.total
     if missing:
         counts.codes[st.PENDING] = counts.codes.get(st.PENDING, 0) + missing
     return bad, dict(sorted(counts.codes.items()))
+
+
+# The key under which a chunk file of the journal carries the compile phase that preceded it.
+COMPILE_KEY = "__compile_time_s"
+
+
+def time_attrs(compile_s: float, compute_s: float) -> dict:
+    """The dataset's time attributes: ``compile_time_s`` (JIT compilation, or loading the JIT
+    cache, before the chunks), ``compute_time_s`` (the chunks: kernels and writes of the journal)
+    and ``wall_time_s``, their sum (the run's time, as before they were stored apart)."""
+    return {"compile_time_s": float(compile_s), "compute_time_s": float(compute_s),
+            "wall_time_s": float(compile_s) + float(compute_s)}
 
 
 class Counts:
@@ -562,6 +579,8 @@ def _assemble_partial(part: Path) -> xr.Dataset:
     if journal.empty:
         raise FileNotFoundError(f"{part} holds no finished chunk yet")
     attrs = journal.meta.get("attrs") if isinstance(journal.meta.get("attrs"), dict) else {}
+    from .scene import load_scene_text
+
     scene = load_scene_text(journal.meta["scene"], label=str(part / "run.json"),
                             base=attrs.get("scene_folder") or None)
     chunks = plan_chunks(scene.shape, journal.meta["chunk_target"])
@@ -581,3 +600,65 @@ def _have_dask() -> bool:
     except ImportError:
         return False
     return True
+
+
+# ----------------------------------------------------------------------------- in memory
+class _MemoryVariable:
+    """A variable of ``_MemoryFile``: a numpy array and its attributes."""
+
+    def __init__(self, dims: tuple[str, ...], shape: tuple[int, ...], dtype, fillvalue):
+        self.dims = tuple(dims)
+        string = h5py.check_string_dtype(np.dtype(dtype)) is not None if dtype is not None else False
+        self.data = np.empty(shape, dtype=object if string else dtype)
+        if fillvalue is not None:
+            self.data[...] = fillvalue
+        elif not string:
+            self.data[...] = 0
+        self.attrs: dict = {} if fillvalue is None else {"_FillValue": fillvalue}
+
+    def __setitem__(self, key, value) -> None:
+        self.data[key] = value
+
+
+class _MemoryFile:
+    """Stands in for the h5netcdf file ``_define`` writes, so that the in-memory route describes its
+    variables with the very code that describes a file's (names, dims, units, attributes)."""
+
+    def __init__(self):
+        self.dimensions: dict[str, int] = {}
+        self.variables: dict[str, _MemoryVariable] = {}
+        self.attrs: dict = {}
+
+    def create_variable(self, name, dims, dtype=None, fillvalue=None, chunks=None, **_storage):
+        v = _MemoryVariable(dims, tuple(self.dimensions[d] for d in dims), dtype, fillvalue)
+        self.variables[name] = v
+        return v
+
+    def dataset(self) -> xr.Dataset:
+        """The Dataset xarray would decode from the file (CF: ``coordinates`` attributes name
+        coordinates, ``_FillValue`` goes to the encoding, dimension variables are indexes)."""
+        coords = set(self.dimensions)
+        for v in self.variables.values():
+            coords.update(str(v.attrs.get("coordinates", "")).split())
+        data_vars, coord_vars = {}, {}
+        for name, v in self.variables.items():
+            attrs = {k: a for k, a in v.attrs.items() if k not in ("_FillValue", "coordinates")}
+            var = xr.Variable(v.dims, v.data, attrs)
+            (coord_vars if name in coords else data_vars)[name] = var
+        return xr.Dataset(data_vars, coords=coord_vars, attrs=dict(self.attrs))
+
+
+def memory_store(scene: Scene, lay: Layout, attrs: dict) -> _MemoryFile:
+    """An in-memory store of a run's dataset, defined as ``assemble`` defines the file: outputs NaN,
+    status PENDING until ``write_memory`` fills their regions."""
+    f = _MemoryFile()
+    _define(f, scene, lay, attrs)
+    return f
+
+
+def write_memory(f: _MemoryFile, region: tuple, arrays: dict, shape: tuple[int, ...]) -> None:
+    """Write one chunk's arrays (flat over its points) into ``region`` of the grid, as ``_assemble``
+    writes a chunk into the file."""
+    rshape = _region_shape(region, shape)
+    for name, values in arrays.items():
+        f.variables[name][region + (slice(None),) * (values.ndim - 1)] = values.reshape(rshape + values.shape[1:])

@@ -1,0 +1,320 @@
+"""`mechsweep bench startup`: the fixed costs of a run, its cold start, and its cost per point.
+
+Each figure is printed with its target beside it (issue 15, goals 2, 3 and 5), as the median of
+``repeats`` (>= 3) measurements and their spread (min .. max):
+
+- warm ``mechsweep.run`` of 10^3 and 10^4 Duffing points (integrated period, DOP853, rtol 1e-10),
+  in memory (``output=None``; targets 10 ms and 25 ms) and to a file (no target: the file route
+  adds the journal, its fsyncs, the HDF5 assembly and the opening of the result), interleaved with
+  the kernel alone on the same grid (one call, no run around it: the difference is the run's fixed
+  cost, which is what a busy machine does not blur);
+- the quickstart (``mechsweep run sweeps/quickstart.toml`` then ``mechsweep plot``) in fresh
+  processes, cold (an empty JIT cache folder of its own for each repetition; target 8 s) and
+  warm (target 2.5 s); the run's own compile and compute times are read from its dataset;
+- the cost per point of ``mechsweep.run`` to a file from 10^4 to 10^6 integrated points (--full:
+  to 10^7 integrated and 10^8 closed-form points), warm, and the peak resident memory of the
+  command ``mechsweep run`` on the same grid (a fresh process, interpreter included; bench memory
+  explains the measurement).
+"""
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from . import memory
+
+TARGET_WARM_MS = {10**3: 10.0, 10**4: 25.0}
+TARGET_COLD_S = 8.0
+TARGET_WARM_S = 2.5
+RTOL, ATOL = 1e-10, 1e-12
+
+
+def duffing(n: int, output: str = "period") -> dict:
+    """A Duffing scene of ``n`` points (one axis, mu), the bench's standard small grid."""
+    data = memory.scene((n,), output)
+    data["scene"]["name"] = "bench-startup"
+    data["solver"].update(rtol=RTOL, atol=ATOL)
+    return data
+
+
+def _spread(values: list[float], unit: str, scale: float = 1.0, fmt: str = ".1f") -> str:
+    v = [x * scale for x in values]
+    return f"{statistics.median(v):{fmt}} {unit} ({min(v):{fmt}} .. {max(v):{fmt}}, {len(v)} runs)"
+
+
+def _verdict(value: float, target: float) -> str:
+    return "met" if value <= target else "NOT met"
+
+
+def warm_small(repeats: int, folder: Path) -> dict:
+    """Seconds of warm runs of 10^3 and 10^4 points, in memory and to a file: {(n, route): [s]}."""
+    import mechsweep
+    from mechsweep.grid import ParameterMatrix
+    from mechsweep.runner import evaluate_rows
+    from mechsweep.scene import load_scene
+
+    out = {}
+    for n in TARGET_WARM_MS:
+        scene = load_scene(duffing(n))
+        path = folder / f"warm{n}.h5"
+        mechsweep.run(scene, output=None)  # compile or load the kernels first
+        mechsweep.run(scene, output=path, progress=False)
+        P = ParameterMatrix(scene)(0, n)
+        times = {"kernel": [], "memory": [], "file": []}
+        for _ in range(repeats):  # interleaved: a burst of load on the machine hits all three alike
+            for route in times:
+                t0 = time.perf_counter()
+                if route == "kernel":
+                    evaluate_rows(scene, P)
+                elif route == "memory":
+                    mechsweep.run(scene, output=None)
+                else:
+                    mechsweep.run(scene, output=path, progress=False)
+                times[route].append(time.perf_counter() - t0)
+        for route, v in times.items():
+            out[n, route] = v
+    return out
+
+
+def _command(args: list[str], env: dict, cwd: Path) -> float:
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "mechsweep.cli", *args], env=env, cwd=cwd, capture_output=True,
+                          text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"mechsweep {' '.join(args)} failed:\n{proc.stderr[-2000:]}")
+    return time.perf_counter() - t0
+
+
+def quickstart(scene: Path, repeats: int, folder: Path) -> dict:
+    """Cold and warm quickstart (run + plot) in fresh processes: {label: [(run s, plot s, compile s)]}."""
+    import h5py
+
+    result = {"cold": [], "warm": []}
+    out = folder / "quickstart.h5"
+    for label in ("cold", "warm"):
+        for i in range(repeats):
+            cache = folder / (f"cache-cold-{i}" if label == "cold" else "cache-cold-0")  # warm: filled by cold 0
+            env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(cache))
+            run_s = _command(["run", str(scene), "-o", str(out), "--no-progress", "--overwrite"], env, folder)
+            plot_s = _command(["plot", str(out)], env, folder)
+            with h5py.File(out, "r") as f:
+                compile_s = float(f.attrs.get("compile_time_s", float("nan")))
+            result[label].append((run_s, plot_s, compile_s))
+    return result
+
+
+def scaling(sizes: list[tuple[int, str]], repeats: int, folder: Path) -> list[dict]:
+    """Warm cost per point of ``compute`` to a file, and the peak RSS of the command on the same grid."""
+    from mechsweep.runner import compute
+    from mechsweep.scene import load_scene
+
+    rows = []
+    for n, output in sizes:
+        scene = load_scene(duffing(n, output))
+        path = folder / f"scale{n}.h5"
+        compute(load_scene(duffing(1000, output)), output=folder / "w.h5", progress=False, overwrite=True)
+        times = []
+        for _ in range(repeats if n <= 10**6 else 1):
+            t0 = time.perf_counter()
+            compute(scene, output=path, progress=False, overwrite=True)
+            times.append(time.perf_counter() - t0)
+        path.unlink()
+        command = memory._case("command", output, (n,), folder)
+        rows.append({"points": n, "output": output, "seconds": times, "peak_rss": command["peak_rss"],
+                     "disk": command["disk"], "command_s": command["process_s"]})
+    return rows
+
+
+COMPILE_CHILD = """
+import json, sys, time
+from numba.core import event
+rows, starts = [], {}
+class Listener(event.Listener):
+    def on_start(self, ev):
+        starts[id(ev.data["dispatcher"]), str(ev.data["args"])] = time.perf_counter()
+    def on_end(self, ev):
+        d = ev.data["dispatcher"]
+        rows.append((time.perf_counter() - starts[id(d), str(ev.data["args"])],
+                     d.py_func.__module__.split(".")[-1] + "." + d.py_func.__qualname__.split(".<locals>.")[-1]))
+event.register("numba:compile", Listener())
+import mechsweep
+ds = mechsweep.run(sys.argv[1], output=None)
+print(json.dumps({"rows": sorted(rows, reverse=True), "compile_time_s": ds.attrs["compile_time_s"]}))
+"""
+
+
+WARM_LOAD_CHILD = """
+import cProfile, json, pstats, sys, time
+import mechsweep
+from mechsweep.grid import ParameterMatrix
+from mechsweep.runner import evaluate_rows
+scene = mechsweep.load_scene(sys.argv[1])
+P = ParameterMatrix(scene)(0, 1)
+profile = cProfile.Profile()
+t0 = time.perf_counter()
+profile.runcall(evaluate_rows, scene, P)
+total = time.perf_counter() - t0
+stats = pstats.Stats(profile).stats
+def cumulative(name):
+    return sum(v[3] for k, v in stats.items() if k[2] == name)
+print(json.dumps({"total": total, "registries": cumulative("load_additional_registries"),
+                  "blas": cumulative("ensure_blas")}))
+"""
+
+
+def breakdown(scene: Path, folder: Path, repeats: int) -> None:
+    """Where the time goes: the file route's fixed costs by function (10^3 points, warm), chunk
+    launches (10^4 points in 1 or 20 calls), and the compile of ``scene`` by function (numba's
+    compile events, in a fresh process with an empty JIT cache; times include what each calls)."""
+    import collections
+    import functools
+
+    import numpy as np
+
+    import mechsweep
+    from mechsweep import journal, runner, store
+    from mechsweep.grid import ParameterMatrix
+    from mechsweep.scene import load_scene
+
+    spent = collections.defaultdict(float)
+
+    def timed(owner, name, label):
+        original = getattr(owner, name)
+
+        @functools.wraps(original)
+        def wrapper(*a, **k):
+            t0 = time.perf_counter()
+            try:
+                return original(*a, **k)
+            finally:
+                spent[label] += time.perf_counter() - t0
+        return original, wrapper
+
+    patches = [(runner, n, n) for n in ("_check_existing", "_save_chunks", "_finish", "open_dataset", "drop",
+                                        "warm_up")]
+    patches += [(store, "_define", "store._define"), (journal.Journal, "create", "Journal.create"),
+                (journal.Journal, "write_chunk", "Journal.write_chunk")]
+    small = load_scene(duffing(10**3))
+    path = folder / "breakdown.h5"
+    mechsweep.run(small, output=path, progress=False)
+    originals = []
+    for owner, name, label in patches:
+        original, wrapper = timed(owner, name, label)
+        originals.append((owner, name, original))
+        setattr(owner, name, wrapper)
+    try:
+        t0 = time.perf_counter()
+        for _ in range(repeats):
+            mechsweep.run(small, output=path, progress=False)
+        total = (time.perf_counter() - t0) / repeats
+    finally:
+        for owner, name, original in originals:
+            setattr(owner, name, original)
+    print(f"  file route, 10^3 points, warm: {total * 1e3:.1f} ms a run (mean of {repeats}); inside it, ms a run "
+          "(nested: _finish holds store._define, _save_chunks holds Journal.write_chunk):")
+    for label, seconds in sorted(spent.items(), key=lambda kv: -kv[1]):
+        print(f"    {label:<22} {seconds / repeats * 1e3:8.1f}")
+    big = load_scene(duffing(10**4))
+    P = ParameterMatrix(big)(0, 10**4)
+    runner.evaluate_rows(big, P)
+    launches = {1: [], 20: []}
+    for _ in range(repeats):
+        for k in launches:
+            t0 = time.perf_counter()
+            for part in np.array_split(np.arange(10**4), k):
+                runner.evaluate_rows(big, P[part[0]:part[-1] + 1])
+            launches[k].append(time.perf_counter() - t0)
+    print("  10^4 points in 1 kernel call: " + _spread(launches[1], "ms", 1e3) + "; in 20 calls: "
+          + _spread(launches[20], "ms", 1e3))
+    env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(folder / "cache-breakdown"))
+    proc = subprocess.run([sys.executable, "-c", COMPILE_CHILD, str(scene)], env=env, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"compile breakdown failed:\n{proc.stderr[-2000:]}")
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    print(f"  cold compile of {scene.name}: {result['compile_time_s']:.1f} s, {len(result['rows'])} functions "
+          "compiled; the longest (s, including what each calls):")
+    for seconds, name in result["rows"][:15]:
+        print(f"    {seconds:7.2f}  {name}")
+    proc = subprocess.run([sys.executable, "-c", WARM_LOAD_CHILD, str(scene)], env=env, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"warm load breakdown failed:\n{proc.stderr[-2000:]}")
+    w = json.loads(proc.stdout.strip().splitlines()[-1])
+    print(f"  warm compile phase of {scene.name} (JIT cache filled, fresh process, first one-point call, under "
+          f"cProfile): {w['total']:.2f} s, of which numba's target initialisation (load_additional_registries) "
+          f"{w['registries']:.2f} s, within it numba's BLAS check importing scipy.linalg (ensure_blas) {w['blas']:.2f} s")
+
+
+def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.toml",
+         parts: tuple[str, ...] = ("warm", "quickstart", "scaling")) -> dict:
+    """Measure and print ``parts``: "warm", "quickstart", "scaling" (the default), "breakdown"
+    (where the time goes; see :func:`breakdown`)."""
+    from . import _args
+
+    repeats = _args.count("--repeats", repeats, 3, 100)
+    scene_path = Path(scene).resolve()
+    if "quickstart" in parts or "breakdown" in parts:
+        if not scene_path.is_file():
+            raise _args.InputError(f"--scene {scene} does not exist (run from the repository root, or give its path)")
+        from mechsweep.scene import load_scene
+
+        load_scene(scene_path)  # an invalid scene is refused here, not as a failed child process
+    import numba
+
+    report = {}
+    print(f"mechsweep bench startup: {numba.get_num_threads()} threads, median of {repeats} runs (min .. max)")
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        if "warm" in parts:
+            warm = warm_small(repeats, tmp)
+            report["warm"] = {f"{n}_{route}": v for (n, route), v in warm.items()}
+            print(f"  warm mechsweep.run, Duffing period (DOP853, rtol {RTOL:g}):")
+            for (n, route), v in warm.items():
+                med = statistics.median(v) * 1e3
+                target = {"memory": f"target <= {TARGET_WARM_MS[n]:g} ms: {_verdict(med, TARGET_WARM_MS[n])}",
+                          "file": "no target (journal, fsyncs, HDF5 assembly, opening)",
+                          "kernel": "reference: the model's kernel on the whole grid in one call"}[route]
+                where = {"memory": "in memory (output=None)", "file": "to a file", "kernel": "kernel alone"}[route]
+                print(f"    {n:>6,} points {where:<24} {_spread(v, 'ms', 1e3):<34} {target}", flush=True)
+        if "quickstart" in parts:
+            q = quickstart(scene_path, repeats, tmp)
+            report["quickstart"] = q
+            print(f"  quickstart ({scene}) run + plot in fresh processes:")
+            for label, target, what in (("cold", TARGET_COLD_S, "empty JIT cache"),
+                                        ("warm", TARGET_WARM_S, "JIT cache filled")):
+                totals = [r + p for r, p, _ in q[label]]
+                med = statistics.median(totals)
+                print(f"    {label} ({what:<15}) total {_spread(totals, 's', fmt='.2f'):<30} target <= {target:g} s: "
+                      f"{_verdict(med, target)}", flush=True)
+                print(f"      run {_spread([r for r, _, _ in q[label]], 's', fmt='.2f')}, of which compile "
+                      f"{_spread([c for _, _, c in q[label]], 's', fmt='.2f')}; plot "
+                      f"{_spread([p for _, p, _ in q[label]], 's', fmt='.2f')}")
+        if "scaling" in parts:
+            sizes = [(10**4, "period"), (10**5, "period"), (10**6, "period")]
+            if full:
+                sizes += [(10**7, "period"), (10**8, "period_exact")]
+            rows = scaling(sizes, repeats, tmp)
+            report["scaling"] = rows
+            base = statistics.median(rows[0]["seconds"]) / rows[0]["points"]
+            print("  cost per point of mechsweep.run to a file (warm), peak RSS of the command `mechsweep run` "
+                  "(fresh process, interpreter included); target: linear in points, peak within chunk + interpreter:")
+            for r in rows:
+                per = [s / r["points"] * 1e6 for s in r["seconds"]]
+                per_point = statistics.median(r["seconds"]) / r["points"]
+                ratio = per_point / base if r["output"] == "period" else float("nan")
+                print(f"    {r['points']:>11,} {r['output']:<13} {_spread(per, 'us/point', fmt='.3f'):<40} "
+                      f"x{ratio:.2f} of 10^4's per point; command peak RSS {r['peak_rss'] / 2**20:.0f} MiB "
+                      f"(dataset {r['disk'] / 2**20:.1f} MiB)", flush=True)
+        if "breakdown" in parts:
+            print("  where the time goes:")
+            breakdown(scene_path, tmp, repeats)
+    return report
+
+
+if __name__ == "__main__":
+    print(json.dumps(main(), default=str))
