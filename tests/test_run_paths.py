@@ -16,7 +16,8 @@ from .conftest import REPO
 
 # what differs between two runs of a scene (their times), and between the routes: the in-memory
 # route cuts the grid into as few chunks as memory allows when no progress bar is shown
-TIME_ATTRS = ("created", "wall_time_s", "compile_time_s", "compute_time_s", "chunk_size", "n_chunks")
+# what differs between two runs of one scene: when (created, history begins with the time), how long, how chunked
+TIME_ATTRS = ("created", "history", "wall_time_s", "compile_time_s", "compute_time_s", "chunk_size", "n_chunks")
 
 
 def _files(root):
