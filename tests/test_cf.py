@@ -129,11 +129,17 @@ def test_boundaries_dataset_follows_cf(in_tmp):
 
 
 def test_history_names_the_command_line(monkeypatch):
-    monkeypatch.setattr("sys.argv", ["/usr/bin/mechsweep", "run", "my scene.toml", "-o", "x.h5"])
-    assert cf.history("2026-01-01T00:00:00+00:00", "mechsweep.run(scene 'x')", "9.9") == \
-        "2026-01-01T00:00:00+00:00: mechsweep run 'my scene.toml' -o x.h5 (mechsweep 9.9)"
+    token = cf.CLI_ARGS.set(("run", "my scene.toml", "-o", "x.h5"))  # as cli.main sets it while it runs
+    try:
+        assert cf.history("2026-01-01T00:00:00+00:00", "mechsweep.run(scene 'x')", "9.9") == \
+            "2026-01-01T00:00:00+00:00: mechsweep run 'my scene.toml' -o x.h5 (mechsweep 9.9)"
+    finally:
+        cf.CLI_ARGS.reset(token)
     monkeypatch.setattr("sys.argv", ["notebook.py"])
     assert cf.history("T", "mechsweep.run(scene 'x')", "9.9") == "T: mechsweep.run(scene 'x') (Python, notebook.py) (mechsweep 9.9)"
+    # `python -m pytest` (or any other __main__.py) is not the mechsweep command
+    monkeypatch.setattr("sys.argv", ["/site-packages/pytest/__main__.py", "-x"])
+    assert cf.history("T", "mechsweep.run(scene 'x')", "9.9") == "T: mechsweep.run(scene 'x') (Python, __main__.py) (mechsweep 9.9)"
 
 
 def test_references_come_from_the_declaration():

@@ -99,6 +99,9 @@ def test_interrupted_run_resumes_to_identical_dataset(in_tmp, small_duffing):
         mechsweep.run(small_duffing, output="data/runs/r.h5")  # neither resume nor restart
     done = mechsweep.run(small_duffing, output="data/runs/r.h5", resume=True)
     assert not part.exists()
+    history = done.attrs["history"].splitlines()  # the run that began it, then the one that finished it
+    assert len(history) == 2 and "resume=True" in history[1] and "resume" not in history[0]
+    assert len(reference.attrs["history"].splitlines()) == 1
     for name in ("period", "period_exact", "kv", "epsilon", "status", "n_steps", "n_rhs"):
         np.testing.assert_array_equal(done[name].values, reference[name].values, err_msg=name)
 

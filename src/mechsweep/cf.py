@@ -7,6 +7,7 @@ xarray to plot it with ``xscale="log"``.
 """
 from __future__ import annotations
 
+import contextvars
 import shlex
 import sys
 from pathlib import Path
@@ -16,12 +17,18 @@ LOG_AXIS_COMMENT = ("log-spaced axis (equal ratios between neighbouring values):
                     "e.g. ds[VARIABLE].plot(x=AXIS, xscale=\"log\")")
 
 
+# the command line while the CLI runs a command (set by cli.main for its duration; a context
+# variable, not sys.argv: `python -m pytest` calling cli.main has pytest's argv)
+CLI_ARGS: contextvars.ContextVar[tuple[str, ...] | None] = contextvars.ContextVar("mechsweep_cli_args", default=None)
+
+
 def command(what: str) -> str:
     """The command that is writing a dataset: the ``mechsweep`` command line when the CLI runs,
     else the Python call ``what`` and the program that made it."""
+    args = CLI_ARGS.get()
+    if args is not None:
+        return " ".join(shlex.quote(a) for a in ["mechsweep", *args])
     prog = Path(sys.argv[0]).name if sys.argv and sys.argv[0] else ""
-    if prog in ("mechsweep", "__main__.py", "cli.py"):
-        return " ".join(shlex.quote(a) for a in ["mechsweep", *sys.argv[1:]])
     return f"{what} (Python, {prog or 'interactive'})"
 
 

@@ -493,6 +493,7 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
     and computed again. ``client``: a connected dask client when ``scheduler`` is given."""
     part = partial_path(final)
     journal = Journal.read(part) if part.exists() and not restart else None
+    resumed = journal is not None and not journal.empty
     if journal is None or journal.empty:  # none, discarded, or killed before its first word
         drop(final)
         journal = Journal.create(part, canonical=scene.canonical(), text=scene.text, chunk_target=target,
@@ -513,6 +514,10 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
             _save_chunks(scene, journal, results, todo, scene.n_points - sum(c.size for c in todo), progress,
                          compile_s)
             attrs = {**journal.meta["attrs"], "execution": where}
+            if resumed and todo:  # the history says that another run finished the dataset
+                now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+                attrs["history"] = (attrs.get("history", "") + "\n" + cf.history(
+                    now, f"mechsweep.run(scene {scene.name!r}, resume=True): {len(todo)} chunk(s) computed", __version__))
             if not scheduler:
                 attrs["threads"] = numba.get_num_threads()
         bad, counts = _finish(journal, scene, chunks, final, attrs, signals)
