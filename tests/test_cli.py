@@ -41,7 +41,8 @@ def test_run_info_plot(in_tmp, capsys):
     assert f"wrote {in_tmp / 'data/runs/q.h5'}:" in capsys.readouterr().out
     assert main(["info", "data/runs/q.h5"]) == 0
     info = capsys.readouterr().out
-    for piece in ("dimensions:", "A ", "[rad]", "status: ok 1000", "steps", "solver: method=dop853", "wall time"):
+    for piece in ("dimensions:", "A ", "[rad]", "status: ok 1000", "steps", "solver: method=dop853", "wall time",
+                  "(compile ", ", compute ", "1 threads)"):
         assert piece in info, piece
     assert main(["plot", "data/runs/q.h5", "--list"]) == 0
     assert "amplitude_period" in capsys.readouterr().out

@@ -604,8 +604,12 @@ def describe(ds) -> str:
                      f"mean {float(ds['n_steps'].mean()):.1f} steps/point")
         solver = {k[len('solver_'):]: v for k, v in ds.attrs.items() if k.startswith("solver_")}
         lines.append("solver: " + ", ".join(f"{k}={v}" for k, v in solver.items()))
-    where = ds.attrs.get("execution", f"{ds.attrs.get('threads', '?')} threads")
-    lines.append(f"wall time: {float(ds.attrs.get('wall_time_s', float('nan'))):.3f} s ({where})")
+    where = ds.attrs.get("execution") or (f"{ds.attrs['threads']} threads" if "threads" in ds.attrs
+                                          else "so far: an unfinished run")
+    times = ", ".join(f"{k[:-7]} {float(ds.attrs[k]):.3f} s" for k in ("compile_time_s", "compute_time_s")
+                      if k in ds.attrs)
+    lines.append(f"wall time: {float(ds.attrs.get('wall_time_s', float('nan'))):.3f} s"
+                 f"{f' ({times})' if times else ''} ({where})")
     lines.append("provenance: " + ", ".join(f"{k} {ds.attrs.get(k)}" for k in
                                              ("created", "mechsweep_version", "numba_version", "numpy_version")))
     return "\n".join(lines)
