@@ -30,7 +30,7 @@ class Drawn(dict):
 
 
 # ----------------------------------------------------------------------------- units
-_POWER = re.compile(r"^([^\W\d]+|°|%)(?:\^?\(?(-?\d+(?:\.\d+)?)\)?)$")
+_POWER = re.compile(r"^([^\W\d]+|°|%)(?:\^?\(?(-?\d+(?:\.\d+)?)\)?)?$")
 
 
 def units_text(unit) -> str:
@@ -117,6 +117,14 @@ def new_figure(nrows=1, ncols=1, width=6.4, height=4.2, *, fig=None, ax=None):
     return fig, axes
 
 
+def width_inches(fig) -> float:
+    """Width of a Figure or SubFigure in inches."""
+    if hasattr(fig, "get_figwidth"):
+        return fig.get_figwidth()
+    root = fig.get_figure(root=True)
+    return root.get_figwidth() * fig.bbox.width / max(root.bbox.width, 1e-9)
+
+
 def owns(fig) -> bool:
     """True when the figure's title and caption are ours to set (not a user's Axes)."""
     return bool(getattr(fig, "_mechsweep_titled", False))
@@ -131,7 +139,7 @@ def title(fig, ds, what: str, caption: str | None = None) -> None:
     fixed = fixed_text(ds)
     lines = [c for c in (caption, f"fixed: {fixed}" if fixed else "") if c]
     if lines:
-        chars = int(fig.get_figwidth() * 15)  # ~15 characters per inch at 7.5 pt
+        chars = int(width_inches(fig) * 15)  # ~15 characters per inch at 7.5 pt
         text = "\n".join(textwrap.fill(c, chars, break_on_hyphens=False) for c in lines)
         fig.supxlabel(text, fontsize=7.5, color="0.25", ha="center",
                       bbox=dict(boxstyle="round,pad=0.4", facecolor="0.96", edgecolor="0.8"))

@@ -255,6 +255,8 @@ def pareto(ds, *, fig=None, ax=None):
     a.set_xticks(xs, [f"f{i + 1}: {n.replace('_', ' ')}\nover a cycle [{units_text(ds[n].attrs.get('units', ''))}]"
                       for i, n in enumerate(PARETO_INDICES)], fontsize=8)
     a.set_yticks([])
+    a.set_xlabel("balancing index (lower is better on every axis)")
+    a.set_ylabel("each axis: the front's smallest to largest value")
     a.set_xlim(-0.3, 3.5)
     a.set_ylim(-0.08, 1.08)
     for side in ("top", "right", "left"):

@@ -8,7 +8,7 @@ import numpy as np
 from ._registry import ModelFigure
 import zlib
 
-from ._style import Drawn, label, new_figure, owns
+from ._style import Drawn, label, new_figure, owns, width_inches
 
 MARKERS = "os^vD<>ph*"
 # One colour per method, by name, in every panel of every work-precision figure: our implementation
@@ -71,7 +71,7 @@ def workprecision(ds, *, fig=None, ax=None):
         fig.supxlabel(textwrap.fill(f"hollow marker: the loosest tolerance, rtol = {rtol.max():.0e}; each next "
                                     f"marker a tighter one, down to {rtol.min():.0e}. Reference: "
                                     f"{ds.attrs['reference']}; {ds.attrs['points']} points of {ds.attrs['scene']}, "
-                                    "1 thread", int(fig.get_figwidth() * 15)), fontsize=7.5, color="0.25")
+                                    "1 thread", int(width_inches(fig) * 15)), fontsize=7.5, color="0.25")
     return art
 
 
@@ -140,7 +140,7 @@ def _positions(ds, *, fig=None, ax=None):
                      fontsize=10)
         fig.supxlabel(textwrap.fill(f"hollow marker: the fewest positions, N = {N.min()}; each next marker more, up "
                                     f"to N = {N.max()}. Reference: {ds.attrs['reference']}; {ds.attrs['points']} "
-                                    f"points of {ds.attrs['scene']}", int(fig.get_figwidth() * 15)),
+                                    f"points of {ds.attrs['scene']}", int(width_inches(fig) * 15)),
                       fontsize=7.5, color="0.25")
     return art
 
