@@ -95,7 +95,14 @@ def test_import_and_drawing_leave_the_backend_and_rcparams_alone(tmp_path):
     """In a fresh interpreter: the backend the user chose and every rcParam are the same after
     importing mechsweep (figures and CLI) and after drawing and saving figures; pyplot is never
     imported."""
+    import os
+    from pathlib import Path
+
+    import mechsweep
+
+    here = str(Path(mechsweep.__file__).resolve().parents[1])  # the mechsweep under test, not another install
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([here, os.environ.get("PYTHONPATH", "")])}
     out = subprocess.run([sys.executable, "-c", STATE, str(REPO / "tests"), str(tmp_path)], capture_output=True,
-                         text=True, timeout=300, cwd=tmp_path)
+                         text=True, timeout=300, cwd=tmp_path, env=env)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.split() == ["True", "True", "svg", "False"], out.stdout

@@ -335,3 +335,33 @@ def test_a_methods_colour_is_the_same_in_every_work_precision_figure():
     assert c1["mechsweep radau"] != c1["mechsweep dop853"]
     assert len(set(c2.values())) == len({wp.method_key(k) for k in c2}) == 4  # one colour per method
     assert wp.method_color("numbalsoda rk_new") == wp.method_color("diffrax rk_new")  # an unknown method too
+
+
+def test_what_an_engineer_reads_off_each_figure_is_there(datasets):
+    """Issue 16 items 8-11, one check each: the closed form drawn over the markers and the rtol
+    inside the error panel's range; natural frequencies as top ticks (not lines on the P = 0
+    curves) and the first approximation's stable side hatched; one legend entry per drawn curve;
+    every Pareto-optimal design drawn; no map drawn twice; the textbook band shaded."""
+    from mechsweep.balancing import pareto_front
+
+    art = figures.artists(datasets["quickstart"], "amplitude_period")
+    assert art["closed_form"].get_zorder() > art["integrated"].get_zorder()
+    lo, hi = art["axes"][1, 0].get_ylim()
+    assert lo < datasets["quickstart"].attrs["solver_rtol"] < hi and hi / lo < 1e9
+    ds = datasets["autobalancer_damping"]
+    art = figures.artists(ds, "stability_chart")
+    top = art["frequencies"]
+    assert [t.get_text() for t in top.get_xticklabels()] and not any("ω" in str(line.get_label())
+                                                                     for line in art["axes"][0, 0].lines)
+    assert "P_stable" in art and "P(Ω) < 0" in " ".join(t.get_text() for t in art["legend"].get_texts())
+    art = figures.artists(datasets["autobalancer_residual"], "residual")
+    assert len(art["legend"].get_texts()) == len({lab for _, lab in art["lines"]})
+    ds = datasets["fourbar_pareto"]
+    F = np.stack([ds[n].where(ds["status"] == 0).values.ravel() for n in ("Fx_range", "Fy_range", "M_range",
+                                                                          "T_range")], axis=1)
+    assert len(figures.artists(ds, "pareto")["front"].get_segments()) == int(pareto_front(F).sum())
+    panels = figures.artists(datasets["fourbar_geometry_family"], "balancing_map")["panels"]
+    meshes = [np.ma.filled(p["mesh"].get_array(), np.nan) for p in panels.values()]
+    assert not any(np.array_equal(a, b, equal_nan=True) for i, a in enumerate(meshes) for b in meshes[:i])
+    band = figures.artists(datasets["slidercrank_partial"], "slider_residual")["textbook"]
+    np.testing.assert_allclose([band.get_x(), band.get_x() + band.get_width()], [1 / 3, 1 / 2])
