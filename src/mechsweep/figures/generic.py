@@ -484,7 +484,7 @@ def stability_map(ds, name=None, *, fig=None, ax=None):
     handles = [axes[0, 0].fill_between([], [], color=STABLE_COLORS.colors[1], label="stable"),
                axes[0, 0].fill_between([], [], color=STABLE_COLORS.colors[0], label="unstable"),
                axes[0, 0].plot([], [], color="k", lw=1.2, label=f"{ds[name].attrs.get('symbol', name)} = 1")[0]]
-    art["legend"] = fig.legend(handles=handles, loc="outside lower center", ncols=3, fontsize=9)
+    art["legend"] = fig.legend(handles=handles, loc="outside right upper", fontsize=9)  # the caption is below
     title(fig, ds, f"Floquet stability: {ds[name].attrs.get('long_name', name)}")
     return art
 
