@@ -15,8 +15,9 @@ DATA.boundaries.h5 beside the dataset), drawn over the charts that show them.
 Datasets go to data/runs/ and data/bench/ (git-ignored), figures to docs/figures/ (committed).
 
 Every figure written is recorded in docs/figures/MANIFEST.json with a hash of the code that draws
-it (the figure modules, see ``mechsweep.figures.source_files``) and of its scene file, and the
-hash of the PNG itself: tests/test_figure_data.py fails when a committed figure is older than the
+it (the figure modules, see ``mechsweep.figures.source_files``), of the file declaring the scene's
+model (units and names label the figure) and of its scene file, and the hash of the PNG itself:
+tests/test_figure_data.py fails when a committed figure is older than the
 code or scene it comes from, or was written without its manifest entry.
 """
 from __future__ import annotations
@@ -50,6 +51,21 @@ def entry(png: Path, sources, scene=None) -> dict:
     return {"files": files, "code_sha256": code_hash(files), "png_sha256": hashlib.sha256(png.read_bytes()).hexdigest()}
 
 
+def model_file(scene, scene_path: Path) -> Path | None:
+    """The file declaring the scene's model (its units and names label the figures): a user model
+    file ("models/x.py:NAME", beside the scene) or the built-in module holding the declaration."""
+    import tomllib
+
+    key = str(tomllib.loads(scene_path.read_text())["scene"]["model"])
+    if ".py:" in key:
+        f = (scene_path.parent / key.split(":")[0]).resolve()
+        return f if f.is_file() else None
+    for name, module in list(sys.modules.items()):
+        if name.startswith("mechsweep.models.") and any(v is scene.model for v in vars(module).values()):
+            return Path(module.__file__).resolve()
+    return None
+
+
 def _record(manifest: dict, png: Path, sources, scene=None) -> None:
     manifest[png.name] = entry(png, sources, scene)
     print(f"-> {png.relative_to(ROOT)}")
@@ -73,7 +89,9 @@ def main(filters: list[str], reuse: bool = False) -> None:
             print(f"{path.name} -> {where.relative_to(ROOT)}: {bds.attrs['located']} boundaries located")
         kinds = list(figures.available(ds))
         for kind, written in zip(kinds, figures.save(ds, OUT / f"{path.stem}.png", boundaries=bds)):
-            _record(manifest, written, figures.source_files(ds, kind, boundaries=bds), path)
+            model = model_file(scene, path)
+            _record(manifest, written, figures.source_files(ds, kind, boundaries=bds) + ([model] if model else []),
+                    path)
     import xarray as xr
 
     from mechsweep.bench import workprecision
@@ -93,7 +111,8 @@ def main(filters: list[str], reuse: bool = False) -> None:
 
         here = Path(figures.__file__).parent
         _record(manifest, generic_figures_example.main(),
-                [ROOT / "docs" / "generic_figures_example.py", here / "generic.py", here / "_style.py"],
+                [ROOT / "docs" / "generic_figures_example.py", here / "generic.py", here / "_style.py",
+                 ROOT / "sweeps" / "models" / "vibrating_pendulum.py"],
                 ROOT / "sweeps" / "vibrating_pendulum_stability.toml")
     MANIFEST.write_text(json.dumps(dict(sorted(manifest.items())), indent=1) + "\n")
     print(f"-> {MANIFEST.relative_to(ROOT)}")

@@ -16,7 +16,8 @@ figures of the built-in models' scenes stay the ones their modules draw.
 ``draw(ds, kind)`` returns one as a matplotlib Figure (made without pyplot; ``fig=`` draws it into a
 Figure or SubFigure of the user's, ``ax=`` onto the user's Axes), ``artists(ds, kind)`` the same
 with every artist drawn (a :class:`~._style.Drawn` dict); ``save(ds, path)`` writes them. Every
-figure function of the modules here takes ``fig=`` / ``ax=`` and returns its artists. Both take ``boundaries=``: the located boundaries dataset of the same grid
+figure function of the modules here takes ``fig=`` / ``ax=`` and returns its artists. Both take
+``boundaries=``: the located boundaries dataset of the same grid
 (DATA.boundaries.h5, see :func:`sibling_boundaries`), drawn over the charts that declare they draw
 boundaries; a boundaries dataset itself gets the figure of :mod:`.located`.
 """

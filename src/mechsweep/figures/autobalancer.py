@@ -110,7 +110,8 @@ def stability_chart(ds, boundaries=None, *, fig=None, ax=None):
             art["P_stable"].set_linewidth(0.0)
             art["P_contour"] = ax.contour(x, y, P, levels=[0.0], colors="C1", linewidths=1.6)
             handles.append(ax.plot([], [], color="C1", lw=1.6, label="P(Ω) = 0 (damped first approximation)")[0])
-            handles.append(matplotlib.patches.Patch(facecolor="none", edgecolor=(1.0, 0.5, 0.05, 0.55), hatch="//", lw=0,
+            handles.append(matplotlib.patches.Patch(facecolor="none", edgecolor=(1.0, 0.5, 0.05, 0.55), hatch="//",
+                                                    lw=0,
                                                     label="P(Ω) < 0: stable by the first approximation"))
     if "stable_sim" in ds:
         sim = ds["stable_sim"].where(ds["status"] == 0).transpose(ydim, "Omega").values

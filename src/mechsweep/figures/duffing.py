@@ -42,7 +42,8 @@ def _x(ds):
     eps = _flat(ds["epsilon"].broadcast_like(ds["status"]))
     if not _soft(ds):
         return eps, label(ds["epsilon"]), None
-    return 1.0 + eps, "1 + ε, distance from the separatrix ε = μ A² / ω² = −1 (log axis)", _status_is(ds, "not_oscillatory")
+    return (1.0 + eps, "1 + ε, distance from the separatrix ε = μ A² / ω² = −1 (log axis)",
+            _status_is(ds, "not_oscillatory"))
 
 
 def _status_is(ds, meaning):

@@ -242,7 +242,6 @@ def pareto(ds, *, fig=None, ax=None):
                                    + ", ".join(f"f{i + 1} = {F[best, i]:.3g}" for i in range(4)))
     for i, n in enumerate(PARETO_INDICES):
         a.axvline(i, color="0.2", lw=0.8)
-        unit = units_text(ds[n].attrs.get("units", ""))
         a.annotate(f"{lo[i]:.4g}", (i, 0), xytext=(0, -4), textcoords="offset points", ha="center", va="top",
                    fontsize=8)
         a.annotate(f"{hi[i]:.4g}", (i, 1), xytext=(0, 4), textcoords="offset points", ha="center", va="bottom",
