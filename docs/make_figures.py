@@ -78,7 +78,9 @@ def main(filters: list[str], reuse: bool = False) -> None:
         if filters and not any(f in path.stem for f in filters):
             continue
         scene = mechsweep.load_scene(path)
-        ds = mechsweep.run(scene, output=ROOT / scene.storage.path, restart=not reuse, progress=False)
+        stored = ROOT / scene.storage.path
+        ds = (mechsweep.open_dataset(stored) if reuse and stored.is_file()
+              else mechsweep.run(scene, output=stored, restart=True, progress=False))
         bds = None
         if scene.boundaries is not None and reuse and figures.sibling_boundaries(ROOT / scene.storage.path):
             bds = mechsweep.open_dataset(figures.sibling_boundaries(ROOT / scene.storage.path))
