@@ -1,14 +1,12 @@
 """Figures draw from stored datasets and label every axis with its unit."""
-import matplotlib
+import numpy as np
+import pytest
 
-matplotlib.use("Agg")
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+import mechsweep
+from mechsweep import figures
+from mechsweep.figures._style import units_text
 
-import mechsweep  # noqa: E402
-from mechsweep import figures  # noqa: E402
-
-from .conftest import REPO  # noqa: E402
+from .conftest import REPO
 
 
 @pytest.fixture(scope="module")
@@ -78,17 +76,17 @@ def test_axes_are_labelled_with_units(datasets, name):
                 assert flat, (kind, ax)
                 for var in variables:
                     unit = var.attrs.get("units", "")
-                    if var.attrs.get("long_name", "@") in flat and unit not in ("", "1"):
-                        assert f"[{unit}]" in flat, (kind, flat, unit)
+                    if var.attrs.get("long_name", "@") in flat and units_text(unit):
+                        assert f"[{units_text(unit)}]" in flat.replace("\u00a0", " "), (kind, flat, unit)
 
 
 def test_figures_do_not_draw_flagged_points(datasets):
     ds = datasets["quickstart"].copy(deep=True)
     ds["status"].values[0, 0] = 4  # pretend one point was flagged infeasible
-    fig = figures.draw(ds, "amplitude_period")
-    drawn = fig.axes[0].lines[1].get_ydata()  # integrated markers
-    assert np.isnan(drawn).sum() >= 1
-    texts = [t.get_text() for t in fig.axes[0].texts]
+    art = figures.artists(ds, "amplitude_period")
+    drawn = art["integrated"].get_xdata()  # integrated markers: only finite values are picked to draw
+    assert drawn.size == int(np.isfinite(figures._style.ok_values(ds, "period").values).sum())
+    texts = [t.get_text() for t in art.figure.axes[0].texts]
     assert any("1 flagged point" in t for t in texts)
 
 
@@ -232,11 +230,138 @@ def test_an_island_too_small_to_see_is_drawn_magnified(tmp_path):
     _, bds = run_boundaries(load_scene(d))
     ds = mechsweep.open_dataset(tmp_path / "wide.h5")
     ax = figures.draw(ds, "stability_chart", boundaries=bds).axes[0]
-    assert len(ax.child_axes) == 1
-    inset = ax.child_axes[0]
+    insets = [c for c in ax.child_axes if c.get_label() == "inset_axes"]  # not the top axis of frequencies
+    assert len(insets) == 1
+    inset = insets[0]
     (x0, x1), (y0, y1) = inset.get_xlim(), inset.get_ylim()
     scale = float(ds["omega_xi"])
     assert x0 < 27.632 / scale and 27.851 / scale < x1 and x1 - x0 < 0.02  # the island, magnified
     assert y0 < 0.02154 and 0.02861 < y1 and y1 - y0 < 0.01
     assert any("continued" in line.get_label() for line in inset.lines)
-    assert not figures.draw(ds, "stability_chart").axes[0].child_axes
+    assert not [c for c in figures.draw(ds, "stability_chart").axes[0].child_axes if c.get_label() == "inset_axes"]
+
+
+# ----------------------------------------------------------------------------- fig= / ax= and returned artists
+MODEL_FIGURES = [("quickstart", "amplitude_period"), ("quickstart", "kinematic_coefficients"),
+                 ("torsional_circuit_nomogram", "coefficients"), ("torsional_circuit_truncation", "truncation_error"),
+                 ("autobalancer_damping", "stability_chart"), ("autobalancer_residual", "residual"),
+                 ("fourbar_methods", "moment_methods"), ("fourbar_geometry_family", "balancing_map"),
+                 ("fourbar_pareto", "pareto"), ("slidercrank_partial", "slider_residual")]
+
+
+@pytest.mark.parametrize("name,kind", MODEL_FIGURES)
+def test_every_figure_draws_into_the_users_subfigure_or_axes_and_returns_its_artists(datasets, name, kind):
+    from matplotlib.artist import Artist
+    from matplotlib.figure import Figure
+
+    ds = datasets[name]
+    # fig=: a SubFigure of the user's layout; the user's other subfigure is left alone
+    user = Figure(figsize=(16, 10))
+    mine, theirs = user.subfigures(1, 2)
+    keep = theirs.subplots()
+    art = figures.artists(ds, kind, fig=mine)
+    assert art.figure is mine and art["axes"].size >= 1
+    assert all(a in mine.axes for a in art["axes"].ravel()) and theirs.axes == [keep]
+    def flat(v):
+        if isinstance(v, dict):
+            return [x for w in v.values() for x in flat(w)]
+        if isinstance(v, (list, tuple)):
+            return [x for w in v for x in flat(w)]
+        return [v] if isinstance(v, Artist) and v is not mine else []
+
+    drawn = flat({k: v for k, v in art.items() if k not in ("figure", "axes")})
+    assert drawn and all(a.get_figure(root=False) is mine for a in drawn)
+    # ax=: exactly the user's Axes, one per panel, and no title or caption set on the user's figure
+    n = art["axes"].size
+    user2 = Figure(figsize=(8, 4 * n))
+    given = list(user2.subplots(n, 1, squeeze=False).ravel())
+    art2 = figures.artists(ds, kind, ax=given if n > 1 else given[0])
+    assert list(art2["axes"].ravel()) == given and art2.figure is user2
+    assert user2._suptitle is None and user2._supxlabel is None
+    assert any(a.has_data() for a in given)
+    with pytest.raises(ValueError, match=f"this figure draws {n} panel"):
+        figures.artists(ds, kind, ax=list(Figure().subplots(1, n + 1).ravel()))
+
+
+def test_units_render_from_udunits_strings():
+    assert units_text("rad s-1") == "rad s$^{-1}$"
+    assert units_text("kg m2") == "kg m$^{2}$"
+    assert units_text("kg m^2") == "kg m$^{2}$"
+    assert units_text("rad-2 s-2") == "rad$^{-2}$ s$^{-2}$"
+    assert units_text("N m s rad-1") == "N m s rad$^{-1}$"
+    assert units_text("1") == units_text("") == units_text("-") == ""
+    assert units_text("1/(rad^2 s^2)") == "1/(rad^2 s^2)"  # not token by token: kept as written
+    assert units_text("%") == "%"
+
+
+def test_labels_never_wrap_inside_parentheses_and_show_units():
+    import xarray as xr
+
+    from mechsweep.figures._style import label
+
+    da = xr.DataArray([1.0], dims="x", name="kv", attrs={
+        "long_name": "velocity coefficient v_max T / A (2 pi when linear)", "units": "1"})
+    text = label(da, width=30)
+    assert all(line.count("(") == line.count(")") for line in text.split("\n")), text
+    da.attrs["units"] = "rad s-1"
+    assert label(da, width=200).endswith("[rad\u00a0s$^{-1}$]")
+
+
+def _wp(names):
+    import xarray as xr
+
+    rtol = np.array([1e-4, 1e-6, 1e-8])
+    t = np.array([[1e-5, 2e-5, 4e-5]] * len(names))
+    return xr.Dataset(
+        {"time_per_point": (("integrator", "rtol"), t * np.arange(1, len(names) + 1)[:, None],
+                            {"units": "s", "long_name": "time per point"}),
+         "error_max": (("integrator", "rtol"), np.tile(rtol, (len(names), 1)), {"units": "1"})},
+        coords={"integrator": list(names), "rtol": rtol},
+        attrs={"mechsweep_kind": "workprecision", "model": "m", "norm": "relative error", "scipy_points": 4,
+               "reference": "r", "points": 4, "scene": "s.toml"})
+
+
+def test_a_methods_colour_is_the_same_in_every_work_precision_figure():
+    from matplotlib.colors import to_hex
+
+    from mechsweep.figures import workprecision as wp
+
+    one = figures.artists(_wp(["mechsweep dop853", "mechsweep radau", "scipy DOP853"]), "workprecision")
+    two = figures.artists(_wp(["scipy LSODA", "scipy DOP853", "mechsweep auto", "mechsweep dop853",
+                               "numbalsoda rk_new"]), "workprecision")
+    c1 = {k: to_hex(v.get_color()) for k, v in one["lines"].items()}
+    c2 = {k: to_hex(v.get_color()) for k, v in two["lines"].items()}
+    assert c1["scipy DOP853"] == c2["scipy DOP853"] == c1["mechsweep dop853"] == c2["mechsweep dop853"]
+    assert c1["mechsweep radau"] != c1["mechsweep dop853"]
+    assert len(set(c2.values())) == len({wp.method_key(k) for k in c2}) == 4  # one colour per method
+    assert wp.method_color("numbalsoda rk_new") == wp.method_color("diffrax rk_new")  # an unknown method too
+
+
+def test_what_an_engineer_reads_off_each_figure_is_there(datasets):
+    """Issue 16 items 8-11, one check each: the closed form drawn over the markers and the rtol
+    inside the error panel's range; natural frequencies as top ticks (not lines on the P = 0
+    curves) and the first approximation's stable side hatched; one legend entry per drawn curve;
+    every Pareto-optimal design drawn; no map drawn twice; the textbook band shaded."""
+    from mechsweep.balancing import pareto_front
+
+    art = figures.artists(datasets["quickstart"], "amplitude_period")
+    assert art["closed_form"].get_zorder() > art["integrated"].get_zorder()
+    lo, hi = art["axes"][1, 0].get_ylim()
+    assert lo < datasets["quickstart"].attrs["solver_rtol"] < hi and hi / lo < 1e9
+    ds = datasets["autobalancer_damping"]
+    art = figures.artists(ds, "stability_chart")
+    top = art["frequencies"]
+    assert [t.get_text() for t in top.get_xticklabels()] and not any("ω" in str(line.get_label())
+                                                                     for line in art["axes"][0, 0].lines)
+    assert "P_stable" in art and "P(Ω) < 0" in " ".join(t.get_text() for t in art["legend"].get_texts())
+    art = figures.artists(datasets["autobalancer_residual"], "residual")
+    assert len(art["legend"].get_texts()) == len({lab for _, lab in art["lines"]})
+    ds = datasets["fourbar_pareto"]
+    F = np.stack([ds[n].where(ds["status"] == 0).values.ravel() for n in ("Fx_range", "Fy_range", "M_range",
+                                                                          "T_range")], axis=1)
+    assert len(figures.artists(ds, "pareto")["front"].get_segments()) == int(pareto_front(F).sum())
+    panels = figures.artists(datasets["fourbar_geometry_family"], "balancing_map")["panels"]
+    meshes = [np.ma.filled(p["mesh"].get_array(), np.nan) for p in panels.values()]
+    assert not any(np.array_equal(a, b, equal_nan=True) for i, a in enumerate(meshes) for b in meshes[:i])
+    band = figures.artists(datasets["slidercrank_partial"], "slider_residual")["textbook"]
+    np.testing.assert_allclose([band.get_x(), band.get_x() + band.get_width()], [1 / 3, 1 / 2])

@@ -13,8 +13,11 @@ figures for, e.g. a user's own); otherwise they are listed as on request (``--ki
 figures of the built-in models' scenes stay the ones their modules draw.
 
 ``available(ds)`` lists the figures drawn by default, ``on_request(ds)`` the others;
-``draw(ds, kind)`` returns one as a matplotlib Figure (made without pyplot); ``save(ds, path)``
-writes them. Both take ``boundaries=``: the located boundaries dataset of the same grid
+``draw(ds, kind)`` returns one as a matplotlib Figure (made without pyplot; ``fig=`` draws it into a
+Figure or SubFigure of the user's, ``ax=`` onto the user's Axes), ``artists(ds, kind)`` the same
+with every artist drawn (a :class:`~._style.Drawn` dict); ``save(ds, path)`` writes them. Every
+figure function of the modules here takes ``fig=`` / ``ax=`` and returns its artists. Both take
+``boundaries=``: the located boundaries dataset of the same grid
 (DATA.boundaries.h5, see :func:`sibling_boundaries`), drawn over the charts that declare they draw
 boundaries; a boundaries dataset itself gets the figure of :mod:`.located`.
 """
@@ -45,12 +48,12 @@ def boundaries_mismatch(ds, bds) -> str | None:
 
 
 def _draw_fn(f, boundaries):
-    """The figure's draw(ds); a figure that draws boundaries gets ``boundaries`` when they were
-    located on the grid of ds (else None: the chart alone)."""
+    """The figure's draw(ds, fig=, ax=) -> Drawn; a figure that draws boundaries gets ``boundaries``
+    when they were located on the grid of ds (else None: the chart alone)."""
     if not f.boundaries:
         return f.draw
-    return lambda ds: f.draw(ds, boundaries=boundaries if boundaries is not None
-                             and located.mismatch(ds, boundaries) is None else None)
+    return lambda ds, **kw: f.draw(ds, boundaries=boundaries if boundaries is not None
+                                   and located.mismatch(ds, boundaries) is None else None, **kw)
 
 
 def _plan(ds, boundaries=None) -> list[tuple[str, str, object, bool]]:
@@ -73,12 +76,36 @@ def on_request(ds) -> dict[str, str]:
     return {name: text for name, text, _, default in _plan(ds) if not default}
 
 
-def draw(ds, kind: str, *, boundaries=None):
+def artists(ds, kind: str, *, boundaries=None, fig=None, ax=None):
+    """Draw figure ``kind`` (new, into ``fig``, or onto the Axes ``ax``) and return its artists
+    (a :class:`~._style.Drawn` dict; ``["figure"]`` is the Figure)."""
     for name, _, fn, _ in _plan(ds, boundaries):
         if name == kind:
-            return fn(ds)
+            return fn(ds, fig=fig, ax=ax)
     raise ValueError(f"figure {kind!r} does not fit this dataset; it can draw: "
                      f"{', '.join(name for name, *_ in _plan(ds)) or 'nothing'}")
+
+
+def draw(ds, kind: str, *, boundaries=None, fig=None, ax=None):
+    """Figure ``kind`` as a matplotlib Figure (see :func:`artists` for what was drawn on it)."""
+    return artists(ds, kind, boundaries=boundaries, fig=fig, ax=ax).figure
+
+
+def source_files(ds, kind: str, *, boundaries=None) -> list[Path]:
+    """The source files whose code draws figure ``kind`` of ``ds`` (its module, the shared style
+    and registry, and the boundaries overlay when it draws one): what a committed figure's
+    staleness is judged by (docs/figures/MANIFEST.json)."""
+    here = Path(__file__).resolve().parent
+    files = {here / "_style.py", here / "_registry.py", here / "__init__.py"}
+    for f in MODEL_FIGURES:
+        if f.name == kind and f.fits_dataset(ds):
+            files.add(Path(__import__("sys").modules[f.draw.__module__].__file__).resolve())
+            if f.boundaries and boundaries is not None:
+                files.add(here / "located.py")
+            return sorted(files)
+    if kind not in {c.name for c in generic.choose(ds)}:
+        raise ValueError(f"figure {kind!r} does not fit this dataset")
+    return sorted(files | {here / "generic.py"})
 
 
 def targets(ds, path, *, kind: str | None = None, fmt: str = "png") -> list[Path]:
@@ -108,6 +135,7 @@ def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150,
                          "numeric axis with more than one value)")
     written = []
     for k, out in zip([kind] if kind else list(kinds), targets(ds, path, kind=kind, fmt=fmt)):
-        plan[k](ds).savefig(out, format=fmt, dpi=dpi)
+        fig = plan[k](ds).figure
+        fig.savefig(out, format=fmt, dpi=dpi)
         written.append(out)
     return written

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import textwrap
 
+import matplotlib.patches
 import numpy as np
 from matplotlib.colors import ListedColormap
 from matplotlib.ticker import MaxNLocator
 
 from . import located
 from ._registry import ModelFigure
-from ._style import flag_note, label, new_figure, title
+from ._style import Drawn, flag_note, label, new_figure, title
 
 MODELS = ("autobalancer",)
 
@@ -22,7 +23,7 @@ def _x(ds):
     om = ds["Omega"]
     if "omega_xi" in ds.coords and ds["omega_xi"].ndim == 0:
         w = float(ds["omega_xi"])
-        return om.values / w, "Ω / ω_ξ, crank speed over the lower platform frequency [1]", w
+        return om.values / w, "Ω / ω_ξ, crank speed over the lower platform frequency", w
     return om.values, label(om), 1.0
 
 
@@ -39,7 +40,7 @@ def _y(ds, dim):
 
 def _y_map(ds, dim):
     """(values of ``dim`` -> chart coordinate, label) for the second chart axis."""
-    ratio = "2 m / M, pendulum mass ratio [1]"
+    ratio = "2 m / M, pendulum mass ratio"
     if dim == "m" and "M" in ds.coords and ds["M"].ndim == 0:
         M = float(ds["M"])
         return (lambda v: 2.0 * np.asarray(v) / M), ratio
@@ -54,18 +55,36 @@ def can_stability_chart(ds) -> bool:
     return "Omega" in ds.dims and _y_dim(ds, "stable_floquet") is not None
 
 
-def stability_chart(ds, boundaries=None):
-    """Floquet stability region over crank speed and a second axis, with the first-approximation
-    boundaries and simulation verdicts; the located and continued stability boundaries over it
-    when they were computed (`mechsweep boundaries`, DATA.boundaries.h5)."""
+FREQUENCIES = (("omega_xi", "ω_ξ", "--"), ("omega_eta", "ω_η", ":"), ("omega_p", "ω_p", "-."))
+
+
+def _frequency_ticks(ax, ds, scale):
+    """The platform's natural frequencies (first approximation) as labelled ticks on a top axis,
+    not as lines across the chart (where they would lie on the P(Omega) = 0 curves). Returns the
+    secondary axis, or None when no frequency is a fixed value of the dataset."""
+    ticks = [(v / scale, text) for name, text, _ in FREQUENCIES if (v := _scalar(ds, name)) is not None]
+    if not ticks:
+        return None
+    top = ax.secondary_xaxis("top")
+    top.set_xticks([t for t, _ in ticks], [t for _, t in ticks])
+    top.tick_params(direction="inout", length=9, width=1.4, colors="C0", labelsize=9)
+    return top
+
+
+def stability_chart(ds, boundaries=None, *, fig=None, ax=None):
+    """Floquet stability region over crank speed and a second axis, with the damped first
+    approximation (P(Omega) = 0, its stable side P < 0 hatched), the platform's natural
+    frequencies (top ticks) and simulation verdicts; the located and continued stability boundaries
+    over it when they were computed (`mechsweep boundaries`, DATA.boundaries.h5)."""
     ydim = _y_dim(ds, "stable_floquet")
     x, xlab, scale = _x(ds)
     y, ylab = _y(ds, ydim)
     ymap, _ = _y_map(ds, ydim)
-    fig, axes = new_figure(1, 1, width=8.0, height=5.6)
+    fig, axes = new_figure(1, 1, width=8.0, height=5.6, fig=fig, ax=ax)
+    art = Drawn(figure=fig, axes=axes)
     ax = axes[0, 0]
     verdict = ds["stable_floquet"].where(ds["status"] == 0).transpose(ydim, "Omega").values
-    ax.pcolormesh(x, y, verdict, cmap=STABLE_COLORS, vmin=0, vmax=1, shading="nearest")
+    art["mesh"] = ax.pcolormesh(x, y, verdict, cmap=STABLE_COLORS, vmin=0, vmax=1, shading="nearest")
     flagged = np.isnan(verdict)
     if flagged.any():
         ax.pcolormesh(x, y, np.where(flagged, 1.0, np.nan), cmap=ListedColormap(["0.8"]), shading="nearest")
@@ -76,21 +95,24 @@ def stability_chart(ds, boundaries=None):
     if "floquet_max" in ds:
         fm = ds["floquet_max"].transpose(ydim, "Omega").values
         if np.isfinite(fm).any() and np.nanmin(fm) < 1 < np.nanmax(fm):
-            ax.contour(x, y, fm, levels=[1.0], colors="k", linewidths=1.2 if boundaries is None else 0.7,
-                       linestyles="solid" if boundaries is None else "dashed")
+            art["floquet_contour"] = ax.contour(x, y, fm, levels=[1.0], colors="k",
+                                                linewidths=1.2 if boundaries is None else 0.7,
+                                                linestyles="solid" if boundaries is None else "dashed")
             handles.append(ax.plot([], [], color="k", lw=1.2 if boundaries is None else 0.7,
                                    ls="-" if boundaries is None else "--",
                                    label="max |Floquet multiplier| = 1: contour of the grid "
                                          f"({len(x)} x {len(y)}; precision ~ its spacing)")[0])
-    for name, style, text in (("omega_xi", "--", "ω_ξ"), ("omega_eta", ":", "ω_η"), ("omega_p", "-.", "ω_p")):
-        value = _scalar(ds, name)
-        if value is not None:
-            handles.append(ax.axvline(value / scale, color="C0", ls=style, lw=1.3, label=f"{text} (first approximation)"))
     if "P_approx" in ds:
         P = ds["P_approx"].transpose(ydim, "Omega").values
         if np.isfinite(P).any() and np.nanmin(P) < 0 < np.nanmax(P):
-            ax.contour(x, y, P, levels=[0.0], colors="C1", linewidths=1.4)
-            handles.append(ax.plot([], [], color="C1", lw=1.4, label="P(Ω) = 0 (damped first approximation)")[0])
+            art["P_stable"] = ax.contourf(x, y, P, levels=[-np.inf, 0.0], colors="none", hatches=["//"])
+            art["P_stable"].set_edgecolor((1.0, 0.5, 0.05, 0.55))
+            art["P_stable"].set_linewidth(0.0)
+            art["P_contour"] = ax.contour(x, y, P, levels=[0.0], colors="C1", linewidths=1.6)
+            handles.append(ax.plot([], [], color="C1", lw=1.6, label="P(Ω) = 0 (damped first approximation)")[0])
+            handles.append(matplotlib.patches.Patch(facecolor="none", edgecolor=(1.0, 0.5, 0.05, 0.55), hatch="//",
+                                                    lw=0,
+                                                    label="P(Ω) < 0: stable by the first approximation"))
     if "stable_sim" in ds:
         sim = ds["stable_sim"].where(ds["status"] == 0).transpose(ydim, "Omega").values
         yy, xx = np.meshgrid(y, x, indexing="ij")
@@ -98,15 +120,16 @@ def stability_chart(ds, boundaries=None):
         step_x = max(1, len(x) // 16)
         sub = (slice(None, None, step_y), slice(None, None, step_x))
         s, xs, ys = sim[sub], xx[sub], yy[sub]
-        handles.append(ax.scatter(xs[s == 1], ys[s == 1], marker="o", s=14, facecolors="none",
-                                  edgecolors="k", lw=0.8, label="simulation: stable"))
-        handles.append(ax.scatter(xs[s == 0], ys[s == 0], marker="x", s=14, color="k", lw=0.8,
-                                  label="simulation: unstable"))
+        art["sim_stable"] = ax.scatter(xs[s == 1], ys[s == 1], marker="o", s=14, facecolors="none",
+                                       edgecolors="k", lw=0.8, label="simulation: stable")
+        art["sim_unstable"] = ax.scatter(xs[s == 0], ys[s == 0], marker="x", s=14, color="k", lw=0.8,
+                                         label="simulation: unstable")
+        handles += [art["sim_stable"], art["sim_unstable"]]
     if boundaries is not None and boundaries.attrs.get("along") == "Omega":
         line_dim = ydim if ydim in boundaries["boundary"].dims else None
         xmap = lambda v: np.asarray(v) / scale  # noqa: E731
-        handles += [a for a in located.overlay(ax, boundaries, line_dim=line_dim, xmap=xmap, ymap=ymap)
-                    if a.get_label() and not a.get_label().startswith("_")]
+        art["boundaries"] = located.overlay(ax, boundaries, line_dim=line_dim, xmap=xmap, ymap=ymap)
+        handles += [a for a in art["boundaries"] if a.get_label() and not a.get_label().startswith("_")]
         small = located.small_curves(boundaries, ((x.min(), x.max()), (y.min(), y.max())), xmap=xmap, ymap=ymap)
         if small is not None:  # an island too small to see: a magnified view of it
             (x0, x1), (y0, y1) = small
@@ -121,18 +144,22 @@ def stability_chart(ds, boundaries=None):
             inset.yaxis.set_major_locator(MaxNLocator(4))
             inset.set_title("magnified: a boundary closed inside the chart", fontsize=7)
             ax.indicate_inset_zoom(inset, edgecolor="0.3")
+            art["inset"] = inset
     ax.set_xlabel(xlab)
     ax.set_ylabel(ylab)
     ax.set_xlim(x.min(), x.max())
     ax.set_ylim(y.min(), y.max())
     if ds[ydim].attrs.get("spacing") == "log":
         ax.set_yscale("log")
+    art["frequencies"] = _frequency_ticks(ax, ds, scale)
     for h in handles:  # a narrow legend leaves the chart its width
         h.set_label("\n".join(textwrap.wrap(h.get_label(), 44)))
-    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    flag_note(ax, ds)
-    title(fig, ds, "Stability of the balanced state of the pendulum auto-balancer")
-    return fig
+    art["legend"] = ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    art["flag_note"] = flag_note(ax, ds, f"{int(flagged.sum())} flagged point(s), grey (see status)")
+    title(fig, ds, "Stability of the balanced state of the pendulum auto-balancer",
+          caption="top axis: the platform's natural frequencies (first approximation)"
+          if art["frequencies"] is not None else None)
+    return art
 
 
 def _scalar(ds, name):
@@ -151,41 +178,62 @@ def can_residual(ds) -> bool:
     return "Omega" in ds.dims
 
 
-def residual(ds):
-    """Residual platform vibration and settling time against crank speed."""
+def residual(ds, *, fig=None, ax=None):
+    """Residual platform vibration and settling time against crank speed, one colour per curve
+    (the same in every panel; one legend); the pendulums' final phase error where they settled;
+    the platform's natural frequencies as labelled ticks on the top axis."""
     names = [n for n in ("residual_amplitude", "settling_time", "phase_error") if n in ds]
-    fig, axes = new_figure(len(names), 1, width=7.5, height=3.2)
+    fig, axes = new_figure(len(names), 1, width=7.5, height=3.0, fig=fig, ax=ax)
+    art = Drawn(figure=fig, axes=axes, lines={})
     x, xlab, scale = _x(ds)
+    rest = [d for d in ds[names[0]].dims if d != "Omega"]
+    members = list(np.ndindex(*(ds.sizes[d] for d in rest)))
+    step = max(1, len(members) // 8)  # at most ~8 curves stay readable
+    members = members[::step]
+    settled = np.isfinite(ds["settling_time"]) if "settling_time" in ds else ds["status"] == 0
+    handles = {}
     for r, name in enumerate(names):
-        ax = axes[r, 0]
+        a = axes[r, 0]
         # the model keeps what it could compute at a flagged point (e.g. the residual where the
-        # pendulums never settle); NaN marks what it could not, and is not drawn
-        da = ds[name]
-        rest = [d for d in da.dims if d != "Omega"]
-        members = list(np.ndindex(*(da.sizes[d] for d in rest)))
-        step = max(1, len(members) // 8)  # at most ~8 curves stay readable
-        for k, idx in enumerate(members[::step]):
+        # pendulums never settle); NaN marks what it could not, and is not drawn. The phase error is
+        # drawn only where the pendulums settled: elsewhere it is the phase of a wandering pendulum.
+        da = ds[name].where(settled) if name == "phase_error" else ds[name]
+        missing = []
+        for k, idx in enumerate(members):
             member = da.isel(dict(zip(rest, idx)))
-            lab = ", ".join(f"{d} = {member[d].values:.4g}" for d in rest) or None
-            ax.plot(x, member.values, lw=1.2, color=f"C{k % 10}", label=lab)
-        if rest:
-            ax.legend(fontsize=7)
-        if name == "residual_amplitude" and np.nanmin(da.values) > 0:
-            ax.set_yscale("log")
-        for wname, style in (("omega_xi", "--"), ("omega_eta", ":"), ("omega_p", "-.")):
-            value = _scalar(ds, wname)
-            if value is not None:
-                ax.axvline(value / scale, color="0.5", ls=style, lw=0.9)
-        ax.set_xlabel(xlab)
-        ax.set_ylabel(label(ds[name], width=30))
-        ax.set_xlim(x.min(), x.max())
-        ax.grid(True, alpha=0.3)
+            lab = ", ".join(f"{d} = {member[d].values:.4g}" for d in rest) or name
+            v = np.asarray(member.values, dtype=float)
+            if not np.isfinite(v).any():
+                missing.append(lab)
+                continue
+            (line,) = a.plot(x, v, lw=1.2, color=f"C{k % 10}", label=lab)
+            art["lines"][(name, lab)] = line
+            handles.setdefault(lab, line)
+        if missing:
+            a.text(0.01, 0.97, "no value: " + "; ".join(missing), transform=a.transAxes, fontsize=7, va="top",
+                   color="0.35")
+        v = np.asarray(da.values, dtype=float)
+        pos = v[np.isfinite(v)]
+        if name in ("residual_amplitude", "phase_error") and pos.size and pos.min() > 0:
+            a.set_yscale("log")
+        _frequency_ticks(a, ds, scale)
+        a.set_xlabel(xlab)
+        a.set_ylabel(label(ds[name], width=30) + ("\n(where settled)" if name == "phase_error" else ""))
+        a.set_xlim(x.min(), x.max())
+        a.grid(True, alpha=0.3)
+    if rest:
+        order = [lab for lab in (", ".join(f"{d} = {ds[d].values[i]:.4g}" for d, i in zip(rest, idx))
+                                 for idx in members) if lab in handles]
+        art["legend"] = axes[0, 0].legend([handles[k] for k in order], order, fontsize=7, loc="upper left",
+                                          bbox_to_anchor=(1.01, 1.0), title="one colour per curve, all panels",
+                                          title_fontsize=7)
     bad = int((ds["status"].values != 0).sum())
+    caption = "top axis: the platform's natural frequencies (first approximation)"
     if bad:
-        axes[0, 0].text(0.01, 0.01, f"{bad} point(s) flagged: drawn only where the value could be computed "
-                        "(see the status variable)", transform=axes[0, 0].transAxes, fontsize=7, color="0.35")
-    title(fig, ds, "Residual vibration and settling of the pendulum auto-balancer")
-    return fig
+        caption += (f"; {bad} of {ds['status'].size} points flagged (see the status variable): each output is "
+                    "drawn wherever it could be computed")
+    title(fig, ds, "Residual vibration and settling of the pendulum auto-balancer", caption=caption)
+    return art
 
 
 HISTORIES = ("xi_history", "eta_history", "phase_error1_history", "phase_error2_history")
@@ -196,22 +244,25 @@ def can_time_history(ds) -> bool:
     return all(ds.sizes[d] == 1 for d in ds[next(n for n in HISTORIES if n in ds)].dims if d != "revolution")
 
 
-def time_history(ds):
+def time_history(ds, *, fig=None, ax=None):
     """Platform displacement and pendulum phase errors of one grid point against crank revolutions."""
     point = ds.squeeze()
-    fig, axes = new_figure(2, 1, width=8.0, height=3.2)
+    fig, axes = new_figure(2, 1, width=8.0, height=3.2, fig=fig, ax=ax)
+    art = Drawn(figure=fig, axes=axes)
     t = point["revolution"].values
     ax = axes[0, 0]
     for name, color in (("xi_history", "C0"), ("eta_history", "C1")):
         if name in point:
-            ax.plot(t, point[name].values, lw=0.8, color=color, label=point[name].attrs.get("long_name", name))
+            art[name], = ax.plot(t, point[name].values, lw=0.8, color=color,
+                                 label=point[name].attrs.get("long_name", name))
     ax.set_ylabel("platform displacement [m]")
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
     ax = axes[1, 0]
     for name, color in (("phase_error1_history", "C2"), ("phase_error2_history", "C3")):
         if name in point:
-            ax.plot(t, point[name].values, lw=0.9, color=color, label=point[name].attrs.get("long_name", name))
+            art[name], = ax.plot(t, point[name].values, lw=0.9, color=color,
+                                 label=point[name].attrs.get("long_name", name))
     ax.set_ylabel("pendulum phase error [rad]")
     ax.set_xlabel(label(point["revolution"]))
     ax.legend(fontsize=8)
@@ -220,7 +271,7 @@ def time_history(ds):
         ax.set_xlim(t[0], t[-1])
     where = ", ".join(f"{d} = {float(point[d]):g}" for d in ds.dims if d != "revolution" and d in point.coords)
     title(fig, point, f"Time history at {where}" if where else "Time history")
-    return fig
+    return art
 
 
 FIGURES = (

@@ -43,7 +43,7 @@ import numpy as np
 from matplotlib.colors import ListedColormap, LogNorm, Normalize
 from matplotlib.ticker import LogLocator, MaxNLocator
 
-from ._style import STATUS_OK, label, new_figure, ok_values, title
+from ._style import STATUS_OK, Drawn, label, new_figure, ok_values, title, units_text
 
 STABLE_COLORS = ListedColormap(["#f4c7c3", "#c8e6c9"])  # unstable, stable
 FLOQUET_SLACK = 1e-6  # a modulus within this of 1 counts as on the unit circle (stable, undamped)
@@ -98,10 +98,11 @@ class Choice:
     y: str | None
     description: str
 
-    def draw(self, ds):
+    def draw(self, ds, *, fig=None, ax=None):
+        """The figure's artists (a Drawn dict; ``["figure"]`` is the Figure)."""
         if self.kind == "stability_map":
-            return stability_map(ds, self.output)
-        return _panel_figure(ds, self)
+            return stability_map(ds, self.output, fig=fig, ax=ax)
+        return _panel_figure(ds, self, fig=fig, ax=ax)
 
 
 def choose(ds, drawn=frozenset()) -> list[Choice]:
@@ -148,7 +149,7 @@ def _nomogram_choice(ds, name, x, family) -> Choice:
 
 def _what(ds, name) -> str:
     unit = ds[name].attrs.get("units", "")
-    return f"{name} ({ds[name].attrs.get('long_name', name)}" + (f" [{unit}])" if unit not in ("", "1") else ")")
+    return f"{name} ({ds[name].attrs.get('long_name', name)}" + (f" [{unit}])" if units_text(unit) else ")")
 
 
 def _ax(ds, dim) -> str:
@@ -376,8 +377,8 @@ def _member_text(ds, family, member) -> str:
     sym = ds[family].attrs.get("symbol") or family
     if not is_numeric(ds, family):
         return str(member)
-    unit = ds[family].attrs.get("units", "")
-    return f"{sym} = {_value(member)}" + (f" {unit}" if unit not in ("", "1") else "")
+    unit = units_text(ds[family].attrs.get("units", ""))
+    return f"{sym} = {_value(member)}" + (f" {unit}" if unit else "")
 
 
 def _end_labels(ax, ends):
@@ -415,7 +416,7 @@ def _flag_note(ax, n_bad, n_drawn):
 
 
 # ----------------------------------------------------------------------------- whole figures
-def _panel_figure(ds, choice: Choice):
+def _panel_figure(ds, choice: Choice, *, fig=None, ax=None):
     """One panel per value of the axes the figure does not use (at most MAX_PANELS)."""
     used = (choice.x,) if choice.y is None else (choice.x, choice.y)
     rest = [d for d in _axes(ds, choice.output) if d not in used]
@@ -424,26 +425,29 @@ def _panel_figure(ds, choice: Choice):
     ncols = min(2, len(shown))
     nrows = -(-len(shown) // ncols)
     heat = choice.kind == "heatmap"
-    fig, axes = new_figure(nrows, ncols, width=6.0 if heat else 6.6, height=4.6 if heat else 4.0)
+    if ax is not None:  # the user's Axes: one per panel, none left over
+        ncols, nrows = 1, len(shown)
+    fig, axes = new_figure(nrows, ncols, width=6.0 if heat else 6.6, height=4.6 if heat else 4.0, fig=fig, ax=ax)
+    art = Drawn(figure=fig, axes=axes, panels=[])
     for k, values in enumerate(shown):
-        ax = axes[k // ncols, k % ncols]
+        a = axes[k // ncols, k % ncols]
         at = dict(zip(rest, values))
         if heat:
-            heatmap(ds, choice.output, x=choice.x, y=choice.y, at=at, ax=ax)
+            art["panels"].append(heatmap(ds, choice.output, x=choice.x, y=choice.y, at=at, ax=a))
         else:
-            nomogram(ds, choice.output, x=choice.x, family=choice.y, at=at, ax=ax)
+            art["panels"].append(nomogram(ds, choice.output, x=choice.x, family=choice.y, at=at, ax=a))
         if at:
-            ax.set_title(", ".join(f"{d} = {_value(v)}" for d, v in at.items()), fontsize=9)
+            a.set_title(", ".join(f"{d} = {_value(v)}" for d, v in at.items()), fontsize=9)
     for k in range(len(shown), nrows * ncols):
         fig.delaxes(axes[k // ncols, k % ncols])
     what = {"heatmap": "Map", "nomogram": "Nomogram", "curve": "Curve"}[choice.kind]
     long = ds[choice.output].attrs.get("long_name", choice.output)
     cut = f" (first {len(shown)} of {len(members)} slices of {', '.join(rest)})" if len(members) > len(shown) else ""
     title(fig, ds, f"{what}: {long}{cut}")
-    return fig
+    return art
 
 
-def stability_map(ds, name=None):
+def stability_map(ds, name=None, *, fig=None, ax=None):
     """Floquet stability over two axes (stable where the largest multiplier modulus is at most 1),
     one panel per value of the other axes, boundary drawn."""
     if name is None:
@@ -453,13 +457,16 @@ def stability_map(ds, name=None):
     members = list(itertools.product(*(range(ds.sizes[d]) for d in others)))[:6]
     ncols = min(2, len(members))
     nrows = -(-len(members) // ncols)
-    fig, axes = new_figure(nrows, ncols, width=5.2, height=4.0)
+    if ax is not None:  # the user's Axes: one per panel, none left over
+        ncols, nrows = 1, len(members)
+    fig, axes = new_figure(nrows, ncols, width=5.2, height=4.0, fig=fig, ax=ax)
+    art = Drawn(figure=fig, axes=axes, panels=[])
     x, y = ds[xdim].values, ds[ydim].values
     for k, idx in enumerate(members):
         ax = axes[k // ncols, k % ncols]
         sel = dict(zip(others, idx))
         values = (ok_values(ds, name) if "status" in ds else ds[name]).isel(sel).transpose(ydim, xdim).values
-        stability_panel(ax, x, y, values)
+        art["panels"].append(stability_panel(ax, x, y, values))
         if is_log(ds, xdim):
             ax.set_xscale("log")
         if is_log(ds, ydim):
@@ -477,19 +484,22 @@ def stability_map(ds, name=None):
     handles = [axes[0, 0].fill_between([], [], color=STABLE_COLORS.colors[1], label="stable"),
                axes[0, 0].fill_between([], [], color=STABLE_COLORS.colors[0], label="unstable"),
                axes[0, 0].plot([], [], color="k", lw=1.2, label=f"{ds[name].attrs.get('symbol', name)} = 1")[0]]
-    fig.legend(handles=handles, loc="outside lower center", ncols=3, fontsize=9)
+    art["legend"] = fig.legend(handles=handles, loc="outside right upper", fontsize=9)  # the caption is below
     title(fig, ds, f"Floquet stability: {ds[name].attrs.get('long_name', name)}")
-    return fig
+    return art
 
 
-def stability_panel(ax, x, y, values) -> None:
+def stability_panel(ax, x, y, values) -> dict:
     """Stable/unstable shading of one map and the boundary between them (contour of the modulus
     at 1 + FLOQUET_SLACK, so that an undamped stable side, at 1 up to round-off, counts as stable)."""
     verdict = np.where(np.isfinite(values), (values <= 1.0 + FLOQUET_SLACK).astype(float), np.nan)
-    ax.pcolormesh(x, y, verdict, cmap=STABLE_COLORS, vmin=0, vmax=1, shading="nearest")
+    art = {"mesh": ax.pcolormesh(x, y, verdict, cmap=STABLE_COLORS, vmin=0, vmax=1, shading="nearest"),
+           "boundary": None}
     margin = values - (1.0 + FLOQUET_SLACK)
     if np.nanmin(margin, initial=np.inf) < 0 < np.nanmax(margin, initial=-np.inf):
-        ax.contour(x, y, np.log1p(np.maximum(margin, -0.5)), levels=[0.0], colors="k", linewidths=1.2)
+        art["boundary"] = ax.contour(x, y, np.log1p(np.maximum(margin, -0.5)), levels=[0.0], colors="k",
+                                     linewidths=1.2)
+    return art
 
 
 def _value(v) -> str:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._registry import ModelFigure
-from ._style import flag_note, label, new_figure, ok_values, title
+from ._style import HALO_DARK, Drawn, flag_note, label, new_figure, ok_values, title, units_text
 
 FOURBAR, SLIDER = "fourbar_balancing", "slidercrank_balancing"
 
@@ -31,11 +31,12 @@ def can_moment_methods(ds) -> bool:
     return len(members) <= 4
 
 
-def moment_methods(ds):
+def moment_methods(ds, *, fig=None, ax=None):
     """Shaking moment after force balancing and the residual moment of each method over a cycle,
-    one panel per design (at most four)."""
+    one panel per design (at most four), each with its legend beside it."""
     dims, members = _members(ds, ("phi",))
-    fig, axes = new_figure(len(members), 1, width=8.0, height=3.4)
+    fig, axes = new_figure(len(members), 1, width=8.0, height=3.0, fig=fig, ax=ax)
+    art = Drawn(figure=fig, axes=axes, lines=[], legends=[])
     phi_deg = np.degrees(ds["phi"].values)
     for row, idx in enumerate(members):
         ax = axes[row, 0]
@@ -46,20 +47,20 @@ def moment_methods(ds):
             values = point[name].values if int(point["status"]) == 0 else np.full(phi_deg.size, np.nan)
             if eff in point and np.isfinite(float(point[eff])):
                 text = f"{text}: R = {float(point[eff]):.1f} %"
-            ax.plot(phi_deg, values, lw=1.6 if k == 0 else 1.2, ls="-" if k == 0 else "--", label=text,
-                    color=f"C{k}")
+            art["lines"].append(ax.plot(phi_deg, values, lw=1.6 if k == 0 else 1.2, ls="-" if k == 0 else "--",
+                                        label=text, color=f"C{k}")[0])
         ax.axhline(0.0, color="0.4", lw=0.6)
         ax.set_xlim(0, 360)
         ax.set_xticks(range(0, 361, 45))
         ax.set_xlabel("crank angle φ [deg]")
         ax.set_ylabel("shaking moment about O_A [N m]")
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=7, loc="upper right")
+        art["legends"].append(ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0)))
         where = ", ".join(f"{d} = {point[d].values}" for d in dims)
         if where:
             ax.set_title(where, fontsize=9)
     title(fig, ds, "Residual shaking moment of each balancing method (R: efficiency against method 1)")
-    return fig
+    return art
 
 
 MAP_OUTPUTS = ("dM_rms_axis", "R_axis", "R_h1", "R_inertia", "M_rms_static", "cw_mass_static")
@@ -77,30 +78,63 @@ def can_balancing_map(ds) -> bool:
     return _map_dims(ds) is not None
 
 
-def balancing_map(ds):
-    """Maps of residual moments and efficiencies over two geometry axes; grey: not a crank-rocker
-    or at a toggle (see status)."""
+def balancing_map(ds, *, fig=None, ax=None):
+    """Maps of residual moments and efficiencies over two geometry axes, with labelled contours to
+    read values from; the colour scale spans the 1st to 99th percentile (arrows: beyond); an output
+    equal to one already drawn is named in its panel instead of drawn again; grey: not a
+    crank-rocker or at a toggle (see status)."""
+    from .generic import _level_text, contour_levels
+
     ydim, xdim = _map_dims(ds)
-    names = [n for n in MAP_OUTPUTS if n in ds]
+    names, same = [], {}
+    for n in (n for n in MAP_OUTPUTS if n in ds):
+        twin = next((m for m in names if np.allclose(ok_values(ds, n).values, ok_values(ds, m).values,
+                                                      rtol=1e-9, atol=0, equal_nan=True)), None)
+        if twin is None:
+            names.append(n)
+        else:
+            same.setdefault(twin, []).append(n)
     ncols = 2 if len(names) > 1 else 1
     nrows = (len(names) + ncols - 1) // ncols
-    fig, axes = new_figure(nrows, ncols, width=5.6, height=4.4)
+    fig, axes = new_figure(nrows, ncols, width=5.6, height=4.4, fig=fig, ax=ax)
+    art = Drawn(figure=fig, axes=axes, panels={})
     x, y = ds[xdim].values, ds[ydim].values
     flagged = (ds["status"] != 0).transpose(ydim, xdim).values
     for k, name in enumerate(names):
-        ax = axes[k // ncols, k % ncols]
+        a = axes[k // ncols, k % ncols]
         v = ok_values(ds, name).transpose(ydim, xdim).values
+        fin = v[np.isfinite(v)]
+        lo, hi = (np.percentile(fin, [1, 99]) if fin.size else (0.0, 1.0))
+        extend = ("both" if fin.min() < lo and fin.max() > hi else "max" if fin.max() > hi
+                  else "min" if fin.min() < lo else "neither") if fin.size else "neither"
         cmap = "viridis" if name.startswith("R_") else "magma_r"
-        mesh = ax.pcolormesh(x, y, v, shading="nearest", cmap=cmap, rasterized=True)
-        ax.contourf(x, y, np.where(flagged, 1.0, np.nan), levels=[0.5, 1.5], colors=["0.85"])
-        fig.colorbar(mesh, ax=ax).set_label(label(ds[name], width=34), fontsize=8)
-        ax.set_xlabel(label(ds[xdim]))
-        ax.set_ylabel(label(ds[ydim]))
-        flag_note(ax, ds)
+        panel = {"mesh": a.pcolormesh(x, y, v, shading="nearest", cmap=cmap, vmin=lo, vmax=hi, rasterized=True)}
+        a.contourf(x, y, np.where(flagged, 1.0, np.nan), levels=[0.5, 1.5], colors=["0.85"])
+        levels = contour_levels(float(lo), float(hi), False) if fin.size else []
+        if len(levels):
+            cs = a.contour(x, y, v, levels=levels, colors="white", linewidths=0.9)
+            cs.set_path_effects(HALO_DARK)
+            texts = a.clabel(cs, fmt=_level_text, fontsize=7)
+            for t in texts:
+                t.set_path_effects(HALO_DARK)
+            panel["contours"], panel["contour_labels"] = cs, list(texts)
+        cb = a.figure.colorbar(panel["mesh"], ax=a, extend=extend)
+        cb.set_label(label(ds[name], width=34), fontsize=8)
+        if "contours" in panel:
+            cb.add_lines(panel["contours"])
+        panel["colorbar"] = cb
+        if name in same:
+            a.set_title(f"{name}; equal on this grid: {', '.join(same[name])}", fontsize=8)
+        a.set_xlabel(label(ds[xdim]))
+        a.set_ylabel(label(ds[ydim]))
+        art["panels"][name] = panel
     for k in range(len(names), nrows * ncols):
         fig.delaxes(axes[k // ncols, k % ncols])
-    title(fig, ds, "Four-bar balancing over a geometry family")
-    return fig
+    bad = int(flagged.sum())
+    caption = (f"grey: {bad} of {flagged.size} grid points flagged (not a crank-rocker, or at a toggle; see status)"
+               if bad else None)
+    title(fig, ds, "Four-bar balancing over a geometry family", caption=caption)
+    return art
 
 
 def can_slider_residual(ds) -> bool:
@@ -108,52 +142,76 @@ def can_slider_residual(ds) -> bool:
     return "k" in ds.dims
 
 
-def slider_residual(ds):
+TEXTBOOK_K = (1 / 3, 1 / 2)  # the textbook's recommended balanced fraction of the reciprocating mass
+
+
+def slider_residual(ds, *, fig=None, ax=None):
     """Residual shaking force of the slider-crank against the balanced fraction k of the
-    reciprocating mass, one curve per crank-to-rod ratio; the textbook formula's error below."""
+    reciprocating mass, one colour per crank-to-rod ratio, the textbook's range k = 1/3 .. 1/2
+    shaded; below, the two-term textbook formula's error against the crank-to-rod ratio (it does
+    not depend on k: every k's value is a point at its ratio)."""
     names = [n for n in ("F_max", "Fx_max", "Fy_max") if n in ds]
     has_err = "F_tb_error_rel" in ds
-    fig, axes = new_figure(1 + has_err, 1, width=7.5, height=3.8)
-    ax = axes[0, 0]
+    fig, axes = new_figure(1 + has_err, 1, width=7.5, height=3.8, fig=fig, ax=ax)
+    art = Drawn(figure=fig, axes=axes, lines=[])
+    a = axes[0, 0]
     others = [d for d in ds["status"].dims if d != "k"]
-    members = list(np.ndindex(*(ds.sizes[d] for d in others)))
-    for j, idx in enumerate(members[:8]):
+    members = list(np.ndindex(*(ds.sizes[d] for d in others)))[:8]
+    k = ds["k"].values
+    art["textbook"] = a.axvspan(*TEXTBOOK_K, color="0.6", alpha=0.18, lw=0, label="textbook: k = 1/3 .. 1/2")
+    for j, idx in enumerate(members):
         sel = dict(zip(others, idx))
         lab = ", ".join(f"{d} = {ds[d].values[i]:g}" for d, i in sel.items())
-        for s, (name, style) in enumerate(zip(names, ("-", "--", ":"))):
-            ax.plot(ds["k"].values, ok_values(ds, name).isel(sel).values, ls=style, color=f"C{j}", lw=1.3,
-                    label=f"{name}, {lab}" if s == 0 or j == 0 else None)
+        for s_, (name, style) in enumerate(zip(names, ("-", "--", ":"))):
+            art["lines"].append(a.plot(k, ok_values(ds, name).isel(sel).values, ls=style, color=f"C{j}", lw=1.3,
+                                       label=(lab or name) if s_ == 0 else None)[0])
         if "F_max_unbalanced" in ds:
             ref = ok_values(ds, "F_max_unbalanced").isel(sel).values
-            ax.plot(ds["k"].values, ref, color=f"C{j}", lw=0.6, alpha=0.5,
-                    label="thin: |F| max without counterweight" if j == 0 else None)
-    ax.set_xlabel(label(ds["k"]))
-    ax.set_ylabel("residual shaking force [N]")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7, ncols=2)
-    flag_note(ax, ds)
+            art["lines"].append(a.plot(k, ref, color=f"C{j}", lw=0.6, alpha=0.5)[0])
+    # the line styles, once, in grey
+    style_handles = [a.plot([], [], ls=st, color="0.3", lw=1.3, label=ds[n].attrs.get("long_name", n))[0]
+                     for n, st in zip(names, ("-", "--", ":"))]
+    if "F_max_unbalanced" in ds:
+        style_handles.append(a.plot([], [], color="0.3", lw=0.6, alpha=0.5, label="|F| max without counterweight")[0])
+    handles, labels = a.get_legend_handles_labels()
+    art["legend"] = a.legend(handles, ["\n".join(__import__("textwrap").wrap(t, 34)) for t in labels], fontsize=7,
+                             loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    a.set_xlabel(label(ds["k"]))
+    unit = units_text(ds[names[0]].attrs.get("units", "N")) if names else "N"
+    a.set_ylabel(f"residual shaking force [{unit}]")
+    a.set_xlim(k.min(), k.max())
+    a.grid(True, alpha=0.3)
+    art["flag_note"] = flag_note(a, ds)
     if has_err:
-        ax2 = axes[1, 0]
-        for j, idx in enumerate(members[:8]):
-            sel = dict(zip(others, idx))
-            lab = ", ".join(f"{d} = {ds[d].values[i]:g}" for d, i in sel.items())
-            ax2.plot(ds["k"].values, ok_values(ds, "F_tb_error_rel").isel(sel).values, color=f"C{j}", label=lab)
-        ax2.set_yscale("log")
-        ax2.set_xlabel(label(ds["k"]))
-        ax2.set_ylabel(label(ds["F_tb_error_rel"], width=34))
-        ax2.grid(True, which="both", alpha=0.3)
-        ax2.legend(fontsize=7)
+        a2 = axes[1, 0]
+        err = ok_values(ds, "F_tb_error_rel")
+        fam = next((d for d in others if ds[d].dtype.kind in "fiu" and ds.sizes[d] > 1), None)
+        if fam is not None:  # the error against the ratio; a spread along k would show as a vertical line
+            xv = np.asarray(err[fam].broadcast_like(err).transpose(*err.dims).values, dtype=float).ravel()
+            art["error"] = a2.scatter(xv, np.asarray(err.values, dtype=float).ravel(), s=16, color="C3", zorder=3,
+                                      label="textbook formula, every k")
+            a2.set_xlabel(label(ds[fam]))
+        else:
+            art["error"], = a2.plot(k, np.asarray(err.values, dtype=float).ravel(), color="C3")
+            a2.set_xlabel(label(ds["k"]))
+        a2.set_yscale("log")
+        a2.set_ylabel(label(ds["F_tb_error_rel"], width=34))
+        a2.grid(True, which="both", alpha=0.3)
     title(fig, ds, "Slider-crank: partial balancing of the reciprocating mass")
-    return fig
+    return art
 
 
 PARETO_INDICES = ("Fx_range", "Fy_range", "M_range", "T_range")
 
 
-def pareto(ds):
-    """Pareto front of the four balancing indices f1..f4 over a counterweight sweep, coloured by
-    the counterweight mass, with the weighted-sum optimum of equal weights on indices scaled by
-    their largest value. (Selecting the non-dominated rows of stored data is the only work done.)"""
+def pareto(ds, *, fig=None, ax=None):
+    """Pareto front of the four balancing indices f1..f4 over a counterweight sweep as parallel
+    coordinates (one polyline per Pareto-optimal design across the four index axes, each axis from
+    its smallest to its largest value on the front, in its own unit), coloured by the counterweight
+    mass, with the weighted-sum optimum of equal weights on indices scaled by their largest value.
+    (Selecting the non-dominated rows of stored data is the only work done.)"""
+    from matplotlib.collections import LineCollection
+
     from ..balancing import pareto_front, weighted_optimum
 
     F = np.stack([ok_values(ds, n).values.ravel() for n in PARETO_INDICES], axis=1)
@@ -162,24 +220,55 @@ def pareto(ds):
     scale[scale == 0] = 1.0
     best = weighted_optimum(F / scale, np.ones(4))
     mass = ok_values(ds, "cw_mass").values.ravel() if "cw_mass" in ds else None
-    fig, axes = new_figure(1, 2, width=6.0, height=5.0)
-    pairs = ((0, 1), (2, 3))
-    for ax, (i, j) in zip(axes[0], pairs):
-        ax.scatter(F[:, i], F[:, j], s=3, color="0.8", rasterized=True, label="all designs")
-        sc = ax.scatter(F[front, i], F[front, j], s=12, c=mass[front] if mass is not None else "C3",
-                        cmap="plasma", label="Pareto-optimal over f1..f4")
-        ax.scatter(F[best, i], F[best, j], marker="*", s=220, color="C2", edgecolor="k", zorder=5,
-                   label="weighted-sum optimum (equal weights, scaled)")
-        for setter, n in ((ax.set_xlabel, PARETO_INDICES[i]), (ax.set_ylabel, PARETO_INDICES[j])):
-            setter(f"f{PARETO_INDICES.index(n) + 1}: {n.replace('_', ' ')} over a cycle [{ds[n].attrs['units']}]")
-        ax.grid(True, alpha=0.3)
-    axes[0, 0].legend(fontsize=7)
+    fig, axes = new_figure(1, 1, width=9.0, height=5.4, fig=fig, ax=ax)
+    art = Drawn(figure=fig, axes=axes)
+    a = axes[0, 0]
+    P = F[front]
+    lo, hi = P.min(axis=0), P.max(axis=0)
+    span = np.where(hi > lo, hi - lo, 1.0)
+    u = (P - lo) / span  # 0 at the front's smallest value of each index, 1 at its largest
+    xs = np.arange(4.0)
+    segs = np.stack([np.column_stack([xs, row]) for row in u])
+    order = np.argsort(mass[front])[::-1] if mass is not None else np.arange(len(u))
+    lc = LineCollection(segs[order], linewidths=0.7, alpha=0.5, cmap="plasma")
     if mass is not None:
-        fig.colorbar(sc, ax=axes[0, 1]).set_label(label(ds["cw_mass"]))
-    axes[0, 1].text(0.99, 0.99, f"{int(front.sum())} of {int(np.isfinite(F).all(axis=1).sum())} designs "
-                    "are Pareto-optimal", transform=axes[0, 1].transAxes, ha="right", va="top", fontsize=8)
-    title(fig, ds, "Comprehensive balancing: Pareto front of the four indices")
-    return fig
+        lc.set_array(mass[front][order])
+    else:
+        lc.set_color("C3")
+    art["front"] = a.add_collection(lc)
+    ub = (F[best] - lo) / span
+    art["optimum"], = a.plot(xs, ub, color="C2", lw=3.0, marker="*", ms=14, mec="k", zorder=5,
+                             label="weighted-sum optimum (equal weights, scaled): "
+                                   + ", ".join(f"f{i + 1} = {F[best, i]:.3g}" for i in range(4)))
+    for i, n in enumerate(PARETO_INDICES):
+        a.axvline(i, color="0.2", lw=0.8)
+        a.annotate(f"{lo[i]:.4g}", (i, 0), xytext=(0, -4), textcoords="offset points", ha="center", va="top",
+                   fontsize=8)
+        a.annotate(f"{hi[i]:.4g}", (i, 1), xytext=(0, 4), textcoords="offset points", ha="center", va="bottom",
+                   fontsize=8)
+        for q in (0.25, 0.5, 0.75):
+            a.plot([i - 0.03, i + 0.03], [q, q], color="0.2", lw=0.8)
+            a.annotate(f"{lo[i] + q * span[i]:.4g}", (i, q), xytext=(4, 0), textcoords="offset points",
+                       ha="left", va="center", fontsize=6.5, color="0.2",
+                       bbox=dict(facecolor="white", alpha=0.8, edgecolor="none", pad=0.6))
+    a.set_xticks(xs, [f"f{i + 1}: {n.replace('_', ' ')}\nover a cycle [{units_text(ds[n].attrs.get('units', ''))}]"
+                      for i, n in enumerate(PARETO_INDICES)], fontsize=8)
+    a.set_yticks([])
+    a.set_xlabel("balancing index (lower is better on every axis)")
+    a.set_ylabel("each axis: the front's smallest to largest value")
+    a.set_xlim(-0.3, 3.5)
+    a.set_ylim(-0.08, 1.08)
+    for side in ("top", "right", "left"):
+        a.spines[side].set_visible(False)
+    if mass is not None:
+        art["colorbar"] = a.figure.colorbar(lc, ax=a)
+        art["colorbar"].set_label(label(ds["cw_mass"], width=40))
+    art["legend"] = a.legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), fontsize=8, frameon=False)
+    title(fig, ds, "Comprehensive balancing: Pareto front of the four indices",
+          caption=f"{int(front.sum())} of {int(np.isfinite(F).all(axis=1).sum())} designs are Pareto-optimal "
+                  "over f1..f4 (every one drawn: a line across the four axes, each axis from the front's smallest "
+                  "to its largest value; lower is better on every axis)")
+    return art
 
 
 FIGURES = (

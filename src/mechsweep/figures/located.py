@@ -11,7 +11,7 @@ import textwrap
 import numpy as np
 
 from ._registry import ModelFigure
-from ._style import label, new_figure
+from ._style import Drawn, label, new_figure, units_text
 
 KIND = "boundaries"
 LOCATED_COLOR = "#6a1b9a"
@@ -165,22 +165,23 @@ def can_boundaries(ds) -> bool:
     return is_boundaries(ds) and bool(np.isfinite(np.asarray(ds["boundary"].values, dtype=float)).any())
 
 
-def boundaries(ds):
+def boundaries(ds, *, fig=None, ax=None):
     """The located boundaries (and the continued ones) alone: the axis they were located along
     against another axis of the scene, one colour per combination of the remaining axes."""
     along = ds.attrs["along"]
     line_dim = _line_dim(ds)
-    fig, axes = new_figure(1, 1, width=9.5, height=5.0)
+    fig, axes = new_figure(1, 1, width=9.5, height=5.0, fig=fig, ax=ax)
+    art = Drawn(figure=fig, axes=axes, overlays=[])
     ax = axes[0, 0]
     rest = [d for d in ds["boundary"].dims if d not in (line_dim, "crossing")]
     combos = list(np.ndindex(*(ds.sizes[d] for d in rest)))
     for k, idx in enumerate(combos[:10]):  # at most 10 colours stay readable
         sel = dict(zip(rest, idx))
         name = ", ".join(f"{d} = {ds[d].values[i]}" for d, i in sel.items())
-        overlay(ax, ds, line_dim=line_dim, sel=sel, color=f"C{k % 10}" if len(combos) > 1 else None,
+        art["overlays"] += overlay(ax, ds, line_dim=line_dim, sel=sel, color=f"C{k % 10}" if len(combos) > 1 else None,
                 label_prefix=f"{name}: " if name else "")
-    unit = ds["boundary"].attrs.get("units", "")
-    ax.set_xlabel(f"{along} [{unit}]" if unit not in ("", "1") else along)
+    unit = units_text(ds["boundary"].attrs.get("units", ""))
+    ax.set_xlabel(f"{along} [{unit}]" if unit else along)
     if line_dim is not None:
         ax.set_ylabel(label(ds[line_dim]))
         if ds[line_dim].attrs.get("spacing") == "log":
@@ -190,12 +191,13 @@ def boundaries(ds):
         ax.set_ylabel("(no other axis)")
     ax.grid(True, alpha=0.3)
     handles, labels = ax.get_legend_handles_labels()
-    ax.legend(handles, ["\n".join(textwrap.wrap(lab, 44)) for lab in labels], fontsize=7, loc="upper left",
-              bbox_to_anchor=(1.01, 1.0))
+    art["legend"] = ax.legend(handles, ["\n".join(textwrap.wrap(lab, 44)) for lab in labels], fontsize=7,
+                              loc="upper left", bbox_to_anchor=(1.01, 1.0))
     n = int(ds.attrs.get("located", 0))
-    fig.suptitle(f"Boundaries located along {along}: {criterion_text(ds)}\n"
-                 f"{ds.attrs.get('title', '')}: {n} located", fontsize=11)
-    return fig
+    if getattr(fig, "_mechsweep_titled", False):
+        fig.suptitle(f"Boundaries located along {along}: {criterion_text(ds)}\n"
+                     f"{ds.attrs.get('title', '')}: {n} located", fontsize=11)
+    return art
 
 
 FIGURES = (

@@ -6,18 +6,44 @@ import textwrap
 import numpy as np
 
 from ._registry import ModelFigure
-from ._style import label, new_figure
+import zlib
+
+from ._style import Drawn, label, new_figure, owns, width_inches
 
 MARKERS = "os^vD<>ph*"
+# One colour per method, by name, in every panel of every work-precision figure: our implementation
+# and another library's of the same method share it (ours solid, theirs dashed).
+METHOD_COLORS = {"dop853": "#1f77b4", "radau": "#ff7f0e", "symplectic": "#2ca02c", "auto": "#d62728",
+                 "lsoda": "#9467bd", "rk45": "#8c564b", "bdf": "#e377c2", "rk23": "#7f7f7f"}
+SPARE_COLORS = ("#bcbd22", "#17becf", "#393b79", "#637939", "#8c6d31", "#843c39", "#7b4173", "#3182bd")
+LIBRARIES = ("mechsweep", "scipy", "numpy", "numbalsoda", "diffrax")
 
 
-def workprecision(ds):
-    """Error against run time per point, one line per method (ours solid, scipy or numpy dashed)."""
+def method_key(name) -> str:
+    """'scipy DOP853' and 'mechsweep dop853, rtol 1e-06' -> 'dop853': the method, without the
+    library that implements it or the run's settings."""
+    words = str(name).split(",")[0].strip().split()
+    if len(words) > 1 and words[0].lower() in LIBRARIES:
+        words = words[1:]
+    return " ".join(words).lower()
+
+
+def method_color(name) -> str:
+    """The colour of a method in every work-precision figure (a fixed table; a method it does not
+    know gets a spare colour chosen from its name, the same in every figure)."""
+    key = method_key(name)
+    return METHOD_COLORS.get(key) or SPARE_COLORS[zlib.crc32(key.encode()) % len(SPARE_COLORS)]
+
+
+def workprecision(ds, *, fig=None, ax=None):
+    """Error against run time per point, one line per method (ours solid, scipy or numpy dashed),
+    one colour per method in every panel and figure; the hollow marker is the loosest tolerance."""
     if ds.attrs["mechsweep_kind"] == "workprecision_positions":
-        return _positions(ds)
+        return _positions(ds, fig=fig, ax=ax)
     drift = "energy_error" in ds
-    fig, axes = new_figure(1, 2 if drift else 1, width=7.4, height=5.0)
-    ax = axes[0, 0]
+    fig, axes = new_figure(1, 2 if drift else 1, width=7.4, height=5.0, fig=fig, ax=ax)
+    art = Drawn(figure=fig, axes=axes, lines={})
+    a = axes[0, 0]
     rtol = ds["rtol"].values
     for i, name in enumerate(ds["integrator"].values):
         t = ds["time_per_point"].isel(integrator=i).values
@@ -26,45 +52,61 @@ def workprecision(ds):
         if not keep.any():
             continue
         ours = str(name).startswith("mechsweep")
-        line, = ax.loglog(t[keep], e[keep], ls="-" if ours else "--", marker=MARKERS[i % len(MARKERS)],
-                          lw=1.6 if ours else 1.1, ms=5, label=str(name))
-        first = np.flatnonzero(keep)[0]  # tolerance of the loosest point, to read the ladder
-        ax.annotate(f"{rtol[first]:.0e}", (t[first], e[first]), textcoords="offset points", xytext=(4, 4),
-                    fontsize=7, color=line.get_color())
-    ax.set_xlabel(label(ds["time_per_point"]))
-    ax.set_ylabel(textwrap.fill(f"{ds.attrs['norm']} (max over {ds.attrs['scipy_points']} points)", 48))
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8, loc="best")
+        color = method_color(name)
+        marker = MARKERS[i % len(MARKERS)]
+        line, = a.loglog(t[keep], e[keep], ls="-" if ours else "--", marker=marker, color=color,
+                         lw=1.6 if ours else 1.1, ms=5, label=str(name))
+        first = np.flatnonzero(keep)[0]  # the loosest tolerance: a hollow marker, to read the ladder
+        a.plot(t[first], e[first], marker=marker, ms=9, mfc="white", mec=color, mew=1.4, ls="none", zorder=4)
+        art["lines"][str(name)] = line
+    a.set_xlabel(label(ds["time_per_point"]))
+    a.set_ylabel(textwrap.fill(f"{ds.attrs['norm']} (max over {ds.attrs['scipy_points']} points)", 48))
+    a.grid(True, which="both", alpha=0.3)
+    art["legend"] = a.legend(fontsize=8, loc="best")
     if drift:
-        _energy_drift(axes[0, 1], ds)
-    head = f"Work-precision, {ds.attrs['model']}: rtol ladder {rtol.max():.0e} ... {rtol.min():.0e}"
-    ref = f"reference: {ds.attrs['reference']}; {ds.attrs['points']} points of {ds.attrs['scene']}, 1 thread"
-    fig.suptitle(head + "\n" + textwrap.fill(ref, 100), fontsize=9)
-    return fig
+        art.update(_energy_drift(axes[0, 1], ds))
+    if owns(fig):
+        fig.suptitle(f"Work-precision, {ds.attrs['model']}: rtol ladder {rtol.max():.0e} ... {rtol.min():.0e}",
+                     fontsize=10)
+        fig.supxlabel(textwrap.fill(f"hollow marker: the loosest tolerance, rtol = {rtol.max():.0e}; each next "
+                                    f"marker a tighter one, down to {rtol.min():.0e}. Reference: "
+                                    f"{ds.attrs['reference']}; {ds.attrs['points']} points of {ds.attrs['scene']}, "
+                                    "1 thread", int(width_inches(fig) * 15)), fontsize=7.5, color="0.25")
+    return art
 
 
 def _energy_drift(ax, ds):
     """Energy error against integrated periods: linear growth of the explicit method, none for
-    the symplectic one (its error sits at round-off)."""
+    the symplectic one (its error sits at round-off). Colour by method, line style by tolerance."""
+    lines = {}
+    rtols = []
+    for name in ds["drift_run"].values:
+        r = str(name).split("rtol")[-1].strip() if "rtol" in str(name) else ""
+        if r not in rtols:
+            rtols.append(r)
     for i, name in enumerate(ds["drift_run"].values):
+        r = str(name).split("rtol")[-1].strip() if "rtol" in str(name) else ""
+        j = rtols.index(r)
         e = np.maximum(ds["energy_error"].isel(drift_run=i).values, 1e-17)  # exact zeros drawn at the floor
-        ax.loglog(ds["periods"].values, e, marker=MARKERS[i % len(MARKERS)], ls="-" if "symplectic" in name else "--",
-                  label=f"{name} ({int(ds['drift_rhs'].values[i]):,} rhs)")
+        lines[str(name)], = ax.loglog(ds["periods"].values, e, marker=MARKERS[j % len(MARKERS)],
+                                      ls=("-", "--", ":", "-.")[j % 4], color=method_color(name),
+                                      label=f"{name} ({int(ds['drift_rhs'].values[i]):,} rhs)")
     ax.set_xlabel(label(ds["periods"]))
     ax.set_ylabel(label(ds["energy_error"]))
     ax.set_title(textwrap.fill(ds.attrs["drift_problem"], 60), fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, loc="best")
+    return {"drift_lines": lines, "drift_legend": ax.legend(fontsize=7, loc="best")}
 
 
 FLOOR = 1e-17  # exact zeros (a maximum on the grid by symmetry) drawn at this floor
 
 
-def _positions(ds):
+def _positions(ds, *, fig=None, ax=None):
     """Linkage models: error against time per point (left) and against the number N of crank
     positions (right, with the slope N^-2 of a maximum), one colour per output; mechsweep solid,
-    numpy dashed (same values, its own time)."""
-    fig, axes = new_figure(1, 2, width=6.4, height=5.4)
+    numpy dashed (same values, its own time); the hollow marker is the fewest positions."""
+    fig, axes = new_figure(1, 2, width=6.4, height=5.4, fig=fig, ax=ax)
+    art = Drawn(figure=fig, axes=axes, lines={})
     left, right = axes[0, 0], axes[0, 1]
     N = ds["n_positions"].values
     for o, name in enumerate(ds["output"].values):
@@ -73,30 +115,34 @@ def _positions(ds):
             t = ds["time_per_point"].isel(implementation=i).values
             e = np.maximum(ds["error_max"].isel(implementation=i, output=o).values, FLOOR)
             ours = impl == "mechsweep"
-            left.loglog(t, e, ls="-" if ours else "--", marker=MARKERS[o % len(MARKERS)], color=color,
-                        lw=1.6 if ours else 1.0, ms=4 if ours else 3, label=f"{name}, {impl}")
+            marker = MARKERS[o % len(MARKERS)]
+            art["lines"][(str(name), str(impl))], = left.loglog(
+                t, e, ls="-" if ours else "--", marker=marker, color=color, lw=1.6 if ours else 1.0,
+                ms=4 if ours else 3, label=f"{name}, {impl}")
+            left.plot(t[0], e[0], marker=marker, ms=8, mfc="white", mec=color, mew=1.3, ls="none", zorder=4)
             if ours:
-                for j in (0, len(N) - 1):
-                    left.annotate(f"N={N[j]}", (t[j], e[j]), textcoords="offset points", xytext=(4, 4), fontsize=7,
-                                  color=color)
-                right.loglog(N, e, marker=MARKERS[o % len(MARKERS)], color=color,
-                             label=f"{name} ({ds['kind'].values[o]})")
+                right.loglog(N, e, marker=marker, color=color, label=f"{name} ({ds['kind'].values[o]})")
+                right.plot(N[0], e[0], marker=marker, ms=8, mfc="white", mec=color, mew=1.3, ls="none", zorder=4)
     e_ref = float(np.nanmax(ds["error_max"].sel(implementation="mechsweep").values[:, N >= 90]))
-    right.loglog(N, e_ref * (N / 90.0) ** -2.0, ls=":", color="0.4", label="slope N^-2")
+    right.loglog(N, e_ref * (N / 90.0) ** -2.0, ls=":", color="0.4", label="slope N$^{-2}$")
     right.axvline(ds.attrs["default_positions"], color="0.6", lw=0.8)
     right.annotate(f"default N = {ds.attrs['default_positions']}", (ds.attrs["default_positions"], FLOOR * 10),
                    fontsize=7, color="0.4", rotation=90, xytext=(3, 0), textcoords="offset points")
     left.set_xlabel(label(ds["time_per_point"]))
     right.set_xlabel(label(ds["n_positions"]))
-    for ax in (left, right):
-        ax.set_ylabel(textwrap.fill(f"{ds.attrs['norm']} (max over {ds.attrs['points']} points)", 48))
-        ax.grid(True, which="both", alpha=0.3)
-    left.legend(fontsize=6.5, loc="best", ncol=2)
-    right.legend(fontsize=7, loc="best")
-    head = f"Work-precision, {ds.attrs['model']}: crank positions N = {N.min()} ... {N.max()}, 1 thread"
-    ref = f"reference: {ds.attrs['reference']}; {ds.attrs['points']} points of {ds.attrs['scene']}"
-    fig.suptitle(head + "\n" + textwrap.fill(ref, 120), fontsize=9)
-    return fig
+    for a in (left, right):
+        a.set_ylabel(textwrap.fill(f"{ds.attrs['norm']} (max over {ds.attrs['points']} points)", 48))
+        a.grid(True, which="both", alpha=0.3)
+    art["legend"] = left.legend(fontsize=6.5, loc="best", ncol=2)
+    art["legend_right"] = right.legend(fontsize=7, loc="best")
+    if owns(fig):
+        fig.suptitle(f"Work-precision, {ds.attrs['model']}: crank positions N = {N.min()} ... {N.max()}, 1 thread",
+                     fontsize=10)
+        fig.supxlabel(textwrap.fill(f"hollow marker: the fewest positions, N = {N.min()}; each next marker more, up "
+                                    f"to N = {N.max()}. Reference: {ds.attrs['reference']}; {ds.attrs['points']} "
+                                    f"points of {ds.attrs['scene']}", int(width_inches(fig) * 15)),
+                      fontsize=7.5, color="0.25")
+    return art
 
 
 FIGURES = (
