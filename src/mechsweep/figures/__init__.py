@@ -23,14 +23,27 @@ boundaries; a boundaries dataset itself gets the figure of :mod:`.located`.
 """
 from __future__ import annotations
 
+import importlib
+import pkgutil
 from pathlib import Path
 
-from . import autobalancer, duffing, generic, linkage, located, torsional, workprecision
+from . import generic, located
 from ._registry import ModelFigure
 
-# figures for a model, most specific first
-MODEL_FIGURES: tuple[ModelFigure, ...] = (workprecision.FIGURES + torsional.FIGURES + duffing.FIGURES
-                                          + autobalancer.FIGURES + linkage.FIGURES + located.FIGURES)
+
+def _discovered() -> tuple[ModelFigure, ...]:
+    """The ``FIGURES`` of every figure module of this package (found, not named here), most
+    specific first: a module whose figures are for benchmark or boundaries datasets, then those
+    for one model, then those shared by several (the Duffing figures also fit the torsional
+    circuit, whose own figures must come first); alphabetical within a rank."""
+    modules = [importlib.import_module(f"{__name__}.{m.name}") for m in pkgutil.iter_modules(__path__)
+               if not m.name.startswith("_")]
+    found = [(m.__name__, m.FIGURES) for m in modules if getattr(m, "FIGURES", ())]
+    rank = {name: min(len(f.models) for f in figs) for name, figs in found}
+    return tuple(f for name, figs in sorted(found, key=lambda t: (rank[t[0]], t[0])) for f in figs)
+
+
+MODEL_FIGURES: tuple[ModelFigure, ...] = _discovered()
 
 
 def sibling_boundaries(path):
