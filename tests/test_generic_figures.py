@@ -261,3 +261,31 @@ def test_a_user_model_run_is_plotted_with_generic_figures(tmp_path, capsys):
     assert np.isfinite(line.get_ydata()).all() and (ds["status"].values != 0).sum() == 5
     assert main(["plot", str(tmp_path / "lin.h5"), "--kind", "curve_period"]) == 0
     assert (tmp_path / "lin.png").stat().st_size > 10_000
+
+
+def test_stability_map_draws_every_valued_point_and_the_located_boundaries():
+    """A point whose status is not ok but whose multiplier modulus has a value (e.g. undecided:
+    within the verdict's margin of 1) is shaded like the others; located boundaries of the same
+    grid (along speed, one line per preload) are drawn at (boundary, preload); the longer axis
+    (speed, 30 values) runs across."""
+    from mechsweep import status as st
+
+    ds = _axes_of(cam(), "speed", "preload")
+    ds["status"].values[7, 1, 0] = st.UNDECIDED  # its floquet value stays finite
+    crossing = np.array([[30.0 + 10 * i, np.nan] for i in range(ds.sizes["preload"])])
+    bds = xr.Dataset(
+        {"boundary": (("preload", "crossing"), crossing, {"units": "rad/s"}),
+         "boundary_width": (("preload", "crossing"), np.full(crossing.shape, 1e-9), {"units": "rad/s"})},
+        coords={"preload": ds["preload"].values, "crossing": [0, 1]},
+        attrs={"mechsweep_kind": "boundaries", "model": "cam_follower", "along": "speed", "criterion": "floquet",
+               "level": 1.0, "rtol": 1e-10})
+    art = figures.artists(ds, "stability_map", boundaries=bds)
+    ax = art["axes"][0, 0]
+    assert "speed of the cam" in ax.get_xlabel() and "spring preload" in ax.get_ylabel()
+    panel = art["panels"][0]
+    shaded = panel["mesh"].get_array().reshape(ds.sizes["preload"], ds.sizes["speed"])
+    assert not np.ma.is_masked(shaded[1, 7])  # the undecided point is drawn
+    points = panel["located"][0].get_offsets()
+    np.testing.assert_allclose(points[:, 0], crossing[:, 0])
+    np.testing.assert_allclose(points[:, 1], ds["preload"].values)
+    assert "located" not in figures.artists(ds, "stability_map")["panels"][0]

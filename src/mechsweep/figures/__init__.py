@@ -74,7 +74,9 @@ def _plan(ds, boundaries=None) -> list[tuple[str, str, object, bool]]:
     model = [f for f in MODEL_FIGURES if f.fits_dataset(ds)]
     drawn = set().union(*(f.drawn(ds) for f in model))
     plan = [(f.name, f.description, _draw_fn(f, boundaries), True) for f in model]
-    plan += [(c.name, c.description, c.draw, not model) for c in generic.choose(ds, drawn)]
+    fitting = boundaries if boundaries is not None and located.mismatch(ds, boundaries) is None else None
+    plan += [(c.name, c.description, (lambda ds, c=c, **kw: c.draw(ds, boundaries=fitting, **kw))
+              if c.kind == "stability_map" else c.draw, not model) for c in generic.choose(ds, drawn)]
     return plan
 
 

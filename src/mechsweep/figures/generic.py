@@ -35,6 +35,7 @@ Which figures a dataset gets (:func:`choose`), per output that no figure for its
 from __future__ import annotations
 
 import itertools
+import textwrap
 from dataclasses import dataclass
 
 import matplotlib
@@ -43,6 +44,7 @@ import numpy as np
 from matplotlib.colors import ListedColormap, LogNorm, Normalize
 from matplotlib.ticker import LogLocator, MaxNLocator
 
+from . import located
 from ._style import STATUS_OK, Drawn, label, new_figure, ok_values, title, units_text
 
 STABLE_COLORS = ListedColormap(["#f4c7c3", "#c8e6c9"])  # unstable, stable
@@ -58,6 +60,8 @@ FLAG_STYLE = dict(marker="x", s=14, color="0.5", linewidths=0.8, zorder=4,  # gr
 
 
 # ----------------------------------------------------------------------------- what the dataset declares
+CONTOUR_MIN_VALUES = 5  # a stability map draws its grid contour only with at least this many values per axis
+
 def grid_dims(ds) -> list[str]:
     """The dataset's grid dimensions (those of ``status`` in a run, else all dimensions)."""
     return list(ds["status"].dims) if "status" in ds else list(ds.dims)
@@ -98,11 +102,19 @@ class Choice:
     y: str | None
     description: str
 
-    def draw(self, ds, *, fig=None, ax=None):
-        """The figure's artists (a Drawn dict; ``["figure"]`` is the Figure)."""
+    def draw(self, ds, *, fig=None, ax=None, boundaries=None):
+        """The figure's artists (a Drawn dict; ``["figure"]`` is the Figure). A stability map draws
+        ``boundaries`` (located on this grid, along one of its two axes) over the shading."""
         if self.kind == "stability_map":
-            return stability_map(ds, self.output, fig=fig, ax=ax)
+            return stability_map(ds, self.output, fig=fig, ax=ax, boundaries=boundaries)
         return _panel_figure(ds, self, fig=fig, ax=ax)
+
+
+def _map_axes(ds, name) -> tuple[str, str]:
+    """(y, x) of a stability map: the first two numeric axes of the scene, the one with more values
+    across (a three-value list axis makes three rows, not three wide columns)."""
+    first, second = [d for d in _axes(ds, name) if is_numeric(ds, d)][:2]
+    return (second, first) if ds.sizes[first] > ds.sizes[second] else (first, second)
 
 
 def choose(ds, drawn=frozenset()) -> list[Choice]:
@@ -112,7 +124,7 @@ def choose(ds, drawn=frozenset()) -> list[Choice]:
     floquet = [n for n in float_outputs(ds) if n not in drawn and ds[n].attrs.get("mechsweep_kind") == "floquet_max"
                and len([d for d in _axes(ds, n) if is_numeric(ds, d)]) >= 2]
     for k, name in enumerate(floquet):
-        y, x = [d for d in _axes(ds, name) if is_numeric(ds, d)][:2]
+        y, x = _map_axes(ds, name)
         choices.append(Choice("stability_map" if k == 0 else f"stability_map_{name}", "stability_map", name, x, y,
                               f"Floquet stability of {_what(ds, name)} over {_ax(ds, x)} and {_ax(ds, y)}: "
                               f"stable where it is at most 1, boundary drawn{_panels_text(ds, name, (x, y))}."))
@@ -447,12 +459,15 @@ def _panel_figure(ds, choice: Choice, *, fig=None, ax=None):
     return art
 
 
-def stability_map(ds, name=None, *, fig=None, ax=None):
+def stability_map(ds, name=None, *, fig=None, ax=None, boundaries=None):
     """Floquet stability over two axes (stable where the largest multiplier modulus is at most 1),
-    one panel per value of the other axes, boundary drawn."""
+    one panel per value of the other axes, boundary drawn: the grid's contour and, when
+    ``boundaries`` (a boundaries dataset located on this grid along one of the two axes) is
+    given, the located points. The modulus is drawn wherever it has a value, whatever the point's
+    status (e.g. undecided: |multiplier| within the margin of 1, a neutrally stable point)."""
     if name is None:
         name = next(c.output for c in choose(ds) if c.kind == "stability_map")
-    ydim, xdim = [d for d in _axes(ds, name) if is_numeric(ds, d)][:2]
+    ydim, xdim = _map_axes(ds, name)
     others = [d for d in ds[name].dims if d not in (xdim, ydim)]
     members = list(itertools.product(*(range(ds.sizes[d]) for d in others)))[:6]
     ncols = min(2, len(members))
@@ -465,8 +480,14 @@ def stability_map(ds, name=None, *, fig=None, ax=None):
     for k, idx in enumerate(members):
         ax = axes[k // ncols, k % ncols]
         sel = dict(zip(others, idx))
-        values = (ok_values(ds, name) if "status" in ds else ds[name]).isel(sel).transpose(ydim, xdim).values
+        values = ds[name].isel(sel).transpose(ydim, xdim).values
         art["panels"].append(stability_panel(ax, x, y, values))
+        along = boundaries.attrs.get("along") if boundaries is not None else None
+        if along in (xdim, ydim):
+            other = ydim if along == xdim else xdim
+            art["panels"][-1]["located"] = located.overlay(
+                ax, boundaries, line_dim=other if other in boundaries["boundary"].dims else None,
+                sel={d: i for d, i in sel.items() if d in boundaries["boundary"].dims}, transpose=along == ydim)
         if is_log(ds, xdim):
             ax.set_xscale("log")
         if is_log(ds, ydim):
@@ -475,16 +496,22 @@ def stability_map(ds, name=None, *, fig=None, ax=None):
         ax.set_ylabel(label(ds[ydim]))
         if others:
             ax.set_title(", ".join(f"{d} = {_value(ds[d].values[i])}" for d, i in sel.items()), fontsize=10)
-        flagged = int((ds["status"].isel(sel).values != STATUS_OK).sum()) if "status" in ds else 0
-        if flagged:
-            ax.text(0.01, 0.01, f"{flagged} flagged point(s) not drawn", transform=ax.transAxes, fontsize=8,
-                    color="0.35")
+        missing = int((~np.isfinite(values)).sum())
+        if missing:
+            ax.text(0.01, 0.01, f"{missing} point(s) without a value (see status), not drawn", transform=ax.transAxes,
+                    fontsize=8, color="0.35")
     for k in range(len(members), nrows * ncols):
         fig.delaxes(axes[k // ncols, k % ncols])
     handles = [axes[0, 0].fill_between([], [], color=STABLE_COLORS.colors[1], label="stable"),
                axes[0, 0].fill_between([], [], color=STABLE_COLORS.colors[0], label="unstable"),
                axes[0, 0].plot([], [], color="k", lw=1.2, label=f"{ds[name].attrs.get('symbol', name)} = 1")[0]]
-    art["legend"] = fig.legend(handles=handles, loc="outside right upper", fontsize=9)  # the caption is below
+    if not any(p["boundary"] is not None for p in art["panels"]):
+        handles.pop()  # no grid contour drawn
+    located_points = [p["located"][0] for p in art["panels"] if p.get("located")]
+    handles += located_points[:1]
+    for h in handles:  # a long label would squeeze the panels beside the legend
+        h.set_label(textwrap.fill(h.get_label(), 34))
+    art["legend"] = fig.legend(handles=handles, loc="outside right center", fontsize=9)  # the caption is below
     title(fig, ds, f"Floquet stability: {ds[name].attrs.get('long_name', name)}")
     return art
 
@@ -496,7 +523,10 @@ def stability_panel(ax, x, y, values) -> dict:
     art = {"mesh": ax.pcolormesh(x, y, verdict, cmap=STABLE_COLORS, vmin=0, vmax=1, shading="nearest"),
            "boundary": None}
     margin = values - (1.0 + FLOQUET_SLACK)
-    if np.nanmin(margin, initial=np.inf) < 0 < np.nanmax(margin, initial=-np.inf):
+    # the grid's contour only where both axes resolve it (across 3 rows it would draw straight
+    # lines between rows that mean nothing; located boundaries, when given, are drawn anyway)
+    resolved = min(np.size(x), np.size(y)) >= CONTOUR_MIN_VALUES
+    if resolved and np.nanmin(margin, initial=np.inf) < 0 < np.nanmax(margin, initial=-np.inf):
         art["boundary"] = ax.contour(x, y, np.log1p(np.maximum(margin, -0.5)), levels=[0.0], colors="k",
                                      linewidths=1.2)
     return art

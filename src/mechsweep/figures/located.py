@@ -54,8 +54,10 @@ def tolerance_text(bds) -> str:
     bracket relative to the boundary (both read from the dataset)."""
     loc = np.asarray(bds["boundary"].values, dtype=float)
     w = np.asarray(bds["boundary_width"].values, dtype=float)
-    ok = np.isfinite(loc) & np.isfinite(w) & (loc != 0)
-    widest = f", widest bracket {np.max(w[ok] / np.abs(loc[ok])):.1e}" if ok.any() else ""
+    ok = np.isfinite(loc) & np.isfinite(w)
+    # relative to |boundary|, floored (as the location's tolerance is) for a boundary at 0
+    scale = np.maximum(np.abs(loc[ok]), 1e-6 * np.max(np.abs(loc[ok]), initial=0.0)) if ok.any() else None
+    widest = f", widest bracket {np.max(w[ok] / scale):.1e}" if ok.any() and (scale > 0).all() else ""
     return f"rtol {float(bds.attrs.get('rtol', np.nan)):.0e}{widest}"
 
 
@@ -69,14 +71,18 @@ def _lines(bds, line_dim):
         yield sel, da.isel(sel)
 
 
-def overlay(ax, bds, *, line_dim=None, sel=None, xmap=None, ymap=None, color=None, label_prefix=""):
+def overlay(ax, bds, *, line_dim=None, sel=None, xmap=None, ymap=None, color=None, label_prefix="",
+            transpose=False):
     """Draw the boundaries of ``bds`` on ``ax``: the located ones as points at (boundary, line) for
     every value of ``line_dim`` (an axis other than the one located along; None: vertical lines at
     the boundaries), the continued ones as curves. ``sel`` picks the other dims (isel); ``xmap`` /
-    ``ymap`` map the stored values to the chart's coordinates. Returns the artists (the first of
+    ``ymap`` map the stored values to the chart's coordinates; ``transpose``: the chart has the
+    axis located along vertical (points at (line, boundary)). Returns the artists (the first of
     each kind carries a legend label saying what it is and to what tolerance)."""
     xmap = xmap or (lambda v: v)
     ymap = ymap or (lambda v: v)
+    if transpose:  # every (along, other) pair below is drawn as (other, along)
+        ax = _Transposed(ax)
     sel = sel or {}
     along = bds.attrs["along"]
     artists = []
@@ -121,6 +127,22 @@ def overlay(ax, bds, *, line_dim=None, sel=None, xmap=None, ymap=None, color=Non
                                           edgecolors=color or CONTINUED_COLOR, zorder=5,
                                           label=f"{label_prefix}fold of a continued boundary"))
     return artists
+
+
+class _Transposed:
+    """An Axes seen with x and y swapped, for the few calls overlay makes."""
+
+    def __init__(self, ax):
+        self._ax = ax
+
+    def axvline(self, x, **kw):
+        return self._ax.axhline(x, **kw)
+
+    def scatter(self, x, y, **kw):
+        return self._ax.scatter(y, x, **kw)
+
+    def plot(self, x, y, **kw):
+        return self._ax.plot(y, x, **kw)
 
 
 def small_curves(bds, box, *, xmap=None, ymap=None, frac=0.05):
