@@ -193,6 +193,9 @@ def _parser() -> argparse.ArgumentParser:
     b = bsub.add_parser("duffing", help="amplitude-period sweep: points/s, ratio to scipy solve_ivp, error")
     b.add_argument("--points", type=int, default=200_000, help="grid points for mechsweep (default 200000)")
     b.add_argument("--scipy-points", type=int, default=200, help="points solved with scipy (default 200)")
+    b.add_argument("--compare-points", type=int, default=20_000,
+                   help="points solved with numbalsoda and diffrax, when installed (default 20000)")
+    b.add_argument("--repeats", type=int, default=3, help="interleaved repetitions of every timing (default 3)")
     b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
     b.add_argument("--rtol", type=float, default=None, help="default: the solver default")
     b.add_argument("--atol", type=float, default=None, help="default: the solver default")
@@ -585,7 +588,7 @@ def _cmd_bench(args) -> int:
     from .scene import Solver
 
     bench_duffing.main(points=args.points, scipy_points=args.scipy_points, threads=args.threads,
-                       rtol=Solver.rtol if args.rtol is None else args.rtol,
+                       compare_points=args.compare_points, repeats=args.repeats, rtol=Solver.rtol if args.rtol is None else args.rtol,
                        atol=Solver.atol if args.atol is None else args.atol)
     return 0
 

@@ -50,9 +50,8 @@ from ..ode.dop853 import (ERROR_EXPONENT, F_DENSE, K_FSAL, MIN_FACTOR, SAFETY, W
                           _make_dense_output, _make_root_locator, _make_start, _step_factor)
 from ..ode.dop853_lanes import _begin_advance, _error_sums, _finish, _spread
 
-import os as _os
-LANES = int(_os.environ.get('MS_LANES', 0))  # TEMP experiments
-QUEUE = int(_os.environ.get('MS_QUEUE', 32))  # points per lane in one thread's queue (a block of LANES * QUEUE points)
+LANES = 0  # points side by side per thread; 0: lanes_for(number of states)
+QUEUE = 32  # points per lane in one thread's queue (a block of LANES * QUEUE points)
 
 
 def lanes_for(n_states: int) -> int:
@@ -187,6 +186,7 @@ class _Rewrite(ast.NodeTransformer):
         raise _NotLaneable(f"name {name}")
 
 
+@functools.lru_cache(maxsize=256)
 def lane_rhs_source(func, name: str = "rhs_lanes") -> str | None:
     """Source of ``name(tau, Z, P, dZ)``: the lane form of the scalar ``func(t, y, p, dydt)``, or
     None when the rewrite does not cover it (then the model is integrated one point at a time)."""
@@ -608,9 +608,10 @@ def settle(lane, ws, keep, need, table, status, n_steps, n_rhs):
 @pjit
 def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
     n = P.shape[0]
-    # queues of LBLOCK points; a small chunk is still split into up to 16 queues (of 8 points per lane
-    # at least) so that every thread gets work
-    n_blocks = max((n + LBLOCK - 1) // LBLOCK, min((n + 8 * LANES - 1) // (8 * LANES), 16))
+    # queues of LBLOCK points; a smaller chunk is split into up to 16 queues of 16 points per lane at
+    # least (fewer per lane: more of the rounds at the end of a queue run with idle lanes). The thread
+    # count is not read here: numba.get_num_threads() would keep the kernel out of the disk cache.
+    n_blocks = max((n + LBLOCK - 1) // LBLOCK, min((n + 16 * LANES - 1) // (16 * LANES), 16))
     for blk in prange(n_blocks):
         ws = lanes.workspace(NS, NPI, LANES, SCR + NSCR)
         keep = np.empty((LANES, NKEEP))
