@@ -39,12 +39,14 @@ def _lane_kernels_used():
 
 
 def _same(spec, P, wanted, monkeypatch, status0=None, **solver):
-    used = _lane_kernels_used()
+    """(one-point results, names of the lane kernels that served the lane evaluation)."""
+    monkeypatch.setattr(mc, "_KERNELS", {})  # every kernel fetched anew (from the disk cache): those used are listed
     one = _evaluate(spec, P, wanted, False, monkeypatch, status0, **solver)
+    monkeypatch.setattr(mc, "_KERNELS", {})
     lan = _evaluate(spec, P, wanted, True, monkeypatch, status0, **solver)
     for key, value in one.items():
         assert np.array_equal(value, lan[key], equal_nan=True), f"{spec.name} {wanted} {solver} {key}: lanes differ"
-    return one, _lane_kernels_used() - used
+    return one, _lane_kernels_used()
 
 
 def _duffing_points():
@@ -68,10 +70,21 @@ def test_duffing_lanes_bitwise_one_point_route(monkeypatch):
     for kw in cases:
         out, new = _same(spec, P, wanted, monkeypatch, method="dop853", **kw)
         seen |= set(out["status"].tolist())
-    assert new or _lane_kernels_used(), "the lane kernel was not used"
+        assert new, "the lane kernel was not used"
     # every status the model gives on this grid, through the lanes
     assert {st.OK, st.NO_MOTION, st.INFEASIBLE, st.NOT_OSCILLATORY, st.ILL_CONDITIONED, st.MAX_STEPS,
             st.NO_EVENT} <= seen
+
+
+@pytest.mark.slow  # ~30 s cold: its own two kernels
+def test_torsional_circuit_period_lanes_bitwise_one_point_route(monkeypatch):
+    """A FirstEvent of a System (its own rhs, initial state and prepare) in lanes."""
+    P = rr.torsional_points()
+    spec = MODELS["torsional_circuit"]
+    for kw in (dict(rtol=1e-10, atol=1e-12), dict(rtol=1e-6, atol=1e-9), dict(rtol=1e-10, atol=1e-12, max_steps=7)):
+        out, new = _same(spec, P, ("period",), monkeypatch, method="dop853", **kw)
+        assert new, "the lane kernel was not used"
+    assert {st.OK, st.MAX_STEPS} <= set(out["status"].tolist())
 
 
 def test_lanes_chunk_shapes_and_skipped_points(monkeypatch):
@@ -151,3 +164,23 @@ def _module(name):
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
+
+
+@pytest.mark.skipif(__import__("platform").machine() not in ("x86_64", "AMD64"), reason="x86 assembly")
+def test_lane_rhs_of_duffing_is_vectorised():
+    """LLVM turns the generated lane loop into packed (SIMD) arithmetic, without fused multiply-adds
+    (which would change the floats): checked on the assembly of the duffing lane rhs."""
+    import re
+
+    import numba
+
+    from mechsweep.models import duffing
+
+    namespace = {"math": math, "jit_noalloc": lambda f: numba.njit(fastmath=False, error_model="numpy")(f)}
+    exec(lanes.lane_rhs_source(duffing.MODEL.rhs), namespace)
+    f = namespace["rhs_lanes"]
+    L = lanes.lanes_for(2)
+    f(np.zeros(L), np.zeros((2, L)), np.zeros((10, L)), np.zeros((2, L)))
+    asm = "".join(f.inspect_asm().values())
+    assert re.findall(r"\bv?mulpd\b", asm), "no packed multiply: the lane loop was not vectorised"
+    assert not re.findall(r"vfn?m(add|sub)\d+[ps]d", asm)
