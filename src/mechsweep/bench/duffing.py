@@ -63,7 +63,7 @@ def time_kernel(scene, repeats: int = 3) -> tuple[float, dict]:
 
 TARGET_RUN = 1e6  # issue 15 goal 1: `mechsweep.run` points/s on 2 threads at rtol 1e-10
 TARGET_NUMBALSODA = 3.0  # issue 15 goal 1: kernel / numbalsoda at matched accuracy
-LADDER = (1e-10, 3e-11, 1e-11, 3e-12, 1e-12, 3e-13, 1e-13)  # competitors' rtols, loosest first
+LADDER = (1e-9, 3e-10, 1e-10, 3e-11, 1e-11, 3e-12, 1e-12, 3e-13, 1e-13)  # competitors' rtols, loosest first
 
 
 def scipy_periods(omega, mu, A, rtol, atol):
@@ -87,27 +87,32 @@ def _ours(scene, threads, lanes, rows, key):
 
 
 def _competitor(name, P, exact, ours_err, rtol, atol, repeats):
-    """Matched rtol on P (first rung of LADDER whose max error is no larger than ours_err), then
-    ``repeats`` timings there."""
+    """Matched rtol on P: the first rung of LADDER (loosest first) whose max error is no larger than
+    ours_err; where none is, the loosest rung within 10 % of the smallest error reached (the
+    competitor's floor). Then ``repeats`` timings there (wall clock and process CPU time)."""
     f = competitors.FUNCTIONS[name]
     tried = []
     for r in LADDER:
-        if r > rtol:
-            continue
         a = atol * r / rtol
         f(P, r, a)  # compile / trace at this shape
         err = float(np.nanmax(np.abs(f(P, r, a) - exact) / exact))
-        tried.append((err, r, a))
+        tried.append((r, a, err))
         if err <= ours_err:
             break
-    err, r, a = min(tried) if tried[-1][0] > ours_err else tried[-1]
-    times = []
+    if tried[-1][2] <= ours_err:
+        r, a, err = tried[-1]
+    else:
+        floor = min(e for _, _, e in tried)
+        r, a, err = next(t for t in tried if t[2] <= 1.1 * floor)
+    walls, cpus = [], []
     for _ in range(repeats):
-        wall, _, T = _timed(lambda: f(P, r, a))
-        times.append(wall)
+        wall, cpu, T = _timed(lambda: f(P, r, a))
+        walls.append(wall)
+        cpus.append(cpu)
     return {"rtol": r, "atol": a, "max_rel_error": err, "matched": err <= ours_err, "points": int(P.shape[0]),
-            "points_per_s": P.shape[0] / min(times), "points_per_s_worst": P.shape[0] / max(times),
-            "failed": int(np.isnan(T).sum())}
+            "points_per_s": P.shape[0] / min(walls), "points_per_s_worst": P.shape[0] / max(walls),
+            "points_per_cpu_s": P.shape[0] / min(cpus), "failed": int(np.isnan(T).sum()),
+            "ladder": [(t[0], t[2]) for t in tried]}
 
 
 def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = None,
@@ -221,20 +226,25 @@ def _print(r: dict) -> None:
             print(f"  {name:38s}: not installed (pip install mechsweep[compare])")
             continue
         ratio = r["kernel_points_per_s"] / c["points_per_s"]
-        print(f"  {name:38s}: {c['points_per_s']:>11,.0f} ({c['points_per_s_worst']:,.0f}) points/s on "
-              f"{c['points']} points at rtol {c['rtol']:g}, max error {c['max_rel_error']:.2e} "
-              f"(mechsweep {c['ours_max_rel_error_same_points']:.2e} on them): mechsweep kernel {ratio:,.1f}x"
-              f"{'' if c['matched'] else ' (NOT matched: no rung of the rtol ladder reached our error)'}")
+        ratio_cpu = r["kernel_points_per_cpu_s"] / c["points_per_cpu_s"]
+        print(f"  {name:38s}: {c['points_per_s']:>11,.0f} ({c['points_per_s_worst']:,.0f}) points/s; "
+              f"{c['points_per_cpu_s']:>10,.0f} points per CPU second; {c['points']} points at rtol {c['rtol']:g}, "
+              f"max error {c['max_rel_error']:.2e} (mechsweep {c['ours_max_rel_error_same_points']:.2e} on them)")
+        print(f"  {'':38s}  mechsweep kernel / {name}: {ratio:,.1f}x wall, {ratio_cpu:,.1f}x per CPU second"
+              f"{'' if c['matched'] else ' (NOT matched: no rung of the rtol ladder reached our error)'}; ladder "
+              + ", ".join(f"{rt:g}: {e:.1e}" for rt, e in c["ladder"]))
     print("  issue 15 goals measured here (the others: mechsweep bench quickstart / memory / workprecision):")
     run_ok = r["run_to_hdf5_points_per_s"] >= TARGET_RUN
-    print(f"    goal 1: mechsweep.run {r['run_to_hdf5_points_per_s']:,.0f} points/s on {t} threads "
-          f"(target >= {TARGET_RUN:,.0f} on 2 threads): {'met' if run_ok else 'not met'}")
+    print(f"    goal 1: mechsweep.run {r['run_to_hdf5_points_per_s']:,.0f} points/s on {t} threads, "
+          f"{r['run_to_hdf5_points_per_cpu_s']:,.0f} points per CPU second "
+          f"(target >= {TARGET_RUN:,.0f} points/s on 2 threads): {'met' if run_ok else 'not met'}")
     nb = r["competitors"].get("numbalsoda")
     if nb is None:
         print(f"    goal 1: kernel / numbalsoda at matched accuracy (target >= {TARGET_NUMBALSODA:g}): numbalsoda not "
               "installed")
     else:
         ratio = r["kernel_points_per_s"] / nb["points_per_s"]
+        ratio_cpu = r["kernel_points_per_cpu_s"] / nb["points_per_cpu_s"]
         verdict = ("not matched" if not nb["matched"] else "met" if ratio >= TARGET_NUMBALSODA else "not met")
-        print(f"    goal 1: kernel / numbalsoda {ratio:,.1f}x (target >= {TARGET_NUMBALSODA:g} at matched accuracy): "
-              f"{verdict}")
+        print(f"    goal 1: kernel / numbalsoda {ratio:,.1f}x wall, {ratio_cpu:,.1f}x per CPU second (target >= "
+              f"{TARGET_NUMBALSODA:g} at matched accuracy): {verdict}")
