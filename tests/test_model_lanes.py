@@ -99,6 +99,7 @@ def test_lanes_chunk_shapes_and_skipped_points(monkeypatch):
     assert (one["status"][::3] == st.INFEASIBLE).all() and (one["n_steps"][::3] == 0).all()
 
 
+@pytest.mark.slow  # four kernels of their own: about 1-2 min cold on the shared 2-core machine
 def test_user_models_lanes_bitwise(monkeypatch):
     P = np.array([[1.0, a, c, f] for a in (0.1, 1.0, 2.5, 3.1, -0.5, 0.0) for c in (0.0, 0.3) for f in (0.0, 0.7)])
     forced = load.resolve(f"{USER / 'lanes_models.py'}:FORCED")  # a lone first Crossing, math calls, t

@@ -555,9 +555,9 @@ def kernel_source(model, chosen, refs: dict, origin: str, closed, lane_rhs: str)
     if own:  # compile._own_body / _pass_source: the System's prepare, then t_max, then its initial state
         start = f"\n        tm = {tm}\n        initial0(p, y)\n        lane_load(ws, lane, ii, y, tm, rtol, atol)"
         if "prepare0" in refs:
-            start = (f"\n        c = prepare0(p, rtol)\n        if c != st.OK:\n"
-                     f"            conclude(ii, p, keep[lane], c, math.nan, 0, 0, need, table, status, n_steps, n_rhs)\n"
-                     f"            continue" + start)
+            start = ("\n        c = prepare0(p, rtol)\n        if c != st.OK:\n"
+                     "            conclude(ii, p, keep[lane], c, math.nan, 0, 0, need, table, status, n_steps, n_rhs)\n"
+                     "            continue" + start)
     else:
         start = f"\n        initial(p, y)\n        lane_load(ws, lane, ii, y, {tm}, rtol, atol)"
     lines.append(f"""
