@@ -11,6 +11,9 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
     b = bsub.add_parser("duffing", help="amplitude-period sweep: points/s, ratio to scipy solve_ivp, error")
     b.add_argument("--points", type=int, default=200_000, help="grid points for mechsweep (default 200000)")
     b.add_argument("--scipy-points", type=int, default=200, help="points solved with scipy (default 200)")
+    b.add_argument("--compare-points", type=int, default=20_000,
+                   help="points solved with numbalsoda and diffrax, when installed (default 20000)")
+    b.add_argument("--repeats", type=int, default=3, help="interleaved repetitions of every timing (default 3)")
     b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
     b.add_argument("--rtol", type=float, default=None, help="default: the solver default")
     b.add_argument("--atol", type=float, default=None, help="default: the solver default")
@@ -103,6 +106,7 @@ def run_duffing(args) -> int:
     from . import duffing as bench_duffing
 
     bench_duffing.main(points=args.points, scipy_points=args.scipy_points, threads=args.threads,
+                       compare_points=args.compare_points, repeats=args.repeats,
                        rtol=Solver.rtol if args.rtol is None else args.rtol,
                        atol=Solver.atol if args.atol is None else args.atol)
     return 0

@@ -1,9 +1,15 @@
-"""`mechsweep bench duffing`: the amplitude-period sweep against scipy solve_ivp, measured now.
+"""`mechsweep bench duffing`: the amplitude-period sweep against the other solvers, measured now.
 
-Both sides integrate the same scaled Duffing equation x'' = -a x - b x^3 from x = 1, x' = 0 to
-the first zero of x (a quarter period) with DOP853 at the same rtol/atol, on the same grid
-points; scipy runs on a random sample of them (it is ~1000x slower). Errors are against the
-elliptic closed form. mechsweep runs on all numba threads, scipy on one core, as each is used.
+Every solver integrates the same scaled Duffing equation x'' = -a x - b x^3 from x = 1, x' = 0 to
+the first zero of x (a quarter period), on points of the same grid (bench/competitors.py: scipy
+always, numbalsoda and diffrax when installed). Errors are against the elliptic closed form.
+mechsweep is timed as its kernel (SIMD lanes, and one point at a time for comparison) on 1 and on
+all threads, and as `mechsweep.run` writing the dataset; every timing is repeated (interleaved) and
+printed as best and range, in wall-clock points/s and in points per CPU second of the process (the
+measure least disturbed by other jobs on a shared machine). Each competitor's rtol is chosen from
+a ladder so that its max error on its points is no larger than mechsweep's on the same points
+(matched accuracy; atol scaled with it); where no rung reaches it, the ratio is printed at the
+competitor's smallest error and marked "not matched".
 """
 from __future__ import annotations
 
@@ -16,7 +22,9 @@ import numpy as np
 
 from .. import status as st
 from ..grid import Chunk
+from ..model import compile as model_compile
 from ..models import duffing
+from . import competitors
 from ..runner import _threads, evaluate_chunk, run
 from ..scene import Solver, load_scene
 
@@ -37,44 +45,79 @@ def _whole_grid(scene) -> Chunk:
     return Chunk(0, 0, scene.n_points, ())
 
 
+def _timed(f):
+    """(wall s, process CPU s, result) of f()."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    result = f()
+    return time.perf_counter() - t0, time.process_time() - c0, result
+
+
 def time_kernel(scene, repeats: int = 3) -> tuple[float, dict]:
     """Best of ``repeats`` wall times of evaluating the whole grid in memory (compiled already)."""
     best, result = math.inf, None
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        result = evaluate_chunk(scene, _whole_grid(scene))
-        best = min(best, time.perf_counter() - t0)
+        wall, _, result = _timed(lambda: evaluate_chunk(scene, _whole_grid(scene)))
+        best = min(best, wall)
     return best, result
+
+
+TARGET_RUN = 1e6  # issue 15 goal 1: `mechsweep.run` points/s on 2 threads at rtol 1e-10
+TARGET_NUMBALSODA = 3.0  # issue 15 goal 1: kernel / numbalsoda at matched accuracy
+LADDER = (1e-9, 3e-10, 1e-10, 3e-11, 1e-11, 3e-12, 1e-12, 3e-13, 1e-13)  # competitors' rtols, loosest first
 
 
 def scipy_periods(omega, mu, A, rtol, atol):
     """Same scaled problem, same tolerances, scipy's DOP853 with a terminal event."""
-    from scipy.integrate import solve_ivp
+    return competitors.scipy_periods(np.column_stack([omega, mu, A]), rtol, atol)
 
-    T = np.full(omega.size, np.nan)
-    steps = np.zeros(omega.size, dtype=np.int64)
-    for i in range(omega.size):
-        w2 = omega[i] ** 2 + abs(mu[i]) * A[i] ** 2
-        a, b = omega[i] ** 2 / w2, mu[i] * A[i] ** 2 / w2
 
-        def rhs(t, y, a=a, b=b):
-            return [y[1], -a * y[0] - b * y[0] ** 3]
+def _rates(n, times):
+    """(best, worst) points/s of wall-clock and CPU times."""
+    return n / min(times), n / max(times)
 
-        def crossing(t, y):
-            return y[0]
 
-        crossing.terminal = True
-        crossing.direction = -1
-        sol = solve_ivp(rhs, (0.0, 200 * math.pi), [1.0, 0.0], method="DOP853", rtol=rtol, atol=atol,
-                        events=crossing)
-        if sol.status == 1:
-            T[i] = 4.0 * sol.t_events[0][0] / math.sqrt(w2)
-        steps[i] = sol.t.size - 1
-    return T, steps
+def _ours(scene, threads, lanes, rows, key):
+    model_compile.USE_LANES = lanes
+    with _threads(threads):
+        wall, cpu, result = _timed(lambda: evaluate_chunk(scene, _whole_grid(scene)))
+    rows.setdefault(key, {"wall": [], "cpu": []})
+    rows[key]["wall"].append(wall)
+    rows[key]["cpu"].append(cpu)
+    return result
+
+
+def _competitor(name, P, exact, ours_err, rtol, atol, repeats):
+    """Matched rtol on P: the first rung of LADDER (loosest first) whose max error is no larger than
+    ours_err; where none is, the loosest rung within 10 % of the smallest error reached (the
+    competitor's floor). Then ``repeats`` timings there (wall clock and process CPU time)."""
+    f = competitors.FUNCTIONS[name]
+    tried = []
+    for r in LADDER:
+        a = atol * r / rtol
+        f(P, r, a)  # compile / trace at this shape
+        err = float(np.nanmax(np.abs(f(P, r, a) - exact) / exact))
+        tried.append((r, a, err))
+        if err <= ours_err:
+            break
+    if tried[-1][2] <= ours_err:
+        r, a, err = tried[-1]
+    else:
+        floor = min(e for _, _, e in tried)
+        r, a, err = next(t for t in tried if t[2] <= 1.1 * floor)
+    walls, cpus = [], []
+    for _ in range(repeats):
+        wall, cpu, T = _timed(lambda: f(P, r, a))
+        walls.append(wall)
+        cpus.append(cpu)
+    return {"rtol": r, "atol": a, "max_rel_error": err, "matched": err <= ours_err, "points": int(P.shape[0]),
+            "points_per_s": P.shape[0] / min(walls), "points_per_s_worst": P.shape[0] / max(walls),
+            "points_per_cpu_s": P.shape[0] / min(cpus), "failed": int(np.isnan(T).sum()),
+            "ladder": [(t[0], t[2]) for t in tried]}
 
 
 def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = None,
-         rtol: float = Solver.rtol, atol: float = Solver.atol, seed: int = 0) -> dict:
+         rtol: float = Solver.rtol, atol: float = Solver.atol, seed: int = 0, compare_points: int = 20_000,
+         repeats: int = 3) -> dict:
     import numba
 
     from ..scene import SOLVER_LIMITS
@@ -82,71 +125,126 @@ def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = N
 
     points = _args.count("points", points)
     scipy_points = _args.count("scipy_points", scipy_points, 1, points)
+    compare_points = _args.count("compare_points", compare_points, 1, points)
+    repeats = _args.count("repeats", repeats, 1, 100)
     threads = _args.threads("threads", threads)
     rtol = _args.tolerance("rtol", rtol, *SOLVER_LIMITS["rtol"])
     atol = _args.tolerance("atol", atol, *SOLVER_LIMITS["atol"])
     scene = load_scene(grid_scene(points, rtol, atol))
     stored = ("period", "period_exact", "period_error", "v_max", "a_max")
-    with _threads(threads):
-        n_threads = numba.get_num_threads()
-        t0 = time.perf_counter()
-        evaluate_chunk(load_scene(grid_scene(4, rtol, atol, stored)), Chunk(0, 0, 4, ()))
-        compile_s = time.perf_counter() - t0  # every kernel the timed runs use, compiled or loaded
-        kernel_s, (cols, status, n_steps, _) = time_kernel(scene)
-        with tempfile.TemporaryDirectory() as tmp:
+    use_lanes = model_compile.USE_LANES
+    rows: dict = {}
+    try:
+        with _threads(threads):
+            n_threads = numba.get_num_threads()
             t0 = time.perf_counter()
-            run(grid_scene(points, rtol, atol, stored), output=os.path.join(tmp, "bench.h5"), progress=False)
-            run_s = time.perf_counter() - t0
-        with _threads(1):
-            one_core_s, _ = time_kernel(scene, repeats=2)
+            for lanes in (True, False):
+                model_compile.USE_LANES = lanes
+                evaluate_chunk(load_scene(grid_scene(4, rtol, atol, stored)), Chunk(0, 0, 4, ()))
+                evaluate_chunk(scene, Chunk(0, 0, 4, ()))
+            compile_s = time.perf_counter() - t0  # every kernel the timed runs use, compiled or loaded
+            results = {}
+            for _ in range(repeats):  # interleaved: a disturbance of the machine hits every route alike
+                for lanes in (True, False):
+                    for n_thr in (n_threads, 1):
+                        results[lanes] = _ours(scene, n_thr, lanes, rows, (lanes, n_thr))
+                model_compile.USE_LANES = True
+                with tempfile.TemporaryDirectory() as tmp:
+                    wall, cpu, _ = _timed(lambda: run(grid_scene(points, rtol, atol, stored),
+                                                      output=os.path.join(tmp, "bench.h5"), progress=False))
+                rows.setdefault("run", {"wall": [], "cpu": []})
+                rows["run"]["wall"].append(wall)
+                rows["run"]["cpu"].append(cpu)
+    finally:
+        model_compile.USE_LANES = use_lanes
+    cols, status, n_steps, n_rhs = results[True]
+    same = all(np.array_equal(x, y, equal_nan=True) for x, y in
+               zip((cols["period"], status, n_steps, n_rhs), (results[False][0]["period"], *results[False][1:])))
 
     from ..grid import parameter_matrix
 
     P = parameter_matrix(scene, 0, scene.n_points)
     exact = np.array([duffing.period_closed_form.py_func(o * o, m, a) for o, m, a in P])
-    ours_err = np.abs(cols["period"] - exact) / exact
+    ours_err_all = np.abs(cols["period"] - exact) / exact
     rng = np.random.default_rng(seed)
-    sample = np.sort(rng.choice(scene.n_points, size=min(scipy_points, scene.n_points), replace=False))
-    t0 = time.perf_counter()
-    T_sp, steps_sp = scipy_periods(P[sample, 0], P[sample, 1], P[sample, 2], rtol, atol)
-    scipy_s = time.perf_counter() - t0
-    scipy_err = np.abs(T_sp - exact[sample]) / exact[sample]
+    comp = {}
+    have = competitors.available()
+    for name, n_c in (("scipy", scipy_points), ("numbalsoda", compare_points), ("diffrax", compare_points)):
+        if name != "scipy" and not have[name]:
+            comp[name] = None
+            continue
+        sample = np.sort(rng.choice(scene.n_points, size=min(n_c, scene.n_points), replace=False))
+        with _threads(threads):
+            comp[name] = _competitor(name, P[sample], exact[sample], float(np.nanmax(ours_err_all[sample])), rtol,
+                                     atol, 1 if name == "scipy" else repeats)
+        comp[name]["ours_max_rel_error_same_points"] = float(np.nanmax(ours_err_all[sample]))
 
-    ours_rate = scene.n_points / kernel_s
-    scipy_rate = sample.size / scipy_s
-    result = {
-        "points": scene.n_points,
-        "threads": n_threads,
-        "compile_or_cache_load_s": compile_s,
-        "kernel_points_per_s": ours_rate,
-        "kernel_points_per_s_one_thread": scene.n_points / one_core_s,
-        "run_to_hdf5_points_per_s": scene.n_points / run_s,
-        "scipy_points": int(sample.size),
-        "scipy_points_per_s": scipy_rate,
-        "ratio_vs_scipy": ours_rate / scipy_rate,
-        "ratio_vs_scipy_one_thread": (scene.n_points / one_core_s) / scipy_rate,
-        "ours_max_rel_error": float(np.nanmax(ours_err)),
-        "scipy_max_rel_error": float(np.nanmax(scipy_err)),
-        "ours_mean_steps": float(n_steps.mean()),
-        "scipy_mean_steps": float(steps_sp.mean()),
-        "ok_fraction": float((status == st.OK).mean()),
-    }
-    _print(result, rtol, atol)
-    return result
+    n = scene.n_points
+    res = {"points": n, "threads": n_threads, "rtol": rtol, "atol": atol, "repeats": repeats,
+           "compile_or_cache_load_s": compile_s, "lanes_bitwise_one_at_a_time": bool(same)}
+    for (label, key) in (("kernel", (True, n_threads)), ("kernel_one_thread", (True, 1)),
+                         ("kernel_one_point", (False, n_threads)), ("kernel_one_point_one_thread", (False, 1)),
+                         ("run_to_hdf5", "run")):
+        best, worst = _rates(n, rows[key]["wall"])
+        res[f"{label}_points_per_s"], res[f"{label}_points_per_s_worst"] = best, worst
+        res[f"{label}_points_per_cpu_s"] = n / min(rows[key]["cpu"])
+    res.update({"ours_max_rel_error": float(np.nanmax(ours_err_all)), "ours_mean_steps": float(n_steps.mean()),
+                "ok_fraction": float((status == st.OK).mean()), "competitors": comp})
+    sp = comp["scipy"]
+    res.update({"scipy_points": sp["points"], "scipy_points_per_s": sp["points_per_s"],
+                "scipy_max_rel_error": sp["max_rel_error"],
+                "ratio_vs_scipy": res["kernel_points_per_s"] / sp["points_per_s"],
+                "ratio_vs_scipy_one_thread": res["kernel_one_thread_points_per_s"] / sp["points_per_s"],
+                "kernel_points_per_s_one_thread": res["kernel_one_thread_points_per_s"],
+                "run_to_hdf5_points_per_s": res["run_to_hdf5_points_per_s"]})
+    _print(res)
+    return res
 
 
-def _print(r: dict, rtol: float, atol: float) -> None:
-    print(f"mechsweep bench duffing: quarter-period integration of the Duffing oscillator, DOP853, "
-          f"rtol={rtol:g}, atol={atol:g}")
-    print(f"  grid: A in [0.01, 1] x mu in [1e-3, 1e3] (log), omega = 1: {r['points']} points; "
-          f"{r['ok_fraction'] * 100:.1f}% ok")
-    print(f"  first call (JIT compile or cache load): {r['compile_or_cache_load_s']:.2f} s")
-    print(f"  mechsweep kernel   : {r['kernel_points_per_s']:>12,.0f} points/s on {r['threads']} threads "
-          f"({r['kernel_points_per_s_one_thread']:,.0f} on 1 thread); {r['ours_mean_steps']:.1f} steps/point")
-    print(f"  mechsweep run->HDF5: {r['run_to_hdf5_points_per_s']:>12,.0f} points/s (5 outputs, file written)")
-    print(f"  scipy solve_ivp    : {r['scipy_points_per_s']:>12,.1f} points/s on 1 core "
-          f"({r['scipy_points']} sampled points); {r['scipy_mean_steps']:.1f} steps/point")
-    print(f"  ratio mechsweep / scipy: {r['ratio_vs_scipy']:,.0f}x "
-          f"({r['ratio_vs_scipy_one_thread']:,.0f}x thread for core)")
-    print(f"  max relative period error vs closed form: mechsweep {r['ours_max_rel_error']:.2e}, "
-          f"scipy {r['scipy_max_rel_error']:.2e}")
+def _print(r: dict) -> None:
+    n = r["points"]
+    print(f"mechsweep bench duffing: quarter-period integration of the Duffing oscillator, "
+          f"rtol={r['rtol']:g}, atol={r['atol']:g}; {r['repeats']} interleaved repetitions: best (worst)")
+    print(f"  grid: A in [0.01, 1] x mu in [1e-3, 1e3] (log), omega = 1: {n} points; {r['ok_fraction'] * 100:.1f}% ok; "
+          f"first call (JIT compile or cache load of every kernel): {r['compile_or_cache_load_s']:.2f} s")
+    t = r["threads"]
+
+    def line(label, key):
+        print(f"  {label:38s}: {r[key + '_points_per_s']:>11,.0f} ({r[key + '_points_per_s_worst']:,.0f}) points/s; "
+              f"{r[key + '_points_per_cpu_s']:>10,.0f} points per CPU second")
+
+    line(f"mechsweep kernel, lanes, {t} threads", "kernel")
+    line("mechsweep kernel, lanes, 1 thread", "kernel_one_thread")
+    line(f"mechsweep kernel, one point, {t} threads", "kernel_one_point")
+    line("mechsweep kernel, one point, 1 thread", "kernel_one_point_one_thread")
+    line(f"mechsweep.run -> HDF5, {t} threads", "run_to_hdf5")
+    print(f"  lanes and one point at a time bitwise identical (period, status, n_steps, n_rhs): "
+          f"{'yes' if r['lanes_bitwise_one_at_a_time'] else 'NO'}; {r['ours_mean_steps']:.1f} steps/point; "
+          f"max relative period error {r['ours_max_rel_error']:.2e}")
+    for name, c in r["competitors"].items():
+        if c is None:
+            print(f"  {name:38s}: not installed (pip install mechsweep[compare])")
+            continue
+        ratio = r["kernel_points_per_s"] / c["points_per_s"]
+        ratio_cpu = r["kernel_points_per_cpu_s"] / c["points_per_cpu_s"]
+        print(f"  {name:38s}: {c['points_per_s']:>11,.0f} ({c['points_per_s_worst']:,.0f}) points/s; "
+              f"{c['points_per_cpu_s']:>10,.0f} points per CPU second; {c['points']} points at rtol {c['rtol']:g}, "
+              f"max error {c['max_rel_error']:.2e} (mechsweep {c['ours_max_rel_error_same_points']:.2e} on them)")
+        print(f"  {'':38s}  mechsweep kernel / {name}: {ratio:,.1f}x wall, {ratio_cpu:,.1f}x per CPU second"
+              f"{'' if c['matched'] else ' (NOT matched: no rung of the rtol ladder reached our error)'}; ladder "
+              + ", ".join(f"{rt:g}: {e:.1e}" for rt, e in c["ladder"]))
+    print("  issue 15 goals measured here (the others: mechsweep bench quickstart / memory / workprecision):")
+    run_ok = r["run_to_hdf5_points_per_s"] >= TARGET_RUN
+    print(f"    goal 1: mechsweep.run {r['run_to_hdf5_points_per_s']:,.0f} points/s on {t} threads, "
+          f"{r['run_to_hdf5_points_per_cpu_s']:,.0f} points per CPU second "
+          f"(target >= {TARGET_RUN:,.0f} points/s on 2 threads): {'met' if run_ok else 'not met'}")
+    nb = r["competitors"].get("numbalsoda")
+    if nb is None:
+        print(f"    goal 1: kernel / numbalsoda at matched accuracy (target >= {TARGET_NUMBALSODA:g}): numbalsoda not "
+              "installed")
+    else:
+        ratio = r["kernel_points_per_s"] / nb["points_per_s"]
+        ratio_cpu = r["kernel_points_per_cpu_s"] / nb["points_per_cpu_s"]
+        verdict = ("not matched" if not nb["matched"] else "met" if ratio >= TARGET_NUMBALSODA else "not met")
+        print(f"    goal 1: kernel / numbalsoda {ratio:,.1f}x wall, {ratio_cpu:,.1f}x per CPU second (target >= "
+              f"{TARGET_NUMBALSODA:g} at matched accuracy): {verdict}")

@@ -34,6 +34,7 @@ import threading
 from pathlib import Path
 
 from .. import _jit
+from . import lanes as lane_kernels
 from . import load
 
 _KERNELS: dict[str, object] = {}
@@ -42,6 +43,7 @@ _LOAD_LOCK = threading.Lock()
 _TMP: list[str] = []
 
 BLOCK = 16  # points per scratch allocation inside the parallel loop
+USE_LANES = True  # kernel_for's default: SIMD lanes where model/lanes.py applies
 
 
 def _folder() -> Path:
@@ -505,19 +507,23 @@ def _own_body(k: int, refs: dict, args: str) -> str:
 
 
 def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str = "", shared: bool = True,
-               closed=(), method: str = "dop853"):
+               closed=(), method: str = "dop853", lanes: bool | None = None):
     """The compiled chunk kernel ``kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps,
     n_rhs)`` of ``model`` for the measurements ``chosen`` and the closed forms ``closed`` (dependency
     order; closed form j is computed where ``need[j]``, a run-time choice: one kernel serves every
     choice of closed forms) by ``method`` (cached in-process and on disk); S: the model's settings
     in declared order.
-    ``shared=False``: every shared-path measurement integrates on its own (for comparison)."""
+    ``shared=False``: every shared-path measurement integrates on its own (for comparison).
+    ``lanes``: where model/lanes.py applies (a lone first event by dop853, an rhs it can rewrite), the
+    kernel integrates LANES points side by side (bitwise the same results); False: one at a time;
+    None: as USE_LANES says (the benches and tests switch it to compare the two routes)."""
     refs = {}
     for name, func in _functions(model, chosen, closed):
         refs[name] = load.function_ref(func, name, model.name)
     direct = is_direct(chosen)
     if not direct and not (floquet_only(chosen) and method in ("radau", "auto")):
         method = "dop853"  # the shared path integrates with dop853 only (ModelSpec.methods_for)
+    lane_rhs = lane_kernels.applies(model, chosen, method) if (USE_LANES if lanes is None else lanes) else None
     key = hashlib.sha256()
     for name, ref in refs.items():
         key.update(name.encode())
@@ -525,11 +531,13 @@ def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str =
         key.update(load.module_source(ref[0], ref[1]))
     key.update(repr((model.name, layout(model), len(model.states), getattr(model, "symplectic_order", 0),
                      tuple(getattr(m, "key", lambda: m)() for m in chosen),
-                     tuple((c.name, c.needs) for c in closed), shared, method)).encode())
+                     tuple((c.name, c.needs) for c in closed), shared, method, lane_rhs and (lane_kernels.lanes_for(len(model.states)), lane_kernels.QUEUE))).encode())
     name = "mechsweep_gen_" + key.hexdigest()[:20]
     if name in _KERNELS:
         return _KERNELS[name]
-    source = kernel_source(model, chosen, refs, origin or f"{refs['rhs'][0]}", shared, closed, method, direct)
+    origin = origin or f"{refs['rhs'][0]}"
+    source = (lane_kernels.kernel_source(model, chosen, refs, origin, closed, lane_rhs) if lane_rhs
+              else kernel_source(model, chosen, refs, origin, shared, closed, method, direct))
     _KERNELS[name] = load_generated(name, source).kernel
     return _KERNELS[name]
 

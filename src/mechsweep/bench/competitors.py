@@ -1,0 +1,151 @@
+"""Other solvers on the Duffing quarter period, for `mechsweep bench duffing`: scipy always,
+numbalsoda and diffrax when installed (``pip install mechsweep[compare]``).
+
+Every competitor integrates the scaled equation x'' = -a x - b x^3 from x = 1, x' = 0 to the first
+zero of x (a quarter period, tau_q; T = 4 tau_q / w), as the mechsweep kernel does, and returns
+(T, ok) for given parameter rows (omega, mu, A):
+
+- scipy: ``solve_ivp(method="DOP853")`` with a terminal event, one point at a time, one core.
+- numbalsoda: its ``solve_ivp`` (Hairer's DOP853 in Fortran, terminal event located by Brent's
+  method on the 7th-order dense output) called from a ``numba.prange`` loop, rhs and event as
+  ``cfunc`` pointers, parameters through the data pointer: all numba threads.
+- diffrax: ``diffeqsolve`` with Tsit5, a PID step-size controller and an ``Event`` on x (root by
+  optimistix's Newton on the dense interpolant), ``jax.vmap`` over the points and ``jax.jit``
+  (float64), on the CPU: XLA's own threads.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def scaled(P):
+    """(a, b, w) of the scaled equation per row (omega, mu, A), as models/duffing.py's plain
+    formulation (the grid of the bench has hard springs only)."""
+    omega, mu, A = P[:, 0], P[:, 1], P[:, 2]
+    w2 = omega**2 + np.abs(mu) * A**2
+    return omega**2 / w2, mu * A**2 / w2, np.sqrt(w2)
+
+
+def available() -> dict[str, bool]:
+    out = {}
+    for name in ("numbalsoda", "diffrax"):
+        try:
+            __import__(name)
+            out[name] = True
+        except Exception:  # not installed, or broken: the bench says so
+            out[name] = False
+    return out
+
+
+def scipy_periods(P, rtol, atol):
+    from scipy.integrate import solve_ivp
+
+    a, b, w = scaled(P)
+    T = np.full(P.shape[0], np.nan)
+    for i in range(P.shape[0]):
+        def rhs(t, y, a=a[i], b=b[i]):
+            return [y[1], -a * y[0] - b * y[0] ** 3]
+
+        def crossing(t, y):
+            return y[0]
+
+        crossing.terminal = True
+        crossing.direction = -1
+        sol = solve_ivp(rhs, (0.0, 200 * math.pi), [1.0, 0.0], method="DOP853", rtol=rtol, atol=atol,
+                        events=crossing)
+        if sol.status == 1:
+            T[i] = 4.0 * sol.t_events[0][0] / w[i]
+    return T
+
+
+_NUMBALSODA = []
+
+
+def _numbalsoda_kernel():
+    if _NUMBALSODA:
+        return _NUMBALSODA[0]
+    import numba
+    from numba import cfunc
+    from numbalsoda import lsoda_sig, solve_ivp
+
+    @cfunc(lsoda_sig)
+    def rhs(t, u, du, p):
+        du[0] = u[1]
+        du[1] = -p[0] * u[0] - p[1] * u[0] * u[0] * u[0]
+
+    @cfunc(lsoda_sig)
+    def event(t, u, e, p):
+        e[0] = u[0]
+
+    rhs_ptr, event_ptr = rhs.address, event.address
+
+    @numba.njit(parallel=True)
+    def kernel(ab, rtol, atol, tq):
+        span = np.array([0.0, 200.0 * np.pi])
+        y0 = np.array([1.0, 0.0])
+        none = np.empty(0)
+        for i in numba.prange(ab.shape[0]):
+            d = np.empty(2)
+            d[0] = ab[i, 0]
+            d[1] = ab[i, 1]
+            sol = solve_ivp(rhs_ptr, span, y0, none, "DOP853", np.int32(1), event_ptr, d.ctypes.data, 0.0, 0.0,
+                            rtol, atol)
+            tq[i] = sol.t_event if (sol.success and sol.event_found) else np.nan
+
+    _NUMBALSODA.append((kernel, rhs, event))  # keep the cfuncs alive
+    return _NUMBALSODA[0]
+
+
+def numbalsoda_periods(P, rtol, atol):
+    kernel = _numbalsoda_kernel()[0]
+    a, b, w = scaled(P)
+    tq = np.empty(P.shape[0])
+    kernel(np.ascontiguousarray(np.column_stack([a, b])), rtol, atol, tq)
+    return 4.0 * tq / w
+
+
+_DIFFRAX = {}
+
+
+def _diffrax_solver(rtol, atol):
+    key = (rtol, atol)
+    if key in _DIFFRAX:
+        return _DIFFRAX[key]
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    import diffrax
+    import jax.numpy as jnp
+    import optimistix as optx
+
+    def field(t, y, args):
+        a, b = args
+        return jnp.stack([y[1], -a * y[0] - b * y[0] ** 3])
+
+    def cond(t, y, args, **kwargs):
+        return y[0]
+
+    event = diffrax.Event(cond, root_finder=optx.Newton(rtol=1e-14, atol=1e-14))
+
+    def one(a, b):
+        sol = diffrax.diffeqsolve(diffrax.ODETerm(field), diffrax.Tsit5(), 0.0, 200.0 * math.pi, None,
+                                  jnp.array([1.0, 0.0]), args=(a, b),
+                                  stepsize_controller=diffrax.PIDController(rtol=rtol, atol=atol), event=event,
+                                  saveat=diffrax.SaveAt(t1=True), max_steps=65536, throw=False)
+        found = sol.result == diffrax.RESULTS.event_occurred
+        return jnp.where(found, sol.ts[-1], jnp.nan)
+
+    _DIFFRAX[key] = jax.jit(jax.vmap(one))
+    return _DIFFRAX[key]
+
+
+def diffrax_periods(P, rtol, atol):
+    solver = _diffrax_solver(rtol, atol)
+    a, b, w = scaled(P)
+    tq = np.asarray(solver(a, b))
+    return 4.0 * tq / w
+
+
+FUNCTIONS = {"scipy": scipy_periods, "numbalsoda": numbalsoda_periods, "diffrax": diffrax_periods}

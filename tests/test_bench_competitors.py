@@ -1,0 +1,46 @@
+"""`mechsweep bench duffing`'s competitors (bench/competitors.py) and its matched-accuracy choice."""
+import numpy as np
+import pytest
+
+from mechsweep.bench import competitors
+from mechsweep.bench import duffing as bench
+from mechsweep.models import duffing
+
+P = np.array([[1.0, 1e-3, 0.01], [1.0, 2.0, 0.7], [2.0, 1e3, 1.0]])
+EXACT = np.array([duffing.period_closed_form.py_func(o * o, m, a) for o, m, a in P])
+
+
+def test_scipy_gives_the_closed_form_period():
+    T = competitors.scipy_periods(P, 1e-10, 1e-12)
+    assert np.max(np.abs(T - EXACT) / EXACT) < 1e-9
+
+
+def _fake(errors):
+    """A competitor whose max relative error at rtol r is errors[r]."""
+    def f(Q, r, a):
+        return EXACT[: Q.shape[0]] * (1.0 + errors[r])
+    return f
+
+
+def test_matched_rtol_is_the_first_rung_reaching_our_error(monkeypatch):
+    errors = {r: 10.0 * r for r in bench.LADDER}  # error 10 rtol
+    monkeypatch.setitem(competitors.FUNCTIONS, "fake", _fake(errors))
+    c = bench._competitor("fake", P, EXACT, 3.5e-10, 1e-10, 1e-12, 1)
+    assert c["matched"] and c["rtol"] == 3e-11 and c["atol"] == pytest.approx(3e-13)
+    assert [r for r, _ in c["ladder"]] == [1e-9, 3e-10, 1e-10, 3e-11]
+
+
+def test_a_competitor_with_an_error_floor_is_marked_not_matched(monkeypatch):
+    errors = {r: max(1.5e-9, 10.0 * r) for r in bench.LADDER}
+    errors[1e-12] = 1.4e-9  # the smallest error; 1e-10 is the loosest rung within 10 % of it
+    monkeypatch.setitem(competitors.FUNCTIONS, "fake", _fake(errors))
+    c = bench._competitor("fake", P, EXACT, 5e-11, 1e-10, 1e-12, 1)
+    assert not c["matched"] and c["rtol"] == 1e-10 and len(c["ladder"]) == len(bench.LADDER)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["numbalsoda", "diffrax"])
+def test_optional_competitors_give_the_period(name):
+    pytest.importorskip(name)
+    T = competitors.FUNCTIONS[name](P, 1e-11, 1e-13)
+    assert np.max(np.abs(T - EXACT) / EXACT) < (1e-8 if name == "numbalsoda" else 1e-9)
