@@ -80,7 +80,7 @@ def main(filters: list[str], reuse: bool = False) -> None:
         scene = mechsweep.load_scene(path)
         stored = ROOT / scene.storage.path
         ds = (mechsweep.open_dataset(stored) if reuse and stored.is_file()
-              else mechsweep.run(scene, output=stored, restart=True, progress=False))
+              else mechsweep.run(scene, output=stored, restart=True, overwrite=True, progress=False))
         bds = None
         if scene.boundaries is not None and reuse and figures.sibling_boundaries(ROOT / scene.storage.path):
             bds = mechsweep.open_dataset(figures.sibling_boundaries(ROOT / scene.storage.path))
