@@ -104,6 +104,36 @@ def test_kick_verdict_settling_time_and_history_of_an_exponential(decay, method)
     assert out["stable"][4] == 1.0 and status[4] == st.OK
 
 
+def test_value_and_time_value_transform_the_sampled_outputs_per_point(decay):
+    # DECAY's kick_rel / peak_rel / y_rel are stable / a peak / y_hist with value(p, x) = x / y0 and
+    # time_value(p, t) = lam t: the transform of the measured value, per point, in the kernel
+    lam = np.array([0.5, 0.2, -0.05, 0.3])
+    P = np.column_stack([lam, np.array([0.1, 0.3, 0.1, 2.0])])
+    wanted = ("stable", "stable_settling", "stable_final", "y_hist", "kick_rel", "kick_rel_settling", "kick_rel_final", "peak_rel",
+              "y_rel")
+    out, status, _, _ = _evaluate(decay, P, wanted, rtol=1e-11, atol=1e-14, max_steps=10**7)
+    assert status.tolist() == [st.OK, st.OK, st.NO_EVENT, st.OK]
+    # bitwise the plain outputs transformed (NaN stays NaN: lam < 0 never settles)
+    np.testing.assert_array_equal(out["kick_rel_settling"], out["stable_settling"] * lam)
+    np.testing.assert_array_equal(out["y_rel"], out["y_hist"] / P[:, 1:])
+    assert out["kick_rel"].tolist()[:2] == [1.0, 1.0] and out["kick_rel"][2] == 0.0
+    # closed forms: lam t_s = ln(y0 / thr) (to the interpolation error), peak over t in [36, 40]
+    t_rel = np.log(P[[0, 1, 3], 1] / 0.01)
+    np.testing.assert_allclose(out["kick_rel_settling"][[0, 1, 3]], t_rel, rtol=(0.5 / 8) ** 2 / 8)
+    peak = np.where(lam > 0, np.exp(-lam * 36.0), np.exp(-lam * 40.0))
+    np.testing.assert_allclose(out["peak_rel"], peak, rtol=1e-8, atol=1e-13)  # y ~ 1e-9: atol 1e-14
+    # the error itself is not transformed
+    np.testing.assert_array_equal(out["kick_rel_final"], out["stable_final"])
+
+
+def test_a_value_that_is_not_a_function_is_refused():
+    from mechsweep.model import Kick, Steady
+    with pytest.raises(ValueError, match="value must be a function"):
+        Steady("a", "x", value=2.0).validate(("x",))
+    with pytest.raises(ValueError, match="time_value must be a function"):
+        Kick("k", "x", time_value="lam").validate(("x",))
+
+
 def test_sampled_measurements_offer_the_trajectory_methods_only(forced, decay):
     assert forced.methods_for(("amp",)) == ("dop853", "radau", "auto")
     assert decay.output("y_hist").extra_dims[0].name == "time"

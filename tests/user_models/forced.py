@@ -71,6 +71,14 @@ def decay_error(t, y, p):
     return abs(y[0])
 
 
+def per_rate(p, t):  # a time in units of 1 / lam: the settling time ln(y0 / thr) / lam becomes ln(y0 / thr)
+    return t * p[0]
+
+
+def per_kick(p, x):  # a value relative to the kick y0
+    return x / p[1]
+
+
 DECAY = OdeModel(
     name="decay",
     description="y' = -lam y from y0: a kick that decays (lam > 0) or grows (lam < 0)",
@@ -82,6 +90,11 @@ DECAY = OdeModel(
     measurements=(
         Kick("stable", decay_error, horizon=40.0, settle_threshold=0.01, monitor_per_period=8, dense_per_period=64),
         History("y_hist", "y", horizon=40.0, samples=9, dim="time", dim_long_name="time t"),
+        # the same measurements with their values transformed per point (value / time_value)
+        Kick("kick_rel", decay_error, horizon=40.0, settle_threshold=0.01, monitor_per_period=8, dense_per_period=64,
+             time_value=per_rate, time_unit="1"),
+        Steady("peak_rel", "y", horizon=40.0, window=0.1, samples_per_period=8, settle_rtol=None, value=per_kick),
+        History("y_rel", "y", horizon=40.0, samples=9, dim="time", dim_long_name="time t", value=per_kick),
     ),
 )
 

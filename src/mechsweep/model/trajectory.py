@@ -193,6 +193,13 @@ def _obs_source(name, x, states):
             f"        p[NPI] = 1.0\n        return np.nan\n\n")
 
 
+def _val_source(name):
+    """A generated guarded transform value(p, x) of a measured value (Steady/History ``value``,
+    Kick ``time_value``)."""
+    return (f"@jit\ndef {name}(p, x):\n    try:\n        return user_{name}(p, x)\n    except Exception:\n"
+            f"        p[NPI] = 1.0\n        return np.nan\n\n")
+
+
 def kernel_source(model, chosen, refs, method) -> str:
     from .compile import _GUARD, layout
 
@@ -228,6 +235,8 @@ def kernel_source(model, chosen, refs, method) -> str:
                 lines.append(_obs_source(f"response{k}", m.response, model.states))
         else:
             lines.append(_obs_source(f"of{k}", m.of, model.states))
+        if f"value{k}" in refs:
+            lines.append(_val_source(f"value{k}"))
     body = _observe_body(chosen)
     OBSERVE[:] = [b.replace("\n            ", "\n    ") for b in body]
     lines.append(_lanes_source(model, refs) if "rhs_lanes" in refs else "")
@@ -241,12 +250,23 @@ def _observe_body(chosen) -> list[str]:
     body = []
     for k, m in enumerate(chosen):
         kind = type(m).__name__
+        # the measurement's transform of its values (value(p, x) / time_value(p, t)): the
+        # columns it applies to (Steady: peak and first harmonic; Kick: the settling time)
+        fn = getattr(m, "time_value", None) if kind == "Kick" else getattr(m, "value", None)
+        transform = ""
+        if fn is not None and kind != "History":
+            first, last = (cols[k], cols[k] + 2) if kind == "Steady" else (cols[k] + 1, cols[k] + 2)
+            transform = f"""
+            if c == st.OK:
+                for q in range({first}, {last}):
+                    if math.isfinite(vals[i, q]):
+                        vals[i, q] = value{k}(p, vals[i, q])"""
         if kind == "Steady":
             body.append(f"""
             for j in range(ns_):
                 if bits[j, {k}]:
                     ob[j] = of{k}(te[j], traj[j], p)
-            c = steady_observe(ob, s, bits[:, {k}], K[{k}], vals[i, {cols[k]}:{cols[k + 1]}])""")
+            c = steady_observe(ob, s, bits[:, {k}], K[{k}], vals[i, {cols[k]}:{cols[k + 1]}])""" + transform)
         elif kind == "Kick":
             has_r = m.response is not None
             body.append(f"""
@@ -254,14 +274,18 @@ def _observe_body(chosen) -> list[str]:
                 if bits[j, {k}]:
                     ob[j] = error{k}(te[j], traj[j], p)""" + (f"""
                     ob2[j] = response{k}(te[j], traj[j], p)""" if has_r else "") + f"""
-            c = kick_observe(ob, ob2, {has_r}, te, bits[:, {k}], K[{k}], vals[i, {cols[k]}:{cols[k + 1]}])""")
+            c = kick_observe(ob, ob2, {has_r}, te, bits[:, {k}], K[{k}], vals[i, {cols[k]}:{cols[k + 1]}])"""
+                        + transform)
         else:  # History: its rows in order into hist[i, offset ...]
+            value = f"""
+                    if math.isfinite(v):
+                        v = value{k}(p, v)""" if fn is not None else ""
             body.append(f"""
             c = st.OK
             h = hoff[{k}]
             for j in range(ns_):
                 if bits[j, {k}]:
-                    v = of{k}(te[j], traj[j], p)
+                    v = of{k}(te[j], traj[j], p){value}
                     if not math.isfinite(v):
                         c = st.NONFINITE
                     hist[i, h] = v
