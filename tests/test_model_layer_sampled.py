@@ -194,3 +194,41 @@ def test_lanes_give_the_one_trajectory_results_bitwise(forced, monkeypatch):
     for k in WANTED:
         assert np.array_equal(a[0][k], b[0][k], equal_nan=True), k
     assert calls == [1]  # FORCED_LANES went through the lanes, FORCED did not
+
+
+def test_recheck_flags_a_chaotic_trajectory_and_keeps_the_first_values():
+    lorenz = load.resolve(f"{USER}:LORENZ")
+    assert st.NOT_REPRODUCIBLE in lorenz.possible_statuses()
+    P = np.array([[10.0, 28.0, 8.0 / 3.0], [10.0, 0.5, 8.0 / 3.0]])  # chaotic; a stable focus
+    on, s_on, n_on, r_on = _evaluate(lorenz, P, ("xpeak",), rtol=1e-8, atol=1e-10)
+    off, s_off, n_off, r_off = _evaluate(lorenz, P, ("xpeak",), rtol=1e-8, atol=1e-10, reproducibility_factor=0.0)
+    assert s_on.tolist() == [st.NOT_REPRODUCIBLE, st.OK] and s_off.tolist() == [st.OK, st.OK]
+    np.testing.assert_array_equal(on["xpeak"], off["xpeak"])  # the first run's values are kept
+    # both points integrated again at rtol / 100 (more steps); the focus's peak agrees
+    assert (n_on > 2 * n_off).all() and (r_on > r_off).all()
+    tight, _, _, _ = _evaluate(lorenz, P[1:], ("xpeak",), rtol=1e-10, atol=1e-10, reproducibility_factor=0.0)
+    assert abs(tight["xpeak"][0] - off["xpeak"][1]) <= 1000 * (1e-8 * abs(tight["xpeak"][0]) + 1e-10)
+
+
+def test_recheck_skips_the_points_that_settled_early():
+    checked = load.resolve(f"{USER}:DECAY_CHECKED")
+    # settles at ln(10) / lam: 4.6 s (< 20 s, half the horizon: skipped), 23 s (integrated again)
+    P = np.array([[0.5, 0.1], [0.1, 0.1]])
+    out, status, ns, _ = _evaluate(checked, P, ("stable",), rtol=1e-9, atol=1e-14)
+    plain, s2, ns2, _ = _evaluate(load.resolve(f"{USER}:DECAY"), P, ("stable",), rtol=1e-9, atol=1e-14)
+    assert status.tolist() == [st.OK, st.OK] and s2.tolist() == [st.OK, st.OK]
+    assert ns[0] == ns2[0] and ns[1] > ns2[1]
+    np.testing.assert_array_equal(out["stable"], plain["stable"])
+
+
+def test_recheck_declarations_are_checked():
+    from mechsweep.model import Kick, OdeModel, Recheck
+    kw = dict(name="m", description="", params=(), states=("y",), rhs=lambda t, y, p, d: None,
+              initial=lambda p, y: None, measurements=(Kick("k", "y"),))
+    with pytest.raises(ValueError, match="recheck: factor = 'nope' is not one of the model's settings"):
+        OdeModel(recheck=Recheck(factor="nope"), **kw)
+    with pytest.raises(ValueError, match="recheck: skip_settled = 'x'; expected the name of one of the model's Kick"):
+        OdeModel(recheck=Recheck(skip_settled="x"), **kw)
+    with pytest.raises(ValueError, match="recheck must be a mechsweep.model.Recheck"):
+        OdeModel(recheck=1000.0, **kw)
+    assert Recheck().tight_rtol(1e-8) == 1e-10 and Recheck().tight_rtol(1e-13) == 1e-14

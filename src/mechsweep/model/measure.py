@@ -1041,7 +1041,7 @@ class Kick:
     time_unit: str = "s"
     time_value: Callable | None = field(default=None, repr=False, compare=False)
     sampled = True
-    n_values = 3
+    n_values = 5  # verdict, settling time, final error; the settling time before time_value, the simulated time
 
     def outputs(self) -> tuple[Output, ...]:
         return (Output(self.name, "stable (kick)", "1",
@@ -1165,6 +1165,52 @@ class History:
 
     def constants(self, settings):
         return ()
+
+
+@dataclass(frozen=True)
+class Recheck:
+    """The reproducibility re-check of the sampled-trajectory outputs (an ``OdeModel(recheck=...)``
+    option): the points whose trajectory integrated successfully are integrated once more by the
+    same method at rtol' = min(rtol, max(rtol / ``tighten``, ``rtol_floor``)) (the same atol and
+    max_steps), and every value of the chosen sampled measurements is compared (Steady's peak,
+    harmonic and phase, Kick's verdict, settling time and final error, every History sample, as
+    stored, i.e. after ``value``/``time_value``): a value that moved by more than
+    factor (rtol max(|v|, |v'|) + atol), or is NaN in one run only, or a second run that fails,
+    gives the point NOT_REPRODUCIBLE. The first run's values are kept; NOT_REPRODUCIBLE replaces
+    OK, NO_EVENT and UNDECIDED (it ranks above the statuses that leave a value NaN for a reason,
+    below integration failures). ``factor`` is a number or the name of one of the model's
+    settings; factor <= 0 turns the check off. ``skip_settled`` (optional): the name of a Kick
+    whose points are not integrated again when its settling time (before ``time_value``) is at
+    most ``settled_fraction`` of the simulated time (they end on an attracting motion). Both runs
+    count in n_steps/n_rhs. Cost: up to one more integration per point, at the tighter rtol."""
+
+    factor: object = 1000.0
+    tighten: float = 100.0
+    rtol_floor: float = 1e-14
+    skip_settled: str | None = None
+    settled_fraction: float = 0.5
+
+    def validate(self, measurements, settings):
+        if isinstance(self.factor, str):
+            if self.factor not in {x.name for x in settings}:
+                raise ValueError(f"recheck: factor = {self.factor!r} is not one of the model's settings")
+        elif not (isinstance(self.factor, (int, float)) and math.isfinite(self.factor)):
+            raise ValueError(f"recheck: factor = {self.factor!r}; expected a finite number or the name of a setting")
+        if not (self.tighten >= 1.0 and math.isfinite(self.tighten)):
+            raise ValueError(f"recheck: tighten = {self.tighten!r}; expected a finite number >= 1")
+        if not self.rtol_floor > 0.0:
+            raise ValueError(f"recheck: rtol_floor = {self.rtol_floor!r}; expected a number > 0")
+        if self.skip_settled is not None:
+            kicks = [m.name for m in measurements if type(m).__name__ == "Kick"]
+            if self.skip_settled not in kicks:
+                raise ValueError(f"recheck: skip_settled = {self.skip_settled!r}; expected the name of one of the "
+                                 f"model's Kick measurements ({', '.join(kicks) or 'none'})")
+            if not 0.0 <= self.settled_fraction <= 1.0:
+                raise ValueError(f"recheck: settled_fraction = {self.settled_fraction!r}; expected a fraction in "
+                                 "[0, 1]")
+
+    def tight_rtol(self, rtol: float) -> float:
+        return min(rtol, max(rtol / self.tighten, self.rtol_floor))
 
 
 MEASUREMENTS = (Crossing, Period, StateAt, Extremum, Floquet, FirstEvent, Steady, Kick, History)
