@@ -21,7 +21,7 @@ def test_layer_measurements_reproduce_the_hand_written_autobalancer_simulation()
     for name in ("stable_sim", "settling_time", "phase_error", "xi_history"):
         same, n, worst, nan = r[name]
         assert n >= 20 and same == n, f"{name}: {same}/{n} bitwise, max rel diff {worst}"
-    # residual: max(r a) against (max r) a, 1 ulp apart at two points
+    # residual: 1 ulp apart at two points (the sample instants t = T s against a linspace in tau: docs/model-layer.md)
     same, n, worst, nan = r["residual_amplitude"]
     assert nan == 0 and worst <= 2.3e-16 * 4 and same >= n - 4
     # Floquet: the layer integrates state + variational system (72 equations), the old kernel the
