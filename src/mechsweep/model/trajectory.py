@@ -512,7 +512,7 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
 
     def run(P, rtol, vals, hist, code, n_steps, n_rhs):
         if hasattr(mod, "queue") and lanes and lane_count(s.size, model):
-            _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, n_steps, n_rhs, rtol=rtol)
+            _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, n_steps, n_rhs, rtol)
         else:
             mod.kernel(P, S, s, bits, K, hoff, rtol, solver.atol, solver.max_steps, vals, hist, code, n_steps, n_rhs)
 
