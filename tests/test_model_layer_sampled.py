@@ -196,6 +196,7 @@ def test_lanes_give_the_one_trajectory_results_bitwise(forced, monkeypatch):
     assert calls == [1]  # FORCED_LANES went through the lanes, FORCED did not
 
 
+@pytest.mark.slow  # compiles a kernel (about 7 s)
 def test_recheck_flags_a_chaotic_trajectory_and_keeps_the_first_values():
     lorenz = load.resolve(f"{USER}:LORENZ")
     assert st.NOT_REPRODUCIBLE in lorenz.possible_statuses()
@@ -210,6 +211,7 @@ def test_recheck_flags_a_chaotic_trajectory_and_keeps_the_first_values():
     assert abs(tight["xpeak"][0] - off["xpeak"][1]) <= 1000 * (1e-8 * abs(tight["xpeak"][0]) + 1e-10)
 
 
+@pytest.mark.slow  # compiles a kernel (about 12 s)
 def test_recheck_skips_the_points_that_settled_early():
     checked = load.resolve(f"{USER}:DECAY_CHECKED")
     # settles at ln(10) / lam: 4.6 s (< 20 s, half the horizon: skipped), 23 s (integrated again)
