@@ -9,6 +9,8 @@ from pathlib import Path
 
 import pytest
 
+from mechsweep import status as st
+
 DATA = Path(__file__).resolve().parent / "data"
 
 
@@ -21,7 +23,7 @@ def test_layer_measurements_reproduce_the_hand_written_autobalancer_simulation()
     for name in ("stable_sim", "settling_time", "phase_error", "xi_history"):
         same, n, worst, nan = r[name]
         assert n >= 20 and same == n, f"{name}: {same}/{n} bitwise, max rel diff {worst}"
-    # residual: max(r a) against (max r) a, 1 ulp apart at two points
+    # residual: 1 ulp apart at two points (the sample instants t = T s against a linspace in tau: docs/model-layer.md)
     same, n, worst, nan = r["residual_amplitude"]
     assert nan == 0 and worst <= 2.3e-16 * 4 and same >= n - 4
     # Floquet: the layer integrates state + variational system (72 equations), the old kernel the
@@ -32,3 +34,21 @@ def test_layer_measurements_reproduce_the_hand_written_autobalancer_simulation()
     assert steps_equal == n and status_equal == n and rhs_equal == n
     # Floquet and the sampled measurements asked for together: each one's values, steps added
     assert mod.mixed() == (True, True, True)
+
+
+@pytest.mark.slow  # compiles a closed-form kernel per output (about 15 s in all)
+def test_layer_closed_forms_reproduce_the_hand_written_autobalancer_closed_forms():
+    # theta, balanceable, m_k, omega_p, stable_first_approx, P_approx (SINGULAR), stable_damped_approx
+    # as ClosedForms with their classify, each asked for alone, on every point of the design grid
+    spec = importlib.util.spec_from_file_location("autobalancer_closed_on_layer_test",
+                                                  DATA / "autobalancer_closed_on_layer.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    r = mod.compare()
+    assert set(r) == set(mod.NAMES)
+    for name, (same, n, status, same_status) in r.items():
+        assert n >= 30 and same == n, f"{name}: {same}/{n} bitwise"
+        assert same_status == n, f"{name}: status as the hand-written model's at {same_status}/{n}"
+    # the grid reaches every status the closed forms can give
+    assert {st.INFEASIBLE, st.NOT_BALANCEABLE} <= set(r["theta"][2].tolist())
+    assert st.SINGULAR in set(r["P_approx"][2].tolist())

@@ -104,6 +104,36 @@ def test_kick_verdict_settling_time_and_history_of_an_exponential(decay, method)
     assert out["stable"][4] == 1.0 and status[4] == st.OK
 
 
+def test_value_and_time_value_transform_the_sampled_outputs_per_point(decay):
+    # DECAY's kick_rel / peak_rel / y_rel are stable / a peak / y_hist with value(p, x) = x / y0 and
+    # time_value(p, t) = lam t: the transform of the measured value, per point, in the kernel
+    lam = np.array([0.5, 0.2, -0.05, 0.3])
+    P = np.column_stack([lam, np.array([0.1, 0.3, 0.1, 2.0])])
+    wanted = ("stable", "stable_settling", "stable_final", "y_hist", "kick_rel", "kick_rel_settling", "kick_rel_final", "peak_rel",
+              "y_rel")
+    out, status, _, _ = _evaluate(decay, P, wanted, rtol=1e-11, atol=1e-14, max_steps=10**7)
+    assert status.tolist() == [st.OK, st.OK, st.NO_EVENT, st.OK]
+    # bitwise the plain outputs transformed (NaN stays NaN: lam < 0 never settles)
+    np.testing.assert_array_equal(out["kick_rel_settling"], out["stable_settling"] * lam)
+    np.testing.assert_array_equal(out["y_rel"], out["y_hist"] / P[:, 1:])
+    assert out["kick_rel"].tolist()[:2] == [1.0, 1.0] and out["kick_rel"][2] == 0.0
+    # closed forms: lam t_s = ln(y0 / thr) (to the interpolation error), peak over t in [36, 40]
+    t_rel = np.log(P[[0, 1, 3], 1] / 0.01)
+    np.testing.assert_allclose(out["kick_rel_settling"][[0, 1, 3]], t_rel, rtol=(0.5 / 8) ** 2 / 8)
+    peak = np.where(lam > 0, np.exp(-lam * 36.0), np.exp(-lam * 40.0))
+    np.testing.assert_allclose(out["peak_rel"], peak, rtol=1e-8, atol=1e-13)  # y ~ 1e-9: atol 1e-14
+    # the error itself is not transformed
+    np.testing.assert_array_equal(out["kick_rel_final"], out["stable_final"])
+
+
+def test_a_value_that_is_not_a_function_is_refused():
+    from mechsweep.model import Kick, Steady
+    with pytest.raises(ValueError, match="value must be a function"):
+        Steady("a", "x", value=2.0).validate(("x",))
+    with pytest.raises(ValueError, match="time_value must be a function"):
+        Kick("k", "x", time_value="lam").validate(("x",))
+
+
 def test_sampled_measurements_offer_the_trajectory_methods_only(forced, decay):
     assert forced.methods_for(("amp",)) == ("dop853", "radau", "auto")
     assert decay.output("y_hist").extra_dims[0].name == "time"
@@ -164,3 +194,43 @@ def test_lanes_give_the_one_trajectory_results_bitwise(forced, monkeypatch):
     for k in WANTED:
         assert np.array_equal(a[0][k], b[0][k], equal_nan=True), k
     assert calls == [1]  # FORCED_LANES went through the lanes, FORCED did not
+
+
+@pytest.mark.slow  # compiles a kernel (about 7 s)
+def test_recheck_flags_a_chaotic_trajectory_and_keeps_the_first_values():
+    lorenz = load.resolve(f"{USER}:LORENZ")
+    assert st.NOT_REPRODUCIBLE in lorenz.possible_statuses()
+    P = np.array([[10.0, 28.0, 8.0 / 3.0], [10.0, 0.5, 8.0 / 3.0]])  # chaotic; a stable focus
+    on, s_on, n_on, r_on = _evaluate(lorenz, P, ("xpeak",), rtol=1e-8, atol=1e-10)
+    off, s_off, n_off, r_off = _evaluate(lorenz, P, ("xpeak",), rtol=1e-8, atol=1e-10, reproducibility_factor=0.0)
+    assert s_on.tolist() == [st.NOT_REPRODUCIBLE, st.OK] and s_off.tolist() == [st.OK, st.OK]
+    np.testing.assert_array_equal(on["xpeak"], off["xpeak"])  # the first run's values are kept
+    # both points integrated again at rtol / 100 (more steps); the focus's peak agrees
+    assert (n_on > 2 * n_off).all() and (r_on > r_off).all()
+    tight, _, _, _ = _evaluate(lorenz, P[1:], ("xpeak",), rtol=1e-10, atol=1e-10, reproducibility_factor=0.0)
+    assert abs(tight["xpeak"][0] - off["xpeak"][1]) <= 1000 * (1e-8 * abs(tight["xpeak"][0]) + 1e-10)
+
+
+@pytest.mark.slow  # compiles a kernel (about 12 s)
+def test_recheck_skips_the_points_that_settled_early():
+    checked = load.resolve(f"{USER}:DECAY_CHECKED")
+    # settles at ln(10) / lam: 4.6 s (< 20 s, half the horizon: skipped), 23 s (integrated again)
+    P = np.array([[0.5, 0.1], [0.1, 0.1]])
+    out, status, ns, _ = _evaluate(checked, P, ("stable",), rtol=1e-9, atol=1e-14)
+    plain, s2, ns2, _ = _evaluate(load.resolve(f"{USER}:DECAY"), P, ("stable",), rtol=1e-9, atol=1e-14)
+    assert status.tolist() == [st.OK, st.OK] and s2.tolist() == [st.OK, st.OK]
+    assert ns[0] == ns2[0] and ns[1] > ns2[1]
+    np.testing.assert_array_equal(out["stable"], plain["stable"])
+
+
+def test_recheck_declarations_are_checked():
+    from mechsweep.model import Kick, OdeModel, Recheck
+    kw = dict(name="m", description="", params=(), states=("y",), rhs=lambda t, y, p, d: None,
+              initial=lambda p, y: None, measurements=(Kick("k", "y"),))
+    with pytest.raises(ValueError, match="recheck: factor = 'nope' is not one of the model's settings"):
+        OdeModel(recheck=Recheck(factor="nope"), **kw)
+    with pytest.raises(ValueError, match="recheck: skip_settled = 'x'; expected the name of one of the model's Kick"):
+        OdeModel(recheck=Recheck(skip_settled="x"), **kw)
+    with pytest.raises(ValueError, match="recheck must be a mechsweep.model.Recheck"):
+        OdeModel(recheck=1000.0, **kw)
+    assert Recheck().tight_rtol(1e-8) == 1e-10 and Recheck().tight_rtol(1e-13) == 1e-14

@@ -111,12 +111,16 @@ def platform(t, z, p):
     return math.sqrt(z[0] * z[0] + z[1] * z[1])
 
 
-def platform_si(t, z, p):
-    return math.sqrt(z[0] * z[0] + z[1] * z[1]) * p[I_a]
+def xi(t, z, p):
+    return z[0]
 
 
-def xi_si(t, z, p):
-    return z[0] * p[I_a]
+def to_seconds(p, tau):  # the settling time from the scaled time tau = Omega t, as the old model divides
+    return tau / p[I_Omega]
+
+
+def to_metres(p, x):  # a length in units of a, as the old model multiplies
+    return x * p[I_a]
 
 
 H = "horizon_revolutions"
@@ -130,10 +134,10 @@ MODEL = OdeModel(
         Kick("sim", phase_error, platform, horizon=H, settle_threshold="settle_threshold",
              decay_ratio="decay_ratio", growth_ratio="growth_ratio",
              monitor_per_period="monitor_samples_per_revolution",
-             dense_per_period="residual_samples_per_revolution"),
-        Steady("residual", platform_si, horizon=H, window=0.1, samples_per_period="residual_samples_per_revolution",
-               settle_rtol=None),
-        History("xi_history", xi_si, horizon=H, samples="trajectory_samples", dim="revolution"),
+             dense_per_period="residual_samples_per_revolution", time_value=to_seconds),
+        Steady("residual", platform, horizon=H, window=0.1, samples_per_period="residual_samples_per_revolution",
+               settle_rtol=None, value=to_metres),
+        History("xi_history", xi, horizon=H, samples="trajectory_samples", dim="revolution", value=to_metres),
     ))
 
 
@@ -168,9 +172,7 @@ def compare(method="dop853"):
         status, ns, nr = np.zeros(n, np.int8), np.zeros(n, np.int64), np.zeros(n, np.int64)
         with np.errstate(all="ignore"):
             spec.evaluate(Pk, (mine,), slv, out, status, ns, nr)
-        v = out[mine]
-        if mine == "sim_settling":
-            v = v / Pk[:, I_Omega]
+        v = out[mine]  # in SI units (Kick's time_value, Steady's and History's value)
         e = ref[f"{label}/{theirs}"][ok]
         same = np.array([np.array_equal(a, b, equal_nan=True) for a, b in zip(v, e)])
         with np.errstate(all="ignore"):

@@ -7,7 +7,7 @@ DECAY: y' = -lam y from y0: y = y0 exp(-lam t); |y| falls below thr at t = ln(y0
 """
 import math
 
-from mechsweep.model import Floquet, History, Kick, OdeModel, Param, Setting, Steady
+from mechsweep.model import Floquet, History, Kick, OdeModel, Param, Recheck, Setting, Steady
 
 
 def forced_rhs(t, y, p, dydt):
@@ -71,6 +71,14 @@ def decay_error(t, y, p):
     return abs(y[0])
 
 
+def per_rate(p, t):  # a time in units of 1 / lam: the settling time ln(y0 / thr) / lam becomes ln(y0 / thr)
+    return t * p[0]
+
+
+def per_kick(p, x):  # a value relative to the kick y0
+    return x / p[1]
+
+
 DECAY = OdeModel(
     name="decay",
     description="y' = -lam y from y0: a kick that decays (lam > 0) or grows (lam < 0)",
@@ -82,6 +90,11 @@ DECAY = OdeModel(
     measurements=(
         Kick("stable", decay_error, horizon=40.0, settle_threshold=0.01, monitor_per_period=8, dense_per_period=64),
         History("y_hist", "y", horizon=40.0, samples=9, dim="time", dim_long_name="time t"),
+        # the same measurements with their values transformed per point (value / time_value)
+        Kick("kick_rel", decay_error, horizon=40.0, settle_threshold=0.01, monitor_per_period=8, dense_per_period=64,
+             time_value=per_rate, time_unit="1"),
+        Steady("peak_rel", "y", horizon=40.0, window=0.1, samples_per_period=8, settle_rtol=None, value=per_kick),
+        History("y_rel", "y", horizon=40.0, samples=9, dim="time", dim_long_name="time t", value=per_kick),
     ),
 )
 
@@ -119,4 +132,36 @@ CUBIC = OdeModel(
     jac=cubic_jac,
     measurements=(Floquet("mu"), Floquet("mu_rest", initial=cubic_rest, stable_name="rest_stable",
                                           kind_name="rest_kind")),
+)
+
+
+# The reproducibility re-check (Recheck): Lorenz's equations, chaotic at rho = 28 (a peak over
+# t in [27, 30] moves by O(1) between rtol and rtol / 100), a stable focus at rho = 0.5 (it does not).
+def lorenz_rhs(t, y, p, dydt):
+    dydt[0] = p[0] * (y[1] - y[0])
+    dydt[1] = y[0] * (p[1] - y[2]) - y[1]
+    dydt[2] = y[0] * y[1] - p[2] * y[2]
+
+
+def lorenz_initial(p, y0):
+    y0[0] = 1.0
+    y0[1] = 1.0
+    y0[2] = 1.0
+
+
+LORENZ = OdeModel(
+    name="lorenz", description="Lorenz's equations from (1, 1, 1)",
+    params=(Param("sigma", "sigma", "1", "Prandtl number"), Param("rho", "rho", "1", "Rayleigh number"),
+            Param("beta", "beta", "1", "geometry")),
+    states=("x", "y", "z"), rhs=lorenz_rhs, initial=lorenz_initial,
+    settings=(Setting("reproducibility_factor", 1000.0, "1", "0: no re-check", 0.0, 1e9),),
+    measurements=(Steady("xpeak", "x", horizon=30.0, window=0.1, samples_per_period=16, settle_rtol=None),),
+    recheck=Recheck(factor="reproducibility_factor"),
+)
+
+# DECAY with the re-check, skipping the points whose kick settled within the first half
+DECAY_CHECKED = OdeModel(
+    name="decay_checked", description="DECAY with the reproducibility re-check",
+    params=DECAY.params, states=DECAY.states, rhs=decay_rhs, initial=decay_initial,
+    measurements=DECAY.measurements[:1], recheck=Recheck(factor=1000.0, skip_settled="stable"),
 )

@@ -896,6 +896,12 @@ def _check_numbers(m, fields):
             raise ValueError(f"{m.name}: {f} = {x!r}; expected a finite number or the name of a setting")
 
 
+def _check_value(m, field_name):
+    f = getattr(m, field_name)
+    if f is not None and not callable(f):
+        raise ValueError(f"{m.name}: {field_name} must be a function {field_name}(p, x) -> float (got {f!r})")
+
+
 @dataclass(frozen=True)
 class Steady:
     """Steady-state amplitude of an observable ``of`` (a state name or ``f(t, y, p)``) after a
@@ -911,6 +917,11 @@ class Steady:
       number of periods);
     - ``name_phase``: its phase lag atan2(b1, a1) in (-pi, pi]: of = A cos(2 pi t / T - phase);
     - ``name_settled``: internal (not an output): whether it settled.
+
+    ``value(p, x) -> float`` (optional): the stored peak and first-harmonic amplitude from the
+    measured ones, per point (e.g. ``x * p[k]`` for an observable in units of a length p[k], or a
+    scaled model's amplitude back in SI units); applied after the settling test, to finite values
+    only (the phase is not transformed).
 
     Settling (``settle_rtol`` not None): the peak over the window before the last one (same
     length) must agree with the last one to settle_rtol max(peaks) + settle_atol; otherwise the
@@ -928,6 +939,7 @@ class Steady:
     settle_atol: object = 0.0
     unit: str = ""
     long_name: str = ""
+    value: Callable | None = field(default=None, repr=False, compare=False)
     sampled = True
     n_values = 4
 
@@ -949,13 +961,15 @@ class Steady:
             _check_numbers(self, ("settle_rtol",))
         if not isinstance(self.window, str) and not 0.0 < self.window <= 0.5:
             raise ValueError(f"{self.name}: window = {self.window!r}; expected a fraction in (0, 0.5]")
+        _check_value(self, "value")
 
     def setting_names(self):
         return tuple(x for x in (self.horizon, self.window, self.samples_per_period, self.settle_rtol,
                                  self.settle_atol) if isinstance(x, str))
 
     def functions(self):
-        return () if isinstance(self.of, str) else (("of", self.of),)
+        out = () if isinstance(self.of, str) else (("of", self.of),)
+        return out + ((("value", self.value),) if self.value is not None else ())
 
     def key(self) -> tuple:
         return ("Steady", self.name, self.of if isinstance(self.of, str) else None)
@@ -1006,6 +1020,9 @@ class Kick:
     Outputs: ``name`` (the verdict), ``name_settling`` (the time after which the error stays below
     settle_threshold, linear interpolation between samples; 0 if it never exceeds it; NaN with
     status NO_EVENT if it is above it at the end), ``name_final`` (the error at the last sample).
+    ``time_value(p, t) -> float`` (optional): the stored settling time from the integration's time
+    t, per point (e.g. ``t / p[k]`` for a model integrated in a scaled time tau = Omega t), applied
+    to a finite settling time only.
     Status: integration failures as reported; NONFINITE for a non-finite error or response sample.
     Cost: one integration over the horizon (shared), one dense output per step with a sample."""
 
@@ -1022,8 +1039,9 @@ class Kick:
     early: float = 0.1
     unit: str = ""
     time_unit: str = "s"
+    time_value: Callable | None = field(default=None, repr=False, compare=False)
     sampled = True
-    n_values = 3
+    n_values = 5  # verdict, settling time, final error; the settling time before time_value, the simulated time
 
     def outputs(self) -> tuple[Output, ...]:
         return (Output(self.name, "stable (kick)", "1",
@@ -1040,6 +1058,7 @@ class Kick:
             _observable(self.response, states, self.name)
         _check_numbers(self, ("horizon", "settle_threshold", "decay_ratio", "growth_ratio", "monitor_per_period",
                               "dense_per_period"))
+        _check_value(self, "time_value")
 
     def setting_names(self):
         return tuple(x for x in (self.horizon, self.settle_threshold, self.decay_ratio, self.growth_ratio,
@@ -1049,6 +1068,8 @@ class Kick:
         out = [] if isinstance(self.error, str) else [("error", self.error)]
         if self.response is not None and not isinstance(self.response, str):
             out.append(("response", self.response))
+        if self.time_value is not None:
+            out.append(("value", self.time_value))
         return tuple(out)
 
     def key(self) -> tuple:
@@ -1095,8 +1116,9 @@ class History:
     """Samples of an observable ``of`` (a state name or ``f(t, y, p)``) at ``samples`` instants
     evenly spread over [0, horizon] forcing periods: an output with one extra dimension ``dim``
     (coordinate: the instants in forcing periods; every History of a model with the same ``dim``
-    must use the same horizon and samples). Status: integration failures as reported; NONFINITE
-    for a non-finite sample. Cost: shared integration, one dense output per step with a sample."""
+    must use the same horizon and samples). ``value(p, x) -> float`` (optional): each stored sample
+    from the observed one, per point (applied to finite samples). Status: integration failures as
+    reported; NONFINITE for a non-finite sample. Cost: shared integration, one dense output per step with a sample."""
 
     name: str
     of: object
@@ -1106,6 +1128,7 @@ class History:
     dim_long_name: str = "time in forcing periods t / T"
     unit: str = ""
     long_name: str = ""
+    value: Callable | None = field(default=None, repr=False, compare=False)
     sampled = True
     n_values = 0
 
@@ -1125,12 +1148,14 @@ class History:
     def validate(self, states):
         _observable(self.of, states, self.name)
         _check_numbers(self, ("horizon", "samples"))
+        _check_value(self, "value")
 
     def setting_names(self):
         return tuple(x for x in (self.horizon, self.samples) if isinstance(x, str))
 
     def functions(self):
-        return () if isinstance(self.of, str) else (("of", self.of),)
+        out = () if isinstance(self.of, str) else (("of", self.of),)
+        return out + ((("value", self.value),) if self.value is not None else ())
 
     def key(self) -> tuple:
         return ("History", self.name, self.of if isinstance(self.of, str) else None)
@@ -1140,6 +1165,52 @@ class History:
 
     def constants(self, settings):
         return ()
+
+
+@dataclass(frozen=True)
+class Recheck:
+    """The reproducibility re-check of the sampled-trajectory outputs (an ``OdeModel(recheck=...)``
+    option): the points whose trajectory integrated successfully are integrated once more by the
+    same method at rtol' = min(rtol, max(rtol / ``tighten``, ``rtol_floor``)) (the same atol and
+    max_steps), and every value of the chosen sampled measurements is compared (Steady's peak,
+    harmonic and phase, Kick's verdict, settling time and final error, every History sample, as
+    stored, i.e. after ``value``/``time_value``): a value that moved by more than
+    factor (rtol max(|v|, |v'|) + atol), or is NaN in one run only, or a second run that fails,
+    gives the point NOT_REPRODUCIBLE. The first run's values are kept; NOT_REPRODUCIBLE replaces
+    OK, NO_EVENT and UNDECIDED (it ranks above the statuses that leave a value NaN for a reason,
+    below integration failures). ``factor`` is a number or the name of one of the model's
+    settings; factor <= 0 turns the check off. ``skip_settled`` (optional): the name of a Kick
+    whose points are not integrated again when its settling time (before ``time_value``) is at
+    most ``settled_fraction`` of the simulated time (they end on an attracting motion). Both runs
+    count in n_steps/n_rhs. Cost: up to one more integration per point, at the tighter rtol."""
+
+    factor: object = 1000.0
+    tighten: float = 100.0
+    rtol_floor: float = 1e-14
+    skip_settled: str | None = None
+    settled_fraction: float = 0.5
+
+    def validate(self, measurements, settings):
+        if isinstance(self.factor, str):
+            if self.factor not in {x.name for x in settings}:
+                raise ValueError(f"recheck: factor = {self.factor!r} is not one of the model's settings")
+        elif not (isinstance(self.factor, (int, float)) and math.isfinite(self.factor)):
+            raise ValueError(f"recheck: factor = {self.factor!r}; expected a finite number or the name of a setting")
+        if not (self.tighten >= 1.0 and math.isfinite(self.tighten)):
+            raise ValueError(f"recheck: tighten = {self.tighten!r}; expected a finite number >= 1")
+        if not self.rtol_floor > 0.0:
+            raise ValueError(f"recheck: rtol_floor = {self.rtol_floor!r}; expected a number > 0")
+        if self.skip_settled is not None:
+            kicks = [m.name for m in measurements if type(m).__name__ == "Kick"]
+            if self.skip_settled not in kicks:
+                raise ValueError(f"recheck: skip_settled = {self.skip_settled!r}; expected the name of one of the "
+                                 f"model's Kick measurements ({', '.join(kicks) or 'none'})")
+            if not 0.0 <= self.settled_fraction <= 1.0:
+                raise ValueError(f"recheck: settled_fraction = {self.settled_fraction!r}; expected a fraction in "
+                                 "[0, 1]")
+
+    def tight_rtol(self, rtol: float) -> float:
+        return min(rtol, max(rtol / self.tighten, self.rtol_floor))
 
 
 MEASUREMENTS = (Crossing, Period, StateAt, Extremum, Floquet, FirstEvent, Steady, Kick, History)

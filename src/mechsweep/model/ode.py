@@ -108,8 +108,14 @@ class OdeModel:
     output_order: tuple[str, ...] = ()
     references: tuple[str, ...] = ()  # ModelSpec.references: the source documents
     rhs_lanes: Callable | None = field(default=None, repr=False)
+    recheck: object = None  # measure.Recheck: the sampled outputs integrated again at a tighter rtol
 
     def __post_init__(self):
+        if self.recheck is not None:
+            from .measure import Recheck
+            if not isinstance(self.recheck, Recheck):
+                raise ValueError(f"model {self.name!r}: recheck must be a mechsweep.model.Recheck (got {self.recheck!r})")
+            self.recheck.validate(self.measurements, self.settings)
         for name in ("params", "states", "measurements", "closed_forms", "internal", "settings", "output_order"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
         object.__setattr__(self, "status_notes", tuple(sorted(dict(self.status_notes).items())))
@@ -280,7 +286,7 @@ class OdeModel:
         if self.output_order:
             by_name = {o.name: o for o in outputs}
             outputs = tuple(by_name[n] for n in self.output_order)
-        return ModelSpec(
+        spec = ModelSpec(
             name=self.name,
             description=self.description,
             params=self.params,
@@ -296,3 +302,7 @@ class OdeModel:
             status_notes=self.status_notes,
             references=self.references,
         )
+        if self.recheck is not None:  # the re-check adds NOT_REPRODUCIBLE to the statuses a point can get
+            import dataclasses
+            spec = dataclasses.replace(spec, statuses=spec.possible_statuses() + (st.NOT_REPRODUCIBLE,))
+        return spec

@@ -193,6 +193,13 @@ def _obs_source(name, x, states):
             f"        p[NPI] = 1.0\n        return np.nan\n\n")
 
 
+def _val_source(name):
+    """A generated guarded transform value(p, x) of a measured value (Steady/History ``value``,
+    Kick ``time_value``)."""
+    return (f"@jit\ndef {name}(p, x):\n    try:\n        return user_{name}(p, x)\n    except Exception:\n"
+            f"        p[NPI] = 1.0\n        return np.nan\n\n")
+
+
 def kernel_source(model, chosen, refs, method) -> str:
     from .compile import _GUARD, layout
 
@@ -228,6 +235,8 @@ def kernel_source(model, chosen, refs, method) -> str:
                 lines.append(_obs_source(f"response{k}", m.response, model.states))
         else:
             lines.append(_obs_source(f"of{k}", m.of, model.states))
+        if f"value{k}" in refs:
+            lines.append(_val_source(f"value{k}"))
     body = _observe_body(chosen)
     OBSERVE[:] = [b.replace("\n            ", "\n    ") for b in body]
     lines.append(_lanes_source(model, refs) if "rhs_lanes" in refs else "")
@@ -241,12 +250,23 @@ def _observe_body(chosen) -> list[str]:
     body = []
     for k, m in enumerate(chosen):
         kind = type(m).__name__
+        # the measurement's transform of its values (value(p, x) / time_value(p, t)): the
+        # columns it applies to (Steady: peak and first harmonic; Kick: the settling time)
+        fn = getattr(m, "time_value", None) if kind == "Kick" else getattr(m, "value", None)
+        transform = ""
+        if fn is not None and kind != "History":
+            first, last = (cols[k], cols[k] + 2) if kind == "Steady" else (cols[k] + 1, cols[k] + 2)
+            transform = f"""
+            if c == st.OK:
+                for q in range({first}, {last}):
+                    if math.isfinite(vals[i, q]):
+                        vals[i, q] = value{k}(p, vals[i, q])"""
         if kind == "Steady":
             body.append(f"""
             for j in range(ns_):
                 if bits[j, {k}]:
                     ob[j] = of{k}(te[j], traj[j], p)
-            c = steady_observe(ob, s, bits[:, {k}], K[{k}], vals[i, {cols[k]}:{cols[k + 1]}])""")
+            c = steady_observe(ob, s, bits[:, {k}], K[{k}], vals[i, {cols[k]}:{cols[k + 1]}])""" + transform)
         elif kind == "Kick":
             has_r = m.response is not None
             body.append(f"""
@@ -254,14 +274,19 @@ def _observe_body(chosen) -> list[str]:
                 if bits[j, {k}]:
                     ob[j] = error{k}(te[j], traj[j], p)""" + (f"""
                     ob2[j] = response{k}(te[j], traj[j], p)""" if has_r else "") + f"""
-            c = kick_observe(ob, ob2, {has_r}, te, bits[:, {k}], K[{k}], vals[i, {cols[k]}:{cols[k + 1]}])""")
+            c = kick_observe(ob, ob2, {has_r}, te, bits[:, {k}], K[{k}], vals[i, {cols[k]}:{cols[k + 1]}])
+            vals[i, {cols[k] + 3}] = vals[i, {cols[k] + 1}]  # the settling time before time_value
+            vals[i, {cols[k] + 4}] = te[ns_ - 1]  # the simulated time""" + transform)
         else:  # History: its rows in order into hist[i, offset ...]
+            value = f"""
+                    if math.isfinite(v):
+                        v = value{k}(p, v)""" if fn is not None else ""
             body.append(f"""
             c = st.OK
             h = hoff[{k}]
             for j in range(ns_):
                 if bits[j, {k}]:
-                    v = of{k}(te[j], traj[j], p)
+                    v = of{k}(te[j], traj[j], p){value}
                     if not math.isfinite(v):
                         c = st.NONFINITE
                     hist[i, h] = v
@@ -484,11 +509,15 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
     mod = kernel_for(model, chosen, method)
     code = status.copy()
     P = np.ascontiguousarray(P, dtype=np.float64)
-    if hasattr(mod, "queue") and lanes and lane_count(s.size, model):
-        _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, n_steps, n_rhs)
-    else:
-        mod.kernel(P, S, s, bits, K, hoff, solver.rtol, solver.atol, solver.max_steps, vals, hist, code, n_steps,
-                   n_rhs)
+
+    def run(P, rtol, vals, hist, code, n_steps, n_rhs):
+        if hasattr(mod, "queue") and lanes and lane_count(s.size, model):
+            _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, n_steps, n_rhs, rtol)
+        else:
+            mod.kernel(P, S, s, bits, K, hoff, rtol, solver.atol, solver.max_steps, vals, hist, code, n_steps, n_rhs)
+
+    run(P, solver.rtol, vals, hist, code, n_steps, n_rhs)
+    moved = _recheck(model, chosen, settings, solver, P, run, vals, hist, code, n_steps, n_rhs, cols)
     good = code == st.OK
     for k, m in enumerate(chosen):
         if m.n_values == 0:
@@ -498,7 +527,53 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
         else:
             v = np.where(good[:, None], vals[:, cols[k]:cols[k + 1]], np.nan)
             m.finish(v, wanted, solver, out, code)
+    if moved is not None:  # above the statuses that leave a value NaN for a reason, below failures
+        soft = (code == st.OK) | (code == st.NO_EVENT) | (code == st.UNDECIDED)
+        code[:] = np.where(moved & soft, st.NOT_REPRODUCIBLE, code)
     status[:] = code
+
+
+def _recheck(model, chosen, settings, solver, P, run, vals, hist, code, n_steps, n_rhs, cols):
+    """The model's Recheck (measure.Recheck): which points moved when integrated again at the
+    tighter rtol (None when the model declares none or its factor is <= 0)."""
+    from .measure import _number
+    rc = getattr(model, "recheck", None)
+    if rc is None:
+        return None
+    factor = _number(rc.factor, settings)
+    if not factor > 0.0:
+        return None
+    check = code == st.OK
+    names = [m.name for m in chosen]
+    if rc.skip_settled in names:  # settled early (integration time, before time_value): not again
+        c0 = cols[names.index(rc.skip_settled)]
+        t_settle, t_end = vals[:, c0 + 3], vals[:, c0 + 4]
+        with np.errstate(invalid="ignore"):
+            check &= ~(np.isfinite(t_settle) & (t_settle <= rc.settled_fraction * t_end))
+    moved = np.zeros(code.size, dtype=bool)
+    idx = np.flatnonzero(check)
+    if idx.size == 0:
+        return moved
+    P2 = np.ascontiguousarray(P[idx])
+    vals2 = np.full((idx.size, vals.shape[1]), np.nan)
+    hist2 = np.full((idx.size, hist.shape[1]), np.nan)
+    code2 = np.zeros(idx.size, dtype=code.dtype)
+    ns2, nr2 = np.zeros(idx.size, dtype=n_steps.dtype), np.zeros(idx.size, dtype=n_rhs.dtype)
+    run(P2, rc.tight_rtol(solver.rtol), vals2, hist2, code2, ns2, nr2)
+    n_steps[idx] += ns2
+    n_rhs[idx] += nr2
+    # the values as stored (after value/time_value); not Kick's two bookkeeping columns
+    use = np.ones(vals.shape[1], dtype=bool)
+    for k, m in enumerate(chosen):
+        if type(m).__name__ == "Kick":
+            use[cols[k] + 3:cols[k] + 5] = False
+    a = np.concatenate([vals[idx][:, use], hist[idx]], axis=1)
+    b = np.concatenate([vals2[:, use], hist2], axis=1)
+    with np.errstate(invalid="ignore"):
+        tol = factor * (solver.rtol * np.maximum(np.abs(a), np.abs(b)) + solver.atol)
+        bad = (np.abs(a - b) > tol) | (np.isnan(a) != np.isnan(b))
+    moved[idx] = bad.any(axis=1) | (code2 != st.OK)
+    return moved
 
 
 # The lanes (a model with rhs_lanes, method dop853): as the hand-written auto-balancer kernels
@@ -516,7 +591,7 @@ def lane_count(n_samples: int, model) -> int:
     return 0
 
 
-def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, n_steps, n_rhs):
+def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, n_steps, n_rhs, rtol=None):
     """setup in parallel, then per forcing period the points' queues through the lanes, one queue
     per thread (numba.get_num_threads() Python threads running the nogil queue)."""
     import numba
@@ -529,7 +604,8 @@ def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, n_s
     PF = np.zeros((n, n_p + n_set + n_int + 1 + 3 * n_s))
     Z0 = np.zeros((n, n_s))
     TT = np.full(n, np.nan)
-    mod.setup(P, S, solver.rtol, PF, Z0, TT, code)
+    rtol = solver.rtol if rtol is None else rtol
+    mod.setup(P, S, rtol, PF, Z0, TT, code)
     lanes = lane_count(s.size, model)
     ok = code == st.OK
     for T in np.unique(TT[ok]):
@@ -538,7 +614,7 @@ def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, n_s
         n_queues = max(1, min(numba.get_num_threads(), -(-idx.size // max(1, lanes // 2))))
 
         def queue(b, idx=idx, te=te, n_queues=n_queues):
-            mod.queue(lanes, idx, b, n_queues, PF, Z0, te, s, bits, K, hoff, solver.rtol, solver.atol,
+            mod.queue(lanes, idx, b, n_queues, PF, Z0, te, s, bits, K, hoff, rtol, solver.atol,
                       solver.max_steps, vals, hist, code, n_steps, n_rhs)
 
         if n_queues == 1:
