@@ -314,16 +314,7 @@ def _kernel_tail(lines, body, refs, method) -> str:
                 b_ += b2"""
     scratch = "\n        work = dop853.workspace(NS)" if method != "radau" else ""
     scratch += "\n        rwork = radau.workspace(NS)" if method != "dop853" else ""
-    classify = """
-            c = classify(p)
-            if c != st.OK:
-                status[i] = c
-                continue""" if "classify" in refs else ""
-    prepare = """
-            c = prepare(p, rtol)
-            if c != st.OK:
-                status[i] = c
-                continue""" if "prepare" in refs else ""
+    classify, prepare = _point_checks(refs, 12)
     forcing = "forcing(p)" if "forcing" in refs else "1.0"
     lines.append(f"""
 
@@ -368,21 +359,22 @@ def kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, status, n_
     return "".join(lines)
 
 
+def _point_checks(refs, indent: int) -> tuple[str, str]:
+    """Kernel code of the model's classify and prepare (each where declared) at ``indent`` spaces:
+    a point they do not pass gets their status and is left."""
+    def check(call):
+        pad = " " * indent
+        return (f"\n{pad}c = {call}\n{pad}if c != st.OK:\n{pad}    status[i] = c\n{pad}    continue")
+    return (check("classify(p)") if "classify" in refs else "",
+            check("prepare(p, rtol)") if "prepare" in refs else "")
+
+
 def _lanes_source(model, refs) -> str:
     """The DOP853 lanes path (a model that declares ``rhs_lanes``): ``setup`` prepares every point
     (p, status, T, initial state) in parallel, ``queue`` runs a queue of points of one forcing
     period through ``dop853_lanes`` and observes each trajectory as it ends (the same observers,
     the same floats as the one-trajectory kernel: the lanes give dop853's steps bitwise)."""
-    classify = """
-        c = classify(p)
-        if c != st.OK:
-            status[i] = c
-            continue""" if "classify" in refs else ""
-    prepare = """
-        c = prepare(p, rtol)
-        if c != st.OK:
-            status[i] = c
-            continue""" if "prepare" in refs else ""
+    classify, prepare = _point_checks(refs, 8)
     forcing = "forcing(p)" if "forcing" in refs else "1.0"
     return f"""
 
