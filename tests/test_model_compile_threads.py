@@ -35,3 +35,25 @@ def test_threads_asking_for_one_generated_module_share_one_import():
     assert not errors
     assert len(got) == 4 and all(k is got[0] for k in got)  # one module, imported once
     assert not list(mc._folder().glob(f"{name}*.tmp"))
+
+
+def test_kernel_for_the_same_objects_reads_no_model_source_again(monkeypatch):
+    """Every chunk of a run asks for its kernel: after the first time, the same model and
+    measurement objects get it without reading and hashing the model's files; a kernel dropped
+    from the cache is looked up (and read) again."""
+    from pathlib import Path
+
+    from mechsweep.model import load
+
+    path = Path(__file__).parent / "user_models" / "api_models.py"
+    load.resolve(f"{path}:OSC")  # imports the file as the engine does; kernel_for takes its OdeModel
+    osc = sys.modules[next(n for n, m in sys.modules.items()
+                           if getattr(m, "__file__", None) == str(path))].OSC
+    chosen = osc.measurements
+    first = mc.kernel_for(osc, chosen)
+    reads = []
+    real = load.module_source
+    monkeypatch.setattr(load, "module_source", lambda *a: reads.append(a) or real(*a))
+    assert mc.kernel_for(osc, chosen) is first and not reads
+    monkeypatch.setattr(mc, "_KERNELS", {})
+    assert mc.kernel_for(osc, chosen) is not None and reads

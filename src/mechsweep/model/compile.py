@@ -38,6 +38,7 @@ from . import lanes as lane_kernels
 from . import load
 
 _KERNELS: dict[str, object] = {}
+_BY_OBJECTS: dict[tuple, tuple] = {}  # kernel_for's memo: (model, chosen, closed, kernel name) by their ids
 _LOADED: dict[str, object] = {}  # generated modules imported in this process (load_generated)
 _LOAD_LOCK = threading.Lock()
 _TMP: list[str] = []
@@ -522,14 +523,30 @@ def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str =
     ``shared=False``: every shared-path measurement integrates on its own (for comparison).
     ``lanes``: where model/lanes.py applies (a lone first event by dop853, an rhs it can rewrite), the
     kernel integrates LANES points side by side (bitwise the same results); False: one at a time;
-    None: as USE_LANES says (the benches and tests switch it to compare the two routes)."""
+    None: as USE_LANES says (the benches and tests switch it to compare the two routes).
+    A second call with the same objects returns the kernel without reading and hashing the model's
+    source files again (every chunk of a run asks)."""
+    use_lanes = USE_LANES if lanes is None else lanes
+    memo = (id(model), tuple(map(id, chosen)), tuple(map(id, closed)), shared, method, use_lanes)
+    known = _BY_OBJECTS.get(memo)
+    if (known is not None and known[0] is model and all(a is b for a, b in zip(known[1], chosen))
+            and all(a is b for a, b in zip(known[2], closed)) and known[3] in _KERNELS):
+        return _KERNELS[known[3]]
+    name = _kernel_name(model, chosen, origin, shared, closed, method, use_lanes)
+    _BY_OBJECTS[memo] = (model, tuple(chosen), tuple(closed), name)  # the objects kept alive: ids stay theirs
+    return _KERNELS[name]
+
+
+def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes) -> str:
+    """The kernel's module name (a hash of the model's sources and the choices), the kernel loaded
+    into _KERNELS under it."""
     refs = {}
     for name, func in _functions(model, chosen, closed):
         refs[name] = load.function_ref(func, name, model.name)
     direct = is_direct(chosen)
     if not direct and not (floquet_only(chosen) and method in ("radau", "auto")):
         method = "dop853"  # the shared path integrates with dop853 only (ModelSpec.methods_for)
-    lane_rhs = lane_kernels.applies(model, chosen, method) if (USE_LANES if lanes is None else lanes) else None
+    lane_rhs = lane_kernels.applies(model, chosen, method) if use_lanes else None
     key = hashlib.sha256()
     for name, ref in refs.items():
         key.update(name.encode())
@@ -540,12 +557,12 @@ def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str =
                      tuple((c.name, c.needs) for c in closed), shared, method, lane_rhs and (lane_kernels.lanes_for(len(model.states)), lane_kernels.QUEUE))).encode())
     name = "mechsweep_gen_" + key.hexdigest()[:20]
     if name in _KERNELS:
-        return _KERNELS[name]
+        return name
     origin = origin or f"{refs['rhs'][0]}"
     source = (lane_kernels.kernel_source(model, chosen, refs, origin, closed, lane_rhs) if lane_rhs
               else kernel_source(model, chosen, refs, origin, shared, closed, method, direct))
     _KERNELS[name] = load_generated(name, source).kernel
-    return _KERNELS[name]
+    return name
 
 
 def load_generated(name: str, source: str):
