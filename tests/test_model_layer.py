@@ -36,7 +36,7 @@ def evaluate(ref, outputs, P, rtol=1e-12, atol=1e-14, **settings):
 def _scene(ref, outputs, rtol, atol, settings=None):
     if ref.endswith("LINEAR"):
         axes, fixed = {"w": {"start": 0.5, "stop": 3.0, "num": 3}}, {"A": 0.7}
-    elif ref.endswith("MATHIEU_JAC"):
+    elif ref.endswith(("MATHIEU_JAC", "MATHIEU_CF")):
         axes, fixed = {"a": {"start": 0.0, "stop": 1.0, "num": 2}}, {"q": 1.0, "c": 0.0}
     elif ref.endswith("MATHIEU"):
         axes, fixed = {"a": {"start": 0.0, "stop": 1.0, "num": 2}}, {"q": 1.0}
@@ -205,6 +205,20 @@ def test_floquet_with_analytic_jacobian_agrees_with_finite_differences():
     assert (nr_fd == 5 * nr_an).all()  # the Jacobian costs no rhs call (2 n + 1 = 5 with differences)
 
 
+def test_closed_forms_read_the_floquet_kind_and_angle():
+    """A closed form may need any output the Floquet measurement's kernel computes (its kind and
+    angle, not only the modulus); before, the kernel generator raised ValueError at run time."""
+    rows = np.array([(-0.5, 0.5, 0.0), (1.0, 1.0, 0.0), (2.0, 0.0, 0.2)])  # kind +1, -1, a complex pair
+    out, status, _, _ = evaluate(f"{MATHIEU_FILE}:MATHIEU_CF", FLOQUET + ("angle2", "kind2"), rows)
+    assert (status == st.OK).all() and out["max_multiplier_kind"].tolist() == [1.0, -1.0, 0.0]
+    np.testing.assert_array_equal(out["angle2"], 2.0 * out["max_multiplier_angle"])
+    np.testing.assert_array_equal(out["kind2"], 2.0 * out["max_multiplier_kind"])
+    alone, status, _, _ = evaluate(f"{MATHIEU_FILE}:MATHIEU_CF", ("angle2", "kind2"), rows)
+    assert (status == st.OK).all()
+    for k in ("angle2", "kind2"):
+        np.testing.assert_array_equal(alone[k], out[k])
+
+
 # ---------------------------------------------------------------- bad user models: exit 2, file and line named
 HEAD = ("import math\nimport fractions\nfrom mechsweep.model import OdeModel, Param, Period\n\n\n"
         "def initial(p, y0):\n    y0[0] = p[0]\n    y0[1] = 0.0\n\n\n"  # lines 6-8
@@ -222,6 +236,25 @@ BAD = {
         "    dydt[1] = -y[0]\n\n\nfrom mechsweep.model import Floquet\n"
         "M2 = OdeModel(name='f', description='d', params=(), states=('x',), rhs=rhs, initial=initial, "
         "measurements=(Floquet('m'),))", "M", ["importing", "needs forcing_period(p)", "line 17"]),
+    "plain_python_helper": ("    dydt[1] = -stiffness(p) * y[0]\n\n\ndef stiffness(p):\n    return p[0]", "M",
+                            ["numba cannot compile rhs", "line 13", "stiffness is a plain Python function",
+                             "@numba.njit"]),
+    "closed_form_among_measurements": (
+        "    dydt[1] = -y[0]\n\n\nfrom mechsweep.model import ClosedForm\n"
+        "M2 = OdeModel(name='f', description='d', params=(), states=('x', 'v'), rhs=rhs, initial=initial, "
+        "measurements=(ClosedForm('c', initial),))", "M", ["importing", "ClosedForm 'c'", "line 17",
+                                                         "belongs in closed_forms=(...), not in measurements="]),
+    "closed_form_reads_a_verdict": (
+        "    dydt[1] = -y[0]\n\n\nfrom mechsweep.model import ClosedForm, Floquet\n"
+        "M2 = OdeModel(name='f', description='d', params=(), states=('x', 'v'), rhs=rhs, initial=initial, "
+        "forcing_period=initial, measurements=(Floquet('mu'),), "
+        "closed_forms=(ClosedForm('c', initial, needs=('mu_stable',)),))", "M",
+        ["importing", "closed form 'c' needs 'mu_stable', which closed forms cannot read", "mu, mu_kind, mu_angle"]),
+    "history_negative_horizon": (
+        "    dydt[1] = -y[0]\n\n\nfrom mechsweep.model import History\n"
+        "M2 = OdeModel(name='f', description='d', params=(), states=('x', 'v'), rhs=rhs, initial=initial, "
+        "measurements=(History('h', 'x', horizon=-5),))", "M",
+        ["importing", "line 17", "History 'h': horizon = -5 is not allowed; expected a number > 0"]),
     "missing_name": ("    dydt[1] = -y[0]", "NOPE", ["does not define 'NOPE'", "models it defines: M"]),
     "not_a_model": ("    dydt[1] = -y[0]", "NOT_A_MODEL", ["is a int, not a mechsweep.model.OdeModel"]),
 }

@@ -335,6 +335,11 @@ class Floquet:
                        "argument of the critical Floquet multiplier, folded to [0, pi]: 0 real positive, pi real "
                        "negative, else a complex pair |mu| exp(+-i angle)", integrated=True, needs=(self.name,)))
 
+    def values(self) -> tuple[str, ...]:
+        """The outputs the kernel computes, in the order of its columns (closed forms can read
+        these; the verdict ``name_stable`` is decided after the kernel, with the margin)."""
+        return (self.name, self.kind, f"{self.name}_angle")
+
     def validate(self, states):
         if self.initial is not None and not callable(self.initial):
             raise ValueError(f"{self.name}: initial must be a function initial(p, y0) (the start of the orbit)")
@@ -896,6 +901,61 @@ def _check_numbers(m, fields):
             raise ValueError(f"{m.name}: {f} = {x!r}; expected a finite number or the name of a setting")
 
 
+@dataclass(frozen=True)
+class _Range:
+    """The allowed values of a numeric field of a sampled-trajectory measurement."""
+    lo: float = -math.inf
+    hi: float = math.inf
+    lo_open: bool = False
+    hi_open: bool = False
+    integer: bool = False
+
+    def holds(self, x) -> bool:
+        if self.integer and not float(x).is_integer():
+            return False
+        return ((x > self.lo if self.lo_open else x >= self.lo)
+                and (x < self.hi if self.hi_open else x <= self.hi))
+
+    def text(self) -> str:
+        kind = "a whole number" if self.integer else "a number"
+        if self.hi == math.inf:
+            return f"{kind} {'>' if self.lo_open else '>='} {self.lo:g}"
+        return f"{kind} in {'(' if self.lo_open else '['}{self.lo:g}, {self.hi:g}{')' if self.hi_open else ']'}"
+
+
+_POSITIVE = _Range(0.0, lo_open=True)
+_NONNEGATIVE = _Range(0.0)
+
+
+def _check_ranges(m, rules: dict, settings=None):
+    """Each field's value in its range (a number, or, with ``settings`` (the model's), the range
+    of the setting it names: every value the scene may give it must be allowed)."""
+    for f, rule in rules.items():
+        x = getattr(m, f)
+        if x is None:
+            continue
+        what = f"{type(m).__name__} {m.name!r}: {f} = {x!r}"
+        if isinstance(x, str):
+            if settings is None:
+                continue
+            s = {t.name: t for t in settings}.get(x)
+            if s is not None and not (rule.holds(s.lo) and rule.holds(s.hi) and (s.integer or not rule.integer)):
+                raise ValueError(f"{what} names the setting {x!r}, whose range [{s.lo:g}, {s.hi:g}]"
+                                 f"{'' if s.integer or not rule.integer else ' (not integer=True)'} allows values "
+                                 f"outside what {f} accepts: {rule.text()}")
+        elif isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) or not rule.holds(x):
+            raise ValueError(f"{what} is not allowed; expected {rule.text()} (or the name of a setting)")
+
+
+_STEADY = {"horizon": _POSITIVE, "window": _Range(0.0, 0.5, lo_open=True),
+           "samples_per_period": _Range(3.0), "settle_rtol": _NONNEGATIVE, "settle_atol": _NONNEGATIVE}
+_KICK = {"horizon": _POSITIVE, "settle_threshold": _POSITIVE, "decay_ratio": _Range(0.0, 1.0, lo_open=True),
+         "growth_ratio": _Range(1.0), "monitor_per_period": _Range(1.0, integer=True),
+         "dense_per_period": _Range(1.0, integer=True), "late": _Range(0.0, 0.5, lo_open=True),
+         "early": _Range(0.0, 1.0, lo_open=True)}
+_HISTORY = {"horizon": _POSITIVE, "samples": _Range(2.0, integer=True)}
+
+
 def _check_value(m, field_name):
     f = getattr(m, field_name)
     if f is not None and not callable(f):
@@ -959,9 +1019,12 @@ class Steady:
         _check_numbers(self, ("horizon", "window", "samples_per_period", "settle_atol"))
         if self.settle_rtol is not None:
             _check_numbers(self, ("settle_rtol",))
-        if not isinstance(self.window, str) and not 0.0 < self.window <= 0.5:
-            raise ValueError(f"{self.name}: window = {self.window!r}; expected a fraction in (0, 0.5]")
+        _check_ranges(self, _STEADY)
         _check_value(self, "value")
+
+    def check_settings(self, settings):
+        """The fields that name a setting: the setting's range within the field's."""
+        _check_ranges(self, _STEADY, settings)
 
     def setting_names(self):
         return tuple(x for x in (self.horizon, self.window, self.samples_per_period, self.settle_rtol,
@@ -1058,7 +1121,12 @@ class Kick:
             _observable(self.response, states, self.name)
         _check_numbers(self, ("horizon", "settle_threshold", "decay_ratio", "growth_ratio", "monitor_per_period",
                               "dense_per_period"))
+        _check_ranges(self, _KICK)
         _check_value(self, "time_value")
+
+    def check_settings(self, settings):
+        """The fields that name a setting: the setting's range within the field's."""
+        _check_ranges(self, _KICK, settings)
 
     def setting_names(self):
         return tuple(x for x in (self.horizon, self.settle_threshold, self.decay_ratio, self.growth_ratio,
@@ -1148,7 +1216,12 @@ class History:
     def validate(self, states):
         _observable(self.of, states, self.name)
         _check_numbers(self, ("horizon", "samples"))
+        _check_ranges(self, _HISTORY)
         _check_value(self, "value")
+
+    def check_settings(self, settings):
+        """The fields that name a setting: the setting's range within the field's."""
+        _check_ranges(self, _HISTORY, settings)
 
     def setting_names(self):
         return tuple(x for x in (self.horizon, self.samples) if isinstance(x, str))
