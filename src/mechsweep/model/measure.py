@@ -966,7 +966,7 @@ def _check_value(m, field_name):
 class Steady:
     """Steady-state amplitude of an observable ``of`` (a state name or ``f(t, y, p)``) after a
     transient, over the last ``window`` (a fraction) of a simulation of ``horizon`` forcing periods.
-    Four outputs:
+    Three outputs (and a fourth kernel value):
 
     - ``name``: the peak, max |of| over the window's samples (``samples_per_period`` per period;
       a sampled maximum: it underestimates a sinusoid's amplitude by at most 1 - cos(pi /
