@@ -141,7 +141,7 @@ def test_a_value_that_is_not_a_function_is_refused():
     ("Kick", "horizon", 0.0, "a number > 0"), ("Kick", "settle_threshold", 0.0, "a number > 0"),
     ("Kick", "decay_ratio", 1.5, "a number in (0, 1]"), ("Kick", "growth_ratio", 0.5, "a number >= 1"),
     ("Kick", "monitor_per_period", 0.5, "a whole number >= 1"), ("Kick", "dense_per_period", 0, "a whole number >= 1"),
-    ("Kick", "late", 0.6, "a number in (0, 0.5]"),
+    ("Kick", "late", 0.6, "a number in (0, 0.5]"), ("Kick", "growth_floor", -1e-9, "a number >= 0"),
     ("History", "horizon", -5, "a number > 0"), ("History", "samples", 1, "a whole number >= 2"),
     ("History", "samples", 10.5, "a whole number >= 2")])
 def test_numeric_fields_of_sampled_measurements_are_checked(kind, field, value, allowed):
@@ -185,6 +185,24 @@ def test_history_without_a_forcing_period_is_labelled_in_time(decay):
     # Steady (allowed: e.g. a peak of an autonomous motion) says its T in every output's long name
     assert decay.output("peak_rel").long_name.endswith("(T = 1 time unit: the model declares no forcing period)")
     assert "T = 1 time unit" not in load.resolve(f"{USER}:FORCED").output("amp_h1").long_name
+
+
+def test_kick_growth_floor_decides_an_error_at_its_noise_floor():
+    """An error that decayed to a plateau (here 2e-5, read 4 % higher in the last window, as a
+    finer sampling there reads it) is not "growing" when at most growth_floor; by default the floor
+    is 1e-3 settle_threshold (the old rule, unchanged: 1e-5 here, so UNDECIDED)."""
+    from mechsweep.model import Kick
+    from mechsweep.model.trajectory import grid, kick_observe
+    s, bits, K = grid((Kick("k", "y", horizon=20.0, settle_threshold=0.01),
+                       Kick("f", "y", horizon=20.0, settle_threshold=0.01, growth_floor=1e-4)), {})
+    assert K[0].tolist() == [0.01, 0.5, 2.0, 0.01 * 1e-3] and K[1, 3] == 1e-4
+    e = np.where(s < 2.0, 1.0, 2e-5) * np.where(s >= 18.0, 1.04, 1.0)
+    verdicts = []
+    for k in range(2):
+        out = np.full(3, np.nan)
+        assert kick_observe(e, e, False, s, bits[:, k], K[k], out) == st.OK
+        verdicts.append(out[0])
+    assert np.isnan(verdicts[0]) and verdicts[1] == 1.0
 
 
 def test_sampled_measurements_offer_the_trajectory_methods_only(forced, decay):

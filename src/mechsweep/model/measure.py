@@ -952,7 +952,7 @@ _STEADY = {"horizon": _POSITIVE, "window": _Range(0.0, 0.5, lo_open=True),
 _KICK = {"horizon": _POSITIVE, "settle_threshold": _POSITIVE, "decay_ratio": _Range(0.0, 1.0, lo_open=True),
          "growth_ratio": _Range(1.0), "monitor_per_period": _Range(1.0, integer=True),
          "dense_per_period": _Range(1.0, integer=True), "late": _Range(0.0, 0.5, lo_open=True),
-         "early": _Range(0.0, 1.0, lo_open=True)}
+         "early": _Range(0.0, 1.0, lo_open=True), "growth_floor": _NONNEGATIVE}
 _HISTORY = {"horizon": _POSITIVE, "samples": _Range(2.0, integer=True)}
 
 
@@ -1076,7 +1076,10 @@ class Kick:
     r_ref / r_late = max response over the first ``early`` fraction / the last ``late`` fraction:
 
     - stable (1): e_late <= settle_threshold, e_late <= decay_ratio e0, r_late <= decay_ratio r_ref,
-      and not growing at the end (e_late <= e_before, or e_late <= 1e-3 settle_threshold);
+      and not growing at the end (e_late <= e_before, or e_late <= growth_floor, by default
+      1e-3 settle_threshold: raise it to the error's noise floor, e.g. the integration error of the
+      reference motion, when e_late sits there; e_late is sampled ``dense_per_period``, e_before
+      ``monitor_per_period`` times per period, so an error that no longer decays reads as growing);
     - unstable (0): e_late >= growth_ratio e0 and e_before >= growth_ratio e0;
     - otherwise NaN with status UNDECIDED (slow convergence or slow growth within the horizon).
 
@@ -1100,6 +1103,7 @@ class Kick:
     dense_per_period: object = 64
     late: float = 0.1
     early: float = 0.1
+    growth_floor: object = None  # e_late at or below it counts as not growing; None: 1e-3 settle_threshold
     unit: str = ""
     time_unit: str = "s"
     time_value: Callable | None = field(default=None, repr=False, compare=False)
@@ -1120,7 +1124,7 @@ class Kick:
         if self.response is not None:
             _observable(self.response, states, self.name)
         _check_numbers(self, ("horizon", "settle_threshold", "decay_ratio", "growth_ratio", "monitor_per_period",
-                              "dense_per_period"))
+                              "dense_per_period") + (() if self.growth_floor is None else ("growth_floor",)))
         _check_ranges(self, _KICK)
         _check_value(self, "time_value")
 
@@ -1130,7 +1134,8 @@ class Kick:
 
     def setting_names(self):
         return tuple(x for x in (self.horizon, self.settle_threshold, self.decay_ratio, self.growth_ratio,
-                                 self.monitor_per_period, self.dense_per_period) if isinstance(x, str))
+                                 self.monitor_per_period, self.dense_per_period, self.growth_floor)
+                     if isinstance(x, str))
 
     def functions(self):
         out = [] if isinstance(self.error, str) else [("error", self.error)]
@@ -1164,7 +1169,9 @@ class Kick:
                 | np.where(s >= late0, 8, 0) | np.where((s >= before0) & (s < late0), 16, 0))
 
     def constants(self, settings):
-        return tuple(_number(x, settings) for x in (self.settle_threshold, self.decay_ratio, self.growth_ratio))
+        settle = _number(self.settle_threshold, settings)
+        floor = 1e-3 * settle if self.growth_floor is None else _number(self.growth_floor, settings)
+        return (settle, _number(self.decay_ratio, settings), _number(self.growth_ratio, settings), floor)
 
     def finish(self, values, wanted, solver, out, status):
         from .. import status as st
