@@ -205,6 +205,23 @@ def test_floquet_with_analytic_jacobian_agrees_with_finite_differences():
     assert (nr_fd == 5 * nr_an).all()  # the Jacobian costs no rhs call (2 n + 1 = 5 with differences)
 
 
+def test_closed_forms_needing_the_floquet_kind_and_angle_get_a_kernel():
+    """The generated kernel passes the Floquet measurement's further values to the closed forms
+    (before, generating it raised ValueError: 'max_multiplier_angle' is not in list). Cheap: the
+    kernel module is generated and imported, not compiled (the values: the slow test below)."""
+    import inspect
+
+    from mechsweep.model import compile as mc
+    from mechsweep.model import load
+    model = load.import_module(load._module_name(MATHIEU_FILE.resolve()), str(MATHIEU_FILE.resolve())).MATHIEU_CF
+    chosen, closed = model._plan(("angle2", "kind2"))
+    kernel = mc.kernel_for(model, chosen, closed=model.computable_closed_forms(chosen), origin=str(MATHIEU_FILE))
+    source = inspect.getsource(inspect.getmodule(kernel.py_func))
+    assert "m0_1 = val_1" in source and "m0_2 = val_2" in source
+    assert "closed0(p, m0_2)" in source and "closed1(p, m0_1)" in source
+
+
+@pytest.mark.slow  # compiles a Floquet kernel with closed forms (about 15 s)
 def test_closed_forms_read_the_floquet_kind_and_angle():
     """A closed form may need any output the Floquet measurement's kernel computes (its kind and
     angle, not only the modulus); before, the kernel generator raised ValueError at run time."""
