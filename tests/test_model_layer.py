@@ -236,6 +236,17 @@ def test_closed_forms_read_the_floquet_kind_and_angle():
         np.testing.assert_array_equal(alone[k], out[k])
 
 
+@pytest.mark.parametrize("make, message", [
+    (lambda M: M.Crossing("c", "x", level=math.nan), "c: level = nan; expected a finite number"),
+    (lambda M: M.Period("T", "x", level=math.inf), "T: level = inf; expected a finite number")])
+def test_a_crossing_level_must_be_finite(make, message):
+    """(t_max, t, t0/t1 of the other event measurements were checked already.)"""
+    import mechsweep.model as M
+    with pytest.raises(ValueError) as info:
+        make(M).validate(("x", "v"))
+    assert str(info.value) == message
+
+
 # ---------------------------------------------------------------- bad user models: exit 2, file and line named
 HEAD = ("import math\nimport fractions\nfrom mechsweep.model import OdeModel, Param, Period\n\n\n"
         "def initial(p, y0):\n    y0[0] = p[0]\n    y0[1] = 0.0\n\n\n"  # lines 6-8

@@ -77,6 +77,8 @@ class Crossing:
             raise ValueError(f"{self.name}: n = {self.n!r}; expected a whole number >= 1")
         if not (math.isfinite(self.t_max) and self.t_max > 0):
             raise ValueError(f"{self.name}: t_max = {self.t_max!r}; expected a finite number > 0")
+        if isinstance(self.level, bool) or not isinstance(self.level, (int, float)) or not math.isfinite(self.level):
+            raise ValueError(f"{self.name}: level = {self.level!r}; expected a finite number")
 
     def source(self, k: int, states) -> str:
         idx = states.index(self.state)
