@@ -375,6 +375,39 @@ def test_continuation_reproduces_a_closed_form_curve():
     np.testing.assert_allclose(mu, 0.5 * 4.0 / A**2, rtol=1e-10)
 
 
+@pytest.mark.parametrize("axes, section, words", [
+    ({"A": [0.5], "mu": [-1.0]}, {"along": "w", "criterion": "period_exact", "level": 3.0},
+     "unknown axis to locate boundaries along 'w' (allowed: (none in this scene: give an axis of at least 2 values "
+     "of a numeric parameter: "),
+    ({"A": {"start": 0.1, "stop": 3.0, "num": 5}, "mu": [-1.0]},
+     {"along": "A", "criterion": "period_exact", "level": 3.0, "continue_in": "mu"},
+     "(allowed: (none in this scene: give a second axis of at least 2 values of a numeric parameter: ")])
+def test_boundaries_axis_with_no_candidate_names_the_parameters_it_can_be(axes, section, words):
+    from mechsweep.errors import InputError
+    with pytest.raises(InputError) as info:
+        load_scene({**BASE, "axes": axes, "boundaries": section})
+    text = str(info.value)
+    assert words in text and "omega, mu, A)" in text, text
+
+
+def test_continuation_on_linear_axes_of_large_values_warns_nothing():
+    """A linear axis is not raised to a power of ten (it overflowed for values above 308 and
+    leaked RuntimeWarning: overflow encountered in power): the same curve, mu up to 1000."""
+    import warnings
+    scene = load_scene({
+        "scene": {"name": "eps", "model": "duffing", "outputs": ["epsilon"]},
+        "axes": {"A": {"start": 0.04, "stop": 2.0, "num": 10}, "mu": {"start": 0.1, "stop": 1000.0, "num": 10}},
+        "fixed": {"omega": 2.0}, "boundaries": {"along": "A", "criterion": "epsilon", "level": 0.5}})
+    crit = bd.criterion_of(scene)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        curve = bd.continue_boundary(scene, crit, np.array([2.0, np.nan, np.nan]), "A", "mu",
+                                     (math.sqrt(0.5 * 4.0 / 1000.0), 1000.0))
+    A, mu = curve.points[:, 0], curve.points[:, 1]
+    assert curve.stop == "edge" and A[-1] == pytest.approx(2.0, abs=1e-12)
+    np.testing.assert_allclose(mu, 0.5 * 4.0 / A**2, rtol=1e-10)
+
+
 def test_scene_continue_in_stores_the_tongue_with_its_fold(tmp_path, capsys):
     """[boundaries] continue_in = "q": the boundaries located along a at the ends of the q axis are
     followed in (a, q); the tongue's two edges at q = 0.6 are one curve (the second start lies on

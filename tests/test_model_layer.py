@@ -36,7 +36,7 @@ def evaluate(ref, outputs, P, rtol=1e-12, atol=1e-14, **settings):
 def _scene(ref, outputs, rtol, atol, settings=None):
     if ref.endswith("LINEAR"):
         axes, fixed = {"w": {"start": 0.5, "stop": 3.0, "num": 3}}, {"A": 0.7}
-    elif ref.endswith("MATHIEU_JAC"):
+    elif ref.endswith(("MATHIEU_JAC", "MATHIEU_CF")):
         axes, fixed = {"a": {"start": 0.0, "stop": 1.0, "num": 2}}, {"q": 1.0, "c": 0.0}
     elif ref.endswith("MATHIEU"):
         axes, fixed = {"a": {"start": 0.0, "stop": 1.0, "num": 2}}, {"q": 1.0}
@@ -205,6 +205,48 @@ def test_floquet_with_analytic_jacobian_agrees_with_finite_differences():
     assert (nr_fd == 5 * nr_an).all()  # the Jacobian costs no rhs call (2 n + 1 = 5 with differences)
 
 
+def test_closed_forms_needing_the_floquet_kind_and_angle_get_a_kernel():
+    """The generated kernel passes the Floquet measurement's further values to the closed forms
+    (before, generating it raised ValueError: 'max_multiplier_angle' is not in list). Cheap: the
+    kernel module is generated and imported, not compiled (the values: the slow test below)."""
+    import inspect
+
+    from mechsweep.model import compile as mc
+    from mechsweep.model import load
+    model = load.import_module(load._module_name(MATHIEU_FILE.resolve()), str(MATHIEU_FILE.resolve())).MATHIEU_CF
+    chosen, closed = model._plan(("angle2", "kind2"))
+    kernel = mc.kernel_for(model, chosen, closed=model.computable_closed_forms(chosen), origin=str(MATHIEU_FILE))
+    source = inspect.getsource(inspect.getmodule(kernel.py_func))
+    assert "m0_1 = val_1" in source and "m0_2 = val_2" in source
+    assert "closed0(p, m0_2)" in source and "closed1(p, m0_1)" in source
+
+
+@pytest.mark.slow  # compiles a Floquet kernel with closed forms (about 15 s)
+def test_closed_forms_read_the_floquet_kind_and_angle():
+    """A closed form may need any output the Floquet measurement's kernel computes (its kind and
+    angle, not only the modulus); before, the kernel generator raised ValueError at run time."""
+    rows = np.array([(-0.5, 0.5, 0.0), (1.0, 1.0, 0.0), (2.0, 0.0, 0.2)])  # kind +1, -1, a complex pair
+    out, status, _, _ = evaluate(f"{MATHIEU_FILE}:MATHIEU_CF", FLOQUET + ("angle2", "kind2"), rows)
+    assert (status == st.OK).all() and out["max_multiplier_kind"].tolist() == [1.0, -1.0, 0.0]
+    np.testing.assert_array_equal(out["angle2"], 2.0 * out["max_multiplier_angle"])
+    np.testing.assert_array_equal(out["kind2"], 2.0 * out["max_multiplier_kind"])
+    alone, status, _, _ = evaluate(f"{MATHIEU_FILE}:MATHIEU_CF", ("angle2", "kind2"), rows)
+    assert (status == st.OK).all()
+    for k in ("angle2", "kind2"):
+        np.testing.assert_array_equal(alone[k], out[k])
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda M: M.Crossing("c", "x", level=math.nan), "c: level = nan; expected a finite number"),
+    (lambda M: M.Period("T", "x", level=math.inf), "T: level = inf; expected a finite number")])
+def test_a_crossing_level_must_be_finite(make, message):
+    """(t_max, t, t0/t1 of the other event measurements were checked already.)"""
+    import mechsweep.model as M
+    with pytest.raises(ValueError) as info:
+        make(M).validate(("x", "v"))
+    assert str(info.value) == message
+
+
 # ---------------------------------------------------------------- bad user models: exit 2, file and line named
 HEAD = ("import math\nimport fractions\nfrom mechsweep.model import OdeModel, Param, Period\n\n\n"
         "def initial(p, y0):\n    y0[0] = p[0]\n    y0[1] = 0.0\n\n\n"  # lines 6-8
@@ -222,6 +264,25 @@ BAD = {
         "    dydt[1] = -y[0]\n\n\nfrom mechsweep.model import Floquet\n"
         "M2 = OdeModel(name='f', description='d', params=(), states=('x',), rhs=rhs, initial=initial, "
         "measurements=(Floquet('m'),))", "M", ["importing", "needs forcing_period(p)", "line 17"]),
+    "plain_python_helper": ("    dydt[1] = -stiffness(p) * y[0]\n\n\ndef stiffness(p):\n    return p[0]", "M",
+                            ["numba cannot compile rhs", "line 13", "stiffness is a plain Python function",
+                             "@numba.njit"]),
+    "closed_form_among_measurements": (
+        "    dydt[1] = -y[0]\n\n\nfrom mechsweep.model import ClosedForm\n"
+        "M2 = OdeModel(name='f', description='d', params=(), states=('x', 'v'), rhs=rhs, initial=initial, "
+        "measurements=(ClosedForm('c', initial),))", "M", ["importing", "ClosedForm 'c'", "line 17",
+                                                         "belongs in closed_forms=(...), not in measurements="]),
+    "closed_form_reads_a_verdict": (
+        "    dydt[1] = -y[0]\n\n\nfrom mechsweep.model import ClosedForm, Floquet\n"
+        "M2 = OdeModel(name='f', description='d', params=(), states=('x', 'v'), rhs=rhs, initial=initial, "
+        "forcing_period=initial, measurements=(Floquet('mu'),), "
+        "closed_forms=(ClosedForm('c', initial, needs=('mu_stable',)),))", "M",
+        ["importing", "closed form 'c' needs 'mu_stable', which closed forms cannot read", "mu, mu_kind, mu_angle"]),
+    "history_negative_horizon": (
+        "    dydt[1] = -y[0]\n\n\nfrom mechsweep.model import History\n"
+        "M2 = OdeModel(name='f', description='d', params=(), states=('x', 'v'), rhs=rhs, initial=initial, "
+        "measurements=(History('h', 'x', horizon=-5),))", "M",
+        ["importing", "line 17", "History 'h': horizon = -5 is not allowed; expected a number > 0"]),
     "missing_name": ("    dydt[1] = -y[0]", "NOPE", ["does not define 'NOPE'", "models it defines: M"]),
     "not_a_model": ("    dydt[1] = -y[0]", "NOT_A_MODEL", ["is a int, not a mechsweep.model.OdeModel"]),
 }

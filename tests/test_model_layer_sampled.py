@@ -134,6 +134,77 @@ def test_a_value_that_is_not_a_function_is_refused():
         Kick("k", "x", time_value="lam").validate(("x",))
 
 
+@pytest.mark.parametrize("kind, field, value, allowed", [
+    ("Steady", "horizon", 0, "a number > 0"), ("Steady", "horizon", -5.0, "a number > 0"),
+    ("Steady", "window", 0.7, "a number in (0, 0.5]"), ("Steady", "samples_per_period", 2, "a number >= 3"),
+    ("Steady", "settle_rtol", -1e-3, "a number >= 0"), ("Steady", "settle_atol", -1.0, "a number >= 0"),
+    ("Kick", "horizon", 0.0, "a number > 0"), ("Kick", "settle_threshold", 0.0, "a number > 0"),
+    ("Kick", "decay_ratio", 1.5, "a number in (0, 1]"), ("Kick", "growth_ratio", 0.5, "a number >= 1"),
+    ("Kick", "monitor_per_period", 0.5, "a whole number >= 1"), ("Kick", "dense_per_period", 0, "a whole number >= 1"),
+    ("Kick", "late", 0.6, "a number in (0, 0.5]"), ("Kick", "growth_floor", -1e-9, "a number >= 0"),
+    ("History", "horizon", -5, "a number > 0"), ("History", "samples", 1, "a whole number >= 2"),
+    ("History", "samples", 10.5, "a whole number >= 2")])
+def test_numeric_fields_of_sampled_measurements_are_checked(kind, field, value, allowed):
+    """Each numeric field in its range when the model is declared: the message names the
+    measurement, the field, the value and what is allowed (a file model: exit 2 when loaded)."""
+    from mechsweep.model import History, Kick, OdeModel, Steady
+    m = {"Steady": Steady, "Kick": Kick, "History": History}[kind]("m", "y", **{field: value})
+    with pytest.raises(ValueError) as info:
+        OdeModel(name="x", description="", params=(), states=("y",), rhs=lambda t, y, p, d: None,
+                 initial=lambda p, y: None, forcing_period=lambda p: 1.0, measurements=(m,))
+    assert str(info.value) == f"{kind} 'm': {field} = {value!r} is not allowed; expected {allowed} (or the name of a setting)"
+
+
+def test_a_field_naming_a_setting_is_checked_against_the_setting_range():
+    from mechsweep.model import History, OdeModel, Setting
+    kw = dict(name="x", description="", params=(), states=("y",), rhs=lambda t, y, p, d: None,
+              initial=lambda p, y: None)
+    with pytest.raises(ValueError, match=r"History 'h': horizon = 'H' names the setting 'H', whose range \[0, 10\] "
+                                         r"allows values outside what horizon accepts: a number > 0"):
+        OdeModel(settings=(Setting("H", 5.0, "1", "horizon", 0.0, 10.0),),
+                 measurements=(History("h", "y", horizon="H"),), **kw)
+    with pytest.raises(ValueError, match=r"samples = 'n' names the setting 'n', whose range \[2, 10\] \(not "
+                                         r"integer=True\)"):
+        OdeModel(settings=(Setting("n", 5.0, "1", "samples", 2.0, 10.0),),
+                 measurements=(History("h", "y", samples="n"),), **kw)
+    OdeModel(settings=(Setting("n", 5, "1", "samples", 2, 10, integer=True),),
+             measurements=(History("h", "y", samples="n"),), **kw)
+
+
+def test_history_without_a_forcing_period_is_labelled_in_time(decay):
+    """A model without forcing_period counts its horizons in time units (T = 1): a History with
+    the default label says so instead of "forcing periods"."""
+    from mechsweep.model import History, OdeModel
+    kw = dict(name="x", description="", params=(), states=("y",), rhs=lambda t, y, p, d: None,
+              initial=lambda p, y: None, measurements=(History("h", "y"),))
+    unforced = OdeModel(**kw).spec().output("h").extra_dims[0].long_name
+    forced = OdeModel(forcing_period=lambda p: 1.0, **kw).spec().output("h").extra_dims[0].long_name
+    assert unforced == "time t (the model declares no forcing period: T = 1)"
+    assert forced == "time in forcing periods t / T"
+    assert decay.output("y_hist").extra_dims[0].long_name == "time t"  # a label given is kept
+    # Steady (allowed: e.g. a peak of an autonomous motion) says its T in every output's long name
+    assert decay.output("peak_rel").long_name.endswith("(T = 1 time unit: the model declares no forcing period)")
+    assert "T = 1 time unit" not in load.resolve(f"{USER}:FORCED").output("amp_h1").long_name
+
+
+def test_kick_growth_floor_decides_an_error_at_its_noise_floor():
+    """An error that decayed to a plateau (here 2e-5, read 4 % higher in the last window, as a
+    finer sampling there reads it) is not "growing" when at most growth_floor; by default the floor
+    is 1e-3 settle_threshold (the old rule, unchanged: 1e-5 here, so UNDECIDED)."""
+    from mechsweep.model import Kick
+    from mechsweep.model.trajectory import grid, kick_observe
+    s, bits, K = grid((Kick("k", "y", horizon=20.0, settle_threshold=0.01),
+                       Kick("f", "y", horizon=20.0, settle_threshold=0.01, growth_floor=1e-4)), {})
+    assert K[0].tolist() == [0.01, 0.5, 2.0, 0.01 * 1e-3] and K[1, 3] == 1e-4
+    e = np.where(s < 2.0, 1.0, 2e-5) * np.where(s >= 18.0, 1.04, 1.0)
+    verdicts = []
+    for k in range(2):
+        out = np.full(3, np.nan)
+        assert kick_observe(e, e, False, s, bits[:, k], K[k], out) == st.OK
+        verdicts.append(out[0])
+    assert np.isnan(verdicts[0]) and verdicts[1] == 1.0
+
+
 def test_sampled_measurements_offer_the_trajectory_methods_only(forced, decay):
     assert forced.methods_for(("amp",)) == ("dop853", "radau", "auto")
     assert decay.output("y_hist").extra_dims[0].name == "time"

@@ -211,3 +211,35 @@ def test_big_datasets_open_lazily_with_dask_chunks(in_tmp, small_duffing, monkey
     ran = mechsweep.run(small_duffing, output="data/runs/lazy.h5", resume=True, load=False)
     assert ran["period"].chunks is not None
     ran.close()
+
+
+@pytest.mark.parametrize("fail_at", [1, 3])
+def test_a_failure_after_the_checks_leaves_no_blocking_journal(in_tmp, small_duffing, monkeypatch, fail_at):
+    """An exception inside the run after the scene's checks passed (a bug: here chunk fail_at
+    raises): with no chunk saved the journal is removed, so the next run starts without --restart;
+    with chunks saved it is kept and the exception says how to go on."""
+    calls = []
+    real = runner.evaluate_chunk
+
+    def failing(scene, chunk, params):
+        calls.append(chunk)
+        if len(calls) == fail_at:
+            raise RuntimeError("bug in a chunk")
+        return real(scene, chunk, params)
+
+    monkeypatch.setattr(runner, "evaluate_chunk", failing)
+    with pytest.raises(RuntimeError, match="bug in a chunk") as info:
+        runner.compute(small_duffing, output="data/runs/s.h5", progress=False)
+    notes = "".join(getattr(info.value, "__notes__", []))
+    part = partial_path(in_tmp / "data/runs/s.h5")
+    if fail_at == 1:
+        assert not part.exists() and not notes
+        assert sorted(p.name for p in (in_tmp / "data/runs").iterdir()) == []
+    else:
+        assert part.exists() and "run again with --resume" in notes and "--restart" in notes
+    monkeypatch.setattr(runner, "evaluate_chunk", real)
+    if fail_at == 1:  # nothing blocks the next run
+        runner.compute(small_duffing, output="data/runs/s.h5", progress=False)
+    else:
+        runner.compute(small_duffing, output="data/runs/s.h5", progress=False, resume=True)
+    assert (in_tmp / "data/runs/s.h5").exists() and not part.exists()

@@ -799,7 +799,7 @@ def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_na
 
     def to_xy(us):
         xy = lo + np.asarray(us) * span
-        return np.where(logs, 10.0 ** xy, xy)
+        return np.where(logs, 10.0 ** np.where(logs, xy, 0.0), xy)  # no power of a linear coordinate (overflow)
 
     def evaluate(us):
         P = np.repeat(ev.rows, len(us), axis=0)

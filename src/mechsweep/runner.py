@@ -202,8 +202,13 @@ def compute(
                 with RunLock(final):  # from here to the end, no other run touches final or its journal
                     shutil.rmtree(discard_path(final), ignore_errors=True)  # what a killed clean-up left
                     if not _check_existing(scene, final, resume, restart, target, len(chunks), overwrite):
-                        counts = _compute(scene, final, restart, threads, progress, scheduler, target, chunks,
-                                          signals, worker_timeout, client)
+                        try:
+                            counts = _compute(scene, final, restart, threads, progress, scheduler, target, chunks,
+                                              signals, worker_timeout, client)
+                        except Exception as exc:  # a failure after the checks: keep no journal without a chunk
+                            if not isinstance(exc, (WriteFailed, ClusterLost)):
+                                _failed(exc, final)
+                            raise
                     else:  # True: a resume found the run finished
                         counts = status_counts(final)
                     times = _times(final)
@@ -336,6 +341,23 @@ def _times(final: Path) -> tuple[float, float, float]:
 
 def _interrupted(final: Path, signum: int) -> str:
     return f"interrupted ({signal.Signals(signum).name}): {_kept(final)}"
+
+
+def _failed(exc: Exception, final: Path) -> None:
+    """A run that failed with ``exc`` after its checks passed (under the lock): a journal with no
+    chunk saved is removed (the next run starts afresh, nothing was written); otherwise what is
+    kept and how to go on is added to the exception's notes (shown with its traceback)."""
+    part = partial_path(final)
+    try:
+        journal = Journal.read(part) if part.is_dir() else None
+        empty = journal is None or journal.empty or not journal.done_chunks().any()
+    except (StoreError, OSError):
+        return
+    if empty:
+        drop(final)
+    else:
+        exc.add_note(f"mechsweep: the run failed after its checks passed; {_kept(final)}, or with --restart to "
+                     "discard it")
 
 
 def _kept(final: Path) -> str:

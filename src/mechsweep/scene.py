@@ -853,8 +853,10 @@ def _boundaries(table: Mapping, model: ModelSpec, axes: list, outputs: tuple, p:
     if along is None:
         p.add("boundaries.along", f"missing; expected the name of an axis of at least 2 numeric values "
               f"({', '.join(ranged) or 'this scene has none'})")
-    elif along not in ranged:
-        p.unknown("boundaries.along", along, ranged or ("(none: give an axis of at least 2 numeric values)",),
+    numeric = ", ".join(q.name for q in model.params if not q.categorical)
+    if along is not None and along not in ranged:
+        p.unknown("boundaries.along", along, ranged or (f"(none in this scene: give an axis of at least 2 values of "
+                                                        f"a numeric parameter: {numeric})",),
                   "axis to locate boundaries along")
     crit, change = table.get("criterion"), table.get("status_change")
     level, criterion_accuracy, pair = math.nan, None, None
@@ -906,7 +908,8 @@ def _boundaries(table: Mapping, model: ModelSpec, axes: list, outputs: tuple, p:
     if cont is not None:
         if cont not in [a for a in ranged if a != along]:
             p.unknown("boundaries.continue_in", cont, [a for a in ranged if a != along] or
-                      ("(none: give a second axis of at least 2 numeric values)",), "axis to continue boundaries in")
+                      (f"(none in this scene: give a second axis of at least 2 values of a numeric parameter: "
+                       f"{numeric})",), "axis to continue boundaries in")
         elif change is not None:
             p.add("boundaries.continue_in", "needs a criterion: a change of status cannot be continued")
     rtol = table.get("rtol", Boundaries.rtol)

@@ -3,7 +3,7 @@ measurement (tests/test_model_layer.py): its stability boundaries are the charac
 curves a = a_n(q), a = b_n(q) (scipy.special.mathieu_a / mathieu_b)."""
 import math
 
-from mechsweep.model import Floquet, OdeModel, Param
+from mechsweep.model import ClosedForm, Floquet, OdeModel, Param
 
 
 def rhs(t, y, p, dydt):
@@ -57,4 +57,20 @@ MATHIEU_JAC = OdeModel(
     forcing_period=period,
     jac=damped_jac,
     measurements=(Floquet("max_multiplier"),),
+)
+
+
+def twice(p, x):
+    return 2.0 * x
+
+
+# the damped Mathieu equation with closed forms reading the Floquet measurement's kind and angle
+# (outputs besides its first: the kernel's further values)
+MATHIEU_CF = OdeModel(
+    name="mathieu_closed_forms",
+    description="damped Mathieu equation; closed forms of the critical multiplier's kind and angle",
+    params=MATHIEU_JAC.params, states=("x", "v"), rhs=damped_rhs, initial=initial, forcing_period=period,
+    jac=damped_jac, measurements=(Floquet("max_multiplier"),),
+    closed_forms=(ClosedForm("angle2", twice, "2 arg", "rad", "twice the angle", needs=("max_multiplier_angle",)),
+                  ClosedForm("kind2", twice, "2 kind", "1", "twice the kind", needs=("max_multiplier_kind",))),
 )

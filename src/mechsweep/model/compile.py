@@ -297,14 +297,17 @@ solve{k}_s = symplectic.make_event_solver({accel}, qevent{k}, {int(model.symplec
     cols = columns(chosen)
     closed_col = {c.name: cols[-1] + j for j, c in enumerate(closed)}
     mnames = {m.name: k for k, m in enumerate(chosen)}
+    # a measurement's further kernel values (Floquet's kind and angle), readable by closed forms
+    mvalues = {x: f"m{k}_{e}" for k, m in enumerate(chosen) if hasattr(m, "values")
+               for e, x in enumerate(m.values()) if e > 0}
 
     def closed_code(which):
         out = []
         for j, c in enumerate(closed):
-            if which != any(x in mnames for x in c.needs):
+            if which != any(x in mnames or x in mvalues for x in c.needs):
                 continue
-            args = ", ".join(["p"] + [f"m{mnames[x]}" if x in mnames else f"cf{[d.name for d in closed].index(x)}"
-                                      for x in c.needs])
+            args = ", ".join(["p"] + [f"m{mnames[x]}" if x in mnames else mvalues[x] if x in mvalues
+                                      else f"cf{[d.name for d in closed].index(x)}" for x in c.needs])
             if f"cfclassify{j}" in refs:  # the formula applies only where its classify says OK
                 out.append(f"""
             cf{j} = math.nan
@@ -344,6 +347,7 @@ solve{k}_s = symplectic.make_event_solver({accel}, qevent{k}, {int(model.symplec
     if chosen:
         for k in range(len(chosen)):
             body.append(f"\n            m{k} = math.nan")
+        body += [f"\n            {v} = math.nan" for v in mvalues.values()]
         body.append("\n            c = prepare(p, rtol)" if "prepare" in refs else "\n            c = st.OK")
         body.append("""
             if c != st.OK:
@@ -407,6 +411,8 @@ solve{k}_s = symplectic.make_event_solver({accel}, qevent{k}, {int(model.symplec
                 meas.append(f"""
                 initial(p, y)
                 c, val, a, b_ = measure{k}(y, p, rtol, atol, max_steps, work)""")
+            keep = "".join(f"\n                    {v} = val_{v.rsplit('_', 1)[1]}" for v in mvalues.values()
+                           if v.startswith(f"m{k}_"))
             if not (k in group) and not (direct and _own(m)):
                 meas.append("""
                 n_steps[i] += a
@@ -422,7 +428,7 @@ solve{k}_s = symplectic.make_event_solver({accel}, qevent{k}, {int(model.symplec
                     c = st.NONFINITE
                 if c == st.OK:
                     table[i, {cols[k]}] = val
-                    m{k} = val
+                    m{k} = val{keep}
                 elif code == st.OK:
                     code = c""")
         body.append("".join(meas))

@@ -358,6 +358,10 @@ def compile_failure(exc: Exception, file: str | None, label: str, what: str) -> 
              and not s.startswith(("Failed in", "During:", "File ", "^", "<source"))]
     why = lines[0] if lines else type(exc).__name__
     at = f" ({file}, line {line})" if line else ""
+    helper = re.search(r"Untyped global name '(\w+)'.*<class 'function'>", text)
+    if helper:  # a plain Python helper: mechsweep jit-compiles only the functions it is given
+        why += (f" ({helper.group(1)} is a plain Python function: a helper that {what} calls must be a numba "
+                f"function; decorate it with @numba.njit)")
     return InputError(f"{label}: numba cannot compile {what}{at}: {why}")
 
 

@@ -77,6 +77,8 @@ class Crossing:
             raise ValueError(f"{self.name}: n = {self.n!r}; expected a whole number >= 1")
         if not (math.isfinite(self.t_max) and self.t_max > 0):
             raise ValueError(f"{self.name}: t_max = {self.t_max!r}; expected a finite number > 0")
+        if isinstance(self.level, bool) or not isinstance(self.level, (int, float)) or not math.isfinite(self.level):
+            raise ValueError(f"{self.name}: level = {self.level!r}; expected a finite number")
 
     def source(self, k: int, states) -> str:
         idx = states.index(self.state)
@@ -334,6 +336,11 @@ class Floquet:
                 Output(f"{self.name}_angle", "arg μ", "rad",
                        "argument of the critical Floquet multiplier, folded to [0, pi]: 0 real positive, pi real "
                        "negative, else a complex pair |mu| exp(+-i angle)", integrated=True, needs=(self.name,)))
+
+    def values(self) -> tuple[str, ...]:
+        """The outputs the kernel computes, in the order of its columns (closed forms can read
+        these; the verdict ``name_stable`` is decided after the kernel, with the margin)."""
+        return (self.name, self.kind, f"{self.name}_angle")
 
     def validate(self, states):
         if self.initial is not None and not callable(self.initial):
@@ -896,6 +903,61 @@ def _check_numbers(m, fields):
             raise ValueError(f"{m.name}: {f} = {x!r}; expected a finite number or the name of a setting")
 
 
+@dataclass(frozen=True)
+class _Range:
+    """The allowed values of a numeric field of a sampled-trajectory measurement."""
+    lo: float = -math.inf
+    hi: float = math.inf
+    lo_open: bool = False
+    hi_open: bool = False
+    integer: bool = False
+
+    def holds(self, x) -> bool:
+        if self.integer and not float(x).is_integer():
+            return False
+        return ((x > self.lo if self.lo_open else x >= self.lo)
+                and (x < self.hi if self.hi_open else x <= self.hi))
+
+    def text(self) -> str:
+        kind = "a whole number" if self.integer else "a number"
+        if self.hi == math.inf:
+            return f"{kind} {'>' if self.lo_open else '>='} {self.lo:g}"
+        return f"{kind} in {'(' if self.lo_open else '['}{self.lo:g}, {self.hi:g}{')' if self.hi_open else ']'}"
+
+
+_POSITIVE = _Range(0.0, lo_open=True)
+_NONNEGATIVE = _Range(0.0)
+
+
+def _check_ranges(m, rules: dict, settings=None):
+    """Each field's value in its range (a number, or, with ``settings`` (the model's), the range
+    of the setting it names: every value the scene may give it must be allowed)."""
+    for f, rule in rules.items():
+        x = getattr(m, f)
+        if x is None:
+            continue
+        what = f"{type(m).__name__} {m.name!r}: {f} = {x!r}"
+        if isinstance(x, str):
+            if settings is None:
+                continue
+            s = {t.name: t for t in settings}.get(x)
+            if s is not None and not (rule.holds(s.lo) and rule.holds(s.hi) and (s.integer or not rule.integer)):
+                raise ValueError(f"{what} names the setting {x!r}, whose range [{s.lo:g}, {s.hi:g}]"
+                                 f"{'' if s.integer or not rule.integer else ' (not integer=True)'} allows values "
+                                 f"outside what {f} accepts: {rule.text()}")
+        elif isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) or not rule.holds(x):
+            raise ValueError(f"{what} is not allowed; expected {rule.text()} (or the name of a setting)")
+
+
+_STEADY = {"horizon": _POSITIVE, "window": _Range(0.0, 0.5, lo_open=True),
+           "samples_per_period": _Range(3.0), "settle_rtol": _NONNEGATIVE, "settle_atol": _NONNEGATIVE}
+_KICK = {"horizon": _POSITIVE, "settle_threshold": _POSITIVE, "decay_ratio": _Range(0.0, 1.0, lo_open=True),
+         "growth_ratio": _Range(1.0), "monitor_per_period": _Range(1.0, integer=True),
+         "dense_per_period": _Range(1.0, integer=True), "late": _Range(0.0, 0.5, lo_open=True),
+         "early": _Range(0.0, 1.0, lo_open=True), "growth_floor": _NONNEGATIVE}
+_HISTORY = {"horizon": _POSITIVE, "samples": _Range(2.0, integer=True)}
+
+
 def _check_value(m, field_name):
     f = getattr(m, field_name)
     if f is not None and not callable(f):
@@ -906,7 +968,7 @@ def _check_value(m, field_name):
 class Steady:
     """Steady-state amplitude of an observable ``of`` (a state name or ``f(t, y, p)``) after a
     transient, over the last ``window`` (a fraction) of a simulation of ``horizon`` forcing periods.
-    Four outputs:
+    Three outputs (and a fourth kernel value):
 
     - ``name``: the peak, max |of| over the window's samples (``samples_per_period`` per period;
       a sampled maximum: it underestimates a sinusoid's amplitude by at most 1 - cos(pi /
@@ -959,9 +1021,12 @@ class Steady:
         _check_numbers(self, ("horizon", "window", "samples_per_period", "settle_atol"))
         if self.settle_rtol is not None:
             _check_numbers(self, ("settle_rtol",))
-        if not isinstance(self.window, str) and not 0.0 < self.window <= 0.5:
-            raise ValueError(f"{self.name}: window = {self.window!r}; expected a fraction in (0, 0.5]")
+        _check_ranges(self, _STEADY)
         _check_value(self, "value")
+
+    def check_settings(self, settings):
+        """The fields that name a setting: the setting's range within the field's."""
+        _check_ranges(self, _STEADY, settings)
 
     def setting_names(self):
         return tuple(x for x in (self.horizon, self.window, self.samples_per_period, self.settle_rtol,
@@ -1013,7 +1078,10 @@ class Kick:
     r_ref / r_late = max response over the first ``early`` fraction / the last ``late`` fraction:
 
     - stable (1): e_late <= settle_threshold, e_late <= decay_ratio e0, r_late <= decay_ratio r_ref,
-      and not growing at the end (e_late <= e_before, or e_late <= 1e-3 settle_threshold);
+      and not growing at the end (e_late <= e_before, or e_late <= growth_floor, by default
+      1e-3 settle_threshold: raise it to the error's noise floor, e.g. the integration error of the
+      reference motion, when e_late sits there; e_late is sampled ``dense_per_period``, e_before
+      ``monitor_per_period`` times per period, so an error that no longer decays reads as growing);
     - unstable (0): e_late >= growth_ratio e0 and e_before >= growth_ratio e0;
     - otherwise NaN with status UNDECIDED (slow convergence or slow growth within the horizon).
 
@@ -1037,6 +1105,7 @@ class Kick:
     dense_per_period: object = 64
     late: float = 0.1
     early: float = 0.1
+    growth_floor: object = None  # e_late at or below it counts as not growing; None: 1e-3 settle_threshold
     unit: str = ""
     time_unit: str = "s"
     time_value: Callable | None = field(default=None, repr=False, compare=False)
@@ -1057,12 +1126,18 @@ class Kick:
         if self.response is not None:
             _observable(self.response, states, self.name)
         _check_numbers(self, ("horizon", "settle_threshold", "decay_ratio", "growth_ratio", "monitor_per_period",
-                              "dense_per_period"))
+                              "dense_per_period") + (() if self.growth_floor is None else ("growth_floor",)))
+        _check_ranges(self, _KICK)
         _check_value(self, "time_value")
+
+    def check_settings(self, settings):
+        """The fields that name a setting: the setting's range within the field's."""
+        _check_ranges(self, _KICK, settings)
 
     def setting_names(self):
         return tuple(x for x in (self.horizon, self.settle_threshold, self.decay_ratio, self.growth_ratio,
-                                 self.monitor_per_period, self.dense_per_period) if isinstance(x, str))
+                                 self.monitor_per_period, self.dense_per_period, self.growth_floor)
+                     if isinstance(x, str))
 
     def functions(self):
         out = [] if isinstance(self.error, str) else [("error", self.error)]
@@ -1096,7 +1171,9 @@ class Kick:
                 | np.where(s >= late0, 8, 0) | np.where((s >= before0) & (s < late0), 16, 0))
 
     def constants(self, settings):
-        return tuple(_number(x, settings) for x in (self.settle_threshold, self.decay_ratio, self.growth_ratio))
+        settle = _number(self.settle_threshold, settings)
+        floor = 1e-3 * settle if self.growth_floor is None else _number(self.growth_floor, settings)
+        return (settle, _number(self.decay_ratio, settings), _number(self.growth_ratio, settings), floor)
 
     def finish(self, values, wanted, solver, out, status):
         from .. import status as st
@@ -1148,7 +1225,12 @@ class History:
     def validate(self, states):
         _observable(self.of, states, self.name)
         _check_numbers(self, ("horizon", "samples"))
+        _check_ranges(self, _HISTORY)
         _check_value(self, "value")
+
+    def check_settings(self, settings):
+        """The fields that name a setting: the setting's range within the field's."""
+        _check_ranges(self, _HISTORY, settings)
 
     def setting_names(self):
         return tuple(x for x in (self.horizon, self.samples) if isinstance(x, str))

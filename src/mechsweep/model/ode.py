@@ -121,18 +121,46 @@ class OdeModel:
         object.__setattr__(self, "status_notes", tuple(sorted(dict(self.status_notes).items())))
         if not self.states:
             raise ValueError(f"model {self.name!r}: states is empty")
+        for m in self.measurements:
+            if not hasattr(m, "validate"):  # e.g. a ClosedForm put among the measurements
+                from .measure import MEASUREMENTS
+                where = ("a ClosedForm belongs in closed_forms=(...), not in measurements="
+                         if isinstance(m, ClosedForm) else
+                         f"measurements= takes {', '.join(c.__name__ for c in MEASUREMENTS)}")
+                raise ValueError(f"model {self.name!r}: measurements= holds {type(m).__name__} "
+                                 f"{getattr(m, 'name', m)!r}, which is not a measurement: {where}")
         names = [o.name for m in self.measurements for o in _outputs(m)] + [c.name for c in self.closed_forms]
         if len(set(names)) != len(names):
             raise ValueError(f"model {self.name!r}: output names repeat: {names}")
         for m in self.measurements:
             m.validate(self.states)
             if getattr(m, "needs_forcing", False) and self.forcing_period is None:
-                raise ValueError(f"model {self.name!r}: measurement {m.name!r} needs forcing_period(p)")
+                raise ValueError(f"model {self.name!r}: {type(m).__name__} {m.name!r} needs forcing_period(p) (it "
+                                 "measures over forcing periods); declare forcing_period=, e.g. a function returning "
+                                 "1.0 to count its horizon in time units")
+            if hasattr(m, "check_settings"):
+                m.check_settings(self.settings)
+        if self.forcing_period is None:  # T = 1: a History's instants are times, labelled so
+            import dataclasses
+
+            from .measure import History
+            default = History.__dataclass_fields__["dim_long_name"].default
+            object.__setattr__(self, "measurements", tuple(
+                dataclasses.replace(m, dim_long_name="time t (the model declares no forcing period: T = 1)")
+                if isinstance(m, History) and m.dim_long_name == default else m for m in self.measurements))
+        unreadable = {o.name: m for m in self.measurements if not getattr(m, "sampled", False)
+                      and hasattr(m, "values") for o in _outputs(m) if o.name not in m.values()}
         for c in self.closed_forms:
             bad = [x for x in c.needs if x not in names or x == c.name]
             if bad:
                 raise ValueError(f"model {self.name!r}: closed form {c.name!r} needs {bad}, which are not other "
                                  f"outputs of the model ({names})")
+            bad = [x for x in c.needs if x in unreadable]
+            if bad:
+                m = unreadable[bad[0]]
+                raise ValueError(f"model {self.name!r}: closed form {c.name!r} needs {bad[0]!r}, which closed forms "
+                                 f"cannot read (it is decided after the kernel); of {type(m).__name__} {m.name!r} "
+                                 f"they can read {', '.join(m.values())}")
         if self.accel is not None:
             if len(self.states) % 2:
                 raise ValueError(f"model {self.name!r}: accel needs y = (q, v), an even number of states "
@@ -283,6 +311,11 @@ class OdeModel:
 
         outputs = (tuple(o for m in self.measurements for o in _outputs(m))
                    + tuple(c.output() for c in self.closed_forms))
+        if self.forcing_period is None:  # Steady's horizon, window and harmonic: T = 1, said so
+            import dataclasses
+            steady = {o.name for m in self.measurements if type(m).__name__ == "Steady" for o in _outputs(m)}
+            outputs = tuple(dataclasses.replace(o, long_name=f"{o.long_name} (T = 1 time unit: the model declares "
+                                                "no forcing period)") if o.name in steady else o for o in outputs)
         if self.output_order:
             by_name = {o.name: o for o in outputs}
             outputs = tuple(by_name[n] for n in self.output_order)

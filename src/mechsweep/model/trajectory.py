@@ -123,7 +123,7 @@ def steady_observe(ob, s, bits, K, out):
 def kick_observe(e, r, has_r, t, bits, K, out):
     """Kick: out = (verdict 1 / 0 / NaN, settling time or NaN, final error) from the error e and
     the response r on the monitor rows (bit 1); bits 2 first period, 4 early, 8 late, 16 before
-    late; K = (settle_threshold, decay_ratio, growth_ratio). Returns OK or NONFINITE."""
+    late; K = (settle_threshold, decay_ratio, growth_ratio, growth_floor). Returns OK or NONFINITE."""
     settle, decay, growth = K[0], K[1], K[2]
     e0 = 0.0
     e_late = 0.0
@@ -170,7 +170,7 @@ def kick_observe(e, r, has_r, t, bits, K, out):
         t1 = t[k_next]
         out[1] = t0 + (t1 - t0) * (e_last_above - settle) / (e_last_above - e_next)
     stable = e_late <= settle and e_late <= decay * e0 and r_late <= decay * r_ref
-    stable = stable and (e_late <= e_before or e_late <= 1e-3 * settle)
+    stable = stable and (e_late <= e_before or e_late <= K[3])  # K[3]: by default 1e-3 settle
     unstable = e_late >= growth * e0 and e_before >= growth * e0
     out[0] = 1.0 if stable else (0.0 if unstable else math.nan)
     out[2] = e_prev
