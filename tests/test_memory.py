@@ -204,7 +204,7 @@ def test_too_many_chunks_refused_with_the_numbers(in_tmp, capsys):
 
 def test_default_chunks_are_raised_to_the_cap():
     s = load_scene(duffing({"A": {"start": 0.01, "stop": 1.0, "num": 10**4},
-                            "mu": {"start": 1e-3, "stop": 1e3, "num": 10**4}}, outputs=("period",)))
+                            "mu": {"start": 1e-3, "stop": 1e3, "num": 10**5}}, outputs=("period",)))
     assert len(plan_chunks(s.shape, grid.default_chunk_target(s))) > MAX_CHUNKS
     target = chunk_target(s)
     assert len(plan_chunks(s.shape, target)) <= MAX_CHUNKS < len(plan_chunks(s.shape, target - 1))
