@@ -119,15 +119,16 @@ def scaling(sizes: list[tuple[int, str]], repeats: int, folder: Path) -> list[di
         scene = load_scene(duffing(n, output))
         path = folder / f"scale{n}.h5"
         compute(load_scene(duffing(1000, output)), output=folder / "w.h5", progress=False, overwrite=True)
-        times = []
+        times, cpu = [], []
         for _ in range(repeats if n <= 10**6 else 1):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             compute(scene, output=path, progress=False, overwrite=True)
             times.append(time.perf_counter() - t0)
+            cpu.append(time.process_time() - c0)
         path.unlink()
         command = memory._case("command", output, (n,), folder)
-        rows.append({"points": n, "output": output, "seconds": times, "peak_rss": command["peak_rss"],
-                     "disk": command["disk"], "command_s": command["process_s"]})
+        rows.append({"points": n, "output": output, "seconds": times, "cpu_seconds": cpu,
+                     "peak_rss": command["peak_rss"], "disk": command["disk"], "command_s": command["process_s"]})
     return rows
 
 
@@ -301,15 +302,19 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
             rows = scaling(sizes, repeats, tmp)
             report["scaling"] = rows
             base = statistics.median(rows[0]["seconds"]) / rows[0]["points"]
-            print("  cost per point of mechsweep.run to a file (warm), peak RSS of the command `mechsweep run` "
-                  "(fresh process, interpreter included); target: linear in points, peak within chunk + interpreter:")
+            print("  cost per point of mechsweep.compute to a file (warm; wall, and CPU of this process: the "
+                  "figure a shared machine disturbs least), peak RSS of the command `mechsweep run` (fresh process, "
+                  "interpreter included); target: linear in points (per point flat from 10^5 on), peak within "
+                  "chunk + interpreter:")
             for r in rows:
                 per = [s / r["points"] * 1e6 for s in r["seconds"]]
+                per_cpu = statistics.median(r["cpu_seconds"]) / r["points"] * 1e6
                 per_point = statistics.median(r["seconds"]) / r["points"]
                 ratio = per_point / base if r["output"] == "period" else float("nan")
                 print(f"    {r['points']:>11,} {r['output']:<13} {_spread(per, 'us/point', fmt='.3f'):<40} "
-                      f"x{ratio:.2f} of 10^4's per point; command peak RSS {r['peak_rss'] / 2**20:.0f} MiB "
-                      f"(dataset {r['disk'] / 2**20:.1f} MiB)", flush=True)
+                      f"CPU {per_cpu:.3f} us/point; x{ratio:.2f} of 10^4's per point; command peak RSS "
+                      f"{r['peak_rss'] / 2**20:.0f} MiB (dataset {r['disk'] / 2**20:.1f} MiB, command "
+                      f"{r['command_s']:.1f} s)", flush=True)
         if "breakdown" in parts:
             print("  where the time goes:")
             breakdown(scene_path, tmp, repeats)
