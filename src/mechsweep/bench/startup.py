@@ -139,6 +139,35 @@ def scaling(sizes: list[tuple[int, str]], repeats: int, folder: Path) -> list[di
     return rows
 
 
+LINEAR_WITHIN = 1.15  # CPU per point of the two largest grids of an output: "linear" if within 15 %
+
+
+def _scaling_verdict(rows: list[dict]) -> None:
+    """Goal 5 against its target: CPU per point of the two largest grids of each output (linear:
+    about 1), and the command's peak memory against the dataset's size and a chunk's estimate."""
+    from mechsweep.grid import chunk_target
+    from mechsweep.runner import CHUNK_MEMORY_FACTOR, bytes_per_point
+    from mechsweep.scene import load_scene
+
+    for output in dict.fromkeys(r["output"] for r in rows):
+        mine = sorted((r for r in rows if r["output"] == output), key=lambda r: r["points"])
+        if len(mine) < 2:
+            continue
+        a, b = mine[-2], mine[-1]
+        per_a, per_b = (statistics.median(r["cpu_seconds"]) / r["points"] for r in (a, b))
+        ratio = per_b / per_a
+        print(f"    goal 5, {output}: CPU per point at {b['points']:,} points / at {a['points']:,} = {ratio:.2f} "
+              f"(target: linear, within {LINEAR_WITHIN:g}): {_verdict(ratio, LINEAR_WITHIN)}")
+    small, big = min(rows, key=lambda r: r["peak_rss"]), max(rows, key=lambda r: r["disk"])
+    scene = load_scene(duffing(big["points"], big["output"]))
+    chunk = CHUNK_MEMORY_FACTOR * bytes_per_point(scene) * min(chunk_target(scene), scene.n_points)
+    print(f"    goal 5, memory: command peak RSS {small['peak_rss'] / 2**20:.0f} .. "
+          f"{max(r['peak_rss'] for r in rows) / 2**20:.0f} MiB from {min(r['points'] for r in rows):,} to "
+          f"{max(r['points'] for r in rows):,} points; the largest dataset {big['disk'] / 2**20:.0f} MiB, a chunk's "
+          f"estimate (runner.CHUNK_MEMORY_FACTOR x its outputs) {chunk / 2**20:.1f} MiB (target: within chunk + "
+          "interpreter, i.e. not growing with the grid)")
+
+
 COMPILE_CHILD = """
 import json, sys, time
 from numba.core import event
@@ -323,6 +352,7 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
                       f"CPU {per_cpu:.3f} us/point; x{ratio:.2f} of {first['points']:,}'s per point; command peak RSS "
                       f"{r['peak_rss'] / 2**20:.0f} MiB (dataset {r['disk'] / 2**20:.1f} MiB, command "
                       f"{r['command_s']:.1f} s)", flush=True)
+            _scaling_verdict(rows)
         if "breakdown" in parts:
             print("  where the time goes:")
             breakdown(scene_path, tmp, repeats)
