@@ -215,9 +215,9 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
                 with RunLock(final):  # from here to the end, no other run touches final or its journal
                     shutil.rmtree(discard_path(final), ignore_errors=True)  # what a killed clean-up left
                     if not _check_existing(scene, final, resume, restart, target, len(chunks), overwrite):
-                        held = (hold or hold is None and bytes_per_point(scene) * scene.n_points <= LOAD_LIMIT_BYTES)
+                        keep = hold or hold is None and bytes_per_point(scene) * scene.n_points <= LOAD_LIMIT_BYTES
                         counts, held = _compute(scene, final, restart, threads, progress, scheduler, target, chunks,
-                                                signals, worker_timeout, client, held)
+                                                signals, worker_timeout, client, keep)
                     else:  # True: a resume found the run finished
                         counts, held = status_counts(final), None
                     times = _times(final)
