@@ -200,3 +200,19 @@ def test_reading_a_dataset_imports_no_kernels(in_tmp, small_duffing):
 def test_bench_startup_refuses_fewer_than_three_repeats(capsys):
     assert main(["bench", "startup", "--repeats", "2", "--only", "warm"]) == 2
     assert "--repeats = 2 is not allowed; expected a whole number in [3, 100]" in capsys.readouterr().err
+
+
+def test_file_route_returns_the_file_dataset_without_reading_it_back(in_tmp, small_duffing, monkeypatch):
+    # run(output=path) keeps the dataset in memory as the file is written (store.Held): what it
+    # returns is the file's content, attributes and times included, and the file is not re-opened
+    from mechsweep import journal
+
+    returned = mechsweep.run(small_duffing, output="data/runs/h.h5")
+    xr.testing.assert_identical(returned, mechsweep.open_dataset("data/runs/h.h5"))
+    assert returned.attrs["compute_time_s"] > 0
+    with monkeypatch.context() as m:
+        m.setattr(runner, "open_dataset", lambda *a, **k: pytest.fail("the dataset was read back"))
+        m.setattr(journal.Journal, "read_chunk",
+                  lambda *a, **k: pytest.fail("a chunk of this run was read back from the journal"))
+        again = mechsweep.run(small_duffing, output="data/runs/h.h5")
+    xr.testing.assert_identical(again, mechsweep.open_dataset("data/runs/h.h5"))

@@ -28,8 +28,8 @@ from .errors import ClusterLost, InputError, WriteFailed
 from .grid import Chunk, ChunkPlan, ParameterMatrix, chunk_target, plan_chunks
 from .journal import BadChunk, Journal, RunLock, discard_path, drop, lock_path, partial_path
 from .scene import Scene, check_scheduler, check_worker_timeout, load_scene, load_scene_text
-from .store import (COMPILE_KEY, StoreError, assemble, check_journal_files, file_kind, layout, open_dataset,
-                    status_counts)
+from .store import (COMPILE_KEY, LOAD_LIMIT_BYTES, Held, StoreError, assemble, check_journal_files, file_kind,
+                    layout, open_dataset, status_counts)
 
 
 class RunInterrupted(RuntimeError):
@@ -132,9 +132,12 @@ def run(
     if isinstance(output, _ScenePath):
         output = None
     lazy = None if load is None else not load
-    summary = compute(scene_or_path, output=output, resume=resume, restart=restart, threads=threads,
-                      progress=progress, scheduler=scheduler, worker_timeout=worker_timeout, overwrite=overwrite,
-                      models=models)
+    summary, held = _compute_file(scene_or_path, output=output, resume=resume, restart=restart, threads=threads,
+                                  progress=progress, scheduler=scheduler, worker_timeout=worker_timeout,
+                                  overwrite=overwrite, models=models, hold=load)
+    if held is not None and (load or summary.path.stat().st_size <= LOAD_LIMIT_BYTES):
+        # the dataset the file holds, kept in memory while it was written: not read back (see store.Held)
+        return held.dataset()
     return open_dataset(summary.path, lazy=lazy)
 
 
@@ -154,6 +157,16 @@ def compute(
     """``run`` without opening the result: compute the scene into its file and return a
     :class:`RunSummary` (path, sizes, status counts, wall time). Memory stays bounded by the
     chunk, whatever the grid; the status counts are added up as the chunks are assembled."""
+    return _compute_file(scene_or_path, output=output, resume=resume, restart=restart, threads=threads,
+                         progress=progress, scheduler=scheduler, worker_timeout=worker_timeout, overwrite=overwrite,
+                         models=models, hold=False)[0]
+
+
+def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, scheduler, worker_timeout, overwrite,
+                  models, hold: bool | None) -> tuple[RunSummary, "Held | None"]:
+    """``compute``, and with ``hold`` (True, or None for a dataset of at most store.LOAD_LIMIT_BYTES)
+    the dataset kept in memory as it is written (store.Held; None when the run computed nothing:
+    a resume that found it finished)."""
     if resume and restart:
         raise InputError("resume and restart (--resume --restart) together are refused: --resume keeps the "
                          "finished chunks of an unfinished run, --restart discards them; choose one")
@@ -202,15 +215,16 @@ def compute(
                 with RunLock(final):  # from here to the end, no other run touches final or its journal
                     shutil.rmtree(discard_path(final), ignore_errors=True)  # what a killed clean-up left
                     if not _check_existing(scene, final, resume, restart, target, len(chunks), overwrite):
+                        keep = hold or hold is None and bytes_per_point(scene) * scene.n_points <= LOAD_LIMIT_BYTES
                         try:
-                            counts = _compute(scene, final, restart, threads, progress, scheduler, target, chunks,
-                                              signals, worker_timeout, client)
+                            counts, held = _compute(scene, final, restart, threads, progress, scheduler, target,
+                                                    chunks, signals, worker_timeout, client, keep)
                         except Exception as exc:  # a failure after the checks: keep no journal without a chunk
                             if not isinstance(exc, (WriteFailed, ClusterLost)):
                                 _failed(exc, final)
                             raise
                     else:  # True: a resume found the run finished
-                        counts = status_counts(final)
+                        counts, held = status_counts(final), None
                     times = _times(final)
             except WriteFailed as exc:
                 raise OutOfSpace(_out_of_space(exc, scene, final, len(chunks))) from None
@@ -222,7 +236,7 @@ def compute(
     finally:
         if client is not None:
             _disconnect(client)
-    return RunSummary(final, _sizes(scene), counts, *times)
+    return RunSummary(final, _sizes(scene), counts, *times), held
 
 
 def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, scheduler, load, worker_timeout,
@@ -509,10 +523,12 @@ def same_scene(attrs: Mapping, scene: Scene) -> bool:
 
 
 def _compute(scene: Scene, final: Path, restart: bool, threads, progress, scheduler, target: int,
-             chunks: ChunkPlan, signals: "_Signals", worker_timeout: float, client=None) -> dict[int, int]:
+             chunks: ChunkPlan, signals: "_Signals", worker_timeout: float, client=None,
+             hold: bool = False) -> tuple[dict[int, int], Held | None]:
     """Compute the missing chunks into the journal, then assemble the dataset; returns the points
-    per status code. Chunk files that do not verify (found now, or while assembling) are removed
-    and computed again. ``client``: a connected dask client when ``scheduler`` is given."""
+    per status code, and with ``hold`` the dataset kept in memory as it was written (store.Held).
+    Chunk files that do not verify (found now, or while assembling) are removed and computed
+    again. ``client``: a connected dask client when ``scheduler`` is given."""
     part = partial_path(final)
     journal = Journal.read(part) if part.exists() and not restart else None
     resumed = journal is not None and not journal.empty
@@ -520,6 +536,7 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
         drop(final)
         journal = Journal.create(part, canonical=scene.canonical(), text=scene.text, chunk_target=target,
                                  n_chunks=len(chunks), attrs=provenance(scene, chunks))
+    held = Held(scene, layout(scene, len(chunks)), journal.meta["attrs"]) if hold else None
     for _ in range(REPAIR_ROUNDS):
         done = journal.done_chunks(repair=True)
         _report_removed(journal)
@@ -534,7 +551,7 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
             results = (_dask_results(scene, todo, scheduler, threads, worker_timeout, client) if scheduler
                        else _local_results(scene, todo, params))
             _save_chunks(scene, journal, results, todo, scene.n_points - sum(c.size for c in todo), progress,
-                         compile_s)
+                         compile_s, held)
             attrs = {**journal.meta["attrs"], "execution": where}
             if resumed and todo:  # the history says that another run finished the dataset
                 now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
@@ -542,9 +559,9 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
                     now, f"mechsweep.run(scene {scene.name!r}, resume=True): {len(todo)} chunk(s) computed", __version__))
             if not scheduler:
                 attrs["threads"] = numba.get_num_threads()
-        bad, counts = _finish(journal, scene, chunks, final, attrs, signals)
+        bad, counts = _finish(journal, scene, chunks, final, attrs, signals, held)
         if not bad:
-            return counts
+            return counts, held
         for exc in bad:
             journal.discard(exc.path, exc.why)
         _report_removed(journal)
@@ -559,7 +576,7 @@ def _report_removed(journal: Journal) -> None:
 
 
 def _finish(journal: Journal, scene: Scene, chunks: ChunkPlan, final: Path, attrs: dict,
-            signals: "_Signals") -> tuple[list[BadChunk], dict[int, int]]:
+            signals: "_Signals", held: Held | None = None) -> tuple[list[BadChunk], dict[int, int]]:
     """Assemble the dataset next to the journal, move it into place by one rename, drop the journal.
     Signals wait until a chunk is written (the files are closed before the run stops). Returns the
     chunk files that did not verify (then nothing is moved into place) and the points per status."""
@@ -567,7 +584,7 @@ def _finish(journal: Journal, scene: Scene, chunks: ChunkPlan, final: Path, attr
     check_free_space(scene, tmp)
     with signals.deferred():
         bad, counts = assemble(journal, scene, layout(scene, len(chunks)), chunks, tmp, attrs,
-                               stop=signals.pending)
+                               stop=signals.pending, held=held)
         if bad:
             os.unlink(tmp)
             return bad, counts
@@ -912,7 +929,7 @@ def _dask_results(scene: Scene, todo: list[Chunk], scheduler: str, threads: int 
 
 
 def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], already: int, progress,
-                 compile_s: float = 0.0) -> None:
+                 compile_s: float = 0.0, held: Held | None = None) -> None:
     """Save each computed chunk to the journal as it arrives; the write of one chunk overlaps the
     computation of the next (kernels release the GIL). At most one chunk waits to be written, so
     memory stays bounded by the chunk size. Each chunk file carries its compute time (since the
@@ -938,6 +955,8 @@ def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], alr
             clock["compile"] = 0.0
         now = _clock()  # the wall time up to this chunk is saved with it (survives a kill)
         journal.write_chunk(chunk.index, arrays, now - clock["last"])
+        if held is not None:  # saved: kept for the dataset run() returns (store.Held)
+            held.keep(chunk.index, chunk.region, arrays, now - clock["last"])
         clock["last"] = now
 
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="mechsweep-writer") as writer:

@@ -70,7 +70,7 @@ def layout(scene: Scene, n_chunks: int) -> Layout:
 
 
 def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, attrs: dict, *,
-             stop=None) -> tuple[list[BadChunk], dict[int, int]]:
+             stop=None, held: "Held | None" = None) -> tuple[list[BadChunk], dict[int, int]]:
     """Write the dataset of a journal to ``target`` (a path, or a file object for an in-memory
     view): every variable defined, each journaled chunk written into its region, one chunk in
     memory at a time. Chunks not in the journal keep the fill values (NaN, status PENDING), and so
@@ -81,9 +81,15 @@ def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, 
 
     To a path the file is written through ``_GuardedFile`` and synced; a failed write raises
     ``WriteFailed`` after the file is removed. ``stop()`` is asked between chunks: when true, the
-    assembly ends, the file is removed and ``KeyboardInterrupt`` raised."""
+    assembly ends, the file is removed and ``KeyboardInterrupt`` raised.
+
+    ``held``: the run's dataset in memory (``Held``), filled with the chunks this process computed
+    as they were saved. Those chunks are taken from it instead of being read back from the journal,
+    the others are read from the journal into it, and the file's variables are written from it
+    whole; it ends up with the file's attributes, so that ``held.dataset()`` is the dataset the file
+    holds without opening it again."""
     if not isinstance(target, (str, os.PathLike)):
-        return _assemble(journal, scene, lay, chunks, target, attrs, lambda: False)
+        return _assemble(journal, scene, lay, chunks, target, attrs, lambda: False, held)
     try:
         guard = _GuardedFile(target)
     except OSError as exc:  # e.g. no inode left
@@ -91,7 +97,7 @@ def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, 
     stop = stop or (lambda: False)
     try:
         bad, counts = _assemble(journal, scene, lay, chunks, guard, attrs,
-                                lambda: guard.error is not None or stop())
+                                lambda: guard.error is not None or stop(), held)
         if guard.error is None:
             guard.sync()
     except BaseException:
@@ -108,7 +114,7 @@ def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, 
     return bad, counts
 
 
-def _assemble(journal, scene, lay, chunks, target, attrs, stop) -> tuple[list[BadChunk], dict[int, int]]:
+def _assemble(journal, scene, lay, chunks, target, attrs, stop, held=None) -> tuple[list[BadChunk], dict[int, int]]:
     with h5netcdf.File(target, "w") as f:
         _define(f, scene, lay, attrs)
     bad = []
@@ -117,10 +123,17 @@ def _assemble(journal, scene, lay, chunks, target, attrs, stop) -> tuple[list[Ba
         variables = {name: f[name] for name in names}
         wall_time = compile_time = 0.0
         counts = Counts()
+        stopped = False
         for i in np.flatnonzero(journal.done_chunks()):
             if stop():
+                stopped = True
                 break
             chunk = chunks[int(i)]
+            if held is not None and int(i) in held.times:  # computed by this process: in memory already
+                seconds, compiled = held.times[int(i)]
+                wall_time += seconds
+                compile_time += compiled
+                continue
             try:
                 arrays, seconds = journal.read_chunk(int(i))
             except BadChunk as exc:
@@ -128,16 +141,47 @@ def _assemble(journal, scene, lay, chunks, target, attrs, stop) -> tuple[list[Ba
                 continue
             wall_time += seconds
             compile_time += float(arrays.pop(COMPILE_KEY, 0.0))
+            if held is not None:
+                write_memory(held.store, chunk.region, arrays, lay.shape)
+                continue
             counts.add(arrays["status"])
             shape = _region_shape(chunk.region, lay.shape)
             for name, var in variables.items():
                 values = arrays[name]
                 var[chunk.region + (slice(None),) * (values.ndim - 1)] = values.reshape(shape + values.shape[1:])
-        f.attrs.update(time_attrs(compile_time, wall_time))
+        if held is not None and not stopped:  # every variable at once (regions not computed: their fill values)
+            for name, var in variables.items():
+                var[...] = held.store.variables[name].data
+            counts.add(held.store.variables["status"].data)
+        times = time_attrs(compile_time, wall_time)
+        f.attrs.update(times)
+    if held is not None:  # the attributes _define wrote, and the times
+        held.store.attrs = {**attrs, "n_chunks": lay.n_chunks, **times}
     missing = int(np.prod(lay.shape, dtype=np.int64)) - counts.total
     if missing:
         counts.codes[st.PENDING] = counts.codes.get(st.PENDING, 0) + missing
     return bad, dict(sorted(counts.codes.items()))
+
+
+class Held:
+    """A run's dataset kept in memory while its file is written (``run`` with a dataset it returns
+    loaded): ``store`` is defined as the file is (``memory_store``), every chunk the run saves goes
+    into it too (``keep``), with its wall and compile seconds in ``times`` (chunk index -> (wall,
+    compile)). ``assemble`` then writes the file from it and sets its attributes."""
+
+    def __init__(self, scene: Scene, lay: Layout, attrs: dict):
+        self.store = memory_store(scene, lay, attrs)
+        self.shape = lay.shape
+        self.times: dict[int, tuple[float, float]] = {}
+
+    def keep(self, index: int, region: tuple, arrays: dict, seconds: float) -> None:
+        """A chunk saved to the journal: its arrays (and COMPILE_KEY, the compile phase it carries)."""
+        compiled = float(arrays.get(COMPILE_KEY, 0.0))
+        write_memory(self.store, region, {k: v for k, v in arrays.items() if k != COMPILE_KEY}, self.shape)
+        self.times[index] = (float(seconds), compiled)
+
+    def dataset(self) -> xr.Dataset:
+        return self.store.dataset()
 
 
 # The key under which a chunk file of the journal carries the compile phase that preceded it.

@@ -11,10 +11,11 @@ Each figure is printed with its target beside it (issue 15, goals 2, 3 and 5), a
 - the quickstart (``mechsweep run sweeps/quickstart.toml`` then ``mechsweep plot``) in fresh
   processes, cold (an empty JIT cache folder of its own for each repetition; target 8 s) and
   warm (target 2.5 s); the run's own compile and compute times are read from its dataset;
-- the cost per point of ``mechsweep.run`` to a file from 10^4 to 10^6 integrated points (--full:
-  to 10^7 integrated and 10^8 closed-form points), warm, and the peak resident memory of the
-  command ``mechsweep run`` on the same grid (a fresh process, interpreter included; bench memory
-  explains the measurement).
+- the cost per point of ``mechsweep.compute`` to a file from 10^4 to 10^6 integrated points
+  (--full: to 10^7 integrated and 10^6 .. 10^8 closed-form points; beyond 10^7 points, an axis's
+  most, the grid is 10^4 x 10^4), warm, and the peak resident memory of the command
+  ``mechsweep run`` on the same grid (a fresh process, interpreter included; bench memory explains
+  the measurement).
 """
 from __future__ import annotations
 
@@ -35,9 +36,15 @@ TARGET_WARM_S = 2.5
 RTOL, ATOL = 1e-10, 1e-12
 
 
+def shape_of(n: int) -> tuple[int, ...]:
+    """The grid of ``n`` points: one axis (mu) up to 10^7 points (an axis's most), beyond that
+    10^4 values of A by n / 10^4 of mu."""
+    return (n,) if n <= 10**7 else (10**4, n // 10**4)
+
+
 def duffing(n: int, output: str = "period") -> dict:
-    """A Duffing scene of ``n`` points (one axis, mu), the bench's standard small grid."""
-    data = memory.scene((n,), output)
+    """A Duffing scene of ``n`` points (one axis, mu, up to 10^7 points), the bench's standard small grid."""
+    data = memory.scene(shape_of(n), output)
     data["scene"]["name"] = "bench-startup"
     data["solver"].update(rtol=RTOL, atol=ATOL)
     return data
@@ -119,16 +126,46 @@ def scaling(sizes: list[tuple[int, str]], repeats: int, folder: Path) -> list[di
         scene = load_scene(duffing(n, output))
         path = folder / f"scale{n}.h5"
         compute(load_scene(duffing(1000, output)), output=folder / "w.h5", progress=False, overwrite=True)
-        times = []
+        times, cpu = [], []
         for _ in range(repeats if n <= 10**6 else 1):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             compute(scene, output=path, progress=False, overwrite=True)
             times.append(time.perf_counter() - t0)
+            cpu.append(time.process_time() - c0)
         path.unlink()
-        command = memory._case("command", output, (n,), folder)
-        rows.append({"points": n, "output": output, "seconds": times, "peak_rss": command["peak_rss"],
-                     "disk": command["disk"], "command_s": command["process_s"]})
+        command = memory._case("command", output, shape_of(n), folder)
+        rows.append({"points": n, "output": output, "seconds": times, "cpu_seconds": cpu,
+                     "peak_rss": command["peak_rss"], "disk": command["disk"], "command_s": command["process_s"]})
     return rows
+
+
+LINEAR_WITHIN = 1.15  # CPU per point of the two largest grids of an output: "linear" if within 15 %
+
+
+def _scaling_verdict(rows: list[dict]) -> None:
+    """Goal 5 against its target: CPU per point of the two largest grids of each output (linear:
+    about 1), and the command's peak memory against the dataset's size and a chunk's estimate."""
+    from mechsweep.grid import chunk_target
+    from mechsweep.runner import CHUNK_MEMORY_FACTOR, bytes_per_point
+    from mechsweep.scene import load_scene
+
+    for output in dict.fromkeys(r["output"] for r in rows):
+        mine = sorted((r for r in rows if r["output"] == output), key=lambda r: r["points"])
+        if len(mine) < 2:
+            continue
+        a, b = mine[-2], mine[-1]
+        per_a, per_b = (statistics.median(r["cpu_seconds"]) / r["points"] for r in (a, b))
+        ratio = per_b / per_a
+        print(f"    goal 5, {output}: CPU per point at {b['points']:,} points / at {a['points']:,} = {ratio:.2f} "
+              f"(target: linear, within {LINEAR_WITHIN:g}): {_verdict(ratio, LINEAR_WITHIN)}")
+    small, big = min(rows, key=lambda r: r["peak_rss"]), max(rows, key=lambda r: r["disk"])
+    scene = load_scene(duffing(big["points"], big["output"]))
+    chunk = CHUNK_MEMORY_FACTOR * bytes_per_point(scene) * min(chunk_target(scene), scene.n_points)
+    print(f"    goal 5, memory: command peak RSS {small['peak_rss'] / 2**20:.0f} .. "
+          f"{max(r['peak_rss'] for r in rows) / 2**20:.0f} MiB from {min(r['points'] for r in rows):,} to "
+          f"{max(r['points'] for r in rows):,} points; the largest dataset {big['disk'] / 2**20:.0f} MiB, a chunk's "
+          f"estimate (runner.CHUNK_MEMORY_FACTOR x its outputs) {chunk / 2**20:.1f} MiB (target: within chunk + "
+          "interpreter, i.e. not growing with the grid)")
 
 
 COMPILE_CHILD = """
@@ -297,19 +334,25 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
         if "scaling" in parts:
             sizes = [(10**4, "period"), (10**5, "period"), (10**6, "period")]
             if full:
-                sizes += [(10**7, "period"), (10**8, "period_exact")]
-            rows = scaling(sizes, repeats, tmp)
-            report["scaling"] = rows
-            base = statistics.median(rows[0]["seconds"]) / rows[0]["points"]
-            print("  cost per point of mechsweep.run to a file (warm), peak RSS of the command `mechsweep run` "
-                  "(fresh process, interpreter included); target: linear in points, peak within chunk + interpreter:")
-            for r in rows:
+                sizes += [(10**7, "period"), (10**6, "period_exact"), (10**7, "period_exact"), (10**8, "period_exact")]
+            print("  cost per point of mechsweep.compute to a file (warm; wall, and CPU of this process: the "
+                  "figure a shared machine disturbs least), peak RSS of the command `mechsweep run` (fresh process, "
+                  "interpreter included); target: linear in points (per point flat from 10^5 on), peak within "
+                  "chunk + interpreter:")
+            rows = report["scaling"] = []
+            for size in sizes:  # printed as measured: a failure at 10^8 keeps the smaller sizes' figures
+                r = scaling([size], repeats, tmp)[0]
+                rows.append(r)
+                first = next(x for x in rows if x["output"] == r["output"])  # the smallest grid of this output
+                base = statistics.median(first["seconds"]) / first["points"]
                 per = [s / r["points"] * 1e6 for s in r["seconds"]]
-                per_point = statistics.median(r["seconds"]) / r["points"]
-                ratio = per_point / base if r["output"] == "period" else float("nan")
+                per_cpu = statistics.median(r["cpu_seconds"]) / r["points"] * 1e6
+                ratio = statistics.median(r["seconds"]) / r["points"] / base
                 print(f"    {r['points']:>11,} {r['output']:<13} {_spread(per, 'us/point', fmt='.3f'):<40} "
-                      f"x{ratio:.2f} of 10^4's per point; command peak RSS {r['peak_rss'] / 2**20:.0f} MiB "
-                      f"(dataset {r['disk'] / 2**20:.1f} MiB)", flush=True)
+                      f"CPU {per_cpu:.3f} us/point; x{ratio:.2f} of {first['points']:,}'s per point; command peak RSS "
+                      f"{r['peak_rss'] / 2**20:.0f} MiB (dataset {r['disk'] / 2**20:.1f} MiB, command "
+                      f"{r['command_s']:.1f} s)", flush=True)
+            _scaling_verdict(rows)
         if "breakdown" in parts:
             print("  where the time goes:")
             breakdown(scene_path, tmp, repeats)
