@@ -20,9 +20,11 @@ Options and why:
   separately compiled numba functions only below its size threshold, which these exceed, and
   every separately compiled function costs numba a compile of its own (typing, lowering, and
   an LLVM optimisation and machine-code pass over it and, again, in each caller that links it).
-  Inlined, the one-point DOP853 event solver of a Duffing rhs compiled in 3.8-4.3 s of CPU
-  instead of 4.4-5.2 s and ran 20000 points in 50-56 ms instead of 65 ms, bitwise the same
-  roots (three alternating runs each in fresh processes, 2026-11-24, machine loaded). Inlining
+  Inlined, the one-point DOP853 event solver of a Duffing rhs compiled in 4.2-4.5 s of CPU
+  instead of 4.6-5.0 s and ran 20000 quarter periods in 50.5-50.6 ms of CPU instead of
+  65.4-67.0 ms, bitwise the same roots (``mechsweep bench startup --only breakdown``'s
+  INTEGRATOR_CHILD, three alternating runs each in fresh processes on the code before and after,
+  2026-11-24, machine loaded). Inlining
   the integrator's large functions as well (the RK step, the adaptive step) gained little more
   speed for about twice the compile time (an earlier one-off measurement), so it is chosen per
   helper.
