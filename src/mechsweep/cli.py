@@ -256,7 +256,43 @@ def _cmd_boundaries(args) -> int:
     return 0
 
 
+@contextmanager
+def _no_dask_probe():
+    """While the body runs, xarray takes dask to be absent unless ``dask.array`` is already imported.
+
+    xarray asks, for every variable it makes (``ds.a == 0``, ``where``, ...), whether the data is a
+    dask array, and to find out imports ``dask.array`` when dask is installed (with it scipy.fft:
+    0.4-1.0 s of a warm ``mechsweep plot``, more than drawing one figure). ``plot`` opens its
+    datasets loaded into memory (``open_dataset``'s default, numpy arrays), so no dask array can
+    occur in it. The answer is put into xarray's cache of such probes for the body only and taken
+    out again afterwards (a caller of ``main`` in the same process, e.g. a test that later opens a
+    dataset lazily, gets xarray's own probe). When xarray's internals differ, nothing is done."""
+    seeded = False
+    try:
+        if "dask.array" not in sys.modules:
+            from xarray.namedarray import pycompat
+
+            cache = pycompat._cached_duck_array_modules
+            if "dask" not in cache:
+                absent = object.__new__(pycompat.DuckArrayModule)
+                absent.module, absent.version, absent.type, absent.available = None, pycompat.Version("0.0.0"), (), False
+                cache["dask"] = absent
+                seeded = True
+    except (ImportError, AttributeError, TypeError):
+        pass
+    try:
+        yield
+    finally:
+        if seeded:
+            cache.pop("dask", None)
+
+
 def _cmd_plot(args) -> int:
+    with _no_dask_probe():
+        return _plot(args)
+
+
+def _plot(args) -> int:
     from . import figures
     from .errors import InputError
     from .store import open_dataset

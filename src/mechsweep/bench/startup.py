@@ -89,17 +89,25 @@ def warm_small(repeats: int, folder: Path) -> dict:
     return out
 
 
-def _command(args: list[str], env: dict, cwd: Path) -> float:
+def _command(args: list[str], env: dict, cwd: Path) -> tuple[float, float]:
+    """(wall seconds, CPU seconds) of ``mechsweep ARGS`` in a fresh process. The CPU time (user +
+    system of the child) is less blurred than the wall time when other processes share the cores."""
+    import resource
+
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, "-m", "mechsweep.cli", *args], env=env, cwd=cwd, capture_output=True,
                           text=True)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode != 0:
         raise RuntimeError(f"mechsweep {' '.join(args)} failed:\n{proc.stderr[-2000:]}")
-    return time.perf_counter() - t0
+    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
 def quickstart(scene: Path, repeats: int, folder: Path) -> dict:
-    """Cold and warm quickstart (run + plot) in fresh processes: {label: [(run s, plot s, compile s)]}."""
+    """Cold and warm quickstart (run + plot) in fresh processes:
+    {label: [(run s, plot s, compile s, run CPU s, plot CPU s)]}."""
     import h5py
 
     result = {"cold": [], "warm": []}
@@ -108,11 +116,11 @@ def quickstart(scene: Path, repeats: int, folder: Path) -> dict:
         for i in range(repeats):
             cache = folder / (f"cache-cold-{i}" if label == "cold" else "cache-cold-0")  # warm: filled by cold 0
             env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(cache))
-            run_s = _command(["run", str(scene), "-o", str(out), "--no-progress", "--overwrite"], env, folder)
-            plot_s = _command(["plot", str(out)], env, folder)
+            run_s, run_cpu = _command(["run", str(scene), "-o", str(out), "--no-progress", "--overwrite"], env, folder)
+            plot_s, plot_cpu = _command(["plot", str(out)], env, folder)
             with h5py.File(out, "r") as f:
                 compile_s = float(f.attrs.get("compile_time_s", float("nan")))
-            result[label].append((run_s, plot_s, compile_s))
+            result[label].append((run_s, plot_s, compile_s, run_cpu, plot_cpu))
     return result
 
 
@@ -171,18 +179,50 @@ def _scaling_verdict(rows: list[dict]) -> None:
 COMPILE_CHILD = """
 import json, sys, time
 from numba.core import event
-rows, starts = [], {}
+rows, stack = [], []
 class Listener(event.Listener):
     def on_start(self, ev):
-        starts[id(ev.data["dispatcher"]), str(ev.data["args"])] = time.perf_counter()
+        stack.append([time.perf_counter(), 0.0])  # start, time of the compiles nested in this one
     def on_end(self, ev):
         d = ev.data["dispatcher"]
-        rows.append((time.perf_counter() - starts[id(d), str(ev.data["args"])],
+        start, nested = stack.pop()
+        took = time.perf_counter() - start
+        if stack:
+            stack[-1][1] += took
+        rows.append((took, took - nested, d.py_func.__module__,
                      d.py_func.__module__.split(".")[-1] + "." + d.py_func.__qualname__.split(".<locals>.")[-1]))
 event.register("numba:compile", Listener())
 import mechsweep
-ds = mechsweep.run(sys.argv[1], output=None)
+ds = mechsweep.run(sys.argv[1], output=sys.argv[2], progress=False)  # the dataset the plot breakdown draws
 print(json.dumps({"rows": sorted(rows, reverse=True), "compile_time_s": ds.attrs["compile_time_s"]}))
+"""
+
+
+PLOT_CHILD = """
+import json, sys, time
+t0 = time.perf_counter()
+phases = []
+def lap(name):
+    global t0
+    t = time.perf_counter()
+    phases.append((name, t - t0))
+    t0 = t
+from mechsweep.cli import _no_dask_probe
+import matplotlib.figure, xarray
+lap("import matplotlib, xarray")
+from mechsweep import figures
+from mechsweep.store import open_dataset
+lap("import mechsweep.figures, store")
+with _no_dask_probe():
+    ds = open_dataset(sys.argv[1])
+    lap("open the dataset")
+    plan = {name: fn for name, _, fn, _ in figures._plan(ds)}
+    for kind in figures.available(ds):
+        fig = plan[kind](ds).figure
+        lap(f"draw {kind}")
+        fig.savefig(f"{sys.argv[2]}_{kind}.png", dpi=150)
+        lap(f"savefig {kind} (layout, render, PNG)")
+print(json.dumps(phases))
 """
 
 
@@ -205,10 +245,61 @@ print(json.dumps({"total": total, "registries": cumulative("load_additional_regi
 """
 
 
+INTEGRATOR_CHILD = """
+import hashlib, json, time
+import numpy as np
+from mechsweep._jit import jit
+from mechsweep.ode import dop853
+@jit
+def rhs(t, y, p, dydt):
+    dydt[0] = y[1]
+    dydt[1] = -p[0] * y[0] - p[1] * y[0] ** 3
+@jit
+def event(t, y, p):
+    return y[0]
+solve = dop853.make_event_solver(rhs, event)
+@jit
+def quarters(A, out, work):
+    y = np.empty(2)
+    p = np.array([1.0, 2.0])
+    for i in range(A.size):
+        y[0] = A[i]
+        y[1] = 0.0
+        out[i] = solve(0.0, y, p, 100.0, 1e-10, 1e-12, 0.0, 100000, work)[1]
+A = np.linspace(0.05, 2.0, 20000)
+out = np.empty_like(A)
+work = dop853.workspace(2)
+t = time.process_time()
+quarters(A[:2], out[:2], work)
+compile_cpu = time.process_time() - t
+runs = []
+for _ in range(5):  # CPU time (one thread): less blurred by other processes than wall time
+    t = time.process_time()
+    quarters(A, out, work)
+    runs.append(time.process_time() - t)
+print(json.dumps({"compile_cpu": compile_cpu, "run": min(runs), "roots": hashlib.sha256(out.tobytes()).hexdigest()[:16]}))
+"""
+
+
+def integrator_compile(repeats: int) -> list[dict]:
+    """The one-point DOP853 event solver of a Duffing rhs (quarter periods of 20000 amplitudes) in
+    fresh processes with caching off: CPU seconds of its compile and of the best of 5 runs, and a hash of
+    the roots (to compare code versions bitwise: run this child with another PYTHONPATH)."""
+    env = dict(os.environ, MECHSWEEP_NO_CACHE="1")
+    rows = []
+    for _ in range(repeats):
+        proc = subprocess.run([sys.executable, "-c", INTEGRATOR_CHILD], env=env, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise RuntimeError(f"integrator compile failed:\n{proc.stderr[-2000:]}")
+        rows.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+    return rows
+
 def breakdown(scene: Path, folder: Path, repeats: int) -> None:
     """Where the time goes: the file route's fixed costs by function (10^3 points, warm), chunk
-    launches (10^4 points in 1 or 20 calls), and the compile of ``scene`` by function (numba's
-    compile events, in a fresh process with an empty JIT cache; times include what each calls)."""
+    launches (10^4 points in 1 or 20 calls), the compile of ``scene`` by function (numba's
+    compile events, in a fresh process with an empty JIT cache; times include what each calls) and by
+    module (each function's own time, without the compiles nested in it), the warm compile phase,
+    and a warm plot of the scene's dataset by phase (imports, opening, drawing, saving)."""
     import collections
     import functools
 
@@ -270,14 +361,23 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
     print("  10^4 points in 1 kernel call: " + _spread(launches[1], "ms", 1e3) + "; in 20 calls: "
           + _spread(launches[20], "ms", 1e3))
     env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(folder / "cache-breakdown"))
-    proc = subprocess.run([sys.executable, "-c", COMPILE_CHILD, str(scene)], env=env, capture_output=True, text=True)
+    out = folder / "breakdown-quickstart.h5"
+    proc = subprocess.run([sys.executable, "-c", COMPILE_CHILD, str(scene), str(out)], env=env, capture_output=True,
+                          text=True)
     if proc.returncode != 0:
         raise RuntimeError(f"compile breakdown failed:\n{proc.stderr[-2000:]}")
     result = json.loads(proc.stdout.strip().splitlines()[-1])
     print(f"  cold compile of {scene.name}: {result['compile_time_s']:.1f} s, {len(result['rows'])} functions "
           "compiled; the longest (s, including what each calls):")
-    for seconds, name in result["rows"][:15]:
+    for seconds, _, _, name in result["rows"][:15]:
         print(f"    {seconds:7.2f}  {name}")
+    by_module = collections.defaultdict(float)
+    for _, own, module, _ in result["rows"]:
+        by_module["generated kernel module" if ".mechsweep_gen_" in "." + module else module] += own
+    print("  the same compile by module (s, each function without the compiles nested in it; numba's own "
+          "implementations under numba.*):")
+    for module, seconds in sorted(by_module.items(), key=lambda kv: -kv[1])[:12]:
+        print(f"    {seconds:7.2f}  {module}")
     proc = subprocess.run([sys.executable, "-c", WARM_LOAD_CHILD, str(scene)], env=env, capture_output=True, text=True)
     if proc.returncode != 0:
         raise RuntimeError(f"warm load breakdown failed:\n{proc.stderr[-2000:]}")
@@ -285,6 +385,17 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
     print(f"  warm compile phase of {scene.name} (JIT cache filled, fresh process, first one-point call, under "
           f"cProfile): {w['total']:.2f} s, of which numba's target initialisation (load_additional_registries) "
           f"{w['registries']:.2f} s, within it numba's BLAS check importing scipy.linalg (ensure_blas) {w['blas']:.2f} s")
+    proc = subprocess.run([sys.executable, "-c", PLOT_CHILD, str(out), str(folder / "breakdown-plot")], env=env,
+                          capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"plot breakdown failed:\n{proc.stderr[-2000:]}")
+    phases = json.loads(proc.stdout.strip().splitlines()[-1])
+    print(f"  warm plot of {scene.name}'s dataset in a fresh process (as `mechsweep plot`), s: "
+          + "; ".join(f"{name} {seconds:.2f}" for name, seconds in phases))
+    rows = integrator_compile(repeats)
+    print("  one-point DOP853 event solver of a Duffing rhs (fresh processes, no cache): compile "
+          + _spread([r["compile_cpu"] for r in rows], "s CPU", fmt=".2f") + "; 20000 quarter periods "
+          + _spread([r["run"] for r in rows], "ms CPU", 1e3) + f"; roots {rows[0]['roots']}")
 
 
 def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.toml",
@@ -324,13 +435,17 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
             print(f"  quickstart ({scene}) run + plot in fresh processes:")
             for label, target, what in (("cold", TARGET_COLD_S, "empty JIT cache"),
                                         ("warm", TARGET_WARM_S, "JIT cache filled")):
-                totals = [r + p for r, p, _ in q[label]]
+                rows = q[label]
+                totals = [r[0] + r[1] for r in rows]
                 med = statistics.median(totals)
                 print(f"    {label} ({what:<15}) total {_spread(totals, 's', fmt='.2f'):<30} target <= {target:g} s: "
                       f"{_verdict(med, target)}", flush=True)
-                print(f"      run {_spread([r for r, _, _ in q[label]], 's', fmt='.2f')}, of which compile "
-                      f"{_spread([c for _, _, c in q[label]], 's', fmt='.2f')}; plot "
-                      f"{_spread([p for _, p, _ in q[label]], 's', fmt='.2f')}")
+                print(f"      run {_spread([r[0] for r in rows], 's', fmt='.2f')}, of which compile "
+                      f"{_spread([r[2] for r in rows], 's', fmt='.2f')}; plot "
+                      f"{_spread([r[1] for r in rows], 's', fmt='.2f')}")
+                print(f"      CPU time (user + system; less blurred by other processes): run "
+                      f"{_spread([r[3] for r in rows], 's', fmt='.2f')}; plot "
+                      f"{_spread([r[4] for r in rows], 's', fmt='.2f')}; total {_spread([r[3] + r[4] for r in rows], 's', fmt='.2f')}")
         if "scaling" in parts:
             sizes = [(10**4, "period"), (10**5, "period"), (10**6, "period")]
             if full:

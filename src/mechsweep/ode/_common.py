@@ -9,7 +9,7 @@ import numpy as np
 from .._jit import jit_inline, jit_noalloc
 
 
-@jit_noalloc
+@jit_inline
 def _all_finite(v):
     for i in range(v.size):
         if not math.isfinite(v[i]):
@@ -17,13 +17,13 @@ def _all_finite(v):
     return True
 
 
-@jit_noalloc
+@jit_inline
 def _copy(src, dst):
     for i in range(src.size):
         dst[i] = src[i]
 
 
-@jit_noalloc
+@jit_inline
 def _rms_scaled(v, y, rtol, atol):
     """RMS of v / (atol + rtol |y|), the norm of select_initial_step."""
     acc = 0.0
@@ -32,7 +32,7 @@ def _rms_scaled(v, y, rtol, atol):
     return math.sqrt(acc / v.size)
 
 
-@jit_noalloc
+@jit_inline
 def _rms_scaled_difference(a, b, y, rtol, atol):
     acc = 0.0
     for i in range(a.size):
