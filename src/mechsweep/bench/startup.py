@@ -5,7 +5,7 @@ Each figure is printed with its target beside it (issue 15, goals 2, 3 and 5), a
 
 - warm ``mechsweep.run`` of 10^3 and 10^4 Duffing points (integrated period, DOP853, rtol 1e-10),
   in memory (``output=None``; targets 10 ms and 25 ms) and to a file (no target: the file route
-  adds the journal, its fsyncs, the HDF5 assembly and the opening of the result), interleaved with
+  adds the journal, its fsyncs, and the HDF5 assembly; the returned dataset is the one held in memory, not re-opened), interleaved with
   the kernel alone on the same grid (one call, no run around it: the difference is the run's fixed
   cost, which is what a busy machine does not blur);
 - the quickstart (``mechsweep run sweeps/quickstart.toml`` then ``mechsweep plot``) in fresh
@@ -425,7 +425,7 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
             for (n, route), v in warm.items():
                 med = statistics.median(v) * 1e3
                 target = {"memory": f"target <= {TARGET_WARM_MS[n]:g} ms: {_verdict(med, TARGET_WARM_MS[n])}",
-                          "file": "no target (journal, fsyncs, HDF5 assembly, opening)",
+                          "file": "no target (journal, fsyncs, HDF5 assembly)",
                           "kernel": "reference: the model's kernel on the whole grid in one call"}[route]
                 where = {"memory": "in memory (output=None)", "file": "to a file", "kernel": "kernel alone"}[route]
                 print(f"    {n:>6,} points {where:<24} {_spread(v, 'ms', 1e3):<34} {target}", flush=True)
