@@ -249,7 +249,10 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
                 idx = model.states.index(m.state)
                 lines.append(f"@jit\ndef event{k}(t, y, p):\n    return {sign!r} * (y[{idx}] - {float(m.level)!r})\n\n")
             else:
-                lines.append(_guard_call(f"event{k}", "t, y, p"))
+                ev = _guard_call(f"event{k}", "t, y, p")
+                if getattr(m, "direction", "down") == "up":  # the roots where the event goes from < 0 to >= 0
+                    ev = ev.replace(f"return user_event{k}(", f"return -user_event{k}(")
+                lines.append(ev)
                 if f"t_max{k}" in refs:
                     lines.append(_guard_call(f"t_max{k}", "p"))
                 if f"value{k}" in refs:
@@ -258,36 +261,66 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
                 lines.append(_guard_call(f"refine{k}", "p, rtol, x"))
             own = "" if _system(m) is None else str(k)  # the suffix of this measurement's equation
             rhs, jac, accel = f"rhs{own}", f"jac{own}", f"accel{own}"
+            nth = int(getattr(m, "n", 1)) if type(m).__name__ == "FirstEvent" else 1
+            solvers = []  # (name, constructor with {ev} for the event function)
             if method == "dop853":
-                lines.append(f"solve{k} = dop853.make_event_solver({rhs}, event{k})\n")
+                solvers.append((f"solve{k}", f"dop853.make_event_solver({rhs}, {{ev}})"))
             elif method == "auto":
-                lines.append(f"solve{k}_st = dop853.make_event_solver({rhs}, event{k}, stiffness_test=True)\n"
-                             f"solve{k}_r = radau.make_event_solver({rhs}, {jac}, event{k})\n")
+                solvers += [(f"solve{k}_st", f"dop853.make_event_solver({rhs}, {{ev}}, stiffness_test=True)"),
+                            (f"solve{k}_r", f"radau.make_event_solver({rhs}, {jac}, {{ev}})")]
             elif method == "radau":
-                lines.append(f"solve{k}_r = radau.make_event_solver({rhs}, {jac}, event{k})\n")
+                solvers.append((f"solve{k}_r", f"radau.make_event_solver({rhs}, {jac}, {{ev}})"))
             elif method == "symplectic":
-                lines.append(f"""
+                for ev in ([f"event{k}", f"event{k}_b"] if nth > 1 else [f"event{k}"]):
+                    if ev != f"event{k}":
+                        lines.append(f"\n@jit\ndef {ev}(t, y, p):  # the other direction\n"
+                                     f"    return -event{k}(t, y, p)\n")
+                    lines.append(f"""
 
 @jit
-def qevent{k}(t, q, v, p):  # the event on y = (q, v), copied into scratch
+def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
     yb = p[SCR:SCR + NS]
     for j in range(NQ):
         yb[j] = q[j]
         yb[NQ + j] = v[j]
-    return event{k}(t, yb, p)
-
-
-solve{k}_s = symplectic.make_event_solver({accel}, qevent{k}, {int(model.symplectic_order)})
+    return {ev}(t, yb, p)
 """)
+                solvers.append((f"solve{k}_s", f"symplectic.make_event_solver({accel}, q{{ev}}, "
+                                               f"{int(model.symplectic_order)})"))
+            if nth == 1:
+                lines += [f"{name} = {ctor.format(ev=f'event{k}')}\n" for name, ctor in solvers]
+            else:
+                if method != "symplectic":
+                    lines.append(f"\n@jit\ndef event{k}_b(t, y, p):  # the other direction\n"
+                                 f"    return -event{k}(t, y, p)\n\n")
+                for name, ctor in solvers:
+                    lines.append(_nth_root_source(name, ctor, f"event{k}", nth, method == "symplectic"))
             if _own(m):
                 lines.append(_pass_source(k, method, own, "t_max" + str(k) + "(p)" if f"t_max{k}" in refs
                                           else repr(float(m.t_max)), _scratch_args(uses)))
     else:
         if group:
-            rows = ",\n    ".join(repr(tuple(chosen[k].shared_row(model.states))) for k in group)
+            rows, exprs = [], []
+            for k in group:
+                row = list(chosen[k].shared_row(model.states))
+                if f"of{k}" in refs:  # an expression: its index in observe
+                    row[1] = float(k)
+                    exprs.append(k)
+                rows.append("(" + ", ".join("math.nan" if x != x else repr(x) for x in row) + ")")
+            rows = ",\n    ".join(rows)
             lines.append(f"\n# ---- measurements {group} on one shared trajectory\n"
-                         "from mechsweep.model.measure import make_shared\n\n"
-                         f"shared = make_shared(rhs)\nSHARED_M = np.array([\n    {rows}])\nNSH = {len(group)}\n")
+                         "from mechsweep.model.measure import make_shared\n\n")
+            for k in group:
+                for role, args in (("of", "t, y, p"), ("t0", "p"), ("t1", "p")):
+                    if f"{role}{k}" in refs:
+                        lines.append(_guard_call(f"{role}{k}", args) + "\n")
+            if exprs:
+                lines.append("\n@jit\ndef observe(t, y, p, j):  # the expressions of the shared rows\n"
+                             + "".join(f"    if j == {k}:\n        return of{k}(t, y, p)\n" for k in exprs)
+                             + "    return math.nan\n\n\nshared = make_shared(rhs, observe)\n")
+            else:
+                lines.append("shared = make_shared(rhs)\n")
+            lines.append(f"SHARED_M = np.array([\n    {rows}])\nNSH = {len(group)}\n")
         for k, m in enumerate(chosen):
             if k in group:
                 continue
@@ -331,8 +364,11 @@ solve{k}_s = symplectic.make_event_solver({accel}, qevent{k}, {int(model.symplec
         scratch.append("\n        rwork = radau.workspace(NS)")
     if uses["symplectic"]:
         scratch.append("\n        q = np.empty(NQ)\n        v = np.empty(NQ)\n        swork = symplectic.workspace(NQ)")
+    windows = [(j, k, role) for j, k in enumerate(group) for role in ("t0", "t1") if f"{role}{k}" in refs]
     if group:
         scratch.append("\n        svals = np.empty(NSH)\n        scodes = np.empty(NSH, dtype=np.int64)")
+    if windows:  # the shared rows with per-point windows: a copy of the table per block
+        scratch.append("\n        Msh = SHARED_M.copy()")
     body = []
     if "classify" in refs:
         body.append("""
@@ -352,8 +388,9 @@ solve{k}_s = symplectic.make_event_solver({accel}, qevent{k}, {int(model.symplec
         meas = []
         if group:
             meas.append("""
-                initial(p, y)
-                a, b_ = shared(y, p, SHARED_M, rtol, atol, max_steps, work, svals, scodes)
+                initial(p, y)""" + "".join(f"""
+                Msh[{j}, {5 if role == "t0" else 6}] = {role}{k}(p)""" for j, k, role in windows) + f"""
+                a, b_ = shared(y, p, {"Msh" if windows else "SHARED_M"}, rtol, atol, max_steps, work, svals, scodes)
                 n_steps[i] += a
                 n_rhs[i] += b_""")
         for k, m in enumerate(chosen):
@@ -451,6 +488,42 @@ def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
     return "".join(lines)
 
 
+def _nth_root_source(name: str, ctor: str, event: str, n: int, symplectic: bool) -> str:
+    """``name``: an event solver of the same signature as the method's that returns the ``n``-th
+    root of ``event`` (from > 0 to <= 0) instead of the first: 2 n - 1 searches, alternating with
+    the other direction's (``event``_b) so that a search never restarts on the root it just found;
+    each search restarts the integrator at the previous root and gets what is left of max_steps
+    after the accepted steps before it. A search without a root (NO_EVENT: fewer than n roots
+    before t_max) or failing ends it with its status."""
+    if symplectic:
+        sig, nxt = "t0, q, v, p, h, tm, max_steps, work", "t, q, v, p, h, tm, max_steps - a, work"
+    else:
+        sig, nxt = ("t0, y, p, tm, rtol, atol, h0, max_steps, work",
+                    "t, y, p, tm, rtol, atol, 0.0, max_steps - a, work")
+    out = [f"{name}_f1 = {ctor.format(ev=event)}\n", f"{name}_b1 = {ctor.format(ev=event + '_b')}\n"]
+    out.append(f"""
+
+@jit
+def {name}({sig}):  # root {n} of {event}
+    c, t, a, b_ = {name}_f1({sig})
+    for j in range({2 * (n - 1)}):
+        if c != st.OK:
+            break
+        if a >= max_steps:
+            c = st.MAX_STEPS
+            break
+        if j % 2 == 0:
+            c, t, a2, b2 = {name}_b1({nxt})
+        else:
+            c, t, a2, b2 = {name}_f1({nxt})
+        a += a2
+        b_ += b2
+    return c, t, a, b_
+
+""")
+    return "".join(out)
+
+
 def _scratch_args(uses) -> str:
     """The method workspaces a pass function receives (those the kernel allocates)."""
     return ", ".join((["work"] if uses["dop853"] else []) + (["rwork"] if uses["radau"] else [])
@@ -546,7 +619,9 @@ def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes) -> st
     direct = is_direct(chosen)
     if not direct and not (floquet_only(chosen) and method in ("radau", "auto")):
         method = "dop853"  # the shared path integrates with dop853 only (ModelSpec.methods_for)
-    lane_rhs = lane_kernels.applies(model, chosen, method) if use_lanes else None
+    first_root = all(getattr(m, "n", 1) == 1 and getattr(m, "direction", "down") == "down" for m in chosen
+                     if type(m).__name__ == "FirstEvent")  # the lane kernel finds the first root of the event as given
+    lane_rhs = lane_kernels.applies(model, chosen, method) if use_lanes and first_root else None
     key = hashlib.sha256()
     for name, ref in refs.items():
         key.update(name.encode())

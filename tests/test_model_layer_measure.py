@@ -1,0 +1,88 @@
+"""Measurements of expressions and n-th roots (tests/user_models/measure_more.py, a linear
+oscillator x = A cos(w t), v = -A w sin(w t)): FirstEvent's n-th root and direction by every
+method, Extremum of an expression f(t, y, p) and over a window given by functions of p; against
+closed forms."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mechsweep import status as st
+from mechsweep.scene import load_scene
+
+MODEL = f"{Path(__file__).resolve().parent / 'user_models' / 'measure_more.py'}:MODEL"
+W = np.array([0.5, 1.0, 1.7, 3.0])
+A = 0.7
+P = np.column_stack([W, np.full(W.size, A)])
+
+
+def evaluate(outputs, method="dop853", rtol=1e-12, atol=1e-14):
+    scene = load_scene({"scene": {"name": "t", "model": MODEL, "outputs": list(outputs)},
+                        "axes": {"w": {"start": 0.5, "stop": 3.0, "num": 3}}, "fixed": {"A": A},
+                        "solver": {"rtol": rtol, "atol": atol, "method": method}})
+    n = P.shape[0]
+    out = {k: np.full(n, np.nan) for k in outputs}
+    status, ns, nr = np.zeros(n, st.DTYPE), np.zeros(n, np.int64), np.zeros(n, np.int64)
+    scene.model.evaluate(P, tuple(outputs), scene.solver, out, status, ns, nr)
+    return out, status, ns, nr
+
+
+def test_nth_root_of_an_expression_in_either_direction():
+    """x + v / w = A sqrt(2) cos(w t + pi/4): its downward zeros at w t = pi/4 + 2 pi k, its upward
+    ones at 5 pi / 4 + 2 pi k. The third downward one and the second upward one; fewer than 3 roots
+    before t_max (= 10) is NO_EVENT."""
+    out, status, ns, nr = evaluate(("down3", "up2", "down3_short"), rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(out["down3"], 17 * math.pi / 4 / W, rtol=1e-9, atol=0)
+    np.testing.assert_allclose(out["up2"], 13 * math.pi / 4 / W, rtol=1e-9, atol=0)
+    short = 17 * math.pi / 4 / W > 10.0
+    assert short.tolist() == [True, True, False, False]
+    assert status.tolist() == [st.NO_EVENT, st.NO_EVENT, st.OK, st.OK]
+    assert np.isnan(out["down3_short"][short]).all()
+    np.testing.assert_allclose(out["down3_short"][~short], 17 * math.pi / 4 / W[~short], rtol=1e-9, atol=0)
+
+
+@pytest.mark.slow  # a kernel per method (~30 s of compilation each from an empty cache)
+@pytest.mark.parametrize("method, tol", [("radau", 1e-9), ("auto", 1e-9), ("symplectic", 1e-8)])
+def test_nth_root_upwards_by_the_other_methods(method, tol):
+    out, status, _, _ = evaluate(("up1", "up2"), method, rtol=1e-10, atol=1e-12)
+    assert (status == st.OK).all()
+    np.testing.assert_allclose(out["up1"], 5 * math.pi / 4 / W, rtol=tol, atol=0)
+    np.testing.assert_allclose(out["up2"], 13 * math.pi / 4 / W, rtol=tol, atol=0)
+
+
+def test_extremum_of_an_expression_and_over_windows_given_by_functions_of_p():
+    out, status, _, _ = evaluate(("ke_max", "power_early", "power_late", "x_min_late"))
+    assert (status == st.OK).all()
+    # max of v^2 / 2 over [0, 10]: (A w)^2 / 2 at interior turning points
+    np.testing.assert_allclose(out["ke_max"], 0.5 * (A * W) ** 2, rtol=1e-10, atol=0)
+    # x v = -(A^2 w / 2) sin(2 w t): decreasing over w t in [0.1, 0.5] (the max is the window's start)
+    np.testing.assert_allclose(out["power_early"], -(A * A * W / 2) * math.sin(0.2), rtol=1e-10, atol=0)
+    # over w t in [pi/4, pi] its max A^2 w / 2 at 2 w t = 3 pi / 2, inside
+    np.testing.assert_allclose(out["power_late"], A * A * W / 2, rtol=1e-10, atol=0)
+    # a state over the same window: -A at its end
+    np.testing.assert_allclose(out["x_min_late"], -A, rtol=0, atol=1e-10)
+
+
+def test_a_window_that_is_not_one_at_a_point_is_infeasible():
+    """[1 / w, 1] is empty for w <= 1: INFEASIBLE there; the other points get the max of x there,
+    A cos(1) at the window's start."""
+    out, status, _, _ = evaluate(("bad_window",))
+    assert status.tolist() == [st.INFEASIBLE, st.INFEASIBLE, st.OK, st.OK]
+    np.testing.assert_allclose(out["bad_window"][2:], A * math.cos(1.0), rtol=1e-10)
+    assert np.isnan(out["bad_window"][:2]).all()
+
+
+def test_declarations_are_checked():
+    from mechsweep.model import Extremum, FirstEvent
+
+    with pytest.raises(ValueError, match="n = 0"):
+        FirstEvent("e", lambda t, y, p: y[0], n=0).validate(("x",))
+    with pytest.raises(ValueError, match="direction 'sideways'"):
+        FirstEvent("e", lambda t, y, p: y[0], direction="sideways").validate(("x",))
+    with pytest.raises(ValueError, match="t1 = nan"):
+        Extremum("e", "x", 0.0, math.nan).validate(("x",))
+    with pytest.raises(ValueError, match="expected a state name or a function"):
+        Extremum("e", 3, 0.0, 1.0).validate(("x",))
