@@ -86,3 +86,23 @@ def test_declarations_are_checked():
         Extremum("e", "x", 0.0, math.nan).validate(("x",))
     with pytest.raises(ValueError, match="expected a state name or a function"):
         Extremum("e", 3, 0.0, 1.0).validate(("x",))
+
+
+def test_a_division_by_zero_in_a_users_numba_helper_is_ieee_not_an_exception():
+    """``_inverse`` is the user's own ``@numba.njit`` helper (numba's default error model raises
+    ZeroDivisionError on 1 / 0, which made the point USER_ERROR): the engine compiles it again with
+    its own options, so 1 / 0 is inf as in the rest of the engine. At w = 1 the closed form's
+    classify sees the inf and gives SINGULAR; without a classify the value is inf (which the runner
+    stores as NaN with status NONFINITE). The model loads although its probe point is w = 1."""
+    global P
+    keep = P
+    P = np.column_stack([[0.5, 1.0, 3.0], [A, A, A]])
+    try:
+        out, status, _, _ = evaluate(("detuning",))
+        assert status.tolist() == [st.OK, st.SINGULAR, st.OK]
+        np.testing.assert_array_equal(out["detuning"], [1.0 / (0.5 - 1.0), np.nan, 1.0 / (3.0 - 1.0)])
+        out, status, _, _ = evaluate(("detuning_raw",))
+        assert status.tolist() == [st.OK] * 3  # the runner stores an inf as NaN with status NONFINITE
+        assert out["detuning_raw"][1] == np.inf
+    finally:
+        P = keep

@@ -3,7 +3,11 @@ measurements of expressions, n-th roots and windows that are functions of p
 (tests/test_model_layer_measure.py). No jac: radau differentiates the rhs itself."""
 import math
 
-from mechsweep.model import Extremum, FirstEvent, OdeModel, Param
+import numba
+
+from mechsweep.model import ClosedForm, Extremum, FirstEvent, OdeModel, Param
+
+SINGULAR, OK = 5, 0
 
 
 def rhs(t, y, p, dydt):
@@ -56,6 +60,19 @@ def one_over_w(p):  # a window [1 / w, 1]: empty where w <= 1
     return 1.0 / p[0]
 
 
+@numba.njit  # numba's default error model: 1 / 0 would raise ZeroDivisionError here
+def _inverse(x):
+    return 1.0 / x
+
+
+def detuning(p):  # 1 / (w - 1): infinite at w = 1
+    return _inverse(p[0] - 1.0)
+
+
+def detuning_classify(p):
+    return OK if math.isfinite(_inverse(p[0] - 1.0)) else SINGULAR
+
+
 MODEL = OdeModel(
     name="linear_more",
     description="x'' + w^2 x = 0 released from rest at x = A",
@@ -73,4 +90,6 @@ MODEL = OdeModel(
         Extremum("x_min_late", "x", late_from, late_to, kind="min"),  # -A at w t = pi (the end)
         Extremum("bad_window", "x", one_over_w, 1.0),
     ),
+    closed_forms=(ClosedForm("detuning", detuning, classify=detuning_classify),
+                  ClosedForm("detuning_raw", detuning)),
 )
