@@ -5,7 +5,7 @@ import math
 
 import numba
 
-from mechsweep.model import ClosedForm, Extremum, FirstEvent, OdeModel, Param
+from mechsweep.model import ClosedForm, Extremum, FirstEvent, Floquet, OdeModel, Param
 
 SINGULAR, OK = 5, 0
 
@@ -92,4 +92,34 @@ MODEL = OdeModel(
     ),
     closed_forms=(ClosedForm("detuning", detuning, classify=detuning_classify),
                   ClosedForm("detuning_raw", detuning)),
+)
+
+
+def counted_rhs(t, y, p, dydt):  # the same oscillator, counting its own calls in the internal slot p[2]
+    p[2] += 1.0
+    dydt[0] = y[1]
+    dydt[1] = -p[0] * p[0] * y[0]
+
+
+def x_event(t, y, p):
+    return y[0]
+
+
+def period(p):  # Floquet over one free period: both multipliers on the unit circle
+    return 2.0 * math.pi / p[0]
+
+
+def calls(p, t):  # computed after the measurement: the rhs calls of this point's integration
+    return p[2]
+
+
+COUNTED = OdeModel(
+    name="linear_counted",
+    description="x'' + w^2 x = 0 released from rest at x = A; the rhs counts its calls",
+    params=MODEL.params, states=("x", "v"), rhs=counted_rhs, initial=initial, internal=("calls",),
+    forcing_period=period,
+    measurements=(FirstEvent("t_zero", x_event, t_max=100.0),  # w t = pi / 2
+                  Floquet("mult")),
+    closed_forms=(ClosedForm("rhs_calls", calls, needs=("t_zero",)),
+                  ClosedForm("rhs_calls_floquet", calls, needs=("mult",))),
 )

@@ -104,12 +104,16 @@ def _own(m) -> bool:
     return _system(m) is not None or getattr(m, "refine", None) is not None
 
 
-def _fd_jac(name: str, rhs: str) -> str:
+def _fd_jac(name: str, rhs: str, count: bool = False) -> str:
+    """The engine's Jacobian of ``rhs`` by central differences (scratch p[SCR:SCR + 3 NS]). ``count``:
+    its 2 NS rhs calls are added to the counter p[SCR + 3 NS] (the kernel adds it to n_rhs; the
+    caller must give p that slot)."""
+    counter = "\n    p[SCR + 3 * NS] += 2.0 * NS  # its rhs calls, for n_rhs" if count else ""
     return f"""
 
 @jit
 def {name}(t, y, p, J):
-    # engine-built Jacobian: central differences of {rhs}, step cbrt(eps) max(1, |y_j|) (scratch in p)
+    # engine-built Jacobian: central differences of {rhs}, step cbrt(eps) max(1, |y_j|) (scratch in p){counter}
     yp = p[SCR:SCR + NS]
     fp = p[SCR + NS:SCR + 2 * NS]
     fm = p[SCR + 2 * NS:SCR + 3 * NS]
@@ -219,8 +223,9 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
     group = [] if direct else [k for k, m in enumerate(chosen) if shared and hasattr(m, "shared_row")]
     scr = [n_s]
     fd_own = [k for k, m in enumerate(chosen) if _system(m) is not None and _system(m).jac is None]
-    if direct and method in ("radau", "auto") and ("jac" not in refs or fd_own):
-        scr.append(3 * n_s)
+    fd_count = direct and method in ("radau", "auto") and ("jac" not in refs or bool(fd_own))
+    if fd_count:  # the engine's Jacobian: 3 NS of scratch and the counter of its rhs calls
+        scr.append(3 * n_s + 1)
     scr += [m.scratch(n_s) for m in chosen if hasattr(m, "scratch")]
     n_scr = max(scr)
     uses = {"dop853": bool(chosen) and (method in ("dop853", "auto") or not direct),
@@ -236,10 +241,10 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
         args = ", ".join(["p"] + [f"x{i}" for i in range(len(c.needs))])
         lines.append("\n" + _guard_call(f"closed{j}", args))
     if direct and uses["radau"] and "jac" not in refs:
-        lines.append(_fd_jac("jac", "rhs"))
+        lines.append(_fd_jac("jac", "rhs", count=True))
     if direct and uses["radau"]:
         for k in fd_own:
-            lines.append(_fd_jac(f"jac{k}", f"rhs{k}"))
+            lines.append(_fd_jac(f"jac{k}", f"rhs{k}", count=True))
     # ---- measurements
     if direct:
         for k, m in enumerate(chosen):
@@ -464,6 +469,8 @@ def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
                     code = c""")
         body.append("".join(meas))
         body.append(closed_code(True))
+    fd_add = ("\n            n_rhs[i] += int(p[SCR + 3 * NS])  # the rhs calls of the engine's Jacobian"
+              if fd_count else "")
     lines.append(f"""
 
 @pjit
@@ -480,7 +487,7 @@ def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
                 p[NP + j] = S[j]
             for j in range(NP + NSET, SCR + NSCR):
                 p[j] = 0.0
-            code = st.OK{''.join(body)}
+            code = st.OK{''.join(body)}{fd_add}
             if p[NPI] != 0.0 and code == st.OK:
                 code = st.USER_ERROR
             status[i] = code

@@ -380,10 +380,10 @@ class Floquet:
         return () if self.initial is None else (("initial", self.initial),)
 
     def scratch(self, n: int) -> int:
-        return 3 * n + n * n
+        return 3 * n + n * n + 1  # y+h, f(y+h), f(y-h), J, the counter of var_jac's rhs calls
 
     @staticmethod
-    def _solvers(k, n, jac_code, method):
+    def _solvers(k, n, jac_code, method, count=""):
         """The variational system's solver(s) for ``method``; radau's Newton matrix is block
         diagonal, J(t, y) on the state and on every column of Phi (the second derivatives of the
         rhs, d(J Phi)/dy, are left out: they only steer Newton's convergence, not the result)."""
@@ -395,7 +395,7 @@ class Floquet:
 
 @jit
 def var_jac{k}(t, z, p, JJ):
-{jac_code}    JJ[:, :] = 0.0
+{jac_code}{count}    JJ[:, :] = 0.0
     for i in range({n}):
         for m in range({n}):
             JJ[i, m] = p[O_J{k} + i * {n} + m]
@@ -488,7 +488,7 @@ def var_rhs{k}(t, z, p, dz):
             dz[{n} + i * {n} + j] = acc
 
 
-{self._solvers(k, n, jac_code, method)}
+{self._solvers(k, n, jac_code, method, "" if has_jac else f"    p[{o_J + n * n}] += {2.0 * n!r}  # its rhs calls{chr(10)}")}
 
 
 @jit
@@ -500,7 +500,7 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
     for i in range({n}):
         z[i] = y[i]
         z[{n} + i * {n} + i] = 1.0
-{self._integrate(k, n, N, method)}    nr = nr * {per_eval}
+{self._integrate(k, n, N, method)}    nr = nr * {per_eval}{"" if has_jac or method == "dop853" else f"{chr(10)}    nr += int(p[{o_J + n * n}])  # radau's Jacobians by differences{chr(10)}    p[{o_J + n * n}] = 0.0"}
     if code != st.OK:
         return code, math.nan, math.nan, math.nan, ns, nr
     M = np.empty(({n}, {n}), dtype=np.complex128)
