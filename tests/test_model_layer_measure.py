@@ -131,3 +131,27 @@ def test_n_rhs_counts_every_rhs_call_also_those_of_the_engines_jacobian(method, 
     else:
         np.testing.assert_allclose(out["mult"], 1.0, rtol=1e-6)
     np.testing.assert_array_equal(nr, out[outputs[1]])
+
+
+@pytest.mark.slow  # two fresh processes, the first compiling from an empty cache
+def test_second_process_compiles_nothing_for_the_new_measurements(tmp_path):
+    """numba's cache statistics: a kernel with an Extremum of an expression over a window from
+    functions of p, an n-th root upwards and a closed form calling the user's own @numba.njit helper
+    (compiled again with the engine's options) is loaded from the disk cache in a second process."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    here = Path(__file__).resolve().parent
+    env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(tmp_path), PYTHONPATH=str(here.parent / "src"))
+    runs = []
+    for _ in range(2):
+        res = subprocess.run([sys.executable, str(here / "user_models" / "cache_probe.py"), MODEL,
+                              "power_late,x_min_late,detuning"], capture_output=True, text=True, env=env, cwd=tmp_path)
+        assert res.returncode == 0, res.stderr
+        runs.append(json.loads(res.stdout.strip().splitlines()[-1]))
+    first, second = runs
+    assert first["misses"] > 0
+    assert second["misses"] == 0 and second["hits"] == second["n"] >= 5  # kernel, rhs, initial, helper, ...
+    assert second["power_late"] == first["power_late"]
