@@ -319,6 +319,10 @@ def _extra_functions(model):
                 out.append((f"{m.name}.value", func, lambda p, y: (p, 1.0)))
             elif role == "refine":
                 out.append((f"{m.name}.refine", func, lambda p, y: (p, 1e-10, 1.0)))
+            elif role == "of" and not getattr(m, "sampled", False):  # an Extremum's expression f(t, y, p)
+                out.append((f"{m.name}.{role}", func, lambda p, y: (0.0, y.copy(), p)))
+            elif role in ("t0", "t1"):  # an Extremum's window end t0(p), t1(p)
+                out.append((f"{m.name}.{role}", func, lambda p, y: (p,)))
             elif role in ("rhs", "initial", "jac", "accel", "symplectic_step", "prepare"):
                 out.append((f"{m.name}.system.{role}", func, _system_args(role, n_s)))
     for c in getattr(model, "closed_forms", ()):
