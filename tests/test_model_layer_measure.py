@@ -30,18 +30,28 @@ def evaluate(outputs, method="dop853", rtol=1e-12, atol=1e-14):
     return out, status, ns, nr
 
 
-def test_nth_root_of_an_expression_in_either_direction():
+def test_nth_root_of_an_expression_in_either_direction_and_a_period():
     """x + v / w = A sqrt(2) cos(w t + pi/4): its downward zeros at w t = pi/4 + 2 pi k, its upward
-    ones at 5 pi / 4 + 2 pi k. The third downward one and the second upward one; fewer than 3 roots
-    before t_max (= 10) is NO_EVENT."""
-    out, status, ns, nr = evaluate(("down3", "up2", "down3_short"), rtol=1e-10, atol=1e-12)
-    np.testing.assert_allclose(out["down3"], 17 * math.pi / 4 / W, rtol=1e-9, atol=0)
-    np.testing.assert_allclose(out["up2"], 13 * math.pi / 4 / W, rtol=1e-9, atol=0)
+    ones at 5 pi / 4 + 2 pi k. The third downward one (fewer than 3 before t_max = 10 is NO_EVENT)
+    and the time from the first upward one to the second, 2 pi / w."""
+    out, status, ns, nr = evaluate(("down3_short", "period_up"), rtol=1e-10, atol=1e-12)
     short = 17 * math.pi / 4 / W > 10.0
     assert short.tolist() == [True, True, False, False]
     assert status.tolist() == [st.NO_EVENT, st.NO_EVENT, st.OK, st.OK]
     assert np.isnan(out["down3_short"][short]).all()
     np.testing.assert_allclose(out["down3_short"][~short], 17 * math.pi / 4 / W[~short], rtol=1e-9, atol=0)
+    np.testing.assert_allclose(out["period_up"], 2 * math.pi / W, rtol=1e-9, atol=0)
+
+
+@pytest.mark.slow  # one more kernel of three n-th roots
+def test_more_nth_roots_by_dop853():
+    """The 3rd downward and 2nd upward zero of x + v / w; v^2 = (A w)^2 sin^2(w t) peaks every
+    pi / w (its rate goes from > 0 to <= 0 there): from the second peak to the fourth, 2 pi / w."""
+    out, status, ns, nr = evaluate(("down3", "up2", "two_periods"), rtol=1e-10, atol=1e-12)
+    assert (status == st.OK).all()
+    np.testing.assert_allclose(out["down3"], 17 * math.pi / 4 / W, rtol=1e-9, atol=0)
+    np.testing.assert_allclose(out["up2"], 13 * math.pi / 4 / W, rtol=1e-9, atol=0)
+    np.testing.assert_allclose(out["two_periods"], 2 * math.pi / W, rtol=1e-9, atol=0)
 
 
 @pytest.mark.slow  # a kernel per method (~30 s of compilation each from an empty cache)
@@ -54,8 +64,7 @@ def test_nth_root_upwards_by_the_other_methods(method, tol):
 
 
 def test_extremum_of_an_expression_and_over_windows_given_by_functions_of_p():
-    out, status, _, _ = evaluate(("ke_max", "power_early", "power_late", "x_min_late"))
-    assert (status == st.OK).all()
+    out, status, _, _ = evaluate(("ke_max", "power_early", "power_late", "x_min_late", "bad_window"))
     # max of v^2 / 2 over [0, 10]: (A w)^2 / 2 at interior turning points
     np.testing.assert_allclose(out["ke_max"], 0.5 * (A * W) ** 2, rtol=1e-10, atol=0)
     # x v = -(A^2 w / 2) sin(2 w t): decreasing over w t in [0.1, 0.5] (the max is the window's start)
@@ -64,12 +73,8 @@ def test_extremum_of_an_expression_and_over_windows_given_by_functions_of_p():
     np.testing.assert_allclose(out["power_late"], A * A * W / 2, rtol=1e-10, atol=0)
     # a state over the same window: -A at its end
     np.testing.assert_allclose(out["x_min_late"], -A, rtol=0, atol=1e-10)
-
-
-def test_a_window_that_is_not_one_at_a_point_is_infeasible():
-    """[1 / w, 1] is empty for w <= 1: INFEASIBLE there; the other points get the max of x there,
-    A cos(1) at the window's start."""
-    out, status, _, _ = evaluate(("bad_window",))
+    # [1 / w, 1] is empty for w <= 1: INFEASIBLE there (the other outputs are still written); the
+    # other points get the max of x over it, A cos(1) at the window's start
     assert status.tolist() == [st.INFEASIBLE, st.INFEASIBLE, st.OK, st.OK]
     np.testing.assert_allclose(out["bad_window"][2:], A * math.cos(1.0), rtol=1e-10)
     assert np.isnan(out["bad_window"][:2]).all()
@@ -80,6 +85,8 @@ def test_declarations_are_checked():
 
     with pytest.raises(ValueError, match="n = 0"):
         FirstEvent("e", lambda t, y, p: y[0], n=0).validate(("x",))
+    with pytest.raises(ValueError, match="since = 2; expected a whole number 0 <= since < n = 2"):
+        FirstEvent("e", lambda t, y, p: y[0], n=2, since=2).validate(("x",))
     with pytest.raises(ValueError, match="direction 'sideways'"):
         FirstEvent("e", lambda t, y, p: y[0], direction="sideways").validate(("x",))
     with pytest.raises(ValueError, match="t1 = nan"):
@@ -109,7 +116,8 @@ def test_a_division_by_zero_in_a_users_numba_helper_is_ieee_not_an_exception():
 
 
 @pytest.mark.parametrize("method, outputs", [
-    ("dop853", ("t_zero", "rhs_calls")), ("radau", ("t_zero", "rhs_calls")),
+    pytest.param("dop853", ("t_zero", "rhs_calls"), marks=pytest.mark.slow),
+    pytest.param("radau", ("t_zero", "rhs_calls"), marks=pytest.mark.slow),  # radau's kernel: ~30-60 s cold
     pytest.param("radau", ("mult", "rhs_calls_floquet"), marks=pytest.mark.slow),
     pytest.param("dop853", ("mult", "rhs_calls_floquet"), marks=pytest.mark.slow)])
 def test_n_rhs_counts_every_rhs_call_also_those_of_the_engines_jacobian(method, outputs):

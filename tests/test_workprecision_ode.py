@@ -88,6 +88,8 @@ def test_scipy_versions_of_nth_roots_and_extrema_of_expressions():
     np.testing.assert_allclose(wo.OdeReference(more, "down3").reference(P), 17 * np.pi / 4 / w, rtol=1e-11)
     np.testing.assert_allclose(wo.OdeReference(more, "up2").reference(P), 13 * np.pi / 4 / w, rtol=1e-11)
     assert wo.OdeReference(more, "down3").error == "relative"
+    np.testing.assert_allclose(wo.OdeReference(more, "period_up").reference(P), 2 * np.pi / w, rtol=1e-11)
+    np.testing.assert_allclose(wo.OdeReference(more, "two_periods").reference(P), 2 * np.pi / w, rtol=1e-11)
     np.testing.assert_allclose(wo.OdeReference(more, "ke_max").reference(P), 0.5 * (0.7 * w) ** 2, rtol=1e-11)
     np.testing.assert_allclose(wo.OdeReference(more, "power_late").reference(P), 0.49 * w / 2, rtol=1e-11)
     np.testing.assert_allclose(wo.OdeReference(more, "power_early").reference(P), -0.49 * w / 2 * math.sin(0.2),

@@ -40,6 +40,10 @@ def power(t, y, p):  # x v = -(A^2 w / 2) sin(2 w t)
     return y[0] * y[1]
 
 
+def kinetic_rate(t, y, p):  # d/dt (v^2 / 2) = v v' = -w^2 x v: from > 0 to <= 0 at every maximum of v^2
+    return -p[0] * p[0] * y[0] * y[1]
+
+
 def early_from(p):
     return 0.1 / p[0]
 
@@ -84,6 +88,8 @@ MODEL = OdeModel(
         FirstEvent("up1", mixed, t_max=100.0, direction="up"),  # w t + pi/4 = 3 pi / 2
         FirstEvent("up2", mixed, t_max=100.0, n=2, direction="up"),  # w t + pi/4 = 3 pi / 2 + 2 pi
         FirstEvent("down3_short", mixed, t_max=10.0, n=3),  # beyond t_max where w < 17 pi / 40
+        FirstEvent("period_up", mixed, t_max=100.0, n=2, direction="up", since=1),  # 2 pi / w
+        FirstEvent("two_periods", kinetic_rate, t_max=100.0, n=4, since=2),  # v^2 peaks: 2 x (pi / w)
         Extremum("ke_max", kinetic, 0.0, 10.0, unit="J kg-1"),
         Extremum("power_early", power, early_from, early_to),  # an end of the window: w t = 0.1
         Extremum("power_late", power, late_from, late_to),  # interior: 2 w t = 3 pi / 2

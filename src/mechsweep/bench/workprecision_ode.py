@@ -219,7 +219,7 @@ class OdeReference:
         steps = sol.t.size - 1
         if sol.status < 0 or times.size < m.n:
             return math.nan, sol.nfev, steps
-        t = float(times[m.n - 1])
+        t = float(times[m.n - 1]) - (float(times[m.since - 1]) if m.since else 0.0)
         return (float(self._fn["value"](p, t)) if "value" in self._fn else t), sol.nfev, steps
 
     def _crossing(self, p, method, rtol, atol):

@@ -299,7 +299,8 @@ def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
                     lines.append(f"\n@jit\ndef event{k}_b(t, y, p):  # the other direction\n"
                                  f"    return -event{k}(t, y, p)\n\n")
                 for name, ctor in solvers:
-                    lines.append(_nth_root_source(name, ctor, f"event{k}", nth, method == "symplectic"))
+                    lines.append(_nth_root_source(name, ctor, f"event{k}", nth, method == "symplectic",
+                                                  int(getattr(m, "since", 0))))
             if _own(m):
                 lines.append(_pass_source(k, method, own, "t_max" + str(k) + "(p)" if f"t_max{k}" in refs
                                           else repr(float(m.t_max)), _scratch_args(uses)))
@@ -495,13 +496,14 @@ def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
     return "".join(lines)
 
 
-def _nth_root_source(name: str, ctor: str, event: str, n: int, symplectic: bool) -> str:
+def _nth_root_source(name: str, ctor: str, event: str, n: int, symplectic: bool, since: int = 0) -> str:
     """``name``: an event solver of the same signature as the method's that returns the ``n``-th
     root of ``event`` (from > 0 to <= 0) instead of the first: 2 n - 1 searches, alternating with
     the other direction's (``event``_b) so that a search never restarts on the root it just found;
     each search restarts the integrator at the previous root and gets what is left of max_steps
     after the accepted steps before it. A search without a root (NO_EVENT: fewer than n roots
-    before t_max) or failing ends it with its status."""
+    before t_max) or failing ends it with its status. ``since`` > 0: the time returned is from root
+    ``since`` to root n (e.g. 1 and 2: the period of an autonomous oscillation)."""
     if symplectic:
         sig, nxt = "t0, q, v, p, h, tm, max_steps, work", "t, q, v, p, h, tm, max_steps - a, work"
     else:
@@ -513,6 +515,7 @@ def _nth_root_source(name: str, ctor: str, event: str, n: int, symplectic: bool)
 @jit
 def {name}({sig}):  # root {n} of {event}
     c, t, a, b_ = {name}_f1({sig})
+    ts = {"t" if since == 1 else "0.0"}  # the time the result is counted from
     for j in range({2 * (n - 1)}):
         if c != st.OK:
             break
@@ -525,7 +528,9 @@ def {name}({sig}):  # root {n} of {event}
             c, t, a2, b2 = {name}_f1({nxt})
         a += a2
         b_ += b2
-    return c, t, a, b_
+        if j == {2 * since - 3}:  # root {since} found
+            ts = t
+    return c, t - ts, a, b_
 
 """)
     return "".join(out)

@@ -578,6 +578,9 @@ class FirstEvent:
       with the other direction's, so none restarts on the root it just found; what is left of
       ``max_steps`` after the accepted steps of the searches before bounds the next. Not in SIMD
       lanes (n > 1 or "up": one point at a time).
+    - ``since`` (0 <= since < n): the time from root ``since`` to root n instead of from t = 0
+      (``n=2, since=1``: the period of an autonomous oscillation of the event's expression, exact
+      for a periodic motion whatever the initial phase); ``value`` gets that interval.
 
     - ``system`` (optional): a :class:`System`, a second equation of the same model (its own rhs,
       initial state, jac, accel/symplectic_step and prepare) that this measurement integrates
@@ -603,10 +606,11 @@ class FirstEvent:
     needs_params: tuple[str, ...] = ()  # Output.needs_params: optional parameters the value requires
     n: int = 1  # the n-th root (in direction) instead of the first
     direction: str = "down"  # "down": event from > 0 to <= 0; "up": from < 0 to >= 0
+    since: int = 0  # > 0: the time from root `since` to root n (n=2, since=1: a period), not from t = 0
     direct = True  # integrates on its own with solver.method (compile.py)
 
     def output(self) -> Output:
-        which = "first" if self.n == 1 else f"root {self.n}"
+        which = "first" if self.n == 1 else f"root {self.n}" + (f" counted from root {self.since}" if self.since else "")
         return Output(self.name, self.symbol or self.name, self.unit,
                       self.long_name or f"value at the {which} root of {self.name}'s event"
                       + ("" if self.direction == "down" else " (upwards)"), integrated=True,
@@ -629,6 +633,8 @@ class FirstEvent:
             raise ValueError(f"{self.name}: n = {self.n!r}; expected a whole number >= 1")
         if self.direction not in DIRECTIONS:
             raise ValueError(f"{self.name}: direction {self.direction!r} is not one of {DIRECTIONS}")
+        if not (isinstance(self.since, int) and not isinstance(self.since, bool) and 0 <= self.since < self.n):
+            raise ValueError(f"{self.name}: since = {self.since!r}; expected a whole number 0 <= since < n = {self.n!r}")
 
     def functions(self):
         """(role, function) pairs the generated module imports."""
@@ -646,7 +652,7 @@ class FirstEvent:
     def key(self) -> tuple:
         """What the generated code depends on (with the functions' names, compile.py adds their sources)."""
         key = ("FirstEvent", self.name, None if callable(self.t_max) else float(self.t_max))
-        return key if (self.n, self.direction) == (1, "down") else key + (self.n, self.direction)
+        return key if (self.n, self.direction) == (1, "down") else key + (self.n, self.direction, self.since)
 
 
 @dataclass(frozen=True)
