@@ -62,3 +62,13 @@ def test_energy_drift_grows_for_dop853_and_not_for_symplectic(report, tmp_path):
     other = wp.main("torsional_circuit", points=2, scipy_points=1, ladder=(1e-6,), repeats=1, out_dir=tmp_path,
                     quiet=True)
     assert "energy_error" not in other  # the drift experiment is the undamped Duffing's
+
+
+def test_duffing_takes_the_generic_route_with_its_closed_form_as_reference(report):
+    """No hand-copied Duffing in the bench: scipy runs the model's own declaration (rhs, event,
+    classify/prepare, jac) and the reference is the model's closed form period_exact."""
+    ds, _ = report
+    assert "duffing" not in wp.CASES and "duffing" in wp.GENERIC
+    assert ds.attrs["reference"].startswith("the model's closed form period_exact")
+    assert "the model's own rhs" in ds.attrs["scipy_rhs"]
+    assert ds.attrs["norm"] == "relative error |period - period_exact| / |period_exact|"

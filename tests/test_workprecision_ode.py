@@ -76,3 +76,21 @@ def test_bad_requests_are_input_errors(tmp_path):
         wp.main(f"{USER / 'oscillators.py'}:PENDULUM", str(scene))
     with pytest.raises(InputError, match="--output 'nothing' is not an output of model 'linear_oscillator'"):
         wp.main(LINEAR, str(scene), output="nothing")
+
+
+def test_scipy_versions_of_nth_roots_and_extrema_of_expressions():
+    """FirstEvent (n-th root, either direction) and Extremum of an expression over windows given by
+    functions of p, re-done by scipy on the model's own functions: x = A cos(w t), v = -A w sin(w t)
+    (tests/user_models/measure_more.py)."""
+    more = wo.declaration(f"{USER / 'measure_more.py'}:MODEL")
+    P = np.array([[w, 0.7] for w in (0.5, 1.7, 3.0)])
+    w = P[:, 0]
+    np.testing.assert_allclose(wo.OdeReference(more, "down3").reference(P), 17 * np.pi / 4 / w, rtol=1e-11)
+    np.testing.assert_allclose(wo.OdeReference(more, "up2").reference(P), 13 * np.pi / 4 / w, rtol=1e-11)
+    assert wo.OdeReference(more, "down3").error == "relative"
+    np.testing.assert_allclose(wo.OdeReference(more, "period_up").reference(P), 2 * np.pi / w, rtol=1e-11)
+    np.testing.assert_allclose(wo.OdeReference(more, "two_periods").reference(P), 2 * np.pi / w, rtol=1e-11)
+    np.testing.assert_allclose(wo.OdeReference(more, "ke_max").reference(P), 0.5 * (0.7 * w) ** 2, rtol=1e-11)
+    np.testing.assert_allclose(wo.OdeReference(more, "power_late").reference(P), 0.49 * w / 2, rtol=1e-11)
+    np.testing.assert_allclose(wo.OdeReference(more, "power_early").reference(P), -0.49 * w / 2 * math.sin(0.2),
+                               rtol=1e-11)

@@ -87,30 +87,6 @@ def _quarter_period(rhs, p, method, rtol, atol, t_max, jac=None):
     return float(sol.t_events[0][0]), sol.nfev, sol.t.size - 1
 
 
-def _duffing_scaled(row):
-    omega, mu, A = row[:3]
-    w2 = omega * omega + abs(mu) * A * A
-    # duffing._scaled_rhs's plain formulation: (a, b, quadratic 0, unused, event level 0, direction 1)
-    return np.array([omega * omega / w2, mu * A * A / w2, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]), math.sqrt(w2)
-
-
-def _duffing_scipy(row, method, rtol, atol):
-    from ..models import _duffing_scaled as duffing  # the scaled rhs in its plain slots
-
-    p, w = _duffing_scaled(row)
-
-    def jac(t, y):
-        return np.array([[0.0, 1.0], [-p[0] - 3.0 * p[1] * y[0] * y[0], 0.0]])
-    tq, nfev, steps = _quarter_period(duffing._scaled_rhs, p, method, rtol, atol, 200.0 * math.pi, jac)
-    return 4.0 * tq / w, nfev, steps
-
-
-def _duffing_reference(P):
-    from ..models import duffing
-
-    return np.array([duffing.period_closed_form(r[0] * r[0], r[1], r[2]) for r in P])
-
-
 def _torsional_scaled(P, i):
     from ..models import torsional_circuit as tc
 
@@ -177,10 +153,15 @@ def _floquet_reference(P):
     return np.array([_floquet_scipy(r, "DOP853", REFERENCE_RTOL, REFERENCE_RTOL * 1e-2)[0] for r in P])
 
 
+# Built-in models declared as an OdeModel that take the generic route (bench/workprecision_ode.py:
+# scipy runs the model's own rhs, event, classify/prepare and jac): where their declaration is, the
+# reference scene (a packaged copy of sweeps/<scene>), the output and the model's closed form that
+# is its exact value (None: scipy DOP853 at rtol 1e-13 is the reference).
+GENERIC = {
+    "duffing": ("mechsweep.models.duffing:MODEL", "duffing_amplitude_period.toml", "period", "period_exact"),
+}
+
 CASES = {
-    "duffing": Case("duffing_amplitude_period.toml", "period", "relative",
-                    "relative period error |T - T_exact| / T_exact", _duffing_reference,
-                    "closed form 4 K(m) / sqrt(omega^2 + mu A^2)", _duffing_scipy),
     "torsional_circuit": Case("torsional_circuit_truncation.toml", "period_exact_moment", "relative",
                               "relative error of the period with the exact spring moment", _torsional_reference,
                               f"scipy DOP853 at rtol {REFERENCE_RTOL:g}", _torsional_scipy),
@@ -196,7 +177,7 @@ def all_cases() -> tuple[str, ...]:
     :mod:`mechsweep.bench.workprecision_linkage`)."""
     from . import workprecision_linkage
 
-    return tuple(CASES) + tuple(workprecision_linkage.CASES)
+    return tuple(GENERIC) + tuple(CASES) + tuple(workprecision_linkage.CASES)
 
 
 # ----------------------------------------------------------------------------- energy drift (duffing)
@@ -293,7 +274,9 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     if model in workprecision_linkage.CASES:  # algebraic: a ladder of crank positions, not of tolerances
         return workprecision_linkage.main(model, scene_path, points=points, repeats=max(repeats, 5), out_dir=out_dir,
                                           quiet=quiet)
-    if model in CASES:
+    if model in GENERIC:  # a built-in OdeModel: scipy runs its own functions (bench/workprecision_ode.py)
+        case, spec, scene = _generic_case(model, scene_path, output)
+    elif model in CASES:
         case = CASES[model]
         spec = MODELS[model]
         scene = load_scene(scene_path or scenes.path(case.scene))
@@ -371,11 +354,11 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
                "scipy_points": k, "repeats": repeats, "skipped": "; ".join(skipped) or "none", "scene": str(scene_path or f"sweeps/{case.scene}"),
                "compile_or_cache_load_s": ", ".join(f"{m} {s:.2f}" for m, s in compile_s.items()),
                "threads": 1, "scipy_rhs": "the model's jitted right-hand side; Radau/LSODA with the analytic "
-               "Jacobian where the model has one (duffing, autobalancer), else finite differences"
+               "Jacobian where the model has one (autobalancer), else finite differences"
                if case in CASES.values() else "the model's own rhs (its compiled function, wrapped); Radau/LSODA "
-               "with scipy's finite-difference Jacobian"},
+               "with the model's jac where it declares one, else scipy's finite-difference Jacobian"},
     )
-    if case is CASES.get("duffing"):  # the energy drift of the built-in Duffing
+    if model == "duffing":  # the energy drift of the built-in Duffing (its own experiment, bench-specific)
         names, drift, cost = energy_drift()
         ds["energy_error"] = (("drift_run", "periods"), drift,
                               {"units": "1", "long_name": "relative energy error |E - E0| / E0"})
@@ -395,6 +378,42 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     if not quiet:
         _print(ds, path)
     return ds
+
+
+def _generic_case(model: str, scene_path, output):
+    """The case of a built-in model of GENERIC: its declaration through the generic route, its
+    reference scene, and its closed form as the reference where it has one."""
+    from ..errors import InputError
+    from . import workprecision_ode as wo
+
+    ref, scene_name, default_output, exact = GENERIC[model]
+    module, _, attr = ref.partition(":")
+    import importlib
+
+    named = getattr(importlib.import_module(module), attr)
+    spec = MODELS[model]
+    scene = load_scene(scene_path or scenes.path(scene_name))
+    if scene.model.name != model:
+        raise InputError(f"scene {scene_path} is for model {scene.model.name!r}, not {model!r}")
+    output = output or default_output
+    if output not in spec.output_names():
+        raise InputError(f"--output {output!r} is not an output of model {model!r}; "
+                         f"expected one of {', '.join(spec.output_names())}")
+    settings = _scene_settings(scene)
+    ode = wo.OdeReference(named, output, settings)
+    if exact is not None and output == default_output:  # the model's closed form, evaluated by the engine
+        solver = Solver.for_model(spec, **settings)
+
+        def reference(P):
+            return _run_ours(spec, P, exact, solver)[0]
+        long = spec.output(exact).long_name
+        name = f"the model's closed form {exact} ({long})"
+        norm = f"relative error |{output} - {exact}| / |{exact}|" if ode.error == "relative" else \
+            f"absolute error |{output} - {exact}|"
+    else:
+        reference, name, norm = ode.reference, ode.reference_name, ode.norm
+    case = Case(scene_name, output, ode.error, norm, reference, name, ode.value)
+    return case, spec, scene
 
 
 def _ode_case(model: str, scene_path, output):
@@ -419,7 +438,7 @@ def _ode_case(model: str, scene_path, output):
     if output not in scene.model.output_names():
         raise InputError(f"--output {output!r} is not an output of model {named.name!r}; "
                          f"expected one of {', '.join(scene.model.output_names())}")
-    ref = wo.OdeReference(named, output)
+    ref = wo.OdeReference(named, output, _scene_settings(scene))
     case = Case(str(scene_path), output, ref.error, ref.norm, ref.reference, ref.reference_name, ref.value)
     return case, scene.model, scene
 

@@ -5,16 +5,24 @@ Floquet, its own ``jac`` when it declares one; each generic measurement is re-do
 tools (events, dense output, the variational equations), so nothing is copied by hand.
 
 - Crossing / Period: event times (``terminal`` = the crossing's count), relative error;
+- FirstEvent: the n-th root of the model's own ``event(t, y, p)`` in its direction (scipy's
+  ``direction``, ``terminal`` = n), over its ``t_max`` (a number or the model's ``t_max(p)``), the
+  model's ``value(p, t)``; relative error (not with a ``system=``);
 - StateAt: the state at t, absolute error;
-- Extremum: the state at t0, t1 and at the roots of its derivative (events on the rhs component)
-  in [t0, t1], absolute error;
+- Extremum: the state (or expression) at t0, t1 and at the roots of its derivative in [t0, t1]
+  (events on the rhs component; for an expression its rate along the flow, a central difference
+  as the engine's), absolute error; t0, t1 as numbers or the model's functions of p;
 - Floquet: the largest modulus of the eigenvalues of the monodromy matrix integrated from the
   variational equations (n + n^2 equations) with the model's ``jac``, else central differences of
   its rhs (step cbrt(eps) max(1, |y_j|): exact for an rhs linear in y, otherwise ~1e-10 relative,
   which then bounds the reference), absolute error.
 
-The reference is scipy DOP853 at rtol 1e-13 (atol 1e-15). Used by ``mechsweep bench workprecision
-file.py:NAME --scene S.toml`` (workprecision.main).
+Every point's ``p`` is laid out as the engine's (parameters, the scene's settings, internal slots);
+the model's ``classify(p)`` and ``prepare(p, rtol)`` run first (not OK: NaN, as the engine's
+point would be). Radau and LSODA get the model's ``jac`` where it declares one (else scipy's
+finite differences). The reference is scipy DOP853 at rtol 1e-13 (atol 1e-15), or a closed form of
+the model (``exact``, evaluated by the engine). Used by ``mechsweep bench workprecision
+file.py:NAME --scene S.toml`` and for the built-in models on this route (workprecision.main).
 """
 from __future__ import annotations
 
@@ -77,7 +85,7 @@ def scene_declaration(scene):
 class OdeReference:
     """scipy's version of one measured output of an OdeModel."""
 
-    def __init__(self, model, output: str):
+    def __init__(self, model, output: str, settings: dict | None = None):
         from ..model import load
         from ..model import measure as ms
 
@@ -91,23 +99,36 @@ class OdeReference:
             raise InputError(f"model {model.name!r} has no measured output {output!r}")
         if isinstance(chosen, ms.Floquet) and output != chosen.name:
             raise InputError(f"output {output!r} is derived from {chosen.name!r}; measure {chosen.name!r} instead")
-        kinds = (ms.Crossing, ms.Period, ms.StateAt, ms.Extremum, ms.Floquet)
+        kinds = (ms.Crossing, ms.Period, ms.StateAt, ms.Extremum, ms.Floquet, ms.FirstEvent)
         if not isinstance(chosen, kinds):
             raise InputError(f"output {output!r} is measured by {type(chosen).__name__}, which this bench has no "
                              f"scipy version of (it has: {', '.join(k.__name__ for k in kinds)})")
+        if isinstance(chosen, ms.FirstEvent) and chosen.system is not None:
+            raise InputError(f"output {output!r} integrates a System of its own, which this bench has no scipy "
+                             "version of")
         self.m = chosen
         self.output = output
         self.n = len(model.states)
+        settings = settings or {}
+        # p as the engine lays it out: parameters, settings, internal slots, then scratch
+        self._settings = np.array([float(settings.get(x.name, x.default)) for x in model.settings])
+        self._tail = len(model.internal) + 1 + 3 * self.n + self.n * self.n + 1
 
         def compiled(func, what):
+            if func is None or not callable(func):
+                return None
             module, path, qual = load.function_ref(func, what, model.name)
             return load.jitted(module, path, qual)
         self._rhs = compiled(model.rhs, "rhs")
         self._initial = compiled(model.initial, "initial")
-        self._jac = compiled(model.jac, "jac") if model.jac is not None else None
-        self.error = "relative" if isinstance(chosen, (ms.Crossing, ms.Period)) else "absolute"
+        self._jac = compiled(model.jac, "jac")
+        self._classify = compiled(model.classify, "classify")
+        self._prepare = compiled(model.prepare, "prepare")
+        self._fn = {role: compiled(f, f"{chosen.name}.{role}") for role, f in getattr(chosen, "functions", lambda: ())()}
+        self.error = "relative" if isinstance(chosen, (ms.Crossing, ms.Period, ms.FirstEvent)) else "absolute"
         what = {ms.Crossing: "time of the crossing", ms.Period: "period", ms.StateAt: "state value",
-                ms.Extremum: "extremum", ms.Floquet: "largest Floquet multiplier modulus"}[type(chosen)]
+                ms.Extremum: "extremum", ms.Floquet: "largest Floquet multiplier modulus",
+                ms.FirstEvent: "value at the event"}[type(chosen)]
         self.norm = f"{self.error} error of {output} ({what})"
         jac = "the model's jac" if self._jac is not None else "central differences of the model's rhs"
         self.reference_name = (f"scipy DOP853 at rtol {REFERENCE_RTOL:g}, atol {REFERENCE_ATOL:g}, on the model's "
@@ -129,13 +150,47 @@ class OdeReference:
         self._initial(p, y)
         return y
 
+    def point(self, row, rtol):
+        """The engine's p of a parameter row after the model's classify and prepare, or None
+        where either refuses the point."""
+        from .. import status as st
+
+        p = np.concatenate([np.asarray(row, dtype=np.float64)[:len(self.model.params)], self._settings,
+                            np.zeros(self._tail)])
+        if self._classify is not None and self._classify(p) != st.OK:
+            return None
+        if self._prepare is not None and self._prepare(p, rtol) != st.OK:
+            return None
+        return p
+
+    def _jac_kw(self, p, method):
+        """scipy's jac= for Radau and LSODA: the model's own where it declares one."""
+        if self._jac is None or method == "DOP853":
+            return {}
+        jac, J = self._jac, np.empty((self.n, self.n))
+
+        def f(t, y):
+            jac(t, y, p, J)
+            return J.copy()
+        return {"jac": f}
+
+    def _window(self, p):
+        m = self.m
+        t0 = self._fn["t0"](p) if "t0" in self._fn else float(m.t0)
+        t1 = self._fn["t1"](p) if "t1" in self._fn else float(m.t1)
+        return t0, t1
+
     # ------------------------------------------------------------------ one point
     def value(self, row, method, rtol, atol):
         """(value, rhs evaluations, accepted steps) at parameter row ``row`` with scipy ``method``."""
         from ..model import measure as ms
 
-        p = np.ascontiguousarray(row, dtype=np.float64)
+        p = self.point(row, rtol)
+        if p is None:
+            return math.nan, 0, 0
         m = self.m
+        if isinstance(m, ms.FirstEvent):
+            return self._first_event(p, method, rtol, atol)
         if isinstance(m, (ms.Crossing, ms.Period)):
             return self._crossing(p, method, rtol, atol)
         if isinstance(m, ms.StateAt):
@@ -147,7 +202,25 @@ class OdeReference:
     def _solve(self, p, t_end, method, rtol, atol, **kw):
         from scipy.integrate import solve_ivp
 
-        return solve_ivp(self.f(p), (0.0, t_end), self.y0(p), method=method, rtol=rtol, atol=atol, **kw)
+        return solve_ivp(self.f(p), (0.0, t_end), self.y0(p), method=method, rtol=rtol, atol=atol,
+                         **self._jac_kw(p, method), **kw)
+
+    def _first_event(self, p, method, rtol, atol):
+        m = self.m
+        ev = self._fn["event"]
+        t_max = self._fn["t_max"](p) if "t_max" in self._fn else float(m.t_max)
+
+        def event(t, y):
+            return ev(t, y, p)
+        event.direction = -1.0 if m.direction == "down" else 1.0  # > 0 to <= 0, or the reverse
+        event.terminal = m.n
+        sol = self._solve(p, t_max, method, rtol, atol, events=event)
+        times = sol.t_events[0]
+        steps = sol.t.size - 1
+        if sol.status < 0 or times.size < m.n:
+            return math.nan, sol.nfev, steps
+        t = float(times[m.n - 1]) - (float(times[m.since - 1]) if m.since else 0.0)
+        return (float(self._fn["value"](p, t)) if "value" in self._fn else t), sol.nfev, steps
 
     def _crossing(self, p, method, rtol, atol):
         from ..model import measure as ms
@@ -180,22 +253,40 @@ class OdeReference:
 
     def _extremum(self, p, method, rtol, atol):
         m = self.m
-        i = self.model.states.index(m.state)
         rhs = self._rhs
         s = 1.0 if m.kind == "max" else -1.0
         d = np.empty(self.n)
+        t0, t1 = self._window(p)
+        if not (0.0 <= t0 < t1 < math.inf):
+            return math.nan, 0, 0
+        if isinstance(m.state, str):
+            i = self.model.states.index(m.state)
 
-        def turn(t, y):  # s * dy_i/dt through zero from + to -: a maximum of s * y_i
-            rhs(t, y, p, d)
-            return s * d[i]
+            def of(t, y):
+                return y[i]
+
+            def turn(t, y):  # s * dy_i/dt through zero from + to -: a maximum of s * y_i
+                rhs(t, y, p, d)
+                return s * d[i]
+        else:
+            f = self._fn["of"]
+            e = np.finfo(float).eps ** (1.0 / 3.0) * 1e-2 * (t1 - t0)  # a hundredth of the window as time scale
+
+            def of(t, y):
+                return f(t, y, p)
+
+            def turn(t, y):  # the expression's rate along the flow, a central difference
+                rhs(t, y, p, d)
+                return s * (f(t + e, y + e * d, p) - f(t - e, y - e * d, p)) / (2.0 * e)
         turn.direction = -1.0
-        sol = self._solve(p, m.t1, method, rtol, atol, events=turn, dense_output=True)
+        sol = self._solve(p, t1, method, rtol, atol, events=turn, dense_output=True)
         if sol.status != 0:
             return math.nan, sol.nfev, sol.t.size - 1
-        candidates = [s * sol.y[i, -1], s * (sol.sol(m.t0)[i] if m.t0 > 0 else self.y0(p)[i])]
+        start = sol.sol(t0) if t0 > 0 else self.y0(p)
+        candidates = [s * of(t1, sol.y[:, -1]), s * of(t0, start)]
         for t_e, y_e in zip(sol.t_events[0], sol.y_events[0]):
-            if m.t0 <= t_e <= m.t1:
-                candidates.append(s * y_e[i])
+            if t0 <= t_e <= t1:
+                candidates.append(s * of(t_e, y_e))
         return float(s * max(candidates)), sol.nfev, sol.t.size - 1
 
     def _floquet(self, p, method, rtol, atol):
@@ -247,6 +338,6 @@ def default_output(model) -> str:
     from ..model import measure as ms
 
     for m in model.measurements:
-        if isinstance(m, (ms.Crossing, ms.Period, ms.StateAt, ms.Extremum, ms.Floquet)):
+        if isinstance(m, (ms.Crossing, ms.Period, ms.StateAt, ms.Extremum, ms.Floquet, ms.FirstEvent)):
             return m.name
     raise InputError(f"model {model.name!r} has no measurement this bench has a scipy version of")

@@ -104,12 +104,16 @@ def _own(m) -> bool:
     return _system(m) is not None or getattr(m, "refine", None) is not None
 
 
-def _fd_jac(name: str, rhs: str) -> str:
+def _fd_jac(name: str, rhs: str, count: bool = False) -> str:
+    """The engine's Jacobian of ``rhs`` by central differences (scratch p[SCR:SCR + 3 NS]). ``count``:
+    its 2 NS rhs calls are added to the counter p[SCR + 3 NS] (the kernel adds it to n_rhs; the
+    caller must give p that slot)."""
+    counter = "\n    p[SCR + 3 * NS] += 2.0 * NS  # its rhs calls, for n_rhs" if count else ""
     return f"""
 
 @jit
 def {name}(t, y, p, J):
-    # engine-built Jacobian: central differences of {rhs}, step cbrt(eps) max(1, |y_j|) (scratch in p)
+    # engine-built Jacobian: central differences of {rhs}, step cbrt(eps) max(1, |y_j|) (scratch in p){counter}
     yp = p[SCR:SCR + NS]
     fp = p[SCR + NS:SCR + 2 * NS]
     fm = p[SCR + 2 * NS:SCR + 3 * NS]
@@ -219,8 +223,9 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
     group = [] if direct else [k for k, m in enumerate(chosen) if shared and hasattr(m, "shared_row")]
     scr = [n_s]
     fd_own = [k for k, m in enumerate(chosen) if _system(m) is not None and _system(m).jac is None]
-    if direct and method in ("radau", "auto") and ("jac" not in refs or fd_own):
-        scr.append(3 * n_s)
+    fd_count = direct and method in ("radau", "auto") and ("jac" not in refs or bool(fd_own))
+    if fd_count:  # the engine's Jacobian: 3 NS of scratch and the counter of its rhs calls
+        scr.append(3 * n_s + 1)
     scr += [m.scratch(n_s) for m in chosen if hasattr(m, "scratch")]
     n_scr = max(scr)
     uses = {"dop853": bool(chosen) and (method in ("dop853", "auto") or not direct),
@@ -236,10 +241,10 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
         args = ", ".join(["p"] + [f"x{i}" for i in range(len(c.needs))])
         lines.append("\n" + _guard_call(f"closed{j}", args))
     if direct and uses["radau"] and "jac" not in refs:
-        lines.append(_fd_jac("jac", "rhs"))
+        lines.append(_fd_jac("jac", "rhs", count=True))
     if direct and uses["radau"]:
         for k in fd_own:
-            lines.append(_fd_jac(f"jac{k}", f"rhs{k}"))
+            lines.append(_fd_jac(f"jac{k}", f"rhs{k}", count=True))
     # ---- measurements
     if direct:
         for k, m in enumerate(chosen):
@@ -249,7 +254,10 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
                 idx = model.states.index(m.state)
                 lines.append(f"@jit\ndef event{k}(t, y, p):\n    return {sign!r} * (y[{idx}] - {float(m.level)!r})\n\n")
             else:
-                lines.append(_guard_call(f"event{k}", "t, y, p"))
+                ev = _guard_call(f"event{k}", "t, y, p")
+                if getattr(m, "direction", "down") == "up":  # the roots where the event goes from < 0 to >= 0
+                    ev = ev.replace(f"return user_event{k}(", f"return -user_event{k}(")
+                lines.append(ev)
                 if f"t_max{k}" in refs:
                     lines.append(_guard_call(f"t_max{k}", "p"))
                 if f"value{k}" in refs:
@@ -258,36 +266,67 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
                 lines.append(_guard_call(f"refine{k}", "p, rtol, x"))
             own = "" if _system(m) is None else str(k)  # the suffix of this measurement's equation
             rhs, jac, accel = f"rhs{own}", f"jac{own}", f"accel{own}"
+            nth = int(getattr(m, "n", 1)) if type(m).__name__ == "FirstEvent" else 1
+            solvers = []  # (name, constructor with {ev} for the event function)
             if method == "dop853":
-                lines.append(f"solve{k} = dop853.make_event_solver({rhs}, event{k})\n")
+                solvers.append((f"solve{k}", f"dop853.make_event_solver({rhs}, {{ev}})"))
             elif method == "auto":
-                lines.append(f"solve{k}_st = dop853.make_event_solver({rhs}, event{k}, stiffness_test=True)\n"
-                             f"solve{k}_r = radau.make_event_solver({rhs}, {jac}, event{k})\n")
+                solvers += [(f"solve{k}_st", f"dop853.make_event_solver({rhs}, {{ev}}, stiffness_test=True)"),
+                            (f"solve{k}_r", f"radau.make_event_solver({rhs}, {jac}, {{ev}})")]
             elif method == "radau":
-                lines.append(f"solve{k}_r = radau.make_event_solver({rhs}, {jac}, event{k})\n")
+                solvers.append((f"solve{k}_r", f"radau.make_event_solver({rhs}, {jac}, {{ev}})"))
             elif method == "symplectic":
-                lines.append(f"""
+                for ev in ([f"event{k}", f"event{k}_b"] if nth > 1 else [f"event{k}"]):
+                    if ev != f"event{k}":
+                        lines.append(f"\n@jit\ndef {ev}(t, y, p):  # the other direction\n"
+                                     f"    return -event{k}(t, y, p)\n")
+                    lines.append(f"""
 
 @jit
-def qevent{k}(t, q, v, p):  # the event on y = (q, v), copied into scratch
+def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
     yb = p[SCR:SCR + NS]
     for j in range(NQ):
         yb[j] = q[j]
         yb[NQ + j] = v[j]
-    return event{k}(t, yb, p)
-
-
-solve{k}_s = symplectic.make_event_solver({accel}, qevent{k}, {int(model.symplectic_order)})
+    return {ev}(t, yb, p)
 """)
+                solvers.append((f"solve{k}_s", f"symplectic.make_event_solver({accel}, q{{ev}}, "
+                                               f"{int(model.symplectic_order)})"))
+            if nth == 1:
+                lines += [f"{name} = {ctor.format(ev=f'event{k}')}\n" for name, ctor in solvers]
+            else:
+                if method != "symplectic":
+                    lines.append(f"\n@jit\ndef event{k}_b(t, y, p):  # the other direction\n"
+                                 f"    return -event{k}(t, y, p)\n\n")
+                for name, ctor in solvers:
+                    lines.append(_nth_root_source(name, ctor, f"event{k}", nth, method == "symplectic",
+                                                  int(getattr(m, "since", 0))))
             if _own(m):
                 lines.append(_pass_source(k, method, own, "t_max" + str(k) + "(p)" if f"t_max{k}" in refs
                                           else repr(float(m.t_max)), _scratch_args(uses)))
     else:
         if group:
-            rows = ",\n    ".join(repr(tuple(chosen[k].shared_row(model.states))) for k in group)
+            rows, exprs = [], []
+            for k in group:
+                row = list(chosen[k].shared_row(model.states))
+                if f"of{k}" in refs:  # an expression: its index in observe
+                    row[1] = float(k)
+                    exprs.append(k)
+                rows.append("(" + ", ".join("math.nan" if x != x else repr(x) for x in row) + ")")
+            rows = ",\n    ".join(rows)
             lines.append(f"\n# ---- measurements {group} on one shared trajectory\n"
-                         "from mechsweep.model.measure import make_shared\n\n"
-                         f"shared = make_shared(rhs)\nSHARED_M = np.array([\n    {rows}])\nNSH = {len(group)}\n")
+                         "from mechsweep.model.measure import make_shared\n\n")
+            for k in group:
+                for role, args in (("of", "t, y, p"), ("t0", "p"), ("t1", "p")):
+                    if f"{role}{k}" in refs:
+                        lines.append(_guard_call(f"{role}{k}", args) + "\n")
+            if exprs:
+                lines.append("\n@jit\ndef observe(t, y, p, j):  # the expressions of the shared rows\n"
+                             + "".join(f"    if j == {k}:\n        return of{k}(t, y, p)\n" for k in exprs)
+                             + "    return math.nan\n\n\nshared = make_shared(rhs, observe)\n")
+            else:
+                lines.append("shared = make_shared(rhs)\n")
+            lines.append(f"SHARED_M = np.array([\n    {rows}])\nNSH = {len(group)}\n")
         for k, m in enumerate(chosen):
             if k in group:
                 continue
@@ -334,8 +373,11 @@ solve{k}_s = symplectic.make_event_solver({accel}, qevent{k}, {int(model.symplec
         scratch.append("\n        rwork = radau.workspace(NS)")
     if uses["symplectic"]:
         scratch.append("\n        q = np.empty(NQ)\n        v = np.empty(NQ)\n        swork = symplectic.workspace(NQ)")
+    windows = [(j, k, role) for j, k in enumerate(group) for role in ("t0", "t1") if f"{role}{k}" in refs]
     if group:
         scratch.append("\n        svals = np.empty(NSH)\n        scodes = np.empty(NSH, dtype=np.int64)")
+    if windows:  # the shared rows with per-point windows: a copy of the table per block
+        scratch.append("\n        Msh = SHARED_M.copy()")
     body = []
     if "classify" in refs:
         body.append("""
@@ -356,8 +398,9 @@ solve{k}_s = symplectic.make_event_solver({accel}, qevent{k}, {int(model.symplec
         meas = []
         if group:
             meas.append("""
-                initial(p, y)
-                a, b_ = shared(y, p, SHARED_M, rtol, atol, max_steps, work, svals, scodes)
+                initial(p, y)""" + "".join(f"""
+                Msh[{j}, {5 if role == "t0" else 6}] = {role}{k}(p)""" for j, k, role in windows) + f"""
+                a, b_ = shared(y, p, {"Msh" if windows else "SHARED_M"}, rtol, atol, max_steps, work, svals, scodes)
                 n_steps[i] += a
                 n_rhs[i] += b_""")
         for k, m in enumerate(chosen):
@@ -433,6 +476,8 @@ solve{k}_s = symplectic.make_event_solver({accel}, qevent{k}, {int(model.symplec
                     code = c""")
         body.append("".join(meas))
         body.append(closed_code(True))
+    fd_add = ("\n            n_rhs[i] += int(p[SCR + 3 * NS])  # the rhs calls of the engine's Jacobian"
+              if fd_count else "")
     lines.append(f"""
 
 @pjit
@@ -449,12 +494,52 @@ def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
                 p[NP + j] = S[j]
             for j in range(NP + NSET, SCR + NSCR):
                 p[j] = 0.0
-            code = st.OK{''.join(body)}
+            code = st.OK{''.join(body)}{fd_add}
             if p[NPI] != 0.0 and code == st.OK:
                 code = st.USER_ERROR
             status[i] = code
 """)
     return "".join(lines)
+
+
+def _nth_root_source(name: str, ctor: str, event: str, n: int, symplectic: bool, since: int = 0) -> str:
+    """``name``: an event solver of the same signature as the method's that returns the ``n``-th
+    root of ``event`` (from > 0 to <= 0) instead of the first: 2 n - 1 searches, alternating with
+    the other direction's (``event``_b) so that a search never restarts on the root it just found;
+    each search restarts the integrator at the previous root and gets what is left of max_steps
+    after the accepted steps before it. A search without a root (NO_EVENT: fewer than n roots
+    before t_max) or failing ends it with its status. ``since`` > 0: the time returned is from root
+    ``since`` to root n (e.g. 1 and 2: the period of an autonomous oscillation)."""
+    if symplectic:
+        sig, nxt = "t0, q, v, p, h, tm, max_steps, work", "t, q, v, p, h, tm, max_steps - a, work"
+    else:
+        sig, nxt = ("t0, y, p, tm, rtol, atol, h0, max_steps, work",
+                    "t, y, p, tm, rtol, atol, 0.0, max_steps - a, work")
+    out = [f"{name}_f1 = {ctor.format(ev=event)}\n", f"{name}_b1 = {ctor.format(ev=event + '_b')}\n"]
+    out.append(f"""
+
+@jit
+def {name}({sig}):  # root {n} of {event}
+    c, t, a, b_ = {name}_f1({sig})
+    ts = {"t" if since == 1 else "0.0"}  # the time the result is counted from
+    for j in range({2 * (n - 1)}):
+        if c != st.OK:
+            break
+        if a >= max_steps:
+            c = st.MAX_STEPS
+            break
+        if j % 2 == 0:
+            c, t, a2, b2 = {name}_b1({nxt})
+        else:
+            c, t, a2, b2 = {name}_f1({nxt})
+        a += a2
+        b_ += b2
+        if j == {2 * since - 3}:  # root {since} found
+            ts = t
+    return c, t - ts, a, b_
+
+""")
+    return "".join(out)
 
 
 def _scratch_args(uses) -> str:
@@ -552,7 +637,9 @@ def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes) -> st
     direct = is_direct(chosen)
     if not direct and not (floquet_only(chosen) and method in ("radau", "auto")):
         method = "dop853"  # the shared path integrates with dop853 only (ModelSpec.methods_for)
-    lane_rhs = lane_kernels.applies(model, chosen, method) if use_lanes else None
+    first_root = all(getattr(m, "n", 1) == 1 and getattr(m, "direction", "down") == "down" for m in chosen
+                     if type(m).__name__ == "FirstEvent")  # the lane kernel finds the first root of the event as given
+    lane_rhs = lane_kernels.applies(model, chosen, method) if use_lanes and first_root else None
     key = hashlib.sha256()
     for name, ref in refs.items():
         key.update(name.encode())

@@ -80,8 +80,55 @@ def jitted(module: str, path: str, qualname: str):
         obj = import_module(module, path)
         for part in qualname.split("."):
             obj = getattr(obj, part)
-        _JITTED[key] = _jit.jit(_renamed(getattr(obj, "py_func", obj), module))
+        _JITTED[key] = _jit.jit(_renamed(_with_engine_helpers(getattr(obj, "py_func", obj)), module))
     return _JITTED[key]
+
+
+_FOREIGN = ("mechsweep", "numba", "numpy", "scipy")  # packages whose numba functions are left as they are
+_HELPERS: dict[int, object] = {}  # id(user's dispatcher) -> the same function compiled with the engine's options
+
+
+def _with_engine_helpers(func):
+    """``func`` with the numba functions of the user's own code that it calls by a global name
+    (``@numba.njit`` helpers, and theirs) compiled again with the engine's options (_jit: fastmath
+    off, ``error_model="numpy"``). numba's default error model ("python") raises ZeroDivisionError
+    on a float division by zero, which in a sweep made the point USER_ERROR, while the same code
+    without the decorator (compiled by the engine) gives IEEE +-inf / NaN: now it does either way.
+    The globals are a copy with the helpers swapped (numba freezes a function's globals when it
+    compiles anyway); a function that calls no such helper is returned as it is."""
+    from numba.core.dispatcher import Dispatcher
+
+    g = getattr(func, "__globals__", None)
+    if g is None:
+        return func
+    names = set()
+    stack = [func.__code__]
+    while stack:  # the names the function and its nested code objects read
+        code = stack.pop()
+        names.update(code.co_names)
+        stack.extend(c for c in code.co_consts if isinstance(c, types.CodeType))
+    swap = {}
+    for name in names:
+        v = g.get(name)
+        if not isinstance(v, Dispatcher) or (getattr(v.py_func, "__module__", "") or "").split(".")[0] in _FOREIGN:
+            continue
+        if id(v) not in _HELPERS:
+            _HELPERS[id(v)] = v  # a recursive helper keeps its own compilation
+            helper = _with_engine_helpers(v.py_func)
+            h = types.FunctionType(helper.__code__, helper.__globals__, helper.__name__, helper.__defaults__,
+                                   helper.__closure__)
+            # named after its module too (see _renamed: one file may be loaded under two module names)
+            tag = hashlib.sha256((helper.__module__ or "").encode()).hexdigest()[:8]
+            h.__module__, h.__qualname__ = helper.__module__, f"{helper.__qualname__}__engine_{tag}"
+            _HELPERS[id(v)] = (v, _jit.jit(h))  # the dispatcher kept alive: its id stays its own
+        swap[name] = _HELPERS[id(v)][1] if isinstance(_HELPERS[id(v)], tuple) else v
+    if not swap:
+        return func
+    out = types.FunctionType(func.__code__, {**g, **swap}, func.__name__, func.__defaults__, func.__closure__)
+    out.__kwdefaults__ = func.__kwdefaults__
+    out.__module__ = func.__module__
+    out.__qualname__ = func.__qualname__
+    return out
 
 
 def _renamed(func, module: str):
@@ -272,6 +319,10 @@ def _extra_functions(model):
                 out.append((f"{m.name}.value", func, lambda p, y: (p, 1.0)))
             elif role == "refine":
                 out.append((f"{m.name}.refine", func, lambda p, y: (p, 1e-10, 1.0)))
+            elif role == "of" and not getattr(m, "sampled", False):  # an Extremum's expression f(t, y, p)
+                out.append((f"{m.name}.{role}", func, lambda p, y: (0.0, y.copy(), p)))
+            elif role in ("t0", "t1"):  # an Extremum's window end t0(p), t1(p)
+                out.append((f"{m.name}.{role}", func, lambda p, y: (p,)))
             elif role in ("rhs", "initial", "jac", "accel", "symplectic_step", "prepare"):
                 out.append((f"{m.name}.system.{role}", func, _system_args(role, n_s)))
     for c in getattr(model, "closed_forms", ()):
@@ -294,7 +345,7 @@ def check(model, ref: str, file: str) -> None:
     dydt = np.full(n_s, np.nan)
 
     def probe(what, func, args):
-        func = getattr(func, "py_func", func)
+        func = _with_engine_helpers(getattr(func, "py_func", func))  # the user's numba helpers as the kernel runs them
         try:
             with np.errstate(all="ignore"):
                 return func(*args)

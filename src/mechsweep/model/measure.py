@@ -191,34 +191,69 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
 
 @dataclass(frozen=True)
 class Extremum:
-    """The maximum (``kind="max"``) or minimum (``"min"``) of a state over [t0, t1].
+    """The maximum (``kind="max"``) or minimum (``"min"``) over [t0, t1] of a state, or of an
+    expression ``f(t, y, p) -> float`` given instead of the state's name (e.g. a kinetic energy,
+    a contact force, a state's distance from a point).
 
-    Candidates are the state at t0 and t1 and at every interior turning point, located as a
-    root of the state's derivative (the rhs component) on the dense output, so the value is as
-    accurate as the integration (no sampling error). Status: integration failures as reported.
+    ``t0`` and ``t1`` are numbers, or functions ``t0(p) -> float`` of the point (e.g. the last
+    forcing period before a horizon: ``t1 = lambda p: 50 T(p)``, ``t0 = lambda p: 49 T(p)``); a
+    window that is not finite 0 <= t0 < t1 at a point gives that point INFEASIBLE.
+
+    Candidates are the value at t0 and t1 and at every interior turning point, located as a root
+    of the derivative on the dense output, so the value is as accurate as the integration (no
+    sampling error): for a state its derivative is the rhs component; for an expression, its rate
+    along the trajectory by a central difference (f(t + e, y + e F) - f(t - e, y - e F)) / 2e,
+    F = rhs(t, y), e = cbrt(eps) |h| with the step's size h (only the turning point's time carries
+    the difference's error; the value is the expression's own at that time).
+    Status: integration failures as reported; INFEASIBLE for a window that is not one.
     Cost: one integration over [0, t1] plus event searches that alternate between maxima and
-    minima; every evaluation of the event costs one rhs evaluation, which n_rhs does not count."""
+    minima; every evaluation of the event costs one rhs evaluation (and 2 of the expression),
+    which n_rhs does not count."""
 
     name: str
-    state: str
-    t0: float
-    t1: float
+    state: object  # a state's name, or a function f(t, y, p) -> float
+    t0: object  # a number, or a function t0(p) -> float
+    t1: object
     kind: str = "max"
     unit: str = ""
     long_name: str = ""
 
+    def _window(self) -> str:
+        def one(x):
+            return f"{x:g}" if not callable(x) else f"{getattr(x, '__name__', 't')}(p)"
+        return f"[{one(self.t0)}, {one(self.t1)}]"
+
     def output(self) -> Output:
-        return Output(self.name, f"{self.kind} {self.state}", self.unit,
-                      self.long_name or f"{self.kind} of {self.state} over [{self.t0:g}, {self.t1:g}]", integrated=True)
+        what = self.state if isinstance(self.state, str) else getattr(self.state, "__name__", self.name)
+        return Output(self.name, f"{self.kind} {what}", self.unit,
+                      self.long_name or f"{self.kind} of {what} over {self._window()}", integrated=True)
 
     def validate(self, states):
-        _check_state(self.state, states, self.name)
+        _observable(self.state, states, self.name)
         if self.kind not in ("max", "min"):
             raise ValueError(f"{self.name}: kind {self.kind!r} is not one of ('max', 'min')")
-        if not (math.isfinite(self.t0) and math.isfinite(self.t1) and 0 <= self.t0 < self.t1):
+        for f in ("t0", "t1"):
+            x = getattr(self, f)
+            if not callable(x) and not (isinstance(x, (int, float)) and math.isfinite(x)):
+                raise ValueError(f"{self.name}: {f} = {x!r}; expected a finite number or a function {f}(p)")
+        if not callable(self.t0) and not callable(self.t1) and not 0 <= self.t0 < self.t1:
             raise ValueError(f"{self.name}: [t0, t1] = [{self.t0!r}, {self.t1!r}]; expected finite 0 <= t0 < t1")
 
+    def functions(self):
+        """(role, function) pairs the generated module imports: the expression, the window's ends."""
+        return tuple((role, f) for role, f in (("of", self.state), ("t0", self.t0), ("t1", self.t1)) if callable(f))
+
+    def key(self) -> tuple:
+        """What the generated code depends on (compile.py adds the functions' sources)."""
+        def num(x):
+            return None if callable(x) else float(x)
+        return ("Extremum", self.name, self.state if isinstance(self.state, str) else None, num(self.t0),
+                num(self.t1), self.kind)
+
     def source(self, k: int, states) -> str:
+        if self.functions():
+            raise ValueError(f"{self.name}: an Extremum of an expression or over a window given by functions of p is "
+                             "measured on the shared trajectory only (not with shared=False)")
         idx = states.index(self.state)
         ns_ = len(states)
         sign = 1.0 if self.kind == "max" else -1.0
@@ -352,10 +387,10 @@ class Floquet:
         return () if self.initial is None else (("initial", self.initial),)
 
     def scratch(self, n: int) -> int:
-        return 3 * n + n * n
+        return 3 * n + n * n + 1  # y+h, f(y+h), f(y-h), J, the counter of var_jac's rhs calls
 
     @staticmethod
-    def _solvers(k, n, jac_code, method):
+    def _solvers(k, n, jac_code, method, count=""):
         """The variational system's solver(s) for ``method``; radau's Newton matrix is block
         diagonal, J(t, y) on the state and on every column of Phi (the second derivatives of the
         rhs, d(J Phi)/dy, are left out: they only steer Newton's convergence, not the result)."""
@@ -367,7 +402,7 @@ class Floquet:
 
 @jit
 def var_jac{k}(t, z, p, JJ):
-{jac_code}    JJ[:, :] = 0.0
+{jac_code}{count}    JJ[:, :] = 0.0
     for i in range({n}):
         for m in range({n}):
             JJ[i, m] = p[O_J{k} + i * {n} + m]
@@ -460,7 +495,7 @@ def var_rhs{k}(t, z, p, dz):
             dz[{n} + i * {n} + j] = acc
 
 
-{self._solvers(k, n, jac_code, method)}
+{self._solvers(k, n, jac_code, method, "" if has_jac else f"    p[{o_J + n * n}] += {2.0 * n!r}  # its rhs calls{chr(10)}")}
 
 
 @jit
@@ -472,7 +507,7 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
     for i in range({n}):
         z[i] = y[i]
         z[{n} + i * {n} + i] = 1.0
-{self._integrate(k, n, N, method)}    nr = nr * {per_eval}
+{self._integrate(k, n, N, method)}    nr = nr * {per_eval}{"" if has_jac or method == "dop853" else f"{chr(10)}    nr += int(p[{o_J + n * n}])  # radau's Jacobians by differences{chr(10)}    p[{o_J + n * n}] = 0.0"}
     if code != st.OK:
         return code, math.nan, math.nan, math.nan, ns, nr
     M = np.empty(({n}, {n}), dtype=np.complex128)
@@ -542,6 +577,18 @@ class FirstEvent:
     Status: NO_EVENT when no root before t_max; integration failures as the integrator reports
     them (MAX_STEPS, STEP_UNDERFLOW, NONFINITE; STIFF is never final: auto restarts with radau).
 
+    - ``direction``: "down" (default) the roots where the event goes from > 0 to <= 0, "up" from
+      < 0 to >= 0 (the event negated).
+    - ``n``: the ``n``-th such root instead of the first (NO_EVENT when fewer than n before
+      t_max); ``value`` gets its time. Cost: 2 n - 1 event searches on one integration, each
+      restarting the integrator at the previous root (a new first step); the searches alternate
+      with the other direction's, so none restarts on the root it just found; what is left of
+      ``max_steps`` after the accepted steps of the searches before bounds the next. Not in SIMD
+      lanes (n > 1 or "up": one point at a time).
+    - ``since`` (0 <= since < n): the time from root ``since`` to root n instead of from t = 0
+      (``n=2, since=1``: the period of an autonomous oscillation of the event's expression, exact
+      for a periodic motion whatever the initial phase); ``value`` gets that interval.
+
     - ``system`` (optional): a :class:`System`, a second equation of the same model (its own rhs,
       initial state, jac, accel/symplectic_step and prepare) that this measurement integrates
       instead of the model's; e.g. a truncated and an exact form of one mechanism, measured at the
@@ -564,11 +611,16 @@ class FirstEvent:
     system: System | None = field(default=None, repr=False, compare=False)
     refine: Callable | None = field(default=None, repr=False, compare=False)
     needs_params: tuple[str, ...] = ()  # Output.needs_params: optional parameters the value requires
+    n: int = 1  # the n-th root (in direction) instead of the first
+    direction: str = "down"  # "down": event from > 0 to <= 0; "up": from < 0 to >= 0
+    since: int = 0  # > 0: the time from root `since` to root n (n=2, since=1: a period), not from t = 0
     direct = True  # integrates on its own with solver.method (compile.py)
 
     def output(self) -> Output:
+        which = "first" if self.n == 1 else f"root {self.n}" + (f" counted from root {self.since}" if self.since else "")
         return Output(self.name, self.symbol or self.name, self.unit,
-                      self.long_name or f"value at the first root of {self.name}'s event", integrated=True,
+                      self.long_name or f"value at the {which} root of {self.name}'s event"
+                      + ("" if self.direction == "down" else " (upwards)"), integrated=True,
                       needs_params=tuple(self.needs_params))
 
     def validate(self, states):
@@ -584,6 +636,12 @@ class FirstEvent:
             raise ValueError(f"{self.name}: system must be a mechsweep.model.System (got {self.system!r})")
         if self.refine is not None and not callable(self.refine):
             raise ValueError(f"{self.name}: refine must be a function refine(p, rtol, value) -> float")
+        if not (isinstance(self.n, int) and not isinstance(self.n, bool) and self.n >= 1):
+            raise ValueError(f"{self.name}: n = {self.n!r}; expected a whole number >= 1")
+        if self.direction not in DIRECTIONS:
+            raise ValueError(f"{self.name}: direction {self.direction!r} is not one of {DIRECTIONS}")
+        if not (isinstance(self.since, int) and not isinstance(self.since, bool) and 0 <= self.since < self.n):
+            raise ValueError(f"{self.name}: since = {self.since!r}; expected a whole number 0 <= since < n = {self.n!r}")
 
     def functions(self):
         """(role, function) pairs the generated module imports."""
@@ -600,7 +658,8 @@ class FirstEvent:
 
     def key(self) -> tuple:
         """What the generated code depends on (with the functions' names, compile.py adds their sources)."""
-        return ("FirstEvent", self.name, None if callable(self.t_max) else float(self.t_max))
+        key = ("FirstEvent", self.name, None if callable(self.t_max) else float(self.t_max))
+        return key if (self.n, self.direction) == (1, "down") else key + (self.n, self.direction, self.since)
 
 
 @dataclass(frozen=True)
@@ -648,7 +707,7 @@ FLOQUET_MARGIN = Setting("floquet_margin", 1e-8, "1",
 # ---------------------------------------------------------------- one shared trajectory
 # Crossing, Period, StateAt and Extremum of one point observe ONE DOP853 integration from t = 0
 # (make_shared). Each is a row of a float table: (kind, state index, sign, level, n, ta, tb).
-K_CROSSING, K_PERIOD, K_STATE_AT, K_EXTREMUM = 0.0, 1.0, 2.0, 3.0
+K_CROSSING, K_PERIOD, K_STATE_AT, K_EXTREMUM, K_EXTREMUM_OF = 0.0, 1.0, 2.0, 3.0, 4.0  # OF: of an expression
 SHARED_COLS = 7
 
 
@@ -667,8 +726,13 @@ def _row_state_at(m, states):
 
 
 def _row_extremum(m, states):
+    """A state's row; an expression's (K_EXTREMUM_OF) gets its index j in column 1 from compile.py.
+    A window end that is a function of p is NaN here (the kernel writes it per point)."""
     sign = 1.0 if m.kind == "max" else -1.0
-    return (K_EXTREMUM, float(states.index(m.state)), sign, 0.0, 0.0, float(m.t0), float(m.t1))
+    t0, t1 = (math.nan if callable(x) else float(x) for x in (m.t0, m.t1))
+    if not isinstance(m.state, str):
+        return (K_EXTREMUM_OF, -1.0, sign, 0.0, 0.0, t0, t1)
+    return (K_EXTREMUM, float(states.index(m.state)), sign, 0.0, 0.0, t0, t1)
 
 
 Crossing.shared_row = _row_crossing
@@ -678,7 +742,7 @@ Extremum.shared_row = _row_extremum
 
 
 @functools.cache
-def make_shared(rhs):
+def make_shared(rhs, observe=None):
     """Jitted ``shared(y, p, M, rtol, atol, max_steps, work, values, codes) -> (n_steps, n_rhs)``:
     every measurement row of ``M`` (see ``shared_row``) observes one DOP853 integration from
     t = 0 (y: the initial state on entry, scratch after). The integration runs towards the
@@ -686,7 +750,13 @@ def make_shared(rhs):
     on a measurement's time: values inside a step come from the step's 7th-order dense output
     (built at most once per step, 3 rhs calls), roots from Brent's method on it. Only the horizon
     clips the last step. ``max_steps`` bounds the shared integration; a failure gives its status
-    to every row not yet done (rows done before keep their values)."""
+    to every row not yet done (rows done before keep their values).
+
+    ``observe(t, y, p, j) -> float`` (generated by compile.py): the expression of an Extremum row
+    of kind K_EXTREMUM_OF (column 1: j). Its rate along the trajectory is the central difference
+    (f(t + e, y + e F) - f(t - e, y - e F)) / 2e, F = rhs(t, y), e = cbrt(eps) |h| (the step's
+    size h as the time scale). An Extremum row whose window is not finite 0 <= t0 < t1 (a window
+    given as a function of p) gets INFEASIBLE."""
     from ..ode import dop853 as d
     from ..ode._common import ROOT_RTOL, make_brent
     from .._jit import jit
@@ -700,16 +770,46 @@ def make_shared(rhs):
     Y_STAGE, Y_NEW, K_FSAL = d.Y_STAGE, d.Y_NEW, d.K_FSAL
     N_ST = d.N_STAGES
     N_DENSE = d.N_STAGES_EXTENDED - d.N_STAGES - 1
-    OK, NO_EVENT = st_.OK, st_.NO_EVENT
+    OK, NO_EVENT, INFEASIBLE = st_.OK, st_.NO_EVENT, st_.INFEASIBLE
+    CBRT_EPS = 6.055454452393343e-06
+
+    if observe is None:  # state rows only: the value and the rate are components of y and of the rhs
+        @jit
+        def value_of(t, y, p, idx, expr):
+            return y[idx]
+
+        @jit
+        def rate_of(t, y, p, F, idx, expr, h, yt):
+            return F[idx]
+    else:
+        @jit
+        def value_of(t, y, p, idx, expr):
+            if expr:
+                return observe(t, y, p, idx)
+            return y[idx]
+
+        @jit
+        def rate_of(t, y, p, F, idx, expr, h, yt):
+            if not expr:
+                return F[idx]
+            e = CBRT_EPS * abs(h)
+            up = t + e
+            dn = t - e
+            for i in range(y.size):
+                yt[i] = y[i] + (up - t) * F[i]
+            fu = observe(up, yt, p, idx)
+            for i in range(y.size):
+                yt[i] = y[i] + (dn - t) * F[i]
+            return (fu - observe(dn, yt, p, idx)) / (up - dn)
 
     @jit
     def g_on_interpolant(t, ctx):
-        t_old, h, y_old, p, work, idx, sign, level, turn, fs = ctx
+        t_old, h, y_old, p, work, idx, sign, level, turn, fs, expr, yt = ctx
         y_at = work[Y_STAGE]  # free once the dense output is built
         interpolate((t - t_old) / h, y_old, work, y_at)
         if turn:
             rhs(t, y_at, p, fs)
-            return sign * fs[idx]
+            return sign * rate_of(t, y_at, p, fs, idx, expr, h, yt)
         return sign * (y_at[idx] - level)
 
     brent = make_brent(g_on_interpolant)
@@ -720,6 +820,7 @@ def make_shared(rhs):
         n = y.size
         ya = np.empty(n)
         fa = np.empty(n)
+        yt = np.empty(n)
         g_old = np.zeros(m)
         count = np.zeros(m)
         t_first = np.zeros(m)
@@ -727,19 +828,32 @@ def make_shared(rhs):
         started = np.zeros(m, dtype=np.bool_)
         done = np.zeros(m, dtype=np.bool_)
         t_end = 0.0
+        left = m
         for i in range(m):
             values[i] = math.nan
             codes[i] = OK
-            t_end = max(t_end, M[i, 6] if M[i, 0] == K_EXTREMUM else M[i, 5])
+            if M[i, 0] >= K_EXTREMUM and not (0.0 <= M[i, 5] < M[i, 6] and M[i, 6] < math.inf):
+                codes[i] = INFEASIBLE  # a window from functions of p that is not one
+                done[i] = True
+                left -= 1
+                continue
+            t_end = max(t_end, M[i, 6] if M[i, 0] >= K_EXTREMUM else M[i, 5])
+        if left == 0:
+            return 0, 0
         status, h_abs, n_rhs = start(0.0, y, p, t_end, rtol, atol, 0.0, work)
         n_steps = 0
         if status != OK:
             for i in range(m):
                 codes[i] = status
+            for i in range(m):
+                if not done[i]:
+                    codes[i] = status
             return n_steps, n_rhs
-        left = m
         f0 = work[0]
+        h0 = h_abs
         for i in range(m):  # what t = 0 already tells
+            if done[i]:
+                continue
             kind = M[i, 0]
             idx = int(M[i, 1])
             s = M[i, 2]
@@ -751,8 +865,9 @@ def make_shared(rhs):
                     done[i] = True
                     left -= 1
             elif M[i, 5] <= 0.0:  # extremum from t0 = 0
-                best[i] = s * y[idx]
-                g_old[i] = s * f0[idx]
+                expr = kind == K_EXTREMUM_OF
+                best[i] = s * value_of(0.0, y, p, idx, expr)
+                g_old[i] = s * rate_of(0.0, y, p, f0, idx, expr, h0, yt)
                 started[i] = True
         t = 0.0
         attempts = 0
@@ -782,7 +897,7 @@ def make_shared(rhs):
                             n_rhs += N_DENSE
                             dense = True
                         tr = brent(t, g_old[i], t_new, g, ROOT_RTOL * abs(h),
-                                   (t, h, y, p, work, idx, s, M[i, 3], False, fa))
+                                   (t, h, y, p, work, idx, s, M[i, 3], False, fa, False, yt))
                         if tr > ta:
                             codes[i] = NO_EVENT
                             done[i] = True
@@ -809,14 +924,15 @@ def make_shared(rhs):
                             interpolate((ta - t) / h, y, work, ya)
                             values[i] = ya[idx]
                         done[i] = True
-                else:  # extremum of s * y[idx] over [ta, tb]
+                else:  # extremum of s * y[idx] (or of expression idx) over [ta, tb]
                     tb = M[i, 6]
+                    expr = kind == K_EXTREMUM_OF
                     if not started[i]:
                         if ta > t_new:
                             continue
                         if ta == t_new:
-                            best[i] = s * y_new[idx]
-                            g_old[i] = s * f_new[idx]
+                            best[i] = s * value_of(t_new, y_new, p, idx, expr)
+                            g_old[i] = s * rate_of(t_new, y_new, p, f_new, idx, expr, h, yt)
                             started[i] = True
                             continue
                         if not dense:
@@ -826,16 +942,16 @@ def make_shared(rhs):
                         interpolate((ta - t) / h, y, work, ya)
                         rhs(ta, ya, p, fa)
                         n_rhs += 1
-                        best[i] = s * ya[idx]
-                        g_old[i] = s * fa[idx]
+                        best[i] = s * value_of(ta, ya, p, idx, expr)
+                        g_old[i] = s * rate_of(ta, ya, p, fa, idx, expr, h, yt)
                         started[i] = True
                         lo = ta
                     else:
                         lo = t
                     if tb >= t_new:
                         hi = t_new
-                        g = s * f_new[idx]
-                        y_hi = y_new[idx]
+                        g = s * rate_of(t_new, y_new, p, f_new, idx, expr, h, yt)
+                        y_hi = value_of(t_new, y_new, p, idx, expr)
                     else:
                         if not dense:
                             dense_output(t, h, y, p, work)
@@ -845,17 +961,17 @@ def make_shared(rhs):
                         interpolate((tb - t) / h, y, work, ya)
                         rhs(tb, ya, p, fa)
                         n_rhs += 1
-                        g = s * fa[idx]
-                        y_hi = ya[idx]
+                        g = s * rate_of(tb, ya, p, fa, idx, expr, h, yt)
+                        y_hi = value_of(tb, ya, p, idx, expr)
                     if g_old[i] > 0.0 and g <= 0.0:
                         if not dense:
                             dense_output(t, h, y, p, work)
                             n_rhs += N_DENSE
                             dense = True
                         tr = brent(lo, g_old[i], hi, g, ROOT_RTOL * abs(h),
-                                   (t, h, y, p, work, idx, s, 0.0, True, fa))
+                                   (t, h, y, p, work, idx, s, 0.0, True, fa, expr, yt))
                         interpolate((tr - t) / h, y, work, ya)
-                        best[i] = max(best[i], s * ya[idx])
+                        best[i] = max(best[i], s * value_of(tr, ya, p, idx, expr))
                     g_old[i] = g
                     if tb <= t_new:
                         best[i] = max(best[i], s * y_hi)
