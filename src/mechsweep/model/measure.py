@@ -63,6 +63,7 @@ class Crossing:
     t_max: float = 100.0
     unit: str = "s"
     long_name: str = ""
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
 
     def output(self) -> Output:
         return Output(self.name, self.name, self.unit,
@@ -119,6 +120,7 @@ class Period:
     t_max: float = 100.0
     unit: str = "s"
     long_name: str = ""
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
 
     def output(self) -> Output:
         return Output(self.name, "T", self.unit, self.long_name or f"period of {self.state} (crossings of {self.level:g})",
@@ -162,6 +164,7 @@ class StateAt:
     t: float
     unit: str = ""
     long_name: str = ""
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
 
     def output(self) -> Output:
         return Output(self.name, f"{self.state}(t)", self.unit, self.long_name or f"{self.state} at t = {self.t:g}",
@@ -204,6 +207,7 @@ class Extremum:
     kind: str = "max"
     unit: str = ""
     long_name: str = ""
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
 
     def output(self) -> Output:
         return Output(self.name, f"{self.kind} {self.state}", self.unit,
@@ -306,6 +310,7 @@ class Floquet:
     initial: Callable | None = field(default=None, repr=False, compare=False)
     stable_name: str = ""  # the verdict output's name; default name + "_stable"
     kind_name: str = ""  # the kind output's name; default name + "_kind"
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
     needs_forcing = True
     n_values = 3  # the largest modulus, the kind and the critical multiplier's argument
 
@@ -557,6 +562,7 @@ class FirstEvent:
     system: System | None = field(default=None, repr=False, compare=False)
     refine: Callable | None = field(default=None, repr=False, compare=False)
     needs_params: tuple[str, ...] = ()  # Output.needs_params: optional parameters the value requires
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
     direct = True  # integrates on its own with solver.method (compile.py)
 
     def output(self) -> Output:
@@ -940,6 +946,7 @@ class Steady:
     unit: str = ""
     long_name: str = ""
     value: Callable | None = field(default=None, repr=False, compare=False)
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
     sampled = True
     n_values = 4
 
@@ -1040,6 +1047,7 @@ class Kick:
     unit: str = ""
     time_unit: str = "s"
     time_value: Callable | None = field(default=None, repr=False, compare=False)
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
     sampled = True
     n_values = 5  # verdict, settling time, final error; the settling time before time_value, the simulated time
 
@@ -1129,6 +1137,7 @@ class History:
     unit: str = ""
     long_name: str = ""
     value: Callable | None = field(default=None, repr=False, compare=False)
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
     sampled = True
     n_values = 0
 
