@@ -1190,14 +1190,25 @@ class Recheck:
     below integration failures). ``factor`` is a number or the name of one of the model's
     settings; factor <= 0 turns the check off. ``skip_settled`` (optional): the name of a Kick
     whose points are not integrated again when its settling time (before ``time_value``) is at
-    most ``settled_fraction`` of the simulated time (they end on an attracting motion). Both runs
-    count in n_steps/n_rhs. Cost: up to one more integration per point, at the tighter rtol."""
+    most ``settled_fraction`` of the simulated time (they end on an attracting motion); that Kick
+    is observed at every integrated point for this (also where its own classify skips it, and when
+    none of its outputs is asked for). ``skip_locked`` (with ``skip_settled``): neither are the
+    points whose state, sampled at the whole forcing periods of the second half of that Kick's
+    horizon, changes by at most factor (rtol + atol) from one period to the next (the largest
+    change of any state, less ``rate`` times the elapsed time for the states of ``lock_rates`` =
+    ((state, rate), ...), e.g. an angle that turns with the forcing): locked to the forcing period.
+    Only the asked-for outputs are compared (where their measurement applies at the point);
+    ``measured_units``: before ``value``/``time_value`` (in the units the integration measures).
+    Both runs count in n_steps/n_rhs. Cost: up to one more integration per point, at the tighter rtol."""
 
     factor: object = 1000.0
     tighten: float = 100.0
     rtol_floor: float = 1e-14
     skip_settled: str | None = None
     settled_fraction: float = 0.5
+    skip_locked: bool = False
+    lock_rates: tuple = ()
+    measured_units: bool = False
 
     def validate(self, measurements, settings):
         if isinstance(self.factor, str):
@@ -1217,6 +1228,9 @@ class Recheck:
             if not 0.0 <= self.settled_fraction <= 1.0:
                 raise ValueError(f"recheck: settled_fraction = {self.settled_fraction!r}; expected a fraction in "
                                  "[0, 1]")
+
+        if self.skip_locked and self.skip_settled is None:
+            raise ValueError("recheck: skip_locked needs skip_settled (the Kick whose horizon the lock test spans)")
 
     def tight_rtol(self, rtol: float) -> float:
         return min(rtol, max(rtol / self.tighten, self.rtol_floor))

@@ -147,6 +147,10 @@ class OdeModel:
             if not isinstance(self.recheck, Recheck):
                 raise ValueError(f"model {self.name!r}: recheck must be a mechsweep.model.Recheck (got {self.recheck!r})")
             self.recheck.validate(self.measurements, self.settings)
+            bad = [x for x, _ in self.recheck.lock_rates if x not in self.states]
+            if bad:
+                raise ValueError(f"model {self.name!r}: recheck lock_rates name {bad}, which are not states "
+                                 f"({', '.join(self.states)})")
         for name in ("params", "states", "measurements", "closed_forms", "internal", "settings", "output_order",
                      "status_order"):
             object.__setattr__(self, name, tuple(getattr(self, name)))

@@ -201,7 +201,11 @@ def _val_source(name):
             f"        p[NPI] = 1.0\n        return np.nan\n\n")
 
 
-def kernel_source(model, chosen, refs, method) -> str:
+def kernel_source(model, chosen, refs, method, always=-1, lock=(), raw=False) -> str:
+    """``always``: the measurement observed even where its classify skips it (a Recheck's
+    skip_settled Kick); ``lock``: the per-state rates of the lock test (Recheck.skip_locked), its
+    rows the last column of bits, its value the column after the measurements'; ``raw``: the
+    measured values also before value/time_value into rawv/rawh (Recheck.measured_units)."""
     from .compile import _GUARD, _guard_numbered, layout, rank_source
 
     n_p, n_set, n_int = layout(model)
@@ -219,6 +223,8 @@ def kernel_source(model, chosen, refs, method) -> str:
         lines.append(f"user_{name} = jitted{ref!r}\n")
     lines.append(f"\nNP = {n_p}\nNSET = {n_set}\nNPI = {npi}\nSCR = NPI + 1\nNS = {n_s}\nBLOCK = {BLOCK}\n"
                  f"NM = {len(chosen)}\n\n")
+    if lock:
+        lines.append(f"LOCK_RATES = np.array({[float(x) for x in lock]!r})\nLOCKCOL = {columns(chosen)[-1]}\n\n")
     for name in refs:
         if name in _GUARD:
             lines.append(_GUARD[name] + "\n")
@@ -242,7 +248,7 @@ def kernel_source(model, chosen, refs, method) -> str:
             lines.append(_obs_source(f"of{k}", m.of, model.states))
         if f"value{k}" in refs:
             lines.append(_val_source(f"value{k}"))
-    body = _observe_body(chosen, refs, _order(model))
+    body = _observe_body(chosen, refs, _order(model), always, bool(lock), raw)
     OBSERVE[:] = [b.replace("\n            ", "\n    ") for b in body]
     lines.append(_lanes_source(model, chosen, refs) if "rhs_lanes" in refs else "")
     order = _order(model)
@@ -262,7 +268,7 @@ def _order(model) -> tuple:
     return tuple(getattr(model, "status_order", ()))
 
 
-def _observe_body(chosen, refs, order) -> list[str]:
+def _observe_body(chosen, refs, order, always=-1, lock=False, raw=False) -> list[str]:
     """Kernel code: every measurement's observables on its rows and its observer (12 spaces
     indent; reads te, traj, p, s, bits, K, hoff, ob, ob2; writes vals[i], hist[i], mstat[i], code).
     A measurement with a classify is observed only where it passed (mstat[i, k] == OK)."""
@@ -276,9 +282,13 @@ def _observe_body(chosen, refs, order) -> list[str]:
         # columns it applies to (Steady: peak and first harmonic; Kick: the settling time)
         fn = getattr(m, "time_value", None) if kind == "Kick" else getattr(m, "value", None)
         transform = ""
+        if raw and kind != "History":  # the measured values, before the transform
+            transform = f"""
+            for q in range({cols[k]}, {cols[k + 1]}):
+                rawv[i, q] = vals[i, q]"""
         if fn is not None and kind != "History":
             first, last = (cols[k], cols[k] + 2) if kind == "Steady" else (cols[k] + 1, cols[k] + 2)
-            transform = f"""
+            transform += f"""
             if c == st.OK:
                 for q in range({first}, {last}):
                     if math.isfinite(vals[i, q]):
@@ -303,22 +313,46 @@ def _observe_body(chosen, refs, order) -> list[str]:
             value = f"""
                     if math.isfinite(v):
                         v = value{k}(p, v)""" if fn is not None else ""
+            raw_h = """
+                    rawh[i, h] = v""" if raw else ""
             body.append(f"""
             c = st.OK
             h = hoff[{k}]
             for j in range(ns_):
                 if bits[j, {k}]:
-                    v = of{k}(te[j], traj[j], p){value}
+                    v = of{k}(te[j], traj[j], p){raw_h}{value}
                     if not math.isfinite(v):
                         c = st.NONFINITE
                     hist[i, h] = v
                     h += 1""")
+        if k == always and f"mclassify{k}" in refs:  # observed everywhere; its status only where it applies
+            body.append(f"""
+            if mstat[i, {k}] == st.OK:
+                mstat[i, {k}] = c""" + combine(order, "code", "c", 16))
+            continue
         body.append(f"""
             mstat[i, {k}] = c""" + combine(order, "code", "c", 12))
         if f"mclassify{k}" in refs:
             inner = "".join(body[start:]).replace("\n", "\n    ")
             body[start:] = [f"""
             if mstat[i, {k}] == st.OK:{inner}"""]
+    if lock:  # the largest change of the state over one forcing period (bits[:, NM]: whole periods)
+        body.append("""
+            lock = 0.0
+            kr = -1
+            nrev = 0
+            for j in range(ns_):
+                if bits[j, NM]:
+                    if kr >= 0:
+                        for q in range(NS):
+                            dz = traj[j, q] - traj[kr, q]
+                            if LOCK_RATES[q] != 0.0:
+                                dz -= LOCK_RATES[q] * (te[j] - te[kr])
+                            if not abs(dz) <= lock:  # NaN propagates
+                                lock = abs(dz)
+                    kr = j
+                    nrev += 1
+            vals[i, LOCKCOL] = lock if nrev >= 2 else math.inf""")
     return body
 
 
@@ -363,7 +397,7 @@ def _kernel_tail(lines, body, refs, method, checks="", fail="") -> str:
     lines.append(f"""
 
 @pjit
-def kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, status, mstat, n_steps, n_rhs):
+def kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, rawv, rawh, status, mstat, n_steps, n_rhs):
     n = P.shape[0]
     ns_ = s.size
     n_blocks = (n + BLOCK - 1) // BLOCK
@@ -459,7 +493,7 @@ def setup(P, S, rtol, PF, Z0, TT, status, mstat):
 
 
 @jit
-def observe(i, p, te, traj, s, bits, K, hoff, vals, hist, ob, ob2, mstat, status):
+def observe(i, p, te, traj, s, bits, K, hoff, vals, hist, rawv, rawh, ob, ob2, mstat, status):
     ns_ = s.size
     code = status[i]{''.join(OBSERVE)}
     if p[NPI] != 0.0:
@@ -468,8 +502,8 @@ def observe(i, p, te, traj, s, bits, K, hoff, vals, hist, ob, ob2, mstat, status
 
 
 @jit
-def queue(lanes, idx, first, step, PF, Z0, te, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, status,
-          mstat, n_steps, n_rhs):
+def queue(lanes, idx, first, step, PF, Z0, te, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, rawv, rawh,
+          status, mstat, n_steps, n_rhs):
     ws = dop853_lanes.workspace(NS, PF.shape[1], lanes, te.size)
     traj = ws[dop853_lanes.TRAJ]
     ob = np.zeros(s.size)
@@ -489,7 +523,7 @@ def queue(lanes, idx, first, step, PF, Z0, te, s, bits, K, hoff, rtol, atol, max
         j, c, a, b_ = dop853_lanes.lane_result(ws, lane)
         i = idx[j]
         if c == st.OK:
-            c = observe(i, PF[i], te, traj[lane], s, bits, K, hoff, vals, hist, ob, ob2, mstat, status)
+            c = observe(i, PF[i], te, traj[lane], s, bits, K, hoff, vals, hist, rawv, rawh, ob, ob2, mstat, status)
         else:
             cc = status[i]{fail}
             c = cc
@@ -507,7 +541,7 @@ def queue(lanes, idx, first, step, PF, Z0, te, s, bits, K, hoff, rtol, atol, max
 OBSERVE: list[str] = []  # set by kernel_source for _lanes_source (the observation body, 4 spaces indent)
 
 
-def kernel_for(model, chosen, method):
+def kernel_for(model, chosen, method, always=-1, lock=(), raw=False):
     from .compile import _functions, load_generated
 
     funcs = [(n, f) for n, f in _functions(model, (), ()) if n in ("rhs", "initial", "forcing", "jac", "classify",
@@ -526,10 +560,10 @@ def kernel_for(model, chosen, method):
         key.update(repr(ref).encode())
         key.update(load.module_source(ref[0], ref[1]))
     key.update(repr((model.name, _layout(model), len(model.states), tuple(m.key() for m in chosen), method,
-                     _order(model))).encode())
+                     _order(model), always, tuple(lock), raw)).encode())
     name = "mechsweep_traj_" + key.hexdigest()[:20]
     if name not in _KERNELS:
-        _KERNELS[name] = load_generated(name, kernel_source(model, chosen, refs, method))
+        _KERNELS[name] = load_generated(name, kernel_source(model, chosen, refs, method, always, lock, raw))
     return _KERNELS[name]
 
 
@@ -543,7 +577,29 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
     lanes when the model declares ``rhs_lanes`` (unless ``lanes`` is False: the same values)."""
     method = solver.method
     settings = dict(solver.settings)
+    rc = _active_recheck(model, settings)
+    always, lock, raw = -1, (), False
+    if rc is not None and rc.skip_settled is not None:  # its Kick observed everywhere, asked for or not
+        names = [m.name for m in chosen]
+        if rc.skip_settled not in names:
+            import dataclasses
+            kick = next(m for m in model.measurements if m.name == rc.skip_settled)
+            chosen = tuple(chosen) + (dataclasses.replace(kick, classify=None),)
+        always = [m.name for m in chosen].index(rc.skip_settled)
+        if rc.skip_locked:
+            rates = dict(rc.lock_rates)
+            lock = tuple(float(rates.get(x, 0.0)) for x in model.states)
+        raw = bool(rc.measured_units)
     s, bits, K = grid(chosen, settings)
+    if lock:  # the whole forcing periods of the second half of the Kick's horizon: one more bits column
+        from .measure import _number
+        H = _number(chosen[always].horizon, settings)
+        whole = np.arange(math.ceil(0.5 * H), math.floor(H) + 1, dtype=np.float64)
+        s2 = np.unique(np.concatenate([s, whole]))
+        bits2 = np.zeros((s2.size, bits.shape[1] + 1), dtype=np.int64)
+        bits2[np.searchsorted(s2, s), :bits.shape[1]] = bits
+        bits2[:, -1] = np.isin(s2, whole)
+        s, bits = s2, bits2
     for k, m in enumerate(chosen):
         if type(m).__name__ == "Steady" and not {f"{m.name}_h1", f"{m.name}_phase"} & set(wanted):
             K[k, 2] = 0.0  # no first harmonic asked for: the observer skips its cos/sin per sample
@@ -555,24 +611,30 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
             n_hist += int(np.count_nonzero(bits[:, k]))
     cols = columns(chosen)
     n = P.shape[0]
-    vals = np.full((n, cols[-1]), np.nan)
+    vals = np.full((n, cols[-1] + (1 if lock else 0)), np.nan)
     hist = np.full((n, n_hist), np.nan)
+    rawv = np.full((n, cols[-1] if raw else 0), np.nan)
+    rawh = np.full((n, n_hist if raw else 0), np.nan)
     S = np.array([float(settings.get(x.name, x.default)) for x in model.settings], dtype=np.float64)
-    mod = kernel_for(model, chosen, method)
+    mod = kernel_for(model, chosen, method, always, lock, raw)
     code = status.copy()
     mstat = np.full((n, len(chosen)), NOT_RUN, dtype=np.int64)
     P = np.ascontiguousarray(P, dtype=np.float64)
     order = _order(model)
 
-    def run(P, rtol, vals, hist, code, mstat, n_steps, n_rhs):
+    def run(P, rtol, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs):
         if hasattr(mod, "queue") and lanes and lane_count(s.size, model):
-            _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, mstat, n_steps, n_rhs, rtol)
+            _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs,
+                       rtol)
         else:
-            mod.kernel(P, S, s, bits, K, hoff, rtol, solver.atol, solver.max_steps, vals, hist, code, mstat, n_steps,
-                       n_rhs)
+            mod.kernel(P, S, s, bits, K, hoff, rtol, solver.atol, solver.max_steps, vals, hist, rawv, rawh, code, mstat,
+                       n_steps, n_rhs)
 
-    run(P, solver.rtol, vals, hist, code, mstat, n_steps, n_rhs)
-    moved = _recheck(model, chosen, settings, solver, P, run, vals, hist, code, mstat, n_steps, n_rhs, cols)
+    run(P, solver.rtol, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs)
+    moved = None
+    if rc is not None:
+        moved = _recheck(rc, chosen, wanted, settings, solver, P, run, (vals, hist, rawv, rawh), code, mstat, n_steps,
+                         n_rhs, cols, bits, order, lock)
     good = measured(mstat, code, order)
     for k, m in enumerate(chosen):
         if m.n_values == 0:
@@ -614,16 +676,36 @@ def integrated(mstat, code) -> np.ndarray:
     return (mstat <= 0).all(axis=1) & (mstat == st.OK).any(axis=1) & (code != st.USER_ERROR)
 
 
-def _recheck(model, chosen, settings, solver, P, run, vals, hist, code, mstat, n_steps, n_rhs, cols):
-    """The model's Recheck (measure.Recheck): which points moved when integrated again at the
-    tighter rtol (None when the model declares none or its factor is <= 0)."""
+def _active_recheck(model, settings):
+    """The model's Recheck where its factor is > 0 (else None: no re-check)."""
     from .measure import _number
     rc = getattr(model, "recheck", None)
-    if rc is None:
+    if rc is None or not _number(rc.factor, settings) > 0.0:
         return None
+    return rc
+
+
+def _compared(chosen, wanted, cols, bits, width):
+    """(value columns, History columns) the re-check compares: those of the asked-for outputs (a
+    Steady's or Kick's j-th output is its j-th column)."""
+    use = np.zeros(width, dtype=bool)
+    huse = []
+    for k, m in enumerate(chosen):
+        if m.n_values == 0:
+            huse += [m.name in wanted] * int(np.count_nonzero(bits[:, k]))
+            continue
+        for j, o in enumerate(m.outputs()):
+            use[cols[k] + j] = o.name in wanted
+    return use, np.array(huse, dtype=bool)
+
+
+def _recheck(rc, chosen, wanted, settings, solver, P, run, arrays, code, mstat, n_steps, n_rhs, cols, bits, order,
+             lock):
+    """The model's Recheck (measure.Recheck): which points moved when integrated again at the
+    tighter rtol."""
+    from .measure import _number
+    vals, hist, rawv, rawh = arrays
     factor = _number(rc.factor, settings)
-    if not factor > 0.0:
-        return None
     check = integrated(mstat, code)
     names = [m.name for m in chosen]
     if rc.skip_settled in names:  # settled early (integration time, before time_value): not again
@@ -631,6 +713,8 @@ def _recheck(model, chosen, settings, solver, P, run, vals, hist, code, mstat, n
         t_settle, t_end = vals[:, c0 + 3], vals[:, c0 + 4]
         with np.errstate(invalid="ignore"):
             check &= ~(np.isfinite(t_settle) & (t_settle <= rc.settled_fraction * t_end))
+            if lock:  # locked to the forcing period through the second half
+                check &= ~(vals[:, cols[-1]] <= factor * (solver.rtol + solver.atol))
     moved = np.zeros(code.size, dtype=bool)
     idx = np.flatnonzero(check)
     if idx.size == 0:
@@ -638,19 +722,35 @@ def _recheck(model, chosen, settings, solver, P, run, vals, hist, code, mstat, n
     P2 = np.ascontiguousarray(P[idx])
     vals2 = np.full((idx.size, vals.shape[1]), np.nan)
     hist2 = np.full((idx.size, hist.shape[1]), np.nan)
+    rawv2 = np.full((idx.size, rawv.shape[1]), np.nan)
+    rawh2 = np.full((idx.size, rawh.shape[1]), np.nan)
     code2 = np.zeros(idx.size, dtype=code.dtype)
     mstat2 = np.full((idx.size, mstat.shape[1]), NOT_RUN, dtype=mstat.dtype)
     ns2, nr2 = np.zeros(idx.size, dtype=n_steps.dtype), np.zeros(idx.size, dtype=n_rhs.dtype)
-    run(P2, rc.tight_rtol(solver.rtol), vals2, hist2, code2, mstat2, ns2, nr2)
+    run(P2, rc.tight_rtol(solver.rtol), vals2, hist2, rawv2, rawh2, code2, mstat2, ns2, nr2)
     n_steps[idx] += ns2
     n_rhs[idx] += nr2
-    # the values as stored (after value/time_value); not Kick's two bookkeeping columns
-    use = np.ones(vals.shape[1], dtype=bool)
-    for k, m in enumerate(chosen):
-        if type(m).__name__ == "Kick":
-            use[cols[k] + 3:cols[k] + 5] = False
-    a = np.concatenate([vals[idx][:, use], hist[idx]], axis=1)
-    b = np.concatenate([vals2[:, use], hist2], axis=1)
+    # the asked-for outputs where their measurement applies, as stored (after value/time_value) or
+    # as measured (measured_units)
+    use, huse = _compared(chosen, wanted, cols, bits, cols[-1])
+    if rc.measured_units:
+        vals, hist, vals2, hist2 = rawv, rawh, rawv2, rawh2
+
+    def table(v, h, good):
+        cv = [np.where(good[:, k, None], v[:, cols[k]:cols[k + 1]], np.nan) for k in range(len(chosen))]
+        hh = np.full(h.shape, np.nan)
+        pos = 0
+        for k, m in enumerate(chosen):  # each History's own columns from its own mask
+            if m.n_values == 0:
+                w = int(np.count_nonzero(bits[:, k]))
+                hh[:, pos:pos + w] = np.where(good[:, k, None], h[:, pos:pos + w], np.nan)
+                pos += w
+        return np.concatenate(cv + [np.empty((v.shape[0], 0))], axis=1)[:, use], hh[:, huse]
+
+    a1, a2 = table(vals[idx], hist[idx], measured(mstat[idx], code[idx], order))
+    b1, b2 = table(vals2, hist2, measured(mstat2, code2, order))
+    a = np.concatenate([a1, a2], axis=1)
+    b = np.concatenate([b1, b2], axis=1)
     with np.errstate(invalid="ignore"):
         tol = factor * (solver.rtol * np.maximum(np.abs(a), np.abs(b)) + solver.atol)
         bad = (np.abs(a - b) > tol) | (np.isnan(a) != np.isnan(b))
@@ -673,7 +773,8 @@ def lane_count(n_samples: int, model) -> int:
     return 0
 
 
-def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, mstat, n_steps, n_rhs, rtol=None):
+def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs,
+               rtol=None):
     """setup in parallel, then per forcing period the points' queues through the lanes, one queue
     per thread (numba.get_num_threads() Python threads running the nogil queue)."""
     import numba
@@ -697,7 +798,7 @@ def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, mst
 
         def queue(b, idx=idx, te=te, n_queues=n_queues):
             mod.queue(lanes, idx, b, n_queues, PF, Z0, te, s, bits, K, hoff, rtol, solver.atol,
-                      solver.max_steps, vals, hist, code, mstat, n_steps, n_rhs)
+                      solver.max_steps, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs)
 
         if n_queues == 1:
             queue(0)
