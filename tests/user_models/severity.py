@@ -68,3 +68,35 @@ def _model(name, order):
 
 SEVERITY = _model("severity", (st.SINGULAR, st.NOT_OSCILLATORY, st.NO_MOTION, st.NO_EVENT, st.UNDECIDED))
 FIRST = _model("severity_first", ())
+
+
+# The re-check's lock test (Recheck.skip_locked): the forced oscillator with a phase ph' = 1 (it
+# grows by T each forcing period: lock_rates subtract that); the kick error |x| stays above the
+# settle threshold (a forced steady oscillation): never settled, so only the lock test can skip it.
+def rhs3(t, y, p, dydt):
+    dydt[0] = y[1]
+    dydt[1] = p[2] * math.cos(p[3] * t) - 2.0 * p[1] * p[0] * y[1] - p[0] * p[0] * y[0]
+    dydt[2] = 1.0
+
+
+def initial3(p, y0):
+    y0[0] = 0.0
+    y0[1] = 0.0
+    y0[2] = 0.0
+
+
+def kick_error(t, y, p):
+    return abs(y[0])
+
+
+def _locked(name, **recheck):
+    from mechsweep.model import Kick, Recheck
+    return OdeModel(
+        name=name, description="forced oscillator with a phase, the re-check's lock test",
+        params=SEVERITY.params, states=("x", "v", "ph"), rhs=rhs3, initial=initial3, forcing_period=period,
+        measurements=(Kick("kick", kick_error, horizon=60.0, settle_threshold=1e-3),),
+        recheck=Recheck(factor=1000.0, skip_settled="kick", **recheck))
+
+
+LOCKED = _locked("locked", skip_locked=True, lock_rates=(("ph", 1.0),))
+UNLOCKED = _locked("unlocked", skip_locked=True)  # ph grows: never locked, always integrated again
