@@ -10,7 +10,8 @@ per revolution) compared in scaled units.
 
 ``python tests/data/autobalancer_declaration.py [prefix]`` compares it with
 tests/data/autobalancer_reference.npz (tests/data/record_autobalancer.py) on the design-grid cases
-(the layer's output names mapped to the old ones): per case and array, bitwise or the largest
+(prefix "grid-...") or the small shipped scenes ("scene-...") (the layer's output names mapped to
+the old ones): per case and array, bitwise or the largest
 relative difference. Floquet integrates the state with the variational equations (the old kernel:
 about the exact orbit), so floquet_max is compared to a tolerance.
 """
@@ -133,8 +134,48 @@ def compare(prefix="grid-", floquet_tol=0.1):
     return result
 
 
+def compare_scenes(prefix="scene-", floquet_tol=0.1):
+    """As compare, on the small versions of the shipped auto-balancer scenes (record_autobalancer's
+    scene cases): each scene's points and outputs, the runner's rule (a non-finite requested value:
+    NONFINITE) applied as runner.evaluate_rows does."""
+    import record_autobalancer as rec
+    from mechsweep.model import load
+    from mechsweep.grid import ParameterMatrix
+    from mechsweep.scene import load_scene
+    spec = load.resolve(f"{Path(__file__).resolve()}:MODEL")
+    ref = np.load(rec.FILE)
+    result = {}
+    for label, path, method in rec.scene_cases():
+        if not label.startswith(prefix):
+            continue
+        scene = load_scene(rec.small_scene(path, method))
+        P = ParameterMatrix(scene)(0, scene.n_points)
+        slv = scene.solver
+        kw = dict(slv.settings, method=slv.method, rtol=slv.rtol, atol=slv.atol, max_steps=slv.max_steps)
+        res = evaluate(spec, P, tuple(scene.computed_outputs), kw)
+        n = P.shape[0]
+        finite = np.ones(n, dtype=bool)
+        for k in scene.outputs:
+            finite &= np.isfinite(res[k].reshape(n, -1)).all(axis=1)
+            res[k][np.isinf(res[k])] = np.nan
+        res["status"][(res["status"] == st.OK) & ~finite] = st.NONFINITE
+        for k in tuple(scene.outputs) + ("status", "n_steps", "n_rhs"):
+            v, e = res[k], ref[f"{label}/{k}"]
+            if np.array_equal(e, v.astype(e.dtype), equal_nan=True):
+                result[(label, k)] = ("bitwise", "")
+                continue
+            with np.errstate(all="ignore"):
+                both = np.isfinite(e) & np.isfinite(v)
+                rel = float(np.max(np.abs(v - e)[both] / np.maximum(np.abs(e[both]), 1e-300))) if both.any() else 0.0
+            nan = int((np.isnan(e.astype(float)) != np.isnan(v.astype(float))).sum())
+            ok = k == "floquet_max" and nan == 0 and rel <= floquet_tol * slv.rtol
+            ok = ok or (k in ("n_steps", "n_rhs") and "floquet_max" in scene.computed_outputs)
+            result[(label, k)] = ("tolerance" if ok else "DIFFERENT", f"max rel {rel:.3g}, NaN moved at {nan} of {n}")
+    return result
+
+
 def main(prefix="grid-"):
-    r = compare(prefix)
+    r = compare_scenes(prefix) if prefix.startswith("scene") else compare(prefix)
     for (label, k), (verdict, detail) in r.items():
         if verdict != "bitwise":
             print(f"{label} {k}: {verdict} {detail}")
