@@ -470,8 +470,9 @@ lane_load, lane_run = dop853_lanes.make_lane_trajectory_solver(user_rhs_lanes, r
 
 @jit
 def setup(P, S, rtol, PF, Z0, TT, status, mstat):
-    # serial: a parallel region here leaves the threading layer's workers spinning while the lane
-    # queues (Python threads) run (measured: 2 threads ~7 % slower side by side with it parallel)
+    # serial: a parallel region just before the lane queues (Python threads) may leave the threading
+    # layer's workers spinning while they run (two threads: 0.93 of the hand-written kernels with it
+    # parallel, 0.95-0.99 serial, side by side; docs/model-layer.md)
     n = P.shape[0]
     for i in range(n):
         if status[i] != st.OK:
