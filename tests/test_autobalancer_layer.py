@@ -52,3 +52,24 @@ def test_layer_closed_forms_reproduce_the_hand_written_autobalancer_closed_forms
     # the grid reaches every status the closed forms can give
     assert {st.INFEASIBLE, st.NOT_BALANCEABLE} <= set(r["theta"][2].tolist())
     assert st.SINGULAR in set(r["P_approx"][2].tolist())
+
+
+@pytest.mark.slow  # compiles the whole declaration (main, sampled and closed-form kernels; minutes cold)
+def test_the_whole_autobalancer_declared_on_the_layer_gives_the_reference_statuses_and_values():
+    # tests/data/autobalancer_declaration.py: a measurement's classify (NOT_BALANCEABLE), the
+    # model's status_order (the old SEVERITY) and the Recheck with the old rule's two skips in
+    # scaled units: every status of the dop853 design-grid cases (NOT_REPRODUCIBLE, NOT_BALANCEABLE,
+    # UNDECIDED, NO_EVENT, INFEASIBLE, SINGULAR, MAX_STEPS among them) as the hand-written model's
+    spec = importlib.util.spec_from_file_location("autobalancer_declaration_test", DATA / "autobalancer_declaration.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    r = mod.compare("grid-dop853")
+    assert len({label for label, _ in r}) >= 8
+    for (label, k), (verdict, detail) in r.items():
+        if k == "residual_amplitude":  # the sample instants: 1 ulp at some points (docs/model-layer.md)
+            assert verdict == "bitwise" or ("NaN moved at 0" in detail and float(detail.split()[2][:-1]) <= 1e-15), \
+                (label, detail)
+        else:  # floquet_max to 0.1 rtol; n_steps/n_rhs bitwise where Floquet is not asked for
+            assert verdict in ("bitwise", "tolerance"), (label, k, detail)
+    assert all(r[(label, "status")][0] == "bitwise" for label, _ in r)
+    assert r[("grid-dop853-norecheck", "n_steps")][0] == "bitwise" and r[("grid-dop853-all", "status")][0] == "bitwise"

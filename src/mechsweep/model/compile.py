@@ -90,7 +90,7 @@ def _guard_numbered(name: str) -> str:
     """The guard of a numbered function: a measurement's System function (rhs0, prepare2, ...) or a
     closed form's classify (cfclassify1), as the model's own guard of that role."""
     base = name.rstrip("0123456789")
-    role = "classify" if base == "cfclassify" else base
+    role = "classify" if base in ("cfclassify", "mclassify") else base
     return _GUARD[role].replace(f"def {role}(", f"def {name}(").replace(f"user_{role}(", f"user_{name}(")
 
 
@@ -135,6 +135,25 @@ def {name}(t, y, p, J):
 def _guard_call(name: str, args: str) -> str:
     return (f"@jit\ndef {name}({args}):\n    try:\n        return user_{name}({args})\n    except Exception:\n"
             f"        p[NPI] = 1.0\n        return np.nan\n")
+
+
+def rank_source(order) -> str:
+    """Generated module code of ``worse(a, b)``: the more severe of two status codes in a model's
+    ``status_order`` (model/ode.py ranks), or "" for a model without one."""
+    if not order:
+        return ""
+    from .ode import ranks
+    return (f"\nRANK = np.array({ranks(order).tolist()!r}, dtype=np.int64)  # by status code: 0 most severe\n\n\n"
+            "@jit\ndef worse(a, b):\n    return b if RANK[b] < RANK[a] else a\n")
+
+
+def combine(order, a: str, c: str, indent: int) -> str:
+    """Kernel code folding status ``c`` into ``a``: the first failure wins, or with a model's
+    ``status_order`` the more severe (``worse``)."""
+    pad = " " * indent
+    if order:
+        return f"\n{pad}{a} = worse({a}, {c})"
+    return f"\n{pad}if {c} != st.OK and {a} == st.OK:\n{pad}    {a} = {c}"
 
 
 def columns(chosen) -> list[int]:
@@ -185,6 +204,8 @@ def _functions(model, chosen, closed) -> list[tuple[str, object]]:
     for k, m in enumerate(chosen):
         for role, func in getattr(m, "functions", lambda: ())():
             f.append((f"{role}{k}", func))
+        if getattr(m, "classify", None) is not None:  # where the measurement applies (else skipped)
+            f.append((f"mclassify{k}", m.classify))
     for j, c in enumerate(closed):
         f.append((f"closed{j}", c.func))
         if getattr(c, "classify", None) is not None:
@@ -206,7 +227,7 @@ def module_prologue(what: str, imports: tuple[str, ...], refs: dict) -> list[str
     for name in refs:
         if name in _GUARD:
             lines.append(_GUARD[name] + "\n")
-        elif name.rstrip("0123456789") in _SYSTEM_ROLES + ("cfclassify",) and name[-1].isdigit():
+        elif name.rstrip("0123456789") in _SYSTEM_ROLES + ("cfclassify", "mclassify") and name[-1].isdigit():
             lines.append(_guard_numbered(name) + "\n")
     return lines
 
@@ -237,6 +258,8 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
     lines.append(f"NP = {n_p}\nNSET = {n_set}\nNPI = {npi}  # p[NPI]: the point's user-error flag\nSCR = NPI + 1\n"
                  f"NS = {n_s}\nNQ = {n_q}\nNSCR = {n_scr}\n"
                  f"BLOCK = {BLOCK}\n")
+    order = tuple(getattr(model, "status_order", ()))
+    lines.append(rank_source(order))
     for j, c in enumerate(closed):
         args = ", ".join(["p"] + [f"x{i}" for i in range(len(c.needs))])
         lines.append("\n" + _guard_call(f"closed{j}", args))
@@ -348,13 +371,14 @@ def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
             args = ", ".join(["p"] + [f"m{mnames[x]}" if x in mnames else mvalues[x] if x in mvalues
                                       else f"cf{[d.name for d in closed].index(x)}" for x in c.needs])
             if f"cfclassify{j}" in refs:  # the formula applies only where its classify says OK
+                fold = combine(order, "code", "cc", 20) if order else """
+                    if code == st.OK:
+                        code = cc"""
                 out.append(f"""
             cf{j} = math.nan
             if need[{j}]:
                 cc = cfclassify{j}(p)
-                if cc != st.OK:
-                    if code == st.OK:
-                        code = cc
+                if cc != st.OK:{fold}
                 else:
                     cf{j} = closed{j}({args})
                     table[i, {closed_col[c.name]}] = cf{j}""")
@@ -392,8 +416,8 @@ def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
         body += [f"\n            {v} = math.nan" for v in mvalues.values()]
         body.append("\n            c = prepare(p, rtol)" if "prepare" in refs else "\n            c = st.OK")
         body.append("""
-            if c != st.OK:
-                code = c
+            if c != st.OK:""" + (combine(order, "code", "c", 16) if order else """
+                code = c""") + """
             else:""")
         meas = []
         if group:
@@ -404,6 +428,7 @@ def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
                 n_steps[i] += a
                 n_rhs[i] += b_""")
         for k, m in enumerate(chosen):
+            start = len(meas)
             tm = ""
             if direct:
                 tm = f"t_max{k}(p)" if f"t_max{k}" in refs else repr(float(m.t_max))
@@ -464,6 +489,12 @@ def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
                 meas.append(f"""
                 if c == st.OK:
                     val = value{k}(p, val)""")
+            if f"mclassify{k}" in refs:  # the measurement only where its classify says OK
+                inner = "".join(meas[start:]).replace("\n", "\n    ")
+                meas[start:] = [f"""
+                val = math.nan
+                c = mclassify{k}(p)
+                if c == st.OK:{inner}"""]
             meas.append(f"""
                 if p[NPI] != 0.0:
                     c = st.USER_ERROR
@@ -471,9 +502,10 @@ def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
                     c = st.NONFINITE
                 if c == st.OK:
                     table[i, {cols[k]}] = val
-                    m{k} = val{keep}
+                    m{k} = val{keep}""" + (f"""
+                else:{combine(order, "code", "c", 20)}""" if order else """
                 elif code == st.OK:
-                    code = c""")
+                    code = c"""))
         body.append("".join(meas))
         body.append(closed_code(True))
     fd_add = ("\n            n_rhs[i] += int(p[SCR + 3 * NS])  # the rhs calls of the engine's Jacobian"
@@ -639,7 +671,9 @@ def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes) -> st
         method = "dop853"  # the shared path integrates with dop853 only (ModelSpec.methods_for)
     first_root = all(getattr(m, "n", 1) == 1 and getattr(m, "direction", "down") == "down" for m in chosen
                      if type(m).__name__ == "FirstEvent")  # the lane kernel finds the first root of the event as given
-    lane_rhs = lane_kernels.applies(model, chosen, method) if use_lanes and first_root else None
+    # the lane kernels (model/lanes.py) know neither a measurement's classify nor a status order
+    plain = not getattr(model, "status_order", ()) and not any(getattr(m, "classify", None) for m in chosen)
+    lane_rhs = lane_kernels.applies(model, chosen, method) if (use_lanes and first_root and plain) else None
     key = hashlib.sha256()
     for name, ref in refs.items():
         key.update(name.encode())

@@ -63,6 +63,7 @@ class Crossing:
     t_max: float = 100.0
     unit: str = "s"
     long_name: str = ""
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
 
     def output(self) -> Output:
         return Output(self.name, self.name, self.unit,
@@ -121,6 +122,7 @@ class Period:
     t_max: float = 100.0
     unit: str = "s"
     long_name: str = ""
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
 
     def output(self) -> Output:
         return Output(self.name, "T", self.unit, self.long_name or f"period of {self.state} (crossings of {self.level:g})",
@@ -164,6 +166,7 @@ class StateAt:
     t: float
     unit: str = ""
     long_name: str = ""
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
 
     def output(self) -> Output:
         return Output(self.name, f"{self.state}(t)", self.unit, self.long_name or f"{self.state} at t = {self.t:g}",
@@ -217,6 +220,7 @@ class Extremum:
     kind: str = "max"
     unit: str = ""
     long_name: str = ""
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
 
     def _window(self) -> str:
         def one(x):
@@ -343,6 +347,7 @@ class Floquet:
     initial: Callable | None = field(default=None, repr=False, compare=False)
     stable_name: str = ""  # the verdict output's name; default name + "_stable"
     kind_name: str = ""  # the kind output's name; default name + "_kind"
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
     needs_forcing = True
     n_values = 3  # the largest modulus, the kind and the critical multiplier's argument
 
@@ -614,6 +619,7 @@ class FirstEvent:
     n: int = 1  # the n-th root (in direction) instead of the first
     direction: str = "down"  # "down": event from > 0 to <= 0; "up": from < 0 to >= 0
     since: int = 0  # > 0: the time from root `since` to root n (n=2, since=1: a period), not from t = 0
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
     direct = True  # integrates on its own with solver.method (compile.py)
 
     def output(self) -> Output:
@@ -1118,6 +1124,7 @@ class Steady:
     unit: str = ""
     long_name: str = ""
     value: Callable | None = field(default=None, repr=False, compare=False)
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
     sampled = True
     n_values = 4
 
@@ -1225,6 +1232,7 @@ class Kick:
     unit: str = ""
     time_unit: str = "s"
     time_value: Callable | None = field(default=None, repr=False, compare=False)
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
     sampled = True
     n_values = 5  # verdict, settling time, final error; the settling time before time_value, the simulated time
 
@@ -1322,6 +1330,7 @@ class History:
     unit: str = ""
     long_name: str = ""
     value: Callable | None = field(default=None, repr=False, compare=False)
+    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
     sampled = True
     n_values = 0
 
@@ -1379,14 +1388,25 @@ class Recheck:
     below integration failures). ``factor`` is a number or the name of one of the model's
     settings; factor <= 0 turns the check off. ``skip_settled`` (optional): the name of a Kick
     whose points are not integrated again when its settling time (before ``time_value``) is at
-    most ``settled_fraction`` of the simulated time (they end on an attracting motion). Both runs
-    count in n_steps/n_rhs. Cost: up to one more integration per point, at the tighter rtol."""
+    most ``settled_fraction`` of the simulated time (they end on an attracting motion); that Kick
+    is observed at every integrated point for this (also where its own classify skips it, and when
+    none of its outputs is asked for). ``skip_locked`` (with ``skip_settled``): neither are the
+    points whose state, sampled at the whole forcing periods of the second half of that Kick's
+    horizon, changes by at most factor (rtol + atol) from one period to the next (the largest
+    change of any state, less ``rate`` times the elapsed time for the states of ``lock_rates`` =
+    ((state, rate), ...), e.g. an angle that turns with the forcing): locked to the forcing period.
+    Only the asked-for outputs are compared (where their measurement applies at the point);
+    ``measured_units``: before ``value``/``time_value`` (in the units the integration measures).
+    Both runs count in n_steps/n_rhs. Cost: up to one more integration per point, at the tighter rtol."""
 
     factor: object = 1000.0
     tighten: float = 100.0
     rtol_floor: float = 1e-14
     skip_settled: str | None = None
     settled_fraction: float = 0.5
+    skip_locked: bool = False
+    lock_rates: tuple = ()
+    measured_units: bool = False
 
     def validate(self, measurements, settings):
         if isinstance(self.factor, str):
@@ -1406,6 +1426,9 @@ class Recheck:
             if not 0.0 <= self.settled_fraction <= 1.0:
                 raise ValueError(f"recheck: settled_fraction = {self.settled_fraction!r}; expected a fraction in "
                                  "[0, 1]")
+
+        if self.skip_locked and self.skip_settled is None:
+            raise ValueError("recheck: skip_locked needs skip_settled (the Kick whose horizon the lock test spans)")
 
     def tight_rtol(self, rtol: float) -> float:
         return min(rtol, max(rtol / self.tighten, self.rtol_floor))

@@ -43,6 +43,27 @@ def _warn_user_error(model, P, status, S, rtol) -> None:
                   f"how often); first seen at {at}: {why}", UserModelWarning, stacklevel=2)
 
 
+def ranks(order) -> np.ndarray:
+    """rank[code] for a model's ``status_order`` (most severe first): a listed status its position,
+    a status not listed -1 (above every listed one: an unexpected problem is shown, not hidden),
+    OK last."""
+    rank = np.full(max(st.MEANINGS) + 1, -1, dtype=np.int64)
+    for r, code in enumerate(order):
+        rank[int(code)] = r
+    rank[st.OK] = len(order)
+    return rank
+
+
+def worse(current, new, order):
+    """Element-wise the more severe of two status arrays in ``order`` (see ranks); equal ranks keep
+    ``current``. Without an order: ``current`` where it is not OK, else ``new`` (first failure wins)."""
+    new = np.broadcast_to(np.asarray(new, dtype=current.dtype), current.shape)
+    if not order:
+        return np.where(current == st.OK, new, current)
+    rank = ranks(order)
+    return np.where(rank[new] < rank[current], new, current)
+
+
 @dataclass(frozen=True)
 class OdeModel:
     """A model y' = rhs(t, y, p) released from ``initial(p, y0)`` at t = 0.
@@ -74,6 +95,15 @@ class OdeModel:
       and may refuse the integration (non-OK: measurements NaN with that status; closed forms kept).
     - ``output_order``: optional order of the outputs in the ModelSpec (default: measurements, then
       closed forms).
+    - ``status_order``: optional tuple of status codes, most severe first. Without it a point's status
+      is the first failure in the kernel's order (classify, closed forms, prepare, the measurements
+      in declared order, the sampled ones last). With it, every stage runs on every point the model's
+      ``classify``/``prepare`` accept and whose integration did not fail, and the point's status is
+      the most severe (first in this order) among the statuses of the outputs asked for; a status
+      not listed ranks above every listed one. A measurement's own ``classify(p) -> status`` (every
+      measurement class has one, as ClosedForm) skips that measurement at a point (its outputs NaN,
+      its status counted only when one of its outputs is asked for or needed) with or without an
+      order; the other measurements' values are kept.
     - ``rhs_lanes(t, Y, P, dY)``: optional lane form of ``rhs`` for the sampled-trajectory
       measurements by dop853 (model/trajectory.py, ``mechsweep.ode.dop853_lanes``): column l of
       Y, P, dY and t[l] are one trajectory's state, full ``p`` row and time; it must give the
@@ -109,6 +139,7 @@ class OdeModel:
     references: tuple[str, ...] = ()  # ModelSpec.references: the source documents
     rhs_lanes: Callable | None = field(default=None, repr=False)
     recheck: object = None  # measure.Recheck: the sampled outputs integrated again at a tighter rtol
+    status_order: tuple[int, ...] = ()  # most severe first: a point's status among its outputs' (see worse)
 
     def __post_init__(self):
         if self.recheck is not None:
@@ -116,7 +147,12 @@ class OdeModel:
             if not isinstance(self.recheck, Recheck):
                 raise ValueError(f"model {self.name!r}: recheck must be a mechsweep.model.Recheck (got {self.recheck!r})")
             self.recheck.validate(self.measurements, self.settings)
-        for name in ("params", "states", "measurements", "closed_forms", "internal", "settings", "output_order"):
+            bad = [x for x, _ in self.recheck.lock_rates if x not in self.states]
+            if bad:
+                raise ValueError(f"model {self.name!r}: recheck lock_rates name {bad}, which are not states "
+                                 f"({', '.join(self.states)})")
+        for name in ("params", "states", "measurements", "closed_forms", "internal", "settings", "output_order",
+                     "status_order"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
         object.__setattr__(self, "status_notes", tuple(sorted(dict(self.status_notes).items())))
         if not self.states:
@@ -129,6 +165,11 @@ class OdeModel:
                          f"measurements= takes {', '.join(c.__name__ for c in MEASUREMENTS)}")
                 raise ValueError(f"model {self.name!r}: measurements= holds {type(m).__name__} "
                                  f"{getattr(m, 'name', m)!r}, which is not a measurement: {where}")
+        codes = set(st.MEANINGS) - {st.PENDING, st.OK}
+        bad = [c for c in self.status_order if not (isinstance(c, (int, np.integer)) and int(c) in codes)]
+        if bad or len(set(self.status_order)) != len(self.status_order):
+            raise ValueError(f"model {self.name!r}: status_order must list status codes of mechsweep.status once each "
+                             f"(got {self.status_order!r}; allowed: {sorted(codes)})")
         names = [o.name for m in self.measurements for o in _outputs(m)] + [c.name for c in self.closed_forms]
         if len(set(names)) != len(names):
             raise ValueError(f"model {self.name!r}: output names repeat: {names}")
@@ -277,7 +318,7 @@ class OdeModel:
                     evaluate(P, tuple(rest), solver, out, status, n_steps, n_rhs)
                 code = before.copy()
                 trajectory.evaluate(model, sampled, P, wanted, solver, out, code, n_steps, n_rhs)
-                status[:] = np.where(status == st.OK, code, status)
+                status[:] = worse(status, code, model.status_order)
                 return
             method = solver.method if (solver is not None and chosen) else "dop853"
             allowed = model.methods_for(wanted)
@@ -301,7 +342,11 @@ class OdeModel:
                    n_rhs)
             _warn_user_error(model, P, status, S, rtol)
             for j, m in enumerate(chosen):
-                if hasattr(m, "finish"):
+                if hasattr(m, "finish") and model.status_order:  # its own status (OK where it has a value), ranked
+                    own = np.zeros_like(status)
+                    m.finish(table[:, cols[j]:cols[j + 1]], wanted, solver, out, own)
+                    status[:] = worse(status, own, model.status_order)
+                elif hasattr(m, "finish"):
                     m.finish(table[:, cols[j]:cols[j + 1]], wanted, solver, out, status)
                 elif m.name in out:
                     out[m.name][:] = table[:, cols[j]]

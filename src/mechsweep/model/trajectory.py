@@ -34,6 +34,7 @@ import numpy as np
 from .. import status as st
 from .._jit import jit
 from . import load
+from .ode import worse
 
 BLOCK = 8  # points per scratch allocation (a block holds one trajectory of n_samples x n_states)
 METHODS = ("dop853", "radau", "auto")
@@ -200,8 +201,12 @@ def _val_source(name):
             f"        p[NPI] = 1.0\n        return np.nan\n\n")
 
 
-def kernel_source(model, chosen, refs, method) -> str:
-    from .compile import _GUARD, layout
+def kernel_source(model, chosen, refs, method, always=-1, lock=(), raw=False) -> str:
+    """``always``: the measurement observed even where its classify skips it (a Recheck's
+    skip_settled Kick); ``lock``: the per-state rates of the lock test (Recheck.skip_locked), its
+    rows the last column of bits, its value the column after the measurements'; ``raw``: the
+    measured values also before value/time_value into rawv/rawh (Recheck.measured_units)."""
+    from .compile import _GUARD, _guard_numbered, layout, rank_source
 
     n_p, n_set, n_int = layout(model)
     n_s = len(model.states)
@@ -216,10 +221,16 @@ def kernel_source(model, chosen, refs, method) -> str:
              "from mechsweep.model.trajectory import kick_observe, steady_observe\n\n"]
     for name, ref in refs.items():
         lines.append(f"user_{name} = jitted{ref!r}\n")
-    lines.append(f"\nNP = {n_p}\nNSET = {n_set}\nNPI = {npi}\nSCR = NPI + 1\nNS = {n_s}\nBLOCK = {BLOCK}\n\n")
+    lines.append(f"\nNP = {n_p}\nNSET = {n_set}\nNPI = {npi}\nSCR = NPI + 1\nNS = {n_s}\nBLOCK = {BLOCK}\n"
+                 f"NM = {len(chosen)}\n\n")
+    if lock:
+        lines.append(f"LOCK_RATES = np.array({[float(x) for x in lock]!r})\nLOCKCOL = {columns(chosen)[-1]}\n\n")
     for name in refs:
         if name in _GUARD:
             lines.append(_GUARD[name] + "\n")
+        elif name.startswith("mclassify"):
+            lines.append(_guard_numbered(name) + "\n")
+    lines.append(rank_source(_order(model)))
     if method in ("radau", "auto") and "jac" not in refs:
         from .compile import _fd_jac
         lines.append(_fd_jac("jac", "rhs") + "\n")
@@ -237,26 +248,47 @@ def kernel_source(model, chosen, refs, method) -> str:
             lines.append(_obs_source(f"of{k}", m.of, model.states))
         if f"value{k}" in refs:
             lines.append(_val_source(f"value{k}"))
-    body = _observe_body(chosen)
+    body = _observe_body(chosen, refs, _order(model), always, bool(lock), raw)
     OBSERVE[:] = [b.replace("\n            ", "\n    ") for b in body]
-    lines.append(_lanes_source(model, refs) if "rhs_lanes" in refs else "")
-    return _kernel_tail(lines, body, refs, method)
+    lines.append(_lanes_source(model, chosen, refs) if "rhs_lanes" in refs else "")
+    order = _order(model)
+    return _kernel_tail(lines, body, refs, method, _measurement_checks(chosen, refs, order, 12),
+                        _failed(order, 16))
 
 
-def _observe_body(chosen) -> list[str]:
+def _failed(order, indent: int) -> str:
+    """Kernel code after a failed integration (status c): every measurement not skipped gets c."""
+    from .compile import combine
+    pad = " " * indent
+    return (f"\n{pad}for k in range(NM):\n{pad}    if mstat[i, k] == st.OK:\n{pad}        mstat[i, k] = c"
+            + combine(order, "code", "c", indent))
+
+
+def _order(model) -> tuple:
+    return tuple(getattr(model, "status_order", ()))
+
+
+def _observe_body(chosen, refs, order, always=-1, lock=False, raw=False) -> list[str]:
     """Kernel code: every measurement's observables on its rows and its observer (12 spaces
-    indent; reads te, traj, p, s, bits, K, hoff, ob, ob2; writes vals[i], hist[i], code)."""
+    indent; reads te, traj, p, s, bits, K, hoff, ob, ob2; writes vals[i], hist[i], mstat[i], code).
+    A measurement with a classify is observed only where it passed (mstat[i, k] == OK)."""
+    from .compile import combine
     cols = columns(chosen)
     body = []
     for k, m in enumerate(chosen):
+        start = len(body)
         kind = type(m).__name__
         # the measurement's transform of its values (value(p, x) / time_value(p, t)): the
         # columns it applies to (Steady: peak and first harmonic; Kick: the settling time)
         fn = getattr(m, "time_value", None) if kind == "Kick" else getattr(m, "value", None)
         transform = ""
+        if raw and kind != "History":  # the measured values, before the transform
+            transform = f"""
+            for q in range({cols[k]}, {cols[k + 1]}):
+                rawv[i, q] = vals[i, q]"""
         if fn is not None and kind != "History":
             first, last = (cols[k], cols[k] + 2) if kind == "Steady" else (cols[k] + 1, cols[k] + 2)
-            transform = f"""
+            transform += f"""
             if c == st.OK:
                 for q in range({first}, {last}):
                     if math.isfinite(vals[i, q]):
@@ -281,23 +313,69 @@ def _observe_body(chosen) -> list[str]:
             value = f"""
                     if math.isfinite(v):
                         v = value{k}(p, v)""" if fn is not None else ""
+            raw_h = """
+                    rawh[i, h] = v""" if raw else ""
             body.append(f"""
             c = st.OK
             h = hoff[{k}]
             for j in range(ns_):
                 if bits[j, {k}]:
-                    v = of{k}(te[j], traj[j], p){value}
+                    v = of{k}(te[j], traj[j], p){raw_h}{value}
                     if not math.isfinite(v):
                         c = st.NONFINITE
                     hist[i, h] = v
                     h += 1""")
+        if k == always and f"mclassify{k}" in refs:  # observed everywhere; its status only where it applies
+            body.append(f"""
+            if mstat[i, {k}] == st.OK:
+                mstat[i, {k}] = c""" + combine(order, "code", "c", 16))
+            continue
+        body.append(f"""
+            mstat[i, {k}] = c""" + combine(order, "code", "c", 12))
+        if f"mclassify{k}" in refs:
+            inner = "".join(body[start:]).replace("\n", "\n    ")
+            body[start:] = [f"""
+            if mstat[i, {k}] == st.OK:{inner}"""]
+    if lock:  # the largest change of the state over one forcing period (bits[:, NM]: whole periods)
         body.append("""
-            if c != st.OK and code == st.OK:
-                code = c""")
+            lock = 0.0
+            kr = -1
+            nrev = 0
+            for j in range(ns_):
+                if bits[j, NM]:
+                    if kr >= 0:
+                        for q in range(NS):
+                            dz = traj[j, q] - traj[kr, q]
+                            if LOCK_RATES[q] != 0.0:
+                                dz -= LOCK_RATES[q] * (te[j] - te[kr])
+                            if not abs(dz) <= lock:  # NaN propagates
+                                lock = abs(dz)
+                    kr = j
+                    nrev += 1
+            vals[i, LOCKCOL] = lock if nrev >= 2 else math.inf""")
     return body
 
 
-def _kernel_tail(lines, body, refs, method) -> str:
+def _measurement_checks(chosen, refs, order, indent: int) -> str:
+    """Kernel code run before a point's integration: each measurement's classify (where declared)
+    into mstat[i, k] (-status where it does not apply: skipped) and folded into ``code``; ``go``:
+    whether any measurement is left to observe (else the point is not integrated)."""
+    from .compile import combine
+    pad = " " * indent
+    if not any(f"mclassify{k}" in refs for k in range(len(chosen))):
+        return f"\n{pad}code = st.OK\n{pad}for k in range(NM):\n{pad}    mstat[i, k] = st.OK\n{pad}go = True"
+    out = f"\n{pad}code = st.OK\n{pad}go = False"
+    for k in range(len(chosen)):
+        if f"mclassify{k}" in refs:
+            out += (f"\n{pad}c = mclassify{k}(p)\n{pad}if c != st.OK:\n{pad}    mstat[i, {k}] = -c"
+                    + combine(order, "code", "c", indent + 4) + f"\n{pad}else:\n{pad}    mstat[i, {k}] = st.OK"
+                    f"\n{pad}    go = True")
+        else:
+            out += f"\n{pad}mstat[i, {k}] = st.OK\n{pad}go = True"
+    return out
+
+
+def _kernel_tail(lines, body, refs, method, checks="", fail="") -> str:
     if method == "dop853":
         integrate = """
             c, a, b_ = traj_d(0.0, y, p, te, rtol, atol, 0.0, max_steps, work, traj)"""
@@ -319,7 +397,7 @@ def _kernel_tail(lines, body, refs, method) -> str:
     lines.append(f"""
 
 @pjit
-def kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, status, n_steps, n_rhs):
+def kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, rawv, rawh, status, mstat, n_steps, n_rhs):
     n = P.shape[0]
     ns_ = s.size
     n_blocks = (n + BLOCK - 1) // BLOCK
@@ -343,15 +421,18 @@ def kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, status, n_
             if not (math.isfinite(T) and T > 0.0):
                 status[i] = st.INFEASIBLE
                 continue
+{checks}
+            if not go:  # no measurement applies here: not integrated
+                status[i] = code
+                continue
             for j in range(ns_):
                 te[j] = T * s[j]
             initial(p, y){integrate}
             n_steps[i] += a
             n_rhs[i] += b_
-            if c != st.OK:
-                status[i] = c
-                continue
-            code = st.OK{''.join(body)}
+            if c != st.OK:{fail}
+                status[i] = code
+                continue{''.join(body)}
             if p[NPI] != 0.0:
                 code = st.USER_ERROR
             status[i] = code
@@ -369,13 +450,17 @@ def _point_checks(refs, indent: int) -> tuple[str, str]:
             check("prepare(p, rtol)") if "prepare" in refs else "")
 
 
-def _lanes_source(model, refs) -> str:
+def _lanes_source(model, chosen, refs) -> str:
     """The DOP853 lanes path (a model that declares ``rhs_lanes``): ``setup`` prepares every point
     (p, status, T, initial state) in parallel, ``queue`` runs a queue of points of one forcing
     period through ``dop853_lanes`` and observes each trajectory as it ends (the same observers,
     the same floats as the one-trajectory kernel: the lanes give dop853's steps bitwise)."""
     classify, prepare = _point_checks(refs, 8)
     forcing = "forcing(p)" if "forcing" in refs else "1.0"
+    order = _order(model)
+    checks = _measurement_checks(chosen, refs, order, 8)
+    from .compile import combine
+    fail = _failed(order, 12).replace("code", "cc")
     return f"""
 
 from mechsweep.ode import dop853_lanes
@@ -383,10 +468,13 @@ from mechsweep.ode import dop853_lanes
 lane_load, lane_run = dop853_lanes.make_lane_trajectory_solver(user_rhs_lanes, rhs)
 
 
-@pjit
-def setup(P, S, rtol, PF, Z0, TT, status):
+@jit
+def setup(P, S, rtol, PF, Z0, TT, status, mstat):
+    # serial: a parallel region just before the lane queues (Python threads) may leave the threading
+    # layer's workers spinning while they run (two threads: 0.93 of the hand-written kernels with it
+    # parallel, 0.95-0.99 serial, side by side; docs/model-layer.md)
     n = P.shape[0]
-    for i in prange(n):
+    for i in range(n):
         if status[i] != st.OK:
             continue
         p = PF[i]
@@ -399,23 +487,26 @@ def setup(P, S, rtol, PF, Z0, TT, status):
         T = {forcing}
         if not (math.isfinite(T) and T > 0.0):
             status[i] = st.INFEASIBLE
+            continue{checks}
+        status[i] = code
+        if not go:  # no measurement applies here: not integrated (TT stays NaN)
             continue
         TT[i] = T
         initial(p, Z0[i])
 
 
 @jit
-def observe(i, p, te, traj, s, bits, K, hoff, vals, hist, ob, ob2):
+def observe(i, p, te, traj, s, bits, K, hoff, vals, hist, rawv, rawh, ob, ob2, mstat, status):
     ns_ = s.size
-    code = st.OK{''.join(OBSERVE)}
+    code = status[i]{''.join(OBSERVE)}
     if p[NPI] != 0.0:
         code = st.USER_ERROR
     return code
 
 
 @jit
-def queue(lanes, idx, first, step, PF, Z0, te, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, status,
-          n_steps, n_rhs):
+def queue(lanes, idx, first, step, PF, Z0, te, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, rawv, rawh,
+          status, mstat, n_steps, n_rhs):
     ws = dop853_lanes.workspace(NS, PF.shape[1], lanes, te.size)
     traj = ws[dop853_lanes.TRAJ]
     ob = np.zeros(s.size)
@@ -435,7 +526,10 @@ def queue(lanes, idx, first, step, PF, Z0, te, s, bits, K, hoff, rtol, atol, max
         j, c, a, b_ = dop853_lanes.lane_result(ws, lane)
         i = idx[j]
         if c == st.OK:
-            c = observe(i, PF[i], te, traj[lane], s, bits, K, hoff, vals, hist, ob, ob2)
+            c = observe(i, PF[i], te, traj[lane], s, bits, K, hoff, vals, hist, rawv, rawh, ob, ob2, mstat, status)
+        else:
+            cc = status[i]{fail}
+            c = cc
         status[i] = c
         n_steps[i] += a
         n_rhs[i] += b_
@@ -450,7 +544,7 @@ def queue(lanes, idx, first, step, PF, Z0, te, s, bits, K, hoff, rtol, atol, max
 OBSERVE: list[str] = []  # set by kernel_source for _lanes_source (the observation body, 4 spaces indent)
 
 
-def kernel_for(model, chosen, method):
+def kernel_for(model, chosen, method, always=-1, lock=(), raw=False):
     from .compile import _functions, load_generated
 
     funcs = [(n, f) for n, f in _functions(model, (), ()) if n in ("rhs", "initial", "forcing", "jac", "classify",
@@ -458,6 +552,8 @@ def kernel_for(model, chosen, method):
     for k, m in enumerate(chosen):
         for role, func in m.functions():
             funcs.append((f"{role}{k}", func))
+        if getattr(m, "classify", None) is not None:
+            funcs.append((f"mclassify{k}", m.classify))
     if method == "dop853" and getattr(model, "rhs_lanes", None) is not None:
         funcs.append(("rhs_lanes", model.rhs_lanes))
     refs = {name: load.function_ref(func, name, model.name) for name, func in funcs}
@@ -466,10 +562,11 @@ def kernel_for(model, chosen, method):
         key.update(name.encode())
         key.update(repr(ref).encode())
         key.update(load.module_source(ref[0], ref[1]))
-    key.update(repr((model.name, _layout(model), len(model.states), tuple(m.key() for m in chosen), method)).encode())
+    key.update(repr((model.name, _layout(model), len(model.states), tuple(m.key() for m in chosen), method,
+                     _order(model), always, tuple(lock), raw)).encode())
     name = "mechsweep_traj_" + key.hexdigest()[:20]
     if name not in _KERNELS:
-        _KERNELS[name] = load_generated(name, kernel_source(model, chosen, refs, method))
+        _KERNELS[name] = load_generated(name, kernel_source(model, chosen, refs, method, always, lock, raw))
     return _KERNELS[name]
 
 
@@ -483,7 +580,29 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
     lanes when the model declares ``rhs_lanes`` (unless ``lanes`` is False: the same values)."""
     method = solver.method
     settings = dict(solver.settings)
+    rc = _active_recheck(model, settings)
+    always, lock, raw = -1, (), False
+    if rc is not None and rc.skip_settled is not None:  # its Kick observed everywhere, asked for or not
+        names = [m.name for m in chosen]
+        if rc.skip_settled not in names:
+            import dataclasses
+            kick = next(m for m in model.measurements if m.name == rc.skip_settled)
+            chosen = tuple(chosen) + (dataclasses.replace(kick, classify=None),)
+        always = [m.name for m in chosen].index(rc.skip_settled)
+        if rc.skip_locked:
+            rates = dict(rc.lock_rates)
+            lock = tuple(float(rates.get(x, 0.0)) for x in model.states)
+        raw = bool(rc.measured_units)
     s, bits, K = grid(chosen, settings)
+    if lock:  # the whole forcing periods of the second half of the Kick's horizon: one more bits column
+        from .measure import _number
+        H = _number(chosen[always].horizon, settings)
+        whole = np.arange(math.ceil(0.5 * H), math.floor(H) + 1, dtype=np.float64)
+        s2 = np.unique(np.concatenate([s, whole]))
+        bits2 = np.zeros((s2.size, bits.shape[1] + 1), dtype=np.int64)
+        bits2[np.searchsorted(s2, s), :bits.shape[1]] = bits
+        bits2[:, -1] = np.isin(s2, whole)
+        s, bits = s2, bits2
     for k, m in enumerate(chosen):
         if type(m).__name__ == "Steady" and not {f"{m.name}_h1", f"{m.name}_phase"} & set(wanted):
             K[k, 2] = 0.0  # no first harmonic asked for: the observer skips its cos/sin per sample
@@ -495,53 +614,110 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
             n_hist += int(np.count_nonzero(bits[:, k]))
     cols = columns(chosen)
     n = P.shape[0]
-    vals = np.full((n, cols[-1]), np.nan)
+    vals = np.full((n, cols[-1] + (1 if lock else 0)), np.nan)
     hist = np.full((n, n_hist), np.nan)
+    rawv = np.full((n, cols[-1] if raw else 0), np.nan)
+    rawh = np.full((n, n_hist if raw else 0), np.nan)
     S = np.array([float(settings.get(x.name, x.default)) for x in model.settings], dtype=np.float64)
-    mod = kernel_for(model, chosen, method)
+    mod = kernel_for(model, chosen, method, always, lock, raw)
     code = status.copy()
+    mstat = np.full((n, len(chosen)), NOT_RUN, dtype=np.int64)
     P = np.ascontiguousarray(P, dtype=np.float64)
+    order = _order(model)
 
-    def run(P, rtol, vals, hist, code, n_steps, n_rhs):
+    def run(P, rtol, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs):
         if hasattr(mod, "queue") and lanes and lane_count(s.size, model):
-            _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, n_steps, n_rhs, rtol)
+            _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs,
+                       rtol)
         else:
-            mod.kernel(P, S, s, bits, K, hoff, rtol, solver.atol, solver.max_steps, vals, hist, code, n_steps, n_rhs)
+            mod.kernel(P, S, s, bits, K, hoff, rtol, solver.atol, solver.max_steps, vals, hist, rawv, rawh, code, mstat,
+                       n_steps, n_rhs)
 
-    run(P, solver.rtol, vals, hist, code, n_steps, n_rhs)
-    moved = _recheck(model, chosen, settings, solver, P, run, vals, hist, code, n_steps, n_rhs, cols)
-    good = code == st.OK
+    run(P, solver.rtol, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs)
+    moved = None
+    if rc is not None:
+        moved = _recheck(rc, chosen, wanted, settings, solver, P, run, (vals, hist, rawv, rawh), code, mstat, n_steps,
+                         n_rhs, cols, bits, order, lock)
+    good = measured(mstat, code, order)
     for k, m in enumerate(chosen):
         if m.n_values == 0:
             if m.name in out:
                 w = int(np.count_nonzero(bits[:, k]))
-                out[m.name][:] = np.where(good[:, None], hist[:, hoff[k]:hoff[k] + w], np.nan)
+                out[m.name][:] = np.where(good[:, k, None], hist[:, hoff[k]:hoff[k] + w], np.nan)
         else:
-            v = np.where(good[:, None], vals[:, cols[k]:cols[k + 1]], np.nan)
-            m.finish(v, wanted, solver, out, code)
-    if moved is not None:  # above the statuses that leave a value NaN for a reason, below failures
+            v = np.where(good[:, k, None], vals[:, cols[k]:cols[k + 1]], np.nan)
+            if order:  # its own status (OK where it has values), ranked into the point's
+                own = np.zeros_like(code)
+                m.finish(v, wanted, solver, out, own)
+                code[:] = worse(code, own, order)
+            else:
+                m.finish(v, wanted, solver, out, code)
+    if moved is not None and order:
+        code[:] = worse(code, np.where(moved, st.NOT_REPRODUCIBLE, st.OK), order)
+    elif moved is not None:  # above the statuses that leave a value NaN for a reason, below failures
         soft = (code == st.OK) | (code == st.NO_EVENT) | (code == st.UNDECIDED)
         code[:] = np.where(moved & soft, st.NOT_REPRODUCIBLE, code)
     status[:] = code
 
 
-def _recheck(model, chosen, settings, solver, P, run, vals, hist, code, n_steps, n_rhs, cols):
-    """The model's Recheck (measure.Recheck): which points moved when integrated again at the
-    tighter rtol (None when the model declares none or its factor is <= 0)."""
+NOT_RUN = 127  # mstat before a point's measurements ran (a status no measurement gives)
+
+
+def measured(mstat, code, order) -> np.ndarray:
+    """good[i, k]: whether measurement k's values at point i stand. mstat[i, k]: OK, its failure
+    (> 0), -status where its classify skipped it, NOT_RUN where the point was not integrated.
+    With a status order only its own status counts; without one (first failure wins) any failure
+    of another measurement at the point voids it too (not a skip)."""
+    ok = (mstat == st.OK) & (code != st.USER_ERROR)[:, None]
+    if order:
+        return ok
+    return ok & ~(mstat > 0).any(axis=1)[:, None]
+
+
+def integrated(mstat, code) -> np.ndarray:
+    """Points whose trajectory was integrated and observed without failure (skips allowed)."""
+    return (mstat <= 0).all(axis=1) & (mstat == st.OK).any(axis=1) & (code != st.USER_ERROR)
+
+
+def _active_recheck(model, settings):
+    """The model's Recheck where its factor is > 0 (else None: no re-check)."""
     from .measure import _number
     rc = getattr(model, "recheck", None)
-    if rc is None:
+    if rc is None or not _number(rc.factor, settings) > 0.0:
         return None
+    return rc
+
+
+def _compared(chosen, wanted, cols, bits, width):
+    """(value columns, History columns) the re-check compares: those of the asked-for outputs (a
+    Steady's or Kick's j-th output is its j-th column)."""
+    use = np.zeros(width, dtype=bool)
+    huse = []
+    for k, m in enumerate(chosen):
+        if m.n_values == 0:
+            huse += [m.name in wanted] * int(np.count_nonzero(bits[:, k]))
+            continue
+        for j, o in enumerate(m.outputs()):
+            use[cols[k] + j] = o.name in wanted
+    return use, np.array(huse, dtype=bool)
+
+
+def _recheck(rc, chosen, wanted, settings, solver, P, run, arrays, code, mstat, n_steps, n_rhs, cols, bits, order,
+             lock):
+    """The model's Recheck (measure.Recheck): which points moved when integrated again at the
+    tighter rtol."""
+    from .measure import _number
+    vals, hist, rawv, rawh = arrays
     factor = _number(rc.factor, settings)
-    if not factor > 0.0:
-        return None
-    check = code == st.OK
+    check = integrated(mstat, code)
     names = [m.name for m in chosen]
     if rc.skip_settled in names:  # settled early (integration time, before time_value): not again
         c0 = cols[names.index(rc.skip_settled)]
         t_settle, t_end = vals[:, c0 + 3], vals[:, c0 + 4]
         with np.errstate(invalid="ignore"):
             check &= ~(np.isfinite(t_settle) & (t_settle <= rc.settled_fraction * t_end))
+            if lock:  # locked to the forcing period through the second half
+                check &= ~(vals[:, cols[-1]] <= factor * (solver.rtol + solver.atol))
     moved = np.zeros(code.size, dtype=bool)
     idx = np.flatnonzero(check)
     if idx.size == 0:
@@ -549,22 +725,39 @@ def _recheck(model, chosen, settings, solver, P, run, vals, hist, code, n_steps,
     P2 = np.ascontiguousarray(P[idx])
     vals2 = np.full((idx.size, vals.shape[1]), np.nan)
     hist2 = np.full((idx.size, hist.shape[1]), np.nan)
+    rawv2 = np.full((idx.size, rawv.shape[1]), np.nan)
+    rawh2 = np.full((idx.size, rawh.shape[1]), np.nan)
     code2 = np.zeros(idx.size, dtype=code.dtype)
+    mstat2 = np.full((idx.size, mstat.shape[1]), NOT_RUN, dtype=mstat.dtype)
     ns2, nr2 = np.zeros(idx.size, dtype=n_steps.dtype), np.zeros(idx.size, dtype=n_rhs.dtype)
-    run(P2, rc.tight_rtol(solver.rtol), vals2, hist2, code2, ns2, nr2)
+    run(P2, rc.tight_rtol(solver.rtol), vals2, hist2, rawv2, rawh2, code2, mstat2, ns2, nr2)
     n_steps[idx] += ns2
     n_rhs[idx] += nr2
-    # the values as stored (after value/time_value); not Kick's two bookkeeping columns
-    use = np.ones(vals.shape[1], dtype=bool)
-    for k, m in enumerate(chosen):
-        if type(m).__name__ == "Kick":
-            use[cols[k] + 3:cols[k] + 5] = False
-    a = np.concatenate([vals[idx][:, use], hist[idx]], axis=1)
-    b = np.concatenate([vals2[:, use], hist2], axis=1)
+    # the asked-for outputs where their measurement applies, as stored (after value/time_value) or
+    # as measured (measured_units)
+    use, huse = _compared(chosen, wanted, cols, bits, cols[-1])
+    if rc.measured_units:
+        vals, hist, vals2, hist2 = rawv, rawh, rawv2, rawh2
+
+    def table(v, h, good):
+        cv = [np.where(good[:, k, None], v[:, cols[k]:cols[k + 1]], np.nan) for k in range(len(chosen))]
+        hh = np.full(h.shape, np.nan)
+        pos = 0
+        for k, m in enumerate(chosen):  # each History's own columns from its own mask
+            if m.n_values == 0:
+                w = int(np.count_nonzero(bits[:, k]))
+                hh[:, pos:pos + w] = np.where(good[:, k, None], h[:, pos:pos + w], np.nan)
+                pos += w
+        return np.concatenate(cv + [np.empty((v.shape[0], 0))], axis=1)[:, use], hh[:, huse]
+
+    a1, a2 = table(vals[idx], hist[idx], measured(mstat[idx], code[idx], order))
+    b1, b2 = table(vals2, hist2, measured(mstat2, code2, order))
+    a = np.concatenate([a1, a2], axis=1)
+    b = np.concatenate([b1, b2], axis=1)
     with np.errstate(invalid="ignore"):
         tol = factor * (solver.rtol * np.maximum(np.abs(a), np.abs(b)) + solver.atol)
         bad = (np.abs(a - b) > tol) | (np.isnan(a) != np.isnan(b))
-    moved[idx] = bad.any(axis=1) | (code2 != st.OK)
+    moved[idx] = bad.any(axis=1) | ~integrated(mstat2, code2)
     return moved
 
 
@@ -583,7 +776,8 @@ def lane_count(n_samples: int, model) -> int:
     return 0
 
 
-def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, n_steps, n_rhs, rtol=None):
+def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs,
+               rtol=None):
     """setup in parallel, then per forcing period the points' queues through the lanes, one queue
     per thread (numba.get_num_threads() Python threads running the nogil queue)."""
     import numba
@@ -597,9 +791,9 @@ def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, n_s
     Z0 = np.zeros((n, n_s))
     TT = np.full(n, np.nan)
     rtol = solver.rtol if rtol is None else rtol
-    mod.setup(P, S, rtol, PF, Z0, TT, code)
+    mod.setup(P, S, rtol, PF, Z0, TT, code, mstat)
     lanes = lane_count(s.size, model)
-    ok = code == st.OK
+    ok = np.isfinite(TT)  # the points setup left to integrate
     for T in np.unique(TT[ok]):
         idx = np.flatnonzero(ok & (TT == T)).astype(np.int64)
         te = T * s  # the same products as the one-trajectory kernel's te[j] = T * s[j]
@@ -607,7 +801,7 @@ def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, code, n_s
 
         def queue(b, idx=idx, te=te, n_queues=n_queues):
             mod.queue(lanes, idx, b, n_queues, PF, Z0, te, s, bits, K, hoff, rtol, solver.atol,
-                      solver.max_steps, vals, hist, code, n_steps, n_rhs)
+                      solver.max_steps, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs)
 
         if n_queues == 1:
             queue(0)
