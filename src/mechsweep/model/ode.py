@@ -170,6 +170,9 @@ class OdeModel:
         if bad or len(set(self.status_order)) != len(self.status_order):
             raise ValueError(f"model {self.name!r}: status_order must list status codes of mechsweep.status once each "
                              f"(got {self.status_order!r}; allowed: {sorted(codes)})")
+        for m in self.measurements:  # output_meta first: the names below come from it
+            if hasattr(m, "_check_meta"):
+                m._check_meta()
         names = [o.name for m in self.measurements for o in _outputs(m)] + [c.name for c in self.closed_forms]
         if len(set(names)) != len(names):
             raise ValueError(f"model {self.name!r}: output names repeat: {names}")
