@@ -1,5 +1,5 @@
 """A declaration's names and metadata of the outputs of its multi-output measurements
-(``output_meta``): tests/user_models/declared_meta.py."""
+(``output_meta``) and its cross-parameter rules (``OdeModel.check``): tests/user_models/declared_meta.py."""
 import dataclasses
 from pathlib import Path
 
@@ -69,6 +69,33 @@ def test_closed_forms_read_a_renamed_value_and_not_its_generic_name():
         dataclasses.replace(dm.RENAMED, closed_forms=(ClosedForm("kind_sq", dm.kind_squared, needs=("mu_kind",)),))
     with pytest.raises(ValueError, match="both stable_name and output_meta"):
         Floquet("mu", stable_name="a", output_meta={"mu_stable": dict(name="b")}).validate(("y",))
+
+
+def _scene(lam, y0):
+    return {"scene": {"name": "c", "model": f"{FILE}:RENAMED", "outputs": ["peak"]},
+            "axes": {"lam": lam}, "fixed": {"y0": y0}}
+
+
+def test_the_models_check_refuses_a_scene_naming_the_rule():
+    load_scene(_scene({"start": -0.5, "stop": 0.5, "num": 3}, 1.0))  # allowed: y0 = 1
+    with pytest.raises(InputError, match=r"y0: 2 > 1 with lam = -0.5 < 0; a growing motion \(lam < 0\) must start"):
+        load_scene(_scene({"start": -0.5, "stop": 0.5, "num": 3}, 2.0))
+    with pytest.raises(InputError, match="y0: 2 > 1 with lam = -0.1"):  # a list axis: its values
+        load_scene(_scene([0.2, -0.1], 2.0))
+    with pytest.raises(ValueError, match="check must be a function"):
+        dataclasses.replace(dm.RENAMED, check=3)
+
+
+def test_a_scene_the_check_refuses_exits_2(in_tmp, capsys):
+    from mechsweep.cli import main
+    scene = in_tmp / "s.toml"
+    scene.write_text(f'[scene]\nname = "c"\nmodel = "{FILE}:RENAMED"\noutputs = ["peak"]\n'
+                     '[axes]\nlam = { start = -0.5, stop = 0.5, num = 3 }\n[fixed]\ny0 = 2.0\n')
+    before = sorted(p.relative_to(in_tmp) for p in in_tmp.rglob("*") if "__pycache__" not in p.parts)
+    assert main(["run", str(scene), "--no-progress", "--threads", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "y0: 2 > 1 with lam = -0.5 < 0" in err and "Traceback" not in err
+    assert sorted(p.relative_to(in_tmp) for p in in_tmp.rglob("*") if "__pycache__" not in p.parts) == before
 
 
 @pytest.mark.slow  # integrates (one sampled kernel)

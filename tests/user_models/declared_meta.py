@@ -1,8 +1,9 @@
-"""A user model that names its multi-output measurements' outputs itself (``output_meta``), written as a
-user would.
+"""A user model that names its multi-output measurements' outputs itself (``output_meta``) and
+refuses a combination of parameters (``check``), written as a user would.
 
 RENAMED: y' = -lam y from y0 (tests/user_models/forced.py's DECAY) with a Kick, a Steady, a History
-and a Floquet whose outputs carry the declaration's names, symbols, units and long names.
+and a Floquet whose outputs carry the declaration's names, symbols, units and long names; its
+``check`` refuses a growing motion (lam < 0) started above y0 = 1.
 """
 from mechsweep.model import ClosedForm, Floquet, History, Kick, OdeModel, Param, Steady
 
@@ -27,13 +28,23 @@ def kind_squared(p, kind):
     return kind * kind
 
 
+def check(given):
+    """lam < 0 (growing) only with y0 <= 1."""
+    growing = [v for v in given.get("lam", ()) if v < 0.0]
+    big = [v for v in given.get("y0", ()) if v > 1.0]
+    if growing and big:
+        return [f"y0: {big[-1]:g} > 1 with lam = {growing[0]:g} < 0; a growing motion (lam < 0) must start at "
+                "y0 <= 1"]
+    return []
+
+
 KICK = dict(horizon=40.0, settle_threshold=0.01, monitor_per_period=8, dense_per_period=64)
 RENAMED = OdeModel(
     name="decay_renamed",
     description="y' = -lam y from y0, its outputs named by the declaration",
     params=(Param("lam", "lam", "1/s", "decay rate"),
             Param("y0", "y0", "1", "kick", lo=0.0, lo_open=True)),
-    states=("y",), rhs=rhs, initial=initial, forcing_period=period,
+    states=("y",), rhs=rhs, initial=initial, forcing_period=period, check=check,
     measurements=(
         Kick("stable_sim", error, **KICK, output_meta={
             "stable_sim": dict(symbol="stable (simulation)", long_name="1 if the kick decays"),
