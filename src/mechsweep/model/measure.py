@@ -769,11 +769,12 @@ class ClosedForm:
     output_needs: tuple[str, ...] | None = None
     classify: Callable | None = field(default=None, repr=False, compare=False)
     needs_params: tuple[str, ...] = ()  # Output.needs_params: optional parameters the formula requires
+    kind: str = ""  # Output.kind: what the value is, for generic figures (e.g. "verdict")
 
     def output(self) -> Output:
         return Output(self.name, self.symbol or self.name, self.unit, self.long_name or self.name,
                       needs=tuple(self.needs if self.output_needs is None else self.output_needs),
-                      needs_params=tuple(self.needs_params))
+                      needs_params=tuple(self.needs_params), kind=self.kind)
 
 
 
