@@ -73,3 +73,27 @@ def test_the_whole_autobalancer_declared_on_the_layer_gives_the_reference_status
             assert verdict in ("bitwise", "tolerance"), (label, k, detail)
     assert all(r[(label, "status")][0] == "bitwise" for label, _ in r)
     assert r[("grid-dop853-norecheck", "n_steps")][0] == "bitwise" and r[("grid-dop853-all", "status")][0] == "bitwise"
+
+
+def test_the_declared_autobalancer_has_the_old_outputs_metadata_and_cross_parameter_rules():
+    # output_meta and OdeModel(check=): every output of the hand-written model under its name, with
+    # its symbol, unit, long name, kind, needs and extra dimension; the same scene check
+    from mechsweep.models import autobalancer as ab
+    spec = importlib.util.spec_from_file_location("autobalancer_declaration_meta", DATA / "autobalancer_declaration.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    new = mod.MODEL.spec()
+    for o in ab.SPEC.outputs:
+        n = new.output(o.name)
+        # one difference left: the layer's Floquet labels its modulus kind "floquet_max" (for the
+        # generic figures); the old output has no kind
+        kind = "floquet_max" if o.name == "floquet_max" else o.kind
+        assert (n.symbol, n.unit, n.long_name, n.kind, n.needs, n.needs_params, n.integrated) == (
+            o.symbol, o.unit, o.long_name, kind, o.needs, o.needs_params, o.integrated), o.name
+        assert [(d.name, d.unit, d.long_name) for d in n.extra_dims] == [(d.name, d.unit, d.long_name)
+                                                                         for d in o.extra_dims], o.name
+    # the layer's outputs the old model does not have: Steady's first harmonic, Floquet's kind and angle
+    assert sorted(set(new.output_names()) - set(ab.SPEC.output_names())) == [
+        "floquet_max_angle", "floquet_max_kind", "residual_amplitude_h1", "residual_amplitude_phase"]
+    given = {"omega_xi": (10.0,), "c_xi": (1.0,), "A1": (0.0, 0.1)}
+    assert new.check(given) == ab.check(given) and len(new.check(given)) == 6  # 4 pairs, l3, l4

@@ -10,8 +10,8 @@ per revolution) compared in scaled units.
 
 ``python tests/data/autobalancer_declaration.py [prefix]`` compares it with
 tests/data/autobalancer_reference.npz (tests/data/record_autobalancer.py) on the design-grid cases
-(prefix "grid-...") or the small shipped scenes ("scene-...") (the layer's output names mapped to
-the old ones): per case and array, bitwise or the largest
+(prefix "grid-...") or the small shipped scenes ("scene-...") (the old output names, symbols, units
+and long names given by ``output_meta``; the old cross-parameter rules by ``check``): per case and array, bitwise or the largest
 relative difference. Floquet integrates the state with the variational equations (the old kernel:
 about the exact orbit), so floquet_max is compared to a tolerance.
 """
@@ -56,7 +56,26 @@ def eta(t, z, p):
 
 
 H = "horizon_revolutions"
-HIST = dict(horizon=H, samples="trajectory_samples", dim="revolution")
+HIST = dict(horizon=H, samples="trajectory_samples", dim="revolution", dim_long_name=ab.REVOLUTION.long_name)
+
+
+def old(name):
+    """The hand-written model's symbol, unit and long name of an output (output_meta's fields)."""
+    o = ab.SPEC.output(name)
+    return dict(symbol=o.symbol, unit=o.unit, long_name=o.long_name)
+
+
+def history(name, of, **kw):
+    return History(name, of, output_meta={name: old(name)}, **HIST, **kw)
+
+
+def closed_form(c):
+    """A closed form of autobalancer_closed_on_layer.py with the old output's metadata."""
+    o = ab.SPEC.output(c.name)
+    return ClosedForm(c.name, c.func, needs=c.needs, classify=c.classify, symbol=o.symbol, unit=o.unit,
+                      long_name=o.long_name, output_needs=o.needs, needs_params=o.needs_params, kind=o.kind)
+
+
 SEVERITY = (st.INFEASIBLE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.SINGULAR, st.NOT_REPRODUCIBLE,
             st.NOT_BALANCEABLE, st.UNDECIDED, st.NO_EVENT)
 MODEL = OdeModel(
@@ -65,41 +84,40 @@ MODEL = OdeModel(
     states=("x", "y", "g1", "g2", "xd", "yd", "w1", "w2"), rhs=dyn.rhs, initial=dyn.initial, jac=dyn.jac,
     forcing_period=dyn.forcing, classify=cl.classify, prepare=dyn.prepare, rhs_lanes=dyn.rhs_lanes,
     measurements=(
-        Floquet("floquet_max", initial=dyn.balanced, stable_name="stable_floquet", classify=isolated),
-        Kick("sim", dyn.phase_error, dyn.platform, horizon=H, settle_threshold="settle_threshold",
+        Floquet("floquet_max", initial=dyn.balanced, stable_name="stable_floquet", classify=isolated,
+                output_meta={"floquet_max": old("floquet_max"), "floquet_max_stable": old("stable_floquet")}),
+        Kick("stable_sim", dyn.phase_error, dyn.platform, horizon=H, settle_threshold="settle_threshold",
              decay_ratio="decay_ratio", growth_ratio="growth_ratio",
              monitor_per_period="monitor_samples_per_revolution",
-             dense_per_period="residual_samples_per_revolution", time_value=dyn.to_seconds, classify=isolated),
-        Steady("residual", dyn.platform, horizon=H, window=0.1, samples_per_period="residual_samples_per_revolution",
-               settle_rtol=None, value=dyn.to_metres),
-        History("xi_history", dyn.xi, value=dyn.to_metres, **HIST),
-        History("eta_history", eta, value=dyn.to_metres, **HIST),
-        History("phase_error1_history", phase_error1, **HIST),
-        History("phase_error2_history", phase_error2, **HIST),
+             dense_per_period="residual_samples_per_revolution", time_value=dyn.to_seconds, classify=isolated,
+             output_meta={"stable_sim": old("stable_sim"),
+                          "stable_sim_settling": dict(name="settling_time", **old("settling_time")),
+                          "stable_sim_final": dict(name="phase_error", **old("phase_error"))}),
+        Steady("residual_amplitude", dyn.platform, horizon=H, window=0.1,
+               samples_per_period="residual_samples_per_revolution", settle_rtol=None, value=dyn.to_metres,
+               output_meta={"residual_amplitude": old("residual_amplitude")}),
+        history("xi_history", dyn.xi, value=dyn.to_metres),
+        history("eta_history", eta, value=dyn.to_metres),
+        history("phase_error1_history", phase_error1),
+        history("phase_error2_history", phase_error2),
     ),
-    closed_forms=tuple(ClosedForm(c.name, c.func, needs=c.needs, classify=c.classify) for c in cl.MODEL.closed_forms),
-    status_order=SEVERITY,
-    recheck=Recheck(factor="reproducibility_factor", skip_settled="sim", skip_locked=True,
+    closed_forms=tuple(closed_form(c) for c in cl.MODEL.closed_forms),
+    status_order=SEVERITY, check=ab.check,
+    recheck=Recheck(factor="reproducibility_factor", skip_settled="stable_sim", skip_locked=True,
                     lock_rates=(("g1", 1.0), ("g2", 1.0)), measured_units=True),
 )
-
-# the old names of the layer's outputs
-NAMES = {"stable_sim": "sim", "settling_time": "sim_settling", "phase_error": "sim_final",
-         "residual_amplitude": "residual"}
 
 
 def evaluate(spec, P, wanted, kw):
     from mechsweep.scene import Solver
     solver = Solver.for_model(spec, **kw)
     n = P.shape[0]
-    mine = tuple(NAMES.get(k, k) for k in wanted)
     out = {k: np.full((n,) + tuple(len(d.values(solver.settings)) for d in spec.output(k).extra_dims), np.nan)
-           for k in mine}
+           for k in wanted}
     status, ns, nr = np.zeros(n, np.int8), np.zeros(n, np.int64), np.zeros(n, np.int64)
     with np.errstate(all="ignore"):
-        spec.evaluate(P, mine, solver, out, status, ns, nr)
-    res = {k: out[NAMES.get(k, k)] for k in wanted}
-    return {**res, "status": status, "n_steps": ns, "n_rhs": nr}
+        spec.evaluate(P, tuple(wanted), solver, out, status, ns, nr)
+    return {**{k: out[k] for k in wanted}, "status": status, "n_steps": ns, "n_rhs": nr}
 
 
 def compare(prefix="grid-", floquet_tol=0.1):

@@ -43,6 +43,60 @@ def _crossing_events(k: int, idx: int, level: float, direction: str) -> str:
             f"solve{k}_back = dop853.make_event_solver(rhs, ev{k}_back)\n")
 
 
+_META_KEYS = ("name", "symbol", "unit", "long_name")
+
+
+class _Outputs:
+    """Settable names and metadata of a measurement's outputs (Floquet, Steady, Kick, History):
+    ``output_meta`` maps a generic output name (``name`` + suffix, e.g. ``"sim_settling"``) to
+    overrides {name, symbol, unit, long_name} (any of them; ``name`` not for the main output,
+    which is the measurement's ``name``). Kept as sorted pairs (hashable, compared)."""
+
+    def __post_init__(self):
+        meta = self.output_meta
+        try:
+            pairs = meta.items() if hasattr(meta, "items") else meta
+            norm = tuple(sorted((str(k), tuple(sorted(dict(v).items()))) for k, v in pairs))
+        except (TypeError, ValueError):
+            raise ValueError(f"{self.name}: output_meta must map generic output names to dicts of "
+                             f"{', '.join(_META_KEYS)} (got {meta!r})") from None
+        object.__setattr__(self, "output_meta", norm)
+
+    def _suffixes(self) -> tuple[str, ...]:
+        return ("",)
+
+    def _meta(self, generic: str) -> dict:
+        return dict(dict(self.output_meta).get(generic, ()))
+
+    def output_name(self, suffix: str = "") -> str:
+        """The name of the output whose generic name is ``name + suffix``."""
+        return self._meta(self.name + suffix).get("name", self.name + suffix)
+
+    def _output(self, suffix, symbol, unit, long_name, **kw) -> Output:
+        d = self._meta(self.name + suffix)
+        return Output(self.output_name(suffix), d.get("symbol", symbol), d.get("unit", unit),
+                      d.get("long_name", long_name), **kw)
+
+    def _check_meta(self):
+        generic = [self.name + x for x in self._suffixes()]
+        for k, d in self.output_meta:
+            if k not in generic:
+                raise ValueError(f"{self.name}: output_meta names {k!r}, which is not one of its generic outputs "
+                                 f"({', '.join(generic)})")
+            for key, v in d:
+                if key not in _META_KEYS:
+                    raise ValueError(f"{self.name}: output_meta[{k!r}] sets {key!r}; allowed: {', '.join(_META_KEYS)}")
+                if not isinstance(v, str) or (key == "name" and not v.isidentifier()):
+                    raise ValueError(f"{self.name}: output_meta[{k!r}][{key!r}] = {v!r}; expected a string"
+                                     + (" that is an identifier" if key == "name" else ""))
+            if dict(d).get("name", k) != k and k == self.name:
+                raise ValueError(f"{self.name}: output_meta cannot rename the main output {k!r} (it is the "
+                                 "measurement's name: rename the measurement)")
+        names = [self.output_name(x) for x in self._suffixes()]
+        if len(set(names)) != len(names):
+            raise ValueError(f"{self.name}: output_meta gives repeated output names {names}")
+
+
 @dataclass(frozen=True)
 class Crossing:
     """Time of the ``n``-th crossing of ``level`` by a state in ``direction`` ("down": from above
@@ -310,7 +364,7 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
 
 
 @dataclass(frozen=True)
-class Floquet:
+class Floquet(_Outputs):
     """Floquet multipliers of the model linearised about its motion from ``initial(p)`` over one
     forcing period T = ``forcing_period(p)`` (the model must declare it). Three outputs:
 
@@ -348,41 +402,59 @@ class Floquet:
     stable_name: str = ""  # the verdict output's name; default name + "_stable"
     kind_name: str = ""  # the kind output's name; default name + "_kind"
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
+    output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name}} (_Outputs)
     needs_forcing = True
     n_values = 3  # the largest modulus, the kind and the critical multiplier's argument
 
+    def _suffixes(self):
+        return ("", "_stable", "_kind", "_angle")
+
+    def output_name(self, suffix: str = "") -> str:
+        named = {"_stable": self.stable_name, "_kind": self.kind_name}.get(suffix)
+        return named or super().output_name(suffix)
+
     @property
     def stable(self) -> str:
-        return self.stable_name or f"{self.name}_stable"
+        return self.output_name("_stable")
 
     @property
     def kind(self) -> str:
-        return self.kind_name or f"{self.name}_kind"
+        return self.output_name("_kind")
+
+    @property
+    def angle(self) -> str:
+        return self.output_name("_angle")
 
     def output(self) -> Output:
-        return Output(self.name, "max |λ|", self.unit,
-                      self.long_name or "largest modulus of the Floquet multipliers over one forcing period",
-                      integrated=True, kind="floquet_max")
+        return self._output("", "max |λ|", self.unit,
+                            self.long_name or "largest modulus of the Floquet multipliers over one forcing period",
+                            integrated=True, kind="floquet_max")
 
     def outputs(self) -> tuple[Output, ...]:
         return (self.output(),
-                Output(self.stable, "stable", "1",
-                       f"1 if {self.name} < 1 - margin, 0 if > 1 + margin (margin = max(floquet_margin, 100 rtol); "
-                       "NaN and status undecided within it)", integrated=True, needs=(self.name,),
-                       kind="verdict"),
-                Output(self.kind, "kind", "1",
-                       "critical Floquet multiplier: +1 real positive, -1 real negative, 0 complex pair",
-                       integrated=True, needs=(self.name,)),
-                Output(f"{self.name}_angle", "arg μ", "rad",
-                       "argument of the critical Floquet multiplier, folded to [0, pi]: 0 real positive, pi real "
-                       "negative, else a complex pair |mu| exp(+-i angle)", integrated=True, needs=(self.name,)))
+                self._output("_stable", "stable", "1",
+                             f"1 if {self.name} < 1 - margin, 0 if > 1 + margin (margin = max(floquet_margin, 100 "
+                             "rtol); NaN and status undecided within it)", integrated=True, needs=(self.name,),
+                             kind="verdict"),
+                self._output("_kind", "kind", "1",
+                             "critical Floquet multiplier: +1 real positive, -1 real negative, 0 complex pair",
+                             integrated=True, needs=(self.name,)),
+                self._output("_angle", "arg μ", "rad",
+                             "argument of the critical Floquet multiplier, folded to [0, pi]: 0 real positive, pi "
+                             "real negative, else a complex pair |mu| exp(+-i angle)", integrated=True,
+                             needs=(self.name,)))
 
     def values(self) -> tuple[str, ...]:
         """The outputs the kernel computes, in the order of its columns (closed forms can read
         these; the verdict ``name_stable`` is decided after the kernel, with the margin)."""
-        return (self.name, self.kind, f"{self.name}_angle")
+        return (self.name, self.kind, self.angle)
 
     def validate(self, states):
+        self._check_meta()
+        for suffix, field_name in (("_stable", "stable_name"), ("_kind", "kind_name")):
+            if getattr(self, field_name) and "name" in self._meta(self.name + suffix):
+                raise ValueError(f"{self.name}: both {field_name} and output_meta[{self.name + suffix!r}]['name'] "
+                                 "name the same output; give one")
         if self.initial is not None and not callable(self.initial):
             raise ValueError(f"{self.name}: initial must be a function initial(p, y0) (the start of the orbit)")
 
@@ -450,8 +522,8 @@ solve{k}_var_r = radau.make_solver(var_rhs{k}, var_jac{k})""")
             out[self.name][:] = big
         if self.kind in out:
             out[self.kind][:] = np.where(good, kind, np.nan)
-        if f"{self.name}_angle" in out:
-            out[f"{self.name}_angle"][:] = np.where(good, angle, np.nan)
+        if self.angle in out:
+            out[self.angle][:] = np.where(good, angle, np.nan)
         if self.stable in wanted:
             margin = max(float(solver.settings.get("floquet_margin", 1e-8)), 100.0 * solver.rtol)
             decided = good & (np.abs(big - 1.0) > margin)
@@ -697,11 +769,12 @@ class ClosedForm:
     output_needs: tuple[str, ...] | None = None
     classify: Callable | None = field(default=None, repr=False, compare=False)
     needs_params: tuple[str, ...] = ()  # Output.needs_params: optional parameters the formula requires
+    kind: str = ""  # Output.kind: what the value is, for generic figures (e.g. "verdict")
 
     def output(self) -> Output:
         return Output(self.name, self.symbol or self.name, self.unit, self.long_name or self.name,
                       needs=tuple(self.needs if self.output_needs is None else self.output_needs),
-                      needs_params=tuple(self.needs_params))
+                      needs_params=tuple(self.needs_params), kind=self.kind)
 
 
 
@@ -1087,7 +1160,7 @@ def _check_value(m, field_name):
 
 
 @dataclass(frozen=True)
-class Steady:
+class Steady(_Outputs):
     """Steady-state amplitude of an observable ``of`` (a state name or ``f(t, y, p)``) after a
     transient, over the last ``window`` (a fraction) of a simulation of ``horizon`` forcing periods.
     Three outputs (and a fourth kernel value):
@@ -1125,21 +1198,26 @@ class Steady:
     long_name: str = ""
     value: Callable | None = field(default=None, repr=False, compare=False)
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
+    output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name}} (_Outputs)
     sampled = True
     n_values = 4
 
+    def _suffixes(self):
+        return ("", "_h1", "_phase")
+
     def outputs(self) -> tuple[Output, ...]:
         what = self.of if isinstance(self.of, str) else self.name
-        return (Output(self.name, f"max |{what}|", self.unit,
-                       self.long_name or f"steady-state peak of |{what}| over the last {self.window} of the horizon",
-                       integrated=True),
-                Output(f"{self.name}_h1", "A1", self.unit, f"first-harmonic amplitude of {what} (forcing period)",
-                       integrated=True),
-                Output(f"{self.name}_phase", "phase", "rad",
-                       f"phase lag of the first harmonic of {what}: {what} = A1 cos(2 pi t / T - phase)",
-                       integrated=True))
+        return (self._output("", f"max |{what}|", self.unit,
+                             self.long_name or f"steady-state peak of |{what}| over the last {self.window} of the "
+                             "horizon", integrated=True),
+                self._output("_h1", "A1", self.unit, f"first-harmonic amplitude of {what} (forcing period)",
+                             integrated=True),
+                self._output("_phase", "phase", "rad",
+                             f"phase lag of the first harmonic of {what}: {what} = A1 cos(2 pi t / T - phase)",
+                             integrated=True))
 
     def validate(self, states):
+        self._check_meta()
         _observable(self.of, states, self.name)
         _check_numbers(self, ("horizon", "window", "samples_per_period", "settle_atol"))
         if self.settle_rtol is not None:
@@ -1183,15 +1261,16 @@ class Steady:
         from .. import status as st
         settled = values[:, 3] == 1.0
         unsettled = np.isfinite(values[:, 0]) & ~settled
-        for j, suffix in enumerate(("", "_h1", "_phase")):
-            if self.name + suffix in out:
-                out[self.name + suffix][:] = np.where(settled, values[:, j], np.nan)
-        if any(self.name + s in wanted for s in ("", "_h1", "_phase")):
+        names = [self.output_name(x) for x in self._suffixes()]
+        for j, name in enumerate(names):
+            if name in out:
+                out[name][:] = np.where(settled, values[:, j], np.nan)
+        if any(x in wanted for x in names):
             status[:] = np.where((status == st.OK) & unsettled, st.NO_EVENT, status)
 
 
 @dataclass(frozen=True)
-class Kick:
+class Kick(_Outputs):
     """Stability verdict of a motion from a kick: the model's ``initial(p)`` is the kicked state,
     ``error(t, y, p) >= 0`` the distance from the reference motion (e.g. a phase error), optional
     ``response(t, y, p) >= 0`` a second quantity that must decay too (e.g. a platform amplitude);
@@ -1233,19 +1312,23 @@ class Kick:
     time_unit: str = "s"
     time_value: Callable | None = field(default=None, repr=False, compare=False)
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
+    output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name}} (_Outputs)
     sampled = True
     n_values = 5  # verdict, settling time, final error; the settling time before time_value, the simulated time
 
+    def _suffixes(self):
+        return ("", "_settling", "_final")
+
     def outputs(self) -> tuple[Output, ...]:
-        return (Output(self.name, "stable (kick)", "1",
-                       "1 if the kicked motion settles back, 0 if it departs (direct simulation)", integrated=True,
-                       kind="verdict"),
-                Output(f"{self.name}_settling", "t_s", self.time_unit,
-                       "time after which the error stays below settle_threshold", integrated=True),
-                Output(f"{self.name}_final", "e_end", self.unit, "error at the end of the simulation",
-                       integrated=True))
+        return (self._output("", "stable (kick)", "1",
+                             "1 if the kicked motion settles back, 0 if it departs (direct simulation)",
+                             integrated=True, kind="verdict"),
+                self._output("_settling", "t_s", self.time_unit,
+                             "time after which the error stays below settle_threshold", integrated=True),
+                self._output("_final", "e_end", self.unit, "error at the end of the simulation", integrated=True))
 
     def validate(self, states):
+        self._check_meta()
         _observable(self.error, states, self.name)
         if self.response is not None:
             _observable(self.response, states, self.name)
@@ -1303,17 +1386,17 @@ class Kick:
         from .. import status as st
         ok = np.isfinite(values[:, 2])
         verdict, t_settle = values[:, 0], values[:, 1]
-        for j, suffix in enumerate(("", "_settling", "_final")):
-            if self.name + suffix in out:
-                out[self.name + suffix][:] = values[:, j]
+        for j, suffix in enumerate(self._suffixes()):
+            if self.output_name(suffix) in out:
+                out[self.output_name(suffix)][:] = values[:, j]
         if self.name in wanted:
             status[:] = np.where((status == st.OK) & ok & np.isnan(verdict), st.UNDECIDED, status)
-        if f"{self.name}_settling" in wanted:
+        if self.output_name("_settling") in wanted:
             status[:] = np.where((status == st.OK) & ok & np.isnan(t_settle), st.NO_EVENT, status)
 
 
 @dataclass(frozen=True)
-class History:
+class History(_Outputs):
     """Samples of an observable ``of`` (a state name or ``f(t, y, p)``) at ``samples`` instants
     evenly spread over [0, horizon] forcing periods: an output with one extra dimension ``dim``
     (coordinate: the instants in forcing periods; every History of a model with the same ``dim``
@@ -1331,6 +1414,7 @@ class History:
     long_name: str = ""
     value: Callable | None = field(default=None, repr=False, compare=False)
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
+    output_meta: object = ()  # {name: {symbol, unit, long_name}} (_Outputs; its one output is the main one)
     sampled = True
     n_values = 0
 
@@ -1341,13 +1425,14 @@ class History:
         from ..models._spec import ExtraDim
         what = self.of if isinstance(self.of, str) else self.name
         dim = ExtraDim(self.dim, "1", self.dim_long_name, self._coordinate_defaults)
-        return (Output(self.name, f"{what}(t)", self.unit, self.long_name or f"{what} over the simulation",
-                       integrated=True, extra_dims=(dim,)),)
+        return (self._output("", f"{what}(t)", self.unit, self.long_name or f"{what} over the simulation",
+                             integrated=True, extra_dims=(dim,)),)
 
     def _coordinate_defaults(self, settings):
         return self.coordinate(settings)
 
     def validate(self, states):
+        self._check_meta()
         _observable(self.of, states, self.name)
         _check_numbers(self, ("horizon", "samples"))
         _check_ranges(self, _HISTORY)

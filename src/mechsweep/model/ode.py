@@ -108,6 +108,10 @@ class OdeModel:
       measurements by dop853 (model/trajectory.py, ``mechsweep.ode.dop853_lanes``): column l of
       Y, P, dY and t[l] are one trajectory's state, full ``p`` row and time; it must give the
       same floats as ``rhs`` per lane (then the results are bitwise the one-trajectory ones).
+    - ``check(given) -> [problems]``: optional cross-parameter rules of a scene, as
+      ``ModelSpec.check``: ``given`` = {parameter: tuple of the values the scene gives it (a range
+      axis: its two ends)}, the parameters the scene does not give absent; each problem a string
+      "key: message" (e.g. "l3: missing; ..."). The scene is refused (InputError, exit 2) with them.
 
     Methods (``solver.method``): dop853, radau, auto (dop853 with the stiffness test; a stiff point
     is integrated again by radau) and, with ``accel``, symplectic. FirstEvent measurements (and a
@@ -140,6 +144,7 @@ class OdeModel:
     rhs_lanes: Callable | None = field(default=None, repr=False)
     recheck: object = None  # measure.Recheck: the sampled outputs integrated again at a tighter rtol
     status_order: tuple[int, ...] = ()  # most severe first: a point's status among its outputs' (see worse)
+    check: Callable | None = field(default=None, repr=False)  # ModelSpec.check: the cross-parameter rules
 
     def __post_init__(self):
         if self.recheck is not None:
@@ -157,6 +162,9 @@ class OdeModel:
         object.__setattr__(self, "status_notes", tuple(sorted(dict(self.status_notes).items())))
         if not self.states:
             raise ValueError(f"model {self.name!r}: states is empty")
+        if self.check is not None and not callable(self.check):
+            raise ValueError(f"model {self.name!r}: check must be a function check(given) -> list of problems "
+                             f"(got {self.check!r})")
         for m in self.measurements:
             if not hasattr(m, "validate"):  # e.g. a ClosedForm put among the measurements
                 from .measure import MEASUREMENTS
@@ -170,6 +178,9 @@ class OdeModel:
         if bad or len(set(self.status_order)) != len(self.status_order):
             raise ValueError(f"model {self.name!r}: status_order must list status codes of mechsweep.status once each "
                              f"(got {self.status_order!r}; allowed: {sorted(codes)})")
+        for m in self.measurements:  # output_meta first: the names below come from it
+            if hasattr(m, "_check_meta"):
+                m._check_meta()
         names = [o.name for m in self.measurements for o in _outputs(m)] + [c.name for c in self.closed_forms]
         if len(set(names)) != len(names):
             raise ValueError(f"model {self.name!r}: output names repeat: {names}")
@@ -379,6 +390,7 @@ class OdeModel:
             statuses=self.statuses,
             status_notes=self.status_notes,
             references=self.references,
+            check=self.check,
         )
         if self.recheck is not None:  # the re-check adds NOT_REPRODUCIBLE to the statuses a point can get
             import dataclasses

@@ -604,7 +604,7 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
         bits2[:, -1] = np.isin(s2, whole)
         s, bits = s2, bits2
     for k, m in enumerate(chosen):
-        if type(m).__name__ == "Steady" and not {f"{m.name}_h1", f"{m.name}_phase"} & set(wanted):
+        if type(m).__name__ == "Steady" and not {m.output_name("_h1"), m.output_name("_phase")} & set(wanted):
             K[k, 2] = 0.0  # no first harmonic asked for: the observer skips its cos/sin per sample
     hoff = np.zeros(len(chosen), dtype=np.int64)
     n_hist = 0
