@@ -15,7 +15,8 @@ CASES = {**workprecision.CASES, **workprecision_linkage.CASES}
 
 
 def test_every_bench_case_has_its_packaged_scene_identical_to_the_shipped_one():
-    assert set(scenes.names()) == {case.scene for case in CASES.values()}
+    generic = {scene for _, scene, _, _ in workprecision.GENERIC.values()}  # models on the generic route
+    assert set(scenes.names()) == {case.scene for case in CASES.values()} | generic
     for name in scenes.names():
         assert scenes.path(name).read_bytes() == (REPO / "sweeps" / name).read_bytes(), \
             f"src/mechsweep/bench/scenes/{name} differs from sweeps/{name}: copy it again"
@@ -42,11 +43,13 @@ def test_bench_scenes_load_from_an_installed_package_without_the_repository(tmp_
             "from mechsweep.bench import workprecision as w, workprecision_linkage as l, scenes\n"
             "from mechsweep.scene import load_scene\n"
             "assert pathlib.Path(mechsweep.__file__).is_relative_to(pathlib.Path.cwd()), mechsweep.__file__\n"
-            "for name, case in {**w.CASES, **l.CASES}.items():\n"
-            "    s = load_scene(scenes.path(case.scene))\n"
+            "named = {n: c.scene for n, c in {**w.CASES, **l.CASES}.items()}\n"
+            "named.update({n: g[1] for n, g in w.GENERIC.items()})\n"
+            "for name, scene in named.items():\n"
+            "    s = load_scene(scenes.path(scene))\n"
             "    assert s.model.name == name, (name, s.model.name)\n"
             "    print(name)\n")
     out = subprocess.run([sys.executable, "-c", code], cwd=site, env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(site),
                          "MECHSWEEP_NO_CACHE": "1", "HOME": str(tmp_path)}, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
-    assert sorted(line.split()[0] for line in out.stdout.splitlines()) == sorted(CASES)
+    assert sorted(line.split()[0] for line in out.stdout.splitlines()) == sorted({**CASES, **workprecision.GENERIC})

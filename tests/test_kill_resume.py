@@ -111,18 +111,24 @@ KILLER = textwrap.dedent("""
         killing(np, "savez")
     elif site == "chunk-renamed":  # a chunk file renamed, the folder not synced
         killing(journal, "_sync_dir", before=True, when=lambda folder: folder.name == "chunks")
-    elif site == "assembling":  # the dataset half written in the journal folder
+    elif site == "assembling":  # the dataset half written in the journal folder, chunk by chunk (compute, as the CLI)
         killing(journal.Journal, "read_chunk")
+    elif site == "assembling-held":  # the same for run(), which writes each variable whole from memory
+        import h5py
+        stored = ("period", "period_exact", "v_max", "status", "n_steps", "n_rhs")
+        killing(h5py.Dataset, "__setitem__", when=lambda ds, *a: ds.name.strip("/") in stored)
     elif site == "dataset-placed":  # the dataset in place, the journal not dropped yet
         killing(runner, "drop", before=True, when=lambda final: (final.parent / final.name).exists())
     elif site == "journal-dropping":  # the journal renamed away, not yet deleted
         killing(shutil, "rmtree", before=True, when=lambda p, **k: str(p).endswith(".discard") and os.path.exists(p))
-    mechsweep.run(mechsweep.load_scene("kill.toml"), output=sys.argv[3], progress=False)
+    route = runner.compute if site == "assembling" else mechsweep.run  # run() reads no chunk back
+    route(mechsweep.load_scene("kill.toml"), output=sys.argv[3], progress=False)
     print("finished without being killed")
 """)
 
 SITES = [("journal-created", 1), ("mid-chunk-file", 1), ("mid-chunk-file", 3), ("chunk-renamed", 2),
-         ("assembling", 3), ("dataset-placed", 1), ("journal-dropping", 1)]
+         ("assembling", 3), ("assembling-held", 3),
+         ("dataset-placed", 1), ("journal-dropping", 1)]
 
 
 @pytest.fixture(scope="module")

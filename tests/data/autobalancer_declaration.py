@@ -135,21 +135,31 @@ def compare(prefix="grid-", floquet_tol=0.1):
         res = evaluate(spec, P, wanted, kw)
         for k, v in res.items():
             e = ref[f"{label}/{k}"]
-            if np.array_equal(e, v.astype(e.dtype), equal_nan=True):
-                result[(label, k)] = ("bitwise", "")
+            verdict, rel, nan = _verdict(k, e, v, floquet_tol * kw["rtol"], "floquet_max" in wanted)
+            if verdict == "bitwise":
+                result[(label, k)] = (verdict, "")
                 continue
-            with np.errstate(all="ignore"):
-                both = np.isfinite(e) & np.isfinite(v)
-                rel = float(np.max(np.abs(v - e)[both] / np.maximum(np.abs(e[both]), 1e-300))) if both.any() else 0.0
-            nan = int((np.isnan(e.astype(float)) != np.isnan(v.astype(float))).sum())
             where = np.flatnonzero((e != v).reshape(e.shape[0], -1).any(axis=1)) if e.ndim else []
             detail = f"max rel {rel:.3g}, NaN moved at {nan}, points {list(where)[:8]}"
             if k == "status":
                 detail += f" old {[int(x) for x in e[where][:8]]} new {[int(x) for x in v[where][:8]]}"
-            ok = k == "floquet_max" and nan == 0 and rel <= floquet_tol * kw["rtol"]
-            ok = ok or (k in ("n_steps", "n_rhs") and "floquet_max" in wanted)
-            result[(label, k)] = ("tolerance" if ok else "DIFFERENT", detail)
+            result[(label, k)] = (verdict, detail)
     return result
+
+
+def _verdict(k, e, v, floquet_tol, floquet_wanted):
+    """("bitwise" | "tolerance" | "DIFFERENT", max relative difference, NaNs moved) of output k, new v
+    against reference e: floquet_max may differ within floquet_tol (its own integration), and
+    n_steps/n_rhs where floquet_max is computed (its steps count)."""
+    if np.array_equal(e, v.astype(e.dtype), equal_nan=True):
+        return "bitwise", 0.0, 0
+    with np.errstate(all="ignore"):
+        both = np.isfinite(e) & np.isfinite(v)
+        rel = float(np.max(np.abs(v - e)[both] / np.maximum(np.abs(e[both]), 1e-300))) if both.any() else 0.0
+    nan = int((np.isnan(e.astype(float)) != np.isnan(v.astype(float))).sum())
+    ok = k == "floquet_max" and nan == 0 and rel <= floquet_tol
+    ok = ok or (k in ("n_steps", "n_rhs") and floquet_wanted)
+    return ("tolerance" if ok else "DIFFERENT"), rel, nan
 
 
 def compare_scenes(prefix="scene-", floquet_tol=0.1):
@@ -179,16 +189,8 @@ def compare_scenes(prefix="scene-", floquet_tol=0.1):
         res["status"][(res["status"] == st.OK) & ~finite] = st.NONFINITE
         for k in tuple(scene.outputs) + ("status", "n_steps", "n_rhs"):
             v, e = res[k], ref[f"{label}/{k}"]
-            if np.array_equal(e, v.astype(e.dtype), equal_nan=True):
-                result[(label, k)] = ("bitwise", "")
-                continue
-            with np.errstate(all="ignore"):
-                both = np.isfinite(e) & np.isfinite(v)
-                rel = float(np.max(np.abs(v - e)[both] / np.maximum(np.abs(e[both]), 1e-300))) if both.any() else 0.0
-            nan = int((np.isnan(e.astype(float)) != np.isnan(v.astype(float))).sum())
-            ok = k == "floquet_max" and nan == 0 and rel <= floquet_tol * slv.rtol
-            ok = ok or (k in ("n_steps", "n_rhs") and "floquet_max" in scene.computed_outputs)
-            result[(label, k)] = ("tolerance" if ok else "DIFFERENT", f"max rel {rel:.3g}, NaN moved at {nan} of {n}")
+            verdict, rel, nan = _verdict(k, e, v, floquet_tol * slv.rtol, "floquet_max" in scene.computed_outputs)
+            result[(label, k)] = (verdict, "" if verdict == "bitwise" else f"max rel {rel:.3g}, NaN moved at {nan} of {n}")
     return result
 
 
