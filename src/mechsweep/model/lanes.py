@@ -44,11 +44,10 @@ import numpy as np
 from .._jit import jit, jit_noalloc
 from ..status import MAX_STEPS, NO_EVENT, NONFINITE, OK, STEP_UNDERFLOW
 from ..ode import _dop853_lane_sums as sums
-from ..ode._common import _all_finite
 from ..ode._dop853_tableau import C, N_STAGES, N_STAGES_EXTENDED
-from ..ode.dop853 import (ERROR_EXPONENT, F_DENSE, K_FSAL, MIN_FACTOR, SAFETY, WORK_ROWS, Y_NEW, Y_STAGE,
-                          _make_dense_output, _make_root_locator, _make_start, _step_factor)
-from ..ode.dop853_lanes import _begin_advance, _error_sums, _finish, _spread
+from ..ode.dop853 import (F_DENSE, K_FSAL, WORK_ROWS, Y_NEW, Y_STAGE, _make_dense_output, _make_root_locator,
+                          _make_start)
+from ..ode.dop853_lanes import _begin_advance, _error_sums, _error_test, _finish, _spread
 
 LANES = 0  # points side by side per thread; 0: lanes_for(number of states)
 QUEUE = 32  # points per lane in one thread's queue (a block of LANES * QUEUE points)
@@ -377,24 +376,7 @@ def make_lane_event_solver(rhs_lanes, rhs, event):
         for l in range(li.shape[1]):
             if li[STATE, l] != ACTIVE:
                 continue
-            h = lf[H, l]
-            sum5 = lf[SUM5, l]
-            sum3 = lf[SUM3, l]
-            if sum5 == 0.0 and sum3 == 0.0:
-                error = 0.0
-            else:
-                error = abs(h) * sum5 / math.sqrt((sum5 + 0.01 * sum3) * n)
-            finite = math.isfinite(error) and _all_finite(w[Y_NEW, :, l]) and _all_finite(w[K_FSAL, :, l])
-            if finite and error < 1.0:
-                li[ACCEPTED, l] = 1
-                lf[H_ABS, l] = h * _step_factor(error, li[REJECTED, l] != 0)
-            else:
-                if finite:
-                    lf[H_ABS, l] = h * max(MIN_FACTOR, SAFETY * error**ERROR_EXPONENT)
-                else:  # overflow or NaN in the trial step: shrink hard and retry
-                    lf[H_ABS, l] = h * MIN_FACTOR
-                li[LAST_NONFINITE, l] = 0 if finite else 1
-                li[REJECTED, l] = 1
+            _error_test(w, lf, li, l, n)
 
     @jit_noalloc
     def events(w, y, lf, li, sw, pr, yv):

@@ -44,7 +44,7 @@ import math
 
 import numpy as np
 
-from .._jit import jit, jit_noalloc
+from .._jit import jit, jit_inline, jit_noalloc
 from ..status import MAX_STEPS, NONFINITE, OK, STEP_UNDERFLOW
 from ._common import _all_finite, _min_step
 from . import _dop853_lane_sums as sums
@@ -65,6 +65,32 @@ STATE, POINT, STATUS, N_STEPS, N_RHS, N_ATTEMPTS, K_NEXT, REJECTED, LAST_NONFINI
 N_LI = 11
 # Lane states.
 IDLE, ACTIVE, DONE = 0, 1, 2
+
+
+@jit_inline
+def _error_test(w, lf, li, l, n):
+    """dop853's advance() for one attempting lane l (rows as in this module; model/lanes.py shares
+    them): accepted (ACCEPTED set, the next step size) or rejected (the smaller step, REJECTED and
+    LAST_NONFINITE set); returns whether it was accepted."""
+    h = lf[H, l]
+    sum5 = lf[SUM5, l]
+    sum3 = lf[SUM3, l]
+    if sum5 == 0.0 and sum3 == 0.0:
+        error = 0.0
+    else:
+        error = abs(h) * sum5 / math.sqrt((sum5 + 0.01 * sum3) * n)
+    finite = math.isfinite(error) and _all_finite(w[Y_NEW, :, l]) and _all_finite(w[K_FSAL, :, l])
+    if finite and error < 1.0:
+        li[ACCEPTED, l] = 1
+        lf[H_ABS, l] = h * _step_factor(error, li[REJECTED, l] != 0)
+        return True
+    if finite:
+        lf[H_ABS, l] = h * max(MIN_FACTOR, SAFETY * error**ERROR_EXPONENT)
+    else:  # overflow or NaN in the trial step: shrink hard and retry
+        lf[H_ABS, l] = h * MIN_FACTOR
+    li[LAST_NONFINITE, l] = 0 if finite else 1
+    li[REJECTED, l] = 1
+    return False
 
 
 @jit
@@ -252,27 +278,10 @@ def make_lane_trajectory_solver(rhs_lanes, rhs):
         for l in range(li.shape[1]):
             if li[STATE, l] != ACTIVE:
                 continue
-            h = lf[H, l]
-            sum5 = lf[SUM5, l]
-            sum3 = lf[SUM3, l]
-            if sum5 == 0.0 and sum3 == 0.0:
-                error = 0.0
-            else:
-                error = abs(h) * sum5 / math.sqrt((sum5 + 0.01 * sum3) * n)
-            finite = math.isfinite(error) and _all_finite(w[Y_NEW, :, l]) and _all_finite(w[K_FSAL, :, l])
-            if finite and error < 1.0:
-                li[ACCEPTED, l] = 1
-                lf[H_ABS, l] = h * _step_factor(error, li[REJECTED, l] != 0)
+            if _error_test(w, lf, li, l, n):
                 k = li[K_NEXT, l]
                 li[DENSE, l] = 1 if (k < n_eval and t_eval[k] < lf[T_NEW, l]) else 0
                 any_dense = any_dense or li[DENSE, l] == 1
-            else:
-                if finite:
-                    lf[H_ABS, l] = h * max(MIN_FACTOR, SAFETY * error**ERROR_EXPONENT)
-                else:  # overflow or NaN in the trial step: shrink hard and retry
-                    lf[H_ABS, l] = h * MIN_FACTOR
-                li[LAST_NONFINITE, l] = 0 if finite else 1
-                li[REJECTED, l] = 1
         return any_dense
 
     @jit_noalloc
