@@ -346,10 +346,19 @@ def test_continuation_follows_the_damped_mathieu_tongue_through_its_fold():
     pts = curve.points
     assert curve.stop == "edge" and pts[-1, 1] == pytest.approx(0.6, abs=1e-12)
     assert pts[-1, 0] == pytest.approx(right, rel=1e-9)
-    assert len(curve.folds) == 1 and curve.folds[0][2] == "q"
+    assert len(curve.folds) == 1 and curve.folds[0][2:] == ("q", True)
     a_fold, q_fold = curve.folds[0][:2]
     assert abs(a_fold - 1.0) < 0.01 and 0.09 < q_fold < 0.11, curve.folds
-    assert pts[:, 1].min() == pytest.approx(q_fold, abs=1e-3)
+    assert pts[:, 1].min() == pytest.approx(q_fold, abs=1e-3) and q_fold <= pts[:, 1].min()
+    # the fold is located: the tongue's tip, the lowest q of the boundary. Located along q (a one-axis
+    # search, not the continuation) at a = a_fold, the boundary is at q_fold; 1e-3 either side, higher
+    # (the interpolated fold of before was 5e-4 above the tip: 0.1006 against 0.1000468)
+    r = np.repeat(rows[-1:], 3, axis=0)
+    r[:, 0] = a_fold + np.array([0.0, -1e-3, 1e-3])
+    q_b = bd.locate(scene, crit, r, 1, np.linspace(0.0, 0.6, 13), rtol=1e-13).location
+    q_b = np.where(np.isfinite(q_b), q_b, np.inf).min(axis=1)
+    assert q_b[0] == pytest.approx(q_fold, abs=1e-12), (q_b, q_fold)
+    assert (q_b[1:] > q_fold + 1e-8).all(), (q_b, q_fold)
     P = np.repeat(rows[-1:], len(pts), axis=0)
     P[:, 0], P[:, 1] = pts[:, 0], pts[:, 1]
     out = {"max_multiplier": np.full(len(pts), np.nan)}
@@ -444,6 +453,7 @@ continue_in = "q"
         np.testing.assert_allclose([a[0], a[-1]], ds["boundary"].sel(q=0.6).values, rtol=1e-9)
         assert ds["curve_stop"].values.tolist() == [0]  # edge
         assert ds["fold_axis"].values.tolist() == [[1]] and 0.09 < float(ds["fold_q"].values[0, 0]) < 0.11
+        assert ds["fold_located"].values.tolist() == [[1]]
 
 
 def test_the_speck_of_stability_in_the_damping_chart_is_a_real_island():

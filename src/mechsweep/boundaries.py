@@ -760,7 +760,7 @@ class Curve:
     stopped, and its cost."""
 
     points: np.ndarray  # (n, 2)
-    folds: list  # (x, y, axis name): the tangent's component along that axis changes sign
+    folds: list  # (x, y, axis name, located): the tangent's component along that axis vanishes there
     stop: str  # "edge", "closed", "max_points", "step_too_small", "no_value"
     evaluations: int
     calls: int
@@ -840,6 +840,39 @@ def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_na
         t = np.array([-G[1], G[0]]) / np.hypot(*G)
         return t if previous @ t >= 0 else -t
 
+    def fold_between(u, t, q, tq, k):
+        """The fold between the curve points u and q (tangents t, tq; component k changes sign):
+        the point of the curve where the tangent's k-th component vanishes, i.e. the curve's
+        extremum in coordinate k. Illinois on that component over the chord u -> q, each trial
+        point corrected onto the curve in the plane normal to the chord. The component comes from
+        forward-difference gradients (noise ~ criterion accuracy / h), so the bracket stops at
+        FOLD_TOL of the chart; the extremal coordinate, quadratic in the position along the curve
+        there, is then exact to the corrector's tolerance. None where a correction fails."""
+        d = q - u
+        chord = d / np.hypot(*d)
+        f0, s0, f1, s1 = 0.0, t[k], 1.0, tq[k]
+        at = None
+        for _ in range(60):
+            f = f1 - s1 * (f1 - f0) / (s1 - s0)
+            if not 0.0 < f < 1.0 or not np.isfinite(f):
+                f = 0.5 * (f0 + f1)
+            pred = u + f * d
+            got = correct(pred.copy(), chord, pred)
+            if got is None:
+                return None
+            at, G, _ = got
+            sf = tangent(G, chord)[k]
+            if sf == 0.0:
+                return at
+            if sf * s1 < 0:  # the fold lies between f and f1
+                f0, s0 = f1, s1
+            else:  # Illinois: the end kept has its value halved
+                s0 *= 0.5
+            f1, s1 = f, sf
+            if abs(f1 - f0) * np.hypot(*d) <= FOLD_TOL:
+                return at
+        return at
+
     start = np.asarray(start, dtype=float)
     u = (np.where(logs, np.log10(np.abs(start)), start) - lo) / span
     g0, G = g_grad(u)
@@ -880,8 +913,12 @@ def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_na
             break
         for k, name in ((0, x_name), (1, y_name)):
             if tq[k] * t[k] < 0:  # the curve turned back along this axis between u and q
-                f = t[k] / (t[k] - tq[k])
-                folds.append(tuple(to_xy(u + f * (q - u))) + (name,))
+                at = fold_between(u, t, q, tq, k)
+                if at is None:  # a correction failed: between the two points, as their tangents say
+                    f = t[k] / (t[k] - tq[k])
+                    folds.append(tuple(to_xy(u + f * (q - u))) + (name, False))
+                else:
+                    folds.append(tuple(to_xy(at)) + (name, True))
         if len(pts) > 3 and np.hypot(*(q - pts[0])) < s:
             pts.append(q)
             stop = "closed"
@@ -894,6 +931,10 @@ def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_na
 
 
 CURVE_STOPS = ("edge", "closed", "max_points", "step_too_small", "no_value")
+# where a fold's bracket stops, in the chart's scaled coordinates (both spans 1): the tangent there
+# comes from forward differences, so its zero is not known better; the fold's extremal coordinate
+# moves by the square of this (times the curve's curvature)
+FOLD_TOL = 1e-7
 
 
 def _crosses_near(points: np.ndarray, x: float, y: float, span_x: float) -> bool:
@@ -958,13 +999,15 @@ def _continue_all(scene, crit, b, res: Located, rows: np.ndarray, others: tuple)
     stop = np.full(rest + (K,), -1, dtype=np.int8)
     fx, fy = np.full(rest + (K, F), np.nan), np.full(rest + (K, F), np.nan)
     faxis = np.full(rest + (K, F), -1, dtype=np.int8)
+    flocated = np.full(rest + (K, F), -1, dtype=np.int8)
     for r, cs in found.items():
         for k, c in enumerate(cs):
             cx[r + (k, slice(0, len(c.points)))] = c.points[:, 0]
             cy[r + (k, slice(0, len(c.points)))] = c.points[:, 1]
             stop[r + (k,)] = CURVE_STOPS.index(c.stop)
-            for j, (x, y, ax) in enumerate(c.folds):
+            for j, (x, y, ax, located) in enumerate(c.folds):
                 fx[r + (k, j)], fy[r + (k, j)], faxis[r + (k, j)] = x, y, 0 if ax == along else 1
+                flocated[r + (k, j)] = int(located)
     rest_dims = tuple(n for n in names if n != cont)
     pa, pc = scene.model.param(along), scene.model.param(cont)
     codes = np.arange(len(CURVE_STOPS), dtype=np.int8)
@@ -984,6 +1027,10 @@ def _continue_all(scene, crit, b, res: Located, rows: np.ndarray, others: tuple)
         "fold_axis": (rest_dims + ("curve", "fold"), faxis,
                       {"units": "1", "long_name": f"the axis the curve turns back along at the fold: 0 {along}, "
                                                   f"1 {cont} (-1: no fold)"}),
+        "fold_located": (rest_dims + ("curve", "fold"), flocated,
+                         {"units": "1", "long_name": "whether the fold was located on the curve (1), or, where a "
+                                                     "correction failed there, interpolated between the two curve "
+                                                     "points around it (0); -1: no fold"}),
     }
     coords = {"curve": ("curve", np.arange(K), {"units": "1", "long_name": "index of the continued boundary"}),
               "point": ("point", np.arange(N), {"units": "1", "long_name": "index of the point along the curve"}),
