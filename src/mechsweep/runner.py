@@ -835,7 +835,9 @@ def evaluate_rows(scene: Scene, P: np.ndarray):
     status = np.zeros(n, dtype=st.DTYPE)
     n_steps = np.zeros(n, dtype=np.int64)
     n_rhs = np.zeros(n, dtype=np.int64)
-    with np.errstate(all="ignore"):  # an overflow at an extreme point is its status, not a warning
+    from .model.compile import planned_points  # the run's size, not the rows', chooses the kernel (lanes or not)
+
+    with np.errstate(all="ignore"), planned_points(scene.n_points):  # an overflow at an extreme point is its status
         scene.model.evaluate(P, computed, scene.solver, out, status, n_steps, n_rhs)
     requested = {name: out[name] for name in scene.outputs}
     # A point is ok only if everything asked of it is finite (never a NaN with status ok).
