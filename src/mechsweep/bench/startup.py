@@ -15,7 +15,10 @@ Each figure is printed with its target beside it (issue 15, goals 2, 3 and 5), a
   (--full: to 10^7 integrated and 10^6 .. 10^8 closed-form points; beyond 10^7 points, an axis's
   most, the grid is 10^4 x 10^4), warm, and the peak resident memory of the command
   ``mechsweep run`` on the same grid (a fresh process, interpreter included; bench memory explains
-  the measurement).
+  the measurement);
+- ``--only routes``: the cold compile of the quickstart's kernels by route (SIMD lanes, one point at
+  a time) in fresh processes with an empty JIT cache each, alternated, and both warm kernels' points/s
+  side by side: what model/compile.py's LANES_FROM_POINTS is set from.
 """
 from __future__ import annotations
 
@@ -465,7 +468,7 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
 def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.toml",
          parts: tuple[str, ...] = ("warm", "quickstart", "scaling")) -> dict:
     """Measure and print ``parts``: "warm", "quickstart", "scaling" (the default), "breakdown"
-    (where the time goes; see :func:`breakdown`)."""
+    (where the time goes; see :func:`breakdown`), "routes" (:func:`route_compile`, :func:`route_speed`)."""
     from . import _args
 
     repeats = _args.count("--repeats", repeats, 3, 100)
