@@ -128,11 +128,14 @@ def _load(scene, root):
         os.chdir(cwd)
 
 
-def test_an_exception_in_the_models_code_at_run_time_is_user_error():
+def test_an_exception_in_the_models_code_at_run_time_is_user_error(monkeypatch):
     """The probe (w = 1) passes; inside the kernel the closed form raises for w > 2 and the event for
-    w > 3: those points get USER_ERROR (not NONFINITE) and NaN, the others are computed."""
+    w > 3: those points get USER_ERROR (not NONFINITE) and NaN, the others are computed (the event's
+    exception in the SIMD-lane kernel, which a run of this size takes only when told to)."""
     from mechsweep.errors import UserModelWarning
+    from mechsweep.model import compile as mc
     from mechsweep.model import ode
+    monkeypatch.setattr(mc, "USE_LANES", True)
     ode._EXPLAINED.clear()  # warned once per cause in a process
     spec = load.resolve(f"{USER}:RAISING")
     P = np.array([[1.0, 0.5], [2.5, 0.5], [4.0, 0.5]])

@@ -24,7 +24,6 @@ from typing import TYPE_CHECKING
 import h5netcdf
 import h5py
 import numpy as np
-import xarray as xr
 
 from . import cf
 from . import status as st
@@ -33,6 +32,8 @@ from .grid import plan_chunks
 from .journal import BadChunk, Journal, partial_path  # noqa: F401  (partial_path: part of this module's API)
 
 if TYPE_CHECKING:  # not imported at run time: reading a dataset (plot, info) needs no model or numba
+    import xarray as xr  # nor does writing one (`mechsweep run`) need xarray: imported where a Dataset is made
+
     from .scene import Scene
 
 # Datasets up to this size are loaded into memory by open_dataset(lazy=None); larger ones are
@@ -460,6 +461,8 @@ def open_dataset(path: str | Path, *, allow_partial: bool = False, lazy: bool | 
     check_dataset_file(path)
     if lazy is None:
         lazy = path.stat().st_size > LOAD_LIMIT_BYTES
+    import xarray as xr  # here, not at the top: the command `mechsweep run` never needs it (0.3 s of CPU)
+
     try:
         if lazy:
             return xr.open_dataset(path, engine="h5netcdf", chunks={} if _have_dask() else None)
@@ -634,6 +637,8 @@ def _assemble_partial(part: Path) -> xr.Dataset:
     for bad in bad_chunks:
         print(f"mechsweep: {bad}; shown as pending, a --resume computes it again", file=sys.stderr)
     buffer.seek(0)
+    import xarray as xr
+
     with xr.open_dataset(buffer, engine="h5netcdf") as ds:
         return ds.load()
 
@@ -684,6 +689,8 @@ class _MemoryFile:
         coords = set(self.dimensions)
         for v in self.variables.values():
             coords.update(str(v.attrs.get("coordinates", "")).split())
+        import xarray as xr
+
         data_vars, coord_vars = {}, {}
         for name, v in self.variables.items():
             attrs = {k: a for k, a in v.attrs.items() if k not in ("_FillValue", "coordinates")}

@@ -15,7 +15,10 @@ Each figure is printed with its target beside it (issue 15, goals 2, 3 and 5), a
   (--full: to 10^7 integrated and 10^6 .. 10^8 closed-form points; beyond 10^7 points, an axis's
   most, the grid is 10^4 x 10^4), warm, and the peak resident memory of the command
   ``mechsweep run`` on the same grid (a fresh process, interpreter included; bench memory explains
-  the measurement).
+  the measurement);
+- ``--only routes``: the cold compile of the quickstart's kernels by route (SIMD lanes, one point at
+  a time) in fresh processes with an empty JIT cache each, alternated, and both warm kernels' points/s
+  side by side: what model/compile.py's LANES_FROM_POINTS is set from.
 """
 from __future__ import annotations
 
@@ -281,6 +284,70 @@ print(json.dumps({"compile_cpu": compile_cpu, "run": min(runs), "roots": hashlib
 """
 
 
+ROUTE_CHILD = """
+import json, sys, time
+import mechsweep
+from mechsweep.model import compile as mc
+from mechsweep.grid import ParameterMatrix
+from mechsweep.runner import evaluate_rows
+mode = sys.argv[2]
+mc.USE_LANES = {"lanes": True, "one": False}.get(mode, mc.USE_LANES)
+if mode == "auto":
+    mc.USE_LANES = None
+scene = mechsweep.load_scene(sys.argv[1])
+P = ParameterMatrix(scene)(0, scene.n_points)
+c0, t0 = time.process_time(), time.perf_counter()
+evaluate_rows(scene, P[:1])  # the compile (the run's warm-up point)
+compile_cpu, compile_wall = time.process_time() - c0, time.perf_counter() - t0
+lane_kernels = sum("lane_run" in open(sys.modules[name].__file__).read() for name in mc._KERNELS)
+print(json.dumps({"compile_cpu": compile_cpu, "compile_wall": compile_wall, "kernels": len(mc._KERNELS),
+                  "lane_kernels": lane_kernels}))
+"""
+
+
+def route_compile(scene: Path, repeats: int, folder: Path, modes=("lanes", "one")) -> dict:
+    """Cold compile of ``scene``'s kernels (its first point, as the run's warm-up) in fresh processes with
+    an empty JIT cache each, by route: "lanes" (compile.USE_LANES True), "one" (one point at a time),
+    alternated ``repeats`` times: {mode: [{compile_cpu, compile_wall, kernels, lane_kernels}]}."""
+    out = {m: [] for m in modes}
+    for i in range(repeats):
+        for mode in modes:
+            env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(folder / f"cache-route-{mode}-{i}"))
+            proc = subprocess.run([sys.executable, "-c", ROUTE_CHILD, str(scene), mode], env=env, capture_output=True,
+                                  text=True)
+            if proc.returncode != 0:
+                raise RuntimeError(f"route compile failed:\n{proc.stderr[-2000:]}")
+            out[mode].append(json.loads(proc.stdout.strip().splitlines()[-1]))
+    return out
+
+
+def route_speed(n: int, repeats: int) -> dict:
+    """Warm points per second of the Duffing period kernel (DOP853, rtol 1e-10) on ``n`` points, the lane
+    kernel and the one-point kernel alternated in this process: {mode: [(wall s, CPU s)]}."""
+    from mechsweep.grid import ParameterMatrix
+    from mechsweep.model import compile as mc
+    from mechsweep.runner import evaluate_rows
+    from mechsweep.scene import load_scene
+
+    scene = load_scene(duffing(n))
+    P = ParameterMatrix(scene)(0, n)
+    saved = mc.USE_LANES
+    out = {"lanes": [], "one": []}
+    try:
+        for mode in out:  # compile or load both first
+            mc.USE_LANES = mode == "lanes"
+            evaluate_rows(scene, P[:1])
+        for _ in range(repeats):
+            for mode in out:
+                mc.USE_LANES = mode == "lanes"
+                t0, c0 = time.perf_counter(), time.process_time()
+                evaluate_rows(scene, P)
+                out[mode].append((time.perf_counter() - t0, time.process_time() - c0))
+    finally:
+        mc.USE_LANES = saved
+    return out
+
+
 def integrator_compile(repeats: int) -> list[dict]:
     """The one-point DOP853 event solver of a Duffing rhs (quarter periods of 20000 amplitudes) in
     fresh processes with caching off: CPU seconds of its compile and of the best of 5 runs, and a hash of
@@ -401,12 +468,12 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
 def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.toml",
          parts: tuple[str, ...] = ("warm", "quickstart", "scaling")) -> dict:
     """Measure and print ``parts``: "warm", "quickstart", "scaling" (the default), "breakdown"
-    (where the time goes; see :func:`breakdown`)."""
+    (where the time goes; see :func:`breakdown`), "routes" (:func:`route_compile`, :func:`route_speed`)."""
     from . import _args
 
     repeats = _args.count("--repeats", repeats, 3, 100)
     scene_path = Path(scene).resolve()
-    if "quickstart" in parts or "breakdown" in parts:
+    if "quickstart" in parts or "breakdown" in parts or "routes" in parts:
         if not scene_path.is_file():
             raise _args.InputError(f"--scene {scene} does not exist (run from the repository root, or give its path)")
         from mechsweep.scene import load_scene
@@ -468,6 +535,22 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
                       f"{r['peak_rss'] / 2**20:.0f} MiB (dataset {r['disk'] / 2**20:.1f} MiB, command "
                       f"{r['command_s']:.1f} s)", flush=True)
             _scaling_verdict(rows)
+        if "routes" in parts:
+            comp = route_compile(scene_path, repeats, tmp)
+            report["routes"] = comp
+            print(f"  cold compile of {scene_path.name}'s kernels by route (fresh processes, empty JIT cache each, "
+                  "alternated; CPU and wall seconds of the first point):")
+            for mode, rows in comp.items():
+                print(f"    {mode:<5} CPU {_spread([r['compile_cpu'] for r in rows], 's', fmt='.2f'):<30} wall "
+                      f"{_spread([r['compile_wall'] for r in rows], 's', fmt='.2f')}; kernels {rows[0]['kernels']}, "
+                      f"in lanes {rows[0]['lane_kernels']}")
+            n = 10**5
+            speed = route_speed(n, repeats)
+            report["route_speed"] = speed
+            print(f"  warm kernels, Duffing period, {n:,} points, alternated in one process:")
+            for mode, rows in speed.items():
+                print(f"    {mode:<5} {_spread([n / r[0] for r in rows], 'points/s', fmt=',.0f'):<44} "
+                      f"{_spread([n / r[1] for r in rows], 'points per CPU s', fmt=',.0f')}")
         if "breakdown" in parts:
             print("  where the time goes:")
             breakdown(scene_path, tmp, repeats)

@@ -44,7 +44,17 @@ _LOAD_LOCK = threading.Lock()
 _TMP: list[str] = []
 
 BLOCK = 16  # points per scratch allocation inside the parallel loop
-USE_LANES = True  # kernel_for's default: SIMD lanes where model/lanes.py applies
+# kernel_for's default route where model/lanes.py applies: True the SIMD-lane kernel, False one point at a
+# time, None (the default) the lane kernel only where it pays: for a run of at least LANES_FROM_POINTS
+# points, or when it is compiled already (in this process or in the disk cache). The results are bitwise
+# the same either way (tests/test_model_lanes.py); the benches and tests set True or False to compare.
+USE_LANES: bool | None = None
+# The lane kernel compiles in about twice the CPU time of the one-point kernel and integrates faster:
+# Duffing period (sweeps/quickstart.toml, 2026-11-24, load 0.4-2.7; `mechsweep bench startup --only
+# routes`): cold compile 22.4 s of CPU against 10.4 s, warm 665k against 403k points/s on 2 threads
+# (673k and 404k per CPU second): the 12 s are repaid at about 1.2 * 10^7 points.
+LANES_FROM_POINTS = 10**7
+_PLAN = threading.local()  # the size of the run being computed in this thread (planned_points)
 
 
 def _folder() -> Path:
@@ -636,8 +646,55 @@ def _own_body(k: int, refs: dict, args: str) -> str:
     return out
 
 
+class planned_points:
+    """``with planned_points(n):`` the kernels fetched in this thread serve a run of ``n`` points (the
+    runner says so around each chunk: a chunk, or the warm-up's one point, is smaller than the run).
+    kernel_for's automatic route choice (USE_LANES None) compares it with LANES_FROM_POINTS."""
+
+    def __init__(self, n: int):
+        self.n = int(n)
+
+    def __enter__(self):
+        self.before = getattr(_PLAN, "n", 0)
+        _PLAN.n = self.n
+        return self
+
+    def __exit__(self, *exc):
+        _PLAN.n = self.before
+
+
+def _lanes_pay(name: str, source, points: int) -> bool:
+    """Whether the automatic route takes the lane kernel ``name`` (module source ``source()``): a run of
+    at least LANES_FROM_POINTS points, or the kernel compiled already: loaded in this process, or its
+    module file written by an earlier process and numba's disk cache holding machine code for it (its
+    index read as numba reads it: the module file's stamp checked, and this CPU's)."""
+    if points >= LANES_FROM_POINTS or name in _KERNELS:
+        return True
+    return _compiled_on_disk(name, source)
+
+
+def _compiled_on_disk(name: str, source) -> bool:
+    """Whether numba's disk cache holds machine code for this CPU of the kernel of the generated module
+    ``name`` (source ``source()``), as numba reads its index; if so, the kernel is loaded into _KERNELS.
+    The module is imported only when its file exists (an earlier process wrote it)."""
+    if _jit.cache_dir is None or not (_folder() / f"{name}.py").exists():
+        return False
+    kernel = load_generated(name, source()).kernel
+    try:
+        cache = kernel._cache
+        index = cache._cache_file._load_index()
+        magic = kernel.targetctx.codegen().magic_tuple()
+        found = any(key[1] == magic and os.path.exists(os.path.join(cache._cache_path, file))
+                    for key, file in index.items())
+    except Exception:  # numba's private cache layout changed: compile the one-point kernel rather than guess
+        found = False
+    if found:
+        _KERNELS[name] = kernel
+    return found
+
+
 def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str = "", shared: bool = True,
-               closed=(), method: str = "dop853", lanes: bool | None = None):
+               closed=(), method: str = "dop853", lanes: bool | None = None, points: int = 0):
     """The compiled chunk kernel ``kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps,
     n_rhs)`` of ``model`` for the measurements ``chosen`` and the closed forms ``closed`` (dependency
     order; closed form j is computed where ``need[j]``, a run-time choice: one kernel serves every
@@ -646,23 +703,29 @@ def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str =
     ``shared=False``: every shared-path measurement integrates on its own (for comparison).
     ``lanes``: where model/lanes.py applies (a lone first event by dop853, an rhs it can rewrite), the
     kernel integrates LANES points side by side (bitwise the same results); False: one at a time;
-    None: as USE_LANES says (the benches and tests switch it to compare the two routes).
+    None: as USE_LANES says (the benches and tests switch it to compare the two routes; its default
+    None takes the lanes where they pay, see _lanes_pay). ``points``: the points of this call; the run's
+    size (planned_points) counts when it is larger.
     A second call with the same objects returns the kernel without reading and hashing the model's
     source files again (every chunk of a run asks)."""
     use_lanes = USE_LANES if lanes is None else lanes
-    memo = (id(model), tuple(map(id, chosen)), tuple(map(id, closed)), shared, method, use_lanes)
+    points = max(int(points), getattr(_PLAN, "n", 0))
+    big = use_lanes is None and points >= LANES_FROM_POINTS
+    memo = (id(model), tuple(map(id, chosen)), tuple(map(id, closed)), shared, method, use_lanes, big)
     known = _BY_OBJECTS.get(memo)
     if (known is not None and known[0] is model and all(a is b for a, b in zip(known[1], chosen))
             and all(a is b for a, b in zip(known[2], closed)) and known[3] in _KERNELS):
+        if known[4] in _KERNELS:  # the lane kernel the automatic route passed over, loaded since
+            return _KERNELS[known[4]]
         return _KERNELS[known[3]]
-    name = _kernel_name(model, chosen, origin, shared, closed, method, use_lanes)
-    _BY_OBJECTS[memo] = (model, tuple(chosen), tuple(closed), name)  # the objects kept alive: ids stay theirs
+    name, passed = _kernel_name(model, chosen, origin, shared, closed, method, use_lanes, points)
+    _BY_OBJECTS[memo] = (model, tuple(chosen), tuple(closed), name, passed)  # the objects kept alive: ids stay theirs
     return _KERNELS[name]
 
 
-def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes) -> str:
+def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes, points=0) -> tuple[str, str | None]:
     """The kernel's module name (a hash of the model's sources and the choices), the kernel loaded
-    into _KERNELS under it."""
+    into _KERNELS under it; and the name of the lane kernel the automatic route passed over (or None)."""
     refs = {}
     for name, func in _functions(model, chosen, closed):
         refs[name] = load.function_ref(func, name, model.name)
@@ -673,23 +736,36 @@ def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes) -> st
                      if type(m).__name__ == "FirstEvent")  # the lane kernel finds the first root of the event as given
     # the lane kernels (model/lanes.py) know neither a measurement's classify nor a status order
     plain = not getattr(model, "status_order", ()) and not any(getattr(m, "classify", None) for m in chosen)
-    lane_rhs = lane_kernels.applies(model, chosen, method) if (use_lanes and first_root and plain) else None
-    key = hashlib.sha256()
+    lane_rhs = (lane_kernels.applies(model, chosen, method) if (use_lanes is not False and first_root and plain)
+                else None)
+    base = hashlib.sha256()
     for name, ref in refs.items():
-        key.update(name.encode())
-        key.update(repr(ref).encode())
-        key.update(load.module_source(ref[0], ref[1]))
-    key.update(repr((model.name, layout(model), len(model.states), getattr(model, "symplectic_order", 0),
-                     tuple(getattr(m, "key", lambda: m)() for m in chosen),
-                     tuple((c.name, c.needs) for c in closed), shared, method, lane_rhs and (lane_kernels.lanes_for(len(model.states)), lane_kernels.QUEUE))).encode())
-    name = "mechsweep_gen_" + key.hexdigest()[:20]
-    if name in _KERNELS:
-        return name
+        base.update(name.encode())
+        base.update(repr(ref).encode())
+        base.update(load.module_source(ref[0], ref[1]))
     origin = origin or f"{refs['rhs'][0]}"
+
+    def name_of(lane_rhs):
+        key = base.copy()
+        key.update(repr((model.name, layout(model), len(model.states), getattr(model, "symplectic_order", 0),
+                         tuple(getattr(m, "key", lambda: m)() for m in chosen),
+                         tuple((c.name, c.needs) for c in closed), shared, method,
+                         lane_rhs and (lane_kernels.lanes_for(len(model.states)), lane_kernels.QUEUE))).encode())
+        return "mechsweep_gen_" + key.hexdigest()[:20]
+
+    passed = None
+    if lane_rhs and use_lanes is None:
+        lane_name = name_of(lane_rhs)
+        if not _lanes_pay(lane_name, lambda: lane_kernels.kernel_source(model, chosen, refs, origin, closed, lane_rhs),
+                          points):
+            lane_rhs, passed = None, lane_name
+    name = name_of(lane_rhs)
+    if name in _KERNELS:
+        return name, passed
     source = (lane_kernels.kernel_source(model, chosen, refs, origin, closed, lane_rhs) if lane_rhs
               else kernel_source(model, chosen, refs, origin, shared, closed, method, direct))
     _KERNELS[name] = load_generated(name, source).kernel
-    return name
+    return name, passed
 
 
 def load_generated(name: str, source: str):

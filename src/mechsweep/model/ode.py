@@ -340,7 +340,7 @@ class OdeModel:
             # when none is wanted (a lean kernel: a cold compile of a period-only scene compiles no formula)
             computable = model.computable_closed_forms(chosen) if closed else ()
             kernel = kernel_for(model, chosen, origin=origin, module=module, attr=attr, closed=computable,
-                                method=method)
+                                method=method, points=P.shape[0])
             wanted_closed = {c.name for c in closed}
             need = np.array([c.name in wanted_closed for c in computable], dtype=np.bool_)
             cols = columns(chosen)
