@@ -621,9 +621,15 @@ def describe(ds) -> str:
     codes = status.values
     total = status.size
     for name in _outputs(ds):
-        v = ds[name].where(ok)  # chunk by chunk when the dataset is opened lazily
-        lo, hi = float(v.min()), float(v.max())
-        rng = f"{lo:.6g} .. {hi:.6g}" if np.isfinite(lo) else "no ok points"
+        # the range over every finite value, whatever the point's status (a value at a point whose
+        # status is not ok, e.g. an unstable point where a second output failed, is still shown),
+        # and beside it the range over the ok points when that differs; chunk by chunk when lazy
+        lo, hi = float(ds[name].min()), float(ds[name].max())
+        v = ds[name].where(ok)
+        lo_ok, hi_ok = float(v.min()), float(v.max())
+        rng = f"{lo:.6g} .. {hi:.6g}" if np.isfinite(lo) else "no values"
+        if np.isfinite(lo) and (lo_ok, hi_ok) != (lo, hi):
+            rng += f" (at ok points {lo_ok:.6g} .. {hi_ok:.6g})" if np.isfinite(lo_ok) else " (none at an ok point)"
         lines.append(f"  {name:<20} [{ds[name].attrs.get('units', '')}]  {rng}  {ds[name].attrs.get('long_name', '')}")
         lines.append(f"  {'':<20} {_presence(ds, name, codes)}")
     verdicts = [n for n in _outputs(ds) if output_kind(ds, n) == "verdict"]
@@ -697,7 +703,9 @@ def _presence(ds, name: str, codes) -> str:
     missing_codes, counts = np.unique(codes[~held], return_counts=True)
     missing = [f"{st.MEANINGS.get(int(c), str(c))} {int(n)}" for c, n in zip(missing_codes, counts)]
     text = f"values at {int(held.sum())} of {codes.size} points"
-    return text + (f"; missing: {', '.join(missing)}" if missing else "")
+    text += f"; missing: {', '.join(missing)}" if missing else ""
+    not_ok = int((held & (codes != st.OK)).sum())
+    return text + (f"; {not_ok} held at points whose status is not ok" if not_ok else "")
 
 
 def verdict_agreement(ds, a: str, b: str) -> str:
