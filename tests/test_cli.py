@@ -70,6 +70,21 @@ def test_check_and_models(capsys):
     assert "omega" in text and "[rad s-1]" in text
 
 
+def test_models_of_a_file_without_a_name_lists_what_the_file_defines(capsys, tmp_path):
+    """`mechsweep models file.py` (no :NAME): the models the file defines, each described, and how a
+    scene names one; a missing file or one without models: exit 2 naming it."""
+    path = REPO / "tests" / "user_models" / "oscillators.py"
+    assert main(["models", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"{path} defines 2 model(s): LINEAR, PENDULUM; a scene names one as {path}:NAME")
+    assert f"source: {path}:LINEAR" in out and f"source: {path}:PENDULUM" in out
+    assert main(["models", str(tmp_path / "none.py")]) == 2
+    assert "none.py" in capsys.readouterr().err
+    (tmp_path / "empty.py").write_text("x = 1\n")
+    assert main(["models", str(tmp_path / "empty.py")]) == 2
+    assert "defines no mechsweep.model.OdeModel or ClosedFormModel" in capsys.readouterr().err
+
+
 def test_output_cut_short_by_a_pipe_is_not_an_error():
     """`mechsweep models | head -1`: the reader leaves early; no traceback, exit 0."""
     import subprocess

@@ -41,7 +41,8 @@ mechsweep.models), with their parameters and outputs. A user model comes in by o
                                       [project.entry-points."mechsweep.models"]
                                       NAME = "mypkg.models:NAME"
   mechsweep.run(scene, models={"NAME": my_ode_model})   from Python (runs locally only)
-`mechsweep models my_models.py:NAME` or `mechsweep models --scene S.toml` shows one user model.
+`mechsweep models my_models.py:NAME` or `mechsweep models --scene S.toml` shows one user model;
+`mechsweep models my_models.py` every model the file defines, with the names a scene uses.
 Loading a model file or module executes it: only name code you trust. A model that fails to
 load is reported with its file and line (exit 2).
 """
@@ -178,7 +179,8 @@ def _parser() -> argparse.ArgumentParser:
     p = sub.add_parser("models", help="list models with their parameters and outputs (name, unit, range)",
                        description=MODELS_EPILOG, formatter_class=fmt)
     p.add_argument("model", nargs="?", help="one model only: a built-in or registered name, 'file.py:NAME' "
-                   "(relative to the current directory) or 'package.module:NAME'")
+                   "(relative to the current directory) or 'package.module:NAME'; a bare 'file.py': "
+                   "the models that file defines")
     p.add_argument("--scene", metavar="SCENE", help="the model the scene file SCENE names (a user model "
                    "file is found relative to the scene)")
     p.add_argument("--markdown", action="store_true", help="print the glossary page of the documentation "
@@ -543,6 +545,11 @@ def _cmd_models(args) -> int:
             specs = [MODELS[name]]
         elif ":" in name:
             specs = [load.resolve(name)]
+        elif name.endswith(".py") or "/" in name or "\\" in name:  # a model file without :NAME
+            found = _models_in_file(name)
+            print(f"{name} defines {len(found)} model(s): {', '.join(found)}; a scene names one as "
+                  f"{name}:NAME (e.g. model = \"{name}:{found[0]}\")\n")
+            specs = [load.resolve(f"{name}:{n}") for n in found]
         else:
             points = load.entry_points()
             if name not in points:
@@ -561,6 +568,30 @@ def _cmd_models(args) -> int:
     for spec in specs:
         print(model_markdown(spec) if args.markdown else model_text(spec))
     return 0
+
+
+def _models_in_file(name: str) -> list[str]:
+    """The names of the OdeModel and ClosedFormModel objects a model file defines (InputError
+    naming the file when it is missing, fails to import or defines none)."""
+    from pathlib import Path
+
+    from .errors import InputError
+    from .model import load
+    from .model.closed import ClosedFormModel
+    from .model.ode import OdeModel
+
+    path = Path(name).resolve()
+    if not path.is_file():
+        raise InputError(f"{name!r}: model file {path} does not exist (a model is a built-in name, "
+                         "'file.py:NAME' or 'package.module:NAME')")
+    try:
+        mod = load.import_module(load._module_name(path), str(path))
+    except Exception as exc:  # the user's code raised on import
+        raise InputError(f"{name!r}: importing {path} failed: {load._where(exc, str(path))}") from None
+    found = [k for k, v in vars(mod).items() if isinstance(v, (OdeModel, ClosedFormModel))]
+    if not found:
+        raise InputError(f"{name!r}: {path} defines no mechsweep.model.OdeModel or ClosedFormModel")
+    return found
 
 
 def _entry_point_model(name: str, ep):
