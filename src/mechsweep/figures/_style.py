@@ -135,7 +135,9 @@ def title(fig, ds, what: str, caption: str | None = None) -> None:
     when given) go to a caption box under the panels, in a smaller font."""
     if not owns(fig):
         return
-    fig.suptitle(f"{what}\n{ds.attrs.get('title', '')}".strip(), fontsize=11)
+    # wrap=True: a title longer than the figure is wide wraps at draw time (it used to be cut at
+    # both edges); one that fits is drawn exactly as before
+    fig.suptitle(f"{what}\n{ds.attrs.get('title', '')}".strip(), fontsize=11, wrap=True)
     fixed = fixed_text(ds)
     lines = [c for c in (caption, f"fixed: {fixed}" if fixed else "") if c]
     if lines:
