@@ -374,3 +374,25 @@ def test_a_list_axis_spread_in_the_logarithm_gets_log_cells_and_crowded_contour_
     for i, a in enumerate(where):
         for b in where[i + 1:]:
             assert abs(a[0] - b[0]) >= generic.LABEL_GAP[0] or abs(a[1] - b[1]) >= generic.LABEL_GAP[1]
+
+
+def test_a_stability_maps_legend_names_continued_curves_and_folds_too():
+    """Besides the located points, a continued boundary and its fold get a legend entry (they were
+    drawn without one)."""
+    ds = _axes_of(cam(), "speed", "preload")
+    n = ds.sizes["preload"]
+    crossing = np.array([[30.0 + 10 * i, np.nan] for i in range(n)])
+    bds = xr.Dataset(
+        {"boundary": (("preload", "crossing"), crossing, {"units": "rad/s"}),
+         "boundary_width": (("preload", "crossing"), np.full(crossing.shape, 1e-9), {"units": "rad/s"}),
+         "curve_speed": (("curve", "point"), [[30.0, 40.0, 50.0]]),
+         "curve_preload": (("curve", "point"), [[0.0, 10.0, 20.0]]),
+         "fold_speed": (("fold",), [50.0]), "fold_preload": (("fold",), [20.0])},
+        coords={"preload": ds["preload"].values, "crossing": [0, 1]},
+        attrs={"mechsweep_kind": "boundaries", "model": "cam_follower", "along": "speed", "criterion": "floquet",
+               "level": 1.0, "rtol": 1e-10, "continue_in": "preload"})
+    art = figures.artists(ds, "stability_map", boundaries=bds)
+    texts = [t.get_text().replace("\n", " ") for t in art["legend"].get_texts()]
+    assert any(t.startswith("located along speed") for t in texts)
+    assert any(t.startswith("continued in (speed, preload)") for t in texts)
+    assert "fold of a continued boundary" in texts

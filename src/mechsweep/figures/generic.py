@@ -588,8 +588,12 @@ def stability_map(ds, name=None, *, fig=None, ax=None, boundaries=None):
                axes[0, 0].plot([], [], color="k", lw=1.2, label=f"{ds[name].attrs.get('symbol', name)} = 1")[0]]
     if not any(p["boundary"] is not None for p in art["panels"]):
         handles.pop()  # no grid contour drawn
-    located_points = [p["located"][0] for p in art["panels"] if p.get("located")]
-    handles += located_points[:1]
+    seen = set()  # one legend entry per kind of located artist (points, continued curve, fold)
+    for a in (a for p in art["panels"] for a in p.get("located") or ()):
+        text = a.get_label()
+        if text and not text.startswith("_") and text not in seen:
+            seen.add(text)
+            handles.append(a)
     for h in handles:  # a long label would squeeze the panels beside the legend
         h.set_label(textwrap.fill(h.get_label(), 34))
     # beside two columns of panels; below a single column, where a legend beside it would squeeze it
