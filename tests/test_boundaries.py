@@ -552,3 +552,33 @@ def test_band_edges_are_found_to_tol_in_few_evaluations_whichever_law_is_guessed
     assert bound[0] == bd.BAND_EDGE and B[0] - A[0] <= rtol * B[0]
     assert A[0] <= edge <= B[0] and abs(loc[0] - edge) <= rtol * edge
     assert n_eval[0] <= 24, n_eval
+
+
+def test_a_band_edge_with_a_flat_criterion_beside_it_is_found_by_bisection_without_a_warning():
+    """Off the band the criterion takes the same value at the two points nearest the edge (a jump
+    to a plateau; at a tongue tip the two off-band values can tie): the secant through them has
+    no root (the prediction is +-inf), so the search bisects. The infinite prediction used to
+    reach the probes' arithmetic (inf - inf: numpy's "invalid value encountered in add")."""
+    import warnings
+
+    eps, rtol = 1e-9, 1e-10
+
+    def fun(x):
+        return np.where(np.asarray(x) > X0_EDGE, 0.5, 0.0)
+
+    A, B = np.array([1.0]), np.array([1.4])
+    gA, gB = fun(A), fun(B)
+    acc = lambda g: np.full(np.size(g), eps)  # noqa: E731
+    n_eval, bound, loc = np.zeros(1, dtype=np.int64), np.full(1, -1, dtype=np.int8), np.full(1, np.nan)
+
+    def ev(line, x):
+        x = np.asarray(x)
+        return fun(x), np.zeros(x.size), np.full(x.size, np.nan)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        bd._band_edges(ev, np.zeros(1, dtype=int), np.array([0]), A, B, bd._sides(gA, acc(gA)),
+                       bd._sides(gB, acc(gB)), gA, gB, np.full(1, np.nan), np.full(1, np.nan), n_eval, bound, loc,
+                       lambda a, b: rtol * np.maximum(np.abs(a), np.abs(b)), acc, 2.0)
+    assert bound[0] == bd.BAND_EDGE and B[0] - A[0] <= rtol * B[0]
+    assert A[0] <= X0_EDGE <= B[0] and abs(loc[0] - X0_EDGE) <= rtol * X0_EDGE

@@ -70,6 +70,21 @@ def test_check_and_models(capsys):
     assert "omega" in text and "[rad s-1]" in text
 
 
+def test_models_of_a_file_without_a_name_lists_what_the_file_defines(capsys, tmp_path):
+    """`mechsweep models file.py` (no :NAME): the models the file defines, each described, and how a
+    scene names one; a missing file or one without models: exit 2 naming it."""
+    path = REPO / "tests" / "user_models" / "oscillators.py"
+    assert main(["models", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"{path} defines 2 model(s): LINEAR, PENDULUM; a scene names one as {path}:NAME")
+    assert f"source: {path}:LINEAR" in out and f"source: {path}:PENDULUM" in out
+    assert main(["models", str(tmp_path / "none.py")]) == 2
+    assert "none.py" in capsys.readouterr().err
+    (tmp_path / "empty.py").write_text("x = 1\n")
+    assert main(["models", str(tmp_path / "empty.py")]) == 2
+    assert "defines no mechsweep.model.OdeModel or ClosedFormModel" in capsys.readouterr().err
+
+
 def test_output_cut_short_by_a_pipe_is_not_an_error():
     """`mechsweep models | head -1`: the reader leaves early; no traceback, exit 0."""
     import subprocess
@@ -116,6 +131,24 @@ def test_info_compares_any_two_verdicts_and_says_where_values_are_missing():
     assert "values at 5 of 6 points; missing: no_event 1" in text  # x
     assert "undecided: the pendulum dithers" in text
     assert "verdicts: ok_a and x" not in text  # x is not a verdict
+
+
+def test_info_ranges_cover_every_value_also_at_points_whose_status_is_not_ok():
+    """The range of an output is over all its finite values: a value at a point whose status is
+    not ok (e.g. a multiplier > 1 where another output failed) is shown; the range over the ok
+    points beside it when it differs, and how many values sit at such points."""
+    from mechsweep.cli import describe
+
+    text = describe(_dataset("some_user_model", ["ok_a", "ok_b", "x"]))
+    lines = text.splitlines()
+    x = next(i for i, line in enumerate(lines) if line.startswith("  x "))
+    assert "[1]  0.25 .. 3 (at ok points 0.25 .. 2)  x" in lines[x]  # 3.0 at the undecided point
+    assert lines[x + 1].strip() == "values at 5 of 6 points; missing: no_event 1; 1 held at points whose status is not ok"
+    b = next(i for i, line in enumerate(lines) if line.startswith("  ok_b "))
+    assert "[1]  0 .. 1 (at ok points 1 .. 1)  ok_b" in lines[b]  # a verdict 0 only at a non-ok point
+    a = next(i for i, line in enumerate(lines) if line.startswith("  ok_a "))
+    assert "[1]  0 .. 1  ok_a" in lines[a]  # every value at an ok point: one range
+    assert "held at points" not in lines[a + 1]
 
 
 def test_info_reads_the_declared_kinds_of_a_built_in_model_for_an_old_dataset():

@@ -307,6 +307,18 @@ def test_labels_never_wrap_inside_parentheses_and_show_units():
     assert label(da, width=200).endswith("[rad\u00a0s$^{-1}$]")
 
 
+def test_a_bracketed_part_longer_than_a_line_wraps_and_short_ones_inside_it_stay_whole():
+    """A long name whose parenthesis cannot fit on one line (a Floquet verdict's) was kept whole and
+    ran off the figure; now only the parts that fit a line stay unbroken."""
+    from mechsweep.figures._style import NBSP, wrap
+
+    text = ("1 if mu < 1 - margin, 0 if > 1 + margin (margin = max(floquet_margin, 100 rtol); NaN and "
+            "status undecided within it)")
+    lines = wrap(text, 34).split("\n")
+    assert all(len(line) <= 34 for line in lines), lines
+    assert any(f"max(floquet_margin,{NBSP}100{NBSP}rtol)" in line for line in lines)  # the inner part: whole
+
+
 def _wp(names):
     import xarray as xr
 

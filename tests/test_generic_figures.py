@@ -289,3 +289,110 @@ def test_stability_map_draws_every_valued_point_and_the_located_boundaries():
     np.testing.assert_allclose(points[:, 0], crossing[:, 0])
     np.testing.assert_allclose(points[:, 1], ds["preload"].values)
     assert "located" not in figures.artists(ds, "stability_map")["panels"][0]
+
+
+def test_discrete_outputs_are_drawn_by_class_without_contours():
+    """A declared verdict (0/1) and an output of a few whole numbers (a -1/0/+1 kind) get one flat
+    colour per value and a colour bar ticked at the values, no interpolated contours (they used to
+    get a continuous scale with contours at 0.2, 0.4, ...); a continuous output keeps its contours."""
+    from matplotlib.colors import BoundaryNorm
+
+    ds = _axes_of(cam(), "speed", "preload")
+    S = ds["floquet"].values
+    ds["kind"] = (ds["floquet"].dims, np.where(S > 1.2, -1.0, np.where(S > 0.8, 1.0, 0.0)),
+                  {"units": "1", "long_name": "kind of the critical multiplier"})
+    ds["stable"] = (ds["floquet"].dims, (S <= 1).astype(float), {"units": "1", "long_name": "stable",
+                                                                 "mechsweep_kind": "verdict"})
+    for name, classes in (("kind", [-1.0, 0.0, 1.0]), ("stable", [0.0, 1.0])):
+        art = generic.heatmap(ds, name, x="preload", y="speed")
+        assert art["contours"] is None and art["contour_labels"] == []
+        assert isinstance(art["mesh"].norm, BoundaryNorm) and art["mesh"].cmap.N == len(classes)
+        np.testing.assert_array_equal(art["colorbar"].get_ticks(), classes)
+        shown = np.asarray(art["mesh"].get_array()).reshape(ds["kind"].shape[:2])
+        colours = art["mesh"].cmap(art["mesh"].norm(shown))  # one colour per class, every class its own
+        for c in classes:
+            assert len({tuple(x) for x in colours[shown == c]}) == 1
+        assert len({tuple(colours[shown == c][0]) for c in classes}) == len(classes)
+    assert generic.heatmap(ds, "lift", x="preload", y="speed")["contours"] is not None
+
+
+def test_a_stability_map_draws_the_panels_its_description_announces():
+    """`plot --list` says "the first 4 of 6"; the drawing had 6 panels: now both say 4."""
+    ds = cam(contacts=tuple("abcdef"))
+    choice = next(c for c in generic.choose(ds) if c.kind == "stability_map")
+    assert "(the first 4 of 6)" in choice.description
+    fig = figures.draw(ds, "stability_map")
+    titles = [ax.get_title() for ax in fig.axes if ax.get_title()]
+    assert titles == [f"contact = {c}" for c in "abcd"]
+    assert "first 4 of 6 slices of contact" in fig.get_suptitle()
+
+
+def test_long_titles_wrap_inside_the_figure_and_a_lone_maps_legend_goes_below():
+    """A title longer than the figure is wide wraps (it was cut at both edges); a one-panel stability
+    map has its legend below the panel, not beside it squeezing it."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    ds = _axes_of(cam(), "speed", "preload")
+    ds["floquet"].attrs["long_name"] = "largest modulus of the Floquet multipliers over one forcing period " * 2
+    fig = figures.draw(ds, "stability_map")
+    FigureCanvasAgg(fig).draw()
+    box, renderer = fig.bbox, fig.canvas.get_renderer()
+    head = fig._suptitle.get_window_extent(renderer)
+    assert box.x0 <= head.x0 and head.x1 <= box.x1
+    ax = fig.axes[0]
+    legend = fig.legends[0].get_window_extent(renderer)
+    assert legend.y1 <= ax.get_window_extent(renderer).y0  # below the panel
+    assert ax.get_window_extent(renderer).width >= 0.6 * box.width
+
+
+def test_a_list_axis_spread_in_the_logarithm_gets_log_cells_and_crowded_contour_labels_are_thinned():
+    """A list axis 0.1, 1, 10: log scale, cells from 10^-1.5 to 10^1.5 (linear cells stretched the
+    last to 14.5). Contours bunched at one edge (a steep rise) are labelled where labels do not
+    overlap: no two within LABEL_GAP of each other (they piled up there)."""
+    L = np.array([0.1, 1.0, 10.0])
+    A = np.linspace(0.0, 1.0, 41)
+    value = np.exp(12.0 * A)[:, None] * (1 + L)[None, :] * np.ones((1, 3))
+    ds = xr.Dataset({"err": (("A", "L"), value, {"units": "1", "long_name": "error"}),
+                     "status": (("A", "L"), np.zeros(value.shape, np.int8))},
+                    coords={"A": ("A", A, {"units": "1", "spacing": "linear"}),
+                            "L": ("L", L, {"units": "m", "spacing": "list"})},
+                    attrs={"model": "x", "outputs": "err"})
+    art = generic.heatmap(ds, "err", x="L", y="A")
+    ax = art["mesh"].axes
+    assert ax.get_xscale() == "log"
+    np.testing.assert_allclose(ax.get_xlim(), [10**-1.5, 10**1.5])
+    ds2 = xr.Dataset({"err": (("A", "L"), 1.0 / (1.02 - A)[:, None] * np.ones((1, 6)), {"units": "1"}),
+                      "status": (("A", "L"), np.zeros((41, 6), np.int8))},
+                     coords={"A": ("A", A, {"units": "1"}), "L": ("L", np.linspace(0.1, 10.0, 6), {"spacing": "list"})})
+    art = generic.heatmap(ds2, "err", x="L", y="A")
+    ax = art["mesh"].axes
+    assert ax.get_xscale() == "linear"  # evenly spread: linear cells
+    assert len(art["contours"].levels) >= 4  # 10, 20, 30, 40 at A = 0.92, 0.97, 0.987, 0.995
+    to_axes = ax.transScale + ax.transLimits
+    where = [to_axes.transform(t.get_position()) for t in art["contour_labels"]]
+    assert 2 <= len(where) < len(art["contours"].levels)
+    for i, a in enumerate(where):
+        for b in where[i + 1:]:
+            assert abs(a[0] - b[0]) >= generic.LABEL_GAP[0] or abs(a[1] - b[1]) >= generic.LABEL_GAP[1]
+
+
+def test_a_stability_maps_legend_names_continued_curves_and_folds_too():
+    """Besides the located points, a continued boundary and its fold get a legend entry (they were
+    drawn without one)."""
+    ds = _axes_of(cam(), "speed", "preload")
+    n = ds.sizes["preload"]
+    crossing = np.array([[30.0 + 10 * i, np.nan] for i in range(n)])
+    bds = xr.Dataset(
+        {"boundary": (("preload", "crossing"), crossing, {"units": "rad/s"}),
+         "boundary_width": (("preload", "crossing"), np.full(crossing.shape, 1e-9), {"units": "rad/s"}),
+         "curve_speed": (("curve", "point"), [[30.0, 40.0, 50.0]]),
+         "curve_preload": (("curve", "point"), [[0.0, 10.0, 20.0]]),
+         "fold_speed": (("fold",), [50.0]), "fold_preload": (("fold",), [20.0])},
+        coords={"preload": ds["preload"].values, "crossing": [0, 1]},
+        attrs={"mechsweep_kind": "boundaries", "model": "cam_follower", "along": "speed", "criterion": "floquet",
+               "level": 1.0, "rtol": 1e-10, "continue_in": "preload"})
+    art = figures.artists(ds, "stability_map", boundaries=bds)
+    texts = [t.get_text().replace("\n", " ") for t in art["legend"].get_texts()]
+    assert any(t.startswith("located along speed") for t in texts)
+    assert any(t.startswith("continued in (speed, preload)") for t in texts)
+    assert "fold of a continued boundary" in texts

@@ -80,6 +80,43 @@ def test_extremum_of_an_expression_and_over_windows_given_by_functions_of_p():
     assert np.isnan(out["bad_window"][:2]).all()
 
 
+def test_a_first_event_beside_shared_path_measurements_generates_one_kernel():
+    """The kernel source of a FirstEvent with an Extremum and a Period-like shared row (no
+    compilation): the FirstEvent gets its own event solver, the others the shared trajectory
+    (the source once failed: FirstEvent has no shared-path source)."""
+    from mechsweep.model import compile as mc
+    from mechsweep.model import load
+
+    path = Path(MODEL.rpartition(":")[0])
+    decl = load.import_module(load._module_name(path), str(path)).MODEL
+    chosen, _ = decl._plan(("down3_short", "ke_max", "period_up"))
+    refs = {name: load.function_ref(f, name, decl.name) for name, f in mc._functions(decl, chosen, ())}
+    source = mc.kernel_source(decl, chosen, refs, "test")
+    compile(source, "generated", "exec")  # valid Python
+    firsts = [k for k, m in enumerate(chosen) if type(m).__name__ == "FirstEvent"]
+    assert len(firsts) == 2
+    for k in firsts:  # each FirstEvent by its own event solver, as when asked alone
+        assert f"c, val, a, b_ = solve{k}(0.0, y, p, " in source
+    assert "a, b_ = shared(y, p, SHARED_M" in source and "NSH = 1\n" in source
+
+
+@pytest.mark.slow  # one more kernel (~25 s of compilation from an empty cache)
+def test_a_first_event_beside_shared_path_measurements_gives_what_each_gives_alone():
+    """A FirstEvent (integrated on its own) asked together with shared-trajectory measurements
+    (here Extremum; Period, Crossing, StateAt, Floquet take the same path) in one kernel: each value
+    bitwise what the measurement gives when asked alone (the kernel once failed to generate:
+    FirstEvent has no shared-path source), the status the first failure of either."""
+    first, s1, _, _ = evaluate(("down3_short", "period_up"))
+    ext, s2, _, _ = evaluate(("ke_max", "power_early", "power_late", "x_min_late", "bad_window"))
+    both, status, ns, _ = evaluate(("down3_short", "ke_max", "power_early", "power_late", "x_min_late",
+                                    "period_up", "bad_window"))
+    for name, alone in list(first.items()) + list(ext.items()):
+        np.testing.assert_array_equal(both[name], alone)  # NaN where alone is NaN, else bitwise
+    assert not np.isnan(both["period_up"]).any() and not np.isnan(both["ke_max"]).any()
+    assert ((status == st.OK) == ((s1 == st.OK) & (s2 == st.OK))).all()
+    assert set(status[status != st.OK].tolist()) <= {st.NO_EVENT, st.INFEASIBLE}
+
+
 def test_declarations_are_checked():
     from mechsweep.model import Extremum, FirstEvent
 

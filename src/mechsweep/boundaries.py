@@ -496,6 +496,11 @@ def _band_edges(ev, br_line, idx, A, B, s_a, s_b, g_a, g_b, ang_a, ang_b, n_eval
         rounds[k[check]] = 0
         w_ref[k[check]] = w[k][check]
         pred = np.isfinite(xs) & (xs > lo) & (xs < hi) & ~stalled
+        # no prediction where the secant has no root: the two off-band values tie (h2 == hU, e.g. a
+        # plateau, or at a tongue tip) and xs is +-inf (NaN for 0/0); such a bracket bisects (pe is
+        # the midpoint, pu unused below), and its probes are not computed from the infinity (inf -
+        # inf was numpy's "invalid value encountered in add")
+        xs = np.where(np.isfinite(xs), xs, 0.5 * (lo + hi))
         d = np.minimum(0.45 * t[k], 0.25 * w[k])
         delta = np.maximum(r[k] * np.abs(U[k] - xs), 0.45 * t[k])
         toward_u = np.sign(U[k] - E[k])

@@ -41,7 +41,8 @@ mechsweep.models), with their parameters and outputs. A user model comes in by o
                                       [project.entry-points."mechsweep.models"]
                                       NAME = "mypkg.models:NAME"
   mechsweep.run(scene, models={"NAME": my_ode_model})   from Python (runs locally only)
-`mechsweep models my_models.py:NAME` or `mechsweep models --scene S.toml` shows one user model.
+`mechsweep models my_models.py:NAME` or `mechsweep models --scene S.toml` shows one user model;
+`mechsweep models my_models.py` every model the file defines, with the names a scene uses.
 Loading a model file or module executes it: only name code you trust. A model that fails to
 load is reported with its file and line (exit 2).
 """
@@ -178,7 +179,8 @@ def _parser() -> argparse.ArgumentParser:
     p = sub.add_parser("models", help="list models with their parameters and outputs (name, unit, range)",
                        description=MODELS_EPILOG, formatter_class=fmt)
     p.add_argument("model", nargs="?", help="one model only: a built-in or registered name, 'file.py:NAME' "
-                   "(relative to the current directory) or 'package.module:NAME'")
+                   "(relative to the current directory) or 'package.module:NAME'; a bare 'file.py': "
+                   "the models that file defines")
     p.add_argument("--scene", metavar="SCENE", help="the model the scene file SCENE names (a user model "
                    "file is found relative to the scene)")
     p.add_argument("--markdown", action="store_true", help="print the glossary page of the documentation "
@@ -543,6 +545,11 @@ def _cmd_models(args) -> int:
             specs = [MODELS[name]]
         elif ":" in name:
             specs = [load.resolve(name)]
+        elif name.endswith(".py") or "/" in name or "\\" in name:  # a model file without :NAME
+            found = _models_in_file(name)
+            print(f"{name} defines {len(found)} model(s): {', '.join(found)}; a scene names one as "
+                  f"{name}:NAME (e.g. model = \"{name}:{found[0]}\")\n")
+            specs = [load.resolve(f"{name}:{n}") for n in found]
         else:
             points = load.entry_points()
             if name not in points:
@@ -561,6 +568,30 @@ def _cmd_models(args) -> int:
     for spec in specs:
         print(model_markdown(spec) if args.markdown else model_text(spec))
     return 0
+
+
+def _models_in_file(name: str) -> list[str]:
+    """The names of the OdeModel and ClosedFormModel objects a model file defines (InputError
+    naming the file when it is missing, fails to import or defines none)."""
+    from pathlib import Path
+
+    from .errors import InputError
+    from .model import load
+    from .model.closed import ClosedFormModel
+    from .model.ode import OdeModel
+
+    path = Path(name).resolve()
+    if not path.is_file():
+        raise InputError(f"{name!r}: model file {path} does not exist (a model is a built-in name, "
+                         "'file.py:NAME' or 'package.module:NAME')")
+    try:
+        mod = load.import_module(load._module_name(path), str(path))
+    except Exception as exc:  # the user's code raised on import
+        raise InputError(f"{name!r}: importing {path} failed: {load._where(exc, str(path))}") from None
+    found = [k for k, v in vars(mod).items() if isinstance(v, (OdeModel, ClosedFormModel))]
+    if not found:
+        raise InputError(f"{name!r}: {path} defines no mechsweep.model.OdeModel or ClosedFormModel")
+    return found
 
 
 def _entry_point_model(name: str, ep):
@@ -621,9 +652,15 @@ def describe(ds) -> str:
     codes = status.values
     total = status.size
     for name in _outputs(ds):
-        v = ds[name].where(ok)  # chunk by chunk when the dataset is opened lazily
-        lo, hi = float(v.min()), float(v.max())
-        rng = f"{lo:.6g} .. {hi:.6g}" if np.isfinite(lo) else "no ok points"
+        # the range over every finite value, whatever the point's status (a value at a point whose
+        # status is not ok, e.g. an unstable point where a second output failed, is still shown),
+        # and beside it the range over the ok points when that differs; chunk by chunk when lazy
+        lo, hi = float(ds[name].min()), float(ds[name].max())
+        v = ds[name].where(ok)
+        lo_ok, hi_ok = float(v.min()), float(v.max())
+        rng = f"{lo:.6g} .. {hi:.6g}" if np.isfinite(lo) else "no values"
+        if np.isfinite(lo) and (lo_ok, hi_ok) != (lo, hi):
+            rng += f" (at ok points {lo_ok:.6g} .. {hi_ok:.6g})" if np.isfinite(lo_ok) else " (none at an ok point)"
         lines.append(f"  {name:<20} [{ds[name].attrs.get('units', '')}]  {rng}  {ds[name].attrs.get('long_name', '')}")
         lines.append(f"  {'':<20} {_presence(ds, name, codes)}")
     verdicts = [n for n in _outputs(ds) if output_kind(ds, n) == "verdict"]
@@ -697,7 +734,9 @@ def _presence(ds, name: str, codes) -> str:
     missing_codes, counts = np.unique(codes[~held], return_counts=True)
     missing = [f"{st.MEANINGS.get(int(c), str(c))} {int(n)}" for c, n in zip(missing_codes, counts)]
     text = f"values at {int(held.sum())} of {codes.size} points"
-    return text + (f"; missing: {', '.join(missing)}" if missing else "")
+    text += f"; missing: {', '.join(missing)}" if missing else ""
+    not_ok = int((held & (codes != st.OK)).sum())
+    return text + (f"; {not_ok} held at points whose status is not ok" if not_ok else "")
 
 
 def verdict_agreement(ds, a: str, b: str) -> str:

@@ -50,19 +50,28 @@ def units_text(unit) -> str:
     return " ".join(out)
 
 
-def _unbreakable(text: str) -> str:
-    """Spaces inside parentheses or brackets become non-breaking, so wrapping never splits them."""
-    depth, chars = 0, []
-    for ch in text:
-        depth += ch in "([{"
-        depth -= ch in ")]}"
-        chars.append(NBSP if ch == " " and depth > 0 else ch)
+def _unbreakable(text: str, width: int | None = None) -> str:
+    """Spaces inside parentheses or brackets become non-breaking, so wrapping never splits them;
+    except in a bracketed part longer than ``width`` (it could not fit on one line: kept whole it
+    ran off the figure's edge)."""
+    opened, spans, chars = [], [], list(text)
+    for i, ch in enumerate(text):
+        if ch in "([{":
+            opened.append(i)
+        elif ch in ")]}" and opened:
+            spans.append((opened.pop(), i + 1))
+    spans += [(i, len(text)) for i in opened]  # one never closed: to the end, as before
+    for a, b in spans:  # every part that fits on a line, also one inside a longer part
+        if width is None or b - a <= width:
+            chars[a:b] = [NBSP if c == " " else c for c in chars[a:b]]
     return "".join(chars)
 
 
 def wrap(text: str, width: int) -> str:
-    """Wrap at spaces, never inside (...) or [...] (those stay on one line)."""
-    return "\n".join(textwrap.wrap(_unbreakable(text), width, break_long_words=False, break_on_hyphens=False))
+    """Wrap at spaces, never inside (...) or [...] (those stay on one line) unless one is longer
+    than a line."""
+    return "\n".join(textwrap.wrap(_unbreakable(text, width), width, break_long_words=False,
+                                    break_on_hyphens=False))
 
 
 def label(da, width: int = 42) -> str:
@@ -135,7 +144,9 @@ def title(fig, ds, what: str, caption: str | None = None) -> None:
     when given) go to a caption box under the panels, in a smaller font."""
     if not owns(fig):
         return
-    fig.suptitle(f"{what}\n{ds.attrs.get('title', '')}".strip(), fontsize=11)
+    # wrap=True: a title longer than the figure is wide wraps at draw time (it used to be cut at
+    # both edges); one that fits is drawn exactly as before
+    fig.suptitle(f"{what}\n{ds.attrs.get('title', '')}".strip(), fontsize=11, wrap=True)
     fixed = fixed_text(ds)
     lines = [c for c in (caption, f"fixed: {fixed}" if fixed else "") if c]
     if lines:

@@ -267,24 +267,32 @@ def heatmap(ds, name, *, x, y, at=None, ax=None, colorbar=True, contours=True):
     xv, yv = np.asarray(ds[x].sortby(x).values, float), np.asarray(ds[y].sortby(y).values, float)
     v = np.asarray(da.values, dtype=float)
     finite = np.isfinite(v)
-    log = _spans_decades(v)
+    classes = discrete_values(ds, name, v)
+    log = classes is None and _spans_decades(v)
     vmin, vmax = (float(v[finite].min()), float(v[finite].max())) if finite.any() else (0.0, 1.0)
     norm = LogNorm(vmin, vmax) if log else (Normalize(vmin, vmax) if vmax > vmin else Normalize(vmin - 0.5, vmin + 0.5))
-    xlog, ylog = is_log(ds, x), is_log(ds, y)
+    cmap = "viridis"
+    if classes is not None:  # one flat colour per value, a cell edge between two values: no contours
+        cmap, norm = _class_colors(ds, name, classes)
+    xlog, ylog = _log_axis(ds, x), _log_axis(ds, y)
     mesh = ax.pcolormesh(_edges(xv, xlog), _edges(yv, ylog), np.ma.masked_invalid(v), norm=norm,
-                         cmap="viridis", rasterized=True)
+                         cmap=cmap, rasterized=True)
     art = {"mesh": mesh, "contours": None, "contour_labels": [], "colorbar": None, "flagged": None,
            "note": None, "where": where}
-    levels = contour_levels(vmin, vmax, log) if contours and finite.sum() >= 4 else np.array([])
+    # contours interpolate between grid values: not between classes, nor across an axis of fewer
+    # than CONTOUR_MIN_VALUES values (straight lines between a few rows mean nothing)
+    resolved = min(xv.size, yv.size) >= CONTOUR_MIN_VALUES
+    levels = (contour_levels(vmin, vmax, log) if contours and classes is None and resolved and finite.sum() >= 4
+              else np.array([]))
     if levels.size:
         cs = ax.contour(xv, yv, np.ma.masked_invalid(v), levels=levels, colors="k", linewidths=0.9)
         cs.set_path_effects(HALO)
-        texts = ax.clabel(cs, fmt=_level_text, fontsize=8, inline=True)
-        for t in texts:
-            t.set_path_effects(HALO)
-        art["contours"], art["contour_labels"] = cs, list(texts)
+        art["contours"] = cs
     if colorbar:
-        cb = ax.figure.colorbar(mesh, ax=ax)
+        cb = ax.figure.colorbar(mesh, ax=ax, **({"ticks": classes} if classes is not None else {}))
+        if classes is not None:
+            cb.ax.set_yticklabels([_level_text(c) for c in classes])
+            cb.ax.minorticks_off()
         cb.set_label(label(ds[name], width=34))
         if art["contours"] is not None:
             cb.add_lines(art["contours"])
@@ -301,9 +309,80 @@ def heatmap(ds, name, *, x, y, at=None, ax=None, colorbar=True, contours=True):
         ax.set_yscale("log")
     ax.set_xlim(_edges(xv, xlog)[[0, -1]])
     ax.set_ylim(_edges(yv, ylog)[[0, -1]])
+    if art["contours"] is not None:  # after the scales and limits: labels placed where they do not crowd
+        art["contour_labels"] = _contour_labels(ax, art["contours"])
     ax.set_xlabel(label(ds[x]))
     ax.set_ylabel(label(ds[y]))
     return art
+
+
+DISCRETE_MAX = 8  # an output whose finite values are at most this many whole numbers is drawn by classes
+LABEL_GAP = (0.12, 0.07)  # a contour label this close to a kept one (axes fractions, x and y) is left out
+
+
+def discrete_values(ds, name, v=None):
+    """The sorted classes of an output drawn class by class (a flat colour each, no contours), or
+    None for a continuous one: a declared ``verdict`` (0/1), or one whose finite values are at most
+    DISCRETE_MAX distinct whole numbers (e.g. a -1/0/+1 kind)."""
+    v = np.asarray(ds[name].values if v is None else v, dtype=float)
+    u = np.unique(v[np.isfinite(v)])
+    if ds[name].attrs.get("mechsweep_kind") == "verdict":
+        return np.union1d(u, [0.0, 1.0]) if np.isin(u, [0.0, 1.0]).all() else None
+    if 1 <= u.size <= DISCRETE_MAX and np.array_equal(u, np.round(u)) and u.size < v.size:
+        return u
+    return None
+
+
+def _class_colors(ds, name, classes):
+    """(colormap, norm) with one colour per class, the class values at the centres: a verdict in
+    the stability map's colours (0 unstable, 1 stable), others from a qualitative palette."""
+    from matplotlib.colors import BoundaryNorm
+
+    if ds[name].attrs.get("mechsweep_kind") == "verdict":
+        colors = list(STABLE_COLORS.colors)
+    else:
+        colors = [matplotlib.colormaps["tab10"](k % 10) for k in range(classes.size)]
+    mid = (classes[1:] + classes[:-1]) / 2 if classes.size > 1 else np.array([])
+    bounds = np.concatenate([[classes[0] - 0.5], mid, [classes[-1] + 0.5]])
+    return ListedColormap(colors[:classes.size]), BoundaryNorm(bounds, classes.size)
+
+
+def _log_axis(ds, dim) -> bool:
+    """Whether a heatmap draws the axis on a log scale: swept log-spaced, or a list of positive
+    values spread evenly in the logarithm rather than linearly (e.g. 0.1, 1, 10: linear cells would
+    stretch the last one to 14.5)."""
+    if is_log(ds, dim):
+        return True
+    v = np.sort(np.asarray(ds[dim].values, dtype=float))
+    if ds[dim].attrs.get("spacing") != "list" or v.size < 3 or not (v > 0).all() or v[-1] / v[0] < 10:
+        return False
+    lin, lg = np.diff(v), np.diff(np.log(v))
+    return bool(lg.max() / lg.min() < lin.max() / lin.min())
+
+
+def _contour_labels(ax, cs):
+    """Inline labels on the contours, at most one per level, none within LABEL_GAP of another (where
+    levels bunch up, e.g. an error growing steeply near one edge, they used to pile up)."""
+    probe = ax.clabel(cs, fmt=_level_text, fontsize=8, inline=False)  # where matplotlib would put them
+    to_axes = ax.transScale + ax.transLimits  # data -> axes fraction (no renderer needed)
+    kept, seen = [], set()
+    for t in probe:
+        xy = np.asarray(t.get_position(), dtype=float)
+        f = to_axes.transform(xy)
+        if t.get_text() in seen or not np.isfinite(f).all():
+            continue
+        if all(abs(f[0] - g[0]) >= LABEL_GAP[0] or abs(f[1] - g[1]) >= LABEL_GAP[1] for _, g in kept):
+            kept.append((xy, f))
+            seen.add(t.get_text())
+    for t in probe:
+        t.remove()
+    cs.labelTexts, cs.labelCValues, cs.labelXYs = [], [], []
+    if not kept:
+        return []
+    texts = ax.clabel(cs, fmt=_level_text, fontsize=8, inline=True, manual=[tuple(xy) for xy, _ in kept])
+    for t in texts:
+        t.set_path_effects(HALO)
+    return list(texts)
 
 
 def nomogram(ds, name, *, x, family=None, at=None, ax=None):
@@ -468,8 +547,10 @@ def stability_map(ds, name=None, *, fig=None, ax=None, boundaries=None):
     if name is None:
         name = next(c.output for c in choose(ds) if c.kind == "stability_map")
     ydim, xdim = _map_axes(ds, name)
+    given = ax is not None
     others = [d for d in ds[name].dims if d not in (xdim, ydim)]
-    members = list(itertools.product(*(range(ds.sizes[d]) for d in others)))[:6]
+    every = list(itertools.product(*(range(ds.sizes[d]) for d in others)))
+    members = every[:MAX_PANELS]  # as choose's description says (--list)
     ncols = min(2, len(members))
     nrows = -(-len(members) // ncols)
     if ax is not None:  # the user's Axes: one per panel, none left over
@@ -507,12 +588,20 @@ def stability_map(ds, name=None, *, fig=None, ax=None, boundaries=None):
                axes[0, 0].plot([], [], color="k", lw=1.2, label=f"{ds[name].attrs.get('symbol', name)} = 1")[0]]
     if not any(p["boundary"] is not None for p in art["panels"]):
         handles.pop()  # no grid contour drawn
-    located_points = [p["located"][0] for p in art["panels"] if p.get("located")]
-    handles += located_points[:1]
+    seen = set()  # one legend entry per kind of located artist (points, continued curve, fold)
+    for a in (a for p in art["panels"] for a in p.get("located") or ()):
+        text = a.get_label()
+        if text and not text.startswith("_") and text not in seen:
+            seen.add(text)
+            handles.append(a)
     for h in handles:  # a long label would squeeze the panels beside the legend
         h.set_label(textwrap.fill(h.get_label(), 34))
-    art["legend"] = fig.legend(handles=handles, loc="outside right center", fontsize=9)  # the caption is below
-    title(fig, ds, f"Floquet stability: {ds[name].attrs.get('long_name', name)}")
+    # beside two columns of panels; below a single column, where a legend beside it would squeeze it
+    art["legend"] = (fig.legend(handles=handles, loc="outside right center", fontsize=9) if ncols > 1 or given else
+                     fig.legend(handles=handles, loc="outside lower center", fontsize=9, ncols=2))
+    cut = (f" (first {len(members)} of {len(every)} slices of {', '.join(others)})" if len(every) > len(members)
+           else "")
+    title(fig, ds, f"Floquet stability: {ds[name].attrs.get('long_name', name)}{cut}")
     return art
 
 

@@ -279,8 +279,10 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
         for k in fd_own:
             lines.append(_fd_jac(f"jac{k}", f"rhs{k}", count=True))
     # ---- measurements
-    if direct:
-        for k, m in enumerate(chosen):
+    # a FirstEvent beside shared-path measurements integrates on its own too (dop853, as alone)
+    alone = [k for k, m in enumerate(chosen) if direct or getattr(m, "direct", False)]
+    if alone:
+        for k, m in ((k, chosen[k]) for k in alone):
             lines.append(f"\n# ---- measurement {k}: {_describe(m)}, direct, {method}\n")
             if type(m).__name__ == "Crossing":
                 sign = 1.0 if m.direction == "down" else -1.0
@@ -337,7 +339,7 @@ def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
             if _own(m):
                 lines.append(_pass_source(k, method, own, "t_max" + str(k) + "(p)" if f"t_max{k}" in refs
                                           else repr(float(m.t_max)), _scratch_args(uses)))
-    else:
+    if not direct:
         if group:
             rows, exprs = [], []
             for k in group:
@@ -361,7 +363,7 @@ def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
                 lines.append("shared = make_shared(rhs)\n")
             lines.append(f"SHARED_M = np.array([\n    {rows}])\nNSH = {len(group)}\n")
         for k, m in enumerate(chosen):
-            if k in group:
+            if k in group or k in alone:
                 continue
             lines.append(f"\n# ---- measurement {k}: {_describe(m)}\n")
             lines.append(m.source(k, model.states, npi + 1, "jac" in refs, method) if hasattr(m, "scratch")
@@ -439,6 +441,7 @@ def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
                 n_rhs[i] += b_""")
         for k, m in enumerate(chosen):
             start = len(meas)
+            direct = k in alone  # this measurement integrates on its own
             tm = ""
             if direct:
                 tm = f"t_max{k}(p)" if f"t_max{k}" in refs else repr(float(m.t_max))
