@@ -45,7 +45,7 @@ from matplotlib.colors import ListedColormap, LogNorm, Normalize
 from matplotlib.ticker import LogLocator, MaxNLocator
 
 from . import located
-from ._style import STATUS_OK, Drawn, label, new_figure, ok_values, title, units_text
+from ._style import STATUS_OK, Drawn, label, new_figure, title, units_text
 
 STABLE_COLORS = ListedColormap(["#f4c7c3", "#c8e6c9"])  # unstable, stable
 FLOQUET_SLACK = 1e-6  # a modulus within this of 1 counts as on the unit circle (stable, undamped)
