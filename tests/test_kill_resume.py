@@ -113,7 +113,7 @@ KILLER = textwrap.dedent("""
         killing(journal, "_sync_dir", before=True, when=lambda folder: folder.name == "chunks")
     elif site == "assembling":  # the dataset half written in the journal folder, chunk by chunk (compute, as the CLI)
         killing(journal.Journal, "read_chunk")
-    elif site == "assembling-held":  # the same for run(), which writes each variable whole from memory
+    elif site == "assembling-held":  # the same for run(), which writes its file while the chunks are computed
         import h5py
         stored = ("period", "period_exact", "v_max", "status", "n_steps", "n_rhs")
         killing(h5py.Dataset, "__setitem__", when=lambda ds, *a: ds.name.strip("/") in stored)
@@ -127,7 +127,7 @@ KILLER = textwrap.dedent("""
 """)
 
 SITES = [("journal-created", 1), ("mid-chunk-file", 1), ("mid-chunk-file", 3), ("chunk-renamed", 2),
-         ("assembling", 3), ("assembling-held", 3),
+         ("assembling", 3), ("assembling-held", 3), ("assembling-held", 12),
          ("dataset-placed", 1), ("journal-dropping", 1)]
 
 
