@@ -108,7 +108,12 @@ KILLER = textwrap.dedent("""
     if site == "journal-created":  # the folder exists, run.json does not
         killing(journal, "_write_atomic", before=True)
     elif site == "mid-chunk-file":  # a chunk's temporary file written, not synced nor renamed
-        killing(np, "savez")
+        def fd_name(fd):
+            try:
+                return os.readlink(f"/proc/self/fd/{fd}")
+            except OSError:
+                return ""
+        killing(os, "fsync", before=True, when=lambda fd: fd_name(fd).endswith(".npz.tmp"))
     elif site == "chunk-renamed":  # a chunk file renamed, the folder not synced
         killing(journal, "_sync_dir", before=True, when=lambda folder: folder.name == "chunks")
     elif site == "assembling":  # the dataset half written in the journal folder, chunk by chunk (compute, as the CLI)

@@ -153,3 +153,23 @@ def test_an_interrupted_run_leaves_no_half_written_file_and_resumes(scene_file, 
     mechsweep.run(mechsweep.load_scene(scene_file), output=OUT, resume=True, progress=False)
     assert_same_file(scene_file.parent / OUT, reference)
     assert_no_leftovers(scene_file.parent)
+
+
+def test_bench_breakdown_times_the_steps_of_a_run_and_unwraps_them(in_tmp, capsys):
+    from mechsweep import grid, journal, store
+    from mechsweep.bench import duffing as bench
+
+    before = (runner.evaluate_rows, runner.load_scene, journal.Journal.write_chunk, store.Early.write,
+              grid.ParameterMatrix.__call__)
+    (r,) = bench.breakdown(points=3000, threads=1, repeats=1)
+    assert (runner.evaluate_rows, runner.load_scene, journal.Journal.write_chunk, store.Early.write,
+            grid.ParameterMatrix.__call__) == before
+    steps = r["steps"]
+    n_chunks = steps["per chunk: kernel + status/NONFINITE"][2]
+    assert n_chunks >= 1
+    for label in ("per chunk: parameter rows", "writer: journal chunk file + fsyncs",
+                  "writer: chunk into the HDF5 file (early)"):
+        assert steps[label][2] == n_chunks, label
+    assert steps["end: assembly, fsync, rename, drop journal"][2] == 1
+    assert 0 < r["kernel_wall_s"] and 0 < r["run_wall_s"]
+    assert "mechsweep.run breakdown: 3,010 points" in capsys.readouterr().out
