@@ -192,7 +192,10 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
     if worker_timeout is not None and (why := check_worker_timeout(worker_timeout)) is not None:
         raise InputError(f"worker timeout {why}")
     worker_timeout = worker_timeout if worker_timeout is not None else scene.execution.worker_timeout
-    target = chunk_target(scene)
+    # Without a progress bar the grid is not cut into at least 20 chunks (grid.default_chunk_target:
+    # small chunks cost the lane kernel CPU); an unfinished run is resumed with its own cut.
+    target = _journal_target(scene, final) if resume else None
+    target = target or chunk_target(scene, many=_shows_progress(progress))
     check_size(scene, final, min(target, scene.n_points), saved_bytes(final) if not restart else 0)
     check_file_limit(scene, final)
     # Conflicts are refused before the lock (taking it touches the folder), and checked again
@@ -237,6 +240,26 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
         if client is not None:
             _disconnect(client)
     return RunSummary(final, _sizes(scene), counts, *times), held
+
+
+def _journal_target(scene: Scene, final: Path) -> int | None:
+    """The chunk target of the unfinished run of ``final`` when the scene sets no chunk_size (the
+    default cut depends on the progress bar and on the version), None otherwise: a resumed run
+    computes exactly the chunks its journal is cut into."""
+    part = partial_path(final)
+    if scene.storage.chunk_size or not part.is_dir():
+        return None
+    try:
+        check_journal_files(part)  # (a pipe for run.json would block the reading)
+        meta = Journal.read(part).meta
+    except (StoreError, OSError):
+        return None  # _check_existing says what is wrong with it
+    target = meta.get("chunk_target") if isinstance(meta, dict) else None
+    if isinstance(target, bool) or not isinstance(target, int) or target < 1:
+        return None
+    from .grid import MAX_CHUNKS
+
+    return target if len(plan_chunks(scene.shape, target)) <= MAX_CHUNKS else None
 
 
 def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, scheduler, load, worker_timeout,
