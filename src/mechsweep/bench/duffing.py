@@ -224,9 +224,9 @@ def _print(r: dict) -> None:
     line("mechsweep kernel, lanes, 1 thread", "kernel_one_thread")
     line(f"mechsweep kernel, one point, {t} threads", "kernel_one_point")
     line("mechsweep kernel, one point, 1 thread", "kernel_one_point_one_thread")
-    line(f"mechsweep kernel, lanes, 5 outputs, {t} thr.", "kernel_stored_outputs")
-    line(f"mechsweep.run -> HDF5, 5 outputs, {t} thr.", "run_to_hdf5")
-    line(f"mechsweep.run -> HDF5, period only, {t} t.", "run_to_hdf5_period_only")
+    line(f"kernel, lanes, 5 outputs, {t} threads", "kernel_stored_outputs")
+    line(f"mechsweep.run -> HDF5, {t} threads", "run_to_hdf5")
+    line(f"run -> HDF5, period only, {t} threads", "run_to_hdf5_period_only")
     print(f"  {'':38s}  run / kernel with the same 5 outputs: {r['run_to_hdf5_points_per_s'] / r['kernel_stored_outputs_points_per_s']:.2f} "
           f"wall, {r['run_to_hdf5_points_per_cpu_s'] / r['kernel_stored_outputs_points_per_cpu_s']:.2f} per CPU second; "
           f"period only: run / kernel {r['run_to_hdf5_period_only_points_per_s'] / r['kernel_points_per_s']:.2f} wall, "
@@ -292,7 +292,7 @@ def _owner(path: str):
 
     module, _, cls = path.partition(".")
     obj = importlib.import_module(f"mechsweep.{module}")
-    return getattr(obj, cls) if cls else obj
+    return getattr(obj, cls, None) if cls else obj  # None: a step this version does not have
 
 
 def breakdown(points: int = 200_000, threads: int | None = None, rtol: float = Solver.rtol,
@@ -315,7 +315,7 @@ def breakdown(points: int = 200_000, threads: int | None = None, rtol: float = S
     saved = []
     for path, name, label in _STEPS:
         owner = _owner(path)
-        if not hasattr(owner, name):  # a step this version does not have
+        if owner is None or not hasattr(owner, name):  # a step this version does not have
             continue
         f = getattr(owner, name)
 
