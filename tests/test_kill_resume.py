@@ -108,12 +108,17 @@ KILLER = textwrap.dedent("""
     if site == "journal-created":  # the folder exists, run.json does not
         killing(journal, "_write_atomic", before=True)
     elif site == "mid-chunk-file":  # a chunk's temporary file written, not synced nor renamed
-        killing(np, "savez")
+        def fd_name(fd):
+            try:
+                return os.readlink(f"/proc/self/fd/{fd}")
+            except OSError:
+                return ""
+        killing(os, "fsync", before=True, when=lambda fd: fd_name(fd).endswith(".npz.tmp"))
     elif site == "chunk-renamed":  # a chunk file renamed, the folder not synced
         killing(journal, "_sync_dir", before=True, when=lambda folder: folder.name == "chunks")
     elif site == "assembling":  # the dataset half written in the journal folder, chunk by chunk (compute, as the CLI)
         killing(journal.Journal, "read_chunk")
-    elif site == "assembling-held":  # the same for run(), which writes each variable whole from memory
+    elif site == "assembling-held":  # the same for run(), which writes its file while the chunks are computed
         import h5py
         stored = ("period", "period_exact", "v_max", "status", "n_steps", "n_rhs")
         killing(h5py.Dataset, "__setitem__", when=lambda ds, *a: ds.name.strip("/") in stored)
@@ -127,7 +132,7 @@ KILLER = textwrap.dedent("""
 """)
 
 SITES = [("journal-created", 1), ("mid-chunk-file", 1), ("mid-chunk-file", 3), ("chunk-renamed", 2),
-         ("assembling", 3), ("assembling-held", 3),
+         ("assembling", 3), ("assembling-held", 3), ("assembling-held", 12),
          ("dataset-placed", 1), ("journal-dropping", 1)]
 
 

@@ -105,11 +105,11 @@ def least_target(shape: tuple[int, ...], max_chunks: int = MAX_CHUNKS) -> int:
     return lo
 
 
-def chunk_target(scene: Scene) -> int:
+def chunk_target(scene: Scene, many: bool = True) -> int:
     """Points per chunk of a run: ``default_chunk_target``, raised when it would cut the grid into
     more than MAX_CHUNKS chunks (a [storage] chunk_size that does so is refused when the scene is
-    loaded)."""
-    target = default_chunk_target(scene)
+    loaded). ``many=False``: without the at-least-20-chunks rule (no progress bar to feed)."""
+    target = default_chunk_target(scene, many)
     if len(ChunkPlan(scene.shape, target)) > MAX_CHUNKS:
         target = max(target, least_target(scene.shape))
     return target
@@ -118,9 +118,13 @@ def chunk_target(scene: Scene) -> int:
 CHUNK_VALUES = 2**22  # float64 values of one chunk's outputs (32 MiB), whatever their extra dims
 
 
-def default_chunk_target(scene: Scene) -> int:
+def default_chunk_target(scene: Scene, many: bool = True) -> int:
     """Points per chunk: a few seconds of work, many chunks for the progress bar and resume,
-    and at most CHUNK_VALUES output values (a 360-position curve counts 360 per point)."""
+    and at most CHUNK_VALUES output values (a 360-position curve counts 360 per point).
+    ``many=False`` (a run without a progress bar): not cut into at least 20 chunks. Small chunks
+    cost the lane kernel CPU: a chunk of 10^4 Duffing points gives each of its 64 lanes about 16
+    points, and more of the rounds at the end of a lane's queue run with idle lanes
+    (docs/performance-duffing.md, `mechsweep bench duffing --breakdown`)."""
     if scene.storage.chunk_size:
         return scene.storage.chunk_size
     # integrated: 32768 points (about 50 ms of a Duffing period on 2 cores); each chunk costs a
@@ -133,6 +137,8 @@ def default_chunk_target(scene: Scene) -> int:
         for name in scene.computed_outputs
     )
     per_chunk = min(per_chunk, max(1, CHUNK_VALUES // max(1, values_per_point)))
+    if not many:
+        return int(per_chunk)
     # at least 20 chunks, but not below SMALLEST_CHUNK points: a grid of 10^3-10^4 points computes in
     # milliseconds, and 20 chunks of it cost more (launches, journal files, fsyncs) than the points
     least = SMALLEST_CHUNK[scene.solver is not None]

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import errno
 import fcntl
+import io
 import json
 import os
 import re
@@ -251,11 +252,17 @@ class Journal:
         payload["__wall_time_s"] = np.float64(wall_time_s)
         tmp = self.chunks / f"{index:07d}.npz.tmp"
         try:
+            # the file's bytes are made in memory, so that their size and CRC-32 are known without
+            # reading the file back (the same bytes np.savez writes into a file)
+            buffer = io.BytesIO()
+            np.savez(buffer, **payload)
+            data = buffer.getbuffer()
+            size, crc = len(data), zlib.crc32(data)
             with open(tmp, "wb") as f:
-                np.savez(f, **payload)
+                f.write(data)
                 f.flush()
                 os.fsync(f.fileno())
-            size, crc = _file_crc(tmp)
+            del data
             target = self.chunks / f"{index:07d}-{size}-{crc:08x}.npz"
             os.replace(tmp, target)
             _sync_dir(self.chunks)
@@ -267,8 +274,6 @@ class Journal:
     def read_chunk(self, index: int) -> tuple[dict[str, np.ndarray], float]:
         """The arrays and wall time of chunk ``index``, verified against its size and checksum;
         ``BadChunk`` if they do not match or the file cannot be read."""
-        import io
-
         path = self.files.get(index)
         if path is None:
             raise BadChunk(index, self.chunks / f"{index:07d}.npz", "no file")
@@ -306,15 +311,6 @@ def _size_problem(entry: os.DirEntry, expected: int | None) -> str | None:
     if expected is None:
         return "empty file" if size == 0 else None
     return None if size == expected else f"{size} bytes, its name says {expected}"
-
-
-def _file_crc(path: Path) -> tuple[int, int]:
-    crc, size = 0, 0
-    with open(path, "rb") as f:
-        while block := f.read(1 << 20):
-            crc = zlib.crc32(block, crc)
-            size += len(block)
-    return size, crc
 
 
 def _unlink(path) -> None:

@@ -28,8 +28,8 @@ from .errors import ClusterLost, InputError, WriteFailed
 from .grid import Chunk, ChunkPlan, ParameterMatrix, chunk_target, plan_chunks
 from .journal import BadChunk, Journal, RunLock, discard_path, drop, lock_path, partial_path
 from .scene import Scene, check_scheduler, check_worker_timeout, load_scene, load_scene_text
-from .store import (COMPILE_KEY, LOAD_LIMIT_BYTES, Held, StoreError, assemble, check_journal_files, file_kind,
-                    layout, open_dataset, status_counts)
+from .store import (COMPILE_KEY, LOAD_LIMIT_BYTES, Early, Held, StoreError, assemble, check_journal_files,
+                    file_kind, layout, open_dataset, status_counts)
 
 if TYPE_CHECKING:
     import xarray as xr  # annotations only: `mechsweep run` does not import xarray
@@ -195,7 +195,10 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
     if worker_timeout is not None and (why := check_worker_timeout(worker_timeout)) is not None:
         raise InputError(f"worker timeout {why}")
     worker_timeout = worker_timeout if worker_timeout is not None else scene.execution.worker_timeout
-    target = chunk_target(scene)
+    # Without a progress bar the grid is not cut into at least 20 chunks (grid.default_chunk_target:
+    # small chunks cost the lane kernel CPU); an unfinished run is resumed with its own cut.
+    target = _journal_target(scene, final) if resume else None
+    target = target or chunk_target(scene, many=_shows_progress(progress))
     check_size(scene, final, min(target, scene.n_points), saved_bytes(final) if not restart else 0)
     check_file_limit(scene, final)
     # Conflicts are refused before the lock (taking it touches the folder), and checked again
@@ -240,6 +243,26 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
         if client is not None:
             _disconnect(client)
     return RunSummary(final, _sizes(scene), counts, *times), held
+
+
+def _journal_target(scene: Scene, final: Path) -> int | None:
+    """The chunk target of the unfinished run of ``final`` when the scene sets no chunk_size (the
+    default cut depends on the progress bar and on the version), None otherwise: a resumed run
+    computes exactly the chunks its journal is cut into."""
+    part = partial_path(final)
+    if scene.storage.chunk_size or not part.is_dir():
+        return None
+    try:
+        check_journal_files(part)  # (a pipe for run.json would block the reading)
+        meta = Journal.read(part).meta
+    except (StoreError, OSError):
+        return None  # _check_existing says what is wrong with it
+    target = meta.get("chunk_target") if isinstance(meta, dict) else None
+    if isinstance(target, bool) or not isinstance(target, int) or target < 1:
+        return None
+    from .grid import MAX_CHUNKS
+
+    return target if len(plan_chunks(scene.shape, target)) <= MAX_CHUNKS else None
 
 
 def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, scheduler, load, worker_timeout,
@@ -539,30 +562,43 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
         drop(final)
         journal = Journal.create(part, canonical=scene.canonical(), text=scene.text, chunk_target=target,
                                  n_chunks=len(chunks), attrs=provenance(scene, chunks))
-    held = Held(scene, layout(scene, len(chunks)), journal.meta["attrs"]) if hold else None
+    lay = layout(scene, len(chunks))
+    held = Held(scene, lay, journal.meta["attrs"]) if hold else None
     for _ in range(REPAIR_ROUNDS):
         done = journal.done_chunks(repair=True)
         _report_removed(journal)
         todo = [chunks[int(i)] for i in np.flatnonzero(~done)]  # at most grid.MAX_CHUNKS
-        with _threads(None if scheduler else threads):
-            where = (f"dask scheduler {scheduler}, {threads or 'all'} numba threads per worker" if scheduler
-                     else f"local, {numba.get_num_threads()} threads")
-            # here the kernels are compiled (or loaded from the JIT cache) before the timed chunks;
-            # dask workers compile inside their first chunk (counted as compute time)
-            params = ParameterMatrix(scene)
-            compile_s = warm_up(scene, params, progress, todo[0]) if todo and not scheduler else 0.0
-            results = (_dask_results(scene, todo, scheduler, threads, worker_timeout, client) if scheduler
-                       else _local_results(scene, todo, params))
-            _save_chunks(scene, journal, results, todo, scene.n_points - sum(c.size for c in todo), progress,
-                         compile_s, held)
-            attrs = {**journal.meta["attrs"], "execution": where}
-            if resumed and todo:  # the history says that another run finished the dataset
-                now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
-                attrs["history"] = (attrs.get("history", "") + "\n" + cf.history(
-                    now, f"mechsweep.run(scene {scene.name!r}, resume=True): {len(todo)} chunk(s) computed", __version__))
-            if not scheduler:
-                attrs["threads"] = numba.get_num_threads()
-        bad, counts = _finish(journal, scene, chunks, final, attrs, signals, held)
+        early = None
+        try:
+            with _threads(None if scheduler else threads):
+                where = (f"dask scheduler {scheduler}, {threads or 'all'} numba threads per worker" if scheduler
+                         else f"local, {numba.get_num_threads()} threads")
+                attrs = {**journal.meta["attrs"], "execution": where}
+                if not scheduler:
+                    attrs["threads"] = numba.get_num_threads()
+                # A fresh run that returns its dataset (held) writes its file while the chunks are
+                # computed (store.Early: the writer thread, overlapping the kernels); a resumed
+                # one (its history says when it was finished) is assembled at the end.
+                if held is not None and todo and not resumed and not done.any():
+                    early = Early(journal.folder / ASSEMBLY, scene, lay, attrs)
+                # here the kernels are compiled (or loaded from the JIT cache) before the timed chunks;
+                # dask workers compile inside their first chunk (counted as compute time)
+                params = ParameterMatrix(scene)
+                compile_s = warm_up(scene, params, progress, todo[0]) if todo and not scheduler else 0.0
+                results = (_dask_results(scene, todo, scheduler, threads, worker_timeout, client) if scheduler
+                           else _local_results(scene, todo, params))
+                _save_chunks(scene, journal, results, todo, scene.n_points - sum(c.size for c in todo), progress,
+                             compile_s, held, early)
+                if resumed and todo:  # the history says that another run finished the dataset
+                    now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+                    attrs["history"] = (attrs.get("history", "") + "\n" + cf.history(
+                        now, f"mechsweep.run(scene {scene.name!r}, resume=True): {len(todo)} chunk(s) computed",
+                        __version__))
+            bad, counts = _finish(journal, scene, chunks, final, attrs, signals, held, early)
+        except BaseException:
+            if early is not None:  # interrupted or failed: no half-written file is left in the journal
+                early.discard()
+            raise
         if not bad:
             return counts, held
         for exc in bad:
@@ -578,16 +614,25 @@ def _report_removed(journal: Journal) -> None:
     journal.removed = []
 
 
+# The dataset is written here, in the journal folder, and renamed into place when complete.
+ASSEMBLY = "assembly.h5"
+
+
 def _finish(journal: Journal, scene: Scene, chunks: ChunkPlan, final: Path, attrs: dict,
-            signals: "_Signals", held: Held | None = None) -> tuple[list[BadChunk], dict[int, int]]:
-    """Assemble the dataset next to the journal, move it into place by one rename, drop the journal.
-    Signals wait until a chunk is written (the files are closed before the run stops). Returns the
-    chunk files that did not verify (then nothing is moved into place) and the points per status."""
-    tmp = journal.folder / "assembly.h5"
-    check_free_space(scene, tmp)
+            signals: "_Signals", held: Held | None = None, early: Early | None = None
+            ) -> tuple[list[BadChunk], dict[int, int]]:
+    """Assemble the dataset next to the journal (or complete ``early``, the file written while the
+    chunks were computed), move it into place by one rename, drop the journal. Signals wait until a
+    chunk is written (the files are closed before the run stops). Returns the chunk files that did
+    not verify (then nothing is moved into place) and the points per status."""
+    tmp = journal.folder / ASSEMBLY
+    if early is not None and early.usable(tmp, held):  # most of the file is on the disk already
+        check_free_space(scene, tmp, early.path.stat().st_size)
+    else:
+        check_free_space(scene, tmp)
     with signals.deferred():
         bad, counts = assemble(journal, scene, layout(scene, len(chunks)), chunks, tmp, attrs,
-                               stop=signals.pending, held=held)
+                               stop=signals.pending, held=held, early=early)
         if bad:
             os.unlink(tmp)
             return bad, counts
@@ -656,14 +701,15 @@ def check_file_limit(scene: Scene, final: Path) -> None:
                          f"the limit is {_mib(soft)}; raise the limit (ulimit -f unlimited) or make the grid coarser")
 
 
-def check_free_space(scene: Scene, tmp: Path) -> None:
+def check_free_space(scene: Scene, tmp: Path, written: int = 0) -> None:
     """Before the assembly: refuse at once when the disk cannot hold even the dataset's float
-    outputs (a lower bound of its size), instead of failing part way."""
+    outputs (a lower bound of its size), less the ``written`` bytes of it already on the disk,
+    instead of failing part way."""
     try:
         free = shutil.disk_usage(tmp.parent).free
     except OSError:
         return
-    least = _least_bytes(scene)
+    least = _least_bytes(scene) - written
     if least > free:
         raise WriteFailed(tmp, OSError(errno.ENOSPC, os.strerror(errno.ENOSPC)))
 
@@ -934,7 +980,7 @@ def _dask_results(scene: Scene, todo: list[Chunk], scheduler: str, threads: int 
 
 
 def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], already: int, progress,
-                 compile_s: float = 0.0, held: Held | None = None) -> None:
+                 compile_s: float = 0.0, held: Held | None = None, early: Early | None = None) -> None:
     """Save each computed chunk to the journal as it arrives; the write of one chunk overlaps the
     computation of the next (kernels release the GIL). At most one chunk waits to be written, so
     memory stays bounded by the chunk size. Each chunk file carries its compute time (since the
@@ -962,6 +1008,8 @@ def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], alr
         journal.write_chunk(chunk.index, arrays, now - clock["last"])
         if held is not None:  # saved: kept for the dataset run() returns (store.Held)
             held.keep(chunk.index, chunk.region, arrays, now - clock["last"])
+        if early is not None:  # and into the dataset's file, while the next chunk is computed
+            early.write(chunk.index, chunk.region, arrays)
         clock["last"] = now
 
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="mechsweep-writer") as writer:

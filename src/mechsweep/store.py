@@ -71,7 +71,8 @@ def layout(scene: Scene, n_chunks: int) -> Layout:
 
 
 def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, attrs: dict, *,
-             stop=None, held: "Held | None" = None) -> tuple[list[BadChunk], dict[int, int]]:
+             stop=None, held: "Held | None" = None, early: "Early | None" = None
+             ) -> tuple[list[BadChunk], dict[int, int]]:
     """Write the dataset of a journal to ``target`` (a path, or a file object for an in-memory
     view): every variable defined, each journaled chunk written into its region, one chunk in
     memory at a time. Chunks not in the journal keep the fill values (NaN, status PENDING), and so
@@ -88,17 +89,28 @@ def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, 
     as they were saved. Those chunks are taken from it instead of being read back from the journal,
     the others are read from the journal into it, and the file's variables are written from it
     whole; it ends up with the file's attributes, so that ``held.dataset()`` is the dataset the file
-    holds without opening it again."""
+    holds without opening it again.
+
+    ``early``: the file ``target`` already defined and filled with the chunks of ``held`` while they
+    were computed (``Early``); only what is missing (chunks of the journal from before a resume,
+    the times) is written into it. An ``early`` that cannot be used (a write of it failed, a chunk
+    missed it, another target) is discarded and the file written from the start, as without it."""
     if not isinstance(target, (str, os.PathLike)):
         return _assemble(journal, scene, lay, chunks, target, attrs, lambda: False, held)
-    try:
-        guard = _GuardedFile(target)
-    except OSError as exc:  # e.g. no inode left
-        raise WriteFailed(target, exc) from None
+    if early is not None and not early.usable(target, held):
+        early.discard()
+        early = None
+    if early is not None:
+        guard = early.guard
+    else:
+        try:
+            guard = _GuardedFile(target)
+        except OSError as exc:  # e.g. no inode left
+            raise WriteFailed(target, exc) from None
     stop = stop or (lambda: False)
     try:
         bad, counts = _assemble(journal, scene, lay, chunks, guard, attrs,
-                                lambda: guard.error is not None or stop(), held)
+                                lambda: guard.error is not None or stop(), held, early)
         if guard.error is None:
             guard.sync()
     except BaseException:
@@ -115,12 +127,14 @@ def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, 
     return bad, counts
 
 
-def _assemble(journal, scene, lay, chunks, target, attrs, stop, held=None) -> tuple[list[BadChunk], dict[int, int]]:
-    with h5netcdf.File(target, "w") as f:
-        _define(f, scene, lay, attrs)
+def _assemble(journal, scene, lay, chunks, target, attrs, stop, held=None, early=None
+              ) -> tuple[list[BadChunk], dict[int, int]]:
+    if early is None:
+        with h5netcdf.File(target, "w") as f:
+            _define(f, scene, lay, attrs)
     bad = []
-    with h5py.File(target, "a") as f:
-        names = list(lay.outputs) + ["status"] + (["n_steps", "n_rhs"] if lay.integrated else [])
+    with (early.take() if early is not None else h5py.File(target, "a")) as f:
+        names = _variables(lay)
         variables = {name: f[name] for name in names}
         wall_time = compile_time = 0.0
         counts = Counts()
@@ -144,15 +158,15 @@ def _assemble(journal, scene, lay, chunks, target, attrs, stop, held=None) -> tu
             compile_time += float(arrays.pop(COMPILE_KEY, 0.0))
             if held is not None:
                 write_memory(held.store, chunk.region, arrays, lay.shape)
-                continue
-            counts.add(arrays["status"])
-            shape = _region_shape(chunk.region, lay.shape)
-            for name, var in variables.items():
-                values = arrays[name]
-                var[chunk.region + (slice(None),) * (values.ndim - 1)] = values.reshape(shape + values.shape[1:])
+                if early is None:
+                    continue
+            if held is None:
+                counts.add(arrays["status"])
+            _write_region(variables, chunk.region, arrays, lay.shape)
         if held is not None and not stopped:  # every variable at once (regions not computed: their fill values)
-            for name, var in variables.items():
-                var[...] = held.store.variables[name].data
+            if early is None:  # (with early: written chunk by chunk as they were computed)
+                for name, var in variables.items():
+                    var[...] = held.store.variables[name].data
             counts.add(held.store.variables["status"].data)
         times = time_attrs(compile_time, wall_time)
         f.attrs.update(times)
@@ -162,6 +176,103 @@ def _assemble(journal, scene, lay, chunks, target, attrs, stop, held=None) -> tu
     if missing:
         counts.codes[st.PENDING] = counts.codes.get(st.PENDING, 0) + missing
     return bad, dict(sorted(counts.codes.items()))
+
+
+def _variables(lay: Layout) -> list[str]:
+    """The variables a chunk fills."""
+    return list(lay.outputs) + ["status"] + (["n_steps", "n_rhs"] if lay.integrated else [])
+
+
+def _write_region(variables: dict, region: tuple, arrays: dict, shape: tuple[int, ...]) -> None:
+    """One chunk's arrays (flat over its points) into ``region`` of the file's variables."""
+    rshape = _region_shape(region, shape)
+    for name, var in variables.items():
+        values = arrays[name]
+        var[region + (slice(None),) * (values.ndim - 1)] = values.reshape(rshape + values.shape[1:])
+
+
+def _early_cache(f: h5py.File, names: list[str]) -> int:
+    """Bytes of HDF5's chunk cache (per variable) for the early-written file: a chunk of the run is
+    a band of rows, which seldom ends at an HDF5 storage chunk's edge; a cache of three bands of
+    storage chunks holds the partly written ones until the next chunks of the run complete them
+    (completed ones are evicted first, ``rdcc_w0=1``, so their compression is spread over the
+    run), instead of HDF5 compressing, evicting and reading them back. The values stored are the
+    same either way."""
+    band = 0
+    for name in names:
+        var = f[name]
+        if var.chunks:
+            band = max(band, var.chunks[0] * int(np.prod(var.shape[1:], dtype=np.int64)) * var.dtype.itemsize)
+    return max(2**20, 3 * band)
+
+
+class Early:
+    """The dataset file of a run (with ``Held``) written while its chunks are computed, in the
+    writer thread: defined at the first chunk, each chunk written into its region after it is
+    saved to the journal. It is the same temporary file the assembly writes (in the journal
+    folder; renamed into place only when complete), so crash safety is unchanged: a kill leaves
+    it half written in the journal folder, and the resumed run writes it anew from the journal.
+
+    It is an optimisation only: the first write that fails (``_GuardedFile`` records it) or any
+    other error discards it (closed, removed), and the assembly then writes the file from the
+    start exactly as without it, meeting (and reporting) the same failure if it persists."""
+
+    def __init__(self, path, scene: Scene, lay: Layout, attrs: dict):
+        self.path = Path(path)
+        self.scene, self.lay, self.attrs = scene, lay, attrs
+        self.guard: _GuardedFile | None = None
+        self.file: h5py.File | None = None
+        self.variables: dict = {}
+        self.written: set[int] = set()
+        self.failed = False
+
+    def write(self, index: int, region: tuple, arrays: dict) -> None:
+        """Write one saved chunk (COMPILE_KEY and other extra keys are ignored)."""
+        if self.failed:
+            return
+        try:
+            if self.file is None:
+                self.guard = _GuardedFile(self.path)
+                with h5netcdf.File(self.guard, "w") as f:
+                    _define(f, self.scene, self.lay, self.attrs)
+                names = _variables(self.lay)
+                with h5py.File(self.guard, "r") as f:
+                    cache = _early_cache(f, names)
+                self.file = h5py.File(self.guard, "a", rdcc_nbytes=cache, rdcc_nslots=100_003, rdcc_w0=1.0)
+                self.variables = {name: self.file[name] for name in names}
+            if self.guard.error is None:
+                _write_region(self.variables, region, arrays, self.lay.shape)
+            if self.guard.error is not None:
+                self.discard()
+                return
+            self.written.add(index)
+        except Exception:  # e.g. OSError opening the file: the assembly writes it from the start
+            self.discard()
+
+    def usable(self, target, held: "Held | None") -> bool:
+        """Whether the assembly of ``target`` can go on in this file: nothing failed and every
+        chunk ``held`` has from this process is in it."""
+        return (not self.failed and self.file is not None and self.guard.error is None and held is not None
+                and Path(target) == self.path and set(held.times) <= self.written)
+
+    def take(self) -> h5py.File:
+        """The open file, handed to the assembly (which closes it)."""
+        f, self.file = self.file, None
+        return f
+
+    def discard(self) -> None:
+        """Close and remove the file; nothing more is written to it."""
+        self.failed = True
+        try:
+            if self.file is not None:
+                self.file.close()
+        except Exception:
+            pass
+        self.file = None
+        if self.guard is not None:
+            self.guard.close()
+            _remove(self.path)
+            self.guard = None
 
 
 class Held:

@@ -17,6 +17,9 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
     b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
     b.add_argument("--rtol", type=float, default=None, help="default: the solver default")
     b.add_argument("--atol", type=float, default=None, help="default: the solver default")
+    b.add_argument("--breakdown", action="store_true",
+                   help="only time the steps of mechsweep.run (planning, journal, kernel, HDF5, ...) against "
+                        "the kernel, --repeats times")
     b.set_defaults(func=run_duffing)
     b = bsub.add_parser("autobalancer", help="Floquet chart time (200 x 200) and simulation throughput vs scipy")
     b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
@@ -106,6 +109,11 @@ def run_duffing(args) -> int:
     from ..scene import Solver
     from . import duffing as bench_duffing
 
+    if args.breakdown:
+        bench_duffing.breakdown(points=args.points, threads=args.threads, repeats=args.repeats,
+                                rtol=Solver.rtol if args.rtol is None else args.rtol,
+                                atol=Solver.atol if args.atol is None else args.atol)
+        return 0
     bench_duffing.main(points=args.points, scipy_points=args.scipy_points, threads=args.threads,
                        compare_points=args.compare_points, repeats=args.repeats,
                        rtol=Solver.rtol if args.rtol is None else args.rtol,

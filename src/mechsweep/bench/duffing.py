@@ -4,7 +4,8 @@ Every solver integrates the same scaled Duffing equation x'' = -a x - b x^3 from
 the first zero of x (a quarter period), on points of the same grid (bench/competitors.py: scipy
 always, numbalsoda and diffrax when installed). Errors are against the elliptic closed form.
 mechsweep is timed as its kernel (SIMD lanes, and one point at a time for comparison) on 1 and on
-all threads, and as `mechsweep.run` writing the dataset; every timing is repeated (interleaved) and
+all threads (and with the five outputs the run stores), and as `mechsweep.run` writing the dataset
+(those five outputs, and the period alone); every timing is repeated (interleaved) and
 printed as best and range, in wall-clock points/s and in points per CPU second of the process (the
 measure least disturbed by other jobs on a shared machine). Each competitor's rtol is chosen from
 a ladder so that its max error on its points is no larger than mechsweep's on the same points
@@ -132,6 +133,7 @@ def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = N
     atol = _args.tolerance("atol", atol, *SOLVER_LIMITS["atol"])
     scene = load_scene(grid_scene(points, rtol, atol))
     stored = ("period", "period_exact", "period_error", "v_max", "a_max")
+    scene_stored = load_scene(grid_scene(points, rtol, atol, stored))  # the kernel as the run calls it
     use_lanes = model_compile.USE_LANES
     rows: dict = {}
     try:
@@ -149,12 +151,16 @@ def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = N
                     for n_thr in (n_threads, 1):
                         results[lanes] = _ours(scene, n_thr, lanes, rows, (lanes, n_thr))
                 model_compile.USE_LANES = True
-                with tempfile.TemporaryDirectory() as tmp:
-                    wall, cpu, _ = _timed(lambda: run(grid_scene(points, rtol, atol, stored),
-                                                      output=os.path.join(tmp, "bench.h5"), progress=False))
-                rows.setdefault("run", {"wall": [], "cpu": []})
-                rows["run"]["wall"].append(wall)
-                rows["run"]["cpu"].append(cpu)
+                # the kernel with the run's five outputs (closed forms computed beside the period), in
+                # one call: what the run costs over it is the engine around the kernel
+                _ours(scene_stored, n_threads, True, rows, "kernel_stored")
+                for key, outputs in (("run", stored), ("run_period", ("period",))):
+                    with tempfile.TemporaryDirectory() as tmp:
+                        wall, cpu, _ = _timed(lambda: run(grid_scene(points, rtol, atol, outputs),
+                                                          output=os.path.join(tmp, "bench.h5"), progress=False))
+                    rows.setdefault(key, {"wall": [], "cpu": []})
+                    rows[key]["wall"].append(wall)
+                    rows[key]["cpu"].append(cpu)
     finally:
         model_compile.USE_LANES = use_lanes
     cols, status, n_steps, n_rhs = results[True]
@@ -184,7 +190,8 @@ def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = N
            "compile_or_cache_load_s": compile_s, "lanes_bitwise_one_at_a_time": bool(same)}
     for (label, key) in (("kernel", (True, n_threads)), ("kernel_one_thread", (True, 1)),
                          ("kernel_one_point", (False, n_threads)), ("kernel_one_point_one_thread", (False, 1)),
-                         ("run_to_hdf5", "run")):
+                         ("kernel_stored_outputs", "kernel_stored"), ("run_to_hdf5", "run"),
+                         ("run_to_hdf5_period_only", "run_period")):
         best, worst = _rates(n, rows[key]["wall"])
         res[f"{label}_points_per_s"], res[f"{label}_points_per_s_worst"] = best, worst
         res[f"{label}_points_per_cpu_s"] = n / min(rows[key]["cpu"])
@@ -217,7 +224,13 @@ def _print(r: dict) -> None:
     line("mechsweep kernel, lanes, 1 thread", "kernel_one_thread")
     line(f"mechsweep kernel, one point, {t} threads", "kernel_one_point")
     line("mechsweep kernel, one point, 1 thread", "kernel_one_point_one_thread")
+    line(f"kernel, lanes, 5 outputs, {t} threads", "kernel_stored_outputs")
     line(f"mechsweep.run -> HDF5, {t} threads", "run_to_hdf5")
+    line(f"run -> HDF5, period only, {t} threads", "run_to_hdf5_period_only")
+    print(f"  {'':38s}  run / kernel with the same 5 outputs: {r['run_to_hdf5_points_per_s'] / r['kernel_stored_outputs_points_per_s']:.2f} "
+          f"wall, {r['run_to_hdf5_points_per_cpu_s'] / r['kernel_stored_outputs_points_per_cpu_s']:.2f} per CPU second; "
+          f"period only: run / kernel {r['run_to_hdf5_period_only_points_per_s'] / r['kernel_points_per_s']:.2f} wall, "
+          f"{r['run_to_hdf5_period_only_points_per_cpu_s'] / r['kernel_points_per_cpu_s']:.2f} per CPU second")
     print(f"  lanes and one point at a time bitwise identical (period, status, n_steps, n_rhs): "
           f"{'yes' if r['lanes_bitwise_one_at_a_time'] else 'NO'}; {r['ours_mean_steps']:.1f} steps/point; "
           f"max relative period error {r['ours_max_rel_error']:.2e}")
@@ -236,7 +249,8 @@ def _print(r: dict) -> None:
     print("  issue 15 goals measured here (the others: mechsweep bench quickstart / memory / workprecision):")
     run_ok = r["run_to_hdf5_points_per_s"] >= TARGET_RUN
     print(f"    goal 1: mechsweep.run {r['run_to_hdf5_points_per_s']:,.0f} points/s on {t} threads, "
-          f"{r['run_to_hdf5_points_per_cpu_s']:,.0f} points per CPU second "
+          f"{r['run_to_hdf5_points_per_cpu_s']:,.0f} points per CPU second, 5 outputs (period only: "
+          f"{r['run_to_hdf5_period_only_points_per_s']:,.0f} points/s) "
           f"(target >= {TARGET_RUN:,.0f} points/s on 2 threads): {'met' if run_ok else 'not met'}")
     nb = r["competitors"].get("numbalsoda")
     if nb is None:
@@ -248,3 +262,103 @@ def _print(r: dict) -> None:
         verdict = ("not matched" if not nb["matched"] else "met" if ratio >= TARGET_NUMBALSODA else "not met")
         print(f"    goal 1: kernel / numbalsoda {ratio:,.1f}x wall, {ratio_cpu:,.1f}x per CPU second (target >= "
               f"{TARGET_NUMBALSODA:g} at matched accuracy): {verdict}")
+
+
+# ----------------------------------------------------------------------------- where a run's time goes
+# The steps of `mechsweep.run` timed by `breakdown` (owner, attribute, label): each is wrapped for the
+# measured runs only, its wall and thread CPU time added up per call (a step inside another is
+# counted in both). The writer thread's steps run while the main thread computes the next chunk.
+_STEPS = (
+    ("runner", "load_scene", "scene: load and validate"),
+    ("runner", "_check_existing", "checks: existing files, journal"),
+    ("journal.Journal", "create", "journal: create (run.json, fsyncs)"),
+    ("store.Held", "__init__", "dataset in memory: define"),
+    ("grid.ParameterMatrix", "__call__", "per chunk: parameter rows"),
+    ("runner", "evaluate_rows", "per chunk: kernel + status/NONFINITE"),
+    ("journal.Journal", "write_chunk", "writer: journal chunk file + fsyncs"),
+    ("store.Held", "keep", "writer: chunk into the dataset in memory"),
+    ("store.Early", "write", "writer: chunk into the HDF5 file (early)"),
+    ("store", "_define", "HDF5/memory: define (h5netcdf)"),
+    ("runner", "_save_chunks", "all chunks (main thread, wall)"),
+    ("runner", "_finish", "end: assembly, fsync, rename, drop journal"),
+    ("store", "_assemble", "end: assembly (HDF5 writes, close)"),
+    ("runner", "drop", "end: drop the journal"),
+    ("runner", "_times", "end: read the times back"),
+)
+
+
+def _owner(path: str):
+    import importlib
+
+    module, _, cls = path.partition(".")
+    obj = importlib.import_module(f"mechsweep.{module}")
+    return getattr(obj, cls, None) if cls else obj  # None: a step this version does not have
+
+
+def breakdown(points: int = 200_000, threads: int | None = None, rtol: float = Solver.rtol,
+              atol: float = Solver.atol, repeats: int = 3, outputs=("period", "period_exact", "period_error",
+                                                                     "v_max", "a_max")) -> list[dict]:
+    """`mechsweep.run` of the bench grid to an HDF5 file, ``repeats`` times, with its steps timed
+    (wall and CPU of the thread that runs them), beside the kernel alone on the same grid and outputs
+    in one call. Prints a table per run; returns the timings."""
+    import functools
+    import numba
+
+    from . import _args
+
+    points = _args.count("points", points)
+    repeats = _args.count("repeats", repeats, 1, 100)
+    threads = _args.threads("threads", threads)
+    scene = load_scene(grid_scene(points, rtol, atol, outputs))
+    n = scene.n_points
+    acc: dict = {}
+    saved = []
+    for path, name, label in _STEPS:
+        owner = _owner(path)
+        if owner is None or not hasattr(owner, name):  # a step this version does not have
+            continue
+        f = getattr(owner, name)
+
+        def timed(*a, _f=f, _label=label, **k):
+            t0, c0 = time.perf_counter(), time.thread_time()
+            try:
+                return _f(*a, **k)
+            finally:
+                e = acc.setdefault(_label, [0.0, 0.0, 0])
+                e[0] += time.perf_counter() - t0
+                e[1] += time.thread_time() - c0
+                e[2] += 1
+
+        saved.append((owner, name, f))
+        setattr(owner, name, functools.wraps(f)(timed))
+    results = []
+    try:
+        with _threads(threads), tempfile.TemporaryDirectory() as tmp:
+            n_threads = numba.get_num_threads()
+            evaluate_chunk(scene, Chunk(0, 0, 4, ()))
+            run(grid_scene(1000, rtol, atol, outputs), output=os.path.join(tmp, "warm.h5"), progress=False)
+            for k in range(repeats):
+                kw, kc, _ = _timed(lambda: evaluate_chunk(scene, _whole_grid(scene)))
+                acc.clear()
+                path = os.path.join(tmp, f"run{k}.h5")
+                wall, cpu, _ = _timed(lambda: run(grid_scene(points, rtol, atol, outputs), output=path,
+                                                  progress=False))
+                os.unlink(path)
+                results.append({"points": n, "threads": n_threads, "kernel_wall_s": kw, "kernel_cpu_s": kc,
+                                "run_wall_s": wall, "run_cpu_s": cpu, "load": os.getloadavg()[0],
+                                "steps": {label: tuple(v) for label, v in acc.items()}})
+    finally:
+        for owner, name, f in reversed(saved):
+            setattr(owner, name, f)
+    for r in results:
+        print(f"mechsweep.run breakdown: {r['points']:,} points, outputs {', '.join(outputs)}, rtol {rtol:g}, "
+              f"{r['threads']} threads, load average {r['load']:.2f}")
+        print(f"  kernel alone (one call, same outputs): {r['kernel_wall_s'] * 1e3:8.1f} ms wall, "
+              f"{r['kernel_cpu_s'] * 1e3:8.1f} ms process CPU, {n / r['kernel_wall_s']:,.0f} points/s")
+        print(f"  mechsweep.run -> HDF5               : {r['run_wall_s'] * 1e3:8.1f} ms wall, "
+              f"{r['run_cpu_s'] * 1e3:8.1f} ms process CPU, {n / r['run_wall_s']:,.0f} points/s "
+              f"(run / kernel: {r['kernel_wall_s'] / r['run_wall_s']:.2f} wall, "
+              f"{r['kernel_cpu_s'] / r['run_cpu_s']:.2f} CPU)")
+        for label, (w, c, calls) in r["steps"].items():
+            print(f"    {label:45s} {calls:4d} calls {w * 1e3:8.1f} ms wall {c * 1e3:8.1f} ms thread CPU")
+    return results
