@@ -10,7 +10,7 @@ from hypothesis import strategies as hs
 
 from mechsweep import status as st
 from mechsweep._jit import call_with_literal
-from mechsweep.models import autobalancer as ab
+from mechsweep.models import _autobalancer_kernels as ab  # the hand-written kernels (reference implementation)
 from mechsweep.ode import METHOD_CODES, _lane_sums_codegen
 from mechsweep.scene import Solver
 from mechsweep.special import SINCOS_MAX

@@ -117,7 +117,7 @@ def _torsional_reference(P):
 
 
 def _autobalancer_pp(row):
-    from ..models import autobalancer as ab
+    from ..models import _autobalancer_kernels as ab  # the reference kernels (variational system)
 
     P = row[None, :]
     col = {name: P[:, j] for j, name in enumerate(ab.PARAM_NAMES)}
@@ -131,7 +131,7 @@ def _floquet_scipy(row, method, rtol, atol):
     from scipy.integrate import solve_ivp
     from scipy.linalg import block_diag
 
-    from ..models import autobalancer as ab
+    from ..models import _autobalancer_kernels as ab  # the reference kernels (variational system)
 
     p = _autobalancer_pp(row)
     J = np.empty((8, 8))
