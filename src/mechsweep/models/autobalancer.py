@@ -801,7 +801,13 @@ MODEL = OdeModel(
         Steady("residual_amplitude", platform_amplitude, horizon=H, window=0.1,  # the last 10 % of the horizon
               
                samples_per_period="residual_samples_per_revolution", settle_rtol=None, value=to_metres,
-               output_meta={"residual_amplitude": _meta("residual_amplitude")}),
+               output_meta={"residual_amplitude": _meta("residual_amplitude"),
+                            "residual_amplitude_h1": dict(
+                                symbol="r₁", unit="m", long_name="first-harmonic (crank frequency) amplitude of the "
+                                "platform displacement sqrt(xi^2 + eta^2) over the last 10 % of the simulation"),
+                            "residual_amplitude_phase": dict(
+                                symbol="φ₁", unit="rad", long_name="phase lag of that first harmonic: "
+                                "sqrt(xi^2 + eta^2) ~ r1 cos(Omega t - phase) + other harmonics")}),
         _history("xi_history", xi, value=to_metres),
         _history("eta_history", eta, value=to_metres),
         _history("phase_error1_history", phase_error1),
