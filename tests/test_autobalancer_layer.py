@@ -44,6 +44,15 @@ def test_the_registered_autobalancer_is_the_layer_declaration():
     assert K.SPEC is not spec and K.SPEC.evaluate is K.evaluate
 
 
+def test_the_model_layer_imports_first_in_a_fresh_process():
+    # a user's model file starts with `from mechsweep.model import OdeModel`: mechsweep.model imports
+    # mechsweep.models (Param), whose autobalancer declaration must not need mechsweep.model finished
+    import subprocess
+    code = "from mechsweep.model import OdeModel, Floquet\nimport mechsweep.model.trajectory\nprint('ok')"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+
+
 @pytest.mark.slow  # compiles the model's kernels for the 9 dop853 design-grid cases (minutes cold)
 def test_the_autobalancer_gives_the_reference_statuses_and_values():
     # the model's classify (INFEASIBLE), its measurements' classify (NOT_BALANCEABLE), status_order

@@ -146,7 +146,8 @@ import numpy as np
 
 from .. import status as st
 from .._jit import jit, jit_inline, jit_noalloc
-from ..model import ClosedForm, Floquet, History, Kick, OdeModel, Recheck, Steady
+from ..model.measure import ClosedForm, Floquet, History, Kick, Recheck, Steady  # not ..model: it imports ..models
+from ..model.ode import OdeModel
 from ..special import SINCOS_MAX, ieee_sqrt, sincos, sincos_reduced
 from ._spec import ExtraDim, Output, Param, Setting
 
