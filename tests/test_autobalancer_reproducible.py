@@ -114,6 +114,8 @@ def test_outputs_do_not_depend_on_other_outputs_with_method_auto(runs):
     check_runs("auto", runs)
 
 
+@pytest.mark.slow  # a kernel of its own (the layer: one per measurement set); the quick random test's
+# example (settling_time with xi_history against settling_time alone) checks the same quickly
 def test_histories_do_not_change_the_measured_outputs():
     """The history samples are extra rows of the trajectory; they must not enter the
     measurements (they used to: settling_time and residual_amplitude changed)."""
