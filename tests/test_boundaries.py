@@ -253,8 +253,13 @@ def test_autobalancer_located_boundaries_agree_with_brentq_and_converge_on_the_f
     scene, rows, res = _balancer([0.02, 0.0005])
     assert np.isin(res.bound, (bd.PARAMETER, bd.CRITERION)).all() and res.location.shape == (2, 3)
     # the criterion's accuracy 100 rtol = 1e-10 limits some: near omega_p at 2 m / M = 0.0005 the
-    # multiplier leaves 1 slowly (2e-8 |Omega| measured)
-    assert (res.width <= 5e-8 * res.location).all()
+    # multiplier leaves 1 slowly (2e-8 |Omega| measured with the hand-written kernels). Relaxed at the
+    # swap to the layer (models/autobalancer.py): its floquet_max differs from the old one within the
+    # documented 0.1 rtol, the bisection's iterates with it, and every bracket here is criterion-bound
+    # (|floquet_max - 1| within the criterion's accuracy), so its width follows the iterates: 1.5e-6
+    # |Omega| there, 3e-8 to 6e-8 elsewhere (measured); brentq's root is still inside each (below)
+    assert (res.width <= 2e-6 * res.location).all()
+    assert (res.width <= 1e-7 * res.location).sum() >= 5
     assert res.evaluations.max() <= 15, res.evaluations
 
     def g(row, x):
