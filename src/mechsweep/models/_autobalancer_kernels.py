@@ -27,7 +27,7 @@ from .autobalancer import (  # noqa: F401 (re-exported: the reference's names)
     IB_SLACK, IP_ALPHA0, IP_ALPHA1, IP_DX, IP_DY, IP_EH, IP_IOTA, IP_KX, IP_KY, IP_LAM, IP_MU, IP_TH1, IP_TH2, NP,
     OUTPUTS, PAIRS, PARAM_NAMES, PARAMS, REVOLUTION, SETTINGS, STATUS_NOTES, STATUS_ORDER, STATUSES, TWO_PI,
     _jacobian_block, _jvp, accelerations, accelerations_trig, check, conrod_terms, history_revolutions,
-    initial_state, phase_errors, wrap)
+    initial_state, phase_errors, variational_jacobian, variational_rhs, wrap)
 from .autobalancer import scaled_jacobian as jacobian
 from .autobalancer import scaled_rhs as rhs
 from .autobalancer import scaled_rhs_lanes as rhs_lanes
@@ -36,28 +36,6 @@ BLOCK = 8  # points per scratch allocation in the parallel loops
 LATE_FRACTION = 0.1  # last 10 % of the horizon: residual amplitude and late envelopes
 EARLY_FRACTION = 0.1  # first 10 %: reference platform amplitude
 SEVERITY = STATUS_ORDER + (st.OK,)  # most severe first (models/autobalancer.py)
-
-
-# ----------------------------------------------------------------------------- Floquet (variational system)
-@jit_noalloc
-def variational_rhs(tau, Y, p, dY):
-    """Phi' = J(tau) Phi about the exact balanced solution x = y = 0, g_i = tau + Theta_i,
-    g_i' = 1 (eq. (4), (5), (8)); Phi stored column-major: column c is Y[8c:8c+8]."""
-    xdd, ydd, _, _, s1, k1, s2, k2, k11, k12, k22, det = accelerations(
-        tau, 0.0, 0.0, tau + p[IP_TH1], tau + p[IP_TH2], 0.0, 0.0, 1.0, 1.0, p)
-    for c in range(8):
-        _jvp(1.0, 1.0, p, xdd, ydd, s1, k1, s2, k2, k11, k12, k22, det,
-             Y[8 * c:8 * c + 8], dY[8 * c:8 * c + 8])
-
-
-@jit_noalloc
-def variational_jacobian(tau, Y, p, J):
-    """Jacobian of the (linear) variational system: block diagonal, J(tau) on the orbit 8 times."""
-    for r in range(64):
-        for c in range(64):
-            J[r, c] = 0.0
-    for b in range(8):
-        _jacobian_block(tau, 0.0, 0.0, tau + p[IP_TH1], tau + p[IP_TH2], 0.0, 0.0, 1.0, 1.0, p, J, 8 * b)
 
 
 # ----------------------------------------------------------------------------- Floquet

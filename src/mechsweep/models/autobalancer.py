@@ -52,14 +52,14 @@ at A0 = 0 any opposite pair of pendulums balances (a family), at A0 = 2 m a the 
 merge (Theta = pi); in both a Floquet multiplier is exactly 1, so these ends are NOT_BALANCEABLE
 for the stability outputs (theta itself is still given there).
 
-Floquet: the variational equations Phi' = J(tau, z) Phi (8x8), integrated with the state z from
-the exact balanced solution (72 equations; the layer's Floquet measurement), over one period
-tau = 2 pi; J is the analytic Jacobian (directional derivatives of the closed-form accelerations,
-``_jvp``). floquet_max = max |eig(Phi(2 pi))|; the layer adds the way the critical multiplier
-leaves the unit circle (floquet_max_kind: +1, -1 or a complex pair) and its angle
-(floquet_max_angle). The hand-written kernels (models/_autobalancer_kernels.py, a reference kept for
-comparison) integrate the 64 variational equations about the exact orbit instead: floquet_max
-agrees within 0.1 rtol (tests/data/record_autobalancer.py).
+Floquet: the variational equations Phi' = J(tau, z*(tau)) Phi (8x8) about the exact balanced
+solution z* (x = y = 0, gamma_i = tau + Theta_i, known in closed form), over one period tau = 2 pi:
+the 64 equations of Phi alone (``variational``, ``variational_jac``: the layer's Floquet with the
+model's own variational system; the hand-written kernels in models/_autobalancer_kernels.py, a
+reference kept for comparison, integrate the same functions); J is the analytic Jacobian
+(directional derivatives of the closed-form accelerations, ``_jvp``). floquet_max =
+max |eig(Phi(2 pi))|; the layer adds the way the critical multiplier leaves the unit circle
+(floquet_max_kind: +1, -1 or a complex pair) and its angle (floquet_max_angle).
 
 Direct simulation: start at gamma_i = Theta_i +/- perturbation (gamma1 up, gamma2 down),
 gamma_i' = Omega, platform at rest, where Theta_i are the *reference angles*: the balanced angles
@@ -359,6 +359,29 @@ def _jacobian_block(tau, x, y, g1, g2, xd, yd, w1, w2, p, J, r0):
 def scaled_jacobian(tau, z, p, J):
     """The analytic 8x8 Jacobian d rhs / d z at (tau, z) (radau, tests)."""
     _jacobian_block(tau, z[0], z[1], z[2], z[3], z[4], z[5], z[6], z[7], p, J, 0)
+
+
+
+# ----------------------------------------------------------------------------- Floquet (variational system about the exact balanced orbit)
+@jit_noalloc
+def variational_rhs(tau, Y, p, dY):
+    """Phi' = J(tau) Phi about the exact balanced solution x = y = 0, g_i = tau + Theta_i,
+    g_i' = 1 (eq. (4), (5), (8)); Phi stored column-major: column c is Y[8c:8c+8]."""
+    xdd, ydd, _, _, s1, k1, s2, k2, k11, k12, k22, det = accelerations(
+        tau, 0.0, 0.0, tau + p[IP_TH1], tau + p[IP_TH2], 0.0, 0.0, 1.0, 1.0, p)
+    for c in range(8):
+        _jvp(1.0, 1.0, p, xdd, ydd, s1, k1, s2, k2, k11, k12, k22, det,
+             Y[8 * c:8 * c + 8], dY[8 * c:8 * c + 8])
+
+
+@jit_noalloc
+def variational_jacobian(tau, Y, p, J):
+    """Jacobian of the (linear) variational system: block diagonal, J(tau) on the orbit 8 times."""
+    for r in range(64):
+        for c in range(64):
+            J[r, c] = 0.0
+    for b in range(8):
+        _jacobian_block(tau, 0.0, 0.0, tau + p[IP_TH1], tau + p[IP_TH2], 0.0, 0.0, 1.0, 1.0, p, J, 8 * b)
 
 
 
@@ -702,6 +725,16 @@ def initial(p, z):
     initial_state(p[OFF:OFF + NP], p[I_PERT], z)
 
 
+def variational(t, Phi, p, dPhi):
+    """Floquet's variational system about the exact balanced orbit (known in closed form): the
+    engine integrates these 64 equations alone."""
+    variational_rhs(t, Phi, p[OFF:OFF + NP], dPhi)
+
+
+def variational_jac(t, Phi, p, J):
+    variational_jacobian(t, Phi, p[OFF:OFF + NP], J)
+
+
 def balanced(p, z):
     """The exact balanced state (x = y = 0, gamma_i = Theta_i, gamma_i' = 1): Floquet's orbit."""
     initial_state(p[OFF:OFF + NP], 0.0, z)
@@ -785,9 +818,11 @@ MODEL = OdeModel(
     rhs=rhs, rhs_lanes=rhs_lanes, jac=jac, initial=initial, forcing_period=forcing_period,
     classify=classify, prepare=prepare,
     measurements=(
-        # Floquet: the variational equations about the exact balanced orbit over one period
-        # (integrated with the state: 72 equations), floquet_max = max |eig(monodromy)|
-        Floquet("floquet_max", initial=balanced, stable_name="stable_floquet", classify=isolated,
+        # Floquet: the variational equations about the exact balanced orbit over one period (the 64
+        # equations of the monodromy matrix alone: the orbit is known), floquet_max = max |eig(monodromy)|;
+        # initial: that orbit's start (the work-precision reference integrates it with the state)
+        Floquet("floquet_max", initial=balanced, variational=variational, variational_jac=variational_jac,
+                stable_name="stable_floquet", classify=isolated,
                 output_meta={"floquet_max": _meta("floquet_max"), "floquet_max_stable": _meta("stable_floquet")}),
         # direct simulation from the perturbed balanced state: the decision rule of stable_sim
         # (module docstring) on the phase error and the platform amplitude
