@@ -2,9 +2,9 @@
 against the hand-written kernels' recorded before any change (tests/data/autobalancer_reference.npz,
 tests/data/record_autobalancer.py) and against the kernels themselves, kept as a reference
 implementation in models/_autobalancer_kernels.py: every status bitwise, the simulated outputs the
-same bits except residual_amplitude (1 ulp), floquet_max within 0.1 rtol (the layer integrates the
-state with the variational equations, 72 equations, the old kernel the 64 variational equations
-about the exact orbit); docs/model-layer.md."""
+same bits except residual_amplitude (1 ulp), floquet_max and its n_steps/n_rhs bitwise (the model's
+Floquet integrates its own variational system, the 64 equations about the exact orbit, as the old
+kernel); docs/model-layer.md."""
 import sys
 from pathlib import Path
 
@@ -64,8 +64,14 @@ def test_the_autobalancer_gives_the_reference_statuses_and_values():
     bad = {key: v for key, v in r.items() if v[0] == "DIFFERENT"}
     assert not bad, bad
     assert all(r[(label, "status")][0] == "bitwise" for label, _ in r)
-    # n_steps/n_rhs bitwise where Floquet is not asked for; floquet_max differs within 0.1 rtol only
+    # n_steps/n_rhs bitwise where Floquet is not asked for; floquet_max and the counts of the cases
+    # that ask for it bitwise too (the same 64 variational equations and floats as the old kernel)
     assert r[("grid-dop853-norecheck", "n_steps")][0] == "bitwise"
+    floquet = [label for label, key in r if key == "floquet_max"]
+    assert len(floquet) >= 3, floquet
+    for label in floquet:
+        for key in ("floquet_max", "n_steps", "n_rhs"):
+            assert r[(label, key)][0] == "bitwise", (label, key, r[(label, key)])
     assert r[("grid-dop853-all", "stable_sim")][0] == "bitwise"
     ref = np.load(rec.FILE)
     codes = set(ref["grid-dop853-all/status"].tolist()) | set(ref["grid-dop853-maxsteps/status"].tolist())
