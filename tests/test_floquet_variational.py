@@ -81,6 +81,8 @@ GOOD = "    for c in range(2):\n        dPhi[2 * c] = Phi[2 * c + 1]\n        dP
     (GOOD, "variational=var, variational_jac='g'", "mu: variational_jac must be a function"),
     ("    dPhi[:] = float(fractions.Fraction(1, 2))", "variational=var", "numba cannot compile mu.variational"),
     ("    dPhi[4] = 0.0", "variational=var", "mu.variational indexes beyond its arrays"),
+    ("    dPhi[0] = Phi[1]\n    dPhi[1] = -p[0] * Phi[0]", "variational=var",
+     "mu.variational did not write dPhi[2] (it must write all 4 components"),
 ])
 def test_a_bad_variational_is_refused_clearly(tmp_path, body, floquet, expected):
     path = tmp_path / "badvar.py"
