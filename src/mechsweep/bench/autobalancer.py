@@ -337,8 +337,8 @@ def _print(r: dict, solver) -> None:
     extra = (f" (measured on {r['chart_points']} points in {r['chart_s']:.2f} s, extrapolated by points)"
              if r["chart_extrapolated"] else "")
     print(f"  Floquet chart floquet_max, Omega x 2m/M, 200 x 200: {r['chart_200x200_s']:.2f} s on "
-          f"{r['threads']} threads{extra}; {r['chart_mean_steps']:.1f} steps/point (the 8 states with their "
-          f"64 variational equations over one period), {r['chart_ok_fraction'] * 100:.1f}% ok")
+          f"{r['threads']} threads{extra}; {r['chart_mean_steps']:.1f} steps/point (the 64 variational "
+          f"equations about the exact balanced orbit over one period), {r['chart_ok_fraction'] * 100:.1f}% ok")
     H = solver.settings["horizon_revolutions"]
     print(f"  direct simulation ({H:g} revolutions, {r['sim_points']} chart points, best of {REPEATS} runs): "
           f"{r['sim_steps_per_s_per_core']:,.0f} steps/s on 1 thread, {r['sim_steps_per_s_all_threads']:,.0f} "
