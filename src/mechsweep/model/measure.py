@@ -536,8 +536,7 @@ solve{k}_var_r = radau.make_solver(var_rhs{k}, var_jac{k})""")
                 + (f"            z[i * {n} + i] = 1.0\n" if known else
                    f"            z[i] = y[i]\n"
                    f"            z[{n} + i * {n} + i] = 1.0\n")
-                + 
-                f"        ns0, nr0 = ns, nr\n"
+                + "        ns0, nr0 = ns, nr\n"
                 + radau_call.replace("\n    ", "\n        ").replace("    rz", "        rz", 1)
                 + "        ns += ns0\n        nr += nr0\n")
 
