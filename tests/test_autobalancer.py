@@ -11,6 +11,7 @@ from scipy.optimize import brentq
 
 import mechsweep
 from mechsweep import models, status as st
+from mechsweep.models import _autobalancer_kernels as K  # the hand-written kernels: rhs, Jacobian, variational system
 from mechsweep.models import autobalancer as ab
 from mechsweep.scene import SceneError, Solver, load_scene
 
@@ -49,7 +50,7 @@ def light(eps, zeta=0.02, omega_eta=1.5, kappa=1.0, alpha0=1.0):
 def random_p(rng, A1=True):
     """Scaled parameters of a random mechanism (SI values drawn, then scaled like evaluate does)."""
     m, a = rng.uniform(0.05, 0.3), rng.uniform(0.05, 0.2)
-    return ab.scaled_parameters(
+    return K.scaled_parameters(
         Omega=rng.uniform(0.5, 3), M=rng.uniform(2.5, 10) * m, m=m, a=a, I_B=m * a * a * rng.uniform(1, 2),
         A0=rng.uniform(0, 2) * m * a, A1=rng.uniform(-1, 1) * m * a if A1 else 0.0,
         lam=rng.uniform(0.1, 0.6) if A1 else 0.0, c_xi=rng.uniform(1, 50), c_eta=rng.uniform(1, 50),
@@ -67,13 +68,13 @@ def test_exact_balanced_state_satisfies_the_equations(alpha0):
     dz = np.empty(8)
     for tau in TAUS + (1234.5,):
         z = np.array([0, 0, tau + theta, tau - theta, 0, 0, 1, 1], float)
-        ab.rhs(tau, z, p, dz)
+        K.rhs(tau, z, p, dz)
         # every term of the equations is O(alpha0) ~ O(1) in scaled units
         assert np.abs(dz[4:]).max() < 1e-14 * max(1.0, tau / 10), (tau, dz[4:])
         assert (dz[:4] == z[4:]).all()
     # and a wrong angle does not
     z = np.array([0, 0, theta + 0.1, -theta, 0, 0, 1, 1], float)
-    ab.rhs(0.0, z, p, dz)
+    K.rhs(0.0, z, p, dz)
     assert np.abs(dz[4:]).max() > 1e-3
 
 
@@ -133,11 +134,11 @@ def test_rhs_against_independent_lagrange_derivation(lagrange):
         A1 = v["m4"] * v["S4"] + v["m5"] * v["l4"] - v["mk"] * v["Sk"]
         I_B = v["JP"] + v["m"] * v["a"] ** 2
         Om, a = v["Om"], v["a"]
-        p = ab.scaled_parameters(Om, M, v["m"], a, I_B, A0, A1, v["l3"] / v["l4"], v["cx"], v["cy"], v["bx"],
+        p = K.scaled_parameters(Om, M, v["m"], a, I_B, A0, A1, v["l3"] / v["l4"], v["cx"], v["cy"], v["bx"],
                                  v["by"], v["h"], 0.0, 0.0)
         z = np.r_[q[:2] / a, q[2:], qd[:2] / (a * Om), qd[2:] / Om]
         dz = np.empty(8)
-        ab.rhs(Om * t, z, p, dz)
+        K.rhs(Om * t, z, p, dz)
         ours = np.r_[dz[4:6] * a * Om**2, dz[6:] * Om**2]
         scale = np.abs(ref).max()
         worst = max(worst, np.abs(ours - ref).max() / scale)
@@ -155,9 +156,9 @@ def test_scan_sign_of_A1_term_matters(lagrange):
     A1 = 0.5 * 0.1 + 1.0 * 0.2
     A0 = 1.5 * 0.05
     for sign, expect_match in ((1.0, True), (-1.0, False)):
-        p = ab.scaled_parameters(5.0, M, 0.1, 0.1, 0.001, A0, A1, sign * 0.25, 100.0, 100.0, 0, 0, 0, 0, 0)
+        p = K.scaled_parameters(5.0, M, 0.1, 0.1, 0.001, A0, A1, sign * 0.25, 100.0, 100.0, 0, 0, 0, 0, 0)
         dz = np.empty(8)
-        ab.rhs(5.0 * 0.3, np.array([0, 0, 1.0, -1.0, 0, 0, 1, 1.0]), p, dz)
+        K.rhs(5.0 * 0.3, np.array([0, 0, 1.0, -1.0, 0, 0, 1, 1.0]), p, dz)
         assert np.allclose(dz[5] * 0.1 * 25, ref[1], rtol=1e-10) == expect_match
 
 
@@ -169,23 +170,23 @@ def test_analytic_jacobian_against_finite_differences():
         p = random_p(rng, A1=k % 2 == 0)
         tau = rng.uniform(0, 7)
         z = np.r_[rng.normal(0, 0.3, 2), rng.uniform(-4, 4, 2), rng.normal(0, 0.5, 2), rng.uniform(0, 2, 2)]
-        ab.jacobian(tau, z, p, J)
+        K.jacobian(tau, z, p, J)
         fd = np.empty((8, 8))
         for c in range(8):
             h = 1e-6 * max(1.0, abs(z[c]))
             zp, zm = z.copy(), z.copy()
             zp[c] += h
             zm[c] -= h
-            ab.rhs(tau, zp, p, fp)
-            ab.rhs(tau, zm, p, fm)
+            K.rhs(tau, zp, p, fp)
+            K.rhs(tau, zm, p, fm)
             fd[:, c] = (fp - fm) / (2 * h)
         assert np.abs(J - fd).max() <= 1e-7 * max(1.0, np.abs(J).max()), (k, np.abs(J - fd).max())
     # the variational rhs applies the same Jacobian at the balanced state, column by column
     p[ab.IP_TH1], p[ab.IP_TH2], p[ab.IP_ALPHA1] = 2.0, -2.0, 0.0
     Phi = rng.normal(size=(8, 8))
     dY = np.empty(64)
-    ab.variational_rhs(0.7, Phi.T.ravel().copy(), p, dY)
-    ab.jacobian(0.7, np.array([0, 0, 2.7, -1.3, 0, 0, 1, 1.0]), p, J)
+    K.variational_rhs(0.7, Phi.T.ravel().copy(), p, dY)
+    K.jacobian(0.7, np.array([0, 0, 2.7, -1.3, 0, 0, 1, 1.0]), p, J)
     np.testing.assert_allclose(dY.reshape(8, 8).T, J @ Phi, rtol=1e-13, atol=1e-13)
 
 
@@ -196,8 +197,8 @@ def test_jitted_equals_python():
         p = random_p(rng)
         z = rng.normal(size=8)
         tau = rng.uniform(0, 10)
-        ab.rhs(tau, z, p, a)
-        ab.rhs.py_func(tau, z, p, b)
+        K.rhs(tau, z, p, a)
+        K.rhs.py_func(tau, z, p, b)
         np.testing.assert_allclose(a, b, rtol=1e-14, atol=1e-15)
         assert ab.conrod_terms(math.sin(tau), math.cos(tau), 0.3) == pytest.approx(ab.conrod_terms.py_func(math.sin(tau), math.cos(tau), 0.3), rel=1e-14)
         assert ab.wrap(tau * 7) == pytest.approx(ab.wrap.py_func(tau * 7), abs=1e-14)
@@ -268,7 +269,7 @@ def test_light_pendulum_limit_of_the_floquet_boundaries():
       2m/M = 0.0005 : 0.0024, 0.00009, 0.0036
     so the source's rule is good to ~5 eps (lower) and ~9 eps (upper) for a mass ratio eps."""
     def P(Om):
-        return ab.receptance_sum(Om, 1.0, 1.0, 2.25, 0.04, 0.06)
+        return K.receptance_sum(Om, 1.0, 1.0, 2.25, 0.04, 0.06)
 
     roots = np.array([brentq(P, lo, hi, xtol=1e-12) for lo, hi in ((0.9, 1.1), (1.2, 1.35), (1.4, 1.55))])
     np.testing.assert_allclose(roots, [1.00064, 1.27579, 1.49783], atol=1e-5)

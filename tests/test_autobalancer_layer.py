@@ -1,99 +1,134 @@
-"""The model layer's generic sampled-trajectory measurements (Kick, Steady, History) and Floquet
-with its own orbit start, declared with the auto-balancer's physics
-(tests/data/autobalancer_on_layer.py), against the hand-written kernels' values recorded before
-any change (tests/data/autobalancer_reference.npz, tests/data/record_autobalancer.py): the
-simulated outputs are the same bits, Floquet agrees to the integration error. A guard for moving
-models/autobalancer.py onto the layer (not done yet: docs/model-layer.md)."""
-import importlib.util
+"""The built-in auto-balancer is the model layer's declaration (models/autobalancer.py); its values
+against the hand-written kernels' recorded before any change (tests/data/autobalancer_reference.npz,
+tests/data/record_autobalancer.py) and against the kernels themselves, kept as a reference
+implementation in models/_autobalancer_kernels.py: every status bitwise, the simulated outputs the
+same bits except residual_amplitude (1 ulp), floquet_max and its n_steps/n_rhs bitwise (the model's
+Floquet integrates its own variational system, the 64 equations about the exact orbit, as the old
+kernel); docs/model-layer.md."""
+import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from mechsweep import status as st
+from mechsweep.models import MODELS
+from mechsweep.models import _autobalancer_kernels as K
+from mechsweep.models import autobalancer as ab
+from mechsweep.scene import Solver
 
 DATA = Path(__file__).resolve().parent / "data"
 
 
-@pytest.mark.slow
-def test_layer_measurements_reproduce_the_hand_written_autobalancer_simulation():
-    spec = importlib.util.spec_from_file_location("autobalancer_on_layer_test", DATA / "autobalancer_on_layer.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    r = mod.compare("dop853")
-    for name in ("stable_sim", "settling_time", "phase_error", "xi_history"):
-        same, n, worst, nan = r[name]
-        assert n >= 20 and same == n, f"{name}: {same}/{n} bitwise, max rel diff {worst}"
-    # residual: 1 ulp apart at two points (the sample instants t = T s against a linspace in tau: docs/model-layer.md)
-    same, n, worst, nan = r["residual_amplitude"]
-    assert nan == 0 and worst <= 2.3e-16 * 4 and same >= n - 4
-    # Floquet: the layer integrates state + variational system (72 equations), the old kernel the
-    # variational system about the exact orbit (64): different steps, agreement to the integration error (rtol 1e-8)
-    same, n, worst, nan = r["floquet_max"]
-    assert nan == 0 and worst <= 1e-9
-    steps_equal, rhs_equal, status_equal, n = r["steps"]
-    assert steps_equal == n and status_equal == n and rhs_equal == n
-    # Floquet and the sampled measurements asked for together: each one's values, steps added
-    assert mod.mixed() == (True, True, True)
+def _rec():
+    sys.path.insert(0, str(DATA))
+    import record_autobalancer as rec
+    return rec
+
+
+def _evaluate(spec, P, wanted, **kw):
+    slv = Solver.for_model(spec, **kw)
+    n = P.shape[0]
+    out = {k: np.full((n,) + tuple(len(d.values(slv.settings)) for d in spec.output(k).extra_dims), np.nan)
+           for k in wanted}
+    status, ns, nr = np.zeros(n, np.int8), np.zeros(n, np.int64), np.zeros(n, np.int64)
+    with np.errstate(all="ignore"):
+        spec.evaluate(P, tuple(wanted), slv, out, status, ns, nr)
+    return out, status, ns, nr
+
+
+def test_the_registered_autobalancer_is_the_layer_declaration():
+    # no hand-written chunk kernel or method switch behind the model: its evaluate is the layer's
+    spec = MODELS["autobalancer"]
+    assert spec is ab.SPEC and spec.evaluate.__module__ == "mechsweep.model.ode"
+    assert K.SPEC is not spec and K.SPEC.evaluate is K.evaluate
+
+
+def test_the_model_layer_imports_first_in_a_fresh_process():
+    # a user's model file starts with `from mechsweep.model import OdeModel`: mechsweep.model imports
+    # mechsweep.models (Param), whose autobalancer declaration must not need mechsweep.model finished
+    import subprocess
+    code = "from mechsweep.model import OdeModel, Floquet\nimport mechsweep.model.trajectory\nprint('ok')"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+
+
+@pytest.mark.slow  # compiles the model's kernels for the 9 dop853 design-grid cases (minutes cold)
+def test_the_autobalancer_gives_the_reference_statuses_and_values():
+    # the model's classify (INFEASIBLE), its measurements' classify (NOT_BALANCEABLE), status_order
+    # (the old SEVERITY) and the Recheck (NOT_REPRODUCIBLE): every status of the dop853 design-grid
+    # cases as the hand-written model's (UNDECIDED, NO_EVENT, SINGULAR, MAX_STEPS among them)
+    rec = _rec()
+    r = rec.compare(lambda label: label.startswith("grid-dop853"))
+    assert len({label for label, _ in r}) >= 8
+    bad = {key: v for key, v in r.items() if v[0] == "DIFFERENT"}
+    assert not bad, bad
+    assert all(r[(label, "status")][0] == "bitwise" for label, _ in r)
+    # n_steps/n_rhs bitwise where Floquet is not asked for; floquet_max and the counts of the cases
+    # that ask for it bitwise too (the same 64 variational equations and floats as the old kernel)
+    assert r[("grid-dop853-norecheck", "n_steps")][0] == "bitwise"
+    floquet = [label for label, key in r if key == "floquet_max"]
+    assert len(floquet) >= 3, floquet
+    for label in floquet:
+        for key in ("floquet_max", "n_steps", "n_rhs"):
+            assert r[(label, key)][0] == "bitwise", (label, key, r[(label, key)])
+    assert r[("grid-dop853-all", "stable_sim")][0] == "bitwise"
+    ref = np.load(rec.FILE)
+    codes = set(ref["grid-dop853-all/status"].tolist()) | set(ref["grid-dop853-maxsteps/status"].tolist())
+    assert {st.INFEASIBLE, st.SINGULAR, st.NOT_BALANCEABLE, st.NOT_REPRODUCIBLE, st.MAX_STEPS} <= codes
+
+
+@pytest.mark.slow  # Floquet and the sampled trajectory, each alone and together (two more kernels)
+def test_floquet_and_the_simulation_asked_together_give_what_each_gives_alone():
+    rec = _rec()
+    P = rec.design_points()
+    kw = dict(rtol=1e-8, atol=1e-10, horizon_revolutions=rec.HORIZON)
+    both = _evaluate(ab.SPEC, P, ("floquet_max", "stable_floquet", "stable_sim", "residual_amplitude"), **kw)
+    f = _evaluate(ab.SPEC, P, ("floquet_max", "stable_floquet"), **kw)
+    g = _evaluate(ab.SPEC, P, ("stable_sim", "residual_amplitude"), **kw)
+    for k, v in both[0].items():
+        assert np.array_equal(v, (f if k in f[0] else g)[0][k], equal_nan=True), k
+    assert np.array_equal(both[2], f[2] + g[2]) and np.array_equal(both[3], f[3] + g[3])
+    assert np.array_equal(both[1], K._worse(f[1], g[1]))
 
 
 @pytest.mark.slow  # compiles a closed-form kernel per output (about 15 s in all)
-def test_layer_closed_forms_reproduce_the_hand_written_autobalancer_closed_forms():
-    # theta, balanceable, m_k, omega_p, stable_first_approx, P_approx (SINGULAR), stable_damped_approx
-    # as ClosedForms with their classify, each asked for alone, on every point of the design grid
-    spec = importlib.util.spec_from_file_location("autobalancer_closed_on_layer_test",
-                                                  DATA / "autobalancer_closed_on_layer.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    r = mod.compare()
-    assert set(r) == set(mod.NAMES)
-    for name, (same, n, status, same_status) in r.items():
-        assert n >= 30 and same == n, f"{name}: {same}/{n} bitwise"
-        assert same_status == n, f"{name}: status as the hand-written model's at {same_status}/{n}"
-    # the grid reaches every status the closed forms can give
-    assert {st.INFEASIBLE, st.NOT_BALANCEABLE} <= set(r["theta"][2].tolist())
-    assert st.SINGULAR in set(r["P_approx"][2].tolist())
+def test_each_closed_form_alone_gives_the_reference_value_and_the_hand_written_status():
+    # theta (NOT_BALANCEABLE), balanceable, m_k, omega_p, stable_first_approx, P_approx (SINGULAR),
+    # stable_damped_approx, each asked for alone on every point of the design grid
+    rec = _rec()
+    ref = np.load(rec.FILE)
+    P = rec.design_points()
+    seen = set()
+    for c in ab.MODEL.closed_forms:
+        wanted = ab.SPEC.closure((c.name,))
+        out, status, _, _ = _evaluate(ab.SPEC, P, wanted, rtol=1e-8, atol=1e-10)
+        assert np.array_equal(out[c.name], ref[f"grid-dop853-all/{c.name}"], equal_nan=True), c.name
+        _, old, _, _ = _evaluate(K.SPEC, P, wanted, rtol=1e-8, atol=1e-10)
+        assert np.array_equal(status, old), c.name
+        seen |= set(status.tolist())
+    assert {st.INFEASIBLE, st.NOT_BALANCEABLE, st.SINGULAR} <= seen
 
 
-@pytest.mark.slow  # compiles the whole declaration (main, sampled and closed-form kernels; minutes cold)
-def test_the_whole_autobalancer_declared_on_the_layer_gives_the_reference_statuses_and_values():
-    # tests/data/autobalancer_declaration.py: a measurement's classify (NOT_BALANCEABLE), the
-    # model's status_order (the old SEVERITY) and the Recheck with the old rule's two skips in
-    # scaled units: every status of the dop853 design-grid cases (NOT_REPRODUCIBLE, NOT_BALANCEABLE,
-    # UNDECIDED, NO_EVENT, INFEASIBLE, SINGULAR, MAX_STEPS among them) as the hand-written model's
-    spec = importlib.util.spec_from_file_location("autobalancer_declaration_test", DATA / "autobalancer_declaration.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    r = mod.compare("grid-dop853")
-    assert len({label for label, _ in r}) >= 8
-    for (label, k), (verdict, detail) in r.items():
-        if k == "residual_amplitude":  # the sample instants: 1 ulp at some points (docs/model-layer.md)
-            assert verdict == "bitwise" or ("NaN moved at 0" in detail and float(detail.split()[2][:-1]) <= 1e-15), \
-                (label, detail)
-        else:  # floquet_max to 0.1 rtol; n_steps/n_rhs bitwise where Floquet is not asked for
-            assert verdict in ("bitwise", "tolerance"), (label, k, detail)
-    assert all(r[(label, "status")][0] == "bitwise" for label, _ in r)
-    assert r[("grid-dop853-norecheck", "n_steps")][0] == "bitwise" and r[("grid-dop853-all", "status")][0] == "bitwise"
-
-
-def test_the_declared_autobalancer_has_the_old_outputs_metadata_and_cross_parameter_rules():
-    # output_meta and OdeModel(check=): every output of the hand-written model under its name, with
-    # its symbol, unit, long name, kind, needs and extra dimension; the same scene check
-    from mechsweep.models import autobalancer as ab
-    spec = importlib.util.spec_from_file_location("autobalancer_declaration_meta", DATA / "autobalancer_declaration.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    new = mod.MODEL.spec()
-    for o in ab.SPEC.outputs:
+def test_the_autobalancer_has_the_reference_outputs_metadata_and_cross_parameter_rules():
+    # every output of the hand-written model under its name (the measurements' output_meta and the
+    # closed forms' metadata come from ab.OUTPUTS), with its symbol, unit, long name, kind, needs and
+    # extra dimension; the same scene check
+    new = MODELS["autobalancer"]
+    for o in K.SPEC.outputs:
         n = new.output(o.name)
-        # one difference left: the layer's Floquet labels its modulus kind "floquet_max" (for the
-        # generic figures); the old output has no kind
+        # one difference: the layer's Floquet labels its modulus kind "floquet_max" (for the generic
+        # figures); the old output has no kind
         kind = "floquet_max" if o.name == "floquet_max" else o.kind
         assert (n.symbol, n.unit, n.long_name, n.kind, n.needs, n.needs_params, n.integrated) == (
             o.symbol, o.unit, o.long_name, kind, o.needs, o.needs_params, o.integrated), o.name
         assert [(d.name, d.unit, d.long_name) for d in n.extra_dims] == [(d.name, d.unit, d.long_name)
                                                                          for d in o.extra_dims], o.name
-    # the layer's outputs the old model does not have: Steady's first harmonic, Floquet's kind and angle
-    assert sorted(set(new.output_names()) - set(ab.SPEC.output_names())) == [
+    # the old outputs keep their order; the layer adds Steady's first harmonic, Floquet's kind and angle
+    old_names = K.SPEC.output_names()
+    assert tuple(x for x in new.output_names() if x in old_names) == old_names
+    assert sorted(set(new.output_names()) - set(old_names)) == [
         "floquet_max_angle", "floquet_max_kind", "residual_amplitude_h1", "residual_amplitude_phase"]
+    assert new.methods == K.SPEC.methods and new.settings[:len(K.SPEC.settings)] == K.SPEC.settings
     given = {"omega_xi": (10.0,), "c_xi": (1.0,), "A1": (0.0, 0.1)}
-    assert new.check(given) == ab.check(given) and len(new.check(given)) == 6  # 4 pairs, l3, l4
+    assert new.check(given) == K.check(given) and len(new.check(given)) == 6  # 4 pairs, l3, l4

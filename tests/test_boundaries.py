@@ -248,13 +248,21 @@ def test_autobalancer_located_boundaries_agree_with_brentq_and_converge_on_the_f
     from scipy.optimize import brentq
 
     from mechsweep import status as st
-    from mechsweep.models import autobalancer as ab
+    from mechsweep.models import _autobalancer_kernels as ab  # the reference formula (numpy)
 
     scene, rows, res = _balancer([0.02, 0.0005])
     assert np.isin(res.bound, (bd.PARAMETER, bd.CRITERION)).all() and res.location.shape == (2, 3)
     # the criterion's accuracy 100 rtol = 1e-10 limits some: near omega_p at 2 m / M = 0.0005 the
-    # multiplier leaves 1 slowly (2e-8 |Omega| measured)
-    assert (res.width <= 5e-8 * res.location).all()
+    # multiplier leaves 1 slowly (2e-8 |Omega| measured with the hand-written kernels). Relaxed at the
+    # swap to the layer (models/autobalancer.py): its floquet_max is the old one bitwise (its own
+    # variational system), but the output now has kind "floquet_max", so the criterion's accuracy is
+    # the Floquet verdict margin max(floquet_margin, 100 rtol) = 1e-8 instead of 100 rtol |value| =
+    # 1e-10 (boundaries.criterion_accuracy) and the search treats it as a Floquet criterion (its
+    # angle, the square-root approach): every bracket here is criterion-bound, wider with the wider
+    # band: 1.5e-6 |Omega| at one, 3e-8 to 6e-8 elsewhere (measured; the hand-written model's SPEC on
+    # the same scene: 1.5e-8 and 2.6e-10..6.8e-10); brentq's root is still inside each (below)
+    assert (res.width <= 2e-6 * res.location).all()
+    assert (res.width <= 1e-7 * res.location).sum() >= 5
     assert res.evaluations.max() <= 15, res.evaluations
 
     def g(row, x):

@@ -10,7 +10,7 @@ from hypothesis import strategies as hs
 
 from mechsweep import status as st
 from mechsweep._jit import call_with_literal
-from mechsweep.models import autobalancer as ab
+from mechsweep.models import _autobalancer_kernels as ab  # the hand-written kernels (reference implementation)
 from mechsweep.ode import METHOD_CODES, _lane_sums_codegen
 from mechsweep.scene import Solver
 from mechsweep.special import SINCOS_MAX
@@ -95,6 +95,10 @@ def mixed():
     return pp, run, simulate(pp, lanes=0, run=run)
 
 
+# The hand-written auto-balancer kernels (models/_autobalancer_kernels.py) are a reference since the
+# swap: no model runs them. Their lane simulations compile the whole lane solver for them (about a
+# minute cold), so these tests of them are slow; the model's own lanes run in every auto-balancer test.
+@pytest.mark.slow
 @pytest.mark.parametrize("threads", [1, 2])
 def test_lanes_give_the_one_trajectory_results_bitwise(mixed, threads):
     """70 points through the lanes (queues refill lanes as trajectories end), on one and on two
@@ -107,6 +111,7 @@ def test_lanes_give_the_one_trajectory_results_bitwise(mixed, threads):
     assert np.isfinite(result[0][run]).any() and (n_steps[run] > 100).all()
 
 
+@pytest.mark.slow  # the reference kernels' lanes (above)
 def test_lanes_end_with_the_same_statuses(mixed):
     """A step budget that some trajectories exhaust (MAX_STEPS, at different moments in
     different lanes) and parameters that make the mass matrix singular (non-finite)."""
@@ -130,6 +135,7 @@ def test_lanes_shrink_to_keep_the_samples_within_budget():
     assert all(ab.simulation_lanes(k) * k * 64 <= ab.LANE_SAMPLES_BYTES for k in n_eval)
 
 
+@pytest.mark.slow  # the reference kernels' lanes (above)
 def test_fewer_points_than_lanes():
     pp = mixed_points(5, seed=4)
     assert_same(simulate(pp, lanes=ab.LANES, histories=False), simulate(pp, lanes=0, histories=False))

@@ -74,3 +74,37 @@ MATHIEU_CF = OdeModel(
     closed_forms=(ClosedForm("angle2", twice, "2 arg", "rad", "twice the angle", needs=("max_multiplier_angle",)),
                   ClosedForm("kind2", twice, "2 kind", "1", "twice the kind", needs=("max_multiplier_kind",))),
 )
+
+
+def damped_variational(t, Phi, p, dPhi):
+    """The variational system about the known orbit x = 0 (the equation is linear: it is the
+    equation itself), on each column of Phi (column-major, 2 x 2)."""
+    k = p[0] - 2.0 * p[1] * math.cos(2.0 * t)
+    for c in range(2):
+        dPhi[2 * c] = Phi[2 * c + 1]
+        dPhi[2 * c + 1] = -p[2] * Phi[2 * c + 1] - k * Phi[2 * c]
+
+
+def damped_variational_jac(t, Phi, p, J):
+    """Its 4 x 4 Jacobian: the 2 x 2 Jacobian of the equation on the diagonal, twice."""
+    J[:, :] = 0.0
+    for c in range(2):
+        J[2 * c, 2 * c + 1] = 1.0
+        J[2 * c + 1, 2 * c] = -(p[0] - 2.0 * p[1] * math.cos(2.0 * t))
+        J[2 * c + 1, 2 * c + 1] = -p[2]
+
+
+# the damped Mathieu equation with its variational system given: Floquet integrates the 4 equations
+# of Phi alone (MATHIEU_VAR_FD: without its Jacobian, radau differentiates it)
+MATHIEU_VAR = OdeModel(
+    name="mathieu_variational", description="damped Mathieu equation, Floquet on its own variational system",
+    params=MATHIEU_JAC.params, states=("x", "v"), rhs=damped_rhs, initial=initial, forcing_period=period,
+    jac=damped_jac,
+    measurements=(Floquet("max_multiplier", variational=damped_variational, variational_jac=damped_variational_jac),),
+)
+MATHIEU_VAR_FD = OdeModel(
+    name="mathieu_variational_fd", description="damped Mathieu equation, Floquet on its own variational system "
+    "(no Jacobian of it)",
+    params=MATHIEU_JAC.params, states=("x", "v"), rhs=damped_rhs, initial=initial, forcing_period=period,
+    jac=damped_jac, measurements=(Floquet("max_multiplier", variational=damped_variational),),
+)

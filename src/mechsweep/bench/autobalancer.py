@@ -4,9 +4,9 @@
    [1e-3, 0.1] log; omega_xi = 1, omega_eta = 1.5 rad/s, zeta = 0.02, A0 = m a, h = m a^2 x 1 rad/s),
    all numba threads, the solver's tolerances (defaults rtol 5e-11, atol 1e-12). A grid smaller than
    200 x 200 is extrapolated to 200 x 200 by points (and says so).
-2. Direct simulation: the same perturbed-balanced-state simulation as the model's stable_sim
-   (scaled equations, the model's sampling grid), through the model's own kernel (ab.LANES
-   trajectories side by side in SIMD lanes per thread, ode/dop853_lanes.py), timed on one thread
+2. Direct simulation: the model's stable_sim and residual_amplitude (the layer's sampled
+   trajectory of the scaled equations, the model declares rhs_lanes: up to 32 trajectories side by
+   side in SIMD lanes per thread, model/trajectory.py and ode/dop853_lanes.py), timed on one thread
    (accepted steps per second per core) and on all numba threads (4x as many points), best of
    REPEATS runs each. The points are a sweep's worth per thread (512 by default; on 2 threads the
    shipped scenes give a thread 180-3,000): a thread's lanes idle at the end of its queue, which a
@@ -16,7 +16,7 @@
    integrated again with radau, so its step count legitimately adds both integrations: the number
    of such points is printed). The simulation times include the model's reproducibility check
    (points whose trajectory did not settle early are integrated again at rtol / 100, see
-   models/autobalancer.py, TIGHTEN); its steps count in the steps per second.
+   models/autobalancer.py, Recheck); its steps count in the steps per second.
    scipy.integrate.solve_ivp(method="DOP853", t_eval=the model's samples; the same equations
    written in Python with math/numpy, the same tolerances) integrates a sample of the same
    trajectories in the same process, each the best of REPEATS runs too; its step count comes from
@@ -34,8 +34,13 @@ import numpy as np
 
 from .. import status as st
 from .._jit import jit
+from ..models import _autobalancer_kernels as ref  # scaled parameters and sample grid for scipy
 from ..models import autobalancer as ab
+from ..model import trajectory
+from ..model.trajectory import LANES as _LANE_CHOICES
 from ..scene import Solver
+
+LANES = _LANE_CHOICES[0]  # the lane right-hand side's cost is measured with the most lanes the model uses
 
 CHART = 200  # the chart the target refers to: 200 x 200
 REPEATS = 3  # simulations (ours and scipy's) are timed as the best of this many runs
@@ -151,7 +156,7 @@ def _rhs_loop(n, p, z, dz):
     """n evaluations of the model's rhs, each from the previous derivative (a dependent chain,
     as the stages of a step are)."""
     for i in range(n):
-        ab.rhs(0.01 * i, z, p, dz)
+        ab.scaled_rhs(0.01 * i, z, p, dz)
         for k in range(8):
             z[k] += 1e-9 * dz[k]
     return z[0]
@@ -161,7 +166,7 @@ def _rhs_loop(n, p, z, dz):
 def _lane_rhs_loop(n, tau, P, Z, dZ):
     """n lane right-hand sides (every lane at once), each from the previous derivative."""
     for i in range(n):
-        ab.rhs_lanes(tau, Z, P, dZ)
+        ab.scaled_rhs_lanes(tau, Z, P, dZ)
         for k in range(8):
             for l in range(Z.shape[1]):
                 Z[k, l] += 1e-9 * dZ[k, l]
@@ -169,15 +174,15 @@ def _lane_rhs_loop(n, tau, P, Z, dZ):
 
 
 def lane_rhs_ns(pp, n: int = 125_000, repeats: int = REPEATS) -> float:
-    """Nanoseconds per lane per lane right-hand side (ab.LANES lanes, parameters pp[:LANES])."""
-    P = np.ascontiguousarray(np.resize(pp, (ab.LANES, pp.shape[1])).T)
-    Z = np.zeros((8, ab.LANES))
+    """Nanoseconds per lane per lane right-hand side (LANES lanes, parameters pp[:LANES])."""
+    P = np.ascontiguousarray(np.resize(pp, (LANES, pp.shape[1])).T)
+    Z = np.zeros((8, LANES))
     Z[2], Z[3], Z[6], Z[7] = P[ab.IP_TH1] + 0.1, P[ab.IP_TH2] - 0.1, 1.0, 1.0
-    tau = np.linspace(0.0, 1.0, ab.LANES)
+    tau = np.linspace(0.0, 1.0, LANES)
     dZ = np.empty_like(Z)
     _lane_rhs_loop(10, tau, P, Z.copy(), dZ)
     best, _ = _best_of(repeats, _lane_rhs_loop, n, tau, P, Z.copy(), dZ)
-    return best / (n * ab.LANES) * 1e9
+    return best / (n * LANES) * 1e9
 
 
 def rhs_ns(p, n: int = 2_000_000, repeats: int = REPEATS) -> float:
@@ -241,30 +246,34 @@ def _main(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
     Pall = P[np.sort(rng.choice(n, size=min(4 * sim_points, n), replace=False))]
     sim_all_s, (_, _, ans, _) = _best_of(REPEATS, run_outputs, Pall, sim_outputs, solver)
     ours_all_steps_per_s = ans.sum() / sim_all_s
-    t_eval, *_ = ab.sample_grid(solver.settings, histories=False)
+    t_eval, *_ = ref.sample_grid(solver.settings, histories=False)
     col = {name: Psim[:, j] for j, name in enumerate(ab.PARAM_NAMES)}
-    pf = ab.platform(Psim)
+    pf = ref.platform(Psim)
     theta = np.arccos(-col["A0"] / (2 * col["m"] * col["a"]))
-    pp = ab.scaled_parameters(col["Omega"], col["M"], col["m"], col["a"], col["I_B"], col["A0"], 0.0, 0.0,
+    pp = ref.scaled_parameters(col["Omega"], col["M"], col["m"], col["a"], col["I_B"], col["A0"], 0.0, 0.0,
                               pf["c_xi"], pf["c_eta"], pf["b_xi"], pf["b_eta"], col["h"], theta, -theta)
 
     # one trajectory at a time, once (slower: a few seconds): the same DOP853 must take the same
     # steps as the lanes; method auto takes them too, unless its stiffness test hands a point to
     # radau (then its count adds both integrations: counted and printed, not a disagreement)
     def first_integration(method, lanes, points):
+        # the model's sampled trajectory without the re-check (reproducibility_factor 0): the first integration
+        slv = Solver.for_model(ab.SPEC, method=method, rtol=rtol, atol=atol, reproducibility_factor=0.0)
         counts = np.zeros(points.shape[0], np.int64)
-        ab.integrate(method, points, np.ones(points.shape[0], bool), solver.settings, False, rtol, atol,
-                     solver.max_steps, counts, np.zeros_like(counts), lanes=lanes)
+        out = {k: np.full(points.shape[0], np.nan) for k in sim_outputs}
+        chosen = tuple(m for m in ab.MODEL.measurements if m.name in sim_outputs)
+        trajectory.evaluate(ab.MODEL, chosen, points, sim_outputs, slv, out, np.zeros(points.shape[0], np.int8),
+                            counts, np.zeros_like(counts), lanes=lanes)
         return counts
 
     numba.set_num_threads(1)
     try:
-        lane_ns = first_integration("dop853", True, pp)
-        first_integration("dop853", False, pp[:1])  # compile or load
+        lane_ns = first_integration("dop853", True, Psim)
+        first_integration("dop853", False, Psim[:1])  # compile or load
         t0 = time.perf_counter()
-        one_ns = first_integration("dop853", False, pp)
+        one_ns = first_integration("dop853", False, Psim)
         one_steps_per_s = one_ns.sum() / (time.perf_counter() - t0)
-        auto_ns = first_integration("auto", False, pp)
+        auto_ns = first_integration("auto", False, Psim)
     finally:
         numba.set_num_threads(n_threads)
 
@@ -312,7 +321,7 @@ def _main(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
         "auto_same_steps_elsewhere": bool((auto_ns >= one_ns).all()),
         "rhs_ns": rhs_cost,
         "lane_rhs_ns": lane_rhs_cost,
-        "lanes": ab.LANES,
+        "lanes": trajectory.lane_count(t_eval.size, ab.MODEL),
         "rhs_per_step": float(snr.sum() / sns.sum()),
         "max_residual_difference_m": float(max(diffs)) if diffs else math.nan,
         "rtol": rtol,
@@ -328,8 +337,8 @@ def _print(r: dict, solver) -> None:
     extra = (f" (measured on {r['chart_points']} points in {r['chart_s']:.2f} s, extrapolated by points)"
              if r["chart_extrapolated"] else "")
     print(f"  Floquet chart floquet_max, Omega x 2m/M, 200 x 200: {r['chart_200x200_s']:.2f} s on "
-          f"{r['threads']} threads{extra}; {r['chart_mean_steps']:.1f} steps/point (64-state variational "
-          f"system over one period), {r['chart_ok_fraction'] * 100:.1f}% ok")
+          f"{r['threads']} threads{extra}; {r['chart_mean_steps']:.1f} steps/point (the 64 variational "
+          f"equations about the exact balanced orbit over one period), {r['chart_ok_fraction'] * 100:.1f}% ok")
     H = solver.settings["horizon_revolutions"]
     print(f"  direct simulation ({H:g} revolutions, {r['sim_points']} chart points, best of {REPEATS} runs): "
           f"{r['sim_steps_per_s_per_core']:,.0f} steps/s on 1 thread, {r['sim_steps_per_s_all_threads']:,.0f} "

@@ -116,58 +116,19 @@ def _torsional_reference(P):
                      for i in range(P.shape[0])])
 
 
-def _autobalancer_pp(row):
-    from ..models import autobalancer as ab
-
-    P = row[None, :]
-    col = {name: P[:, j] for j, name in enumerate(ab.PARAM_NAMES)}
-    pf = ab.platform(P)
-    theta = np.arccos(-col["A0"] / (2 * col["m"] * col["a"]))
-    return ab.scaled_parameters(col["Omega"], col["M"], col["m"], col["a"], col["I_B"], col["A0"], 0.0, 0.0,
-                                pf["c_xi"], pf["c_eta"], pf["b_xi"], pf["b_eta"], col["h"], theta, -theta)[0]
-
-
-def _floquet_scipy(row, method, rtol, atol):
-    from scipy.integrate import solve_ivp
-    from scipy.linalg import block_diag
-
-    from ..models import autobalancer as ab
-
-    p = _autobalancer_pp(row)
-    J = np.empty((8, 8))
-
-    def jac(t, Y):  # the variational system is linear: block diagonal with J(tau) about the orbit
-        z = np.array([0.0, 0.0, t + p[ab.IP_TH1], t + p[ab.IP_TH2], 0.0, 0.0, 1.0, 1.0])
-        ab.jacobian(t, z, p, J)
-        return block_diag(*([J] * 8))
-    kw = {"jac": jac} if method != "DOP853" else {}
-    sol = solve_ivp(_scipy_rhs(ab.variational_rhs, p), (0.0, 2 * math.pi), np.eye(8).T.ravel(), method=method,
-                    rtol=rtol, atol=atol, **kw)
-    if sol.status != 0:
-        return math.nan, sol.nfev, sol.t.size - 1
-    mono = sol.y[:, -1].reshape(8, 8).T  # column c is Y[8c:8c+8]
-    return float(np.abs(np.linalg.eigvals(mono)).max()), sol.nfev, sol.t.size - 1
-
-
-def _floquet_reference(P):
-    return np.array([_floquet_scipy(r, "DOP853", REFERENCE_RTOL, REFERENCE_RTOL * 1e-2)[0] for r in P])
-
-
 # Built-in models declared as an OdeModel that take the generic route (bench/workprecision_ode.py:
 # scipy runs the model's own rhs, event, classify/prepare and jac): where their declaration is, the
 # reference scene (a packaged copy of sweeps/<scene>), the output and the model's closed form that
 # is its exact value (None: scipy DOP853 at rtol 1e-13 is the reference).
 GENERIC = {
     "duffing": ("mechsweep.models.duffing:MODEL", "duffing_amplitude_period.toml", "period", "period_exact"),
+    "autobalancer": ("mechsweep.models.autobalancer:MODEL", "autobalancer_stability_chart.toml", "floquet_max", None),
 }
 
 CASES = {
     "torsional_circuit": Case("torsional_circuit_truncation.toml", "period_exact_moment", "relative",
                               "relative error of the period with the exact spring moment", _torsional_reference,
                               f"scipy DOP853 at rtol {REFERENCE_RTOL:g}", _torsional_scipy),
-    "autobalancer": Case("autobalancer_stability_chart.toml", "floquet_max", "absolute",
-                         "absolute error of the largest Floquet multiplier modulus", _floquet_reference,
-                         f"scipy DOP853 at rtol {REFERENCE_RTOL:g}", _floquet_scipy),
 }
 
 

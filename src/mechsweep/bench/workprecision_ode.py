@@ -125,6 +125,8 @@ class OdeReference:
         self._classify = compiled(model.classify, "classify")
         self._prepare = compiled(model.prepare, "prepare")
         self._fn = {role: compiled(f, f"{chosen.name}.{role}") for role, f in getattr(chosen, "functions", lambda: ())()}
+        # where the measurement applies (e.g. Floquet about an isolated balanced state), as the engine asks it
+        self._m_classify = compiled(getattr(chosen, "classify", None), f"{chosen.name}.classify")
         self.error = "relative" if isinstance(chosen, (ms.Crossing, ms.Period, ms.FirstEvent)) else "absolute"
         what = {ms.Crossing: "time of the crossing", ms.Period: "period", ms.StateAt: "state value",
                 ms.Extremum: "extremum", ms.Floquet: "largest Floquet multiplier modulus",
@@ -160,6 +162,8 @@ class OdeReference:
         if self._classify is not None and self._classify(p) != st.OK:
             return None
         if self._prepare is not None and self._prepare(p, rtol) != st.OK:
+            return None
+        if self._m_classify is not None and self._m_classify(p) != st.OK:
             return None
         return p
 
@@ -322,7 +326,10 @@ class OdeReference:
             dz[:n] = d0
             dz[n:] = (jacobian(t, y) @ z[n:].reshape(n, n)).ravel()
             return dz
-        z0 = np.concatenate([self.y0(p), np.eye(n).ravel()])
+        y0 = self.y0(p)
+        if "initial" in self._fn:  # the orbit's own start (Floquet's initial), not the model's initial state
+            self._fn["initial"](p, y0)
+        z0 = np.concatenate([y0, np.eye(n).ravel()])
         sol = solve_ivp(f, (0.0, T), z0, method=method, rtol=rtol, atol=atol)
         if sol.status != 0:
             return math.nan, sol.nfev, sol.t.size - 1

@@ -88,6 +88,10 @@ _GUARD = {
                 "        return st.USER_ERROR\n",
     "prepare": "@jit\ndef prepare(p, rtol):\n    try:\n        return user_prepare(p, rtol)\n    except Exception:\n"
                "        return st.USER_ERROR\n",
+    "variational": "@jit\ndef variational(t, Phi, p, dPhi):\n    try:\n        user_variational(t, Phi, p, dPhi)\n"
+                   "    except Exception:\n        dPhi[:] = np.nan\n        p[NPI] = 1.0\n",
+    "variational_jac": "@jit\ndef variational_jac(t, Phi, p, J):\n    try:\n        user_variational_jac(t, Phi, p, J)\n"
+                       "    except Exception:\n        J[:, :] = np.nan\n        p[NPI] = 1.0\n",
     "symplectic_step": "@jit\ndef symplectic_step(p, rtol):\n    try:\n        return user_symplectic_step(p, rtol)\n"
                        "    except Exception:\n        p[NPI] = 1.0\n        return np.nan\n",
 }
@@ -237,7 +241,8 @@ def module_prologue(what: str, imports: tuple[str, ...], refs: dict) -> list[str
     for name in refs:
         if name in _GUARD:
             lines.append(_GUARD[name] + "\n")
-        elif name.rstrip("0123456789") in _SYSTEM_ROLES + ("cfclassify", "mclassify") and name[-1].isdigit():
+        elif (name.rstrip("0123456789") in _SYSTEM_ROLES + ("cfclassify", "mclassify", "variational", "variational_jac")
+              and name[-1].isdigit()):  # a System's, a classify of a measurement or closed form, Floquet's variational
             lines.append(_guard_numbered(name) + "\n")
     return lines
 

@@ -323,6 +323,12 @@ def _extra_functions(model):
                 out.append((f"{m.name}.{role}", func, lambda p, y: (0.0, y.copy(), p)))
             elif role in ("t0", "t1"):  # an Extremum's window end t0(p), t1(p)
                 out.append((f"{m.name}.{role}", func, lambda p, y: (p,)))
+            elif role == "variational":  # Floquet's variational system about the known orbit: Phi = I
+                out.append((f"{m.name}.variational", func,
+                            lambda p, y: (0.0, np.eye(n_s).ravel(), p, np.full(n_s * n_s, np.nan))))
+            elif role == "variational_jac":
+                out.append((f"{m.name}.variational_jac", func,
+                            lambda p, y: (0.0, np.eye(n_s).ravel(), p, np.zeros((n_s * n_s, n_s * n_s)))))
             elif role in ("rhs", "initial", "jac", "accel", "symplectic_step", "prepare"):
                 out.append((f"{m.name}.system.{role}", func, _system_args(role, n_s)))
     for c in getattr(model, "closed_forms", ()):
@@ -377,8 +383,16 @@ def check(model, ref: str, file: str) -> None:
             raise InputError(f"{label}: forcing_period returned {T!r}; expected a number")
     extra = _extra_functions(model)
     for what, func, build in extra:
-        value = probe(what, func, build(p, y0))
-        writes = what == "accel" or what.endswith((".rhs", ".initial", ".jac", ".accel"))  # return nothing
+        args = build(p, y0)
+        value = probe(what, func, args)
+        if what.endswith(".variational"):  # every one of the n*n components of dPhi
+            unwritten = [i for i in range(n_s * n_s) if np.isnan(args[-1][i])
+                         and not _writes_nan(getattr(func, "py_func", func), args, i)]
+            if unwritten:
+                raise InputError(f"{label}: {what} did not write dPhi[{unwritten[0]}] (it must write all "
+                                 f"{n_s * n_s} components: Phi is n*n = {n_s} x {n_s}, column-major)")
+        writes = what == "accel" or what.endswith((".rhs", ".initial", ".jac", ".accel", ".variational",
+                                                   ".variational_jac"))  # return nothing
         if not writes and not isinstance(value, (int, float, np.floating, np.integer)):
             raise InputError(f"{label}: {what} returned {value!r}; expected a number")
     pp = np.concatenate([p, np.zeros(3 * n_s + n_s * n_s)])

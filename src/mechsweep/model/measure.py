@@ -393,7 +393,17 @@ class Floquet(_Outputs):
     Status: INFEASIBLE when T is not finite and > 0; integration failures as reported; NONFINITE
     for a non-finite monodromy; UNDECIDED (only when ``name_stable`` is asked for, and only on a
     point whose status is still OK) within the margin. Cost: one integration of n + n^2 equations
-    over [0, T]; n_rhs counts calls of the user's rhs (not of jac)."""
+    over [0, T]; n_rhs counts calls of the user's rhs (not of jac).
+
+    A model whose periodic orbit is known in closed form can give the variational system itself:
+    ``variational(t, Phi, p, dPhi)`` writes dPhi = J(t, y*(t)) Phi about that orbit (Phi and dPhi:
+    n*n values, column-major: column c is Phi[c*n:(c+1)*n]), and optionally
+    ``variational_jac(t, Phi, p, JJ)`` its (n*n, n*n) Jacobian for radau (block diagonal: J(t, y*(t))
+    n times; without it radau and auto's radau differentiate ``variational`` by central differences,
+    2 n*n + 1 calls per Jacobian, counted in n_rhs). The engine then integrates only the n*n
+    equations from Phi(0) = I (no state, no J Phi product of its own; ``initial`` is not called,
+    though the work-precision reference still uses it); n_rhs counts calls of ``variational``.
+    Everything else (margin, kind, angle, statuses, methods) is as above."""
 
     name: str
     unit: str = "1"
@@ -403,6 +413,8 @@ class Floquet(_Outputs):
     kind_name: str = ""  # the kind output's name; default name + "_kind"
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
     output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name}} (_Outputs)
+    variational: Callable | None = field(default=None, repr=False, compare=False)  # f(t, Phi, p, dPhi) about the known orbit
+    variational_jac: Callable | None = field(default=None, repr=False, compare=False)  # g(t, Phi, p, JJ), for radau
     needs_forcing = True
     n_values = 3  # the largest modulus, the kind and the critical multiplier's argument
 
@@ -457,13 +469,27 @@ class Floquet(_Outputs):
                                  "name the same output; give one")
         if self.initial is not None and not callable(self.initial):
             raise ValueError(f"{self.name}: initial must be a function initial(p, y0) (the start of the orbit)")
+        if self.variational is not None and not callable(self.variational):
+            raise ValueError(f"{self.name}: variational must be a function variational(t, Phi, p, dPhi) (the "
+                             f"variational system about the known orbit; got {self.variational!r})")
+        if self.variational_jac is not None:
+            if self.variational is None:
+                raise ValueError(f"{self.name}: variational_jac is the Jacobian of variational; give variational= "
+                                 "too (or neither: the engine then integrates the state with its variational system)")
+            if not callable(self.variational_jac):
+                raise ValueError(f"{self.name}: variational_jac must be a function variational_jac(t, Phi, p, JJ) "
+                                 f"(got {self.variational_jac!r})")
 
     def functions(self):
         """``initial``: where the linearisation starts when it is not the model's ``initial(p)``
-        (e.g. the exact periodic orbit, while the model's initial state is a kicked one)."""
-        return () if self.initial is None else (("initial", self.initial),)
+        (e.g. the exact periodic orbit, while the model's initial state is a kicked one);
+        ``variational``, ``variational_jac``: the variational system about a known orbit."""
+        return tuple((role, f) for role, f in (("initial", self.initial), ("variational", self.variational),
+                                               ("variational_jac", self.variational_jac)) if f is not None)
 
     def scratch(self, n: int) -> int:
+        if self.variational is not None:  # radau's differences of variational: Phi+h, f(Phi+h), f(Phi-h), counter
+            return 3 * n * n + 1
         return 3 * n + n * n + 1  # y+h, f(y+h), f(y-h), J, the counter of var_jac's rhs calls
 
     @staticmethod
@@ -491,9 +517,10 @@ solve{k}_var_r = radau.make_solver(var_rhs{k}, var_jac{k})""")
         return "\n".join(out)
 
     @staticmethod
-    def _integrate(k, n, N, method):
+    def _integrate(k, n, N, method, known=False):
         """Kernel code: the variational integration over [0, T] by the method (auto: dop853 with the
-        stiffness test; a stiff point again from the start by radau, the costs added)."""
+        stiffness test; a stiff point again from the start by radau, the costs added). ``known``: z
+        is Phi alone (the model's variational system), else (y, Phi)."""
         if method == "dop853":
             return (f"    wz = dop853.workspace({N})\n"
                     f"    code, ns, nr = solve{k}_var(0.0, z, p, T, rtol, atol, 0.0, max_steps, wz)\n")
@@ -506,11 +533,88 @@ solve{k}_var_r = radau.make_solver(var_rhs{k}, var_jac{k})""")
                 f"    if code == st.STIFF:\n"
                 f"        z[:] = 0.0\n"
                 f"        for i in range({n}):\n"
-                f"            z[i] = y[i]\n"
-                f"            z[{n} + i * {n} + i] = 1.0\n"
-                f"        ns0, nr0 = ns, nr\n"
+                + (f"            z[i * {n} + i] = 1.0\n" if known else
+                   f"            z[i] = y[i]\n"
+                   f"            z[{n} + i * {n} + i] = 1.0\n")
+                + "        ns0, nr0 = ns, nr\n"
                 + radau_call.replace("\n    ", "\n        ").replace("    rz", "        rz", 1)
                 + "        ns += ns0\n        nr += nr0\n")
+
+    @staticmethod
+    def _eigen(n, at):
+        """Kernel code: the monodromy matrix M[i, j] = z[at] (NONFINITE if any entry is not finite),
+        its eigenvalues, the largest modulus, the critical multiplier's kind and angle."""
+        return f"""    M = np.empty(({n}, {n}), dtype=np.complex128)
+    for i in range({n}):
+        for j in range({n}):
+            v = z[{at}]
+            if not math.isfinite(v):
+                return st.NONFINITE, math.nan, math.nan, math.nan, ns, nr
+            M[i, j] = v
+    lam = np.linalg.eigvals(M)
+    big = -1.0
+    crit = lam[0]
+    for i in range({n}):
+        if abs(lam[i]) > big:
+            big = abs(lam[i])
+            crit = lam[i]
+    if abs(crit.imag) <= 1e-8 * big:
+        kind = 1.0 if crit.real > 0.0 else -1.0
+        angle = 0.0 if crit.real > 0.0 else math.pi
+    else:
+        kind = 0.0
+        angle = abs(math.atan2(crit.imag, crit.real))
+    return st.OK, big, kind, angle, ns, nr
+"""
+
+    def _source_known(self, k, n, n_p, method):
+        """Kernel code of the route with the model's variational system: the n*n equations alone."""
+        N = n * n
+        o_yp, o_fp, o_fm, o_cnt = n_p, n_p + N, n_p + 2 * N, n_p + 3 * N
+        out = [f"\nsolve{k}_var = dop853.make_solver(variational{k}, stiffness_test={method == 'auto'})\n"
+               if method in ("dop853", "auto") else ""]
+        fd = self.variational_jac is None and method in ("radau", "auto")
+        if method in ("radau", "auto"):
+            if fd:
+                out.append(f"""
+
+@jit
+def variational_jac{k}(t, z, p, JJ):
+    # the engine's Jacobian of variational{k}: central differences, step cbrt(eps) max(1, |z_j|)
+    p[{o_cnt}] += {2.0 * N!r}  # its calls of variational{k}, for n_rhs
+    yp = p[{o_yp}:{o_yp + N}]
+    fp = p[{o_fp}:{o_fp + N}]
+    fm = p[{o_fm}:{o_fm + N}]
+    for j in range({N}):
+        for i in range({N}):
+            yp[i] = z[i]
+        h = 6.055454452393343e-06 * max(1.0, abs(z[j]))
+        up = z[j] + h
+        dn = z[j] - h
+        yp[j] = up
+        variational{k}(t, yp, p, fp)
+        yp[j] = dn
+        variational{k}(t, yp, p, fm)
+        for i in range({N}):
+            JJ[i, j] = (fp[i] - fm[i]) / (up - dn)
+""")
+            out.append(f"\nsolve{k}_var_r = radau.make_solver(variational{k}, variational_jac{k})\n")
+        count = (f"    nr += int(p[{o_cnt}])  # radau's Jacobians by differences\n    p[{o_cnt}] = 0.0\n"
+                 if fd else "")
+        return "".join(out) + f"""
+
+@jit
+def measure{k}(y, p, rtol, atol, max_steps, work):
+    # the model's variational system about its known orbit: Phi column-major, n*n = {N} equations
+    T = forcing(p)
+    if not (math.isfinite(T) and T > 0.0):
+        return st.INFEASIBLE, math.nan, math.nan, math.nan, 0, 0
+    z = np.zeros({N})
+    for i in range({n}):
+        z[i * {n} + i] = 1.0
+{self._integrate(k, n, N, method, known=True)}{count}    if code != st.OK:
+        return code, math.nan, math.nan, math.nan, ns, nr
+{self._eigen(n, f"j * {n} + i")}"""
 
     def finish(self, values, wanted, solver, out, status):
         """Python's reading of the kernel's three columns (modulus, kind, angle): the outputs and
@@ -531,6 +635,8 @@ solve{k}_var_r = radau.make_solver(var_rhs{k}, var_jac{k})""")
             status[:] = np.where((status == st.OK) & good & ~decided, st.UNDECIDED, status)
 
     def source(self, k: int, states, n_p: int = 0, has_jac: bool = False, method: str = "dop853") -> str:
+        if self.variational is not None:
+            return self._source_known(k, len(states), n_p, method)
         n = len(states)
         N = n + n * n
         o_yp, o_fp, o_fm, o_J = n_p, n_p + n, n_p + 2 * n, n_p + 3 * n
@@ -587,28 +693,7 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
 {self._integrate(k, n, N, method)}    nr = nr * {per_eval}{"" if has_jac or method == "dop853" else f"{chr(10)}    nr += int(p[{o_J + n * n}])  # radau's Jacobians by differences{chr(10)}    p[{o_J + n * n}] = 0.0"}
     if code != st.OK:
         return code, math.nan, math.nan, math.nan, ns, nr
-    M = np.empty(({n}, {n}), dtype=np.complex128)
-    for i in range({n}):
-        for j in range({n}):
-            v = z[{n} + i * {n} + j]
-            if not math.isfinite(v):
-                return st.NONFINITE, math.nan, math.nan, math.nan, ns, nr
-            M[i, j] = v
-    lam = np.linalg.eigvals(M)
-    big = -1.0
-    crit = lam[0]
-    for i in range({n}):
-        if abs(lam[i]) > big:
-            big = abs(lam[i])
-            crit = lam[i]
-    if abs(crit.imag) <= 1e-8 * big:
-        kind = 1.0 if crit.real > 0.0 else -1.0
-        angle = 0.0 if crit.real > 0.0 else math.pi
-    else:
-        kind = 0.0
-        angle = abs(math.atan2(crit.imag, crit.real))
-    return st.OK, big, kind, angle, ns, nr
-"""
+{self._eigen(n, f"{n} + i * {n} + j")}"""
 
 
 # ---------------------------------------------------------------- methods-aware measurements
