@@ -537,13 +537,9 @@ def _linear_edge(x):
     return np.where(x > X0_EDGE, 3.0 * (x - X0_EDGE) + (x - X0_EDGE) ** 2, 0.0)
 
 
-@pytest.mark.parametrize("fun, power", [(_sqrt_edge, 2.0), (_linear_edge, 1.0), (_sqrt_edge, 1.0),
-                                        (_linear_edge, 2.0)])
-def test_band_edges_are_found_to_tol_in_few_evaluations_whichever_law_is_guessed(fun, power):
-    """The band |g| <= eps ends at X0 (+ the distance where g reaches eps); the edge search
-    closes a bracket of width <= tol around it from a 0.4-wide cell, within 24 evaluations even
-    when it starts with the wrong law (square root vs linear): bisection would take 32."""
-    eps, rtol = 1e-9, 1e-10
+def _band_edge_search(fun, power, eps=1e-9, rtol=1e-10):
+    """bd._band_edges on the one cell [1.0, 1.4] of the criterion ``fun`` (band |g| <= eps):
+    (A, B, loc, bound, n_eval) after the search."""
     A, B = np.array([1.0]), np.array([1.4])
     gA, gB = fun(A), fun(B)
     acc = lambda g: np.full(np.size(g), eps)  # noqa: E731
@@ -556,6 +552,17 @@ def test_band_edges_are_found_to_tol_in_few_evaluations_whichever_law_is_guessed
     bd._band_edges(ev, np.zeros(1, dtype=int), np.array([0]), A, B, bd._sides(gA, acc(gA)), bd._sides(gB, acc(gB)),
                    gA, gB, np.full(1, np.nan), np.full(1, np.nan), n_eval, bound, loc,
                    lambda a, b: rtol * np.maximum(np.abs(a), np.abs(b)), acc, power)
+    return A, B, loc, bound, n_eval
+
+
+@pytest.mark.parametrize("fun, power", [(_sqrt_edge, 2.0), (_linear_edge, 1.0), (_sqrt_edge, 1.0),
+                                        (_linear_edge, 2.0)])
+def test_band_edges_are_found_to_tol_in_few_evaluations_whichever_law_is_guessed(fun, power):
+    """The band |g| <= eps ends at X0 (+ the distance where g reaches eps); the edge search
+    closes a bracket of width <= tol around it from a 0.4-wide cell, within 24 evaluations even
+    when it starts with the wrong law (square root vs linear): bisection would take 32."""
+    eps, rtol = 1e-9, 1e-10
+    A, B, loc, bound, n_eval = _band_edge_search(fun, power, eps, rtol)
     edge = brentq(lambda x: float(fun(np.array([x]))[0]) - eps, X0_EDGE, 1.4, xtol=1e-15, rtol=1e-15)
     assert bound[0] == bd.BAND_EDGE and B[0] - A[0] <= rtol * B[0]
     assert A[0] <= edge <= B[0] and abs(loc[0] - edge) <= rtol * edge
@@ -569,24 +576,13 @@ def test_a_band_edge_with_a_flat_criterion_beside_it_is_found_by_bisection_witho
     reach the probes' arithmetic (inf - inf: numpy's "invalid value encountered in add")."""
     import warnings
 
-    eps, rtol = 1e-9, 1e-10
+    rtol = 1e-10
 
     def fun(x):
         return np.where(np.asarray(x) > X0_EDGE, 0.5, 0.0)
 
-    A, B = np.array([1.0]), np.array([1.4])
-    gA, gB = fun(A), fun(B)
-    acc = lambda g: np.full(np.size(g), eps)  # noqa: E731
-    n_eval, bound, loc = np.zeros(1, dtype=np.int64), np.full(1, -1, dtype=np.int8), np.full(1, np.nan)
-
-    def ev(line, x):
-        x = np.asarray(x)
-        return fun(x), np.zeros(x.size), np.full(x.size, np.nan)
-
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        bd._band_edges(ev, np.zeros(1, dtype=int), np.array([0]), A, B, bd._sides(gA, acc(gA)),
-                       bd._sides(gB, acc(gB)), gA, gB, np.full(1, np.nan), np.full(1, np.nan), n_eval, bound, loc,
-                       lambda a, b: rtol * np.maximum(np.abs(a), np.abs(b)), acc, 2.0)
+        A, B, loc, bound, n_eval = _band_edge_search(fun, 2.0, rtol=rtol)
     assert bound[0] == bd.BAND_EDGE and B[0] - A[0] <= rtol * B[0]
     assert A[0] <= X0_EDGE <= B[0] and abs(loc[0] - X0_EDGE) <= rtol * X0_EDGE

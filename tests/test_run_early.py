@@ -13,19 +13,9 @@ import mechsweep
 from mechsweep import runner
 from mechsweep.journal import partial_path
 
-SCENE = """
-[scene]
-name = "early"
-model = "duffing"
-outputs = ["period", "period_exact", "v_max"]
-[axes]
-A = { start = 0.01, stop = 1.0, num = 40 }
-mu = { start = 1e-3, stop = 1e3, num = 20, spacing = "log" }
-[fixed]
-omega = 1.0
-[storage]
-chunk_size = 100
-"""
+from .test_faults import SCENE as FAULTS_SCENE
+
+SCENE = FAULTS_SCENE.replace('name = "faults"', 'name = "early"')  # the fault tests' small grid: 8 chunks of 100
 N_CHUNKS = 8
 OUT = "data/runs/e.h5"
 
