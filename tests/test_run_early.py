@@ -2,6 +2,7 @@
 the file it places is the one the chunk-by-chunk assembly writes (every variable bitwise), and a
 failed write of it changes nothing a run promises: a passing failure is repaired by the assembly,
 a lasting one is reported with the journal kept, and the run resumes to the same dataset."""
+import contextlib
 import errno
 import os
 
@@ -18,6 +19,22 @@ from .test_faults import SCENE as FAULTS_SCENE
 SCENE = FAULTS_SCENE.replace('name = "faults"', 'name = "early"')  # the fault tests' small grid: 8 chunks of 100
 N_CHUNKS = 8
 OUT = "data/runs/e.h5"
+
+
+@contextlib.contextmanager
+def interrupted_after(after: int):
+    """Within it, a run is stopped (Ctrl-C) after ``after`` chunks were computed."""
+    real, calls = runner.evaluate_chunk, [0]
+
+    def interrupted(*args):
+        calls[0] += 1
+        if calls[0] > after:
+            raise KeyboardInterrupt
+        return real(*args)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(runner, "evaluate_chunk", interrupted)
+        yield
 
 
 @pytest.fixture
@@ -124,17 +141,8 @@ def test_a_lasting_write_failure_of_the_early_file_keeps_the_journal_and_resumes
     assert_no_leftovers(scene_file.parent)
 
 
-def test_an_interrupted_run_leaves_no_half_written_file_and_resumes(scene_file, reference, monkeypatch):
-    real, calls = runner.evaluate_chunk, [0]
-
-    def interrupted(*args):
-        calls[0] += 1
-        if calls[0] > 4:
-            raise KeyboardInterrupt
-        return real(*args)
-
-    with monkeypatch.context() as mp:
-        mp.setattr(runner, "evaluate_chunk", interrupted)
+def test_an_interrupted_run_leaves_no_half_written_file_and_resumes(scene_file, reference):
+    with interrupted_after(4):
         with pytest.raises(mechsweep.RunInterrupted):
             mechsweep.run(mechsweep.load_scene(scene_file), output=OUT, progress=False)
     part = partial_path(scene_file.parent / OUT)
@@ -186,16 +194,7 @@ def test_without_a_progress_bar_a_grid_is_cut_in_few_large_chunks_and_resumes_wi
     from mechsweep.grid import chunk_target, plan_chunks
 
     assert (chunk_target(scene), len(plan_chunks(scene.shape, chunk_target(scene)))) == (2500, 20)
-    real, calls = runner.evaluate_chunk, [0]
-
-    def interrupted(*args):
-        calls[0] += 1
-        if calls[0] > 1:
-            raise KeyboardInterrupt
-        return real(*args)
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(runner, "evaluate_chunk", interrupted)
+    with interrupted_after(1):
         with pytest.raises(mechsweep.RunInterrupted, match="1 of 2 chunks saved"):
             mechsweep.run(scene, output="data/runs/line.h5", progress=False)
     done = mechsweep.run(scene, output="data/runs/line.h5", resume=True, progress=True)

@@ -118,21 +118,21 @@ def _own(m) -> bool:
     return _system(m) is not None or getattr(m, "refine", None) is not None
 
 
-def _fd_jac(name: str, rhs: str, count: bool = False) -> str:
-    """The engine's Jacobian of ``rhs`` by central differences (scratch p[SCR:SCR + 3 NS]). ``count``:
-    its 2 NS rhs calls are added to the counter p[SCR + 3 NS] (the kernel adds it to n_rhs; the
-    caller must give p that slot)."""
-    counter = "\n    p[SCR + 3 * NS] += 2.0 * NS  # its rhs calls, for n_rhs" if count else ""
+def _fd_jac(name: str, rhs: str, count: bool = False, n: str = "NS", at: str = "SCR") -> str:
+    """The engine's Jacobian of ``rhs`` by central differences (scratch p[at:at + 3 n]: y + h, f(y + h),
+    f(y - h); ``n`` and ``at`` are source text: names or numbers). ``count``: its 2 n rhs calls are
+    added to the counter p[at + 3 n] (the kernel adds it to n_rhs; the caller must give p that slot)."""
+    counter = f"\n    p[{at} + 3 * {n}] += 2.0 * {n}  # its rhs calls, for n_rhs" if count else ""
     return f"""
 
 @jit
 def {name}(t, y, p, J):
     # engine-built Jacobian: central differences of {rhs}, step cbrt(eps) max(1, |y_j|) (scratch in p){counter}
-    yp = p[SCR:SCR + NS]
-    fp = p[SCR + NS:SCR + 2 * NS]
-    fm = p[SCR + 2 * NS:SCR + 3 * NS]
-    for j in range(NS):
-        for i in range(NS):
+    yp = p[{at}:{at} + {n}]
+    fp = p[{at} + {n}:{at} + 2 * {n}]
+    fm = p[{at} + 2 * {n}:{at} + 3 * {n}]
+    for j in range({n}):
+        for i in range({n}):
             yp[i] = y[i]
         h = 6.055454452393343e-06 * max(1.0, abs(y[j]))
         up = y[j] + h
@@ -141,7 +141,7 @@ def {name}(t, y, p, J):
         {rhs}(t, yp, p, fp)
         yp[j] = dn
         {rhs}(t, yp, p, fm)
-        for i in range(NS):
+        for i in range({n}):
             J[i, j] = (fp[i] - fm[i]) / (up - dn)
 """
 

@@ -570,34 +570,14 @@ solve{k}_var_r = radau.make_solver(var_rhs{k}, var_jac{k})""")
     def _source_known(self, k, n, n_p, method):
         """Kernel code of the route with the model's variational system: the n*n equations alone."""
         N = n * n
-        o_yp, o_fp, o_fm, o_cnt = n_p, n_p + N, n_p + 2 * N, n_p + 3 * N
+        o_yp, o_cnt = n_p, n_p + 3 * N  # scratch: Phi + h, f(Phi + h), f(Phi - h), the counter
         out = [f"\nsolve{k}_var = dop853.make_solver(variational{k}, stiffness_test={method == 'auto'})\n"
                if method in ("dop853", "auto") else ""]
         fd = self.variational_jac is None and method in ("radau", "auto")
         if method in ("radau", "auto"):
-            if fd:
-                out.append(f"""
-
-@jit
-def variational_jac{k}(t, z, p, JJ):
-    # the engine's Jacobian of variational{k}: central differences, step cbrt(eps) max(1, |z_j|)
-    p[{o_cnt}] += {2.0 * N!r}  # its calls of variational{k}, for n_rhs
-    yp = p[{o_yp}:{o_yp + N}]
-    fp = p[{o_fp}:{o_fp + N}]
-    fm = p[{o_fm}:{o_fm + N}]
-    for j in range({N}):
-        for i in range({N}):
-            yp[i] = z[i]
-        h = 6.055454452393343e-06 * max(1.0, abs(z[j]))
-        up = z[j] + h
-        dn = z[j] - h
-        yp[j] = up
-        variational{k}(t, yp, p, fp)
-        yp[j] = dn
-        variational{k}(t, yp, p, fm)
-        for i in range({N}):
-            JJ[i, j] = (fp[i] - fm[i]) / (up - dn)
-""")
+            if fd:  # the engine's central differences of variational{k}, its calls counted in p[o_cnt]
+                from .compile import _fd_jac
+                out.append(_fd_jac(f"variational_jac{k}", f"variational{k}", count=True, n=str(N), at=str(o_yp)))
             out.append(f"\nsolve{k}_var_r = radau.make_solver(variational{k}, variational_jac{k})\n")
         count = (f"    nr += int(p[{o_cnt}])  # radau's Jacobians by differences\n    p[{o_cnt}] = 0.0\n"
                  if fd else "")
