@@ -248,6 +248,7 @@ def test_autobalancer_located_boundaries_agree_with_brentq_and_converge_on_the_f
     from scipy.optimize import brentq
 
     from mechsweep import status as st
+    from mechsweep.bench.boundaries import scene_dict
     from mechsweep.models import _autobalancer_kernels as ab  # the reference formula (numpy)
 
     scene, rows, res = _balancer([0.02, 0.0005])
@@ -264,6 +265,15 @@ def test_autobalancer_located_boundaries_agree_with_brentq_and_converge_on_the_f
     assert (res.width <= 2e-6 * res.location).all()
     assert (res.width <= 1e-7 * res.location).sum() >= 5
     assert res.evaluations.max() <= 15, res.evaluations
+    # the band is the default's choice, not the search's limit: given the multiplier's numerical
+    # accuracy (100 rtol = 1e-10 at the solver's rtol 1e-12) the brackets are the hand-written
+    # model's again (1.5e-8 and 2.6e-10..6.8e-10 |Omega|), each inside the default's bracket
+    d = scene_dict(2, 35, 1e-10)
+    d["axes"]["M"] = [1.0 / r for r in (0.02, 0.0005)]
+    d["boundaries"]["criterion_accuracy"] = 1e-10
+    _, _, tight = _locate(d)
+    assert (tight.width <= 5e-8 * tight.location).all() and (tight.width < res.width).all()
+    assert (np.abs(tight.location - res.location) <= res.width).all()
 
     def g(row, x):
         P = row[None, :].copy()
