@@ -396,3 +396,45 @@ def test_a_stability_maps_legend_names_continued_curves_and_folds_too():
     assert any(t.startswith("located along speed") for t in texts)
     assert any(t.startswith("continued in (speed, preload)") for t in texts)
     assert "fold of a continued boundary" in texts
+
+
+def test_axes_chosen_by_the_user_replace_the_automatic_choice():
+    """--x/--y: the stability map and heatmap with the axes swapped, a nomogram with one curve per
+    name of a list axis; only the outputs over the given axes get figures, drawn from those axes."""
+    ds = cam()
+    swapped = {c.name: c for c in generic.choose(ds, x="speed", y="preload")}
+    assert list(swapped) == ["stability_map", "heatmap_lift", "nomogram_lift"]
+    assert all((c.x, c.y) == ("speed", "preload") for c in swapped.values())  # the automatic choice: x = preload
+    art = swapped["stability_map"].draw(ds)
+    mesh = art["panels"][0]["mesh"].get_array()
+    assert art["axes"][0, 0].get_xlabel().startswith(label(ds["speed"])) and mesh.shape == (6, 30)
+    by_name = {c.name: c for c in generic.choose(ds, x="preload", y="contact")}
+    assert list(by_name) == ["nomogram_lift"] and by_name["nomogram_lift"].y == "contact"  # no map over names
+    lines = figures.draw(ds, "nomogram_lift", axes=("preload", "contact")).axes[0].lines
+    np.testing.assert_allclose(lines[1].get_ydata(), ds["lift"].isel(speed=0, contact=1).values)
+    assert [c.name for c in generic.choose(_axes_of(ds, "speed"), x="speed")] == ["curve_lift", "curve_floquet"]
+
+
+@pytest.mark.parametrize("x,y,words,allowed", [
+    ("contact", None, "--x contact: is not numeric", "speed, preload"),
+    ("mass", None, "--x mass: is not an axis", "speed, preload"),
+    ("speed", "speed", "--y speed: the same axis as --x", "preload, contact"),
+    (None, "t", "--y t: not an axis", "speed, preload, contact"),
+])
+def test_axes_that_cannot_be_drawn_are_refused_naming_the_allowed_ones(tmp_path, capsys, x, y, words, allowed):
+    path = tmp_path / "cam.h5"
+    cam(n_speed=12).to_netcdf(path, engine="h5netcdf")
+    args = ["plot", str(path)] + (["--x", x] if x else []) + (["--y", y] if y else [])
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert words in err and err.rstrip().endswith(f"allowed: {allowed}"), err
+    assert not list(tmp_path.glob("*.png"))
+
+
+def test_plot_draws_the_generic_figures_on_the_axes_given(tmp_path, capsys):
+    path = tmp_path / "cam.h5"
+    cam(n_speed=12, contacts=("steel",)).to_netcdf(path, engine="h5netcdf")
+    assert main(["plot", str(path), "--x", "preload", "--y", "speed", "--list"]) == 0
+    assert "over preload and speed (log axis)" in capsys.readouterr().out.splitlines()[1]
+    assert main(["plot", str(path), "--x", "speed", "--kind", "heatmap_lift", "-o", str(tmp_path / "h.png")]) == 0
+    assert (tmp_path / "h.png").stat().st_size > 10_000

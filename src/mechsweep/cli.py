@@ -170,6 +170,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="located boundaries (`mechsweep boundaries`) to draw over the charts that show them "
                         "(default: DATASET.boundaries.h5 beside the dataset, when it exists)")
     p.add_argument("--no-boundaries", action="store_true", help="draw the charts without located boundaries")
+    p.add_argument("--x", metavar="AXIS", help="draw the generic figures (stability map, heatmap, nomogram) with AXIS "
+                   "across; only the outputs over it (default: the figures' own choice, see --list)")
+    p.add_argument("--y", metavar="AXIS", help="with the generic figures: AXIS up the stability map or heatmap, "
+                   "and one curve per value of AXIS in the nomogram (a list axis gives curves only)")
     p.set_defaults(func=_cmd_plot)
 
     p = sub.add_parser("info", help="summarise a stored dataset: dims, outputs, status counts, cost, provenance")
@@ -304,8 +308,9 @@ def _plot(args) -> int:
     with _laid_out(args.dataset):
         if args.point:
             ds = select_point(ds, args.point)
-        kinds = figures.available(ds)
-        extra = figures.on_request(ds) if args.list else {}
+        axes = (args.x, args.y) if args.x or args.y else None
+        kinds = figures.available(ds, axes)
+        extra = figures.on_request(ds, axes) if args.list else {}
     if args.list:
         for k, doc in kinds.items():
             print(f"{k}: {doc}")
@@ -331,10 +336,10 @@ def _plot(args) -> int:
         out = Path(args.output)
     else:
         out = (folder if folder is not None else Path(args.dataset).parent) / f"{stem}.{fmt}"
-    for target in figures.targets(ds, out, kind=args.kind, fmt=fmt):
+    for target in figures.targets(ds, out, kind=args.kind, fmt=fmt, axes=axes):
         _check_figure_path(target, Path(args.dataset))
     with _laid_out(args.dataset):
-        written = figures.save(ds, out, kind=args.kind, fmt=fmt, boundaries=bds)
+        written = figures.save(ds, out, kind=args.kind, fmt=fmt, boundaries=bds, axes=axes)
     for path in written:
         print(f"wrote {path}")
     return 0

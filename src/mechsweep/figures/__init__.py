@@ -69,41 +69,46 @@ def _draw_fn(f, boundaries):
                                    and located.mismatch(ds, boundaries) is None else None, **kw)
 
 
-def _plan(ds, boundaries=None) -> list[tuple[str, str, object, bool]]:
-    """(name, description, draw(ds) -> Figure, drawn by default) for every figure that fits."""
-    model = [f for f in MODEL_FIGURES if f.fits_dataset(ds)]
+def _plan(ds, boundaries=None, axes=None) -> list[tuple[str, str, object, bool]]:
+    """(name, description, draw(ds) -> Figure, drawn by default) for every figure that fits.
+    ``axes`` = (x, y), either None: the generic figures only, on those axes, all drawn by default."""
+    given = axes is not None and any(a is not None for a in axes)
+    model = [] if given else [f for f in MODEL_FIGURES if f.fits_dataset(ds)]
     drawn = set().union(*(f.drawn(ds) for f in model))
     plan = [(f.name, f.description, _draw_fn(f, boundaries), True) for f in model]
     fitting = boundaries if boundaries is not None and located.mismatch(ds, boundaries) is None else None
+    x, y = axes if given else (None, None)
     plan += [(c.name, c.description, (lambda ds, c=c, **kw: c.draw(ds, boundaries=fitting, **kw))
-              if c.kind == "stability_map" else c.draw, not model) for c in generic.choose(ds, drawn)]
+              if c.kind == "stability_map" else c.draw, not model) for c in generic.choose(ds, drawn, x=x, y=y)]
     return plan
 
 
-def available(ds) -> dict[str, str]:
-    """Figures drawn by default for this dataset, with a sentence saying what each shows."""
-    return {name: text for name, text, _, default in _plan(ds) if default}
+def available(ds, axes=None) -> dict[str, str]:
+    """Figures drawn by default for this dataset, with a sentence saying what each shows; with
+    ``axes`` = (x, y) the generic figures on those axes (see :func:`.generic.choose`)."""
+    return {name: text for name, text, _, default in _plan(ds, axes=axes) if default}
 
 
-def on_request(ds) -> dict[str, str]:
+def on_request(ds, axes=None) -> dict[str, str]:
     """Generic figures that fit this dataset but are drawn only when asked for by name (the dataset's
     model has figures of its own that fit)."""
-    return {name: text for name, text, _, default in _plan(ds) if not default}
+    return {name: text for name, text, _, default in _plan(ds, axes=axes) if not default}
 
 
-def artists(ds, kind: str, *, boundaries=None, fig=None, ax=None):
+def artists(ds, kind: str, *, boundaries=None, fig=None, ax=None, axes=None):
     """Draw figure ``kind`` (new, into ``fig``, or onto the Axes ``ax``) and return its artists
-    (a :class:`~._style.Drawn` dict; ``["figure"]`` is the Figure)."""
-    for name, _, fn, _ in _plan(ds, boundaries):
+    (a :class:`~._style.Drawn` dict; ``["figure"]`` is the Figure). ``axes`` = (x, y): a generic
+    figure on those axes."""
+    for name, _, fn, _ in _plan(ds, boundaries, axes):
         if name == kind:
             return fn(ds, fig=fig, ax=ax)
     raise ValueError(f"figure {kind!r} does not fit this dataset; it can draw: "
-                     f"{', '.join(name for name, *_ in _plan(ds)) or 'nothing'}")
+                     f"{', '.join(name for name, *_ in _plan(ds, axes=axes)) or 'nothing'}")
 
 
-def draw(ds, kind: str, *, boundaries=None, fig=None, ax=None):
+def draw(ds, kind: str, *, boundaries=None, fig=None, ax=None, axes=None):
     """Figure ``kind`` as a matplotlib Figure (see :func:`artists` for what was drawn on it)."""
-    return artists(ds, kind, boundaries=boundaries, fig=fig, ax=ax).figure
+    return artists(ds, kind, boundaries=boundaries, fig=fig, ax=ax, axes=axes).figure
 
 
 def source_files(ds, kind: str, *, boundaries=None) -> list[Path]:
@@ -123,34 +128,42 @@ def source_files(ds, kind: str, *, boundaries=None) -> list[Path]:
     return sorted(files | {here / "generic.py"})
 
 
-def targets(ds, path, *, kind: str | None = None, fmt: str = "png") -> list[Path]:
+def targets(ds, path, *, kind: str | None = None, fmt: str = "png", axes=None) -> list[Path]:
     """The files ``save`` writes: ``path`` with the format's suffix for one figure, or
     ``<stem>_<kind>.<fmt>`` beside it for each of several."""
-    chosen = [kind] if kind else list(available(ds))
+    chosen = [kind] if kind else list(available(ds, axes))
     path = Path(path)
     return [path.with_suffix(f".{fmt}") if len(chosen) == 1 else path.with_name(f"{path.stem}_{k}.{fmt}")
             for k in chosen]
 
 
-def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150, boundaries=None) -> list[Path]:
+def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150, boundaries=None,
+         axes=None) -> list[Path]:
     """Write one figure (``kind``, any listed by ``available`` or ``on_request``) or every figure
-    drawn by default (``kind=None``).
+    drawn by default (``kind=None``). ``axes`` = (x, y): the generic figures on those axes instead.
 
     With several figures, each goes to ``<stem>_<kind>.<fmt>`` beside ``path``.
     """
     from ..errors import InputError
 
-    plan = {name: fn for name, _, fn, _ in _plan(ds, boundaries)}
-    kinds = available(ds)
+    plan = {name: fn for name, _, fn, _ in _plan(ds, boundaries, axes)}
+    kinds = available(ds, axes)
+    given = axes is not None and any(a is not None for a in axes)
     if kind is not None and kind not in plan:
-        raise InputError(f"figure {kind!r} does not fit this dataset; it can draw: "
-                         f"{', '.join(plan) or 'nothing'}")
+        raise InputError(f"figure {kind!r} does not fit this dataset{' with ' + _axes_text(axes) if given else ''}; "
+                         f"it can draw: {', '.join(plan) or 'nothing'}"
+                         + (" (--x/--y choose the axes of the generic figures only)" if given else ""))
     if not kinds and kind is None:
-        raise InputError("no figure fits this dataset (a generic figure needs a float output over at least one "
+        raise InputError(f"no generic figure of this dataset is over {_axes_text(axes)}" if given else
+                         "no figure fits this dataset (a generic figure needs a float output over at least one "
                          "numeric axis with more than one value)")
     written = []
-    for k, out in zip([kind] if kind else list(kinds), targets(ds, path, kind=kind, fmt=fmt)):
+    for k, out in zip([kind] if kind else list(kinds), targets(ds, path, kind=kind, fmt=fmt, axes=axes)):
         fig = plan[k](ds).figure
         fig.savefig(out, format=fmt, dpi=dpi)
         written.append(out)
     return written
+
+
+def _axes_text(axes) -> str:
+    return " and ".join(f"--{k} {v}" for k, v in zip("xy", axes) if v is not None)

@@ -106,7 +106,7 @@ class Choice:
         """The figure's artists (a Drawn dict; ``["figure"]`` is the Figure). A stability map draws
         ``boundaries`` (located on this grid, along one of its two axes) over the shading."""
         if self.kind == "stability_map":
-            return stability_map(ds, self.output, fig=fig, ax=ax, boundaries=boundaries)
+            return stability_map(ds, self.output, x=self.x, y=self.y, fig=fig, ax=ax, boundaries=boundaries)
         return _panel_figure(ds, self, fig=fig, ax=ax)
 
 
@@ -117,37 +117,100 @@ def _map_axes(ds, name) -> tuple[str, str]:
     return (second, first) if ds.sizes[first] > ds.sizes[second] else (first, second)
 
 
-def choose(ds, drawn=frozenset()) -> list[Choice]:
+def choose(ds, drawn=frozenset(), *, x=None, y=None) -> list[Choice]:
     """The generic figures for ``ds``, leaving out outputs in ``drawn`` (shown by a figure for the
-    model). The rule is the module docstring's."""
+    model). The rule is the module docstring's; ``x`` / ``y`` (axis names, e.g. from
+    ``mechsweep plot --x/--y``) replace its choice of axes: ``x`` the horizontal axis, ``y`` the
+    vertical axis of a map or the axis whose values give a nomogram's curves. Given, only the
+    outputs over those axes get figures (refused with InputError: an axis that is not a grid
+    dimension with more than one value, a non-numeric ``x``, ``y`` equal to ``x``)."""
+    if x is not None or y is not None:
+        _check_axes(ds, x, y)
     choices = []
     floquet = [n for n in float_outputs(ds) if n not in drawn and ds[n].attrs.get("mechsweep_kind") == "floquet_max"
                and len([d for d in _axes(ds, n) if is_numeric(ds, d)]) >= 2]
     for k, name in enumerate(floquet):
-        y, x = _map_axes(ds, name)
-        choices.append(Choice("stability_map" if k == 0 else f"stability_map_{name}", "stability_map", name, x, y,
-                              f"Floquet stability of {_what(ds, name)} over {_ax(ds, x)} and {_ax(ds, y)}: "
-                              f"stable where it is at most 1, boundary drawn{_panels_text(ds, name, (x, y))}."))
+        pair = _map_axes(ds, name) if x is None and y is None else _given_map_axes(ds, name, x, y)
+        if pair is None:
+            continue
+        my, mx = pair
+        choices.append(Choice("stability_map" if k == 0 else f"stability_map_{name}", "stability_map", name, mx, my,
+                              f"Floquet stability of {_what(ds, name)} over {_ax(ds, mx)} and {_ax(ds, my)}: "
+                              f"stable where it is at most 1, boundary drawn{_panels_text(ds, name, (mx, my))}."))
     for name in float_outputs(ds):
         if name in drawn or name in floquet:
             continue
         axes = _axes(ds, name)
+        if x is not None or y is not None:
+            choices += _given_choices(ds, name, axes, x, y)
+            continue
         numeric = [d for d in axes if is_numeric(ds, d)]
         if not numeric:
             continue
         if len(numeric) == 1:
-            x = numeric[0]
-            family = next((d for d in axes if d != x and ds.sizes[d] <= FAMILY_MAX), None)
-            choices.append(_nomogram_choice(ds, name, x, family))
+            hx = numeric[0]
+            family = next((d for d in axes if d != hx and ds.sizes[d] <= FAMILY_MAX), None)
+            choices.append(_nomogram_choice(ds, name, hx, family))
             continue
-        y, x = numeric[:2]
-        choices.append(Choice(f"heatmap_{name}", "heatmap", name, x, y,
-                              f"{_what(ds, name)} over {_ax(ds, x)} and {_ax(ds, y)}: colour map with labelled "
-                              f"contours{_panels_text(ds, name, (x, y))}."))
-        if min(ds.sizes[x], ds.sizes[y]) <= FAMILY_MAX:
-            family, x = (y, x) if ds.sizes[y] <= ds.sizes[x] else (x, y)
-            choices.append(_nomogram_choice(ds, name, x, family))
+        hy, hx = numeric[:2]
+        choices.append(_heatmap_choice(ds, name, hx, hy))
+        if min(ds.sizes[hx], ds.sizes[hy]) <= FAMILY_MAX:
+            family, hx = (hy, hx) if ds.sizes[hy] <= ds.sizes[hx] else (hx, hy)
+            choices.append(_nomogram_choice(ds, name, hx, family))
     return choices
+
+
+def _check_axes(ds, x, y) -> None:
+    from ..errors import InputError
+
+    dims = [d for d in grid_dims(ds) if ds.sizes[d] > 1]
+    numeric = [d for d in dims if is_numeric(ds, d)]
+    if x is not None and x not in numeric:
+        why = ("is not numeric (a list of names cannot be a horizontal axis; use it as --y)" if x in dims else
+               "is not an axis of this dataset with more than one value")
+        raise InputError(f"--x {x}: {why}; allowed: {', '.join(numeric) or 'none'}")
+    if y is not None and y not in dims:
+        raise InputError(f"--y {y}: not an axis of this dataset with more than one value; allowed: "
+                         f"{', '.join(d for d in dims if d != x) or 'none'}")
+    if y is not None and y == x:
+        raise InputError(f"--y {y}: the same axis as --x; allowed: {', '.join(d for d in dims if d != x) or 'none'}")
+
+
+def _given_map_axes(ds, name, x, y):
+    """(y, x) of a stability map with the axes given (the missing one: the first other numeric
+    axis of the output), or None when the output is not over them."""
+    axes = [d for d in _axes(ds, name) if is_numeric(ds, d)]
+    if (x is not None and x not in axes) or (y is not None and y not in axes):
+        return None
+    x = x if x is not None else next(d for d in axes if d != y)
+    y = y if y is not None else next(d for d in axes if d != x)
+    return y, x
+
+
+def _given_choices(ds, name, axes, x, y) -> list[Choice]:
+    """The figures of output ``name`` (over ``axes``) with the axes given: a heatmap where the vertical
+    axis is numeric, a nomogram where the curve axis has at most FAMILY_MAX values or is a list of
+    names (its curves thinned beyond MAX_CURVES, as always), a curve where there is no second axis."""
+    if (x is not None and x not in axes) or (y is not None and y not in axes):
+        return []
+    if x is None:
+        x = next((d for d in axes if d != y and is_numeric(ds, d)), None)
+        if x is None:
+            return []
+    out = []
+    vertical = y if y is not None else next((d for d in axes if d != x and is_numeric(ds, d)), None)
+    if vertical is not None and is_numeric(ds, vertical):
+        out.append(_heatmap_choice(ds, name, x, vertical))
+    family = y if y is not None else next((d for d in axes if d != x and ds.sizes[d] <= FAMILY_MAX), None)
+    if family is None or ds.sizes[family] <= FAMILY_MAX or not is_numeric(ds, family):
+        out.append(_nomogram_choice(ds, name, x, family))
+    return out
+
+
+def _heatmap_choice(ds, name, x, y) -> Choice:
+    return Choice(f"heatmap_{name}", "heatmap", name, x, y,
+                  f"{_what(ds, name)} over {_ax(ds, x)} and {_ax(ds, y)}: colour map with labelled "
+                  f"contours{_panels_text(ds, name, (x, y))}.")
 
 
 def _nomogram_choice(ds, name, x, family) -> Choice:
@@ -538,15 +601,16 @@ def _panel_figure(ds, choice: Choice, *, fig=None, ax=None):
     return art
 
 
-def stability_map(ds, name=None, *, fig=None, ax=None, boundaries=None):
+def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundaries=None):
     """Floquet stability over two axes (stable where the largest multiplier modulus is at most 1),
     one panel per value of the other axes, boundary drawn: the grid's contour and, when
     ``boundaries`` (a boundaries dataset located on this grid along one of the two axes) is
     given, the located points. The modulus is drawn wherever it has a value, whatever the point's
-    status (e.g. undecided: |multiplier| within the margin of 1, a neutrally stable point)."""
+    status (e.g. undecided: |multiplier| within the margin of 1, a neutrally stable point).
+    ``x`` / ``y``: the horizontal / vertical axis (default: as :func:`choose` picks them)."""
     if name is None:
         name = next(c.output for c in choose(ds) if c.kind == "stability_map")
-    ydim, xdim = _map_axes(ds, name)
+    ydim, xdim = _map_axes(ds, name) if x is None and y is None else _given_map_axes(ds, name, x, y)
     given = ax is not None
     others = [d for d in ds[name].dims if d not in (xdim, ydim)]
     every = list(itertools.product(*(range(ds.sizes[d]) for d in others)))
