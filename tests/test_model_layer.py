@@ -105,6 +105,23 @@ def test_pendulum_period_matches_elliptic_closed_form():
     np.testing.assert_allclose(out["period"], exact, rtol=1e-9, atol=0)
 
 
+def test_recheck_of_every_measurement_flags_a_period_near_the_separatrix_only():
+    """Recheck(every_measurement=True): released closer and closer to the top, the period's error
+    grows far beyond rtol with status ok; integrated again at rtol / 100, exactly the points whose
+    error exceeds the re-check's tolerance (1000 rtol) are flagged NOT_REPRODUCIBLE, with the
+    first run's values kept and both runs' steps counted."""
+    amp = np.array([0.5, 1.5, 2.5, 3.0, 3.1, 3.14, math.pi - 1e-4, math.pi - 1e-6])
+    P = np.column_stack([np.ones(amp.size), np.ones(amp.size), amp])
+    plain, s0, n0, _ = evaluate(f"{MODELS}:PENDULUM", ("period",), P, rtol=1e-8, atol=1e-12)
+    checked, s1, n1, _ = evaluate(f"{MODELS}:PENDULUM_CHECKED", ("period",), P, rtol=1e-8, atol=1e-12)
+    err = np.abs(plain["period"] / (4.0 * ellipk(np.sin(amp / 2) ** 2)) - 1.0) / 1e-8  # in rtol
+    assert (s0 == st.OK).all() and err.max() > 1e6  # no test without the re-check: ok, 4 digits wrong
+    assert (err[s1 == st.OK] < 300).all() and (err[s1 == st.NOT_REPRODUCIBLE] > 3e4).all()
+    assert s1.tolist() == [st.OK] * 5 + [st.NOT_REPRODUCIBLE] * 3, s1
+    np.testing.assert_array_equal(checked["period"], plain["period"])
+    assert (n1 > 2 * n0).all()
+
+
 def test_cli_runs_a_user_model_named_relative_to_the_scene(in_tmp):
     # cwd is an empty folder: "oscillators.py" is found next to the scene, not in the cwd
     assert main(["run", str(HERE / "user_models" / "linear.toml"), "-o", "lin.h5", "--no-progress",

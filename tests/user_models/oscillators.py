@@ -3,9 +3,10 @@
 x'' + w^2 x = 0 from x = A, x' = 0: x = A cos(w t), period 2 pi / w, max x' = A w.
 theta'' + (g / L) sin(theta) = 0 from theta = A: period 4 K(sin^2(A/2)) sqrt(L/g).
 """
+import dataclasses
 import math
 
-from mechsweep.model import Crossing, Extremum, OdeModel, Param, Period, StateAt
+from mechsweep.model import Crossing, Extremum, OdeModel, Param, Period, Recheck, StateAt
 
 
 def linear_rhs(t, y, p, dydt):
@@ -59,3 +60,8 @@ PENDULUM = OdeModel(
     initial=pendulum_initial,
     measurements=(Period("period", "theta", t_max=200.0),),
 )
+
+
+# the same pendulum with the generic conditioning test: every measurement integrated again at rtol / 100
+# (the same name: the re-check needs no kernel of its own, so the tests share PENDULUM's compiled one)
+PENDULUM_CHECKED = dataclasses.replace(PENDULUM, recheck=Recheck(every_measurement=True))

@@ -1547,7 +1547,12 @@ class Recheck:
     ((state, rate), ...), e.g. an angle that turns with the forcing): locked to the forcing period.
     Only the asked-for outputs are compared (where their measurement applies at the point);
     ``measured_units``: before ``value``/``time_value`` (in the units the integration measures).
-    Both runs count in n_steps/n_rhs. Cost: up to one more integration per point, at the tighter rtol."""
+    Both runs count in n_steps/n_rhs. Cost: up to one more integration per point, at the tighter rtol.
+    ``every_measurement``: the measurements outside the sampled trajectory too (FirstEvent, Crossing,
+    Period, StateAt, Extremum, Floquet): the points where they succeeded (status OK) are integrated
+    again at rtol' and their asked-for outputs compared by the same rule, as stored -- the generic
+    conditioning test of a user model (e.g. a period near a separatrix that carries fewer correct
+    digits than factor x rtol gets NOT_REPRODUCIBLE instead of ok)."""
 
     factor: object = 1000.0
     tighten: float = 100.0
@@ -1557,6 +1562,7 @@ class Recheck:
     skip_locked: bool = False
     lock_rates: tuple = ()
     measured_units: bool = False
+    every_measurement: bool = False
 
     def validate(self, measurements, settings):
         if isinstance(self.factor, str):

@@ -10,7 +10,7 @@ import numpy as np
 from .. import status as st
 from ..errors import InputError
 from ..models._spec import ModelSpec, Param, Setting
-from .measure import FLOQUET_MARGIN, ClosedForm, Floquet
+from .measure import FLOQUET_MARGIN, ClosedForm, Floquet, _number
 
 SYMPLECTIC_ORDERS = (2, 4, 6, 8)
 
@@ -41,6 +41,29 @@ def _warn_user_error(model, P, status, S, rtol) -> None:
     at = ", ".join(f"{q.name} = {v:g}" for q, v in zip(model.params, P[bad[0]]))
     warnings.warn(f"model {model.name!r}: its own code raised (status user_error; the run's status counts say "
                   f"how often); first seen at {at}: {why}", UserModelWarning, stacklevel=2)
+
+
+def _moved(rc, settings, solver, first, second, status2) -> np.ndarray:
+    """Which re-checked points moved (measure.Recheck's rule): an asked-for output that differs by more
+    than factor (rtol max(|v|, |v'|) + atol), NaN in one run only, or a second run that failed."""
+    factor = _number(rc.factor, settings)
+    bad = status2 != st.OK
+    with np.errstate(invalid="ignore"):
+        for name, a in first.items():
+            b = second[name]
+            tol = factor * (solver.rtol * np.maximum(np.abs(a), np.abs(b)) + solver.atol)
+            bad |= (np.abs(a - b) > tol) | (np.isnan(a) != np.isnan(b))
+    return bad
+
+
+def _mark_not_reproducible(status, moved, order) -> None:
+    """NOT_REPRODUCIBLE where ``moved``: ranked by the model's status order, else above the statuses
+    that leave a value NaN for a reason (NO_EVENT, UNDECIDED) and OK, below integration failures."""
+    if order:
+        status[:] = worse(status, np.where(moved, st.NOT_REPRODUCIBLE, st.OK), order)
+    else:
+        soft = (status == st.OK) | (status == st.NO_EVENT) | (status == st.UNDECIDED)
+        status[:] = np.where(moved & soft, st.NOT_REPRODUCIBLE, status)
 
 
 def ranks(order) -> np.ndarray:
@@ -349,9 +372,36 @@ class OdeModel:
             S = np.array([float(settings.get(s.name, s.default)) for s in model.settings], dtype=np.float64)
             rtol, atol, max_steps = ((solver.rtol, solver.atol, solver.max_steps) if solver is not None
                                      else (1e-10, 1e-12, 1))
-            kernel(np.ascontiguousarray(P, dtype=np.float64), S, need, rtol, atol, max_steps, table, status, n_steps,
-                   n_rhs)
+            P = np.ascontiguousarray(P, dtype=np.float64)
+            kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs)
             _warn_user_error(model, P, status, S, rtol)
+            rc = model.recheck if chosen and solver is not None and model.recheck is not None else None
+            again = (np.flatnonzero(status == st.OK)
+                     if rc is not None and rc.every_measurement and _number(rc.factor, settings) > 0.0 else None)
+            if again is not None and again.size:  # the same kernel at the tighter rtol, closed forms left out
+                t2 = np.full((again.size, table.shape[1]), np.nan)
+                s2 = np.zeros(again.size, dtype=status.dtype)
+                ns2, nr2 = np.zeros(again.size, dtype=n_steps.dtype), np.zeros(again.size, dtype=n_rhs.dtype)
+                kernel(np.ascontiguousarray(P[again]), S, np.zeros_like(need), rc.tight_rtol(rtol), atol, max_steps,
+                       t2, s2, ns2, nr2)
+                n_steps[again] += ns2
+                n_rhs[again] += nr2
+            finished = _finish_measurements(model, chosen, cols, table, wanted, solver, out, status)
+            if again is not None and again.size:
+                out2 = {name: np.full(again.size, np.nan) for name in finished}
+                _finish_measurements(model, chosen, cols, t2, wanted, solver, out2, s2)
+                moved = _moved(rc, settings, solver, {n: out[n][again] for n in finished}, out2, s2)
+                flag = np.zeros(status.size, dtype=bool)
+                flag[again] = moved
+                _mark_not_reproducible(status, flag, model.status_order)
+            for j, c in enumerate(computable):
+                if c.name in out:
+                    out[c.name][:] = table[:, cols[-1] + j]
+
+        def _finish_measurements(model, chosen, cols, table, wanted, solver, out, status) -> list[str]:
+            """The measurements' outputs from the kernel's table into ``out`` (their statuses into
+            ``status``); the names written."""
+            written = []
             for j, m in enumerate(chosen):
                 if hasattr(m, "finish") and model.status_order:  # its own status (OK where it has a value), ranked
                     own = np.zeros_like(status)
@@ -361,9 +411,8 @@ class OdeModel:
                     m.finish(table[:, cols[j]:cols[j + 1]], wanted, solver, out, status)
                 elif m.name in out:
                     out[m.name][:] = table[:, cols[j]]
-            for j, c in enumerate(computable):
-                if c.name in out:
-                    out[c.name][:] = table[:, cols[-1] + j]
+                written += [o.name for o in _outputs(m) if o.name in out]
+            return written
 
         outputs = (tuple(o for m in self.measurements for o in _outputs(m))
                    + tuple(c.output() for c in self.closed_forms))
