@@ -203,6 +203,26 @@ def test_bad_boundaries_section_exits_2_naming_the_key(in_tmp, capsys, section, 
     assert not any((in_tmp / "data" / "runs").iterdir())
 
 
+@pytest.mark.parametrize("accuracy, warned", [(1e-10, True), (3e-8, True), (1e-5, False), (None, False)])
+def test_a_criterion_accuracy_below_what_rtol_gives_is_warned_of(in_tmp, capsys, accuracy, warned):
+    """rtol 1e-8 gives an integrated criterion at level 3 about 100 rtol |level| = 3e-6: a band given
+    narrower than that is warned of by `check` (and by `boundaries`, before it runs), naming the
+    key, the floor and the rtol that would do; the scene is still valid (exit 0)."""
+    from mechsweep.scene import to_toml
+    b = {"along": "A", "criterion": "period", "level": 3.0}
+    if accuracy is not None:
+        b["criterion_accuracy"] = accuracy
+    scene = {**BASE, "scene": {**BASE["scene"], "outputs": ["period"]}, "solver": {"rtol": 1e-8}, "boundaries": b}
+    (in_tmp / "s.toml").write_text(to_toml(scene))
+    assert main(["check", "s.toml"]) == 0
+    err = capsys.readouterr().err
+    assert ("boundaries.criterion_accuracy = " in err) == warned, err
+    if warned:
+        assert f"criterion_accuracy = {accuracy:g} is below" in err and "about 100 rtol |level| = 3e-06" in err
+        assert f"solver.rtol to {accuracy / 300:g}" in err
+    assert (bd.accuracy_warning(load_scene(in_tmp / "s.toml")) is not None) == warned
+
+
 def test_scene_without_boundaries_is_refused_and_a_failed_write_keeps_the_old_file(in_tmp, capsys, monkeypatch):
     from mechsweep.scene import to_toml
     (in_tmp / "none.toml").write_text(to_toml(BASE))

@@ -723,10 +723,30 @@ def write_atomic(ds, target: str | os.PathLike) -> Path:
     return target
 
 
-def run_boundaries(scene_or_path, *, data=None, output=None, threads=None, progress=False):
+def accuracy_warning(scene) -> str | None:
+    """Why a given ``criterion_accuracy`` cannot be trusted (None: it can, or none was given): below
+    about 100 rtol |level|, the accuracy the solver's rtol gives an integrated criterion, the band
+    is narrower than the criterion's own error, and the search may lose boundaries or stop in the
+    noise (a docs-only trial: rtol 1e-8, 1e-10 given, 4 of 21 boundaries lost or wrong)."""
+    b = scene.boundaries
+    if b is None or b.criterion_accuracy is None or b.criterion is None or scene.solver is None:
+        return None
+    if not scene.model.output(b.criterion).integrated or b.level == 0.0:
+        return None
+    floor = 100.0 * scene.solver.rtol * abs(b.level)
+    if b.criterion_accuracy >= floor:
+        return None
+    return (f"boundaries.criterion_accuracy = {b.criterion_accuracy:g} is below the accuracy solver.rtol = "
+            f"{scene.solver.rtol:g} gives the criterion (about 100 rtol |level| = {floor:g}): boundaries may be "
+            f"lost or located in the noise; tighten solver.rtol to {b.criterion_accuracy / (100.0 * abs(b.level)):g} "
+            "or less, or leave criterion_accuracy out")
+
+
+def run_boundaries(scene_or_path, *, data=None, output=None, threads=None, progress=False, warn=True):
     """The scene's [boundaries] pass: its grid (computed, or completed with resume, unless finished),
     then the located boundaries, written atomically to ``output`` (default: DATA.boundaries.h5).
-    The grid's dataset is only read. Returns (path written, the boundaries Dataset)."""
+    The grid's dataset is only read. Returns (path written, the boundaries Dataset). ``warn``: a
+    UserWarning when ``accuracy_warning`` has something to say (the CLI prints it itself)."""
     from .errors import InputError
     from .runner import _threads, compute
     from .scene import Scene, load_scene
@@ -736,6 +756,10 @@ def run_boundaries(scene_or_path, *, data=None, output=None, threads=None, progr
     if scene.boundaries is None:
         raise InputError(f"scene {scene.name!r} has no [boundaries] section; add one, e.g. "
                          "[boundaries] along = \"AXIS\", criterion = \"OUTPUT\", level = 1.0")
+    text = accuracy_warning(scene)
+    if text and warn:
+        import warnings
+        warnings.warn(text, UserWarning, stacklevel=2)
     data = Path(data if data is not None else scene.storage.path)
     target = Path(output) if output is not None else sibling_path(data)
     if target.resolve() == data.resolve():

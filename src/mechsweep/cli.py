@@ -242,12 +242,15 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_boundaries(args) -> int:
-    from .boundaries import BOUND_MEANINGS, run_boundaries
+    from .boundaries import BOUND_MEANINGS, accuracy_warning, run_boundaries
     from .scene import load_scene
 
     scene = load_scene(args.scene)
+    text = accuracy_warning(scene)
+    if text:
+        print(f"mechsweep boundaries: warning: {text}", file=sys.stderr)
     path, ds = run_boundaries(scene, data=args.data, output=args.output, threads=args.threads,
-                              progress=False if args.no_progress else None)
+                              progress=False if args.no_progress else None, warn=False)
     bound = ds["boundary_bound"].values
     counts = {BOUND_MEANINGS[c]: int((bound == c).sum()) for c in sorted(BOUND_MEANINGS) if (bound == c).any()}
     print(f"wrote {path}: {ds.attrs['located']} boundaries located along {ds.attrs['along']} ({counts}); "
@@ -619,6 +622,11 @@ def _cmd_check(args) -> int:
         try:
             s = load_scene(path)
             print(f"{path}: ok ({s.model.name}, {s.n_points} points, outputs {', '.join(s.outputs)})")
+            if s.boundaries is not None:
+                from .boundaries import accuracy_warning
+                text = accuracy_warning(s)
+                if text:
+                    print(f"{path}: warning: {text}", file=sys.stderr)
         except SceneError as exc:
             bad += 1
             print(f"{path}: {exc}", file=sys.stderr)
