@@ -455,6 +455,22 @@ def test_continuation_on_linear_axes_of_large_values_warns_nothing():
     np.testing.assert_allclose(mu, 0.5 * 4.0 / A**2, rtol=1e-10)
 
 
+def test_continuation_from_a_zero_coordinate_on_a_linear_axis_warns_nothing():
+    """A start at mu = 0 on a linear axis is not put through log10 (it leaked RuntimeWarning: divide
+    by zero, a docs-only trial's start at delta = 0): epsilon = 0 is the line mu = 0, followed to A's end."""
+    import warnings
+    scene = load_scene({
+        "scene": {"name": "eps", "model": "duffing", "outputs": ["epsilon"]},
+        "axes": {"A": {"start": 0.04, "stop": 2.0, "num": 10}, "mu": {"start": -1.0, "stop": 1.0, "num": 10}},
+        "fixed": {"omega": 2.0}, "boundaries": {"along": "A", "criterion": "epsilon", "level": 0.0}})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        curve = bd.continue_boundary(scene, bd.criterion_of(scene), np.array([1.0, np.nan, np.nan]), "A", "mu",
+                                     (1.0, 0.0))
+    assert curve.stop == "edge" and curve.points[-1, 0] == pytest.approx(2.0, abs=1e-12)
+    assert (curve.points[:, 1] == 0.0).all()
+
+
 def test_scene_continue_in_stores_the_tongue_with_its_fold(tmp_path, capsys):
     """[boundaries] continue_in = "q": the boundaries located along a at the ends of the q axis are
     followed in (a, q); the tongue's two edges at q = 0.6 are one curve (the second start lies on

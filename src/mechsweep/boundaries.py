@@ -903,7 +903,8 @@ def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_na
         return at
 
     start = np.asarray(start, dtype=float)
-    u = (np.where(logs, np.log10(np.abs(start)), start) - lo) / span
+    # no logarithm of a linear coordinate (a start at 0 on a linear axis warned of a division by zero)
+    u = (np.where(logs, np.log10(np.where(logs, np.abs(start), 1.0)), start) - lo) / span
     g0, G = g_grad(u)
     t = np.array([-G[1], G[0]]) / np.hypot(*G)
     if direction == 0:  # into the box: away from the nearest edge
