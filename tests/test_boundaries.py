@@ -223,6 +223,19 @@ def test_a_criterion_accuracy_below_what_rtol_gives_is_warned_of(in_tmp, capsys,
     assert (bd.accuracy_warning(load_scene(in_tmp / "s.toml")) is not None) == warned
 
 
+def test_an_axis_with_a_refused_value_is_not_also_called_unknown_by_boundaries():
+    """One error for one mistake: A's start out of its range is reported; boundaries.along = "A" is
+    not also refused as an unknown axis (a docs-only trial got both)."""
+    from mechsweep.scene import SceneError
+    bad = {**BASE, "axes": {**BASE["axes"], "A": {"start": -0.1, "stop": 3.0, "num": 5}},
+           "boundaries": {"along": "A", "criterion": "period_exact", "level": 3.0}}
+    with pytest.raises(SceneError) as err:
+        load_scene(bad)
+    assert "axes.A.start" in str(err.value) and "boundaries.along" not in str(err.value), err.value
+    with pytest.raises(SceneError, match="boundaries.along"):  # an axis that is not there still is
+        load_scene({**bad, "boundaries": {"along": "B", "criterion": "period_exact", "level": 3.0}})
+
+
 def test_scene_without_boundaries_is_refused_and_a_failed_write_keeps_the_old_file(in_tmp, capsys, monkeypatch):
     from mechsweep.scene import to_toml
     (in_tmp / "none.toml").write_text(to_toml(BASE))

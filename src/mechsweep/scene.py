@@ -404,7 +404,9 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
                   f"{', '.join(outputs)} (allowed for them: {', '.join(allowed)})")
     storage = _storage(_table(data, "storage", p), name if isinstance(name, str) else "scene", p)
     execution = _execution(_table(data, "execution", p), p)
-    boundaries = _boundaries(_table(data, "boundaries", p), model, axes, outputs, p) if "boundaries" in data else None
+    refused = set(axes_table) - {a.name for a in axes}  # axes whose own values were refused (reported already)
+    boundaries = (_boundaries(_table(data, "boundaries", p), model, axes, outputs, p, refused)
+                  if "boundaries" in data else None)
     if axes:
         n = math.prod(a.size for a in axes)
         if n > MAX_POINTS:
@@ -840,8 +842,10 @@ def _execution(table: Mapping, p: _Problems) -> Execution:
     return Execution(scheduler=scheduler, worker_timeout=float(timeout))
 
 
-def _boundaries(table: Mapping, model: ModelSpec, axes: list, outputs: tuple, p: _Problems) -> Boundaries | None:
-    """The [boundaries] section; every problem names its key and what is allowed."""
+def _boundaries(table: Mapping, model: ModelSpec, axes: list, outputs: tuple, p: _Problems,
+                refused=frozenset()) -> Boundaries | None:
+    """The [boundaries] section; every problem names its key and what is allowed. ``refused``: axes
+    given with values already refused (their error stands; not also an unknown ``along``)."""
     from . import status as st
 
     n0 = len(p.items)
@@ -854,7 +858,7 @@ def _boundaries(table: Mapping, model: ModelSpec, axes: list, outputs: tuple, p:
         p.add("boundaries.along", f"missing; expected the name of an axis of at least 2 numeric values "
               f"({', '.join(ranged) or 'this scene has none'})")
     numeric = ", ".join(q.name for q in model.params if not q.categorical)
-    if along is not None and along not in ranged:
+    if along is not None and along not in ranged and along not in refused:
         p.unknown("boundaries.along", along, ranged or (f"(none in this scene: give an axis of at least 2 values of "
                                                         f"a numeric parameter: {numeric})",),
                   "axis to locate boundaries along")
