@@ -418,6 +418,8 @@ def test_axes_chosen_by_the_user_replace_the_automatic_choice():
 @pytest.mark.parametrize("x,y,words,allowed", [
     ("contact", None, "--x contact: is not numeric", "speed, preload"),
     ("mass", None, "--x mass: is not an axis", "speed, preload"),
+    ("Speed", None, "--x Speed: is not an axis of this dataset with more than one value (did you mean 'speed'?)",
+     "speed, preload"),
     ("speed", "speed", "--y speed: the same axis as --x", "preload, contact"),
     (None, "t", "--y t: not an axis", "speed, preload, contact"),
 ])

@@ -301,6 +301,7 @@ BAD = {
         "measurements=(History('h', 'x', horizon=-5),))", "M",
         ["importing", "line 17", "History 'h': horizon = -5 is not allowed; expected a number > 0"]),
     "missing_name": ("    dydt[1] = -y[0]", "NOPE", ["does not define 'NOPE'", "models it defines: M"]),
+    "misspelt_name": ("    dydt[1] = -y[0]", "MM", ["does not define 'MM'; did you mean 'M'?", "models it defines: M"]),
     "not_a_model": ("    dydt[1] = -y[0]", "NOT_A_MODEL", ["is a int, not a mechsweep.model.OdeModel"]),
 }
 

@@ -167,13 +167,20 @@ def _check_axes(ds, x, y) -> None:
     numeric = [d for d in dims if is_numeric(ds, d)]
     if x is not None and x not in numeric:
         why = ("is not numeric (a list of names cannot be a horizontal axis; use it as --y)" if x in dims else
-               "is not an axis of this dataset with more than one value")
+               "is not an axis of this dataset with more than one value" + _did_you_mean(x, numeric))
         raise InputError(f"--x {x}: {why}; allowed: {', '.join(numeric) or 'none'}")
     if y is not None and y not in dims:
-        raise InputError(f"--y {y}: not an axis of this dataset with more than one value; allowed: "
-                         f"{', '.join(d for d in dims if d != x) or 'none'}")
+        others = [d for d in dims if d != x]
+        raise InputError(f"--y {y}: not an axis of this dataset with more than one value{_did_you_mean(y, others)}; "
+                         f"allowed: {', '.join(others) or 'none'}")
     if y is not None and y == x:
         raise InputError(f"--y {y}: the same axis as --x; allowed: {', '.join(d for d in dims if d != x) or 'none'}")
+
+
+def _did_you_mean(word, allowed) -> str:
+    import difflib
+    hint = difflib.get_close_matches(word, allowed, n=1, cutoff=0.5) or [a for a in allowed if a.lower() == word.lower()]
+    return f" (did you mean {hint[0]!r}?)" if hint else ""
 
 
 def _given_map_axes(ds, name, x, y):

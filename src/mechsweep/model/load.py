@@ -227,8 +227,10 @@ def resolve(ref: str, base: Path | None = None):
     file = file or getattr(mod, "__file__", "") or ""
     if not hasattr(mod, name):
         found = [k for k, v in vars(mod).items() if isinstance(v, (OdeModel, ClosedFormModel))]
-        raise InputError(f"{ref!r}: {where} does not define {name!r}"
-                         f" (models it defines: {', '.join(found) if found else 'none'})")
+        import difflib
+        hint = difflib.get_close_matches(name, found, n=1, cutoff=0.5)
+        raise InputError(f"{ref!r}: {where} does not define {name!r}" + (f"; did you mean {hint[0]!r}?" if hint else "")
+                         + f" (models it defines: {', '.join(found) if found else 'none'})")
     model = getattr(mod, name)
     if not isinstance(model, (OdeModel, ClosedFormModel)):
         raise InputError(f"{ref!r}: {name!r} in {where} is a {type(model).__name__}, "
