@@ -276,7 +276,7 @@ BAD = {
     "wrong_length": ("    dydt[1] = -y[0]\n    dydt[2] = 0.0", "M", ["rhs indexes beyond", "line 14"]),
     "raises": ("    raise ValueError('negative stiffness')", "M", ["rhs raised", "negative stiffness", "line 13"]),
     "unwritten": ("    pass", "M", ["did not write v"]),
-    "syntax_error": ("    dydt[1] = = y[0]", "M", ["importing", "SyntaxError", "line 13"]),
+    "syntax_error": ("    dydt[1] = = y[0]", "M", ["importing", "SyntaxError: invalid syntax (/", "line 13)"]),
     "floquet_without_forcing": (
         "    dydt[1] = -y[0]\n\n\nfrom mechsweep.model import Floquet\n"
         "M2 = OdeModel(name='f', description='d', params=(), states=('x',), rhs=rhs, initial=initial, "

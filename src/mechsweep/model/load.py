@@ -256,7 +256,9 @@ def _where(exc: BaseException, file: str) -> str:
             line = frame.lineno
     if line is None and isinstance(exc, SyntaxError) and exc.lineno:
         line = exc.lineno
-    msg = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}".rstrip(": ")
+    # a SyntaxError's str() names the file and line already: its bare message, the full path after it
+    text = exc.msg if isinstance(exc, SyntaxError) and exc.msg else str(exc)
+    msg = f"{type(exc).__name__}: {text.splitlines()[0] if text else ''}".rstrip(": ")
     return f"{msg} ({file}, line {line})" if line else msg
 
 
