@@ -332,7 +332,7 @@ def test_long_titles_wrap_inside_the_figure_and_a_lone_maps_legend_goes_below():
     map has its legend below the panel, not beside it squeezing it."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    ds = _axes_of(cam(), "speed", "preload")
+    ds = _axes_of(cam(), "speed", "preload").assign_coords(mass=xr.DataArray(2.0, attrs={"units": "kg"}))
     ds["floquet"].attrs["long_name"] = "largest modulus of the Floquet multipliers over one forcing period " * 2
     fig = figures.draw(ds, "stability_map")
     FigureCanvasAgg(fig).draw()
@@ -343,6 +343,24 @@ def test_long_titles_wrap_inside_the_figure_and_a_lone_maps_legend_goes_below():
     legend = fig.legends[0].get_window_extent(renderer)
     assert legend.y1 <= ax.get_window_extent(renderer).y0  # below the panel
     assert ax.get_window_extent(renderer).width >= 0.6 * box.width
+    assert ax.get_window_extent(renderer).height >= 0.45 * box.height  # the legend took half of it (a trial)
+    # the fixed parameters head the legend (a caption box under the panel lay beneath it) ...
+    assert fig.legends[0].get_title().get_text().replace("\xa0", " ") == "fixed: mass = 2 kg"
+    assert fig._supxlabel is None
+    # ... and the title stays inside the figure when saved at 150 dpi (matplotlib's wrap=True did not)
+    import io
+    fig.savefig(io.BytesIO(), dpi=150)
+    renderer = fig.canvas.get_renderer()
+    head = fig._suptitle.get_window_extent(renderer)
+    assert fig.bbox.x0 <= head.x0 and head.x1 <= fig.bbox.x1
+
+
+def test_panel_titles_give_the_slice_with_its_unit():
+    """A panel's title names its slice with the axis's unit ("w = 1" was read without one); a
+    list of names has none."""
+    assert figures.draw(cam(), "heatmap_lift").axes[0].get_title() == "contact = steel"
+    fig = figures.draw(cam(), "nomogram_lift", axes=("speed", "contact"))  # a panel per preload
+    assert [a.get_title() for a in fig.axes[:2]] == ["preload = 0 N", "preload = 10 N"]
 
 
 def test_a_list_axis_spread_in_the_logarithm_gets_log_cells_and_crowded_contour_labels_are_thinned():

@@ -139,21 +139,25 @@ def owns(fig) -> bool:
     return bool(getattr(fig, "_mechsweep_titled", False))
 
 
-def title(fig, ds, what: str, caption: str | None = None) -> None:
+def title(fig, ds, what: str, caption: str | None = None, *, caption_box: bool = True) -> str:
     """Title: what the figure shows and the dataset's title. The fixed parameters (and ``caption``
-    when given) go to a caption box under the panels, in a smaller font."""
+    when given) go to a caption box under the panels, in a smaller font; with ``caption_box``
+    False they are returned instead (for a figure whose legend sits under the panels, where the
+    box would lie beneath it)."""
     if not owns(fig):
-        return
-    # wrap=True: a title longer than the figure is wide wraps at draw time (it used to be cut at
-    # both edges); one that fits is drawn exactly as before
-    fig.suptitle(f"{what}\n{ds.attrs.get('title', '')}".strip(), fontsize=11, wrap=True)
+        return ""
+    # wrapped here, by characters for the figure's width (~10 per inch at 11 pt): matplotlib's own
+    # wrap=True measured at the screen's dpi and let a title saved at 150 dpi run off both edges
+    head = textwrap.fill(what, max(20, int(width_inches(fig) * 10)), break_on_hyphens=False)
+    fig.suptitle(f"{head}\n{ds.attrs.get('title', '')}".strip(), fontsize=11)
     fixed = fixed_text(ds)
     lines = [c for c in (caption, f"fixed: {fixed}" if fixed else "") if c]
-    if lines:
-        chars = int(width_inches(fig) * 15)  # ~15 characters per inch at 7.5 pt
-        text = "\n".join(textwrap.fill(c, chars, break_on_hyphens=False) for c in lines)
+    chars = int(width_inches(fig) * 15)  # ~15 characters per inch at 7.5 pt
+    text = "\n".join(textwrap.fill(c, chars, break_on_hyphens=False) for c in lines)
+    if text and caption_box:
         fig.supxlabel(text, fontsize=7.5, color="0.25", ha="center",
                       bbox=dict(boxstyle="round,pad=0.4", facecolor="0.96", edgecolor="0.8"))
+    return "" if caption_box else text
 
 
 def flag_note(ax, ds, text=None):

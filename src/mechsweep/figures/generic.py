@@ -598,7 +598,7 @@ def _panel_figure(ds, choice: Choice, *, fig=None, ax=None):
         else:
             art["panels"].append(nomogram(ds, choice.output, x=choice.x, family=choice.y, at=at, ax=a))
         if at:
-            a.set_title(", ".join(f"{d} = {_value(v)}" for d, v in at.items()), fontsize=9)
+            a.set_title(", ".join(_slice_text(ds, d, v) for d, v in at.items()), fontsize=9)
     for k in range(len(shown), nrows * ncols):
         fig.delaxes(axes[k // ncols, k % ncols])
     what = {"heatmap": "Map", "nomogram": "Nomogram", "curve": "Curve"}[choice.kind]
@@ -626,7 +626,10 @@ def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundarie
     nrows = -(-len(members) // ncols)
     if ax is not None:  # the user's Axes: one per panel, none left over
         ncols, nrows = 1, len(members)
-    fig, axes = new_figure(nrows, ncols, width=5.2, height=4.0, fig=fig, ax=ax)
+    below = ncols == 1 and not given  # one column: the legend goes below (beside, it would squeeze the panel)
+    # ... in a taller figure, so that the panel keeps its height (the legend took half of it)
+    fig, axes = new_figure(nrows, ncols, width=6.0 if below else 5.2, height=(4.0 + 2.2 / nrows) if below else 4.0,
+                           fig=fig, ax=ax)
     art = Drawn(figure=fig, axes=axes, panels=[])
     x, y = ds[xdim].values, ds[ydim].values
     for k, idx in enumerate(members):
@@ -647,7 +650,7 @@ def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundarie
         ax.set_xlabel(label(ds[xdim]))
         ax.set_ylabel(label(ds[ydim]))
         if others:
-            ax.set_title(", ".join(f"{d} = {_value(ds[d].values[i])}" for d, i in sel.items()), fontsize=10)
+            ax.set_title(", ".join(_slice_text(ds, d, ds[d].values[i]) for d, i in sel.items()), fontsize=10)
         missing = int((~np.isfinite(values)).sum())
         if missing:
             ax.text(0.01, 0.01, f"{missing} point(s) without a value (see status), not drawn", transform=ax.transAxes,
@@ -667,12 +670,14 @@ def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundarie
             handles.append(a)
     for h in handles:  # a long label would squeeze the panels beside the legend
         h.set_label(textwrap.fill(h.get_label(), 34))
-    # beside two columns of panels; below a single column, where a legend beside it would squeeze it
-    art["legend"] = (fig.legend(handles=handles, loc="outside right center", fontsize=9) if ncols > 1 or given else
-                     fig.legend(handles=handles, loc="outside lower center", fontsize=9, ncols=2))
     cut = (f" (first {len(members)} of {len(every)} slices of {', '.join(others)})" if len(every) > len(members)
            else "")
-    title(fig, ds, f"Floquet stability: {ds[name].attrs.get('long_name', name)}{cut}")
+    caption = title(fig, ds, f"Floquet stability: {ds[name].attrs.get('long_name', name)}{cut}", caption_box=not below)
+    # beside two columns of panels; below a single column, where a legend beside it would squeeze it
+    # (the fixed parameters then head the legend: a caption box under the panels would lie beneath it)
+    art["legend"] = (fig.legend(handles=handles, loc="outside lower center", fontsize=9, ncols=2,
+                                title=caption or None, title_fontproperties={"size": 7.5}) if below else
+                     fig.legend(handles=handles, loc="outside right center", fontsize=9))
     return art
 
 
@@ -690,6 +695,12 @@ def stability_panel(ax, x, y, values) -> dict:
         art["boundary"] = ax.contour(x, y, np.log1p(np.maximum(margin, -0.5)), levels=[0.0], colors="k",
                                      linewidths=1.2)
     return art
+
+
+def _slice_text(ds, dim, v) -> str:
+    """'dim = value unit' of a panel's slice (no unit for names or a dimensionless axis)."""
+    unit = units_text(ds[dim].attrs.get("units", "")) if np.asarray(v).dtype.kind not in "OUS" else ""
+    return f"{dim} = {_value(v)}" + (f" {unit}" if unit else "")
 
 
 def _value(v) -> str:
