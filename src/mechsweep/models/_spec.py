@@ -243,4 +243,6 @@ def _fmt(x: float) -> str:
         return "inf"
     if x == -math.inf:
         return "-inf"
-    return f"{x:g}"
+    short = f"{x:g}"
+    # the exact bound where 6 digits would move it (pi read as 3.14159 made 3.141592 look out of range)
+    return short if float(short) == x else repr(float(x))
