@@ -585,10 +585,11 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
                 # dask workers compile inside their first chunk (counted as compute time)
                 params = ParameterMatrix(scene)
                 compile_s = warm_up(scene, params, progress, todo[0]) if todo and not scheduler else 0.0
+                started = threading.Event() if early is not None and not scheduler else None
                 results = (_dask_results(scene, todo, scheduler, threads, worker_timeout, client) if scheduler
-                           else _local_results(scene, todo, params))
+                           else _local_results(scene, todo, params, started))
                 _save_chunks(scene, journal, results, todo, scene.n_points - sum(c.size for c in todo), progress,
-                             compile_s, held, early)
+                             compile_s, held, early, started)
                 if resumed and todo:  # the history says that another run finished the dataset
                     now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
                     attrs["history"] = (attrs.get("history", "") + "\n" + cf.history(
@@ -965,10 +966,14 @@ def warm_up(scene: Scene, params: ParameterMatrix, progress: bool | None, chunk:
     return seconds
 
 
-def _local_results(scene: Scene, todo: list[Chunk], params: ParameterMatrix | None = None):
-    """Chunks computed here, in order, each by the numba kernels on all threads."""
+def _local_results(scene: Scene, todo: list[Chunk], params: ParameterMatrix | None = None,
+                   started: threading.Event | None = None):
+    """Chunks computed here, in order, each by the numba kernels on all threads; ``started`` is set
+    just before the first chunk is computed."""
     params = params or ParameterMatrix(scene)
     for chunk in todo:
+        if started is not None:
+            started.set()
         yield chunk, evaluate_chunk(scene, chunk, params)
 
 
@@ -980,7 +985,8 @@ def _dask_results(scene: Scene, todo: list[Chunk], scheduler: str, threads: int 
 
 
 def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], already: int, progress,
-                 compile_s: float = 0.0, held: Held | None = None, early: Early | None = None) -> None:
+                 compile_s: float = 0.0, held: Held | None = None, early: Early | None = None,
+                 started: threading.Event | None = None) -> None:
     """Save each computed chunk to the journal as it arrives; the write of one chunk overlaps the
     computation of the next (kernels release the GIL). At most one chunk waits to be written, so
     memory stays bounded by the chunk size. Each chunk file carries its compute time (since the
@@ -1013,6 +1019,8 @@ def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], alr
         clock["last"] = now
 
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="mechsweep-writer") as writer:
+        if early is not None:  # the file is defined while the first chunk is computed (store.Early.prepare)
+            writer.submit(early.prepare, started)
         try:
             for chunk, result in results:
                 if pending is not None:
@@ -1025,6 +1033,8 @@ def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], alr
         finally:
             if pending is not None and not pending.done():
                 pending.exception()  # let the last write finish before leaving
+            if started is not None:
+                started.set()  # (a run stopped before its first launch: the writer waits no longer)
             close = getattr(results, "close", None)
             if close is not None:
                 close()  # a distributed run cancels what is still in flight
