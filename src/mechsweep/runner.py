@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import errno
+import functools
 import numbers
 import os
 import platform
@@ -231,7 +232,9 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
                             raise
                     else:  # True: a resume found the run finished
                         counts, held = status_counts(final), None
-                    times = _times(final)
+                    # the times the file was given: from the dataset held in memory when there is one
+                    # (the same floats; store._assemble), else read back from the file
+                    times = _times(final) if held is None else _held_times(held)
             except WriteFailed as exc:
                 raise OutOfSpace(_out_of_space(exc, scene, final, len(chunks))) from None
             except ClusterLost as exc:
@@ -365,6 +368,13 @@ def _sizes(scene: Scene) -> dict:
         for dim, values in dims:
             sizes.setdefault(dim.name, len(values))
     return sizes
+
+
+def _held_times(held: Held) -> tuple[float, float, float]:
+    """(wall, compile, compute) seconds, as _times reads them from the file, from the dataset held in
+    memory (store._assemble gives it the file's attributes)."""
+    attrs = held.store.attrs
+    return float(attrs["wall_time_s"]), float(attrs["compile_time_s"]), float(attrs["compute_time_s"])
 
 
 def _times(final: Path) -> tuple[float, float, float]:
@@ -1068,6 +1078,13 @@ def _threads(n: int | None):
         numba.set_num_threads(before)
 
 
+@functools.lru_cache(maxsize=1)
+def _xarray_version() -> str:
+    """The installed xarray's version, looked up once per process: importlib.metadata reads the
+    package's metadata files at every call (1-10 ms, before a run's first chunk)."""
+    return _version("xarray")
+
+
 def provenance(scene: Scene, chunks: ChunkPlan) -> dict:
     created = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
     attrs = {
@@ -1082,7 +1099,7 @@ def provenance(scene: Scene, chunks: ChunkPlan) -> dict:
         "mechsweep_version": __version__,
         "numba_version": numba.__version__,
         "numpy_version": np.__version__,
-        "xarray_version": _version("xarray"),  # xarray is not imported by the command `mechsweep run` (0.3 s of CPU)
+        "xarray_version": _xarray_version(),  # xarray is not imported by the command `mechsweep run` (0.3 s of CPU)
         "python_version": platform.python_version(),
         "chunk_size": chunks.max_size,
         "wall_time_s": 0.0,
