@@ -210,6 +210,23 @@ omega = 1.0
 """
 
 
+def test_bench_duffing_outputs_choose_the_breakdowns_outputs_and_are_refused_without_it(monkeypatch):
+    import argparse
+
+    from mechsweep.bench import commands
+    from mechsweep.bench import duffing as bench
+    from mechsweep.errors import InputError
+
+    args = argparse.Namespace(points=3000, threads=1, repeats=1, rtol=None, atol=None, scipy_points=1,
+                              compare_points=1, breakdown=False, outputs="period")
+    with pytest.raises(InputError, match="--outputs period applies to --breakdown only"):
+        commands.run_duffing(args)
+    seen = []
+    monkeypatch.setattr(bench, "breakdown", lambda **kw: seen.append(kw["outputs"]))
+    commands.run_duffing(argparse.Namespace(**{**vars(args), "breakdown": True, "outputs": "period, v_max"}))
+    assert seen == [("period", "v_max")]
+
+
 def test_without_a_progress_bar_a_grid_is_cut_in_few_large_chunks_and_resumes_with_its_own_cut(in_tmp):
     """Without a bar, 50,000 integrated points are 2 chunks of 32768 (with one: 20 of 2500, the
     least 20 chunks of a bar); a run interrupted so is resumed with its journal's cut, bar or not."""

@@ -356,7 +356,7 @@ _STEPS = (
     ("runner", "evaluate_rows", "per chunk: kernel + status/NONFINITE"),
     ("journal.Journal", "write_chunk", "writer: journal chunk file + fsyncs"),
     ("store.Held", "keep", "writer: chunk into the dataset in memory"),
-    ("store.Early", "prepare", "writer: define the HDF5 file (early, during the 1st chunk)"),
+    ("store.Early", "prepare", "writer: define the HDF5 file (early)"),
     ("store.Early", "write", "writer: chunk into the HDF5 file (early)"),
     ("store", "_define", "HDF5/memory: define (h5netcdf)"),
     ("runner", "_save_chunks", "all chunks (main thread, wall)"),
