@@ -44,3 +44,21 @@ def test_optional_competitors_give_the_period(name):
     pytest.importorskip(name)
     T = competitors.FUNCTIONS[name](P, 1e-11, 1e-13)
     assert np.max(np.abs(T - EXACT) / EXACT) < (1e-8 if name == "numbalsoda" else 1e-9)
+
+
+def test_matched_the_other_way_is_our_loosest_rung_still_as_accurate_as_the_competitors_best():
+    """A competitor with an error floor (numbalsoda's event location): mechsweep is loosened
+    instead, to the loosest rung whose error is no larger than the competitor's best."""
+    seen = []
+
+    def errors_of(r, a):
+        seen.append((r, a))
+        return 1.0 * r  # our error: about rtol
+
+    r, a, err, tried = bench.ours_at_error(errors_of, 1.5e-9, 1e-10, 1e-12)
+    assert r == pytest.approx(1e-9) and a == pytest.approx(1e-11) and err == pytest.approx(1e-9)
+    assert [t for t, _ in tried] == pytest.approx([1e-10, 3e-10, 1e-9, 3e-9])  # stops at the first miss
+    assert seen[-1] == pytest.approx((3e-9, 3e-11))
+    # no rung reaches it: the tightest is returned, and the caller marks it not matched
+    r, a, err, tried = bench.ours_at_error(lambda r, a: 1e-6, 1e-9, 1e-10, 1e-12)
+    assert r == 1e-10 and err == 1e-6 and len(tried) == 1

@@ -59,3 +59,20 @@ def test_closures_of_one_factory_get_distinct_names_the_same_in_every_process():
             .stdout.split() for _ in range(2)]
     assert runs[0] == runs[1]
     assert len(set(runs[0])) == len(runs[0]), runs[0]
+
+
+def test_openmp_threads_wait_passively_unless_the_environment_chooses():
+    """Idle OpenMP threads (numba's omp layer) sleep between a run's kernel launches instead of
+    spinning on a core the run's writer thread needs (_jit._passive_openmp, set at import); a
+    wait policy the user set is kept."""
+    import os
+
+    from mechsweep import _jit
+
+    env = {}
+    _jit._passive_openmp(env)
+    assert env == {"OMP_WAIT_POLICY": "PASSIVE"}
+    env = {"OMP_WAIT_POLICY": "active"}
+    _jit._passive_openmp(env)
+    assert env == {"OMP_WAIT_POLICY": "active"}
+    assert os.environ.get("OMP_WAIT_POLICY")  # importing mechsweep set it (or the environment did)

@@ -89,13 +89,37 @@ def test_run_writes_its_file_while_the_chunks_are_computed(scene_file, reference
     monkeypatch.setattr(runner, "evaluate_chunk", watching)
     ds = mechsweep.run(mechsweep.load_scene(scene_file), output=OUT, progress=False)
     assert len(seen) == N_CHUNKS
-    # the third chunk is computed after the first one was saved and written into the file
-    assert not seen[0] and all(seen[2:]), seen
+    # the third chunk is computed after the first one was saved and written into the file (the file
+    # itself may be there from the first chunk on: it is defined while that chunk is computed)
+    assert all(seen[2:]), seen
     assert_same_file(scene_file.parent / OUT, reference)
     assert_no_leftovers(scene_file.parent)
     back = mechsweep.open_dataset(scene_file.parent / OUT)
     for name in ("period", "period_exact", "v_max", "status", "n_steps", "n_rhs"):
         np.testing.assert_array_equal(ds[name].values, back[name].values, err_msg=name)
+
+
+def test_the_file_is_defined_while_the_first_chunk_is_computed(scene_file, reference, monkeypatch):
+    """store.Early.prepare runs in the writer thread as soon as the first chunk's kernel is launched,
+    not after that chunk is saved: the first chunk waits here until the file appears."""
+    import time
+
+    seen, real = [], runner.evaluate_chunk
+    path = partial_path(scene_file.parent / OUT) / "assembly.h5"
+
+    def waiting(scene, chunk, *rest):
+        if chunk.index == 0:
+            deadline = time.monotonic() + 10.0
+            while not path.exists() and time.monotonic() < deadline:
+                time.sleep(0.005)
+            seen.append(path.exists())
+        return real(scene, chunk, *rest)
+
+    monkeypatch.setattr(runner, "evaluate_chunk", waiting)
+    mechsweep.run(mechsweep.load_scene(scene_file), output=OUT, progress=False)
+    assert seen == [True]
+    assert_same_file(scene_file.parent / OUT, reference)
+    assert_no_leftovers(scene_file.parent)
 
 
 def _fd_name(fd) -> str:
@@ -184,6 +208,23 @@ mu = { start = 1e-3, stop = 1e3, num = 50000, spacing = "log" }
 A = 0.5
 omega = 1.0
 """
+
+
+def test_bench_duffing_outputs_choose_the_breakdowns_outputs_and_are_refused_without_it(monkeypatch):
+    import argparse
+
+    from mechsweep.bench import commands
+    from mechsweep.bench import duffing as bench
+    from mechsweep.errors import InputError
+
+    args = argparse.Namespace(points=3000, threads=1, repeats=1, rtol=None, atol=None, scipy_points=1,
+                              compare_points=1, breakdown=False, outputs="period")
+    with pytest.raises(InputError, match="--outputs period applies to --breakdown only"):
+        commands.run_duffing(args)
+    seen = []
+    monkeypatch.setattr(bench, "breakdown", lambda **kw: seen.append(kw["outputs"]))
+    commands.run_duffing(argparse.Namespace(**{**vars(args), "breakdown": True, "outputs": "period, v_max"}))
+    assert seen == [("period", "v_max")]
 
 
 def test_without_a_progress_bar_a_grid_is_cut_in_few_large_chunks_and_resumes_with_its_own_cut(in_tmp):

@@ -33,6 +33,15 @@ Options and why:
   that calls an integrator from another module would keep stale machine code
   after that module changed. Keying the directory on all sources makes any edit
   start a fresh cache. ``MECHSWEEP_NO_CACHE=1`` turns caching off.
+- OpenMP threads wait passively (``OMP_WAIT_POLICY=PASSIVE``, set when mechsweep is imported
+  unless the environment sets it; :func:`_passive_openmp`): numba's ``omp`` threading layer
+  (the one this machine loads) runs each ``prange`` on libgomp, whose idle threads otherwise
+  spin for a while after every parallel region. A run launches its kernel once per chunk and
+  between launches does its own work (the writer thread's journal and HDF5 writes, the Python
+  around each chunk): the spinning worker took a core from it. Measured (Duffing lane kernel, 2
+  threads, machine loaded): a 400-point launch cost 4-8 ms of process CPU and 9-24 ms of wall
+  with spinning, 1.0 ms of each passively; a 32,768-point launch 45-49 against 46-47 ms of
+  CPU (docs/performance-duffing.md). Only a process whose libgomp is not loaded yet is changed.
 - Closures made by a factory (a solver for one right-hand side) get a qualified name that
   says what they close over (:func:`_distinct_qualname`): numba's symbol names would otherwise
   coincide between cached kernels compiled by different processes, and one kernel would run
@@ -48,6 +57,17 @@ import numba
 from numba.core import config as _numba_config
 
 __all__ = ["jit", "jit_noalloc", "jit_inline", "pjit", "prange", "literally", "compile_time_switch", "cache_dir"]
+
+
+
+def _passive_openmp(environ=os.environ) -> None:
+    """Make OpenMP's idle threads sleep instead of spinning (see the module's docstring), unless
+    ``environ`` already chooses a wait policy. libgomp reads it once, when numba loads its ``omp``
+    threading layer (at the first parallel launch), so this runs at import."""
+    environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+
+_passive_openmp()
 
 prange = numba.prange
 literally = numba.literally

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import errno
+import functools
 import numbers
 import os
 import platform
@@ -231,7 +232,9 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
                             raise
                     else:  # True: a resume found the run finished
                         counts, held = status_counts(final), None
-                    times = _times(final)
+                    # the times the file was given: from the dataset held in memory when there is one
+                    # (the same floats; store._assemble), else read back from the file
+                    times = _times(final) if held is None else _held_times(held)
             except WriteFailed as exc:
                 raise OutOfSpace(_out_of_space(exc, scene, final, len(chunks))) from None
             except ClusterLost as exc:
@@ -365,6 +368,13 @@ def _sizes(scene: Scene) -> dict:
         for dim, values in dims:
             sizes.setdefault(dim.name, len(values))
     return sizes
+
+
+def _held_times(held: Held) -> tuple[float, float, float]:
+    """(wall, compile, compute) seconds, as _times reads them from the file, from the dataset held in
+    memory (store._assemble gives it the file's attributes)."""
+    attrs = held.store.attrs
+    return float(attrs["wall_time_s"]), float(attrs["compile_time_s"]), float(attrs["compute_time_s"])
 
 
 def _times(final: Path) -> tuple[float, float, float]:
@@ -585,10 +595,11 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
                 # dask workers compile inside their first chunk (counted as compute time)
                 params = ParameterMatrix(scene)
                 compile_s = warm_up(scene, params, progress, todo[0]) if todo and not scheduler else 0.0
+                started = threading.Event() if early is not None and not scheduler else None
                 results = (_dask_results(scene, todo, scheduler, threads, worker_timeout, client) if scheduler
-                           else _local_results(scene, todo, params))
+                           else _local_results(scene, todo, params, started))
                 _save_chunks(scene, journal, results, todo, scene.n_points - sum(c.size for c in todo), progress,
-                             compile_s, held, early)
+                             compile_s, held, early, started)
                 if resumed and todo:  # the history says that another run finished the dataset
                     now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
                     attrs["history"] = (attrs.get("history", "") + "\n" + cf.history(
@@ -965,10 +976,14 @@ def warm_up(scene: Scene, params: ParameterMatrix, progress: bool | None, chunk:
     return seconds
 
 
-def _local_results(scene: Scene, todo: list[Chunk], params: ParameterMatrix | None = None):
-    """Chunks computed here, in order, each by the numba kernels on all threads."""
+def _local_results(scene: Scene, todo: list[Chunk], params: ParameterMatrix | None = None,
+                   started: threading.Event | None = None):
+    """Chunks computed here, in order, each by the numba kernels on all threads; ``started`` is set
+    just before the first chunk is computed."""
     params = params or ParameterMatrix(scene)
     for chunk in todo:
+        if started is not None:
+            started.set()
         yield chunk, evaluate_chunk(scene, chunk, params)
 
 
@@ -980,7 +995,8 @@ def _dask_results(scene: Scene, todo: list[Chunk], scheduler: str, threads: int 
 
 
 def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], already: int, progress,
-                 compile_s: float = 0.0, held: Held | None = None, early: Early | None = None) -> None:
+                 compile_s: float = 0.0, held: Held | None = None, early: Early | None = None,
+                 started: threading.Event | None = None) -> None:
     """Save each computed chunk to the journal as it arrives; the write of one chunk overlaps the
     computation of the next (kernels release the GIL). At most one chunk waits to be written, so
     memory stays bounded by the chunk size. Each chunk file carries its compute time (since the
@@ -1013,6 +1029,8 @@ def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], alr
         clock["last"] = now
 
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="mechsweep-writer") as writer:
+        if early is not None:  # the file is defined while the first chunk is computed (store.Early.prepare)
+            writer.submit(early.prepare, started)
         try:
             for chunk, result in results:
                 if pending is not None:
@@ -1025,6 +1043,8 @@ def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], alr
         finally:
             if pending is not None and not pending.done():
                 pending.exception()  # let the last write finish before leaving
+            if started is not None:
+                started.set()  # (a run stopped before its first launch: the writer waits no longer)
             close = getattr(results, "close", None)
             if close is not None:
                 close()  # a distributed run cancels what is still in flight
@@ -1058,6 +1078,13 @@ def _threads(n: int | None):
         numba.set_num_threads(before)
 
 
+@functools.lru_cache(maxsize=1)
+def _xarray_version() -> str:
+    """The installed xarray's version, looked up once per process: importlib.metadata reads the
+    package's metadata files at every call (1-10 ms, before a run's first chunk)."""
+    return _version("xarray")
+
+
 def provenance(scene: Scene, chunks: ChunkPlan) -> dict:
     created = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
     attrs = {
@@ -1072,7 +1099,7 @@ def provenance(scene: Scene, chunks: ChunkPlan) -> dict:
         "mechsweep_version": __version__,
         "numba_version": numba.__version__,
         "numpy_version": np.__version__,
-        "xarray_version": _version("xarray"),  # xarray is not imported by the command `mechsweep run` (0.3 s of CPU)
+        "xarray_version": _xarray_version(),  # xarray is not imported by the command `mechsweep run` (0.3 s of CPU)
         "python_version": platform.python_version(),
         "chunk_size": chunks.max_size,
         "wall_time_s": 0.0,

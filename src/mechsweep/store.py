@@ -206,6 +206,9 @@ def _early_cache(f: h5py.File, names: list[str]) -> int:
     return max(2**20, 3 * band)
 
 
+PREPARE_WAIT = 5.0  # seconds Early.prepare waits for the first chunk's launch (then it defines the file anyway)
+
+
 class Early:
     """The dataset file of a run (with ``Held``) written while its chunks are computed, in the
     writer thread: defined at the first chunk, each chunk written into its region after it is
@@ -226,20 +229,40 @@ class Early:
         self.written: set[int] = set()
         self.failed = False
 
+    def _open(self) -> None:
+        self.guard = _GuardedFile(self.path)
+        with h5netcdf.File(self.guard, "w") as f:
+            _define(f, self.scene, self.lay, self.attrs)
+        names = _variables(self.lay)
+        with h5py.File(self.guard, "r") as f:
+            cache = _early_cache(f, names)
+        self.file = h5py.File(self.guard, "a", rdcc_nbytes=cache, rdcc_nslots=100_003, rdcc_w0=1.0)
+        self.variables = {name: self.file[name] for name in names}
+
+    def prepare(self, started=None) -> None:
+        """Create and define the file before the first chunk arrives: the run calls it in the writer
+        thread, idle while the first chunk is computed, so that the definition (h5netcdf's
+        bookkeeping of every variable and attribute, about 30 ms of CPU) no longer delays the
+        first chunk's write and the second chunk's launch behind it. ``started``: an event set when
+        the first chunk's kernel is about to run (waited for at most PREPARE_WAIT seconds), so that
+        this Python work holds the GIL while the kernel has released it, not while the main
+        thread prepares the launch. A failure discards the file, as in ``write``."""
+        if started is not None:
+            started.wait(PREPARE_WAIT)
+        if self.failed or self.file is not None:
+            return
+        try:
+            self._open()
+        except Exception:
+            self.discard()
+
     def write(self, index: int, region: tuple, arrays: dict) -> None:
         """Write one saved chunk (COMPILE_KEY and other extra keys are ignored)."""
         if self.failed:
             return
         try:
             if self.file is None:
-                self.guard = _GuardedFile(self.path)
-                with h5netcdf.File(self.guard, "w") as f:
-                    _define(f, self.scene, self.lay, self.attrs)
-                names = _variables(self.lay)
-                with h5py.File(self.guard, "r") as f:
-                    cache = _early_cache(f, names)
-                self.file = h5py.File(self.guard, "a", rdcc_nbytes=cache, rdcc_nslots=100_003, rdcc_w0=1.0)
-                self.variables = {name: self.file[name] for name in names}
+                self._open()
             if self.guard.error is None:
                 _write_region(self.variables, region, arrays, self.lay.shape)
             if self.guard.error is not None:
@@ -316,10 +339,16 @@ class Counts:
         self.total = 0
 
     def add(self, status: np.ndarray) -> None:
-        codes, n = np.unique(np.asarray(status), return_counts=True)
+        status = np.asarray(status)
+        if status.dtype == np.int8:  # the status variable: a histogram, not np.unique's sort (7x faster)
+            hist = np.bincount(status.ravel().astype(np.int16) + 128, minlength=256)
+            codes = np.flatnonzero(hist)
+            codes, n = codes - 128, hist[codes]
+        else:
+            codes, n = np.unique(status, return_counts=True)
         for c, k in zip(codes.tolist(), n.tolist()):
             self.codes[c] = self.codes.get(c, 0) + k
-        self.total += int(np.asarray(status).size)
+        self.total += int(status.size)
 
 
 def status_counts(path: str | Path) -> dict[int, int]:

@@ -10,7 +10,10 @@ printed as best and range, in wall-clock points/s and in points per CPU second o
 measure least disturbed by other jobs on a shared machine). Each competitor's rtol is chosen from
 a ladder so that its max error on its points is no larger than mechsweep's on the same points
 (matched accuracy; atol scaled with it); where no rung reaches it, the ratio is printed at the
-competitor's smallest error and marked "not matched".
+competitor's smallest error and marked "not matched", and the match is made the other way:
+mechsweep's kernel is timed at the loosest of its own looser rtols whose max error on the
+competitor's points is still no larger than the competitor's best (``ours_at_error``); that ratio
+is the one goal 1's verdict uses, and the bench says which way each match was made.
 """
 from __future__ import annotations
 
@@ -26,7 +29,7 @@ from ..grid import Chunk
 from ..model import compile as model_compile
 from ..models import duffing
 from . import competitors
-from ..runner import _threads, evaluate_chunk, run
+from ..runner import _threads, evaluate_chunk, evaluate_rows, run
 from ..scene import Solver, load_scene
 
 
@@ -116,6 +119,32 @@ def _competitor(name, P, exact, ours_err, rtol, atol, repeats):
             "ladder": [(t[0], t[2]) for t in tried]}
 
 
+# mechsweep's own rtols when a competitor cannot reach its error: the run's rtol times these
+# (atol scaled with it), tightest first; the loosest rung still at least as accurate as the
+# competitor's best is timed (matched the other way).
+OUR_LOOSER = (1, 3, 10, 30, 100, 300, 1000, 3000, 10_000, 30_000, 100_000)
+
+
+def ours_at_error(errors_of, target: float, rtol: float, atol: float):
+    """mechsweep matched to a competitor that cannot reach its error: the loosest rung of
+    OUR_LOOSER (from ``rtol`` up, at most 1e-3) whose max error ``errors_of(r, a)`` on the
+    competitor's points is no larger than ``target`` (the competitor's smallest error). Returns
+    (rtol, atol, max error, [(rtol, error) tried]); rungs are tried until one misses ``target``."""
+    tried = []
+    for f in OUR_LOOSER:
+        r = rtol * f
+        if r > 1e-3:
+            break
+        a = atol * f
+        err = float(errors_of(r, a))
+        tried.append((r, a, err))
+        if err > target:
+            break
+    ok = [t for t in tried if t[2] <= target]
+    r, a, err = ok[-1] if ok else tried[0]
+    return r, a, err, [(t[0], t[2]) for t in tried]
+
+
 def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = None,
          rtol: float = Solver.rtol, atol: float = Solver.atol, seed: int = 0, compare_points: int = 20_000,
          repeats: int = 3) -> dict:
@@ -184,6 +213,36 @@ def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = N
             comp[name] = _competitor(name, P[sample], exact[sample], float(np.nanmax(ours_err_all[sample])), rtol,
                                      atol, 1 if name == "scipy" else repeats)
         comp[name]["ours_max_rel_error_same_points"] = float(np.nanmax(ours_err_all[sample]))
+        comp[name]["_sample"] = sample
+
+    for name, c in comp.items():  # a competitor that cannot reach our error: ours matched to its best
+        if c is None or c["matched"]:
+            continue
+        sample = c.pop("_sample")
+        floor = min(e for _, e in c["ladder"])
+
+        def errors_of(r, a, _rows=P[sample], _exact=exact[sample]):
+            cols_r = evaluate_rows(load_scene(grid_scene(points, r, a)), _rows)[0]
+            return np.nanmax(np.abs(cols_r["period"] - _exact) / _exact)
+
+        try:
+            model_compile.USE_LANES = True
+            with _threads(threads):
+                r_m, a_m, err_m, tried = ours_at_error(errors_of, floor, rtol, atol)
+                scene_m = load_scene(grid_scene(points, r_m, a_m))
+                key = ("matched", name)
+                for _ in range(repeats):
+                    _ours(scene_m, n_threads, True, rows, key)
+        finally:
+            model_compile.USE_LANES = use_lanes
+        best, worst = _rates(scene.n_points, rows[key]["wall"])
+        c["ours_matched"] = {"rtol": r_m, "atol": a_m, "max_rel_error": err_m, "competitor_best_error": floor,
+                             "points_per_s": best, "points_per_s_worst": worst,
+                             "points_per_cpu_s": scene.n_points / min(rows[key]["cpu"]), "ladder": tried,
+                             "matched": err_m <= floor}
+    for c in comp.values():
+        if c is not None:
+            c.pop("_sample", None)
 
     n = scene.n_points
     res = {"points": n, "threads": n_threads, "rtol": rtol, "atol": atol, "repeats": repeats,
@@ -246,6 +305,16 @@ def _print(r: dict) -> None:
         print(f"  {'':38s}  mechsweep kernel / {name}: {ratio:,.1f}x wall, {ratio_cpu:,.1f}x per CPU second"
               f"{'' if c['matched'] else ' (NOT matched: no rung of the rtol ladder reached our error)'}; ladder "
               + ", ".join(f"{rt:g}: {e:.1e}" for rt, e in c["ladder"]))
+        m = c.get("ours_matched")
+        if m is not None:
+            print(f"  {'':38s}  matched the other way: mechsweep kernel at rtol {m['rtol']:g} (max error "
+                  f"{m['max_rel_error']:.2e} on {name}'s points, {name}'s best {m['competitor_best_error']:.2e}): "
+                  f"{m['points_per_s']:,.0f} ({m['points_per_s_worst']:,.0f}) points/s, "
+                  f"{m['points_per_cpu_s']:,.0f} per CPU second; mechsweep / {name}: "
+                  f"{m['points_per_s'] / c['points_per_s']:,.1f}x wall, "
+                  f"{m['points_per_cpu_s'] / c['points_per_cpu_s']:,.1f}x per CPU second"
+                  f"{'' if m['matched'] else ' (NOT matched: our tightest rung is above its best error)'}; our ladder "
+                  + ", ".join(f"{rt:g}: {e:.1e}" for rt, e in m["ladder"]))
     print("  issue 15 goals measured here (the others: mechsweep bench quickstart / memory / workprecision):")
     run_ok = r["run_to_hdf5_points_per_s"] >= TARGET_RUN
     print(f"    goal 1: mechsweep.run {r['run_to_hdf5_points_per_s']:,.0f} points/s on {t} threads, "
@@ -256,12 +325,22 @@ def _print(r: dict) -> None:
     if nb is None:
         print(f"    goal 1: kernel / numbalsoda at matched accuracy (target >= {TARGET_NUMBALSODA:g}): numbalsoda not "
               "installed")
-    else:
+    elif nb["matched"]:
         ratio = r["kernel_points_per_s"] / nb["points_per_s"]
         ratio_cpu = r["kernel_points_per_cpu_s"] / nb["points_per_cpu_s"]
-        verdict = ("not matched" if not nb["matched"] else "met" if ratio >= TARGET_NUMBALSODA else "not met")
         print(f"    goal 1: kernel / numbalsoda {ratio:,.1f}x wall, {ratio_cpu:,.1f}x per CPU second (target >= "
-              f"{TARGET_NUMBALSODA:g} at matched accuracy): {verdict}")
+              f"{TARGET_NUMBALSODA:g} at matched accuracy; numbalsoda at rtol {nb['rtol']:g}, error "
+              f"{nb['max_rel_error']:.2e}, ours {nb['ours_max_rel_error_same_points']:.2e}): "
+              f"{'met' if ratio >= TARGET_NUMBALSODA else 'not met'}")
+    else:
+        m = nb["ours_matched"]
+        ratio = m["points_per_s"] / nb["points_per_s"]
+        ratio_cpu = m["points_per_cpu_s"] / nb["points_per_cpu_s"]
+        verdict = ("not matched" if not m["matched"] else "met" if ratio >= TARGET_NUMBALSODA else "not met")
+        print(f"    goal 1: kernel / numbalsoda {ratio:,.1f}x wall, {ratio_cpu:,.1f}x per CPU second (target >= "
+              f"{TARGET_NUMBALSODA:g} at matched accuracy; numbalsoda cannot reach our error at rtol "
+              f"{r['rtol']:g}, so mechsweep ran at rtol {m['rtol']:g}: error {m['max_rel_error']:.2e} against "
+              f"numbalsoda's best {m['competitor_best_error']:.2e} on its points): {verdict}")
 
 
 # ----------------------------------------------------------------------------- where a run's time goes
@@ -277,6 +356,7 @@ _STEPS = (
     ("runner", "evaluate_rows", "per chunk: kernel + status/NONFINITE"),
     ("journal.Journal", "write_chunk", "writer: journal chunk file + fsyncs"),
     ("store.Held", "keep", "writer: chunk into the dataset in memory"),
+    ("store.Early", "prepare", "writer: define the HDF5 file (early)"),
     ("store.Early", "write", "writer: chunk into the HDF5 file (early)"),
     ("store", "_define", "HDF5/memory: define (h5netcdf)"),
     ("runner", "_save_chunks", "all chunks (main thread, wall)"),
