@@ -948,11 +948,12 @@ def make_shared(rhs, observe=None):
 
     @jit
     def g_on_interpolant(t, ctx):
-        t_old, h, y_old, p, work, idx, sign, level, turn, fs, expr, yt = ctx
+        t_old, h, y_old, p, work, idx, sign, level, turn, fs, expr, yt, calls = ctx
         y_at = work[Y_STAGE]  # free once the dense output is built
         interpolate((t - t_old) / h, y_old, work, y_at)
         if turn:
             rhs(t, y_at, p, fs)
+            calls[0] += 1  # the caller adds them to n_rhs
             return sign * rate_of(t, y_at, p, fs, idx, expr, h, yt)
         return sign * (y_at[idx] - level)
 
@@ -965,6 +966,7 @@ def make_shared(rhs, observe=None):
         ya = np.empty(n)
         fa = np.empty(n)
         yt = np.empty(n)
+        calls = np.zeros(1, dtype=np.int64)  # rhs calls inside a turning point's root search
         g_old = np.zeros(m)
         count = np.zeros(m)
         t_first = np.zeros(m)
@@ -1041,7 +1043,7 @@ def make_shared(rhs, observe=None):
                             n_rhs += N_DENSE
                             dense = True
                         tr = brent(t, g_old[i], t_new, g, ROOT_RTOL * abs(h),
-                                   (t, h, y, p, work, idx, s, M[i, 3], False, fa, False, yt))
+                                   (t, h, y, p, work, idx, s, M[i, 3], False, fa, False, yt, calls))
                         if tr > ta:
                             codes[i] = NO_EVENT
                             done[i] = True
@@ -1112,8 +1114,10 @@ def make_shared(rhs, observe=None):
                             dense_output(t, h, y, p, work)
                             n_rhs += N_DENSE
                             dense = True
+                        calls[0] = 0
                         tr = brent(lo, g_old[i], hi, g, ROOT_RTOL * abs(h),
-                                   (t, h, y, p, work, idx, s, 0.0, True, fa, expr, yt))
+                                   (t, h, y, p, work, idx, s, 0.0, True, fa, expr, yt, calls))
+                        n_rhs += calls[0]  # one rhs call per evaluation of the derivative
                         interpolate((tr - t) / h, y, work, ya)
                         best[i] = max(best[i], s * value_of(tr, ya, p, idx, expr))
                     g_old[i] = g
