@@ -47,7 +47,6 @@ from . import scenes
 LADDER = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13)
 ATOL_RATIO = 1e-2  # atol = 1e-2 rtol: the scaled states are O(1)
 SCIPY_METHODS = ("DOP853", "Radau", "LSODA")
-REFERENCE_RTOL = 1e-13
 TIMED_POINTS = 1024  # our time per point: the sample repeated up to this many points ...
 TIMED_CALL_S = 0.05  # ... or until one call takes this long
 
@@ -76,6 +75,7 @@ GENERIC = {
     "torsional_circuit": ("mechsweep.models.torsional_circuit:MODEL", "torsional_circuit_truncation.toml",
                           "period_exact_moment", None),
 }
+
 
 def all_cases() -> tuple[str, ...]:
     """Every built-in model with a work-precision report: the integrated ones (GENERIC, a ladder of
