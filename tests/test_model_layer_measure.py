@@ -156,12 +156,15 @@ def test_a_division_by_zero_in_a_users_numba_helper_is_ieee_not_an_exception():
     pytest.param("dop853", ("t_zero", "rhs_calls"), marks=pytest.mark.slow),
     pytest.param("radau", ("t_zero", "rhs_calls"), marks=pytest.mark.slow),  # radau's kernel: ~30-60 s cold
     pytest.param("radau", ("mult", "rhs_calls_floquet"), marks=pytest.mark.slow),
-    pytest.param("dop853", ("mult", "rhs_calls_floquet"), marks=pytest.mark.slow)])
+    pytest.param("dop853", ("mult", "rhs_calls_floquet"), marks=pytest.mark.slow),
+    pytest.param("dop853", ("v_max", "rhs_calls_extremum"), marks=pytest.mark.slow)])
 def test_n_rhs_counts_every_rhs_call_also_those_of_the_engines_jacobian(method, outputs):
     """The rhs of COUNTED counts its own calls (an internal slot, read by a closed form after the
     measurement): n_rhs is exactly that count, also by radau with the engine's finite-difference
-    Jacobian (2 n rhs calls each, which n_rhs used not to count), and by Floquet's variational
-    integration (its Jacobian by differences: 2 n + 1 calls per evaluation, and radau's own)."""
+    Jacobian (2 n rhs calls each, which n_rhs used not to count), by Floquet's variational
+    integration (its Jacobian by differences: 2 n + 1 calls per evaluation, and radau's own), and
+    by an Extremum's root search of the derivative on the shared trajectory (one call per
+    evaluation, which n_rhs used not to count)."""
     scene = load_scene({"scene": {"name": "t", "model": MODEL.replace(":MODEL", ":COUNTED"),
                                   "outputs": list(outputs)},
                         "axes": {"w": {"start": 0.5, "stop": 3.0, "num": 3}}, "fixed": {"A": A},
@@ -173,6 +176,8 @@ def test_n_rhs_counts_every_rhs_call_also_those_of_the_engines_jacobian(method, 
     assert (status == st.OK).all()
     if outputs[0] == "t_zero":
         np.testing.assert_allclose(out["t_zero"], math.pi / 2 / W, rtol=1e-6)
+    elif outputs[0] == "v_max":
+        np.testing.assert_allclose(out["v_max"], A * W, rtol=1e-6)
     else:
         np.testing.assert_allclose(out["mult"], 1.0, rtol=1e-6)
     np.testing.assert_array_equal(nr, out[outputs[1]])

@@ -65,6 +65,14 @@ def test_report_of_a_user_model(tmp_path):
     assert ours.error_max.values[1] < 1e-3 * ours.error_max.values[0] and ours.error_max.values[1] < 1e-9
     # the same method and step control on the same equations: the errors agree to a few percent
     np.testing.assert_allclose(ours.error_max.values, scipy.error_max.values, rtol=0.1)
+    # the pendulum declares its energy conserved (an Invariant): its drift is in the report, at the
+    # declaration's point, periods and rtols (dop853 only: no accel), growing with the periods
+    assert ds.attrs["drift_quantity"] == "energy"
+    assert ds.attrs["drift_problem"] == "pendulum at g = 9.81, L = 0.5, A = 1, one integration over 100 periods"
+    assert list(ds.drift_run.values) == ["mechsweep dop853, rtol 1e-06"] and list(ds.periods.values) == [1, 10, 100]
+    e = ds.energy_error.values[0]
+    assert 0 < e[0] < e[1] < e[2] < 1e-3 and e[2] > 10 * e[0]
+    assert (tmp_path / "workprecision_pendulum_energy.csv").is_file()
 
 
 def test_bad_requests_are_input_errors(tmp_path):
@@ -94,3 +102,40 @@ def test_scipy_versions_of_nth_roots_and_extrema_of_expressions():
     np.testing.assert_allclose(wo.OdeReference(more, "power_late").reference(P), 0.49 * w / 2, rtol=1e-11)
     np.testing.assert_allclose(wo.OdeReference(more, "power_early").reference(P), -0.49 * w / 2 * math.sin(0.2),
                                rtol=1e-11)
+
+
+def test_scipy_versions_of_a_system_and_a_refined_measurement():
+    """A FirstEvent integrating a System of its own (tests/user_models/layer_systems.py: x'' = -4 w^2 x
+    from x = 1, its prepare refusing w > 5) and one with a refine (factor = the parameter tighten):
+    scipy runs the System's rhs and initial state after its prepare, and refine decides as the
+    engine's: a second pass at rtol / f, atol / f from the start (both counted), not finite: NaN."""
+    model = wo.declaration(f"{USER / 'layer_systems.py'}:SYSTEMS")
+    P = np.array([[1.0, 0.5, 1.0], [2.0, 0.3, 1.0], [6.0, 0.5, 1.0]])
+    half = wo.OdeReference(model, "half").reference(P)
+    np.testing.assert_allclose(half[:2], np.pi / P[:2, 0], rtol=1e-11)  # the System's equation, not the model's
+    assert np.isnan(half[2])  # its prepare: INFEASIBLE
+    refined = wo.OdeReference(model, "refined")
+    one = refined.value([1.0, 0.5, 1.0], "DOP853", 2.0**-20, 2.0**-30)  # factor 1: one pass
+    tight = refined.value([1.0, 0.5, 1.0], "DOP853", 2.0**-33, 2.0**-43)
+    two = refined.value([1.0, 0.5, 2.0**13], "DOP853", 2.0**-20, 2.0**-30)
+    assert two[0] == tight[0] != one[0] and two[1:] == (one[1] + tight[1], one[2] + tight[2])
+    assert math.isnan(refined.value([1.0, 0.5, math.inf], "DOP853", 1e-6, 1e-8)[0])  # ILL_CONDITIONED
+
+
+def test_an_invariant_is_checked_when_the_model_is_declared():
+    from mechsweep.model import Invariant, OdeModel, Param
+
+    def energy(y, p):
+        return y[0]
+
+    base = dict(name="m", description="", params=(Param("w", "w", "1", "w"), Param("k", "k", "1", "k",
+                                                                                        required=False, default=0.0)),
+                states=("x", "v"), rhs=energy, initial=energy)
+    assert OdeModel(**base, invariant=Invariant(energy, at={"w": 1.0})).invariant.periods[-1] == 10000
+    for inv, match in ((Invariant(energy, at={"w": 1.0, "x": 2.0}), r"at names \['x'\], which are not parameters"),
+                       (Invariant(energy, at={"k": 1.0}), r"at does not give the required parameters \['w'\]"),
+                       (Invariant(energy, at={"w": 1.0}, period=-1.0), "period = -1.0; expected"),
+                       (Invariant(energy, at={"w": 1.0}, periods=(10, 1)), "periods = \\(10, 1\\); expected"),
+                       ("energy", "invariant must be a mechsweep.model.Invariant")):
+        with pytest.raises(ValueError, match=match):
+            OdeModel(**base, invariant=inv)

@@ -125,7 +125,9 @@ COUNTED = OdeModel(
     params=MODEL.params, states=("x", "v"), rhs=counted_rhs, initial=initial, internal=("calls",),
     forcing_period=period,
     measurements=(FirstEvent("t_zero", x_event, t_max=100.0),  # w t = pi / 2
-                  Floquet("mult")),
+                  Floquet("mult"),
+                  Extremum("v_max", "v", 0.1, 10.0)),  # A w, interior turning points (roots of -w^2 x)
     closed_forms=(ClosedForm("rhs_calls", calls, needs=("t_zero",)),
-                  ClosedForm("rhs_calls_floquet", calls, needs=("mult",))),
+                  ClosedForm("rhs_calls_floquet", calls, needs=("mult",)),
+                  ClosedForm("rhs_calls_extremum", calls, needs=("v_max",))),
 )

@@ -1,12 +1,13 @@
 """User models for tests/test_model_layer.py, written as a user would (outside the package).
 
 x'' + w^2 x = 0 from x = A, x' = 0: x = A cos(w t), period 2 pi / w, max x' = A w.
-theta'' + (g / L) sin(theta) = 0 from theta = A: period 4 K(sin^2(A/2)) sqrt(L/g).
+theta'' + (g / L) sin(theta) = 0 from theta = A: period 4 K(sin^2(A/2)) sqrt(L/g); its energy
+omega^2 / 2 + (g / L)(1 - cos theta) is declared conserved (an Invariant: bench workprecision's drift).
 """
 import dataclasses
 import math
 
-from mechsweep.model import Crossing, Extremum, OdeModel, Param, Period, Recheck, StateAt
+from mechsweep.model import Crossing, Extremum, Invariant, OdeModel, Param, Period, Recheck, StateAt
 
 
 def linear_rhs(t, y, p, dydt):
@@ -49,6 +50,14 @@ def pendulum_initial(p, y0):
     y0[1] = 0.0
 
 
+def pendulum_energy(y, p):
+    return 0.5 * y[1] * y[1] + (p[0] / p[1]) * (1.0 - math.cos(y[0]))
+
+
+def small_swing_period(p):
+    return 2.0 * math.pi * math.sqrt(p[1] / p[0])
+
+
 PENDULUM = OdeModel(
     name="pendulum",
     description="undamped pendulum theta'' + (g/L) sin theta = 0 released from rest at theta = A",
@@ -59,6 +68,8 @@ PENDULUM = OdeModel(
     rhs=pendulum_rhs,
     initial=pendulum_initial,
     measurements=(Period("period", "theta", t_max=200.0),),
+    invariant=Invariant(pendulum_energy, at={"g": 9.81, "L": 0.5, "A": 1.0}, period=small_swing_period,
+                        periods=(1, 10, 100), rtols=(1e-6,)),
 )
 
 

@@ -7,9 +7,10 @@ A fixed sample of grid points (drawn with a fixed seed from the model's referenc
 --scene) is integrated by every method the model offers (``SPEC.methods``) and by scipy's
 solve_ivp (DOP853, Radau, LSODA) over a ladder of tolerances, in the same process:
 
-- error: of one integrated output per model, against the best reference available
-  (``CASES``: a closed form where one exists, otherwise scipy's DOP853 at rtol 1e-13, an
-  implementation independent of ours); the maximum and the median over the sample;
+- error: of one integrated output per model, against the best reference available (``GENERIC``:
+  the model's closed form where one exists, otherwise scipy's DOP853 at rtol 1e-13 on the model's
+  own functions, an implementation independent of ours, :mod:`mechsweep.bench.workprecision_ode`);
+  the maximum and the median over the sample;
 - time: wall time per point after JIT compilation (the compile or cache-load time of the first
   call is reported separately), the minimum of ``repeats`` runs; ours runs the sample, repeated
   up to TIMED_POINTS points (or until a call takes TIMED_CALL_S), through the model's ``evaluate`` on one thread (what a sweep's chunk
@@ -21,7 +22,9 @@ solve_ivp (DOP853, Radau, LSODA) over a ladder of tolerances, in the same proces
 - cost: accepted steps and right-hand-side evaluations per point.
 
 The result is an xarray Dataset (dims integrator x rtol) written to DIR/workprecision_MODEL.h5 and
-.csv (Duffing: the energy drift also to DIR/workprecision_duffing_energy.csv); ``mechsweep plot DIR/workprecision_MODEL.h5`` draws error against time from it.
+.csv (a model that declares a conserved quantity, ``OdeModel(invariant=Invariant(...))``, e.g. the
+Duffing oscillator's energy: its drift also, to DIR/workprecision_MODEL_energy.csv);
+``mechsweep plot DIR/workprecision_MODEL.h5`` draws error against time from it.
 """
 from __future__ import annotations
 
@@ -44,7 +47,6 @@ from . import scenes
 LADDER = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13)
 ATOL_RATIO = 1e-2  # atol = 1e-2 rtol: the scaled states are O(1)
 SCIPY_METHODS = ("DOP853", "Radau", "LSODA")
-REFERENCE_RTOL = 1e-13
 TIMED_POINTS = 1024  # our time per point: the sample repeated up to this many points ...
 TIMED_CALL_S = 0.05  # ... or until one call takes this long
 
@@ -60,60 +62,7 @@ class Case:
     reference: Callable  # P -> reference values (n,)
     reference_name: str
     scipy_value: Callable  # (P row, method, rtol, atol) -> (value, n_rhs, accepted steps)
-
-
-# ----------------------------------------------------------------------------- scipy adapters
-def _scipy_rhs(rhs, p):
-    """solve_ivp's f(t, y) from a mechsweep jitted rhs(t, y, p, dydt)."""
-    def f(t, y):
-        d = np.empty_like(y)
-        rhs(t, y, p, d)
-        return d
-    return f
-
-
-def _quarter_period(rhs, p, method, rtol, atol, t_max, jac=None):
-    from scipy.integrate import solve_ivp
-
-    def crossing(t, y):
-        return y[0]
-    crossing.terminal = True
-    crossing.direction = -1
-    kw = {"jac": jac} if (jac is not None and method != "DOP853") else {}
-    sol = solve_ivp(_scipy_rhs(rhs, p), (0.0, t_max), np.array([1.0, 0.0]), method=method, rtol=rtol,
-                    atol=atol, events=crossing, **kw)
-    if sol.status != 1 or not sol.t_events[0].size:
-        return math.nan, sol.nfev, sol.t.size - 1
-    return float(sol.t_events[0][0]), sol.nfev, sol.t.size - 1
-
-
-def _torsional_scaled(P, i):
-    from ..models import torsional_circuit as tc
-
-    code, sigma, lam1, lam2, s, k, chi, xi, A = tc._point_coefficients(P, i)
-    w2 = k * (abs(chi) + abs(xi) * A * A)  # as torsional_circuit.exact_prepare (plain formulation, A <= pi / 2)
-    D0 = tc.rest_length_squared(sigma, lam1, lam2)
-    p = np.array([sigma, lam1, D0, math.sqrt(D0) - sigma * s, A, k / (w2 * A)])
-    return code, p, math.sqrt(w2)
-
-
-def _torsional_value(P, i, method, rtol, atol):
-    from ..models import torsional_circuit as tc
-
-    code, p, w = _torsional_scaled(P, i)
-    if code != st.OK:
-        return math.nan, 0, 0
-    tq, nfev, steps = _quarter_period(tc._exact_rhs, p, method, rtol, atol, 200.0 * math.pi)
-    return 4.0 * tq / w, nfev, steps
-
-
-def _torsional_scipy(row, method, rtol, atol):
-    return _torsional_value(row[None, :], 0, method, rtol, atol)
-
-
-def _torsional_reference(P):
-    return np.array([_torsional_value(P, i, "DOP853", REFERENCE_RTOL, REFERENCE_RTOL * 1e-2)[0]
-                     for i in range(P.shape[0])])
+    declaration: object = None  # the model's OdeModel (its invariant: the drift experiment)
 
 
 # Built-in models declared as an OdeModel that take the generic route (bench/workprecision_ode.py:
@@ -123,64 +72,18 @@ def _torsional_reference(P):
 GENERIC = {
     "duffing": ("mechsweep.models.duffing:MODEL", "duffing_amplitude_period.toml", "period", "period_exact"),
     "autobalancer": ("mechsweep.models.autobalancer:MODEL", "autobalancer_stability_chart.toml", "floquet_max", None),
-}
-
-CASES = {
-    "torsional_circuit": Case("torsional_circuit_truncation.toml", "period_exact_moment", "relative",
-                              "relative error of the period with the exact spring moment", _torsional_reference,
-                              f"scipy DOP853 at rtol {REFERENCE_RTOL:g}", _torsional_scipy),
+    "torsional_circuit": ("mechsweep.models.torsional_circuit:MODEL", "torsional_circuit_truncation.toml",
+                          "period_exact_moment", None),
 }
 
 
 def all_cases() -> tuple[str, ...]:
-    """Every model with a work-precision report: the integrated ones (CASES, a ladder of
+    """Every built-in model with a work-precision report: the integrated ones (GENERIC, a ladder of
     tolerances) and the algebraic linkage models (a ladder of crank positions,
     :mod:`mechsweep.bench.workprecision_linkage`)."""
     from . import workprecision_linkage
 
-    return tuple(GENERIC) + tuple(CASES) + tuple(workprecision_linkage.CASES)
-
-
-# ----------------------------------------------------------------------------- energy drift (duffing)
-DRIFT_PERIODS = (1, 10, 100, 1000, 10000)
-DRIFT_RTOLS = (1e-6, 1e-9)
-
-
-def energy_drift(periods=DRIFT_PERIODS, rtols=DRIFT_RTOLS):
-    """Relative energy error of the undamped Duffing x'' = -x/2 - x^3/2 (x(0) = 1, x'(0) = 0)
-    after 1 ... 10^4 periods: dop853 (adaptive, rtol) against the symplectic method (its fixed step
-    for the same rtol). Returns (names, errors[name, period], cost in rhs evaluations)."""
-    from ..models import _duffing_scaled as duffing  # the scaled rhs in its plain slots
-    from ..ode import dop853, symplectic
-
-    p = np.array([0.5, 0.5])
-    T = float(duffing.period_closed_form(0.5, 0.5, 1.0))
-    energy = lambda x, v: 0.5 * v * v + 0.25 * x * x + 0.125 * x**4  # noqa: E731
-    e0 = energy(1.0, 0.0)
-    explicit = dop853.make_solver(duffing._scaled_rhs)
-    composed = symplectic.make_solver(duffing._scaled_accel, duffing.SYMPLECTIC_ORDER)
-    names, errors, costs = [], [], []
-    for rtol in rtols:
-        for name in ("dop853", "symplectic"):
-            row, cost = [], 0
-            y, t = np.array([1.0, 0.0]), 0.0
-            q, v = np.array([1.0]), np.array([0.0])
-            for n in periods:  # continue from the previous end: one long integration
-                t_end = n * T
-                if name == "dop853":
-                    _, _, nr = explicit(t, y, p, t_end, rtol, rtol * ATOL_RATIO, 0.0, 10**8, dop853.workspace(2))
-                    x1, v1 = y
-                else:
-                    steps = int(math.ceil((t_end - t) / float(duffing.symplectic_step(rtol))))
-                    _, _, nr = composed(t, q, v, p, t_end, steps, symplectic.workspace(1))
-                    x1, v1 = q[0], v[0]
-                cost += nr
-                t = t_end
-                row.append(abs(energy(x1, v1) - e0) / e0)
-            names.append(f"mechsweep {name}, rtol {rtol:g}")
-            errors.append(row)
-            costs.append(cost)
-    return names, np.array(errors), np.array(costs)
+    return tuple(GENERIC) + tuple(workprecision_linkage.CASES)
 
 
 # ----------------------------------------------------------------------------- measurement
@@ -237,15 +140,6 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
                                           quiet=quiet)
     if model in GENERIC:  # a built-in OdeModel: scipy runs its own functions (bench/workprecision_ode.py)
         case, spec, scene = _generic_case(model, scene_path, output)
-    elif model in CASES:
-        case = CASES[model]
-        spec = MODELS[model]
-        scene = load_scene(scene_path or scenes.path(case.scene))
-        if scene.model.name != model:
-            raise InputError(f"scene {scene_path} is for model {scene.model.name!r}, not {model!r}")
-        if output not in (None, case.output):
-            raise InputError(f"--output: the {model} case measures {case.output!r}; a model declared as an "
-                             "OdeModel lets you choose")
     else:  # any model declared as an OdeModel: scipy runs its own rhs (bench/workprecision_ode.py)
         case, spec, scene = _ode_case(model, scene_path, output)
     model = spec.name
@@ -314,20 +208,12 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
                "reference": case.reference_name, "reference_time_s": ref_s, "points": P.shape[0],
                "scipy_points": k, "repeats": repeats, "skipped": "; ".join(skipped) or "none", "scene": str(scene_path or f"sweeps/{case.scene}"),
                "compile_or_cache_load_s": ", ".join(f"{m} {s:.2f}" for m, s in compile_s.items()),
-               "threads": 1, "scipy_rhs": "the model's jitted right-hand side; Radau/LSODA with the analytic "
-               "Jacobian where the model has one (autobalancer), else finite differences"
-               if case in CASES.values() else "the model's own rhs (its compiled function, wrapped); Radau/LSODA "
-               "with the model's jac where it declares one, else scipy's finite-difference Jacobian"},
+               "threads": 1, "scipy_rhs": "the model's own rhs (its compiled function, wrapped; a measurement's "
+               "System's where it integrates one); Radau/LSODA with the model's jac where it declares one, else "
+               "scipy's finite-difference Jacobian"},
     )
-    if model == "duffing":  # the energy drift of the built-in Duffing (its own experiment, bench-specific)
-        names, drift, cost = energy_drift()
-        ds["energy_error"] = (("drift_run", "periods"), drift,
-                              {"units": "1", "long_name": "relative energy error |E - E0| / E0"})
-        ds["drift_rhs"] = (("drift_run",), cost, {"units": "1", "long_name": "rhs evaluations for 10^4 periods"})
-        ds = ds.assign_coords(drift_run=("drift_run", names, {"long_name": "method and tolerance"}),
-                              periods=("periods", np.array(DRIFT_PERIODS), {"units": "1",
-                                                                            "long_name": "periods integrated"}))
-        ds.attrs["drift_problem"] = "x'' = -x/2 - x^3/2, x(0) = 1, x'(0) = 0, one integration over 10^4 periods"
+    if case.declaration is not None and case.declaration.invariant is not None:
+        ds = _with_drift(ds, case.declaration)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / f"workprecision_{re.sub(r'[^A-Za-z0-9_.-]', '_', model)}.h5"
@@ -373,7 +259,7 @@ def _generic_case(model: str, scene_path, output):
             f"absolute error |{output} - {exact}|"
     else:
         reference, name, norm = ode.reference, ode.reference_name, ode.norm
-    case = Case(scene_name, output, ode.error, norm, reference, name, ode.value)
+    case = Case(scene_name, output, ode.error, norm, reference, name, ode.value, named)
     return case, spec, scene
 
 
@@ -400,8 +286,30 @@ def _ode_case(model: str, scene_path, output):
         raise InputError(f"--output {output!r} is not an output of model {named.name!r}; "
                          f"expected one of {', '.join(scene.model.output_names())}")
     ref = wo.OdeReference(named, output, _scene_settings(scene))
-    case = Case(str(scene_path), output, ref.error, ref.norm, ref.reference, ref.reference_name, ref.value)
+    case = Case(str(scene_path), output, ref.error, ref.norm, ref.reference, ref.reference_name, ref.value, named)
     return case, scene.model, scene
+
+
+def _with_drift(ds, declaration):
+    """The report with the drift of the quantity the model declares conserved (its Invariant):
+    variables energy_error (drift_run x periods) and drift_rhs, whatever the quantity is called
+    (its name is in the long name and attrs["drift_problem"])."""
+    from . import workprecision_ode as wo
+
+    inv = declaration.invariant
+    names, drift, cost = wo.invariant_drift(declaration)
+    last = inv.periods[-1]
+    span = f"10^{round(math.log10(last))}" if last >= 1000 and 10 ** round(math.log10(last)) == last else f"{last:,}"
+    ds["energy_error"] = (("drift_run", "periods"), drift,
+                          {"units": "1", "long_name": f"relative {inv.name} error |E - E0| / E0"})
+    ds["drift_rhs"] = (("drift_run",), cost, {"units": "1", "long_name": f"rhs evaluations for {span} periods"})
+    ds = ds.assign_coords(drift_run=("drift_run", names, {"long_name": "method and tolerance"}),
+                          periods=("periods", np.array(inv.periods), {"units": "1",
+                                                                      "long_name": "periods integrated"}))
+    at = ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}" for k, v in inv.at.items())
+    ds.attrs["drift_problem"] = f"{inv.problem or f'{declaration.name} at {at}'}, one integration over {span} periods"
+    ds.attrs["drift_quantity"] = inv.name
+    return ds
 
 
 def _scene_settings(scene: Scene) -> dict:
@@ -450,7 +358,7 @@ def _print(ds, path) -> None:
                   f"{float(row.rhs_per_point):>9.1f}{float(row.ok_fraction) * 100:>5.0f}%"
                   f"{float(row.error_max_sample):>12.2e}")
     if "energy_error" in ds:
-        print(f"  energy drift ({a['drift_problem']}):")
+        print(f"  {a.get('drift_quantity', 'energy')} drift ({a['drift_problem']}):")
         for i, name in enumerate(ds.drift_run.values):
             errs = "  ".join(f"{n:>5d}: {e:.1e}" for n, e in zip(ds.periods.values, ds.energy_error.values[i]))
             print(f"    {name:<34}{errs}   ({int(ds.drift_rhs.values[i]):,} rhs)")

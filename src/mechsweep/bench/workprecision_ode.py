@@ -7,7 +7,9 @@ tools (events, dense output, the variational equations), so nothing is copied by
 - Crossing / Period: event times (``terminal`` = the crossing's count), relative error;
 - FirstEvent: the n-th root of the model's own ``event(t, y, p)`` in its direction (scipy's
   ``direction``, ``terminal`` = n), over its ``t_max`` (a number or the model's ``t_max(p)``), the
-  model's ``value(p, t)``; relative error (not with a ``system=``);
+  model's ``value(p, t)``; relative error. With a ``system=``, the System's own rhs, initial state,
+  jac and prepare (run after the model's, as the engine's); with a ``refine``, its factor decides
+  as in the engine (a second pass at rtol / f, atol / f; not finite: NaN);
 - StateAt: the state at t, absolute error;
 - Extremum: the state (or expression) at t0, t1 and at the roots of its derivative in [t0, t1]
   (events on the rhs component; for an expression its rate along the flow, a central difference
@@ -103,9 +105,6 @@ class OdeReference:
         if not isinstance(chosen, kinds):
             raise InputError(f"output {output!r} is measured by {type(chosen).__name__}, which this bench has no "
                              f"scipy version of (it has: {', '.join(k.__name__ for k in kinds)})")
-        if isinstance(chosen, ms.FirstEvent) and chosen.system is not None:
-            raise InputError(f"output {output!r} integrates a System of its own, which this bench has no scipy "
-                             "version of")
         self.m = chosen
         self.output = output
         self.n = len(model.states)
@@ -125,6 +124,11 @@ class OdeReference:
         self._classify = compiled(model.classify, "classify")
         self._prepare = compiled(model.prepare, "prepare")
         self._fn = {role: compiled(f, f"{chosen.name}.{role}") for role, f in getattr(chosen, "functions", lambda: ())()}
+        # the equation integrated: the model's, or a FirstEvent's own System (its rhs, initial, jac and
+        # prepare, compiled from the System's functions as the engine's pass does)
+        self._system = getattr(chosen, "system", None) is not None
+        if self._system:
+            self._rhs, self._initial, self._jac = self._fn["rhs"], self._fn["initial"], self._fn.get("jac")
         # where the measurement applies (e.g. Floquet about an isolated balanced state), as the engine asks it
         self._m_classify = compiled(getattr(chosen, "classify", None), f"{chosen.name}.classify")
         self.error = "relative" if isinstance(chosen, (ms.Crossing, ms.Period, ms.FirstEvent)) else "absolute"
@@ -153,8 +157,9 @@ class OdeReference:
         return y
 
     def point(self, row, rtol):
-        """The engine's p of a parameter row after the model's classify and prepare, or None
-        where either refuses the point."""
+        """The engine's p of a parameter row after the model's classify and prepare, the
+        measurement's classify and its System's prepare (run just before the measurement, as the
+        engine's), or None where one of them refuses the point."""
         from .. import status as st
 
         p = np.concatenate([np.asarray(row, dtype=np.float64)[:len(self.model.params)], self._settings,
@@ -164,6 +169,8 @@ class OdeReference:
         if self._prepare is not None and self._prepare(p, rtol) != st.OK:
             return None
         if self._m_classify is not None and self._m_classify(p) != st.OK:
+            return None
+        if self._system and "prepare" in self._fn and self._fn["prepare"](p, rtol) != st.OK:
             return None
         return p
 
@@ -210,6 +217,21 @@ class OdeReference:
                          **self._jac_kw(p, method), **kw)
 
     def _first_event(self, p, method, rtol, atol):
+        """One pass; where the measurement declares ``refine``, its factor f decides as in the engine:
+        f <= 1 the value stands, f not finite NaN (ILL_CONDITIONED), else a second pass from the start
+        at rtol / f, atol / f gives the value (both passes counted)."""
+        value, nfev, steps = self._event_pass(p, method, rtol, atol)
+        if "refine" not in self._fn or not math.isfinite(value):
+            return value, nfev, steps
+        f = self._fn["refine"](p, rtol, value)
+        if f <= 1.0:
+            return value, nfev, steps
+        if not math.isfinite(f):
+            return math.nan, nfev, steps
+        value, nfev2, steps2 = self._event_pass(p, method, rtol / f, atol / f)
+        return value, nfev + nfev2, steps + steps2
+
+    def _event_pass(self, p, method, rtol, atol):
         m = self.m
         ev = self._fn["event"]
         t_max = self._fn["t_max"](p) if "t_max" in self._fn else float(m.t_max)
@@ -348,3 +370,68 @@ def default_output(model) -> str:
         if isinstance(m, (ms.Crossing, ms.Period, ms.StateAt, ms.Extremum, ms.Floquet, ms.FirstEvent)):
             return m.name
     raise InputError(f"model {model.name!r} has no measurement this bench has a scipy version of")
+
+
+def invariant_drift(model):
+    """The drift of the quantity a model declares conserved (``OdeModel(invariant=Invariant(...))``):
+    one integration from the model's ``initial(p, y0)`` at the point ``invariant.at`` through
+    ``invariant.periods`` periods (continued from each end), by dop853 at each of ``invariant.rtols``
+    (atol = 1e-2 rtol) and, where the model declares ``accel``, by the symplectic method at its
+    ``symplectic_step(p, rtol)``; the model's own rhs and accel compiled as the engine's. Returns
+    (names, relative errors [name, period], rhs evaluations over the whole run); None without an
+    invariant. A point the model's classify or prepare refuses is an InputError (the declaration's
+    ``at`` is wrong)."""
+    from .. import status as st
+    from ..model import load
+    from ..ode import dop853, symplectic
+
+    inv = model.invariant
+    if inv is None:
+        return None
+    plain = lambda f: getattr(f, "py_func", f)  # noqa: E731 - the declaration's Python functions
+
+    def compiled(func, what):
+        return load.jitted(*load.function_ref(func, what, model.name))
+    n = len(model.states)
+    row = []
+    for q in model.params:
+        v = inv.at.get(q.name, q.default)
+        row.append(float(q.choices.index(v)) if (q.choices and isinstance(v, str)) else float(v))
+    settings = [float(inv.at.get(x.name, x.default)) for x in model.settings]
+    tail = len(model.internal) + 1 + 3 * n + n * n + 1
+    explicit = dop853.make_solver(compiled(model.rhs, "rhs"))
+    composed = (symplectic.make_solver(compiled(model.accel, "accel"), model.symplectic_order)
+                if model.accel is not None else None)
+    names, errors, costs = [], [], []
+    for rtol in inv.rtols:
+        p = np.array(row + settings + [0.0] * tail)
+        for role in ("classify", "prepare"):
+            f = getattr(model, role)
+            code = None if f is None else (plain(f)(p) if role == "classify" else plain(f)(p, rtol))
+            if code is not None and code != st.OK:
+                raise InputError(f"model {model.name!r}: its invariant's point at = {inv.at!r} is refused by its "
+                                 f"{role} (status {st.MEANINGS.get(int(code), code)}) at rtol {rtol:g}")
+        T = float(plain(inv.period)(p)) if callable(inv.period) else float(inv.period)
+        y0 = np.empty(n)
+        plain(model.initial)(p, y0)
+        e0 = plain(inv.func)(y0, p)
+        for name in ("dop853",) + (("symplectic",) if composed is not None else ()):
+            err, cost = [], 0
+            y, t = y0.copy(), 0.0
+            q, v = y0[:n // 2].copy(), y0[n // 2:].copy()
+            for k in inv.periods:  # continued from the previous end: one long integration
+                t_end = k * T
+                if name == "dop853":
+                    _, _, nr = explicit(t, y, p, t_end, rtol, rtol * 1e-2, 0.0, 10**8, dop853.workspace(n))
+                    state = y
+                else:
+                    steps = int(math.ceil((t_end - t) / float(plain(model.symplectic_step)(p, rtol))))
+                    _, _, nr = composed(t, q, v, p, t_end, steps, symplectic.workspace(n // 2))
+                    state = np.concatenate([q, v])
+                cost += nr
+                t = t_end
+                err.append(abs(plain(inv.func)(state, p) - e0) / abs(e0))
+            names.append(f"mechsweep {name}, rtol {rtol:g}")
+            errors.append(err)
+            costs.append(cost)
+    return names, np.array(errors), np.array(costs)

@@ -3,7 +3,7 @@ and its per-design function; the engine writes the chunk kernel. See docs/model-
 from ..models._spec import ExtraDim, Output, Param, Setting
 from .closed import ClosedFormModel
 from .measure import ClosedForm, Crossing, Extremum, FirstEvent, Floquet, History, Kick, Period, Recheck, StateAt, Steady, System
-from .ode import OdeModel
+from .ode import Invariant, OdeModel
 
 __all__ = ["OdeModel", "ClosedFormModel", "Param", "Setting", "Output", "ExtraDim", "Crossing", "Period", "StateAt",
-           "Extremum", "Floquet", "FirstEvent", "ClosedForm", "System", "Steady", "Kick", "History", "Recheck"]
+           "Extremum", "Floquet", "FirstEvent", "ClosedForm", "System", "Invariant", "Steady", "Kick", "History", "Recheck"]

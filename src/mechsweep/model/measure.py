@@ -621,28 +621,18 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
         N = n + n * n
         o_yp, o_fp, o_fm, o_J = n_p, n_p + n, n_p + 2 * n, n_p + 3 * n
         per_eval = 1 if has_jac else 2 * n + 1
-        if has_jac:
-            jac_code = f"""    J = p[{o_J}:{o_J + n * n}].reshape(({n}, {n}))
-    jac(t, z[:{n}], p, J)
+        # J into p[o_J:o_J + n * n] (row by row): the model's jac, or the engine's central differences
+        # of its rhs (compile._fd_jac, scratch p[o_yp:o_yp + 3 n] = y + h, f(y + h), f(y - h); its
+        # 2 n rhs calls are in per_eval, not in a counter)
+        jac_code = f"""    J = p[{o_J}:{o_J + n * n}].reshape(({n}, {n}))
+    {"jac" if has_jac else f"fd_jac{k}"}(t, z[:{n}], p, J)
 """
-        else:
-            jac_code = f"""    yp = p[{o_yp}:{o_yp + n}]
-    fp = p[{o_fp}:{o_fp + n}]
-    fm = p[{o_fm}:{o_fm + n}]
-    for j in range({n}):
-        for i in range({n}):
-            yp[i] = z[i]
-        h = 6.055454452393343e-06 * max(1.0, abs(z[j]))  # cbrt(eps)
-        up = z[j] + h
-        dn = z[j] - h
-        yp[j] = up
-        rhs(t, yp, p, fp)
-        yp[j] = dn
-        rhs(t, yp, p, fm)
-        for i in range({n}):
-            p[{o_J} + i * {n} + j] = (fp[i] - fm[i]) / (up - dn)
-"""
-        return f"""
+        fd = ""
+        if not has_jac:
+            from .compile import _fd_jac
+            assert (o_fp, o_fm) == (o_yp + n, o_yp + 2 * n)  # _fd_jac's scratch layout
+            fd = _fd_jac(f"fd_jac{k}", "rhs", n=str(n), at=str(o_yp))
+        return f"""{fd}
 O_J{k} = {o_J}
 
 
@@ -948,11 +938,12 @@ def make_shared(rhs, observe=None):
 
     @jit
     def g_on_interpolant(t, ctx):
-        t_old, h, y_old, p, work, idx, sign, level, turn, fs, expr, yt = ctx
+        t_old, h, y_old, p, work, idx, sign, level, turn, fs, expr, yt, calls = ctx
         y_at = work[Y_STAGE]  # free once the dense output is built
         interpolate((t - t_old) / h, y_old, work, y_at)
         if turn:
             rhs(t, y_at, p, fs)
+            calls[0] += 1  # the caller adds them to n_rhs
             return sign * rate_of(t, y_at, p, fs, idx, expr, h, yt)
         return sign * (y_at[idx] - level)
 
@@ -965,6 +956,7 @@ def make_shared(rhs, observe=None):
         ya = np.empty(n)
         fa = np.empty(n)
         yt = np.empty(n)
+        calls = np.zeros(1, dtype=np.int64)  # rhs calls inside a turning point's root search
         g_old = np.zeros(m)
         count = np.zeros(m)
         t_first = np.zeros(m)
@@ -1041,7 +1033,7 @@ def make_shared(rhs, observe=None):
                             n_rhs += N_DENSE
                             dense = True
                         tr = brent(t, g_old[i], t_new, g, ROOT_RTOL * abs(h),
-                                   (t, h, y, p, work, idx, s, M[i, 3], False, fa, False, yt))
+                                   (t, h, y, p, work, idx, s, M[i, 3], False, fa, False, yt, calls))
                         if tr > ta:
                             codes[i] = NO_EVENT
                             done[i] = True
@@ -1112,8 +1104,10 @@ def make_shared(rhs, observe=None):
                             dense_output(t, h, y, p, work)
                             n_rhs += N_DENSE
                             dense = True
+                        calls[0] = 0
                         tr = brent(lo, g_old[i], hi, g, ROOT_RTOL * abs(h),
-                                   (t, h, y, p, work, idx, s, 0.0, True, fa, expr, yt))
+                                   (t, h, y, p, work, idx, s, 0.0, True, fa, expr, yt, calls))
+                        n_rhs += calls[0]  # one rhs call per evaluation of the derivative
                         interpolate((tr - t) / h, y, work, ya)
                         best[i] = max(best[i], s * value_of(tr, ya, p, idx, expr))
                     g_old[i] = g

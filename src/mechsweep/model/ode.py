@@ -2,6 +2,7 @@
 writes the chunk kernel (compile.py) and the ModelSpec the runner, store and scene read."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -88,6 +89,61 @@ def worse(current, new, order):
 
 
 @dataclass(frozen=True)
+class Invariant:
+    """A quantity the model's equation conserves along undamped trajectories (e.g. the energy of a
+    conservative oscillator, or of a damped one with its damping set to zero), declared as
+    ``OdeModel(invariant=Invariant(...))``. The engine never computes it in a sweep; the
+    work-precision bench (``mechsweep bench workprecision MODEL``) reports its drift: the relative
+    error |I(t) - I(0)| / |I(0)| after each of ``periods`` periods of one long integration from the
+    model's ``initial(p, y0)``, by dop853 at each of ``rtols`` (atol = 1e-2 rtol) and, where the model
+    declares ``accel``, by the symplectic method at its ``symplectic_step(p, rtol)``.
+
+    - ``func(y, p) -> float``: plain Python (called outside any kernel) of the state and the point's
+      ``p`` laid out as the engine's (parameters, settings, internal slots after ``prepare``).
+    - ``at``: {parameter or setting name: value} of the point the drift is measured at (one where
+      the quantity is conserved, e.g. zero damping); every required parameter given, the others
+      take their defaults.
+    - ``period``: the time unit the drift is counted in, in the equation's own time (the rhs's t):
+      a number, or ``period(p) -> float`` (after ``classify`` and ``prepare`` at the first rtol).
+    - ``name``: what the quantity is, for the report ("energy").
+    - ``problem``: a one-line statement of the drift problem for the report (default: the model
+      and ``at``).
+    """
+
+    func: Callable = field(repr=False, compare=False)
+    at: object = field(default=(), compare=False)
+    period: object = field(default=1.0, repr=False, compare=False)
+    name: str = "energy"
+    periods: tuple = (1, 10, 100, 1000, 10000)
+    rtols: tuple = (1e-6, 1e-9)
+    problem: str = ""
+
+    def validate(self, model) -> None:
+        where = f"model {model.name!r}: invariant"
+        if not callable(self.func):
+            raise ValueError(f"{where}: func must be a function func(y, p) -> float (got {self.func!r})")
+        if not isinstance(self.at, dict):
+            raise ValueError(f"{where}: at must be a dict {{parameter or setting: value}} (got {self.at!r})")
+        known = [q.name for q in model.params] + [x.name for x in model.settings]
+        bad = [k for k in self.at if k not in known]
+        if bad:
+            raise ValueError(f"{where}: at names {bad}, which are not parameters or settings ({', '.join(known)})")
+        missing = [q.name for q in model.params if q.required and q.name not in self.at]
+        if missing:
+            raise ValueError(f"{where}: at does not give the required parameters {missing}")
+        if not callable(self.period) and not (isinstance(self.period, (int, float)) and math.isfinite(self.period)
+                                              and self.period > 0):
+            raise ValueError(f"{where}: period = {self.period!r}; expected a finite number > 0 or a function "
+                             "period(p)")
+        periods = tuple(self.periods)
+        if not periods or any(not (isinstance(n, int) and n > 0) for n in periods) or list(periods) != sorted(
+                set(periods)):
+            raise ValueError(f"{where}: periods = {self.periods!r}; expected increasing whole numbers > 0")
+        if not self.rtols or any(not (isinstance(r, float) and 0.0 < r < 1.0) for r in self.rtols):
+            raise ValueError(f"{where}: rtols = {self.rtols!r}; expected numbers 0 < rtol < 1")
+
+
+@dataclass(frozen=True)
 class OdeModel:
     """A model y' = rhs(t, y, p) released from ``initial(p, y0)`` at t = 0.
 
@@ -135,6 +191,8 @@ class OdeModel:
       ``ModelSpec.check``: ``given`` = {parameter: tuple of the values the scene gives it (a range
       axis: its two ends)}, the parameters the scene does not give absent; each problem a string
       "key: message" (e.g. "l3: missing; ..."). The scene is refused (InputError, exit 2) with them.
+    - ``invariant``: optional :class:`Invariant`, a quantity the equation conserves along undamped
+      trajectories (an energy); the work-precision bench reports its drift (sweeps never compute it).
 
     Methods (``solver.method``): dop853, radau, auto (dop853 with the stiffness test; a stiff point
     is integrated again by radau) and, with ``accel``, symplectic. FirstEvent measurements (and a
@@ -168,8 +226,14 @@ class OdeModel:
     recheck: object = None  # measure.Recheck: the sampled outputs integrated again at a tighter rtol
     status_order: tuple[int, ...] = ()  # most severe first: a point's status among its outputs' (see worse)
     check: Callable | None = field(default=None, repr=False)  # ModelSpec.check: the cross-parameter rules
+    invariant: Invariant | None = field(default=None, repr=False, compare=False)  # conserved when undamped
 
     def __post_init__(self):
+        if self.invariant is not None:
+            if not isinstance(self.invariant, Invariant):
+                raise ValueError(f"model {self.name!r}: invariant must be a mechsweep.model.Invariant "
+                                 f"(got {self.invariant!r})")
+            self.invariant.validate(self)
         if self.recheck is not None:
             from .measure import Recheck
             if not isinstance(self.recheck, Recheck):

@@ -22,7 +22,7 @@ import math
 from .. import status as st
 from .._jit import jit, jit_noalloc
 from ..model.measure import ClosedForm, FirstEvent
-from ..model.ode import OdeModel
+from ..model.ode import Invariant, OdeModel
 from ..special import ellipk
 from ._spec import Param, Setting
 
@@ -261,6 +261,18 @@ def relative_error(p, value, reference):
     return abs(value - reference) / abs(reference)
 
 
+def energy(y, p):
+    """The scaled equation's energy y'^2 / 2 + a y^2 / 2 + b y^4 / 4 + c y^3 / 3 (either
+    formulation): conserved along every trajectory (the oscillator is undamped)."""
+    x, v = y[0], y[1]
+    return 0.5 * v * v + 0.5 * p[IA] * x * x + 0.25 * p[IB] * x**4 + p[IC] * x**3 / 3.0
+
+
+def scaled_period(p):
+    """The period in the scaled equation's own time: T w."""
+    return period_exact(p) * p[IW]
+
+
 MODEL = OdeModel(
     name="duffing",
     description="Undamped Duffing oscillator phi'' + omega^2 phi + mu phi^3 = 0 released from rest at phi = A",
@@ -286,6 +298,9 @@ MODEL = OdeModel(
     accel=accel,
     symplectic_step=step_for,
     symplectic_order=SYMPLECTIC_ORDER,
+    # the energy drift of bench workprecision: omega = mu = A = 1 is x'' = -x/2 - x^3/2 in scaled time
+    invariant=Invariant(energy, at={"omega": 1.0, "mu": 1.0, "A": 1.0}, period=scaled_period,
+                        problem="x'' = -x/2 - x^3/2, x(0) = 1, x'(0) = 0"),
     measurements=(
         FirstEvent("period", quarter_event, t_max=horizon, value=period_from_quarter, symbol="T", unit="s",
                    long_name="period of the free oscillation"),

@@ -75,14 +75,6 @@ def exact_moment(phi, sigma, lam1, D0, L0):
     return sigma * lam1 * math.sin(phi) * (1.0 - L0 / spring_length(phi, sigma, lam1, D0))
 
 
-@jit
-def _exact_rhs(t, y, p, dydt):
-    # the scaled exact-moment equation in plain slots p = (sigma, lambda1, D0, L0, A, coef): bench
-    # workprecision's scipy reference integrates it (the model's own is exact_rhs below)
-    dydt[0] = y[1]
-    dydt[1] = -p[5] * exact_moment(p[4] * y[0], p[0], p[1], p[2], p[3])
-
-
 @jit_noalloc
 def exact_moment_slope(phi, sigma, lam1, D0, L0):
     """d/dphi of exact_moment: sigma lam1 (cos phi (1 - L0 / l) + sigma lam1 L0 sin^2 phi / l^3)."""
@@ -113,16 +105,6 @@ def _returns_through_zero(sigma, lam1, D0, L0, A):
     about phi = 0 whatever the two-term model says. Otherwise the lever stays in a well away from 0
     (or creeps to 0 forever)."""
     return abs(math.sqrt(D0) - L0) < abs(spring_length(A, sigma, lam1, D0) - L0)
-
-
-@jit
-def _point_coefficients(P, i):
-    """(status, sigma, lam1, lam2, s, k, chi, xi, A) of row i; k = R^2 c / I."""
-    sigma = spring_sign(P[i, 0])
-    lam1, lam2, s = P[i, 1], P[i, 2], P[i, 3]
-    k = P[i, 4] * P[i, 4] * P[i, 5] / P[i, 6]
-    code, chi, xi, _ = coefficients(sigma, lam1, lam2, s)
-    return code, sigma, lam1, lam2, s, k, chi, xi, P[i, 7]
 
 
 @jit_noalloc
