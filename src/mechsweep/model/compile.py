@@ -3,7 +3,7 @@
 numba's disk cache misses, in every new process, for a parallel kernel that receives a user's
 dispatcher as an argument or closes over it. So the kernel's source is generated as a module file
 in the cache folder (``<mechsweep cache>/models/mechsweep_gen_<hash>.py``) that imports the model's
-functions by module path and is compiled with ``cache=True`` (via ``_jit.pjit``). The file name
+functions by module path and is compiled with ``cache=True`` (via ``_jit.jit``). The file name
 is keyed by a hash of the model's module sources, the functions' names, the layout of ``p`` (number
 of parameters, settings, internal slots, states), the wanted measurements (with all their settings),
 the wanted closed forms and the method: a changed model or a different choice of outputs or method
@@ -13,8 +13,9 @@ take the same route.
 
 The kernel (one per choice; see docs/model-layer.md):
 
-    for each block of BLOCK points (prange; points of a block strided over the grid):
-        scratch of the block: p, y, the method's workspace(s)
+    for each of T threads (Threaded: numba.get_num_threads() Python threads, nogil; the points strided
+    over the grid, first = thread, step = T):
+        scratch of the thread: p, y, the method's workspace(s)
         for each point: p = (parameters, settings, internal slots = 0, scratch = 0)
             status = classify(p)                         -> non-OK: every output NaN, next point
             closed forms that need no measurement        (only those wanted or needed: need[j])
@@ -31,6 +32,7 @@ import os
 import sys
 import tempfile
 import threading
+from concurrent.futures import ThreadPoolExecutor, wait
 from pathlib import Path
 
 from .. import _jit
@@ -43,7 +45,7 @@ _LOADED: dict[str, object] = {}  # generated modules imported in this process (l
 _LOAD_LOCK = threading.Lock()
 _TMP: list[str] = []
 
-BLOCK = 16  # points per scratch allocation inside the parallel loop
+BLOCK = 16  # the fewest points a thread of Threaded is given (fewer points: fewer threads)
 # kernel_for's default route where model/lanes.py applies: True the SIMD-lane kernel, False one point at a
 # time, None (the default) the lane kernel only where it pays: for a run of at least LANES_FROM_POINTS
 # points, or when it is compiled already (in this process or in the disk cache). The results are bitwise
@@ -530,12 +532,13 @@ def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
               if fd_count else "")
     lines.append(f"""
 
-@pjit
-def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
+@jit
+def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs, first, step):
+    # the points first, first + step, ... (strided: cost varies along the grid); compile.Threaded runs
+    # one such stride per thread (nogil), as a prange would, without numba's parallel compile
     n = P.shape[0]
-    n_blocks = (n + BLOCK - 1) // BLOCK
-    for blk in prange(n_blocks):{''.join(scratch)}
-        for i in range(blk, n, n_blocks):  # strided: prange splits blocks statically, and cost varies along the grid
+    if first < n:{''.join(scratch)}
+        for i in range(first, n, step):
             if status[i] != st.OK:
                 continue
             for j in range(NP):
@@ -770,10 +773,67 @@ def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes, point
     name = name_of(lane_rhs)
     if name in _KERNELS:
         return name, passed
-    source = (lane_kernels.kernel_source(model, chosen, refs, origin, closed, lane_rhs) if lane_rhs
-              else kernel_source(model, chosen, refs, origin, shared, closed, method, direct))
-    _KERNELS[name] = load_generated(name, source).kernel
+    if lane_rhs:
+        _KERNELS[name] = load_generated(name, lane_kernels.kernel_source(model, chosen, refs, origin, closed,
+                                                                         lane_rhs)).kernel
+    else:
+        _KERNELS[name] = Threaded(load_generated(name, kernel_source(model, chosen, refs, origin, shared, closed,
+                                                                       method, direct)).kernel)
     return name, passed
+
+
+_POOL: list[ThreadPoolExecutor] = []
+_POOL_LOCK = threading.Lock()
+
+
+def _pool() -> ThreadPoolExecutor:
+    with _POOL_LOCK:
+        if not _POOL:
+            import numba
+            _POOL.append(ThreadPoolExecutor(max_workers=max(1, numba.config.NUMBA_NUM_THREADS - 1),
+                                            thread_name_prefix="mechsweep-kernel"))
+        return _POOL[0]
+
+
+class Threaded:
+    """The one-point kernel ``kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs)``
+    on numba.get_num_threads() threads: the generated serial ``kernel(..., first, step)`` (nogil) once per
+    thread, thread t computing the points t, t + T, ... (strided: cost varies along the grid), the calling
+    thread one of them. It was a ``prange`` over blocks of points (``pjit``); numba's parallel compile of
+    that loop (parfor passes, the gufunc and its two wrappers, each linking and optimising the whole
+    call tree again) cost about 1.7 s of the quickstart's 12.3 s of compile CPU (2026-11-24, docs/
+    performance-startup.md). Each point is computed alone (its scratch reset), so the results are the
+    same whatever the split. Anything else (``py_func``, ``stats``, numba's cache) is the serial kernel's."""
+
+    def __init__(self, serial):
+        self.serial = serial
+
+    def __getattr__(self, name):
+        return getattr(self.serial, name)
+
+    def __call__(self, P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
+        import numba
+
+        args = (P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs)
+        n = P.shape[0]
+        threads = max(1, min(numba.get_num_threads(), (n + BLOCK - 1) // BLOCK))
+        if threads == 1:
+            self.serial(*args, 0, 1)
+            return
+        futures = [_pool().submit(self.serial, *args, t, threads) for t in range(1, threads)]
+        try:
+            self.serial(*args, 0, threads)
+        finally:  # never return (nor raise, e.g. KeyboardInterrupt) while a thread still writes the arrays
+            interrupted = None
+            while not all(f.done() for f in futures):
+                try:
+                    wait(futures)
+                except BaseException as e:  # noqa: BLE001 - raised once every thread has finished
+                    interrupted = e
+            if interrupted is not None:
+                raise interrupted
+        for f in futures:
+            f.result()
 
 
 def load_generated(name: str, source: str):
