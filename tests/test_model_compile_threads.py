@@ -61,7 +61,7 @@ def test_kernel_for_the_same_objects_reads_no_model_source_again(monkeypatch):
 
 def test_one_point_kernel_is_serial_code_split_over_python_threads(monkeypatch, small_duffing):
     """The one-point kernel is compiled as serial code (numba's parallel compile of a prange cost about
-    1.7 s of the quickstart's cold compile) and compile.Threaded runs it on numba.get_num_threads() Python
+    2.3 s of the quickstart's cold compile) and compile.Threaded runs it on numba.get_num_threads() Python
     threads, each a stride of the points: the results are bitwise the same for any split (1 or 3 threads,
     the latter uneven over 63 points)."""
     import numba

@@ -804,8 +804,8 @@ class Threaded:
     thread, thread t computing the points t, t + T, ... (strided: cost varies along the grid), the calling
     thread one of them. It was a ``prange`` over blocks of points (``pjit``); numba's parallel compile of
     that loop (parfor passes, the gufunc and its two wrappers, each linking and optimising the whole
-    call tree again) cost about 1.7 s of the quickstart's 12.3 s of compile CPU (2026-11-24, docs/
-    performance-startup.md). Each point is computed alone (its scratch reset), so the results are the
+    call tree again) cost about 2.3 s of the quickstart's 11.2 s of compile CPU (2026-11-24, `bench
+    startup --only compile`, docs/performance-startup.md). Each point is computed alone (its scratch reset), so the results are the
     same whatever the split. Anything else (``py_func``, ``stats``, numba's cache) is the serial kernel's."""
 
     def __init__(self, serial):
