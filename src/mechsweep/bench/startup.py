@@ -376,9 +376,10 @@ def integrator_compile(repeats: int) -> list[dict]:
         rows.append(json.loads(proc.stdout.strip().splitlines()[-1]))
     return rows
 
-def compile_child(scene: Path, folder: Path) -> dict:
-    """COMPILE_CHILD on ``scene`` in a fresh process with an empty JIT cache (its sources: PYTHONPATH)."""
-    env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(folder / "cache-compile"))
+def compile_child(scene: Path, folder: Path, i: int = 0) -> dict:
+    """COMPILE_CHILD on ``scene`` in a fresh process with an empty JIT cache of its own (repetition ``i``;
+    its sources: PYTHONPATH)."""
+    env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(folder / f"cache-compile-{i}"))
     proc = subprocess.run([sys.executable, "-c", COMPILE_CHILD, str(scene), str(folder / "compile.h5")], env=env,
                           capture_output=True, text=True)
     if proc.returncode != 0:
@@ -591,8 +592,8 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
                 print(f"    {mode:<5} {_spread([n / r[0] for r in rows], 'points/s', fmt=',.0f'):<44} "
                       f"{_spread([n / r[1] for r in rows], 'points per CPU s', fmt=',.0f')}")
         if "compile" in parts:
-            for _ in range(repeats):
-                compile_table(compile_child(scene_path, tmp), top=60)
+            for i in range(repeats):
+                compile_table(compile_child(scene_path, tmp, i), top=60)
         if "breakdown" in parts:
             print("  where the time goes:")
             breakdown(scene_path, tmp, repeats)
