@@ -57,3 +57,30 @@ def test_kernel_for_the_same_objects_reads_no_model_source_again(monkeypatch):
     assert mc.kernel_for(osc, chosen) is first and not reads
     monkeypatch.setattr(mc, "_KERNELS", {})
     assert mc.kernel_for(osc, chosen) is not None and reads
+
+
+def test_one_point_kernel_is_serial_code_split_over_python_threads(monkeypatch, small_duffing):
+    """The one-point kernel is compiled as serial code (numba's parallel compile of a prange cost about
+    2.3 s of the quickstart's cold compile) and compile.Threaded runs it on numba.get_num_threads() Python
+    threads, each a stride of the points: the results are bitwise the same for any split (1 or 3 threads,
+    the latter uneven over 63 points)."""
+    import numba
+    import numpy as np
+
+    from mechsweep.grid import ParameterMatrix
+    from mechsweep.runner import evaluate_rows
+    from mechsweep.scene import load_scene
+
+    monkeypatch.setattr(mc, "USE_LANES", False)
+    scene = load_scene(small_duffing)
+    P = ParameterMatrix(scene)(0, scene.n_points)
+    got = []
+    for threads in (1, 3):
+        monkeypatch.setattr(numba, "get_num_threads", lambda: threads)
+        got.append(evaluate_rows(scene, P))
+    (one, s1, a1, b1), (three, s3, a3, b3) = got
+    assert (s1 == s3).all() and (a1 == a3).all() and (b1 == b3).all() and (a1 > 0).any()
+    for name in one:
+        assert np.array_equal(one[name], three[name], equal_nan=True), name
+    kernels = [k for k in mc._KERNELS.values() if isinstance(k, mc.Threaded)]
+    assert kernels and not any(k.targetoptions.get("parallel") for k in kernels)

@@ -192,6 +192,23 @@ def test_rhs_raising_at_a_point_the_probe_did_not_see_is_a_status(in_tmp, capsys
     np.testing.assert_allclose(ds["x_at_1"].values[[0, 2]], np.cos([1.0, 2.0]), atol=1e-9)
 
 
+def test_guards_inline_a_users_function_only_when_it_has_no_raise_statement():
+    """The one-point kernel's guards compile the model's functions into themselves (load.inlined; a
+    compile of its own less per function), except one with a raise statement of its own: numba's try
+    does not catch a raise inlined into its body (the test above then crashed the run). Cheap: no
+    compile."""
+    from mechsweep.model import load
+    from mechsweep.models import duffing
+
+    module = load.import_module(load._module_name(FILE.resolve()), str(FILE.resolve()))
+    rhs = load.function_ref(module.OSC.rhs, "rhs", module.OSC.name)  # raises for w > 2.5
+    initial = load.function_ref(module.OSC.initial, "initial", module.OSC.name)
+    assert load.inlined(*rhs) is load.jitted(*rhs)
+    assert load.inlined(*initial).targetoptions.get("inline") == "always"
+    quarter = load.function_ref(duffing.quarter_event, "event0", "duffing")
+    assert load.inlined(*quarter).targetoptions.get("inline") == "always"
+
+
 @pytest.mark.slow  # a worker process and its JIT load: ~15-25 s on 2 cores
 def test_dask_worker_imports_the_user_model_file_relative_to_the_scene(tmp_path, monkeypatch):
     """The worker gets the scene text (a model path relative to the scene) and the scene's absolute

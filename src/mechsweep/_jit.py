@@ -56,7 +56,7 @@ from pathlib import Path
 import numba
 from numba.core import config as _numba_config
 
-__all__ = ["jit", "jit_noalloc", "jit_inline", "pjit", "prange", "literally", "compile_time_switch", "cache_dir"]
+__all__ = ["jit", "jit_noalloc", "jit_inline", "jit_into_caller", "pjit", "prange", "literally", "compile_time_switch", "cache_dir"]
 
 
 
@@ -177,6 +177,14 @@ def jit_inline(func):
     """Compile a small scalar helper that numba inlines into every numba caller (still
     callable from Python); no reference counting, so it must not allocate."""
     return _decorate(func, _nrt=False, inline="always")
+
+
+def jit_into_caller(func):
+    """Compile a function that numba inlines into every numba caller (``inline="always"`` at numba IR
+    level), with reference counting (it may allocate): the one-point kernel's guards take the model's
+    functions so (model/load.py: inlined), each typed and lowered inside its guard instead of compiled
+    as a function of its own that the guard links. Python callers get it compiled on its own."""
+    return _decorate(func, inline="always")
 
 
 def pjit(func):

@@ -98,10 +98,11 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
     b.add_argument("--repeats", type=int, default=3, help="measurements per figure, at least 3 (default 3)")
     b.add_argument("--scene", default="sweeps/quickstart.toml",
                    help="the quickstart scene (default sweeps/quickstart.toml)")
-    b.add_argument("--only", choices=("warm", "quickstart", "scaling", "breakdown", "routes"), nargs="+", default=None,
+    b.add_argument("--only", choices=("warm", "quickstart", "scaling", "breakdown", "routes", "compile"), nargs="+", default=None,
                    help="measure only these parts (default: warm quickstart scaling; breakdown: where the time "
                         "goes, by function: the file route's fixed costs, chunk launches, a cold compile; routes: "
-                        "the cold compile and warm speed of the lane and one-point kernels)")
+                        "the cold compile and warm speed of the lane and one-point kernels; compile: the scene's cold "
+                        "compile by function, LLVM against numba's own work, in --repeats fresh processes)")
     b.set_defaults(func=run_startup)
     b = bsub.add_parser("quickstart", help="time the quickstart (run + plot) in fresh processes, cold and warm JIT cache")
     b.add_argument("--scene", default="sweeps/quickstart.toml")

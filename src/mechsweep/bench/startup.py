@@ -18,7 +18,9 @@ Each figure is printed with its target beside it (issue 15, goals 2, 3 and 5), a
   the measurement);
 - ``--only routes``: the cold compile of the quickstart's kernels by route (SIMD lanes, one point at
   a time) in fresh processes with an empty JIT cache each, alternated, and both warm kernels' points/s
-  side by side: what model/compile.py's LANES_FROM_POINTS is set from.
+  side by side: what model/compile.py's LANES_FROM_POINTS is set from;
+- ``--only compile``: the scene's cold compile by function (numba's compile events in a fresh process with
+  an empty JIT cache; each function's own time split into LLVM's work and numba's own), ``repeats`` times.
 """
 from __future__ import annotations
 
@@ -180,21 +182,34 @@ def _scaling_verdict(rows: list[dict]) -> None:
 
 
 COMPILE_CHILD = """
-import json, sys, time
-from numba.core import event
+import json, sys, time  # CPU time of the compiling thread: less blurred by other processes than wall
+from numba.core import codegen, event
 rows, stack = [], []
 class Listener(event.Listener):
     def on_start(self, ev):
-        stack.append([time.perf_counter(), 0.0])  # start, time of the compiles nested in this one
+        stack.append([time.thread_time(), 0.0, 0.0, 0.0])  # start, nested compiles, own LLVM: finalize, function passes
     def on_end(self, ev):
         d = ev.data["dispatcher"]
-        start, nested = stack.pop()
-        took = time.perf_counter() - start
+        start, nested, fin, fpass = stack.pop()
+        took = time.thread_time() - start
         if stack:
             stack[-1][1] += took
         rows.append((took, took - nested, d.py_func.__module__,
-                     d.py_func.__module__.split(".")[-1] + "." + d.py_func.__qualname__.split(".<locals>.")[-1]))
+                     d.py_func.__module__.split(".")[-1] + "." + d.py_func.__qualname__.split(".<locals>.")[-1],
+                     fin, fpass))
 event.register("numba:compile", Listener())
+def timed(name, slot):  # LLVM's share of the innermost compile: a library's finalize (linking its callees'
+    original = getattr(codegen.CPUCodeLibrary, name)  # modules, the module passes, machine code), function passes
+    def wrapper(self, *a, **k):
+        t = time.thread_time()
+        try:
+            return original(self, *a, **k)
+        finally:
+            if stack:
+                stack[-1][slot] += time.thread_time() - t
+    setattr(codegen.CPUCodeLibrary, name, wrapper)
+timed("finalize", 2)
+timed("_optimize_functions", 3)
 import mechsweep
 ds = mechsweep.run(sys.argv[1], output=sys.argv[2], progress=False)  # the dataset the plot breakdown draws
 print(json.dumps({"rows": sorted(rows, reverse=True), "compile_time_s": ds.attrs["compile_time_s"]}))
@@ -361,6 +376,33 @@ def integrator_compile(repeats: int) -> list[dict]:
         rows.append(json.loads(proc.stdout.strip().splitlines()[-1]))
     return rows
 
+def compile_child(scene: Path, folder: Path, i: int = 0) -> dict:
+    """COMPILE_CHILD on ``scene`` in a fresh process with an empty JIT cache of its own (repetition ``i``;
+    its sources: PYTHONPATH)."""
+    env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(folder / f"cache-compile-{i}"))
+    proc = subprocess.run([sys.executable, "-c", COMPILE_CHILD, str(scene), str(folder / "compile.h5")], env=env,
+                          capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"compile breakdown failed:\n{proc.stderr[-2000:]}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def compile_table(result: dict, top: int = 15) -> None:
+    """Print COMPILE_CHILD's result: every function numba compiled, the longest first, with its own time
+    (without the compiles nested in it) split into LLVM (its libraries' finalize: linking the callees'
+    modules, the module passes, machine code; and the function passes) and numba's Python (typing,
+    lowering, the parfor passes, wrappers, the cache), and the totals."""
+    rows = result["rows"]
+    print(f"  cold compile: {result['compile_time_s']:.2f} s wall (the run's compile phase), {len(rows)} functions "
+          f"compiled; CPU s of the compiling thread, the longest {top}: with callees / own = LLVM finalize + LLVM "
+          "function passes + numba")
+    for took, own, _, name, fin, fpass in rows[:top]:
+        print(f"    {took:7.2f} / {own:5.2f} = {fin:5.2f} + {fpass:5.2f} + {own - fin - fpass:5.2f}  {name}")
+    own, fin, fpass = (sum(r[i] for r in rows) for i in (1, 4, 5))
+    print(f"    all functions: own {own:.2f} = LLVM finalize {fin:.2f} + LLVM function passes {fpass:.2f} + numba "
+          f"{own - fin - fpass:.2f}")
+
+
 def breakdown(scene: Path, folder: Path, repeats: int) -> None:
     """Where the time goes: the file route's fixed costs by function (10^3 points, warm), chunk
     launches (10^4 points in 1 or 20 calls), the compile of ``scene`` by function (numba's
@@ -434,12 +476,9 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
     if proc.returncode != 0:
         raise RuntimeError(f"compile breakdown failed:\n{proc.stderr[-2000:]}")
     result = json.loads(proc.stdout.strip().splitlines()[-1])
-    print(f"  cold compile of {scene.name}: {result['compile_time_s']:.1f} s, {len(result['rows'])} functions "
-          "compiled; the longest (s, including what each calls):")
-    for seconds, _, _, name in result["rows"][:15]:
-        print(f"    {seconds:7.2f}  {name}")
+    compile_table(result)
     by_module = collections.defaultdict(float)
-    for _, own, module, _ in result["rows"]:
+    for _, own, module, *_ in result["rows"]:
         by_module["generated kernel module" if ".mechsweep_gen_" in "." + module else module] += own
     print("  the same compile by module (s, each function without the compiles nested in it; numba's own "
           "implementations under numba.*):")
@@ -468,12 +507,13 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
 def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.toml",
          parts: tuple[str, ...] = ("warm", "quickstart", "scaling")) -> dict:
     """Measure and print ``parts``: "warm", "quickstart", "scaling" (the default), "breakdown"
-    (where the time goes; see :func:`breakdown`), "routes" (:func:`route_compile`, :func:`route_speed`)."""
+    (where the time goes; see :func:`breakdown`), "routes" (:func:`route_compile`, :func:`route_speed`),
+    "compile" (the scene's cold compile by function, ``repeats`` fresh processes: :func:`compile_table`)."""
     from . import _args
 
     repeats = _args.count("--repeats", repeats, 3, 100)
     scene_path = Path(scene).resolve()
-    if "quickstart" in parts or "breakdown" in parts or "routes" in parts:
+    if "quickstart" in parts or "breakdown" in parts or "routes" in parts or "compile" in parts:
         if not scene_path.is_file():
             raise _args.InputError(f"--scene {scene} does not exist (run from the repository root, or give its path)")
         from mechsweep.scene import load_scene
@@ -551,6 +591,9 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
             for mode, rows in speed.items():
                 print(f"    {mode:<5} {_spread([n / r[0] for r in rows], 'points/s', fmt=',.0f'):<44} "
                       f"{_spread([n / r[1] for r in rows], 'points per CPU s', fmt=',.0f')}")
+        if "compile" in parts:
+            for i in range(repeats):
+                compile_table(compile_child(scene_path, tmp, i), top=60)
         if "breakdown" in parts:
             print("  where the time goes:")
             breakdown(scene_path, tmp, repeats)

@@ -84,6 +84,37 @@ def jitted(module: str, path: str, qualname: str):
     return _JITTED[key]
 
 
+_INLINED: dict[tuple, object] = {}
+
+
+def inlined(module: str, path: str, qualname: str):
+    """The user function of :func:`jitted`, compiled into each numba caller (numba IR inlining,
+    _jit.jit_into_caller): the one-point kernel's guards take it so (compile.module_prologue), which
+    saves numba a compile of its own per function (typing, lowering, an LLVM module optimised and
+    turned into machine code, then linked and optimised again in the guard). Called from Python it
+    runs as jitted's. A function with a ``raise`` (or ``assert``) statement of its own stays jitted's:
+    numba's ``try`` in the guard does not catch a raise inlined into its body (measured: the exception
+    escaped the kernel), while an exception raised by a function it calls is caught either way."""
+    key = (module, path, qualname)
+    if key not in _INLINED:
+        func = jitted(module, path, qualname)
+        _INLINED[key] = func if _raises(func.py_func) else _jit.jit_into_caller(func.py_func)
+    return _INLINED[key]
+
+
+def _raises(func) -> bool:
+    """Whether the function's own code (or code nested in it) has a raise or assert statement."""
+    import dis
+
+    stack = [func.__code__]
+    while stack:
+        code = stack.pop()
+        if any(ins.opname in ("RAISE_VARARGS", "RERAISE") for ins in dis.get_instructions(code)):
+            return True
+        stack.extend(c for c in code.co_consts if isinstance(c, types.CodeType))
+    return False
+
+
 _FOREIGN = ("mechsweep", "numba", "numpy", "scipy")  # packages whose numba functions are left as they are
 _HELPERS: dict[int, object] = {}  # id(user's dispatcher) -> the same function compiled with the engine's options
 
