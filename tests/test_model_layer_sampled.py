@@ -248,7 +248,8 @@ def test_a_sampled_user_model_runs_and_stores_its_history(in_tmp):
 @pytest.mark.slow  # compiles the lane solver for two models (about a minute cold)
 def test_lanes_give_the_one_trajectory_results_bitwise(forced, decay, monkeypatch):
     """User models that write no lane rhs (the engine rewrites theirs, model/lanes.py): FORCED's
-    Steady and History over three forcing periods (one lane group each), DECAY's Kick, Steady and
+    Steady and History over three forcing periods (one lane group each) and five periods of one
+    point each (too few for lanes: one trajectory at a time), DECAY's Kick, Steady and
     History (with value/time_value transforms) in DOP853 lanes and one trajectory at a time: the
     same values, status, n_steps and n_rhs, bitwise."""
     from mechsweep.model import trajectory
@@ -260,12 +261,12 @@ def test_lanes_give_the_one_trajectory_results_bitwise(forced, decay, monkeypatc
     n = 70  # more points than lanes
     P = np.column_stack([rng.uniform(0.5, 2, n), rng.uniform(0.05, 0.3, n), rng.uniform(-1, 1, n),
                          rng.choice([0.5, 1.3, 4.0], n)])
+    P[::14, 3] = [0.7, 0.9, 2.2, 3.1, 5.0]  # periods of one point each: one trajectory at a time among the lanes
     P2 = np.column_stack([rng.uniform(-0.3, 0.6, 40), rng.uniform(0.5, 2.0, 40)])  # decays and grows
     cases = [(forced, P, WANTED, dict(rtol=1e-9, atol=1e-12, horizon_periods=50.0)),
              (decay, P2, ("stable", "stable_settling", "stable_final", "y_hist", "kick_rel", "kick_rel_settling",
                           "peak_rel", "y_rel"), dict(rtol=1e-9, atol=1e-12))]
     for spec, points, wanted, kw in cases:
-        assert trajectory.lane_rhs_for(spec, "dop853") is not None
         res = []
         for use in (False, True):
             monkeypatch.setattr(trajectory, "USE_LANES", use)

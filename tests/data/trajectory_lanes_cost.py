@@ -8,7 +8,7 @@ cold compile. speed: warm caches (the default cache folder), ``points`` points (
 Omega 6..60, horizon 300 revolutions, rtol 1e-8, as tests/data/autobalancer_layer_speed.py),
 alternating the routes in one process, points per second. model: autobalancer (stable_sim and
 residual_amplitude, no re-integration) or forced (tests/user_models/forced.py FORCED, amp and
-x_hist, 200 periods)."""
+x_hist, 200 periods, four forcing frequencies)."""
 import json
 import os
 import subprocess
@@ -28,7 +28,9 @@ def problem(model: str, n: int, short: bool):
 
     if model == "forced":
         spec = load.resolve(f"{HERE.parent / 'user_models' / 'forced.py'}:FORCED")
-        P = np.column_stack([np.full(n, 1.0), np.full(n, 0.1), np.full(n, 1.0), np.linspace(0.3, 3.0, n)])
+        # four forcing frequencies (four lane groups), the amplitude varied within each
+        P = np.column_stack([np.full(n, 1.0), np.full(n, 0.1), np.linspace(0.5, 2.0, n),
+                             np.repeat(np.linspace(0.3, 3.0, 4), -(-n // 4))[:n]])
         return spec, P, ("amp", "x_hist"), dict(method="dop853", rtol=1e-8, atol=1e-10,
                                                 horizon_periods=20.0 if short else 200.0)
     sys.path.insert(0, str(HERE))

@@ -792,6 +792,11 @@ LANE_SAMPLES_BYTES = 256 * 2**20
 # ("Lanes"; tests/data/trajectory_lanes_cost.py).
 USE_LANES: bool | None = None
 LANES_FROM_POINTS = 1000
+# The lanes of a queue share one forcing period (one t_eval): the points of a period shared by fewer
+# than LANE_GROUP_MIN points (a sweep of the forcing frequency in physical time: each its own) are
+# integrated one trajectory at a time (a round of 32 lanes with one active one costs more than ten
+# scalar steps; docs/model-layer.md, "Lanes").
+LANE_GROUP_MIN = 16
 
 
 def _lanes_pay(mod, points: int) -> bool:
@@ -828,8 +833,10 @@ def lane_count(n_samples: int, model) -> int:
 
 def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs,
                rtol=None):
-    """setup in parallel, then per forcing period the points' queues through the lanes, one queue
-    per thread (numba.get_num_threads() Python threads running the nogil queue)."""
+    """setup, then per forcing period the points' queues through the lanes, one queue per thread
+    (numba.get_num_threads() Python threads running the nogil queue); the points of periods shared
+    by fewer than LANE_GROUP_MIN points by the one-trajectory kernel (from their status before
+    setup: it runs classify and prepare again)."""
     import numba
 
     from .compile import layout
@@ -841,10 +848,19 @@ def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, raw
     Z0 = np.zeros((n, n_s))
     TT = np.full(n, np.nan)
     rtol = solver.rtol if rtol is None else rtol
+    code0, mstat0 = code.copy(), mstat.copy()
     mod.setup(P, S, rtol, PF, Z0, TT, code, mstat)
     lanes = lane_count(s.size, model)
     ok = np.isfinite(TT)  # the points setup left to integrate
-    for T in np.unique(TT[ok]):
+    periods, counts = np.unique(TT[ok], return_counts=True)
+    few = ok & np.isin(TT, periods[counts < LANE_GROUP_MIN])
+    if few.any():  # forcing periods shared by too few points to fill lanes: one trajectory at a time
+        i = np.flatnonzero(few)
+        sub = [a[i] for a in (vals, hist, rawv, rawh, code0, mstat0, n_steps, n_rhs)]
+        mod.kernel(np.ascontiguousarray(P[i]), S, s, bits, K, hoff, rtol, solver.atol, solver.max_steps, *sub)
+        for a, b in zip((vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs), sub):
+            a[i] = b
+    for T in periods[counts >= LANE_GROUP_MIN]:
         idx = np.flatnonzero(ok & (TT == T)).astype(np.int64)
         te = T * s  # the same products as the one-trajectory kernel's te[j] = T * s[j]
         n_queues = max(1, min(numba.get_num_threads(), -(-idx.size // max(1, lanes // 2))))
