@@ -8,7 +8,8 @@ cold compile. speed: warm caches (the default cache folder), ``points`` points (
 Omega 6..60, horizon 300 revolutions, rtol 1e-8, as tests/data/autobalancer_layer_speed.py),
 alternating the routes in one process, points per second. model: autobalancer (stable_sim and
 residual_amplitude, no re-integration) or forced (tests/user_models/forced.py FORCED, amp and
-x_hist, 200 periods, four forcing frequencies)."""
+x_hist, 200 periods, four forcing frequencies), or forced_distinct (every point its own forcing
+frequency; ``--groups-of-one``: lanes for groups of one point too, trajectory.LANE_GROUP_MIN = 1)."""
 import json
 import os
 import subprocess
@@ -26,11 +27,12 @@ def problem(model: str, n: int, short: bool):
     from mechsweep.model import load
     from mechsweep.models import MODELS
 
-    if model == "forced":
+    if model.startswith("forced"):
         spec = load.resolve(f"{HERE.parent / 'user_models' / 'forced.py'}:FORCED")
-        # four forcing frequencies (four lane groups), the amplitude varied within each
-        P = np.column_stack([np.full(n, 1.0), np.full(n, 0.1), np.linspace(0.5, 2.0, n),
-                             np.repeat(np.linspace(0.3, 3.0, 4), -(-n // 4))[:n]])
+        # four forcing frequencies (four lane groups), the amplitude varied within each; forced_distinct:
+        # every point its own frequency (its own period: too few points for lanes)
+        W = np.repeat(np.linspace(0.3, 3.0, 4), -(-n // 4))[:n] if model == "forced" else np.linspace(0.3, 3.0, n)
+        P = np.column_stack([np.full(n, 1.0), np.full(n, 0.1), np.linspace(0.5, 2.0, n), W])
         return spec, P, ("amp", "x_hist"), dict(method="dop853", rtol=1e-8, atol=1e-10,
                                                 horizon_periods=20.0 if short else 200.0)
     sys.path.insert(0, str(HERE))
@@ -81,6 +83,10 @@ def cold(model: str) -> None:
 
 
 def speed(model: str, n: int, rounds: int = 3) -> None:
+    from mechsweep.model import trajectory
+
+    if model == "forced_distinct" and "--groups-of-one" in sys.argv:  # lanes even for a period of one point
+        trajectory.LANE_GROUP_MIN = 1
     spec, P, wanted, kw = problem(model, n, False)
     ref = evaluate(spec, P, wanted, kw, False)
     lan = evaluate(spec, P, wanted, kw, True)
@@ -100,9 +106,10 @@ if __name__ == "__main__":
     if sys.argv[1:2] == ["child"]:
         child(sys.argv[2], sys.argv[3])
         sys.exit(0)
-    what = sys.argv[1] if len(sys.argv) > 1 else "both"
-    n = int(sys.argv[2]) if len(sys.argv) > 2 else 256
-    model = sys.argv[3] if len(sys.argv) > 3 else "autobalancer"
+    args = [a for a in sys.argv if not a.startswith("--")]
+    what = args[1] if len(args) > 1 else "both"
+    n = int(args[2]) if len(args) > 2 else 256
+    model = args[3] if len(args) > 3 else "autobalancer"
     if what in ("cold", "both"):
         cold(model)
     if what in ("speed", "both"):

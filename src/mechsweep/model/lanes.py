@@ -1,4 +1,5 @@
-"""SIMD lanes for the layer's first-event kernels: LANES points integrated side by side per thread.
+"""SIMD lanes for the layer's first-event kernels: LANES points integrated side by side per thread;
+and the lane form of a model's rhs, which the sampled-trajectory lanes (trajectory.py) use too.
 
 Where it applies (``applies``): one measurement that integrates on its own (a FirstEvent, or a lone
 first Crossing) without a System or refine, method dop853, and a model ``rhs`` the engine can
@@ -10,9 +11,13 @@ parsed and rewritten so that ``y[i]``, ``p[k]``, ``dydt[i]`` and ``t`` become ``
 ``P[k, l]``, ``dZ[i, l]`` and ``tau[l]`` inside one loop over the lanes ``l`` (state laid out
 [state, lane], lanes innermost), which LLVM vectorises (no call but math functions, so nothing
 stops it). Module constants the rhs reads (e.g. duffing's slot numbers) are written in as their
-values. An rhs the rewrite does not cover (a call to another function, a ``raise``, ``y`` or ``p``
-used other than by a scalar index, a write into y or p, a ``while``, an early ``return``) is not
-laned: the model keeps the one-at-a-time route (no error, same results). The rewrite is the same
+values. A plain module-level function called as a whole statement is inlined first (_Flatten:
+arguments bound in order, array arguments and slices of them mapped onto y, p, dydt with their
+offsets), special.sincos becomes sincos_reduced plus a second pass with sincos where any lane is
+beyond its range, and with many dydt rows the rows copied from the inputs get a loop of their own
+(LLVM's aliasing checks). An rhs the rewrite does not cover (a call inside an expression, a
+``raise``, ``y`` or ``p`` used other than by a scalar index, a write into y or p, a ``while``, an
+early ``return``) is not laned: the model keeps the one-at-a-time route (no error, same results). The rewrite is the same
 per-lane arithmetic in the same order as the scalar rhs (numba's fastmath is off, so LLVM neither
 reassociates nor fuses multiply-adds), so each lane computes the scalar rhs's floats.
 
