@@ -196,6 +196,8 @@ def test_lane_rhs_inlines_helper_functions_called_as_statements():
     assert "_lp[3, _ll]" in src and "_lp[2, _ll]" in src  # q[2] and q[1] of p[OFF:]
     _per_lane(mod.inline_rhs, src, 2, 4, np.random.default_rng(1))
     assert lanes.lane_rhs_source(mod.uncovered_rhs) is None
+    for f in (mod.recursive_rhs, mod.tail_rhs):  # inlined without end: refused, no RecursionError
+        assert lanes.lane_rhs_source(f) is None
 
 
 def _autobalancer_cases(rng):

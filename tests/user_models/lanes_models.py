@@ -92,3 +92,26 @@ def uncovered_rhs(t, y, p, dydt):
     dydt[0] = y[1]
     a = looping(y[0])
     dydt[1] = -a
+
+
+def recursive(x, k):
+    y = x
+    if k > 0:
+        y = recursive(x, k - 1)
+    return y
+
+
+def recursive_rhs(t, y, p, dydt):
+    dydt[0] = y[1]
+    a = recursive(y[0], 2)
+    dydt[1] = -a
+
+
+def tail(x, k):
+    return tail(x, k - 1)
+
+
+def tail_rhs(t, y, p, dydt):
+    dydt[0] = y[1]
+    a = tail(y[0], 2)
+    dydt[1] = -a

@@ -206,6 +206,8 @@ class _Rewrite(ast.NodeTransformer):
 _INTRINSIC_NAMES = {"ieee_sqrt": "_lsqrt", "sincos": "_lsincos", "sincos_reduced": "_lsincos_red"}
 _INLINE_DECORATORS = ("njit", "jit", "jit_inline", "jit_noalloc")  # dropped: the callee's body is inlined
 SPLIT_ROWS = 4  # an rhs writing more dydt rows than this: rows copied from the inputs in a loop of their own
+MAX_INLINED = 256  # calls inlined into one lane rhs at most, MAX_DEPTH deep (a recursive helper: not laned)
+MAX_DEPTH = 16
 
 
 def _intrinsic(obj):
@@ -258,6 +260,7 @@ class _Flatten:
         self.args = args
         self.glob = glob
         self.count = 0
+        self.stack = []  # the calls being inlined
         self.sincos = []  # the arguments (local names) of the sincos calls
 
     # ---- the top function's statements: untouched unless they call a function
@@ -348,6 +351,8 @@ class _Flatten:
         if call.keywords:
             raise _NotLaneable("keyword arguments")
         self.count += 1
+        if self.count > MAX_INLINED or len(self.stack) >= MAX_DEPTH:  # e.g. a recursive helper
+            raise _NotLaneable("too many calls")
         prefix = f"_lk{self.count}_"
         if target == "sincos":  # a, b = sincos(x): x into a local, the call kept (see _finish)
             if len(call.args) != 1 or targets is None:
@@ -379,7 +384,9 @@ class _Flatten:
         if local & set(params):
             raise _NotLaneable("argument assigned")
         inner = _Callee(glob, binds, local, prefix)
+        self.stack.append(prefix)
         out += self._stmts(body, inner)
+        self.stack.pop()
         if targets is None:
             if ret is not None:
                 raise _NotLaneable("a value dropped")
@@ -387,7 +394,10 @@ class _Flatten:
         if ret is None:
             raise _NotLaneable("no value returned")
         if isinstance(ret, ast.Call) and self._callee(ret.func, inner) is not None:  # return helper(...)
-            return out + self._inline(self._callee(ret.func, inner), ret, targets, inner)
+            self.stack.append(prefix)  # as deep as a call from the body
+            out += self._inline(self._callee(ret.func, inner), ret, targets, inner)
+            self.stack.pop()
+            return out
         value = inner.visit(_copy(ret))
         if isinstance(targets, ast.Tuple) and isinstance(value, ast.Tuple) and len(targets.elts) == len(value.elts):
             return out + [ast.Assign([t], v) for t, v in zip(targets.elts, value.elts)]  # fresh names: no overlap
