@@ -463,7 +463,7 @@ def lane_rhs_for(model, method) -> str | None:
 def _lanes_source(model, chosen, refs, lane_rhs) -> str:
     """The DOP853 lanes path (dop853, an rhs the engine rewrites in lane form: ``lane_rhs``, the
     source of ``rhs_lanes``): ``setup`` prepares every point
-    (p, status, T, initial state) in parallel, ``queue`` runs a queue of points of one forcing
+    (p, status, T, initial state), ``queue`` runs a queue of points of one forcing
     period through ``dop853_lanes`` and observes each trajectory as it ends (the same observers,
     the same floats as the one-trajectory kernel: the lanes give dop853's steps bitwise)."""
     classify, prepare = _point_checks(refs, 8)
