@@ -167,6 +167,144 @@ def _module(name):
     return mod
 
 
+def _per_lane(scalar, src, n_s, n_p, rng, lanes=11, tau=None, Z=None, P=None, fn=None):
+    """The rewritten rhs (plain Python, or ``fn``: it compiled) on (state, lane) arrays against the
+    scalar rhs per lane: the lane results and the bit patterns compared."""
+    namespace = {"math": math, "jit_noalloc": lambda f: f}
+    exec(src, namespace)
+    f = fn or namespace["rhs_lanes"]
+    tau = rng.normal(size=lanes) * 10 if tau is None else tau
+    Z = rng.normal(size=(n_s, lanes)) * 3 if Z is None else Z
+    P = rng.normal(size=(n_p, lanes)) if P is None else P
+    dZ = np.empty((n_s, lanes))
+    f(tau, Z, P, dZ)
+    for lane in range(lanes):
+        d = np.empty(n_s)
+        scalar(tau[lane], Z[:, lane].copy(), P[:, lane].copy(), d)
+        assert np.array_equal(d.view(np.int64), dZ[:, lane].view(np.int64)), (lane, d, dZ[:, lane])
+    return f, dZ
+
+
+def test_lane_rhs_inlines_helper_functions_called_as_statements():
+    """An rhs calling a module-level function on a slice of p (which calls another, returning a
+    tuple): the rewrite inlines both, the offset added to the indices, and gives per lane the scalar
+    rhs's floats; a helper the rewrite does not cover (a while loop) leaves the rhs to the one-point
+    route."""
+    mod = _module("lanes_models")
+    src = lanes.lane_rhs_source(mod.inline_rhs)
+    assert src is not None and "scaled" not in src.split("\n", 1)[1] and "accel(" not in src
+    assert "_lp[3, _ll]" in src and "_lp[2, _ll]" in src  # q[2] and q[1] of p[OFF:]
+    _per_lane(mod.inline_rhs, src, 2, 4, np.random.default_rng(1))
+    assert lanes.lane_rhs_source(mod.uncovered_rhs) is None
+    for f in (mod.recursive_rhs, mod.tail_rhs):  # inlined without end: refused, no RecursionError
+        assert lanes.lane_rhs_source(f) is None
+
+
+def _autobalancer_cases(rng):
+    """(tau, Z, P) of lanes of the auto-balancer: in range, angles beyond sincos_reduced's range
+    (sincos's libm branch), infinite, NaN; 16 lanes (the vector body) or 19 (a scalar remainder)."""
+    from mechsweep.models import autobalancer as ab
+    from mechsweep.special import SINCOS_MAX
+
+    from .test_autobalancer import random_p
+
+    n_p = ab.OFF + ab.NP + 3
+    for case, (g, t) in enumerate([(None, None), (3.0 * SINCOS_MAX, None), (-SINCOS_MAX, None), (math.inf, None),
+                                   (None, 2.0 * SINCOS_MAX), (math.nan, None)]):
+        L = 19 if case % 2 else 16
+        P = rng.normal(size=(n_p, L))
+        for lane in range(L):
+            P[ab.OFF:ab.OFF + ab.NP, lane] = random_p(rng, A1=bool(lane % 2))
+        Z = rng.normal(size=(8, L)) * 3
+        tau = rng.uniform(0.0, 2000.0, L)
+        if g is not None:
+            Z[2 + case % 2, L // 2] = g
+        if t is not None:
+            tau[L - 1] = t
+        yield case, g, tau, Z, P
+
+
+def test_lane_rhs_of_the_autobalancer_is_its_rhs_per_lane():
+    """The engine's lane form of the auto-balancer's rhs (rhs -> scaled_rhs -> accelerations ->
+    accelerations_trig -> conrod_terms, sincos, ieee_sqrt, inlined; run here as plain Python, the
+    same IEEE arithmetic): per lane bitwise the scalar rhs, also for angles beyond sincos_reduced's
+    range (sincos's libm branch, taken by the loop run again) and infinite; a NaN angle gives NaN as
+    the scalar rhs does (the fast loop's sincos_reduced, as the hand-written scaled_rhs_lanes);
+    and in every case the bits of the hand-written scaled_rhs_lanes."""
+    from mechsweep.models import autobalancer as ab
+
+    src = lanes.lane_rhs_source(ab.MODEL.rhs)
+    assert src is not None and "if _lb:" in src
+    fast, again = src.split("if _lb:")  # the fast loop: no call of sincos's libm branch; again: sincos
+    assert "_lsincos_red(" in fast and "_lsincos(" not in fast and "_lsincos(" in again
+    rng = np.random.default_rng(7)
+    for case, g, tau, Z, P in _autobalancer_cases(rng):
+        L = tau.size
+        if g is not None and math.isnan(g):  # NaN in, NaN out (its bits are sincos_reduced's)
+            namespace = {"math": math, "jit_noalloc": lambda f: f}
+            exec(src, namespace)
+            dZ = np.empty((8, L))
+            namespace["rhs_lanes"](tau, Z, P, dZ)
+            one = np.empty(8)
+            ab.MODEL.rhs(tau[L // 2], Z[:, L // 2].copy(), P[:, L // 2].copy(), one)
+            assert np.array_equal(np.isnan(one), np.isnan(dZ[:, L // 2]))
+        else:
+            _, dZ = _per_lane(ab.MODEL.rhs, src, 8, P.shape[0], rng, L, tau, Z, P)
+        hand = np.empty((8, L))
+        ab.scaled_rhs_lanes(tau, Z, np.ascontiguousarray(P[ab.OFF:ab.OFF + ab.NP]), hand)
+        assert np.array_equal(hand.view(np.int64), dZ.view(np.int64)), case
+
+
+@pytest.mark.slow  # numba compiles the lane rhs (about 13 s; it is not in the disk cache)
+@pytest.mark.skipif(__import__("platform").machine() not in ("x86_64", "AMD64"), reason="x86 assembly")
+def test_lane_rhs_of_the_autobalancer_is_vectorised():
+    """Compiled, the same bits per lane, and LLVM vectorises the fast loop (packed multiplies, no
+    fused multiply-adds), as the hand-written scaled_rhs_lanes."""
+    import re
+
+    from mechsweep.models import autobalancer as ab
+
+    import numba
+
+    src = lanes.lane_rhs_source(ab.MODEL.rhs)
+    namespace = {"math": math, "jit_noalloc": lambda f: numba.njit(fastmath=False, error_model="numpy")(f)}
+    exec(src, namespace)
+    f = namespace["rhs_lanes"]
+    rng = np.random.default_rng(8)
+    for case, g, tau, Z, P in _autobalancer_cases(rng):
+        if g is None or not math.isnan(g):
+            _per_lane(ab.MODEL.rhs, src, 8, P.shape[0], rng, tau.size, tau, Z, P, fn=f)
+    asm = "".join(f.inspect_asm().values())
+    assert len(re.findall(r"\bv?mulpd\b", asm)) > 20, "no packed multiply: the lane loop was not vectorised"
+    assert not re.findall(r"vfn?m(add|sub)\d+[ps]d", asm)
+
+
+@pytest.mark.slow  # compiles the auto-balancer's sampled kernel both ways (about a minute cold)
+def test_autobalancer_sampled_lanes_bitwise_one_trajectory(monkeypatch):
+    """The auto-balancer's Kick, Steady and History (the recorded design grid: every status it
+    gives) in the engine's lanes and one trajectory at a time: the same values, status, n_steps and
+    n_rhs, bitwise; the lanes were taken."""
+    from mechsweep.model import trajectory
+
+    _rec = importlib.util.spec_from_file_location("record_autobalancer", DATA / "record_autobalancer.py")
+    rec = importlib.util.module_from_spec(_rec)
+    _rec.loader.exec_module(rec)
+    P = rec.design_points()
+    wanted = rec.SIM
+    calls = []
+    run_lanes = trajectory._run_lanes
+    monkeypatch.setattr(trajectory, "_run_lanes", lambda *a, **k: calls.append(1) or run_lanes(*a, **k))
+    res = []
+    for use in (False, True):
+        monkeypatch.setattr(trajectory, "USE_LANES", use)
+        res.append(rec.evaluate_case(P, wanted, dict(method="dop853", horizon_revolutions=20.0,
+                                                     trajectory_samples=7)))
+    assert calls, "the lanes were not taken"
+    for key, value in res[0].items():
+        assert np.array_equal(value, res[1][key], equal_nan=True), key
+    assert len(set(res[0]["status"].tolist())) >= 4
+
+
 @pytest.mark.skipif(__import__("platform").machine() not in ("x86_64", "AMD64"), reason="x86 assembly")
 def test_lane_rhs_of_duffing_is_vectorised():
     """LLVM turns the generated lane loop into packed (SIMD) arithmetic, without fused multiply-adds

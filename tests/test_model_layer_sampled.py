@@ -245,26 +245,60 @@ def test_a_sampled_user_model_runs_and_stores_its_history(in_tmp):
     assert (ds["status"].values == st.OK).all()
 
 
-@pytest.mark.slow  # compiles the lane solver (about 20 s)
-def test_lanes_give_the_one_trajectory_results_bitwise(forced, monkeypatch):
+def test_the_sampled_lanes_are_taken_only_where_they_pay(monkeypatch):
+    """USE_LANES None: the lanes for a run of LANES_FROM_POINTS points, or once their functions
+    (setup and queue) are compiled; else one trajectory at a time; True/False force the route."""
+    from types import SimpleNamespace
+
+    from mechsweep.model import trajectory
+
+    def dispatcher(compiled):
+        return SimpleNamespace(signatures=["(float64[:],)"] if compiled else [])  # no disk cache: not compiled
+
+    cold = SimpleNamespace(setup=dispatcher(False), queue=dispatcher(False))
+    half = SimpleNamespace(setup=dispatcher(True), queue=dispatcher(False))
+    warm = SimpleNamespace(setup=dispatcher(True), queue=dispatcher(True))
+    monkeypatch.setattr(trajectory, "USE_LANES", None)
+    monkeypatch.setattr(trajectory, "LANES_FROM_POINTS", 500)
+    assert not trajectory._lanes_pay(cold, 499) and not trajectory._lanes_pay(half, 10)
+    assert trajectory._lanes_pay(cold, 500) and trajectory._lanes_pay(warm, 1)
+    monkeypatch.setattr(trajectory, "USE_LANES", False)
+    assert not trajectory._lanes_pay(warm, 10**9)
+    monkeypatch.setattr(trajectory, "USE_LANES", True)
+    assert trajectory._lanes_pay(cold, 1)
+
+
+@pytest.mark.slow  # compiles the lane solver for two models (about a minute cold)
+def test_lanes_give_the_one_trajectory_results_bitwise(forced, decay, monkeypatch):
+    """User models that write no lane rhs (the engine rewrites theirs, model/lanes.py): FORCED's
+    Steady and History over three forcing periods (one lane group each) and five periods of one
+    point each (too few for lanes: one trajectory at a time), DECAY's Kick, Steady and
+    History (with value/time_value transforms) in DOP853 lanes and one trajectory at a time: the
+    same values, status, n_steps and n_rhs, bitwise."""
     from mechsweep.model import trajectory
 
     calls = []
     run_lanes = trajectory._run_lanes
-    monkeypatch.setattr(trajectory, "_run_lanes", lambda *a: calls.append(1) or run_lanes(*a))
-
-    lanes = load.resolve(f"{USER}:FORCED_LANES")
+    monkeypatch.setattr(trajectory, "_run_lanes", lambda *a, **k: calls.append(1) or run_lanes(*a, **k))
     rng = np.random.default_rng(3)
-    n = 70  # more points than lanes; forcing periods of three values (one lane group each)
+    n = 70  # more points than lanes
     P = np.column_stack([rng.uniform(0.5, 2, n), rng.uniform(0.05, 0.3, n), rng.uniform(-1, 1, n),
                          rng.choice([0.5, 1.3, 4.0], n)])
-    a = _evaluate(lanes, P, WANTED, rtol=1e-9, atol=1e-12, horizon_periods=50.0)
-    b = _evaluate(forced, P, WANTED, rtol=1e-9, atol=1e-12, horizon_periods=50.0)
-    for x, y in zip(a[1:], b[1:]):
-        assert np.array_equal(x, y)
-    for k in WANTED:
-        assert np.array_equal(a[0][k], b[0][k], equal_nan=True), k
-    assert calls == [1]  # FORCED_LANES went through the lanes, FORCED did not
+    P[::14, 3] = [0.7, 0.9, 2.2, 3.1, 5.0]  # periods of one point each: one trajectory at a time among the lanes
+    P2 = np.column_stack([rng.uniform(-0.3, 0.6, 40), rng.uniform(0.5, 2.0, 40)])  # decays and grows
+    cases = [(forced, P, WANTED, dict(rtol=1e-9, atol=1e-12, horizon_periods=50.0)),
+             (decay, P2, ("stable", "stable_settling", "stable_final", "y_hist", "kick_rel", "kick_rel_settling",
+                          "peak_rel", "y_rel"), dict(rtol=1e-9, atol=1e-12))]
+    for spec, points, wanted, kw in cases:
+        res = []
+        for use in (False, True):
+            monkeypatch.setattr(trajectory, "USE_LANES", use)
+            res.append(_evaluate(spec, points, wanted, **kw))
+        for x, y in zip(res[0][1:], res[1][1:]):
+            assert np.array_equal(x, y)
+        for k in wanted:
+            assert np.array_equal(res[0][0][k], res[1][0][k], equal_nan=True), (spec.name, k)
+    assert calls == [1, 1]  # the lanes were taken once per model (USE_LANES True)
 
 
 @pytest.mark.slow  # compiles a kernel (about 7 s)

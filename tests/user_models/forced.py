@@ -15,13 +15,6 @@ def forced_rhs(t, y, p, dydt):
     dydt[1] = p[2] * math.cos(p[3] * t) - 2.0 * p[1] * p[0] * y[1] - p[0] * p[0] * y[0]
 
 
-def forced_rhs_lanes(t, Y, P, dY):
-    # the lane form of forced_rhs: the same floats per lane (column)
-    for l in range(t.size):
-        dY[0, l] = Y[1, l]
-        dY[1, l] = P[2, l] * math.cos(P[3, l] * t[l]) - 2.0 * P[1, l] * P[0, l] * Y[1, l] - P[0, l] * P[0, l] * Y[0, l]
-
-
 def forced_initial(p, y0):
     y0[0] = 0.0
     y0[1] = 0.0
@@ -56,7 +49,6 @@ def _forced(**kw):
 
 
 FORCED = _forced()
-FORCED_LANES = _forced(rhs_lanes=forced_rhs_lanes)  # the same model, its trajectories in DOP853 lanes
 
 
 def decay_rhs(t, y, p, dydt):

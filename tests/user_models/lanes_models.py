@@ -1,7 +1,8 @@
 """User models for tests/test_model_lanes.py: right-hand sides the lane rewrite (model/lanes.py)
 covers (math calls, `from math import`, module constants, a negative constant under a power, the
-time t, a branch, a loop over range) and ones it must leave to the one-point route (a call to a
-helper function, an early return)."""
+time t, a branch, a loop over range, helper functions called as statements) and ones it must leave
+to the one-point route (a call to a helper function inside an expression, a helper with a while
+loop, an early return)."""
 import math
 from math import cos
 
@@ -55,3 +56,62 @@ FORCED = OdeModel(name="lanes_forced", description="damped forced pendulum", par
 HELPER = OdeModel(name="lanes_helper", description="FORCED with a helper call in its rhs", params=PARAMS,
                   states=("theta", "omega"), rhs=helper_rhs, initial=initial,
                   measurements=(FirstEvent("t_down", down, t_max=30.0),))
+
+
+# An rhs that calls a plain module-level function on a slice of p, which calls another returning a
+# tuple: the rewrite inlines both (their arguments bound in order, the slice offset added to the
+# indices), as the auto-balancer's rhs -> scaled_rhs -> accelerations.
+OFF = 1
+
+
+def inline_rhs(t, y, p, dydt):
+    scaled(t, y, p[OFF:OFF + 3], dydt)
+
+
+@numba.njit
+def scaled(t, z, q, dz):  # q = (A, c, f)
+    """z'' = -sin z - c z' + f cos t"""
+    dz[0] = z[1]
+    acc, s = accel(t, z[0], z[1], q)
+    dz[1] = acc + 0.0 * s
+
+
+@numba.njit
+def accel(t, x, v, q):
+    s = math.sin(x)
+    return -s - q[1] * v + q[2] * cos(t), s
+
+
+def looping(x):
+    while x > 1.0:
+        x -= 1.0
+    return x
+
+
+def uncovered_rhs(t, y, p, dydt):
+    dydt[0] = y[1]
+    a = looping(y[0])
+    dydt[1] = -a
+
+
+def recursive(x, k):
+    y = x
+    if k > 0:
+        y = recursive(x, k - 1)
+    return y
+
+
+def recursive_rhs(t, y, p, dydt):
+    dydt[0] = y[1]
+    a = recursive(y[0], 2)
+    dydt[1] = -a
+
+
+def tail(x, k):
+    return tail(x, k - 1)
+
+
+def tail_rhs(t, y, p, dydt):
+    dydt[0] = y[1]
+    a = tail(y[0], 2)
+    dydt[1] = -a

@@ -5,8 +5,9 @@
    all numba threads, the solver's tolerances (defaults rtol 5e-11, atol 1e-12). A grid smaller than
    200 x 200 is extrapolated to 200 x 200 by points (and says so).
 2. Direct simulation: the model's stable_sim and residual_amplitude (the layer's sampled
-   trajectory of the scaled equations, the model declares rhs_lanes: up to 32 trajectories side by
-   side in SIMD lanes per thread, model/trajectory.py and ode/dop853_lanes.py), timed on one thread
+   trajectory of the scaled equations in the engine's lane form of the model's rhs: up to 32
+   trajectories side by side in SIMD lanes per thread, model/trajectory.py and ode/dop853_lanes.py;
+   the bench sets trajectory.USE_LANES: the route a sweep of LANES_FROM_POINTS points or a warm cache takes), timed on one thread
    (accepted steps per second per core) and on all numba threads (4x as many points), best of
    REPEATS runs each. The points are a sweep's worth per thread (512 by default; on 2 threads the
    shipped scenes give a thread 180-3,000): a thread's lanes idle at the end of its queue, which a
@@ -216,6 +217,15 @@ def main(n_omega: int = CHART, n_ratio: int = CHART, sim_points: int = 512, scip
 
 
 def _main(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
+    before = trajectory.USE_LANES
+    trajectory.USE_LANES = True  # the lanes, as a sweep of LANES_FROM_POINTS points or a warm cache takes them
+    try:
+        return _measure(n_omega, n_ratio, sim_points, scipy_points, rtol, atol)
+    finally:
+        trajectory.USE_LANES = before
+
+
+def _measure(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
     solver = Solver.for_model(ab.SPEC, rtol=rtol, atol=atol)
     n_threads = numba.get_num_threads()
     P_small = chart_parameters(2, 2)

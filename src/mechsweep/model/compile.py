@@ -765,6 +765,7 @@ def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes, point
                          tuple(getattr(m, "key", lambda: m)() for m in chosen),
                          tuple((c.name, c.needs) for c in closed), shared, method,
                          lane_rhs and (lane_kernels.lanes_for(len(model.states)), lane_kernels.QUEUE))).encode())
+        key.update((lane_rhs or "").encode())  # the inlined helpers may live in other modules
         return "mechsweep_gen_" + key.hexdigest()[:20]
 
     passed = None

@@ -183,10 +183,6 @@ class OdeModel:
       measurement class has one, as ClosedForm) skips that measurement at a point (its outputs NaN,
       its status counted only when one of its outputs is asked for or needed) with or without an
       order; the other measurements' values are kept.
-    - ``rhs_lanes(t, Y, P, dY)``: optional lane form of ``rhs`` for the sampled-trajectory
-      measurements by dop853 (model/trajectory.py, ``mechsweep.ode.dop853_lanes``): column l of
-      Y, P, dY and t[l] are one trajectory's state, full ``p`` row and time; it must give the
-      same floats as ``rhs`` per lane (then the results are bitwise the one-trajectory ones).
     - ``check(given) -> [problems]``: optional cross-parameter rules of a scene, as
       ``ModelSpec.check``: ``given`` = {parameter: tuple of the values the scene gives it (a range
       axis: its two ends)}, the parameters the scene does not give absent; each problem a string
@@ -222,7 +218,6 @@ class OdeModel:
     symplectic_order: int = 8
     output_order: tuple[str, ...] = ()
     references: tuple[str, ...] = ()  # ModelSpec.references: the source documents
-    rhs_lanes: Callable | None = field(default=None, repr=False)
     recheck: object = None  # measure.Recheck: the sampled outputs integrated again at a tighter rtol
     status_order: tuple[int, ...] = ()  # most severe first: a point's status among its outputs' (see worse)
     check: Callable | None = field(default=None, repr=False)  # ModelSpec.check: the cross-parameter rules

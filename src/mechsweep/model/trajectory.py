@@ -250,7 +250,8 @@ def kernel_source(model, chosen, refs, method, always=-1, lock=(), raw=False) ->
             lines.append(_val_source(f"value{k}"))
     body = _observe_body(chosen, refs, _order(model), always, bool(lock), raw)
     OBSERVE[:] = [b.replace("\n            ", "\n    ") for b in body]
-    lines.append(_lanes_source(model, chosen, refs) if "rhs_lanes" in refs else "")
+    lane_rhs = lane_rhs_for(model, method)
+    lines.append(_lanes_source(model, chosen, refs, lane_rhs) if lane_rhs else "")
     order = _order(model)
     return _kernel_tail(lines, body, refs, method, _measurement_checks(chosen, refs, order, 12),
                         _failed(order, 16))
@@ -450,9 +451,19 @@ def _point_checks(refs, indent: int) -> tuple[str, str]:
             check("prepare(p, rtol)") if "prepare" in refs else "")
 
 
-def _lanes_source(model, chosen, refs) -> str:
-    """The DOP853 lanes path (a model that declares ``rhs_lanes``): ``setup`` prepares every point
-    (p, status, T, initial state) in parallel, ``queue`` runs a queue of points of one forcing
+def lane_rhs_for(model, method) -> str | None:
+    """The engine's lane form of the model's rhs (model/lanes.py's rewrite) for dop853, or None
+    (another method, or an rhs the rewrite does not cover: one trajectory at a time)."""
+    if method != "dop853":
+        return None
+    from .lanes import lane_rhs_source
+    return lane_rhs_source(model.rhs)
+
+
+def _lanes_source(model, chosen, refs, lane_rhs) -> str:
+    """The DOP853 lanes path (dop853, an rhs the engine rewrites in lane form: ``lane_rhs``, the
+    source of ``rhs_lanes``): ``setup`` prepares every point
+    (p, status, T, initial state), ``queue`` runs a queue of points of one forcing
     period through ``dop853_lanes`` and observes each trajectory as it ends (the same observers,
     the same floats as the one-trajectory kernel: the lanes give dop853's steps bitwise)."""
     classify, prepare = _point_checks(refs, 8)
@@ -463,9 +474,12 @@ def _lanes_source(model, chosen, refs) -> str:
     fail = _failed(order, 12).replace("code", "cc")
     return f"""
 
+from mechsweep._jit import jit_noalloc
 from mechsweep.ode import dop853_lanes
 
-lane_load, lane_run = dop853_lanes.make_lane_trajectory_solver(user_rhs_lanes, rhs)
+{lane_rhs}
+
+lane_load, lane_run = dop853_lanes.make_lane_trajectory_solver(rhs_lanes, rhs)
 
 
 @jit
@@ -554,14 +568,13 @@ def kernel_for(model, chosen, method, always=-1, lock=(), raw=False):
             funcs.append((f"{role}{k}", func))
         if getattr(m, "classify", None) is not None:
             funcs.append((f"mclassify{k}", m.classify))
-    if method == "dop853" and getattr(model, "rhs_lanes", None) is not None:
-        funcs.append(("rhs_lanes", model.rhs_lanes))
     refs = {name: load.function_ref(func, name, model.name) for name, func in funcs}
     key = hashlib.sha256()
     for name, ref in refs.items():
         key.update(name.encode())
         key.update(repr(ref).encode())
         key.update(load.module_source(ref[0], ref[1]))
+    key.update((lane_rhs_for(model, method) or "").encode())  # its helpers may live in other modules
     key.update(repr((model.name, _layout(model), len(model.states), tuple(m.key() for m in chosen), method,
                      _order(model), always, tuple(lock), raw)).encode())
     name = "mechsweep_traj_" + key.hexdigest()[:20]
@@ -577,7 +590,8 @@ def _layout(model):
 
 def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lanes=True):
     """Run the sampled measurements ``chosen`` on the points still OK in ``status``; by DOP853
-    lanes when the model declares ``rhs_lanes`` (unless ``lanes`` is False: the same values)."""
+    lanes for dop853 when the engine rewrites the model's rhs in lane form (unless ``lanes`` is
+    False: the same values)."""
     method = solver.method
     settings = dict(solver.settings)
     rc = _active_recheck(model, settings)
@@ -625,8 +639,12 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
     P = np.ascontiguousarray(P, dtype=np.float64)
     order = _order(model)
 
+    from .compile import _PLAN
+    use_lanes = (hasattr(mod, "queue") and lanes and lane_count(s.size, model) > 0
+                 and _lanes_pay(mod, max(n, getattr(_PLAN, "n", 0))))
+
     def run(P, rtol, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs):
-        if hasattr(mod, "queue") and lanes and lane_count(s.size, model):
+        if use_lanes:
             _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs,
                        rtol)
         else:
@@ -761,12 +779,49 @@ def _recheck(rc, chosen, wanted, settings, solver, P, run, arrays, code, mstat, 
     return moved
 
 
-# The lanes (a model with rhs_lanes, method dop853): as the hand-written auto-balancer kernels
+# The lanes (method dop853, an rhs the engine rewrites in lane form): as the hand-written auto-balancer kernels
 # chose them. Each lane keeps its trajectory's samples (n_samples x n_states floats) until it
 # ends: with long horizons or dense sampling fewer lanes, so that a queue's samples stay within
 # LANE_SAMPLES_BYTES (32, 16, then 8 lanes, else the one-trajectory kernel).
 LANES = (32, 16, 8)
 LANE_SAMPLES_BYTES = 256 * 2**20
+# evaluate's route where the lanes apply: True the lanes, False one trajectory at a time, None (the
+# default) the lanes where they pay: a run of at least LANES_FROM_POINTS points (compile.planned_points,
+# or the rows of the call), or the lane functions compiled already (in this process, or in numba's disk
+# cache). Bitwise the same results either way. The lanes' cold compile and speed: docs/model-layer.md
+# ("Lanes"; tests/data/trajectory_lanes_cost.py).
+USE_LANES: bool | None = None
+LANES_FROM_POINTS = 1000
+# The lanes of a queue share one forcing period (one t_eval): the points of a period shared by fewer
+# than LANE_GROUP_MIN points (a sweep of the forcing frequency in physical time: each its own) are
+# integrated one trajectory at a time (a round of 32 lanes with one active one costs more than ten
+# scalar steps; docs/model-layer.md, "Lanes").
+LANE_GROUP_MIN = 16
+
+
+def _lanes_pay(mod, points: int) -> bool:
+    if USE_LANES is not None:
+        return USE_LANES
+    if points >= LANES_FROM_POINTS:
+        return True
+    return all(_compiled(f) for f in (mod.setup, mod.queue))
+
+
+def _compiled(dispatcher) -> bool:
+    """Whether the generated module's function is compiled: in this process, or machine code for
+    this CPU in numba's disk cache (its index read as numba reads it, as compile._compiled_on_disk)."""
+    import os
+
+    if dispatcher.signatures:
+        return True
+    try:
+        cache = dispatcher._cache
+        index = cache._cache_file._load_index()
+        magic = dispatcher.targetctx.codegen().magic_tuple()
+        return any(key[1] == magic and os.path.exists(os.path.join(cache._cache_path, file))
+                   for key, file in index.items())
+    except Exception:  # no disk cache, or numba's private layout changed: not compiled
+        return False
 
 
 def lane_count(n_samples: int, model) -> int:
@@ -778,8 +833,10 @@ def lane_count(n_samples: int, model) -> int:
 
 def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs,
                rtol=None):
-    """setup in parallel, then per forcing period the points' queues through the lanes, one queue
-    per thread (numba.get_num_threads() Python threads running the nogil queue)."""
+    """setup, then per forcing period the points' queues through the lanes, one queue per thread
+    (numba.get_num_threads() Python threads running the nogil queue); the points of periods shared
+    by fewer than LANE_GROUP_MIN points by the one-trajectory kernel (from their status before
+    setup: it runs classify and prepare again)."""
     import numba
 
     from .compile import layout
@@ -791,10 +848,19 @@ def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, raw
     Z0 = np.zeros((n, n_s))
     TT = np.full(n, np.nan)
     rtol = solver.rtol if rtol is None else rtol
+    code0, mstat0 = code.copy(), mstat.copy()
     mod.setup(P, S, rtol, PF, Z0, TT, code, mstat)
     lanes = lane_count(s.size, model)
     ok = np.isfinite(TT)  # the points setup left to integrate
-    for T in np.unique(TT[ok]):
+    periods, counts = np.unique(TT[ok], return_counts=True)
+    few = ok & np.isin(TT, periods[counts < LANE_GROUP_MIN])
+    if few.any():  # forcing periods shared by too few points to fill lanes: one trajectory at a time
+        i = np.flatnonzero(few)
+        sub = [a[i] for a in (vals, hist, rawv, rawh, code0, mstat0, n_steps, n_rhs)]
+        mod.kernel(np.ascontiguousarray(P[i]), S, s, bits, K, hoff, rtol, solver.atol, solver.max_steps, *sub)
+        for a, b in zip((vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs), sub):
+            a[i] = b
+    for T in periods[counts >= LANE_GROUP_MIN]:
         idx = np.flatnonzero(ok & (TT == T)).astype(np.int64)
         te = T * s  # the same products as the one-trajectory kernel's te[j] = T * s[j]
         n_queues = max(1, min(numba.get_num_threads(), -(-idx.size // max(1, lanes // 2))))

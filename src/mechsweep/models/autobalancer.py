@@ -129,8 +129,9 @@ same window.
 
 On the model layer (docs/model-layer.md): this module is the declaration (``MODEL``, an OdeModel):
 the parameters, settings and outputs above, the equations of motion in scaled form (``scaled_rhs``,
-``scaled_rhs_lanes``, ``scaled_jacobian``, called by ``rhs``/``rhs_lanes``/``jac`` with the scaled
-parameters that ``prepare`` writes into the internal slots), ``classify`` (INFEASIBLE), the closed
+``scaled_jacobian``, called by ``rhs``/``jac`` with the scaled parameters that ``prepare`` writes
+into the internal slots; the engine writes the lane form of ``rhs`` itself, model/lanes.py, bitwise
+``scaled_rhs_lanes``, which only the hand-written reference kernels still use), ``classify`` (INFEASIBLE), the closed
 forms, and the measurements: Floquet (floquet_max, stable_floquet), Kick (stable_sim,
 settling_time, phase_error), Steady (residual_amplitude) and four Histories, one sampled trajectory
 per point; the status rules above are the measurements' own (their ``classify``: NOT_BALANCEABLE),
@@ -712,10 +713,6 @@ def rhs(t, z, p, dz):
     scaled_rhs(t, z, p[OFF:OFF + NP], dz)
 
 
-def rhs_lanes(t, Z, P, dZ):
-    scaled_rhs_lanes(t, Z, P[OFF:OFF + NP], dZ)
-
-
 def jac(t, z, p, J):
     scaled_jacobian(t, z, p[OFF:OFF + NP], J)
 
@@ -815,7 +812,7 @@ MODEL = OdeModel(
     source="Dubovik & Zamyatin, static balancing of a slider-crank mechanism, eq. (1)-(8); physics.md section 2",
     params=PARAMS, settings=SETTINGS, internal=tuple(f"q{j}" for j in range(NP)),
     states=("x", "y", "g1", "g2", "xd", "yd", "w1", "w2"),
-    rhs=rhs, rhs_lanes=rhs_lanes, jac=jac, initial=initial, forcing_period=forcing_period,
+    rhs=rhs, jac=jac, initial=initial, forcing_period=forcing_period,
     classify=classify, prepare=prepare,
     measurements=(
         # Floquet: the variational equations about the exact balanced orbit over one period (the 64
