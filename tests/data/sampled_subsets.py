@@ -53,7 +53,8 @@ def cases():
                "floquet_sim": ("floquet_max", "stable_floquet", "stable_sim", "residual_amplitude", "theta")}
     for name, wanted in ab_sets.items():
         for recheck in (1000.0, 0.0):
-            yield f"ab-{name}-dop853-{recheck:g}", (ab.SPEC, ab.MODEL, P, wanted, True, dict(kw, reproducibility_factor=recheck))
+            yield (f"ab-{name}-dop853-{recheck:g}",
+                   (ab.SPEC, ab.MODEL, P, wanted, True, dict(kw, reproducibility_factor=recheck)))
         yield f"ab-{name}-onebyone", (ab.SPEC, ab.MODEL, P, wanted, False, kw)
     for method in ("radau", "auto"):
         for name in ("kick", "steady", "all"):
@@ -78,7 +79,8 @@ def cases():
 
 
 QUICK = ("ab-kick-dop853-1000", "ab-kick-dop853-0", "ab-kick-onebyone", "ab-steady-dop853-1000", "ab-all-dop853-1000",
-         "ab-pe2_kick-dop853-0", "ab-steady_h1-dop853-0", "ab-floquet_sim-dop853-1000", "ab-all-radau", "ab-steady-auto",
+         "ab-pe2_kick-dop853-0", "ab-steady_h1-dop853-0", "ab-floquet_sim-dop853-1000", "ab-all-radau",
+         "ab-steady-auto",
          "decay-rel", "decay-all", "decay-all-radau", "SEVERITY-hist", "SEVERITY-amp_hist", "FIRST-hist", "FIRST-all")
 
 
@@ -108,7 +110,8 @@ if __name__ == "__main__":
         bad = [k for k in ref.files if k.split("/")[0] in {x.split("/")[0] for x in new}
                and not (k in new and new[k].dtype == ref[k].dtype and np.array_equal(new[k], ref[k], equal_nan=True))]
         missing = [k for k in new if k not in ref.files]
-        print(f"{len(new)} arrays compared, {len(bad)} differ{', missing in the record: ' + str(missing) if missing else ''}")
+        extra = f", missing in the record: {missing}" if missing else ""
+        print(f"{len(new)} arrays compared, {len(bad)} differ{extra}")
         for k in bad:
             print("DIFFERENT", k)
         sys.exit(1 if bad or missing else 0)
