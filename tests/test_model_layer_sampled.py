@@ -126,6 +126,64 @@ def test_value_and_time_value_transform_the_sampled_outputs_per_point(decay):
     np.testing.assert_array_equal(out["kick_rel_final"], out["stable_final"])
 
 
+def _per_subset(spec, P, wanted, monkeypatch, **solver):
+    """_evaluate by the model's one sampled-trajectory kernel, then by a kernel compiled for the
+    asked-for measurements alone (trajectory.evaluate(per_subset=True), as before the one kernel)."""
+    import functools
+
+    from mechsweep.model import trajectory
+    a = _evaluate(spec, P, wanted, **solver)
+    with monkeypatch.context() as m:
+        m.setattr(trajectory, "evaluate", functools.partial(trajectory.evaluate, per_subset=True))
+        b = _evaluate(spec, P, wanted, **solver)
+    for x, y in zip(a[1:], b[1:]):  # status, n_steps, n_rhs
+        assert np.array_equal(x, y)
+    for k in wanted:
+        assert np.array_equal(a[0][k], b[0][k], equal_nan=True), k
+    return a
+
+
+def test_one_kernel_per_model_serves_every_subset_of_its_sampled_outputs(decay):
+    # DECAY: Kick, History, Kick (time_value), Steady (value), History (value), one horizon: every
+    # subset runs on the model's one kernel (nothing more compiled), and a subset's values and
+    # counts are bitwise those of the run that asks for everything (the same steps: the horizon
+    # is the same; samples come from the dense output)
+    from mechsweep.model import trajectory
+    lam = np.array([0.5, 0.2, -0.05, 1e-6, 30.0, 0.3])
+    P = np.column_stack([lam, np.array([0.1, 0.3, 0.1, 0.1, 0.1, 2.0])])
+    kw = dict(rtol=1e-11, atol=1e-14, max_steps=10**7)
+    every = ("stable", "stable_settling", "stable_final", "y_hist", "kick_rel", "kick_rel_settling", "kick_rel_final",
+             "peak_rel", "y_rel")
+    before = set(trajectory._KERNELS)
+    a = _evaluate(decay, P, every, **kw)
+    for wanted in (("kick_rel_settling", "y_rel", "peak_rel"), ("stable_final",), ("y_hist", "stable")):
+        b = _evaluate(decay, P, wanted, **kw)
+        assert np.array_equal(a[2], b[2]) and np.array_equal(a[3], b[3])
+        for k in wanted:
+            assert np.array_equal(a[0][k], b[0][k], equal_nan=True), (wanted, k)
+    assert len(set(trajectory._KERNELS) - before) <= 1  # the model's one kernel (none if compiled before)
+    assert b[1].tolist() == [st.OK, st.OK, st.OK, st.UNDECIDED, st.OK, st.OK]  # lam < 0: unstable (0)
+
+
+@pytest.mark.slow  # a kernel per subset (the comparison), about 15 s each cold
+def test_the_one_kernel_gives_each_subset_what_its_own_kernel_gives(decay, monkeypatch):
+    # a subset that skips DECAY's first two measurements: bitwise the values, statuses and counts
+    # of a kernel compiled for it alone (as before the one kernel)
+    lam = np.array([0.5, 0.2, -0.05, 1e-6, 30.0, 0.3])
+    P = np.column_stack([lam, np.array([0.1, 0.3, 0.1, 0.1, 0.1, 2.0])])
+    out, status, _, _ = _per_subset(decay, P, ("kick_rel_settling", "y_rel", "peak_rel"), monkeypatch, rtol=1e-11,
+                                    atol=1e-14, max_steps=10**7)
+    assert status.tolist() == [st.OK, st.OK, st.NO_EVENT, st.NO_EVENT, st.OK, st.OK] and np.isfinite(out["y_rel"]).all()
+    # SEVERITY's amp (Steady) is SINGULAR where F < 0 (its classify), x_hist NOT_OSCILLATORY where
+    # zeta >= 1: x_hist alone on the one kernel is what x_hist's own kernel gives, amp's rule unused
+    severity = load.resolve(f"{USER.parent / 'severity.py'}:SEVERITY")
+    P = np.array([[1.0, 0.1, -1.0, 0.5], [1.0, 1.5, 1.0, 0.9], [2.0, 0.2, 1.0, 1.0]])
+    out, status, ns, _ = _per_subset(severity, P, ("x_hist",), monkeypatch, rtol=1e-9, atol=1e-12,
+                                     horizon_periods=20.0)
+    assert status.tolist() == [st.OK, st.NOT_OSCILLATORY, st.OK] and ns[1] == 0
+    assert np.isfinite(out["x_hist"][[0, 2]]).all() and np.isnan(out["x_hist"][1]).all()
+
+
 def test_a_value_that_is_not_a_function_is_refused():
     from mechsweep.model import Kick, Steady
     with pytest.raises(ValueError, match="value must be a function"):

@@ -202,10 +202,14 @@ def _val_source(name):
 
 
 def kernel_source(model, chosen, refs, method, always=-1, lock=(), raw=False) -> str:
-    """``always``: the measurement observed even where its classify skips it (a Recheck's
-    skip_settled Kick); ``lock``: the per-state rates of the lock test (Recheck.skip_locked), its
-    rows the last column of bits, its value the column after the measurements'; ``raw``: the
-    measured values also before value/time_value into rawv/rawh (Recheck.measured_units)."""
+    """``chosen``: every sampled measurement of the model (``sampled_measurements``); which of them
+    observe is a run-time choice (``mstat``'s first value per column: UNUSED, NOT_RUN, NO_CLASSIFY;
+    ``evaluate``). ``always``: the measurement that may be observed even where its classify skips
+    it (a Recheck's skip_settled Kick: where K[always, -1] != 0 at run time); ``lock``: the
+    per-state rates of the lock test (Recheck.skip_locked), its rows the last column of bits, its
+    value the column after the measurements' (computed where vals has that column); ``raw``: the
+    measured values also before value/time_value into rawv/rawh (where they have columns;
+    Recheck.measured_units)."""
     from .compile import _GUARD, _guard_numbered, layout, rank_source
 
     n_p, n_set, n_int = layout(model)
@@ -222,7 +226,7 @@ def kernel_source(model, chosen, refs, method, always=-1, lock=(), raw=False) ->
     for name, ref in refs.items():
         lines.append(f"user_{name} = jitted{ref!r}\n")
     lines.append(f"\nNP = {n_p}\nNSET = {n_set}\nNPI = {npi}\nSCR = NPI + 1\nNS = {n_s}\nBLOCK = {BLOCK}\n"
-                 f"NM = {len(chosen)}\n\n")
+                 f"NM = {len(chosen)}\nNOT_RUN = {NOT_RUN}\nUNUSED = {UNUSED}\nNO_CLASSIFY = {NO_CLASSIFY}\n\n")
     if lock:
         lines.append(f"LOCK_RATES = np.array({[float(x) for x in lock]!r})\nLOCKCOL = {columns(chosen)[-1]}\n\n")
     for name in refs:
@@ -272,12 +276,14 @@ def _order(model) -> tuple:
 def _observe_body(chosen, refs, order, always=-1, lock=False, raw=False) -> list[str]:
     """Kernel code: every measurement's observables on its rows and its observer (12 spaces
     indent; reads te, traj, p, s, bits, K, hoff, ob, ob2; writes vals[i], hist[i], mstat[i], code).
-    A measurement with a classify is observed only where it passed (mstat[i, k] == OK)."""
+    A measurement is observed only where it is chosen and applies (mstat[i, k] == OK after the
+    checks: an unchosen one (UNUSED) costs one test per point, nothing per sample); the
+    ``always`` one also where its classify skipped it, when K[always, -1] != 0 (its status only
+    where it applies)."""
     from .compile import combine
     cols = columns(chosen)
     body = []
     for k, m in enumerate(chosen):
-        start = len(body)
         kind = type(m).__name__
         # the measurement's transform of its values (value(p, x) / time_value(p, t)): the
         # columns it applies to (Steady: peak and first harmonic; Kick: the settling time)
@@ -285,8 +291,9 @@ def _observe_body(chosen, refs, order, always=-1, lock=False, raw=False) -> list
         transform = ""
         if raw and kind != "History":  # the measured values, before the transform
             transform = f"""
-            for q in range({cols[k]}, {cols[k + 1]}):
-                rawv[i, q] = vals[i, q]"""
+            if rawv.shape[1] != 0:
+                for q in range({cols[k]}, {cols[k + 1]}):
+                    rawv[i, q] = vals[i, q]"""
         if fn is not None and kind != "History":
             first, last = (cols[k], cols[k] + 2) if kind == "Steady" else (cols[k] + 1, cols[k] + 2)
             transform += f"""
@@ -295,28 +302,30 @@ def _observe_body(chosen, refs, order, always=-1, lock=False, raw=False) -> list
                     if math.isfinite(vals[i, q]):
                         vals[i, q] = value{k}(p, vals[i, q])"""
         if kind == "Steady":
-            body.append(f"""
+            obs = f"""
             for j in range(ns_):
                 if bits[j, {k}]:
                     ob[j] = of{k}(te[j], traj[j], p)
-            c = steady_observe(ob, s, bits[:, {k}], K[{k}], vals[i, {cols[k]}:{cols[k + 1]}])""" + transform)
+            c = steady_observe(ob, s, bits[:, {k}], K[{k}], vals[i, {cols[k]}:{cols[k + 1]}])""" + transform
         elif kind == "Kick":
             has_r = m.response is not None
-            body.append(f"""
+            obs = f"""
             for j in range(ns_):
                 if bits[j, {k}]:
                     ob[j] = error{k}(te[j], traj[j], p)""" + (f"""
                     ob2[j] = response{k}(te[j], traj[j], p)""" if has_r else "") + f"""
             c = kick_observe(ob, ob2, {has_r}, te, bits[:, {k}], K[{k}], vals[i, {cols[k]}:{cols[k + 1]}])
             vals[i, {cols[k] + 3}] = vals[i, {cols[k] + 1}]  # the settling time before time_value
-            vals[i, {cols[k] + 4}] = te[ns_ - 1]  # the simulated time""" + transform)
+            vals[i, {cols[k] + 4}] = te[ns_ - 1]  # the simulated time""" + transform
         else:  # History: its rows in order into hist[i, offset ...]
             value = f"""
                     if math.isfinite(v):
                         v = value{k}(p, v)""" if fn is not None else ""
             raw_h = """
-                    rawh[i, h] = v""" if raw else ""
-            body.append(f"""
+                    if raw_h:
+                        rawh[i, h] = v""" if raw else ""
+            obs = ("""
+            raw_h = rawh.shape[1] != 0""" if raw else "") + f"""
             c = st.OK
             h = hoff[{k}]
             for j in range(ns_):
@@ -325,54 +334,57 @@ def _observe_body(chosen, refs, order, always=-1, lock=False, raw=False) -> list
                     if not math.isfinite(v):
                         c = st.NONFINITE
                     hist[i, h] = v
-                    h += 1""")
+                    h += 1"""
         if k == always and f"mclassify{k}" in refs:  # observed everywhere; its status only where it applies
-            body.append(f"""
+            inner = (obs + f"""
             if mstat[i, {k}] == st.OK:
-                mstat[i, {k}] = c""" + combine(order, "code", "c", 16))
+                mstat[i, {k}] = c""" + combine(order, "code", "c", 16)).replace("\n", "\n    ")
+            body.append(f"""
+            if mstat[i, {k}] == st.OK or (mstat[i, {k}] != UNUSED and K[{k}, K.shape[1] - 1] != 0.0):{inner}""")
             continue
+        inner = (obs + f"""
+            mstat[i, {k}] = c""" + combine(order, "code", "c", 12)).replace("\n", "\n    ")
         body.append(f"""
-            mstat[i, {k}] = c""" + combine(order, "code", "c", 12))
-        if f"mclassify{k}" in refs:
-            inner = "".join(body[start:]).replace("\n", "\n    ")
-            body[start:] = [f"""
-            if mstat[i, {k}] == st.OK:{inner}"""]
+            if mstat[i, {k}] == st.OK:{inner}""")
     if lock:  # the largest change of the state over one forcing period (bits[:, NM]: whole periods)
         body.append("""
-            lock = 0.0
-            kr = -1
-            nrev = 0
-            for j in range(ns_):
-                if bits[j, NM]:
-                    if kr >= 0:
-                        for q in range(NS):
-                            dz = traj[j, q] - traj[kr, q]
-                            if LOCK_RATES[q] != 0.0:
-                                dz -= LOCK_RATES[q] * (te[j] - te[kr])
-                            if not abs(dz) <= lock:  # NaN propagates
-                                lock = abs(dz)
-                    kr = j
-                    nrev += 1
-            vals[i, LOCKCOL] = lock if nrev >= 2 else math.inf""")
+            if vals.shape[1] > LOCKCOL:  # the lock test asked for (a re-check that skips locked points)
+                lock = 0.0
+                kr = -1
+                nrev = 0
+                for j in range(ns_):
+                    if bits[j, NM]:
+                        if kr >= 0:
+                            for q in range(NS):
+                                dz = traj[j, q] - traj[kr, q]
+                                if LOCK_RATES[q] != 0.0:
+                                    dz -= LOCK_RATES[q] * (te[j] - te[kr])
+                                if not abs(dz) <= lock:  # NaN propagates
+                                    lock = abs(dz)
+                        kr = j
+                        nrev += 1
+                vals[i, LOCKCOL] = lock if nrev >= 2 else math.inf""")
     return body
 
 
 def _measurement_checks(chosen, refs, order, indent: int) -> str:
-    """Kernel code run before a point's integration: each measurement's classify (where declared)
-    into mstat[i, k] (-status where it does not apply: skipped) and folded into ``code``; ``go``:
-    whether any measurement is left to observe (else the point is not integrated)."""
+    """Kernel code run before a point's integration: each chosen measurement's classify (where
+    declared) into mstat[i, k] (-status where it does not apply: skipped) and folded into
+    ``code``; ``go``: whether any measurement is left to observe (else the point is not
+    integrated). Which measurements are chosen is mstat[i, k]'s value before: UNUSED (not chosen:
+    left so), NOT_RUN (chosen), NO_CLASSIFY (chosen, its classify not applied: a Recheck's
+    skip_settled Kick observed although none of its outputs is asked for)."""
     from .compile import combine
     pad = " " * indent
-    if not any(f"mclassify{k}" in refs for k in range(len(chosen))):
-        return f"\n{pad}code = st.OK\n{pad}for k in range(NM):\n{pad}    mstat[i, k] = st.OK\n{pad}go = True"
     out = f"\n{pad}code = st.OK\n{pad}go = False"
     for k in range(len(chosen)):
         if f"mclassify{k}" in refs:
-            out += (f"\n{pad}c = mclassify{k}(p)\n{pad}if c != st.OK:\n{pad}    mstat[i, {k}] = -c"
-                    + combine(order, "code", "c", indent + 4) + f"\n{pad}else:\n{pad}    mstat[i, {k}] = st.OK"
-                    f"\n{pad}    go = True")
+            out += (f"\n{pad}if mstat[i, {k}] == NOT_RUN:\n{pad}    c = mclassify{k}(p)\n{pad}    if c != st.OK:"
+                    f"\n{pad}        mstat[i, {k}] = -c" + combine(order, "code", "c", indent + 8)
+                    + f"\n{pad}    else:\n{pad}        mstat[i, {k}] = st.OK\n{pad}        go = True"
+                    f"\n{pad}elif mstat[i, {k}] == NO_CLASSIFY:\n{pad}    mstat[i, {k}] = st.OK\n{pad}    go = True")
         else:
-            out += f"\n{pad}mstat[i, {k}] = st.OK\n{pad}go = True"
+            out += f"\n{pad}if mstat[i, {k}] != UNUSED:\n{pad}    mstat[i, {k}] = st.OK\n{pad}    go = True"
     return out
 
 
@@ -470,7 +482,6 @@ def _lanes_source(model, chosen, refs, lane_rhs) -> str:
     forcing = "forcing(p)" if "forcing" in refs else "1.0"
     order = _order(model)
     checks = _measurement_checks(chosen, refs, order, 8)
-    from .compile import combine
     fail = _failed(order, 12).replace("code", "cc")
     return f"""
 
@@ -558,9 +569,37 @@ def queue(lanes, idx, first, step, PF, Z0, te, s, bits, K, hoff, rtol, atol, max
 OBSERVE: list[str] = []  # set by kernel_source for _lanes_source (the observation body, 4 spaces indent)
 
 
-def kernel_for(model, chosen, method, always=-1, lock=(), raw=False):
+def sampled_measurements(model) -> tuple:
+    """Every sampled measurement the model declares, in declaration order: the kernel's columns."""
+    return tuple(m for m in model.measurements if is_sampled(m))
+
+
+def recheck_variant(model, measurements):
+    """(always, lock, raw) of the model's Recheck as compiled into a kernel of ``measurements``
+    (whether it runs is decided per call, its factor being possibly a setting): ``always`` the
+    index of its skip_settled Kick among them (-1: none), ``lock`` the per-state rates of its lock
+    test (skip_locked), ``raw`` its measured_units."""
+    rc = getattr(model, "recheck", None)
+    names = [m.name for m in measurements]
+    if rc is None or rc.skip_settled is None or rc.skip_settled not in names:
+        return -1, (), False
+    always = names.index(rc.skip_settled)
+    lock = ()
+    if rc.skip_locked:
+        rates = dict(rc.lock_rates)
+        lock = tuple(float(rates.get(x, 0.0)) for x in model.states)
+    return always, lock, bool(rc.measured_units)
+
+
+def kernel_for(model, method, measurements=None):
+    """The model's one sampled-trajectory kernel for ``method``: every sampled measurement it
+    declares (or only ``measurements``, the model's own, in their order: a kernel per subset, as
+    before; for comparison), the ones that observe chosen per call (``evaluate``), as the closed
+    forms are (one kernel per model and method, whatever subset of outputs is asked for)."""
     from .compile import _functions, load_generated
 
+    chosen = sampled_measurements(model) if measurements is None else tuple(measurements)
+    always, lock, raw = recheck_variant(model, chosen)
     funcs = [(n, f) for n, f in _functions(model, (), ()) if n in ("rhs", "initial", "forcing", "jac", "classify",
                                                                       "prepare")]
     for k, m in enumerate(chosen):
@@ -588,10 +627,12 @@ def _layout(model):
     return layout(model)
 
 
-def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lanes=True):
+def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lanes=True, per_subset=False):
     """Run the sampled measurements ``chosen`` on the points still OK in ``status``; by DOP853
     lanes for dop853 when the engine rewrites the model's rhs in lane form (unless ``lanes`` is
-    False: the same values)."""
+    False: the same values). The model's one kernel (``kernel_for``) observes only the chosen ones;
+    ``per_subset``: a kernel of the chosen ones alone instead (a compile per subset; the same values
+    bitwise, for tests)."""
     method = solver.method
     settings = dict(solver.settings)
     rc = _active_recheck(model, settings)
@@ -633,23 +674,56 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
     rawv = np.full((n, cols[-1] if raw else 0), np.nan)
     rawh = np.full((n, n_hist if raw else 0), np.nan)
     S = np.array([float(settings.get(x.name, x.default)) for x in model.settings], dtype=np.float64)
-    mod = kernel_for(model, chosen, method, always, lock, raw)
+    full = sampled_measurements(model)
+    if per_subset:
+        full = tuple(next(x for x in full if x.name == m.name) for m in chosen)
+    mod = kernel_for(model, method, None if not per_subset else full)
     code = status.copy()
     mstat = np.full((n, len(chosen)), NOT_RUN, dtype=np.int64)
     P = np.ascontiguousarray(P, dtype=np.float64)
     order = _order(model)
+    # the kernel's layout: every sampled measurement of the model (kernel_for); the chosen ones
+    # observe, the others are UNUSED (their bits columns zero, no value columns read back)
+    f_lock = recheck_variant(model, full)[1]
+    at = np.array([[x.name for x in full].index(m.name) for m in chosen], dtype=np.int64)
+    fcols = columns(full)
+    vcols = np.concatenate([np.arange(fcols[at[k]], fcols[at[k] + 1]) for k in range(len(chosen))]
+                           + ([np.array([fcols[-1]])] if lock else []) + [np.zeros(0, np.int64)]).astype(np.int64)
+    fbits = np.zeros((s.size, len(full) + (1 if f_lock else 0)), dtype=np.int64)
+    fbits[:, at] = bits[:, :len(chosen)]
+    if lock:
+        fbits[:, len(full)] = bits[:, len(chosen)]
+    fK = np.zeros((len(full), max([len(m.constants(settings)) for m in full] + [1]) + 1))
+    fK[at, :K.shape[1]] = K
+    if always >= 0:  # the skip_settled Kick observed also where its classify skips it
+        fK[at[always], -1] = 1.0
+    fhoff = np.zeros(len(full), dtype=np.int64)
+    fhoff[at] = hoff
+    first = np.full(len(full), UNUSED, dtype=np.int64)  # mstat before the kernel: which ones observe
+    first[at] = NOT_RUN
+    for k, m in enumerate(chosen):
+        if getattr(m, "classify", None) is None and getattr(full[at[k]], "classify", None) is not None:
+            first[at[k]] = NO_CLASSIFY  # the skip_settled Kick added above without its classify
 
     from .compile import _PLAN
     use_lanes = (hasattr(mod, "queue") and lanes and lane_count(s.size, model) > 0
                  and _lanes_pay(mod, max(n, getattr(_PLAN, "n", 0))))
 
     def run(P, rtol, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs):
+        m = P.shape[0]
+        fvals = np.full((m, fcols[-1] + (1 if lock else 0)), np.nan)
+        frawv = np.full((m, fcols[-1] if raw else 0), np.nan)
+        fmstat = np.repeat(first[None, :], m, axis=0)
         if use_lanes:
-            _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs,
-                       rtol)
+            _run_lanes(mod, model, P, S, s, fbits, fK, fhoff, solver, fvals, hist, frawv, rawh, code, fmstat, n_steps,
+                       n_rhs, rtol)
         else:
-            mod.kernel(P, S, s, bits, K, hoff, rtol, solver.atol, solver.max_steps, vals, hist, rawv, rawh, code, mstat,
-                       n_steps, n_rhs)
+            mod.kernel(P, S, s, fbits, fK, fhoff, rtol, solver.atol, solver.max_steps, fvals, hist, frawv, rawh, code,
+                       fmstat, n_steps, n_rhs)
+        vals[:] = fvals[:, vcols]
+        if raw:
+            rawv[:] = frawv[:, vcols[:rawv.shape[1]]]
+        mstat[:] = np.where(fmstat[:, at] == NO_CLASSIFY, NOT_RUN, fmstat[:, at])
 
     run(P, solver.rtol, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs)
     moved = None
@@ -679,6 +753,8 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
 
 
 NOT_RUN = 127  # mstat before a point's measurements ran (a status no measurement gives)
+UNUSED = 126  # mstat of a measurement not chosen (the kernel leaves it)
+NO_CLASSIFY = 125  # mstat before the kernel of a chosen measurement whose classify is not applied
 
 
 def measured(mstat, code, order) -> np.ndarray:
