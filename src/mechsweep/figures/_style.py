@@ -146,9 +146,9 @@ def title(fig, ds, what: str, caption: str | None = None, *, caption_box: bool =
     box would lie beneath it)."""
     if not owns(fig):
         return ""
-    # wrapped here, by characters for the figure's width (~10 per inch at 11 pt): matplotlib's own
+    # wrapped here, by characters for the figure's width (~11 per inch at 11 pt): matplotlib's own
     # wrap=True measured at the screen's dpi and let a title saved at 150 dpi run off both edges
-    head = textwrap.fill(what, max(20, int(width_inches(fig) * 10)), break_on_hyphens=False)
+    head = textwrap.fill(what, max(20, int(width_inches(fig) * 11)), break_on_hyphens=False)
     fig.suptitle(f"{head}\n{ds.attrs.get('title', '')}".strip(), fontsize=11)
     fixed = fixed_text(ds)
     lines = [c for c in (caption, f"fixed: {fixed}" if fixed else "") if c]
