@@ -397,3 +397,21 @@ def test_recheck_declarations_are_checked():
     with pytest.raises(ValueError, match="recheck must be a mechsweep.model.Recheck"):
         OdeModel(recheck=1000.0, **kw)
     assert Recheck().tight_rtol(1e-8) == 1e-10 and Recheck().tight_rtol(1e-13) == 1e-14
+
+
+@pytest.mark.slow  # two radau sampled kernels
+def test_radau_counts_the_rhs_calls_of_the_engines_jacobian():
+    """Without a declared jac radau's Jacobian is the engine's central differences: 2 n rhs calls each,
+    counted in n_rhs (they were not, on this route). DECAY_FD_JAC declares the same differences as its
+    jac (same floats, so the same steps), whose calls are not rhs calls: the counts differ by exactly
+    2 n per Jacobian, and by some at every point."""
+    decay, fdj = load.resolve(f"{USER}:DECAY"), load.resolve(f"{USER}:DECAY_FD_JAC")
+    P = np.array([[0.5, 1.0], [2.0, 3.0], [0.05, 1.0], [-0.1, 1.0]])
+    a = _evaluate(decay, P, ("stable", "y_hist"), method="radau", rtol=1e-8, atol=1e-12)
+    b = _evaluate(fdj, P, ("stable", "y_hist"), method="radau", rtol=1e-8, atol=1e-12)
+    for name in ("stable", "y_hist"):
+        np.testing.assert_array_equal(a[0][name], b[0][name])
+    np.testing.assert_array_equal(a[1], b[1])
+    np.testing.assert_array_equal(a[2], b[2])  # the same steps
+    extra = a[3] - b[3]
+    assert (extra > 0).all() and (extra % 2 == 0).all(), (a[3], b[3])

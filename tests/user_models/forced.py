@@ -157,3 +157,18 @@ DECAY_CHECKED = OdeModel(
     params=DECAY.params, states=DECAY.states, rhs=decay_rhs, initial=decay_initial,
     measurements=DECAY.measurements[:1], recheck=Recheck(factor=1000.0, skip_settled="stable"),
 )
+
+
+def decay_fd_jac(t, y, p, J):
+    # the engine's own central differences, written out: the same floats as the Jacobian the engine
+    # builds for DECAY, but a declared jac, whose calls n_rhs does not count
+    h = 6.055454452393343e-06 * max(1.0, abs(y[0]))
+    up = y[0] + h
+    dn = y[0] - h
+    J[0, 0] = (-p[0] * up - -p[0] * dn) / (up - dn)
+
+
+DECAY_FD_JAC = OdeModel(
+    name="decay", description=DECAY.description, params=DECAY.params, states=DECAY.states, rhs=decay_rhs,
+    initial=decay_initial, jac=decay_fd_jac, measurements=DECAY.measurements,
+)

@@ -235,9 +235,10 @@ def kernel_source(model, chosen, refs, method, always=-1, lock=(), raw=False) ->
         elif name.startswith("mclassify"):
             lines.append(_guard_numbered(name) + "\n")
     lines.append(rank_source(_order(model)))
-    if method in ("radau", "auto") and "jac" not in refs:
+    fd_count = method in ("radau", "auto") and "jac" not in refs
+    if fd_count:  # its rhs calls counted in p[SCR + 3 NS], added to n_rhs after the integration
         from .compile import _fd_jac
-        lines.append(_fd_jac("jac", "rhs") + "\n")
+        lines.append(_fd_jac("jac", "rhs", count=True) + "\n")
     if method in ("dop853", "auto"):
         lines.append(f"traj_d = dop853.make_trajectory_solver(rhs, stiffness_test={method == 'auto'})\n")
     if method in ("radau", "auto"):
@@ -407,6 +408,8 @@ def _kernel_tail(lines, body, refs, method, checks="", fail="") -> str:
     scratch += "\n        rwork = radau.workspace(NS)" if method != "dop853" else ""
     classify, prepare = _point_checks(refs, 12)
     forcing = "forcing(p)" if "forcing" in refs else "1.0"
+    fd_add = ("\n            n_rhs[i] += int(p[SCR + 3 * NS])  # the rhs calls of the engine's Jacobian"
+              if method in ("radau", "auto") and "jac" not in refs else "")
     lines.append(f"""
 
 @pjit
@@ -415,7 +418,7 @@ def kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, rawv, rawh
     ns_ = s.size
     n_blocks = (n + BLOCK - 1) // BLOCK
     for blk in prange(n_blocks):
-        p = np.empty(SCR + 3 * NS)
+        p = np.empty(SCR + 3 * NS + 1)
         y = np.empty(NS)
         te = np.empty(ns_)
         ob = np.zeros(ns_)
@@ -442,7 +445,7 @@ def kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, rawv, rawh
                 te[j] = T * s[j]
             initial(p, y){integrate}
             n_steps[i] += a
-            n_rhs[i] += b_
+            n_rhs[i] += b_{fd_add}
             if c != st.OK:{fail}
                 status[i] = code
                 continue{''.join(body)}
