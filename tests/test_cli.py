@@ -76,8 +76,10 @@ def test_models_of_a_file_without_a_name_lists_what_the_file_defines(capsys, tmp
     path = REPO / "tests" / "user_models" / "oscillators.py"
     assert main(["models", str(path)]) == 0
     out = capsys.readouterr().out
-    assert out.startswith(f"{path} defines 2 model(s): LINEAR, PENDULUM; a scene names one as {path}:NAME")
-    assert f"source: {path}:LINEAR" in out and f"source: {path}:PENDULUM" in out
+    assert out.startswith(f"{path} defines 3 model(s): LINEAR, PENDULUM, PENDULUM_CHECKED; a scene names one as "
+                          f"{path}:NAME")
+    assert f"source: {path}:LINEAR" in out and f"source: {path}:PENDULUM\n" in out
+    assert f"source: {path}:PENDULUM_CHECKED" in out
     assert main(["models", str(tmp_path / "none.py")]) == 2
     assert "none.py" in capsys.readouterr().err
     (tmp_path / "empty.py").write_text("x = 1\n")

@@ -122,3 +122,16 @@ def test_log_axis_keeps_exact_ends():
     data["axes"]["mu"] = {"start": 1e-3, "stop": 1e3, "num": 61, "spacing": "log"}
     axis = [a for a in load_scene(data).axes if a.name == "mu"][0]
     assert axis.values[0] == 1e-3 and axis.values[-1] == 1e3 and len(axis.values) == 61
+
+
+def test_a_long_list_of_allowed_names_is_printed_once():
+    """A scene written for another model: every unknown output named, the model's 50 outputs listed
+    once (the message grew past 8,000 characters, a fuzzed scene found it)."""
+    from mechsweep.scene import SceneError
+    outputs = ["floquet_max", "stable_floquet", "P_approx", "omega_p"]
+    with pytest.raises(SceneError) as err:
+        load_scene({"scene": {"name": "x", "model": "fourbar_balancing", "outputs": outputs},
+                    "axes": {"omega": [1.0, 2.0]}})
+    text = str(err.value)
+    assert all(f"'{o}'" in text for o in outputs)
+    assert text.count("dM_inertia_phi") == 1 and text.count("(allowed: as above)") == len(outputs) - 1, text

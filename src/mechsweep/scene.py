@@ -435,6 +435,7 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
 class _Problems:
     def __init__(self):
         self.items: list[str] = []
+        self._listed: set[str] = set()  # allowed lists already printed in full
 
     def add(self, key: str, message: str) -> None:
         self.items.append(f"{key}: {message}")
@@ -443,7 +444,11 @@ class _Problems:
         word = name[:100] if isinstance(name, str) else _short(name)
         hint = difflib.get_close_matches(word, [str(a) for a in allowed], n=1, cutoff=0.5)
         tip = f"; did you mean {hint[0]!r}?" if hint else ""
-        self.add(_short_key(key), f"unknown {what} {_short(name)}{tip} (allowed: {', '.join(map(str, allowed))})")
+        listed = ", ".join(map(str, allowed))
+        # a long list printed once: a scene written for another model repeated 50 outputs per error
+        text = "as above" if listed in self._listed and len(listed) > 80 else listed
+        self._listed.add(listed)
+        self.add(_short_key(key), f"unknown {what} {_short(name)}{tip} (allowed: {text})")
 
 
 _REPR = reprlib.Repr()
