@@ -2,6 +2,7 @@
 model/trajectory.py) against closed forms, on user models written as a user would
 (tests/user_models/forced.py)."""
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -9,9 +10,10 @@ import pytest
 
 from mechsweep import status as st
 from mechsweep.model import load
-from mechsweep.scene import Solver
 
 USER = Path(__file__).resolve().parent / "user_models" / "forced.py"
+sys.path.insert(0, str(Path(__file__).resolve().parent / "data"))
+from points import evaluate as evaluate_points  # noqa: E402  (tests/data)
 
 
 @pytest.fixture(scope="module")
@@ -25,15 +27,7 @@ def decay():
 
 
 def _evaluate(spec, P, wanted, **solver):
-    n = P.shape[0]
-    slv = Solver.for_model(spec, **solver)
-    out = {}
-    for k in wanted:
-        o = spec.output(k)
-        out[k] = np.full((n,) + tuple(len(d.values(slv.settings)) for d in o.extra_dims), np.nan)
-    status, ns, nr = np.zeros(n, np.int8), np.zeros(n, np.int64), np.zeros(n, np.int64)
-    spec.evaluate(P, wanted, slv, out, status, ns, nr)
-    return out, status, ns, nr
+    return evaluate_points(spec, P, wanted, **solver)
 
 
 def _forced_closed(w, zeta, F, W):

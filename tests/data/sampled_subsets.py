@@ -15,6 +15,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+import points  # noqa: E402
 USER = HERE.parent / "user_models"
 
 
@@ -24,8 +25,7 @@ def _run(spec, model, P, wanted, lanes=True, **kw):
     from mechsweep.scene import Solver
     slv = Solver.for_model(spec, **kw)
     n = P.shape[0]
-    out = {k: np.full((n,) + tuple(len(d.values(slv.settings)) for d in spec.output(k).extra_dims), np.nan)
-           for k in wanted}
+    out = points.blank_outputs(spec, slv, n, wanted)
     status, ns, nr = np.zeros(n, np.int8), np.zeros(n, np.int64), np.zeros(n, np.int64)
     with np.errstate(all="ignore"):
         if lanes:
