@@ -433,6 +433,17 @@ def test_axes_chosen_by_the_user_replace_the_automatic_choice():
     assert [c.name for c in generic.choose(_axes_of(ds, "speed"), x="speed")] == ["curve_lift", "curve_floquet"]
 
 
+def test_an_axis_asked_for_as_y_gives_curves_however_many_values_it_has():
+    """Without --y an axis of more than FAMILY_MAX values gives no family of curves; asked for, it
+    does, thinned to at most MAX_CURVES curves (what docs/your-own-model.md promises)."""
+    ds = cam(n_speed=30, contacts=("steel",))
+    assert "nomogram_lift" not in [c.name for c in generic.choose(ds, x="preload")]
+    chosen = {c.name: c for c in generic.choose(ds, x="preload", y="speed")}
+    assert list(chosen) == ["stability_map", "heatmap_lift", "nomogram_lift"] and chosen["nomogram_lift"].y == "speed"
+    lines = figures.draw(ds, "nomogram_lift", axes=("preload", "speed")).axes[0].lines
+    assert 2 <= len(lines) <= generic.MAX_CURVES
+
+
 @pytest.mark.parametrize("x,y,words,allowed", [
     ("contact", None, "--x contact: is not numeric", "speed, preload"),
     ("mass", None, "--x mass: is not an axis", "speed, preload"),

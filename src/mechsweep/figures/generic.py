@@ -196,8 +196,9 @@ def _given_map_axes(ds, name, x, y):
 
 def _given_choices(ds, name, axes, x, y) -> list[Choice]:
     """The figures of output ``name`` (over ``axes``) with the axes given: a heatmap where the vertical
-    axis is numeric, a nomogram where the curve axis has at most FAMILY_MAX values or is a list of
-    names (its curves thinned beyond MAX_CURVES, as always), a curve where there is no second axis."""
+    axis is numeric, a nomogram where the curve axis is ``y`` (any number of values), has at most
+    FAMILY_MAX values or is a list of names (its curves thinned beyond MAX_CURVES, as always), a
+    curve where there is no second axis."""
     if (x is not None and x not in axes) or (y is not None and y not in axes):
         return []
     if x is None:
@@ -209,7 +210,8 @@ def _given_choices(ds, name, axes, x, y) -> list[Choice]:
     if vertical is not None and is_numeric(ds, vertical):
         out.append(_heatmap_choice(ds, name, x, vertical))
     family = y if y is not None else next((d for d in axes if d != x and ds.sizes[d] <= FAMILY_MAX), None)
-    if family is None or ds.sizes[family] <= FAMILY_MAX or not is_numeric(ds, family):
+    # an axis asked for by --y gives curves however many values it has (thinned beyond MAX_CURVES)
+    if family is None or family == y or ds.sizes[family] <= FAMILY_MAX or not is_numeric(ds, family):
         out.append(_nomogram_choice(ds, name, x, family))
     return out
 
