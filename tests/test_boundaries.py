@@ -125,6 +125,23 @@ def test_mathieu_boundaries_match_characteristic_values(tmp_path, capsys):
         assert ds["boundary"].shape == (2, 5)
 
 
+def test_boundaries_says_why_band_edges_give_no_continued_curve(tmp_path, capsys, monkeypatch):
+    """Undamped, every boundary is a band edge (the multiplier stays 1 on one side): continuation
+    has no crossing to follow, and the command says so instead of '0 curve(s)' alone (a docs-only
+    trial's undamped rotor). The located dataset is stood in for: only the report is tested."""
+    scene = _mathieu_scene(tmp_path, 0.0, extra='continue_in = "q"')
+    stored = xr.Dataset({"boundary_bound": (("q", "crossing"), np.full((2, 5), bd.BAND_EDGE)),
+                         "curve_stop": ("curve", np.zeros(0, int)), "fold_axis": ("fold", np.zeros(0, int))},
+                        attrs={"located": 10, "along": "a", "evaluations_per_point_mean": 12.0,
+                               "evaluations_per_point_max": 20, "evaluate_calls": 30, "wall_time_s": 0.1,
+                               "continue_in": "q", "continuation_evaluated_points": 0, "continuation_calls": 0,
+                               "continuation_wall_time_s": 0.0})
+    monkeypatch.setattr(bd, "run_boundaries", lambda *a, **k: (tmp_path / "x.boundaries.h5", stored))
+    assert main(["boundaries", str(scene), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "continued in q: 0 curve(s)" in out and "10 band edge(s) not continued" in out, out
+
+
 def test_damped_mathieu_boundaries_by_illinois_bracket_the_crossing():
     """Damped (c = 0.1): the multiplier crosses 1 transversally, so Illinois refines a sign change;
     with the criterion's accuracy given as 1e-12 the bracket reaches 1e-10 |a| in about a dozen
@@ -175,7 +192,9 @@ BASE = {"scene": {"name": "b", "model": "duffing", "outputs": ["period_exact"]},
 
 @pytest.mark.parametrize("section, key, words", [
     ({"along": "A", "status_change": ["ok", "not_oscillatory"], "levle": 1}, "boundaries.levle", "did you mean 'level'"),
-    ({"along": "omega", "status_change": ["ok", "not_oscillatory"]}, "boundaries.along", "allowed: A"),
+    ({"along": "omega", "status_change": ["ok", "not_oscillatory"]}, "boundaries.along",
+     "'omega' is a fixed parameter in this scene, not an axis; expected an axis of at least 2 numeric values (A, mu)"),
+    ({"along": "omgea", "status_change": ["ok", "not_oscillatory"]}, "boundaries.along", "allowed: A"),
     ({"status_change": ["ok", "not_oscillatory"]}, "boundaries.along", "missing"),
     ({"along": "A", "criterion": "period", "level": 1.0}, "boundaries.criterion", "allowed: period_exact"),
     ({"along": "A", "criterion": "period_exact"}, "boundaries.level", "missing"),
@@ -440,7 +459,7 @@ def test_continuation_reproduces_a_closed_form_curve():
      "unknown axis to locate boundaries along 'w' (allowed: (none in this scene: give an axis of at least 2 values "
      "of a numeric parameter: "),
     ({"A": {"start": 0.1, "stop": 3.0, "num": 5}, "mu": [-1.0]},
-     {"along": "A", "criterion": "period_exact", "level": 3.0, "continue_in": "mu"},
+     {"along": "A", "criterion": "period_exact", "level": 3.0, "continue_in": "nu"},
      "(allowed: (none in this scene: give a second axis of at least 2 values of a numeric parameter: ")])
 def test_boundaries_axis_with_no_candidate_names_the_parameters_it_can_be(axes, section, words):
     from mechsweep.errors import InputError
@@ -448,6 +467,26 @@ def test_boundaries_axis_with_no_candidate_names_the_parameters_it_can_be(axes, 
         load_scene({**BASE, "axes": axes, "boundaries": section})
     text = str(info.value)
     assert words in text and "omega, mu, A)" in text, text
+
+
+@pytest.mark.parametrize("section, words, not_said", [
+    ({"along": "mu", "criterion": "period_exact", "level": 3.0},
+     "boundaries.along: 'mu' has 1 value in this scene; expected an axis of at least 2 numeric values (A)", "unknown"),
+    ({"along": "A", "criterion": "period_exact", "level": 3.0, "continue_in": "mu"},
+     "boundaries.continue_in: 'mu' has 1 value in this scene; expected an axis of at least 2 numeric values other "
+     "than along (this scene has none)", "unknown"),
+    ({"along": "A", "criterion": "period_exact", "level": 3.0, "status_change": ["ok", "no_motion"],
+      "continue_in": "mu"}, "exactly one of criterion", "needs a criterion"),
+])
+def test_a_boundaries_axis_that_is_known_but_cannot_be_swept_says_why(section, words, not_said):
+    """An axis of one value is not 'unknown', and a section giving both a criterion and a status
+    change is told that, not also that continuation 'needs a criterion' (a docs-only trial)."""
+    from mechsweep.errors import InputError
+    mu = [-1.0, -2.0] if "status_change" in section else [-1.0]
+    with pytest.raises(InputError) as info:
+        load_scene({**BASE, "axes": {"A": {"start": 0.1, "stop": 3.0, "num": 5}, "mu": mu}, "boundaries": section})
+    text = str(info.value)
+    assert words in text and not_said not in text, text
 
 
 def test_continuation_on_linear_axes_of_large_values_warns_nothing():

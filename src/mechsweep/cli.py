@@ -242,7 +242,7 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_boundaries(args) -> int:
-    from .boundaries import BOUND_MEANINGS, accuracy_warning, run_boundaries
+    from .boundaries import BAND_EDGE, BOUND_MEANINGS, accuracy_warning, run_boundaries
     from .scene import load_scene
 
     scene = load_scene(args.scene)
@@ -262,6 +262,9 @@ def _cmd_boundaries(args) -> int:
         print(f"  continued in {ds.attrs['continue_in']}: {int((stops >= 0).sum())} curve(s), "
               f"{int((ds['fold_axis'].values >= 0).sum())} fold(s), {ds.attrs['continuation_evaluated_points']:,} points "
               f"in {ds.attrs['continuation_calls']:,} calls, {ds.attrs['continuation_wall_time_s']:.2f} s")
+        if (edges := int((bound == BAND_EDGE).sum())):
+            print(f"  {edges} band edge(s) not continued: the criterion stays at its level on one side (a neutral "
+                  "stretch), so there is no crossing to follow; a little damping makes it cross (docs/boundaries.md)")
     return 0
 
 

@@ -847,6 +847,18 @@ def _execution(table: Mapping, p: _Problems) -> Execution:
     return Execution(scheduler=scheduler, worker_timeout=float(timeout))
 
 
+def _not_a_range(name, axes, model) -> str | None:
+    """Why a known parameter cannot be swept across for boundaries (None: not a known parameter)."""
+    axis = next((a for a in axes if a.name == name), None)
+    if axis is not None and model.param(name).categorical:
+        return "is a list of names (boundaries need a numeric axis)"
+    if axis is not None:
+        return f"has {axis.size} value{'s' if axis.size != 1 else ''} in this scene"
+    if isinstance(name, str) and name in [q.name for q in model.params]:
+        return "is a fixed parameter in this scene, not an axis"
+    return None
+
+
 def _boundaries(table: Mapping, model: ModelSpec, axes: list, outputs: tuple, p: _Problems,
                 refused=frozenset()) -> Boundaries | None:
     """The [boundaries] section; every problem names its key and what is allowed. ``refused``: axes
@@ -864,9 +876,13 @@ def _boundaries(table: Mapping, model: ModelSpec, axes: list, outputs: tuple, p:
               f"({', '.join(ranged) or 'this scene has none'})")
     numeric = ", ".join(q.name for q in model.params if not q.categorical)
     if along is not None and along not in ranged and along not in refused:
-        p.unknown("boundaries.along", along, ranged or (f"(none in this scene: give an axis of at least 2 values of "
-                                                        f"a numeric parameter: {numeric})",),
-                  "axis to locate boundaries along")
+        if (why := _not_a_range(along, axes, model)) is not None:
+            p.add("boundaries.along", f"{along!r} {why}; expected an axis of at least 2 numeric values "
+                  f"({', '.join(ranged) or 'this scene has none'})")
+        else:
+            p.unknown("boundaries.along", along, ranged or (f"(none in this scene: give an axis of at least 2 values "
+                                                            f"of a numeric parameter: {numeric})",),
+                      "axis to locate boundaries along")
     crit, change = table.get("criterion"), table.get("status_change")
     level, criterion_accuracy, pair = math.nan, None, None
     if (crit is None) == (change is None):
@@ -915,11 +931,14 @@ def _boundaries(table: Mapping, model: ModelSpec, axes: list, outputs: tuple, p:
             pair = (change[0], change[1])
     cont = table.get("continue_in")
     if cont is not None:
-        if cont not in [a for a in ranged if a != along]:
+        if cont not in ranged and (why := _not_a_range(cont, axes, model)) is not None:
+            p.add("boundaries.continue_in", f"{cont!r} {why}; expected an axis of at least 2 numeric values other "
+                  f"than along ({', '.join(a for a in ranged if a != along) or 'this scene has none'})")
+        elif cont not in [a for a in ranged if a != along]:
             p.unknown("boundaries.continue_in", cont, [a for a in ranged if a != along] or
                       (f"(none in this scene: give a second axis of at least 2 values of a numeric parameter: "
                        f"{numeric})",), "axis to continue boundaries in")
-        elif change is not None:
+        elif change is not None and crit is None:
             p.add("boundaries.continue_in", "needs a criterion: a change of status cannot be continued")
     rtol = table.get("rtol", Boundaries.rtol)
     lo, hi = BOUNDARY_RTOL
