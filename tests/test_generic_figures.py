@@ -469,3 +469,34 @@ def test_plot_draws_the_generic_figures_on_the_axes_given(tmp_path, capsys):
     assert "over preload and speed (log axis)" in capsys.readouterr().out.splitlines()[1]
     assert main(["plot", str(path), "--x", "speed", "--kind", "heatmap_lift", "-o", str(tmp_path / "h.png")]) == 0
     assert (tmp_path / "h.png").stat().st_size > 10_000
+
+
+def test_a_time_history_of_one_point_is_drawn_for_any_model(tmp_path, capsys):
+    """`mechsweep plot --point` on a model the package does not know: each output with one extra
+    numeric dimension (a History) is drawn against it, titled with the point (before, nothing fitted
+    and the plot was refused, though the help promised the point's time histories)."""
+    ds = cam(n_speed=8, n_preload=6)
+    ds["lift_history"].values[:] = np.arange(ds["lift_history"].size, dtype=float).reshape(ds["lift_history"].shape)
+    path = tmp_path / "cam.h5"
+    ds.to_netcdf(path, engine="h5netcdf")
+    assert main(["plot", str(path), "--point", "speed=10,preload=25,contact=bronze", "--list"]) == 0
+    assert capsys.readouterr().out.startswith("history_lift_history: lift_history (lift over time [mm]) against t")
+    assert main(["plot", str(path), "--point", "speed=10,preload=25,contact=bronze"]) == 0
+    written = capsys.readouterr().out.split()[-1]
+    assert written.endswith(".png") and Path(written).stat().st_size > 10_000
+    from mechsweep.cli import select_point
+    one = select_point(ds, "speed=10,preload=25,contact=bronze")
+    art = figures.draw(one, "history_lift_history")
+    np.testing.assert_array_equal(art.axes[0].lines[0].get_ydata(), one["lift_history"].values.ravel())
+    assert "at speed = " in art.figure._suptitle.get_text() and "contact = bronze" in art.figure._suptitle.get_text()
+
+
+def test_a_point_without_time_histories_is_refused_saying_why(tmp_path, capsys):
+    path = tmp_path / "cam.h5"
+    ds = cam(n_speed=8).drop_vars("lift_history")
+    ds.attrs["outputs"] = "lift floquet"
+    ds.to_netcdf(path, engine="h5netcdf")
+    assert main(["plot", str(path), "--point", "speed=10,preload=25,contact=bronze"]) == 2
+    err = capsys.readouterr().err
+    assert "--point speed=10,preload=25,contact=bronze: nothing to draw at one point" in err and "History" in err, err
+    assert not list(tmp_path.glob("*.png"))

@@ -28,6 +28,10 @@ Which figures a dataset gets (:func:`choose`), per output that no figure for its
     values gives the curves, the other is x);
   - no numeric axis: nothing.
 
+- an output with one extra numeric dimension (e.g. a time history), when every grid axis has one
+  value (one point: ``mechsweep plot --point``, or a one-point scene): ``history_<output>``, the
+  output against that dimension.
+
   Axes a figure does not use give one panel per value, at most ``MAX_PANELS`` panels (the first
   values); the panel titles say which slice each is, and the figure title says when panels were
   left out.
@@ -92,7 +96,7 @@ def _axes(ds, name) -> list[str]:
 
 @dataclass(frozen=True)
 class Choice:
-    """One generic figure: ``kind`` (heatmap, nomogram, curve, stability_map) of ``output`` with
+    """One generic figure: ``kind`` (heatmap, nomogram, curve, history, stability_map) of ``output`` with
     ``x`` and ``y`` (the heatmap's y axis or the nomogram's family axis)."""
 
     name: str
@@ -157,7 +161,32 @@ def choose(ds, drawn=frozenset(), *, x=None, y=None) -> list[Choice]:
         if min(ds.sizes[hx], ds.sizes[hy]) <= FAMILY_MAX:
             family, hx = (hy, hx) if ds.sizes[hy] <= ds.sizes[hx] else (hx, hy)
             choices.append(_nomogram_choice(ds, name, hx, family))
+    if x is None and y is None:
+        choices += [_history_choice(ds, name, extra) for name, extra in history_outputs(ds) if name not in drawn]
     return choices
+
+
+def history_outputs(ds) -> list[tuple[str, str]]:
+    """(output, its extra dimension) of the declared float outputs over the grid and one numeric
+    dimension more, when the grid is one point (every grid dimension of size 1)."""
+    grid = set(grid_dims(ds))
+    if any(ds.sizes[d] > 1 for d in grid):
+        return []
+    declared = ds.attrs.get("outputs")
+    names = str(declared).split() if declared else list(ds.data_vars)
+    found = []
+    for n in names:
+        if n not in ds.data_vars or ds[n].dtype.kind != "f":
+            continue
+        extra = [d for d in ds[n].dims if d not in grid]
+        if len(extra) == 1 and extra[0] in ds.coords and is_numeric(ds, extra[0]) and ds.sizes[extra[0]] > 1:
+            found.append((n, extra[0]))
+    return found
+
+
+def _history_choice(ds, name, extra) -> Choice:
+    return Choice(f"history_{name}", "history", name, extra, None,
+                  f"{_what(ds, name)} against {_ax(ds, extra)} at the grid's one point.")
 
 
 def _check_axes(ds, x, y) -> None:
@@ -603,9 +632,11 @@ def _panel_figure(ds, choice: Choice, *, fig=None, ax=None):
             a.set_title(", ".join(_slice_text(ds, d, v) for d, v in at.items()), fontsize=9)
     for k in range(len(shown), nrows * ncols):
         fig.delaxes(axes[k // ncols, k % ncols])
-    what = {"heatmap": "Map", "nomogram": "Nomogram", "curve": "Curve"}[choice.kind]
+    what = {"heatmap": "Map", "nomogram": "Nomogram", "curve": "Curve", "history": "History"}[choice.kind]
     long = ds[choice.output].attrs.get("long_name", choice.output)
     cut = f" (first {len(shown)} of {len(members)} slices of {', '.join(rest)})" if len(members) > len(shown) else ""
+    if choice.kind == "history":  # the point it belongs to
+        cut = " at " + ", ".join(_slice_text(ds, d, ds[d].values[0]) for d in grid_dims(ds) if d in ds.coords)
     title(fig, ds, f"{what}: {long}{cut}")
     return art
 
