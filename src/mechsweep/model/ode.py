@@ -269,9 +269,9 @@ class OdeModel:
         for m in self.measurements:
             m.validate(self.states)
             if getattr(m, "needs_forcing", False) and self.forcing_period is None:
-                raise ValueError(f"model {self.name!r}: {type(m).__name__} {m.name!r} needs forcing_period(p) (it "
-                                 "measures over forcing periods); declare forcing_period=, e.g. a function returning "
-                                 "1.0 to count its horizon in time units")
+                raise ValueError(f"model {self.name!r}: {type(m).__name__} {m.name!r} needs forcing_period(p): the "
+                                 "period T of the rhs's time-periodic coefficients, over which the monodromy is taken "
+                                 "(e.g. 2 * math.pi / p[0] for a forcing at frequency p[0]); declare forcing_period=")
             if hasattr(m, "check_settings"):
                 m.check_settings(self.settings)
         if self.forcing_period is None:  # T = 1: a History's instants are times, labelled so
