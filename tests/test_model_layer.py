@@ -300,6 +300,10 @@ BAD = {
         "M2 = OdeModel(name='f', description='d', params=(), states=('x', 'v'), rhs=rhs, initial=initial, "
         "measurements=(History('h', 'x', horizon=-5),))", "M",
         ["importing", "line 17", "History 'h': horizon = -5 is not allowed; expected a number > 0"]),
+    "measurement_on_its_own_line": (  # the error names the measurement's line, not the OdeModel(...) call's
+        "    dydt[1] = -y[0]\n\n\nBAD = Period('p2', 'xx')\n"
+        "M2 = OdeModel(name='f', description='d', params=(), states=('x', 'v'), rhs=rhs, initial=initial, "
+        "measurements=(BAD,))", "M", ["importing", "'xx'", "line 16)"]),
     "missing_name": ("    dydt[1] = -y[0]", "NOPE", ["does not define 'NOPE'", "models it defines: M"]),
     "misspelt_name": ("    dydt[1] = -y[0]", "MM", ["does not define 'MM'; did you mean 'M'?", "models it defines: M"]),
     "not_a_model": ("    dydt[1] = -y[0]", "NOT_A_MODEL", ["is a int, not a mechsweep.model.OdeModel"]),

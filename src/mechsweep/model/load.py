@@ -287,6 +287,9 @@ def _where(exc: BaseException, file: str) -> str:
             line = frame.lineno
     if line is None and isinstance(exc, SyntaxError) and exc.lineno:
         line = exc.lineno
+    at = getattr(exc, "mechsweep_declared_at", None)  # a measurement's own line (model/ode.py _at_declaration)
+    if at is not None and file and Path(at[0]).resolve() == Path(file).resolve():
+        line = at[1]
     # a SyntaxError's str() names the file and line already: its bare message, the full path after it
     text = exc.msg if isinstance(exc, SyntaxError) and exc.msg else str(exc)
     msg = f"{type(exc).__name__}: {text.splitlines()[0] if text else ''}".rstrip(": ")

@@ -17,12 +17,40 @@ from __future__ import annotations
 
 import functools
 import math
+import os
+import sys
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
 from ..models._spec import Output, Setting
+
+_PACKAGE = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep
+
+
+def _records_where(cls):
+    """Class decorator: each instance remembers where it was written (the first caller outside the
+    package: file, line), so an error found when the model is validated can name that line rather
+    than the OdeModel(...) call's (``declared_at``)."""
+    init = cls.__init__
+
+    @functools.wraps(init)
+    def __init__(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        f = sys._getframe(1)
+        while f is not None and (f.f_code.co_filename.startswith(_PACKAGE) or f.f_code.co_filename == "<string>"):
+            f = f.f_back
+        object.__setattr__(self, "_declared_at", (f.f_code.co_filename, f.f_lineno) if f is not None else None)
+
+    cls.__init__ = __init__
+    return cls
+
+
+def declared_at(obj):
+    """(file, line) where a measurement or closed form was written, or None."""
+    return getattr(obj, "_declared_at", None)
+
 
 DIRECTIONS = ("down", "up")
 
@@ -97,6 +125,7 @@ class _Outputs:
             raise ValueError(f"{self.name}: output_meta gives repeated output names {names}")
 
 
+@_records_where
 @dataclass(frozen=True)
 class Crossing:
     """Time of the ``n``-th crossing of ``level`` by a state in ``direction`` ("down": from above
@@ -159,6 +188,7 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
 """
 
 
+@_records_where
 @dataclass(frozen=True)
 class Period:
     """Period of an autonomous oscillation: the time between the first and the second crossing of
@@ -208,6 +238,7 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
 """
 
 
+@_records_where
 @dataclass(frozen=True)
 class StateAt:
     """The value of a state at time ``t`` (integrated from 0 to exactly ``t``, last step clipped).
@@ -246,6 +277,7 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
 """
 
 
+@_records_where
 @dataclass(frozen=True)
 class Extremum:
     """The maximum (``kind="max"``) or minimum (``"min"``) over [t0, t1] of a state, or of an
@@ -363,6 +395,7 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
 """
 
 
+@_records_where
 @dataclass(frozen=True)
 class Floquet(_Outputs):
     """Floquet multipliers of the model linearised about its motion from ``initial(p)`` over one
@@ -689,6 +722,7 @@ class System:
                                                               "prepare") if getattr(self, role) is not None)
 
 
+@_records_where
 @dataclass(frozen=True)
 class FirstEvent:
     """The value at the first root of an event function: ``event(t, y, p)`` going from > 0 to
@@ -795,6 +829,7 @@ class FirstEvent:
         return key if (self.n, self.direction) == (1, "down") else key + (self.n, self.direction, self.since)
 
 
+@_records_where
 @dataclass(frozen=True)
 class ClosedForm:
     """An output given by a formula: ``func(p, *needed) -> float``, plain numba-compilable Python
@@ -1218,6 +1253,7 @@ def _check_value(m, field_name):
         raise ValueError(f"{m.name}: {field_name} must be a function {field_name}(p, x) -> float (got {f!r})")
 
 
+@_records_where
 @dataclass(frozen=True)
 class Steady(_Outputs):
     """Steady-state amplitude of an observable ``of`` (a state name or ``f(t, y, p)``) after a
@@ -1328,6 +1364,7 @@ class Steady(_Outputs):
             status[:] = np.where((status == st.OK) & unsettled, st.NO_EVENT, status)
 
 
+@_records_where
 @dataclass(frozen=True)
 class Kick(_Outputs):
     """Stability verdict of a motion from a kick: the model's ``initial(p)`` is the kicked state,
@@ -1454,6 +1491,7 @@ class Kick(_Outputs):
             status[:] = np.where((status == st.OK) & ok & np.isnan(t_settle), st.NO_EVENT, status)
 
 
+@_records_where
 @dataclass(frozen=True)
 class History(_Outputs):
     """Samples of an observable ``of`` (a state name or ``f(t, y, p)``) at ``samples`` instants

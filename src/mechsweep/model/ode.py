@@ -3,6 +3,7 @@ writes the chunk kernel (compile.py) and the ModelSpec the runner, store and sce
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -11,7 +12,7 @@ import numpy as np
 from .. import status as st
 from ..errors import InputError
 from ..models._spec import ModelSpec, Param, Setting
-from .measure import FLOQUET_MARGIN, ClosedForm, Floquet, _number
+from .measure import FLOQUET_MARGIN, ClosedForm, Floquet, _number, declared_at
 
 SYMPLECTIC_ORDERS = (2, 4, 6, 8)
 
@@ -86,6 +87,18 @@ def worse(current, new, order):
         return np.where(current == st.OK, new, current)
     rank = ranks(order)
     return np.where(rank[new] < rank[current], new, current)
+
+
+@contextmanager
+def _at_declaration(m):
+    """A ValueError about measurement ``m`` carries where ``m`` was written (``mechsweep_declared_at``):
+    loading a model file then names that line, not the OdeModel(...) call's."""
+    try:
+        yield
+    except ValueError as exc:
+        if declared_at(m) is not None and not hasattr(exc, "mechsweep_declared_at"):
+            exc.mechsweep_declared_at = declared_at(m)
+        raise
 
 
 @dataclass(frozen=True)
@@ -267,13 +280,8 @@ class OdeModel:
         if len(set(names)) != len(names):
             raise ValueError(f"model {self.name!r}: output names repeat: {names}")
         for m in self.measurements:
-            m.validate(self.states)
-            if getattr(m, "needs_forcing", False) and self.forcing_period is None:
-                raise ValueError(f"model {self.name!r}: {type(m).__name__} {m.name!r} needs forcing_period(p): the "
-                                 "period T of the rhs's time-periodic coefficients, over which the monodromy is taken "
-                                 "(e.g. 2 * math.pi / p[0] for a forcing at frequency p[0]); declare forcing_period=")
-            if hasattr(m, "check_settings"):
-                m.check_settings(self.settings)
+            with _at_declaration(m):
+                self._check_measurement(m)
         if self.forcing_period is None:  # T = 1: a History's instants are times, labelled so
             import dataclasses
 
@@ -324,6 +332,15 @@ class OdeModel:
         if self.output_order and sorted(self.output_order) != sorted(names):
             raise ValueError(f"model {self.name!r}: output_order {self.output_order} must list every output once "
                              f"({names})")
+
+    def _check_measurement(self, m) -> None:
+        m.validate(self.states)
+        if getattr(m, "needs_forcing", False) and self.forcing_period is None:
+            raise ValueError(f"model {self.name!r}: {type(m).__name__} {m.name!r} needs forcing_period(p): the "
+                             "period T of the rhs's time-periodic coefficients, over which the monodromy is taken "
+                             "(e.g. 2 * math.pi / p[0] for a forcing at frequency p[0]); declare forcing_period=")
+        if hasattr(m, "check_settings"):
+            m.check_settings(self.settings)
 
     @property
     def methods(self) -> tuple[str, ...]:
