@@ -143,19 +143,16 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     import xarray as xr
 
     from ..errors import InputError
-
-    from . import workprecision_linkage
-
-    from . import _args
+    from ..model.closed import ClosedFormModel
+    from ..model.ode import OdeModel
+    from ..scene import SOLVER_LIMITS
+    from . import _args, workprecision_linkage
 
     points = _args.count("points", points, 1, 10**6)
     scipy_points = _args.count("scipy_points", scipy_points, 1, points)
     repeats = _args.count("repeats", repeats, 1, 1000)
     out_dir = _args.folder("out", out_dir)
-    from ..model.closed import ClosedFormModel
-    from ..model.ode import OdeModel
-
-    spec = resolve_model(model)
+    spec = resolve_model(model)  # what is measured is the model's declaration: no table of models here
     declared = spec.declaration
     if isinstance(declared, ClosedFormModel):  # algebraic: a ladder of its extra dimension's length, not of tolerances
         return workprecision_linkage.main(model, scene_path, points=points, repeats=max(repeats, 5), out_dir=out_dir,
@@ -163,8 +160,6 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     if not isinstance(declared, OdeModel):
         raise InputError(f"model {model!r} is not declared as a mechsweep.model.OdeModel (a ModelSpec made by hand): "
                          "the bench integrates the declaration's own rhs; it has no work-precision case")
-    from ..scene import SOLVER_LIMITS
-
     ladder = _args.sequence(ladder)
     if not ladder:
         raise InputError("the tolerance ladder is empty; give at least one rtol")

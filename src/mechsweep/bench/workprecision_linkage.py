@@ -41,7 +41,6 @@ import numpy as np
 from .. import status as st
 from ..scene import load_scene
 
-POSITIONS = (12, 24, 45, 90, 180, 360, 720, 1440, 2880)  # the ladder a declaration gets by default
 TIMED_POINTS = 1024  # our time per point: the sample repeated up to this many points ...
 TIMED_CALL_S = 0.05  # ... or until one call takes this long
 
