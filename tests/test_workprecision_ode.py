@@ -176,6 +176,14 @@ def test_a_model_without_a_declared_report_is_told_what_to_declare(tmp_path):
     with pytest.raises(InputError, match=r"has no reference scene; give one with --scene S.toml .* or declare it with "
                                          r"the model: OdeModel\(\.\.\., workprecision=WorkPrecision\(scene="):
         wp.main(LINEAR)
+    import dataclasses
+
+    from mechsweep.model import WorkPrecision
+
+    lost = dataclasses.replace(wo.declaration(HARMONIC), name="lost", workprecision=WorkPrecision(scene="nowhere.toml"))
+    with pytest.raises(InputError, match=r"names scene 'nowhere.toml', which is not a file: .*tests/nowhere.toml \(a "
+                                         r"path relative to the folder of the file that declares it"):
+        wp.declared_scene(lost.workprecision)
     from mechsweep.bench import workprecision_linkage as wl
 
     with pytest.raises(InputError, match=r"no linkage work-precision case for model .*LINEAR.*SizeWorkPrecision"):

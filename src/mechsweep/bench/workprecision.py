@@ -109,6 +109,11 @@ def declared_scene(declared) -> tuple[Path, str]:
     name = declared.scene[len(prefix):]
     if not path.is_file() and declared.scene.startswith(prefix) and "/" not in name and name in scenes.names():
         return scenes.path(name), declared.scene
+    if not path.is_file():
+        from ..errors import InputError
+        raise InputError(f"the model's work-precision declaration names scene {declared.scene!r}, which is not a file: "
+                         f"{path} (a path relative to the folder of the file that declares it, {declared.base}); "
+                         "give --scene S.toml or correct the declaration")
     return path, str(path)
 
 
