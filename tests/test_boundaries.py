@@ -105,6 +105,7 @@ def test_mathieu_boundaries_match_characteristic_values(tmp_path, capsys):
         assert ds["boundary"].dims == ("q", "crossing") and ds["boundary"].attrs["units"] == "1"
         assert "max_multiplier = 1" in ds["boundary"].attrs["long_name"]
         assert ds.attrs["mechsweep_kind"] == "boundaries" and ds.attrs["along"] == "a"
+        assert ds.attrs["along_span"] == 6.0  # a = -1 .. 5: the scale of `info`'s absolute bracket widths
         for i, q in enumerate(ds["q"].values):
             ref = [mathieu_a(0, q), mathieu_b(1, q), mathieu_a(1, q), mathieu_b(2, q), mathieu_a(2, q)]
             order = np.argsort(ref)

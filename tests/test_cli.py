@@ -200,3 +200,31 @@ def test_a_run_stores_its_model_status_notes_and_info_shows_those_it_met(in_tmp,
     assert f"  not_oscillatory: {spec.status_note(st.NOT_OSCILLATORY)}" in info
     assert f"  no_motion: {spec.status_note(st.NO_MOTION)}" in info
     assert "values at 1 of 3 points; missing: not_oscillatory 1, no_motion 1" in info
+
+
+def test_info_gives_a_boundary_next_to_zero_its_bracket_width_absolute():
+    """A boundary located at (or within 1e-6 of the axis span of) 0 has no meaningful width relative
+    to |x|: `info` gives those brackets' widths in the axis's units, and the relative width only for
+    boundaries away from 0 (the locator's own scale: its tolerance is rtol max(|x|, 1e-6 span))."""
+    import numpy as np
+    import xarray as xr
+
+    from mechsweep.boundaries import PARAMETER
+    from mechsweep.cli import describe_boundaries
+
+    loc = np.array([[2.0, 1e-12, 0.5], [-4.0, np.nan, 3e-7]])  # axis span 10: scale 1e-5
+    width = np.array([[2e-10, 3e-15, 1e-10], [8e-10, np.nan, 4e-13]])
+    ds = xr.Dataset({"boundary": (("q", "crossing"), loc, {"units": "m"}),
+                     "boundary_width": (("q", "crossing"), width, {"units": "m"}),
+                     "boundary_bound": (("q", "crossing"), np.full(loc.shape, PARAMETER, np.int8))},
+                    attrs={"mechsweep_kind": "boundaries", "along": "a", "criterion": "g", "level": 0.0,
+                           "along_span": 10.0})
+    text = describe_boundaries(ds)
+    assert "bracket width relative to the boundary (3 with |a| > 1.0e-05 = 1e-06 x axis span): median 2.0e-10, " \
+           "largest 2.0e-10" in text
+    assert "bracket width absolute next to a = 0 (2 with |a| <= 1.0e-05): median 2.0e-13 m, largest 4.0e-13 m" in text
+    # a dataset written before the span was stored: relative wherever x != 0, as before
+    del ds.attrs["along_span"]
+    old = describe_boundaries(ds)
+    assert "bracket width relative to the boundary (5 with a != 0): median 2.0e-10, largest 3.0e-03" in old
+    assert "absolute" not in old

@@ -15,13 +15,14 @@ import numpy as np
 import pytest
 
 import mechsweep
-from mechsweep import runner
 from mechsweep import status as st
 from mechsweep.cli import main
 from mechsweep.errors import InputError
 from mechsweep.journal import partial_path
 from mechsweep.model import ClosedFormModel, ExtraDim, Output, Param
 from mechsweep.scene import load_scene
+
+from .data.interrupt import interrupted_after
 
 HERE = Path(__file__).resolve().parent
 CAM = HERE / "user_models" / "cam.py"
@@ -79,17 +80,8 @@ def test_user_closed_form_model_sweeps_and_stores_curves(in_tmp):
 def test_user_closed_form_model_resumes_to_the_same_dataset(in_tmp):
     outputs = ["v_max", "a_max", "pressure_angle_max", "s_u", "a_u"]
     ref = mechsweep.run(cam_scene(outputs, chunk_size=3), output="ref.h5", progress=False)
-    with pytest.MonkeyPatch.context() as mp:
-        real, calls = runner.evaluate_chunk, {"n": 0}
-
-        def flaky(scene, chunk, *rest):
-            calls["n"] += 1
-            if calls["n"] > 2:
-                raise KeyboardInterrupt
-            return real(scene, chunk, *rest)
-        mp.setattr(runner, "evaluate_chunk", flaky)
-        with pytest.raises(mechsweep.RunInterrupted):
-            mechsweep.run(cam_scene(outputs, chunk_size=3), output="out.h5", progress=False)
+    with interrupted_after(2), pytest.raises(mechsweep.RunInterrupted):
+        mechsweep.run(cam_scene(outputs, chunk_size=3), output="out.h5", progress=False)
     partial = mechsweep.open_dataset("out.h5", allow_partial=True)
     pending = int((partial["status"].values == st.PENDING).sum())
     assert 0 < pending < 16  # two chunks were stored, the rest is missing

@@ -18,6 +18,8 @@ from mechsweep.journal import Journal, partial_path
 from mechsweep.errors import InputError
 from mechsweep.scene import Execution
 
+from .data.interrupt import interrupted_after
+
 SCENE = """
 [scene]
 name = "faults"
@@ -261,18 +263,8 @@ def test_a_really_full_disk_keeps_the_journal_and_resumes_identically(small_disk
 # ----------------------------------------------------------------------------- damaged chunk files
 def interrupted_run(scene_file, after=5):
     """A run stopped (Ctrl-C) after ``after`` chunks were saved."""
-    real, calls = runner.evaluate_chunk, [0]
-
-    def flaky(*args):
-        calls[0] += 1
-        if calls[0] > after:
-            raise KeyboardInterrupt
-        return real(*args)
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(runner, "evaluate_chunk", flaky)
-        with pytest.raises(mechsweep.RunInterrupted):
-            mechsweep.run(mechsweep.load_scene(scene_file), output=OUT, progress=False)
+    with interrupted_after(after), pytest.raises(mechsweep.RunInterrupted):
+        mechsweep.run(mechsweep.load_scene(scene_file), output=OUT, progress=False)
     return sorted((partial_path(scene_file.parent / OUT) / "chunks").glob("*.npz"))
 
 

@@ -2,7 +2,6 @@
 the file it places is the one the chunk-by-chunk assembly writes (every variable bitwise), and a
 failed write of it changes nothing a run promises: a passing failure is repaired by the assembly,
 a lasting one is reported with the journal kept, and the run resumes to the same dataset."""
-import contextlib
 import errno
 import os
 
@@ -14,27 +13,12 @@ import mechsweep
 from mechsweep import runner
 from mechsweep.journal import partial_path
 
+from .data.interrupt import interrupted_after
 from .test_faults import SCENE as FAULTS_SCENE
 
 SCENE = FAULTS_SCENE.replace('name = "faults"', 'name = "early"')  # the fault tests' small grid: 8 chunks of 100
 N_CHUNKS = 8
 OUT = "data/runs/e.h5"
-
-
-@contextlib.contextmanager
-def interrupted_after(after: int):
-    """Within it, a run is stopped (Ctrl-C) after ``after`` chunks were computed."""
-    real, calls = runner.evaluate_chunk, [0]
-
-    def interrupted(*args):
-        calls[0] += 1
-        if calls[0] > after:
-            raise KeyboardInterrupt
-        return real(*args)
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(runner, "evaluate_chunk", interrupted)
-        yield
 
 
 @pytest.fixture

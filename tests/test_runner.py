@@ -1,5 +1,4 @@
 """Runner and store: dataset layout, leave-out, resume, atomic replace, reproducibility."""
-import contextlib
 import copy
 import subprocess
 import sys
@@ -15,6 +14,7 @@ from mechsweep import status as st
 from mechsweep.store import StoreError, partial_path
 
 from .conftest import REPO
+from .data.interrupt import interrupted_after
 
 
 def test_dataset_layout(in_tmp, small_duffing):
@@ -71,25 +71,9 @@ def test_algebraic_scene_never_compiles_an_integrator(in_tmp):
     assert "COMPILED []" in out.stdout
 
 
-@contextlib.contextmanager
-def interrupt_after(n_chunks):
-    """Ctrl-C arrives while chunk n_chunks + 1 is computed."""
-    real = runner.evaluate_chunk
-    calls = {"n": 0}
-
-    def flaky(scene, chunk, *rest):
-        calls["n"] += 1
-        if calls["n"] > n_chunks:
-            raise KeyboardInterrupt
-        return real(scene, chunk, *rest)
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(runner, "evaluate_chunk", flaky)
-        yield
-
-
 def test_interrupted_run_resumes_to_identical_dataset(in_tmp, small_duffing):
     reference = mechsweep.run(small_duffing, output="data/runs/ref.h5")
-    with interrupt_after(3), pytest.raises(mechsweep.RunInterrupted, match="--resume"):
+    with interrupted_after(3), pytest.raises(mechsweep.RunInterrupted, match="--resume"):
         mechsweep.run(small_duffing, output="data/runs/r.h5")
     part = partial_path("data/runs/r.h5")
     assert part.exists() and not (in_tmp / "data/runs/r.h5").exists()
@@ -113,14 +97,14 @@ def test_failed_run_leaves_finished_dataset_untouched(in_tmp, small_duffing):
     changed["fixed"]["omega"] = 3.0
     with pytest.raises(StoreError, match="different scene"):  # refused: it would replace another scene's run
         mechsweep.run(changed, output="data/runs/keep.h5")
-    with interrupt_after(1), pytest.raises(mechsweep.RunInterrupted):
+    with interrupted_after(1), pytest.raises(mechsweep.RunInterrupted):
         mechsweep.run(changed, output="data/runs/keep.h5", overwrite=True)
     assert (in_tmp / "data/runs/keep.h5").read_bytes() == before
     np.testing.assert_array_equal(mechsweep.open_dataset("data/runs/keep.h5")["period"], first["period"])
 
 
 def test_resume_with_a_different_scene_is_refused(in_tmp, small_duffing):
-    with interrupt_after(1), pytest.raises(mechsweep.RunInterrupted):
+    with interrupted_after(1), pytest.raises(mechsweep.RunInterrupted):
         mechsweep.run(small_duffing, output="data/runs/x.h5")
     other = copy.deepcopy(small_duffing)
     other["fixed"]["omega"] = 3.0
@@ -160,7 +144,7 @@ def test_torsional_nomogram_scene_small(in_tmp):
 def test_a_second_writer_is_refused_and_touches_nothing(in_tmp, small_duffing):
     """While one process holds a run's lock, another run on the same output (plain, --resume or
     --restart) is refused with the holder's pid, and the unfinished run's journal is left as it was."""
-    with interrupt_after(1), pytest.raises(mechsweep.RunInterrupted):
+    with interrupted_after(1), pytest.raises(mechsweep.RunInterrupted):
         mechsweep.run(small_duffing, output="data/runs/busy.h5")
     part = partial_path("data/runs/busy.h5")
     saved = sorted(p.name for p in (part / "chunks").iterdir())

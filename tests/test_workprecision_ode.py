@@ -1,6 +1,7 @@
 """`mechsweep bench workprecision FILE.py:NAME --scene S.toml`: the work-precision report of a model
 the bench has never heard of, against scipy running the model's OWN rhs and initial state."""
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -139,3 +140,79 @@ def test_an_invariant_is_checked_when_the_model_is_declared():
                        ("energy", "invariant must be a mechsweep.model.Invariant")):
         with pytest.raises(ValueError, match=match):
             OdeModel(**base, invariant=inv)
+
+
+HARMONIC = f"{USER / 'harmonic_wp.py'}:HARMONIC"  # declares WorkPrecision(scene, output, reference=its ClosedForm)
+
+
+def test_a_user_closed_form_declared_as_the_reference(tmp_path, monkeypatch):
+    """A user model's WorkPrecision: no --scene (its scene is named relative to the model file,
+    found from any working folder), and its own ClosedForm period_exact = 2 pi / w is the reference
+    every method's error is measured against; scipy still runs the model's own rhs."""
+    monkeypatch.chdir(tmp_path)  # the declared scene is found next to the model file, not in the cwd
+    ds = wp.main(HARMONIC, points=3, scipy_points=1, ladder=(1e-10,), repeats=1, out_dir=tmp_path, quiet=True)
+    assert ds.attrs["reference"] == "the model's closed form period_exact (period 2 pi / w)"
+    assert ds.attrs["norm"] == "relative error |period - period_exact| / |period_exact|"
+    assert ds.attrs["scene"] == str(USER / "harmonic_wp.toml") and ds.attrs["output"] == "period"
+    assert list(ds.integrator.values) == ["mechsweep dop853", "scipy DOP853", "scipy Radau", "scipy LSODA"]
+    # the errors are against 2 pi / w: recomputed here from the same sample and the model's values
+    from mechsweep.bench.workprecision import _run_ours, sample
+    from mechsweep.scene import Solver, load_scene
+
+    scene = load_scene(USER / "harmonic_wp.toml")
+    P = sample(scene, 3)
+    solver = Solver.for_model(scene.model, rtol=1e-10, atol=1e-10 * wp.ATOL_RATIO)
+    period = _run_ours(scene.model, P, "period", solver)[0]
+    err = np.abs(period - 2 * np.pi / P[:, 0]) / (2 * np.pi / P[:, 0])
+    assert float(ds.error_max_sample.sel(integrator="mechsweep dop853", rtol=1e-10)) == err.max()
+    assert 0 < err.max() < 1e-8
+    ours, scipy = ds.sel(integrator="mechsweep dop853"), ds.sel(integrator="scipy DOP853")
+    np.testing.assert_allclose(ours.error_max.values, scipy.error_max.values, rtol=0.1)  # same method, same rhs
+    with pytest.raises(InputError, match="--output 'nothing' is not an output of model 'harmonic_wp'"):
+        wp.main(HARMONIC, output="nothing")
+
+
+def test_a_model_without_a_declared_report_is_told_what_to_declare(tmp_path):
+    with pytest.raises(InputError, match=r"has no reference scene; give one with --scene S.toml .* or declare it with "
+                                         r"the model: OdeModel\(\.\.\., workprecision=WorkPrecision\(scene="):
+        wp.main(LINEAR)
+    import dataclasses
+
+    from mechsweep.model import WorkPrecision
+
+    lost = dataclasses.replace(wo.declaration(HARMONIC), name="lost", workprecision=WorkPrecision(scene="nowhere.toml"))
+    with pytest.raises(InputError, match=r"names scene 'nowhere.toml', which is not a file: .*tests/nowhere.toml \(a "
+                                         r"path relative to the folder of the file that declares it"):
+        wp.declared_scene(lost.workprecision)
+    from mechsweep.bench import workprecision_linkage as wl
+
+    with pytest.raises(InputError, match=r"no linkage work-precision case for model .*LINEAR.*SizeWorkPrecision"):
+        wl.main(LINEAR)
+
+
+def test_a_work_precision_declaration_is_checked_when_the_model_is_declared():
+    from mechsweep.model import ClosedForm, OdeModel, Param, Period, WorkPrecision
+
+    def f(t, y, p, d):
+        d[0] = y[1]
+
+    def exact(p):
+        return 1.0
+
+    def from_period(p, T):
+        return T
+
+    base = dict(name="m", description="", params=(Param("w", "w", "1", "w"),), states=("x", "v"), rhs=f, initial=f,
+                measurements=(Period("period", "x", t_max=10.0),),
+                closed_forms=(ClosedForm("T_exact", exact), ClosedForm("T_again", from_period, needs=("period",))))
+    ok = OdeModel(**base, workprecision=WorkPrecision(scene="s.toml", output="period", reference="T_exact"))
+    assert ok.workprecision.base == str(Path(__file__).resolve().parent)  # the folder of the declaring file
+    for decl, match in ((WorkPrecision(output="T_exact"), "output = 'T_exact' is not a measured output"),
+                        (WorkPrecision(output="period", reference="nothing"), "reference = 'nothing' is not one of"),
+                        (WorkPrecision(output="period", reference="T_again"),
+                         r"reference 'T_again' needs the integrated outputs \['period'\]"),
+                        (WorkPrecision(reference="T_exact"), "is given without the output"),
+                        (WorkPrecision(scene="s.txt"), "expected a scene file ending in .toml"),
+                        ("period", "workprecision must be a mechsweep.model.WorkPrecision")):
+        with pytest.raises(ValueError, match=match):
+            OdeModel(**base, workprecision=decl)

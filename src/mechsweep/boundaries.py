@@ -675,6 +675,9 @@ def locate_dataset(scene, ds, spec=None):
         "mechsweep_kind": "boundaries",
         "model": scene.model.name,
         "along": along,
+        # the along axis's span (its encoded grid): the scale below which a bracket's width is read
+        # as absolute (|x| <= ABS_FLOOR * span, as the locator's tolerance does; `mechsweep info`)
+        "along_span": float(np.ptp(_encoded(scene, axis))) if axis.size > 1 else 1.0,
         "criterion": crit.output or "status",
         **({"level": crit.level} if crit.output else {"status_change": " ".join(b.status_change)}),
         "rtol": b.rtol,

@@ -482,6 +482,35 @@ def _cmd_info(args) -> int:
     return 0
 
 
+def _bracket_widths(loc, width, attrs, unit) -> list[str]:
+    """The final brackets' widths: relative to |x| where the boundary is away from 0, absolute next
+    to 0, where a relative width means nothing. The scale is the locator's own: its tolerance is
+    rtol max(|x|, ABS_FLOOR span), span the along axis's (attribute along_span; a dataset written
+    before it was stored: relative wherever x != 0, as before)."""
+    import numpy as np
+
+    from .boundaries import ABS_FLOOR
+
+    span = float(attrs.get("along_span", np.nan))
+    scale = ABS_FLOOR * span if np.isfinite(span) and span > 0 else 0.0
+    along = attrs.get("along", "x")
+    found = np.isfinite(loc) & np.isfinite(width)
+    far = found & (np.abs(loc) > scale) & (loc != 0)
+    near = found & ~far
+    lines = []
+    if far.any():
+        rel = width[far] / np.abs(loc[far])
+        where = f"|{along}| > {scale:.1e} = {ABS_FLOOR:g} x axis span" if scale > 0 else f"{along} != 0"
+        lines.append(f"  bracket width relative to the boundary ({int(far.sum())} with {where}): median "
+                     f"{np.median(rel):.1e}, largest {rel.max():.1e}")
+    if near.any() and scale > 0:
+        w = width[near]
+        unit = f" {unit}" if unit and unit != "1" else ""
+        lines.append(f"  bracket width absolute next to {along} = 0 ({int(near.sum())} with |{along}| <= {scale:.1e}): "
+                     f"median {np.median(w):.1e}{unit}, largest {w.max():.1e}{unit}")
+    return lines
+
+
 def describe_boundaries(ds) -> str:
     """A boundaries dataset (`mechsweep boundaries`) in a few lines: what was located along which
     axis, how many, which accuracy bound stopped each, the cost, the continued curves."""
@@ -502,12 +531,9 @@ def describe_boundaries(ds) -> str:
                                     else "")]
     counts = ", ".join(f"{BOUND_MEANINGS[c]} {int((bound == c).sum())}" for c in sorted(BOUND_MEANINGS)
                        if (bound == c).any())
-    lines.append(f"  accuracy bound met: {counts or 'none'} (parameter: bracket <= rtol |x|; criterion: the "
+    lines.append(f"  accuracy bound met: {counts or 'none'} (parameter: bracket <= rtol max(|x|, 1e-6 x axis span); criterion: the "
                  "criterion's accuracy band is wider; band_edge: edge of that band)")
-    ok = np.isfinite(loc) & np.isfinite(width) & (loc != 0)
-    if ok.any():
-        rel = width[ok] / np.abs(loc[ok])
-        lines.append(f"  bracket width relative to the boundary: median {np.median(rel):.1e}, largest {rel.max():.1e}")
+    lines += _bracket_widths(loc, width, a, ds["boundary"].attrs.get("units", ""))
     lines.append(f"  evaluations: {a.get('evaluated_points', 0)} points in {a.get('evaluate_calls', 0)} calls after "
                  f"the grid, {float(a.get('evaluations_per_point_mean', 0)):.1f} per located point (max "
                  f"{a.get('evaluations_per_point_max', 0)}), {float(a.get('wall_time_s', 0)):.2f} s")

@@ -47,29 +47,32 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
     b = bsub.add_parser("workprecision", formatter_class=fmt,
                         help="error against run time for every method, ours and scipy's (DOP853, Radau, LSODA)",
                         description="Integrate a fixed sample of a scene's grid points with every method the "
-                                    "model offers and with scipy's solve_ivp, over a ladder of tolerances; print "
-                                    "error against time per point and write DIR/workprecision_MODEL.h5 and .csv "
-                                    "(draw it with `mechsweep plot DIR/workprecision_MODEL.h5`). The algebraic "
-                                    "linkage models (fourbar_balancing, slidercrank_balancing) are evaluated over "
-                                    "a ladder of crank positions per cycle instead (--positions), against a "
-                                    "continuous-angle reference, with a plain numpy implementation timed alongside.")
-    b.add_argument("model", help="duffing, torsional_circuit, autobalancer, fourbar_balancing, "
-                                 "slidercrank_balancing, or a model declared as a mechsweep.model.OdeModel: "
-                                 "'file.py:NAME' (relative to the current directory), 'package.module:NAME' or an "
-                                 "entry-point name, with --scene S.toml naming the same model; scipy then "
-                                 "integrates the model's own rhs")
-    b.add_argument("--scene", default=None, help="draw the sample from this scene (default: the model's reference scene)")
+                                    "model offers and with scipy's solve_ivp (running the model's own rhs), over a "
+                                    "ladder of tolerances; print error against time per point and write "
+                                    "DIR/workprecision_MODEL.h5 and .csv (draw it with `mechsweep plot "
+                                    "DIR/workprecision_MODEL.h5`). What is measured is declared by the model: "
+                                    "OdeModel(workprecision=WorkPrecision(scene, output, reference)). A closed-form "
+                                    "model that declares ClosedFormModel(workprecision=SizeWorkPrecision(...)) is "
+                                    "evaluated over a ladder of its extra dimension's length instead (--positions, "
+                                    "e.g. crank positions per cycle), against its declared reference, with its "
+                                    "declared independent implementation timed alongside.")
+    b.add_argument("model", help="a built-in model's name (an unknown name lists those that declare a report) or a "
+                                 "model of your own: 'file.py:NAME' (relative to the current directory), "
+                                 "'package.module:NAME' or an entry-point name; without a declared scene, give "
+                                 "--scene S.toml naming the same model")
+    b.add_argument("--scene", default=None, help="draw the sample from this scene (default: the scene the model declares)")
     b.add_argument("--points", type=int, default=64, help="sample points for mechsweep (default 64)")
     b.add_argument("--scipy-points", type=int, default=6, help="of those, solved with scipy (default 6)")
     b.add_argument("--rtol", type=float, nargs="+", default=None, metavar="RTOL",
                    help="tolerance ladder (default 1e-4 ... 1e-13, one per decade)")
     b.add_argument("--positions", type=int, nargs="+", default=None, metavar="N",
-                   help="linkage models: crank positions per cycle (default 12 24 45 90 180 360 720 1440 2880)")
+                   help="closed-form models: the ladder of the extra dimension's length, e.g. crank positions per "
+                        "cycle (default: the model's declared sizes)")
     b.add_argument("--repeats", type=int, default=None,
-                   help="timing repetitions, the fastest counts (default 3; linkage models 5)")
+                   help="timing repetitions, the fastest counts (default 3; closed-form models 5)")
     b.add_argument("--out", default="data/bench", help="output folder (default data/bench)")
     b.add_argument("--output", default=None, metavar="NAME",
-                   help="a model of your own: the measured output to compare (default: its first measurement)")
+                   help="the measured output to compare (default: the declared output, else the first measurement)")
     b.set_defaults(func=run_workprecision)
     b = bsub.add_parser("boundaries", help="auto-balancer stability boundaries against 2 m / M: located vs "
                                            "grid-and-contour at the same precision")
@@ -176,17 +179,22 @@ def run_period_error(args) -> int:
 
 def run_workprecision(args) -> int:
     from ..errors import InputError
+    from ..model.closed import ClosedFormModel
     from . import workprecision, workprecision_linkage
 
-    linkage = args.model in workprecision_linkage.CASES
+    # what the model declares decides the ladder: a ClosedFormModel's SizeWorkPrecision (--positions)
+    # or an OdeModel's tolerances (--rtol)
+    linkage = isinstance(workprecision.resolve_model(args.model).declaration, ClosedFormModel)
     if linkage and args.rtol:
         raise InputError(f"{args.model} is algebraic: it has no tolerance (--rtol); its ladder is --positions")
     if args.positions and not linkage:
-        raise InputError(f"--positions is for the linkage models ({', '.join(workprecision_linkage.CASES)}), "
-                         f"not {args.model}")
+        closed = [n for n in workprecision.all_cases()
+                  if isinstance(workprecision.resolve_model(n).declaration, ClosedFormModel)]
+        raise InputError(f"--positions is for closed-form models (a ladder of their extra dimension's length: "
+                         f"{', '.join(closed)}), not {args.model}")
     if linkage:
         workprecision_linkage.main(args.model, args.scene, points=args.points,
-                                   positions=tuple(args.positions or workprecision_linkage.POSITIONS),
+                                   positions=tuple(args.positions) if args.positions else None,
                                    repeats=5 if args.repeats is None else args.repeats, out_dir=args.out)
         return 0
     workprecision.main(args.model, args.scene, points=args.points, scipy_points=args.scipy_points,

@@ -24,9 +24,8 @@ import numpy as np
 from .. import status as st
 from ..models import _linkage as L
 from ..models import fourbar_balancing as fb
+from ..models._linkage_reference import OUTPUTS, numpy_residuals  # noqa: F401 - the numpy side, with the model
 from ..runner import _threads
-
-OUTPUTS = ("M_rms_static", "M_max_static", "axis_x", "axis_y", "dM_rms_axis", "dM_max_axis", "R_axis")
 
 
 def design_family(n: int, seed: int = 0) -> np.ndarray:
@@ -49,88 +48,6 @@ def design_family(n: int, seed: int = 0) -> np.ndarray:
     P[:, col("I2")] = P[:, col("m2")] * P[:, col("a2")] ** 2 / 12
     P[:, col("branch")] = rng.integers(0, 2, n)
     return P
-
-
-def numpy_residuals(P: np.ndarray, block: int = 64, n_positions: int = L.N_POSITIONS) -> dict:
-    """The same computation as the mechsweep kernel, vectorised with numpy over [designs, N]
-    (N = n_positions uniform crank positions, 360 as in sweeps). Constant crank speed and no
-    gravity only (delta = 0, g = 0): a ValueError otherwise."""
-    for name in ("delta", "g"):
-        if np.any(P[:, L.FOURBAR_PARAMS.index(name)] != 0.0):
-            raise ValueError(f"the numpy four-bar residuals assume {name} = 0 (constant speed, no gravity)")
-    n = P.shape[0]
-    res = {k: np.empty(n) for k in OUTPUTS}
-    cos_phi, sin_phi, sums = fb.positions(n_positions)
-    SUM_CC, SUM_SS, SUM_SC = sums
-    c1 = cos_phi[None, :]
-    s1 = sin_phi[None, :]
-    for s in range(0, n, block):
-        p = P[s:s + block]
-        col = lambda name: p[:, L.FOURBAR_PARAMS.index(name)][:, None]  # noqa: E731
-        a1, a2, a3, a4 = col("a1"), col("a2"), col("a3"), col("a4")
-        sigma = 1.0 - 2.0 * col("branch")
-        w1 = col("omega")  # constant speed: phi'' = 0
-        m1, r1, th1 = col("m1"), col("r1"), col("theta1")  # I1: no effect at constant crank speed
-        m2, r2, th2, I2 = col("m2"), col("r2"), col("theta2"), col("I2")
-        m3, r3, th3, I3 = col("m3"), col("r3"), col("theta3"), col("I3")
-        rc3 = np.where(np.isnan(col("r_cw3")), a3, col("r_cw3"))  # absent: at the rocker's joint B
-        # method 1: counterweights (linearly independent vectors)
-        C1x = m2 * a1 * (r2 / a2 * np.cos(th2) - 1.0) - m1 * r1 * np.cos(th1)
-        C1y = m2 * a1 * (r2 / a2 * np.sin(th2)) - m1 * r1 * np.sin(th1)
-        C3x = -m2 * r2 * a3 / a2 * np.cos(th2) - m3 * r3 * np.cos(th3)
-        C3y = -m2 * r2 * a3 / a2 * np.sin(th2) - m3 * r3 * np.sin(th3)
-        S = np.hypot(C1x, C1y)
-        S3 = np.hypot(C3x, C3y)
-        J2A = I2 + m2 * r2 * r2
-        V2x, V2y = m2 * r2 * np.cos(th2), m2 * r2 * np.sin(th2)
-        U3x, U3y = m3 * r3 * np.cos(th3) + C3x, m3 * r3 * np.sin(th3) + C3y
-        J3 = I3 + m3 * r3 * r3 + S3 * rc3
-        # kinematics
-        ax, ay = a1 * c1, a1 * s1
-        dx, dy = a4 - ax, -ay
-        iL2 = 1.0 / (dx * dx + dy * dy)
-        q = (a2 * a2 - a3 * a3) * (0.5 * iL2) + 0.5
-        hL = sigma * np.sqrt(np.maximum(a2 * a2 * iL2 - q * q, 0.0))
-        ex, ey = q * dx - hL * dy, q * dy + hL * dx  # B - A
-        c2, s2 = ex / a2, ey / a2
-        c3, s3 = (ex - dx) / a3, (ey - dy) / a3
-        D = c2 * s3 - s2 * c3
-        w2 = -a1 * w1 * (c1 * s3 - s1 * c3) / (a2 * D)
-        w3 = -a1 * w1 * (c1 * s2 - s1 * c2) / (a3 * D)
-        w1s, w2s, w3s = w1 * w1, w2 * w2, w3 * w3
-        kx = -a1 * w1s * c1 - a2 * w2s * c2 + a3 * w3s * c3
-        ky = -a1 * w1s * s1 - a2 * w2s * s2 + a3 * w3s * s3
-        al2 = -(kx * c3 + ky * s3) / (a2 * D)
-        al3 = -(kx * c2 + ky * s2) / (a3 * D)
-        # shaking moment after force balancing: -dH/dt (crank term J1 al1 = 0 at constant speed)
-        aax, aay = -a1 * w1s * c1, -a1 * w1s * s1
-        v2x, v2y = V2x * c2 - V2y * s2, V2x * s2 + V2y * c2
-        ma2x = m2 * aax - al2 * v2y - w2s * v2x
-        ma2y = m2 * aay + al2 * v2x - w2s * v2y
-        u3x, u3y = U3x * c3 - U3y * s3, U3x * s3 + U3y * c3
-        ma3y = al3 * u3x - w3s * u3y
-        M = -((J2A * al2 + (ax * ma2y - ay * ma2x) + (v2x * aay - v2y * aax)) + (J3 * al3 + a4 * ma3y))
-        # method 2: RMS-optimal axis O1 (x, y); constant speed and uniform positions: formula (1)
-        cb, sb = C1x[:, 0] / S[:, 0], C1y[:, 0] / S[:, 0]
-        k = S[:, 0] * w1[:, 0] ** 2
-        smc, sms = M @ cos_phi, M @ sin_phi
-        m_sin, m_cos = sms * cb + smc * sb, smc * cb - sms * sb
-        sin2 = SUM_SS * cb * cb + 2.0 * SUM_SC * cb * sb + SUM_CC * sb * sb
-        cos2 = SUM_CC * cb * cb - 2.0 * SUM_SC * cb * sb + SUM_SS * sb * sb
-        x, y = -m_sin / (k * sin2), m_cos / (k * cos2)
-        A, Bc = k * (x * cb + y * sb), k * (x * sb - y * cb)
-        dM = M + (A[:, None] * s1 + Bc[:, None] * c1)
-        m1max = np.abs(M).max(1)
-        dmax = np.abs(dM).max(1)
-        sl = slice(s, s + p.shape[0])
-        res["M_rms_static"][sl] = np.sqrt((M * M).mean(1))
-        res["M_max_static"][sl] = m1max
-        res["axis_x"][sl] = x
-        res["axis_y"][sl] = y
-        res["dM_rms_axis"][sl] = np.sqrt((dM * dM).mean(1))
-        res["dM_max_axis"][sl] = dmax
-        res["R_axis"][sl] = (m1max - dmax) / m1max * 100.0
-    return res
 
 
 def mechsweep_residuals(P: np.ndarray) -> tuple[dict, np.ndarray]:

@@ -1,16 +1,22 @@
 """`mechsweep bench workprecision MODEL`: error against run time for every method, ours and scipy's.
 
-(The algebraic linkage models have no integrator: their report, error against the number of crank
-positions, is :mod:`mechsweep.bench.workprecision_linkage`; ``main`` hands them over.)
+(A closed-form model has no integrator: its report, error against the length of its extra dimension
+(e.g. crank positions), is :mod:`mechsweep.bench.workprecision_linkage`, declared by the model as
+``ClosedFormModel(workprecision=SizeWorkPrecision(...))``; ``main`` hands it over.)
 
-A fixed sample of grid points (drawn with a fixed seed from the model's reference scene, or from
+The bench knows no model by name: MODEL is a built-in model's name, "file.py:NAME" (relative to the
+current folder), "package.module:NAME" or an entry-point name; what it measures comes from the
+model's declaration.
+
+A fixed sample of grid points (drawn with a fixed seed from the scene the model declares, or from
 --scene) is integrated by every method the model offers (``SPEC.methods``) and by scipy's
 solve_ivp (DOP853, Radau, LSODA) over a ladder of tolerances, in the same process:
 
-- error: of one integrated output per model, against the best reference available (``GENERIC``:
-  the model's closed form where one exists, otherwise scipy's DOP853 at rtol 1e-13 on the model's
-  own functions, an implementation independent of ours, :mod:`mechsweep.bench.workprecision_ode`);
-  the maximum and the median over the sample;
+- error: of one integrated output per model, against the best reference available, as the model
+  declares it (``OdeModel(workprecision=WorkPrecision(scene, output, reference))``,
+  :mod:`mechsweep.model.workprecision`): the model's closed form ``reference`` where it names one,
+  otherwise scipy's DOP853 at rtol 1e-13 on the model's own functions, an implementation independent
+  of ours, :mod:`mechsweep.bench.workprecision_ode`; the maximum and the median over the sample;
 - time: wall time per point after JIT compilation (the compile or cache-load time of the first
   call is reported separately), the minimum of ``repeats`` runs; ours runs the sample, repeated
   up to TIMED_POINTS points (or until a call takes TIMED_CALL_S), through the model's ``evaluate`` on one thread (what a sweep's chunk
@@ -55,7 +61,7 @@ TIMED_CALL_S = 0.05  # ... or until one call takes this long
 class Case:
     """What is measured for one model."""
 
-    scene: str  # default scene the sample is drawn from: a packaged copy of sweeps/<scene> (bench/scenes)
+    scene: str  # the scene the sample is drawn from, as the report names it
     output: str  # integrated output whose error is measured
     error: str  # "relative" or "absolute"
     norm: str  # what the error means, for the report
@@ -65,25 +71,50 @@ class Case:
     declaration: object = None  # the model's OdeModel (its invariant: the drift experiment)
 
 
-# Built-in models declared as an OdeModel that take the generic route (bench/workprecision_ode.py:
-# scipy runs the model's own rhs, event, classify/prepare and jac): where their declaration is, the
-# reference scene (a packaged copy of sweeps/<scene>), the output and the model's closed form that
-# is its exact value (None: scipy DOP853 at rtol 1e-13 is the reference).
-GENERIC = {
-    "duffing": ("mechsweep.models.duffing:MODEL", "duffing_amplitude_period.toml", "period", "period_exact"),
-    "autobalancer": ("mechsweep.models.autobalancer:MODEL", "autobalancer_stability_chart.toml", "floquet_max", None),
-    "torsional_circuit": ("mechsweep.models.torsional_circuit:MODEL", "torsional_circuit_truncation.toml",
-                          "period_exact_moment", None),
-}
-
-
 def all_cases() -> tuple[str, ...]:
-    """Every built-in model with a work-precision report: the integrated ones (GENERIC, a ladder of
-    tolerances) and the algebraic linkage models (a ladder of crank positions,
-    :mod:`mechsweep.bench.workprecision_linkage`)."""
-    from . import workprecision_linkage
+    """Every built-in model that declares its work-precision report: an OdeModel's
+    ``WorkPrecision`` (a ladder of tolerances) or a ClosedFormModel's ``SizeWorkPrecision`` (a ladder
+    of its extra dimension's length, :mod:`mechsweep.bench.workprecision_linkage`)."""
+    return tuple(name for name, spec in MODELS.items()
+                 if getattr(spec.declaration, "workprecision", None) is not None)
 
-    return tuple(GENERIC) + tuple(workprecision_linkage.CASES)
+
+def resolve_model(model):
+    """The ModelSpec of a model reference: a built-in name, "file.py:NAME" (relative to the current
+    folder), "package.module:NAME" or an entry-point name; an InputError naming what is allowed."""
+    from ..errors import InputError
+    from ..model import load
+
+    if isinstance(model, str) and model in MODELS:
+        return MODELS[model]
+    if isinstance(model, str) and ":" in model:
+        return load.resolve(model)
+    if isinstance(model, str):
+        points = load.entry_points(quiet=True)
+        if model in points:
+            return load.resolve(points[model].value)
+    raise InputError(f"no work-precision case for model {model!r}; cases: {', '.join(all_cases())}, or a model "
+                     "declared as a mechsweep.model.OdeModel or ClosedFormModel ('file.py:NAME', "
+                     "'package.module:NAME' or an entry-point name)")
+
+
+def declared_scene(declared) -> tuple[Path, str]:
+    """(the scene file a WorkPrecision / SizeWorkPrecision names, the label the report gives it):
+    relative to the folder of the file that declares it; a ``sweeps/NAME.toml`` not found there is
+    mechsweep's packaged copy of its shipped ``sweeps/NAME.toml`` (bench/scenes), labelled so."""
+    prefix = "sweeps/"
+    path = Path(declared.scene)
+    if not path.is_absolute():
+        path = Path(declared.base or Path.cwd()) / path
+    name = declared.scene[len(prefix):]
+    if not path.is_file() and declared.scene.startswith(prefix) and "/" not in name and name in scenes.names():
+        return scenes.path(name), declared.scene
+    if not path.is_file():
+        from ..errors import InputError
+        raise InputError(f"the model's work-precision declaration names scene {declared.scene!r}, which is not a file: "
+                         f"{path} (a path relative to the folder of the file that declares it, {declared.base}); "
+                         "give --scene S.toml or correct the declaration")
+    return path, str(path)
 
 
 # ----------------------------------------------------------------------------- measurement
@@ -117,31 +148,28 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     import xarray as xr
 
     from ..errors import InputError
-
-    from . import workprecision_linkage
-
-    from . import _args
+    from ..model.closed import ClosedFormModel
+    from ..model.ode import OdeModel
+    from ..scene import SOLVER_LIMITS
+    from . import _args, workprecision_linkage
 
     points = _args.count("points", points, 1, 10**6)
     scipy_points = _args.count("scipy_points", scipy_points, 1, points)
     repeats = _args.count("repeats", repeats, 1, 1000)
     out_dir = _args.folder("out", out_dir)
-    if not isinstance(model, str):
-        raise InputError(f"model {model!r} is not allowed; cases: {', '.join(all_cases())}")
-    if model not in workprecision_linkage.CASES:
-        from ..scene import SOLVER_LIMITS
-
-        ladder = _args.sequence(ladder)
-        if not ladder:
-            raise InputError("the tolerance ladder is empty; give at least one rtol")
-        ladder = tuple(_args.tolerance("rtol", r, *SOLVER_LIMITS["rtol"]) for r in ladder)
-    if model in workprecision_linkage.CASES:  # algebraic: a ladder of crank positions, not of tolerances
+    spec = resolve_model(model)  # what is measured is the model's declaration: no table of models here
+    declared = spec.declaration
+    if isinstance(declared, ClosedFormModel):  # algebraic: a ladder of its extra dimension's length, not of tolerances
         return workprecision_linkage.main(model, scene_path, points=points, repeats=max(repeats, 5), out_dir=out_dir,
                                           quiet=quiet)
-    if model in GENERIC:  # a built-in OdeModel: scipy runs its own functions (bench/workprecision_ode.py)
-        case, spec, scene = _generic_case(model, scene_path, output)
-    else:  # any model declared as an OdeModel: scipy runs its own rhs (bench/workprecision_ode.py)
-        case, spec, scene = _ode_case(model, scene_path, output)
+    if not isinstance(declared, OdeModel):
+        raise InputError(f"model {model!r} is not declared as a mechsweep.model.OdeModel (a ModelSpec made by hand): "
+                         "the bench integrates the declaration's own rhs; it has no work-precision case")
+    ladder = _args.sequence(ladder)
+    if not ladder:
+        raise InputError("the tolerance ladder is empty; give at least one rtol")
+    ladder = tuple(_args.tolerance("rtol", r, *SOLVER_LIMITS["rtol"]) for r in ladder)
+    case, scene = _case(model, spec, declared, scene_path, output)
     model = spec.name
     P = sample(scene, points)
     t0 = time.perf_counter()
@@ -206,7 +234,7 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
                 "rtol": ("rtol", np.array(ladder), {"units": "1", "long_name": "relative tolerance (atol = 1e-2 rtol)"})},
         attrs={"mechsweep_kind": "workprecision", "model": model, "output": case.output, "norm": case.norm,
                "reference": case.reference_name, "reference_time_s": ref_s, "points": P.shape[0],
-               "scipy_points": k, "repeats": repeats, "skipped": "; ".join(skipped) or "none", "scene": str(scene_path or f"sweeps/{case.scene}"),
+               "scipy_points": k, "repeats": repeats, "skipped": "; ".join(skipped) or "none", "scene": case.scene,
                "compile_or_cache_load_s": ", ".join(f"{m} {s:.2f}" for m, s in compile_s.items()),
                "threads": 1, "scipy_rhs": "the model's own rhs (its compiled function, wrapped; a measurement's "
                "System's where it integrates one); Radau/LSODA with the model's jac where it declares one, else "
@@ -227,28 +255,34 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     return ds
 
 
-def _generic_case(model: str, scene_path, output):
-    """The case of a built-in model of GENERIC: its declaration through the generic route, its
-    reference scene, and its closed form as the reference where it has one."""
+def _case(model: str, spec, declared, scene_path, output):
+    """The case of a model declared as an OdeModel: scipy runs its own functions
+    (bench/workprecision_ode.py); the scene, output and reference its ``WorkPrecision`` declares
+    (--scene and --output replace the first two; the reference holds for the declared output)."""
     from ..errors import InputError
     from . import workprecision_ode as wo
 
-    ref, scene_name, default_output, exact = GENERIC[model]
-    module, _, attr = ref.partition(":")
-    import importlib
-
-    named = getattr(importlib.import_module(module), attr)
-    spec = MODELS[model]
-    scene = load_scene(scene_path or scenes.path(scene_name))
-    if scene.model.name != model:
-        raise InputError(f"scene {scene_path} is for model {scene.model.name!r}, not {model!r}")
-    output = output or default_output
+    wp = declared.workprecision
+    if scene_path is None and (wp is None or not wp.scene):
+        raise InputError(f"{model!r} has no reference scene; give one with --scene S.toml (the sample is drawn "
+                         "from its grid), or declare it with the model: OdeModel(..., workprecision=WorkPrecision("
+                         "scene='S.toml', output='OUTPUT', reference='CLOSED_FORM')) (mechsweep.model.WorkPrecision; "
+                         "the scene relative to the model's file, reference optional: a closed form giving the "
+                         "output's exact value)")
+    path, label = (Path(scene_path), str(scene_path)) if scene_path is not None else declared_scene(wp)
+    scene = load_scene(path)
+    if scene.model.declaration is not declared:
+        same = f" ({scene.model.source})" if scene.model.name == spec.name else ""
+        raise InputError(f"scene {label} is for model {scene.model.name!r}{same}, not {model!r}")
+    default = wp.output if (wp is not None and wp.output) else wo.default_output(declared)
+    output = output or default
     if output not in spec.output_names():
-        raise InputError(f"--output {output!r} is not an output of model {model!r}; "
+        raise InputError(f"--output {output!r} is not an output of model {spec.name!r}; "
                          f"expected one of {', '.join(spec.output_names())}")
     settings = _scene_settings(scene)
-    ode = wo.OdeReference(named, output, settings)
-    if exact is not None and output == default_output:  # the model's closed form, evaluated by the engine
+    ode = wo.OdeReference(declared, output, settings)
+    exact = wp.reference if (wp is not None and wp.reference and output == wp.output) else None
+    if exact:  # the model's closed form, evaluated by the engine
         solver = Solver.for_model(spec, **settings)
 
         def reference(P):
@@ -259,35 +293,8 @@ def _generic_case(model: str, scene_path, output):
             f"absolute error |{output} - {exact}|"
     else:
         reference, name, norm = ode.reference, ode.reference_name, ode.norm
-    case = Case(scene_name, output, ode.error, norm, reference, name, ode.value, named)
-    return case, spec, scene
-
-
-def _ode_case(model: str, scene_path, output):
-    """The case of a model declared as an OdeModel, from its declaration and the scene --scene."""
-    from ..errors import InputError
-    from ..model import load
-    from . import workprecision_ode as wo
-
-    if ":" not in model and model not in load.entry_points(quiet=True):
-        raise InputError(f"no work-precision case for model {model!r}; cases: {', '.join(all_cases())}, or a "
-                         "model declared as a mechsweep.model.OdeModel ('file.py:NAME' or 'package.module:NAME' "
-                         "with --scene S.toml)")
-    if scene_path is None:
-        raise InputError(f"{model!r}: a model of your own has no reference scene; give one with --scene S.toml "
-                         "(the sample is drawn from its grid)")
-    named = wo.declaration(model)
-    scene = load_scene(scene_path)
-    if wo.scene_declaration(scene) is not named:
-        raise InputError(f"scene {scene_path} is for model {scene.model.name!r} ({scene.model.source}), "
-                         f"not {model!r}")
-    output = output or wo.default_output(named)
-    if output not in scene.model.output_names():
-        raise InputError(f"--output {output!r} is not an output of model {named.name!r}; "
-                         f"expected one of {', '.join(scene.model.output_names())}")
-    ref = wo.OdeReference(named, output, _scene_settings(scene))
-    case = Case(str(scene_path), output, ref.error, ref.norm, ref.reference, ref.reference_name, ref.value, named)
-    return case, scene.model, scene
+    case = Case(label, output, ode.error, norm, reference, name, ode.value, declared)
+    return case, scene
 
 
 def _with_drift(ds, declaration):

@@ -23,8 +23,9 @@ Every point's ``p`` is laid out as the engine's (parameters, the scene's setting
 the model's ``classify(p)`` and ``prepare(p, rtol)`` run first (not OK: NaN, as the engine's
 point would be). Radau and LSODA get the model's ``jac`` where it declares one (else scipy's
 finite differences). The reference is scipy DOP853 at rtol 1e-13 (atol 1e-15), or a closed form of
-the model (``exact``, evaluated by the engine). Used by ``mechsweep bench workprecision
-file.py:NAME --scene S.toml`` and for the built-in models on this route (workprecision.main).
+the model (the ``reference`` of its ``WorkPrecision`` declaration, evaluated by the engine). Used by
+``mechsweep bench workprecision MODEL`` for every model declared as an OdeModel, built-in or a
+user's (workprecision.main).
 """
 from __future__ import annotations
 

@@ -4,6 +4,8 @@ from ..models._spec import ExtraDim, Output, Param, Setting
 from .closed import ClosedFormModel
 from .measure import ClosedForm, Crossing, Extremum, FirstEvent, Floquet, History, Kick, Period, Recheck, StateAt, Steady, System
 from .ode import Invariant, OdeModel
+from .workprecision import SizeWorkPrecision, WorkPrecision
 
 __all__ = ["OdeModel", "ClosedFormModel", "Param", "Setting", "Output", "ExtraDim", "Crossing", "Period", "StateAt",
-           "Extremum", "Floquet", "FirstEvent", "ClosedForm", "System", "Invariant", "Steady", "Kick", "History", "Recheck"]
+           "Extremum", "Floquet", "FirstEvent", "ClosedForm", "System", "Invariant", "Steady", "Kick", "History", "Recheck",
+           "WorkPrecision", "SizeWorkPrecision"]

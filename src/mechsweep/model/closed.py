@@ -65,6 +65,8 @@ class ClosedFormModel:
       Python, run once per n); passed to ``compute`` after ``scratch``.
     - ``scratch``: rows of the per-thread scratch array (``scratch`` x n floats).
     - ``check``: optional cross-parameter rule ``check(given) -> [problems]`` (as ModelSpec.check).
+    - ``workprecision``: optional :class:`~mechsweep.model.workprecision.SizeWorkPrecision`: the
+      error of outputs against ``size`` (``mechsweep bench workprecision MODEL``).
     """
 
     name: str
@@ -81,6 +83,7 @@ class ClosedFormModel:
     statuses: tuple[int, ...] = ()  # ModelSpec.statuses: empty = derived from the outputs
     status_notes: object = ()  # ModelSpec.status_notes: {code: what the status means for this model}
     references: tuple[str, ...] = ()  # ModelSpec.references: the source documents
+    workprecision: object = field(default=None, repr=False, compare=False)  # model.workprecision.SizeWorkPrecision
 
     def __post_init__(self):
         object.__setattr__(self, "params", tuple(self.params))
@@ -97,6 +100,12 @@ class ClosedFormModel:
             raise ValueError(f"model {self.name!r}: size must be a whole number >= 1, got {self.size!r}")
         if isinstance(self.scratch, bool) or not isinstance(self.scratch, int) or self.scratch < 0:
             raise ValueError(f"model {self.name!r}: scratch must be a whole number >= 0, got {self.scratch!r}")
+        if self.workprecision is not None:
+            from .workprecision import SizeWorkPrecision
+            if not isinstance(self.workprecision, SizeWorkPrecision):
+                raise ValueError(f"model {self.name!r}: workprecision must be a mechsweep.model.SizeWorkPrecision "
+                                 f"(got {self.workprecision!r})")
+            self.workprecision.validate(self)
 
     @property
     def scalars(self) -> tuple[str, ...]:
@@ -146,7 +155,8 @@ class ClosedFormModel:
 
         return ModelSpec(name=self.name, description=self.description, params=self.params, outputs=self.outputs,
                          evaluate=evaluate, source=self.source or origin, settings=self.settings, check=self.check,
-                         statuses=self.statuses, status_notes=self.status_notes, references=self.references)
+                         statuses=self.statuses, status_notes=self.status_notes, references=self.references,
+                         declaration=self)
 
 
 _DATA: dict[int, tuple] = {}

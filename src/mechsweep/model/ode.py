@@ -202,6 +202,8 @@ class OdeModel:
       "key: message" (e.g. "l3: missing; ..."). The scene is refused (InputError, exit 2) with them.
     - ``invariant``: optional :class:`Invariant`, a quantity the equation conserves along undamped
       trajectories (an energy); the work-precision bench reports its drift (sweeps never compute it).
+    - ``workprecision``: optional :class:`~mechsweep.model.workprecision.WorkPrecision`: the default
+      scene, output and exact reference (a closed form) of the model's work-precision report.
 
     Methods (``solver.method``): dop853, radau, auto (dop853 with the stiffness test; a stiff point
     is integrated again by radau) and, with ``accel``, symplectic. FirstEvent measurements (and a
@@ -235,6 +237,7 @@ class OdeModel:
     status_order: tuple[int, ...] = ()  # most severe first: a point's status among its outputs' (see worse)
     check: Callable | None = field(default=None, repr=False)  # ModelSpec.check: the cross-parameter rules
     invariant: Invariant | None = field(default=None, repr=False, compare=False)  # conserved when undamped
+    workprecision: object = field(default=None, repr=False, compare=False)  # model.workprecision.WorkPrecision
 
     def __post_init__(self):
         if self.invariant is not None:
@@ -332,6 +335,12 @@ class OdeModel:
         if self.output_order and sorted(self.output_order) != sorted(names):
             raise ValueError(f"model {self.name!r}: output_order {self.output_order} must list every output once "
                              f"({names})")
+        if self.workprecision is not None:
+            from .workprecision import WorkPrecision
+            if not isinstance(self.workprecision, WorkPrecision):
+                raise ValueError(f"model {self.name!r}: workprecision must be a mechsweep.model.WorkPrecision "
+                                 f"(got {self.workprecision!r})")
+            self.workprecision.validate(self)
 
     def _check_measurement(self, m) -> None:
         m.validate(self.states)
@@ -516,6 +525,7 @@ class OdeModel:
             status_notes=self.status_notes,
             references=self.references,
             check=self.check,
+            declaration=self,
         )
         if self.recheck is not None:  # the re-check adds NOT_REPRODUCIBLE to the statuses a point can get
             import dataclasses

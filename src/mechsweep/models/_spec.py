@@ -162,6 +162,7 @@ class ModelSpec:
     statuses: tuple[int, ...] = ()  # status codes besides OK a point can get; empty: derived
     status_notes: tuple[tuple[int, str], ...] = ()  # (code, what the status means for this model)
     references: tuple[str, ...] = ()  # source documents (a dataset's CF `references`; default: source)
+    declaration: object = field(default=None, repr=False, compare=False)  # the OdeModel/ClosedFormModel, if any
 
     def __post_init__(self):
         notes = self.status_notes

@@ -149,6 +149,7 @@ from .. import status as st
 from .._jit import jit, jit_inline, jit_noalloc
 from ..model.measure import ClosedForm, Floquet, History, Kick, Recheck, Steady  # not ..model: it imports ..models
 from ..model.ode import OdeModel
+from ..model.workprecision import WorkPrecision
 from ..special import SINCOS_MAX, ieee_sqrt, sincos, sincos_reduced
 from ._spec import ExtraDim, Output, Param, Setting
 
@@ -868,6 +869,8 @@ MODEL = OdeModel(
     # one turn per revolution), compared in scaled units
     recheck=Recheck(factor="reproducibility_factor", skip_settled="stable_sim", skip_locked=True,
                     lock_rates=(("g1", 1.0), ("g2", 1.0)), measured_units=True),
+    # bench workprecision: floquet_max against scipy DOP853 at rtol 1e-13 on the model's own functions
+    workprecision=WorkPrecision(scene="sweeps/autobalancer_stability_chart.toml", output="floquet_max"),
 )
 
 SPEC = MODEL.spec(module=__name__, attr="MODEL")

@@ -23,6 +23,7 @@ from .. import status as st
 from .._jit import jit, jit_noalloc
 from ..model.measure import ClosedForm, FirstEvent
 from ..model.ode import Invariant, OdeModel
+from ..model.workprecision import WorkPrecision
 from ..special import ellipk
 from ._spec import Param, Setting
 
@@ -301,6 +302,9 @@ MODEL = OdeModel(
     # the energy drift of bench workprecision: omega = mu = A = 1 is x'' = -x/2 - x^3/2 in scaled time
     invariant=Invariant(energy, at={"omega": 1.0, "mu": 1.0, "A": 1.0}, period=scaled_period,
                         problem="x'' = -x/2 - x^3/2, x(0) = 1, x'(0) = 0"),
+    # bench workprecision: the integrated period against its elliptic closed form, on the shipped scene
+    workprecision=WorkPrecision(scene="sweeps/duffing_amplitude_period.toml", output="period",
+                                reference="period_exact"),
     measurements=(
         FirstEvent("period", quarter_event, t_max=horizon, value=period_from_quarter, symbol="T", unit="s",
                    long_name="period of the free oscillation"),

@@ -61,6 +61,8 @@ import numpy as np
 from .. import status as st
 from .._jit import jit
 from ..model.closed import ClosedFormModel
+from ..model.workprecision import SizeWorkPrecision
+from . import _linkage_reference as R
 from . import _linkage as L
 from ._linkage import (  # the per-design function's helpers and layout constants
     B_DM, B_FX, B_FY, B_M, B_Q3, B_T, C_DM_AX, C_DM_H1, C_DM_IN, C_FX, C_FY, C_M, C_MS, C_T, C_TS, K_AX, K_AY,
@@ -410,6 +412,13 @@ MODEL = ClosedFormModel(
         st.INFEASIBLE: "the linkage does not assemble over a full turn (no Grashof crank)",
         st.SINGULAR: "a toggle (sin of the transmission angle below 1e-3) in the cycle, e.g. a change-point linkage",
     },
+    # bench workprecision: error against the number of crank positions (models/_linkage_reference.py)
+    workprecision=SizeWorkPrecision(
+        scene="sweeps/fourbar_geometry_family.toml",
+        outputs={"M_max_static": "maximum", "M_rms_static": "RMS", "dM_rms_axis": "optimised (RMS-optimal axis), RMS",
+                 "dM_max_axis": "optimised (RMS-optimal axis), maximum"},
+        reference=R.fourbar_reference, reference_name=R.FOURBAR_REFERENCE,
+        compare=R.numpy_fourbar, compare_name=R.NUMPY),
 )
 SPEC = MODEL.spec()
 # the engine entry point: evaluate(P, wanted, solver, out, status, n_steps, n_rhs, n_positions=N_POSITIONS)

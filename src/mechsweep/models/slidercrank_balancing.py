@@ -32,6 +32,8 @@ import math
 from .. import status as st
 from .._jit import jit
 from ..model.closed import ClosedFormModel
+from ..model.workprecision import SizeWorkPrecision
+from . import _linkage_reference as R
 from . import _linkage as L
 from ._linkage import (  # the per-design function's helpers and layout constants
     D_FX, D_FXTB, D_FY, D_FYTB, D_M, D_T, Q_CW, Q_CWA, Q_CWM, Q_FMAX, Q_FMAX_UNB, Q_FXMAX, Q_FXRANGE, Q_FXRMS,
@@ -236,6 +238,13 @@ MODEL = ClosedFormModel(
         st.INFEASIBLE: "the linkage does not assemble over a full turn",
         st.SINGULAR: "a toggle (sin of the transmission angle below 1e-3) in the cycle",
     },
+    # bench workprecision: error against the number of crank positions, the reference a closed form where
+    # it holds (slider_series_applies; models/_linkage_reference.py)
+    workprecision=SizeWorkPrecision(
+        scene="sweeps/slidercrank_partial.toml",
+        outputs={"F_max": "maximum (partial-balancing residual)", "Fx_rms": "RMS", "F_tb_error_rel": "maximum"},
+        reference=R.slider_reference, reference_name=R.SLIDER_REFERENCE, applies=R.slider_series_applies,
+        compare=R.numpy_slider, compare_name=R.NUMPY),
 )
 SPEC = MODEL.spec()
 # the engine entry point, as fourbar_balancing.evaluate (n_positions as its 8th argument)
