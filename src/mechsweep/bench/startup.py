@@ -161,7 +161,17 @@ def warm_start(scene: Path, repeats: int, folder: Path, against: str | None = No
             run_s, run_cpu = _command(run_args[label], envs[label], folder)
             plot_s, plot_cpu = _command(["plot", str(outs[label])], envs[label], folder)
             result[label].append((run_s, run_cpu, plot_s, plot_cpu, load))
-    return {"sources": {k: str(v) for k, v in sources.items()}, **result}
+    phases = {}
+    for label in sources:  # where the time goes, by phase, in one more fresh process of each kind
+        phases[label] = {}
+        for kind, code, args in (("run", RUN_CHILD, [str(scene), str(folder / label / "phases.h5")]),
+                                 ("plot", PLOT_CHILD, [str(outs[label]), str(folder / label / "phases")])):
+            proc = subprocess.run([sys.executable, "-c", code, *args], env=envs[label], cwd=folder,
+                                  capture_output=True, text=True)
+            if proc.returncode != 0:
+                raise RuntimeError(f"{kind} phases failed:\n{proc.stderr[-2000:]}")
+            phases[label][kind] = json.loads(proc.stdout.strip().splitlines()[-1])
+    return {"sources": {k: str(v) for k, v in sources.items()}, "phases": phases, **result}
 
 
 def scaling(sizes: list[tuple[int, str]], repeats: int, folder: Path) -> list[dict]:
@@ -276,6 +286,35 @@ with _no_dask_probe():
         fig.savefig(f"{sys.argv[2]}_{kind}.png", dpi=150)
         lap(f"savefig {kind} (layout, render, PNG)")
 print(json.dumps(phases))
+"""
+
+
+RUN_CHILD = """
+import os, sys, time
+t0 = time.perf_counter()
+phases = []
+def lap(name):
+    global t0
+    t = time.perf_counter()
+    phases.append((name, t - t0))
+    t0 = t
+import numpy
+lap("import numpy")
+import numba
+lap("import numba")
+from mechsweep import cli
+lap("import mechsweep.cli")
+from mechsweep import runner, scene
+lap("import mechsweep.scene, runner (the models)")
+s = scene.load_scene(sys.argv[1])
+lap("load the scene")
+from mechsweep.grid import ParameterMatrix
+runner.evaluate_rows(s, ParameterMatrix(s)(0, 1))
+lap("first kernel call (numba's target, the cached kernel)")
+runner.compute(s, output=sys.argv[2], progress=False, overwrite=True)
+lap("compute to the file")
+phases.append(("scipy.linalg imported", "scipy.linalg" in sys.modules))
+print(__import__("json").dumps(phases))
 """
 
 
@@ -612,6 +651,10 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
                       f"{_spread([r[3] for r in rows], 's', fmt='.2f')}")
                 print(f"      total CPU {_spread([r[1] + r[3] for r in rows], 's', fmt='.2f')}; load average (1 min) "
                       f"before each run {min(r[4] for r in rows):.2f} .. {max(r[4] for r in rows):.2f}", flush=True)
+                for kind, phases in w["phases"][label].items():
+                    print(f"      {kind} by phase (one more process, wall s): " + "; ".join(
+                        f"{name} {value:.3f}" if isinstance(value, float) else f"{name}: {value}"
+                        for name, value in phases))
         if "scaling" in parts:
             sizes = [(10**4, "period"), (10**5, "period"), (10**6, "period")]
             if full:
