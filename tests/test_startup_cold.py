@@ -11,12 +11,14 @@ def test_plot_does_not_import_dask_and_leaves_xarray_as_it_was(in_tmp, small_duf
     dask array; `mechsweep plot` draws loaded datasets and tells xarray not to ask while it runs
     (cli._no_dask_probe), then puts xarray's own probe back: a dask array made afterwards in the same
     process is still one to xarray. Nor dask at all: xarray also imports dask.base (0.05-0.2 s) to ask
-    whether each index it makes while opening the dataset is a dask collection."""
+    whether each index it makes while opening the dataset is a dask collection. The command's process
+    (main() with sys.argv) freezes its start-up's objects for the garbage collector and turns it back on."""
     mechsweep.run(small_duffing, output="data/runs/s.h5")
     code = ("import os, sys; from matplotlib.figure import Figure; save = Figure.savefig\n"
             "def savefig(self, *a, **k): open('pids', 'a').write(f'{os.getpid()}\\n'); return save(self, *a, **k)\n"
-            "Figure.savefig = savefig; from mechsweep.cli import main\n"
-            "assert main(['plot', 'data/runs/s.h5']) == 0; print(os.getpid()); "
+            "Figure.savefig = savefig; from mechsweep.cli import main; import gc\n"
+            "sys.argv = ['mechsweep', 'plot', 'data/runs/s.h5']; assert main() == 0\n"
+            "print(os.getpid(), gc.isenabled(), gc.get_freeze_count() > 0); "
             "from xarray.namedarray import pycompat, utils; "
             "print(sorted(m for m in ('dask', 'dask.array', 'scipy', 'numba') if m in sys.modules), "
             "'dask' in pycompat._cached_duck_array_modules, utils.is_dask_collection.__module__); "
@@ -28,7 +30,8 @@ def test_plot_does_not_import_dask_and_leaves_xarray_as_it_was(in_tmp, small_duf
     assert sorted(p.name for p in (in_tmp / "data/runs").glob("*.png")) == ["s_amplitude_period.png",
                                                                             "s_kinematic_coefficients.png"]
     # the two figures were drawn side by side: one here, one in a forked process (cli._side_by_side)
-    here = out.stdout.strip().splitlines()[-3]
+    here, collector, frozen = out.stdout.strip().splitlines()[-3].split()
+    assert (collector, frozen) == ("True", "True")  # the start-up's objects frozen, the collector on (cli._started)
     pids = (in_tmp / "pids").read_text().split()
     assert len(pids) == 2 and here in pids and len(set(pids)) == 2
 
