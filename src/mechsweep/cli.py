@@ -95,8 +95,8 @@ def _started() -> None:
     back on for the command's work. During the start-up it is off (``main``, only for the command's own
     process, ``argv`` None: a caller of ``main`` in a process of its own keeps its collector as it is).
     The imports (numpy, numba, xarray, matplotlib, the package) make hundreds of thousands of objects that
-    live as long as the process, and each full collection traversed all of them: 0.15-0.3 s of CPU of a
-    warm quickstart's run and plot (bench startup --only warmstart). A forked figure process
+    live as long as the process, and each full collection traversed all of them (measured with
+    ``mechsweep bench startup --only warmstart``: docs/performance-startup.md). A forked figure process
     (:func:`_side_by_side`) then also leaves the frozen objects' memory shared with its parent."""
     if _START_UP["collector"]:
         _START_UP["collector"] = False
@@ -312,7 +312,7 @@ def _no_dask_probe():
 
     The same for xarray's other question, whether an array is a dask collection (asked of every
     index it makes, e.g. when it opens a dataset): it imports ``dask.base`` to answer when dask is
-    installed (0.05-0.2 s). While the body runs, the answer is no without that import as long as
+    installed (most of the plot's opening of the quickstart's dataset). While the body runs, the answer is no without that import as long as
     dask is not imported (no object can be a dask collection then), else xarray's own."""
     seeded = False
     collection = None
