@@ -76,3 +76,27 @@ def test_openmp_threads_wait_passively_unless_the_environment_chooses():
     _jit._passive_openmp(env)
     assert env == {"OMP_WAIT_POLICY": "active"}
     assert os.environ.get("OMP_WAIT_POLICY")  # importing mechsweep set it (or the environment did)
+
+
+def test_first_compile_of_a_process_does_not_import_scipy_linalg_and_linalg_still_works():
+    """numba's CPU target imports numba.np.arraymath on a process's first compile or cache load, and
+    arraymath asked for scipy's BLAS by importing scipy.linalg (0.2-0.4 s of every warm `mechsweep run`).
+    _jit answers that from scipy's installed files: a function without linear algebra imports no
+    scipy.linalg, the answer is numba's (BLAS found), numba's own ensure_blas is in place for later
+    callers, and np.dot (typing imports scipy's BLAS then) still compiles and runs."""
+    import subprocess
+    import sys
+
+    code = ("import sys, numpy as np, numba, mechsweep._jit as j\n"
+            "@numba.njit\n"
+            "def plus(x): return x + 1.0\n"
+            "assert plus(1.0) == 2.0\n"
+            "from numba.np import arraymath, linalg\n"
+            "print('scipy.linalg' in sys.modules, arraymath._HAVE_BLAS, linalg.ensure_blas.__qualname__)\n"
+            "@numba.njit\n"
+            "def dot(a, b): return np.dot(a, b)\n"
+            "print(dot(np.arange(3.0), np.arange(3.0)), 'scipy.linalg.cython_blas' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env={**__import__("os").environ, "PYTHONPATH": __import__("os").pathsep.join(sys.path)})
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["False", "True", "ensure_blas", "5.0", "True"]

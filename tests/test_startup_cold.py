@@ -10,16 +10,55 @@ def test_plot_does_not_import_dask_and_leaves_xarray_as_it_was(in_tmp, small_duf
     """xarray imports dask.array (and with it scipy.fft, 0.4-1 s) to ask whether each new variable is a
     dask array; `mechsweep plot` draws loaded datasets and tells xarray not to ask while it runs
     (cli._no_dask_probe), then puts xarray's own probe back: a dask array made afterwards in the same
-    process is still one to xarray."""
+    process is still one to xarray. Nor dask at all: xarray also imports dask.base (0.05-0.2 s) to ask
+    whether each index it makes while opening the dataset is a dask collection. The command's process
+    (main() with sys.argv) freezes its start-up's objects for the garbage collector and turns it back on."""
     mechsweep.run(small_duffing, output="data/runs/s.h5")
-    code = ("import sys; from mechsweep.cli import main; "
-            "assert main(['plot', 'data/runs/s.h5', '--kind', 'kinematic_coefficients']) == 0; "
-            "from xarray.namedarray import pycompat; "
-            "print(sorted(m for m in ('dask.array', 'scipy', 'numba') if m in sys.modules), "
-            "'dask' in pycompat._cached_duck_array_modules); "
+    code = ("import os, sys; from matplotlib.figure import Figure; save = Figure.savefig\n"
+            "def savefig(self, *a, **k): open('pids', 'a').write(f'{os.getpid()}\\n'); return save(self, *a, **k)\n"
+            "Figure.savefig = savefig; from mechsweep.cli import main; import gc\n"
+            "sys.argv = ['mechsweep', 'plot', 'data/runs/s.h5']; assert main() == 0\n"
+            "print(os.getpid(), gc.isenabled(), gc.get_freeze_count() > 0); "
+            "from xarray.namedarray import pycompat, utils; "
+            "print(sorted(m for m in ('dask', 'dask.array', 'scipy', 'numba') if m in sys.modules), "
+            "'dask' in pycompat._cached_duck_array_modules, utils.is_dask_collection.__module__); "
             "import dask.array as da, xarray as xr; print(xr.DataArray(da.zeros(4, chunks=2)).chunks)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=in_tmp,
                          env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
     assert out.returncode == 0, out.stderr
-    assert out.stdout.strip().splitlines()[-2:] == ["[] False", "((2, 2),)"]
-    assert [p.name for p in (in_tmp / "data/runs").glob("*.png")] == ["s.png"]
+    assert out.stdout.strip().splitlines()[-2:] == ["[] False xarray.namedarray.utils", "((2, 2),)"]
+    assert sorted(p.name for p in (in_tmp / "data/runs").glob("*.png")) == ["s_amplitude_period.png",
+                                                                            "s_kinematic_coefficients.png"]
+    # the two figures were drawn side by side: one here, one in a forked process (cli._side_by_side)
+    here, collector, frozen = out.stdout.strip().splitlines()[-3].split()
+    assert (collector, frozen) == ("True", "True")  # the start-up's objects frozen, the collector on (cli._started)
+    pids = (in_tmp / "pids").read_text().split()
+    assert len(pids) == 2 and here in pids and len(set(pids)) == 2
+
+
+def test_side_by_side_runs_jobs_in_forked_processes_and_raises_what_they_raised(tmp_path):
+    """cli._side_by_side (`mechsweep plot`'s figures on two cores): the first job here, the others in
+    forked children; an exception of a child is raised here with its type; an exception here is raised
+    only after the children have finished (a sibling's figure is not cut off half written)."""
+    import time
+
+    import pytest
+
+    from mechsweep.cli import _side_by_side
+
+    def mark(name, delay=0.0, fail=None):
+        def job():
+            time.sleep(delay)
+            (tmp_path / name).write_text(str(os.getpid()))
+            if fail is not None:
+                raise fail
+        return job
+
+    _side_by_side([mark("a"), mark("b"), mark("c")])
+    pids = [(tmp_path / n).read_text() for n in "abc"]
+    assert pids[0] == str(os.getpid()) and len(set(pids)) == 3
+    with pytest.raises(KeyError, match="from a child"):
+        _side_by_side([mark("d"), mark("e", fail=KeyError("from a child"))])
+    with pytest.raises(ValueError, match="here"):
+        _side_by_side([mark("f", fail=ValueError("here")), mark("g", delay=0.5)])
+    assert (tmp_path / "g").read_text() != str(os.getpid())

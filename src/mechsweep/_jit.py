@@ -42,6 +42,14 @@ Options and why:
   threads, machine loaded): a 400-point launch cost 4-8 ms of process CPU and 9-24 ms of wall
   with spinning, 1.0 ms of each passively; a 32,768-point launch 45-49 against 46-47 ms of
   CPU (docs/performance-duffing.md). Only a process whose libgomp is not loaded yet is changed.
+- numba's check for a BLAS is made without importing ``scipy.linalg`` (:func:`_defer_blas_check`):
+  numba 0.68 imports ``scipy.linalg.cython_blas`` (with it all of ``scipy.linalg``, 0.2-0.4 s of a
+  warm ``mechsweep run``) when its CPU target first loads ``numba.np.arraymath``, on the first
+  compile or cache load of a process, only to learn whether scipy's BLAS exists
+  (``arraymath._HAVE_BLAS``). The answer is read from scipy's installed files instead;
+  ``scipy.linalg`` is imported when a kernel uses linear algebra (numba's own ``ensure_blas``,
+  called when ``np.dot`` or ``np.linalg`` is typed: radau, Floquet), or by the compiled code itself
+  when it first calls BLAS or LAPACK (numba finds the functions by importing scipy's modules then).
 - Closures made by a factory (a solver for one right-hand side) get a qualified name that
   says what they close over (:func:`_distinct_qualname`): numba's symbol names would otherwise
   coincide between cached kernels compiled by different processes, and one kernel would run
@@ -68,6 +76,58 @@ def _passive_openmp(environ=os.environ) -> None:
 
 
 _passive_openmp()
+
+
+def _scipy_blas_installed() -> bool:
+    """Whether ``scipy.linalg.cython_blas`` is installed, found without importing scipy (its
+    package ``__init__`` is not run: ``find_spec`` of a top-level name only locates it)."""
+    import importlib.machinery
+    import importlib.util
+
+    try:
+        spec = importlib.util.find_spec("scipy")
+    except (ImportError, ValueError):
+        return False
+    for folder in (spec.submodule_search_locations or []) if spec is not None else []:
+        for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+            if os.path.isfile(os.path.join(folder, "linalg", "cython_blas" + suffix)):
+                return True
+    return False
+
+
+def _defer_blas_check() -> None:
+    """Import ``numba.np.arraymath`` now, with numba's BLAS check answered by
+    :func:`_scipy_blas_installed` instead of by importing ``scipy.linalg`` (see the module's
+    docstring). ``arraymath`` calls ``numba.np.linalg.ensure_blas`` once, at its import, and keeps
+    the answer (``_HAVE_BLAS``: which inner product ``np.correlate``/``np.convolve`` compile);
+    ``ensure_blas`` is put back at once, so every later caller (the typing of ``np.dot`` and
+    ``np.linalg``) gets numba's own, which imports scipy's BLAS and checks its integer width.
+    Nothing is done when ``arraymath`` is imported already (the answer is numba's then) or numba
+    has no such function (another numba version)."""
+    import sys
+
+    if "numba.np.arraymath" in sys.modules:
+        return
+    try:
+        from numba.np import linalg as _linalg
+    except ImportError:
+        return
+    own = getattr(_linalg, "ensure_blas", None)
+    if own is None:
+        return
+
+    def ensure_blas():
+        if not _scipy_blas_installed():
+            raise ImportError("scipy 0.16+ is required for linear algebra")
+
+    _linalg.ensure_blas = ensure_blas
+    try:
+        import numba.np.arraymath  # noqa: F401
+    finally:
+        _linalg.ensure_blas = own
+
+
+_defer_blas_check()
 
 prange = numba.prange
 literally = numba.literally

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import gc
 import math
 import os
 import signal
@@ -72,7 +73,38 @@ examples:
 """
 
 
+_START_UP = {"collector": False}  # True while main holds Python's cyclic garbage collector off (see _started)
+
+
 def main(argv: list[str] | None = None) -> int:
+    quick = argv is None and len(sys.argv) > 1 and sys.argv[1] in ("run", "plot") and gc.isenabled()
+    if quick:  # the command's process: no full collections during its start-up (see _started)
+        gc.disable()
+        _START_UP["collector"] = True
+    try:
+        return _main(argv)
+    finally:
+        if quick and _START_UP["collector"]:
+            _START_UP["collector"] = False
+            gc.enable()
+
+
+def _started() -> None:
+    """The start-up of a `run` or `plot` process is over (imports, scene or dataset): the objects made so
+    far are frozen (``gc.freeze``: never traversed by a collection again) and the collector is turned
+    back on for the command's work. During the start-up it is off (``main``, only for the command's own
+    process, ``argv`` None: a caller of ``main`` in a process of its own keeps its collector as it is).
+    The imports (numpy, numba, xarray, matplotlib, the package) make hundreds of thousands of objects that
+    live as long as the process, and each full collection traversed all of them (measured with
+    ``mechsweep bench startup --only warmstart``: docs/performance-startup.md). A forked figure process
+    (:func:`_side_by_side`) then also leaves the frozen objects' memory shared with its parent."""
+    if _START_UP["collector"]:
+        _START_UP["collector"] = False
+        gc.freeze()
+        gc.enable()
+
+
+def _main(argv: list[str] | None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
     if not getattr(args, "command", None):
@@ -227,6 +259,7 @@ def _cmd_run(args) -> int:
     from .scene import load_scene
 
     scene = load_scene(args.scene)
+    _started()
     try:  # the dataset is not opened: its status counts were added up as its chunks were assembled
         summary = compute(scene, output=args.output, resume=args.resume, restart=args.restart,
                           threads=args.threads, progress=False if args.no_progress else None,
@@ -278,8 +311,14 @@ def _no_dask_probe():
     datasets loaded into memory (``open_dataset``'s default, numpy arrays), so no dask array can
     occur in it. The answer is put into xarray's cache of such probes for the body only and taken
     out again afterwards (a caller of ``main`` in the same process, e.g. a test that later opens a
-    dataset lazily, gets xarray's own probe). When xarray's internals differ, nothing is done."""
+    dataset lazily, gets xarray's own probe). When xarray's internals differ, nothing is done.
+
+    The same for xarray's other question, whether an array is a dask collection (asked of every
+    index it makes, e.g. when it opens a dataset): it imports ``dask.base`` to answer when dask is
+    installed (most of the plot's opening of the quickstart's dataset). While the body runs, the answer is no without that import as long as
+    dask is not imported (no object can be a dask collection then), else xarray's own."""
     seeded = False
+    collection = None
     try:
         if "dask.array" not in sys.modules:
             from xarray.namedarray import pycompat
@@ -293,10 +332,24 @@ def _no_dask_probe():
     except (ImportError, AttributeError, TypeError):
         pass
     try:
+        if "dask" not in sys.modules:
+            from xarray.namedarray import utils as xr_utils
+
+            collection = xr_utils.is_dask_collection
+
+            def is_dask_collection(x, own=collection):
+                return "dask" in sys.modules and own(x)
+
+            xr_utils.is_dask_collection = is_dask_collection
+    except (ImportError, AttributeError):
+        collection = None
+    try:
         yield
     finally:
         if seeded:
             cache.pop("dask", None)
+        if collection is not None:
+            xr_utils.is_dask_collection = collection
 
 
 def _cmd_plot(args) -> int:
@@ -311,6 +364,7 @@ def _plot(args) -> int:
 
     ds = open_dataset(args.dataset)
     bds = _boundaries_for(ds, args)
+    _started()
     with _laid_out(args.dataset):
         if args.point:
             ds = select_point(ds, args.point)
@@ -349,10 +403,94 @@ def _plot(args) -> int:
     for target in figures.targets(ds, out, kind=args.kind, fmt=fmt, axes=axes):
         _check_figure_path(target, Path(args.dataset))
     with _laid_out(args.dataset):
-        written = figures.save(ds, out, kind=args.kind, fmt=fmt, boundaries=bds, axes=axes)
+        kinds = list(figures.available(ds, axes)) if args.kind is None else []
+        if len(kinds) > 1 and _can_fork():  # several figures: side by side on the cores (the same files)
+            written = figures.targets(ds, out, fmt=fmt, axes=axes)
+            _side_by_side([lambda k=k, path=path: figures.save(ds, path, kind=k, fmt=fmt, boundaries=bds, axes=axes)
+                           for k, path in zip(kinds, written)])
+        else:
+            written = figures.save(ds, out, kind=args.kind, fmt=fmt, boundaries=bds, axes=axes)
     for path in written:
         print(f"wrote {path}")
     return 0
+
+
+def _can_fork() -> bool:
+    """Whether `plot` may draw its figures in forked processes: Linux (elsewhere, e.g. macOS, a fork
+    without exec is unsafe once some system libraries are loaded), more than one core for this process,
+    and no other Python thread (a thread holding a lock at the fork would leave it held in the child: the
+    command's process has none; a notebook or a test runner calling ``main`` may)."""
+    import threading
+
+    if not sys.platform.startswith("linux") or not hasattr(os, "fork") or threading.active_count() != 1:
+        return False
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return cores > 1
+
+
+def _side_by_side(jobs) -> None:
+    """Run ``jobs`` (callables) at the same time: every one but the first in a forked child, the first
+    here; return when all have finished. A job that raised has its exception raised here (the first
+    in the jobs' order), after the others have finished (no figure file is left half written by a
+    sibling's error). When this process is interrupted (Ctrl-C, SIGTERM), the children are stopped
+    (SIGTERM) and reaped before the interruption goes on. What matplotlib spends on a figure (its
+    layout, tick labels, rendering, PNG) is Python in one process: two figures on two cores take the
+    time of the longer one instead of the sum."""
+    import pickle
+
+    children = []
+    try:
+        for job in jobs[1:]:
+            read, write = os.pipe()
+            pid = os.fork()
+            if pid == 0:  # the child: do the job, send back what it raised, leave without cleaning up
+                code = 0
+                try:
+                    os.close(read)
+                    job()
+                except BaseException as exc:  # noqa: BLE001 (sent to the parent, raised there)
+                    code = 1
+                    try:
+                        try:
+                            data = pickle.dumps(exc)
+                        except Exception:  # an exception that cannot be pickled: its type and text
+                            data = pickle.dumps(RuntimeError(f"{type(exc).__name__}: {exc}"))
+                        with os.fdopen(write, "wb") as f:
+                            f.write(data)
+                    except BaseException:  # noqa: BLE001
+                        pass
+                finally:
+                    os._exit(code)  # no atexit handlers, no flush of the parent's buffers
+            os.close(write)
+            children.append((pid, read))
+        raised = None
+        try:
+            jobs[0]()
+        except Exception as exc:  # the children finish first (below), then this is raised
+            raised = exc
+        while children:
+            pid, read = children[0]
+            with os.fdopen(read, "rb") as f:
+                data = f.read()
+            _, status = os.waitpid(pid, 0)
+            children.pop(0)
+            if raised is None and data:
+                raised = pickle.loads(data)
+            elif raised is None and status != 0:
+                raised = RuntimeError(f"drawing a figure in process {pid} failed (wait status {status})")
+        if raised is not None:
+            raise raised
+    finally:
+        for pid, read in children:  # interrupted: stop the others
+            try:
+                os.kill(pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+            os.waitpid(pid, 0)
+            try:
+                os.close(read)
+            except OSError:
+                pass
 
 
 def _boundaries_for(ds, args):

@@ -101,11 +101,15 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
     b.add_argument("--repeats", type=int, default=3, help="measurements per figure, at least 3 (default 3)")
     b.add_argument("--scene", default="sweeps/quickstart.toml",
                    help="the quickstart scene (default sweeps/quickstart.toml)")
-    b.add_argument("--only", choices=("warm", "quickstart", "scaling", "breakdown", "routes", "compile"), nargs="+", default=None,
+    b.add_argument("--only", choices=("warm", "quickstart", "scaling", "breakdown", "routes", "compile", "warmstart"),
+                   nargs="+", default=None,
                    help="measure only these parts (default: warm quickstart scaling; breakdown: where the time "
                         "goes, by function: the file route's fixed costs, chunk launches, a cold compile; routes: "
                         "the cold compile and warm speed of the lane and one-point kernels; compile: the scene's cold "
-                        "compile by function, LLVM against numba's own work, in --repeats fresh processes)")
+                        "compile by function, LLVM against numba's own work, in --repeats fresh processes; "
+                        "warmstart: the warm quickstart by process, run and plot)")
+    b.add_argument("--against", metavar="SRC", default=None,
+                   help="with --only warmstart: alternate with the sources in SRC (another checkout's src folder)")
     b.set_defaults(func=run_startup)
     b = bsub.add_parser("quickstart", help="time the quickstart (run + plot) in fresh processes, cold and warm JIT cache")
     b.add_argument("--scene", default="sweeps/quickstart.toml")
@@ -222,7 +226,7 @@ def run_startup(args) -> int:
     from . import startup
 
     startup.main(full=args.full, repeats=args.repeats, scene=args.scene,
-                 parts=tuple(args.only) if args.only else ("warm", "quickstart", "scaling"))
+                 parts=tuple(args.only) if args.only else ("warm", "quickstart", "scaling"), against=args.against)
     return 0
 
 

@@ -129,6 +129,51 @@ def quickstart(scene: Path, repeats: int, folder: Path) -> dict:
     return result
 
 
+def warm_start(scene: Path, repeats: int, folder: Path, against: str | None = None) -> dict:
+    """The warm quickstart as a user runs it (``mechsweep run SCENE`` then ``mechsweep plot`` of its
+    dataset, two fresh processes, JIT cache filled), ``repeats`` times, split by process: {label:
+    [(run wall, run CPU, plot wall, plot CPU, load average before the run)]}. ``against``: the ``src``
+    folder of other sources (e.g. another checkout's), run alternately with this package's, each in
+    its own processes (``PYTHONPATH``). The JIT cache is the environment's (``MECHSWEEP_CACHE_DIR``, else
+    the default), filled by one unmeasured run and plot of each; the children write Python's bytecode
+    to a folder of their own (``PYTHONPYCACHEPREFIX``, also under ``PYTHONDONTWRITEBYTECODE``), so
+    neither set of sources is compiled from source in a measured process (an installed package has its
+    bytecode)."""
+    import mechsweep
+
+    sources = {"this": Path(mechsweep.__file__).resolve().parents[1]}
+    if against is not None:
+        sources["against"] = Path(against).resolve()
+    base = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    base["PYTHONPYCACHEPREFIX"] = str(folder / "pycache")
+    result = {label: [] for label in sources}
+    envs = {label: dict(base, PYTHONPATH=str(src)) for label, src in sources.items()}
+    outs = {label: folder / label / "quickstart.h5" for label in sources}
+    for label in sources:
+        outs[label].parent.mkdir(parents=True, exist_ok=True)
+    run_args = {label: ["run", str(scene), "-o", str(out), "--no-progress", "--overwrite"] for label, out in outs.items()}
+    for label in sources:  # fill the JIT cache and the bytecode
+        _command(run_args[label], envs[label], folder)
+        _command(["plot", str(outs[label])], envs[label], folder)
+    for _ in range(repeats):
+        for label in sources:  # alternated: a burst of load hits both alike
+            load = os.getloadavg()[0]
+            run_s, run_cpu = _command(run_args[label], envs[label], folder)
+            plot_s, plot_cpu = _command(["plot", str(outs[label])], envs[label], folder)
+            result[label].append((run_s, run_cpu, plot_s, plot_cpu, load))
+    phases = {}
+    for label in sources:  # where the time goes, by phase, in one more fresh process of each kind
+        phases[label] = {}
+        for kind, code, args in (("run", RUN_CHILD, [str(scene), str(folder / label / "phases.h5")]),
+                                 ("plot", PLOT_CHILD, [str(outs[label]), str(folder / label / "phases")])):
+            proc = subprocess.run([sys.executable, "-c", code, *args], env=envs[label], cwd=folder,
+                                  capture_output=True, text=True)
+            if proc.returncode != 0:
+                raise RuntimeError(f"{kind} phases failed:\n{proc.stderr[-2000:]}")
+            phases[label][kind] = json.loads(proc.stdout.strip().splitlines()[-1])
+    return {"sources": {k: str(v) for k, v in sources.items()}, "phases": phases, **result}
+
+
 def scaling(sizes: list[tuple[int, str]], repeats: int, folder: Path) -> list[dict]:
     """Warm cost per point of ``compute`` to a file, and the peak RSS of the command on the same grid."""
     from mechsweep.runner import compute
@@ -241,6 +286,35 @@ with _no_dask_probe():
         fig.savefig(f"{sys.argv[2]}_{kind}.png", dpi=150)
         lap(f"savefig {kind} (layout, render, PNG)")
 print(json.dumps(phases))
+"""
+
+
+RUN_CHILD = """
+import os, sys, time
+t0 = time.perf_counter()
+phases = []
+def lap(name):
+    global t0
+    t = time.perf_counter()
+    phases.append((name, t - t0))
+    t0 = t
+import numpy
+lap("import numpy")
+import numba
+lap("import numba")
+from mechsweep import cli
+lap("import mechsweep.cli")
+from mechsweep import runner, scene
+lap("import mechsweep.scene, runner (the models)")
+s = scene.load_scene(sys.argv[1])
+lap("load the scene")
+from mechsweep.grid import ParameterMatrix
+runner.evaluate_rows(s, ParameterMatrix(s)(0, 1))
+lap("first kernel call (numba's target, the cached kernel)")
+runner.compute(s, output=sys.argv[2], progress=False, overwrite=True)
+lap("compute to the file")
+phases.append(("scipy.linalg imported", "scipy.linalg" in sys.modules))
+print(__import__("json").dumps(phases))
 """
 
 
@@ -505,15 +579,22 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
 
 
 def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.toml",
-         parts: tuple[str, ...] = ("warm", "quickstart", "scaling")) -> dict:
+         parts: tuple[str, ...] = ("warm", "quickstart", "scaling"), against: str | None = None) -> dict:
     """Measure and print ``parts``: "warm", "quickstart", "scaling" (the default), "breakdown"
     (where the time goes; see :func:`breakdown`), "routes" (:func:`route_compile`, :func:`route_speed`),
-    "compile" (the scene's cold compile by function, ``repeats`` fresh processes: :func:`compile_table`)."""
+    "compile" (the scene's cold compile by function, ``repeats`` fresh processes: :func:`compile_table`),
+    "warmstart" (the warm quickstart by process, alternated with the sources ``against`` when given:
+    :func:`warm_start`)."""
     from . import _args
 
     repeats = _args.count("--repeats", repeats, 3, 100)
     scene_path = Path(scene).resolve()
-    if "quickstart" in parts or "breakdown" in parts or "routes" in parts or "compile" in parts:
+    if against is not None and not (Path(against) / "mechsweep" / "__init__.py").is_file():
+        raise _args.InputError(f"--against {against}: no mechsweep package in it; give the src folder of a "
+                               "checkout, e.g. /path/to/checkout/src")
+    if against is not None and "warmstart" not in parts:
+        raise _args.InputError("--against applies to --only warmstart only")
+    if parts and set(parts) & {"quickstart", "breakdown", "routes", "compile", "warmstart"}:
         if not scene_path.is_file():
             raise _args.InputError(f"--scene {scene} does not exist (run from the repository root, or give its path)")
         from mechsweep.scene import load_scene
@@ -553,6 +634,27 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
                 print(f"      CPU time (user + system; less blurred by other processes): run "
                       f"{_spread([r[3] for r in rows], 's', fmt='.2f')}; plot "
                       f"{_spread([r[4] for r in rows], 's', fmt='.2f')}; total {_spread([r[3] + r[4] for r in rows], 's', fmt='.2f')}")
+        if "warmstart" in parts:
+            w = warm_start(scene_path, repeats, tmp, against)
+            report["warmstart"] = w
+            print(f"  warm quickstart ({scene}): `mechsweep run` then `mechsweep plot`, fresh processes, JIT cache "
+                  "filled, wall and CPU (user + system) by process" + (", alternated with --against" if against else "")
+                  + ":")
+            for label, src in w["sources"].items():
+                rows = w[label]
+                totals = [r[0] + r[2] for r in rows]
+                print(f"    {label} ({src}): total {_spread(totals, 's', fmt='.2f')}, target <= {TARGET_WARM_S:g} s: "
+                      f"{_verdict(statistics.median(totals), TARGET_WARM_S)}")
+                print(f"      run  wall {_spread([r[0] for r in rows], 's', fmt='.2f')}, CPU "
+                      f"{_spread([r[1] for r in rows], 's', fmt='.2f')}")
+                print(f"      plot wall {_spread([r[2] for r in rows], 's', fmt='.2f')}, CPU "
+                      f"{_spread([r[3] for r in rows], 's', fmt='.2f')}")
+                print(f"      total CPU {_spread([r[1] + r[3] for r in rows], 's', fmt='.2f')}; load average (1 min) "
+                      f"before each run {min(r[4] for r in rows):.2f} .. {max(r[4] for r in rows):.2f}", flush=True)
+                for kind, phases in w["phases"][label].items():
+                    print(f"      {kind} by phase (one more process, wall s): " + "; ".join(
+                        f"{name} {value:.3f}" if isinstance(value, float) else f"{name}: {value}"
+                        for name, value in phases))
         if "scaling" in parts:
             sizes = [(10**4, "period"), (10**5, "period"), (10**6, "period")]
             if full:
