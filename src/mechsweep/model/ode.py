@@ -189,6 +189,12 @@ class OdeModel:
       "key: message" (e.g. "l3: missing; ..."). The scene is refused (InputError, exit 2) with them.
     - ``invariant``: optional :class:`Invariant`, a quantity the equation conserves along undamped
       trajectories (an energy); the work-precision bench reports its drift (sweeps never compute it).
+    - ``switch_times``: optional times in [0, T) of one forcing period at which the rhs (or a
+      derivative of it) jumps, repeated every period T = forcing_period(p): a tuple of increasing
+      constants, or ``switch_times(p) -> tuple of floats`` (numba-compilable). Every integration
+      then ends a step exactly on each switch and starts the next step there afresh; the rhs is
+      never evaluated at a switch time itself (model/switches.py). A point where they are not
+      increasing times in [0, T) gets INFEASIBLE. Needs ``forcing_period``; not with ``accel``.
 
     Methods (``solver.method``): dop853, radau, auto (dop853 with the stiffness test; a stiff point
     is integrated again by radau) and, with ``accel``, symplectic. FirstEvent measurements (and a
@@ -222,8 +228,15 @@ class OdeModel:
     status_order: tuple[int, ...] = ()  # most severe first: a point's status among its outputs' (see worse)
     check: Callable | None = field(default=None, repr=False)  # ModelSpec.check: the cross-parameter rules
     invariant: Invariant | None = field(default=None, repr=False, compare=False)  # conserved when undamped
+    switch_times: object = field(default=None, repr=False)  # model/switches.py: where the rhs jumps in [0, T)
 
     def __post_init__(self):
+        if self.switch_times is not None:
+            from .switches import check_declaration
+            if not callable(self.switch_times) and not isinstance(self.switch_times, tuple):
+                object.__setattr__(self, "switch_times", tuple(self.switch_times)
+                                   if isinstance(self.switch_times, (list, np.ndarray)) else self.switch_times)
+            check_declaration(self)
         if self.invariant is not None:
             if not isinstance(self.invariant, Invariant):
                 raise ValueError(f"model {self.name!r}: invariant must be a mechsweep.model.Invariant "
@@ -503,4 +516,7 @@ class OdeModel:
         if self.recheck is not None:  # the re-check adds NOT_REPRODUCIBLE to the statuses a point can get
             import dataclasses
             spec = dataclasses.replace(spec, statuses=spec.possible_statuses() + (st.NOT_REPRODUCIBLE,))
+        if self.switch_times is not None and st.INFEASIBLE not in spec.possible_statuses():
+            import dataclasses  # a point whose switch times are not increasing times in [0, T)
+            spec = dataclasses.replace(spec, statuses=spec.possible_statuses() + (st.INFEASIBLE,))
         return spec
