@@ -143,10 +143,12 @@ def test_load_check_refuses_a_function_not_returning_floats(tmp_path):
 def test_every_route_reaches_rtol(method):
     """Every integration route with the switch times declared as constants, at rtol 1e-8 against the
     exact solution: the first zero of x (FirstEvent: the method's event solver), x at 2 T s
-    (History: the sampled trajectory), the Floquet multiplier (the variational integration); the
-    function form gives bitwise the same values."""
+    (History: the sampled trajectory), the Floquet multiplier (the variational integration), the
+    largest x on [5, 10] (Extremum on the shared trajectory, dop853 only); the function form gives
+    bitwise the same values."""
+    from scipy.optimize import minimize_scalar
     rows = np.column_stack([ROWS, np.zeros(len(ROWS))])
-    wanted = ["t_zero", "x_hist", "mu"] if method == "dop853" else ["t_zero", "x_hist"]
+    wanted = ["t_zero", "x_hist", "mu", "x_max"] if method == "dop853" else ["t_zero", "x_hist"]
     out, status, _, _ = evaluate(spec(switched.SWITCHED), rows, wanted, rtol=1e-8, atol=1e-10, method=method)
     assert (status == st.OK).all()
     for i, (d, e, _) in enumerate(rows):
@@ -158,6 +160,12 @@ def test_every_route_reaches_rtol(method):
         assert abs(out["t_zero"][i] - tz) < 5e-8 * tz
         hist = [exact(d, e, T * s)[0] for s in np.linspace(0.0, 2.0, 5)]
         np.testing.assert_allclose(out["x_hist"][i], hist, rtol=0, atol=5e-8)
+        if "x_max" in wanted:
+            ts = np.linspace(5.0, 10.0, 2001)
+            j = int(np.argmax([exact(d, e, x)[0] for x in ts]))
+            best = -minimize_scalar(lambda x: -exact(d, e, x)[0], bounds=(ts[max(j - 1, 0)], ts[min(j + 1, 2000)]),
+                                    method="bounded", options={"xatol": 1e-12}).fun
+            assert abs(out["x_max"][i] - best) < 5e-8 * max(1.0, abs(best))
         if "mu" in wanted:
             m = _M(d + e, 0.5 * math.pi) @ _M(d - e, math.pi) @ _M(d + e, 0.5 * math.pi)
             mu = max(abs(np.linalg.eigvals(m)))

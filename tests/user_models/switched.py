@@ -4,7 +4,7 @@ rhs jumps at t = pi/2 and 3 pi/2 of each period 2 pi. SWITCHED declares those sw
 Its exact solution is a product of 2 x 2 closed-form matrices (tests/test_switch_times.py)."""
 import math
 
-from mechsweep.model import FirstEvent, Floquet, History, OdeModel, Param, StateAt
+from mechsweep.model import Extremum, FirstEvent, Floquet, History, OdeModel, Param, StateAt
 
 
 def rhs(t, y, p, dydt):
@@ -39,6 +39,7 @@ PARAMS = (Param("delta", "δ", "1", "mean stiffness", lo=0.0, hi=10.0),
 MEASUREMENTS = (
     FirstEvent("t_zero", event=x_down, t_max=100.0),
     StateAt("x_end", "x", t=10.0),
+    Extremum("x_max", "x", t0=5.0, t1=10.0, kind="max"),
     History("x_hist", of="x", horizon=2.0, samples=5),
     Floquet("mu"),
 )

@@ -753,7 +753,7 @@ def _switch_key(model):
     if sw is None:
         return ""  # no bytes added: the kernels of a model without switch times keep their names
     from .switches import SIDE, constants
-    return ("switch_times", constants(model) or "function", SIDE)
+    return repr(("switch_times", constants(model) or "function", SIDE))
 
 
 def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes, points=0) -> tuple[str, str | None]:
@@ -780,7 +780,7 @@ def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes, point
 
     def name_of(lane_rhs):
         key = base.copy()
-        key.update(repr(_switch_key(model)).encode())
+        key.update(_switch_key(model).encode())
         key.update(repr((model.name, layout(model), len(model.states), getattr(model, "symplectic_order", 0),
                          tuple(getattr(m, "key", lambda: m)() for m in chosen),
                          tuple((c.name, c.needs) for c in closed), shared, method,

@@ -999,7 +999,7 @@ def make_shared(rhs, observe=None, switches=None):
             t_end = max(t_end, M[i, 6] if M[i, 0] >= K_EXTREMUM else M[i, 5])
         if left == 0:
             return 0, 0
-        tb = math.inf  # the next switch time (none: inf)
+        t_sw = math.inf  # the next switch time (none: inf)
         if has_sw:
             c0 = check(p)
             if c0 != OK:
@@ -1007,9 +1007,9 @@ def make_shared(rhs, observe=None, switches=None):
                     if not done[i]:
                         codes[i] = c0
                 return 0, 0
-            tb = nxt(0.0, p)
-            clamp(p, -math.inf, tb - SIDE * abs(tb))
-        status, h_abs, n_rhs = start(0.0, y, p, min(t_end, tb), rtol, atol, 0.0, work)
+            t_sw = nxt(0.0, p)
+            clamp(p, -math.inf, t_sw - SIDE * abs(t_sw))
+        status, h_abs, n_rhs = start(0.0, y, p, min(t_end, t_sw), rtol, atol, 0.0, work)
         n_steps = 0
         if status != OK:
             for i in range(m):
@@ -1041,7 +1041,7 @@ def make_shared(rhs, observe=None, switches=None):
         t = 0.0
         attempts = 0
         while left > 0 and t < t_end:
-            status, t_new, h_abs, a = advance(t, y, p, min(t_end, tb), h_abs, rtol, atol, work, max_steps - attempts)
+            status, t_new, h_abs, a = advance(t, y, p, min(t_end, t_sw), h_abs, rtol, atol, work, max_steps - attempts)
             attempts += a
             n_rhs += N_ST * a
             if status != OK:
@@ -1152,13 +1152,13 @@ def make_shared(rhs, observe=None, switches=None):
                     left -= 1
             commit(y, work)
             t = t_new
-            if has_sw and t >= tb and left > 0 and t < t_end:  # on a switch: f again on its far side
-                lo = tb + SIDE * abs(tb)
-                tb = nxt(t, p)
-                if not tb > t:
+            if has_sw and t >= t_sw and left > 0 and t < t_end:  # on a switch: f again on its far side
+                lo = t_sw + SIDE * abs(t_sw)
+                t_sw = nxt(t, p)
+                if not t_sw > t:
                     status = NONFINITE
                     break
-                clamp(p, lo, tb - SIDE * abs(tb))
+                clamp(p, lo, t_sw - SIDE * abs(t_sw))
                 rhs(t, y, p, work[0])
                 n_rhs += 1
         if has_sw:

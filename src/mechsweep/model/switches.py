@@ -8,7 +8,8 @@ Kick, the shared trajectory; dop853, radau and auto) ends a step exactly on each
 the next step there afresh, so no step, dense output, event search or stiffness count straddles a
 switch.
 
-The side of the switch the rhs is evaluated on: never at a switch time itself. While a segment
+The side of the switch the rhs is evaluated on (and the model's jac, and a Floquet's own
+variational system): never at a switch time itself. While a segment
 [a, b] is integrated, the time the solvers pass to the rhs is kept in [a + d(a), b - d(b)], d(x) =
 SIDE * |x| (about ten ulps): the step that ends on b sees the interval before b, the step that
 starts at b the interval after it, whatever the rhs does at b exactly and even when its own
@@ -83,6 +84,17 @@ def source(model, at: str, refs: dict) -> str:
     else:
         assert "switch_times" in refs
         lst = "@jit\ndef switch_list(p):\n    return user_switch_times(p)\n"
+    # the other functions of t the solvers call: the model's jac, a Floquet's own variational system
+    timed = [n for n in refs if n == "jac" or n.rstrip("0123456789") in ("variational", "variational_jac")]
+    clamped = "".join(f"""
+
+{n}_at = {n}
+
+
+@jit
+def {n}(t, a, p, out):
+    {n}_at(min(max(t, p[SW]), p[SW + 1]), a, p, out)
+""" for n in timed)
     return f"""
 
 # ---- switch times (model/switches.py): every step ends on them; the rhs never sees one itself
@@ -142,7 +154,7 @@ rhs_at = rhs  # the guarded rhs; the rhs every solver below calls keeps its time
 @jit
 def rhs(t, y, p, dydt):
     rhs_at(min(max(t, p[SW]), p[SW + 1]), y, p, dydt)
-
+{clamped}
 
 from mechsweep.model import switches as _switches  # noqa: E402
 

@@ -622,7 +622,7 @@ def kernel_for(model, method, measurements=None):
         key.update(load.module_source(ref[0], ref[1]))
     key.update((lane_rhs_for(model, method) or "").encode())  # its helpers may live in other modules
     from .compile import _switch_key
-    key.update(repr(_switch_key(model)).encode())
+    key.update(_switch_key(model).encode())
     key.update(repr((model.name, _layout(model), len(model.states), tuple(m.key() for m in chosen), method,
                      _order(model), always, tuple(lock), raw)).encode())
     name = "mechsweep_traj_" + key.hexdigest()[:20]
