@@ -80,6 +80,7 @@ def test_steps_on_the_switches_reach_rtol():
     assert err_on.max() < 3.0, err_on
     assert err_off.min() > 10.0, err_off
     assert st.INFEASIBLE in spec(switched.SWITCHED_FN).possible_statuses()
+    assert "switch times" in dict(spec(switched.SWITCHED_FN).status_notes)[st.INFEASIBLE]
 
 
 def _rhs(t, y, p, dydt):

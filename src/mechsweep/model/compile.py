@@ -420,7 +420,9 @@ def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
                 table[i, {closed_col[c.name]}] = cf{j}""")
         return "".join(out)
 
-    scratch = ["\n        p = np.empty(SCR + NSCR + 2)" if switched else "\n        p = np.empty(SCR + NSCR)",
+    # with switches: their two slots, then NS more (a measurement that takes the last NS slots of p as
+    # scratch, Extremum's shared=False source, stays off them)
+    scratch = ["\n        p = np.empty(SCR + NSCR + 2 + NS)" if switched else "\n        p = np.empty(SCR + NSCR)",
                "\n        y = np.empty(NS)"]
     if uses["dop853"]:
         scratch.append("\n        work = dop853.workspace(NS)")

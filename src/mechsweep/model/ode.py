@@ -516,7 +516,11 @@ class OdeModel:
         if self.recheck is not None:  # the re-check adds NOT_REPRODUCIBLE to the statuses a point can get
             import dataclasses
             spec = dataclasses.replace(spec, statuses=spec.possible_statuses() + (st.NOT_REPRODUCIBLE,))
-        if self.switch_times is not None and st.INFEASIBLE not in spec.possible_statuses():
-            import dataclasses  # a point whose switch times are not increasing times in [0, T)
-            spec = dataclasses.replace(spec, statuses=spec.possible_statuses() + (st.INFEASIBLE,))
+        if self.switch_times is not None:  # a point whose switch times are not increasing times in [0, T)
+            import dataclasses
+            notes = dict(spec.status_notes)
+            notes.setdefault(st.INFEASIBLE, "(also) the switch times are not strictly increasing times in [0, T) "
+                                            "of the forcing period T here")
+            spec = dataclasses.replace(spec, status_notes=tuple(sorted(notes.items())), statuses=tuple(
+                dict.fromkeys(spec.possible_statuses() + (st.INFEASIBLE,))))
         return spec
