@@ -163,9 +163,10 @@ def test_every_route_reaches_rtol(method):
         np.testing.assert_allclose(out["x_hist"][i], hist, rtol=0, atol=5e-8)
         if "x_max" in wanted:
             ts = np.linspace(5.0, 10.0, 2001)
-            j = int(np.argmax([exact(d, e, x)[0] for x in ts]))
-            best = -minimize_scalar(lambda x: -exact(d, e, x)[0], bounds=(ts[max(j - 1, 0)], ts[min(j + 1, 2000)]),
-                                    method="bounded", options={"xatol": 1e-12}).fun
+            xs = [exact(d, e, x)[0] for x in ts]
+            j = int(np.argmax(xs))
+            best = max(xs[j], -minimize_scalar(lambda x: -exact(d, e, x)[0], method="bounded", bounds=(
+                ts[max(j - 1, 0)], ts[min(j + 1, 2000)]), options={"xatol": 1e-12}).fun)  # an end: xs[j]
             assert abs(out["x_max"][i] - best) < 5e-8 * max(1.0, abs(best))
         if "mu" in wanted:
             m = _M(d + e, 0.5 * math.pi) @ _M(d - e, math.pi) @ _M(d + e, 0.5 * math.pi)
