@@ -50,7 +50,7 @@ def check_declaration(model) -> None:
     where = f"model {model.name!r}: switch_times"
     if model.forcing_period is None:
         raise ValueError(f"{where} are times within one forcing period, repeated every period: declare "
-                         "forcing_period=, e.g. forcing_period=lambda p: 2 * math.pi")
+                         "forcing_period=, a function forcing_period(p) returning T (e.g. 2 * math.pi)")
     if model.accel is not None:
         raise ValueError(f"{where}: the symplectic method (accel) takes fixed steps that do not end on the "
                          "switches; declare either accel (a smooth separable model) or switch_times, not both")
