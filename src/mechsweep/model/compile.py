@@ -217,6 +217,8 @@ def _functions(model, chosen, closed) -> list[tuple[str, object]]:
         func = getattr(model, "forcing_period" if role == "forcing" else role, None)
         if func is not None:
             f.append((role, func))
+    if callable(getattr(model, "switch_times", None)):  # model/switches.py; constants go into the source
+        f.append(("switch_times", model.switch_times))
     for k, m in enumerate(chosen):
         for role, func in getattr(m, "functions", lambda: ())():
             f.append((f"{role}{k}", func))
@@ -278,6 +280,10 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
     lines.append(f"NP = {n_p}\nNSET = {n_set}\nNPI = {npi}  # p[NPI]: the point's user-error flag\nSCR = NPI + 1\n"
                  f"NS = {n_s}\nNQ = {n_q}\nNSCR = {n_scr}\n"
                  f"BLOCK = {BLOCK}\n")
+    switched = getattr(model, "switch_times", None) is not None
+    if switched:  # steps end on the declared switch times; p gets two slots after the scratch (switches.SW)
+        from .switches import source as switch_source
+        lines.append(switch_source(model, "SCR + NSCR", refs))
     order = tuple(getattr(model, "status_order", ()))
     lines.append(rank_source(order))
     for j, c in enumerate(closed):
@@ -368,9 +374,11 @@ def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
             if exprs:
                 lines.append("\n@jit\ndef observe(t, y, p, j):  # the expressions of the shared rows\n"
                              + "".join(f"    if j == {k}:\n        return of{k}(t, y, p)\n" for k in exprs)
-                             + "    return math.nan\n\n\nshared = make_shared(rhs, observe)\n")
+                             + "    return math.nan\n\n\nshared = make_shared(rhs, observe"
+                             + (", (next_switch, switch_check, switch_clamp))\n" if switched else ")\n"))
             else:
-                lines.append("shared = make_shared(rhs)\n")
+                lines.append("shared = make_shared(rhs, None, (next_switch, switch_check, switch_clamp))\n"
+                             if switched else "shared = make_shared(rhs)\n")
             lines.append(f"SHARED_M = np.array([\n    {rows}])\nNSH = {len(group)}\n")
         for k, m in enumerate(chosen):
             if k in group or k in alone:
@@ -412,7 +420,10 @@ def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
                 table[i, {closed_col[c.name]}] = cf{j}""")
         return "".join(out)
 
-    scratch = ["\n        p = np.empty(SCR + NSCR)", "\n        y = np.empty(NS)"]
+    # with switches: their two slots, then NS more (a measurement that takes the last NS slots of p as
+    # scratch, Extremum's shared=False source, stays off them)
+    scratch = ["\n        p = np.empty(SCR + NSCR + 2 + NS)" if switched else "\n        p = np.empty(SCR + NSCR)",
+               "\n        y = np.empty(NS)"]
     if uses["dop853"]:
         scratch.append("\n        work = dop853.workspace(NS)")
     if uses["radau"]:
@@ -533,6 +544,7 @@ def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
         body.append(closed_code(True))
     fd_add = ("\n            n_rhs[i] += int(p[SCR + 3 * NS])  # the rhs calls of the engine's Jacobian"
               if fd_count else "")
+    clamp_reset = "\n            switch_clamp(p, -math.inf, math.inf)" if switched else ""
     lines.append(f"""
 
 @jit
@@ -549,7 +561,7 @@ def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs, fir
             for j in range(NSET):
                 p[NP + j] = S[j]
             for j in range(NP + NSET, SCR + NSCR):
-                p[j] = 0.0
+                p[j] = 0.0{clamp_reset}
             code = st.OK{''.join(body)}{fd_add}
             if p[NPI] != 0.0 and code == st.OK:
                 code = st.USER_ERROR
@@ -737,6 +749,15 @@ def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str =
     return _KERNELS[name]
 
 
+def _switch_key(model):
+    """What the generated source depends on of the model's switch times beyond its functions' sources."""
+    sw = getattr(model, "switch_times", None)
+    if sw is None:
+        return ""  # no bytes added: the kernels of a model without switch times keep their names
+    from .switches import SIDE, constants
+    return repr(("switch_times", constants(model) or "function", SIDE))
+
+
 def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes, points=0) -> tuple[str, str | None]:
     """The kernel's module name (a hash of the model's sources and the choices), the kernel loaded
     into _KERNELS under it; and the name of the lane kernel the automatic route passed over (or None)."""
@@ -761,6 +782,7 @@ def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes, point
 
     def name_of(lane_rhs):
         key = base.copy()
+        key.update(_switch_key(model).encode())
         key.update(repr((model.name, layout(model), len(model.states), getattr(model, "symplectic_order", 0),
                          tuple(getattr(m, "key", lambda: m)() for m in chosen),
                          tuple((c.name, c.needs) for c in closed), shared, method,

@@ -618,8 +618,8 @@ def applies(model, chosen, method: str) -> str | None:
     """The lane rhs source when the lane kernel serves this choice, else None: one measurement
     integrated on its own (a FirstEvent, possibly of a System, or a lone first Crossing) without
     refine, by dop853, of an rhs the rewrite covers."""
-    if method != "dop853" or len(chosen) != 1:
-        return None
+    if method != "dop853" or len(chosen) != 1 or getattr(model, "switch_times", None) is not None:
+        return None  # a model with switch times integrates one point at a time (model/switches.py)
     m = chosen[0]
     from .compile import _system, is_direct
 

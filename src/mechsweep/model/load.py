@@ -419,6 +419,13 @@ def check(model, ref: str, file: str) -> None:
         T = probe("forcing_period", model.forcing_period, (p,))
         if not isinstance(T, (int, float, np.floating, np.integer)):
             raise InputError(f"{label}: forcing_period returned {T!r}; expected a number")
+    sw = getattr(model, "switch_times", None)
+    if callable(sw):  # a tuple of numbers (model/switches.py checks the values per point at run time)
+        value = probe("switch_times", sw, (p,))
+        if not isinstance(value, (tuple, np.ndarray)) or not len(value) or not all(
+                isinstance(x, (float, np.floating)) for x in value):
+            raise InputError(f"{label}: switch_times returned {value!r}; expected a non-empty tuple of floats (times "
+                             "in [0, T) of one forcing period)")
     extra = _extra_functions(model)
     for what, func, build in extra:
         args = build(p, y0)
@@ -437,6 +444,8 @@ def check(model, ref: str, file: str) -> None:
     funcs = [("initial", model.initial, (pp, np.zeros(n_s))), ("rhs", model.rhs, (0.0, y0.copy(), pp, np.zeros(n_s)))]
     if model.forcing_period is not None:
         funcs.append(("forcing_period", model.forcing_period, (pp,)))
+    if callable(sw):
+        funcs.append(("switch_times", sw, (pp,)))
     if getattr(model, "jac", None) is not None:
         funcs.append(("jac", model.jac, (0.0, y0.copy(), pp, np.zeros((n_s, n_s)))))
     if getattr(model, "prepare", None) is not None:

@@ -911,7 +911,7 @@ Extremum.shared_row = _row_extremum
 
 
 @functools.cache
-def make_shared(rhs, observe=None):
+def make_shared(rhs, observe=None, switches=None):
     """Jitted ``shared(y, p, M, rtol, atol, max_steps, work, values, codes) -> (n_steps, n_rhs)``:
     every measurement row of ``M`` (see ``shared_row``) observes one DOP853 integration from
     t = 0 (y: the initial state on entry, scratch after). The integration runs towards the
@@ -925,7 +925,12 @@ def make_shared(rhs, observe=None):
     of kind K_EXTREMUM_OF (column 1: j). Its rate along the trajectory is the central difference
     (f(t + e, y + e F) - f(t - e, y - e F)) / 2e, F = rhs(t, y), e = cbrt(eps) |h| (the step's
     size h as the time scale). An Extremum row whose window is not finite 0 <= t0 < t1 (a window
-    given as a function of p) gets INFEASIBLE."""
+    given as a function of p) gets INFEASIBLE.
+
+    ``switches``: (next_switch, switch_check, switch_clamp) of a model's declared switch times
+    (model/switches.py): every step then ends on each switch, f is evaluated again there on the far
+    side (1 rhs call, counted) and the step size carries on; a point whose switch times are not valid
+    gives switch_check's status to every row. None: exactly the integration without them."""
     from ..ode import dop853 as d
     from ..ode._common import ROOT_RTOL, make_brent
     from .._jit import jit
@@ -939,8 +944,26 @@ def make_shared(rhs, observe=None):
     Y_STAGE, Y_NEW, K_FSAL = d.Y_STAGE, d.Y_NEW, d.K_FSAL
     N_ST = d.N_STAGES
     N_DENSE = d.N_STAGES_EXTENDED - d.N_STAGES - 1
-    OK, NO_EVENT, INFEASIBLE = st_.OK, st_.NO_EVENT, st_.INFEASIBLE
+    OK, NO_EVENT, INFEASIBLE, NONFINITE = st_.OK, st_.NO_EVENT, st_.INFEASIBLE, st_.NONFINITE
     CBRT_EPS = 6.055454452393343e-06
+    if switches is None:
+        has_sw = False
+
+        @jit
+        def nxt(t, p):
+            return math.inf
+
+        @jit
+        def check(p):
+            return 0
+
+        @jit
+        def clamp(p, lo, hi):
+            pass
+    else:
+        has_sw = True
+        nxt, check, clamp = switches
+    SIDE = 2e-15  # switches.SIDE
 
     if observe is None:  # state rows only: the value and the rate are components of y and of the rhs
         @jit
@@ -1011,7 +1034,17 @@ def make_shared(rhs, observe=None):
             t_end = max(t_end, M[i, 6] if M[i, 0] >= K_EXTREMUM else M[i, 5])
         if left == 0:
             return 0, 0
-        status, h_abs, n_rhs = start(0.0, y, p, t_end, rtol, atol, 0.0, work)
+        t_sw = math.inf  # the next switch time (none: inf)
+        if has_sw:
+            c0 = check(p)
+            if c0 != OK:
+                for i in range(m):
+                    if not done[i]:
+                        codes[i] = c0
+                return 0, 0
+            t_sw = nxt(0.0, p)
+            clamp(p, -math.inf, t_sw - SIDE * abs(t_sw))
+        status, h_abs, n_rhs = start(0.0, y, p, min(t_end, t_sw), rtol, atol, 0.0, work)
         n_steps = 0
         if status != OK:
             for i in range(m):
@@ -1043,7 +1076,7 @@ def make_shared(rhs, observe=None):
         t = 0.0
         attempts = 0
         while left > 0 and t < t_end:
-            status, t_new, h_abs, a = advance(t, y, p, t_end, h_abs, rtol, atol, work, max_steps - attempts)
+            status, t_new, h_abs, a = advance(t, y, p, min(t_end, t_sw), h_abs, rtol, atol, work, max_steps - attempts)
             attempts += a
             n_rhs += N_ST * a
             if status != OK:
@@ -1154,6 +1187,17 @@ def make_shared(rhs, observe=None):
                     left -= 1
             commit(y, work)
             t = t_new
+            if has_sw and t >= t_sw and left > 0 and t < t_end:  # on a switch: f again on its far side
+                lo = t_sw + SIDE * abs(t_sw)
+                t_sw = nxt(t, p)
+                if not t_sw > t:
+                    status = NONFINITE
+                    break
+                clamp(p, lo, t_sw - SIDE * abs(t_sw))
+                rhs(t, y, p, work[0])
+                n_rhs += 1
+        if has_sw:
+            clamp(p, -math.inf, math.inf)
         for i in range(m):
             if not done[i]:
                 values[i] = math.nan

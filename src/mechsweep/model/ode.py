@@ -204,6 +204,12 @@ class OdeModel:
       trajectories (an energy); the work-precision bench reports its drift (sweeps never compute it).
     - ``workprecision``: optional :class:`~mechsweep.model.workprecision.WorkPrecision`: the default
       scene, output and exact reference (a closed form) of the model's work-precision report.
+    - ``switch_times``: optional times in [0, T) of one forcing period at which the rhs (or a
+      derivative of it) jumps, repeated every period T = forcing_period(p): a tuple of increasing
+      constants, or ``switch_times(p) -> tuple of floats`` (numba-compilable). Every integration
+      then ends a step exactly on each switch and starts the next step there afresh; the rhs is
+      never evaluated at a switch time itself (model/switches.py). A point where they are not
+      increasing times in [0, T) gets INFEASIBLE. Needs ``forcing_period``; not with ``accel``.
 
     Methods (``solver.method``): dop853, radau, auto (dop853 with the stiffness test; a stiff point
     is integrated again by radau) and, with ``accel``, symplectic. FirstEvent measurements (and a
@@ -238,8 +244,15 @@ class OdeModel:
     check: Callable | None = field(default=None, repr=False)  # ModelSpec.check: the cross-parameter rules
     invariant: Invariant | None = field(default=None, repr=False, compare=False)  # conserved when undamped
     workprecision: object = field(default=None, repr=False, compare=False)  # model.workprecision.WorkPrecision
+    switch_times: object = field(default=None, repr=False)  # model/switches.py: where the rhs jumps in [0, T)
 
     def __post_init__(self):
+        if self.switch_times is not None:
+            from .switches import check_declaration
+            if not callable(self.switch_times) and not isinstance(self.switch_times, tuple):
+                object.__setattr__(self, "switch_times", tuple(self.switch_times)
+                                   if isinstance(self.switch_times, (list, np.ndarray)) else self.switch_times)
+            check_declaration(self)
         if self.invariant is not None:
             if not isinstance(self.invariant, Invariant):
                 raise ValueError(f"model {self.name!r}: invariant must be a mechsweep.model.Invariant "
@@ -530,4 +543,11 @@ class OdeModel:
         if self.recheck is not None:  # the re-check adds NOT_REPRODUCIBLE to the statuses a point can get
             import dataclasses
             spec = dataclasses.replace(spec, statuses=spec.possible_statuses() + (st.NOT_REPRODUCIBLE,))
+        if self.switch_times is not None:  # a point whose switch times are not increasing times in [0, T)
+            import dataclasses
+            notes = dict(spec.status_notes)
+            notes.setdefault(st.INFEASIBLE, "(also) the switch times are not strictly increasing times in [0, T) "
+                                            "of the forcing period T here")
+            spec = dataclasses.replace(spec, status_notes=tuple(sorted(notes.items())), statuses=tuple(
+                dict.fromkeys(spec.possible_statuses() + (st.INFEASIBLE,))))
         return spec

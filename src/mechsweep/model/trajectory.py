@@ -235,6 +235,9 @@ def kernel_source(model, chosen, refs, method, always=-1, lock=(), raw=False) ->
         elif name.startswith("mclassify"):
             lines.append(_guard_numbered(name) + "\n")
     lines.append(rank_source(_order(model)))
+    if getattr(model, "switch_times", None) is not None:  # steps end on the switches (switches.SW: 2 slots of p)
+        from .switches import source as switch_source
+        lines.append(switch_source(model, "SCR + 3 * NS + 1", refs))
     fd_count = method in ("radau", "auto") and "jac" not in refs
     if fd_count:  # its rhs calls counted in p[SCR + 3 NS], added to n_rhs after the integration
         from .compile import _fd_jac
@@ -259,7 +262,7 @@ def kernel_source(model, chosen, refs, method, always=-1, lock=(), raw=False) ->
     lines.append(_lanes_source(model, chosen, refs, lane_rhs) if lane_rhs else "")
     order = _order(model)
     return _kernel_tail(lines, body, refs, method, _measurement_checks(chosen, refs, order, 12),
-                        _failed(order, 16))
+                        _failed(order, 16), getattr(model, "switch_times", None) is not None)
 
 
 def _failed(order, indent: int) -> str:
@@ -389,7 +392,7 @@ def _measurement_checks(chosen, refs, order, indent: int) -> str:
     return out
 
 
-def _kernel_tail(lines, body, refs, method, checks="", fail="") -> str:
+def _kernel_tail(lines, body, refs, method, checks="", fail="", switched=False) -> str:
     if method == "dop853":
         integrate = """
             c, a, b_ = traj_d(0.0, y, p, te, rtol, atol, 0.0, max_steps, work, traj)"""
@@ -410,6 +413,7 @@ def _kernel_tail(lines, body, refs, method, checks="", fail="") -> str:
     forcing = "forcing(p)" if "forcing" in refs else "1.0"
     fd_add = ("\n            n_rhs[i] += int(p[SCR + 3 * NS])  # the rhs calls of the engine's Jacobian"
               if method in ("radau", "auto") and "jac" not in refs else "")
+    clamp_reset = "\n            switch_clamp(p, -math.inf, math.inf)" if switched else ""
     lines.append(f"""
 
 @pjit
@@ -418,7 +422,7 @@ def kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, rawv, rawh
     ns_ = s.size
     n_blocks = (n + BLOCK - 1) // BLOCK
     for blk in prange(n_blocks):
-        p = np.empty(SCR + 3 * NS + 1)
+        p = np.empty(SCR + 3 * NS + 1{" + 2" if switched else ""})
         y = np.empty(NS)
         te = np.empty(ns_)
         ob = np.zeros(ns_)
@@ -432,7 +436,7 @@ def kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, rawv, rawh
             for j in range(NSET):
                 p[NP + j] = S[j]
             for j in range(NP + NSET, p.size):
-                p[j] = 0.0{classify}{prepare}
+                p[j] = 0.0{clamp_reset}{classify}{prepare}
             T = {forcing}
             if not (math.isfinite(T) and T > 0.0):
                 status[i] = st.INFEASIBLE
@@ -469,7 +473,7 @@ def _point_checks(refs, indent: int) -> tuple[str, str]:
 def lane_rhs_for(model, method) -> str | None:
     """The engine's lane form of the model's rhs (model/lanes.py's rewrite) for dop853, or None
     (another method, or an rhs the rewrite does not cover: one trajectory at a time)."""
-    if method != "dop853":
+    if method != "dop853" or getattr(model, "switch_times", None) is not None:  # switches: one at a time
         return None
     from .lanes import lane_rhs_source
     return lane_rhs_source(model.rhs)
@@ -604,7 +608,7 @@ def kernel_for(model, method, measurements=None):
     chosen = sampled_measurements(model) if measurements is None else tuple(measurements)
     always, lock, raw = recheck_variant(model, chosen)
     funcs = [(n, f) for n, f in _functions(model, (), ()) if n in ("rhs", "initial", "forcing", "jac", "classify",
-                                                                      "prepare")]
+                                                                      "prepare", "switch_times")]
     for k, m in enumerate(chosen):
         for role, func in m.functions():
             funcs.append((f"{role}{k}", func))
@@ -617,6 +621,8 @@ def kernel_for(model, method, measurements=None):
         key.update(repr(ref).encode())
         key.update(load.module_source(ref[0], ref[1]))
     key.update((lane_rhs_for(model, method) or "").encode())  # its helpers may live in other modules
+    from .compile import _switch_key
+    key.update(_switch_key(model).encode())
     key.update(repr((model.name, _layout(model), len(model.states), tuple(m.key() for m in chosen), method,
                      _order(model), always, tuple(lock), raw)).encode())
     name = "mechsweep_traj_" + key.hexdigest()[:20]

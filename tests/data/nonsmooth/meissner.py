@@ -42,3 +42,17 @@ MEISSNER_JAC = OdeModel(
     params=_PARAMS, states=("x", "v"), rhs=rhs, jac=jac, initial=initial, forcing_period=forcing_period,
     measurements=(Floquet("mu"),),
 )
+
+# The same equation with its switch times declared (sign(cos t) jumps at pi/2 and 3 pi/2): every step
+# ends on them (model/switches.py), the located boundaries reach about rtol (docs/your-own-model.md).
+MEISSNER_SW = OdeModel(
+    name="meissner_sw", description="Meissner equation, switch times declared",
+    params=_PARAMS, states=("x", "v"), rhs=rhs, initial=initial, forcing_period=forcing_period,
+    switch_times=(0.5 * math.pi, 1.5 * math.pi), measurements=(Floquet("mu"),),
+)
+
+MEISSNER_JAC_SW = OdeModel(
+    name="meissner_jac_sw", description="Meissner equation with analytic jac, switch times declared",
+    params=_PARAMS, states=("x", "v"), rhs=rhs, jac=jac, initial=initial, forcing_period=forcing_period,
+    switch_times=(0.5 * math.pi, 1.5 * math.pi), measurements=(Floquet("mu"),),
+)

@@ -5,10 +5,12 @@ brentq). The numbers quoted in docs/your-own-model.md ("A right-hand side that i
 docs/boundaries.md come from this script (first measured by a docs-only trial, 2026-11-24).
 
     python tests/data/nonsmooth/meissner_boundaries.py [RTOL ...] [--accuracy A] [--model MEISSNER_JAC]
+                                                       [--switch-times]
 
 For each solver rtol (default 1e-8 1e-10 1e-12): eps in (0.1, 0.3, 0.6) x 141 delta in [-0.5, 3],
 boundaries along delta at the same rtol; prints the worst relative error of the located boundaries and
-how many exact ones were not found.
+how many exact ones were not found. ``--switch-times``: the same model with its switch times
+declared (meissner.py's MEISSNER_SW / MEISSNER_JAC_SW: OdeModel(switch_times=(pi/2, 3 pi/2))).
 """
 import argparse
 import subprocess
@@ -72,7 +74,10 @@ def main():
     ap.add_argument("rtols", nargs="*", type=float, default=[1e-8, 1e-10, 1e-12])
     ap.add_argument("--accuracy", type=float, default=None, help="[boundaries] criterion_accuracy (default: none)")
     ap.add_argument("--model", default="MEISSNER")
+    ap.add_argument("--switch-times", action="store_true", help="the model with its switch times declared (MODEL_SW)")
     a = ap.parse_args()
+    if a.switch_times:
+        a.model += "_SW"
     with tempfile.TemporaryDirectory() as tmp:
         for rtol in a.rtols:
             scene = Path(tmp) / f"m_{rtol:g}.toml"
