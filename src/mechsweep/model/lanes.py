@@ -47,6 +47,8 @@ import textwrap
 import types
 
 import numpy as np
+from numba.core import cgutils, types as nbtypes
+from numba.extending import intrinsic
 
 from .._jit import jit, jit_noalloc
 from ..status import MAX_STEPS, NO_EVENT, NONFINITE, OK, STEP_UNDERFLOW
@@ -644,6 +646,31 @@ def workspace(n, n_lp, lanes, n_p):
             np.zeros((lanes, n_p)), np.zeros((2, n)))
 
 
+@intrinsic
+def _fetch_add(typingctx, counter):
+    """Atomically add 1 to ``counter[0]`` (an int64 array), returning its value before: LLVM's
+    ``atomicrmw add``, sequentially consistent."""
+    if not (isinstance(counter, nbtypes.Array) and counter.dtype == nbtypes.int64):
+        return None
+
+    def codegen(context, builder, signature, args):
+        aryty = signature.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [context.get_constant(nbtypes.intp, 0)])
+        return builder.atomic_rmw("add", ptr, context.get_constant(nbtypes.int64, 1), "seq_cst")
+
+    return nbtypes.int64(counter), codegen
+
+
+@jit_noalloc
+def take(counter):
+    """The next block of a launch for the calling thread (counter[0], then counter[0] += 1, as one
+    atomic step): threads take blocks as they finish them, so one that got a core for less of the
+    launch (another thread or process had it) does fewer blocks instead of the others waiting for
+    it at the launch's end. Which thread computes a block does not change its results."""
+    return _fetch_add(counter)
+
+
 @jit_noalloc
 def idle(ws, lane):
     """No point left for the lane: it keeps being stepped with h = 0 and is never read."""
@@ -961,6 +988,25 @@ def settle(lane, ws, keep, need, table, status, n_steps, n_rhs):
     conclude(i, ws[lanes.PR][lane], keep[lane], c, val, a, b_, need, table, status, n_steps, n_rhs)
 
 
+@jit
+def block(blk, n_blocks, P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
+    \"\"\"One thread's block of the launch: its queue of points blk, blk + n_blocks, ... (cost varies
+    along the grid) through the LANES lanes, each lane refilled from the queue as its point ends.\"\"\"
+    n = P.shape[0]
+    ws = lanes.workspace(NS, NPI, LANES, SCR + NSCR)
+    keep = np.empty((LANES, NKEEP))
+    y = np.empty(NS)
+    nxt = np.int64(blk)
+    for lane in range(LANES):
+        nxt = feed(lane, nxt, n, n_blocks, ws, keep, y, P, S, need, rtol, atol, table, status, n_steps, n_rhs)
+    while True:
+        lane = lane_run(ws, rtol, atol, max_steps)
+        if lane < 0:
+            break
+        settle(lane, ws, keep, need, table, status, n_steps, n_rhs)
+        nxt = feed(lane, nxt, n, n_blocks, ws, keep, y, P, S, need, rtol, atol, table, status, n_steps, n_rhs)
+
+
 @pjit
 def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
     n = P.shape[0]
@@ -968,18 +1014,18 @@ def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
     # least (fewer per lane: more of the rounds at the end of a queue run with idle lanes). The thread
     # count is not read here: numba.get_num_threads() would keep the kernel out of the disk cache.
     n_blocks = max((n + LBLOCK - 1) // LBLOCK, min((n + 16 * LANES - 1) // (16 * LANES), 16))
-    for blk in prange(n_blocks):
-        ws = lanes.workspace(NS, NPI, LANES, SCR + NSCR)
-        keep = np.empty((LANES, NKEEP))
-        y = np.empty(NS)
-        nxt = np.int64(blk)  # this block's queue: points blk, blk + n_blocks, ... (cost varies along the grid)
-        for lane in range(LANES):
-            nxt = feed(lane, nxt, n, n_blocks, ws, keep, y, P, S, need, rtol, atol, table, status, n_steps, n_rhs)
+    # Blocks are taken, not dealt: numba splits a prange's iterations evenly among the threads in
+    # advance (its omp layer), so a thread that lost its core for a while (the run's writer thread,
+    # another process) made the others wait at the end of each launch. Here each iteration is a
+    # worker that takes the next untaken block (lanes.take, atomic) until none is left: the first
+    # worker of each thread does the work, the rest find nothing (n_blocks workers: enough for any
+    # thread count that can have a block).
+    taken = np.zeros(1, dtype=np.int64)
+    for worker in prange(n_blocks):
         while True:
-            lane = lane_run(ws, rtol, atol, max_steps)
-            if lane < 0:
+            blk = lanes.take(taken)
+            if blk >= n_blocks:
                 break
-            settle(lane, ws, keep, need, table, status, n_steps, n_rhs)
-            nxt = feed(lane, nxt, n, n_blocks, ws, keep, y, P, S, need, rtol, atol, table, status, n_steps, n_rhs)
+            block(blk, n_blocks, P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs)
 """)
     return "".join(lines)
