@@ -385,18 +385,14 @@ def _schedstat() -> dict:
     return out
 
 
-def _launch_account(acc: dict):
-    """A wrapper of runner.evaluate_rows (one chunk: the kernel launch and the Python around it) that
-    adds up, per launch, the on-CPU, run-queue wait and asleep time of the calling thread and of the
-    kernel's other threads (those that ran during it, the run's writer thread excepted): asleep is
-    the launch's wall time that a thread neither ran nor waited for a CPU (mostly a kernel thread
-    waiting at the end of the launch for the slowest, or for the caller's Python before and after
-    it)."""
+def _launch_account(acc: dict, f):
+    """A wrapper of the model's ``evaluate`` ``f`` (one chunk's kernel launch, inside runner.evaluate_rows)
+    that adds up, per launch, the on-CPU, run-queue wait and asleep time of the calling thread and of
+    the kernel's other threads (those that ran during it, the run's writer thread excepted): asleep
+    is the launch's wall time that a thread neither ran nor waited for a CPU, i.e. a thread that ran
+    out of work waiting at the end of the launch for the slowest (or, for the caller, for the GIL).
+    Also the run's thread's time between two launches (the Python of the chunk boundary)."""
     import threading
-
-    from .. import runner
-
-    f = runner.evaluate_rows
 
     def accounted(*a, **k):
         me = threading.get_native_id()
@@ -426,7 +422,7 @@ def _launch_account(acc: dict):
                     e[key][j] += v
             e["threads"] = max(e["threads"], 1 + others)
 
-    return f, accounted
+    return accounted
 
 
 def _owner(path: str):
@@ -476,13 +472,12 @@ def breakdown(points: int = 200_000, threads: int | None = None, rtol: float = S
 
         saved.append((owner, name, f))
         setattr(owner, name, functools.wraps(f)(timed))
-    from .. import runner as _runner
-
     use_lanes = model_compile.USE_LANES
     model_compile.USE_LANES = lanes  # the lane kernel (goal 1's), also where the run alone would not take it
-    plain, accounted = _launch_account(acc)
-    _runner.evaluate_rows = accounted  # (outside the wrapper of the same step above)
-    saved.append((_runner, "evaluate_rows", plain))
+    # the run's scenes share this scene's model object (the registry's): its evaluate, the kernel
+    # launch of each chunk, is accounted per thread (a frozen dataclass: set around its own __setattr__)
+    plain = scene.model.evaluate
+    object.__setattr__(scene.model, "evaluate", _launch_account(acc, plain))
     results = []
     try:
         with _threads(threads), tempfile.TemporaryDirectory() as tmp:
@@ -507,6 +502,7 @@ def breakdown(points: int = 200_000, threads: int | None = None, rtol: float = S
                                 "steps": {label: tuple(v) for label, v in acc.items()}, "launches": launches})
     finally:
         model_compile.USE_LANES = use_lanes
+        object.__setattr__(scene.model, "evaluate", plain)
         for owner, name, f in reversed(saved):
             setattr(owner, name, f)
     for r in results:
@@ -524,7 +520,7 @@ def breakdown(points: int = 200_000, threads: int | None = None, rtol: float = S
         if e and e["n"]:
             print(f"    kernel launches ({e['n']}, {e['wall'] / 1e6:.1f} ms wall in all; per thread: on a CPU / "
                   "waiting for a CPU / asleep):")
-            for key, label in (("caller", "the run's thread (Python around each launch too)"),
+            for key, label in (("caller", "the run's thread"),
                                ("others", f"the kernel's other threads ({e['threads'] - 1})")):
                 on, waiting, asleep = (v / 1e6 for v in e[key])
                 print(f"      {label:50s} {on:8.1f} / {waiting:8.1f} / {asleep:8.1f} ms")
