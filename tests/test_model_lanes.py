@@ -367,9 +367,10 @@ def test_automatic_route_takes_lanes_only_where_they_pay(monkeypatch, small_duff
 
 
 def test_lane_blocks_are_taken_once_each_by_whichever_thread_is_free(monkeypatch):
-    """The lane kernel's threads take its blocks (lanes.take, an atomic counter) instead of being dealt
-    them in advance: every block is handed out exactly once (10 x 10^6 takes racing on two threads), and a launch of several blocks on two
-    threads gives bitwise the one-point route's results at every point."""
+    """The lane kernel's threads take its points in batches (lanes.take, an atomic counter) instead of
+    being dealt blocks in advance: every take is handed out exactly once (10 x 10^6 takes racing on two
+    threads), and a launch of several workers on two threads gives bitwise the one-point route's
+    results at every point."""
     import numba
 
     from mechsweep._jit import pjit, prange
@@ -390,7 +391,7 @@ def test_lane_blocks_are_taken_once_each_by_whichever_thread_is_free(monkeypatch
             counter[0] = 0
             got = hand_out(1_000_000, counter)
             assert counter[0] == 1_000_000 and np.array_equal(np.sort(got), np.arange(1_000_000))  # none lost or twice
-        rng = np.random.default_rng(11)  # 5,000 points: 5 blocks of the lane kernel
+        rng = np.random.default_rng(11)  # 5,000 points: 5 workers of the lane kernel, batches of 16 points
         P = np.column_stack([np.ones(5000), 10.0 ** rng.uniform(-3, 3, 5000), 10.0 ** rng.uniform(-2, 0, 5000)])
         one, used = _same(MODELS["duffing"], P, WANTED, monkeypatch, method="dop853")
         assert used and (one["status"] == st.OK).all()
