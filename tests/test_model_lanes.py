@@ -364,3 +364,36 @@ def test_automatic_route_takes_lanes_only_where_they_pay(monkeypatch, small_duff
         assert not mc._compiled_on_disk(fresh, lambda: source)  # no file: not even imported
         mc.load_generated(fresh, source)
         assert not mc._compiled_on_disk(fresh, lambda: source)
+
+
+def test_lane_blocks_are_taken_once_each_by_whichever_thread_is_free(monkeypatch):
+    """The lane kernel's threads take its points in batches (lanes.take, an atomic counter) instead of
+    being dealt blocks in advance: every take is handed out exactly once (10 x 10^6 takes racing on two
+    threads), and a launch of several workers on two threads gives bitwise the one-point route's
+    results at every point."""
+    import numba
+
+    from mechsweep._jit import pjit, prange
+
+    @pjit
+    def hand_out(n, counter):
+        got = np.empty(n, dtype=np.int64)
+        for i in prange(n):
+            got[i] = lanes.take(counter)
+        return got
+
+    counter = np.zeros(1, dtype=np.int64)
+    assert [lanes.take(counter) for _ in range(3)] == [0, 1, 2] and counter[0] == 3
+    before = numba.get_num_threads()
+    numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+    try:
+        for _ in range(10):  # (a plain load-add-store lost takes in about 1 of 10 such calls on 2 busy cores)
+            counter[0] = 0
+            got = hand_out(1_000_000, counter)
+            assert counter[0] == 1_000_000 and np.array_equal(np.sort(got), np.arange(1_000_000))  # none lost or twice
+        rng = np.random.default_rng(11)  # 5,000 points: 5 workers of the lane kernel, batches of 16 points
+        P = np.column_stack([np.ones(5000), 10.0 ** rng.uniform(-3, 3, 5000), 10.0 ** rng.uniform(-2, 0, 5000)])
+        one, used = _same(MODELS["duffing"], P, WANTED, monkeypatch, method="dop853")
+        assert used and (one["status"] == st.OK).all()
+    finally:
+        numba.set_num_threads(before)

@@ -165,11 +165,17 @@ def test_bench_breakdown_times_the_steps_of_a_run_and_unwraps_them(in_tmp, capsy
     from mechsweep import grid, journal, store
     from mechsweep.bench import duffing as bench
 
+    from mechsweep.model import compile as model_compile
+    from mechsweep.models import MODELS
+
     before = (runner.evaluate_rows, runner.load_scene, journal.Journal.write_chunk, store.Early.write,
-              grid.ParameterMatrix.__call__)
-    (r,) = bench.breakdown(points=3000, threads=1, repeats=1)
+              grid.ParameterMatrix.__call__, MODELS["duffing"].evaluate)
+
+    lanes = model_compile.USE_LANES
+    (r,) = bench.breakdown(points=3000, threads=1, repeats=1, lanes=lanes)  # (no extra kernel compiled)
+    assert model_compile.USE_LANES is lanes
     assert (runner.evaluate_rows, runner.load_scene, journal.Journal.write_chunk, store.Early.write,
-            grid.ParameterMatrix.__call__) == before
+            grid.ParameterMatrix.__call__, MODELS["duffing"].evaluate) == before
     steps = r["steps"]
     n_chunks = steps["per chunk: kernel + status/NONFINITE"][2]
     assert n_chunks >= 1
@@ -178,6 +184,9 @@ def test_bench_breakdown_times_the_steps_of_a_run_and_unwraps_them(in_tmp, capsy
         assert steps[label][2] == n_chunks, label
     assert steps["end: assembly, fsync, rename, drop journal"][2] == 1
     assert 0 < r["kernel_wall_s"] and 0 < r["run_wall_s"]
+    if os.path.exists("/proc/self/task"):  # each launch's threads accounted (on a CPU, waiting, asleep)
+        launches = r["launches"]
+        assert launches["n"] == n_chunks and launches["caller"][0] > 0 and launches["threads"] == 1
     assert "mechsweep.run breakdown: 3,010 points" in capsys.readouterr().out
 
 

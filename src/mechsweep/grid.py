@@ -122,8 +122,8 @@ def default_chunk_target(scene: Scene, many: bool = True) -> int:
     """Points per chunk: a few seconds of work, many chunks for the progress bar and resume,
     and at most CHUNK_VALUES output values (a 360-position curve counts 360 per point).
     ``many=False`` (a run without a progress bar): not cut into at least 20 chunks. Small chunks
-    cost the lane kernel CPU: a chunk of 10^4 Duffing points gives each of its 64 lanes about 16
-    points, and more of the rounds at the end of a lane's queue run with idle lanes
+    cost the lane kernel CPU: each launch ends with rounds in which each thread's lanes run idle
+    as the last points finish, and each is a barrier for the threads
     (docs/performance-duffing.md, `mechsweep bench duffing --breakdown`)."""
     if scene.storage.chunk_size:
         return scene.storage.chunk_size

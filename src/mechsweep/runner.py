@@ -596,10 +596,11 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
                 params = ParameterMatrix(scene)
                 compile_s = warm_up(scene, params, progress, todo[0]) if todo and not scheduler else 0.0
                 started = threading.Event() if early is not None and not scheduler else None
+                launches = None if scheduler else _Launches()
                 results = (_dask_results(scene, todo, scheduler, threads, worker_timeout, client) if scheduler
-                           else _local_results(scene, todo, params, started))
+                           else _local_results(scene, todo, params, started, launches))
                 _save_chunks(scene, journal, results, todo, scene.n_points - sum(c.size for c in todo), progress,
-                             compile_s, held, early, started)
+                             compile_s, held, early, started, launches)
                 if resumed and todo:  # the history says that another run finished the dataset
                     now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
                     attrs["history"] = (attrs.get("history", "") + "\n" + cf.history(
@@ -885,6 +886,11 @@ def evaluate_chunk(scene: Scene, chunk: Chunk, params: ParameterMatrix | None = 
     return evaluate_rows(scene, (params or ParameterMatrix(scene))(chunk.start, chunk.stop))
 
 
+# This thread's run, while it computes a chunk: called right before the chunk's kernel is launched
+# (_Launches: the run's writer thread waits for it).
+_LAUNCH = threading.local()
+
+
 def evaluate_rows(scene: Scene, P: np.ndarray):
     """Compute the scene's outputs on any parameter rows ``P`` (float64 [n, n_params]), exactly as a
     chunk of its grid is computed (same outputs asked, same status rules). Returns (requested
@@ -898,6 +904,9 @@ def evaluate_rows(scene: Scene, P: np.ndarray):
     from .model.compile import planned_points  # the run's size, not the rows', chooses the kernel (lanes or not)
 
     with np.errstate(all="ignore"), planned_points(scene.n_points):  # an overflow at an extreme point is its status
+        launching = getattr(_LAUNCH, "hook", None)
+        if launching is not None:
+            launching()
         scene.model.evaluate(P, computed, scene.solver, out, status, n_steps, n_rhs)
     requested = {name: out[name] for name in scene.outputs}
     # A point is ok only if everything asked of it is finite (never a NaN with status ok).
@@ -976,15 +985,58 @@ def warm_up(scene: Scene, params: ParameterMatrix, progress: bool | None, chunk:
     return seconds
 
 
+# Seconds the writer thread waits for the next chunk's launch before it writes a chunk anyway.
+LAUNCH_WAIT = 1.0
+
+
+class _Launches:
+    """The kernel launches of a run's chunks computed here, counted as they begin, so that the
+    writer thread starts on chunk k only once chunk k + 1's kernel runs: the writer's Python (the
+    journal file's npz and CRC, h5py's writes) then holds the GIL while the kernel, which releases
+    it, computes, instead of while the run's thread does the chunk boundary's Python (the status
+    checks, the next parameter rows, the launch), when both threads of the kernel wait for it.
+    ``end()``: no launch follows (the last chunk is written at once). Ordering only: the writer
+    waits at most LAUNCH_WAIT seconds, and what it writes and when it is synced are unchanged."""
+
+    def __init__(self):
+        self._n = 0
+        self._ended = False
+        self._cv = threading.Condition()
+
+    def launching(self) -> None:
+        with self._cv:
+            self._n += 1
+            self._cv.notify_all()
+
+    def end(self) -> None:
+        with self._cv:
+            self._ended = True
+            self._cv.notify_all()
+
+    def wait_beyond(self, n: int, timeout: float = LAUNCH_WAIT) -> None:
+        """Until more than ``n`` launches have begun (or no more will)."""
+        with self._cv:
+            self._cv.wait_for(lambda: self._ended or self._n > n, timeout)
+
+
 def _local_results(scene: Scene, todo: list[Chunk], params: ParameterMatrix | None = None,
-                   started: threading.Event | None = None):
+                   started: threading.Event | None = None, launches: _Launches | None = None):
     """Chunks computed here, in order, each by the numba kernels on all threads; ``started`` is set
-    just before the first chunk is computed."""
+    just before the first chunk is computed; ``launches`` counts each chunk's launch as it begins."""
     params = params or ParameterMatrix(scene)
-    for chunk in todo:
-        if started is not None:
-            started.set()
-        yield chunk, evaluate_chunk(scene, chunk, params)
+    try:
+        for chunk in todo:
+            if started is not None:
+                started.set()
+            _LAUNCH.hook = None if launches is None else launches.launching
+            try:
+                result = evaluate_chunk(scene, chunk, params)
+            finally:
+                _LAUNCH.hook = None
+            yield chunk, result
+    finally:
+        if launches is not None:
+            launches.end()
 
 
 def _dask_results(scene: Scene, todo: list[Chunk], scheduler: str, threads: int | None, worker_timeout: float,
@@ -996,7 +1048,7 @@ def _dask_results(scene: Scene, todo: list[Chunk], scheduler: str, threads: int 
 
 def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], already: int, progress,
                  compile_s: float = 0.0, held: Held | None = None, early: Early | None = None,
-                 started: threading.Event | None = None) -> None:
+                 started: threading.Event | None = None, launches: _Launches | None = None) -> None:
     """Save each computed chunk to the journal as it arrives; the write of one chunk overlaps the
     computation of the next (kernels release the GIL). At most one chunk waits to be written, so
     memory stays bounded by the chunk size. Each chunk file carries its compute time (since the
@@ -1012,7 +1064,9 @@ def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], alr
     pending = None
     clock = {"last": _clock(), "compile": compile_s}
 
-    def write(chunk, result):
+    def write(chunk, result, seq):
+        if launches is not None:  # not while the run's thread prepares the next launch (_Launches)
+            launches.wait_beyond(seq + 1)
         columns, status, n_steps, n_rhs = result
         arrays = {**columns, "status": status}
         if scene.solver is not None:
@@ -1032,11 +1086,11 @@ def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], alr
         if early is not None:  # the file is defined while the first chunk is computed (store.Early.prepare)
             writer.submit(early.prepare, started)
         try:
-            for chunk, result in results:
+            for seq, (chunk, result) in enumerate(results):
                 if pending is not None:
                     pending.result()  # raises a write error here, in order
                     bar.update(pending_size)
-                pending, pending_size = writer.submit(write, chunk, result), chunk.size
+                pending, pending_size = writer.submit(write, chunk, result, seq), chunk.size
             if pending is not None:
                 pending.result()
                 bar.update(pending_size)

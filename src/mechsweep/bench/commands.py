@@ -19,7 +19,8 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
     b.add_argument("--atol", type=float, default=None, help="default: the solver default")
     b.add_argument("--breakdown", action="store_true",
                    help="only time the steps of mechsweep.run (planning, journal, kernel, HDF5, ...) against "
-                        "the kernel, --repeats times")
+                        "the kernel (the lane kernel), with each kernel launch's threads accounted (on a CPU, "
+                        "waiting for one, asleep at the launch's end), --repeats times")
     b.add_argument("--outputs", default=None,
                    help="with --breakdown: the outputs the run stores, comma-separated (default: period, "
                         "period_exact, period_error, v_max, a_max; goal 1 asks for: period)")

@@ -367,6 +367,64 @@ _STEPS = (
 )
 
 
+def _schedstat() -> dict:
+    """Per thread of this process (Linux: /proc/self/task/*/schedstat): (ns on a CPU, ns waiting in
+    the run queue for a CPU). Empty where the kernel does not provide it."""
+    out = {}
+    try:
+        tids = os.listdir("/proc/self/task")
+    except OSError:
+        return out
+    for tid in tids:
+        try:
+            with open(f"/proc/self/task/{tid}/schedstat") as f:
+                on, waiting = f.read().split()[:2]
+            out[int(tid)] = (int(on), int(waiting))
+        except (OSError, ValueError):
+            pass
+    return out
+
+
+def _launch_account(acc: dict, f):
+    """A wrapper of the model's ``evaluate`` ``f`` (one chunk's kernel launch, inside runner.evaluate_rows)
+    that adds up, per launch, the on-CPU, run-queue wait and asleep time of the calling thread and of
+    the kernel's other threads (those that ran during it, the run's writer thread excepted): asleep
+    is the launch's wall time that a thread neither ran nor waited for a CPU, i.e. a thread that ran
+    out of work waiting at the end of the launch for the slowest (or, for the caller, for the GIL).
+    Also the run's thread's time between two launches (the Python of the chunk boundary)."""
+    import threading
+
+    def accounted(*a, **k):
+        me = threading.get_native_id()
+        s0, t0 = _schedstat(), time.perf_counter_ns()
+        try:
+            return f(*a, **k)
+        finally:
+            s1, wall = _schedstat(), time.perf_counter_ns() - t0
+            writers = {t.native_id for t in threading.enumerate() if t.name.startswith("mechsweep-writer")}
+            e = acc.setdefault("launches", {"n": 0, "wall": 0, "caller": [0, 0, 0], "others": [0, 0, 0],
+                                            "threads": 0, "first": t0, "last": t0, "between": 0})
+            if e["n"]:
+                e["between"] += t0 - e["last"]  # the run's thread between two chunks' launches
+            e["n"] += 1
+            e["wall"] += wall
+            e["last"] = t0 + wall
+            others = 0
+            for tid, (on1, w1) in s1.items():
+                if tid not in s0 or tid in writers:
+                    continue
+                on, waiting = on1 - s0[tid][0], w1 - s0[tid][1]
+                if tid != me and on <= 0:
+                    continue  # a thread that did not take part (asleep throughout)
+                key = "caller" if tid == me else "others"
+                others += tid != me
+                for j, v in enumerate((on, waiting, wall - on - waiting)):
+                    e[key][j] += v
+            e["threads"] = max(e["threads"], 1 + others)
+
+    return accounted
+
+
 def _owner(path: str):
     import importlib
 
@@ -377,10 +435,13 @@ def _owner(path: str):
 
 def breakdown(points: int = 200_000, threads: int | None = None, rtol: float = Solver.rtol,
               atol: float = Solver.atol, repeats: int = 3, outputs=("period", "period_exact", "period_error",
-                                                                     "v_max", "a_max")) -> list[dict]:
+                                                                     "v_max", "a_max"),
+              lanes: bool | None = True) -> list[dict]:
     """`mechsweep.run` of the bench grid to an HDF5 file, ``repeats`` times, with its steps timed
-    (wall and CPU of the thread that runs them), beside the kernel alone on the same grid and outputs
-    in one call. Prints a table per run; returns the timings."""
+    (wall and CPU of the thread that runs them) and its kernel launches accounted per thread (on a
+    CPU, waiting for one, asleep: ``_launch_account``), beside the kernel alone on the same grid and
+    outputs in one call. ``lanes``: the kernel route (model.compile.USE_LANES; True, the lane
+    kernel of goal 1, by default). Prints a table per run; returns the timings."""
     import functools
     import numba
 
@@ -411,6 +472,12 @@ def breakdown(points: int = 200_000, threads: int | None = None, rtol: float = S
 
         saved.append((owner, name, f))
         setattr(owner, name, functools.wraps(f)(timed))
+    use_lanes = model_compile.USE_LANES
+    model_compile.USE_LANES = lanes  # the lane kernel (goal 1's), also where the run alone would not take it
+    # the run's scenes share this scene's model object (the registry's): its evaluate, the kernel
+    # launch of each chunk, is accounted per thread (a frozen dataclass: set around its own __setattr__)
+    plain = scene.model.evaluate
+    object.__setattr__(scene.model, "evaluate", _launch_account(acc, plain))
     results = []
     try:
         with _threads(threads), tempfile.TemporaryDirectory() as tmp:
@@ -421,13 +488,21 @@ def breakdown(points: int = 200_000, threads: int | None = None, rtol: float = S
                 kw, kc, _ = _timed(lambda: evaluate_chunk(scene, _whole_grid(scene)))
                 acc.clear()
                 path = os.path.join(tmp, f"run{k}.h5")
+                began = time.perf_counter_ns()
                 wall, cpu, _ = _timed(lambda: run(grid_scene(points, rtol, atol, outputs), output=path,
                                                   progress=False))
+                ended = began + int(wall * 1e9)
+                if "launches" in acc:  # the serial start and end of the run, around its launches
+                    e = acc["launches"]
+                    e["before"], e["after"] = e["first"] - began, ended - e["last"]
                 os.unlink(path)
+                launches = acc.pop("launches", None)
                 results.append({"points": n, "threads": n_threads, "kernel_wall_s": kw, "kernel_cpu_s": kc,
                                 "run_wall_s": wall, "run_cpu_s": cpu, "load": os.getloadavg()[0],
-                                "steps": {label: tuple(v) for label, v in acc.items()}})
+                                "steps": {label: tuple(v) for label, v in acc.items()}, "launches": launches})
     finally:
+        model_compile.USE_LANES = use_lanes
+        object.__setattr__(scene.model, "evaluate", plain)
         for owner, name, f in reversed(saved):
             setattr(owner, name, f)
     for r in results:
@@ -441,4 +516,14 @@ def breakdown(points: int = 200_000, threads: int | None = None, rtol: float = S
               f"{r['kernel_cpu_s'] / r['run_cpu_s']:.2f} CPU)")
         for label, (w, c, calls) in r["steps"].items():
             print(f"    {label:45s} {calls:4d} calls {w * 1e3:8.1f} ms wall {c * 1e3:8.1f} ms thread CPU")
+        e = r["launches"]
+        if e and e["n"]:
+            print(f"    kernel launches ({e['n']}, {e['wall'] / 1e6:.1f} ms wall in all; per thread: on a CPU / "
+                  "waiting for a CPU / asleep):")
+            for key, label in (("caller", "the run's thread"),
+                               ("others", f"the kernel's other threads ({e['threads'] - 1})")):
+                on, waiting, asleep = (v / 1e6 for v in e[key])
+                print(f"      {label:50s} {on:8.1f} / {waiting:8.1f} / {asleep:8.1f} ms")
+            print(f"    before the first launch {e['before'] / 1e6:.1f} ms, between launches {e['between'] / 1e6:.1f} ms, "
+                  f"after the last {e['after'] / 1e6:.1f} ms (wall, the run's thread)")
     return results

@@ -29,8 +29,8 @@ workspace where dop853's own dense output (3 scalar rhs calls) and Brent's root 
 interpolant run unchanged. The first step is chosen by dop853's own ``start``. Every lane
 therefore computes the one-at-a-time route's floats step for step: value, status, n_steps and
 n_rhs are bitwise those of the one-point kernel (tests/test_model_lanes.py). A lane whose point is
-done is refilled at once from its thread's queue of points (a block of points strided over the
-chunk); per-point work before and after the integration (classify, prepare, closed forms, the
+done is refilled at once from its thread's batch of points, which the thread takes (GRAB at a time)
+from one counter shared by the launch's threads (``take``); per-point work before and after the integration (classify, prepare, closed forms, the
 value) runs in scalar code around the lanes as in compile.py's kernel.
 """
 from __future__ import annotations
@@ -47,6 +47,8 @@ import textwrap
 import types
 
 import numpy as np
+from numba.core import cgutils, types as nbtypes
+from numba.extending import intrinsic
 
 from .._jit import jit, jit_noalloc
 from ..status import MAX_STEPS, NO_EVENT, NONFINITE, OK, STEP_UNDERFLOW
@@ -57,7 +59,8 @@ from ..ode.dop853 import (F_DENSE, K_FSAL, WORK_ROWS, Y_NEW, Y_STAGE, _make_dens
 from ..ode.dop853_lanes import _begin_advance, _error_sums, _error_test, _finish, _spread
 
 LANES = 0  # points side by side per thread; 0: lanes_for(number of states)
-QUEUE = 32  # points per lane in one thread's queue (a block of LANES * QUEUE points)
+QUEUE = 32  # the lane kernel has a worker (its own lanes) per LANES * QUEUE points of a launch
+GRAB = 16  # points a thread of the lane kernel takes at a time from its launch's shared counter
 
 
 def lanes_for(n_states: int) -> int:
@@ -644,6 +647,34 @@ def workspace(n, n_lp, lanes, n_p):
             np.zeros((lanes, n_p)), np.zeros((2, n)))
 
 
+@intrinsic
+def _fetch_add(typingctx, counter, k):
+    """Atomically add ``k`` to ``counter[0]`` (an int64 array), returning its value before: LLVM's
+    ``atomicrmw add``, sequentially consistent."""
+    if not (isinstance(counter, nbtypes.Array) and counter.dtype == nbtypes.int64
+            and isinstance(k, nbtypes.Integer)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        aryty = signature.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [context.get_constant(nbtypes.intp, 0)])
+        inc = context.cast(builder, args[1], signature.args[1], nbtypes.int64)
+        return builder.atomic_rmw("add", ptr, inc, "seq_cst")
+
+    return nbtypes.int64(counter, k), codegen
+
+
+@jit_noalloc
+def take(counter, k=1):
+    """The first of the next ``k`` items of a launch for the calling thread: counter[0], then
+    counter[0] += k, as one atomic step. The lane kernel's threads take their points this way, in
+    batches, as their lanes free up, so a thread that got a core for less of the launch (another
+    thread or process had it) computes fewer points instead of the others waiting for it at the
+    launch's end. Which thread or lane computes a point does not change its results."""
+    return _fetch_add(counter, k)
+
+
 @jit_noalloc
 def idle(ws, lane):
     """No point left for the lane: it keeps being stepped with h = 0 and is never read."""
@@ -833,7 +864,7 @@ def kernel_source(model, chosen, refs: dict, origin: str, closed, lane_rhs: str)
                             ("from mechsweep._jit import jit, jit_noalloc, pjit, prange",
                              "from mechsweep.model import lanes"), refs)
     lines.append(f"NP = {n_p}\nNSET = {n_set}\nNPI = {npi}  # p[NPI]: the point's user-error flag\nSCR = NPI + 1\n"
-                 f"NS = {n_s}\nNSCR = {n_s}\nLANES = {lanes_for(n_s)}\nLBLOCK = {lanes_for(n_s) * QUEUE}\nNKEEP = {1 + len(closed)}\n")
+                 f"NS = {n_s}\nNSCR = {n_s}\nLANES = {lanes_for(n_s)}\nLBLOCK = {lanes_for(n_s) * QUEUE}\nGRAB = {GRAB}\nNKEEP = {1 + len(closed)}\n")
     for j, c in enumerate(closed):
         args = ", ".join(["p"] + [f"x{i}" for i in range(len(c.needs))])
         lines.append("\n" + _guard_call(f"closed{j}", args))
@@ -961,25 +992,64 @@ def settle(lane, ws, keep, need, table, status, n_steps, n_rhs):
     conclude(i, ws[lanes.PR][lane], keep[lane], c, val, a, b_, need, table, status, n_steps, n_rhs)
 
 
+@jit
+def refill(lane, mine, taken, n, ws, keep, y, P, S, need, rtol, atol, table, status, n_steps, n_rhs):
+    \"\"\"The lane's next point: from this thread's batch mine = [next, end) of the launch's points, and
+    when it is used up from a new batch of GRAB points taken from the launch's shared counter; the
+    lane idles when every point is taken.\"\"\"
+    while True:
+        if mine[0] >= mine[1]:
+            lo = lanes.take(taken, GRAB)
+            if lo >= n:
+                lanes.idle(ws, lane)
+                return
+            mine[0] = lo
+            mine[1] = min(lo + GRAB, n)
+        mine[0] = feed(lane, mine[0], mine[1], 1, ws, keep, y, P, S, need, rtol, atol, table, status, n_steps, n_rhs)
+        if ws[lanes.LI][lanes.STATE, lane] != lanes.IDLE:
+            return
+
+
+@jit
+def work(taken, P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
+    \"\"\"One thread's share of the launch: its LANES lanes, each refilled as its point ends, from
+    batches of points it takes until none is left (nothing is allocated if none is left at its start).\"\"\"
+    n = P.shape[0]
+    lo = lanes.take(taken, GRAB)
+    if lo >= n:
+        return
+    mine = np.empty(2, dtype=np.int64)
+    mine[0] = lo
+    mine[1] = min(lo + GRAB, n)
+    ws = lanes.workspace(NS, NPI, LANES, SCR + NSCR)
+    keep = np.empty((LANES, NKEEP))
+    y = np.empty(NS)
+    for lane in range(LANES):
+        refill(lane, mine, taken, n, ws, keep, y, P, S, need, rtol, atol, table, status, n_steps, n_rhs)
+    while True:
+        lane = lane_run(ws, rtol, atol, max_steps)
+        if lane < 0:
+            break
+        settle(lane, ws, keep, need, table, status, n_steps, n_rhs)
+        refill(lane, mine, taken, n, ws, keep, y, P, S, need, rtol, atol, table, status, n_steps, n_rhs)
+
+
 @pjit
 def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
     n = P.shape[0]
-    # queues of LBLOCK points; a smaller chunk is split into up to 16 queues of 16 points per lane at
-    # least (fewer per lane: more of the rounds at the end of a queue run with idle lanes). The thread
-    # count is not read here: numba.get_num_threads() would keep the kernel out of the disk cache.
-    n_blocks = max((n + LBLOCK - 1) // LBLOCK, min((n + 16 * LANES - 1) // (16 * LANES), 16))
-    for blk in prange(n_blocks):
-        ws = lanes.workspace(NS, NPI, LANES, SCR + NSCR)
-        keep = np.empty((LANES, NKEEP))
-        y = np.empty(NS)
-        nxt = np.int64(blk)  # this block's queue: points blk, blk + n_blocks, ... (cost varies along the grid)
-        for lane in range(LANES):
-            nxt = feed(lane, nxt, n, n_blocks, ws, keep, y, P, S, need, rtol, atol, table, status, n_steps, n_rhs)
-        while True:
-            lane = lane_run(ws, rtol, atol, max_steps)
-            if lane < 0:
-                break
-            settle(lane, ws, keep, need, table, status, n_steps, n_rhs)
-            nxt = feed(lane, nxt, n, n_blocks, ws, keep, y, P, S, need, rtol, atol, table, status, n_steps, n_rhs)
+    # Points are taken, not dealt: numba splits a prange's iterations evenly among the threads in
+    # advance (its omp layer), so a thread that lost its core for a while (the run's writer thread,
+    # another process) made the others wait at the end of each launch. Here each thread's lanes take
+    # the launch's points in batches of GRAB from one shared counter (lanes.take, atomic) until none
+    # is left, so the threads end within about a point's integration of each other, and each
+    # thread's lanes run idle only once per launch, at its end. Each prange iteration is a worker
+    # with its own lanes: the first worker of each thread does the work, the others find nothing
+    # taken by them; their number is enough for any thread count that can have points (up to 16 for
+    # a small launch, one per LANES * QUEUE points beyond). The thread count is not read here:
+    # numba.get_num_threads() would keep the kernel out of the disk cache.
+    n_workers = max((n + LBLOCK - 1) // LBLOCK, min((n + 16 * LANES - 1) // (16 * LANES), 16))
+    taken = np.zeros(1, dtype=np.int64)
+    for worker in prange(n_workers):
+        work(taken, P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs)
 """)
     return "".join(lines)
