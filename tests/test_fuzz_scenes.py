@@ -17,7 +17,7 @@ import tempfile
 import tomllib
 from pathlib import Path
 
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from mechsweep import runner
@@ -229,6 +229,10 @@ def test_fuzzed_scenes_exit_0_or_2_and_change_nothing(monkeypatch, capsys):
             finally:
                 os.chdir(home)
 
+    # each model's unchanged shipped scene first (Hypothesis's explicit examples): the random examples'
+    # share of valid scenes per model varies with Hypothesis's generation (0 of 29 for duffing once)
+    for model in sorted(BASES):
+        check = example(case=(to_toml(BASES[model]), model), flags=[], before=None)(check)
     check()
     # the fuzzer reaches both sides of the checks, for every model
     assert sum(n for (_, verdict), n in seen.items() if verdict == "accepted") >= 25, sorted(seen.items())
