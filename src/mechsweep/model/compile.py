@@ -273,7 +273,7 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
             "radau": direct and method in ("radau", "auto"),
             "symplectic": direct and method == "symplectic"}
     lines = module_prologue(f"mechsweep.model.compile for model {model.name!r} ({origin}), method {method}",
-                            ("from mechsweep._jit import jit, pjit, prange",
+                            ("from mechsweep._jit import jit, jit_internal, pjit, prange",
                              "from mechsweep.ode import dop853, radau, symplectic"), refs, inline=True)
     lines.append(f"NP = {n_p}\nNSET = {n_set}\nNPI = {npi}  # p[NPI]: the point's user-error flag\nSCR = NPI + 1\n"
                  f"NS = {n_s}\nNQ = {n_q}\nNSCR = {n_scr}\n"
@@ -533,6 +533,8 @@ def q{ev}(t, q, v, p):  # the event on y = (q, v), copied into scratch
         body.append(closed_code(True))
     fd_add = ("\n            n_rhs[i] += int(p[SCR + 3 * NS])  # the rhs calls of the engine's Jacobian"
               if fd_count else "")
+    # every function above is called by the kernel only: compiled without numba's Python and C wrappers
+    lines = ["".join(lines).replace("\n@jit\ndef ", "\n@jit_internal\ndef ")]
     lines.append(f"""
 
 @jit

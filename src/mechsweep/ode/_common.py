@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from .._jit import jit_inline, jit_noalloc
+from .._jit import jit_inline, jit_internal_noalloc
 
 
 @jit_inline
@@ -59,7 +59,7 @@ def make_brent(g):
     absolute floor of the tolerance, e.g. ROOT_RTOL |h|). Brent's method as scipy.optimize.brentq
     (bracketing, so bounded and robust), to a few ulp of t. ``ctx`` is whatever g needs (a tuple).
     """
-    @jit_noalloc
+    @jit_internal_noalloc
     def brent(t_old, g_old, t_new, g_new, x_tol, ctx):
         if g_new == 0.0:
             return t_new
