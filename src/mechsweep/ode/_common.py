@@ -6,10 +6,10 @@ import math
 
 import numpy as np
 
-from .._jit import jit_inline, jit_internal_noalloc
+from .._jit import jit_internal_noalloc, jit_llvm_inline
 
 
-@jit_inline
+@jit_llvm_inline
 def _all_finite(v):
     for i in range(v.size):
         if not math.isfinite(v[i]):
@@ -17,13 +17,13 @@ def _all_finite(v):
     return True
 
 
-@jit_inline
+@jit_llvm_inline
 def _copy(src, dst):
     for i in range(src.size):
         dst[i] = src[i]
 
 
-@jit_inline
+@jit_llvm_inline
 def _rms_scaled(v, y, rtol, atol):
     """RMS of v / (atol + rtol |y|), the norm of select_initial_step."""
     acc = 0.0
@@ -32,7 +32,7 @@ def _rms_scaled(v, y, rtol, atol):
     return math.sqrt(acc / v.size)
 
 
-@jit_inline
+@jit_llvm_inline
 def _rms_scaled_difference(a, b, y, rtol, atol):
     acc = 0.0
     for i in range(a.size):
@@ -40,7 +40,7 @@ def _rms_scaled_difference(a, b, y, rtol, atol):
     return math.sqrt(acc / a.size)
 
 
-@jit_inline
+@jit_llvm_inline
 def _min_step(t):
     """Smallest step that still changes t meaningfully (scipy: 10 ulp of t)."""
     return 10.0 * abs(np.nextafter(t, np.inf) - t)

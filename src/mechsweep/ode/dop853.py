@@ -49,7 +49,7 @@ import math
 
 import numpy as np
 
-from .._jit import jit, jit_inline, jit_internal_noalloc, jit_noalloc
+from .._jit import jit, jit_internal_noalloc, jit_llvm_inline, jit_noalloc
 from ._common import ROOT_RTOL, _all_finite, _copy, _min_step, _rms_scaled, _rms_scaled_difference, make_brent
 from ..status import MAX_STEPS, NO_EVENT, NONFINITE, OK, STEP_UNDERFLOW, STIFF
 from ._dop853_tableau import (
@@ -116,7 +116,7 @@ def workspace(n):
 
 
 
-@jit_inline
+@jit_llvm_inline
 def _stage_argument(y, h, work, s, out):
     """out = y + h * sum_{j<s} A[s, j] K[j]: the state at which stage s is evaluated."""
     for i in range(y.size):
@@ -126,7 +126,7 @@ def _stage_argument(y, h, work, s, out):
         out[i] = y[i] + h * acc
 
 
-@jit_inline
+@jit_llvm_inline
 def _combine_solution(y, h, work, out):
     """out = y + h * sum_j B[j] K[j]: the 8th-order solution."""
     for i in range(y.size):
@@ -136,7 +136,7 @@ def _combine_solution(y, h, work, out):
         out[i] = y[i] + h * acc
 
 
-@jit_inline
+@jit_llvm_inline
 def _error_norm(y, work, h, rtol, atol):
     """scipy's DOP853 error norm of the step from y to work[Y_NEW] (< 1: accept).
 
@@ -165,7 +165,7 @@ def _error_norm(y, work, h, rtol, atol):
 
 
 
-@jit_inline
+@jit_llvm_inline
 def _step_factor(error_norm, rejected_before):
     """Growth factor after an accepted step (error_norm < 1)."""
     if error_norm == 0.0:
@@ -179,7 +179,7 @@ def _step_factor(error_norm, rejected_before):
 
 
 
-@jit_inline
+@jit_llvm_inline
 def _stiffness_update(h, work, stiff_count, nonstiff_count):
     """Hairer's stiffness test after an accepted (uncommitted) step; returns the new counters.
     stiff_count reaching STIFF_STEPS means the problem is stiff. Needs work as rk_step left it."""
@@ -196,14 +196,14 @@ def _stiffness_update(h, work, stiff_count, nonstiff_count):
     return stiff_count, nonstiff_count
 
 
-@jit_inline
+@jit_llvm_inline
 def _commit(y, work):
     """Accept the trial step: y <- y_new and, first-same-as-last, K0 <- K12."""
     _copy(work[Y_NEW], y)
     _copy(work[K_FSAL], work[0])
 
 
-@jit_inline
+@jit_llvm_inline
 def _dense_coefficients(h, y, work):
     """The seven dense-output rows F of dop853 (needs all 16 stages in work)."""
     n = y.size
@@ -222,7 +222,7 @@ def _dense_coefficients(h, y, work):
             work[F_DENSE + 3 + r, i] = h * acc
 
 
-@jit_inline
+@jit_llvm_inline
 def _interpolate(x, y_old, work, out):
     """State at fraction x of the step (0: y_old, 1: y_new); out may alias y_old.
 
