@@ -14,20 +14,17 @@ Options and why:
   (a measurable share of an autobalancer step: ``mechsweep bench autobalancer``). Such a function must
   not allocate arrays (numba refuses to compile it if it does).
 - :func:`jit_inline` (``inline="always"`` at numba IR level, no reference counting) for small
-  scalar helpers called in every right-hand side (sincos, the closed-form accelerations) and
-  for the integrators' small loops over a state (stage sums, error norm, interpolation, copies,
-  the RMS norms of the first step; ode/dop853.py, ode/_common.py): LLVM inlines across
-  separately compiled numba functions only below its size threshold, which these exceed, and
-  every separately compiled function costs numba a compile of its own (typing, lowering, and
-  an LLVM optimisation and machine-code pass over it and, again, in each caller that links it).
-  Inlined, the one-point DOP853 event solver of a Duffing rhs compiled in 4.2-4.5 s of CPU
-  instead of 4.6-5.0 s and ran 20000 quarter periods in 50.5-50.6 ms of CPU instead of
-  65.4-67.0 ms, bitwise the same roots (``mechsweep bench startup --only breakdown``'s
-  INTEGRATOR_CHILD, three alternating runs each in fresh processes on the code before and after,
-  2026-11-24, machine loaded). Inlining
-  the integrator's large functions as well (the RK step, the adaptive step) gained little more
-  speed for about twice the compile time (an earlier one-off measurement), so it is chosen per
-  helper.
+  scalar helpers called in every right-hand side (sincos, the closed-form accelerations): LLVM
+  inlines across separately compiled numba functions only below its size threshold, and every
+  separately compiled function costs numba a compile of its own. The integrators' small loops over a
+  state (stage sums, error norm, interpolation, copies, the RMS norms of the first step; ode/dop853.py,
+  ode/_common.py) were inlined so too, and numba analysed and typed each again at every call site;
+  they are now :func:`jit_llvm_inline`: typed once, inlined by LLVM (``alwaysinline``), bitwise the
+  same and as fast. Inlining the integrator's large functions as well (the RK step, the adaptive
+  step) gained little speed for about twice the compile time (an earlier one-off measurement).
+- :func:`jit_internal` for functions only numba code calls (the one-point kernel module's functions
+  but the kernel, the integrators' internal steps): no CPython and cfunc wrappers to build, optimise
+  and turn into machine code; a call from Python goes to a twin compiled on first use.
 - ``cache=True`` with a cache directory keyed by a hash of the package sources:
   numba's own cache only checks the file of the decorated function, so a kernel
   that calls an integrator from another module would keep stale machine code
