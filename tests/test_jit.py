@@ -3,7 +3,7 @@ import numba
 import numpy as np
 import pytest
 
-from mechsweep._jit import jit_inline, jit_noalloc
+from mechsweep._jit import jit, jit_inline, jit_internal, jit_noalloc
 
 
 def test_noalloc_refuses_a_function_that_allocates():
@@ -14,6 +14,26 @@ def test_noalloc_refuses_a_function_that_allocates():
 
     with pytest.raises(numba.core.errors.TypingError):
         jit_noalloc(allocating)(3)
+
+
+def test_internal_function_has_no_python_entry_yet_python_can_call_it():
+    """jit_internal compiles without numba's CPython wrapper (its machine code has no Python entry: a
+    call through it would crash); numba callers use it as any function, and a call from Python goes to
+    a twin compiled with the wrapper."""
+    def twice(v):
+        return 2.0 * v[0]
+
+    f = jit_internal(twice)
+
+    @jit
+    def caller(v):
+        return f(v) + 1.0
+
+    v = np.array([3.0])
+    assert caller(v) == 7.0
+    (compiled,) = f.overloads.values()
+    assert compiled.library.get_pointer_to_function(compiled.fndesc.llvm_cpython_wrapper_name) == 0
+    assert f(v) == 6.0
 
 
 def test_noalloc_and_inline_functions_work_on_caller_arrays():

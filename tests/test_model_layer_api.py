@@ -192,6 +192,20 @@ def test_rhs_raising_at_a_point_the_probe_did_not_see_is_a_status(in_tmp, capsys
     np.testing.assert_allclose(ds["x_at_1"].values[[0, 2]], np.cos([1.0, 2.0]), atol=1e-9)
 
 
+def test_one_point_module_has_one_try_around_a_point(osc):
+    """The one-point kernel's module catches a model's exception once per point, around point(): its
+    guards lose their try (compile._one_try: a try per guard cost most of their compile). No compile."""
+    from mechsweep.model import compile as mc
+
+    chosen, _ = osc._plan(("x_at_1",))
+    refs = {name: load.function_ref(f, name, osc.name) for name, f in mc._functions(osc, chosen, ())}
+    source = mc.kernel_source(osc, chosen, refs, "test")
+    compile(source, "generated", "exec")  # valid Python
+    tries = [line for line in source.splitlines() if line.strip().startswith("try:")]
+    assert len(tries) == 1 and "code = point(i, " in source.split(tries[0])[1].split("except")[0]
+    assert "@jit_into_caller\ndef rhs(t, y, p, dydt):\n    user_rhs(t, y, p, dydt)\n" in source
+
+
 def test_guards_inline_a_users_function_only_when_it_has_no_raise_statement():
     """The one-point kernel's guards compile the model's functions into themselves (load.inlined; a
     compile of its own less per function), except one with a raise statement of its own: numba's try

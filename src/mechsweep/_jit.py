@@ -14,20 +14,17 @@ Options and why:
   (a measurable share of an autobalancer step: ``mechsweep bench autobalancer``). Such a function must
   not allocate arrays (numba refuses to compile it if it does).
 - :func:`jit_inline` (``inline="always"`` at numba IR level, no reference counting) for small
-  scalar helpers called in every right-hand side (sincos, the closed-form accelerations) and
-  for the integrators' small loops over a state (stage sums, error norm, interpolation, copies,
-  the RMS norms of the first step; ode/dop853.py, ode/_common.py): LLVM inlines across
-  separately compiled numba functions only below its size threshold, which these exceed, and
-  every separately compiled function costs numba a compile of its own (typing, lowering, and
-  an LLVM optimisation and machine-code pass over it and, again, in each caller that links it).
-  Inlined, the one-point DOP853 event solver of a Duffing rhs compiled in 4.2-4.5 s of CPU
-  instead of 4.6-5.0 s and ran 20000 quarter periods in 50.5-50.6 ms of CPU instead of
-  65.4-67.0 ms, bitwise the same roots (``mechsweep bench startup --only breakdown``'s
-  INTEGRATOR_CHILD, three alternating runs each in fresh processes on the code before and after,
-  2026-11-24, machine loaded). Inlining
-  the integrator's large functions as well (the RK step, the adaptive step) gained little more
-  speed for about twice the compile time (an earlier one-off measurement), so it is chosen per
-  helper.
+  scalar helpers called in every right-hand side (sincos, the closed-form accelerations): LLVM
+  inlines across separately compiled numba functions only below its size threshold, and every
+  separately compiled function costs numba a compile of its own. The integrators' small loops over a
+  state (stage sums, error norm, interpolation, copies, the RMS norms of the first step; ode/dop853.py,
+  ode/_common.py) were inlined so too, and numba analysed and typed each again at every call site;
+  they are now :func:`jit_llvm_inline`: typed once, inlined by LLVM (``alwaysinline``), bitwise the
+  same and as fast. Inlining the integrator's large functions as well (the RK step, the adaptive
+  step) gained little speed for about twice the compile time (an earlier one-off measurement).
+- :func:`jit_internal` for functions only numba code calls (the one-point kernel module's functions
+  but the kernel, the integrators' internal steps): no CPython and cfunc wrappers to build, optimise
+  and turn into machine code; a call from Python goes to a twin compiled on first use.
 - ``cache=True`` with a cache directory keyed by a hash of the package sources:
   numba's own cache only checks the file of the decorated function, so a kernel
   that calls an integrator from another module would keep stale machine code
@@ -63,8 +60,9 @@ from pathlib import Path
 
 import numba
 from numba.core import config as _numba_config
+from numba.core.registry import CPUDispatcher
 
-__all__ = ["jit", "jit_noalloc", "jit_inline", "jit_into_caller", "pjit", "prange", "literally", "compile_time_switch", "cache_dir"]
+__all__ = ["jit", "jit_noalloc", "jit_inline", "jit_into_caller", "jit_internal", "jit_internal_noalloc", "jit_llvm_inline", "pjit", "prange", "literally", "compile_time_switch", "cache_dir"]
 
 
 
@@ -245,6 +243,61 @@ def jit_into_caller(func):
     functions so (model/load.py: inlined), each typed and lowered inside its guard instead of compiled
     as a function of its own that the guard links. Python callers get it compiled on its own."""
     return _decorate(func, inline="always")
+
+
+# Wrappers numba builds for every compiled function, needed only to call it from Python (the CPython
+# wrapper) or through a C function pointer (the cfunc wrapper); see jit_internal.
+_NO_WRAPPERS = dict(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
+
+class _NumbaOnly(CPUDispatcher):
+    """A dispatcher compiled without the CPython and cfunc wrappers (:func:`jit_internal`): numba callers
+    call it as any other. Its machine code has no Python entry point, so a call from Python goes to a
+    twin compiled with the wrappers, on first use and without the disk cache (numba keys a cache entry
+    by the function's file, name, types and code, not by these options: a cached twin could load the
+    entry without a Python entry point, or leave its own to this one)."""
+
+    def __call__(self, *args, **kwargs):
+        twin = self.__dict__.get("_python_twin")
+        if twin is None:
+            options = {k: v for k, v in self.targetoptions.items() if k not in _NO_WRAPPERS and k != "nopython"}
+            twin = self.__dict__["_python_twin"] = numba.njit(**options)(self.py_func)
+        return twin(*args, **kwargs)
+
+
+def _numba_only(func, **extra):
+    dispatcher = _decorate(func, **_NO_WRAPPERS, **extra)
+    dispatcher.__class__ = _NumbaOnly
+    return dispatcher
+
+
+def jit_internal(func):
+    """Compile a function that only numba code calls (a generated module's guards, the integrators'
+    steps), without the CPython and cfunc wrappers numba otherwise builds, lowers and turns into machine
+    code for every function it compiles (and links into each caller): about 25 ms of a trivial
+    function's 40 ms of compile CPU (2026-11-24, a one-off session measurement), and the largest part of
+    the compile of a function with a tuple argument (brent). Called from Python it still works (see
+    _NumbaOnly), through a twin compiled on first use."""
+    return _numba_only(func)
+
+
+def jit_internal_noalloc(func):
+    """:func:`jit_internal` without reference counting (as :func:`jit_noalloc`)."""
+    return _numba_only(func, _nrt=False)
+
+
+def jit_llvm_inline(func):
+    """Compile a small helper of the integrators (stage sums, error norm, interpolation, copies, the
+    first step's norms) once per signature, for numba callers only (:func:`jit_internal`, no reference
+    counting), with LLVM's ``alwaysinline`` (numba's ``forceinline``): LLVM inlines it into every caller
+    when it links the caller's module, as the IR-level inlining of :func:`jit_inline` did, but numba
+    analyses and types its body once instead of again at every call site. Measured against
+    ``jit_inline`` (2026-11-24, quickstart cold, bench startup's COMPILE_CHILD alternated 3 times,
+    load 6-7): numba's own work 5.98 -> 5.13 s of CPU, LLVM's 2.43 -> 2.64 s, all 8.39 -> 7.76 s;
+    bitwise the same results, the warm one-point kernel as fast. Without ``alwaysinline`` (plain
+    separate functions) LLVM left them out of line (above its size threshold) and the kernel ran 22 %
+    slower."""
+    return _numba_only(func, _nrt=False, forceinline=True)
 
 
 def pjit(func):

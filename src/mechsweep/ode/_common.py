@@ -6,10 +6,10 @@ import math
 
 import numpy as np
 
-from .._jit import jit_inline, jit_noalloc
+from .._jit import jit_internal_noalloc, jit_llvm_inline
 
 
-@jit_inline
+@jit_llvm_inline
 def _all_finite(v):
     for i in range(v.size):
         if not math.isfinite(v[i]):
@@ -17,13 +17,13 @@ def _all_finite(v):
     return True
 
 
-@jit_inline
+@jit_llvm_inline
 def _copy(src, dst):
     for i in range(src.size):
         dst[i] = src[i]
 
 
-@jit_inline
+@jit_llvm_inline
 def _rms_scaled(v, y, rtol, atol):
     """RMS of v / (atol + rtol |y|), the norm of select_initial_step."""
     acc = 0.0
@@ -32,7 +32,7 @@ def _rms_scaled(v, y, rtol, atol):
     return math.sqrt(acc / v.size)
 
 
-@jit_inline
+@jit_llvm_inline
 def _rms_scaled_difference(a, b, y, rtol, atol):
     acc = 0.0
     for i in range(a.size):
@@ -40,7 +40,7 @@ def _rms_scaled_difference(a, b, y, rtol, atol):
     return math.sqrt(acc / a.size)
 
 
-@jit_inline
+@jit_llvm_inline
 def _min_step(t):
     """Smallest step that still changes t meaningfully (scipy: 10 ulp of t)."""
     return 10.0 * abs(np.nextafter(t, np.inf) - t)
@@ -59,7 +59,7 @@ def make_brent(g):
     absolute floor of the tolerance, e.g. ROOT_RTOL |h|). Brent's method as scipy.optimize.brentq
     (bracketing, so bounded and robust), to a few ulp of t. ``ctx`` is whatever g needs (a tuple).
     """
-    @jit_noalloc
+    @jit_internal_noalloc
     def brent(t_old, g_old, t_new, g_new, x_tol, ctx):
         if g_new == 0.0:
             return t_new

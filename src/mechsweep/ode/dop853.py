@@ -49,7 +49,7 @@ import math
 
 import numpy as np
 
-from .._jit import jit, jit_inline, jit_noalloc
+from .._jit import jit, jit_internal_noalloc, jit_llvm_inline, jit_noalloc
 from ._common import ROOT_RTOL, _all_finite, _copy, _min_step, _rms_scaled, _rms_scaled_difference, make_brent
 from ..status import MAX_STEPS, NO_EVENT, NONFINITE, OK, STEP_UNDERFLOW, STIFF
 from ._dop853_tableau import (
@@ -116,7 +116,7 @@ def workspace(n):
 
 
 
-@jit_inline
+@jit_llvm_inline
 def _stage_argument(y, h, work, s, out):
     """out = y + h * sum_{j<s} A[s, j] K[j]: the state at which stage s is evaluated."""
     for i in range(y.size):
@@ -126,7 +126,7 @@ def _stage_argument(y, h, work, s, out):
         out[i] = y[i] + h * acc
 
 
-@jit_inline
+@jit_llvm_inline
 def _combine_solution(y, h, work, out):
     """out = y + h * sum_j B[j] K[j]: the 8th-order solution."""
     for i in range(y.size):
@@ -136,7 +136,7 @@ def _combine_solution(y, h, work, out):
         out[i] = y[i] + h * acc
 
 
-@jit_inline
+@jit_llvm_inline
 def _error_norm(y, work, h, rtol, atol):
     """scipy's DOP853 error norm of the step from y to work[Y_NEW] (< 1: accept).
 
@@ -165,7 +165,7 @@ def _error_norm(y, work, h, rtol, atol):
 
 
 
-@jit_inline
+@jit_llvm_inline
 def _step_factor(error_norm, rejected_before):
     """Growth factor after an accepted step (error_norm < 1)."""
     if error_norm == 0.0:
@@ -179,7 +179,7 @@ def _step_factor(error_norm, rejected_before):
 
 
 
-@jit_inline
+@jit_llvm_inline
 def _stiffness_update(h, work, stiff_count, nonstiff_count):
     """Hairer's stiffness test after an accepted (uncommitted) step; returns the new counters.
     stiff_count reaching STIFF_STEPS means the problem is stiff. Needs work as rk_step left it."""
@@ -196,14 +196,14 @@ def _stiffness_update(h, work, stiff_count, nonstiff_count):
     return stiff_count, nonstiff_count
 
 
-@jit_inline
+@jit_llvm_inline
 def _commit(y, work):
     """Accept the trial step: y <- y_new and, first-same-as-last, K0 <- K12."""
     _copy(work[Y_NEW], y)
     _copy(work[K_FSAL], work[0])
 
 
-@jit_inline
+@jit_llvm_inline
 def _dense_coefficients(h, y, work):
     """The seven dense-output rows F of dop853 (needs all 16 stages in work)."""
     n = y.size
@@ -222,7 +222,7 @@ def _dense_coefficients(h, y, work):
             work[F_DENSE + 3 + r, i] = h * acc
 
 
-@jit_inline
+@jit_llvm_inline
 def _interpolate(x, y_old, work, out):
     """State at fraction x of the step (0: y_old, 1: y_new); out may alias y_old.
 
@@ -243,7 +243,7 @@ def _interpolate(x, y_old, work, out):
 
 @functools.cache
 def _make_rk_step(rhs):
-    @jit_noalloc
+    @jit_internal_noalloc
     def rk_step(t, y, h, p, work):
         """One DOP853 step: stages 1..11, y_new in work[Y_NEW], f(t+h, y_new) in
         work[K_FSAL]. work[0] must hold f(t, y). Costs 12 rhs evaluations."""
@@ -260,7 +260,7 @@ def _make_rk_step(rhs):
 
 @functools.cache
 def _make_start(rhs):
-    @jit_noalloc
+    @jit_internal_noalloc
     def start(t0, y, p, t_bound, rtol, atol, h0, work):
         """f(t0, y) into work[0] and the first step size (scipy's
         select_initial_step when h0 <= 0). Returns (status, h_abs, n_rhs)."""
@@ -300,7 +300,7 @@ def _make_start(rhs):
 def _make_advance(rhs):
     rk_step = _make_rk_step(rhs)
 
-    @jit_noalloc
+    @jit_internal_noalloc
     def advance(t, y, p, t_bound, h_abs, rtol, atol, work, budget):
         """The adaptive step shared by every solver: try steps from (t, y) until
         one passes the error test; leave it in work (y itself is not changed:
@@ -344,7 +344,7 @@ def _make_advance(rhs):
 
 @functools.cache
 def _make_dense_output(rhs):
-    @jit_noalloc
+    @jit_internal_noalloc
     def dense_output(t, h, y, p, work):
         """After an accepted (uncommitted) step from (t, y) of size h: the three
         extra stages and the interpolation rows. Costs 3 rhs evaluations."""
@@ -359,7 +359,7 @@ def _make_dense_output(rhs):
 
 @functools.cache
 def _make_root_locator(event):
-    @jit_noalloc
+    @jit_internal_noalloc
     def event_on_interpolant(t, ctx):
         t_old, h, y_old, p, work = ctx
         y_at = work[Y_STAGE]  # free once the dense output is built
@@ -368,7 +368,7 @@ def _make_root_locator(event):
 
     brent = make_brent(event_on_interpolant)
 
-    @jit_noalloc
+    @jit_internal_noalloc
     def locate_root(t_old, h, g_old, t_new, g_new, y_old, p, work):
         """Root of event(t, interpolant(t)) in [t_old, t_new] where g_old > 0 >= g_new."""
         return brent(t_old, g_old, t_new, g_new, ROOT_RTOL * abs(h), (t_old, h, y_old, p, work))
