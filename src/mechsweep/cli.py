@@ -371,7 +371,7 @@ def _plot(args) -> int:
         axes = (args.x, args.y) if args.x or args.y else None
         kinds = figures.available(ds, axes)
         extra = figures.on_request(ds, axes) if args.list else {}
-    if args.point and not kinds and not extra and args.kind is None:
+    if args.point and not kinds and not extra and args.kind is None and not args.list:
         raise InputError(f"--point {args.point}: nothing to draw at one point: its figures are time histories (outputs "
                          "with one extra dimension, e.g. a History measurement) and this dataset stores none; its "
                          "values at the point: mechsweep info, or xarray's ds.sel(...)")

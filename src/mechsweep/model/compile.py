@@ -287,7 +287,7 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
     switched = getattr(model, "switch_times", None) is not None
     if switched:  # steps end on the declared switch times; p gets two slots after the scratch (switches.SW)
         from .switches import source as switch_source
-        lines.append(switch_source(model, "SCR + NSCR", refs))
+        lines.append(switch_source(model, "SCR + NSCR", refs, guarded=False))
     order = tuple(getattr(model, "status_order", ()))
     lines.append(rank_source(order))
     for j, c in enumerate(closed):

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 
 import numpy as np
 
@@ -74,10 +75,21 @@ def constants(model) -> tuple | None:
     return None if sw is None or callable(sw) else tuple(float(x) for x in sw)
 
 
-def source(model, at: str, refs: dict) -> str:
+_TRY = re.compile(r"^    try:\n((?:        .*\n)+?)    except Exception:\n(?:        .*\n)+", re.M)
+
+
+def source(model, at: str, refs: dict, guarded: bool = True) -> str:
     """Generated kernel code: the switches of ``model`` read from and kept in p[at], p[at + 1] (the
     clamp of the rhs's time; ``at`` is source text). Put after the guards (it rebinds ``rhs``,
-    ``dop853`` and ``radau``) and before any solver is made."""
+    ``dop853`` and ``radau``) and before any solver is made. ``guarded=False``: without their ``try``
+    (the one-point module catches a model's exception once per point, model/compile.py _one_try)."""
+    text = _source(model, at, refs)
+    if not guarded:
+        text = _TRY.sub(lambda m: "".join(line[4:] + "\n" for line in m.group(1).splitlines()), text)
+    return text
+
+
+def _source(model, at: str, refs: dict) -> str:
     c = constants(model)
     if c is not None:
         lst = f"@jit\ndef switch_list(p):\n    return {tuple(c)!r}\n"
