@@ -261,7 +261,7 @@ print(json.dumps({"rows": sorted(rows, reverse=True), "compile_time_s": ds.attrs
 """
 
 
-PLOT_CHILD = """
+_LAP = """
 import json, sys, time
 t0 = time.perf_counter()
 phases = []
@@ -270,6 +270,10 @@ def lap(name):
     t = time.perf_counter()
     phases.append((name, t - t0))
     t0 = t
+"""  # the phases of a child process, timed as they end
+
+
+PLOT_CHILD = _LAP + """
 from mechsweep.cli import _no_dask_probe
 import matplotlib.figure, xarray
 lap("import matplotlib, xarray")
@@ -289,15 +293,8 @@ print(json.dumps(phases))
 """
 
 
-RUN_CHILD = """
-import os, sys, time
-t0 = time.perf_counter()
-phases = []
-def lap(name):
-    global t0
-    t = time.perf_counter()
-    phases.append((name, t - t0))
-    t0 = t
+RUN_CHILD = _LAP + """
+import os
 import numpy
 lap("import numpy")
 import numba
