@@ -1,4 +1,6 @@
 """The numba option layer: what the decorators promise."""
+import os
+
 import numba
 import numpy as np
 import pytest
@@ -120,3 +122,24 @@ def test_first_compile_of_a_process_does_not_import_scipy_linalg_and_linalg_stil
                          env={**__import__("os").environ, "PYTHONPATH": __import__("os").pathsep.join(sys.path)})
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["False", "True", "ensure_blas", "5.0", "True"]
+
+
+def test_cache_folders_of_other_versions_unused_for_30_days_are_removed(tmp_path):
+    """Each version of the sources compiles into a folder of its own; a folder of another version not
+    used for STALE_DAYS goes, a recently used one, this version's and anything not ours stay."""
+    import time
+
+    from mechsweep import _jit
+
+    day = 86400.0
+    now = time.time()
+    folders = {name: tmp_path / name for name in ("numba-current", "numba-old", "numba-recent", "other-old")}
+    for path in folders.values():
+        (path / "sub").mkdir(parents=True)
+        (path / "sub" / "x.nbi").write_bytes(b"index")
+    for name, age in (("numba-current", 90), ("numba-old", 31), ("numba-recent", 29), ("other-old", 90)):
+        os.utime(folders[name], (now - age * day, now - age * day))
+    removed = _jit.prune_stale(str(tmp_path), str(folders["numba-current"]))
+    assert removed == [str(folders["numba-old"])]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["numba-current", "numba-recent", "other-old"]
+    assert folders["numba-current"].stat().st_mtime > now - 60  # marked used: kept by the next version's run

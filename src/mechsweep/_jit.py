@@ -157,7 +157,40 @@ def _make_cache_dir() -> str | None:
         os.remove(probe)
     except OSError:
         return None  # read-only home: compile every time rather than fail
+    prune_stale(base, path)
     return path
+
+
+STALE_DAYS = 30  # a cache folder of other sources not used for this long is removed
+
+
+def prune_stale(base: str, current: str, days: float = STALE_DAYS) -> list[str]:
+    """Mark ``current`` (this version's cache folder) used now, and remove the folders of other source
+    versions (``numba-<hash>`` under ``base``) not used for ``days`` days: every edit or upgrade of the
+    package makes a new folder, and nothing else ever removed the old ones (395 folders, 5.9 GB, on the
+    project's machine after a few days of development). A folder's mtime is its last use (set here by
+    each process of that version). Returns the folders removed; errors are ignored (another process
+    may remove the same folder)."""
+    import shutil
+    import time
+
+    try:
+        os.utime(current)
+        entries = list(os.scandir(base))
+    except OSError:
+        return []
+    cutoff = time.time() - days * 86400.0
+    removed = []
+    for entry in entries:
+        try:
+            stale = (entry.name.startswith("numba-") and entry.path != current and entry.is_dir(follow_symlinks=False)
+                     and entry.stat(follow_symlinks=False).st_mtime < cutoff)
+        except OSError:
+            continue
+        if stale:
+            shutil.rmtree(entry.path, ignore_errors=True)
+            removed.append(entry.path)
+    return removed
 
 
 cache_dir = _make_cache_dir()
