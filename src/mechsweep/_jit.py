@@ -167,8 +167,7 @@ STALE_DAYS = 30  # a cache folder of other sources not used for this long is rem
 def prune_stale(base: str, current: str, days: float = STALE_DAYS) -> list[str]:
     """Mark ``current`` (this version's cache folder) used now, and remove the folders of other source
     versions (``numba-<hash>`` under ``base``) not used for ``days`` days: every edit or upgrade of the
-    package makes a new folder, and nothing else ever removed the old ones (395 folders, 5.9 GB, on the
-    project's machine after a few days of development). A folder's mtime is its last use (set here by
+    package makes a new folder, and nothing else ever removed the old ones. A folder's mtime is its last use (set here by
     each process of that version). Returns the folders removed; errors are ignored (another process
     may remove the same folder)."""
     import shutil
