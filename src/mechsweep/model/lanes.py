@@ -931,9 +931,14 @@ def kernel_source(model, chosen, refs: dict, origin: str, closed, lane_rhs: str)
                      "            continue" + start)
     else:
         start = f"\n        initial(p, y)\n        lane_load(ws, lane, ii, y, {tm}, rtol, atol)"
+    # feed, conclude, settle and refill run once per point and take the ws tuple (11 arrays) and ~10
+    # arrays more: compiled with numba's reference counting, each call and each view (p = ws[PR][lane])
+    # cost atomic increments and decrements of those arrays' counts, a quarter of the Duffing lane
+    # kernel's CPU (perf: NRT_incref/decref; `mechsweep bench duffing`: 1.32 -> 1.73 M points/s on
+    # 2 threads when they became jit_noalloc). They allocate nothing; work() allocates the lanes.
     lines.append(f"""
 
-@jit
+@jit_noalloc
 def feed(lane, i, n, stride, ws, keep, y, P, S, need, rtol, atol, table, status, n_steps, n_rhs):
     \"\"\"The next point of this queue (from i on, every stride-th) that needs the integration goes
     into the lane (returns the index after it); points settled before it are written here.\"\"\"
@@ -963,7 +968,7 @@ def feed(lane, i, n, stride, ws, keep, y, P, S, need, rtol, atol, table, status,
     return n
 
 
-@jit
+@jit_noalloc
 def conclude(i, p, kp, c, val, a, b_, need, table, status, n_steps, n_rhs):
     \"\"\"What the one-point kernel does after the integration of point i (status c, root time val,
     a steps, b_ rhs calls); kp: what the point kept from before it.\"\"\"
@@ -985,14 +990,14 @@ def conclude(i, p, kp, c, val, a, b_, need, table, status, n_steps, n_rhs):
     status[i] = code
 
 
-@jit
+@jit_noalloc
 def settle(lane, ws, keep, need, table, status, n_steps, n_rhs):
     \"\"\"conclude() for the point the lane has finished.\"\"\"
     i, c, val, a, b_ = lanes.lane_result(ws, lane)
     conclude(i, ws[lanes.PR][lane], keep[lane], c, val, a, b_, need, table, status, n_steps, n_rhs)
 
 
-@jit
+@jit_noalloc
 def refill(lane, mine, taken, n, ws, keep, y, P, S, need, rtol, atol, table, status, n_steps, n_rhs):
     \"\"\"The lane's next point: from this thread's batch mine = [next, end) of the launch's points, and
     when it is used up from a new batch of GRAB points taken from the launch's shared counter; the
