@@ -300,6 +300,16 @@ BAD = {
         "M2 = OdeModel(name='f', description='d', params=(), states=('x', 'v'), rhs=rhs, initial=initial, "
         "measurements=(History('h', 'x', horizon=-5),))", "M",
         ["importing", "line 17", "History 'h': horizon = -5 is not allowed; expected a number > 0"]),
+    "state_at_time_function": (  # StateAt's t is a number; its output's long_name formatted it first (TypeError)
+        "    dydt[1] = -y[0]\n\n\nfrom mechsweep.model import StateAt\n"
+        "M2 = OdeModel(name='f', description='d', params=(), states=('x', 'v'), rhs=rhs, initial=initial, "
+        "measurements=(StateAt('xe', 'x', t=initial),))", "M",
+        ["importing", "line 17", "xe: StateAt t = <function initial", "expected a finite number >= 0"]),
+    "unknown_output_kind": (  # a misspelt kind was stored as mechsweep_kind and drew a generic figure
+        "    dydt[1] = -y[0]\n\n\nfrom mechsweep.model import ClosedForm\n"
+        "M2 = OdeModel(name='f', description='d', params=(), states=('x', 'v'), rhs=rhs, initial=initial, "
+        "measurements=(Period('period', 'x'),), closed_forms=(ClosedForm('c', initial, kind='category'),))", "M",
+        ["importing", "output 'c': kind = 'category' is not allowed; expected one of 'floquet_max', 'verdict'"]),
     "measurement_on_its_own_line": (  # the error names the measurement's line, not the OdeModel(...) call's
         "    dydt[1] = -y[0]\n\n\nBAD = Period('p2', 'xx')\n"
         "M2 = OdeModel(name='f', description='d', params=(), states=('x', 'v'), rhs=rhs, initial=initial, "

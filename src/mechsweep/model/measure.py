@@ -55,6 +55,10 @@ def declared_at(obj):
 DIRECTIONS = ("down", "up")
 
 
+def _is_number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
 def _check_state(state, states, what):
     if state not in states:
         raise ValueError(f"{what}: state {state!r} is not one of the model's states {states}")
@@ -254,13 +258,15 @@ class StateAt:
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
 
     def output(self) -> Output:
-        return Output(self.name, f"{self.state}(t)", self.unit, self.long_name or f"{self.state} at t = {self.t:g}",
+        at = f"{self.t:g}" if _is_number(self.t) else repr(self.t)  # validate() refuses a non-number
+        return Output(self.name, f"{self.state}(t)", self.unit, self.long_name or f"{self.state} at t = {at}",
                       integrated=True)
 
     def validate(self, states):
         _check_state(self.state, states, self.name)
-        if not (math.isfinite(self.t) and self.t >= 0):
-            raise ValueError(f"{self.name}: t = {self.t!r}; expected a finite number >= 0")
+        if not (_is_number(self.t) and math.isfinite(self.t) and self.t >= 0):
+            raise ValueError(f"{self.name}: StateAt t = {self.t!r}; expected a finite number >= 0 (a fixed time: "
+                             "for a time that depends on the parameters use Extremum's t0/t1 or FirstEvent)")
 
     def source(self, k: int, states) -> str:
         idx = states.index(self.state)
@@ -860,6 +866,10 @@ class ClosedForm:
     classify: Callable | None = field(default=None, repr=False, compare=False)
     needs_params: tuple[str, ...] = ()  # Output.needs_params: optional parameters the formula requires
     kind: str = ""  # Output.kind: what the value is, for generic figures (e.g. "verdict")
+
+    def __post_init__(self):
+        if self.kind:  # refused here, at the line that wrote it, rather than when the model's spec is built
+            Output(self.name, "", "", "", kind=self.kind)
 
     def output(self) -> Output:
         return Output(self.name, self.symbol or self.name, self.unit, self.long_name or self.name,

@@ -116,6 +116,11 @@ class Output:
     extra_dims: tuple[ExtraDim, ...] = ()
     kind: str = ""  # what the value is, for generic figures: OUTPUT_KINDS names the known ones
 
+    def __post_init__(self):
+        if self.kind not in ("",) + OUTPUT_KINDS:  # a misspelt kind would silently draw the wrong figure
+            raise ValueError(f"output {self.name!r}: kind = {self.kind!r} is not allowed; expected one of "
+                             + ", ".join(repr(k) for k in OUTPUT_KINDS) + " or '' (no kind: a generic figure)")
+
 
 # Kinds of output the generic figures know (stored as the variable's ``mechsweep_kind``):
 # "floquet_max": the largest modulus of the Floquet multipliers; below 1 the motion is stable.
