@@ -209,6 +209,19 @@ def test_compute_raising_at_a_point_the_probe_did_not_see_is_a_status(in_tmp):
     np.testing.assert_array_equal(ds["top"].values[[0, 2]], [1.0, 2.0])
 
 
+def test_a_status_code_that_is_none_of_mechsweeps_is_a_user_error(in_tmp):
+    """compute returns 99 (or -1, PENDING's code) at designs the probe (k = 1) did not see, after writing
+    its row: those designs are USER_ERROR with NaN outputs, not stored as codes no reader knows."""
+    path = in_tmp / "code.py"
+    path.write_text(HEAD + "    row[0] = p[0]\n    if p[0] > 2.5:\n        return 99\n"
+                    "    if p[0] < 0.5:\n        return -1\n    return 0" + TAIL)
+    ds = mechsweep.run({"scene": {"name": "code", "model": f"{path}:M", "outputs": ["top", "line"]},
+                        "axes": {"k": [1.0, 3.0, 0.2, 2.0]}}, output="code.h5", progress=False)
+    assert ds["status"].values.tolist() == [st.OK, st.USER_ERROR, st.USER_ERROR, st.OK]
+    assert np.isnan(ds["top"].values[[1, 2]]).all() and np.isnan(ds["line"].values[[1, 2]]).all()
+    np.testing.assert_array_equal(ds["top"].values[[0, 3]], [1.0, 2.0])
+
+
 def test_a_closed_form_user_model_from_python_is_checked():
     from mechsweep.model import load
 

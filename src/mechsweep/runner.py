@@ -908,6 +908,13 @@ def evaluate_rows(scene: Scene, P: np.ndarray):
         if launching is not None:
             launching()
         scene.model.evaluate(P, computed, scene.solver, out, status, n_steps, n_rhs)
+    # a code that is not a status (a user's classify returning 99 at a point its probe did not see)
+    # is the model's error, not a result to store
+    not_a_status = (status < st.OK) | (status > st.LAST)
+    if not_a_status.any():
+        status[not_a_status] = st.USER_ERROR
+        for values in out.values():
+            values[not_a_status] = np.nan
     requested = {name: out[name] for name in scene.outputs}
     # A point is ok only if everything asked of it is finite (never a NaN with status ok).
     # An overflow (inf) is never stored as a value: it becomes NaN, the point NONFINITE.

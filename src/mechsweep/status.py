@@ -26,6 +26,7 @@ STIFF = 11  # the explicit method detected stiffness and no implicit method was 
 ILL_CONDITIONED = 12  # the output is too sensitive here to reach the tolerance in double precision
 NOT_REPRODUCIBLE = 13  # the value moved by more than its tolerance when integrated again at a tighter one
 USER_ERROR = 14  # the model's own code (a user model's function) raised at this point
+LAST = USER_ERROR  # the largest code: a kernel's code outside OK..LAST is stored as USER_ERROR (runner)
 
 # what an integration (or a tolerance it cannot reach) can end with, for models to declare
 INTEGRATION_FAILURES = (MAX_STEPS, STEP_UNDERFLOW, NONFINITE, NO_EVENT, STIFF, ILL_CONDITIONED)
@@ -72,7 +73,8 @@ DESCRIPTIONS: dict[int, str] = {
                       "claims (or the second integration failed): the value is stored but its trailing digits "
                       "are not meaningful (chaotic or transient-dominated motion)",
     USER_ERROR: "the model's own code raised at this point (an exception in a function of a model declared on "
-                "the model layer, inside the compiled kernel; its message is lost): its outputs are NaN",
+                "the model layer, inside the compiled kernel; its message is lost), or returned a status code "
+                "that is none of these: its outputs are NaN",
 }
 
 DTYPE = np.int8
