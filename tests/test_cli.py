@@ -135,6 +135,22 @@ def test_info_compares_any_two_verdicts_and_says_where_values_are_missing():
     assert "verdicts: ok_a and x" not in text  # x is not a verdict
 
 
+def test_info_cost_of_an_unfinished_run_is_per_computed_point():
+    """Pending points (an interrupted run) took no steps: the mean is over the computed points."""
+    import numpy as np
+
+    from mechsweep import status as st
+    from mechsweep.cli import describe
+
+    ds = _dataset("some_user_model", ["x"])
+    ds["status"][:4] = st.PENDING
+    ds["n_steps"] = ("k", np.array([0, 0, 0, 0, 30, 10]))
+    ds["n_rhs"] = ("k", np.array([0, 0, 0, 0, 300, 100]))
+    assert "cost: 40 steps, 400 rhs evaluations, mean 20.0 steps/point computed (2 of 6)" in describe(ds)
+    ds["status"][:] = st.PENDING
+    assert "no point computed yet" in describe(ds)
+
+
 def test_info_ranges_cover_every_value_also_at_points_whose_status_is_not_ok():
     """The range of an output is over all its finite values: a value at a point whose status is
     not ok (e.g. a multiplier > 1 where another output failed) is shown; the range over the ok

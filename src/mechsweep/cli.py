@@ -817,6 +817,8 @@ def _status_counts(ds) -> dict[str, int]:
 def describe(ds) -> str:
     import numpy as np
 
+    from . import status as st
+
     lines = [f"{ds.attrs.get('title', '?')}  (model {ds.attrs.get('model', '?')})"]
     lines.append("dimensions:")
     for dim in ds.dims:
@@ -857,8 +859,11 @@ def describe(ds) -> str:
         if meaning in notes:
             lines.append(f"  {meaning}: {notes[meaning]}")
     if "n_steps" in ds:
-        lines.append(f"cost: {int(ds['n_steps'].sum())} steps, {int(ds['n_rhs'].sum())} rhs evaluations, "
-                     f"mean {float(ds['n_steps'].mean()):.1f} steps/point")
+        computed = int((ds["status"] != st.PENDING).sum())  # an unfinished run's pending points took no steps
+        mean = f"mean {float(ds['n_steps'].sum()) / computed:.1f} steps/point" if computed else "no point computed yet"
+        if 0 < computed < ds["status"].size:
+            mean += f" computed ({computed} of {ds['status'].size})"
+        lines.append(f"cost: {int(ds['n_steps'].sum())} steps, {int(ds['n_rhs'].sum())} rhs evaluations, {mean}")
         solver = {k[len('solver_'):]: v for k, v in ds.attrs.items() if k.startswith("solver_")}
         lines.append("solver: " + ", ".join(f"{k}={v}" for k, v in solver.items()))
     where = ds.attrs.get("execution") or (f"{ds.attrs['threads']} threads" if "threads" in ds.attrs
