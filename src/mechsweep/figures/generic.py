@@ -603,8 +603,8 @@ def _end_labels(ax, ends):
 
 def _flag_note(ax, n_bad, n_drawn):
     return ax.text(0.01, 0.01, f"{n_bad} point(s) flagged (status not ok), marked ×; drawn where finite: {n_drawn}",
-                   transform=ax.transAxes, fontsize=7, color="0.25", ha="left", va="bottom",
-                   bbox=dict(facecolor="white", alpha=0.7, edgecolor="none", pad=1.0))
+                   transform=ax.transAxes, fontsize=7, color="0.25", ha="left", va="bottom", zorder=5,
+                   bbox=dict(facecolor="white", alpha=0.85, edgecolor="none", pad=1.0))  # above contour labels
 
 
 # ----------------------------------------------------------------------------- whole figures
