@@ -243,6 +243,21 @@ def test_a_criterion_accuracy_below_what_rtol_gives_is_warned_of(in_tmp, capsys,
     assert (bd.accuracy_warning(load_scene(in_tmp / "s.toml")) is not None) == warned
 
 
+@pytest.mark.parametrize("change, warned", [(["ok", "not_oscillatory"], False), (["ok", "undecided"], True)])
+def test_a_status_change_the_model_never_gives_is_warned_of(in_tmp, capsys, change, warned):
+    """duffing lists no 'undecided': a status_change naming it is valid but locates nothing (a
+    docs-only trial got "0 boundaries located", exit 0, no word why): check warns, naming the
+    status and the model's list."""
+    from mechsweep.scene import to_toml
+    scene = {**BASE, "boundaries": {"along": "A", "status_change": change}}
+    (in_tmp / "s.toml").write_text(to_toml(scene))
+    assert main(["check", "s.toml"]) == 0
+    err = capsys.readouterr().err
+    assert ("boundaries.status_change names 'undecided', which model 'duffing' does not list among its "
+            "statuses (" in err) == warned, err
+    assert (bd.status_warning(load_scene(in_tmp / "s.toml")) is not None) == warned
+
+
 def test_an_axis_with_a_refused_value_is_not_also_called_unknown_by_boundaries():
     """One error for one mistake: A's start out of its range is reported; boundaries.along = "A" is
     not also refused as an unknown axis (a docs-only trial got both)."""

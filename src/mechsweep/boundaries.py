@@ -745,11 +745,32 @@ def accuracy_warning(scene) -> str | None:
             "or less, or leave criterion_accuracy out")
 
 
+def status_warning(scene) -> str | None:
+    """Why a ``status_change`` criterion may locate nothing: it names a status the model does not
+    list among those its points can get (``possible_statuses``; a docs-only trial named one and got 0
+    boundaries with no word why). A warning, not a refusal: a model's list may be incomplete."""
+    b = scene.boundaries
+    if b is None or b.criterion is not None or b.status_change is None:
+        return None
+    listed = {st.MEANINGS[c] for c in scene.model.possible_statuses()}
+    missing = [name for name in b.status_change if name not in listed]
+    if not missing:
+        return None
+    return (f"boundaries.status_change names {', '.join(repr(m) for m in missing)}, which model "
+            f"{scene.model.name!r} does not list among its statuses ({', '.join(sorted(listed))}): "
+            "there may be no such boundary to locate")
+
+
+def warnings_for(scene) -> list[str]:
+    """What a [boundaries] section may get wrong without being invalid (accuracy, statuses)."""
+    return [text for text in (accuracy_warning(scene), status_warning(scene)) if text]
+
+
 def run_boundaries(scene_or_path, *, data=None, output=None, threads=None, progress=False, warn=True):
     """The scene's [boundaries] pass: its grid (computed, or completed with resume, unless finished),
     then the located boundaries, written atomically to ``output`` (default: DATA.boundaries.h5).
     The grid's dataset is only read. Returns (path written, the boundaries Dataset). ``warn``: a
-    UserWarning when ``accuracy_warning`` has something to say (the CLI prints it itself)."""
+    UserWarning for each of ``warnings_for`` (the CLI prints them itself)."""
     from .errors import InputError
     from .runner import _threads, compute
     from .scene import Scene, load_scene
@@ -759,8 +780,7 @@ def run_boundaries(scene_or_path, *, data=None, output=None, threads=None, progr
     if scene.boundaries is None:
         raise InputError(f"scene {scene.name!r} has no [boundaries] section; add one, e.g. "
                          "[boundaries] along = \"AXIS\", criterion = \"OUTPUT\", level = 1.0")
-    text = accuracy_warning(scene)
-    if text and warn:
+    for text in warnings_for(scene) if warn else ():
         import warnings
         warnings.warn(text, UserWarning, stacklevel=2)
     data = Path(data if data is not None else scene.storage.path)

@@ -229,10 +229,10 @@ def _parser() -> argparse.ArgumentParser:
                        description="Locate where a criterion crosses its level (or the status changes) along one "
                                    "axis, for every combination of the other axes: bracketed on the scene's grid "
                                    "(computed first, or completed, unless its dataset is finished), refined to "
-                                   "[boundaries] rtol. Writes DATA.boundaries.h5 (atomically; the grid's dataset is "
-                                   "only read). See docs/boundaries.md.")
+                                   "[boundaries] rtol. Writes NAME.boundaries.h5 beside the grid's dataset NAME.h5 "
+                                   "(atomically; the dataset is only read). See docs/boundaries.md.")
     p.add_argument("scene", metavar="SCENE", help="scene TOML file with a [boundaries] section")
-    p.add_argument("-o", "--output", metavar="PATH", help="output file (default: DATA.boundaries.h5)")
+    p.add_argument("-o", "--output", metavar="PATH", help="output file (default: NAME.boundaries.h5 beside the dataset NAME.h5)")
     p.add_argument("--data", metavar="DATA", help="the grid's dataset (default: [storage] path of the scene)")
     p.add_argument("--threads", type=int, metavar="N", help="numba threads (default: all cores)")
     p.add_argument("--no-progress", action="store_true", help="do not show the progress bar of the grid")
@@ -275,12 +275,11 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_boundaries(args) -> int:
-    from .boundaries import BAND_EDGE, BOUND_MEANINGS, accuracy_warning, run_boundaries
+    from .boundaries import BAND_EDGE, BOUND_MEANINGS, run_boundaries, warnings_for
     from .scene import load_scene
 
     scene = load_scene(args.scene)
-    text = accuracy_warning(scene)
-    if text:
+    for text in warnings_for(scene):
         print(f"mechsweep boundaries: warning: {text}", file=sys.stderr)
     path, ds = run_boundaries(scene, data=args.data, output=args.output, threads=args.threads,
                               progress=False if args.no_progress else None, warn=False)
@@ -794,9 +793,8 @@ def _cmd_check(args) -> int:
             s = load_scene(path)
             print(f"{path}: ok ({s.model.name}, {s.n_points} points, outputs {', '.join(s.outputs)})")
             if s.boundaries is not None:
-                from .boundaries import accuracy_warning
-                text = accuracy_warning(s)
-                if text:
+                from .boundaries import warnings_for
+                for text in warnings_for(s):
                     print(f"{path}: warning: {text}", file=sys.stderr)
         except SceneError as exc:
             bad += 1
