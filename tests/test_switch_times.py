@@ -203,3 +203,33 @@ def test_a_model_with_switch_times_takes_no_simd_lanes():
     assert lanes.applies(switched.SWITCHED, first, "dop853") is None
     assert trajectory.lane_rhs_for(switched.UNDECLARED, "dop853") is not None
     assert trajectory.lane_rhs_for(switched.SWITCHED, "dop853") is None
+
+
+def test_a_raise_on_the_switch_route_is_diagnosed():
+    """A point whose switch_times raises, or whose rhs raises only past a switch (tests/user_models/
+    switch_raises.py, k = 2 and k = 1), gets USER_ERROR; the plain-Python replay (model/diagnose.py)
+    follows the solvers' route (switch_times before the first rhs call, the rhs just after each
+    switch) and names the exception, the file and the line. One small kernel."""
+    import warnings
+
+    import switch_raises
+    from mechsweep.errors import UserModelWarning
+    from mechsweep.model import ode
+    from mechsweep.model.diagnose import explain
+
+    model = switch_raises.RAISES
+    sp = model.spec(origin=str(HERE / "user_models" / "switch_raises.py"), module="switch_raises", attr="RAISES")
+    P = np.array([[0.0], [1.0], [2.0]])
+    ode._EXPLAINED.clear()  # warned once per cause in a process
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        out, status, _, _ = evaluate(sp, P, ["x_end"], rtol=1e-8, atol=1e-10)
+    assert status.tolist() == [st.OK, st.USER_ERROR, st.USER_ERROR]
+    assert abs(out["x_end"][0] - exact(1.0, 0.5, 4.0)[0]) < 1e-6
+    file = str(HERE / "user_models" / "switch_raises.py")
+    why = [str(w.message) for w in seen if issubclass(w.category, UserModelWarning)]
+    assert len(why) == 1 and "first seen at k = 1: rhs just after the switch at t = 1.5708" in why[0], why
+    assert f"raised ValueError: no stiffness table for the negative piece ({file}, line 13, in rhs)" in why[0]
+    assert explain(model, P[2], np.zeros(0), 1e-8) == (
+        f"switch_times raised ValueError: switch times undefined for k = 2 ({file}, line 29, in switch_times)")
+    assert explain(model, P[0], np.zeros(0), 1e-8).startswith("no exception in plain Python")
