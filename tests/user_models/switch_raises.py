@@ -1,10 +1,11 @@
 """A user model for tests/test_switch_times.py whose own code raises only on the switch-times route,
 at points the load-time probe (k = 0, the default) does not reach: x'' + (1 + 0.5 sign(cos t)) x = 0
 from x = 1, v = 0, switches at pi/2 and 3 pi/2. k = 1: the rhs raises past the switch at pi/2 (in
-the piece where cos t < 0) and nowhere at t = 0; k = 2: switch_times raises."""
+the piece where cos t < 0) and nowhere at t = 0; k = 2: switch_times raises. x_end on the one-point
+kernel (compile.py), x_hist on the sampled trajectory (trajectory.py)."""
 import math
 
-from mechsweep.model import OdeModel, Param, StateAt
+from mechsweep.model import History, OdeModel, Param, StateAt
 
 
 def rhs(t, y, p, dydt):
@@ -34,4 +35,4 @@ RAISES = OdeModel(
     name="switch_raises", description="square-wave stiffness; rhs raises past a switch (k = 1), switch_times (k = 2)",
     params=(Param("k", "k", "1", "which part raises (0: none)", lo=0.0, hi=2.0, default=0.0),),
     states=("x", "v"), rhs=rhs, initial=initial, forcing_period=forcing_period, switch_times=switch_times,
-    measurements=(StateAt("x_end", "x", t=4.0),))
+    measurements=(StateAt("x_end", "x", t=4.0), History("x_hist", of="x", horizon=1.0, samples=3)))
