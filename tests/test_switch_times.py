@@ -233,7 +233,8 @@ def test_a_raise_on_the_switch_route_is_diagnosed(output):
     assert np.isnan(out[output][1:]).all()
     file = str(HERE / "user_models" / "switch_raises.py")
     lines = Path(file).read_text().splitlines()
-    at = {word: 1 + next(j for j, x in enumerate(lines) if f'raise ValueError("{word}' in x) for word in ("no", "switch")}
+    at = {word: 1 + next(j for j, x in enumerate(lines) if f'raise ValueError("{word}' in x)
+          for word in ("no", "switch")}
     why = [str(w.message) for w in seen if issubclass(w.category, UserModelWarning)]
     assert len(why) == 1 and "first seen at k = 1: rhs just after the switch at t = 1.5708" in why[0], why
     assert f"raised ValueError: no stiffness table for the negative piece ({file}, line {at['no']}, in rhs)" in why[0]
