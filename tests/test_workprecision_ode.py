@@ -234,6 +234,7 @@ def test_the_reference_steps_onto_a_models_switch_times():
     err = {}
     for name in ("SWITCHED", "UNDECLARED"):
         ref = wo.OdeReference(wo.declaration(f"{USER / 'switched.py'}:{name}"), "x_end")
+        assert ref.reference_name.endswith("restarted at each of its switch times") == (name == "SWITCHED")
         at = np.array([ref.value(row, "DOP853", 1e-10, 1e-12)[0] for row in P])
         err[name] = (np.abs(ref.reference(P) - x10).max(), np.abs(at - x10).max())
         floquet = wo.OdeReference(wo.declaration(f"{USER / 'switched.py'}:{name}_JAC"), "mu")

@@ -146,7 +146,8 @@ class OdeReference:
         jac = "the model's jac" if self._jac is not None else "central differences of the model's rhs"
         self.reference_name = (f"scipy DOP853 at rtol {REFERENCE_RTOL:g}, atol {REFERENCE_ATOL:g}, on the model's "
                                "own rhs" + (f" (variational equations with {jac})"
-                                            if isinstance(chosen, ms.Floquet) else ""))
+                                            if isinstance(chosen, ms.Floquet) else "")
+                               + (", restarted at each of its switch times" if model.switch_times is not None else ""))
 
     # ------------------------------------------------------------------ the model's own functions
     def f(self, p):
