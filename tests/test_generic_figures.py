@@ -122,6 +122,25 @@ def test_model_figures_follow_the_model_attribute_not_variable_names():
     assert list(figures.on_request(ds)) == ["curve_other"]
 
 
+def test_declared_outputs_are_read_by_one_helper_for_grid_and_history_outputs():
+    """generic.declared_floats reads the run's ``outputs`` attribute for float_outputs (over the grid)
+    and history_outputs (one extra dimension at a one-point grid) alike: the runner's space-separated
+    text, bytes (an HDF5 attribute written by another tool) or a list of names; undeclared and
+    non-float variables are left out, the declared order kept. No drawing."""
+    s = np.linspace(0.0, 2.0, 5)
+    ds = xr.Dataset({"x_hist": (("w", "period"), np.ones((1, 5))), "x_end": ("w", [1.0]), "extra": ("w", [2.0]),
+                     "status": ("w", np.zeros(1, np.int8))}, coords={"w": ("w", [1.0]), "period": ("period", s)})
+    for declared in ("x_hist x_end status", b"x_hist x_end status", ["x_hist", "x_end", "status"],
+                     np.array([b"x_hist", b"x_end", b"status"])):
+        ds.attrs["outputs"] = declared
+        assert generic.declared_floats(ds) == ["x_hist", "x_end"], declared
+        assert generic.float_outputs(ds) == ["x_end"], declared
+        assert generic.history_outputs(ds) == [("x_hist", "period")], declared
+    del ds.attrs["outputs"]  # none declared: every float variable
+    assert generic.float_outputs(ds) == ["x_end", "extra"]
+    assert generic.history_outputs(ds) == [("x_hist", "period")]
+
+
 def test_the_generic_figure_code_names_no_model_and_no_variable():
     """The front and the generic modules hold no built-in model's name, parameter or output; only the
     figure modules for a model (duffing.py, ...) do."""

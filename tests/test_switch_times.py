@@ -203,3 +203,42 @@ def test_a_model_with_switch_times_takes_no_simd_lanes():
     assert lanes.applies(switched.SWITCHED, first, "dop853") is None
     assert trajectory.lane_rhs_for(switched.UNDECLARED, "dop853") is not None
     assert trajectory.lane_rhs_for(switched.SWITCHED, "dop853") is None
+
+
+@pytest.mark.parametrize("output", [pytest.param("x_end", marks=pytest.mark.slow), "x_hist"])  # a compile each
+def test_a_raise_on_the_switch_route_is_diagnosed(output):
+    """A point whose switch_times raises, or whose rhs raises only past a switch (tests/user_models/
+    switch_raises.py, k = 2 and k = 1), gets USER_ERROR on the one-point kernel (x_end) and on the
+    sampled trajectory (x_hist: its guarded rhs's NaN made it NONFINITE, undiagnosed); the plain-Python
+    replay (model/diagnose.py) follows the solvers' route (switch_times before the first rhs call, the
+    rhs just after each switch) and names the exception, the file and the line. One small kernel each
+    (about 15 s of compile on 2 cores: the one-point kernel's case is slow)."""
+    import warnings
+
+    import switch_raises
+    from mechsweep.errors import UserModelWarning
+    from mechsweep.model import ode
+    from mechsweep.model.diagnose import explain
+
+    model = switch_raises.RAISES
+    sp = model.spec(origin=str(HERE / "user_models" / "switch_raises.py"), module="switch_raises", attr="RAISES")
+    P = np.array([[0.0], [1.0], [2.0]])
+    ode._EXPLAINED.clear()  # warned once per cause in a process
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        out, status, _, _ = evaluate(sp, P, [output], rtol=1e-8, atol=1e-10)
+    assert status.tolist() == [st.OK, st.USER_ERROR, st.USER_ERROR]
+    times = [4.0] if output == "x_end" else [0.0, T / 2, T]
+    assert np.abs(np.ravel(out[output][0]) - [exact(1.0, 0.5, t)[0] for t in times]).max() < 1e-6
+    assert np.isnan(out[output][1:]).all()
+    file = str(HERE / "user_models" / "switch_raises.py")
+    lines = Path(file).read_text().splitlines()
+    at = {word: 1 + next(j for j, x in enumerate(lines) if f'raise ValueError("{word}' in x)
+          for word in ("no", "switch")}
+    why = [str(w.message) for w in seen if issubclass(w.category, UserModelWarning)]
+    assert len(why) == 1 and "first seen at k = 1: rhs just after the switch at t = 1.5708" in why[0], why
+    assert f"raised ValueError: no stiffness table for the negative piece ({file}, line {at['no']}, in rhs)" in why[0]
+    assert explain(model, P[2], np.zeros(0), 1e-8) == (
+        f"switch_times raised ValueError: switch times undefined for k = 2 ({file}, line {at['switch']}, "
+        "in switch_times)")
+    assert explain(model, P[0], np.zeros(0), 1e-8).startswith("no exception in plain Python")

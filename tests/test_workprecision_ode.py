@@ -216,3 +216,28 @@ def test_a_work_precision_declaration_is_checked_when_the_model_is_declared():
                         ("period", "workprecision must be a mechsweep.model.WorkPrecision")):
         with pytest.raises(ValueError, match=match):
             OdeModel(**base, workprecision=decl)
+
+
+def test_the_reference_steps_onto_a_models_switch_times():
+    """Square-wave stiffness x'' + (delta + eps sign(cos t)) x = 0 (tests/user_models/switched.py),
+    exact by 2 x 2 matrix exponentials of the segments: with the declared switch times every scipy
+    run is restarted at each switch as the engine's, so x(10) by DOP853 at rtol 1e-10 is within
+    ~1e-10 (measured 1.5e-10) and the reference (rtol 1e-13) within 1e-12 (1.6e-13); the same
+    equation without them: 6.9e-9 and 8.9e-12. The Floquet reference with the exact jac: 3.1e-13
+    relative against 4.3e-12 (its central differences would bound both near 1e-10)."""
+    from .test_switch_times import ROWS, _M, exact
+
+    P = np.column_stack([ROWS, np.zeros(len(ROWS))])
+    x10 = np.array([exact(d, e, 10.0)[0] for d, e, _ in P])
+    mu = np.array([max(abs(np.linalg.eigvals(_M(d + e, 0.5 * math.pi) @ _M(d - e, math.pi) @ _M(d + e, 0.5 * math.pi))))
+                   for d, e, _ in P])
+    err = {}
+    for name in ("SWITCHED", "UNDECLARED"):
+        ref = wo.OdeReference(wo.declaration(f"{USER / 'switched.py'}:{name}"), "x_end")
+        assert ref.reference_name.endswith("restarted at each of its switch times") == (name == "SWITCHED")
+        at = np.array([ref.value(row, "DOP853", 1e-10, 1e-12)[0] for row in P])
+        err[name] = (np.abs(ref.reference(P) - x10).max(), np.abs(at - x10).max())
+        floquet = wo.OdeReference(wo.declaration(f"{USER / 'switched.py'}:{name}_JAC"), "mu")
+        err[name] += (np.abs(floquet.reference(P) / mu - 1.0).max(),)
+    assert err["SWITCHED"][0] < 1e-12 and err["SWITCHED"][1] < 3e-10 and err["SWITCHED"][2] < 1e-12, err
+    assert err["UNDECLARED"][0] > 3e-12 and err["UNDECLARED"][1] > 3e-9 and err["UNDECLARED"][2] > 2e-12, err

@@ -1,6 +1,7 @@
 """A square-wave stiffness oscillator x'' + (delta + eps sign(cos t)) x = 0 from x = 1, v = 0: the
 rhs jumps at t = pi/2 and 3 pi/2 of each period 2 pi. SWITCHED declares those switch times
-(OdeModel(switch_times=...), model/switches.py), UNDECLARED is the same equation without them.
+(OdeModel(switch_times=...), model/switches.py), UNDECLARED is the same equation without them;
+SWITCHED_JAC and UNDECLARED_JAC the same two with the exact Jacobian.
 Its exact solution is a product of 2 x 2 closed-form matrices (tests/test_switch_times.py)."""
 import math
 
@@ -12,6 +13,15 @@ def rhs(t, y, p, dydt):
     s = 1.0 if ct > 0.0 else (-1.0 if ct < 0.0 else 0.0)
     dydt[0] = y[1]
     dydt[1] = -(p[0] + p[1] * s) * y[0]
+
+
+def jac(t, y, p, J):  # exact (the Floquet references of tests/test_workprecision_ode.py: no difference quotients)
+    ct = math.cos(t)
+    s = 1.0 if ct > 0.0 else (-1.0 if ct < 0.0 else 0.0)
+    J[0, 0] = 0.0
+    J[0, 1] = 1.0
+    J[1, 0] = -(p[0] + p[1] * s)
+    J[1, 1] = 0.0
 
 
 def initial(p, y0):
@@ -51,3 +61,6 @@ SWITCHED = OdeModel(name="switched", description="square-wave stiffness, switch 
 SWITCHED_FN = OdeModel(name="switched_fn", description="square-wave stiffness, switch times as a function",
                        switch_times=switch_times, **COMMON)
 UNDECLARED = OdeModel(name="undeclared", description="square-wave stiffness, switch times not declared", **COMMON)
+SWITCHED_JAC = OdeModel(name="switched_jac", description="SWITCHED with its Jacobian",
+                        switch_times=(0.5 * math.pi, 1.5 * math.pi), jac=jac, **COMMON)
+UNDECLARED_JAC = OdeModel(name="undeclared_jac", description="UNDECLARED with its Jacobian", jac=jac, **COMMON)

@@ -19,6 +19,12 @@ tools (events, dense output, the variational equations), so nothing is copied by
   its rhs (step cbrt(eps) max(1, |y_j|): exact for an rhs linear in y, otherwise ~1e-10 relative,
   which then bounds the reference), absolute error.
 
+A model that declares ``switch_times`` (model/switches.py) is integrated as the engine does: from
+switch to switch, ``solve_ivp`` restarted at each (its first step chosen again), the time passed to the
+rhs (and jac) kept about ten ulps inside the segment (switches.SIDE); a point whose switch times are
+not increasing times in [0, T) is refused (NaN: the engine's INFEASIBLE). solve_ivp has no stops of
+its own: a jump inside a step would cost the reference (and every scipy run) its accuracy.
+
 Every point's ``p`` is laid out as the engine's (parameters, the scene's settings, internal slots);
 the model's ``classify(p)`` and ``prepare(p, rtol)`` run first (not OK: NaN, as the engine's
 point would be). Radau and LSODA get the model's ``jac`` where it declares one (else scipy's
@@ -140,7 +146,8 @@ class OdeReference:
         jac = "the model's jac" if self._jac is not None else "central differences of the model's rhs"
         self.reference_name = (f"scipy DOP853 at rtol {REFERENCE_RTOL:g}, atol {REFERENCE_ATOL:g}, on the model's "
                                "own rhs" + (f" (variational equations with {jac})"
-                                            if isinstance(chosen, ms.Floquet) else ""))
+                                            if isinstance(chosen, ms.Floquet) else "")
+                               + (", restarted at each of its switch times" if model.switch_times is not None else ""))
 
     # ------------------------------------------------------------------ the model's own functions
     def f(self, p):
@@ -173,7 +180,91 @@ class OdeReference:
             return None
         if self._system and "prepare" in self._fn and self._fn["prepare"](p, rtol) != st.OK:
             return None
+        if self.model.switch_times is not None and self._switches(p) is None:
+            return None
         return p
+
+    def _switches(self, p):
+        """(T, switch times in [0, T)) at ``p``, or None where the engine's check refuses them
+        (switches.switch_check: INFEASIBLE)."""
+        plain = lambda f: getattr(f, "py_func", f)  # noqa: E731
+        T = float(plain(self.model.forcing_period)(p))
+        sw = self.model.switch_times
+        times = tuple(float(x) for x in (plain(sw)(p) if callable(sw) else sw))
+        if not (math.isfinite(T) and T > 0.0 and times and all(math.isfinite(x) and 0.0 <= x < T for x in times)
+                and all(a < b for a, b in zip(times, times[1:]))):
+            return None
+        return T, times
+
+    def _cuts(self, p, t_end):
+        """The switch instants k T + b inside (0, t_end), increasing (the engine's next_switch: the
+        same sum (k T) + b)."""
+        if self.model.switch_times is None:
+            return []
+        T, times = self._switches(p)
+        out = []
+        k = 0.0
+        while k * T < t_end:
+            out += [k * T + b for b in times if 0.0 < k * T + b < t_end]
+            k += 1.0
+        return out
+
+    def _integrate(self, p, fun, t_end, y0, method, rtol, atol, jac=None, events=None, dense_output=False):
+        """solve_ivp of ``fun`` from (0, y0) to t_end; with the model's switch times, from switch to
+        switch (a restart at each, the time passed to ``fun``/``jac`` kept inside the segment as the
+        engine's), the segments' results joined into one result of the fields the callers read (t, y,
+        nfev, status, t_events, y_events, sol). Without switch times the one solve_ivp call as before."""
+        from scipy.integrate import solve_ivp
+
+        kw = {} if jac is None else {"jac": jac}
+        if events is not None:
+            kw["events"] = events
+        if dense_output:
+            kw["dense_output"] = True
+        cuts = self._cuts(p, t_end)
+        if not cuts:
+            return solve_ivp(fun, (0.0, t_end), y0, method=method, rtol=rtol, atol=atol, **kw)
+        from types import SimpleNamespace
+
+        from ..model.switches import SIDE
+        ends = cuts + [t_end]
+        y = np.asarray(y0, dtype=np.float64)
+        ts, te, ye, pieces = [0.0], [], [], []
+        nfev, status = 0, 0
+        need = getattr(events, "terminal", 0) if events is not None else 0
+        for j, b in enumerate(ends):
+            a = 0.0 if j == 0 else ends[j - 1]
+            lo = -math.inf if j == 0 else a + SIDE * abs(a)  # the start itself is not moved
+            hi = b - SIDE * abs(b) if j < len(cuts) else math.inf
+
+            def f(t, z, lo=lo, hi=hi):
+                return fun(min(max(t, lo), hi), z)
+            seg = dict(kw)
+            if jac is not None:
+                seg["jac"] = lambda t, z, lo=lo, hi=hi: jac(min(max(t, lo), hi), z)
+            if events is not None:
+                ev = lambda t, z: events(t, z)  # noqa: E731 - the same event, its count what is left
+                ev.direction = getattr(events, "direction", 0.0)
+                ev.terminal = need - len(te) if need else False
+                seg["events"] = ev
+            sol = solve_ivp(f, (a, b), y, method=method, rtol=rtol, atol=atol, **seg)
+            nfev += sol.nfev
+            ts += list(sol.t[1:])
+            if events is not None:
+                te += list(sol.t_events[0])
+                ye += list(sol.y_events[0])
+            if dense_output and sol.sol is not None:
+                pieces.append((a, sol.sol))
+            status = sol.status
+            y = sol.y[:, -1]
+            if status != 0:
+                break
+        starts = [a for a, _ in pieces]
+
+        def dense(t):
+            return pieces[max(0, int(np.searchsorted(starts, t, side="right")) - 1)][1](t)
+        return SimpleNamespace(t=np.array(ts), y=y[:, None], nfev=nfev, status=status, t_events=[np.array(te)],
+                               y_events=[np.array(ye)], sol=dense if dense_output else None)
 
     def _jac_kw(self, p, method):
         """scipy's jac= for Radau and LSODA: the model's own where it declares one."""
@@ -212,10 +303,8 @@ class OdeReference:
         return self._floquet(p, method, rtol, atol)
 
     def _solve(self, p, t_end, method, rtol, atol, **kw):
-        from scipy.integrate import solve_ivp
-
-        return solve_ivp(self.f(p), (0.0, t_end), self.y0(p), method=method, rtol=rtol, atol=atol,
-                         **self._jac_kw(p, method), **kw)
+        return self._integrate(p, self.f(p), t_end, self.y0(p), method, rtol, atol,
+                               jac=self._jac_kw(p, method).get("jac"), **kw)
 
     def _first_event(self, p, method, rtol, atol):
         """One pass; where the measurement declares ``refine``, its factor f decides as in the engine:
@@ -317,8 +406,6 @@ class OdeReference:
         return float(s * max(candidates)), sol.nfev, sol.t.size - 1
 
     def _floquet(self, p, method, rtol, atol):
-        from scipy.integrate import solve_ivp
-
         n = self.n
         T = float(getattr(self.model.forcing_period, "py_func", self.model.forcing_period)(p))
         if not (math.isfinite(T) and T > 0):
@@ -353,7 +440,7 @@ class OdeReference:
         if "initial" in self._fn:  # the orbit's own start (Floquet's initial), not the model's initial state
             self._fn["initial"](p, y0)
         z0 = np.concatenate([y0, np.eye(n).ravel()])
-        sol = solve_ivp(f, (0.0, T), z0, method=method, rtol=rtol, atol=atol)
+        sol = self._integrate(p, f, T, z0, method, rtol, atol)
         if sol.status != 0:
             return math.nan, sol.nfev, sol.t.size - 1
         mono = sol.y[n:, -1].reshape(n, n)

@@ -80,13 +80,26 @@ def is_log(ds, dim) -> bool:
     return ds[dim].attrs.get("spacing") == "log" and bool((np.asarray(ds[dim].values, dtype=float) > 0).all())
 
 
+def declared_floats(ds) -> list[str]:
+    """The float data variables among the run's declared outputs, in declared order: the ``outputs``
+    attribute (the names separated by spaces, as the runner writes it; bytes, as an HDF5 file written
+    by another tool may give it, decoded; or a list of names), every data variable when there is none.
+    What float_outputs and history_outputs select from."""
+    declared = ds.attrs.get("outputs")
+    if isinstance(declared, bytes):
+        declared = declared.decode(errors="replace")
+    if declared is None or isinstance(declared, str):
+        names = declared.split() if declared else list(ds.data_vars)
+    else:  # a list or array of names
+        names = [x.decode(errors="replace") if isinstance(x, bytes) else str(x) for x in np.ravel(declared)]
+    return [n for n in names if n in ds.data_vars and ds[n].dtype.kind == "f"]
+
+
 def float_outputs(ds) -> list[str]:
     """Float outputs defined over the grid only: the run's declared ``outputs`` attribute (every
     float data variable when there is none), in declared order."""
-    declared = ds.attrs.get("outputs")
-    names = str(declared).split() if declared else list(ds.data_vars)
     grid = set(grid_dims(ds))
-    return [n for n in names if n in ds.data_vars and ds[n].dtype.kind == "f" and set(ds[n].dims) <= grid]
+    return [n for n in declared_floats(ds) if set(ds[n].dims) <= grid]
 
 
 def _axes(ds, name) -> list[str]:
@@ -172,12 +185,8 @@ def history_outputs(ds) -> list[tuple[str, str]]:
     grid = set(grid_dims(ds))
     if any(ds.sizes[d] > 1 for d in grid):
         return []
-    declared = ds.attrs.get("outputs")
-    names = str(declared).split() if declared else list(ds.data_vars)
     found = []
-    for n in names:
-        if n not in ds.data_vars or ds[n].dtype.kind != "f":
-            continue
+    for n in declared_floats(ds):
         extra = [d for d in ds[n].dims if d not in grid]
         if len(extra) == 1 and extra[0] in ds.coords and is_numeric(ds, extra[0]) and ds.sizes[extra[0]] > 1:
             found.append((n, extra[0]))

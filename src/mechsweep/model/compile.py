@@ -26,6 +26,7 @@ The kernel (one per choice; see docs/model-layer.md):
 """
 from __future__ import annotations
 
+import ast
 import hashlib
 import importlib.util
 import os
@@ -588,24 +589,56 @@ def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs, fir
     return "".join(lines)
 
 
-_GUARD_BLOCK = re.compile(r"^@jit_internal\ndef (\w+)\(([^)]*)\):\n    try:\n((?:        .*\n)+?)    except Exception:\n"
-                          r"(?:        .*\n)+", re.M)
+def strip_guards(source: str, decorator: str | None = None) -> str:
+    """``source`` (generated module code) with every guard's ``try`` taken out: a top-level function whose
+    body is one ``try: ... except Exception: ...`` (after comments or a docstring, which stay) keeps the
+    body of its try, dedented, and loses the handler; ``decorator`` (e.g. ``"@jit_into_caller"``) then
+    replaces its decorator line(s). The one mechanism behind the one-point module's _one_try and
+    model/switches.py's ``source(guarded=False)``. It reads the parsed module (ast), not a pattern of the
+    text: a comment or docstring before the try, a blank line or a comment inside it, a comment on the
+    ``except`` line are no special cases (each of the two regexes it replaced missed some of them).
+    ValueError where a ``try`` is left that is not such a guard (code after the handler, another handler,
+    else/finally, a try nested in other code): the caller would otherwise keep a try it meant to remove."""
+    lines = source.splitlines(keepends=True)
+    edits = []  # (first line, end line (0-based, exclusive), replacement lines), in source order
+    for node in ast.parse(source).body:
+        if not isinstance(node, ast.FunctionDef):
+            continue
+        body = node.body
+        if (len(body) == 2 and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant)
+                and isinstance(body[0].value.value, str)):
+            body = body[1:]  # after the docstring
+        if len(body) != 1 or not isinstance(body[0], ast.Try):
+            continue
+        guard = body[0]
+        if (len(guard.handlers) != 1 or guard.orelse or guard.finalbody or guard.handlers[0].name is not None
+                or not isinstance(guard.handlers[0].type, ast.Name) or guard.handlers[0].type.id != "Exception"):
+            continue
+        cut = guard.body[0].col_offset - guard.col_offset
+        kept = [line[cut:] if line.startswith(" " * cut) else line.lstrip(" ")
+                for line in lines[guard.lineno:guard.handlers[0].lineno - 1]]
+        edits.append((guard.lineno - 1, node.end_lineno, kept))
+        if decorator is not None and node.decorator_list:
+            edits.append((node.decorator_list[0].lineno - 1, node.lineno - 1, [decorator + "\n"]))
+    for first, end, new in sorted(edits, reverse=True):
+        lines[first:end] = new
+    out = "".join(lines)
+    left = [n.lineno for n in ast.walk(ast.parse(out)) if isinstance(n, ast.Try)]
+    if left:
+        raise ValueError(f"a try that is not a guard (a function's whole body: try, one except Exception) at "
+                         f"line(s) {left} of the generated code")
+    return out
 
 
 def _one_try(source: str) -> str:
-    """The one-point module's guards (_GUARD, _guard_call: a model function's call in a ``try``) as plain
-    calls that numba inlines into their callers (``jit_into_caller``): the kernel catches an exception once
-    per point, around ``point`` (a function of its own: numba's try does not catch a raise inlined into its
-    own body). numba types and lowers a ``try`` with every operation of its body split off to test for an
-    exception: a guard of a one-line function cost about 0.1 s of compile CPU, the same function without
-    the ``try`` 0.02 s (2026-11-24, a session measurement); the quickstart's module had 14 guards."""
-    def plain(m):
-        body = "".join(line[4:] + "\n" for line in m.group(3).splitlines())
-        return f"@jit_into_caller\ndef {m.group(1)}({m.group(2)}):\n{body}"
-
-    out = _GUARD_BLOCK.sub(plain, source)
-    assert "    try:\n" not in out, "a guard of the one-point module that _GUARD_BLOCK does not match"
-    return out
+    """The one-point module's guards (_GUARD, _guard_call, switches.source: a model function's call in a
+    ``try``) as plain calls that numba inlines into their callers (``jit_into_caller``; strip_guards): the
+    kernel catches an exception once per point, around ``point`` (a function of its own: numba's try does
+    not catch a raise inlined into its own body). numba types and lowers a ``try`` with every operation of
+    its body split off to test for an exception: a guard of a one-line function cost about 0.1 s of
+    compile CPU, the same function without the ``try`` 0.02 s (2026-11-24, a session measurement); the
+    quickstart's module had 14 guards."""
+    return strip_guards(source, "@jit_into_caller")
 
 
 def _nth_root_source(name: str, ctor: str, event: str, n: int, symplectic: bool, since: int = 0) -> str:

@@ -2,15 +2,22 @@
 Python. The compiled guards only flag the point (numba keeps no exception object in a parallel
 loop); the replay runs what happens first at the point, in order: classify, prepare, initial, the
 right-hand side and Jacobian at t = 0, the forcing period, each measurement's horizon and its
-event at t = 0, and the closed forms that need no measurement. The first exception gives its type,
-message, and the file and line in the model's code. Code reached only later in the integration
-(at t > 0, in a refinement, or in a formula of measured values) is not replayed: the answer then
-says so."""
+event at t = 0, and the closed forms that need no measurement. A model with switch times
+(model/switches.py) is replayed on the route its solvers take: the forcing period and its
+``switch_times(p)`` before the first rhs call (what every solver's ``switch_check`` calls), then the
+rhs and Jacobian at t = 0 and at the start of each segment of the first forcing period (just after
+each switch, at the time the solvers pass there), with the initial state (the state at the switch is
+not integrated here). The first exception gives its type, message, and the file and line in the
+model's code. Code reached only later in the integration (at t > 0 elsewhere, in a refinement, or
+in a formula of measured values) is not replayed: the answer then says so."""
 from __future__ import annotations
 
+import math
 import traceback
 
 import numpy as np
+
+from .switches import SIDE
 
 SCRATCH = 64  # zero slots beyond the declared ones: a function that reads past them gets zeros
 
@@ -29,6 +36,21 @@ def _where(exc: BaseException) -> str:
     return f"{f.filename}, line {f.lineno}, in {f.name}"
 
 
+def _switches(model, p) -> tuple:
+    """The switch times of the first forcing period at ``p`` the solvers would step onto, or () where
+    the kernel's check refuses them (INFEASIBLE: no switch is reached) or their code raises (the
+    replay calls it first and reports that)."""
+    try:
+        T = float(_py(model.forcing_period)(p))
+        sw = model.switch_times
+        times = [float(x) for x in (_py(sw)(p) if callable(sw) else sw)]
+    except Exception:  # noqa: BLE001 - reported by the replay's own call
+        return ()
+    ok = (math.isfinite(T) and T > 0.0 and times and all(math.isfinite(x) and 0.0 <= x < T for x in times)
+          and all(a < b for a, b in zip(times, times[1:])))
+    return tuple(x for x in times if x > 0.0) if ok else ()  # a switch at 0 is the start: not moved
+
+
 def _calls(model, p, y0, rtol):
     """(what, thunk) in the order the kernel meets them."""
     n = len(model.states)
@@ -39,10 +61,23 @@ def _calls(model, p, y0, rtol):
     if model.prepare is not None:
         out.append(("prepare", lambda: _py(model.prepare)(p, rtol)))
     out.append(("initial", lambda: _py(model.initial)(p, y0)))
+    switched = getattr(model, "switch_times", None) is not None
+    if switched:  # every solver checks the switch times before its first rhs call (switches.switch_check)
+        out.append(("forcing_period", lambda: _py(model.forcing_period)(p)))
+        if callable(model.switch_times):
+            out.append(("switch_times", lambda: _py(model.switch_times)(p)))
     out.append(("rhs at t = 0", lambda: _py(model.rhs)(0.0, y0, p, dydt)))
     if model.jac is not None:
         out.append(("jac at t = 0", lambda: _py(model.jac)(0.0, y0, p, J)))
-    if model.forcing_period is not None:
+    if switched:
+        for b in _switches(model, p):
+            t = b + SIDE * abs(b)  # where the solvers evaluate the segment that starts at the switch b
+            out.append((f"rhs just after the switch at t = {b:g} (t = {t!r}, with the initial state)",
+                        lambda t=t: _py(model.rhs)(t, y0, p, dydt)))
+            if model.jac is not None:
+                out.append((f"jac just after the switch at t = {b:g} (t = {t!r}, with the initial state)",
+                            lambda t=t: _py(model.jac)(t, y0, p, J)))
+    elif model.forcing_period is not None:
         out.append(("forcing_period", lambda: _py(model.forcing_period)(p)))
     for m in model.measurements:
         roles = dict(getattr(m, "functions", lambda: ())())

@@ -450,6 +450,8 @@ class OdeModel:
                     evaluate(P, tuple(rest), solver, out, status, n_steps, n_rhs)
                 code = before.copy()
                 trajectory.evaluate(model, sampled, P, wanted, solver, out, code, n_steps, n_rhs)
+                S = np.array([float(solver.settings.get(x.name, x.default)) for x in model.settings], dtype=np.float64)
+                _warn_user_error(model, P, code, S, solver.rtol)
                 status[:] = worse(status, code, model.status_order)
                 return
             method = solver.method if (solver is not None and chosen) else "dop853"

@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import functools
 import math
-import re
 
 import numpy as np
 
@@ -75,17 +74,16 @@ def constants(model) -> tuple | None:
     return None if sw is None or callable(sw) else tuple(float(x) for x in sw)
 
 
-_TRY = re.compile(r"^    try:\n((?:        .*\n)+?)    except Exception:\n(?:        .*\n)+", re.M)
-
-
 def source(model, at: str, refs: dict, guarded: bool = True) -> str:
     """Generated kernel code: the switches of ``model`` read from and kept in p[at], p[at + 1] (the
     clamp of the rhs's time; ``at`` is source text). Put after the guards (it rebinds ``rhs``,
     ``dop853`` and ``radau``) and before any solver is made. ``guarded=False``: without their ``try``
-    (the one-point module catches a model's exception once per point, model/compile.py _one_try)."""
+    (the one-point module catches a model's exception once per point: model/compile.py strip_guards, the
+    one-point module's own mechanism, _one_try)."""
     text = _source(model, at, refs)
     if not guarded:
-        text = _TRY.sub(lambda m: "".join(line[4:] + "\n" for line in m.group(1).splitlines()), text)
+        from .compile import strip_guards
+        text = strip_guards(text)
     return text
 
 

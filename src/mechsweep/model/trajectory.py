@@ -450,7 +450,9 @@ def kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, rawv, rawh
             initial(p, y){integrate}
             n_steps[i] += a
             n_rhs[i] += b_{fd_add}
-            if c != st.OK:{fail}
+            if c != st.OK:
+                if p[NPI] != 0.0:  # the model's code raised (its guard wrote NaN): USER_ERROR, not NONFINITE
+                    c = st.USER_ERROR{fail}
                 status[i] = code
                 continue{''.join(body)}
             if p[NPI] != 0.0:
@@ -560,6 +562,8 @@ def queue(lanes, idx, first, step, PF, Z0, te, s, bits, K, hoff, rtol, atol, max
         if c == st.OK:
             c = observe(i, PF[i], te, traj[lane], s, bits, K, hoff, vals, hist, rawv, rawh, ob, ob2, mstat, status)
         else:
+            if PF[i, NPI] != 0.0:  # the model's code raised (its guard wrote NaN): USER_ERROR, not NONFINITE
+                c = st.USER_ERROR
             cc = status[i]{fail}
             c = cc
         status[i] = c
