@@ -196,13 +196,15 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
                     t0 = time.perf_counter()
                     _run_ours(spec, P[:1], case.output, solver)
                     compile_s[method] = time.perf_counter() - t0
-                t0 = time.perf_counter()
                 values, status, ns, nr = _run_ours(spec, P, case.output, solver)
+                t0 = time.perf_counter()
+                _run_ours(spec, P[:k], case.output, solver)
                 once = time.perf_counter() - t0
-                # timed on the sample repeated until a call takes ~TIMED_CALL_S (at most TIMED_POINTS
-                # points), so that a call's fixed cost is spread as over a sweep's chunk
-                tiles = int(min(max(1, TIMED_POINTS // P.shape[0]), max(1, math.ceil(TIMED_CALL_S / once))))
-                P_timed = np.tile(P, (tiles, 1))
+                # timed on the points scipy solves (the table compares the methods on them), repeated
+                # until a call takes ~TIMED_CALL_S (at most TIMED_POINTS points), so that a call's fixed
+                # cost is spread as over a sweep's chunk
+                tiles = int(min(max(1, TIMED_POINTS // k), max(1, math.ceil(TIMED_CALL_S / once))))
+                P_timed = np.tile(P[:k], (tiles, 1))
                 best = math.inf
                 for _ in range(repeats):
                     t0 = time.perf_counter()
@@ -324,8 +326,10 @@ def _scene_settings(scene: Scene) -> dict:
 
 
 def _fill(res, a, b, values, status, ns, nr, reference, kind, time_per_point, k):
-    """One cell of the report; error_max/median over the first k points (those every method
-    solved), error_max_sample over all points this method solved."""
+    """One cell of the report; error_max/median, steps and rhs per point over the first k points
+    (those every method solved: a docs-only trial read ours over 64 points against scipy's over 6,
+    5.9 against 3.2 steps at equal errors), error_max_sample and ok_fraction over all points this
+    method solved."""
     ok = (status == st.OK) & np.isfinite(values)
     err = np.where(ok, _error(values, reference, kind), np.nan)
     res["ok_fraction"][a, b] = ok.mean()
@@ -335,8 +339,8 @@ def _fill(res, a, b, values, status, ns, nr, reference, kind, time_per_point, k)
     if ok.any():
         res["error_max_sample"][a, b] = np.nanmax(err)
     res["time_per_point"][a, b] = time_per_point
-    res["steps_per_point"][a, b] = ns.mean()
-    res["rhs_per_point"][a, b] = nr.mean()
+    res["steps_per_point"][a, b] = ns[:k].mean()
+    res["rhs_per_point"][a, b] = nr[:k].mean()
 
 
 UNITS = {"error_max": "1", "error_median": "1", "error_max_sample": "1", "time_per_point": "s", "steps_per_point": "1",
@@ -344,9 +348,10 @@ UNITS = {"error_max": "1", "error_median": "1", "error_max_sample": "1", "time_p
 LONG = {"error_max": "largest error over the points every method solved",
         "error_median": "median error over the points every method solved",
         "error_max_sample": "largest error over all points this method solved",
-        "time_per_point": "wall time per point (1 thread, best of repeats)",
-        "steps_per_point": "accepted steps per point", "rhs_per_point": "right-hand-side evaluations per point",
-        "ok_fraction": "fraction of points with status ok"}
+        "time_per_point": "wall time per point over the points every method solved (1 thread, best of repeats)",
+        "steps_per_point": "accepted steps per point over the points every method solved",
+        "rhs_per_point": "right-hand-side evaluations per point over the points every method solved",
+        "ok_fraction": "fraction of all points with status ok"}
 
 
 def _print(ds, path) -> None:
@@ -354,7 +359,8 @@ def _print(ds, path) -> None:
     print(f"mechsweep bench workprecision {a['model']}: {a['norm']}")
     print(f"  reference: {a['reference']} ({a['reference_time_s']:.1f} s); {a['points']} points from "
           f"{a['scene']} (scipy: first {a['scipy_points']}); compile/cache load: {a['compile_or_cache_load_s']}")
-    print(f"  errors over the first {a['scipy_points']} points (max over all {a['points']} in the last column)")
+    print(f"  errors, time, steps and rhs per point over the first {a['scipy_points']} points (those scipy solves); "
+          f"ok and the last column over all {a['points']}")
     print(f"  {'method':<22}{'rtol':>8}{'max error':>12}{'median':>12}{'time/point':>13}{'steps':>9}{'rhs':>9}"
           f"{'ok':>6}{'max (all)':>12}")
     for i, m in enumerate(ds.integrator.values):
