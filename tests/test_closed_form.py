@@ -209,6 +209,18 @@ def test_compute_raising_at_a_point_the_probe_did_not_see_is_a_status(in_tmp):
     np.testing.assert_array_equal(ds["top"].values[[0, 2]], [1.0, 2.0])
 
 
+def test_declared_statuses_add_to_those_the_outputs_imply():
+    """statuses=(INFEASIBLE,) lists infeasible beside nonfinite and user_error, which the runner gives
+    any model (a declared list replaced them before: a docs-only trial lost them from `models`)."""
+    import dataclasses
+
+    from mechsweep.model import load
+    spec = load.resolve(f"{CAM}:CAM")
+    assert set(dataclasses.replace(spec, statuses=()).possible_statuses()) == {st.OK, st.NONFINITE, st.USER_ERROR}
+    declared = dataclasses.replace(spec, statuses=(st.INFEASIBLE,)).possible_statuses()
+    assert declared == (st.OK, st.NONFINITE, st.INFEASIBLE, st.USER_ERROR)
+
+
 def test_a_status_code_that_is_none_of_mechsweeps_is_a_user_error(in_tmp):
     """compute returns 99 (or -1, PENDING's code) at designs the probe (k = 1) did not see, after writing
     its row: those designs are USER_ERROR with NaN outputs, not stored as codes no reader knows."""

@@ -27,8 +27,8 @@ SCENE_FILES = sorted(EXTREME.glob("*.toml"))
 PERIOD_PROMISE = 2e-10  # Duffing period error at the default rtol 5e-11 (README: <= 1e-10 measured)
 K_HALF = 4.0 * float(sp.ellipk(0.5))  # 4 K(1/2) = 7.41629870...
 
-# The statuses a point may have are the model's declaration (ModelSpec.statuses, or for a model
-# that declares none, those its outputs imply: ModelSpec.possible_statuses); nothing here names them.
+# The statuses a point may have are the model's declaration (ModelSpec.statuses) and those its
+# outputs imply (ModelSpec.possible_statuses); nothing here names them.
 # integrations per point: a point's n_steps sums them, each has its own budget
 INTEGRATIONS = {"duffing": 1, "torsional_circuit": 2, "autobalancer": 3}  # autobalancer: Floquet, simulation, check
 

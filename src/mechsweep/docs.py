@@ -61,7 +61,7 @@ def model_markdown(spec) -> str:
         for s in spec.settings:
             lines.append(f"| `{s.name}` | {_cell(s.long_name)} | {_unit(s.unit)} | {s.default:g} | [{s.lo:g}, {s.hi:g}] |")
     codes = spec.possible_statuses()
-    how = "declared" if spec.statuses else "derived from its outputs"
+    how = "declared, and those its outputs imply" if spec.statuses else "derived from its outputs"
     lines += ["", f"Statuses ({how}): " + ", ".join(f"`{st.MEANINGS.get(c, c)}`" for c in codes) + "."]
     notes = [(c, t) for c, t in spec.status_notes]
     if notes:

@@ -80,7 +80,7 @@ class ClosedFormModel:
     check: Callable | None = field(default=None, repr=False)
     source: str = ""
     settings: tuple[Setting, ...] = ()
-    statuses: tuple[int, ...] = ()  # ModelSpec.statuses: empty = derived from the outputs
+    statuses: tuple[int, ...] = ()  # ModelSpec.statuses: added to those derived from the outputs
     status_notes: object = ()  # ModelSpec.status_notes: {code: what the status means for this model}
     references: tuple[str, ...] = ()  # ModelSpec.references: the source documents
     workprecision: object = field(default=None, repr=False, compare=False)  # model.workprecision.SizeWorkPrecision

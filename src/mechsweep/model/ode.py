@@ -228,7 +228,7 @@ class OdeModel:
     jac: Callable | None = field(default=None, repr=False)
     source: str = ""
     settings: tuple[Setting, ...] = ()
-    statuses: tuple[int, ...] = ()  # ModelSpec.statuses: empty = derived from the outputs
+    statuses: tuple[int, ...] = ()  # ModelSpec.statuses: added to those derived from the outputs
     status_notes: object = ()  # ModelSpec.status_notes: {code: what the status means for this model}
     closed_forms: tuple[ClosedForm, ...] = ()
     internal: tuple[str, ...] = ()

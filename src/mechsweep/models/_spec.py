@@ -146,7 +146,7 @@ class ModelSpec:
     never expands a grid.
     ``methods``: the values of ``solver.method`` this model's integrated outputs support.
     ``statuses``: the status codes (:mod:`mechsweep.status`) a point of this model can get besides
-    OK; empty: derived from the outputs (:meth:`possible_statuses`). ``status_notes``: what a
+    OK and those its outputs imply (:meth:`possible_statuses`). ``status_notes``: what a
     status means for this model, {code: text} (given as a mapping or as (code, text) pairs; kept
     as sorted pairs), shown with the generic text where this model's datasets and docs are described.
     ``references``: the source documents the model implements (stored as the CF ``references``
@@ -164,7 +164,7 @@ class ModelSpec:
     settings: tuple[Setting, ...] = ()
     check: Callable | None = field(default=None, repr=False)
     methods: tuple[str, ...] = ("dop853",)  # integration methods `evaluate` offers (solver.method)
-    statuses: tuple[int, ...] = ()  # status codes besides OK a point can get; empty: derived
+    statuses: tuple[int, ...] = ()  # status codes a point can get besides OK and those the outputs imply
     status_notes: tuple[tuple[int, str], ...] = ()  # (code, what the status means for this model)
     references: tuple[str, ...] = ()  # source documents (a dataset's CF `references`; default: source)
     declaration: object = field(default=None, repr=False, compare=False)  # the OdeModel/ClosedFormModel, if any
@@ -178,25 +178,25 @@ class ModelSpec:
         object.__setattr__(self, "references", (refs,) if isinstance(refs, str) else tuple(refs))
 
     def possible_statuses(self) -> tuple[int, ...]:
-        """The status codes a point of this model can get: OK and the declared ``statuses``; a
-        model that declares none gets those its outputs imply: NONFINITE (a value that is not
-        finite); for integrated outputs the integrator's failures (MAX_STEPS, STEP_UNDERFLOW,
-        NO_EVENT, and STIFF when it offers more than one method); for a "floquet_max" output
-        INFEASIBLE (no admissible forcing period) and for a "verdict" output UNDECIDED."""
+        """The status codes a point of this model can get: OK, the declared ``statuses``, and those
+        its outputs imply (a declared list adds to them: a docs-only trial's ``statuses=(INFEASIBLE,)``
+        hid nonfinite and user_error, which the runner gives any model): NONFINITE (a value that is
+        not finite) and USER_ERROR (the model's code raised, or returned a code that is no status); for integrated
+        outputs the integrator's failures (MAX_STEPS, STEP_UNDERFLOW, NO_EVENT, and STIFF when it
+        offers more than one method); for a "floquet_max" output INFEASIBLE (no admissible forcing
+        period) and for a "verdict" output UNDECIDED."""
         from .. import status as st
 
-        codes = {st.OK, *self.statuses}
-        if not self.statuses:
-            codes |= {st.NONFINITE, st.USER_ERROR}
-            if any(o.integrated for o in self.outputs):
-                codes |= {st.MAX_STEPS, st.STEP_UNDERFLOW, st.NO_EVENT}
-                if len(self.methods) > 1:
-                    codes.add(st.STIFF)
-            kinds = {o.kind for o in self.outputs}
-            if "floquet_max" in kinds:
-                codes.add(st.INFEASIBLE)
-            if "verdict" in kinds:
-                codes.add(st.UNDECIDED)
+        codes = {st.OK, *self.statuses, st.NONFINITE, st.USER_ERROR}
+        if any(o.integrated for o in self.outputs):
+            codes |= {st.MAX_STEPS, st.STEP_UNDERFLOW, st.NO_EVENT}
+            if len(self.methods) > 1:
+                codes.add(st.STIFF)
+        kinds = {o.kind for o in self.outputs}
+        if "floquet_max" in kinds:
+            codes.add(st.INFEASIBLE)
+        if "verdict" in kinds:
+            codes.add(st.UNDECIDED)
         return tuple(sorted(codes))
 
     def status_note(self, code: int) -> str:
