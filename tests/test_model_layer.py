@@ -305,6 +305,13 @@ BAD = {
         "M2 = OdeModel(name='f', description='d', params=(), states=('x', 'v'), rhs=rhs, initial=initial, "
         "measurements=(StateAt('xe', 'x', t=initial),))", "M",
         ["importing", "line 17", "xe: StateAt t = <function initial", "expected a finite number >= 0"]),
+    "switch_times_wrong_arity": (  # the call itself fails: no frame in the user's file, the def's line is named
+        "    dydt[1] = -y[0]\n\n\ndef sw():\n    return (0.5,)\n\n\n"
+        "def period(p):\n    return 1.0\n\n\n"
+        "M2 = OdeModel(name='f', description='d', params=(Param('k', 'k', '1', 'k', lo=0.0),), states=('x', 'v'), "
+        "rhs=rhs, initial=initial, forcing_period=period, switch_times=sw, measurements=(Period('period', 'x'),))",
+        "M2", ["switch_times raised at the probe point", "TypeError: sw() takes 0 positional arguments but 1 was given",
+               "line 16)"]),
     "unknown_output_kind": (  # a misspelt kind was stored as mechsweep_kind and drew a generic figure
         "    dydt[1] = -y[0]\n\n\nfrom mechsweep.model import ClosedForm\n"
         "M2 = OdeModel(name='f', description='d', params=(), states=('x', 'v'), rhs=rhs, initial=initial, "

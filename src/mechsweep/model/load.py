@@ -279,12 +279,17 @@ def _check_any(model, ref: str, file: str) -> None:
     (closed.check if isinstance(model, closed.ClosedFormModel) else check)(model, ref, file)
 
 
-def _where(exc: BaseException, file: str) -> str:
-    """'ExcType: message (file, line N)' with the deepest frame in the user's file."""
+def _where(exc: BaseException, file: str, func=None) -> str:
+    """'ExcType: message (file, line N)' with the deepest frame in the user's file; when none is
+    there (the call itself failed, e.g. a function declared with the wrong number of arguments),
+    the line of ``func``'s def."""
     line = None
     for frame in traceback.extract_tb(exc.__traceback__):
         if file and Path(frame.filename).resolve() == Path(file).resolve():
             line = frame.lineno
+    code = getattr(func, "__code__", None)
+    if line is None and code is not None and file and Path(code.co_filename).resolve() == Path(file).resolve():
+        line = code.co_firstlineno
     if line is None and isinstance(exc, SyntaxError) and exc.lineno:
         line = exc.lineno
     at = getattr(exc, "mechsweep_declared_at", None)  # a measurement's own line (model/ode.py _at_declaration)
@@ -389,16 +394,17 @@ def check(model, ref: str, file: str) -> None:
     dydt = np.full(n_s, np.nan)
 
     def probe(what, func, args):
-        func = _with_engine_helpers(getattr(func, "py_func", func))  # the user's numba helpers as the kernel runs them
+        own = getattr(func, "py_func", func)
+        func = _with_engine_helpers(own)  # the user's numba helpers as the kernel runs them
         try:
             with np.errstate(all="ignore"):
                 return func(*args)
         except IndexError as exc:
             raise InputError(f"{label}: {what} indexes beyond its arrays at the probe point p = {p.tolist()} "
-                             f"({layout}): {_where(exc, file)}") from None
+                             f"({layout}): {_where(exc, file, own)}") from None
         except Exception as exc:
             raise InputError(f"{label}: {what} raised at the probe point p = {p.tolist()}: "
-                             f"{_where(exc, file)}") from None
+                             f"{_where(exc, file, own)}") from None
 
     for what in ("classify", "prepare"):
         func = getattr(model, what, None)
