@@ -344,3 +344,17 @@ def test_mechsweep_models_describes_a_closed_form_user_model(capsys):
     assert main(["models", f"{CAM}:CAM"]) == 0
     out = capsys.readouterr().out
     assert out.startswith("cam_rise:") and "s_u" in out and "(per u)" in out and "law" in out
+
+
+def test_engine_keeps_a_per_design_function_without_reference_counting():
+    """The four-bar's and slider-crank's per-design functions are jit_noalloc: compiled with numba's
+    reference counting, every call paid atomic increments and decrements for the views it takes of
+    its arrays (docs/performance.md, "Reference counting in the kernels"). The engine compiles its
+    own copy of a model's function (load.jitted): that copy must keep the option; a plain one gets none."""
+    from mechsweep import special
+    from mechsweep.model import load
+    from mechsweep.models import fourbar_balancing, slidercrank_balancing
+
+    for f in (fourbar_balancing.fourbar_design, slidercrank_balancing.slider_design):
+        assert load.jitted(*load.function_ref(f, "compute", "m")).targetoptions.get("_nrt") is False
+    assert load.jitted(*load.function_ref(special.ellipk, "compute", "m")).targetoptions.get("_nrt") is not False

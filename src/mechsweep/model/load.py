@@ -80,7 +80,12 @@ def jitted(module: str, path: str, qualname: str):
         obj = import_module(module, path)
         for part in qualname.split("."):
             obj = getattr(obj, part)
-        _JITTED[key] = _jit.jit(_renamed(_with_engine_helpers(getattr(obj, "py_func", obj)), module))
+        # a function its author compiled without reference counting (jit_noalloc: no arrays allocated) keeps
+        # that: a per-design or per-point function called with arrays and views otherwise pays atomic
+        # increments and decrements of their reference counts at every call
+        noalloc = getattr(obj, "targetoptions", {}).get("_nrt") is False
+        decorate = _jit.jit_noalloc if noalloc else _jit.jit
+        _JITTED[key] = decorate(_renamed(_with_engine_helpers(getattr(obj, "py_func", obj)), module))
     return _JITTED[key]
 
 

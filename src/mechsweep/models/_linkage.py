@@ -1,7 +1,7 @@
 """Planar four-bar and slider-crank: closed-form kinematics, inertia loads and balancing helpers.
 
 Pure numba functions on floats and arrays; they write into caller-owned arrays and return status
-codes (never raise). No units, no xarray, no scene: the per-design functions of the models
+codes (never raise), and allocate nothing: compiled without numba's reference counting (jit_noalloc). No units, no xarray, no scene: the per-design functions of the models
 ``fourbar_balancing`` and ``slidercrank_balancing`` (closed-form models on the model layer, which
 owns the chunk loop: mechsweep.model.closed) and the plain functions of :mod:`mechsweep.balancing`
 call them.
@@ -47,7 +47,7 @@ import math
 import numpy as np
 
 from .. import status as st
-from .._jit import jit
+from .._jit import jit_noalloc
 
 # ----------------------------------------------------------------------------- positions
 N_POSITIONS = 360  # crank positions per cycle of the stored curves and of every sweep
@@ -155,20 +155,20 @@ SLIDER_CURVES = ("Fx_phi", "Fy_phi", "Fx_tb_phi", "Fy_tb_phi", "M_phi", "T_phi")
 
 
 # ============================================================================= shared helpers
-@jit
+@jit_noalloc
 def crank_speed(omega, delta, c1, s1):
     """phi' and phi'' for omega(phi) = omega (1 + delta sin phi): phi'' = omega(phi) d omega/d phi."""
     w1 = omega * (1.0 + delta * s1)
     return w1, w1 * omega * delta * c1
 
 
-@jit
+@jit_noalloc
 def branch_sign(code):
     """Categorical branch index -> sigma: choice 0 -> +1, choice 1 -> -1."""
     return 1.0 if code == 0.0 else -1.0
 
 
-@jit
+@jit_noalloc
 def static_two_point(m, b, c):
     """Static two-point mass substitution (physics.md section 4): points B and C on a line through
     the centre of mass G, at signed distances b (to B) and c (to C) on opposite sides (b, c > 0).
@@ -176,7 +176,7 @@ def static_two_point(m, b, c):
     return m * c / (b + c), m * b / (b + c)
 
 
-@jit
+@jit_noalloc
 def dynamic_two_point(m, I_G, b):
     """Dynamic two-point substitution (physics.md section 4): a point B at distance b > 0 from G,
     and the point K on the other side at k = I_G / (m b). Preserves mass, centre of mass and the
@@ -185,7 +185,7 @@ def dynamic_two_point(m, I_G, b):
     return m * k / (b + k), m * b / (b + k), k
 
 
-@jit
+@jit_noalloc
 def solve2(a11, a12, a21, a22, b1, b2):
     """[a11 a12; a21 a22] x = b by Cramer's rule; (ok, x1, x2)."""
     det = a11 * a22 - a12 * a21
@@ -196,7 +196,7 @@ def solve2(a11, a12, a21, a22, b1, b2):
 
 
 # ============================================================================= four-bar
-@jit
+@jit_noalloc
 def fourbar_assembly(a1, a2, a3, a4):
     """(status, sin of the smallest transmission angle over a full crank turn).
 
@@ -226,7 +226,7 @@ def fourbar_assembly(a1, a2, a3, a4):
     return st.OK, s_min
 
 
-@jit
+@jit_noalloc
 def fourbar_position(a1, a2, a3, a4, sigma, c1, s1, w1, al1):
     """Closed-form position, velocity and acceleration of coupler and rocker.
 
@@ -268,7 +268,7 @@ def fourbar_position(a1, a2, a3, a4, sigma, c1, s1, w1, al1):
     return c2, s2, c3, s3, w2, w3, al2, al3, D
 
 
-@jit
+@jit_noalloc
 def fourbar_loads(a1, a4, c1, s1, w1, al1, c2, s2, c3, s3, w2, w3, al2, al3,
                   U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, g, M_load):
     """Shaking force (Fx, Fy), shaking moment M about O_A and input torque T at one position.
@@ -319,7 +319,7 @@ def fourbar_loads(a1, a4, c1, s1, w1, al1, c2, s2, c3, s3, w2, w3, al2, al3,
     return Fx, Fy, M, T
 
 
-@jit
+@jit_noalloc
 def fourbar_static_counterweights(a1, a2, a3, m1, r1, th1, m2, r2, th2, m3, r3, th3):
     """Complete shaking-force balancing by linearly independent vectors (physics.md section 4):
     the crank and rocker first moments must become
@@ -336,7 +336,7 @@ def fourbar_static_counterweights(a1, a2, a3, m1, r1, th1, m2, r2, th2, m3, r3, 
             u3x - m3 * r3 * math.cos(th3), u3y - m3 * r3 * math.sin(th3))
 
 
-@jit
+@jit_noalloc
 def fourbar_links(p, cw1x, cw1y, cw3x, cw3y, r_cw1, r_cw3):
     """Link constants for loads: links of row p plus point-mass counterweights C1 (crank, at
     radius r_cw1) and C3 (rocker, at r_cw3), first moments in the link frames.
@@ -362,7 +362,7 @@ def fourbar_links(p, cw1x, cw1y, cw3x, cw3y, r_cw1, r_cw3):
             m1 + m2 + m3 + mc1 + mc3, mc1 + mc3)
 
 
-@jit
+@jit_noalloc
 def fourbar_cw_radii(p):
     """Counterweight radii; NaN (absent) means at the link's far joint (a1 and a3)."""
     r_cw1 = p[P_RCW1] if not math.isnan(p[P_RCW1]) else p[P_A1]
@@ -370,7 +370,7 @@ def fourbar_cw_radii(p):
     return r_cw1, r_cw3
 
 
-@jit
+@jit_noalloc
 def fourbar_curves_at(p, static, phi, w1, al1, out):
     """Per-position kinematics and loads of four-bar row ``p`` at arbitrary crank angles phi with
     arbitrary phi' = w1, phi'' = al1 (arrays of one length). ``static`` False: the mechanism as
@@ -407,7 +407,7 @@ def fourbar_curves_at(p, static, phi, w1, al1, out):
     return code
 
 
-@jit
+@jit_noalloc
 def dot4(x, y):
     """sum x_i y_i with four interleaved accumulators (see cycle_stats)."""
     n = x.shape[0]
@@ -423,7 +423,7 @@ def dot4(x, y):
     return (s0 + s1) + (s2 + s3)
 
 
-@jit
+@jit_noalloc
 def axis_basis(S, cb, sb, c1, s1, w1, al1):
     """d(Delta M)/dx and d(Delta M)/dy for the crank counterweight (static moment S, at angle beta
     from the crank) turning about O1 = (x, y) instead of O_A.
@@ -439,7 +439,7 @@ def axis_basis(S, cb, sb, c1, s1, w1, al1):
     return S * (w1s * sp - al1 * cp), -S * (w1s * cp + al1 * sp)
 
 
-@jit
+@jit_noalloc
 def axis_fit(c, s, w1, al1, moment, weight, S, cb, sb, harmonic):
     """Axis O1 = (x, y) of the crank counterweight (static moment S, angle beta from the crank).
 
@@ -478,7 +478,7 @@ def axis_fit(c, s, w1, al1, moment, weight, S, cb, sb, harmonic):
     return solve2(a11, a12, a21, a22, b1, b2)
 
 
-@jit
+@jit_noalloc
 def axis_formula1_sums(smc, sms, scc, sss, scs, S, w, cb, sb):
     """Formula (1) of the source (physics.md section 3) at constant speed w, written for a
     counterweight at angle beta from the crank, psi = phi + beta (beta = pi gives the printed form
@@ -496,13 +496,13 @@ def axis_formula1_sums(smc, sms, scc, sss, scs, S, w, cb, sb):
     return -m_sin / (k * sin2), m_cos / (k * cos2)
 
 
-@jit
+@jit_noalloc
 def axis_formula1(c, s, moment, S, w, cb, sb):
     """axis_formula1_sums at positions with cosines c and sines s."""
     return axis_formula1_sums(dot4(moment, c), dot4(moment, s), dot4(c, c), dot4(s, s), dot4(s, c), S, w, cb, sb)
 
 
-@jit
+@jit_noalloc
 def axis_residual_const(c, s, moment, Sw2, cb, sb, x, y, out):
     """The residual at constant speed (phi'' = 0): dM_i = M_i + S w^2 (x sin psi_i - y cos psi_i)
     = M_i + A sin phi_i + B cos phi_i, A = S w^2 (x cb + y sb), B = S w^2 (x sb - y cb),
@@ -515,7 +515,7 @@ def axis_residual_const(c, s, moment, Sw2, cb, sb, x, y, out):
     return rms, max(hi, -lo)
 
 
-@jit
+@jit_noalloc
 def axis_residual(c, s, w1, al1, moment, S, cb, sb, x, y, out):
     """Residual dM_i = M_i + Delta M_i of the counterweight on axis (x, y) into out;
     returns (RMS, max |dM|)."""
@@ -537,7 +537,7 @@ N_BUF = 19
  B_FX, B_FY, B_M, B_T, B_Q3, B_DM) = range(N_BUF)
 
 
-@jit
+@jit_noalloc
 def fourbar_kinematics_cycle(a1, a2, a3, a4, sigma, omega, delta, cos_phi, sin_phi, buf):
     """fourbar_position at the crank positions with cosines cos_phi and sines sin_phi (speed law
     of crank_speed) into rows R_C2 .. R_AL1 of buf: the same expressions, term for term (so
@@ -596,7 +596,7 @@ def fourbar_kinematics_cycle(a1, a2, a3, a4, sigma, omega, delta, cos_phi, sin_p
         buf[R_AL1, j] = al1
 
 
-@jit
+@jit_noalloc
 def fourbar_loads_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, g, M_load,
                         cos_phi, sin_phi, buf):
     """fourbar_loads over the cycle from the kinematics rows of buf into rows B_FX, B_FY, B_M,
@@ -615,7 +615,7 @@ def fourbar_loads_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m
         buf[B_Q3, j] = w3 / w1
 
 
-@jit
+@jit_noalloc
 def fourbar_moment_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, g, cos_phi, sin_phi, buf):
     """Only the shaking moment (row B_M): the cheaper loop when no force or torque is asked
     for. The expressions are those of fourbar_loads, term for term, so M is bitwise the same."""
@@ -652,7 +652,7 @@ def fourbar_moment_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, 
         buf[B_M, j] = -dH - g * (u1x + m2 * ax + v2x + m3 * a4 + u3x)
 
 
-@jit
+@jit_noalloc
 def cycle_stats(x):
     """(min, max, RMS) of a curve. Four interleaved accumulators (combined as (0 + 1) + (2 + 3)):
     a strict-IEEE reduction cannot be vectorised, but four chains keep the adder busy."""
@@ -688,7 +688,7 @@ def cycle_stats(x):
     return lo, hi, math.sqrt(((s0 + s1) + (s2 + s3)) / n)
 
 
-@jit
+@jit_noalloc
 def max_force(fx, fy, fy_offset):
     """max over the cycle of |(fx, fy + fy_offset)|."""
     m = 0.0
@@ -700,7 +700,7 @@ def max_force(fx, fy, fy_offset):
 
 
 # ============================================================================= slider-crank
-@jit
+@jit_noalloc
 def slider_assembly(r, l, e):
     """(status, sin of the smallest transmission angle). The crank turns fully iff
     |e - r sin phi| <= l for all phi, i.e. l >= r + |e|; the conrod is then closest to
@@ -716,7 +716,7 @@ def slider_assembly(r, l, e):
     return st.OK, s
 
 
-@jit
+@jit_noalloc
 def slider_position(r, l, e, sigma, c1, s1, w1, al1):
     """Exact slider-crank kinematics. sin phi2 = (e - r sin phi) / l, cos phi2 = sigma sqrt(1 - sin^2),
     x_B = r cos phi + l cos phi2; from r w1 cos phi + l w2 cos phi2 = 0 and its derivative:
@@ -735,7 +735,7 @@ def slider_position(r, l, e, sigma, c1, s1, w1, al1):
     return c2, s2, w2, al2, xB, vB, aB
 
 
-@jit
+@jit_noalloc
 def slider_loads(r, e, c1, s1, w1, al1, c2, s2, w2, al2, xB, vB, aB,
                  U1x, U1y, J1, m2, V2x, V2y, J2A, m3, mtot, g, F_load):
     """Shaking force, shaking moment about O and input torque of the slider-crank (same
@@ -768,13 +768,13 @@ def slider_loads(r, e, c1, s1, w1, al1, c2, s2, w2, al2, xB, vB, aB,
     return Fx, Fy, M, T
 
 
-@jit
+@jit_noalloc
 def slider_conrod_length(p):
     """l, or r / lambda when l is absent (NaN)."""
     return p[S_L] if not math.isnan(p[S_L]) else p[S_R] / p[S_LAM]
 
 
-@jit
+@jit_noalloc
 def slider_counterweight(p, l):
     """Textbook partial balancing (physics.md section 4) with static two-point substitution of the
     conrod on A and B (generalised complex masses when its centre is off the line AB):
@@ -793,7 +793,7 @@ def slider_counterweight(p, l):
     return -(urx + p[S_K] * mB * r), -ury, math.hypot(urx, ury) / r, mB
 
 
-@jit
+@jit_noalloc
 def slider_links(p, cwx, cwy, r_cw):
     """(U1x, U1y, J1, m2, V2x, V2y, J2A, m3, mtot, cw_mass) with a point counterweight (cwx, cwy)
     at radius r_cw on the crank."""
@@ -811,7 +811,7 @@ def slider_links(p, cwx, cwy, r_cw):
     return U1x, U1y, J1, m2, V2x, V2y, J2A, p[S_M3], m1 + m2 + p[S_M3] + mc, mc
 
 
-@jit
+@jit_noalloc
 def slider_curves_at(p, balanced, phi, w1, al1, out):
     """Per-position kinematics and loads of slider-crank row p at arbitrary phi, phi', phi''.
     balanced: with the k-counterweight (else bare). out columns: c2, s2, w2, al2, xB, vB, aB,
@@ -848,7 +848,7 @@ N_SBUF = 17
  SB_FX, SB_FY, SB_M, SB_T, SB_FX0, SB_FY0, SB_FXTB, SB_FYTB) = range(N_SBUF)
 
 
-@jit
+@jit_noalloc
 def slider_kinematics_cycle(r, l, e, sigma, omega, delta, cos_phi, sin_phi, buf):
     """slider_position at the crank positions with cosines cos_phi and sines sin_phi into rows
     SR_C2 .. SR_AL1 (two branch-free loops, vectorised)."""
@@ -876,7 +876,7 @@ def slider_kinematics_cycle(r, l, e, sigma, omega, delta, cos_phi, sin_phi, buf)
         buf[SR_AL1, j] = al1
 
 
-@jit
+@jit_noalloc
 def slider_loads_cycle(r, e, U1x, U1y, J1, m2, V2x, V2y, J2A, m3, mtot, g, F_load, cos_phi, sin_phi, buf, first):
     """slider_loads over the cycle from the kinematics rows into rows first .. first + 3
     (Fx, Fy, M, T). Branch-free, vectorised."""

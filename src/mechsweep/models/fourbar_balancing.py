@@ -59,7 +59,7 @@ import operator
 import numpy as np
 
 from .. import status as st
-from .._jit import jit
+from .._jit import jit_noalloc
 from ..model.closed import ClosedFormModel
 from ..model.workprecision import SizeWorkPrecision
 from . import _linkage_reference as R
@@ -210,7 +210,9 @@ def crank_data(n_positions: int):
 
 
 
-@jit
+# without numba's reference counting (jit_noalloc; the engine's copy keeps it, model/load.jitted): it
+# allocates nothing, and its views of buf cost atomic increments and decrements per design otherwise
+@jit_noalloc
 def fourbar_design(p, want, row, crv, slot, buf, cos_phi, sin_phi, sums, unit):
     """The model's per-design function (ClosedFormModel.compute; the engine owns the chunk loop):
     all requested outputs of one four-bar design (row p of the parameter matrix) over the
@@ -278,7 +280,8 @@ def fourbar_design(p, want, row, crv, slot, buf, cos_phi, sin_phi, sums, unit):
         row[K_CW_MASS] = cwm
         for c, b in ((C_FX, B_FX), (C_FY, B_FY), (C_M, B_M), (C_T, B_T)):
             if slot[c] >= 0:
-                crv[slot[c], :] = buf[b]
+                for j in range(N):  # element by element: a whole-row copy needs numba's NRT
+                    crv[slot[c], j] = buf[b, j]
 
     if not need_static:
         return st.OK
@@ -314,9 +317,11 @@ def fourbar_design(p, want, row, crv, slot, buf, cos_phi, sin_phi, sums, unit):
         row[K_TMAX_S] = max(hi, -lo)
         row[K_TRANGE_S] = hi - lo
     if slot[C_MS] >= 0:
-        crv[slot[C_MS], :] = Ms
+        for j in range(N):
+            crv[slot[C_MS], j] = Ms[j]
     if slot[C_TS] >= 0:
-        crv[slot[C_TS], :] = Ts
+        for j in range(N):
+            crv[slot[C_TS], j] = Ts[j]
     if (need_axis or need_h1 or need_in) and not dm1_max > 0.0:
         return st.SINGULAR  # nothing to balance: efficiencies R_j = 0 / 0
 

@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 
 from .. import status as st
-from .._jit import jit
+from .._jit import jit_noalloc
 from ..model.closed import ClosedFormModel
 from ..model.workprecision import SizeWorkPrecision
 from . import _linkage_reference as R
@@ -126,7 +126,9 @@ def crank_data(n_positions: int):
     return c, s
 
 
-@jit
+# without numba's reference counting (jit_noalloc; the engine's copy keeps it, model/load.jitted): it
+# allocates nothing, and its views of buf cost atomic increments and decrements per design otherwise
+@jit_noalloc
 def slider_design(p, want, row, crv, slot, buf, cos_phi, sin_phi):
     """The model's per-design function (ClosedFormModel.compute; the engine owns the chunk loop):
     all requested outputs of one slider-crank design over the N uniform crank positions with
@@ -202,7 +204,8 @@ def slider_design(p, want, row, crv, slot, buf, cos_phi, sin_phi):
             row[Q_TB_REL] = err / abs(amp)
     for c, b in ((D_FX, SB_FX), (D_FY, SB_FY), (D_FXTB, SB_FXTB), (D_FYTB, SB_FYTB), (D_M, SB_M), (D_T, SB_T)):
         if slot[c] >= 0:
-            crv[slot[c], :] = buf[b]
+            for j in range(N):  # element by element: a whole-row copy needs numba's NRT
+                crv[slot[c], j] = buf[b, j]
     return st.OK
 
 
