@@ -115,6 +115,7 @@ def chunk_target(scene: Scene, many: bool = True) -> int:
     return target
 
 
+INTEGRATED_CHUNK = 65536  # points of a default chunk of integrated outputs (before the caps below)
 CHUNK_VALUES = 2**22  # float64 values of one chunk's outputs (32 MiB), whatever their extra dims
 
 
@@ -127,10 +128,11 @@ def default_chunk_target(scene: Scene, many: bool = True) -> int:
     (docs/performance-duffing.md, `mechsweep bench duffing --breakdown`)."""
     if scene.storage.chunk_size:
         return scene.storage.chunk_size
-    # integrated: 32768 points (about 50 ms of a Duffing period on 2 cores); each chunk costs a
-    # kernel launch, a journal file with its fsyncs and some Python (measured 3-6 ms of CPU a chunk
-    # on the project's machine: 8192-point chunks spent 15-20 % of a 2*10^5-point run's CPU on them)
-    per_chunk = 32768 if scene.solver is not None else 262_144
+    # integrated: 65536 points (about 40 ms of a Duffing period on 2 cores); each chunk costs a
+    # kernel launch (its lanes idle at its end), a journal file with its fsyncs and some Python:
+    # 8192-point chunks spent 15-20 % of a 2*10^5-point run's CPU on them, and 32768-point chunks
+    # still 5 % of a 10^6-point run's (docs/performance-duffing.md, `bench duffing --breakdown`)
+    per_chunk = INTEGRATED_CHUNK if scene.solver is not None else 262_144
     settings = scene.solver.settings if scene.solver is not None else {}
     values_per_point = sum(
         int(np.prod([len(d.values(settings)) for d in scene.model.output(name).extra_dims], dtype=np.int64))
