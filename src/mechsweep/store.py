@@ -232,11 +232,10 @@ class Early:
 
     def _open(self) -> None:
         self.guard = _GuardedFile(self.path)
+        names = _variables(self.lay)
         with NetCDFWriter(self.guard) as f:
             _define(f, self.scene, self.lay, self.attrs)
-        names = _variables(self.lay)
-        with h5py.File(self.guard, "r") as f:
-            cache = _early_cache(f, names)
+            cache = _early_cache(f.file, names)  # (from the storage chunks just made: no opening to read them)
         self.file = h5py.File(self.guard, "a", rdcc_nbytes=cache, rdcc_nslots=100_003, rdcc_w0=1.0)
         self.variables = {name: self.file[name] for name in names}
 
