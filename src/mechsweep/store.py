@@ -265,6 +265,10 @@ class Early:
                 self._open()
             if self.guard.error is None:
                 _write_region(self.variables, region, arrays, self.lay.shape)
+            if self.guard.error is None:
+                # what HDF5 has written of the file so far goes to the disk now, in this thread while
+                # the next chunk computes, instead of all at the run's final sync, after the last launch
+                self.guard.sync()
             if self.guard.error is not None:
                 self.discard()
                 return
