@@ -212,7 +212,7 @@ def test_default_chunks_are_raised_to_the_cap():
 
 def test_small_grids_are_few_chunks_and_large_ones_get_big_chunks():
     # each chunk is a launch, a journal file with fsyncs and Python: a grid of 10^3 integrated points
-    # is one chunk, 10^4 a handful, and a large grid's chunks are 32768 points (issue 15)
+    # is one chunk, 10^4 a handful, and a large grid's chunks are 65536 points (issue 15)
     def n_chunks(n, outputs):
         s = load_scene(duffing({"mu": {"start": 1e-3, "stop": 1e3, "num": n, "spacing": "log"}}, outputs=outputs,
                                fixed={"A": 0.5, "omega": 1.0}))
@@ -222,7 +222,7 @@ def test_small_grids_are_few_chunks_and_large_ones_get_big_chunks():
     assert n_chunks(10_000, ("period",)) == (5, 2048)
     assert n_chunks(10_000, ("period_exact",)) == (2, 8192)
     assert n_chunks(100_000, ("period",)) == (20, 5000)  # at least 20 chunks above that
-    assert n_chunks(10**7, ("period",))[1] == 32768
+    assert n_chunks(10**7, ("period",))[1] == 65536
 
 
 # ----------------------------------------------------------------------------- item 20: the command

@@ -196,7 +196,7 @@ name = "line"
 model = "duffing"
 outputs = ["period"]
 [axes]
-mu = { start = 1e-3, stop = 1e3, num = 50000, spacing = "log" }
+mu = { start = 1e-3, stop = 1e3, num = 100000, spacing = "log" }
 [fixed]
 A = 0.5
 omega = 1.0
@@ -221,17 +221,17 @@ def test_bench_duffing_outputs_choose_the_breakdowns_outputs_and_are_refused_wit
 
 
 def test_without_a_progress_bar_a_grid_is_cut_in_few_large_chunks_and_resumes_with_its_own_cut(in_tmp):
-    """Without a bar, 50,000 integrated points are 2 chunks of 32768 (with one: 20 of 2500, the
+    """Without a bar, 100,000 integrated points are 2 chunks of 65536 (with one: 20 of 5000, the
     least 20 chunks of a bar); a run interrupted so is resumed with its journal's cut, bar or not."""
     (in_tmp / "line.toml").write_text(LINE)
     scene = mechsweep.load_scene(in_tmp / "line.toml")
     from mechsweep.grid import chunk_target, plan_chunks
 
-    assert (chunk_target(scene), len(plan_chunks(scene.shape, chunk_target(scene)))) == (2500, 20)
+    assert (chunk_target(scene), len(plan_chunks(scene.shape, chunk_target(scene)))) == (5000, 20)
     with interrupted_after(1):
         with pytest.raises(mechsweep.RunInterrupted, match="1 of 2 chunks saved"):
             mechsweep.run(scene, output="data/runs/line.h5", progress=False)
     done = mechsweep.run(scene, output="data/runs/line.h5", resume=True, progress=True)
-    assert done.attrs["n_chunks"] == 2 and done.attrs["chunk_size"] == 32768
+    assert done.attrs["n_chunks"] == 2 and done.attrs["chunk_size"] == 65536
     whole = mechsweep.run(scene, output=None)
     np.testing.assert_array_equal(done["period"].values, whole["period"].values)

@@ -115,6 +115,7 @@ def chunk_target(scene: Scene, many: bool = True) -> int:
     return target
 
 
+INTEGRATED_CHUNK = 65536  # points of a default chunk of integrated outputs (before the caps below)
 CHUNK_VALUES = 2**22  # float64 values of one chunk's outputs (32 MiB), whatever their extra dims
 
 
@@ -127,10 +128,11 @@ def default_chunk_target(scene: Scene, many: bool = True) -> int:
     (docs/performance-duffing.md, `mechsweep bench duffing --breakdown`)."""
     if scene.storage.chunk_size:
         return scene.storage.chunk_size
-    # integrated: 32768 points (about 50 ms of a Duffing period on 2 cores); each chunk costs a
-    # kernel launch, a journal file with its fsyncs and some Python (measured 3-6 ms of CPU a chunk
-    # on the project's machine: 8192-point chunks spent 15-20 % of a 2*10^5-point run's CPU on them)
-    per_chunk = 32768 if scene.solver is not None else 262_144
+    # integrated: 65536 points (about 40 ms of a Duffing period on 2 cores); each chunk costs a
+    # kernel launch (its lanes idle at its end), a journal file with its fsyncs and some Python:
+    # 8192-point chunks spent 15-20 % of a 2*10^5-point run's CPU on them, and 32768-point chunks
+    # still 5 % of a 10^6-point run's (docs/performance-duffing.md, `bench duffing --breakdown`)
+    per_chunk = INTEGRATED_CHUNK if scene.solver is not None else 262_144
     settings = scene.solver.settings if scene.solver is not None else {}
     values_per_point = sum(
         int(np.prod([len(d.values(settings)) for d in scene.model.output(name).extra_dims], dtype=np.int64))
@@ -173,6 +175,10 @@ class ParameterMatrix:
 
     def __call__(self, start: int, stop: int) -> np.ndarray:
         P = np.empty((stop - start, len(self.columns)))
+        slab = self._hyperslab(start, stop)
+        if slab is not None:  # a chunk of the plan: each axis's values broadcast, no index arrays
+            self._fill_slab(P, *slab)
+            return P
         idx = np.unravel_index(np.arange(start, stop, dtype=np.int64), self.shape) if self.shape else ()
         for col, spec in enumerate(self.columns):
             if spec[0] == "const":
@@ -184,6 +190,50 @@ class ParameterMatrix:
                 lo, hi = int(i.min()), int(i.max()) + 1
                 P[:, col] = spec[2].array(lo, hi)[i - lo]
         return P
+
+    def _hyperslab(self, start: int, stop: int):
+        """(j, lead, s, m) when the flat range [start, stop) is a hyperslab as ChunkPlan cuts them:
+        the axes before j at the indices ``lead``, indices s to s + m - 1 of axis j, all of the axes
+        after it; None when it is not one (e.g. a range that wraps over an axis)."""
+        shape = self.shape
+        if not shape or stop <= start:
+            return None
+        for j in range(len(shape)):  # the coarsest cut first
+            block = math.prod(shape[j + 1:])
+            if start % block or stop % block:
+                continue
+            s, m = (start // block) % shape[j], (stop - start) // block
+            if s + m <= shape[j]:
+                lead = np.unravel_index(start // (block * shape[j]), shape[:j]) if j else ()
+                return j, tuple(int(x) for x in lead), s, m
+        return None
+
+    def _fill_slab(self, P: np.ndarray, j: int, lead: tuple, s: int, m: int) -> None:
+        """P's rows for the hyperslab (j, lead, s, m): each column computed from the same stretch of
+        its axis as the general route (``array(lo, hi)`` with the same lo, hi: the same floats),
+        broadcast over the slab instead of gathered through index arrays."""
+        region = (m,) + tuple(self.shape[j + 1:])
+        for col, spec in enumerate(self.columns):
+            if spec[0] == "const":
+                P[:, col] = spec[1]
+                continue
+            k = spec[1]
+            if k < j:
+                lo, hi = lead[k], lead[k] + 1
+            elif k == j:
+                lo, hi = s, s + m
+            else:
+                lo, hi = 0, self.shape[k]
+            values = spec[2][lo:hi] if isinstance(spec[2], np.ndarray) else spec[2].array(lo, hi)
+            if k < j:
+                P[:, col] = values[0]
+                continue
+            view = [1] * len(region)
+            view[k - j] = hi - lo
+            target = P[:, col].reshape(region)  # a view: a strided column takes any C-order shape
+            if not np.may_share_memory(target, P):  # (never; were it a copy, the rows would not be set)
+                raise AssertionError("the column view of the parameter rows was copied")
+            target[...] = values.reshape(view)
 
 
 def parameter_matrix(scene: Scene, start: int, stop: int) -> np.ndarray:

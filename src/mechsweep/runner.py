@@ -1029,13 +1029,20 @@ class _Launches:
 def _local_results(scene: Scene, todo: list[Chunk], params: ParameterMatrix | None = None,
                    started: threading.Event | None = None, launches: _Launches | None = None):
     """Chunks computed here, in order, each by the numba kernels on all threads; ``started`` is set
-    just before the first chunk is computed; ``launches`` counts each chunk's launch as it begins."""
+    when the first chunk's kernel is launched (its parameter rows and scratch made: the writer's
+    Python then runs beside the kernel, which releases the GIL, not beside that Python, which
+    would wait for the GIL); ``launches`` counts each chunk's launch as it begins."""
     params = params or ParameterMatrix(scene)
+
+    def launching():
+        if launches is not None:
+            launches.launching()
+        if started is not None:
+            started.set()
+
     try:
         for chunk in todo:
-            if started is not None:
-                started.set()
-            _LAUNCH.hook = None if launches is None else launches.launching
+            _LAUNCH.hook = launching if launches is not None or started is not None else None
             try:
                 result = evaluate_chunk(scene, chunk, params)
             finally:

@@ -1,4 +1,5 @@
-"""HDF5 datasets: netCDF4-flavoured HDF5 written with h5netcdf, read back by
+"""HDF5 datasets: netCDF4-flavoured HDF5, defined as h5netcdf defines it (``NetCDFWriter``: the same
+objects and attributes, written with h5py directly), read back by
 ``xarray.open_dataset(path, engine="h5netcdf")``.
 
 A run saves its finished chunks in a journal (``journal.py``); ``assemble`` writes the dataset
@@ -130,7 +131,7 @@ def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, 
 def _assemble(journal, scene, lay, chunks, target, attrs, stop, held=None, early=None
               ) -> tuple[list[BadChunk], dict[int, int]]:
     if early is None:
-        with h5netcdf.File(target, "w") as f:
+        with NetCDFWriter(target) as f:
             _define(f, scene, lay, attrs)
     bad = []
     with (early.take() if early is not None else h5py.File(target, "a")) as f:
@@ -231,18 +232,17 @@ class Early:
 
     def _open(self) -> None:
         self.guard = _GuardedFile(self.path)
-        with h5netcdf.File(self.guard, "w") as f:
-            _define(f, self.scene, self.lay, self.attrs)
         names = _variables(self.lay)
-        with h5py.File(self.guard, "r") as f:
-            cache = _early_cache(f, names)
+        with NetCDFWriter(self.guard) as f:
+            _define(f, self.scene, self.lay, self.attrs)
+            cache = _early_cache(f.file, names)  # (from the storage chunks just made: no opening to read them)
         self.file = h5py.File(self.guard, "a", rdcc_nbytes=cache, rdcc_nslots=100_003, rdcc_w0=1.0)
         self.variables = {name: self.file[name] for name in names}
 
     def prepare(self, started=None) -> None:
         """Create and define the file before the first chunk arrives: the run calls it in the writer
-        thread, idle while the first chunk is computed, so that the definition (h5netcdf's
-        bookkeeping of every variable and attribute, about 30 ms of CPU) no longer delays the
+        thread, idle while the first chunk is computed, so that the definition (about 8 ms of CPU with
+        NetCDFWriter, 25-30 ms through h5netcdf's bookkeeping before) no longer delays the
         first chunk's write and the second chunk's launch behind it. ``started``: an event set when
         the first chunk's kernel is about to run (waited for at most PREPARE_WAIT seconds), so that
         this Python work holds the GIL while the kernel has released it, not while the main
@@ -265,6 +265,10 @@ class Early:
                 self._open()
             if self.guard.error is None:
                 _write_region(self.variables, region, arrays, self.lay.shape)
+            if self.guard.error is None:
+                # what HDF5 has written of the file so far goes to the disk now, in this thread while
+                # the next chunk computes, instead of all at the run's final sync, after the last launch
+                self.guard.sync()
             if self.guard.error is not None:
                 self.discard()
                 return
@@ -488,7 +492,7 @@ def _region_shape(region: tuple, shape: tuple[int, ...]) -> tuple[int, ...]:
     return tuple(len(range(*s.indices(n))) for s, n in zip(region, shape))
 
 
-def _define(f: h5netcdf.File, scene: Scene, lay: Layout, attrs: dict) -> None:
+def _define(f: "NetCDFWriter | _MemoryFile", scene: Scene, lay: Layout, attrs: dict) -> None:
     f.dimensions = dict(zip(lay.dims, lay.shape))
     model = scene.model
     for axis in scene.axes:
@@ -549,6 +553,130 @@ def _define(f: h5netcdf.File, scene: Scene, lay: Layout, attrs: dict) -> None:
     for k, val in attrs.items():
         f.attrs[k] = val
     f.attrs["n_chunks"] = lay.n_chunks
+
+
+# ----------------------------------------------------------------------------- definition
+# Attributes h5netcdf keeps for itself (a variable's attributes never use these names).
+_NC_HIDDEN = frozenset(["REFERENCE_LIST", "CLASS", "DIMENSION_LIST", "NAME", "_Netcdf4Dimid", "_Netcdf4Coordinates",
+                        "_nc3_strict", "_NCProperties"])
+
+
+class _NetCDFAttrs:
+    """A variable's (or the file's) attributes, stored as h5netcdf stores them: a non-string scalar
+    as a one-element array (netCDF-4's convention), anything else as h5py stores it."""
+
+    __slots__ = ("_attrs",)
+
+    def __init__(self, attrs):
+        self._attrs = attrs
+
+    def __setitem__(self, key, value) -> None:
+        if key in _NC_HIDDEN:
+            raise AttributeError(f"cannot write attribute with reserved name {key!r}")
+        dtype = value.dtype if hasattr(value, "dtype") else np.asarray(value).dtype
+        if dtype == np.bool_:  # h5netcdf refuses it (not netCDF-4): so does this writer
+            raise TypeError(f"attribute {key!r}: boolean values are not netCDF-4; store 0/1")
+        if np.isscalar(value) and dtype.kind not in "SU":
+            value = np.atleast_1d(value)
+        self._attrs[key] = value
+
+    def __delitem__(self, key) -> None:
+        del self._attrs[key]
+
+
+class _NetCDFVariable:
+    __slots__ = ("ds", "attrs")
+
+    def __init__(self, ds):
+        self.ds = ds
+        self.attrs = _NetCDFAttrs(ds.attrs)
+
+    def __setitem__(self, key, value) -> None:
+        self.ds[key] = value
+
+
+class NetCDFWriter:
+    """Defines a netCDF-4 file with h5py directly, as ``h5netcdf.File(target, "w")`` defines it for
+    the calls ``_define`` makes (dimensions, each with its coordinate variable created next,
+    variables with fixed sizes, attributes, ``del`` of an attribute): the same objects in the same
+    creation order, the same dataset properties (shape, dtype, chunks, filters, fill value), the
+    same attributes with their dtypes, shapes, values and order (netCDF-4's ``_Netcdf4Dimid`` and
+    ``_Netcdf4Coordinates``, h5netcdf's ``_NCProperties``), the same dimension-scale attachments.
+    tests/test_store_define.py walks a file of each shipped scene written both ways and compares
+    all of it. h5netcdf spends 25-30 ms of CPU on a small run's definition looking up the same
+    h5py objects again and again (``bench duffing --breakdown``); this writes each once."""
+
+    def __init__(self, target):
+        self.file = h5py.File(target, "w", track_order=True)  # as h5netcdf opens a new file (h5py >= 3.7)
+        self._dimensions: dict[str, int] = {}
+        self._scales: dict = {}  # dimension -> its coordinate variable's dataset (the dimension scale)
+        self.attrs = _NetCDFAttrs(self.file.attrs)
+
+    @property
+    def dimensions(self) -> dict:
+        return self._dimensions
+
+    @dimensions.setter
+    def dimensions(self, value) -> None:
+        for name, size in self._dimensions.items():
+            if value.get(name, size) != size or name not in value:
+                raise ValueError(f"cannot modify or drop the existing dimension {name!r}")
+        self._dimensions.update(value)
+
+    def create_variable(self, name, dims=(), dtype=None, fillvalue=None, chunks=None, **storage) -> _NetCDFVariable:
+        dims = tuple(dims)
+        shape = tuple(self._dimensions[d] for d in dims)
+        coordinate = dims == (name,)
+        if name in self._dimensions and not coordinate or 0 in shape or name in self.file:
+            raise ValueError(f"variable {name!r} {dims}: not a layout this writer defines as h5netcdf does")
+        if fillvalue is not None:
+            fillvalue = np.array(fillvalue).astype(dtype)
+            if h5py.check_string_dtype(fillvalue.dtype) is not None:
+                raise ValueError(f"variable {name!r}: a string fill value is not written by this writer")
+        ds = self.file.create_dataset(name, shape, dtype=dtype, chunks=chunks, fillvalue=fillvalue, track_order=True,
+                                      **storage)
+        ids = {d: k for k, d in enumerate(self._dimensions)}  # netCDF dimension ids, in order of creation
+        coords = np.array([ids[d] for d in dims], "int32")
+        if coordinate:  # the dimension's scale (h5netcdf: the dimension's placeholder replaced by it)
+            dimid = np.array(ids[name], np.int32)
+            if dimid:  # id 0 is falsy: h5netcdf sets it again after _Netcdf4Coordinates, i.e. after it
+                ds.attrs["_Netcdf4Dimid"] = dimid
+            ds.make_scale(name)
+            ds.attrs["_Netcdf4Coordinates"] = coords
+            if not dimid:
+                ds.attrs["_Netcdf4Dimid"] = dimid
+            self._scales[name] = ds
+        elif dims:
+            for k, d in enumerate(dims):
+                if d not in self._scales:
+                    raise ValueError(f"variable {name!r}: dimension {d!r} has no coordinate variable yet")
+                ds.dims[k].attach_scale(self._scales[d])
+            ds.attrs["_Netcdf4Coordinates"] = coords
+            ds.attrs["_Netcdf4Dimid"] = np.array(ids[dims[0]], np.int32)
+        variable = _NetCDFVariable(ds)
+        if fillvalue is not None:
+            variable.attrs["_FillValue"] = ds.dtype.type(fillvalue)
+        return variable
+
+    def close(self) -> None:
+        if self.file is None:
+            return
+        missing = [d for d in self._dimensions if d not in self._scales]
+        try:
+            if missing:  # (h5netcdf would leave a placeholder scale for it: not a layout _define makes)
+                raise ValueError(f"dimension(s) {', '.join(missing)} without a coordinate variable")
+            props = (f"version=2,h5netcdf={h5netcdf.__version__},hdf5={h5py.version.hdf5_version},"
+                     f"h5py={h5py.__version__}")  # what h5netcdf writes when it closes a new file
+            self.file.attrs["_NCProperties"] = np.array(props, dtype=h5py.string_dtype("ascii", len(props)))
+        finally:
+            self.file.close()
+            self.file = None
+
+    def __enter__(self) -> "NetCDFWriter":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 def _compressed(shape: tuple[int, ...]) -> dict:

@@ -358,7 +358,7 @@ _STEPS = (
     ("store.Held", "keep", "writer: chunk into the dataset in memory"),
     ("store.Early", "prepare", "writer: define the HDF5 file (early)"),
     ("store.Early", "write", "writer: chunk into the HDF5 file (early)"),
-    ("store", "_define", "HDF5/memory: define (h5netcdf)"),
+    ("store", "_define", "HDF5/memory: define (store._define)"),
     ("runner", "_save_chunks", "all chunks (main thread, wall)"),
     ("runner", "_finish", "end: assembly, fsync, rename, drop journal"),
     ("store", "_assemble", "end: assembly (HDF5 writes, close)"),
