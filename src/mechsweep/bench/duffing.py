@@ -174,6 +174,11 @@ def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = N
                 evaluate_chunk(load_scene(grid_scene(4, rtol, atol, stored)), Chunk(0, 0, 4, ()))
                 evaluate_chunk(scene, Chunk(0, 0, 4, ()))
             compile_s = time.perf_counter() - t0  # every kernel the timed runs use, compiled or loaded
+            model_compile.USE_LANES = True
+            with tempfile.TemporaryDirectory() as tmp:  # the run's own first-call costs (imports, the file
+                for outputs in (stored, ("period",)):  # route's first use) stay out of its timed repetitions
+                    run(grid_scene(1000, rtol, atol, outputs), output=os.path.join(tmp, "warm.h5"), progress=False)
+                    os.unlink(os.path.join(tmp, "warm.h5"))
             results = {}
             for _ in range(repeats):  # interleaved: a disturbance of the machine hits every route alike
                 for lanes in (True, False):
@@ -316,10 +321,13 @@ def _print(r: dict) -> None:
                   f"{'' if m['matched'] else ' (NOT matched: our tightest rung is above its best error)'}; our ladder "
                   + ", ".join(f"{rt:g}: {e:.1e}" for rt, e in m["ladder"]))
     print("  issue 15 goals measured here (the others: mechsweep bench quickstart / memory / workprecision):")
-    run_ok = r["run_to_hdf5_points_per_s"] >= TARGET_RUN
-    print(f"    goal 1: mechsweep.run {r['run_to_hdf5_points_per_s']:,.0f} points/s on {t} threads, "
-          f"{r['run_to_hdf5_points_per_cpu_s']:,.0f} points per CPU second, 5 outputs (period only: "
-          f"{r['run_to_hdf5_period_only_points_per_s']:,.0f} points/s) "
+    # the goal's figure is the period output's (issue 15: "period output, dataset written"); the
+    # bench's five outputs are printed beside it
+    run_ok = r["run_to_hdf5_period_only_points_per_s"] >= TARGET_RUN
+    print(f"    goal 1: mechsweep.run, period output, {r['run_to_hdf5_period_only_points_per_s']:,.0f} points/s on "
+          f"{t} threads (worst {r['run_to_hdf5_period_only_points_per_s_worst']:,.0f}), "
+          f"{r['run_to_hdf5_period_only_points_per_cpu_s']:,.0f} points per CPU second, rtol {r['rtol']:g} "
+          f"(5 outputs: {r['run_to_hdf5_points_per_s']:,.0f} points/s) "
           f"(target >= {TARGET_RUN:,.0f} points/s on 2 threads): {'met' if run_ok else 'not met'}")
     nb = r["competitors"].get("numbalsoda")
     if nb is None:
