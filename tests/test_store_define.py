@@ -106,15 +106,22 @@ def _define_both(spec):
     return theirs, ours
 
 
+# The h5netcdf release whose files NetCDFWriter was written to match object for object. Another
+# release may lay its files out otherwise (attribute order, hidden attributes): then only what a
+# reader gets is compared (xarray's Datasets and encodings, below), not the HDF5 objects.
+MATCHED_H5NETCDF = (1, 8)
+
+
 @pytest.mark.parametrize("spec", SCENES, ids=lambda s: s["scene"]["name"])
 def test_the_file_is_the_one_h5netcdf_writes(spec):
     theirs, ours = _define_both(spec)
-    theirs.seek(0)
-    ours.seek(0)
-    a, b = walk(theirs), walk(ours)
-    assert len(a) == len(b)
-    for x, y in zip(a, b):
-        assert x == y
+    if tuple(int(x) for x in h5netcdf.__version__.split(".")[:2]) == MATCHED_H5NETCDF:
+        theirs.seek(0)
+        ours.seek(0)
+        a, b = walk(theirs), walk(ours)
+        assert len(a) == len(b)
+        for x, y in zip(a, b):
+            assert x == y
     theirs.seek(0)
     ours.seek(0)
     with xr.open_dataset(theirs, engine="h5netcdf") as x, xr.open_dataset(ours, engine="h5netcdf") as y:
