@@ -53,10 +53,10 @@ BLOCK = 16  # the fewest points a thread of Threaded is given (fewer points: few
 # points, or when it is compiled already (in this process or in the disk cache). The results are bitwise
 # the same either way (tests/test_model_lanes.py); the benches and tests set True or False to compare.
 USE_LANES: bool | None = None
-# The lane kernel compiles in about twice the CPU time of the one-point kernel and integrates faster:
-# Duffing period (sweeps/quickstart.toml, 2026-11-24, load 0.4-2.7; `mechsweep bench startup --only
-# routes`): cold compile 22.4 s of CPU against 10.4 s, warm 665k against 403k points/s on 2 threads
-# (673k and 404k per CPU second): the 12 s are repaid at about 1.2 * 10^7 points.
+# The lane kernel compiles in about four times the CPU time of the one-point kernel and integrates
+# about twice as fast: Duffing period (sweeps/quickstart.toml, 2026-11-24 16:30 UTC, load about 1.5;
+# `mechsweep bench startup --only routes`): cold compile 22.2 s of CPU against 5.5 s, warm 931k against
+# 428k points per CPU second: the 16.6 s are repaid at about 1.3 * 10^7 points.
 LANES_FROM_POINTS = 10**7
 _PLAN = threading.local()  # the size of the run being computed in this thread (planned_points)
 
