@@ -603,8 +603,9 @@ class NetCDFWriter:
     same attributes with their dtypes, shapes, values and order (netCDF-4's ``_Netcdf4Dimid`` and
     ``_Netcdf4Coordinates``, h5netcdf's ``_NCProperties``), the same dimension-scale attachments.
     tests/test_store_define.py walks a file of each shipped scene written both ways and compares
-    all of it. h5netcdf spends 25-30 ms of CPU on a small run's definition looking up the same
-    h5py objects again and again (``bench duffing --breakdown``); this writes each once."""
+    all of it. h5netcdf spent 25-30 ms of CPU on a small run's definition looking up the same
+    h5py objects again and again (the run breakdown of docs/performance-duffing.md, round 5); this
+    writes each once."""
 
     def __init__(self, target):
         self.file = h5py.File(target, "w", track_order=True)  # as h5netcdf opens a new file (h5py >= 3.7)

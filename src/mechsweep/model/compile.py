@@ -635,9 +635,8 @@ def _one_try(source: str) -> str:
     ``try``) as plain calls that numba inlines into their callers (``jit_into_caller``; strip_guards): the
     kernel catches an exception once per point, around ``point`` (a function of its own: numba's try does
     not catch a raise inlined into its own body). numba types and lowers a ``try`` with every operation of
-    its body split off to test for an exception: a guard of a one-line function cost about 0.1 s of
-    compile CPU, the same function without the ``try`` 0.02 s (2026-11-24, a session measurement); the
-    quickstart's module had 14 guards."""
+    its body split off to test for an exception: a guard cost several times the compile CPU of the
+    one-line call inside it (docs/performance-startup.md); the quickstart's module had 14 guards."""
     return strip_guards(source, "@jit_into_caller")
 
 

@@ -933,9 +933,10 @@ def kernel_source(model, chosen, refs: dict, origin: str, closed, lane_rhs: str)
         start = f"\n        initial(p, y)\n        lane_load(ws, lane, ii, y, {tm}, rtol, atol)"
     # feed, conclude, settle and refill run once per point and take the ws tuple (11 arrays) and ~10
     # arrays more: compiled with numba's reference counting, each call and each view (p = ws[PR][lane])
-    # cost atomic increments and decrements of those arrays' counts, a quarter of the Duffing lane
-    # kernel's CPU (perf: NRT_incref/decref; `mechsweep bench duffing`: 1.32 -> 1.73 M points/s on
-    # 2 threads when they became jit_noalloc). They allocate nothing; work() allocates the lanes.
+    # cost atomic increments and decrements of those arrays' counts: 12 % of the Duffing lane kernel's
+    # perf samples (tests/data/nrt_share.py), and `mechsweep bench duffing` went from 1.29-1.30 to
+    # 1.67-1.72 M points/s on 2 threads when they became jit_noalloc. They allocate nothing; work()
+    # allocates the lanes.
     lines.append(f"""
 
 @jit_noalloc
