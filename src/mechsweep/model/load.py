@@ -451,6 +451,7 @@ def check(model, ref: str, file: str) -> None:
                                                    ".variational_jac"))  # return nothing
         if not writes and not isinstance(value, (int, float, np.floating, np.integer)):
             raise InputError(f"{label}: {what} returned {value!r}; expected a number")
+    _check_writes(model, label, p, y0)
     pp = np.concatenate([p, np.zeros(3 * n_s + n_s * n_s)])
     funcs = [("initial", model.initial, (pp, np.zeros(n_s))), ("rhs", model.rhs, (0.0, y0.copy(), pp, np.zeros(n_s)))]
     if model.forcing_period is not None:
@@ -496,3 +497,12 @@ def _writes_nan(func, args, i) -> bool:
     with np.errstate(all="ignore"):
         func(*args)
     return out[i] != 12345.678
+
+
+def _check_writes(model, label: str, p: np.ndarray, y0: np.ndarray) -> None:
+    """Every function of the model writes only the arguments its role may write (model/writes.py:
+    an event nothing, an rhs its dydt, prepare the internal slots of p, ...), by its source and by
+    one more call at the probe point (``p`` after prepare, ``y0`` from initial)."""
+    from . import writes
+
+    writes.check(writes.ode_calls(model, p.copy(), y0.copy()), label)
