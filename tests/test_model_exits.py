@@ -128,6 +128,14 @@ def test_a_model_file_that_is_not_a_python_file_is_named_as_what_it_is(ref, said
     assert said in str(info.value) and "AttributeError" not in str(info.value), str(info.value)
 
 
+def test_a_module_name_that_is_a_file_beside_the_scene_is_named_as_that_file(tmp_path):
+    (tmp_path / "notes.txt").write_text("not Python\n")
+    with pytest.raises(InputError, match=r"notes.txt is not a Python file: a model file's name ends in .py"):
+        load.resolve("notes.txt:X", tmp_path)
+    with pytest.raises(InputError, match=r"module 'no_such_module.sub' is not importable"):
+        load.resolve("no_such_module.sub:X", tmp_path)
+
+
 def test_models_command_on_a_file_that_is_not_python(capsys):
     assert main(["models", "/etc/passwd"]) == 2
     err = capsys.readouterr().err

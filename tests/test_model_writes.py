@@ -140,6 +140,11 @@ def _copyto(t, y, p):
     return 0.0
 
 
+def _copyto_by_keyword(t, y, p):
+    np.copyto(dst=y, src=p[:2])
+    return 0.0
+
+
 def _alias(t, y, p):
     z = y
     z[0] = 1.0
@@ -227,7 +232,7 @@ def _jitted(t, y, p):
 
 
 WRITES = {  # function -> the argument it writes (1: y, 2: p)
-    _direct: 1, _slice: 1, _augmented: 1, _fill: 1, _copyto: 1, _alias: 1, _view_in_place: 1, _transpose: 1,
+    _direct: 1, _slice: 1, _augmented: 1, _fill: 1, _copyto: 1, _copyto_by_keyword: 1, _alias: 1, _view_in_place: 1, _transpose: 1,
     _ufunc_positional_out: 1, _ufunc_out_keyword: 1, _ufunc_at: 1, _nested: 1, _walrus: 1, _unpacked: 2,
     _alias_in_a_loop: 1, _alias_on_one_branch: 1, _setitem: 1, _through_helper: 2, _jitted: 1,
 }
@@ -281,7 +286,16 @@ def _copy_method(t, y, p):
     return z[0]
 
 
-@pytest.mark.parametrize("func", [_local_array, _rebound, _element_updated, _fancy_copy, _helper_reads, _copy_method],
+def _first(out):  # a helper whose parameter is called out, and only read
+    return out[0]
+
+
+def _helper_reads_out(t, y, p):
+    return _first(out=y)
+
+
+@pytest.mark.parametrize("func", [_local_array, _rebound, _element_updated, _fancy_copy, _helper_reads, _copy_method,
+                                  _helper_reads_out],
                          ids=lambda f: f.__name__.strip("_"))
 def test_writing_a_local_array_or_a_copy_is_not_a_finding(func):
     assert writes.param_writes(func, (0, 1, 1, 0)) == {}
@@ -337,6 +351,8 @@ def test_every_shipped_model_passes_the_write_check():
             with pytest.raises(InputError, match=r"rhs writes into its parameter argument p at .*measure_more.py"):
                 writes.check(calls, label)
             continue
-        writes.check(calls, label)
+        # the built-in models never pass through load.check: their source is what is checked here (a
+        # call from Python would compile their numba helpers for nothing)
+        writes.check(calls, label, dynamic=not label.startswith("mechsweep.models."))
         checked += 1
     assert checked >= 40

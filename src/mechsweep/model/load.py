@@ -256,7 +256,7 @@ def resolve(ref: str, base: Path | None = None):
     key = (module, file, name, module_source(module, file) if file else b"")
     if key in _RESOLVED:
         return _RESOLVED[key]
-    mod = import_model(ref, module, file, where)
+    mod = import_model(ref, module, file, where, base)
     file = file or getattr(mod, "__file__", "") or ""
     if not hasattr(mod, name):
         found = [k for k, v in vars(mod).items() if isinstance(v, (OdeModel, ClosedFormModel))]
@@ -532,16 +532,20 @@ def check_model_file(ref: str, path: Path) -> None:
                          "(a model is a built-in name, 'file.py:NAME' or 'package.module:NAME')")
 
 
-def import_model(ref: str, module: str, file: str, where: str):
+def import_model(ref: str, module: str, file: str, where: str, base: Path | None = None):
     """The user's module (``import_module``), every failure of its import an InputError naming the
     file and line: an exception, and an exit (sys.exit, os._exit, KeyboardInterrupt raised by the
-    code, any other BaseException; :func:`exits_refused`)."""
+    code, any other BaseException; :func:`exits_refused`). A module name that is no module but a
+    file beside the scene ("notes.txt:NAME") is named as the file it is."""
     left = ref.rpartition(":")[0]
     with exits_refused(f"{ref!r}: importing {where}", file):
         try:
             return import_module(module, file)
         except ModuleNotFoundError as exc:
             if not file and exc.name and left.startswith(exc.name):
+                path = (base or Path.cwd()) / left
+                if os.path.lexists(path):
+                    check_model_file(ref, path.resolve())
                 raise InputError(f"{ref!r}: module {left!r} is not importable ({exc})") from None
             raise InputError(f"{ref!r}: importing {where} failed: {_where(exc, file)}") from None
         except Exception as exc:  # the user's code raised on import

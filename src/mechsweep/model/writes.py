@@ -124,8 +124,9 @@ def _numpy_sets():
     views = {np.asarray, np.asanyarray, np.ravel, np.reshape, np.squeeze, np.transpose, np.atleast_1d,
              np.atleast_2d, np.atleast_3d, np.expand_dims, np.swapaxes, np.moveaxis, np.ascontiguousarray,
              np.asfortranarray, np.diagonal}
-    writing = {np.copyto, np.put, np.place, np.putmask, np.fill_diagonal, np.put_along_axis, np.random.shuffle}
-    return {id(f) for f in views}, {id(f) for f in writing}
+    writing = {np.copyto: "dst", np.put: "a", np.place: "arr", np.putmask: "a", np.fill_diagonal: "a",
+               np.put_along_axis: "arr", np.random.shuffle: "x"}  # each writes its first argument (by keyword: this)
+    return {id(f) for f in views}, {id(f): kw for f, kw in writing.items()}
 
 
 _VIEW_FUNCS, _WRITING_FUNCS = _numpy_sets()
@@ -313,10 +314,6 @@ class _Scanner:
             if not isinstance(c, ast.Call):
                 continue
             f = c.func
-            for kw in c.keywords:
-                if kw.arg == "out":
-                    for v in (kw.value.elts if isinstance(kw.value, ast.Tuple) else [kw.value]):
-                        self.write(self.origins(v, env))
             if isinstance(f, ast.Attribute) and f.attr in _WRITING_METHODS:
                 self.write(self.origins(f.value, env))
                 continue
@@ -324,28 +321,31 @@ class _Scanner:
                 self.inline(self.local_defs[f.id], c, env)
                 continue
             callee = self.resolve(f)
-            if callee is None:
+            if self.helper(callee, c, env):  # the user's own function: what it writes, by its source
                 continue
+            for kw in c.keywords:  # numpy's (or an unknown callee's) output argument
+                if kw.arg == "out":
+                    for v in (kw.value.elts if isinstance(kw.value, ast.Tuple) else [kw.value]):
+                        self.write(self.origins(v, env))
             if isinstance(callee, np.ufunc):
                 for a in c.args[callee.nin:]:
                     self.write(self.origins(a, env))
-                continue
-            if isinstance(f, ast.Attribute) and f.attr == "at" and isinstance(self.resolve(f.value), np.ufunc):
+            elif isinstance(f, ast.Attribute) and f.attr == "at" and isinstance(self.resolve(f.value), np.ufunc):
                 if c.args:
                     self.write(self.origins(c.args[0], env))
-                continue
-            if id(callee) in _WRITING_FUNCS:
-                if c.args:
-                    self.write(self.origins(c.args[0], env))
-                continue
-            self.helper(callee, c, env)
+            elif callee is not None and id(callee) in _WRITING_FUNCS:
+                first = c.args[0] if c.args else next((k.value for k in c.keywords
+                                                       if k.arg == _WRITING_FUNCS[id(callee)]), None)
+                if first is not None:
+                    self.write(self.origins(first, env))
 
-    def helper(self, callee, c, env):
-        """A call of a function of the user's (or any package's but numpy's, numba's, scipy's):
-        the parameters it writes, mapped back to the arguments of this call."""
+    def helper(self, callee, c, env) -> bool:
+        """A call of a Python function (plain or numba's dispatcher) of the user's, or of any package
+        but numpy, numba, scipy: the parameters it writes, mapped back to the arguments of this
+        call. False for any other callee."""
         py = getattr(callee, "py_func", callee)
         if not isinstance(py, types.FunctionType) or (py.__module__ or "").split(".")[0] in _FOREIGN:
-            return
+            return False
         code = py.__code__
         params = code.co_varnames[:code.co_argcount + code.co_kwonlyargcount]
         args = {}
@@ -359,13 +359,14 @@ class _Scanner:
                 pos = params.index(kw.arg)
                 args[pos if pos < code.co_argcount else kw.arg] = self.origins(kw.value, env)
         if not any(args.values()):
-            return
+            return True
         depths = tuple(max((d for _, d in args.get(i, ())), default=0) for i in range(code.co_argcount))
         depths += (max((d for _, d in args.get("*", ())), default=0),)
         for pos, f in param_writes(py, depths).items():
             if pos in args:
                 hop = (getattr(py, "__qualname__", py.__name__), f.file, f.line, f.text)
                 self.write(args[pos], via=(hop,) + f.via)
+        return True
 
     def inline(self, node, c, env):
         """A call of a function nested in this one: its body walked with its parameters bound to
