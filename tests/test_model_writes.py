@@ -1,7 +1,7 @@
 """A model function may write only what its role writes (model/writes.py): an rhs its dydt,
 initial its y0, prepare the internal slots of p, compute its row, curves and scratch; an event, an
 expression, a closed form, classify and the others nothing. An event that bounced a ball by writing
-``y[1] = -e * y[1]`` was accepted and gave apex times 375 % and 104 % off with status ok: now every
+``y[1] = -e * y[1]`` was accepted and gave wrong apex times with status ok: now every
 such model is refused when it is loaded (exit 2), naming the function, the argument, file and line.
 Nothing here compiles a kernel: the check runs before numba does."""
 from __future__ import annotations
@@ -68,6 +68,27 @@ CASES = {
                                "Phi[0] = 1.0", "(dPhi)"),
     "COMPUTE_WRITES_DATA": ("compute writes into its shared data argument u", "u[0] = p[0]",
                             "only row, curves and scratch"),
+    "STEADY_OF_WRITES_STATE": ("expression of Steady 'peak' writes into its state argument y", "y[0] = abs(y[0])",
+                               "may not write"),
+    "HISTORY_OF_WRITES_STATE": ("expression of History 'y_t' writes into its state argument y", "y[0] = abs(y[0])",
+                                "may not write"),
+    "KICK_RESPONSE_WRITES_P": ("response of Kick 'settles' writes into its parameter argument p", "p[1] = 0.5 * p[1]",
+                               "may not write"),
+    "WINDOW_WRITES_P": ("window start t0 of Extremum 'y_max' writes into its parameter argument p", "p[2] += 0.0",
+                        "may not write into p"),
+    "SWITCH_TIMES_WRITES_P": ("switch_times writes into its parameter argument p", "p[0] = 9.81", "may not write"),
+    "SYMPLECTIC_STEP_WRITES_P": ("symplectic_step writes into its parameter argument p", "p[1] = 1.0",
+                                 "may not write"),
+    "SYSTEM_PREPARE_WRITES_PARAMETER": ("the System's prepare of FirstEvent 'apex' writes into its parameter argument p",
+                                        "p[2] = 1.0", "internal slots of p (p[3:4]"),
+    "MEASUREMENT_CLASSIFY_WRITES_P": ("classify of FirstEvent 'apex' writes into its parameter argument p",
+                                      "p[1] = max(p[1], 0.1)", "classify may not"),
+    "CLOSED_CLASSIFY_WRITES_P": ("classify of closed form 'one' writes into its parameter argument p", "p[:] = 1.0",
+                                 "classify may not"),
+    "VARIATIONAL_JAC_WRITES_PHI": ("variational_jac of Floquet 'mu' writes into its variational state argument Phi",
+                                   "Phi.sort()", "only its 4th argument (JJ)"),
+    "INVARIANT_WRITES_STATE": ("invariant 'energy' writes into its state argument y", "y[1] = 0.0",
+                               "may not write into its arguments"),
 }
 # seen only by the call at the probe point: a helper with no readable source, a write through a view
 # of p whose index is known only when it runs
