@@ -6,8 +6,9 @@ Python or numba gives one), raised while the scene is loaded, before any file is
 missing file, a file that fails to import, NAME not defined or not an OdeModel (or ClosedFormModel: its
 checks are closed.check), an rhs or initial
 that raises, reads a parameter beyond the declared ones or writes beyond the state (found by
-running them once in plain Python at a probe point), leaves a component unwritten, or that numba
-cannot compile.
+running them once in plain Python at a probe point), leaves a component unwritten, writes into an
+argument its role may not write (model/writes.py), or that numba cannot compile; and an exit while
+the model loads (sys.exit, os._exit, a KeyboardInterrupt the code raises itself: exits_refused).
 """
 from __future__ import annotations
 
