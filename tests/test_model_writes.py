@@ -79,8 +79,9 @@ CASES = {
     "SWITCH_TIMES_WRITES_P": ("switch_times writes into its parameter argument p", "p[0] = 9.81", "may not write"),
     "SYMPLECTIC_STEP_WRITES_P": ("symplectic_step writes into its parameter argument p", "p[1] = 1.0",
                                  "may not write"),
-    "SYSTEM_PREPARE_WRITES_PARAMETER": ("the System's prepare of FirstEvent 'apex' writes into its parameter argument p",
-                                        "p[2] = 1.0", "internal slots of p (p[3:4]"),
+    "SYSTEM_PREPARE_WRITES_PARAMETER": (
+        "the System's prepare of FirstEvent 'apex' writes into its parameter argument p", "p[2] = 1.0",
+        "internal slots of p (p[3:4]"),
     "MEASUREMENT_CLASSIFY_WRITES_P": ("classify of FirstEvent 'apex' writes into its parameter argument p",
                                       "p[1] = max(p[1], 0.1)", "classify may not"),
     "CLOSED_CLASSIFY_WRITES_P": ("classify of closed form 'one' writes into its parameter argument p", "p[:] = 1.0",
@@ -125,6 +126,13 @@ def test_a_write_the_source_does_not_show_is_found_at_the_probe_point(name, user
     what, rule = DYNAMIC[name]
     msg = _refused(name)
     assert what in msg and rule in msg and str(HOSTILE) in msg, msg
+
+
+def test_a_model_given_from_python_is_checked_too(user_models_importable):
+    """run(scene, models={...}): the object passes the same checks as a model file."""
+    mod = load.import_module(load._module_name(HOSTILE), str(HOSTILE))
+    with pytest.raises(InputError, match=r"models\['ball'\].*event of FirstEvent 'apex' writes into its state "):
+        load.from_object("ball", mod.EVENT_WRITES_STATE)
 
 
 def test_the_bouncing_ball_is_refused_through_the_cli_with_exit_2(in_tmp, capsys, monkeypatch):
@@ -253,7 +261,8 @@ def _jitted(t, y, p):
 
 
 WRITES = {  # function -> the argument it writes (1: y, 2: p)
-    _direct: 1, _slice: 1, _augmented: 1, _fill: 1, _copyto: 1, _copyto_by_keyword: 1, _alias: 1, _view_in_place: 1, _transpose: 1,
+    _direct: 1, _slice: 1, _augmented: 1, _fill: 1, _copyto: 1, _copyto_by_keyword: 1, _alias: 1, _view_in_place: 1,
+    _transpose: 1,
     _ufunc_positional_out: 1, _ufunc_out_keyword: 1, _ufunc_at: 1, _nested: 1, _walrus: 1, _unpacked: 2,
     _alias_in_a_loop: 1, _alias_on_one_branch: 1, _setitem: 1, _through_helper: 2, _jitted: 1,
 }
