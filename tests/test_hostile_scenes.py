@@ -165,7 +165,39 @@ CORPUS = {
     "execution_scheduler_number.toml": ["execution.scheduler: 8786 is not allowed", "tcp://"],
     "execution_scheduler_spaces.toml": ["execution.scheduler", "is not an address", "tcp://"],
     "execution_scheduler_empty.toml": ["execution.scheduler", "is not allowed", "tcp://"],
+    # user models (tests/user_models, copied next to the scene): functions writing what they may not
+    # (model/writes.py), exits while a model loads, model files that are not Python files
+    "model_event_writes_state.toml": ["scene.model", "event of FirstEvent 'apex' writes into its state argument y",
+                                      "hostile_writes.py:37", "y[1] = -p[2] * y[1]", "state jumps are not supported"],
+    "model_event_writes_state_in_module_helper.toml": [
+        "event of FirstEvent 'apex' writes into its state argument y", "hostile_writes.py:56",
+        "through negate, which writes it at", "hostile_helpers.py:10 (v[k] = -v[k])"],
+    "model_event_writes_state_unseen.toml": ["event of FirstEvent 'apex' wrote into its state argument y (component(s) 1)",
+                                             "when run at the probe point", "hostile_writes.py:60"],
+    "model_rhs_writes_parameter.toml": ["rhs writes into its parameter argument p", "hostile_writes.py:72",
+                                        "may write only its 4th argument (dydt)"],
+    "model_prepare_writes_parameter.toml": ["prepare writes into its parameter argument p", "hostile_writes.py:100",
+                                            "only the model's internal slots of p (p[3:4]"],
+    "model_expression_writes_state.toml": ["expression of Extremum 'e_max' writes into its state argument y",
+                                           "hostile_writes.py:84 (y[:] = np.abs(y))"],
+    "model_closed_form_writes_parameter.toml": ["closed form 't_fall' writes into its parameter argument p",
+                                                "hostile_writes.py:123"],
+    "model_compute_writes_data.toml": ["compute writes into its shared data argument u", "hostile_writes.py:188",
+                                       "only row, curves and scratch"],
+    "model_sys_exit_at_import.toml": ["scene.model", "importing", "exit_sys.py", "SystemExit(0)", "exit_sys.py, line 5",
+                                      "may not exit"],
+    "model_base_exception_at_import.toml": ["Stop raised (a BaseException, not an Exception): no model today",
+                                            "exit_base.py, line 9"],
+    "model_helper_exits_at_import.toml": ["SystemExit(3)", "exit_helper_module.py, line 5",
+                                          "reached from", "exit_via_helper.py, line 4"],
+    "model_exits_at_probe.toml": ["running its functions at the probe point", "SystemExit(0)", "exit_probe.py, line 18"],
+    "model_not_a_python_file.toml": ["model_not_a_python_file.toml is not a Python file", "ends in .py"],
+    "model_file_is_a_folder.toml": ["data/runs is a folder, not a Python file"],
+    "model_file_is_a_device.toml": ["/dev/null is a character device, not a Python file"],
 }
+USER_MODELS = Path(__file__).resolve().parent / "user_models"
+# a model file of the corpus -> the modules it imports by name (copied beside it)
+COMPANIONS = {"hostile_writes.py": ("hostile_helpers.py",), "exit_via_helper.py": ("exit_helper_module.py",)}
 
 # a valid, algebraic (instant) scene for the attacks on the output path
 VALID = """\
@@ -249,9 +281,20 @@ def test_corpus_is_complete():
         assert sum(section.encode() in t for t in texts) >= 5, section
 
 
+def with_user_models(name: str, work: Path, monkeypatch) -> None:
+    """Copy the model file a scene names (and the modules it imports) from tests/user_models beside
+    it, importable by name from there, with no bytecode written (nothing in the folder may change)."""
+    for ref in re.findall(r'^model = "([\w.]+\.py):', (HOSTILE / name).read_text(errors="replace"), re.M):
+        for file in (ref,) + COMPANIONS.get(ref, ()):
+            shutil.copy(USER_MODELS / file, work / file)
+    monkeypatch.setattr("sys.dont_write_bytecode", True)
+    monkeypatch.syspath_prepend(str(work))
+
+
 @pytest.mark.parametrize("name", sorted(CORPUS))
-def test_hostile_scene_is_refused(name, work, capsys):
+def test_hostile_scene_is_refused(name, work, capsys, monkeypatch):
     shutil.copy(HOSTILE / name, work / name)
+    with_user_models(name, work, monkeypatch)
     out = work / "data" / "runs" / "out.h5"
     refused(capsys, ["run", name, "-o", str(out), "--no-progress"], work, *CORPUS[name])
     refused(capsys, ["run", name, "--no-progress"], work, *CORPUS[name])  # to its own [storage] path

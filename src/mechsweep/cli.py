@@ -759,13 +759,8 @@ def _models_in_file(name: str) -> list[str]:
     from .model.ode import OdeModel
 
     path = Path(name).resolve()
-    if not path.is_file():
-        raise InputError(f"{name!r}: model file {path} does not exist (a model is a built-in name, "
-                         "'file.py:NAME' or 'package.module:NAME')")
-    try:
-        mod = load.import_module(load._module_name(path), str(path))
-    except Exception as exc:  # the user's code raised on import
-        raise InputError(f"{name!r}: importing {path} failed: {load._where(exc, str(path))}") from None
+    load.check_model_file(name, path)  # a regular .py file; its import's failures and exits are InputErrors
+    mod = load.import_model(name, load._module_name(path), str(path), str(path))
     found = [k for k, v in vars(mod).items() if isinstance(v, (OdeModel, ClosedFormModel))]
     if not found:
         raise InputError(f"{name!r}: {path} defines no mechsweep.model.OdeModel or ClosedFormModel")

@@ -311,6 +311,9 @@ def check(model: ClosedFormModel, ref: str, file: str) -> None:
             raise InputError(f"{label}: compute returned OK without writing {', '.join(unwritten)} at the probe "
                              f"point p = {p.tolist()} with every output wanted (write row[k] for each wanted "
                              "scalar k and every value of curves[slot[c]] for each wanted curve c)")
+    from . import writes  # compute writes only row, curves and scratch
+
+    writes.check(writes.closed_calls(model, _probe_arrays(model, p.copy(), math.nan), data), label)
     module, path, qual = load.function_ref(model.compute, "compute", model.name)
     try:
         disp = load.jitted(module, path, qual)
