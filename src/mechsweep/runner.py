@@ -28,7 +28,8 @@ from . import cf
 from . import status as st
 from .errors import ClusterLost, InputError, WriteFailed
 from .grid import Chunk, ChunkPlan, ParameterMatrix, chunk_target, plan_chunks
-from .journal import BadChunk, Journal, RunLock, discard_path, drop, lock_path, partial_path
+from .journal import (RESTART, BadChunk, Journal, RunLock, clear_discard, discard_path, drop, lock_path,
+                      own_files_problem, partial_path)
 from .scene import Scene, check_scheduler, check_worker_timeout, load_scene, load_scene_text
 from .store import (COMPILE_KEY, LOAD_LIMIT_BYTES, Early, Held, StoreError, assemble, check_journal_files,
                     file_kind, layout, open_dataset, status_counts)
@@ -221,7 +222,7 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
         with _Signals() as signals:
             try:
                 with RunLock(final):  # from here to the end, no other run touches final or its journal
-                    shutil.rmtree(discard_path(final), ignore_errors=True)  # what a killed clean-up left
+                    clear_discard(final)  # what a killed clean-up left
                     if not _check_existing(scene, final, resume, restart, target, len(chunks), overwrite):
                         keep = hold or hold is None and bytes_per_point(scene) * scene.n_points <= LOAD_LIMIT_BYTES
                         try:
@@ -472,6 +473,8 @@ def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, targ
     a resume with another scene, an existing dataset of another scene (or a file mechsweep did
     not write) without ``overwrite``. True when ``resume`` finds the run already finished."""
     part = partial_path(final)
+    if (why := own_files_problem(final)) is not None:  # a user's file in the journal: never removed
+        raise StoreError(why)
     check_journal_files(part, contents=not restart)  # --restart discards what the folder holds
     if part.exists() and not (resume or restart):
         raise StoreError(f"an unfinished run of this output exists: {part}; continue it with --resume "
@@ -489,7 +492,29 @@ def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, targ
             canonical = journal.meta["scene_canonical"]  # the same scene, perhaps in an older version's form
         if not journal.empty and (why := journal.matches(canonical, target, n_chunks)) is not None:
             raise StoreError(why)
+        if not journal.empty and (why := _journal_attrs_problem(journal, scene)) is not None:
+            raise StoreError(why)
     return False
+
+
+def _journal_attrs_problem(journal: Journal, scene: Scene) -> str | None:
+    """Why the attributes an unfinished run's journal gives its dataset do not describe ``scene``
+    (its run.json edited; a journal of format 2 has no checksum to tell), or None: the model, the
+    outputs and the solver settings, which the scene determines."""
+    import json
+
+    attrs = journal.meta["attrs"]
+    expected = {"model": scene.model.name, "outputs": " ".join(scene.outputs)}
+    if scene.solver is not None:
+        expected.update({f"solver_{k}": v for k, v in scene.solver.as_dict().items()})
+    expected = json.loads(json.dumps(expected))  # as run.json holds them
+    for key in sorted(set(expected) | {k for k in attrs if k.startswith("solver_")}):
+        if key not in attrs or key not in expected or attrs[key] != expected[key]:
+            stored = repr(attrs[key]) if key in attrs else "missing"
+            wanted = repr(expected[key]) if key in expected else "none"
+            return (f"{journal.folder / 'run.json'} gives the dataset the attribute {key} = {stored}, the scene "
+                    f"{wanted}: the journal was edited; {RESTART}")
+    return None
 
 
 def _holds_same_scene(final: Path, scene: Scene, overwrite: bool) -> bool | None:
@@ -654,7 +679,10 @@ def _finish(journal: Journal, scene: Scene, chunks: ChunkPlan, final: Path, attr
         except OSError as exc:
             os.unlink(tmp)
             raise WriteFailed(final, exc) from None
-        drop(final)
+        if left := drop(final):
+            print(f"mechsweep: the dataset is in place; entries a run does not write were left as they are ("
+                  f"{'; '.join(left[:5])}{' ...' if len(left) > 5 else ''}): move them away (a run of {final} "
+                  "refuses to start until then)", file=sys.stderr)
     return [], counts
 
 
