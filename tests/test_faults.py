@@ -819,6 +819,162 @@ def test_a_chunk_file_moved_swapped_edited_or_from_another_run_is_computed_again
     assert "not this run's chunk of this index" in err and "removed, it is computed again" in err, err
 
 
+# ----------------------------------------------------------------------------- the output path, at the end
+def _other_dataset(folder):
+    """A finished dataset of another scene (omega = 2), to be put at the output path."""
+    (folder / "other.toml").write_text(SCENE.replace("omega = 1.0", "omega = 2.0"))
+    mechsweep.run(mechsweep.load_scene(folder / "other.toml"), output=folder / "other.h5", progress=False)
+    return (folder / "other.h5").read_bytes()
+
+
+def _appear(kind, target, folder):
+    """Put a ``kind`` at ``target`` (the run's output path), as a user or another program would."""
+    if kind == "text file":
+        target.write_text("the user's notes\n")
+    elif kind == "empty file":
+        target.write_bytes(b"")
+    elif kind == "link":
+        (folder / "mine.txt").write_text("the user's file\n")
+        target.symlink_to(folder / "mine.txt")
+    elif kind == "folder":
+        target.mkdir()
+        (target / "mine.txt").write_text("x")
+    elif kind == "fifo":
+        os.mkfifo(target)
+    elif kind == "dataset of another scene":
+        target.write_bytes((folder / "other.h5").read_bytes())
+
+
+APPEARING = ["text file", "empty file", "link", "folder", "fifo", "dataset of another scene"]
+
+
+def _appearing_during_the_run(monkeypatch, kind, target, folder):
+    write, seen = journal.Journal.write_chunk, [0]
+
+    def write_chunk(self, *args):
+        write(self, *args)
+        seen[0] += 1
+        if seen[0] == 2:
+            _appear(kind, target, folder)
+
+    monkeypatch.setattr(journal.Journal, "write_chunk", write_chunk)
+
+
+@pytest.mark.parametrize("route", ["cli", "python"])
+@pytest.mark.parametrize("kind", APPEARING)
+def test_a_file_that_appears_at_the_output_path_during_the_run_is_never_replaced(
+        scene_file, reference, monkeypatch, capsys, kind, route):
+    """What is at the output path is checked when the run starts, and again right before the
+    dataset is renamed into place: something that came meanwhile is left as it is, the run stops
+    with its journal complete, and once it is moved away --resume only assembles the dataset."""
+    folder = scene_file.parent
+    target = folder / OUT
+    _other_dataset(folder)
+    with monkeypatch.context() as mp:
+        _appearing_during_the_run(mp, kind, target, folder)
+        if route == "cli":
+            assert main("run", str(scene_file), "-o", OUT, "--no-progress") == 2
+            err = capsys.readouterr().err
+        else:
+            with pytest.raises(mechsweep.StoreError) as exc:
+                mechsweep.run(mechsweep.load_scene(scene_file), output=OUT, progress=False)
+            err = str(exc.value)
+    assert f"{OUT} appeared while the run computed" in err and "it was left as it is" in err, err
+    assert "Traceback" not in err
+    after = tree(folder / "data" / "runs")
+    assert after[os.path.basename(OUT)][0] == {"link": "link", "folder": "folder", "fifo": "special"}.get(kind, "file")
+    if kind == "dataset of another scene":
+        assert target.read_bytes() == (folder / "other.h5").read_bytes()
+    elif kind == "text file":
+        assert target.read_text() == "the user's notes\n"
+    elif kind == "link":
+        assert os.readlink(target) == str(folder / "mine.txt") and target.read_text() == "the user's file\n"
+    elif kind == "folder":
+        assert os.listdir(target) == ["mine.txt"]
+    files = journal_files(folder)
+    assert sum(f.endswith(".npz") for f in files) == N_CHUNKS and "assembly.h5" not in files, files
+    if target.is_dir() and not target.is_symlink():
+        (target / "mine.txt").unlink()
+        target.rmdir()
+    else:
+        target.unlink()
+    computed = []
+    real = runner.evaluate_chunk
+    monkeypatch.setattr(runner, "evaluate_chunk", lambda scene, chunk, *r: computed.append(chunk.index) or
+                        real(scene, chunk, *r))
+    resume_and_compare(folder, reference)
+    assert computed == []
+
+
+def test_a_dataset_of_the_same_scene_that_appears_is_replaced(scene_file, reference, monkeypatch):
+    """A dataset of the same scene holds the same values: the run replaces it (as a re-run would)."""
+    folder = scene_file.parent
+    target = folder / OUT
+    with monkeypatch.context() as mp:
+        write, seen = journal.Journal.write_chunk, [0]
+
+        def write_chunk(self, *args):
+            write(self, *args)
+            seen[0] += 1
+            if seen[0] == 2:
+                target.write_bytes(reference.read_bytes())
+
+        mp.setattr(journal.Journal, "write_chunk", write_chunk)
+        assert main("run", str(scene_file), "-o", OUT, "--no-progress") == 0
+    assert sorted(p.name for p in target.parent.iterdir()) == ["f.h5"]
+
+
+def test_overwrite_covers_only_the_file_the_run_started_with(scene_file, monkeypatch, capsys):
+    """--overwrite replaces the file that was at the output path when the run was checked; a file
+    put there in its place while the run computed is another one: it is kept."""
+    folder = scene_file.parent
+    target = folder / OUT
+    target.write_bytes(_other_dataset(folder))
+    with monkeypatch.context() as mp:
+        write, seen = journal.Journal.write_chunk, [0]
+
+        def write_chunk(self, *args):
+            write(self, *args)
+            seen[0] += 1
+            if seen[0] == 2:
+                target.unlink()
+                target.write_bytes((folder / "other.h5").read_bytes())  # the same bytes, another file
+
+        mp.setattr(journal.Journal, "write_chunk", write_chunk)
+        assert main("run", str(scene_file), "-o", OUT, "--no-progress", "--overwrite") == 2
+    assert "changed while the run computed (a dataset of a different scene)" in capsys.readouterr().err
+    assert target.read_bytes() == (folder / "other.h5").read_bytes()
+
+
+APPEARER = textwrap.dedent("""
+    import os, sys
+    from mechsweep import cli, journal
+    write, seen = journal.Journal.write_chunk, [0]
+    def write_chunk(self, *a):
+        write(self, *a)
+        seen[0] += 1
+        if seen[0] == 2:
+            with open(sys.argv[1], "w") as f:
+                f.write("the user's notes\\n")
+    journal.Journal.write_chunk = write_chunk
+    sys.exit(cli.main(sys.argv[2:]))
+""")
+
+
+def test_the_command_keeps_a_file_that_appears_at_its_output_path(scene_file, reference):
+    """The same from the command in a process of its own: exit 2, one line, the file kept."""
+    (scene_file.parent / "appearer.py").write_text(APPEARER)
+    child = subprocess.run([sys.executable, "appearer.py", OUT, "run", "faults.toml", "-o", OUT, "--no-progress",
+                            "--threads", "1"], cwd=scene_file.parent, capture_output=True, text=True)
+    assert child.returncode == 2, child.stderr[-2000:]
+    assert child.stderr.count("\n") == 1 and "appeared while the run computed (not a mechsweep dataset: it is a " \
+        "text file" in child.stderr, child.stderr
+    assert (scene_file.parent / OUT).read_text() == "the user's notes\n"
+    (scene_file.parent / OUT).unlink()
+    (scene_file.parent / "appearer.py").unlink()
+    resume_and_compare(scene_file.parent, reference)
+
+
 def _denied(monkeypatch, where):
     """Reading ``where`` fails with EACCES, as for another user (the tests may run as root, which
     reads anything). Only the calls made with that path."""
