@@ -394,7 +394,7 @@ def _storable(value) -> bool:
     """A value the dataset's attributes can hold as run.json gives it: text, a number, or a list of them."""
     if isinstance(value, (str, int, float)):
         return True
-    return isinstance(value, list) and bool(value) and (all(isinstance(v, str) for v in value) or all(
+    return isinstance(value, list) and (all(isinstance(v, str) for v in value) or all(
         isinstance(v, (int, float)) and not isinstance(v, bool) for v in value))
 
 
