@@ -11,6 +11,7 @@ import platform
 import resource
 import shutil
 import signal
+import stat
 import sys
 import threading
 import time
@@ -28,7 +29,8 @@ from . import cf
 from . import status as st
 from .errors import ClusterLost, InputError, WriteFailed
 from .grid import Chunk, ChunkPlan, ParameterMatrix, chunk_target, plan_chunks
-from .journal import BadChunk, Journal, RunLock, discard_path, drop, lock_path, partial_path
+from .journal import (RESTART, BadChunk, Journal, RunLock, clear_discard, discard_path, drop, lock_path,
+                      own_files_problem, partial_path)
 from .scene import Scene, check_scheduler, check_worker_timeout, load_scene, load_scene_text
 from .store import (COMPILE_KEY, LOAD_LIMIT_BYTES, Early, Held, StoreError, assemble, check_journal_files,
                     file_kind, layout, open_dataset, status_counts)
@@ -186,6 +188,7 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
     # missing; a folder given with output= must exist (a typo there is refused, not created)
     make_folder = output is None and not os.path.lexists(final.parent)
     check_target(final, create_folder=make_folder)
+    check_output_place(final)
     if scheduler is not None and (why := check_scheduler(scheduler)) is not None:
         raise InputError(f"scheduler {why}")
     scheduler = scheduler if scheduler is not None else scene.execution.scheduler
@@ -221,12 +224,13 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
         with _Signals() as signals:
             try:
                 with RunLock(final):  # from here to the end, no other run touches final or its journal
-                    shutil.rmtree(discard_path(final), ignore_errors=True)  # what a killed clean-up left
+                    clear_discard(final)  # what a killed clean-up left
+                    before = _output_state(final)  # what the checks accept is what the dataset may replace
                     if not _check_existing(scene, final, resume, restart, target, len(chunks), overwrite):
                         keep = hold or hold is None and bytes_per_point(scene) * scene.n_points <= LOAD_LIMIT_BYTES
                         try:
                             counts, held = _compute(scene, final, restart, threads, progress, scheduler, target,
-                                                    chunks, signals, worker_timeout, client, keep)
+                                                    chunks, signals, worker_timeout, client, keep, before)
                         except Exception as exc:  # a failure after the checks: keep no journal without a chunk
                             if not isinstance(exc, (WriteFailed, ClusterLost)):
                                 _failed(exc, final)
@@ -472,6 +476,8 @@ def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, targ
     a resume with another scene, an existing dataset of another scene (or a file mechsweep did
     not write) without ``overwrite``. True when ``resume`` finds the run already finished."""
     part = partial_path(final)
+    if (why := own_files_problem(final)) is not None:  # a user's file in the journal: never removed
+        raise StoreError(why)
     check_journal_files(part, contents=not restart)  # --restart discards what the folder holds
     if part.exists() and not (resume or restart):
         raise StoreError(f"an unfinished run of this output exists: {part}; continue it with --resume "
@@ -489,7 +495,29 @@ def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, targ
             canonical = journal.meta["scene_canonical"]  # the same scene, perhaps in an older version's form
         if not journal.empty and (why := journal.matches(canonical, target, n_chunks)) is not None:
             raise StoreError(why)
+        if not journal.empty and (why := _journal_attrs_problem(journal, scene)) is not None:
+            raise StoreError(why)
     return False
+
+
+def _journal_attrs_problem(journal: Journal, scene: Scene) -> str | None:
+    """Why the attributes an unfinished run's journal gives its dataset do not describe ``scene``
+    (its run.json edited; a journal of format 2 has no checksum to tell), or None: the model, the
+    outputs and the solver settings, which the scene determines."""
+    import json
+
+    attrs = journal.meta["attrs"]
+    expected = {"model": scene.model.name, "outputs": " ".join(scene.outputs)}
+    if scene.solver is not None:
+        expected.update({f"solver_{k}": v for k, v in scene.solver.as_dict().items()})
+    expected = json.loads(json.dumps(expected))  # as run.json holds them
+    for key in sorted(set(expected) | {k for k in attrs if k.startswith("solver_")}):
+        if key not in attrs or key not in expected or attrs[key] != expected[key]:
+            stored = repr(attrs[key]) if key in attrs else "missing"
+            wanted = repr(expected[key]) if key in expected else "none"
+            return (f"{journal.folder / 'run.json'} gives the dataset the attribute {key} = {stored}, the scene "
+                    f"{wanted}: the journal was edited; {RESTART}")
+    return None
 
 
 def _holds_same_scene(final: Path, scene: Scene, overwrite: bool) -> bool | None:
@@ -561,11 +589,13 @@ def same_scene(attrs: Mapping, scene: Scene) -> bool:
 
 def _compute(scene: Scene, final: Path, restart: bool, threads, progress, scheduler, target: int,
              chunks: ChunkPlan, signals: "_Signals", worker_timeout: float, client=None,
-             hold: bool = False) -> tuple[dict[int, int], Held | None]:
+             hold: bool = False, before: tuple | None = None) -> tuple[dict[int, int], Held | None]:
     """Compute the missing chunks into the journal, then assemble the dataset; returns the points
     per status code, and with ``hold`` the dataset kept in memory as it was written (store.Held).
     Chunk files that do not verify (found now, or while assembling) are removed and computed
-    again. ``client``: a connected dask client when ``scheduler`` is given."""
+    again. ``client``: a connected dask client when ``scheduler`` is given. ``before``: what was
+    at ``final`` when the checks passed (``_output_state``), the only file the dataset replaces
+    besides a dataset of the same scene."""
     part = partial_path(final)
     journal = Journal.read(part) if part.exists() and not restart else None
     resumed = journal is not None and not journal.empty
@@ -607,7 +637,7 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
                     attrs["history"] = (attrs.get("history", "") + "\n" + cf.history(
                         now, f"mechsweep.run(scene {scene.name!r}, resume=True): {len(todo)} chunk(s) computed",
                         __version__))
-            bad, counts = _finish(journal, scene, chunks, final, attrs, signals, held, early)
+            bad, counts = _finish(journal, scene, chunks, final, attrs, signals, held, early, before)
         except BaseException:
             if early is not None:  # interrupted or failed: no half-written file is left in the journal
                 early.discard()
@@ -632,12 +662,14 @@ ASSEMBLY = "assembly.h5"
 
 
 def _finish(journal: Journal, scene: Scene, chunks: ChunkPlan, final: Path, attrs: dict,
-            signals: "_Signals", held: Held | None = None, early: Early | None = None
-            ) -> tuple[list[BadChunk], dict[int, int]]:
+            signals: "_Signals", held: Held | None = None, early: Early | None = None,
+            before: tuple | None = None) -> tuple[list[BadChunk], dict[int, int]]:
     """Assemble the dataset next to the journal (or complete ``early``, the file written while the
     chunks were computed), move it into place by one rename, drop the journal. Signals wait until a
     chunk is written (the files are closed before the run stops). Returns the chunk files that did
-    not verify (then nothing is moved into place) and the points per status."""
+    not verify (then nothing is moved into place) and the points per status. What is at ``final``
+    is checked again right before the rename (``_placing_problem``): a file that appeared there
+    while the run computed is not replaced (StoreError, the journal kept)."""
     tmp = journal.folder / ASSEMBLY
     if early is not None and early.usable(tmp, held):  # most of the file is on the disk already
         check_free_space(scene, tmp, early.path.stat().st_size)
@@ -649,13 +681,78 @@ def _finish(journal: Journal, scene: Scene, chunks: ChunkPlan, final: Path, attr
         if bad:
             os.unlink(tmp)
             return bad, counts
+        if (why := _placing_problem(final, scene, before)) is not None:
+            os.unlink(tmp)
+            raise StoreError(why)
         try:
             os.replace(tmp, final)
         except OSError as exc:
             os.unlink(tmp)
             raise WriteFailed(final, exc) from None
-        drop(final)
+        if left := drop(final):
+            print(f"mechsweep: the dataset is in place; entries a run does not write were left as they are ("
+                  f"{'; '.join(left[:5])}{' ...' if len(left) > 5 else ''}): move them away (a run of {final} "
+                  "refuses to start until then)", file=sys.stderr)
     return [], counts
+
+
+def _output_state(final: Path) -> tuple | None:
+    """What is at ``final`` (the entry itself, a link not followed: device, inode, kind, size, times),
+    None when nothing is."""
+    try:
+        s = os.lstat(final)
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+    return (s.st_dev, s.st_ino, s.st_mode, s.st_size, s.st_mtime_ns, s.st_ctime_ns)
+
+
+def _placing_problem(final: Path, scene: Scene, before: tuple | None) -> str | None:
+    """Why the finished dataset may not replace what is at ``final`` now, or None: nothing there,
+    what the checks accepted when the run started (``before``), or a dataset of the same scene
+    (the same values). Anything else came while the run computed (a file, a link, a folder, a
+    dataset of another scene) and is not the run's to replace, whatever --overwrite said about the
+    file of the start."""
+    now = _output_state(final)
+    if now is None or now == before:
+        return None
+    mode = now[2]
+    if stat.S_ISREG(mode):
+        try:
+            same = _stored_same_scene(final, scene)
+        except StoreError as exc:
+            what = str(exc).replace(f"{final} is ", "", 1)
+        else:
+            if same:
+                return None
+            what = ("a mechsweep benchmark dataset" if same is None else
+                    "a dataset of a different scene")
+    else:
+        what = "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
+    part = partial_path(final)
+    return (f"{final} {'appeared' if before is None else 'changed'} while the run computed ({what}); a run replaces "
+            "only the file its checks accepted when it started, or a dataset of the same scene, so it was left as "
+            f"it is. The finished chunks are kept in {part}: move {final} away, then run again with --resume (it "
+            "only assembles the dataset)")
+
+
+def check_output_place(final: Path) -> None:
+    """Refuse an output inside a run's journal folder (``NAME.partial/``, or ``NAME.partial.discard/``
+    being deleted), where the run of NAME would find a file it did not write, or named as the
+    journal or lock of another output (``NAME.partial``, ``.NAME.lock``: that output's run would
+    take it for its own). Links are followed: the folder the file would be in counts."""
+    suffixes = (".partial", ".partial.discard")
+    folder = Path(os.path.realpath(final.parent))
+    for f in (folder, *folder.parents):
+        if f.name.endswith(suffixes):
+            owner = f.name[:-len(".partial")] if f.name.endswith(".partial") else f.name[:-len(".partial.discard")]
+            raise StoreError(f"output path {final} is inside {f}, the journal folder of an unfinished run of "
+                             f"{f.parent / owner} (a run keeps its finished chunks there and removes the folder "
+                             "when it ends); choose another path with -o")
+    name = final.name
+    if name.endswith(suffixes) or (name.startswith(".") and name.endswith(".lock") and len(name) > len("..lock")):
+        raise StoreError(f"output path {final}: a name ending in .partial or .partial.discard, or of the form "
+                         ".NAME.lock, is the one mechsweep gives the journal or the lock of another output; "
+                         "choose another name")
 
 
 class _Signals:

@@ -30,7 +30,7 @@ from . import cf
 from . import status as st
 from .errors import StoreError, WriteFailed  # noqa: F401  (StoreError: part of this module's API)
 from .grid import plan_chunks
-from .journal import BadChunk, Journal, partial_path  # noqa: F401  (partial_path: part of this module's API)
+from .journal import META_KINDS, BadChunk, Journal, partial_path  # noqa: F401  (partial_path: this module's API)
 
 if TYPE_CHECKING:  # not imported at run time: reading a dataset (plot, info) needs no model or numba
     import xarray as xr  # nor does writing one (`mechsweep run`) need xarray: imported where a Dataset is made
@@ -836,56 +836,83 @@ def _open_partial(part: Path) -> xr.Dataset:
 
 def check_journal_files(part: Path, contents: bool = True) -> None:
     """Raise StoreError if the journal folder ``part`` (when it exists) or, with ``contents``, what
-    it holds is not of the kind a run makes: a folder, a file run.json, a folder chunks of files.
-    A pipe or a device there would block or be replaced."""
+    it holds is not of the kind a run makes: a folder, a file run.json that a run wrote (verified:
+    its entries and, from journal format 3 on, its checksum), a folder chunks of files. A pipe or a
+    device there would block or be replaced. Without ``contents`` (--restart, which discards what
+    the folder holds) only the folder itself is checked. The message names what is damaged and
+    that --restart discards the journal."""
+    from .journal import RESTART
+
     if not os.path.lexists(part):
         return
-    if part.is_file():  # an older version's one-file journal: Journal.read says so
+    mode = os.lstat(part).st_mode
+    if stat.S_ISREG(mode):  # an older version's one-file journal: Journal.read says so
         return
-    if not part.is_dir():
-        raise StoreError(f"{part} (the journal of unfinished runs) is {file_kind(part.stat().st_mode)}, "
-                         "not a folder mechsweep made; move it away")
+    if not stat.S_ISDIR(mode):
+        kind = "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
+        raise StoreError(f"{part} (the journal of unfinished runs) is {kind}, not a folder mechsweep made; "
+                         "move it away")
+    if not contents:
+        return
+    try:
+        _check_journal_kinds(part)
+    except OSError as exc:  # e.g. a folder that cannot be listed (permission denied)
+        raise StoreError(f"{exc.filename or part} cannot be read ({exc.strerror}); the journal {part} cannot be "
+                         f"resumed: {RESTART}") from None
+    _check_run_json(part / "run.json")
+
+
+def _check_journal_kinds(part: Path) -> None:
+    from .journal import RESTART
+
     for name, want, test in (("run.json", "a file", stat.S_ISREG), ("chunks", "a folder", stat.S_ISDIR)):
         entry = part / name
-        if os.path.lexists(entry) and not test(entry.stat().st_mode):
-            raise StoreError(f"{entry} is {file_kind(entry.stat().st_mode)}, not {want} as a run writes it; "
-                             "start over with --restart")
+        if os.path.lexists(entry) and not test(mode := os.lstat(entry).st_mode):
+            kind = "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
+            raise StoreError(f"{entry} is {kind}, not {want} as a run writes it; {RESTART}")
     for e in os.scandir(part):  # e.g. assembly.h5: a pipe there would block the run's last step
         if e.name not in ("run.json", "chunks") and not e.is_file(follow_symlinks=False):
-            raise StoreError(f"{e.path} is {file_kind(os.lstat(e.path).st_mode)}, not a file a run writes; "
-                             "start over with --restart")
-    _check_run_json(part / "run.json")
+            raise StoreError(f"{e.path} is {_lkind(e.path)}, not a file a run writes; {RESTART}")
     chunks = part / "chunks"
+    n_chunk_files = 0
     if chunks.is_dir():
         for e in os.scandir(chunks):
             if not e.is_file(follow_symlinks=False):
-                raise StoreError(f"{e.path} is not a chunk file a run writes; start over with --restart")
+                raise StoreError(f"{e.path} is not a chunk file a run writes (it is {_lkind(e.path)}): remove that "
+                                 f"entry (--resume then computes its chunk again), or {RESTART}")
+            n_chunk_files += e.name.endswith(".npz")
+    has_meta = os.path.lexists(part / "run.json")
+    if n_chunk_files and not has_meta:  # a run writes run.json before any chunk
+        raise StoreError(f"{part / 'run.json'} is missing, and {n_chunk_files} chunk file(s) are in {chunks}: the "
+                         f"journal is damaged; {RESTART}")
+    if has_meta and not os.path.lexists(chunks):  # a run makes chunks/ before run.json
+        raise StoreError(f"{chunks} is missing, and {part / 'run.json'} is there: the journal is damaged; {RESTART}")
 
 
-RUN_JSON_KEYS = {"scene_canonical": str, "scene": str, "chunk_target": int, "n_chunks": int, "attrs": dict}
+def _lkind(path) -> str:
+    mode = os.lstat(path).st_mode
+    return "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
+
+
+RUN_JSON_KEYS = META_KINDS  # run.json's entries and their kinds (journal.meta_problem checks them)
 
 
 def _check_run_json(path: Path) -> None:
     """Refuse a journal's run.json that is not what a run writes (edited, damaged, foreign)."""
     import json
 
-    from .journal import READABLE_FORMATS
+    from .journal import RESTART, meta_problem
 
     if not path.is_file():
         return
     try:
         meta = json.loads(path.read_bytes())
     except ValueError as exc:
-        raise StoreError(f"{path} is unreadable ({_first_line(exc)}); start over with --restart") from None
-    if not isinstance(meta, dict):
-        raise StoreError(f"{path} is not a run's journal (a JSON {type(meta).__name__}, not an object); "
-                         "start over with --restart")
-    if meta.get("format") not in READABLE_FORMATS:
-        return  # another version's journal: Journal.read says so
-    bad = [k for k, kind in RUN_JSON_KEYS.items() if not isinstance(meta.get(k), kind) or isinstance(meta.get(k), bool)]
-    if bad or meta["n_chunks"] < 1 or meta["chunk_target"] < 1:
-        raise StoreError(f"{path} is damaged (entries {', '.join(bad) or 'n_chunks, chunk_target'} missing or of the "
-                         "wrong kind); start over with --restart")
+        raise StoreError(f"{path} is unreadable ({_first_line(exc)}); {RESTART}") from None
+    except OSError as exc:
+        raise StoreError(f"{path} cannot be read ({exc.strerror}); {RESTART}") from None
+    if (why := meta_problem(meta)) is not None:
+        raise StoreError(f"{path} {why}; {RESTART}")
 
 
 def _assemble_partial(part: Path) -> xr.Dataset:
