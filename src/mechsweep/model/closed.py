@@ -43,7 +43,7 @@ import numpy as np
 from .. import status as st
 from ..errors import InputError
 from ..models._spec import ExtraDim, ModelSpec, Output, Param, Setting, wanted_flags
-from . import load
+from . import load, sources
 from .compile import load_generated
 
 BLOCK = 64  # designs per scratch allocation (one prange iteration)
@@ -230,6 +230,7 @@ def kernel_for(model: ClosedFormModel, n_data: int, *, origin: str = ""):
     key = hashlib.sha256()
     key.update(repr(ref).encode())
     key.update(load.module_source(ref[0], ref[1]))
+    key.update(sources.record(model).digest.encode())  # the user modules the model imports, recursively
     key.update(repr(("closed", model.name, len(model.params), n_data, model.scratch, BLOCK)).encode())
     name = "mechsweep_closed_" + key.hexdigest()[:20]
     if name in _KERNELS:

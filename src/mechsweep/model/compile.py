@@ -39,7 +39,7 @@ from pathlib import Path
 
 from .. import _jit
 from . import lanes as lane_kernels
-from . import load
+from . import load, sources
 
 _KERNELS: dict[str, object] = {}
 _BY_OBJECTS: dict[tuple, tuple] = {}  # kernel_for's memo: (model, chosen, closed, kernel name) by their ids
@@ -848,6 +848,7 @@ def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes, point
         base.update(name.encode())
         base.update(repr(ref).encode())
         base.update(load.module_source(ref[0], ref[1]))
+    base.update(sources.record(model).digest.encode())  # the user modules the model imports, recursively
     origin = origin or f"{refs['rhs'][0]}"
 
     def name_of(lane_rhs):
