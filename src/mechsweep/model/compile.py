@@ -279,7 +279,7 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
     uses = {"dop853": bool(chosen) and (method in ("dop853", "auto") or not direct),
             "radau": direct and method in ("radau", "auto"),
             "symplectic": direct and method == "symplectic"}
-    lines = module_prologue(f"mechsweep.model.compile for model {model.name!r} ({origin}), method {method}",
+    lines = module_prologue(f"mechsweep.model.compile for model {model.name!r}, method {method}",
                             ("from mechsweep._jit import jit, jit_internal, jit_into_caller, pjit, prange",
                              "from mechsweep.ode import dop853, radau, symplectic"), refs, inline=True)
     lines.append(f"NP = {n_p}\nNSET = {n_set}\nNPI = {npi}  # p[NPI]: the point's user-error flag\nSCR = NPI + 1\n"
