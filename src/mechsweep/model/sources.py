@@ -177,7 +177,11 @@ def differences(stored, current: Record, base=None, since: str = "this run began
                    f"sources {stored.get('mechsweep_sources')} -> {now['mechsweep_sources']})")
 
     def keyed(files):
-        return {(f.get("module") or f.get("path")): f for f in files if isinstance(f, dict)}
+        return {str(f.get("module") or f.get("path")): f for f in files if isinstance(f, dict)}
+
+    def values(entry):
+        found = entry.get("values")
+        return found if isinstance(found, dict) else {}
 
     before, after = keyed(stored["files"]), keyed(now["files"])
     edited = any(before[k].get("sha256") != after[k].get("sha256") for k in set(before) & set(after))
@@ -189,8 +193,8 @@ def differences(stored, current: Record, base=None, since: str = "this run began
                            f"{_short(new.get('sha256'))})")
             # a value changed with no edit of its file (a data file read at import); named only when no
             # file was edited: a value imported from an edited module changes with it
-            elif not edited and (old.get("values") or {}) != (new.get("values") or {}):
-                a, b = old.get("values") or {}, new.get("values") or {}
+            elif not edited and values(old) != values(new):
+                a, b = values(old), values(new)
                 names = sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
                 where = _what(new).removeprefix("the ")
                 out.append(f"the value of {', '.join(names[:5])}{' ...' if len(names) > 5 else ''} in {where} "
@@ -291,7 +295,8 @@ def _values(name: str, path: str) -> tuple[tuple[str, str], ...]:
     if memo not in _VALUES:
         module = sys.modules.get(name)
         out = []
-        for key, value in sorted(vars(module).items()) if module is not None else ():
+        items = [(k, v) for k, v in vars(module).items() if isinstance(k, str)] if module is not None else []
+        for key, value in sorted(items, key=lambda kv: kv[0]):
             if key.startswith("__"):
                 continue
             data = _value_bytes(value)
