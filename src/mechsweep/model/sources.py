@@ -193,7 +193,8 @@ def differences(stored, current: Record, base=None, since: str = "this run began
                            f"{_short(new.get('sha256'))})")
             # a value changed with no edit of its file (a data file read at import); named only when no
             # file was edited: a value imported from an edited module changes with it
-            elif not edited and values(old) != values(new):
+            # (compared where both sides hold them: a module the process never loaded has none)
+            elif not edited and values(old) and values(new) and values(old) != values(new):
                 a, b = values(old), values(new)
                 names = sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
                 where = _what(new).removeprefix("the ")
@@ -273,14 +274,19 @@ def _edges(name: str) -> tuple[str, ...]:
     parts = name.split(".")
     out.update(".".join(parts[:k]) for k in range(1, len(parts)))
     module = sys.modules.get(name)
+    named = set()
     if path is not None and path.endswith(".py"):
         package = getattr(module, "__package__", None) if module is not None else name.rpartition(".")[0]
         if module is not None and path.endswith("__init__.py"):
             package = name
-        out.update(_imports(path, package or ""))
+        named = _imports(path, package or "")
+        out.update(named)
     if module is not None:
         for value in list(vars(module).values()):
-            out.update(_origins(value))
+            # a package's loaded submodules are its attributes (set by the import system, whoever
+            # imported them): they count only where its source imports them
+            out.update(m for m in _origins(value) if m in named or not (isinstance(value, types.ModuleType)
+                                                                         and m.startswith(name + ".")))
     out.discard(name)
     _EDGES[name, path] = tuple(sorted(m for m in out if m and _exists(m)))
     return _EDGES[name, path]
@@ -446,13 +452,18 @@ def _exists(name: str) -> bool:
 
 def _spec(name: str):
     """The spec of a module not loaded, located without importing anything: a top-level module on
-    sys.path, or a submodule of a loaded package."""
+    sys.path, or a submodule found in its package's folders (the package loaded or not)."""
     parent, _, leaf = name.rpartition(".")
     if parent:
         package = sys.modules.get(parent)
-        path = getattr(package, "__path__", None)
+        if package is not None:
+            path = getattr(package, "__path__", None)
+        else:
+            found = _spec(parent)
+            path = getattr(found, "submodule_search_locations", None) if found is not None else None
         if path is None:
             return None
+        path = list(path)
     else:
         path = None
     try:
