@@ -16,19 +16,20 @@ gathers them once per model and process, and the same record serves
   stored record with the current one (:func:`differences`), refusing one that differs and naming
   what changed.
 
-What counts (found without importing anything new, from the modules already loaded):
+What counts (found without importing anything: the loaded modules, and the files of imports not
+loaded, located as Python's path finder would):
 
 - the modules that define the declaration's functions (for a model given as a ModelSpec, its
   ``evaluate``), and from each module of the user's, recursively, the modules its source imports
-  (``import`` and ``from ... import`` anywhere in the file, resolved as Python would; those not
-  loaded are located with ``importlib``'s path finder, not imported) and those its globals come from
-  (a function, class or module bound to a name), and its parent packages;
+  (``import`` and ``from ... import`` anywhere in the file, resolved as Python would) and those its
+  globals come from (a function, class or module bound to a name; a package's submodules only where
+  its source imports them), and its parent packages;
 - a *user's* module is one outside the standard library, outside mechsweep and outside
   site-packages: its file is hashed (sha256), and so are the values of its global constants
   (numbers, strings, arrays: numba freezes them into the code that reads them, and a value read
-  from a data file at import changes with no edit of the source). A module in site-packages counts by its
-  distribution's name and version (its files are not read), except the model's own package (an
-  installed model, e.g. an entry point's), whose files are hashed as a user's;
+  from a data file at import changes with no edit of the source). A module in site-packages counts
+  by its distribution's name and version (its files are not read), except the model's own package
+  (an installed model, e.g. an entry point's), whose files are hashed as a user's;
 - mechsweep's version and a hash of its package sources (_jit.package_hash: the key of the JIT
   cache folder), and the versions of numba and numpy, which compile and run every kernel.
 
@@ -136,7 +137,7 @@ def record(model) -> Record:
 def module_digest(module: str) -> str:
     """A hash of what the code of ``module`` depends on (its file, the user modules it imports,
     recursively, and the third-party packages they use); "" for mechsweep's own modules, the standard
-    library and modules that are not loaded. load.jitted names the functions it compiles with it."""
+    library and modules that cannot be found. load.jitted names the functions it compiles with it."""
     memo = (module, _file(module))
     if memo in _DIGESTS:
         return _DIGESTS[memo]
