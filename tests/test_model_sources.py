@@ -75,8 +75,8 @@ atol = 1e-14
 [storage]
 chunk_size = 2
 '''
-OWN = {"scenes/models/osc.py": "osc", "scenes/models/sibling.py": "sibling", "lib/kit/__init__.py": "kit",
-       "lib/kit/springs.py": "kit.springs", "lib/kit/base.py": "kit.base"}
+MODULE_OF = {"scenes/models/sibling.py": "sibling", "lib/kit/__init__.py": "kit", "lib/kit/springs.py": "kit.springs",
+             "lib/kit/base.py": "kit.base"}  # the model file is keyed by its path, not its module name
 
 
 def _write(root: Path) -> None:
@@ -88,6 +88,11 @@ def _write(root: Path) -> None:
 
 def _sha(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _shown(root: Path, rel: str) -> str:
+    """A file's path as the record shows it: relative to the scene's folder under it, else absolute."""
+    return rel.removeprefix("scenes/") if rel.startswith("scenes/") else str((root / rel).resolve())
 
 
 @pytest.fixture
@@ -120,16 +125,11 @@ def test_the_record_names_the_model_file_and_every_module_it_imports(project):
     base = root / "scenes"
     stored = rec.stored(base)
     by_path = {f["path"]: f for f in stored["files"]}
-    expected = {("models/osc.py" if rel.startswith("scenes/models/osc") else str((root / rel).resolve()))
-                for rel in FILES if rel != "scenes/models/sibling.py"}
-    expected.add("models/sibling.py")  # beside the model: relative to the scene's folder too
-    assert set(by_path) == expected, by_path
+    assert set(by_path) == {_shown(root, rel) for rel in FILES}, by_path
     for rel in FILES:
-        entry = by_path["models/osc.py" if rel.endswith("osc.py") else "models/sibling.py" if rel.endswith(
-            "sibling.py") else str((root / rel).resolve())]
-        assert entry["sha256"] == _sha(root / rel), rel
-    assert by_path["models/osc.py"]["role"] == "model" and by_path["models/osc.py"]["module"] == ""  # keyed by path
-    assert {f["module"] for f in stored["files"]} == {"", "sibling", "kit", "kit.springs", "kit.base"}
+        entry = by_path[_shown(root, rel)]
+        assert (entry["sha256"], entry["module"]) == (_sha(root / rel), MODULE_OF.get(rel, "")), rel
+        assert entry["role"] == ("model" if rel == "scenes/models/osc.py" else "module")
     # third-party packages by version (numba is imported by kit.springs; numpy and numba always), mechsweep
     # by version and sources; the standard library and mechsweep's files are not listed
     assert stored["packages"]["numba"] and stored["packages"]["numpy"] == np.__version__
@@ -167,9 +167,8 @@ def test_an_edit_of_any_dependency_is_named_and_changes_the_kernel_keys(project,
         f.write("# edited\n")
     after = _fresh_record(module)
     changed = sources.differences(before.stored(base), after, base)
-    shown = "models/osc.py" if rel.endswith("osc.py") else "models/sibling.py" if rel.endswith("sibling.py") \
-        else str((root / rel).resolve())
-    what = f"the model file {shown}" if rel.endswith("osc.py") else f"the module {OWN[rel]} ({shown})"
+    shown = _shown(root, rel)
+    what = f"the module {MODULE_OF[rel]} ({shown})" if rel in MODULE_OF else f"the model file {shown}"
     assert changed == [f"{what} changed since this run began (sha256 {old[:12]}... -> {_sha(root / rel)[:12]}...)"]
     assert after.digest != before.digest  # the generated kernels' names
     # the names of the user's functions the engine compiles (load.jitted): the model's always, kit.springs'
@@ -192,7 +191,8 @@ def test_a_constant_computed_at_import_counts_by_its_value(project):
         monkeypatch.setattr(sys.modules["kit.springs"], "K", 4.0)  # its from-import of K
         after = _fresh_record(module)
         assert after.digest != before.digest and sources.module_digest("kit.springs") != digest
-        reason = "changed since this run began, its source did not (is it read from a file or the environment at import?)"
+        reason = ("changed since this run began, its source did not (is it read from a file or the environment at "
+                  "import?)")
         assert sources.differences(before.stored(base), after, base) == [
             f"the value of K in module {name} ({(root / rel).resolve()}) {reason}"
             for name, rel in (("kit.base", "lib/kit/base.py"), ("kit.springs", "lib/kit/springs.py"))]
