@@ -325,6 +325,50 @@ def test_a_journal_of_an_older_version_without_checksums_is_still_resumed(scene_
     assert sorted(computed) == [5, 6, 7]
 
 
+def _as_an_older_version(monkeypatch):
+    """Runs write no dependency record (model/sources.py), as versions before it did."""
+    from mechsweep.model import sources
+
+    monkeypatch.setattr(sources.Record, "attrs", lambda self, base=None: {})
+
+
+def test_a_journal_without_a_dependency_record_is_refused_and_restart_starts_over(scene_file, reference,
+                                                                                  monkeypatch, capsys):
+    """What its chunks were computed from cannot be checked (an older mechsweep wrote it): refused,
+    nothing touched; --restart starts over."""
+    import json
+
+    from mechsweep import _jit
+
+    with monkeypatch.context() as mp:
+        _as_an_older_version(mp)
+        interrupted_run(scene_file, after=3)
+    before = journal_files(scene_file.parent)
+    capsys.readouterr()
+    assert main("run", str(scene_file), "-o", OUT, "--resume") == 2
+    err = capsys.readouterr().err
+    assert "which did not record the sources its results depend on" in err and "start over with --restart" in err, err
+    assert "Traceback" not in err
+    assert journal_files(scene_file.parent) == before
+    assert main("run", str(scene_file), "-o", OUT, "--restart", "--no-progress") == 0
+    done, ref = mechsweep.open_dataset(scene_file.parent / OUT), mechsweep.open_dataset(reference)
+    for name in COMPARED:
+        np.testing.assert_array_equal(done[name].values, ref[name].values, err_msg=name)
+    assert json.loads(done.attrs["dependencies"])["mechsweep_sources"] == _jit.package_hash()
+
+
+def test_resume_of_a_finished_dataset_without_a_dependency_record_finds_it_finished(scene_file, monkeypatch, capsys):
+    """Nothing is computed, so nothing can be mixed: taken as it is (exit 0, the file unchanged)."""
+    with monkeypatch.context() as mp:
+        _as_an_older_version(mp)
+        assert main("run", str(scene_file), "-o", OUT, "--no-progress") == 0
+    out = scene_file.parent / OUT
+    assert "dependencies" not in mechsweep.open_dataset(out).attrs
+    before = out.read_bytes()
+    assert main("run", str(scene_file), "-o", OUT, "--resume", "--no-progress") == 0
+    assert out.read_bytes() == before
+
+
 # ----------------------------------------------------------------------------- flags
 def test_resume_and_restart_together_are_refused_and_touch_nothing(scene_file, capsys):
     interrupted_run(scene_file, after=3)

@@ -142,13 +142,24 @@ def _source_hash() -> str:
     return h.hexdigest()[:16]
 
 
+_PACKAGE_HASH: list[str] = []
+
+
+def package_hash() -> str:
+    """The hash of the package sources (and numba's version) that keys the cache folder, computed
+    once per process (model/sources.py records it with every run)."""
+    if not _PACKAGE_HASH:
+        _PACKAGE_HASH.append(_source_hash())
+    return _PACKAGE_HASH[0]
+
+
 def _make_cache_dir() -> str | None:
     if os.environ.get("MECHSWEEP_NO_CACHE", "") not in ("", "0"):
         return None
     base = os.environ.get("MECHSWEEP_CACHE_DIR") or os.path.join(
         os.environ.get("XDG_CACHE_HOME") or os.path.join(Path.home(), ".cache"), "mechsweep"
     )
-    path = os.path.join(base, "numba-" + _source_hash())
+    path = os.path.join(base, "numba-" + package_hash())
     try:
         os.makedirs(path, exist_ok=True)
         probe = os.path.join(path, ".write-test")

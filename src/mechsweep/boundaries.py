@@ -695,6 +695,9 @@ def locate_dataset(scene, ds, spec=None):
     }
     if crit.output is not None:
         attrs["criterion_accuracy"] = accuracy_text(scene, crit)
+    from .model import sources
+
+    attrs.update(sources.record(scene.model).attrs(scene.base or None))  # what the points were computed from
     if b.continue_in is not None:
         t0 = time.perf_counter()
         cdata, ccoords, n_eval, n_calls = _continue_all(scene, crit, b, res, rows, others)

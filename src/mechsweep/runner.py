@@ -484,6 +484,8 @@ def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, targ
                          "or discard it with --restart")
     same = _holds_same_scene(final, scene, overwrite)  # None: no dataset there (or an empty file)
     if resume and not part.exists() and same:
+        if (why := _dataset_sources_changed(final, scene)) is not None:
+            raise StoreError(why)
         return True
     if part.exists() and not restart:
         journal = Journal.read(part)
@@ -497,6 +499,8 @@ def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, targ
             raise StoreError(why)
         if not journal.empty and (why := _journal_attrs_problem(journal, scene)) is not None:
             raise StoreError(why)
+        if not journal.empty and (why := _journal_sources_changed(journal, scene)) is not None:
+            raise StoreError(why)  # the same scene, but its model's code changed since the run began
     return False
 
 
@@ -518,6 +522,51 @@ def _journal_attrs_problem(journal: Journal, scene: Scene) -> str | None:
             return (f"{journal.folder / 'run.json'} gives the dataset the attribute {key} = {stored}, the scene "
                     f"{wanted}: the journal was edited; {RESTART}")
     return None
+
+
+def _journal_sources_changed(journal: Journal, scene: Scene) -> str | None:
+    """Why the unfinished run ``journal`` cannot be resumed with the model's current sources (the
+    model file, the user modules it imports, the packages they use, mechsweep: model/sources.py), or
+    None when they are those it began with. A journal that records none (written by a version before
+    the record) is refused too: what its chunks were computed from cannot be checked."""
+    from .model import sources
+
+    attrs = journal.meta.get("attrs") if isinstance(journal.meta, dict) else None
+    stored = attrs.get("dependencies") if isinstance(attrs, dict) else None
+    if stored is None:
+        version = attrs.get("mechsweep_version", "?") if isinstance(attrs, dict) else "?"
+        return (f"{journal.folder} was started by mechsweep {version}, which did not record the sources its "
+                "results depend on (the model file, the modules it imports, mechsweep's own): its chunks cannot "
+                "be checked against the current ones; start over with --restart")
+    changed = sources.differences(stored, sources.record(scene.model), scene.base or None)
+    if not changed:
+        return None
+    return (f"cannot resume {journal.folder}: {'; '.join(changed)}; start over with --restart, or restore "
+            f"{'them' if len(changed) > 1 else 'it'} and resume")
+
+
+def _dataset_sources_changed(final: Path, scene: Scene) -> str | None:
+    """Why ``--resume`` cannot take the finished dataset ``final`` as this run's result: it was
+    computed from other sources than the model's current ones (None: the same, or a dataset of a
+    version that recorded none, which is taken as it is: nothing is computed)."""
+    import h5py
+
+    from .model import sources
+
+    try:
+        with h5py.File(final, "r") as f:
+            stored = _attr_text(f.attrs["dependencies"]) if "dependencies" in f.attrs else None
+    except Exception:  # damaged internals were refused by _holds_same_scene's check already
+        return None
+    if stored is None:
+        return None
+    changed = sources.differences(stored, sources.record(scene.model), scene.base or None,
+                                  since="this dataset was computed")
+    if not changed:
+        return None
+    return (f"{final} is finished, but computed from other sources: {'; '.join(changed)}; compute it again "
+            f"with `mechsweep run` without --resume (the dataset is replaced), or restore "
+            f"{'them' if len(changed) > 1 else 'it'}")
 
 
 def _holds_same_scene(final: Path, scene: Scene, overwrite: bool) -> bool | None:
@@ -1286,4 +1335,8 @@ def provenance(scene: Scene, chunks: ChunkPlan) -> dict:
     if scene.solver is not None:
         for k, v in scene.solver.as_dict().items():
             attrs[f"solver_{k}"] = v
+    from .model import sources
+
+    # what the results are computed from (model/sources.py): a resume checks it, a reader sees it
+    attrs.update(sources.record(scene.model).attrs(scene.base or None))
     return attrs

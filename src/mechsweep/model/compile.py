@@ -39,7 +39,7 @@ from pathlib import Path
 
 from .. import _jit
 from . import lanes as lane_kernels
-from . import load
+from . import load, sources
 
 _KERNELS: dict[str, object] = {}
 _BY_OBJECTS: dict[tuple, tuple] = {}  # kernel_for's memo: (model, chosen, closed, kernel name) by their ids
@@ -279,7 +279,7 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
     uses = {"dop853": bool(chosen) and (method in ("dop853", "auto") or not direct),
             "radau": direct and method in ("radau", "auto"),
             "symplectic": direct and method == "symplectic"}
-    lines = module_prologue(f"mechsweep.model.compile for model {model.name!r} ({origin}), method {method}",
+    lines = module_prologue(f"mechsweep.model.compile for model {model.name!r}, method {method}",
                             ("from mechsweep._jit import jit, jit_internal, jit_into_caller, pjit, prange",
                              "from mechsweep.ode import dop853, radau, symplectic"), refs, inline=True)
     lines.append(f"NP = {n_p}\nNSET = {n_set}\nNPI = {npi}  # p[NPI]: the point's user-error flag\nSCR = NPI + 1\n"
@@ -848,6 +848,7 @@ def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes, point
         base.update(name.encode())
         base.update(repr(ref).encode())
         base.update(load.module_source(ref[0], ref[1]))
+    base.update(sources.record(model).digest.encode())  # the user modules the model imports, recursively
     origin = origin or f"{refs['rhs'][0]}"
 
     def name_of(lane_rhs):

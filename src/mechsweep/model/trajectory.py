@@ -33,7 +33,7 @@ import numpy as np
 
 from .. import status as st
 from .._jit import jit
-from . import load
+from . import load, sources
 from .ode import worse
 
 BLOCK = 8  # points per scratch allocation (a block holds one trajectory of n_samples x n_states)
@@ -624,6 +624,7 @@ def kernel_for(model, method, measurements=None):
         key.update(name.encode())
         key.update(repr(ref).encode())
         key.update(load.module_source(ref[0], ref[1]))
+    key.update(sources.record(model).digest.encode())  # the user modules the model imports, recursively
     key.update((lane_rhs_for(model, method) or "").encode())  # its helpers may live in other modules
     from .compile import _switch_key
     key.update(_switch_key(model).encode())
