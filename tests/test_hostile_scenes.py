@@ -152,6 +152,10 @@ CORPUS = {
                                                 "solver.tolerance", "unknown solver setting"],
     "fourbar_solver_garbage.toml": ["solver.rtol", "'tight'", "solver.steps", "unknown solver setting"],
     "solver_not_table_without_integration.toml": ["solver: expected a table [solver], got int 5"],
+    "atol_below_floor.toml": ["solver.atol: 1e-300", "usable range of method 'dop853', [1e-150, 1]", "nonfinite",
+                              "give atol >= 1e-150"],
+    "torsional_radau_atol_below_floor.toml": ["solver.atol: 1e-160", "method 'radau', [1e-150, 1]", "overflows"],
+    "autobalancer_auto_atol_below_floor.toml": ["solver.atol: 1e-200", "method 'auto', [1e-150, 1]"],
     # [storage]
     "storage_path_int.toml": ["storage.path: 5 is not allowed"],
     "storage_path_empty.toml": ["storage.path: '' is not allowed"],

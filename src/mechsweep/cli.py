@@ -146,11 +146,12 @@ def _main(argv: list[str] | None) -> int:
 
 
 def _show_warning(command, default):
-    """A user model's warning as one line on stderr (no source line of mechsweep's); others as usual."""
-    from .errors import UserModelWarning
+    """A user model's warning, or one on the scene's settings, as one line on stderr (no source line of
+    mechsweep's); others as usual."""
+    from .errors import SettingsWarning, UserModelWarning
 
     def show(message, category, filename, lineno, file=None, line=None):
-        if issubclass(category, UserModelWarning):
+        if issubclass(category, (UserModelWarning, SettingsWarning)):
             print(f"mechsweep {command}: warning: {message}", file=sys.stderr)
         else:
             default(message, category, filename, lineno, file, line)
@@ -882,6 +883,9 @@ def _cmd_check(args) -> int:
         try:
             s = load_scene(path)
             print(f"{path}: ok ({s.model.name}, {s.n_points} points, outputs {', '.join(s.outputs)})")
+            from .scene import solver_warnings
+            for text in solver_warnings(s):
+                print(f"{path}: warning: {text}", file=sys.stderr)
             if s.boundaries is not None:
                 from .boundaries import warnings_for
                 for text in warnings_for(s):

@@ -13,6 +13,10 @@ class UserModelWarning(UserWarning):
     in plain Python (``mechsweep.model.diagnose``)."""
 
 
+class SettingsWarning(UserWarning):
+    """A scene's solver settings are accepted but suspicious (scene.solver_warnings says why)."""
+
+
 class StoreError(InputError):
     """A problem with the output file or an unfinished run (exists, locked, from another scene, unwritable)."""
 

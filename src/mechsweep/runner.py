@@ -178,6 +178,7 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
     if models is not None and not isinstance(models, Mapping):
         raise InputError(f"models must be a mapping of model name -> OdeModel, got {type(models).__name__}")
     scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path, models=models)
+    _warn_settings(scene)
     if output is not None and str(output).endswith(("/", os.sep)):
         raise StoreError(f"output path {output} ends with a path separator; give a file path such as "
                          f"{Path(output) / 'run.h5'}")
@@ -249,6 +250,17 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
     return RunSummary(final, _sizes(scene), counts, *times), held
 
 
+def _warn_settings(scene: Scene) -> None:
+    """A SettingsWarning for each of the scene's accepted but suspicious solver settings."""
+    import warnings
+
+    from .errors import SettingsWarning
+    from .scene import solver_warnings
+
+    for text in solver_warnings(scene):
+        warnings.warn(text, SettingsWarning, stacklevel=4)
+
+
 def _journal_target(scene: Scene, final: Path) -> int | None:
     """The chunk target of the unfinished run of ``final`` when the scene sets no chunk_size (the
     default cut depends on the progress bar and on the version), None otherwise: a resumed run
@@ -287,6 +299,7 @@ def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, schedul
     if models is not None and not isinstance(models, Mapping):
         raise InputError(f"models must be a mapping of model name -> OdeModel, got {type(models).__name__}")
     scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path, models=models)
+    _warn_settings(scene)
     if scene.execution.scheduler:
         raise InputError(f"output=None (the in-memory route) runs here; the scene's [execution] scheduler "
                          f"{scene.execution.scheduler} is not used by it: give an output path to run on the cluster")

@@ -160,6 +160,25 @@ SOLVER_LIMITS = {
     "max_steps": (1, 10**9),
 }
 
+# Usable ranges of the tolerances by method, measured on every shipped scene with each method it
+# offers (tests/data/solver_limits.py; docs/scenes.md, "Solver settings: usable ranges"). The adaptive
+# methods scale each error by atol + rtol |y| and square it: where a state is zero (a start from rest)
+# that is (rate / atol)^2, beyond the largest float64 (1.8e308) once rate / atol > 1.3e154. Below
+# ATOL_FLOOR that happens for any rate above 1.3e4; every integrated point of every shipped scene
+# ended nonfinite with radau from atol 1e-160 (most from 1e-155), with dop853 and auto from 1e-200
+# (some from 1e-170); the Duffing and torsional scenes' points are at 1e-150 as at the default
+# (the others fail earlier, see ATOL_WARN).
+# The symplectic method takes a fixed step from rtol and never reads atol.
+ADAPTIVE_METHODS = ("dop853", "radau", "auto")
+ATOL_FLOOR = 1e-150
+_NORM_OVERFLOW = math.sqrt(sys.float_info.max)  # 1.34e154
+# Below ATOL_WARN the error control is purely relative near a state that passes through or stays
+# at zero, and asks there for errors below float64 rounding: points of shipped scenes ended
+# max_steps or step_underflow from atol 1e-20 (vibrating_pendulum, radau) and 1e-30 (autobalancer).
+ATOL_WARN = 1e-20
+# radau raises a smaller rtol to 100 eps, as scipy's Radau does (ode/radau.py, MIN_RTOL)
+RADAU_MIN_RTOL = 100.0 * float(np.finfo(np.float64).eps)
+
 
 @dataclass(frozen=True)
 class Storage:
@@ -485,6 +504,8 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
     solver = _solver(_table(data, "solver", p), model, p)
     if not model.needs_integration(outputs):
         solver = None
+    elif (why := atol_problem(solver, model)) is not None:
+        p.add("solver.atol", why)
     elif model.methods_for is not None and not p.items:
         allowed = model.methods_for(model.closure(outputs))
         if solver.method not in allowed:
@@ -985,6 +1006,38 @@ def _solver(table: Mapping, model: ModelSpec, p: _Problems) -> Solver:
         else:
             p.unknown(key, k, ("method",) + tuple(SOLVER_LIMITS) + tuple(own), f"solver setting of {model.name!r}")
     return Solver(**{**defaults.__dict__, **values, "settings": MappingProxyType(settings)})
+
+
+def atol_problem(solver: Solver, model: ModelSpec) -> str | None:
+    """Why ``solver.atol`` can never work with ``solver.method`` (see ATOL_FLOOR), or None."""
+    if solver.method not in ADAPTIVE_METHODS or solver.atol >= ATOL_FLOOR:
+        return None
+    other = (" (method 'symplectic', which this model offers, does not use atol)"
+             if "symplectic" in model.methods else "")
+    return (f"{solver.atol:g} is below the usable range of method {solver.method!r}, [{ATOL_FLOOR:g}, 1]: where a "
+            f"state is zero (a start from rest) its error norm is (rate / atol)^2, which overflows a float64 once "
+            f"rate / atol > {_NORM_OVERFLOW:.2g}, here for any rate above {_NORM_OVERFLOW * solver.atol:.2g}, and the "
+            f"points end nonfinite; give atol >= {ATOL_FLOOR:g}{other}")
+
+
+def solver_warnings(scene: "Scene") -> list[str]:
+    """Settings a run accepts but whose results deserve suspicion, one sentence each (the CLI
+    prints them; ``mechsweep.run`` warns with SettingsWarning)."""
+    s = scene.solver
+    if s is None:
+        return []
+    found = []
+    if s.method in ADAPTIVE_METHODS and s.atol < ATOL_WARN:
+        found.append(f"solver.atol = {s.atol:g} is below {ATOL_WARN:g}: near a state that passes through or stays at "
+                     "zero the error control is then purely relative and asks for errors below float64 rounding; "
+                     "points may end max_steps or step_underflow (as points of the shipped scenes did from atol "
+                     "1e-20 to 1e-30); usual is atol about 1e-12 times the size of the states")
+    if s.method in ("radau", "auto") and s.rtol < RADAU_MIN_RTOL:
+        which = "every point" if s.method == "radau" else "a point found stiff (integrated again by radau)"
+        found.append(f"solver.rtol = {s.rtol:g} is below {RADAU_MIN_RTOL:.3g} (100 x float64 eps), to which radau "
+                     f"raises it, as scipy's Radau does: {which} is integrated to rtol {RADAU_MIN_RTOL:.3g}, not "
+                     f"{s.rtol:g}")
+    return found
 
 
 def _storage(table: Mapping, name: str, p: _Problems) -> Storage:
