@@ -580,6 +580,17 @@ def test_a_model_declaring_what_a_dataset_cannot_store_is_refused_at_load(model,
     refused(capsys, ["run", "u.toml", "--no-progress"], work, "scene.model", *fragments)
 
 
+def test_two_outputs_with_one_dimension_name_and_other_values_are_refused(work, capsys):
+    """They used to compute, then fail writing the second output into the first's dimension."""
+    (work / "u.toml").write_text(f'[scene]\nname = "s"\nmodel = "{USER}:TWO_HISTORIES_ONE_DIMENSION"\n'
+                                 'outputs = ["x_history", "v_history"]\n[axes]\nk = [1.0, 4.0]\n')
+    refused(capsys, ["check", "u.toml"], work, "outputs 'x_history' and 'v_history' both have a dimension 'period', "
+            "with other values")
+    (work / "u.toml").write_text(f'[scene]\nname = "s"\nmodel = "{USER}:TWO_HISTORIES_ONE_DIMENSION"\n'
+                                 'outputs = ["x_history"]\n[axes]\nk = [1.0, 4.0]\n')
+    assert main(["check", "u.toml"]) == 0, capsys.readouterr().err
+
+
 def test_the_same_model_with_storable_strings_passes(work, capsys):
     (work / "u.toml").write_text(user_scene("FINE"))
     assert main(["check", "u.toml"]) == 0, capsys.readouterr().err

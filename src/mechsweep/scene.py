@@ -626,14 +626,21 @@ def _check_storable(model: ModelSpec, outputs, axes, fixed, solver, p: "_Problem
     for pname, value in fixed.items():
         if model.param(pname).categorical:
             text(f"choice of parameter {pname!r}", value)
-    dims = {}
+    dims, first = {}, {}
+    settings = solver.settings if solver is not None else {}
     for oname in outputs:
         out = model.output(oname)
         name("output", out.name)
         for attr in ("unit", "long_name", "symbol", "kind"):
             text(f"output {out.name!r} {attr}", getattr(out, attr))
         for dim in out.extra_dims:
-            dims[dim.name] = dim
+            if dim.name in dims and dims[dim.name] is not dim and not _same_values(dims[dim.name], dim, settings):
+                # the file holds one coordinate per dimension name: the second would be written on the first's
+                p.add("scene.model", f"{where}: outputs {first[dim.name]!r} and {out.name!r} both have a dimension "
+                      f"{dim.name!r}, with other values; a dataset has one coordinate per dimension: give them "
+                      "different names in the model's declaration")
+            dims.setdefault(dim.name, dim)
+            first.setdefault(dim.name, out.name)
     for dim in dims.values():
         name("dimension", dim.name)
         text(f"dimension {dim.name!r} unit", dim.unit)
@@ -653,6 +660,15 @@ def _check_storable(model: ModelSpec, outputs, axes, fixed, solver, p: "_Problem
                       "variable of a dataset needs a name of its own: rename it in the model's declaration")
             else:
                 seen[n] = f"{kind} {n!r}"
+
+
+def _same_values(a, b, settings) -> bool:
+    """Whether two extra dimensions of one name have the same coordinate values."""
+    try:
+        return bool(np.array_equal(np.asarray(a.values(settings), dtype=float),
+                                   np.asarray(b.values(settings), dtype=float)))
+    except Exception:  # a declaration's own function failed: the run would say so; no claim here
+        return True
 
 
 # ----------------------------------------------------------------------------- sections

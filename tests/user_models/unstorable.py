@@ -3,7 +3,7 @@ HDF5 keeps text as UTF-8 without NUL, and each variable of a dataset needs a nam
 scene naming one is refused when it is loaded, before anything is computed."""
 import math
 
-from mechsweep.model import ClosedForm, OdeModel, Param
+from mechsweep.model import ClosedForm, History, OdeModel, Param
 
 
 def rhs(t, y, p, dydt):
@@ -39,3 +39,15 @@ SLASH_OUTPUT = model(output="T/2")
 OUTPUT_NAMED_STATUS = model(output="status")
 OUTPUT_NAMED_LIKE_PARAMETER = model(output="k")
 NUL_REFERENCE = model(references=("a book\x00",))
+
+
+def forcing_period(p):
+    return 1.0
+
+
+# two outputs with an extra dimension of one name and other values (a dataset has one coordinate
+# per dimension name: the second would be written over the first's)
+TWO_HISTORIES_ONE_DIMENSION = OdeModel(
+    name="histories", description="x'' + k x = 0", states=("x", "v"), rhs=rhs, initial=initial,
+    params=(Param("k", "k", "s-2", "stiffness", lo=0.0, lo_open=True),), forcing_period=forcing_period,
+    measurements=(History("x_history", "x", horizon=2.0, samples=5), History("v_history", "v", horizon=3.0, samples=7)))
