@@ -543,6 +543,23 @@ def test_plot_boundaries_path_that_is_not_a_dataset_is_refused(kind, work, capsy
     refused(capsys, ["plot", "data/runs/d.h5", "--boundaries", name], work, f"{name} is not a mechsweep dataset", what)
 
 
+@pytest.mark.parametrize("command", ["info", "plot"])
+def test_an_unreadable_dataset_says_permission_denied(command, work, capsys, monkeypatch):
+    import errno
+
+    existing_dataset(work / "data" / "runs" / "d.h5")
+    real_open = os.open
+
+    def denied(path, *args, **kwargs):
+        if str(path).endswith("d.h5"):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(path))
+        return real_open(path, *args, **kwargs)
+
+    monkeypatch.setattr(os, "open", denied)
+    refused(capsys, [command, "data/runs/d.h5"], work, "data/runs/d.h5 is not a mechsweep dataset: it cannot be read "
+            "(permission denied (EACCES))")
+
+
 # ----------------------------------------------------------------------------- strings a dataset cannot store
 USER = Path(__file__).resolve().parent / "user_models" / "unstorable.py"
 

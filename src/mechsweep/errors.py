@@ -56,7 +56,6 @@ _REASONS = {
     "EISDIR": "it is a directory",
     "ENOTDIR": "a part of the path is not a folder",
     "ELOOP": "a symbolic link loop",
-    "ENAMETOOLONG": "file name too long",
     "EMFILE": "too many open files in this process",
     "ENFILE": "too many open files in the system",
     "EAGAIN": "held (locked) by another process",
@@ -74,10 +73,10 @@ def why_os_error(code: int | None, strerror: str = "") -> str:
     name = _errno.errorcode.get(code or 0, "")
     if code is not None and code == getattr(_errno, "EWOULDBLOCK", None):
         name = "EAGAIN"
-    reason = _REASONS.get(name)
-    if reason:
+    reason = _REASONS.get(name) or strerror
+    if reason and name:
         return f"{reason} ({name})"
-    return strerror or (f"errno {code}" if code is not None else "unknown error")
+    return reason or (f"errno {code}" if code is not None else "unknown error")
 
 
 class FileBusy(StoreError):

@@ -26,7 +26,7 @@ import numpy as np
 from . import __version__
 from . import cf
 from . import status as st
-from .errors import ClusterLost, FileBusy, InputError, WriteFailed
+from .errors import ClusterLost, FileBusy, InputError, WriteFailed, why_os_error
 from .grid import Chunk, ChunkPlan, ParameterMatrix, chunk_target, plan_chunks
 from .journal import BadChunk, Journal, RunLock, discard_path, drop, lock_path, partial_path
 from .scene import Scene, check_scheduler, check_worker_timeout, load_scene, load_scene_text
@@ -217,7 +217,8 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
         except OSError as exc:
             if client is not None:
                 _disconnect(client)
-            raise StoreError(f"cannot create the folder {final.parent} for output {final}: {exc.strerror}") from None
+            raise StoreError(f"cannot create the folder {final.parent} for output {final}: "
+                             f"{why_os_error(exc.errno, exc.strerror)}") from None
     try:
         with _Signals() as signals:
             try:
@@ -442,7 +443,7 @@ def _out_of_space(exc: WriteFailed, scene: Scene, final: Path, n_chunks: int) ->
     """The message of a failed write, by its cause: for a lack of room (no space, no inode, a quota,
     the file-size limit) how much the run still needs; for another cause (a folder removed or made
     read-only during the run, an I/O error) what happened; and what is kept, and how to go on."""
-    from .errors import why_os_error, why_write_failed
+    from .errors import why_write_failed
 
     code = exc.errno
     failed = f"writing {exc.path} failed"
@@ -848,8 +849,9 @@ def check_target(final: Path, create_folder: bool = False) -> None:
         final.stat()
     except (FileNotFoundError, NotADirectoryError):
         pass
-    except OSError as exc:  # e.g. a path longer than the system allows
-        raise StoreError(f"output path {str(final)[:80]}...: {exc.strerror}") from None
+    except OSError as exc:  # e.g. a path longer than the system allows, a folder on the way not searchable
+        shown = str(final) if len(str(final)) <= 80 else str(final)[:80] + "..."
+        raise StoreError(f"output path {shown}: {why_os_error(exc.errno, exc.strerror)}") from None
     if final.is_dir():
         raise StoreError(f"output path {final} is a directory; give a file path such as {final / 'run.h5'}")
     if os.path.lexists(final) and not final.is_file():
