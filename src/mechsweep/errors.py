@@ -13,6 +13,10 @@ class UserModelWarning(UserWarning):
     in plain Python (``mechsweep.model.diagnose``)."""
 
 
+class SettingsWarning(UserWarning):
+    """A scene's solver settings are accepted but suspicious (scene.solver_warnings says why)."""
+
+
 class StoreError(InputError):
     """A problem with the output file or an unfinished run (exists, locked, from another scene, unwritable)."""
 
@@ -40,7 +44,51 @@ def why_write_failed(code: int | None, strerror: str = "") -> str:
         return "file size limit reached (ulimit -f)"
     if code == _errno.EIO:
         return "I/O error (EIO)"
-    return f"write failed ({strerror or 'errno ' + str(code)})"
+    return f"write failed ({why_os_error(code, strerror)})"
+
+
+# errno -> what it means for a file a command reads or writes (the system's own text is terser)
+_REASONS = {
+    "ENOENT": "no such file or folder",
+    "EACCES": "permission denied",
+    "EPERM": "operation not permitted",
+    "EROFS": "read-only file system",
+    "EISDIR": "it is a directory",
+    "ENOTDIR": "a part of the path is not a folder",
+    "ELOOP": "a symbolic link loop",
+    "EMFILE": "too many open files in this process",
+    "ENFILE": "too many open files in the system",
+    "EAGAIN": "held (locked) by another process",
+    "ENXIO": "no such device or address (a socket or a device without a reader)",
+    "EXDEV": "the paths are on different file systems",
+    "ENOSPC": "no space left on the device",
+    "EDQUOT": "disk quota exceeded",
+    "EFBIG": "file too large (file size limit, ulimit -f)",
+    "EIO": "I/O error (EIO)",
+}
+
+
+def why_os_error(code: int | None, strerror: str = "") -> str:
+    """What an OSError of errno ``code`` means, in a few words naming the cause."""
+    name = _errno.errorcode.get(code or 0, "")
+    if code is not None and code == getattr(_errno, "EWOULDBLOCK", None):
+        name = "EAGAIN"
+    reason = _REASONS.get(name) or strerror
+    if reason and name:
+        return f"{reason} ({name})"
+    return reason or (f"errno {code}" if code is not None else "unknown error")
+
+
+class FileBusy(StoreError):
+    """A file another process holds open for writing (an HDF5 file lock): reading it now would
+    fail or see it half written, and replacing it would lose that process's writes."""
+
+    def __init__(self, path, holder: int | None = None, doing: str = ""):
+        self.path = str(path)
+        self.holder = holder
+        who = f"process {holder}" if holder else "another process"
+        super().__init__(f"{path} is held open for writing by {who} (its HDF5 file lock); "
+                         + (doing or "wait until that process closes it (or stop it), then try again"))
 
 
 class ClusterLost(StoreError):

@@ -27,7 +27,7 @@ import numpy as np
 from . import __version__
 from . import cf
 from . import status as st
-from .errors import ClusterLost, InputError, WriteFailed
+from .errors import ClusterLost, FileBusy, InputError, WriteFailed, why_os_error
 from .grid import Chunk, ChunkPlan, ParameterMatrix, chunk_target, plan_chunks
 from .journal import (RESTART, BadChunk, Journal, RunLock, clear_discard, discard_path, drop, lock_path,
                       own_files_problem, partial_path)
@@ -180,6 +180,7 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
     if models is not None and not isinstance(models, Mapping):
         raise InputError(f"models must be a mapping of model name -> OdeModel, got {type(models).__name__}")
     scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path, models=models)
+    _warn_settings(scene)
     if output is not None and str(output).endswith(("/", os.sep)):
         raise StoreError(f"output path {output} ends with a path separator; give a file path such as "
                          f"{Path(output) / 'run.h5'}")
@@ -219,7 +220,8 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
         except OSError as exc:
             if client is not None:
                 _disconnect(client)
-            raise StoreError(f"cannot create the folder {final.parent} for output {final}: {exc.strerror}") from None
+            raise StoreError(f"cannot create the folder {final.parent} for output {final}: "
+                             f"{why_os_error(exc.errno, exc.strerror)}") from None
     try:
         with _Signals() as signals:
             try:
@@ -251,6 +253,17 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
         if client is not None:
             _disconnect(client)
     return RunSummary(final, _sizes(scene), counts, *times), held
+
+
+def _warn_settings(scene: Scene) -> None:
+    """A SettingsWarning for each of the scene's accepted but suspicious solver settings."""
+    import warnings
+
+    from .errors import SettingsWarning
+    from .scene import solver_warnings
+
+    for text in solver_warnings(scene):
+        warnings.warn(text, SettingsWarning, stacklevel=4)
 
 
 def _journal_target(scene: Scene, final: Path) -> int | None:
@@ -291,6 +304,7 @@ def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, schedul
     if models is not None and not isinstance(models, Mapping):
         raise InputError(f"models must be a mapping of model name -> OdeModel, got {type(models).__name__}")
     scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path, models=models)
+    _warn_settings(scene)
     if scene.execution.scheduler:
         raise InputError(f"output=None (the in-memory route) runs here; the scene's [execution] scheduler "
                          f"{scene.execution.scheduler} is not used by it: give an output path to run on the cluster")
@@ -430,28 +444,101 @@ def _kept(final: Path) -> str:
 
 
 def _out_of_space(exc: WriteFailed, scene: Scene, final: Path, n_chunks: int) -> str:
-    """The message of a failed write: what failed, how much the run still needs, what is kept."""
+    """The message of a failed write, by its cause: for a lack of room (no space, no inode, a quota,
+    the file-size limit) how much the run still needs; for another cause (a folder removed or made
+    read-only during the run, an I/O error) what happened; and what is kept, and how to go on."""
     from .errors import why_write_failed
 
+    code = exc.errno
+    failed = f"writing {exc.path} failed"
+    folder = final.parent
+    if code == errno.ENOENT:
+        return _removed_during_run(final, failed)
+    if code not in (errno.ENOSPC, getattr(errno, "EDQUOT", None), errno.EFBIG):
+        kept = _kept(final)
+        where = Path(exc.path).parent
+        advice = {
+            errno.EACCES: f"permission to write in {where} was taken away during the run: give it back; ",
+            errno.EPERM: f"writing in {where} is no longer permitted: allow it again; ",
+            errno.EROFS: f"the file system of {where} became read-only during the run (a system remounts a disk "
+                         "so after errors: check it), make it writable; ",
+            errno.EIO: f"the disk of {where} reported an error: check it (e.g. dmesg) before going on; ",
+            errno.EISDIR: f"{exc.path} became a directory during the run: move it away; ",
+            errno.ENOTDIR: f"a folder on the way to {exc.path} was replaced by a file during the run: put it back; ",
+        }.get(code, "")
+        reason = why_write_failed(code, exc.strerror) if code == errno.EIO else why_os_error(code, exc.strerror)
+        return f"{reason}: {failed}; {advice}{kept}"
     part = partial_path(final)
     data = bytes_per_point(scene) * scene.n_points
+    done = _done_chunks(part)
+    if done is None:
+        need, files = 2 * data, n_chunks + 1
+    else:
+        need = int(data * (1 - done.sum() / max(1, done.size)) + data)  # the chunks to come and the dataset
+        files = int(done.size - done.sum()) + 1
+    kept = _kept(final)
+    reason = why_write_failed(code, exc.strerror)
+    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    free, inodes, total_inodes = _room(folder)
+    short_of_inodes = total_inodes and inodes is not None and inodes < files + 1
+    if code == errno.EFBIG and soft != resource.RLIM_INFINITY:
+        need_text = f"the limit is {_mib(soft)}, the dataset needs up to {_mib(data)}"
+    elif code == errno.ENOSPC and short_of_inodes and (free is None or free >= need):
+        # a file system that ran out of inodes (file entries) says ENOSPC too, with space to spare
+        return (f"out of inodes (file entries), not of space: the file system of {_resolved(folder)} has {inodes} of "
+                f"{total_inodes} inodes free (and {_mib(free) if free is not None else 'enough'} of space); the run "
+                f"still needs about {files} more files (one per chunk to come, and the dataset): delete files there "
+                f"or write elsewhere with -o; {failed}; {kept}")
+    elif code == errno.ENOSPC and short_of_inodes:
+        need_text = (f"{_mib(need)} and about {files} more files needed on the disk of {_resolved(folder)} (it is out "
+                     f"of space and of inodes: {inodes} of {total_inodes} free)")
+    elif code == getattr(errno, "EDQUOT", None):  # a quota counts blocks, and often files too
+        need_text = f"{_mib(need)} and about {files} more files needed within your quota on the disk of {_resolved(folder)}"
+    else:
+        need_text = f"{_mib(need)} needed on the disk of {_resolved(folder)}"
+    return f"{reason}: {need_text}; {failed}; {kept}"
+
+
+def _removed_during_run(final: Path, failed: str) -> str:
+    """The message of a write that found a file or folder of the run gone (ENOENT): which one
+    was removed, and what that means for the chunks computed so far."""
+    part = partial_path(final)
+    gone = next((p for p in (final.parent, part, part / "chunks") if not os.path.isdir(p)), None)
+    if gone == final.parent:
+        what = (f"the output folder {final.parent} was removed during the run, and the run's journal with it "
+                "(create the folder again before the next run)")
+    elif gone is not None:
+        what = f"the journal folder {gone} was removed during the run"
+    else:
+        return (f"a file of the run was removed while it was being written (ENOENT): {failed}; {_kept(final)}")
+    return f"{what} (ENOENT): {failed}; the chunks computed so far are lost: run again, from the start"
+
+
+def _done_chunks(part: Path):
+    """The done-chunk mask of the journal ``part``, or None (no journal, or one that cannot be read)."""
     try:
         journal = Journal.read(part) if part.is_dir() else None
-    except StoreError:
-        journal = None
-    if journal is None or journal.empty:
-        need = 2 * data
-    else:
-        done = journal.done_chunks()
-        need = int(data * (1 - done.sum() / max(1, done.size)) + data)  # the chunks to come and the dataset
-    kept = _kept(final)
-    reason = why_write_failed(exc.errno, exc.strerror)
-    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
-    if exc.errno == errno.EFBIG and soft != resource.RLIM_INFINITY:
-        need_text = f"the limit is {_mib(soft)}, the dataset needs up to {_mib(data)}"
-    else:
-        need_text = f"{_mib(need)} needed on the disk of {final.parent.resolve()}"
-    return f"{reason}: {need_text}; writing {exc.path} failed; {kept}"
+        return None if journal is None or journal.empty else journal.done_chunks()
+    except (StoreError, OSError):
+        return None
+
+
+def _room(folder: Path) -> tuple[int | None, int | None, int | None]:
+    """(free bytes, free inodes, total inodes) of the file system of ``folder`` (or its nearest
+    existing ancestor); None where it cannot be told (total inodes 0: a file system without a fixed
+    number of them, e.g. btrfs)."""
+    try:
+        v = os.statvfs(_existing_ancestor(folder))
+    except OSError:
+        return None, None, None
+    return v.f_bavail * v.f_frsize, v.f_favail, v.f_files
+
+
+def _resolved(folder: Path) -> Path:
+    try:
+        return folder.resolve()
+    except OSError:
+        return folder
 
 
 def _mib(n: float) -> str:
@@ -577,6 +664,9 @@ def _holds_same_scene(final: Path, scene: Scene, overwrite: bool) -> bool | None
         return None
     try:
         same = _stored_same_scene(final, scene)
+    except FileBusy as exc:  # never replaced, whatever the flags: that process's writes would be lost
+        raise FileBusy(final, exc.holder, doing="a run would replace it and the writes of that process "
+                       "would be lost: wait until it closes the file (or stop it), or write elsewhere with -o") from None
     except StoreError as exc:
         if overwrite:
             return False
@@ -598,7 +688,7 @@ def _stored_same_scene(final: Path, scene: Scene) -> bool | None:
     StoreError when it is not a dataset mechsweep wrote."""
     import h5py
 
-    from .store import RUN_ATTRS, check_dataset_file
+    from .store import RUN_ATTRS, check_dataset_file, is_lock_error, lock_holder
 
     check_dataset_file(final)  # a regular HDF5 file with a run's (or a benchmark's) attributes
     try:
@@ -607,6 +697,8 @@ def _stored_same_scene(final: Path, scene: Scene) -> bool | None:
             attrs = {k: _attr_text(f.attrs[k]) for k in keys if k in f.attrs}
             run = all(a in attrs for a in RUN_ATTRS) and "status" in f
     except Exception as exc:  # damaged internals: as check_dataset_file says it
+        if is_lock_error(exc):  # another process opened it for writing since check_dataset_file
+            raise FileBusy(final, lock_holder(final)) from None
         raise StoreError(f"{final} is not a mechsweep dataset: it is an HDF5 file that cannot be read "
                          f"({str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__})") from None
     return same_scene(attrs, scene) if run else None
@@ -903,8 +995,9 @@ def check_target(final: Path, create_folder: bool = False) -> None:
         final.stat()
     except (FileNotFoundError, NotADirectoryError):
         pass
-    except OSError as exc:  # e.g. a path longer than the system allows
-        raise StoreError(f"output path {str(final)[:80]}...: {exc.strerror}") from None
+    except OSError as exc:  # e.g. a path longer than the system allows, a folder on the way not searchable
+        shown = str(final) if len(str(final)) <= 80 else str(final)[:80] + "..."
+        raise StoreError(f"output path {shown}: {why_os_error(exc.errno, exc.strerror)}") from None
     if final.is_dir():
         raise StoreError(f"output path {final} is a directory; give a file path such as {final / 'run.h5'}")
     if os.path.lexists(final) and not final.is_file():

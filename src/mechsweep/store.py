@@ -15,6 +15,7 @@ removed and ``WriteFailed`` raised; the journal it was assembled from is untouch
 """
 from __future__ import annotations
 
+import errno
 import os
 import stat
 import sys
@@ -28,7 +29,7 @@ import numpy as np
 
 from . import cf
 from . import status as st
-from .errors import StoreError, WriteFailed  # noqa: F401  (StoreError: part of this module's API)
+from .errors import FileBusy, StoreError, WriteFailed, why_os_error  # noqa: F401  (StoreError: API)
 from .grid import plan_chunks
 from .journal import META_KINDS, BadChunk, Journal, partial_path  # noqa: F401  (partial_path: this module's API)
 
@@ -752,14 +753,24 @@ def check_dataset_file(path: str | Path) -> None:
     except FileNotFoundError:
         raise FileNotFoundError(f"{path} does not exist (a broken link)") from None
     except OSError as exc:
-        raise StoreError(f"{what}: it cannot be read ({exc.strerror})") from None
+        raise StoreError(f"{what}: it cannot be read ({why_os_error(exc.errno, exc.strerror)})") from None
     if not stat.S_ISREG(mode):
         raise StoreError(f"{what}: it is {file_kind(mode)}, not a file")
-    try:
-        with open(path, "rb") as f:
-            head = f.read(8)
+    try:  # O_NONBLOCK: a path that became a pipe since the stat above does not block the open
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except OSError as exc:
-        raise StoreError(f"{what}: it cannot be read ({exc.strerror})") from None
+        raise StoreError(f"{what}: it cannot be read ({why_os_error(exc.errno, exc.strerror)})") from None
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise StoreError(f"{what}: it is {file_kind(info.st_mode)}, not a file")
+        if held_for_writing(fd):
+            raise FileBusy(path, lock_holder(info))
+        head = os.read(fd, 8)
+    except OSError as exc:
+        raise StoreError(f"{what}: it cannot be read ({why_os_error(exc.errno, exc.strerror)})") from None
+    finally:
+        os.close(fd)
     if not head:
         raise StoreError(f"{what}: it is an empty file")
     if head != HDF5_SIGNATURE:
@@ -772,6 +783,10 @@ def check_dataset_file(path: str | Path) -> None:
             names = set(f.keys())
             outputs = _text(f.attrs.get("outputs", "")).split() if "outputs" in attrs else []
     except Exception as exc:  # h5py raises OSError, and others for damaged internals
+        if is_lock_error(exc):  # another process took it for writing since the probe above
+            raise FileBusy(path, lock_holder(path)) from None
+        if isinstance(exc, OSError) and exc.errno in _SYSTEM_ERRORS:  # the system's refusal, not the file's bytes
+            raise StoreError(f"{what}: it cannot be read ({why_os_error(exc.errno, exc.strerror)})") from None
         raise StoreError(f"{what}: it is an HDF5 file that cannot be read, damaged or truncated "
                          f"({_first_line(exc)})") from None
     if "mechsweep_kind" in attrs:
@@ -783,6 +798,55 @@ def check_dataset_file(path: str | Path) -> None:
     absent = [v for v in ["status", *outputs] if v not in names]
     if absent:
         raise StoreError(f"{what}: it lacks the variable(s) {', '.join(absent)} that a run writes")
+
+
+# errnos with which the system refuses a read (the file's bytes are not at fault)
+_SYSTEM_ERRORS = frozenset(getattr(errno, n) for n in ("EACCES", "EPERM", "ENOENT", "EMFILE", "ENFILE", "ENOMEM",
+                                                        "EIO", "EISDIR", "ENOTDIR", "ELOOP") if hasattr(errno, n))
+
+
+def is_lock_error(exc: BaseException) -> bool:
+    """Whether ``exc`` (of h5py opening a file) says another process holds the file's HDF5 lock."""
+    return isinstance(exc, BlockingIOError) or (isinstance(exc, OSError) and "unable to lock file" in str(exc))
+
+
+def held_for_writing(fd: int) -> bool:
+    """Whether another process holds an exclusive lock on the open file ``fd``: HDF5 takes one
+    (flock) on a file it opens for writing. Probed with a shared lock that is released at once;
+    False where file locks are not available."""
+    import fcntl
+
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except OSError:  # e.g. a file system without locks
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+    except OSError:
+        pass
+    return False
+
+
+def lock_holder(file) -> int | None:
+    """The process id holding a lock on ``file`` (a path or an os.stat_result), from /proc/locks
+    (Linux); None when it cannot be told."""
+    try:
+        info = file if isinstance(file, os.stat_result) else os.stat(file)
+        with open("/proc/locks") as f:
+            lines = f.read(1 << 20).splitlines()
+    except OSError:
+        return None
+    key = f"{os.major(info.st_dev):02x}:{os.minor(info.st_dev):02x}:{info.st_ino}"
+    for line in lines:  # "1: FLOCK  ADVISORY  WRITE 19010 fe:00:1490980 0 EOF"
+        parts = line.split()
+        if key in parts and parts.index(key) >= 1:
+            try:
+                return int(parts[parts.index(key) - 1])
+            except ValueError:
+                return None
+    return None
 
 
 def is_run_dataset(ds: xr.Dataset) -> bool:
