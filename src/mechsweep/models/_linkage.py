@@ -543,7 +543,7 @@ def fourbar_kinematics_cycle(a1, a2, a3, a4, sigma, omega, delta, cos_phi, sin_p
     of crank_speed) into rows R_C2 .. R_AL1 of buf: the same expressions, term for term (so
     bitwise the same numbers), split into four loops. Each loop is branch-free and vectorised by
     LLVM; splitting the long chain div -> sqrt -> div of one position lets the processor overlap
-    many positions (one fused loop is latency-bound: 1.4x slower)."""
+    many positions (one fused loop is latency-bound, and slower)."""
     N = cos_phi.shape[0]
     ia2 = 1.0 / a2
     ia3 = 1.0 / a3
