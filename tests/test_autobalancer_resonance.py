@@ -106,7 +106,8 @@ def test_an_undamped_resonance_built_from_c_and_M_is_singular_to_an_ulp(c, M, ra
 
 def test_two_hundred_undamped_resonances_are_all_singular():
     # Omega == omega_xi with zeta_xi = 0 over random masses and frequencies: every one singular
-    # (some came back ok with P of 1e13 .. 1e14 and a verdict set by a rounding error)
+    # (the plain difference c - M Omega^2 leaves a few ulps there: P of 1e13 .. 1e15 with a
+    # verdict set by their sign, unless the tolerance decides)
     rng = np.random.default_rng(26)
     Om, M = rng.uniform(0.5, 50.0, 200), rng.uniform(1.0, 100.0, 200)
     out, status = closed(Omega=Om, M=M, omega_xi=Om, zeta_xi=0.0, omega_eta=1.7 * Om, zeta_eta=0.05)

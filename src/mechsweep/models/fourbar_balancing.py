@@ -44,7 +44,9 @@ method):
    (physics.md section 3).
 3. (slider-crank: model ``slidercrank_balancing``)
 4. ``*_inertia``: after method 1, an inertia J_rocker turning with the rocker, J minimising the
-   RMS of M_static - J phi3''; J < 0 means a counter-rotating 1:-1 gear pair of inertia |J|.
+   RMS of M_static - J phi3''; J < 0 means a counter-rotating 1:-1 gear pair of inertia |J|. The
+   inertia is taken massless (a flywheel's own weight on the rocker axis would add the constant
+   -m g a4 to the moment with gravity, and its mass the weight to Fy).
    Exact (to round-off) only when the force-balanced linkage's angular momentum has no coupler
    term (e.g. an inline coupler with I2 + m2 r2^2 = m2 r2 a2) and the crank speed is constant.
 5. the unsuffixed outputs (``Fx_range`` .. ``T_rms``): the mechanism as given, with the
