@@ -42,7 +42,7 @@ def test_the_model_layer_imports_first_in_a_fresh_process():
     # a user's model file starts with `from mechsweep.model import OdeModel`: mechsweep.model imports
     # mechsweep.models (Param), whose autobalancer declaration must not need mechsweep.model finished
     import subprocess
-    code = "from mechsweep.model import OdeModel, Floquet\nimport mechsweep.model.trajectory\nprint('ok')"
+    code = "from mechsweep.model import OdeModel, Floquet\nimport mechsweep.engine.sampling\nprint('ok')"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
 
@@ -136,7 +136,7 @@ def test_the_one_sampled_kernel_gives_a_subset_what_its_own_kernel_gives(monkeyp
     # classify, the lock test, measured units) and without it; values, statuses, counts bitwise
     import functools
 
-    from mechsweep.model import trajectory
+    from mechsweep.engine import sampling as trajectory
     rec = _rec()
     P = rec.design_points()
     wanted = ("residual_amplitude", "xi_history")

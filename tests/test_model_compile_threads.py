@@ -1,24 +1,30 @@
-"""Generated kernel modules under concurrent first use (dask's threaded scheduler runs chunks of
+"""Kernel binding modules under concurrent first use (dask's threaded scheduler runs chunks of
 one scene in several threads, each asking for the scene's kernel at once)."""
 from __future__ import annotations
 
 import sys
 import threading
+import time
 import uuid
 
-from mechsweep.model import compile as mc
+from mechsweep.engine import binding
+from mechsweep.engine import kernels as mc
 
 
 def test_threads_asking_for_one_generated_module_share_one_import():
     name = "mechsweep_gen_test_" + uuid.uuid4().hex[:12]
-    source = "import time\ntime.sleep(0.2)  # a slow import: the threads overlap\nkernel = object()\n"
+
+    def slow():  # a slow import: the threads overlap
+        time.sleep(0.2)
+        return binding.Entries()
+
     got, errors = [], []
     start = threading.Barrier(4)
 
     def load():
         try:
             start.wait()
-            got.append(mc.load_generated(name, source).kernel)
+            got.append(binding.bind(name, "a test", {}, slow))
         except Exception as e:  # noqa: BLE001 - any failure is the finding
             errors.append(e)
 
@@ -29,12 +35,12 @@ def test_threads_asking_for_one_generated_module_share_one_import():
         for t in threads:
             t.join()
     finally:
-        (mc._folder() / f"{name}.py").unlink(missing_ok=True)
+        (binding.folder() / f"{name}.py").unlink(missing_ok=True)
         sys.modules.pop(name, None)
-        mc._LOADED.pop(name, None)
+        binding._LOADED.pop(name, None)
     assert not errors
     assert len(got) == 4 and all(k is got[0] for k in got)  # one module, imported once
-    assert not list(mc._folder().glob(f"{name}*.tmp"))
+    assert not list(binding.folder().glob(f"{name}*.tmp"))
 
 
 def test_kernel_for_the_same_objects_reads_no_model_source_again(monkeypatch):
@@ -61,7 +67,7 @@ def test_kernel_for_the_same_objects_reads_no_model_source_again(monkeypatch):
 
 def test_one_point_kernel_is_serial_code_split_over_python_threads(monkeypatch, small_duffing):
     """The one-point kernel is compiled as serial code (numba's parallel compile of a prange cost about
-    2.3 s of the quickstart's cold compile) and compile.Threaded runs it on numba.get_num_threads() Python
+    2.3 s of the quickstart's cold compile) and engine/point.py's Threaded runs it on numba.get_num_threads() Python
     threads, each a stride of the points: the results are bitwise the same for any split (1 or 3 threads,
     the latter uneven over 63 points)."""
     import numba

@@ -1,7 +1,7 @@
-"""SIMD lanes for the model layer's first-event kernels (model/lanes.py): bitwise the one-point route.
+"""SIMD lanes for the model layer's first-event kernels (engine/lanes.py): bitwise the one-point route.
 
 Each comparison runs the same points through the lane kernel and the one-point kernel
-(compile.USE_LANES switched) and asks for identical outputs, status, n_steps and n_rhs."""
+(engine.kernels.USE_LANES switched) and asks for identical outputs, status, n_steps and n_rhs."""
 import importlib.util
 import math
 import sys
@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 from mechsweep import status as st
-from mechsweep.model import compile as mc
-from mechsweep.model import lanes, load
+from mechsweep.engine import binding, lane_rhs, lanes
+from mechsweep.engine import kernels as mc
+from mechsweep.model import load
 from mechsweep.models import MODELS
 from mechsweep.scene import Solver
 
@@ -34,8 +35,8 @@ def _evaluate(spec, P, wanted, use_lanes, monkeypatch, status0=None, **solver):
 
 
 def _lane_kernels_used():
-    """Names of the generated modules imported so far that integrate in lanes."""
-    return {name for name in mc._KERNELS if "lane_run" in Path(sys.modules[name].__file__).read_text()}
+    """Names of the kernels' binding modules imported so far that integrate in lanes."""
+    return {name for name in mc._KERNELS if "rhs_lanes" in Path(sys.modules[name].__file__).read_text()}
 
 
 def _same(spec, P, wanted, monkeypatch, status0=None, **solver):
@@ -107,10 +108,10 @@ def test_user_models_lanes_bitwise(monkeypatch):
     assert new, "the lane kernel was not used"
     assert {st.OK, st.NO_EVENT} <= set(out["status"].tolist())
     mod = _module("lanes_models")  # an rhs calling a helper, or another method: one point at a time
-    assert lanes.applies(mod.HELPER, mod.HELPER.measurements[:1], "dop853") is None
-    assert lanes.applies(mod.FORCED, mod.FORCED.measurements[1:], "dop853") is not None
-    assert lanes.applies(mod.FORCED, mod.FORCED.measurements[1:], "radau") is None
-    assert lanes.applies(mod.FORCED, mod.FORCED.measurements, "dop853") is None  # two measurements
+    assert mc.lanes_apply(mod.HELPER, mod.HELPER.measurements[:1], "dop853") is None
+    assert mc.lanes_apply(mod.FORCED, mod.FORCED.measurements[1:], "dop853") is not None
+    assert mc.lanes_apply(mod.FORCED, mod.FORCED.measurements[1:], "radau") is None
+    assert mc.lanes_apply(mod.FORCED, mod.FORCED.measurements, "dop853") is None  # two measurements
     layer = load.resolve(f"{USER / 'layer_methods.py'}:LINEAR")  # classify, prepare, settings, closed forms
     P2 = np.array([[w, a] for w in (0.5, 1.0, 4.0, 6.0) for a in (-1.0, 0.0, 0.3, 2.0)])
     _, new = _same(layer, P2, ("period", "period_exact", "period_error"), monkeypatch, method="dop853",
@@ -123,7 +124,7 @@ def test_lane_rhs_rewrite_is_the_scalar_rhs_per_lane():
     """The rewritten rhs, run as plain Python on (state, lane) arrays, gives per lane the floats of
     the scalar rhs; what the rewrite does not cover gives None (the one-point route)."""
     mod = _module("lanes_models")
-    src = lanes.lane_rhs_source(mod.forced_rhs)
+    src = lane_rhs.lane_rhs_source(mod.forced_rhs)
     assert src is not None and "math.cos(_lt[_ll])" in src and "_lp[2, _ll]" in src
     namespace = {"math": math, "jit_noalloc": lambda f: f}
     exec(src, namespace)
@@ -136,7 +137,7 @@ def test_lane_rhs_rewrite_is_the_scalar_rhs_per_lane():
         d = np.empty(2)
         mod.forced_rhs(tau[lane], Z[:, lane].copy(), Pl[:, lane].copy(), d)
         assert np.array_equal(d, dZ[:, lane])
-    assert lanes.lane_rhs_source(mod.helper_rhs) is None  # a call to a helper
+    assert lane_rhs.lane_rhs_source(mod.helper_rhs) is None  # a call to a helper
 
     def raising(t, y, p, dydt):
         if y[0] > 1.0:
@@ -157,7 +158,7 @@ def test_lane_rhs_rewrite_is_the_scalar_rhs_per_lane():
         dydt[1] = y[1]
 
     for f in (raising, writes_p, whole, early):
-        assert lanes.lane_rhs_source(f) is None, f.__name__
+        assert lane_rhs.lane_rhs_source(f) is None, f.__name__
 
 
 def _module(name):
@@ -191,13 +192,13 @@ def test_lane_rhs_inlines_helper_functions_called_as_statements():
     rhs's floats; a helper the rewrite does not cover (a while loop) leaves the rhs to the one-point
     route."""
     mod = _module("lanes_models")
-    src = lanes.lane_rhs_source(mod.inline_rhs)
+    src = lane_rhs.lane_rhs_source(mod.inline_rhs)
     assert src is not None and "scaled" not in src.split("\n", 1)[1] and "accel(" not in src
     assert "_lp[3, _ll]" in src and "_lp[2, _ll]" in src  # q[2] and q[1] of p[OFF:]
     _per_lane(mod.inline_rhs, src, 2, 4, np.random.default_rng(1))
-    assert lanes.lane_rhs_source(mod.uncovered_rhs) is None
+    assert lane_rhs.lane_rhs_source(mod.uncovered_rhs) is None
     for f in (mod.recursive_rhs, mod.tail_rhs):  # inlined without end: refused, no RecursionError
-        assert lanes.lane_rhs_source(f) is None
+        assert lane_rhs.lane_rhs_source(f) is None
 
 
 def _autobalancer_cases(rng):
@@ -233,7 +234,7 @@ def test_lane_rhs_of_the_autobalancer_is_its_rhs_per_lane():
     and in every case the bits of the hand-written scaled_rhs_lanes."""
     from mechsweep.models import autobalancer as ab
 
-    src = lanes.lane_rhs_source(ab.MODEL.rhs)
+    src = lane_rhs.lane_rhs_source(ab.MODEL.rhs)
     assert src is not None and "if _lb:" in src
     fast, again = src.split("if _lb:")  # the fast loop: no call of sincos's libm branch; again: sincos
     assert "_lsincos_red(" in fast and "_lsincos(" not in fast and "_lsincos(" in again
@@ -266,7 +267,7 @@ def test_lane_rhs_of_the_autobalancer_is_vectorised():
 
     import numba
 
-    src = lanes.lane_rhs_source(ab.MODEL.rhs)
+    src = lane_rhs.lane_rhs_source(ab.MODEL.rhs)
     namespace = {"math": math, "jit_noalloc": lambda f: numba.njit(fastmath=False, error_model="numpy")(f)}
     exec(src, namespace)
     f = namespace["rhs_lanes"]
@@ -284,7 +285,7 @@ def test_autobalancer_sampled_lanes_bitwise_one_trajectory(monkeypatch):
     """The auto-balancer's Kick, Steady and History (the recorded design grid: every status it
     gives) in the engine's lanes and one trajectory at a time: the same values, status, n_steps and
     n_rhs, bitwise; the lanes were taken."""
-    from mechsweep.model import trajectory
+    from mechsweep.engine import sampling as trajectory
 
     _rec = importlib.util.spec_from_file_location("record_autobalancer", DATA / "record_autobalancer.py")
     rec = importlib.util.module_from_spec(_rec)
@@ -316,7 +317,7 @@ def test_lane_rhs_of_duffing_is_vectorised():
     from mechsweep.models import duffing
 
     namespace = {"math": math, "jit_noalloc": lambda f: numba.njit(fastmath=False, error_model="numpy")(f)}
-    exec(lanes.lane_rhs_source(duffing.MODEL.rhs), namespace)
+    exec(lane_rhs.lane_rhs_source(duffing.MODEL.rhs), namespace)
     f = namespace["rhs_lanes"]
     L = lanes.lanes_for(2)
     f(np.zeros(L), np.zeros((2, L)), np.zeros((10, L)), np.zeros((2, L)))
@@ -338,9 +339,10 @@ def test_automatic_route_takes_lanes_only_where_they_pay(monkeypatch, small_duff
     spec = MODELS["duffing"]
     P = _duffing_points()[:40]
     monkeypatch.setattr(mc, "USE_LANES", None)
-    monkeypatch.setattr(mc, "_BY_OBJECTS", {})
+    monkeypatch.setattr(mc, "_MEMO", {})
     monkeypatch.setattr(mc, "_KERNELS", {})
-    monkeypatch.setattr(mc, "_compiled_on_disk", lambda name, source: False)  # as with an empty JIT cache
+    monkeypatch.setattr(binding, "_COMPILED", set())
+    monkeypatch.setattr(binding, "compiled", lambda name, entries=("kernel",): False)  # as with an empty JIT cache
     one = _evaluate(spec, P, WANTED, None, monkeypatch, method="dop853")
     assert not _lane_kernels_used(), "a small run compiled the lane kernel"
     monkeypatch.setattr(mc, "LANES_FROM_POINTS", 41)
@@ -355,19 +357,18 @@ def test_automatic_route_takes_lanes_only_where_they_pay(monkeypatch, small_duff
     for key, value in one.items():
         assert np.array_equal(value, lan[key], equal_nan=True), key
     (name,) = _lane_kernels_used()
-    source = Path(sys.modules[name].__file__).read_text()
     monkeypatch.undo()
-    if mc._jit.cache_dir is not None:  # numba's index as numba reads it: this kernel's is there, none for a
-        monkeypatch.setattr(mc, "_KERNELS", {})  # module never compiled
-        assert mc._compiled_on_disk(name, lambda: source) and name in mc._KERNELS
+    if binding._jit.cache_dir is not None:  # the record on disk: this kernel's is there, none for a
+        monkeypatch.setattr(binding, "_COMPILED", set())  # module never compiled
+        assert binding.compiled(name)
         fresh = "mechsweep_gen_test_never_compiled"
-        assert not mc._compiled_on_disk(fresh, lambda: source)  # no file: not even imported
-        mc.load_generated(fresh, source)
-        assert not mc._compiled_on_disk(fresh, lambda: source)
+        assert not binding.compiled(fresh)  # no file: not even imported
+        binding.bind(fresh, "a test", {}, binding.Entries)
+        assert not binding.compiled(fresh)
 
 
 def test_lane_blocks_are_taken_once_each_by_whichever_thread_is_free(monkeypatch):
-    """The lane kernel's threads take its points in batches (lanes.take, an atomic counter) instead of
+    """The lane kernel's threads take its points in batches (engine/lanes.py take, an atomic counter) instead of
     being dealt blocks in advance: every take is handed out exactly once (10 x 10^6 takes racing on two
     threads), and a launch of several workers on two threads gives bitwise the one-point route's
     results at every point."""

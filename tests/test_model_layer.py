@@ -223,19 +223,22 @@ def test_floquet_with_analytic_jacobian_agrees_with_finite_differences():
 
 
 def test_closed_forms_needing_the_floquet_kind_and_angle_get_a_kernel():
-    """The generated kernel passes the Floquet measurement's further values to the closed forms
-    (before, generating it raised ValueError: 'max_multiplier_angle' is not in list). Cheap: the
-    kernel module is generated and imported, not compiled (the values: the slow test below)."""
-    import inspect
-
-    from mechsweep.model import compile as mc
+    """The kernel passes the Floquet measurement's further values to the closed forms (before, the
+    kernel generator raised ValueError: 'max_multiplier_angle' is not in list). Cheap: the kernel is
+    composed and its binding imported, not compiled (the values: the slow test below)."""
+    from mechsweep.engine import kernels, point
     from mechsweep.model import load
+    from mechsweep.ode.methods import DOP853
     model = load.import_module(load._module_name(MATHIEU_FILE.resolve()), str(MATHIEU_FILE.resolve())).MATHIEU_CF
     chosen, closed = model._plan(("angle2", "kind2"))
-    kernel = mc.kernel_for(model, chosen, closed=model.computable_closed_forms(chosen), origin=str(MATHIEU_FILE))
-    source = inspect.getsource(inspect.getmodule(kernel.py_func))
-    assert "m0_1 = val_1" in source and "m0_2 = val_2" in source
-    assert "closed0(p, m0_2)" in source and "closed1(p, m0_1)" in source
+    closed = model.computable_closed_forms(chosen)
+    assert kernels.kernel_for(model, chosen, closed=closed, route="point") is not None
+    plan = point.Plan(model, chosen, closed, DOP853)
+    floquet = chosen[0]
+    # the kind and the angle kept in the point's value row (columns 1 and 2 of the Floquet's table)
+    assert plan.extra[floquet.kind][:2] == (0, 1) and plan.extra[floquet.angle][:2] == (0, 2)
+    needs = {c.name: [plan.slot[x] for x in c.needs] for c in closed}
+    assert sorted(needs.values()) == sorted([[plan.slot[floquet.angle]], [plan.slot[floquet.kind]]])
 
 
 @pytest.mark.slow  # compiles a Floquet kernel with closed forms (about 15 s)

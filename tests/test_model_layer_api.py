@@ -193,116 +193,23 @@ def test_rhs_raising_at_a_point_the_probe_did_not_see_is_a_status(in_tmp, capsys
 
 
 def test_one_point_module_has_one_try_around_a_point(osc):
-    """The one-point kernel's module catches a model's exception once per point, around point(): its
-    guards lose their try (compile._one_try: a try per guard cost most of their compile). No compile."""
-    from mechsweep.model import compile as mc
+    """The one-point kernel catches a model's exception once per point, around point(): the model's
+    functions are called without guards, compiled into their callers (a try per guard cost most of
+    their compile). No compile."""
+    import inspect
 
-    chosen, _ = osc._plan(("x_at_1",))
-    refs = {name: load.function_ref(f, name, osc.name) for name, f in mc._functions(osc, chosen, ())}
-    source = mc.kernel_source(osc, chosen, refs, "test")
-    compile(source, "generated", "exec")  # valid Python
+    from mechsweep.engine import events, floquet, point, shared
+    from mechsweep.ode.methods import DOP853
+
+    source = inspect.getsource(point._kernel)  # the kernel's loop over points
     tries = [line for line in source.splitlines() if line.strip().startswith("try:")]
     assert len(tries) == 1 and "code = point(i, " in source.split(tries[0])[1].split("except")[0]
-    assert "@jit_into_caller\ndef rhs(t, y, p, dydt):\n    user_rhs(t, y, p, dydt)\n" in source
-
-
-GUARDS = '''
-@jit_internal
-def a(p):
-    # a comment before the try (switches.switch_check's form): compile's old _GUARD_BLOCK missed it
-    try:
-        return user_a(p)
-    except Exception:
-        return st.USER_ERROR
-
-
-@jit_internal
-def b(p):
-    """A docstring before the try: _GUARD_BLOCK missed it."""
-    try:
-        x = user_b(p)
-
-        # a blank line and a comment inside the try: switches' old _TRY missed them
-        return x
-    except Exception:  # a comment on the except line: _TRY missed it
-        p[NPI] = 1.0
-
-        return np.nan
-
-
-@jit_internal
-def c(t, y, p, dydt):
-    try:
-        user_c(t, y, p, dydt)
-    except Exception:
-        dydt[:] = np.nan
-        p[NPI] = 1.0
-
-
-@jit_internal
-def d(p):
-    for j in range(3):
-        p[j] = 0.0
-'''
-UNGUARDED = '''
-@jit_internal
-def a(p):
-    # a comment before the try (switches.switch_check's form): compile's old _GUARD_BLOCK missed it
-    return user_a(p)
-
-
-@jit_internal
-def b(p):
-    """A docstring before the try: _GUARD_BLOCK missed it."""
-    x = user_b(p)
-
-    # a blank line and a comment inside the try: switches' old _TRY missed them
-    return x
-
-
-@jit_internal
-def c(t, y, p, dydt):
-    user_c(t, y, p, dydt)
-
-
-@jit_internal
-def d(p):
-    for j in range(3):
-        p[j] = 0.0
-'''
-
-
-def test_one_mechanism_strips_every_guards_try():
-    """compile.strip_guards, used by the one-point module (_one_try, which also makes the guards
-    jit_into_caller) and by switches.source(guarded=False): a guard with a comment or a docstring
-    before its try, a blank line or comment inside it, a comment on its except line (cases one or the
-    other of the two former regexes missed); a try that is not a whole guard is refused, not kept.
-    No compile."""
-    from mechsweep.model import compile as mc
-    from mechsweep.model import switches
-
-    assert mc.strip_guards(GUARDS) == UNGUARDED
-    into = mc._one_try(GUARDS)
-    for f in "abc":
-        assert f"@jit_into_caller\ndef {f}(" in into
-    assert into.replace("@jit_into_caller", "@jit_internal") == UNGUARDED and "@jit_internal\ndef d(" in into
-    for bad in ("def e(p):\n    try:\n        x = f(p)\n    except Exception:\n        x = 0.0\n    return x\n",
-                "def e(p):\n    for j in range(2):\n        try:\n            f(p)\n        except Exception:\n"
-                "            pass\n",
-                "def e(p):\n    try:\n        f(p)\n    except ValueError:\n        pass\n"):
-        with pytest.raises(ValueError, match="a try that is not a guard"):
-            mc.strip_guards(bad)
-    # the switches' functions (switch_check has a comment before its try) go through the same function
-    sys.path.insert(0, str(HERE))
-    import switched
-
-    for model in (switched.SWITCHED, switched.SWITCHED_FN):
-        refs = {n: load.function_ref(f, n, model.name) for n, f in mc._functions(model, (), ())}
-        guarded = switches.source(model, "AT", refs)
-        assert guarded.count("    try:\n") == 2  # switch_check, next_switch
-        plain = switches.source(model, "AT", refs, guarded=False)
-        assert plain == mc.strip_guards(guarded) and "try:" not in plain
-        assert "    # OK, or INFEASIBLE where the switch times" in plain  # the comment before the try stays
+    for module in (events, floquet, shared):  # the point and the measurements' blocks: no try of their own
+        assert "try:" not in inspect.getsource(module)
+    assert "try:" not in inspect.getsource(point._point)
+    chosen, _ = osc._plan(("x_at_1",))
+    plan = point.Plan(osc, chosen, (), DOP853)
+    assert plan.equation().rhs is load.inlined(*load.function_ref(osc.rhs, "rhs", osc.name))
 
 
 def test_guards_inline_a_users_function_only_when_it_has_no_raise_statement():

@@ -133,7 +133,7 @@ def test_an_exception_in_the_models_code_at_run_time_is_user_error(monkeypatch):
     w > 3: those points get USER_ERROR (not NONFINITE) and NaN, the others are computed (the event's
     exception in the SIMD-lane kernel, which a run of this size takes only when told to)."""
     from mechsweep.errors import UserModelWarning
-    from mechsweep.model import compile as mc
+    from mechsweep.engine import kernels as mc
     from mechsweep.model import ode
     monkeypatch.setattr(mc, "USE_LANES", True)
     ode._EXPLAINED.clear()  # warned once per cause in a process
@@ -154,7 +154,8 @@ def test_an_exception_in_the_models_code_at_run_time_is_user_error(monkeypatch):
 _BUILTIN_PROBE = """
 import json
 import numpy as np
-from mechsweep.model import compile as mc, load
+from mechsweep.engine import kernels as mc
+from mechsweep.model import load
 from mechsweep.models import duffing
 P = np.array([[1.0, 0.5, 0.5], [2.0, -0.1, 1.0]])
 wanted = ("period", "period_exact", "kv")

@@ -81,23 +81,23 @@ def test_extremum_of_an_expression_and_over_windows_given_by_functions_of_p():
 
 
 def test_a_first_event_beside_shared_path_measurements_generates_one_kernel():
-    """The kernel source of a FirstEvent with an Extremum and a Period-like shared row (no
-    compilation): the FirstEvent gets its own event solver, the others the shared trajectory
-    (the source once failed: FirstEvent has no shared-path source)."""
-    from mechsweep.model import compile as mc
+    """The kernel of a FirstEvent with an Extremum and a Period-like shared row (composed, not
+    compiled): the FirstEvent gets its own event solver, the others the shared trajectory (the kernel
+    generator once failed: FirstEvent has no shared-path source)."""
+    from mechsweep.engine import kernels, point
     from mechsweep.model import load
+    from mechsweep.ode.methods import DOP853
 
     path = Path(MODEL.rpartition(":")[0])
     decl = load.import_module(load._module_name(path), str(path)).MODEL
     chosen, _ = decl._plan(("down3_short", "ke_max", "period_up"))
-    refs = {name: load.function_ref(f, name, decl.name) for name, f in mc._functions(decl, chosen, ())}
-    source = mc.kernel_source(decl, chosen, refs, "test")
-    compile(source, "generated", "exec")  # valid Python
+    assert kernels.kernel_for(decl, chosen, route="point") is not None
+    plan = point.Plan(decl, chosen, (), DOP853)
     firsts = [k for k, m in enumerate(chosen) if type(m).__name__ == "FirstEvent"]
     assert len(firsts) == 2
     for k in firsts:  # each FirstEvent by its own event solver, as when asked alone
-        assert f"c, val, a, b_ = solve{k}(0.0, y, p, " in source
-    assert "a, b_ = shared(y, p, SHARED_M" in source and "NSH = 1\n" in source
+        assert k in plan.alone and k not in plan.group
+    assert len(plan.group) == 1  # the Extremum: a row of the one shared trajectory
 
 
 @pytest.mark.slow  # one more kernel (~25 s of compilation from an empty cache)

@@ -1,5 +1,5 @@
 """The sampled-trajectory measurements of the model layer (Steady, Kick, History;
-model/trajectory.py) against closed forms, on user models written as a user would
+engine/sampling.py) against closed forms, on user models written as a user would
 (tests/user_models/forced.py)."""
 import math
 import sys
@@ -125,7 +125,7 @@ def _per_subset(spec, P, wanted, monkeypatch, **solver):
     asked-for measurements alone (trajectory.evaluate(per_subset=True), as before the one kernel)."""
     import functools
 
-    from mechsweep.model import trajectory
+    from mechsweep.engine import sampling as trajectory
     a = _evaluate(spec, P, wanted, **solver)
     with monkeypatch.context() as m:
         m.setattr(trajectory, "evaluate", functools.partial(trajectory.evaluate, per_subset=True))
@@ -142,7 +142,7 @@ def test_one_kernel_per_model_serves_every_subset_of_its_sampled_outputs(decay):
     # subset runs on the model's one kernel (nothing more compiled), and a subset's values and
     # counts are bitwise those of the run that asks for everything (the same steps: the horizon
     # is the same; samples come from the dense output)
-    from mechsweep.model import trajectory
+    from mechsweep.engine import sampling as trajectory
     lam = np.array([0.5, 0.2, -0.05, 1e-6, 30.0, 0.3])
     P = np.column_stack([lam, np.array([0.1, 0.3, 0.1, 0.1, 0.1, 2.0])])
     kw = dict(rtol=1e-11, atol=1e-14, max_steps=10**7)
@@ -244,7 +244,8 @@ def test_kick_growth_floor_decides_an_error_at_its_noise_floor():
     finer sampling there reads it) is not "growing" when at most growth_floor; by default the floor
     is 1e-3 settle_threshold (the old rule, unchanged: 1e-5 here, so UNDECIDED)."""
     from mechsweep.model import Kick
-    from mechsweep.model.trajectory import grid, kick_observe
+    from mechsweep.model.sampled import kick_observe
+    from mechsweep.engine.sampling import grid
     s, bits, K = grid((Kick("k", "y", horizon=20.0, settle_threshold=0.01),
                        Kick("f", "y", horizon=20.0, settle_threshold=0.01, growth_floor=1e-4)), {})
     assert K[0].tolist() == [0.01, 0.5, 2.0, 0.01 * 1e-3] and K[1, 3] == 1e-4
@@ -302,14 +303,13 @@ def test_the_sampled_lanes_are_taken_only_where_they_pay(monkeypatch):
     (setup and queue) are compiled; else one trajectory at a time; True/False force the route."""
     from types import SimpleNamespace
 
-    from mechsweep.model import trajectory
+    from mechsweep.engine import binding
+    from mechsweep.engine import sampling as trajectory
 
-    def dispatcher(compiled):
-        return SimpleNamespace(signatures=["(float64[:],)"] if compiled else [])  # no disk cache: not compiled
-
-    cold = SimpleNamespace(setup=dispatcher(False), queue=dispatcher(False))
-    half = SimpleNamespace(setup=dispatcher(True), queue=dispatcher(False))
-    warm = SimpleNamespace(setup=dispatcher(True), queue=dispatcher(True))
+    # the kernels' entry points compiled in this process (engine/binding.py's record); none on disk
+    monkeypatch.setattr(binding, "_COMPILED", {("half", "setup"), ("warm", "setup"), ("warm", "queue")})
+    cold, half, warm = (SimpleNamespace(name=f"mechsweep_traj_test_{n}") for n in ("cold", "half", "warm"))
+    binding._COMPILED = {(f"mechsweep_traj_test_{n}", e) for n, e in binding._COMPILED}
     monkeypatch.setattr(trajectory, "USE_LANES", None)
     monkeypatch.setattr(trajectory, "LANES_FROM_POINTS", 500)
     assert not trajectory._lanes_pay(cold, 499) and not trajectory._lanes_pay(half, 10)
@@ -322,12 +322,12 @@ def test_the_sampled_lanes_are_taken_only_where_they_pay(monkeypatch):
 
 @pytest.mark.slow  # compiles the lane solver for two models (about a minute cold)
 def test_lanes_give_the_one_trajectory_results_bitwise(forced, decay, monkeypatch):
-    """User models that write no lane rhs (the engine rewrites theirs, model/lanes.py): FORCED's
+    """User models that write no lane rhs (the engine rewrites theirs, engine/lane_rhs.py): FORCED's
     Steady and History over three forcing periods (one lane group each) and five periods of one
     point each (too few for lanes: one trajectory at a time), DECAY's Kick, Steady and
     History (with value/time_value transforms) in DOP853 lanes and one trajectory at a time: the
     same values, status, n_steps and n_rhs, bitwise."""
-    from mechsweep.model import trajectory
+    from mechsweep.engine import sampling as trajectory
 
     calls = []
     run_lanes = trajectory._run_lanes

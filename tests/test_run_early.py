@@ -165,7 +165,7 @@ def test_bench_breakdown_times_the_steps_of_a_run_and_unwraps_them(in_tmp, capsy
     from mechsweep import grid, journal, store
     from mechsweep.bench import duffing as bench
 
-    from mechsweep.model import compile as model_compile
+    from mechsweep.engine import kernels as model_compile
     from mechsweep.models import MODELS
 
     before = (runner.evaluate_rows, runner.load_scene, journal.Journal.write_chunk, store.Early.write,

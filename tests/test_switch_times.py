@@ -194,13 +194,14 @@ def test_undeclared_switches_cost_accuracy_and_steps():
 
 
 def test_a_model_with_switch_times_takes_no_simd_lanes():
-    """The lane kernels (model/lanes.py, the sampled lanes) do not step onto switches: a model that
-    declares them is integrated one point at a time, whatever compile.USE_LANES says."""
-    from mechsweep.model import lanes, trajectory
+    """The lane kernels (engine/lanes.py, the sampled lanes) do not step onto switches: a model that
+    declares them is integrated one point at a time, whatever engine.kernels.USE_LANES says."""
+    from mechsweep.engine import kernels
+    from mechsweep.engine import sampling as trajectory
 
     first = tuple(m for m in switched.SWITCHED.measurements if m.name == "t_zero")
-    assert lanes.applies(switched.UNDECLARED, first, "dop853") is not None  # the same rhs without them: lanes
-    assert lanes.applies(switched.SWITCHED, first, "dop853") is None
+    assert kernels.lanes_apply(switched.UNDECLARED, first, "dop853") is not None  # the same rhs without them: lanes
+    assert kernels.lanes_apply(switched.SWITCHED, first, "dop853") is None
     assert trajectory.lane_rhs_for(switched.UNDECLARED, "dop853") is not None
     assert trajectory.lane_rhs_for(switched.SWITCHED, "dop853") is None
 

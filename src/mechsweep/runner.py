@@ -1141,7 +1141,7 @@ def evaluate_rows(scene: Scene, P: np.ndarray):
     status = np.zeros(n, dtype=st.DTYPE)
     n_steps = np.zeros(n, dtype=np.int64)
     n_rhs = np.zeros(n, dtype=np.int64)
-    from .model.compile import planned_points  # the run's size, not the rows', chooses the kernel (lanes or not)
+    from .engine.kernels import planned_points  # the run's size, not the rows', chooses the kernel (lanes or not)
 
     with np.errstate(all="ignore"), planned_points(scene.n_points):  # an overflow at an extreme point is its status
         launching = getattr(_LAUNCH, "hook", None)

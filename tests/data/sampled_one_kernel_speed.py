@@ -15,7 +15,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import record_autobalancer as rec  # noqa: E402
 
-from mechsweep.model import trajectory  # noqa: E402
+from mechsweep.engine import sampling as trajectory  # noqa: E402
 from mechsweep.models import autobalancer as ab  # noqa: E402
 from mechsweep.scene import Solver  # noqa: E402
 

@@ -1,5 +1,5 @@
 """Every subset of sampled outputs, bitwise, before and after a change of the sampled-trajectory
-kernel (model/trajectory.py): ``python tests/data/sampled_subsets.py record FILE.npz`` runs the
+kernel (engine/sampling.py): ``python tests/data/sampled_subsets.py record FILE.npz`` runs the
 cases below (the auto-balancer with and without its re-check, lanes and one trajectory at a time,
 dop853, radau and auto; user models with Steady, Kick, History, a measurement's classify, a status
 order, first-failure statuses) and stores every output, status, n_steps and n_rhs;
@@ -20,7 +20,7 @@ USER = HERE.parent / "user_models"
 
 
 def _run(spec, model, P, wanted, lanes=True, **kw):
-    from mechsweep.model import trajectory
+    from mechsweep.engine import sampling as trajectory
     from mechsweep.model.ode import _outputs
     from mechsweep.scene import Solver
     slv = Solver.for_model(spec, **kw)

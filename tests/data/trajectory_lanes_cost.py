@@ -1,4 +1,4 @@
-"""What the sampled-trajectory lanes cost and gain (model/trajectory.py, USE_LANES / LANES_FROM_POINTS):
+"""What the sampled-trajectory lanes cost and gain (engine/sampling.py, USE_LANES / LANES_FROM_POINTS):
 ``python tests/data/trajectory_lanes_cost.py [cold|speed|both] [points] [model]``.
 
 cold: each route (lanes, one trajectory at a time) in a new process with an empty numba cache
@@ -47,7 +47,7 @@ def problem(model: str, n: int, short: bool):
 
 
 def evaluate(spec, P, wanted, kw, lanes: bool):
-    from mechsweep.model import trajectory
+    from mechsweep.engine import sampling as trajectory
     trajectory.USE_LANES = lanes
     sys.path.insert(0, str(HERE))
     import points
@@ -55,7 +55,7 @@ def evaluate(spec, P, wanted, kw, lanes: bool):
 
 
 def child(route: str, model: str) -> None:
-    from mechsweep.model import trajectory
+    from mechsweep.engine import sampling as trajectory
 
     trajectory.LANE_GROUP_MIN = 1  # the 4 points' lanes compiled whatever their periods
     spec, P, wanted, kw = problem(model, 4, True)
@@ -78,7 +78,7 @@ def cold(model: str) -> None:
 
 
 def speed(model: str, n: int, rounds: int = 3) -> None:
-    from mechsweep.model import trajectory
+    from mechsweep.engine import sampling as trajectory
 
     if model == "forced_distinct" and "--groups-of-one" in sys.argv:  # lanes even for a period of one point
         trajectory.LANE_GROUP_MIN = 1

@@ -1,5 +1,5 @@
 """Run a user model in this (fresh) process and print what numba compiled (used by
-tests/test_model_layer.py): cache misses of the generated kernel and of the user's functions.
+tests/test_model_layer.py): cache misses of the kernel (its binding's entry point) and of the user's functions.
 argv[2] (optional): the outputs, comma-separated (default: period)."""
 import json
 import sys
@@ -7,7 +7,8 @@ import sys
 import numpy as np
 
 from mechsweep.scene import load_scene
-from mechsweep.model import compile as mc, load
+from mechsweep.engine import kernels as mc
+from mechsweep.model import load
 
 outputs = sys.argv[2].split(",") if len(sys.argv) > 2 else ["period"]
 scene = load_scene({"scene": {"name": "probe", "model": sys.argv[1], "outputs": outputs},

@@ -1,4 +1,4 @@
-"""User models for tests/test_model_lanes.py: right-hand sides the lane rewrite (model/lanes.py)
+"""User models for tests/test_model_lanes.py: right-hand sides the lane rewrite (engine/lane_rhs.py)
 covers (math calls, `from math import`, module constants, a negative constant under a power, the
 time t, a branch, a loop over range, helper functions called as statements) and ones it must leave
 to the one-point route (a call to a helper function inside an expression, a helper with a while

@@ -6,7 +6,7 @@
    200 x 200 is extrapolated to 200 x 200 by points (and says so).
 2. Direct simulation: the model's stable_sim and residual_amplitude (the layer's sampled
    trajectory of the scaled equations in the engine's lane form of the model's rhs: up to 32
-   trajectories side by side in SIMD lanes per thread, model/trajectory.py and ode/dop853_lanes.py;
+   trajectories side by side in SIMD lanes per thread, engine/sampling.py and ode/dop853_lanes.py;
    the bench sets trajectory.USE_LANES: the route a sweep of LANES_FROM_POINTS points or a warm cache takes), timed on one thread
    (accepted steps per second per core) and on all numba threads (4x as many points), best of
    REPEATS runs each. The points are a sweep's worth per thread (512 by default; on 2 threads the
@@ -46,8 +46,8 @@ from .. import status as st
 from .._jit import jit
 from ..models import _autobalancer_kernels as ref  # scaled parameters and sample grid for scipy
 from ..models import autobalancer as ab
-from ..model import trajectory
-from ..model.trajectory import LANES as _LANE_CHOICES
+from ..engine import sampling as trajectory
+from ..engine.sampling import LANES as _LANE_CHOICES
 from ..scene import Solver
 
 LANES = _LANE_CHOICES[0]  # the lane right-hand side's cost is measured with the most lanes the model uses

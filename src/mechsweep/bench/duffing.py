@@ -28,7 +28,7 @@ import numpy as np
 
 from .. import status as st
 from ..grid import Chunk
-from ..model import compile as model_compile
+from ..engine import kernels as engine_kernels
 from ..models import duffing
 from . import competitors
 from ..runner import _threads, evaluate_chunk, evaluate_rows, run
@@ -86,7 +86,7 @@ def _rates(n, times):
 
 
 def _ours(scene, threads, lanes, rows, key):
-    model_compile.USE_LANES = lanes
+    engine_kernels.USE_LANES = lanes
     with _threads(threads):
         wall, cpu, result = _timed(lambda: evaluate_chunk(scene, _whole_grid(scene)))
     rows.setdefault(key, {"wall": [], "cpu": []})
@@ -168,18 +168,18 @@ def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = N
     scene = load_scene(grid_scene(points, rtol, atol))
     stored = ("period", "period_exact", "period_error", "v_max", "a_max")
     scene_stored = load_scene(grid_scene(points, rtol, atol, stored))  # the kernel as the run calls it
-    use_lanes = model_compile.USE_LANES
+    use_lanes = engine_kernels.USE_LANES
     rows: dict = {}
     try:
         with _threads(threads):
             n_threads = numba.get_num_threads()
             t0 = time.perf_counter()
             for lanes in (True, False):
-                model_compile.USE_LANES = lanes
+                engine_kernels.USE_LANES = lanes
                 evaluate_chunk(load_scene(grid_scene(4, rtol, atol, stored)), Chunk(0, 0, 4, ()))
                 evaluate_chunk(scene, Chunk(0, 0, 4, ()))
             compile_s = time.perf_counter() - t0  # every kernel the timed runs use, compiled or loaded
-            model_compile.USE_LANES = True
+            engine_kernels.USE_LANES = True
             with tempfile.TemporaryDirectory() as tmp:  # the run's own first-call costs (imports, the file
                 for outputs in (stored, ("period",)):  # route's first use) stay out of its timed repetitions
                     run(grid_scene(1000, rtol, atol, outputs), output=os.path.join(tmp, "warm.h5"), progress=False)
@@ -189,7 +189,7 @@ def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = N
                 for lanes in (True, False):
                     for n_thr in (n_threads, 1):
                         results[lanes] = _ours(scene, n_thr, lanes, rows, (lanes, n_thr))
-                model_compile.USE_LANES = True
+                engine_kernels.USE_LANES = True
                 # the kernel with the run's five outputs (closed forms computed beside the period), in
                 # one call: what the run costs over it is the engine around the kernel
                 _ours(scene_stored, n_threads, True, rows, "kernel_stored")
@@ -201,7 +201,7 @@ def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = N
                     rows[key]["wall"].append(wall)
                     rows[key]["cpu"].append(cpu)
     finally:
-        model_compile.USE_LANES = use_lanes
+        engine_kernels.USE_LANES = use_lanes
     cols, status, n_steps, n_rhs = results[True]
     same = all(np.array_equal(x, y, equal_nan=True) for x, y in
                zip((cols["period"], status, n_steps, n_rhs), (results[False][0]["period"], *results[False][1:])))
@@ -237,7 +237,7 @@ def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = N
             return np.nanmax(np.abs(cols_r["period"] - _exact) / _exact)
 
         try:
-            model_compile.USE_LANES = True
+            engine_kernels.USE_LANES = True
             with _threads(threads):
                 r_m, a_m, err_m, tried = ours_at_error(errors_of, floor, rtol, atol)
                 scene_m = load_scene(grid_scene(points, r_m, a_m))
@@ -245,7 +245,7 @@ def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = N
                 for _ in range(repeats):
                     _ours(scene_m, n_threads, True, rows, key)
         finally:
-            model_compile.USE_LANES = use_lanes
+            engine_kernels.USE_LANES = use_lanes
         best, worst = _rates(scene.n_points, rows[key]["wall"])
         c["ours_matched"] = {"rtol": r_m, "atol": a_m, "max_rel_error": err_m, "competitor_best_error": floor,
                              "points_per_s": best, "points_per_s_worst": worst,
@@ -455,7 +455,7 @@ def breakdown(points: int = 200_000, threads: int | None = None, rtol: float = S
     """`mechsweep.run` of the bench grid to an HDF5 file, ``repeats`` times, with its steps timed
     (wall and CPU of the thread that runs them) and its kernel launches accounted per thread (on a
     CPU, waiting for one, asleep: ``_launch_account``), beside the kernel alone on the same grid and
-    outputs in one call. ``lanes``: the kernel route (model.compile.USE_LANES; True, the lane
+    outputs in one call. ``lanes``: the kernel route (engine.kernels.USE_LANES; True, the lane
     kernel of goal 1, by default). Prints a table per run; returns the timings."""
     import functools
     import numba
@@ -487,8 +487,8 @@ def breakdown(points: int = 200_000, threads: int | None = None, rtol: float = S
 
         saved.append((owner, name, f))
         setattr(owner, name, functools.wraps(f)(timed))
-    use_lanes = model_compile.USE_LANES
-    model_compile.USE_LANES = lanes  # the lane kernel (goal 1's), also where the run alone would not take it
+    use_lanes = engine_kernels.USE_LANES
+    engine_kernels.USE_LANES = lanes  # the lane kernel (goal 1's), also where the run alone would not take it
     # the run's scenes share this scene's model object (the registry's): its evaluate, the kernel
     # launch of each chunk, is accounted per thread (a frozen dataclass: set around its own __setattr__)
     plain = scene.model.evaluate
@@ -516,7 +516,7 @@ def breakdown(points: int = 200_000, threads: int | None = None, rtol: float = S
                                 "run_wall_s": wall, "run_cpu_s": cpu, "load": os.getloadavg()[0],
                                 "steps": {label: tuple(v) for label, v in acc.items()}, "launches": launches})
     finally:
-        model_compile.USE_LANES = use_lanes
+        engine_kernels.USE_LANES = use_lanes
         object.__setattr__(scene.model, "evaluate", plain)
         for owner, name, f in reversed(saved):
             setattr(owner, name, f)

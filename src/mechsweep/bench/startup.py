@@ -18,7 +18,7 @@ Each figure is printed with its target beside it (issue 15, goals 2, 3 and 5), a
   the measurement);
 - ``--only routes``: the cold compile of the quickstart's kernels by route (SIMD lanes, one point at
   a time) in fresh processes with an empty JIT cache each, alternated, and both warm kernels' points/s
-  side by side: what model/compile.py's LANES_FROM_POINTS is set from;
+  side by side: what engine/kernels.py's LANES_FROM_POINTS is set from;
 - ``--only compile``: the scene's cold compile by function (numba's compile events in a fresh process with
   an empty JIT cache; each function's own time split into LLVM's work and numba's own), ``repeats`` times.
 """
@@ -373,7 +373,7 @@ print(json.dumps({"compile_cpu": compile_cpu, "run": min(runs), "roots": hashlib
 ROUTE_CHILD = """
 import json, sys, time
 import mechsweep
-from mechsweep.model import compile as mc
+from mechsweep.engine import kernels as mc
 from mechsweep.grid import ParameterMatrix
 from mechsweep.runner import evaluate_rows
 mode = sys.argv[2]
@@ -385,7 +385,7 @@ P = ParameterMatrix(scene)(0, scene.n_points)
 c0, t0 = time.process_time(), time.perf_counter()
 evaluate_rows(scene, P[:1])  # the compile (the run's warm-up point)
 compile_cpu, compile_wall = time.process_time() - c0, time.perf_counter() - t0
-lane_kernels = sum("lane_run" in open(sys.modules[name].__file__).read() for name in mc._KERNELS)
+lane_kernels = sum("rhs_lanes" in open(sys.modules[name].__file__).read() for name in mc._KERNELS)
 print(json.dumps({"compile_cpu": compile_cpu, "compile_wall": compile_wall, "kernels": len(mc._KERNELS),
                   "lane_kernels": lane_kernels}))
 """
@@ -393,7 +393,7 @@ print(json.dumps({"compile_cpu": compile_cpu, "compile_wall": compile_wall, "ker
 
 def route_compile(scene: Path, repeats: int, folder: Path, modes=("lanes", "one")) -> dict:
     """Cold compile of ``scene``'s kernels (its first point, as the run's warm-up) in fresh processes with
-    an empty JIT cache each, by route: "lanes" (compile.USE_LANES True), "one" (one point at a time),
+    an empty JIT cache each, by route: "lanes" (engine.kernels.USE_LANES True), "one" (one point at a time),
     alternated ``repeats`` times: {mode: [{compile_cpu, compile_wall, kernels, lane_kernels}]}."""
     out = {m: [] for m in modes}
     for i in range(repeats):
@@ -411,7 +411,7 @@ def route_speed(n: int, repeats: int) -> dict:
     """Warm points per second of the Duffing period kernel (DOP853, rtol 1e-10) on ``n`` points, the lane
     kernel and the one-point kernel alternated in this process: {mode: [(wall s, CPU s)]}."""
     from mechsweep.grid import ParameterMatrix
-    from mechsweep.model import compile as mc
+    from mechsweep.engine import kernels as mc
     from mechsweep.runner import evaluate_rows
     from mechsweep.scene import load_scene
 

@@ -1,17 +1,14 @@
-"""Generic measurements of an :class:`~mechsweep.model.ode.OdeModel`.
+"""Generic measurements of an :class:`~mechsweep.model.ode.OdeModel`: declarations of what to record.
 
-FirstEvent (an event function, any method) and ClosedForm (a formula output) are at the end.
-
-Each measurement declares its output (name, unit, long name) and knows how to write, as Python
-source, one jitted function ``measure(y, p, rtol, atol, max_steps, work) -> (status, value, n_steps,
-n_rhs)`` for the generated chunk kernel (see compile.py). ``y`` holds the initial state on entry and
-is scratch afterwards; ``p`` is the point's parameter row followed by ``len(states)`` scratch slots
-(the user's rhs only reads its declared parameters). Every measurement integrates from t = 0 with
-the DOP853 of ``mechsweep.ode.dop853``. In the generated kernel Crossing, Period, StateAt and
-Extremum do not use their ``source``: they are rows (``shared_row``) of one shared integration per
-point (``make_shared``); ``source`` is kept for ``compile.kernel_for(..., shared=False)`` (one
-integration per measurement, for comparison). Floquet always integrates on its own.
-Nothing raises: a failure is a status code of :mod:`mechsweep.status` and a NaN value.
+Each measurement declares its output(s) (name, unit, long name) and knows what it records in a
+kernel: ``point(plan, k)`` gives its block in the one-point kernel (engine/point.py): Crossing, Period,
+StateAt and Extremum are rows (``shared_row``) of one shared DOP853 integration per point
+(engine/shared.py), FirstEvent (and a lone first Crossing) integrates on its own by the scene's method
+(engine/events.py), Floquet integrates its variational equations (engine/floquet.py). The sampled
+measurements (Steady, Kick, History, RMS: model/sampled.py) give their ``observer(plan, k)`` of the
+one sampled trajectory per point (engine/trajectory.py). ClosedForm (a formula output) and System (a second equation) are
+declarations the kernels read. Nothing raises in a kernel: a failure is a status code of
+:mod:`mechsweep.status` and a NaN value.
 """
 from __future__ import annotations
 
@@ -65,14 +62,13 @@ def _check_state(state, states, what):
     return states.index(state)
 
 
-def _crossing_events(k: int, idx: int, level: float, direction: str) -> str:
-    """Two event functions, ``ev{k}_fwd`` (the wanted direction) and ``ev{k}_back`` (the other);
-    dop853's event solver finds a change of sign from > 0 to <= 0."""
-    sign = 1.0 if direction == "down" else -1.0
-    return (f"@jit\ndef ev{k}_fwd(t, y, p):\n    return {sign!r} * (y[{idx}] - {level!r})\n\n"
-            f"@jit\ndef ev{k}_back(t, y, p):\n    return {-sign!r} * (y[{idx}] - {level!r})\n\n"
-            f"solve{k}_fwd = dop853.make_event_solver(rhs, ev{k}_fwd)\n"
-            f"solve{k}_back = dop853.make_event_solver(rhs, ev{k}_back)\n")
+
+def _observable(x, states, what):
+    """A state name (checked) or a function ``f(t, y, p) -> float``."""
+    if isinstance(x, str):
+        _check_state(x, states, what)
+    elif not callable(x):
+        raise ValueError(f"{what}: expected a state name or a function f(t, y, p) -> float (got {x!r})")
 
 
 _META_KEYS = ("name", "symbol", "unit", "long_name")
@@ -168,28 +164,11 @@ class Crossing:
         if isinstance(self.level, bool) or not isinstance(self.level, (int, float)) or not math.isfinite(self.level):
             raise ValueError(f"{self.name}: level = {self.level!r}; expected a finite number")
 
-    def source(self, k: int, states) -> str:
-        idx = states.index(self.state)
-        return _crossing_events(k, idx, float(self.level), self.direction) + f"""
-@jit
-def measure{k}(y, p, rtol, atol, max_steps, work):
-    ns = 0
-    nr = 0
-    t = 0.0
-    for j in range({self.n}):
-        if j > 0:
-            code, t, a, b = solve{k}_back(t, y, p, {float(self.t_max)!r}, rtol, atol, 0.0, max_steps, work)
-            ns += a
-            nr += b
-            if code != st.OK:
-                return code, math.nan, ns, nr
-        code, t, a, b = solve{k}_fwd(t, y, p, {float(self.t_max)!r}, rtol, atol, 0.0, max_steps, work)
-        ns += a
-        nr += b
-        if code != st.OK:
-            return code, math.nan, ns, nr
-    return st.OK, t, ns, nr
-"""
+    def point(self, plan, k):
+        """Its block in the one-point kernel (engine/point.py): a row of the shared trajectory, or
+        integrated on its own when it is the kernel's only measurement (a first crossing)."""
+        from ..engine import events, shared
+        return shared.member(plan, k) if k in plan.group else events.block(plan, self, k)
 
 
 @_records_where
@@ -219,27 +198,10 @@ class Period:
     def validate(self, states):
         Crossing(self.name, self.state, self.level, self.direction, 2, self.t_max).validate(states)
 
-    def source(self, k: int, states) -> str:
-        idx = states.index(self.state)
-        tm = float(self.t_max)
-        return _crossing_events(k, idx, float(self.level), self.direction) + f"""
-@jit
-def measure{k}(y, p, rtol, atol, max_steps, work):
-    code, t1, ns, nr = solve{k}_fwd(0.0, y, p, {tm!r}, rtol, atol, 0.0, max_steps, work)
-    if code != st.OK:
-        return code, math.nan, ns, nr
-    code, t2, a, b = solve{k}_back(t1, y, p, {tm!r}, rtol, atol, 0.0, max_steps, work)
-    ns += a
-    nr += b
-    if code != st.OK:
-        return code, math.nan, ns, nr
-    code, t3, a, b = solve{k}_fwd(t2, y, p, {tm!r}, rtol, atol, 0.0, max_steps, work)
-    ns += a
-    nr += b
-    if code != st.OK:
-        return code, math.nan, ns, nr
-    return st.OK, t3 - t1, ns, nr
-"""
+    def point(self, plan, k):
+        """Its block in the one-point kernel (engine/point.py): a row of the shared trajectory."""
+        from ..engine import shared
+        return shared.member(plan, k)
 
 
 @_records_where
@@ -268,19 +230,10 @@ class StateAt:
             raise ValueError(f"{self.name}: StateAt t = {self.t!r}; expected a finite number >= 0 (a fixed time: "
                              "for a time that depends on the parameters use Extremum's t0/t1 or FirstEvent)")
 
-    def source(self, k: int, states) -> str:
-        idx = states.index(self.state)
-        return f"""
-solve{k} = dop853.make_solver(rhs)
-
-
-@jit
-def measure{k}(y, p, rtol, atol, max_steps, work):
-    code, ns, nr = solve{k}(0.0, y, p, {float(self.t)!r}, rtol, atol, 0.0, max_steps, work)
-    if code != st.OK:
-        return code, math.nan, ns, nr
-    return st.OK, y[{idx}], ns, nr
-"""
+    def point(self, plan, k):
+        """Its block in the one-point kernel (engine/point.py): a row of the shared trajectory."""
+        from ..engine import shared
+        return shared.member(plan, k)
 
 
 @_records_where
@@ -336,69 +289,20 @@ class Extremum:
             raise ValueError(f"{self.name}: [t0, t1] = [{self.t0!r}, {self.t1!r}]; expected finite 0 <= t0 < t1")
 
     def functions(self):
-        """(role, function) pairs the generated module imports: the expression, the window's ends."""
+        """(role, function) pairs the kernel calls: the expression, the window's ends."""
         return tuple((role, f) for role, f in (("of", self.state), ("t0", self.t0), ("t1", self.t1)) if callable(f))
 
     def key(self) -> tuple:
-        """What the generated code depends on (compile.py adds the functions' sources)."""
+        """What the kernel depends on beyond its functions (engine/kernels.py adds their sources)."""
         def num(x):
             return None if callable(x) else float(x)
         return ("Extremum", self.name, self.state if isinstance(self.state, str) else None, num(self.t0),
                 num(self.t1), self.kind)
 
-    def source(self, k: int, states) -> str:
-        if self.functions():
-            raise ValueError(f"{self.name}: an Extremum of an expression or over a window given by functions of p is "
-                             "measured on the shared trajectory only (not with shared=False)")
-        idx = states.index(self.state)
-        ns_ = len(states)
-        sign = 1.0 if self.kind == "max" else -1.0
-        # p[NP:] is scratch for the derivative: the user's rhs never reads beyond its parameters
-        return f"""
-@jit
-def ev{k}_turn(t, y, p):  # s * dy_i/dt from > 0 to <= 0: a maximum of s * y_i
-    d = p[p.size - {ns_}:]
-    rhs(t, y, p, d)
-    return {sign!r} * d[{idx}]
-
-
-@jit
-def ev{k}_other(t, y, p):
-    d = p[p.size - {ns_}:]
-    rhs(t, y, p, d)
-    return {-sign!r} * d[{idx}]
-
-
-solve{k}_to = dop853.make_solver(rhs)
-solve{k}_turn = dop853.make_event_solver(rhs, ev{k}_turn)
-solve{k}_other = dop853.make_event_solver(rhs, ev{k}_other)
-
-
-@jit
-def measure{k}(y, p, rtol, atol, max_steps, work):
-    s = {sign!r}
-    code, ns, nr = solve{k}_to(0.0, y, p, {float(self.t0)!r}, rtol, atol, 0.0, max_steps, work)
-    if code != st.OK:
-        return code, math.nan, ns, nr
-    best = s * y[{idx}]
-    t = {float(self.t0)!r}
-    turn = True
-    while True:
-        if turn:
-            code, t, a, b = solve{k}_turn(t, y, p, {float(self.t1)!r}, rtol, atol, 0.0, max_steps, work)
-        else:
-            code, t, a, b = solve{k}_other(t, y, p, {float(self.t1)!r}, rtol, atol, 0.0, max_steps, work)
-        ns += a
-        nr += b
-        if code == st.NO_EVENT:  # y is the state at t1
-            best = max(best, s * y[{idx}])
-            return st.OK, s * best, ns, nr
-        if code != st.OK:
-            return code, math.nan, ns, nr
-        if turn:
-            best = max(best, s * y[{idx}])
-        turn = not turn
-"""
+    def point(self, plan, k):
+        """Its block in the one-point kernel (engine/point.py): a row of the shared trajectory."""
+        from ..engine import shared
+        return shared.member(plan, k)
 
 
 @_records_where
@@ -456,6 +360,12 @@ class Floquet(_Outputs):
     variational_jac: Callable | None = field(default=None, repr=False, compare=False)  # g(t, Phi, p, JJ), for radau
     needs_forcing = True
     n_values = 3  # the largest modulus, the kind and the critical multiplier's argument
+    variational_route = True  # integrated on its own by dop853, radau or auto (ModelSpec.methods_for)
+
+    def point(self, plan, k):
+        """Its block in the one-point kernel (engine/point.py, engine/floquet.py)."""
+        from ..engine import floquet
+        return floquet.block(plan, self, k)
 
     def _suffixes(self):
         return ("", "_stable", "_kind", "_angle")
@@ -531,110 +441,6 @@ class Floquet(_Outputs):
             return 3 * n * n + 1
         return 3 * n + n * n + 1  # y+h, f(y+h), f(y-h), J, the counter of var_jac's rhs calls
 
-    @staticmethod
-    def _solvers(k, n, jac_code, method, count=""):
-        """The variational system's solver(s) for ``method``; radau's Newton matrix is block
-        diagonal, J(t, y) on the state and on every column of Phi (the second derivatives of the
-        rhs, d(J Phi)/dy, are left out: they only steer Newton's convergence, not the result)."""
-        out = []
-        if method in ("dop853", "auto"):
-            out.append(f"solve{k}_var = dop853.make_solver(var_rhs{k}, stiffness_test={method == 'auto'})")
-        if method in ("radau", "auto"):
-            out.append(f"""
-
-@jit
-def var_jac{k}(t, z, p, JJ):
-{jac_code}{count}    JJ[:, :] = 0.0
-    for i in range({n}):
-        for m in range({n}):
-            JJ[i, m] = p[O_J{k} + i * {n} + m]
-            for j in range({n}):
-                JJ[{n} + i * {n} + j, {n} + m * {n} + j] = p[O_J{k} + i * {n} + m]
-
-
-solve{k}_var_r = radau.make_solver(var_rhs{k}, var_jac{k})""")
-        return "\n".join(out)
-
-    @staticmethod
-    def _integrate(k, n, N, method, known=False):
-        """Kernel code: the variational integration over [0, T] by the method (auto: dop853 with the
-        stiffness test; a stiff point again from the start by radau, the costs added). ``known``: z
-        is Phi alone (the model's variational system), else (y, Phi)."""
-        if method == "dop853":
-            return (f"    wz = dop853.workspace({N})\n"
-                    f"    code, ns, nr = solve{k}_var(0.0, z, p, T, rtol, atol, 0.0, max_steps, wz)\n")
-        radau_call = (f"    rz = radau.workspace({N})\n"
-                      f"    code, ns, nr = solve{k}_var_r(0.0, z, p, T, rtol, atol, 0.0, max_steps, rz)\n")
-        if method == "radau":
-            return radau_call
-        return (f"    wz = dop853.workspace({N})\n"
-                f"    code, ns, nr = solve{k}_var(0.0, z, p, T, rtol, atol, 0.0, max_steps, wz)\n"
-                f"    if code == st.STIFF:\n"
-                f"        z[:] = 0.0\n"
-                f"        for i in range({n}):\n"
-                + (f"            z[i * {n} + i] = 1.0\n" if known else
-                   f"            z[i] = y[i]\n"
-                   f"            z[{n} + i * {n} + i] = 1.0\n")
-                + "        ns0, nr0 = ns, nr\n"
-                + radau_call.replace("\n    ", "\n        ").replace("    rz", "        rz", 1)
-                + "        ns += ns0\n        nr += nr0\n")
-
-    @staticmethod
-    def _eigen(n, at):
-        """Kernel code: the monodromy matrix M[i, j] = z[at] (NONFINITE if any entry is not finite),
-        its eigenvalues, the largest modulus, the critical multiplier's kind and angle."""
-        return f"""    M = np.empty(({n}, {n}), dtype=np.complex128)
-    for i in range({n}):
-        for j in range({n}):
-            v = z[{at}]
-            if not math.isfinite(v):
-                return st.NONFINITE, math.nan, math.nan, math.nan, ns, nr
-            M[i, j] = v
-    lam = np.linalg.eigvals(M)
-    big = -1.0
-    crit = lam[0]
-    for i in range({n}):
-        if abs(lam[i]) > big:
-            big = abs(lam[i])
-            crit = lam[i]
-    if abs(crit.imag) <= 1e-8 * big:
-        kind = 1.0 if crit.real > 0.0 else -1.0
-        angle = 0.0 if crit.real > 0.0 else math.pi
-    else:
-        kind = 0.0
-        angle = abs(math.atan2(crit.imag, crit.real))
-    return st.OK, big, kind, angle, ns, nr
-"""
-
-    def _source_known(self, k, n, n_p, method):
-        """Kernel code of the route with the model's variational system: the n*n equations alone."""
-        N = n * n
-        o_yp, o_cnt = n_p, n_p + 3 * N  # scratch: Phi + h, f(Phi + h), f(Phi - h), the counter
-        out = [f"\nsolve{k}_var = dop853.make_solver(variational{k}, stiffness_test={method == 'auto'})\n"
-               if method in ("dop853", "auto") else ""]
-        fd = self.variational_jac is None and method in ("radau", "auto")
-        if method in ("radau", "auto"):
-            if fd:  # the engine's central differences of variational{k}, its calls counted in p[o_cnt]
-                from .compile import _fd_jac
-                out.append(_fd_jac(f"variational_jac{k}", f"variational{k}", count=True, n=str(N), at=str(o_yp)))
-            out.append(f"\nsolve{k}_var_r = radau.make_solver(variational{k}, variational_jac{k})\n")
-        count = (f"    nr += int(p[{o_cnt}])  # radau's Jacobians by differences\n    p[{o_cnt}] = 0.0\n"
-                 if fd else "")
-        return "".join(out) + f"""
-
-@jit
-def measure{k}(y, p, rtol, atol, max_steps, work):
-    # the model's variational system about its known orbit: Phi column-major, n*n = {N} equations
-    T = forcing(p)
-    if not (math.isfinite(T) and T > 0.0):
-        return st.INFEASIBLE, math.nan, math.nan, math.nan, 0, 0
-    z = np.zeros({N})
-    for i in range({n}):
-        z[i * {n} + i] = 1.0
-{self._integrate(k, n, N, method, known=True)}{count}    if code != st.OK:
-        return code, math.nan, math.nan, math.nan, ns, nr
-{self._eigen(n, f"j * {n} + i")}"""
-
     def finish(self, values, wanted, solver, out, status):
         """Python's reading of the kernel's three columns (modulus, kind, angle): the outputs and
         UNDECIDED."""
@@ -652,57 +458,6 @@ def measure{k}(y, p, rtol, atol, max_steps, work):
             decided = good & (np.abs(big - 1.0) > margin)
             out[self.stable][:] = np.where(decided, (big < 1.0).astype(float), np.nan)
             status[:] = np.where((status == st.OK) & good & ~decided, st.UNDECIDED, status)
-
-    def source(self, k: int, states, n_p: int = 0, has_jac: bool = False, method: str = "dop853") -> str:
-        if self.variational is not None:
-            return self._source_known(k, len(states), n_p, method)
-        n = len(states)
-        N = n + n * n
-        o_yp, o_fp, o_fm, o_J = n_p, n_p + n, n_p + 2 * n, n_p + 3 * n
-        per_eval = 1 if has_jac else 2 * n + 1
-        # J into p[o_J:o_J + n * n] (row by row): the model's jac, or the engine's central differences
-        # of its rhs (compile._fd_jac, scratch p[o_yp:o_yp + 3 n] = y + h, f(y + h), f(y - h); its
-        # 2 n rhs calls are in per_eval, not in a counter)
-        jac_code = f"""    J = p[{o_J}:{o_J + n * n}].reshape(({n}, {n}))
-    {"jac" if has_jac else f"fd_jac{k}"}(t, z[:{n}], p, J)
-"""
-        fd = ""
-        if not has_jac:
-            from .compile import _fd_jac
-            assert (o_fp, o_fm) == (o_yp + n, o_yp + 2 * n)  # _fd_jac's scratch layout
-            fd = _fd_jac(f"fd_jac{k}", "rhs", n=str(n), at=str(o_yp))
-        return f"""{fd}
-O_J{k} = {o_J}
-
-
-@jit
-def var_rhs{k}(t, z, p, dz):
-    # z = (y, Phi row by row); dz = (f(t, y), J Phi), J {"from the model's jac" if has_jac else "by central differences"}
-    rhs(t, z[:{n}], p, dz[:{n}])
-{jac_code}    for i in range({n}):
-        for j in range({n}):
-            acc = 0.0
-            for m in range({n}):
-                acc += p[{o_J} + i * {n} + m] * z[{n} + m * {n} + j]
-            dz[{n} + i * {n} + j] = acc
-
-
-{self._solvers(k, n, jac_code, method, "" if has_jac else f"    p[{o_J + n * n}] += {2.0 * n!r}  # its rhs calls{chr(10)}")}
-
-
-@jit
-def measure{k}(y, p, rtol, atol, max_steps, work):
-{"    initial" + str(k) + "(p, y)" + chr(10) if self.initial is not None else ""}    T = forcing(p)
-    if not (math.isfinite(T) and T > 0.0):
-        return st.INFEASIBLE, math.nan, math.nan, math.nan, 0, 0
-    z = np.zeros({N})
-    for i in range({n}):
-        z[i] = y[i]
-        z[{n} + i * {n} + i] = 1.0
-{self._integrate(k, n, N, method)}    nr = nr * {per_eval}{"" if has_jac or method == "dop853" else f"{chr(10)}    nr += int(p[{o_J + n * n}])  # radau's Jacobians by differences{chr(10)}    p[{o_J + n * n}] = 0.0"}
-    if code != st.OK:
-        return code, math.nan, math.nan, math.nan, ns, nr
-{self._eigen(n, f"{n} + i * {n} + j")}"""
 
 
 # ---------------------------------------------------------------- methods-aware measurements
@@ -742,7 +497,7 @@ class FirstEvent:
       T = 4 tau_q / w of a quarter period in scaled time); default: ``t`` itself.
 
     Offered by every method the model declares (dop853, radau, auto; symplectic when the model
-    declares ``accel``): the generated kernel calls that method's event solver directly, one
+    declares ``accel``): the kernel integrates it on its own by that method (engine/events.py), one
     integration per point and measurement. The root is located on the method's own interpolant
     (dop853: 7th-order dense output; radau: the collocation polynomial; symplectic: the quintic
     Hermite interpolant of each fixed step), so values differ between methods by their errors.
@@ -787,7 +542,7 @@ class FirstEvent:
     direction: str = "down"  # "down": event from > 0 to <= 0; "up": from < 0 to >= 0
     since: int = 0  # > 0: the time from root `since` to root n (n=2, since=1: a period), not from t = 0
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
-    direct = True  # integrates on its own with solver.method (compile.py)
+    direct = True  # integrates on its own with solver.method (engine/events.py)
 
     def output(self) -> Output:
         which = "first" if self.n == 1 else f"root {self.n}" + (f" counted from root {self.since}" if self.since else "")
@@ -816,8 +571,14 @@ class FirstEvent:
         if not (isinstance(self.since, int) and not isinstance(self.since, bool) and 0 <= self.since < self.n):
             raise ValueError(f"{self.name}: since = {self.since!r}; expected a whole number 0 <= since < n = {self.n!r}")
 
+    def point(self, plan, k):
+        """Its block in the one-point kernel (engine/point.py): integrated on its own, by the scene's
+        method (engine/events.py)."""
+        from ..engine import events
+        return events.block(plan, self, k)
+
     def functions(self):
-        """(role, function) pairs the generated module imports."""
+        """(role, function) pairs the kernel calls."""
         out = [("event", self.event)]
         if callable(self.t_max):
             out.append(("t_max", self.t_max))
@@ -830,7 +591,7 @@ class FirstEvent:
         return tuple(out)
 
     def key(self) -> tuple:
-        """What the generated code depends on (with the functions' names, compile.py adds their sources)."""
+        """What the kernel depends on beyond its functions (engine/kernels.py adds their names and sources)."""
         key = ("FirstEvent", self.name, None if callable(self.t_max) else float(self.t_max))
         return key if (self.n, self.direction) == (1, "down") else key + (self.n, self.direction, self.since)
 
@@ -843,7 +604,7 @@ class ClosedForm:
     values of the outputs named in ``needs`` (other closed forms or measurements), passed in the
     order of ``needs``; e.g. kv = v_max T / A or period_error = |T - T_exact| / T_exact.
 
-    Computed in the generated kernel only when wanted (or needed by a wanted output), after the
+    Computed in the kernel only when wanted (or needed by a wanted output), after the
     model's ``classify`` (a point it rejects gets NaN) and before ``prepare`` (so the internal
     slots are not written yet). One that needs a measurement is computed after the measurements
     (NaN when a needed value is NaN).
@@ -905,7 +666,8 @@ def _row_state_at(m, states):
 
 
 def _row_extremum(m, states):
-    """A state's row; an expression's (K_EXTREMUM_OF) gets its index j in column 1 from compile.py.
+    """A state's row; an expression's (K_EXTREMUM_OF) gets its measurement's index in column 1 from
+    engine/shared.py.
     A window end that is a function of p is NaN here (the kernel writes it per point)."""
     sign = 1.0 if m.kind == "max" else -1.0
     t0, t1 = (math.nan if callable(x) else float(x) for x in (m.t0, m.t1))
@@ -920,760 +682,4 @@ StateAt.shared_row = _row_state_at
 Extremum.shared_row = _row_extremum
 
 
-@functools.cache
-def make_shared(rhs, observe=None, switches=None):
-    """Jitted ``shared(y, p, M, rtol, atol, max_steps, work, values, codes) -> (n_steps, n_rhs)``:
-    every measurement row of ``M`` (see ``shared_row``) observes one DOP853 integration from
-    t = 0 (y: the initial state on entry, scratch after). The integration runs towards the
-    largest time any row needs and stops as soon as every row is done. No step is forced to land
-    on a measurement's time: values inside a step come from the step's 7th-order dense output
-    (built at most once per step, 3 rhs calls), roots from Brent's method on it. Only the horizon
-    clips the last step. ``max_steps`` bounds the shared integration; a failure gives its status
-    to every row not yet done (rows done before keep their values).
-
-    ``observe(t, y, p, j) -> float`` (generated by compile.py): the expression of an Extremum row
-    of kind K_EXTREMUM_OF (column 1: j). Its rate along the trajectory is the central difference
-    (f(t + e, y + e F) - f(t - e, y - e F)) / 2e, F = rhs(t, y), e = cbrt(eps) |h| (the step's
-    size h as the time scale). An Extremum row whose window is not finite 0 <= t0 < t1 (a window
-    given as a function of p) gets INFEASIBLE.
-
-    ``switches``: (next_switch, switch_check, switch_clamp) of a model's declared switch times
-    (model/switches.py): every step then ends on each switch, f is evaluated again there on the far
-    side (1 rhs call, counted) and the step size carries on; a point whose switch times are not valid
-    gives switch_check's status to every row. None: exactly the integration without them."""
-    from ..ode import dop853 as d
-    from ..ode._common import ROOT_RTOL, make_brent
-    from .._jit import jit
-    from .. import status as st_
-
-    start = d._make_start(rhs)
-    advance = d._make_advance(rhs)
-    dense_output = d._make_dense_output(rhs)
-    interpolate = d._interpolate
-    commit = d._commit
-    Y_STAGE, Y_NEW, K_FSAL = d.Y_STAGE, d.Y_NEW, d.K_FSAL
-    N_ST = d.N_STAGES
-    N_DENSE = d.N_STAGES_EXTENDED - d.N_STAGES - 1
-    OK, NO_EVENT, INFEASIBLE, NONFINITE = st_.OK, st_.NO_EVENT, st_.INFEASIBLE, st_.NONFINITE
-    CBRT_EPS = 6.055454452393343e-06
-    if switches is None:
-        has_sw = False
-
-        @jit
-        def nxt(t, p):
-            return math.inf
-
-        @jit
-        def check(p):
-            return 0
-
-        @jit
-        def clamp(p, lo, hi):
-            pass
-    else:
-        has_sw = True
-        nxt, check, clamp = switches
-    SIDE = 2e-15  # switches.SIDE
-
-    if observe is None:  # state rows only: the value and the rate are components of y and of the rhs
-        @jit
-        def value_of(t, y, p, idx, expr):
-            return y[idx]
-
-        @jit
-        def rate_of(t, y, p, F, idx, expr, h, yt):
-            return F[idx]
-    else:
-        @jit
-        def value_of(t, y, p, idx, expr):
-            if expr:
-                return observe(t, y, p, idx)
-            return y[idx]
-
-        @jit
-        def rate_of(t, y, p, F, idx, expr, h, yt):
-            if not expr:
-                return F[idx]
-            e = CBRT_EPS * abs(h)
-            up = t + e
-            dn = t - e
-            for i in range(y.size):
-                yt[i] = y[i] + (up - t) * F[i]
-            fu = observe(up, yt, p, idx)
-            for i in range(y.size):
-                yt[i] = y[i] + (dn - t) * F[i]
-            return (fu - observe(dn, yt, p, idx)) / (up - dn)
-
-    @jit
-    def g_on_interpolant(t, ctx):
-        t_old, h, y_old, p, work, idx, sign, level, turn, fs, expr, yt, calls = ctx
-        y_at = work[Y_STAGE]  # free once the dense output is built
-        interpolate((t - t_old) / h, y_old, work, y_at)
-        if turn:
-            rhs(t, y_at, p, fs)
-            calls[0] += 1  # the caller adds them to n_rhs
-            return sign * rate_of(t, y_at, p, fs, idx, expr, h, yt)
-        return sign * (y_at[idx] - level)
-
-    brent = make_brent(g_on_interpolant)
-
-    @jit
-    def shared(y, p, M, rtol, atol, max_steps, work, values, codes):
-        m = M.shape[0]
-        n = y.size
-        ya = np.empty(n)
-        fa = np.empty(n)
-        yt = np.empty(n)
-        calls = np.zeros(1, dtype=np.int64)  # rhs calls inside a turning point's root search
-        g_old = np.zeros(m)
-        count = np.zeros(m)
-        t_first = np.zeros(m)
-        best = np.zeros(m)
-        started = np.zeros(m, dtype=np.bool_)
-        done = np.zeros(m, dtype=np.bool_)
-        t_end = 0.0
-        left = m
-        for i in range(m):
-            values[i] = math.nan
-            codes[i] = OK
-            if M[i, 0] >= K_EXTREMUM and not (0.0 <= M[i, 5] < M[i, 6] and M[i, 6] < math.inf):
-                codes[i] = INFEASIBLE  # a window from functions of p that is not one
-                done[i] = True
-                left -= 1
-                continue
-            t_end = max(t_end, M[i, 6] if M[i, 0] >= K_EXTREMUM else M[i, 5])
-        if left == 0:
-            return 0, 0
-        t_sw = math.inf  # the next switch time (none: inf)
-        if has_sw:
-            c0 = check(p)
-            if c0 != OK:
-                for i in range(m):
-                    if not done[i]:
-                        codes[i] = c0
-                return 0, 0
-            t_sw = nxt(0.0, p)
-            clamp(p, -math.inf, t_sw - SIDE * abs(t_sw))
-        status, h_abs, n_rhs = start(0.0, y, p, min(t_end, t_sw), rtol, atol, 0.0, work)
-        n_steps = 0
-        if status != OK:
-            for i in range(m):
-                codes[i] = status
-            for i in range(m):
-                if not done[i]:
-                    codes[i] = status
-            return n_steps, n_rhs
-        f0 = work[0]
-        h0 = h_abs
-        for i in range(m):  # what t = 0 already tells
-            if done[i]:
-                continue
-            kind = M[i, 0]
-            idx = int(M[i, 1])
-            s = M[i, 2]
-            if kind == K_CROSSING or kind == K_PERIOD:
-                g_old[i] = s * (y[idx] - M[i, 3])
-            elif kind == K_STATE_AT:
-                if M[i, 5] <= 0.0:
-                    values[i] = y[idx]
-                    done[i] = True
-                    left -= 1
-            elif M[i, 5] <= 0.0:  # extremum from t0 = 0
-                expr = kind == K_EXTREMUM_OF
-                best[i] = s * value_of(0.0, y, p, idx, expr)
-                g_old[i] = s * rate_of(0.0, y, p, f0, idx, expr, h0, yt)
-                started[i] = True
-        t = 0.0
-        attempts = 0
-        while left > 0 and t < t_end:
-            status, t_new, h_abs, a = advance(t, y, p, min(t_end, t_sw), h_abs, rtol, atol, work, max_steps - attempts)
-            attempts += a
-            n_rhs += N_ST * a
-            if status != OK:
-                break
-            n_steps += 1
-            h = t_new - t
-            dense = False
-            y_new = work[Y_NEW]
-            f_new = work[K_FSAL]
-            for i in range(m):
-                if done[i]:
-                    continue
-                kind = M[i, 0]
-                idx = int(M[i, 1])
-                s = M[i, 2]
-                ta = M[i, 5]
-                if kind == K_CROSSING or kind == K_PERIOD:
-                    g = s * (y_new[idx] - M[i, 3])
-                    if g_old[i] > 0.0 and g <= 0.0:
-                        if not dense:
-                            dense_output(t, h, y, p, work)
-                            n_rhs += N_DENSE
-                            dense = True
-                        tr = brent(t, g_old[i], t_new, g, ROOT_RTOL * abs(h),
-                                   (t, h, y, p, work, idx, s, M[i, 3], False, fa, False, yt, calls))
-                        if tr > ta:
-                            codes[i] = NO_EVENT
-                            done[i] = True
-                        else:
-                            count[i] += 1.0
-                            if count[i] == 1.0:
-                                t_first[i] = tr
-                            if count[i] == M[i, 4]:
-                                values[i] = tr if kind == K_CROSSING else tr - t_first[i]
-                                done[i] = True
-                    if not done[i] and t_new >= ta:
-                        codes[i] = NO_EVENT
-                        done[i] = True
-                    g_old[i] = g
-                elif kind == K_STATE_AT:
-                    if ta <= t_new:
-                        if ta == t_new:
-                            values[i] = y_new[idx]
-                        else:
-                            if not dense:
-                                dense_output(t, h, y, p, work)
-                                n_rhs += N_DENSE
-                                dense = True
-                            interpolate((ta - t) / h, y, work, ya)
-                            values[i] = ya[idx]
-                        done[i] = True
-                else:  # extremum of s * y[idx] (or of expression idx) over [ta, tb]
-                    tb = M[i, 6]
-                    expr = kind == K_EXTREMUM_OF
-                    if not started[i]:
-                        if ta > t_new:
-                            continue
-                        if ta == t_new:
-                            best[i] = s * value_of(t_new, y_new, p, idx, expr)
-                            g_old[i] = s * rate_of(t_new, y_new, p, f_new, idx, expr, h, yt)
-                            started[i] = True
-                            continue
-                        if not dense:
-                            dense_output(t, h, y, p, work)
-                            n_rhs += N_DENSE
-                            dense = True
-                        interpolate((ta - t) / h, y, work, ya)
-                        rhs(ta, ya, p, fa)
-                        n_rhs += 1
-                        best[i] = s * value_of(ta, ya, p, idx, expr)
-                        g_old[i] = s * rate_of(ta, ya, p, fa, idx, expr, h, yt)
-                        started[i] = True
-                        lo = ta
-                    else:
-                        lo = t
-                    if tb >= t_new:
-                        hi = t_new
-                        g = s * rate_of(t_new, y_new, p, f_new, idx, expr, h, yt)
-                        y_hi = value_of(t_new, y_new, p, idx, expr)
-                    else:
-                        if not dense:
-                            dense_output(t, h, y, p, work)
-                            n_rhs += N_DENSE
-                            dense = True
-                        hi = tb
-                        interpolate((tb - t) / h, y, work, ya)
-                        rhs(tb, ya, p, fa)
-                        n_rhs += 1
-                        g = s * rate_of(tb, ya, p, fa, idx, expr, h, yt)
-                        y_hi = value_of(tb, ya, p, idx, expr)
-                    if g_old[i] > 0.0 and g <= 0.0:
-                        if not dense:
-                            dense_output(t, h, y, p, work)
-                            n_rhs += N_DENSE
-                            dense = True
-                        calls[0] = 0
-                        tr = brent(lo, g_old[i], hi, g, ROOT_RTOL * abs(h),
-                                   (t, h, y, p, work, idx, s, 0.0, True, fa, expr, yt, calls))
-                        n_rhs += calls[0]  # one rhs call per evaluation of the derivative
-                        interpolate((tr - t) / h, y, work, ya)
-                        best[i] = max(best[i], s * value_of(tr, ya, p, idx, expr))
-                    g_old[i] = g
-                    if tb <= t_new:
-                        best[i] = max(best[i], s * y_hi)
-                        values[i] = s * best[i]
-                        done[i] = True
-                if done[i]:
-                    left -= 1
-            commit(y, work)
-            t = t_new
-            if has_sw and t >= t_sw and left > 0 and t < t_end:  # on a switch: f again on its far side
-                lo = t_sw + SIDE * abs(t_sw)
-                t_sw = nxt(t, p)
-                if not t_sw > t:
-                    status = NONFINITE
-                    break
-                clamp(p, lo, t_sw - SIDE * abs(t_sw))
-                rhs(t, y, p, work[0])
-                n_rhs += 1
-        if has_sw:
-            clamp(p, -math.inf, math.inf)
-        for i in range(m):
-            if not done[i]:
-                values[i] = math.nan
-                codes[i] = status if status != OK else NO_EVENT
-        return n_steps, n_rhs
-
-    return shared
-
-
-# ---------------------------------------------------------------- sampled-trajectory measurements
-# Steady, Kick and History observe ONE sampled trajectory per point (model/trajectory.py): the
-# integration from initial(p) to horizon forcing periods, sampled at instants given in forcing
-# periods s (t = T s, T = forcing_period(p), or T = 1 for a model without one); the union of the
-# chosen measurements' instants is one grid shared by every point. Offered by dop853, radau and
-# auto (the engine's one method switch). A number field may instead name one of the model's
-# settings (a str): its value is read from the scene's solver settings.
-
-
-def _number(x, settings) -> float:
-    """A measurement field: a number, or the name of one of the model's settings."""
-    return float(settings[x]) if isinstance(x, str) else float(x)
-
-
-def _observable(x, states, what):
-    """A state name (checked) or a function ``f(t, y, p) -> float``."""
-    if isinstance(x, str):
-        _check_state(x, states, what)
-    elif not callable(x):
-        raise ValueError(f"{what}: expected a state name or a function f(t, y, p) -> float (got {x!r})")
-
-
-def _check_numbers(m, fields):
-    for f in fields:
-        x = getattr(m, f)
-        if not isinstance(x, str) and not (isinstance(x, (int, float)) and math.isfinite(x)):
-            raise ValueError(f"{m.name}: {f} = {x!r}; expected a finite number or the name of a setting")
-
-
-@dataclass(frozen=True)
-class _Range:
-    """The allowed values of a numeric field of a sampled-trajectory measurement."""
-    lo: float = -math.inf
-    hi: float = math.inf
-    lo_open: bool = False
-    hi_open: bool = False
-    integer: bool = False
-
-    def holds(self, x) -> bool:
-        if self.integer and not float(x).is_integer():
-            return False
-        return ((x > self.lo if self.lo_open else x >= self.lo)
-                and (x < self.hi if self.hi_open else x <= self.hi))
-
-    def text(self) -> str:
-        kind = "a whole number" if self.integer else "a number"
-        if self.hi == math.inf:
-            return f"{kind} {'>' if self.lo_open else '>='} {self.lo:g}"
-        return f"{kind} in {'(' if self.lo_open else '['}{self.lo:g}, {self.hi:g}{')' if self.hi_open else ']'}"
-
-
-_POSITIVE = _Range(0.0, lo_open=True)
-_NONNEGATIVE = _Range(0.0)
-
-
-def _check_ranges(m, rules: dict, settings=None):
-    """Each field's value in its range (a number, or, with ``settings`` (the model's), the range
-    of the setting it names: every value the scene may give it must be allowed)."""
-    for f, rule in rules.items():
-        x = getattr(m, f)
-        if x is None:
-            continue
-        what = f"{type(m).__name__} {m.name!r}: {f} = {x!r}"
-        if isinstance(x, str):
-            if settings is None:
-                continue
-            s = {t.name: t for t in settings}.get(x)
-            if s is not None and not (rule.holds(s.lo) and rule.holds(s.hi) and (s.integer or not rule.integer)):
-                raise ValueError(f"{what} names the setting {x!r}, whose range [{s.lo:g}, {s.hi:g}]"
-                                 f"{'' if s.integer or not rule.integer else ' (not integer=True)'} allows values "
-                                 f"outside what {f} accepts: {rule.text()}")
-        elif isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) or not rule.holds(x):
-            raise ValueError(f"{what} is not allowed; expected {rule.text()} (or the name of a setting)")
-
-
-_STEADY = {"horizon": _POSITIVE, "window": _Range(0.0, 0.5, lo_open=True),
-           "samples_per_period": _Range(3.0), "settle_rtol": _NONNEGATIVE, "settle_atol": _NONNEGATIVE}
-_KICK = {"horizon": _POSITIVE, "settle_threshold": _POSITIVE, "decay_ratio": _Range(0.0, 1.0, lo_open=True),
-         "growth_ratio": _Range(1.0), "monitor_per_period": _Range(1.0, integer=True),
-         "dense_per_period": _Range(1.0, integer=True), "late": _Range(0.0, 0.5, lo_open=True),
-         "early": _Range(0.0, 1.0, lo_open=True), "growth_floor": _NONNEGATIVE}
-_HISTORY = {"horizon": _POSITIVE, "samples": _Range(2.0, integer=True)}
-
-
-def _check_value(m, field_name):
-    f = getattr(m, field_name)
-    if f is not None and not callable(f):
-        raise ValueError(f"{m.name}: {field_name} must be a function {field_name}(p, x) -> float (got {f!r})")
-
-
-@_records_where
-@dataclass(frozen=True)
-class Steady(_Outputs):
-    """Steady-state amplitude of an observable ``of`` (a state name or ``f(t, y, p)``) after a
-    transient, over the last ``window`` (a fraction) of a simulation of ``horizon`` forcing periods.
-    Three outputs (and a fourth kernel value):
-
-    - ``name``: the peak, max |of| over the window's samples (``samples_per_period`` per period;
-      a sampled maximum: it underestimates a sinusoid's amplitude by at most 1 - cos(pi /
-      samples_per_period), 1.2e-3 relative at 64);
-    - ``name_h1``: the amplitude of the first harmonic of the forcing period T over the window,
-      sqrt(a1^2 + b1^2) with a1 = (2 / L) int of cos(2 pi t / T) dt, b1 with sin (trapezoid rule
-      over the samples; exact to round-off for a T-periodic signal when the window is a whole
-      number of periods);
-    - ``name_phase``: its phase lag atan2(b1, a1) in (-pi, pi]: of = A cos(2 pi t / T - phase);
-    - ``name_settled``: internal (not an output): whether it settled.
-
-    ``value(p, x) -> float`` (optional): the stored peak and first-harmonic amplitude from the
-    measured ones, per point (e.g. ``x * p[k]`` for an observable in units of a length p[k], or a
-    scaled model's amplitude back in SI units); applied after the settling test, to finite values
-    only (the phase is not transformed).
-
-    Settling (``settle_rtol`` not None): the peak over the window before the last one (same
-    length) must agree with the last one to settle_rtol max(peaks) + settle_atol; otherwise the
-    point is NO_EVENT (the transient has not died out within the horizon) and the outputs NaN.
-    Status: integration failures as reported; NONFINITE for a non-finite sample.
-    Cost: one integration over the horizon (shared with the other sampled measurements) plus one
-    dense-output evaluation (3 rhs calls) per step that contains a sample."""
-
-    name: str
-    of: object
-    horizon: object = 100.0
-    window: object = 0.1
-    samples_per_period: object = 64
-    settle_rtol: object = 1e-3
-    settle_atol: object = 0.0
-    unit: str = ""
-    long_name: str = ""
-    value: Callable | None = field(default=None, repr=False, compare=False)
-    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
-    output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name}} (_Outputs)
-    sampled = True
-    n_values = 4
-
-    def _suffixes(self):
-        return ("", "_h1", "_phase")
-
-    def outputs(self) -> tuple[Output, ...]:
-        what = self.of if isinstance(self.of, str) else self.name
-        return (self._output("", f"max |{what}|", self.unit,
-                             self.long_name or f"steady-state peak of |{what}| over the last {self.window} of the "
-                             "horizon", integrated=True),
-                self._output("_h1", "A1", self.unit, f"first-harmonic amplitude of {what} (forcing period)",
-                             integrated=True),
-                self._output("_phase", "phase", "rad",
-                             f"phase lag of the first harmonic of {what}: {what} = A1 cos(2 pi t / T - phase)",
-                             integrated=True))
-
-    def validate(self, states):
-        self._check_meta()
-        _observable(self.of, states, self.name)
-        _check_numbers(self, ("horizon", "window", "samples_per_period", "settle_atol"))
-        if self.settle_rtol is not None:
-            _check_numbers(self, ("settle_rtol",))
-        _check_ranges(self, _STEADY)
-        _check_value(self, "value")
-
-    def check_settings(self, settings):
-        """The fields that name a setting: the setting's range within the field's."""
-        _check_ranges(self, _STEADY, settings)
-
-    def setting_names(self):
-        return tuple(x for x in (self.horizon, self.window, self.samples_per_period, self.settle_rtol,
-                                 self.settle_atol) if isinstance(x, str))
-
-    def functions(self):
-        out = () if isinstance(self.of, str) else (("of", self.of),)
-        return out + ((("value", self.value),) if self.value is not None else ())
-
-    def key(self) -> tuple:
-        return ("Steady", self.name, self.of if isinstance(self.of, str) else None)
-
-    def instants(self, settings):
-        """(s, bits): this measurement's sample instants in forcing periods and their roles
-        (1: the last window, 2: the window before it)."""
-        H, w = _number(self.horizon, settings), _number(self.window, settings)
-        n = max(2, int(math.ceil(_number(self.samples_per_period, settings) * w * H)) + 1)
-        out = [(np.linspace((1.0 - w) * H, H, n), 1)]
-        if self.settle_rtol is not None:  # the window before, for the settling test
-            out.append((np.linspace((1.0 - 2.0 * w) * H, (1.0 - w) * H, n), 2))
-        return out
-
-    def constants(self, settings):
-        """The numbers the kernel's observer reads (K row)."""
-        check = self.settle_rtol is not None
-        # the third: whether the first harmonic is computed (trajectory.evaluate clears it when
-        # neither name_h1 nor name_phase is asked for: no cos/sin per sample then)
-        return (_number(self.settle_rtol, settings) if check else -1.0, _number(self.settle_atol, settings), 1.0)
-
-    def finish(self, values, wanted, solver, out, status):
-        from .. import status as st
-        settled = values[:, 3] == 1.0
-        unsettled = np.isfinite(values[:, 0]) & ~settled
-        names = [self.output_name(x) for x in self._suffixes()]
-        for j, name in enumerate(names):
-            if name in out:
-                out[name][:] = np.where(settled, values[:, j], np.nan)
-        if any(x in wanted for x in names):
-            status[:] = np.where((status == st.OK) & unsettled, st.NO_EVENT, status)
-
-
-@_records_where
-@dataclass(frozen=True)
-class Kick(_Outputs):
-    """Stability verdict of a motion from a kick: the model's ``initial(p)`` is the kicked state,
-    ``error(t, y, p) >= 0`` the distance from the reference motion (e.g. a phase error), optional
-    ``response(t, y, p) >= 0`` a second quantity that must decay too (e.g. a platform amplitude);
-    both sampled ``monitor_per_period`` times per forcing period over ``horizon`` periods and
-    ``dense_per_period`` times in the last ``late`` fraction. With e0 = max error over the first
-    period, e_late / e_before = max error over the last ``late`` fraction / the one before it,
-    r_ref / r_late = max response over the first ``early`` fraction / the last ``late`` fraction:
-
-    - stable (1): e_late <= settle_threshold, e_late <= decay_ratio e0, r_late <= decay_ratio r_ref,
-      and not growing at the end (e_late <= e_before, or e_late <= growth_floor, by default
-      1e-3 settle_threshold: raise it to the error's noise floor, e.g. the integration error of the
-      reference motion, when e_late sits there; e_late is sampled ``dense_per_period``, e_before
-      ``monitor_per_period`` times per period, so an error that no longer decays reads as growing);
-    - unstable (0): e_late >= growth_ratio e0 and e_before >= growth_ratio e0;
-    - otherwise NaN with status UNDECIDED (slow convergence or slow growth within the horizon).
-
-    Outputs: ``name`` (the verdict), ``name_settling`` (the time after which the error stays below
-    settle_threshold, linear interpolation between samples; 0 if it never exceeds it; NaN with
-    status NO_EVENT if it is above it at the end), ``name_final`` (the error at the last sample).
-    ``time_value(p, t) -> float`` (optional): the stored settling time from the integration's time
-    t, per point (e.g. ``t / p[k]`` for a model integrated in a scaled time tau = Omega t), applied
-    to a finite settling time only.
-    Status: integration failures as reported; NONFINITE for a non-finite error or response sample.
-    Cost: one integration over the horizon (shared), one dense output per step with a sample."""
-
-    name: str
-    error: Callable = field(repr=False, compare=False)
-    response: Callable | None = field(default=None, repr=False, compare=False)
-    horizon: object = 300.0
-    settle_threshold: object = 0.01
-    decay_ratio: object = 0.5
-    growth_ratio: object = 2.0
-    monitor_per_period: object = 8
-    dense_per_period: object = 64
-    late: float = 0.1
-    early: float = 0.1
-    growth_floor: object = None  # e_late at or below it counts as not growing; None: 1e-3 settle_threshold
-    unit: str = ""
-    time_unit: str = "s"
-    time_value: Callable | None = field(default=None, repr=False, compare=False)
-    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
-    output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name}} (_Outputs)
-    sampled = True
-    n_values = 5  # verdict, settling time, final error; the settling time before time_value, the simulated time
-
-    def _suffixes(self):
-        return ("", "_settling", "_final")
-
-    def outputs(self) -> tuple[Output, ...]:
-        return (self._output("", "stable (kick)", "1",
-                             "1 if the kicked motion settles back, 0 if it departs (direct simulation)",
-                             integrated=True, kind="verdict"),
-                self._output("_settling", "t_s", self.time_unit,
-                             "time after which the error stays below settle_threshold", integrated=True),
-                self._output("_final", "e_end", self.unit, "error at the end of the simulation", integrated=True))
-
-    def validate(self, states):
-        self._check_meta()
-        _observable(self.error, states, self.name)
-        if self.response is not None:
-            _observable(self.response, states, self.name)
-        _check_numbers(self, ("horizon", "settle_threshold", "decay_ratio", "growth_ratio", "monitor_per_period",
-                              "dense_per_period") + (() if self.growth_floor is None else ("growth_floor",)))
-        _check_ranges(self, _KICK)
-        _check_value(self, "time_value")
-
-    def check_settings(self, settings):
-        """The fields that name a setting: the setting's range within the field's."""
-        _check_ranges(self, _KICK, settings)
-
-    def setting_names(self):
-        return tuple(x for x in (self.horizon, self.settle_threshold, self.decay_ratio, self.growth_ratio,
-                                 self.monitor_per_period, self.dense_per_period, self.growth_floor)
-                     if isinstance(x, str))
-
-    def functions(self):
-        out = [] if isinstance(self.error, str) else [("error", self.error)]
-        if self.response is not None and not isinstance(self.response, str):
-            out.append(("response", self.response))
-        if self.time_value is not None:
-            out.append(("value", self.time_value))
-        return tuple(out)
-
-    def key(self) -> tuple:
-        return ("Kick", self.name, self.error if isinstance(self.error, str) else None,
-                self.response if isinstance(self.response, str) else None, self.response is None,
-                float(self.late), float(self.early))
-
-    def instants(self, settings):
-        """(s, bits): 1 every monitor row, 2 the first period, 4 the first ``early`` fraction, 8 the
-        last ``late`` fraction, 16 the ``late`` fraction before it (bits 2-16 only on monitor rows)."""
-        H = _number(self.horizon, settings)
-        mon = int(_number(self.monitor_per_period, settings))
-        dense = int(_number(self.dense_per_period, settings))
-        late0 = (1.0 - self.late) * H
-        parts = [np.linspace(0.0, H, max(2, int(math.ceil(mon * H)) + 1)),
-                 np.linspace(late0, H, max(2, int(math.ceil(dense * self.late * H)) + 1)),
-                 np.linspace(0.0, min(1.0, H), mon + 1)]
-        return [(x, self._bits) for x in parts]
-
-    def _bits(self, s, settings):
-        H = _number(self.horizon, settings)
-        late0, before0 = (1.0 - self.late) * H, (1.0 - 2.0 * self.late) * H
-        return (1 | np.where(s <= min(1.0, H), 2, 0) | np.where(s <= self.early * H, 4, 0)
-                | np.where(s >= late0, 8, 0) | np.where((s >= before0) & (s < late0), 16, 0))
-
-    def constants(self, settings):
-        settle = _number(self.settle_threshold, settings)
-        floor = 1e-3 * settle if self.growth_floor is None else _number(self.growth_floor, settings)
-        return (settle, _number(self.decay_ratio, settings), _number(self.growth_ratio, settings), floor)
-
-    def finish(self, values, wanted, solver, out, status):
-        from .. import status as st
-        ok = np.isfinite(values[:, 2])
-        verdict, t_settle = values[:, 0], values[:, 1]
-        for j, suffix in enumerate(self._suffixes()):
-            if self.output_name(suffix) in out:
-                out[self.output_name(suffix)][:] = values[:, j]
-        if self.name in wanted:
-            status[:] = np.where((status == st.OK) & ok & np.isnan(verdict), st.UNDECIDED, status)
-        if self.output_name("_settling") in wanted:
-            status[:] = np.where((status == st.OK) & ok & np.isnan(t_settle), st.NO_EVENT, status)
-
-
-@_records_where
-@dataclass(frozen=True)
-class History(_Outputs):
-    """Samples of an observable ``of`` (a state name or ``f(t, y, p)``) at ``samples`` instants
-    evenly spread over [0, horizon] forcing periods: an output with one extra dimension ``dim``
-    (coordinate: the instants in forcing periods; every History of a model with the same ``dim``
-    must use the same horizon and samples). ``value(p, x) -> float`` (optional): each stored sample
-    from the observed one, per point (applied to finite samples). Status: integration failures as
-    reported; NONFINITE for a non-finite sample. Cost: shared integration, one dense output per step with a sample."""
-
-    name: str
-    of: object
-    horizon: object = 100.0
-    samples: object = 200
-    dim: str = "period"
-    dim_long_name: str = "time in forcing periods t / T"
-    unit: str = ""
-    long_name: str = ""
-    value: Callable | None = field(default=None, repr=False, compare=False)
-    classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
-    output_meta: object = ()  # {name: {symbol, unit, long_name}} (_Outputs; its one output is the main one)
-    sampled = True
-    n_values = 0
-
-    def coordinate(self, settings) -> np.ndarray:
-        return np.linspace(0.0, _number(self.horizon, settings), int(_number(self.samples, settings)))
-
-    def outputs(self) -> tuple[Output, ...]:
-        from ..models._spec import ExtraDim
-        what = self.of if isinstance(self.of, str) else self.name
-        dim = ExtraDim(self.dim, "1", self.dim_long_name, self._coordinate_defaults)
-        return (self._output("", f"{what}(t)", self.unit, self.long_name or f"{what} over the simulation",
-                             integrated=True, extra_dims=(dim,)),)
-
-    def _coordinate_defaults(self, settings):
-        return self.coordinate(settings)
-
-    def validate(self, states):
-        self._check_meta()
-        _observable(self.of, states, self.name)
-        _check_numbers(self, ("horizon", "samples"))
-        _check_ranges(self, _HISTORY)
-        _check_value(self, "value")
-
-    def check_settings(self, settings):
-        """The fields that name a setting: the setting's range within the field's."""
-        _check_ranges(self, _HISTORY, settings)
-
-    def setting_names(self):
-        return tuple(x for x in (self.horizon, self.samples) if isinstance(x, str))
-
-    def functions(self):
-        out = () if isinstance(self.of, str) else (("of", self.of),)
-        return out + ((("value", self.value),) if self.value is not None else ())
-
-    def key(self) -> tuple:
-        return ("History", self.name, self.of if isinstance(self.of, str) else None)
-
-    def instants(self, settings):
-        return [(self.coordinate(settings), 1)]
-
-    def constants(self, settings):
-        return ()
-
-
-@dataclass(frozen=True)
-class Recheck:
-    """The reproducibility re-check of the sampled-trajectory outputs (an ``OdeModel(recheck=...)``
-    option): the points whose trajectory integrated successfully are integrated once more by the
-    same method at rtol' = min(rtol, max(rtol / ``tighten``, ``rtol_floor``)) (the same atol and
-    max_steps), and every value of the chosen sampled measurements is compared (Steady's peak,
-    harmonic and phase, Kick's verdict, settling time and final error, every History sample, as
-    stored, i.e. after ``value``/``time_value``): a value that moved by more than
-    factor (rtol max(|v|, |v'|) + atol), or is NaN in one run only, or a second run that fails,
-    gives the point NOT_REPRODUCIBLE. The first run's values are kept; NOT_REPRODUCIBLE replaces
-    OK, NO_EVENT and UNDECIDED (it ranks above the statuses that leave a value NaN for a reason,
-    below integration failures). ``factor`` is a number or the name of one of the model's
-    settings; factor <= 0 turns the check off. ``skip_settled`` (optional): the name of a Kick
-    whose points are not integrated again when its settling time (before ``time_value``) is at
-    most ``settled_fraction`` of the simulated time (they end on an attracting motion); that Kick
-    is observed at every integrated point for this (also where its own classify skips it, and when
-    none of its outputs is asked for). ``skip_locked`` (with ``skip_settled``): neither are the
-    points whose state, sampled at the whole forcing periods of the second half of that Kick's
-    horizon, changes by at most factor (rtol + atol) from one period to the next (the largest
-    change of any state, less ``rate`` times the elapsed time for the states of ``lock_rates`` =
-    ((state, rate), ...), e.g. an angle that turns with the forcing): locked to the forcing period.
-    Only the asked-for outputs are compared (where their measurement applies at the point);
-    ``measured_units``: before ``value``/``time_value`` (in the units the integration measures).
-    Both runs count in n_steps/n_rhs. Cost: up to one more integration per point, at the tighter rtol.
-    ``every_measurement``: the measurements outside the sampled trajectory too (FirstEvent, Crossing,
-    Period, StateAt, Extremum, Floquet): the points where they succeeded (status OK) are integrated
-    again at rtol' and their asked-for outputs compared by the same rule, as stored -- the generic
-    conditioning test of a user model (e.g. a period near a separatrix that carries fewer correct
-    digits than factor x rtol gets NOT_REPRODUCIBLE instead of ok)."""
-
-    factor: object = 1000.0
-    tighten: float = 100.0
-    rtol_floor: float = 1e-14
-    skip_settled: str | None = None
-    settled_fraction: float = 0.5
-    skip_locked: bool = False
-    lock_rates: tuple = ()
-    measured_units: bool = False
-    every_measurement: bool = False
-
-    def validate(self, measurements, settings):
-        if isinstance(self.factor, str):
-            if self.factor not in {x.name for x in settings}:
-                raise ValueError(f"recheck: factor = {self.factor!r} is not one of the model's settings")
-        elif not (isinstance(self.factor, (int, float)) and math.isfinite(self.factor)):
-            raise ValueError(f"recheck: factor = {self.factor!r}; expected a finite number or the name of a setting")
-        if not (self.tighten >= 1.0 and math.isfinite(self.tighten)):
-            raise ValueError(f"recheck: tighten = {self.tighten!r}; expected a finite number >= 1")
-        if not self.rtol_floor > 0.0:
-            raise ValueError(f"recheck: rtol_floor = {self.rtol_floor!r}; expected a number > 0")
-        if self.skip_settled is not None:
-            kicks = [m.name for m in measurements if type(m).__name__ == "Kick"]
-            if self.skip_settled not in kicks:
-                raise ValueError(f"recheck: skip_settled = {self.skip_settled!r}; expected the name of one of the "
-                                 f"model's Kick measurements ({', '.join(kicks) or 'none'})")
-            if not 0.0 <= self.settled_fraction <= 1.0:
-                raise ValueError(f"recheck: settled_fraction = {self.settled_fraction!r}; expected a fraction in "
-                                 "[0, 1]")
-
-        if self.skip_locked and self.skip_settled is None:
-            raise ValueError("recheck: skip_locked needs skip_settled (the Kick whose horizon the lock test spans)")
-
-    def tight_rtol(self, rtol: float) -> float:
-        return min(rtol, max(rtol / self.tighten, self.rtol_floor))
-
-
-MEASUREMENTS = (Crossing, Period, StateAt, Extremum, Floquet, FirstEvent, Steady, Kick, History)
+MEASUREMENTS = (Crossing, Period, StateAt, Extremum, Floquet, FirstEvent)  # model/sampled.py adds its own

@@ -1,5 +1,5 @@
 """OdeModel: a declarative ODE model. The user writes the physics and what to measure; the engine
-writes the chunk kernel (compile.py) and the ModelSpec the runner, store and scene read."""
+composes the chunk kernel (mechsweep.engine) and the ModelSpec the runner, store and scene read."""
 from __future__ import annotations
 
 import math
@@ -12,7 +12,8 @@ import numpy as np
 from .. import status as st
 from ..errors import InputError
 from ..models._spec import ModelSpec, Param, Setting
-from .measure import FLOQUET_MARGIN, ClosedForm, Floquet, _number, declared_at
+from .measure import FLOQUET_MARGIN, ClosedForm, Floquet, declared_at
+from .sampled import _number
 
 SYMPLECTIC_ORDERS = (2, 4, 6, 8)
 
@@ -46,7 +47,7 @@ def _warn_user_error(model, P, status, S, rtol) -> None:
 
 
 def _moved(rc, settings, solver, first, second, status2) -> np.ndarray:
-    """Which re-checked points moved (measure.Recheck's rule): an asked-for output that differs by more
+    """Which re-checked points moved (sampled.Recheck's rule): an asked-for output that differs by more
     than factor (rtol max(|v|, |v'|) + atol), NaN in one run only, or a second run that failed."""
     factor = _number(rc.factor, settings)
     bad = status2 != st.OK
@@ -239,7 +240,7 @@ class OdeModel:
     symplectic_order: int = 8
     output_order: tuple[str, ...] = ()
     references: tuple[str, ...] = ()  # ModelSpec.references: the source documents
-    recheck: object = None  # measure.Recheck: the sampled outputs integrated again at a tighter rtol
+    recheck: object = None  # sampled.Recheck: the sampled outputs integrated again at a tighter rtol
     status_order: tuple[int, ...] = ()  # most severe first: a point's status among its outputs' (see worse)
     check: Callable | None = field(default=None, repr=False)  # ModelSpec.check: the cross-parameter rules
     invariant: Invariant | None = field(default=None, repr=False, compare=False)  # conserved when undamped
@@ -259,7 +260,7 @@ class OdeModel:
                                  f"(got {self.invariant!r})")
             self.invariant.validate(self)
         if self.recheck is not None:
-            from .measure import Recheck
+            from .sampled import Recheck
             if not isinstance(self.recheck, Recheck):
                 raise ValueError(f"model {self.name!r}: recheck must be a mechsweep.model.Recheck (got {self.recheck!r})")
             self.recheck.validate(self.measurements, self.settings)
@@ -278,7 +279,7 @@ class OdeModel:
                              f"(got {self.check!r})")
         for m in self.measurements:
             if not hasattr(m, "validate"):  # e.g. a ClosedForm put among the measurements
-                from .measure import MEASUREMENTS
+                from .sampled import MEASUREMENTS
                 where = ("a ClosedForm belongs in closed_forms=(...), not in measurements="
                          if isinstance(m, ClosedForm) else
                          f"measurements= takes {', '.join(c.__name__ for c in MEASUREMENTS)}")
@@ -301,7 +302,7 @@ class OdeModel:
         if self.forcing_period is None:  # T = 1: a History's instants are times, labelled so
             import dataclasses
 
-            from .measure import History
+            from .sampled import History
             default = History.__dataclass_fields__["dim_long_name"].default
             object.__setattr__(self, "measurements", tuple(
                 dataclasses.replace(m, dim_long_name="time t (the model declares no forcing period: T = 1)")
@@ -412,7 +413,7 @@ class OdeModel:
 
     def methods_for(self, outputs) -> tuple[str, ...]:
         """The methods that the chosen outputs can be computed by (see the class docstring)."""
-        from .compile import floquet_only, is_direct
+        from ..engine.point import floquet_only, is_direct
 
         chosen, _ = self._plan(outputs)
         rest = tuple(m for m in chosen if not getattr(m, "sampled", False))
@@ -428,8 +429,9 @@ class OdeModel:
 
     def spec(self, *, origin: str = "", module: str = "", attr: str = "") -> ModelSpec:
         """The ModelSpec the engine runs. ``module``/``attr`` say where the declaration can be
-        imported from in another process (compile.py generates a module that imports it)."""
-        from .compile import columns, kernel_for
+        imported from in another process (unused: the kernels import the model's functions by module path)."""
+        from ..engine.kernels import kernel_for
+        from ..engine.point import columns
 
         model = self
 
@@ -438,8 +440,8 @@ class OdeModel:
             if not chosen and not closed:
                 return
             sampled = tuple(m for m in chosen if getattr(m, "sampled", False))
-            if sampled:  # one sampled trajectory per point (model/trajectory.py), after the other outputs
-                from . import trajectory
+            if sampled:  # one sampled trajectory per point (engine/sampling.py), after the other outputs
+                from ..engine import sampling as trajectory
                 allowed = model.methods_for(wanted)
                 if solver.method not in allowed:
                     raise InputError(f"solver.method: {solver.method!r} is not offered by model {model.name!r} for "
@@ -462,8 +464,7 @@ class OdeModel:
             # closed forms by a run-time mask (one kernel for every choice of them), or none at all
             # when none is wanted (a lean kernel: a cold compile of a period-only scene compiles no formula)
             computable = model.computable_closed_forms(chosen) if closed else ()
-            kernel = kernel_for(model, chosen, origin=origin, module=module, attr=attr, closed=computable,
-                                method=method, points=P.shape[0])
+            kernel = kernel_for(model, chosen, closed=computable, method=method, points=P.shape[0])
             wanted_closed = {c.name for c in closed}
             need = np.array([c.name in wanted_closed for c in computable], dtype=np.bool_)
             cols = columns(chosen)

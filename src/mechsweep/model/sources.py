@@ -6,7 +6,7 @@ helper's constant is frozen into it), on the versions of third-party packages it
 mechsweep itself (the integrators; a built-in model is mechsweep's own source). :func:`record`
 gathers them once per model and process, and the same record serves
 
-- the kernel caches (model/compile.py, closed.py, trajectory.py): a kernel's module name carries
+- the kernel caches (engine/kernels.py, model/closed.py, engine/sampling.py): a kernel's binding module name carries
   :attr:`Record.digest`, and every user function the engine compiles carries the digest of its own
   module's dependencies (:func:`module_digest`, load.jitted): an edited helper gives new names,
   hence a new compile, never the machine code of the old helper from numba's disk cache (whose
@@ -62,7 +62,7 @@ _VALUES: dict[tuple, tuple] = {}  # (module name, its file) -> _values
 _RECORDS: dict[int, tuple[object, "Record"]] = {}  # id(model or spec) -> (it, its record)
 _DISTS: dict[str, tuple[str, str] | None] = {}  # top-level import name -> (distribution, version)
 _WALK_LIMIT = 20_000  # objects visited when collecting a declaration's functions
-_GENERATED = ("mechsweep_gen_", "mechsweep_closed_", "mechsweep_traj_")  # kernel modules compile.py writes
+_GENERATED = ("mechsweep_gen_", "mechsweep_closed_", "mechsweep_traj_")  # kernel bindings (engine/binding.py)
 
 
 # ----------------------------------------------------------------------------- the record

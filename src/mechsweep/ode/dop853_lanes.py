@@ -69,7 +69,7 @@ IDLE, ACTIVE, DONE = 0, 1, 2
 
 @jit_inline
 def _error_test(w, lf, li, l, n):
-    """dop853's advance() for one attempting lane l (rows as in this module; model/lanes.py shares
+    """dop853's advance() for one attempting lane l (rows as in this module; engine/lanes.py shares
     them): accepted (ACCEPTED set, the next step size) or rejected (the smaller step, REJECTED and
     LAST_NONFINITE set); returns whether it was accepted."""
     h = lf[H, l]

@@ -1,0 +1,75 @@
+"""The kernel of a ClosedFormModel (model/closed.py): the model's ``compute`` per design, in parallel.
+
+    kernel(P, want, slot, table, curves, status, data)    (prange over blocks of BLOCK designs)
+        scratch (nscr x n) per block
+        code = compute(P[i], want, table[i], curves[i], slot, scratch, *data)
+        non-OK: that status, the design's row and curves NaN
+
+An exception the user's compute raises at a design the load-time probe did not see must not escape
+the parallel loop: that design ends NONFINITE, NaN (mechsweep's own computes never raise: no guard).
+"""
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+
+from .. import status as st
+from .._jit import jit_internal, pjit, prange
+
+BLOCK = 64  # designs per scratch allocation (one prange iteration)
+ARGS = "P, want, slot, table, curves, status, data"
+
+
+@functools.cache
+def _call(compute):
+    @jit_internal
+    def call(p, want, row, crv, slot, scratch, data):
+        return compute(p, want, row, crv, slot, scratch, *data)
+
+    return call
+
+
+@functools.cache
+def _guarded(call):
+    @jit_internal
+    def compute(p, want, row, crv, slot, scratch, data):
+        try:
+            return call(p, want, row, crv, slot, scratch, data)
+        except Exception:
+            return st.NONFINITE
+
+    return compute
+
+
+def build(compute, n_scr: int, guarded: bool):
+    """The entry point ``kernel`` of a ClosedFormModel whose jitted ``compute`` needs ``n_scr`` scratch
+    rows; ``guarded``: a user's function (an exception ends the design NONFINITE)."""
+    from . import binding
+
+    call = _call(compute)
+    return binding.Entries(kernel=_kernel(_guarded(call) if guarded else call, n_scr))
+
+
+@functools.cache
+def _kernel(compute, n_scr):
+    @pjit
+    def kernel(P, want, slot, table, curves, status, data):
+        n = P.shape[0]
+        N = curves.shape[2]
+        n_blocks = (n + BLOCK - 1) // BLOCK
+        use_curves = curves.shape[0] == n
+        for b in prange(n_blocks):
+            scratch = np.empty((n_scr, N))
+            dummy = np.empty((0, N))
+            for i in range(b * BLOCK, min(n, (b + 1) * BLOCK)):
+                crv = curves[i] if use_curves else dummy
+                code = compute(P[i], want, table[i], crv, slot, scratch, data)
+                if code != st.OK:
+                    status[i] = code
+                    table[i, :] = math.nan
+                    if use_curves:
+                        crv[:, :] = math.nan
+
+    return kernel

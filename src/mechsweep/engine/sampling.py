@@ -1,0 +1,436 @@
+"""The sampled-trajectory route of the model layer: the sampled measurements (Steady, Kick, History,
+RMS: model/sampled.py) observe ONE integration per point from ``initial(p)``, sampled on one grid of
+instants.
+
+The grid is built in Python from the solver settings (``grid``): the union of the chosen
+measurements' instants in forcing periods s, with a column of role bits per measurement; it is
+the same for every point, so it does not depend on the point or on which other outputs are asked
+for beyond adding rows (the integrators' steps do not depend on the sample instants: samples come
+from the dense output; only the last instant, the horizon, ends the integration). Each point's
+instants are t = T s, T = ``forcing_period(p)`` (after ``prepare``), or T = 1 for a model without
+one.
+
+The kernel (engine/trajectory.py, one per model and method: ``kernel_for``) integrates and observes
+each point; this module builds the grid, chooses the route (one trajectory at a time, or the SIMD
+lanes per forcing period: ``_run_lanes``), reads the kernel's value columns into the outputs (each
+measurement's ``finish``: statuses NO_EVENT, UNDECIDED) and runs the model's Recheck.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .. import status as st
+from ..model.ode import worse
+from .trajectory import NO_CLASSIFY, NOT_RUN, UNUSED, columns
+
+BLOCK = 8  # points per scratch allocation (a block holds one trajectory of n_samples x n_states)
+METHODS = ("dop853", "radau", "auto")
+TWO_PI = 2.0 * math.pi
+_KERNELS: dict[str, object] = {}
+
+
+def is_sampled(m) -> bool:
+    return getattr(m, "sampled", False)
+
+
+def grid(chosen, settings):
+    """(s, bits, K, hist_rows): the sample instants in forcing periods (sorted, unique), bits[j, k]
+    the roles of instant j for measurement k (0: not its instant), K[k] its constants, and for
+    each History the number of its rows."""
+    parts = [(m, inst) for m in chosen for inst in m.instants(settings)]
+    s = np.unique(np.concatenate([x for _, (x, _) in parts]))
+    bits = np.zeros((s.size, len(chosen)), dtype=np.int64)
+    for k, m in enumerate(chosen):
+        for x, b in m.instants(settings):
+            rows = np.isin(s, x)
+            bits[:, k] |= np.where(rows, b(s, settings) if callable(b) else b, 0)
+    width = max([len(m.constants(settings)) for m in chosen] + [1])
+    K = np.zeros((len(chosen), width))
+    for k, m in enumerate(chosen):
+        c = m.constants(settings)
+        K[k, :len(c)] = c
+    return s, bits, K
+
+
+def _order(model) -> tuple:
+    return tuple(getattr(model, "status_order", ()))
+
+
+def lane_rhs_for(model, method) -> str | None:
+    """The engine's lane form of the model's rhs (engine/lane_rhs.py) for dop853, or None (another
+    method, or an rhs the rewrite does not cover: one trajectory at a time)."""
+    if method != "dop853" or getattr(model, "switch_times", None) is not None:  # switches: one at a time
+        return None
+    from .lane_rhs import lane_rhs_source
+    return lane_rhs_source(model.rhs)
+
+
+def sampled_measurements(model) -> tuple:
+    """Every sampled measurement the model declares, in declaration order: the kernel's columns."""
+    return tuple(m for m in model.measurements if is_sampled(m))
+
+
+def recheck_variant(model, measurements):
+    """(always, lock, raw) of the model's Recheck as compiled into a kernel of ``measurements``
+    (whether it runs is decided per call, its factor being possibly a setting): ``always`` the
+    index of its skip_settled Kick among them (-1: none), ``lock`` the per-state rates of its lock
+    test (skip_locked), ``raw`` its measured_units."""
+    rc = getattr(model, "recheck", None)
+    names = [m.name for m in measurements]
+    if rc is None or rc.skip_settled is None or rc.skip_settled not in names:
+        return -1, (), False
+    always = names.index(rc.skip_settled)
+    lock = ()
+    if rc.skip_locked:
+        rates = dict(rc.lock_rates)
+        lock = tuple(float(rates.get(x, 0.0)) for x in model.states)
+    return always, lock, bool(rc.measured_units)
+
+
+def kernel_for(model, method, measurements=None):
+    """The model's one sampled-trajectory kernel for ``method`` (engine/trajectory.py): every sampled
+    measurement it declares (or only ``measurements``, the model's own, in their order: a kernel per
+    subset, for comparison), the ones that observe chosen per call (``evaluate``), as the closed forms
+    are (one kernel per model and method, whatever subset of outputs is asked for). Its entry points:
+    ``kernel``; with the lanes (dop853, an rhs the engine rewrites) ``setup`` and ``queue``."""
+    from . import binding
+    from . import trajectory as engine
+    from .kernels import binding_name
+    from .lane_rhs import binding_text
+    from ..ode.methods import method as method_of
+
+    chosen = sampled_measurements(model) if measurements is None else tuple(measurements)
+    always, lock, raw = recheck_variant(model, chosen)
+    lane_rhs = lane_rhs_for(model, method)
+    m = method_of(method)
+    name = binding_name(model, chosen, (), m, "trajectory", repr((always, tuple(lock), raw)) + (lane_rhs or ""))
+    known = _KERNELS.get(name)
+    if known is not None:
+        return known
+    entries = {"kernel": engine.KERNEL_ARGS}
+    if lane_rhs:
+        entries.update(setup=engine.SETUP_ARGS, queue=engine.QUEUE_ARGS)
+    mod = binding.bind(name, f"model {model.name!r}, sampled trajectories, method {m.name}", entries,
+                       lambda *lane: engine.build(model, chosen, m, always, lock, raw, *lane),
+                       extra=binding_text(lane_rhs) if lane_rhs else "",
+                       lane_names=("rhs_lanes",) if lane_rhs else ())
+    out = _Kernels(name, {e: binding.Marking(getattr(mod, e), name, e) for e in entries})
+    _KERNELS[name] = out
+    return out
+
+
+class _Kernels:
+    """A sampled-trajectory kernel's entry points (attributes), and its binding's name."""
+
+    def __init__(self, name, entries):
+        self.name = name
+        self.__dict__.update(entries)
+
+
+def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lanes=True, per_subset=False):
+    """Run the sampled measurements ``chosen`` on the points still OK in ``status``; by DOP853
+    lanes for dop853 when the engine rewrites the model's rhs in lane form (unless ``lanes`` is
+    False: the same values). The model's one kernel (``kernel_for``) observes only the chosen ones;
+    ``per_subset``: a kernel of the chosen ones alone instead (a compile per subset; the same values
+    bitwise, for tests)."""
+    method = solver.method
+    settings = dict(solver.settings)
+    rc = _active_recheck(model, settings)
+    always, lock, raw = -1, (), False
+    if rc is not None and rc.skip_settled is not None:  # its Kick observed everywhere, asked for or not
+        names = [m.name for m in chosen]
+        if rc.skip_settled not in names:
+            import dataclasses
+            kick = next(m for m in model.measurements if m.name == rc.skip_settled)
+            chosen = tuple(chosen) + (dataclasses.replace(kick, classify=None),)
+        always = [m.name for m in chosen].index(rc.skip_settled)
+        if rc.skip_locked:
+            rates = dict(rc.lock_rates)
+            lock = tuple(float(rates.get(x, 0.0)) for x in model.states)
+        raw = bool(rc.measured_units)
+    s, bits, K = grid(chosen, settings)
+    if lock:  # the whole forcing periods of the second half of the Kick's horizon: one more bits column
+        from ..model.sampled import _number
+        H = _number(chosen[always].horizon, settings)
+        whole = np.arange(math.ceil(0.5 * H), math.floor(H) + 1, dtype=np.float64)
+        s2 = np.unique(np.concatenate([s, whole]))
+        bits2 = np.zeros((s2.size, bits.shape[1] + 1), dtype=np.int64)
+        bits2[np.searchsorted(s2, s), :bits.shape[1]] = bits
+        bits2[:, -1] = np.isin(s2, whole)
+        s, bits = s2, bits2
+    for k, m in enumerate(chosen):
+        if type(m).__name__ == "Steady" and not {m.output_name("_h1"), m.output_name("_phase")} & set(wanted):
+            K[k, 2] = 0.0  # no first harmonic asked for: the observer skips its cos/sin per sample
+    hoff = np.zeros(len(chosen), dtype=np.int64)
+    n_hist = 0
+    for k, m in enumerate(chosen):
+        if m.n_values == 0:
+            hoff[k] = n_hist
+            n_hist += int(np.count_nonzero(bits[:, k]))
+    cols = columns(chosen)
+    n = P.shape[0]
+    vals = np.full((n, cols[-1] + (1 if lock else 0)), np.nan)
+    hist = np.full((n, n_hist), np.nan)
+    rawv = np.full((n, cols[-1] if raw else 0), np.nan)
+    rawh = np.full((n, n_hist if raw else 0), np.nan)
+    S = np.array([float(settings.get(x.name, x.default)) for x in model.settings], dtype=np.float64)
+    full = sampled_measurements(model)
+    if per_subset:
+        full = tuple(next(x for x in full if x.name == m.name) for m in chosen)
+    mod = kernel_for(model, method, None if not per_subset else full)
+    code = status.copy()
+    mstat = np.full((n, len(chosen)), NOT_RUN, dtype=np.int64)
+    P = np.ascontiguousarray(P, dtype=np.float64)
+    order = _order(model)
+    # the kernel's layout: every sampled measurement of the model (kernel_for); the chosen ones
+    # observe, the others are UNUSED (their bits columns zero, no value columns read back)
+    f_lock = recheck_variant(model, full)[1]
+    at = np.array([[x.name for x in full].index(m.name) for m in chosen], dtype=np.int64)
+    fcols = columns(full)
+    vcols = np.concatenate([np.arange(fcols[at[k]], fcols[at[k] + 1]) for k in range(len(chosen))]
+                           + ([np.array([fcols[-1]])] if lock else []) + [np.zeros(0, np.int64)]).astype(np.int64)
+    fbits = np.zeros((s.size, len(full) + (1 if f_lock else 0)), dtype=np.int64)
+    fbits[:, at] = bits[:, :len(chosen)]
+    if lock:
+        fbits[:, len(full)] = bits[:, len(chosen)]
+    fK = np.zeros((len(full), max([len(m.constants(settings)) for m in full] + [1]) + 1))
+    fK[at, :K.shape[1]] = K
+    if always >= 0:  # the skip_settled Kick observed also where its classify skips it
+        fK[at[always], -1] = 1.0
+    fhoff = np.zeros(len(full), dtype=np.int64)
+    fhoff[at] = hoff
+    first = np.full(len(full), UNUSED, dtype=np.int64)  # mstat before the kernel: which ones observe
+    first[at] = NOT_RUN
+    for k, m in enumerate(chosen):
+        if getattr(m, "classify", None) is None and getattr(full[at[k]], "classify", None) is not None:
+            first[at[k]] = NO_CLASSIFY  # the skip_settled Kick added above without its classify
+
+    from .kernels import _PLAN
+    use_lanes = (hasattr(mod, "queue") and lanes and lane_count(s.size, model) > 0
+                 and _lanes_pay(mod, max(n, getattr(_PLAN, "n", 0))))
+
+    def run(P, rtol, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs):
+        m = P.shape[0]
+        fvals = np.full((m, fcols[-1] + (1 if lock else 0)), np.nan)
+        frawv = np.full((m, fcols[-1] if raw else 0), np.nan)
+        fmstat = np.repeat(first[None, :], m, axis=0)
+        if use_lanes:
+            _run_lanes(mod, model, P, S, s, fbits, fK, fhoff, solver, fvals, hist, frawv, rawh, code, fmstat, n_steps,
+                       n_rhs, rtol)
+        else:
+            mod.kernel(P, S, s, fbits, fK, fhoff, rtol, solver.atol, solver.max_steps, fvals, hist, frawv, rawh, code,
+                       fmstat, n_steps, n_rhs)
+        vals[:] = fvals[:, vcols]
+        if raw:
+            rawv[:] = frawv[:, vcols[:rawv.shape[1]]]
+        mstat[:] = np.where(fmstat[:, at] == NO_CLASSIFY, NOT_RUN, fmstat[:, at])
+
+    run(P, solver.rtol, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs)
+    moved = None
+    if rc is not None:
+        moved = _recheck(rc, chosen, wanted, settings, solver, P, run, (vals, hist, rawv, rawh), code, mstat, n_steps,
+                         n_rhs, cols, bits, order, lock)
+    good = measured(mstat, code, order)
+    for k, m in enumerate(chosen):
+        if m.n_values == 0:
+            if m.name in out:
+                w = int(np.count_nonzero(bits[:, k]))
+                out[m.name][:] = np.where(good[:, k, None], hist[:, hoff[k]:hoff[k] + w], np.nan)
+        else:
+            v = np.where(good[:, k, None], vals[:, cols[k]:cols[k + 1]], np.nan)
+            if order:  # its own status (OK where it has values), ranked into the point's
+                own = np.zeros_like(code)
+                m.finish(v, wanted, solver, out, own)
+                code[:] = worse(code, own, order)
+            else:
+                m.finish(v, wanted, solver, out, code)
+    if moved is not None and order:
+        code[:] = worse(code, np.where(moved, st.NOT_REPRODUCIBLE, st.OK), order)
+    elif moved is not None:  # above the statuses that leave a value NaN for a reason, below failures
+        soft = (code == st.OK) | (code == st.NO_EVENT) | (code == st.UNDECIDED)
+        code[:] = np.where(moved & soft, st.NOT_REPRODUCIBLE, code)
+    status[:] = code
+
+
+
+
+def measured(mstat, code, order) -> np.ndarray:
+    """good[i, k]: whether measurement k's values at point i stand. mstat[i, k]: OK, its failure
+    (> 0), -status where its classify skipped it, NOT_RUN where the point was not integrated.
+    With a status order only its own status counts; without one (first failure wins) any failure
+    of another measurement at the point voids it too (not a skip)."""
+    ok = (mstat == st.OK) & (code != st.USER_ERROR)[:, None]
+    if order:
+        return ok
+    return ok & ~(mstat > 0).any(axis=1)[:, None]
+
+
+def integrated(mstat, code) -> np.ndarray:
+    """Points whose trajectory was integrated and observed without failure (skips allowed)."""
+    return (mstat <= 0).all(axis=1) & (mstat == st.OK).any(axis=1) & (code != st.USER_ERROR)
+
+
+def _active_recheck(model, settings):
+    """The model's Recheck where its factor is > 0 (else None: no re-check)."""
+    from ..model.sampled import _number
+    rc = getattr(model, "recheck", None)
+    if rc is None or not _number(rc.factor, settings) > 0.0:
+        return None
+    return rc
+
+
+def _compared(chosen, wanted, cols, bits, width):
+    """(value columns, History columns) the re-check compares: those of the asked-for outputs (a
+    Steady's or Kick's j-th output is its j-th column)."""
+    use = np.zeros(width, dtype=bool)
+    huse = []
+    for k, m in enumerate(chosen):
+        if m.n_values == 0:
+            huse += [m.name in wanted] * int(np.count_nonzero(bits[:, k]))
+            continue
+        for j, o in enumerate(m.outputs()):
+            use[cols[k] + j] = o.name in wanted
+    return use, np.array(huse, dtype=bool)
+
+
+def _recheck(rc, chosen, wanted, settings, solver, P, run, arrays, code, mstat, n_steps, n_rhs, cols, bits, order,
+             lock):
+    """The model's Recheck (sampled.Recheck): which points moved when integrated again at the
+    tighter rtol."""
+    from ..model.sampled import _number
+    vals, hist, rawv, rawh = arrays
+    factor = _number(rc.factor, settings)
+    check = integrated(mstat, code)
+    names = [m.name for m in chosen]
+    if rc.skip_settled in names:  # settled early (integration time, before time_value): not again
+        c0 = cols[names.index(rc.skip_settled)]
+        t_settle, t_end = vals[:, c0 + 3], vals[:, c0 + 4]
+        with np.errstate(invalid="ignore"):
+            check &= ~(np.isfinite(t_settle) & (t_settle <= rc.settled_fraction * t_end))
+            if lock:  # locked to the forcing period through the second half
+                check &= ~(vals[:, cols[-1]] <= factor * (solver.rtol + solver.atol))
+    moved = np.zeros(code.size, dtype=bool)
+    idx = np.flatnonzero(check)
+    if idx.size == 0:
+        return moved
+    P2 = np.ascontiguousarray(P[idx])
+    vals2 = np.full((idx.size, vals.shape[1]), np.nan)
+    hist2 = np.full((idx.size, hist.shape[1]), np.nan)
+    rawv2 = np.full((idx.size, rawv.shape[1]), np.nan)
+    rawh2 = np.full((idx.size, rawh.shape[1]), np.nan)
+    code2 = np.zeros(idx.size, dtype=code.dtype)
+    mstat2 = np.full((idx.size, mstat.shape[1]), NOT_RUN, dtype=mstat.dtype)
+    ns2, nr2 = np.zeros(idx.size, dtype=n_steps.dtype), np.zeros(idx.size, dtype=n_rhs.dtype)
+    run(P2, rc.tight_rtol(solver.rtol), vals2, hist2, rawv2, rawh2, code2, mstat2, ns2, nr2)
+    n_steps[idx] += ns2
+    n_rhs[idx] += nr2
+    # the asked-for outputs where their measurement applies, as stored (after value/time_value) or
+    # as measured (measured_units)
+    use, huse = _compared(chosen, wanted, cols, bits, cols[-1])
+    if rc.measured_units:
+        vals, hist, vals2, hist2 = rawv, rawh, rawv2, rawh2
+
+    def table(v, h, good):
+        cv = [np.where(good[:, k, None], v[:, cols[k]:cols[k + 1]], np.nan) for k in range(len(chosen))]
+        hh = np.full(h.shape, np.nan)
+        pos = 0
+        for k, m in enumerate(chosen):  # each History's own columns from its own mask
+            if m.n_values == 0:
+                w = int(np.count_nonzero(bits[:, k]))
+                hh[:, pos:pos + w] = np.where(good[:, k, None], h[:, pos:pos + w], np.nan)
+                pos += w
+        return np.concatenate(cv + [np.empty((v.shape[0], 0))], axis=1)[:, use], hh[:, huse]
+
+    a1, a2 = table(vals[idx], hist[idx], measured(mstat[idx], code[idx], order))
+    b1, b2 = table(vals2, hist2, measured(mstat2, code2, order))
+    a = np.concatenate([a1, a2], axis=1)
+    b = np.concatenate([b1, b2], axis=1)
+    with np.errstate(invalid="ignore"):
+        tol = factor * (solver.rtol * np.maximum(np.abs(a), np.abs(b)) + solver.atol)
+        bad = (np.abs(a - b) > tol) | (np.isnan(a) != np.isnan(b))
+    moved[idx] = bad.any(axis=1) | ~integrated(mstat2, code2)
+    return moved
+
+
+# The lanes (method dop853, an rhs the engine rewrites in lane form): as the hand-written auto-balancer kernels
+# chose them. Each lane keeps its trajectory's samples (n_samples x n_states floats) until it
+# ends: with long horizons or dense sampling fewer lanes, so that a queue's samples stay within
+# LANE_SAMPLES_BYTES (32, 16, then 8 lanes, else the one-trajectory kernel).
+LANES = (32, 16, 8)
+LANE_SAMPLES_BYTES = 256 * 2**20
+# evaluate's route where the lanes apply: True the lanes, False one trajectory at a time, None (the
+# default) the lanes where they pay: a run of at least LANES_FROM_POINTS points (compile.planned_points,
+# or the rows of the call), or the lane functions compiled already (in this process, or in numba's disk
+# cache). Bitwise the same results either way. The lanes' cold compile and speed: docs/model-layer.md
+# ("Lanes"; tests/data/trajectory_lanes_cost.py).
+USE_LANES: bool | None = None
+LANES_FROM_POINTS = 1000
+# The lanes of a queue share one forcing period (one t_eval): the points of a period shared by fewer
+# than LANE_GROUP_MIN points (a sweep of the forcing frequency in physical time: each its own) are
+# integrated one trajectory at a time (a round of 32 lanes with one active one costs more than ten
+# scalar steps; docs/model-layer.md, "Lanes").
+LANE_GROUP_MIN = 16
+
+
+def _lanes_pay(mod, points: int) -> bool:
+    if USE_LANES is not None:
+        return USE_LANES
+    if points >= LANES_FROM_POINTS:
+        return True
+    from . import binding
+    return binding.compiled(mod.name, ("setup", "queue"))
+
+
+def lane_count(n_samples: int, model) -> int:
+    for lanes in LANES:
+        if lanes * n_samples * len(model.states) * 8 <= LANE_SAMPLES_BYTES:
+            return lanes
+    return 0
+
+
+def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs,
+               rtol=None):
+    """setup, then per forcing period the points' queues through the lanes, one queue per thread
+    (numba.get_num_threads() Python threads running the nogil queue); the points of periods shared
+    by fewer than LANE_GROUP_MIN points by the one-trajectory kernel (from their status before
+    setup: it runs classify and prepare again)."""
+    import numba
+
+    n = P.shape[0]
+    n_s = len(model.states)
+    n_p, n_set, n_int = len(model.params), len(model.settings), len(model.internal)
+    PF = np.zeros((n, n_p + n_set + n_int + 1 + 3 * n_s))
+    Z0 = np.zeros((n, n_s))
+    TT = np.full(n, np.nan)
+    rtol = solver.rtol if rtol is None else rtol
+    code0, mstat0 = code.copy(), mstat.copy()
+    mod.setup(P, S, rtol, PF, Z0, TT, code, mstat)
+    lanes = lane_count(s.size, model)
+    ok = np.isfinite(TT)  # the points setup left to integrate
+    periods, counts = np.unique(TT[ok], return_counts=True)
+    few = ok & np.isin(TT, periods[counts < LANE_GROUP_MIN])
+    if few.any():  # forcing periods shared by too few points to fill lanes: one trajectory at a time
+        i = np.flatnonzero(few)
+        sub = [a[i] for a in (vals, hist, rawv, rawh, code0, mstat0, n_steps, n_rhs)]
+        mod.kernel(np.ascontiguousarray(P[i]), S, s, bits, K, hoff, rtol, solver.atol, solver.max_steps, *sub)
+        for a, b in zip((vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs), sub):
+            a[i] = b
+    for T in periods[counts >= LANE_GROUP_MIN]:
+        idx = np.flatnonzero(ok & (TT == T)).astype(np.int64)
+        te = T * s  # the same products as the one-trajectory kernel's te[j] = T * s[j]
+        n_queues = max(1, min(numba.get_num_threads(), -(-idx.size // max(1, lanes // 2))))
+
+        def queue(b, idx=idx, te=te, n_queues=n_queues):
+            mod.queue(lanes, idx, b, n_queues, PF, Z0, te, s, bits, K, hoff, rtol, solver.atol,
+                      solver.max_steps, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs)
+
+        if n_queues == 1:
+            queue(0)
+            continue
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=n_queues, thread_name_prefix="mechsweep-lanes") as pool:
+            for _ in pool.map(queue, range(n_queues)):
+                pass
