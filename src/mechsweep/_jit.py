@@ -307,7 +307,7 @@ def jit_internal(func):
     """Compile a function that only numba code calls (a generated module's guards, the integrators'
     steps), without the CPython and cfunc wrappers numba otherwise builds, lowers and turns into machine
     code for every function it compiles (and links into each caller): about 25 ms of a trivial
-    function's 40 ms of compile CPU (2026-11-24, a one-off session measurement), and the largest part of
+    function's 40 ms of compile CPU (measured once), and the largest part of
     the compile of a function with a tuple argument (brent). Called from Python it still works (see
     _NumbaOnly), through a twin compiled on first use."""
     return _numba_only(func)
@@ -324,7 +324,7 @@ def jit_llvm_inline(func):
     counting), with LLVM's ``alwaysinline`` (numba's ``forceinline``): LLVM inlines it into every caller
     when it links the caller's module, as the IR-level inlining of :func:`jit_inline` did, but numba
     analyses and types its body once instead of again at every call site. Measured against
-    ``jit_inline`` (2026-11-24, quickstart cold, bench startup's COMPILE_CHILD alternated 3 times,
+    ``jit_inline`` (quickstart cold, bench startup's COMPILE_CHILD alternated 3 times,
     load 6-7): numba's own work 5.98 -> 5.13 s of CPU, LLVM's 2.43 -> 2.64 s, all 8.39 -> 7.76 s;
     bitwise the same results, the warm one-point kernel as fast. Without ``alwaysinline`` (plain
     separate functions) LLVM left them out of line (above its size threshold) and the kernel ran 22 %

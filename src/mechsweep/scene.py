@@ -265,7 +265,7 @@ class Scene:
 
     def same_as(self, stored: str) -> bool:
         """Whether the canonical form ``stored`` (of a journal or a dataset) describes this scene.
-        Also accepts the form of mechsweep versions before 2026-11-23, in which range axes were
+        Also accepts the form of earlier mechsweep versions, in which range axes were
         written out value by value (compared here axis by axis, as floats, bit for bit)."""
         if stored == self.canonical():
             return True

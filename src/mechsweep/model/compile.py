@@ -54,7 +54,7 @@ BLOCK = 16  # the fewest points a thread of Threaded is given (fewer points: few
 # the same either way (tests/test_model_lanes.py); the benches and tests set True or False to compare.
 USE_LANES: bool | None = None
 # The lane kernel compiles in about four times the CPU time of the one-point kernel and integrates
-# about twice as fast: Duffing period (sweeps/quickstart.toml, 2026-11-24 16:30 UTC, load about 1.5;
+# about twice as fast: Duffing period (sweeps/quickstart.toml, load about 1.5;
 # `mechsweep bench startup --only routes`): cold compile 22.2 s of CPU against 5.5 s, warm 931k against
 # 428k points per CPU second: the 16.6 s are repaid at about 1.3 * 10^7 points.
 LANES_FROM_POINTS = 10**7
@@ -897,7 +897,7 @@ class Threaded:
     thread, thread t computing the points t, t + T, ... (strided: cost varies along the grid), the calling
     thread one of them. It was a ``prange`` over blocks of points (``pjit``); numba's parallel compile of
     that loop (parfor passes, the gufunc and its two wrappers, each linking and optimising the whole
-    call tree again) cost about 2.3 s of the quickstart's 11.2 s of compile CPU (2026-11-24, `bench
+    call tree again) cost about 2.3 s of the quickstart's 11.2 s of compile CPU (`bench
     startup --only compile`, docs/performance-startup.md). Each point is computed alone (its scratch reset), so the results are the
     same whatever the split. Anything else (``py_func``, ``stats``, numba's cache) is the serial kernel's."""
 

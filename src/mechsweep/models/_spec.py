@@ -179,8 +179,8 @@ class ModelSpec:
 
     def possible_statuses(self) -> tuple[int, ...]:
         """The status codes a point of this model can get: OK, the declared ``statuses``, and those
-        its outputs imply (a declared list adds to them: a docs-only trial's ``statuses=(INFEASIBLE,)``
-        hid nonfinite and user_error, which the runner gives any model): NONFINITE (a value that is
+        its outputs imply (a declared list adds to them: ``statuses=(INFEASIBLE,)`` alone would
+        hide nonfinite and user_error, which the runner gives any model): NONFINITE (a value that is
         not finite) and USER_ERROR (the model's code raised, or returned a code that is no status); for integrated
         outputs the integrator's failures (MAX_STEPS, STEP_UNDERFLOW, NO_EVENT, and STIFF when it
         offers more than one method); for a "floquet_max" output INFEASIBLE (no admissible forcing
