@@ -1001,7 +1001,7 @@ def evaluate_rows(scene: Scene, P: np.ndarray):
     n_rhs = np.zeros(n, dtype=np.int64)
     from .model.compile import planned_points  # the run's size, not the rows', chooses the kernel (lanes or not)
 
-    with np.errstate(all="ignore"), planned_points(scene.n_points):  # an overflow at an extreme point is its status
+    with np.errstate(all="ignore"), planned_points(scene.n_points, scene.execution.use_lanes()):  # an overflow at an extreme point is its status
         launching = getattr(_LAUNCH, "hook", None)
         if launching is not None:
             launching()
@@ -1036,9 +1036,9 @@ _WARM: set = set()
 
 def _kernel_key(scene: Scene) -> tuple:
     """What selects a scene's kernels: the model (and the source of a user's model), the outputs
-    computed and the method. A user model file edited in the process changes ``model_key``."""
+    computed, the method and the route (``[execution] lanes``). A user model file edited in the process changes ``model_key``."""
     return (scene.model.name, scene.model_key, scene.model.source, scene.computed_outputs,
-            scene.solver.method if scene.solver is not None else None)
+            scene.solver.method if scene.solver is not None else None, scene.execution.lanes)
 
 
 def _clock() -> float:

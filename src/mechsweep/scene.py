@@ -172,6 +172,17 @@ class Execution:
     scheduler: str | None = None  # dask.distributed scheduler address; None = local threads
     # seconds a cluster run waits for a lost scheduler, or with no worker, before it stops
     worker_timeout: float = 120.0
+    # the kernels' route where SIMD lanes apply: "auto" (where they pay), "always" or "never";
+    # the results are bitwise the same either way, so it is not part of the scene's identity
+    lanes: str = "auto"
+
+    def use_lanes(self) -> bool | None:
+        """The route as the kernels take it: True (lanes), False (one point at a time) or None (auto)."""
+        return LANES_CHOICES[self.lanes]
+
+
+# [execution] lanes -> the kernels' route (model.compile.planned_points)
+LANES_CHOICES = {"auto": None, "always": True, "never": False}
 
 
 @dataclass(frozen=True)
@@ -834,8 +845,8 @@ def check_worker_timeout(value) -> str | None:
 
 def _execution(table: Mapping, p: _Problems) -> Execution:
     for k in table:
-        if k not in ("scheduler", "worker_timeout"):
-            p.unknown(f"execution.{k}", k, ("scheduler", "worker_timeout"), "execution key")
+        if k not in ("scheduler", "worker_timeout", "lanes"):
+            p.unknown(f"execution.{k}", k, ("scheduler", "worker_timeout", "lanes"), "execution key")
     scheduler = table.get("scheduler")
     if scheduler is not None and (why := check_scheduler(scheduler)) is not None:
         p.add("execution.scheduler", why)
@@ -844,7 +855,12 @@ def _execution(table: Mapping, p: _Problems) -> Execution:
     if (why := check_worker_timeout(timeout)) is not None:
         p.add("execution.worker_timeout", why)
         timeout = Execution.worker_timeout
-    return Execution(scheduler=scheduler, worker_timeout=float(timeout))
+    lanes = table.get("lanes", Execution.lanes)
+    if not isinstance(lanes, str) or lanes not in LANES_CHOICES:
+        p.add("execution.lanes", f"{_short(lanes)} is not allowed; expected one of "
+                                 f"{', '.join(repr(c) for c in LANES_CHOICES)}")
+        lanes = Execution.lanes
+    return Execution(scheduler=scheduler, worker_timeout=float(timeout), lanes=lanes)
 
 
 def _not_a_range(name, axes, model) -> str | None:
