@@ -45,4 +45,5 @@ def why_write_failed(code: int | None, strerror: str = "") -> str:
 
 class ClusterLost(StoreError):
     """A distributed run lost its dask scheduler, or all its workers for longer than the worker
-    timeout; the chunks already saved stay in the journal."""
+    timeout (exit code 2); the chunks already saved stay in the journal, and ``resume=True``
+    (``--resume``), on the cluster or locally, completes the run."""
