@@ -169,8 +169,14 @@ def draw(ds, kind: str, *, boundaries=None, fig=None, ax=None, axes=None):
         A dataset mechsweep wrote.
     kind : str
         The figure's name, one of :func:`available` or :func:`on_request`.
-    boundaries, fig, ax, axes
-        As for :func:`artists`.
+    boundaries : xarray.Dataset, optional
+        The located boundaries of the same grid, drawn over the charts that draw boundaries.
+    fig : matplotlib.figure.Figure or matplotlib.figure.SubFigure, optional
+        Draw into this figure instead of a new one.
+    ax : matplotlib.axes.Axes, optional
+        Draw onto these axes (figures of one panel).
+    axes : tuple of (str or None, str or None), optional
+        ``(x, y)``: a generic figure over those axes.
 
     Returns
     -------
