@@ -57,6 +57,10 @@ html_theme_options = {
     "footer_end": [],
 }
 html_context = {"default_mode": "light"}
+# The left sidebar lists a section's pages: only the tutorial has pages under it; elsewhere it would
+# stand empty, and the top bar already links every page.
+html_sidebars = {"**": [], **{f"tutorial/{page}": ["sidebar-nav-bs"] for page in
+                              ("index", "first-sweep", "read-a-nomogram", "own-model", "boundaries", "cluster")}}
 
 # API reference: numpy-style docstrings; types from the annotations where a parameter's docstring
 # entry gives none.
