@@ -111,7 +111,7 @@ def _main(argv: list[str] | None) -> int:
     if not getattr(args, "command", None):
         parser.print_help()
         return EXIT_INVALID
-    from .errors import InputError
+    from .errors import MechsweepError, RunInterrupted
 
     import threading
 
@@ -124,8 +124,13 @@ def _main(argv: list[str] | None) -> int:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning(args.command, warnings.showwarning)
             return args.func(args)
-    except (InputError, FileNotFoundError) as exc:
-        # a FileNotFoundError of the system (with an errno) is said as the others are; mechsweep's own say it all
+    except RunInterrupted as exc:  # the journal is kept: the message says how to resume
+        print(f"mechsweep {args.command}: {exc}", file=sys.stderr)
+        return 128 + exc.signum
+    except (MechsweepError, FileNotFoundError) as exc:
+        # bad input (InputError) and a run that failed on the way (RunError: disk full, lost cluster) both
+        # exit 2 with one line, as the exit codes above say; a bug (any other exception) exits 1 with its traceback.
+        # A FileNotFoundError of the system (with an errno) is said as the others are; mechsweep's own say it all
         text = os_error_text(exc) if isinstance(exc, FileNotFoundError) and exc.errno is not None else exc
         print(f"mechsweep {args.command}: error: {text}", file=sys.stderr)
         return EXIT_INVALID

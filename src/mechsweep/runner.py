@@ -27,7 +27,8 @@ import numpy as np
 from . import __version__
 from . import cf
 from . import status as st
-from .errors import ClusterLost, FileBusy, InputError, WriteFailed, why_os_error
+from .errors import (ClusterLost, FileBusy, InputError, OutOfSpace, RunError, RunInterrupted,  # noqa: F401  (API: runner.X)
+                     WriteFailed, why_os_error)
 from .grid import Chunk, ChunkPlan, ParameterMatrix, chunk_target, plan_chunks
 from .journal import (RESTART, BadChunk, Journal, RunLock, clear_discard, discard_path, drop, lock_path,
                       own_files_problem, partial_path)
@@ -37,20 +38,6 @@ from .store import (COMPILE_KEY, LOAD_LIMIT_BYTES, Early, Held, StoreError, asse
 
 if TYPE_CHECKING:
     import xarray as xr  # annotations only: `mechsweep run` does not import xarray
-
-
-class RunInterrupted(RuntimeError):
-    """The run stopped (Ctrl-C, SIGTERM) after saving every finished chunk; resume with --resume.
-    ``signum`` is the signal that stopped it (SIGINT for Ctrl-C)."""
-
-    def __init__(self, message: str, signum: int = signal.SIGINT):
-        super().__init__(message)
-        self.signum = signum
-
-
-class OutOfSpace(StoreError):
-    """A write of the run failed (disk full, file-size limit, quota, I/O error); the journal of
-    finished chunks is kept, so the run can be completed with --resume once there is room."""
 
 
 # A chunk file found damaged at assembly is computed again; if chunks keep going bad after this
@@ -788,7 +775,7 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
         for exc in bad:
             journal.discard(exc.path, exc.why)
         _report_removed(journal)
-    raise StoreError(f"chunk files in {journal.chunks} were found damaged again after {REPAIR_ROUNDS} rounds of "
+    raise RunError(f"chunk files in {journal.chunks} were found damaged again after {REPAIR_ROUNDS} rounds of "
                      "computing them anew; the disk may be failing: check it, then run again with --resume")
 
 
