@@ -25,6 +25,7 @@ import numba
 import numpy as np
 
 from . import __version__
+from . import _jit
 from . import cf
 from . import status as st
 from .errors import (ClusterLost, FileBusy, InputError, OutOfSpace, RunError, RunInterrupted,  # noqa: F401  (API: runner.X)
@@ -314,7 +315,7 @@ def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, schedul
     params = ParameterMatrix(scene)
     bar = None
     with _threads(threads):
-        threads_used = numba.get_num_threads()
+        threads_used = _jit.num_threads()
         compile_s = warm_up(scene, params, progress)
         t0 = _clock()
         if shown:
@@ -741,10 +742,10 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
         try:
             with _threads(None if scheduler else threads):
                 where = (f"dask scheduler {scheduler}, {threads or 'all'} numba threads per worker" if scheduler
-                         else f"local, {numba.get_num_threads()} threads")
+                         else f"local, {_jit.num_threads()} threads")
                 attrs = {**journal.meta["attrs"], "execution": where}
                 if not scheduler:
-                    attrs["threads"] = numba.get_num_threads()
+                    attrs["threads"] = _jit.num_threads()
                 # A fresh run that returns its dataset (held) writes its file while the chunks are
                 # computed (store.Early: the writer thread, overlapping the kernels); a resumed
                 # one (its history says when it was finished) is assembled at the end.
@@ -1375,12 +1376,12 @@ def _threads(n: int | None):
         yield
         return
     _check_threads(n)
-    before = numba.get_num_threads()
-    numba.set_num_threads(n)
+    before = _jit.num_threads()
+    _jit.set_num_threads(n)
     try:
         yield
     finally:
-        numba.set_num_threads(before)
+        _jit.set_num_threads(before)
 
 
 @functools.lru_cache(maxsize=1)

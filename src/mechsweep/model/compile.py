@@ -913,7 +913,7 @@ class Threaded:
 
         args = (P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs)
         n = P.shape[0]
-        threads = max(1, min(numba.get_num_threads(), (n + BLOCK - 1) // BLOCK))
+        threads = max(1, min(_jit.num_threads(), (n + BLOCK - 1) // BLOCK))
         if threads == 1:
             self.serial(*args, 0, 1)
             return
