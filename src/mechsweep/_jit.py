@@ -16,12 +16,12 @@ Options and why:
 - :func:`jit_inline` (``inline="always"`` at numba IR level, no reference counting) for small
   scalar helpers called in every right-hand side (sincos, the closed-form accelerations): LLVM
   inlines across separately compiled numba functions only below its size threshold, and every
-  separately compiled function costs numba a compile of its own. The integrators' small loops over a
-  state (stage sums, error norm, interpolation, copies, the RMS norms of the first step; ode/dop853.py,
-  ode/_common.py) were inlined so too, and numba analysed and typed each again at every call site;
-  they are now :func:`jit_llvm_inline`: typed once, inlined by LLVM (``alwaysinline``), bitwise the
-  same and as fast. Inlining the integrator's large functions as well (the RK step, the adaptive
-  step) gained little speed for about twice the compile time (an earlier one-off measurement).
+  separately compiled function costs numba a compile of its own. numba analyses and types such a
+  function again at every call site, so the integrators' small loops over a state (stage sums, error
+  norm, interpolation, copies, the RMS norms of the first step; ode/dop853.py, ode/_common.py) are
+  :func:`jit_llvm_inline` instead: typed once, inlined by LLVM (``alwaysinline``), bitwise the same
+  and as fast. The integrator's large functions (the RK step, the adaptive step) stay separate
+  functions: inlining them gains little speed for much more compile time.
 - :func:`jit_internal` for functions only numba code calls (the one-point kernel module's functions
   but the kernel, the integrators' internal steps): no CPython and cfunc wrappers to build, optimise
   and turn into machine code; a call from Python goes to a twin compiled on first use.
@@ -60,7 +60,7 @@ Options and why:
 - Closures made by a factory (a solver for one right-hand side) get a qualified name that
   says what they close over (:func:`_distinct_qualname`): numba's symbol names would otherwise
   coincide between cached kernels compiled by different processes, and one kernel would run
-  another's closure (it happened: results depended on what ran earlier in the process).
+  another's closure (results would depend on what ran earlier in the process).
 """
 from __future__ import annotations
 
@@ -403,9 +403,9 @@ def _distinct_qualname(func) -> None:
     each was compiled into a cached kernel by a different process, the counters can coincide,
     and the two kernels then define the same symbol with different machine code. Loaded into one
     process, every reference binds to whichever kernel was loaded first: e.g. the simulation
-    lanes started their trajectories with the first-step selection of the Floquet variational
-    system after a Floquet run (results then depended on which outputs a scene asked for and on
-    what ran earlier in the process; measured, tests/test_autobalancer_reproducible.py).
+    lanes would start their trajectories with the first-step selection of the Floquet variational
+    system after a Floquet run, and results would depend on which outputs a scene asked for and on
+    what ran earlier in the process (tests/test_autobalancer_reproducible.py checks they do not).
     A suffix from the closure's variables, identical in every process, keeps the symbols apart.
     """
     cells = func.__closure__
@@ -483,10 +483,9 @@ def _numba_only(func, **extra):
 def jit_internal(func):
     """Compile a function that only numba code calls (a generated module's guards, the integrators'
     steps), without the CPython and cfunc wrappers numba otherwise builds, lowers and turns into machine
-    code for every function it compiles (and links into each caller): about 25 ms of a trivial
-    function's 40 ms of compile CPU (2026-11-24, a one-off session measurement), and the largest part of
-    the compile of a function with a tuple argument (brent). Called from Python it still works (see
-    _NumbaOnly), through a twin compiled on first use."""
+    code for every function it compiles (and links into each caller): most of a trivial function's
+    compile CPU, and the largest part of the compile of a function with a tuple argument (brent).
+    Called from Python it still works (see _NumbaOnly), through a twin compiled on first use."""
     return _numba_only(func)
 
 
@@ -499,13 +498,11 @@ def jit_llvm_inline(func):
     """Compile a small helper of the integrators (stage sums, error norm, interpolation, copies, the
     first step's norms) once per signature, for numba callers only (:func:`jit_internal`, no reference
     counting), with LLVM's ``alwaysinline`` (numba's ``forceinline``): LLVM inlines it into every caller
-    when it links the caller's module, as the IR-level inlining of :func:`jit_inline` did, but numba
-    analyses and types its body once instead of again at every call site. Measured against
-    ``jit_inline`` (2026-11-24, quickstart cold, bench startup's COMPILE_CHILD alternated 3 times,
-    load 6-7): numba's own work 5.98 -> 5.13 s of CPU, LLVM's 2.43 -> 2.64 s, all 8.39 -> 7.76 s;
-    bitwise the same results, the warm one-point kernel as fast. Without ``alwaysinline`` (plain
-    separate functions) LLVM left them out of line (above its size threshold) and the kernel ran 22 %
-    slower."""
+    when it links the caller's module, as the IR-level inlining of :func:`jit_inline` does, but numba
+    analyses and types its body once instead of again at every call site: less compile CPU for the
+    same machine code (bitwise the same results, the warm one-point kernel as fast; the cold compile:
+    ``mechsweep bench startup``). ``alwaysinline`` is needed: as plain separate functions they are
+    above LLVM's size threshold, stay out of line and slow the kernel down."""
     return _numba_only(func, _nrt=False, forceinline=True)
 
 
@@ -519,10 +516,9 @@ def compile_time_switch(name: str, cases: dict):
 
     ``code`` must be a literal integer in the caller (a kernel makes its ``method`` argument
     one with ``literally(method)``); only the chosen case is compiled, and the kernel is cached
-    per code. Used for solver.method: compiling every integrator into every kernel cost a cold
-    Duffing sweep several times the compile time of one method (one-off measurement: 61 s
-    against 13 s); the usual alternatives do not cache (a
-    dispatcher passed as an argument, or a closure called from Python).
+    per code. Used for solver.method: compiling every integrator into every kernel would cost a cold
+    Duffing sweep several times the compile time of one method; the usual alternatives do not cache
+    (a dispatcher passed as an argument, or a closure called from Python).
     """
     from numba.core import types
     from numba.extending import overload
@@ -552,8 +548,8 @@ def call_with_literal(kernel, code: int, *args):
     """``kernel(code, *args)`` for a kernel that makes ``code`` literal with ``literally``.
 
     numba's dispatcher types a Python int as int64, attempts that signature, meets
-    ``literally`` and only then retries with the literal: tens of milliseconds per call in a
-    one-off measurement, which dominated short chunks. The compiled literal overload is called directly when it exists.
+    ``literally`` and only then retries with the literal: on every call, more than a short chunk's
+    own work. The compiled literal overload is called directly when it exists.
     """
     from numba import typeof
     from numba.core import types
