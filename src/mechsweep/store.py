@@ -242,9 +242,9 @@ class Early:
 
     def prepare(self, started=None) -> None:
         """Create and define the file before the first chunk arrives: the run calls it in the writer
-        thread, idle while the first chunk is computed, so that the definition (about 8 ms of CPU with
-        NetCDFWriter, 25-30 ms through h5netcdf's bookkeeping before) no longer delays the
-        first chunk's write and the second chunk's launch behind it. ``started``: an event set when
+        thread, idle while the first chunk is computed, so that the definition (``mechsweep bench duffing
+        --breakdown`` times it) does not delay the first chunk's write and the second chunk's launch
+        behind it. ``started``: an event set when
         the first chunk's kernel is about to run (waited for at most PREPARE_WAIT seconds), so that
         this Python work holds the GIL while the kernel has released it, not while the main
         thread prepares the launch. A failure discards the file, as in ``write``."""
