@@ -1295,12 +1295,12 @@ def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], alr
     """Save each computed chunk to the journal as it arrives; the write of one chunk overlaps the
     computation of the next (kernels release the GIL). At most one chunk waits to be written, so
     memory stays bounded by the chunk size. Each chunk file carries its compute time (since the
-    previous chunk); the first of this session also ``compile_s``, the compile phase before it
+    previous chunk); the first this call computes also ``compile_s``, the compile phase before it
     (kept apart: store.assemble sums both kinds into the dataset's attributes).
     ``signals`` (a local run): Ctrl-C or SIGTERM while a chunk computes is acted on once that chunk
     is saved. A kernel launch cannot be stopped, so the chunk runs to its end either way; raising
-    as soon as it returned threw it away (a docs-only trial: a slow one-chunk grid, Ctrl-C, 20 s
-    later "0 of 1 chunks saved")."""
+    as soon as it returns would throw that work away (a slow one-chunk grid would end with "0 of 1
+    chunks saved")."""
     from concurrent.futures import ThreadPoolExecutor
 
     from tqdm.auto import tqdm
