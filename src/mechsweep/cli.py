@@ -710,8 +710,8 @@ def _cmd_info(args) -> int:
 def _bracket_widths(loc, width, attrs, unit) -> list[str]:
     """The final brackets' widths: relative to |x| where the boundary is away from 0, absolute next
     to 0, where a relative width means nothing. The scale is the locator's own: its tolerance is
-    rtol max(|x|, ABS_FLOOR span), span the along axis's (attribute along_span; a dataset written
-    before it was stored: relative wherever x != 0, as before)."""
+    rtol max(|x|, ABS_FLOOR span), span the along axis's (attribute along_span; a dataset without that
+    attribute, from an older version: relative wherever x != 0)."""
     import numpy as np
 
     from .boundaries import ABS_FLOOR
