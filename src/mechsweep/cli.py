@@ -111,7 +111,7 @@ def _main(argv: list[str] | None) -> int:
     if not getattr(args, "command", None):
         parser.print_help()
         return EXIT_INVALID
-    from .errors import InputError
+    from .errors import MechsweepError, RunInterrupted
 
     import threading
 
@@ -124,8 +124,13 @@ def _main(argv: list[str] | None) -> int:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning(args.command, warnings.showwarning)
             return args.func(args)
-    except (InputError, FileNotFoundError) as exc:
-        # a FileNotFoundError of the system (with an errno) is said as the others are; mechsweep's own say it all
+    except RunInterrupted as exc:  # the journal is kept: the message says how to resume
+        print(f"mechsweep {args.command}: {exc}", file=sys.stderr)
+        return 128 + exc.signum
+    except (MechsweepError, FileNotFoundError) as exc:
+        # bad input (InputError) and a run that failed on the way (RunError: disk full, lost cluster) both
+        # exit 2 with one line, as the exit codes above say; a bug (any other exception) exits 1 with its traceback.
+        # A FileNotFoundError of the system (with an errno) is said as the others are; mechsweep's own say it all
         text = os_error_text(exc) if isinstance(exc, FileNotFoundError) and exc.errno is not None else exc
         print(f"mechsweep {args.command}: error: {text}", file=sys.stderr)
         return EXIT_INVALID
@@ -705,8 +710,8 @@ def _cmd_info(args) -> int:
 def _bracket_widths(loc, width, attrs, unit) -> list[str]:
     """The final brackets' widths: relative to |x| where the boundary is away from 0, absolute next
     to 0, where a relative width means nothing. The scale is the locator's own: its tolerance is
-    rtol max(|x|, ABS_FLOOR span), span the along axis's (attribute along_span; a dataset written
-    before it was stored: relative wherever x != 0, as before)."""
+    rtol max(|x|, ABS_FLOOR span), span the along axis's (attribute along_span; a dataset without that
+    attribute, from an older version: relative wherever x != 0)."""
     import numpy as np
 
     from .boundaries import ABS_FLOOR

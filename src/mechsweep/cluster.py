@@ -250,6 +250,7 @@ def compute_chunk(scene_text: str, chunk, threads: int | None = None, base: str 
     instead of computing points of another model."""
     import numba
 
+    from . import _jit
     from .runner import evaluate_chunk
 
     scene, params = _scene(scene_text, base)
@@ -263,7 +264,7 @@ def compute_chunk(scene_text: str, chunk, threads: int | None = None, base: str 
                              f"{'; '.join(changed)}; restore them (the worker sees the files at the paths "
                              "named), then run again with --resume")
     # numba's thread count is per calling thread: set it for this task's thread, every time
-    numba.set_num_threads(min(threads or numba.config.NUMBA_NUM_THREADS, numba.config.NUMBA_NUM_THREADS))
+    _jit.set_num_threads(min(threads or numba.config.NUMBA_NUM_THREADS, numba.config.NUMBA_NUM_THREADS))
     return evaluate_chunk(scene, chunk, params)
 
 

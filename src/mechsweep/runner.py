@@ -25,9 +25,11 @@ import numba
 import numpy as np
 
 from . import __version__
+from . import _jit
 from . import cf
 from . import status as st
-from .errors import ClusterLost, FileBusy, InputError, WriteFailed, why_os_error
+from .errors import (ClusterLost, FileBusy, InputError, OutOfSpace, RunError, RunInterrupted,  # noqa: F401  (API: runner.X)
+                     WriteFailed, why_os_error)
 from .grid import Chunk, ChunkPlan, ParameterMatrix, chunk_target, plan_chunks
 from .journal import (RESTART, BadChunk, Journal, RunLock, clear_discard, discard_path, drop, lock_path,
                       own_files_problem, partial_path)
@@ -37,20 +39,6 @@ from .store import (COMPILE_KEY, LOAD_LIMIT_BYTES, Early, Held, StoreError, asse
 
 if TYPE_CHECKING:
     import xarray as xr  # annotations only: `mechsweep run` does not import xarray
-
-
-class RunInterrupted(RuntimeError):
-    """The run stopped (Ctrl-C, SIGTERM) after saving every finished chunk; resume with --resume.
-    ``signum`` is the signal that stopped it (SIGINT for Ctrl-C)."""
-
-    def __init__(self, message: str, signum: int = signal.SIGINT):
-        super().__init__(message)
-        self.signum = signum
-
-
-class OutOfSpace(StoreError):
-    """A write of the run failed (disk full, file-size limit, quota, I/O error); the journal of
-    finished chunks is kept, so the run can be completed with --resume once there is room."""
 
 
 # A chunk file found damaged at assembly is computed again; if chunks keep going bad after this
@@ -327,7 +315,7 @@ def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, schedul
     params = ParameterMatrix(scene)
     bar = None
     with _threads(threads):
-        threads_used = numba.get_num_threads()
+        threads_used = _jit.num_threads()
         compile_s = warm_up(scene, params, progress)
         t0 = _clock()
         if shown:
@@ -754,10 +742,10 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
         try:
             with _threads(None if scheduler else threads):
                 where = (f"dask scheduler {scheduler}, {threads or 'all'} numba threads per worker" if scheduler
-                         else f"local, {numba.get_num_threads()} threads")
+                         else f"local, {_jit.num_threads()} threads")
                 attrs = {**journal.meta["attrs"], "execution": where}
                 if not scheduler:
-                    attrs["threads"] = numba.get_num_threads()
+                    attrs["threads"] = _jit.num_threads()
                 # A fresh run that returns its dataset (held) writes its file while the chunks are
                 # computed (store.Early: the writer thread, overlapping the kernels); a resumed
                 # one (its history says when it was finished) is assembled at the end.
@@ -788,7 +776,7 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
         for exc in bad:
             journal.discard(exc.path, exc.why)
         _report_removed(journal)
-    raise StoreError(f"chunk files in {journal.chunks} were found damaged again after {REPAIR_ROUNDS} rounds of "
+    raise RunError(f"chunk files in {journal.chunks} were found damaged again after {REPAIR_ROUNDS} rounds of "
                      "computing them anew; the disk may be failing: check it, then run again with --resume")
 
 
@@ -1307,12 +1295,12 @@ def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], alr
     """Save each computed chunk to the journal as it arrives; the write of one chunk overlaps the
     computation of the next (kernels release the GIL). At most one chunk waits to be written, so
     memory stays bounded by the chunk size. Each chunk file carries its compute time (since the
-    previous chunk); the first of this session also ``compile_s``, the compile phase before it
+    previous chunk); the first this call computes also ``compile_s``, the compile phase before it
     (kept apart: store.assemble sums both kinds into the dataset's attributes).
     ``signals`` (a local run): Ctrl-C or SIGTERM while a chunk computes is acted on once that chunk
     is saved. A kernel launch cannot be stopped, so the chunk runs to its end either way; raising
-    as soon as it returned threw it away (a docs-only trial: a slow one-chunk grid, Ctrl-C, 20 s
-    later "0 of 1 chunks saved")."""
+    as soon as it returns would throw that work away (a slow one-chunk grid would end with "0 of 1
+    chunks saved")."""
     from concurrent.futures import ThreadPoolExecutor
 
     from tqdm.auto import tqdm
@@ -1388,12 +1376,12 @@ def _threads(n: int | None):
         yield
         return
     _check_threads(n)
-    before = numba.get_num_threads()
-    numba.set_num_threads(n)
+    before = _jit.num_threads()
+    _jit.set_num_threads(n)
     try:
         yield
     finally:
-        numba.set_num_threads(before)
+        _jit.set_num_threads(before)
 
 
 @functools.lru_cache(maxsize=1)

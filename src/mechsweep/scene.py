@@ -284,8 +284,8 @@ class Scene:
 
     def same_as(self, stored: str) -> bool:
         """Whether the canonical form ``stored`` (of a journal or a dataset) describes this scene.
-        Also accepts the form of mechsweep versions before 2026-11-23, in which range axes were
-        written out value by value (compared here axis by axis, as floats, bit for bit)."""
+        Also accepts the older form, in which range axes were written out value by value (journals
+        and datasets of older versions keep it; compared here axis by axis, as floats, bit for bit)."""
         if stored == self.canonical():
             return True
         if not isinstance(stored, str) or not stored.startswith("{"):

@@ -1,6 +1,7 @@
-"""HDF5 datasets: netCDF4-flavoured HDF5, defined as h5netcdf defines it (``NetCDFWriter``: the same
-objects and attributes, written with h5py directly), read back by
-``xarray.open_dataset(path, engine="h5netcdf")``.
+"""HDF5 datasets in netCDF-4's layout, written with h5py directly (``NetCDFWriter``: the objects and
+attributes h5netcdf would define, with ``_NCProperties`` saying that mechsweep wrote them through h5py),
+read back by ``xarray.open_dataset(path, engine="h5netcdf")``; netCDF-C (netCDF4-python, xarray's
+netcdf4 engine) reads them as well.
 
 A run saves its finished chunks in a journal (``journal.py``); ``assemble`` writes the dataset
 from it, chunk by chunk (memory bounded by one chunk), into a temporary file that replaces the
@@ -23,7 +24,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import h5netcdf
 import h5py
 import numpy as np
 
@@ -242,9 +242,9 @@ class Early:
 
     def prepare(self, started=None) -> None:
         """Create and define the file before the first chunk arrives: the run calls it in the writer
-        thread, idle while the first chunk is computed, so that the definition (about 8 ms of CPU with
-        NetCDFWriter, 25-30 ms through h5netcdf's bookkeeping before) no longer delays the
-        first chunk's write and the second chunk's launch behind it. ``started``: an event set when
+        thread, idle while the first chunk is computed, so that the definition (``mechsweep bench duffing
+        --breakdown`` times it) does not delay the first chunk's write and the second chunk's launch
+        behind it. ``started``: an event set when
         the first chunk's kernel is about to run (waited for at most PREPARE_WAIT seconds), so that
         this Python work holds the GIL while the kernel has released it, not while the main
         thread prepares the launch. A failure discards the file, as in ``write``."""
@@ -596,17 +596,33 @@ class _NetCDFVariable:
         self.ds[key] = value
 
 
+def nc_properties() -> str:
+    """The file's ``_NCProperties``: what wrote it, in netCDF-C's provenance format (``version=2``
+    first, then ``key=value`` pairs separated by commas, ``\\``, ``=``, ``|`` and ``,`` escaped by a
+    backslash): mechsweep through h5py on its HDF5 library. netCDF-C reads any keys there; h5netcdf
+    writes its own name and version in the same place."""
+    def escaped(text: str) -> str:
+        return "".join("\\" + c if c in "\\=|," else c for c in text)
+
+    from . import __version__
+
+    pairs = (("mechsweep", __version__), ("h5py", h5py.__version__), ("hdf5", h5py.version.hdf5_version))
+    return "version=2," + ",".join(f"{key}={escaped(value)}" for key, value in pairs)
+
+
 class NetCDFWriter:
     """Defines a netCDF-4 file with h5py directly, as ``h5netcdf.File(target, "w")`` defines it for
     the calls ``_define`` makes (dimensions, each with its coordinate variable created next,
     variables with fixed sizes, attributes, ``del`` of an attribute): the same objects in the same
     creation order, the same dataset properties (shape, dtype, chunks, filters, fill value), the
     same attributes with their dtypes, shapes, values and order (netCDF-4's ``_Netcdf4Dimid`` and
-    ``_Netcdf4Coordinates``, h5netcdf's ``_NCProperties``), the same dimension-scale attachments.
-    tests/test_store_define.py walks a file of each shipped scene written both ways and compares
-    all of it. h5netcdf spent 25-30 ms of CPU on a small run's definition looking up the same
-    h5py objects again and again (the run breakdown of docs/performance-duffing.md, round 5); this
-    writes each once."""
+    ``_Netcdf4Coordinates``), the same dimension-scale attachments. Only the provenance the file
+    carries for netCDF-C (``_NCProperties``, :func:`nc_properties`) names mechsweep, h5py and HDF5,
+    where h5netcdf names itself. tests/test_store_define.py walks a file of each shipped scene
+    written both ways and compares all of it, and reads both with h5netcdf and with netCDF-C.
+    Written with h5py because h5netcdf looks up the same h5py objects again and again while it defines
+    a file (most of a small run's definition time: ``mechsweep bench duffing --breakdown``);
+    this writes each once."""
 
     def __init__(self, target):
         self.file = h5py.File(target, "w", track_order=True)  # as h5netcdf opens a new file (h5py >= 3.7)
@@ -667,8 +683,7 @@ class NetCDFWriter:
         try:
             if missing:  # (h5netcdf would leave a placeholder scale for it: not a layout _define makes)
                 raise ValueError(f"dimension(s) {', '.join(missing)} without a coordinate variable")
-            props = (f"version=2,h5netcdf={h5netcdf.__version__},hdf5={h5py.version.hdf5_version},"
-                     f"h5py={h5py.__version__}")  # what h5netcdf writes when it closes a new file
+            props = nc_properties()
             self.file.attrs["_NCProperties"] = np.array(props, dtype=h5py.string_dtype("ascii", len(props)))
         finally:
             self.file.close()

@@ -67,8 +67,8 @@ def time_kernel(scene, repeats: int = 3) -> tuple[float, dict]:
     return best, result
 
 
-TARGET_RUN = 1e6  # issue 15 goal 1: `mechsweep.run` points/s on 2 threads at rtol 1e-10
-TARGET_NUMBALSODA = 3.0  # issue 15 goal 1: kernel / numbalsoda at matched accuracy
+TARGET_RUN = 1e6  # goal 1: `mechsweep.run` points/s on 2 threads at rtol 1e-10
+TARGET_NUMBALSODA = 3.0  # goal 1: kernel / numbalsoda at matched accuracy
 LADDER = (1e-9, 3e-10, 1e-10, 3e-11, 1e-11, 3e-12, 1e-12, 3e-13, 1e-13)  # competitors' rtols, loosest first
 LABELS = {"scipy": "scipy solve_ivp DOP853 + event",  # what each competitor is (bench/competitors.py)
           "numbalsoda": "numbalsoda dop853 + Henon's trick", "numbalsoda_event": "numbalsoda solve_ivp + event",
@@ -327,8 +327,8 @@ def _print(r: dict) -> None:
                   f"{m['points_per_cpu_s'] / c['points_per_cpu_s']:,.1f}x per CPU second"
                   f"{'' if m['matched'] else ' (NOT matched: our tightest rung is above its best error)'}; our ladder "
                   + ", ".join(f"{rt:g}: {e:.1e}" for rt, e in m["ladder"]))
-    print("  issue 15 goals measured here (the others: mechsweep bench quickstart / memory / workprecision):")
-    # the goal's figure is the period output's (issue 15: "period output, dataset written"); the
+    print("  goals measured here (the others: mechsweep bench quickstart / memory / workprecision):")
+    # the goal's figure is the period output's (the goal reads "period output, dataset written"); the
     # bench's five outputs are printed beside it
     run_ok = r["run_to_hdf5_period_only_points_per_s"] >= TARGET_RUN
     print(f"    goal 1: mechsweep.run, period output, {r['run_to_hdf5_period_only_points_per_s']:,.0f} points/s on "

@@ -134,8 +134,8 @@ def _with_engine_helpers(func):
     """``func`` with the numba functions of the user's own code that it calls by a global name
     (``@numba.njit`` helpers, and theirs) compiled again with the engine's options (_jit: fastmath
     off, ``error_model="numpy"``). numba's default error model ("python") raises ZeroDivisionError
-    on a float division by zero, which in a sweep made the point USER_ERROR, while the same code
-    without the decorator (compiled by the engine) gives IEEE +-inf / NaN: now it does either way.
+    on a float division by zero, which in a sweep would make the point USER_ERROR, while the same code
+    without the decorator (compiled by the engine) gives IEEE +-inf / NaN: recompiled, it does either way.
     The globals are a copy with the helpers swapped (numba freezes a function's globals when it
     compiles anyway); a function that calls no such helper is returned as it is."""
     from numba.core.dispatcher import Dispatcher
