@@ -135,7 +135,9 @@ def test_a_failed_write_at_every_stage_keeps_the_journal_and_resumes_identically
     err = capsys.readouterr().err
     assert status == 2, err
     assert "Traceback" not in err and "Exception ignored" not in err, err
-    assert REASONS[code] in err and "MiB" in err, err
+    # a lack of room says how much the run needs; an I/O error is no lack of room: it says to check the disk
+    assert REASONS[code] in err and ("MiB" in err) == (code != errno.EIO), err
+    assert code != errno.EIO or "check it" in err, err
     files = journal_files(scene_file.parent)
     if chunks_kept is None:  # nothing computed yet: no journal, and nothing else left either
         assert files is None and "no chunk was saved" in err, err
@@ -148,6 +150,186 @@ def test_a_failed_write_at_every_stage_keeps_the_journal_and_resumes_identically
                                                        f.endswith(".npz")}, f"more than chunks in the journal: {files}"
         assert not (scene_file.parent / OUT).exists()
     resume_and_compare(scene_file.parent, reference)
+
+
+# Writes refused for a cause that is no lack of room: each message names it, says what to do, and
+# says nothing of space needed; the journal is kept and the run resumes identically.
+CAUSES = {
+    errno.EACCES: ["permission denied (EACCES)", "permission to write in", "was taken away during the run"],
+    errno.EPERM: ["operation not permitted (EPERM)", "no longer permitted"],
+    errno.EROFS: ["read-only file system (EROFS)", "became read-only during the run"],
+    errno.EISDIR: ["it is a directory (EISDIR)", "became a directory during the run"],
+    errno.ENOTDIR: ["a part of the path is not a folder (ENOTDIR)", "replaced by a file during the run"],
+}
+
+
+@pytest.mark.parametrize("code", sorted(CAUSES), ids=[errno.errorcode[c] for c in sorted(CAUSES)])
+def test_a_write_refused_for_another_cause_than_room_names_it(scene_file, reference, monkeypatch, capsys, code):
+    with monkeypatch.context() as mp:
+        STAGES["chunk"][0](mp, code)
+        status = main("run", str(scene_file), "-o", OUT, "--no-progress", "--threads", "1")
+    err = capsys.readouterr().err
+    assert status == 2 and "Traceback" not in err, err
+    for piece in CAUSES[code]:
+        assert piece in err, err
+    assert "MiB" not in err and "disk full" not in err, err
+    assert f"journal kept (2 of {N_CHUNKS} chunks saved in {partial_path(OUT)})" in err, err
+    resume_and_compare(scene_file.parent, reference)
+
+
+def test_no_inode_left_is_not_called_a_full_disk(scene_file, reference, monkeypatch, capsys):
+    """ENOSPC with space to spare: the file system is out of inodes (files). Its statvfs is
+    replaced by one of a disk with 3 free inodes of 1000 and 10 GB free."""
+    real = os.statvfs
+
+    def few_inodes(path):
+        v = real(path)
+        return os.statvfs_result((v.f_bsize, 4096, 2_500_000, 2_500_000, 2_500_000, 1000, 3, 3, v.f_flag,
+                                  v.f_namemax))
+
+    with monkeypatch.context() as mp:
+        STAGES["chunk"][0](mp, errno.ENOSPC)
+        mp.setattr(os, "statvfs", few_inodes)
+        status = main("run", str(scene_file), "-o", OUT, "--no-progress", "--threads", "1")
+    err = capsys.readouterr().err
+    assert status == 2 and "Traceback" not in err, err
+    assert "out of inodes (file entries), not of space" in err and "3 of 1000 inodes free" in err, err
+    assert f"about {N_CHUNKS - 2 + 1} more files" in err and "disk full" not in err, err
+    assert f"journal kept (2 of {N_CHUNKS} chunks saved" in err, err
+    resume_and_compare(scene_file.parent, reference)
+
+
+def test_a_really_inode_starved_disk_says_so(tmp_path):
+    """A real tmpfs with 12 inodes (needs root): the run's files take them all before its chunks are
+    saved; the message names the inodes, not the 1 MiB the run needs."""
+    mount = tmp_path / "disk"
+    mount.mkdir()
+    if os.geteuid() != 0:
+        pytest.skip("mounting a tmpfs needs root")
+    made = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=16m,nr_inodes=12", "tmpfs", str(mount)],
+                          capture_output=True, text=True)
+    if made.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {made.stderr.strip()}")
+    try:
+        (mount / "faults.toml").write_text(SCENE)
+        (mount / "data" / "runs").mkdir(parents=True)
+        child = subprocess.run([sys.executable, "-m", "mechsweep", "run", "faults.toml", "-o", OUT, "--no-progress",
+                                "--threads", "1"], cwd=mount, capture_output=True, text=True)
+        assert child.returncode == 2, child.stderr[-2000:]
+        assert "out of inodes (file entries), not of space" in child.stderr, child.stderr
+        assert "disk full" not in child.stderr and "Traceback" not in child.stderr, child.stderr
+    finally:
+        subprocess.run(["umount", "-l", str(mount)], capture_output=True)
+
+
+@pytest.mark.parametrize("removed", ["output folder", "journal folder"])
+def test_a_folder_removed_during_the_run_is_named(scene_file, monkeypatch, capsys, removed):
+    """Removing the output folder (or the journal) while chunks are written: ENOENT, not a lack of
+    room; the chunks went with the folder."""
+    import shutil
+
+    write, seen = journal.Journal.write_chunk, [0]
+    gone = (scene_file.parent / OUT).parent if removed == "output folder" else partial_path(scene_file.parent / OUT)
+
+    def write_chunk(self, *args):
+        seen[0] += 1
+        if seen[0] == 3:
+            shutil.rmtree(gone)
+        return write(self, *args)
+
+    monkeypatch.setattr(journal.Journal, "write_chunk", write_chunk)
+    status = main("run", str(scene_file), "-o", OUT, "--no-progress", "--threads", "1")
+    err = capsys.readouterr().err
+    assert status == 2 and "Traceback" not in err, err
+    name = "data/runs" if removed == "output folder" else str(partial_path(OUT))
+    assert f"the {removed} {name} was removed during the run" in err and "(ENOENT)" in err, err
+    assert "MiB" not in err and "lost: run again, from the start" in err, err
+
+
+# ----------------------------------------------------------------------------- a dataset another process writes
+HOLDER = textwrap.dedent("""
+    import sys, time, h5py
+    f = h5py.File(sys.argv[1], "a")  # HDF5 locks the file for this process (flock)
+    print("open", flush=True)
+    time.sleep(120)
+""")
+
+
+@pytest.fixture
+def held_dataset(scene_file, reference):
+    """OUT, a dataset of the scene, held open for writing by another process (its pid)."""
+    import shutil
+
+    target = scene_file.parent / OUT
+    shutil.copy(reference, target)
+    holder = subprocess.Popen([sys.executable, "-c", HOLDER, str(target)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "open"
+        yield target, holder.pid
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+@pytest.mark.parametrize("argv", [("run", "faults.toml"), ("run", "faults.toml", "--overwrite"),
+                                  ("run", "faults.toml", "--resume"), ("info",), ("plot",)])
+def test_a_dataset_another_process_holds_is_named_so_and_never_replaced(held_dataset, capsys, argv):
+    """It used to be called "damaged or truncated ... use --overwrite", and --overwrite lost the
+    other process's data. Whatever the flags, it is left alone and the holder is named."""
+    target, pid = held_dataset
+    before = os.stat(target)
+    command = [*argv, "-o", OUT, "--no-progress"] if argv[0] == "run" else [*argv, OUT]
+    assert main(*command) == 2
+    err = capsys.readouterr().err
+    assert f"{OUT} is held open for writing by process {pid} (its HDF5 file lock)" in err, err
+    assert "damaged" not in err and "use --overwrite" not in err and "Traceback" not in err, err
+    after = os.stat(target)
+    assert (after.st_ino, after.st_mtime_ns) == (before.st_ino, before.st_mtime_ns), "the file was replaced"
+
+
+# ----------------------------------------------------------------------------- figures that cannot be written
+@pytest.fixture
+def small_dataset(scene_file, reference):
+    import shutil
+
+    shutil.copy(reference, scene_file.parent / OUT)
+    return OUT
+
+
+def test_plot_into_a_missing_folder_names_the_folder(small_dataset, capsys):
+    assert main("plot", small_dataset, "-o", "nope/f.png") == 2
+    err = capsys.readouterr().err
+    assert "the folder nope does not exist; create it first (mkdir -p nope)" in err, err
+    assert "damaged" not in err and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize("code", [errno.ENOSPC, errno.EACCES, errno.EROFS, errno.EDQUOT],
+                         ids=lambda c: errno.errorcode[c])
+def test_a_figure_write_that_fails_names_its_cause(small_dataset, monkeypatch, capsys, code):
+    from mechsweep import figures
+
+    def save(ds, path, **kwargs):
+        raise OSError(code, os.strerror(code), str(path))
+
+    monkeypatch.setattr(figures, "save", save)
+    monkeypatch.setattr(cli, "_can_fork", lambda: False)
+    assert main("plot", small_dataset, "-o", "fig.png") == 2
+    err = capsys.readouterr().err
+    assert "cannot write the figure fig.png" in err and f"({errno.errorcode[code]})" in err, err
+    assert "damaged" not in err and "Traceback" not in err, err
+    assert os.path.exists(small_dataset)
+
+
+def test_plot_into_a_read_only_folder_is_refused_before_drawing(small_dataset, capsys):
+    folder = os.path.join(os.path.dirname(small_dataset), "ro")
+    os.mkdir(folder)
+    os.chmod(folder, 0o555)
+    try:
+        assert main("plot", small_dataset, "-o", os.path.join(folder, "f.png")) == 2
+    finally:
+        os.chmod(folder, 0o755)
+    err = capsys.readouterr().err
+    assert f"cannot write into {folder} (permission denied)" in err and "damaged" not in err, err
 
 
 def test_a_file_size_limit_below_the_dataset_is_refused_before_any_file(scene_file, monkeypatch, capsys):
@@ -323,6 +505,50 @@ def test_a_journal_of_an_older_version_without_checksums_is_still_resumed(scene_
                         real(scene, chunk, *r))
     resume_and_compare(scene_file.parent, reference)
     assert sorted(computed) == [5, 6, 7]
+
+
+def _as_an_older_version(monkeypatch):
+    """Runs write no dependency record (model/sources.py), as versions before it did."""
+    from mechsweep.model import sources
+
+    monkeypatch.setattr(sources.Record, "attrs", lambda self, base=None: {})
+
+
+def test_a_journal_without_a_dependency_record_is_refused_and_restart_starts_over(scene_file, reference,
+                                                                                  monkeypatch, capsys):
+    """What its chunks were computed from cannot be checked (an older mechsweep wrote it): refused,
+    nothing touched; --restart starts over."""
+    import json
+
+    from mechsweep import _jit
+
+    with monkeypatch.context() as mp:
+        _as_an_older_version(mp)
+        interrupted_run(scene_file, after=3)
+    before = journal_files(scene_file.parent)
+    capsys.readouterr()
+    assert main("run", str(scene_file), "-o", OUT, "--resume") == 2
+    err = capsys.readouterr().err
+    assert "which did not record the sources its results depend on" in err and "start over with --restart" in err, err
+    assert "Traceback" not in err
+    assert journal_files(scene_file.parent) == before
+    assert main("run", str(scene_file), "-o", OUT, "--restart", "--no-progress") == 0
+    done, ref = mechsweep.open_dataset(scene_file.parent / OUT), mechsweep.open_dataset(reference)
+    for name in COMPARED:
+        np.testing.assert_array_equal(done[name].values, ref[name].values, err_msg=name)
+    assert json.loads(done.attrs["dependencies"])["mechsweep_sources"] == _jit.package_hash()
+
+
+def test_resume_of_a_finished_dataset_without_a_dependency_record_finds_it_finished(scene_file, monkeypatch, capsys):
+    """Nothing is computed, so nothing can be mixed: taken as it is (exit 0, the file unchanged)."""
+    with monkeypatch.context() as mp:
+        _as_an_older_version(mp)
+        assert main("run", str(scene_file), "-o", OUT, "--no-progress") == 0
+    out = scene_file.parent / OUT
+    assert "dependencies" not in mechsweep.open_dataset(out).attrs
+    before = out.read_bytes()
+    assert main("run", str(scene_file), "-o", OUT, "--resume", "--no-progress") == 0
+    assert out.read_bytes() == before
 
 
 # ----------------------------------------------------------------------------- flags

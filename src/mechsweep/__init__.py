@@ -18,17 +18,22 @@ import importlib
 __version__ = "0.1.0"
 
 _EXPORTS = {
+    # the exceptions (errors.py draws their tree)
+    "MechsweepError": "errors",
+    "InputError": "errors",
+    "SceneError": "scene",
+    "StoreError": "errors",
+    "FileBusy": "errors",
+    "RunError": "errors",
+    "OutOfSpace": "errors",
     "ClusterLost": "errors",
+    "RunInterrupted": "errors",
     "MODELS": "models",
-    "OutOfSpace": "runner",
-    "RunInterrupted": "runner",
     "RunSummary": "runner",
     "run": "runner",
     "compute": "runner",
     "Scene": "scene",
-    "SceneError": "scene",
     "load_scene": "scene",
-    "StoreError": "store",
     "open_dataset": "store",
 }
 

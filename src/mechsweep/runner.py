@@ -25,9 +25,11 @@ import numba
 import numpy as np
 
 from . import __version__
+from . import _jit
 from . import cf
 from . import status as st
-from .errors import ClusterLost, InputError, WriteFailed
+from .errors import (ClusterLost, FileBusy, InputError, OutOfSpace, RunError, RunInterrupted,  # noqa: F401  (API: runner.X)
+                     WriteFailed, why_os_error)
 from .grid import Chunk, ChunkPlan, ParameterMatrix, chunk_target, plan_chunks
 from .journal import (RESTART, BadChunk, Journal, RunLock, clear_discard, discard_path, drop, lock_path,
                       own_files_problem, partial_path)
@@ -37,22 +39,6 @@ from .store import (COMPILE_KEY, LOAD_LIMIT_BYTES, Early, Held, StoreError, asse
 
 if TYPE_CHECKING:
     import xarray as xr  # annotations only: `mechsweep run` does not import xarray
-
-
-class RunInterrupted(RuntimeError):
-    """The run stopped (Ctrl-C, SIGTERM) after saving every finished chunk (exit code 130).
-
-    Resume it with ``mechsweep.run(..., resume=True)`` (``--resume``). ``signum`` is the signal that
-    stopped it (SIGINT for Ctrl-C)."""
-
-    def __init__(self, message: str, signum: int = signal.SIGINT):
-        super().__init__(message)
-        self.signum = signum
-
-
-class OutOfSpace(StoreError):
-    """A write of the run failed (disk full, file-size limit, quota, I/O error); the journal of
-    finished chunks is kept, so the run can be completed with --resume once there is room."""
 
 
 # A chunk file found damaged at assembly is computed again; if chunks keep going bad after this
@@ -271,6 +257,7 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
     if models is not None and not isinstance(models, Mapping):
         raise InputError(f"models must be a mapping of model name -> OdeModel, got {type(models).__name__}")
     scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path, models=models)
+    _warn_settings(scene)
     if output is not None and str(output).endswith(("/", os.sep)):
         raise StoreError(f"output path {output} ends with a path separator; give a file path such as "
                          f"{Path(output) / 'run.h5'}")
@@ -310,7 +297,8 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
         except OSError as exc:
             if client is not None:
                 _disconnect(client)
-            raise StoreError(f"cannot create the folder {final.parent} for output {final}: {exc.strerror}") from None
+            raise StoreError(f"cannot create the folder {final.parent} for output {final}: "
+                             f"{why_os_error(exc.errno, exc.strerror)}") from None
     try:
         with _Signals() as signals:
             try:
@@ -342,6 +330,17 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
         if client is not None:
             _disconnect(client)
     return RunSummary(final, _sizes(scene), counts, *times), held
+
+
+def _warn_settings(scene: Scene) -> None:
+    """A SettingsWarning for each of the scene's accepted but suspicious solver settings."""
+    import warnings
+
+    from .errors import SettingsWarning
+    from .scene import solver_warnings
+
+    for text in solver_warnings(scene):
+        warnings.warn(text, SettingsWarning, stacklevel=4)
 
 
 def _journal_target(scene: Scene, final: Path) -> int | None:
@@ -382,6 +381,7 @@ def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, schedul
     if models is not None and not isinstance(models, Mapping):
         raise InputError(f"models must be a mapping of model name -> OdeModel, got {type(models).__name__}")
     scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path, models=models)
+    _warn_settings(scene)
     if scene.execution.scheduler:
         raise InputError(f"output=None (the in-memory route) runs here; the scene's [execution] scheduler "
                          f"{scene.execution.scheduler} is not used by it: give an output path to run on the cluster")
@@ -404,7 +404,7 @@ def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, schedul
     params = ParameterMatrix(scene)
     bar = None
     with _threads(threads):
-        threads_used = numba.get_num_threads()
+        threads_used = _jit.num_threads()
         compile_s = warm_up(scene, params, progress)
         t0 = _clock()
         if shown:
@@ -521,28 +521,101 @@ def _kept(final: Path) -> str:
 
 
 def _out_of_space(exc: WriteFailed, scene: Scene, final: Path, n_chunks: int) -> str:
-    """The message of a failed write: what failed, how much the run still needs, what is kept."""
+    """The message of a failed write, by its cause: for a lack of room (no space, no inode, a quota,
+    the file-size limit) how much the run still needs; for another cause (a folder removed or made
+    read-only during the run, an I/O error) what happened; and what is kept, and how to go on."""
     from .errors import why_write_failed
 
+    code = exc.errno
+    failed = f"writing {exc.path} failed"
+    folder = final.parent
+    if code == errno.ENOENT:
+        return _removed_during_run(final, failed)
+    if code not in (errno.ENOSPC, getattr(errno, "EDQUOT", None), errno.EFBIG):
+        kept = _kept(final)
+        where = Path(exc.path).parent
+        advice = {
+            errno.EACCES: f"permission to write in {where} was taken away during the run: give it back; ",
+            errno.EPERM: f"writing in {where} is no longer permitted: allow it again; ",
+            errno.EROFS: f"the file system of {where} became read-only during the run (a system remounts a disk "
+                         "so after errors: check it), make it writable; ",
+            errno.EIO: f"the disk of {where} reported an error: check it (e.g. dmesg) before going on; ",
+            errno.EISDIR: f"{exc.path} became a directory during the run: move it away; ",
+            errno.ENOTDIR: f"a folder on the way to {exc.path} was replaced by a file during the run: put it back; ",
+        }.get(code, "")
+        reason = why_write_failed(code, exc.strerror) if code == errno.EIO else why_os_error(code, exc.strerror)
+        return f"{reason}: {failed}; {advice}{kept}"
     part = partial_path(final)
     data = bytes_per_point(scene) * scene.n_points
+    done = _done_chunks(part)
+    if done is None:
+        need, files = 2 * data, n_chunks + 1
+    else:
+        need = int(data * (1 - done.sum() / max(1, done.size)) + data)  # the chunks to come and the dataset
+        files = int(done.size - done.sum()) + 1
+    kept = _kept(final)
+    reason = why_write_failed(code, exc.strerror)
+    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    free, inodes, total_inodes = _room(folder)
+    short_of_inodes = total_inodes and inodes is not None and inodes < files + 1
+    if code == errno.EFBIG and soft != resource.RLIM_INFINITY:
+        need_text = f"the limit is {_mib(soft)}, the dataset needs up to {_mib(data)}"
+    elif code == errno.ENOSPC and short_of_inodes and (free is None or free >= need):
+        # a file system that ran out of inodes (file entries) says ENOSPC too, with space to spare
+        return (f"out of inodes (file entries), not of space: the file system of {_resolved(folder)} has {inodes} of "
+                f"{total_inodes} inodes free (and {_mib(free) if free is not None else 'enough'} of space); the run "
+                f"still needs about {files} more files (one per chunk to come, and the dataset): delete files there "
+                f"or write elsewhere with -o; {failed}; {kept}")
+    elif code == errno.ENOSPC and short_of_inodes:
+        need_text = (f"{_mib(need)} and about {files} more files needed on the disk of {_resolved(folder)} (it is out "
+                     f"of space and of inodes: {inodes} of {total_inodes} free)")
+    elif code == getattr(errno, "EDQUOT", None):  # a quota counts blocks, and often files too
+        need_text = f"{_mib(need)} and about {files} more files needed within your quota on the disk of {_resolved(folder)}"
+    else:
+        need_text = f"{_mib(need)} needed on the disk of {_resolved(folder)}"
+    return f"{reason}: {need_text}; {failed}; {kept}"
+
+
+def _removed_during_run(final: Path, failed: str) -> str:
+    """The message of a write that found a file or folder of the run gone (ENOENT): which one
+    was removed, and what that means for the chunks computed so far."""
+    part = partial_path(final)
+    gone = next((p for p in (final.parent, part, part / "chunks") if not os.path.isdir(p)), None)
+    if gone == final.parent:
+        what = (f"the output folder {final.parent} was removed during the run, and the run's journal with it "
+                "(create the folder again before the next run)")
+    elif gone is not None:
+        what = f"the journal folder {gone} was removed during the run"
+    else:
+        return (f"a file of the run was removed while it was being written (ENOENT): {failed}; {_kept(final)}")
+    return f"{what} (ENOENT): {failed}; the chunks computed so far are lost: run again, from the start"
+
+
+def _done_chunks(part: Path):
+    """The done-chunk mask of the journal ``part``, or None (no journal, or one that cannot be read)."""
     try:
         journal = Journal.read(part) if part.is_dir() else None
-    except StoreError:
-        journal = None
-    if journal is None or journal.empty:
-        need = 2 * data
-    else:
-        done = journal.done_chunks()
-        need = int(data * (1 - done.sum() / max(1, done.size)) + data)  # the chunks to come and the dataset
-    kept = _kept(final)
-    reason = why_write_failed(exc.errno, exc.strerror)
-    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
-    if exc.errno == errno.EFBIG and soft != resource.RLIM_INFINITY:
-        need_text = f"the limit is {_mib(soft)}, the dataset needs up to {_mib(data)}"
-    else:
-        need_text = f"{_mib(need)} needed on the disk of {final.parent.resolve()}"
-    return f"{reason}: {need_text}; writing {exc.path} failed; {kept}"
+        return None if journal is None or journal.empty else journal.done_chunks()
+    except (StoreError, OSError):
+        return None
+
+
+def _room(folder: Path) -> tuple[int | None, int | None, int | None]:
+    """(free bytes, free inodes, total inodes) of the file system of ``folder`` (or its nearest
+    existing ancestor); None where it cannot be told (total inodes 0: a file system without a fixed
+    number of them, e.g. btrfs)."""
+    try:
+        v = os.statvfs(_existing_ancestor(folder))
+    except OSError:
+        return None, None, None
+    return v.f_bavail * v.f_frsize, v.f_favail, v.f_files
+
+
+def _resolved(folder: Path) -> Path:
+    try:
+        return folder.resolve()
+    except OSError:
+        return folder
 
 
 def _mib(n: float) -> str:
@@ -575,6 +648,8 @@ def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, targ
                          "or discard it with --restart")
     same = _holds_same_scene(final, scene, overwrite)  # None: no dataset there (or an empty file)
     if resume and not part.exists() and same:
+        if (why := _dataset_sources_changed(final, scene)) is not None:
+            raise StoreError(why)
         return True
     if part.exists() and not restart:
         journal = Journal.read(part)
@@ -588,6 +663,8 @@ def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, targ
             raise StoreError(why)
         if not journal.empty and (why := _journal_attrs_problem(journal, scene)) is not None:
             raise StoreError(why)
+        if not journal.empty and (why := _journal_sources_changed(journal, scene)) is not None:
+            raise StoreError(why)  # the same scene, but its model's code changed since the run began
     return False
 
 
@@ -611,6 +688,51 @@ def _journal_attrs_problem(journal: Journal, scene: Scene) -> str | None:
     return None
 
 
+def _journal_sources_changed(journal: Journal, scene: Scene) -> str | None:
+    """Why the unfinished run ``journal`` cannot be resumed with the model's current sources (the
+    model file, the user modules it imports, the packages they use, mechsweep: model/sources.py), or
+    None when they are those it began with. A journal that records none (written by a version before
+    the record) is refused too: what its chunks were computed from cannot be checked."""
+    from .model import sources
+
+    attrs = journal.meta.get("attrs") if isinstance(journal.meta, dict) else None
+    stored = attrs.get("dependencies") if isinstance(attrs, dict) else None
+    if stored is None:
+        version = attrs.get("mechsweep_version", "?") if isinstance(attrs, dict) else "?"
+        return (f"{journal.folder} was started by mechsweep {version}, which did not record the sources its "
+                "results depend on (the model file, the modules it imports, mechsweep's own): its chunks cannot "
+                "be checked against the current ones; start over with --restart")
+    changed = sources.differences(stored, sources.record(scene.model), scene.base or None)
+    if not changed:
+        return None
+    return (f"cannot resume {journal.folder}: {'; '.join(changed)}; start over with --restart, or restore "
+            f"{'them' if len(changed) > 1 else 'it'} and resume")
+
+
+def _dataset_sources_changed(final: Path, scene: Scene) -> str | None:
+    """Why ``--resume`` cannot take the finished dataset ``final`` as this run's result: it was
+    computed from other sources than the model's current ones (None: the same, or a dataset of a
+    version that recorded none, which is taken as it is: nothing is computed)."""
+    import h5py
+
+    from .model import sources
+
+    try:
+        with h5py.File(final, "r") as f:
+            stored = _attr_text(f.attrs["dependencies"]) if "dependencies" in f.attrs else None
+    except Exception:  # damaged internals were refused by _holds_same_scene's check already
+        return None
+    if stored is None:
+        return None
+    changed = sources.differences(stored, sources.record(scene.model), scene.base or None,
+                                  since="this dataset was computed")
+    if not changed:
+        return None
+    return (f"{final} is finished, but computed from other sources: {'; '.join(changed)}; compute it again "
+            f"with `mechsweep run` without --resume (the dataset is replaced), or restore "
+            f"{'them' if len(changed) > 1 else 'it'}")
+
+
 def _holds_same_scene(final: Path, scene: Scene, overwrite: bool) -> bool | None:
     """Whether the dataset at ``final`` is a run of ``scene``; None when there is no dataset
     (absent or an empty file). A dataset of another scene, or a file that is not a mechsweep
@@ -619,6 +741,9 @@ def _holds_same_scene(final: Path, scene: Scene, overwrite: bool) -> bool | None
         return None
     try:
         same = _stored_same_scene(final, scene)
+    except FileBusy as exc:  # never replaced, whatever the flags: that process's writes would be lost
+        raise FileBusy(final, exc.holder, doing="a run would replace it and the writes of that process "
+                       "would be lost: wait until it closes the file (or stop it), or write elsewhere with -o") from None
     except StoreError as exc:
         if overwrite:
             return False
@@ -640,7 +765,7 @@ def _stored_same_scene(final: Path, scene: Scene) -> bool | None:
     StoreError when it is not a dataset mechsweep wrote."""
     import h5py
 
-    from .store import RUN_ATTRS, check_dataset_file
+    from .store import RUN_ATTRS, check_dataset_file, is_lock_error, lock_holder
 
     check_dataset_file(final)  # a regular HDF5 file with a run's (or a benchmark's) attributes
     try:
@@ -649,6 +774,8 @@ def _stored_same_scene(final: Path, scene: Scene) -> bool | None:
             attrs = {k: _attr_text(f.attrs[k]) for k in keys if k in f.attrs}
             run = all(a in attrs for a in RUN_ATTRS) and "status" in f
     except Exception as exc:  # damaged internals: as check_dataset_file says it
+        if is_lock_error(exc):  # another process opened it for writing since check_dataset_file
+            raise FileBusy(final, lock_holder(final)) from None
         raise StoreError(f"{final} is not a mechsweep dataset: it is an HDF5 file that cannot be read "
                          f"({str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__})") from None
     return same_scene(attrs, scene) if run else None
@@ -704,10 +831,10 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
         try:
             with _threads(None if scheduler else threads):
                 where = (f"dask scheduler {scheduler}, {threads or 'all'} numba threads per worker" if scheduler
-                         else f"local, {numba.get_num_threads()} threads")
+                         else f"local, {_jit.num_threads()} threads")
                 attrs = {**journal.meta["attrs"], "execution": where}
                 if not scheduler:
-                    attrs["threads"] = numba.get_num_threads()
+                    attrs["threads"] = _jit.num_threads()
                 # A fresh run that returns its dataset (held) writes its file while the chunks are
                 # computed (store.Early: the writer thread, overlapping the kernels); a resumed
                 # one (its history says when it was finished) is assembled at the end.
@@ -738,7 +865,7 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
         for exc in bad:
             journal.discard(exc.path, exc.why)
         _report_removed(journal)
-    raise StoreError(f"chunk files in {journal.chunks} were found damaged again after {REPAIR_ROUNDS} rounds of "
+    raise RunError(f"chunk files in {journal.chunks} were found damaged again after {REPAIR_ROUNDS} rounds of "
                      "computing them anew; the disk may be failing: check it, then run again with --resume")
 
 
@@ -945,8 +1072,9 @@ def check_target(final: Path, create_folder: bool = False) -> None:
         final.stat()
     except (FileNotFoundError, NotADirectoryError):
         pass
-    except OSError as exc:  # e.g. a path longer than the system allows
-        raise StoreError(f"output path {str(final)[:80]}...: {exc.strerror}") from None
+    except OSError as exc:  # e.g. a path longer than the system allows, a folder on the way not searchable
+        shown = str(final) if len(str(final)) <= 80 else str(final)[:80] + "..."
+        raise StoreError(f"output path {shown}: {why_os_error(exc.errno, exc.strerror)}") from None
     if final.is_dir():
         raise StoreError(f"output path {final} is a directory; give a file path such as {final / 'run.h5'}")
     if os.path.lexists(final) and not final.is_file():
@@ -1256,11 +1384,11 @@ def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], alr
     """Save each computed chunk to the journal as it arrives; the write of one chunk overlaps the
     computation of the next (kernels release the GIL). At most one chunk waits to be written, so
     memory stays bounded by the chunk size. Each chunk file carries its compute time (since the
-    previous chunk); the first of this call also ``compile_s``, the compile phase before it
+    previous chunk); the first this call computes also ``compile_s``, the compile phase before it
     (kept apart: store.assemble sums both kinds into the dataset's attributes).
     ``signals`` (a local run): Ctrl-C or SIGTERM while a chunk computes is acted on once that chunk
     is saved. A kernel launch cannot be stopped, so the chunk runs to its end either way; raising
-    as soon as it returned would throw it away (a slow one-chunk grid, Ctrl-C, 20 s later "0 of 1
+    as soon as it returns would throw that work away (a slow one-chunk grid would end with "0 of 1
     chunks saved")."""
     from concurrent.futures import ThreadPoolExecutor
 
@@ -1337,12 +1465,12 @@ def _threads(n: int | None):
         yield
         return
     _check_threads(n)
-    before = numba.get_num_threads()
-    numba.set_num_threads(n)
+    before = _jit.num_threads()
+    _jit.set_num_threads(n)
     try:
         yield
     finally:
-        numba.set_num_threads(before)
+        _jit.set_num_threads(before)
 
 
 @functools.lru_cache(maxsize=1)
@@ -1377,4 +1505,8 @@ def provenance(scene: Scene, chunks: ChunkPlan) -> dict:
     if scene.solver is not None:
         for k, v in scene.solver.as_dict().items():
             attrs[f"solver_{k}"] = v
+    from .model import sources
+
+    # what the results are computed from (model/sources.py): a resume checks it, a reader sees it
+    attrs.update(sources.record(scene.model).attrs(scene.base or None))
     return attrs

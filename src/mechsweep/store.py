@@ -1,6 +1,7 @@
-"""HDF5 datasets: netCDF4-flavoured HDF5, defined as h5netcdf defines it (``NetCDFWriter``: the same
-objects and attributes, written with h5py directly), read back by
-``xarray.open_dataset(path, engine="h5netcdf")``.
+"""HDF5 datasets in netCDF-4's layout, written with h5py directly (``NetCDFWriter``: the objects and
+attributes h5netcdf would define, with ``_NCProperties`` saying that mechsweep wrote them through h5py),
+read back by ``xarray.open_dataset(path, engine="h5netcdf")``; netCDF-C (netCDF4-python, xarray's
+netcdf4 engine) reads them as well.
 
 A run saves its finished chunks in a journal (``journal.py``); ``assemble`` writes the dataset
 from it, chunk by chunk (memory bounded by one chunk), into a temporary file that replaces the
@@ -15,6 +16,7 @@ removed and ``WriteFailed`` raised; the journal it was assembled from is untouch
 """
 from __future__ import annotations
 
+import errno
 import os
 import stat
 import sys
@@ -22,13 +24,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import h5netcdf
 import h5py
 import numpy as np
 
 from . import cf
 from . import status as st
-from .errors import StoreError, WriteFailed  # noqa: F401  (StoreError: part of this module's API)
+from .errors import FileBusy, StoreError, WriteFailed, why_os_error  # noqa: F401  (StoreError: API)
 from .grid import plan_chunks
 from .journal import META_KINDS, BadChunk, Journal, partial_path  # noqa: F401  (partial_path: this module's API)
 
@@ -241,9 +242,9 @@ class Early:
 
     def prepare(self, started=None) -> None:
         """Create and define the file before the first chunk arrives: the run calls it in the writer
-        thread, idle while the first chunk is computed, so that the definition (about 8 ms of CPU with
-        NetCDFWriter, 25-30 ms through h5netcdf's bookkeeping before) no longer delays the
-        first chunk's write and the second chunk's launch behind it. ``started``: an event set when
+        thread, idle while the first chunk is computed, so that the definition (``mechsweep bench duffing
+        --breakdown`` times it) does not delay the first chunk's write and the second chunk's launch
+        behind it. ``started``: an event set when
         the first chunk's kernel is about to run (waited for at most PREPARE_WAIT seconds), so that
         this Python work holds the GIL while the kernel has released it, not while the main
         thread prepares the launch. A failure discards the file, as in ``write``."""
@@ -595,17 +596,33 @@ class _NetCDFVariable:
         self.ds[key] = value
 
 
+def nc_properties() -> str:
+    """The file's ``_NCProperties``: what wrote it, in netCDF-C's provenance format (``version=2``
+    first, then ``key=value`` pairs separated by commas, ``\\``, ``=``, ``|`` and ``,`` escaped by a
+    backslash): mechsweep through h5py on its HDF5 library. netCDF-C reads any keys there; h5netcdf
+    writes its own name and version in the same place."""
+    def escaped(text: str) -> str:
+        return "".join("\\" + c if c in "\\=|," else c for c in text)
+
+    from . import __version__
+
+    pairs = (("mechsweep", __version__), ("h5py", h5py.__version__), ("hdf5", h5py.version.hdf5_version))
+    return "version=2," + ",".join(f"{key}={escaped(value)}" for key, value in pairs)
+
+
 class NetCDFWriter:
     """Defines a netCDF-4 file with h5py directly, as ``h5netcdf.File(target, "w")`` defines it for
     the calls ``_define`` makes (dimensions, each with its coordinate variable created next,
     variables with fixed sizes, attributes, ``del`` of an attribute): the same objects in the same
     creation order, the same dataset properties (shape, dtype, chunks, filters, fill value), the
     same attributes with their dtypes, shapes, values and order (netCDF-4's ``_Netcdf4Dimid`` and
-    ``_Netcdf4Coordinates``, h5netcdf's ``_NCProperties``), the same dimension-scale attachments.
-    tests/test_store_define.py walks a file of each shipped scene written both ways and compares
-    all of it. h5netcdf spent 25-30 ms of CPU on a small run's definition looking up the same
-    h5py objects again and again (the run breakdown of docs/performance-duffing.md, round 5); this
-    writes each once."""
+    ``_Netcdf4Coordinates``), the same dimension-scale attachments. Only the provenance the file
+    carries for netCDF-C (``_NCProperties``, :func:`nc_properties`) names mechsweep, h5py and HDF5,
+    where h5netcdf names itself. tests/test_store_define.py walks a file of each shipped scene
+    written both ways and compares all of it, and reads both with h5netcdf and with netCDF-C.
+    Written with h5py because h5netcdf looks up the same h5py objects again and again while it defines
+    a file (most of a small run's definition time: ``mechsweep bench duffing --breakdown``);
+    this writes each once."""
 
     def __init__(self, target):
         self.file = h5py.File(target, "w", track_order=True)  # as h5netcdf opens a new file (h5py >= 3.7)
@@ -666,8 +683,7 @@ class NetCDFWriter:
         try:
             if missing:  # (h5netcdf would leave a placeholder scale for it: not a layout _define makes)
                 raise ValueError(f"dimension(s) {', '.join(missing)} without a coordinate variable")
-            props = (f"version=2,h5netcdf={h5netcdf.__version__},hdf5={h5py.version.hdf5_version},"
-                     f"h5py={h5py.__version__}")  # what h5netcdf writes when it closes a new file
+            props = nc_properties()
             self.file.attrs["_NCProperties"] = np.array(props, dtype=h5py.string_dtype("ascii", len(props)))
         finally:
             self.file.close()
@@ -773,14 +789,24 @@ def check_dataset_file(path: str | Path) -> None:
     except FileNotFoundError:
         raise FileNotFoundError(f"{path} does not exist (a broken link)") from None
     except OSError as exc:
-        raise StoreError(f"{what}: it cannot be read ({exc.strerror})") from None
+        raise StoreError(f"{what}: it cannot be read ({why_os_error(exc.errno, exc.strerror)})") from None
     if not stat.S_ISREG(mode):
         raise StoreError(f"{what}: it is {file_kind(mode)}, not a file")
-    try:
-        with open(path, "rb") as f:
-            head = f.read(8)
+    try:  # O_NONBLOCK: a path that became a pipe since the stat above does not block the open
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except OSError as exc:
-        raise StoreError(f"{what}: it cannot be read ({exc.strerror})") from None
+        raise StoreError(f"{what}: it cannot be read ({why_os_error(exc.errno, exc.strerror)})") from None
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise StoreError(f"{what}: it is {file_kind(info.st_mode)}, not a file")
+        if held_for_writing(fd):
+            raise FileBusy(path, lock_holder(info))
+        head = os.read(fd, 8)
+    except OSError as exc:
+        raise StoreError(f"{what}: it cannot be read ({why_os_error(exc.errno, exc.strerror)})") from None
+    finally:
+        os.close(fd)
     if not head:
         raise StoreError(f"{what}: it is an empty file")
     if head != HDF5_SIGNATURE:
@@ -793,6 +819,10 @@ def check_dataset_file(path: str | Path) -> None:
             names = set(f.keys())
             outputs = _text(f.attrs.get("outputs", "")).split() if "outputs" in attrs else []
     except Exception as exc:  # h5py raises OSError, and others for damaged internals
+        if is_lock_error(exc):  # another process took it for writing since the probe above
+            raise FileBusy(path, lock_holder(path)) from None
+        if isinstance(exc, OSError) and exc.errno in _SYSTEM_ERRORS:  # the system's refusal, not the file's bytes
+            raise StoreError(f"{what}: it cannot be read ({why_os_error(exc.errno, exc.strerror)})") from None
         raise StoreError(f"{what}: it is an HDF5 file that cannot be read, damaged or truncated "
                          f"({_first_line(exc)})") from None
     if "mechsweep_kind" in attrs:
@@ -804,6 +834,55 @@ def check_dataset_file(path: str | Path) -> None:
     absent = [v for v in ["status", *outputs] if v not in names]
     if absent:
         raise StoreError(f"{what}: it lacks the variable(s) {', '.join(absent)} that a run writes")
+
+
+# errnos with which the system refuses a read (the file's bytes are not at fault)
+_SYSTEM_ERRORS = frozenset(getattr(errno, n) for n in ("EACCES", "EPERM", "ENOENT", "EMFILE", "ENFILE", "ENOMEM",
+                                                        "EIO", "EISDIR", "ENOTDIR", "ELOOP") if hasattr(errno, n))
+
+
+def is_lock_error(exc: BaseException) -> bool:
+    """Whether ``exc`` (of h5py opening a file) says another process holds the file's HDF5 lock."""
+    return isinstance(exc, BlockingIOError) or (isinstance(exc, OSError) and "unable to lock file" in str(exc))
+
+
+def held_for_writing(fd: int) -> bool:
+    """Whether another process holds an exclusive lock on the open file ``fd``: HDF5 takes one
+    (flock) on a file it opens for writing. Probed with a shared lock that is released at once;
+    False where file locks are not available."""
+    import fcntl
+
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except OSError:  # e.g. a file system without locks
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+    except OSError:
+        pass
+    return False
+
+
+def lock_holder(file) -> int | None:
+    """The process id holding a lock on ``file`` (a path or an os.stat_result), from /proc/locks
+    (Linux); None when it cannot be told."""
+    try:
+        info = file if isinstance(file, os.stat_result) else os.stat(file)
+        with open("/proc/locks") as f:
+            lines = f.read(1 << 20).splitlines()
+    except OSError:
+        return None
+    key = f"{os.major(info.st_dev):02x}:{os.minor(info.st_dev):02x}:{info.st_ino}"
+    for line in lines:  # "1: FLOCK  ADVISORY  WRITE 19010 fe:00:1490980 0 EOF"
+        parts = line.split()
+        if key in parts and parts.index(key) >= 1:
+            try:
+                return int(parts[parts.index(key) - 1])
+            except ValueError:
+                return None
+    return None
 
 
 def is_run_dataset(ds: xr.Dataset) -> bool:

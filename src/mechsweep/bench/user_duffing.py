@@ -13,7 +13,8 @@ integrates phi'' = -omega^2 phi - mu phi^3 from phi = A in its own units (a ``Cr
 information: its tolerances mean something else (its error and steps are printed beside it, with
 the point where each model's error is largest: docs/your-own-model.md, "Accuracy of your own
 model", reads them).
-The target: the user model reaches at least 90 % of the built-in points/s.
+The target: the user model reaches at least 90 % of the built-in points/s (a model of one's own
+must not pay for going through the model layer).
 """
 from __future__ import annotations
 

@@ -134,8 +134,8 @@ def _with_engine_helpers(func):
     """``func`` with the numba functions of the user's own code that it calls by a global name
     (``@numba.njit`` helpers, and theirs) compiled again with the engine's options (_jit: fastmath
     off, ``error_model="numpy"``). numba's default error model ("python") raises ZeroDivisionError
-    on a float division by zero, which in a sweep made the point USER_ERROR, while the same code
-    without the decorator (compiled by the engine) gives IEEE +-inf / NaN: now it does either way.
+    on a float division by zero, which in a sweep would make the point USER_ERROR, while the same code
+    without the decorator (compiled by the engine) gives IEEE +-inf / NaN: recompiled, it does either way.
     The globals are a copy with the helpers swapped (numba freezes a function's globals when it
     compiles anyway); a function that calls no such helper is returned as it is."""
     from numba.core.dispatcher import Dispatcher
@@ -160,7 +160,7 @@ def _with_engine_helpers(func):
             h = types.FunctionType(helper.__code__, helper.__globals__, helper.__name__, helper.__defaults__,
                                    helper.__closure__)
             # named after its module too (see _renamed: one file may be loaded under two module names)
-            tag = hashlib.sha256((helper.__module__ or "").encode()).hexdigest()[:8]
+            tag = _module_tag(helper.__module__ or "")
             h.__module__, h.__qualname__ = helper.__module__, f"{helper.__qualname__}__engine_{tag}"
             _HELPERS[id(v)] = (v, _jit.jit(h))  # the dispatcher kept alive: its id stays its own
         swap[name] = _HELPERS[id(v)][1] if isinstance(_HELPERS[id(v)], tuple) else v
@@ -174,16 +174,28 @@ def _with_engine_helpers(func):
 
 
 def _renamed(func, module: str):
-    """``func`` with its qualified name suffixed by a hash of ``module``. numba names a function's
-    disk-cache entry after its file and qualified name only, and a cached entry re-imports the
-    module it was compiled in: one file loaded under two module names (by path in a scene, and as
-    a module, an entry point or the user's own import for run(models=...)) would otherwise load
-    the other name's entry and fail with "No module named ..." in every later process."""
+    """``func`` with its qualified name suffixed by a hash of ``module`` and of what the module's code
+    depends on (sources.module_digest). numba names a function's disk-cache entry after its file and
+    qualified name only, and a cached entry re-imports the module it was compiled in: one file loaded
+    under two module names (by path in a scene, and as a module, an entry point or the user's own
+    import for run(models=...)) would otherwise load the other name's entry and fail with "No module
+    named ..." in every later process. numba's index checks only the function's own file: the machine
+    code of a helper from another file (linked into the entry) would outlive an edit of that file,
+    while the digest gives an edited dependency a new name."""
     g = types.FunctionType(func.__code__, func.__globals__, func.__name__, func.__defaults__, func.__closure__)
     g.__kwdefaults__ = func.__kwdefaults__
     g.__module__ = func.__module__
-    g.__qualname__ = f"{func.__qualname__}__{hashlib.sha256(module.encode()).hexdigest()[:8]}"
+    g.__qualname__ = f"{func.__qualname__}__{_module_tag(module)}"
     return g
+
+
+def _module_tag(module: str) -> str:
+    """8 hex digits naming ``module`` and its dependencies (mechsweep's own modules: the name alone; the
+    cache folder is keyed by mechsweep's sources)."""
+    from .sources import module_digest
+
+    digest = module_digest(module)
+    return hashlib.sha256((module + (f"|{digest}" if digest else "")).encode()).hexdigest()[:8]
 
 
 ENTRY_POINT_GROUP = "mechsweep.models"
@@ -257,7 +269,11 @@ def resolve(ref: str, base: Path | None = None):
     key = (module, file, name, module_source(module, file) if file else b"")
     if key in _RESOLVED:
         return _RESOLVED[key]
+    fresh = module not in sys.modules
     mod = import_model(ref, module, file, where, base)
+    if fresh and key[3]:  # the model file's bytes as imported now (its record's hash: model/sources.py)
+        from . import sources
+        sources.seen(file, key[3])
     file = file or getattr(mod, "__file__", "") or ""
     if not hasattr(mod, name):
         found = [k for k, v in vars(mod).items() if isinstance(v, (OdeModel, ClosedFormModel))]

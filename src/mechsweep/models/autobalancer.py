@@ -20,7 +20,7 @@ A0 = m3 S3 + (m4 + m5 + m_k) l3 and A1 = m4 S4 + m5 l4 - m_k S_k. Kinetic energy
 M = every translating mass including both pendulums. Potential c_xi xi^2/2 + c_eta eta^2/2,
 Rayleigh function b_xi xi'^2/2 + b_eta eta'^2/2 + h/2 sum_i (gamma_i' - Omega)^2. Lagrange's
 equations give exactly eq. (1)-(3) of physics.md:
-  xi:    M xi'' - d^2/dt^2 [A0 cos phi + A1 cos psi + m a sum cos gamma_i] = -c_xi xi - b_xi xi'
+  xi:    M xi'' + d^2/dt^2 [A0 cos phi + A1 cos psi + m a sum cos gamma_i] = -c_xi xi - b_xi xi'
   eta:   M eta'' + d^2/dt^2 [A0 sin phi + A1 sin psi + m a sum sin gamma_i] = -c_eta eta - b_eta eta'
          (written out: -Omega^2 A0 sin phi + A1 (psi'' cos psi - psi'^2 sin psi) + ..., the sign
          physics.md prints; with psi counter-clockwise (sin psi)'' = (l3/l4) Omega^2 sin phi)
@@ -81,35 +81,61 @@ revolution, [residual_samples_per_revolution] times in the last 10 % of the hori
   unstable (0) if e_late >= growth_ratio e0 and e_before >= growth_ratio e0 (it left and stayed away
                for the last 20 % of the horizon),
   otherwise UNDECIDED (stable_sim NaN): slow convergence or slow growth within the horizon.
-The envelope test is on maxima over whole windows, so oscillating errors do not fool it. With the
-default horizon (300 revolutions) points whose Floquet multiplier is within ~0.01 of 1 converge
-or depart too slowly to be decided; raise horizon_revolutions for them.
+The envelope test is on maxima over whole windows, so oscillating errors do not fool it. A
+point whose largest Floquet multiplier rho is so close to 1 that rho^horizon is not small (0.9988^300
+= 0.70 at the example below) converges or departs too slowly to be decided within the horizon:
+UNDECIDED; raise horizon_revolutions for it.
 
-stable_sim answers "does the balanced state recover from a perturbation of `perturbation` rad";
-Floquet answers it for infinitesimal perturbations. They agree except where the basin of
-attraction is smaller than the perturbation: measured on the shipped stability chart (3600
-points, 2 m / M from 0.005 to 0.5), 10 points with heavy pendulums (2 m / M >= 0.14), weak h
-and Omega > omega_eta are Floquet-stable but leave the balanced state after a 0.1 rad kick (the
-pendulums wander on a coexisting non-synchronous motion, or return only after a long
-excursion); of three re-run with 0.01 and 0.03 rad, two settle and one converges too slowly
-(multiplier 0.9993) to be decided in 1000 revolutions. No point was found that simulation calls
-stable and Floquet unstable (3000 random points: 2053 decided by both, 1 such disagreement, same
-mechanism).
+What the kick verdict means. stable_sim is the fate of one kicked trajectory within the horizon:
+1, it came back to the balanced state; 0, it was at least growth_ratio times the kick away over the
+whole last 20 % of the horizon, i.e. it had not come back by the end. Floquet (floquet_max,
+stable_floquet) answers for infinitesimal kicks. So stable_sim = 1 is evidence of stability (a
+kicked trajectory came back), but stable_sim = 0 where stable_floquet = 1, with status ok, is not an
+error: the balanced state is stable and its basin of attraction is smaller than the kick (or the
+way back is longer than the horizon). To tell, simulate the point again with a smaller
+perturbation and a longer horizon. Example (tests/test_autobalancer.py,
+test_kick_verdict_is_the_fate_of_one_kick_in_a_finite_basin): Omega = 22.28 rad/s, M = 23 kg,
+m = 1 kg (2 m / M = 0.087), a = 0.1 m, I_B = 0.01553 kg m2, A0 = 0.01257 kg m, h = 0.2665 N m s,
+omega_xi = 20 < Omega < omega_eta = 24.86 rad/s, zeta_xi = 0.0364, zeta_eta = 0: floquet_max =
+0.99881, stable; a 0.1 rad kick leaves for a coexisting steady motion (the pendulums slip
+through every phase relative to the crank, the platform keeps vibrating at 0.074 m), stable_sim
+= 0 at 300 and at 2000 revolutions; a 0.01 rad kick comes back, stable_sim = 1 at 2000
+revolutions (UNDECIDED at the default 300, see above). On the shipped stability chart
+(`mechsweep run sweeps/autobalancer_stability_chart.toml`, then `mechsweep info` on the dataset:
+3540 points decided by both) the verdicts disagree at 9 points, all Floquet-stable with
+stable_sim = 0, where the dataset puts them: heavy pendulums (2 m / M from 0.136 to 0.277) and
+Omega > omega_eta; at none does the simulation say stable where Floquet says unstable.
 
 Other outputs and rules:
 - stable_first_approx: the source assumes omega_xi < omega_eta; for omega_xi > omega_eta the rule
   is applied to the lower and the higher of the two frequencies (with A1 = 0 the problem is
   symmetric in the two axes). Strict inequalities: 0 on the boundaries.
-- P_approx at an undamped resonance (c_j = M Omega^2, b_j = 0) is infinite: SINGULAR, NaN.
+- Resonances and boundaries within rounding. c_j - M Omega^2 is known to a few ulps of its terms (c_j =
+  M omega_j^2, M Omega^2 and an Omega typed or computed equal to omega_j are all rounded), so a detuning
+  |c_j - M Omega^2| <= RESONANCE_RTOL max(c_j, M Omega^2) (16 ulps, 3.6e-15) counts as a resonance:
+  there Re H_j = 0, and if b_j Omega is within the same tolerance too P_approx is SINGULAR (NaN; an
+  undamped resonance, where P is infinite). Nearer than NEAR_RESONANCE (1e-6) the detuning is
+  recomputed from exact products, so a P_approx given near a resonance is right to a few ulps of
+  itself. stable_damped_approx is 1 only if P < 0 beyond P's error bound (the change of P when each
+  detuning moves by the tolerance, plus rounding): a P within rounding of 0 (the damped rule's
+  boundary, e.g. omega_p when undamped) gives 0, as stable_first_approx does on its boundaries, where
+  an Omega within 8 ulps of omega_lo, omega_p or omega_hi counts as on the boundary. No verdict is
+  set by the sign of a rounding error (tests/test_autobalancer_resonance.py).
+- Mass matrix: its smallest eigenvalue, M - 2 m^2 a^2 / I_B (pendulums aligned or opposite), relative
+  to M is gap = 1 - 2 m^2 a^2 / (M I_B). gap <= RESONANCE_RTOL is INFEASIBLE (singular or indefinite:
+  M > 2 m and I_B >= m a^2 with its slack do not ensure M I_B > 2 m^2 a^2); where the accelerations'
+  round-off MASS_ERROR u / gap exceeds rtol the point is ILL_CONDITIONED (no integration, closed
+  forms kept).
 - stable_floquet is UNDECIDED when |floquet_max - 1| <= max(floquet_margin, 100 rtol) (floquet_max
-  is accurate to ~0.1 rtol, measured).
+  is within 0.032 rtol of the reference at every rtol from 1e-4 to 1e-12 over the 64 chart points
+  of `mechsweep bench workprecision autobalancer`).
 - settling_time: NO_EVENT (NaN) when the phase error is still above settle_threshold at the end.
 - INFEASIBLE (all outputs NaN): I_B < m a^2 (relative slack 1e-9), M <= 2 m (M includes both
-  pendulums; the mass matrix needs M I_B > 2 m^2 a^2), l3 >= l4 when both are given, A1 != 0
-  without l3, l4, or a platform parameter pair not given.
+  pendulums), M I_B <= 2 m^2 a^2 (1 + RESONANCE_RTOL) (the mass matrix), l3 >= l4 when both are
+  given, A1 != 0 without l3, l4, or a platform parameter pair not given.
 
 Status of a point: the most severe problem among the outputs asked for, in the order
-INFEASIBLE > NONFINITE > STEP_UNDERFLOW > MAX_STEPS > SINGULAR > NOT_REPRODUCIBLE > NOT_BALANCEABLE >
+INFEASIBLE > NONFINITE > STEP_UNDERFLOW > MAX_STEPS > ILL_CONDITIONED > SINGULAR > NOT_REPRODUCIBLE > NOT_BALANCEABLE >
 UNDECIDED > NO_EVENT; outputs that could be computed are kept.
 NOT_REPRODUCIBLE: a simulated output (residual_amplitude, phase_error, settling_time, stable_sim,
 the histories) moved by more than reproducibility_factor (rtol |value| + atol) when the trajectory
@@ -169,11 +195,28 @@ NP = 12
 
 IB_SLACK = 1e-9  # relative round-off allowed in I_B >= m a^2 (a point-mass pendulum is legal)
 
+# Resonance tolerance: c_j - M Omega^2 is known only to a few ulps of its terms (c_j = M omega_j^2 and
+# M Omega^2 are rounded, and an Omega typed or computed to equal omega_j is itself rounded), so a
+# detuning |c_j - M Omega^2| <= RESONANCE_RTOL max(c_j, M Omega^2) is a resonance: 16 ulps, which covers
+# every way of building Omega = omega_j (or omega_p) tried in tests/test_autobalancer_resonance.py and
+# one ulp of Omega either side. The same relative tolerance (halved: omega ~ sqrt(c)) places Omega on a
+# frequency boundary of stable_first_approx, and bounds the mass-matrix gap of classify.
+EPS = 2.0 ** -52
+RESONANCE_RTOL = 16.0 * EPS
+# Closer than this (relative to the terms) the detuning is recomputed from exact products, so that a
+# P_approx given near a resonance is right to a few ulps of its own size, not of the terms'.
+NEAR_RESONANCE = 1e-6
+# The accelerations' relative error is MASS_ERROR u / gap, gap = 1 - 2 m^2 a^2 / (M I_B) the relative
+# distance of the mass matrix from singular (pendulums aligned or opposite): measured 2.2-2.4 u / gap
+# against 50-digit values at gaps 1e-4 .. 1e-14 (tests/test_autobalancer_resonance.py); 4 bounds it.
+MASS_ERROR = 4.0
+UNIT_ROUNDOFF = 2.0 ** -53
+
 # Status severity (most severe first): what a point shows when several problems occur.
 # NOT_REPRODUCIBLE ranks above the statuses that leave an output NaN with a reason: it warns
 # about a value that is stored and would otherwise look trustworthy.
-STATUS_ORDER = (st.INFEASIBLE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.SINGULAR, st.NOT_REPRODUCIBLE,
-                st.NOT_BALANCEABLE, st.UNDECIDED, st.NO_EVENT)
+STATUS_ORDER = (st.INFEASIBLE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.ILL_CONDITIONED, st.SINGULAR,
+                st.NOT_REPRODUCIBLE, st.NOT_BALANCEABLE, st.UNDECIDED, st.NO_EVENT)
 
 
 # ----------------------------------------------------------------------------- kinematics
@@ -551,10 +594,12 @@ OUTPUTS = (
 STATUSES = (st.INFEASIBLE, st.SINGULAR, st.NOT_BALANCEABLE, st.UNDECIDED, st.NOT_REPRODUCIBLE,
             *st.INTEGRATION_FAILURES)
 STATUS_NOTES = {
-    st.INFEASIBLE: "I_B < m a^2, M <= 2 m, l3 >= l4, A1 != 0 without l3 and l4, or a platform parameter "
-                   "pair not given (all outputs NaN)",
-    st.SINGULAR: "an undamped resonance of the platform (c_j = M Omega^2, b_j = 0): P_approx is NaN, "
-                 "Floquet is still computed",
+    st.INFEASIBLE: "I_B < m a^2, M <= 2 m, M I_B within 16 ulps of 2 m^2 a^2 or below (a singular mass matrix), "
+                   "l3 >= l4, A1 != 0 without l3 and l4, or a platform parameter pair not given (all outputs NaN)",
+    st.SINGULAR: "an undamped resonance of the platform (c_j = M Omega^2 to 16 ulps of its terms, b_j Omega "
+                 "within the same): P_approx and stable_damped_approx are NaN, Floquet is still computed",
+    st.ILL_CONDITIONED: "the mass matrix is so close to singular (M I_B near 2 m^2 a^2) that the accelerations' "
+                        "round-off exceeds rtol: the integrated outputs are NaN, the closed forms are kept",
     st.NOT_BALANCEABLE: "no isolated balanced state (A0 > 2 m a, A0 = 0, A0 = 2 m a, A1 != 0): balanced-state "
                         "outputs are NaN, residuals are kept",
     st.NO_EVENT: "the pendulums did not settle within the simulation (settling_time)",
@@ -605,22 +650,36 @@ def _eta(p):
 
 
 def classify(p):
-    """INFEASIBLE outside the physical domain: I_B < m a^2 (relative slack IB_SLACK), M <= 2 m (the
-    mass matrix needs M I_B > 2 m^2 a^2), a platform pair not given, l3 >= l4, A1 != 0 without l3, l4."""
+    """INFEASIBLE outside the physical domain: I_B < m a^2 (relative slack IB_SLACK), M <= 2 m, or
+    M I_B within RESONANCE_RTOL of 2 m^2 a^2 or below (the mass matrix is then singular or indefinite
+    where the pendulums are aligned or opposite), a platform pair not given, l3 >= l4, A1 != 0
+    without l3, l4."""
     M, m, a, IB, A1, l3, l4 = p[I_M], p[I_m], p[I_a], p[I_IB], p[I_A1], p[I_l3], p[I_l4]
     wx, cx, bx = _xi(p)
     wy, cy, by = _eta(p)
     lengths = not math.isnan(l3) and not math.isnan(l4)
     ok = IB >= m * a * a * (1.0 - IB_SLACK) and M > 2.0 * m
+    ok = ok and _mass_gap(M, m, a, IB) > RESONANCE_RTOL
     ok = ok and math.isfinite(wx) and math.isfinite(wy) and math.isfinite(bx) and math.isfinite(by)
     ok = ok and (not lengths or l3 < l4) and (A1 == 0.0 or lengths)
     return st.OK if ok else st.INFEASIBLE
 
 
+@jit
+def _mass_gap(M, m, a, IB):
+    """1 - 2 m^2 a^2 / (M I_B): how far the mass matrix of eq. (1)-(3) is from singular (its smallest
+    eigenvalue is M - 2 m^2 a^2 / I_B, reached with the pendulums aligned or opposite)."""
+    return 1.0 - 2.0 * (m * a) * (m * a) / (M * IB)
+
+
 def prepare(p, rtol):
     """The scaled parameters of the equations of motion (module docstring) into p[OFF:OFF + NP],
-    with the reference angles Theta_1,2: eq. (8) when A0 <= 2 m a, else pi for both."""
+    with the reference angles Theta_1,2: eq. (8) when A0 <= 2 m a, else pi for both.
+    ILL_CONDITIONED (no integration; the closed forms are kept) where the mass matrix is so close to
+    singular that the accelerations' round-off, MASS_ERROR u / gap, exceeds rtol."""
     Om, M, m, a, IB, A0, h = p[I_Omega], p[I_M], p[I_m], p[I_a], p[I_IB], p[I_A0], p[I_h]
+    if not MASS_ERROR * UNIT_ROUNDOFF <= rtol * _mass_gap(M, m, a, IB):
+        return st.ILL_CONDITIONED
     _, cx, bx = _xi(p)
     _, cy, by = _eta(p)
     A1, l3, l4 = p[I_A1], p[I_l3], p[I_l4]
@@ -669,44 +728,112 @@ def omega_p(p):
     return math.sqrt(0.5 * (wx * wx + wy * wy))
 
 
+@jit_inline
+def _on_boundary(Om, w):
+    """Omega within rounding of the frequency w (RESONANCE_RTOL on squares, half of it on frequencies)."""
+    return abs(Om - w) <= 0.5 * RESONANCE_RTOL * max(abs(Om), abs(w))
+
+
 def stable_first_approx(p):
     """The source's rule, corrected [fix]: omega_lo < Omega < omega_p or Omega > omega_hi (the two
-    frequencies sorted: the source assumes omega_xi < omega_eta)."""
+    frequencies sorted: the source assumes omega_xi < omega_eta). Strict: 0 on a boundary, and an
+    Omega within rounding of a boundary (_on_boundary) is on it, so no rounding decides the verdict."""
     wx = _xi(p)[0]
     wy = _eta(p)[0]
     Om = p[I_Omega]
     lo, hi = min(wx, wy), max(wx, wy)
     wp = math.sqrt(0.5 * (wx * wx + wy * wy))
+    if _on_boundary(Om, lo) or _on_boundary(Om, wp) or _on_boundary(Om, hi):
+        return 0.0
     return 1.0 if (lo < Om and Om < wp) or Om > hi else 0.0
+
+
+@jit_inline
+def _two_product(a, b):
+    """(p, e) with p + e = a b exactly (Dekker's product; |a|, |b| below about 1e300)."""
+    p = a * b
+    t = 134217729.0 * a  # 2^27 + 1: Veltkamp's split into 26-bit halves
+    ah = t - (t - a)
+    al = a - ah
+    t = 134217729.0 * b
+    bh = t - (t - b)
+    bl = b - bh
+    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
+
+
+@jit
+def _detuning(om, c, M, Om):
+    """(d, scale) of one platform axis: d = c_j - M Omega^2 (c_j the given stiffness, or M omega_j^2
+    when omega_j is given and c is NaN), scale = max(c_j, M Omega^2). Within NEAR_RESONANCE of a
+    resonance d is recomputed from exact products (the subtraction of the leading parts is then
+    exact), so it is right to a few ulps of d itself; elsewhere the plain formula."""
+    cc = M * om * om if math.isnan(c) else c
+    k = M * Om ** 2
+    d = cc - k
+    scale = max(abs(cc), abs(k))
+    if abs(d) <= NEAR_RESONANCE * scale:
+        s, se = _two_product(Om, Om)
+        k_hi, k_lo = _two_product(M, s)
+        k_lo = k_lo + M * se
+        if math.isnan(c):
+            s, se = _two_product(om, om)
+            c_hi, c_lo = _two_product(M, s)
+            c_lo = c_lo + M * se
+        else:
+            c_hi, c_lo = c, 0.0
+        exact = (c_hi - k_hi) + (c_lo - k_lo)
+        if math.isfinite(exact):
+            d = exact
+    return d, scale
+
+
+@jit
+def _receptance_term(om, c, b, zeta, M, Om):
+    """(Re H_j, a bound on its error, singular) of one platform axis, H_j = 1 / (c_j - M Omega^2 +
+    i b_j Omega). A detuning within RESONANCE_RTOL of the terms is a resonance (d = 0: Re H_j = 0);
+    singular where the damping term b_j Omega is within that tolerance too. The bound: the change of
+    Re H_j when d moves by the tolerance, |dRe H / dd| <= 1 / |D|^2, plus 8 ulps of |H_j| (the
+    formula's and b_j's rounding)."""
+    b = _axis(om, c, b, zeta, M)[2]
+    d, scale = _detuning(om, c, M, Om)
+    tol = RESONANCE_RTOL * scale
+    beta = b * Om
+    if abs(d) <= tol:
+        d = 0.0
+        if beta <= tol:
+            return math.nan, math.nan, True
+    den = d * d + beta ** 2
+    h = d / den
+    return h, tol / den + 8.0 * EPS / math.sqrt(den), not math.isfinite(h)
 
 
 @jit
 def _receptance(p):
-    """P(Omega) = Re(H_xi + H_eta), H_j = 1 / (c_j - M Omega^2 + i b_j Omega) (m/N); infinite at an
-    undamped resonance (the engine's numba options: IEEE division)."""
+    """(P, error bound, singular): P(Omega) = Re(H_xi + H_eta), H_j = 1 / (c_j - M Omega^2 + i b_j
+    Omega) (m/N); singular at an undamped resonance (_receptance_term)."""
     Om, M = p[I_Omega], p[I_M]
-    _, cx, bx = _xi(p)
-    _, cy, by = _eta(p)
+    hx, ex, sx = _receptance_term(p[I_omega_xi], p[I_c_xi], p[I_b_xi], p[I_zeta_xi], M, Om)
+    hy, ey, sy = _receptance_term(p[I_omega_eta], p[I_c_eta], p[I_b_eta], p[I_zeta_eta], M, Om)
     total = 0.0
-    d = cx - M * Om ** 2
-    total = total + d / (d * d + (bx * Om) ** 2)
-    d = cy - M * Om ** 2
-    total = total + d / (d * d + (by * Om) ** 2)
-    return total
+    total = total + hx
+    total = total + hy
+    return total, ex + ey + EPS * abs(total), sx or sy or not math.isfinite(total)
 
 
 def P_approx(p):
-    return _receptance(p)
+    return _receptance(p)[0]
 
 
 def P_classify(p):
-    return st.OK if math.isfinite(_receptance(p)) else st.SINGULAR
+    return st.SINGULAR if _receptance(p)[2] else st.OK
 
 
 def stable_damped_approx(p, P):
+    """1 if P < 0 beyond its error bound (_receptance), else 0: strict, like stable_first_approx, so
+    a P within rounding of 0 (Omega on a boundary of the damped rule) is 0 whatever its sign."""
     if math.isnan(P):
         return math.nan
-    return 1.0 if P < 0.0 else 0.0
+    return 1.0 if P < -_receptance(p)[1] else 0.0
 
 
 # --- dynamics (the scaled equations of motion above; tau = Omega t, lengths in units of a)

@@ -27,17 +27,26 @@ method):
 2. ``axis_*`` / ``*_axis``: the crank counterweight of method 1 turns about O1 = (axis_x, axis_y)
    (gear/chain driven at the crank's speed and direction) instead of O_A; it adds
    Delta M = -S [phi'^2 (y cos psi - x sin psi) + phi'' (x cos psi + y sin psi)], psi = phi + beta1
-   (S = cw1_mr_static, beta1 = cw1_angle_static; physics.md prints it for beta1 = pi). The
-   RMS-optimal axis minimises sum (M_i + Delta M_i)^2: at constant speed (delta = 0) by the
-   source's formula (1), which is exact there (uniform symmetric positions: sum sin psi cos psi
-   = 0), otherwise by the 2x2 normal equations. ``*_h1``: the axis that cancels the first Fourier
-   harmonic (in phi) of the residual moment. With delta = 0 the two coincide (the least-squares
-   first harmonic at uniform positions is the DFT coefficient); with delta != 0 they differ.
-   Force balance and input torque are unchanged by the move (same counterweight motion,
-   translated). R_j = (max|dM_1| - max|dM_j|) / max|dM_1| * 100 % (physics.md section 3).
+   (S = cw1_mr_static, beta1 = cw1_angle_static; physics.md prints it for beta1 = pi), and with
+   gravity its weight W = g S / r_cw1, acting x further along the frame, adds -W x: the same
+   moment M = -dH/dt - g sum m x_G as M_static (the source's formula leaves the weight out). The
+   RMS-optimal axis minimises sum (M_i + Delta M_i)^2: at constant speed without gravity
+   (delta = 0, g = 0) by the source's formula (1), which is exact there (uniform symmetric
+   positions: sum sin psi cos psi = 0), otherwise by the 2x2 normal equations. ``*_h1``: the
+   axis that cancels the first Fourier harmonic (in phi) of the residual moment (with gravity
+   its residual includes -W x_h1 too). With delta = 0 and g = 0 the two coincide (the
+   least-squares first harmonic at uniform positions is the DFT coefficient); with delta != 0 they
+   differ, and with g != 0 the RMS-optimal x also uses -W x against the moment's mean. Force
+   balance and input torque are unchanged by the move (same counterweight motion, translated:
+   its velocity and the rate of its potential energy do not change). Every output of the method
+   equals the moment of the counterweight placed on the reported axis
+   (tests/test_linkage_physical.py). R_j = (max|dM_1| - max|dM_j|) / max|dM_1| * 100 %
+   (physics.md section 3).
 3. (slider-crank: model ``slidercrank_balancing``)
 4. ``*_inertia``: after method 1, an inertia J_rocker turning with the rocker, J minimising the
-   RMS of M_static - J phi3''; J < 0 means a counter-rotating 1:-1 gear pair of inertia |J|.
+   RMS of M_static - J phi3''; J < 0 means a counter-rotating 1:-1 gear pair of inertia |J|. The
+   inertia is taken massless (a flywheel's own weight on the rocker axis would add the constant
+   -m g a4 to the moment with gravity, and its mass the weight to Fy).
    Exact (to round-off) only when the force-balanced linkage's angular momentum has no coupler
    term (e.g. an inline coupler with I2 + m2 r2^2 = m2 r2 a2) and the crank speed is constant.
 5. the unsuffixed outputs (``Fx_range`` .. ``T_rms``): the mechanism as given, with the
@@ -329,6 +338,9 @@ def fourbar_design(p, want, row, crv, slot, buf, cos_phi, sin_phi, sums, unit):
     if need_axis or need_h1:
         cb = C1x / S if S > 0.0 else 1.0  # cos(beta), sin(beta)
         sb = C1y / S if S > 0.0 else 0.0
+        # the counterweight's weight m_cw g (its mass S / r_cw1, as fourbar_links): moving its axis by
+        # x moves its weight's moment about O_A by -W x, part of M_static's gravity term
+        W = g * S / r_cw1
         W1 = buf[R_W1]
         AL1 = buf[R_AL1]
         for method in range(2):
@@ -341,9 +353,9 @@ def fourbar_design(p, want, row, crv, slot, buf, cos_phi, sin_phi, sums, unit):
                     continue
                 kx, ky, krms, kmax, kr, cslot = K_H1X, K_H1Y, K_DMRMS_H1, K_DMMAX_H1, K_R_H1, slot[C_DM_H1]
             dM = buf[B_DM] if cslot < 0 else crv[cslot]
-            if method == 0 and delta == 0.0:
-                # constant speed, symmetric uniform positions: sum sin(psi) cos(psi) = 0, so the
-                # source's formula (1) is the exact solution of the normal equations (and cheaper)
+            if method == 0 and delta == 0.0 and g == 0.0:
+                # constant speed, no gravity, symmetric uniform positions: sum sin(psi) cos(psi) = 0,
+                # so the source's formula (1) is the exact solution of the normal equations (and cheaper)
                 if S == 0.0:
                     x, y = 0.0, 0.0
                 else:
@@ -351,10 +363,10 @@ def fourbar_design(p, want, row, crv, slot, buf, cos_phi, sin_phi, sums, unit):
                                               S, omega, cb, sb)
                 rms, mx = axis_residual_const(cos_phi, sin_phi, Ms, S * omega * omega, cb, sb, x, y, dM)
             else:
-                ok, x, y = axis_fit(cos_phi, sin_phi, W1, AL1, Ms, unit, S, cb, sb, method == 1)
+                ok, x, y = axis_fit(cos_phi, sin_phi, W1, AL1, Ms, unit, S, cb, sb, method == 1, W)
                 if not ok:
                     return st.SINGULAR
-                rms, mx = axis_residual(cos_phi, sin_phi, W1, AL1, Ms, S, cb, sb, x, y, dM)
+                rms, mx = axis_residual(cos_phi, sin_phi, W1, AL1, Ms, S, cb, sb, x, y, dM, W)
             row[kx] = x
             row[ky] = y
             row[krms] = rms

@@ -351,13 +351,13 @@ def exact_refine(p, rtol, T):
     diverges logarithmically and, as for the Duffing separatrix, errors are amplified:
     - released near the top (A > pi / 2): integrated in theta = pi - phi, theta(0) = (pi - A)
       formed to twice double precision, so that the tolerance is relative to the distance from the
-      top (in phi / A the error grew as pi - A shrank: 4e5 rtol at pi - A = 1e-8, measured);
+      top (in phi / A the error grows without bound as pi - A shrinks);
       what is left is the sensitivity to A itself, d ln T / d ln A = 4 A / (lambda_pi (pi - A) T);
     - swinging over the hump at 0 with a small energy excess dE = V(A) - V(0): the energy error of
       the integration (of order rtol V(A)) is amplified by at most V(A) |d T / d E| / T, which is
       2 V(A) / (lambda_0 T dE) for dE -> 0, so the tolerance is tightened by that bound
-      and a second pass is run (untightened: 5e4 rtol at A / A* - 1 = 1e-8; tightened: within
-      0.33 rtol from 1e-1 to 1e-8, measured against quadrature); where the tightened
+      and a second pass is run (within rtol of 30-digit quadrature from A / A* - 1 = 1e-1 to 1e-8,
+      tests/test_torsional_circuit.py); where the tightened
       tolerance would be below RTOL_FLOOR, or the inputs' round-off alone moves T by more than rtol
       (condition number with respect to A, lambda1, lambda2, s0_over_r times round-off), the point is
       ILL_CONDITIONED.
