@@ -719,16 +719,37 @@ RUN_ATTRS = ("scene_canonical", "model", "outputs")  # every dataset `mechsweep 
 
 
 def open_dataset(path: str | Path, *, allow_partial: bool = False, lazy: bool | None = False) -> xr.Dataset:
-    """Open a mechsweep dataset.
+    """Open a dataset mechsweep wrote (``mechsweep run``, :func:`mechsweep.run`).
 
-    ``lazy=False`` loads it into memory (the file is closed again); ``lazy=True`` reads values
-    only when they are used (as dask arrays, one per storage chunk, when dask is installed);
-    ``lazy=None`` loads datasets up to LOAD_LIMIT_BYTES and opens larger ones lazily.
-    ``allow_partial`` opens an unfinished run (its missing chunks NaN, status pending) when the
-    finished file does not exist yet; that view is always loaded.
+    Reading needs neither numba nor the models' kernels: it works wherever xarray and h5netcdf do.
+    ``xarray.open_dataset(path, engine="h5netcdf")`` reads the same file; this function also
+    checks that it is a mechsweep dataset and can open an unfinished run.
 
-    Anything that is not a dataset mechsweep wrote (a folder, a device, an empty, text or damaged
-    file, an HDF5 or netCDF file from elsewhere) raises StoreError saying what the file is not.
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The dataset's file.
+    allow_partial : bool, optional
+        Open an unfinished run (its missing chunks NaN, status ``pending``) when the finished file
+        does not exist yet; that view is always loaded.
+    lazy : bool or None, optional
+        False (default): load it into memory (the file is closed again). True: read values only
+        when they are used (as dask arrays, one per storage chunk, when dask is installed). None:
+        load datasets up to ``LOAD_LIMIT_BYTES`` and open larger ones lazily.
+
+    Returns
+    -------
+    xarray.Dataset
+        The grid's dimensions and coordinates, the outputs, ``status`` (and ``n_steps``,
+        ``n_rhs``), and the attributes the run wrote (the scene, solver settings, provenance).
+
+    Raises
+    ------
+    FileNotFoundError
+        No file at ``path`` (the message says when an unfinished run is there instead).
+    StoreError
+        The file is not a dataset mechsweep wrote (a folder, a device, an empty, text or damaged
+        file, an HDF5 or netCDF file from elsewhere): the message says what it is not.
     """
     if "\0" in str(path):
         raise StoreError(f"dataset path {str(path)!r} contains a NUL character")

@@ -140,7 +140,29 @@ class Crossing:
     Cost: one integration to the n-th crossing, 2 n - 1 event searches (crossings in the other
     direction separate consecutive ones, so a search never restarts on the root it just found).
     ``max_steps`` bounds each search. Accuracy: the root of the 7th-order dense output, to a few
-    ulp of t; the time itself carries the integration error (rtol/atol)."""
+    ulp of t; the time itself carries the integration error (rtol/atol).
+
+    Parameters
+    ----------
+    name : str
+        The output's name.
+    state : str
+        The state whose crossing is timed.
+    level : float, optional
+        The level crossed (default 0).
+    direction : {"down", "up"}, optional
+        "down": from above to at-or-below the level; "up": the reverse.
+    n : int, optional
+        The n-th such crossing (default the first).
+    t_max : float, optional
+        The crossing must happen at or before this time (else NO_EVENT).
+    unit : str, optional
+        UDUNITS-2 unit of the output.
+    long_name : str, optional
+        What the output is, in words (default: made from the declaration).
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    """
 
     name: str
     state: str
@@ -201,7 +223,27 @@ class Period:
 
     Status: NO_EVENT when the second crossing does not happen before ``t_max`` (no oscillation
     about ``level``, or a horizon shorter than about two periods); integration failures as reported.
-    Cost: integration over one to two periods, three event searches."""
+    Cost: integration over one to two periods, three event searches.
+
+    Parameters
+    ----------
+    name : str
+        The output's name.
+    state : str
+        The state whose crossings are timed.
+    level : float, optional
+        The level crossed (default 0).
+    direction : {"down", "up"}, optional
+        The direction of the two crossings.
+    t_max : float, optional
+        The second crossing must happen at or before this time (else NO_EVENT).
+    unit : str, optional
+        UDUNITS-2 unit of the output.
+    long_name : str, optional
+        What the output is, in words (default: made from the declaration).
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    """
 
     name: str
     state: str
@@ -248,7 +290,23 @@ class StateAt:
     """The value of a state at time ``t`` (integrated from 0 to exactly ``t``, last step clipped).
 
     Status: integration failures as reported (MAX_STEPS, STEP_UNDERFLOW, NONFINITE).
-    Cost: one integration over [0, t]."""
+    Cost: one integration over [0, t].
+
+    Parameters
+    ----------
+    name : str
+        The output's name.
+    state : str
+        The state whose value is taken.
+    t : float
+        The time (a number, the same for every point).
+    unit : str, optional
+        UDUNITS-2 unit of the output.
+    long_name : str, optional
+        What the output is, in words (default: made from the declaration).
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    """
 
     name: str
     state: str
@@ -303,7 +361,25 @@ class Extremum:
     Status: integration failures as reported; INFEASIBLE for a window that is not one.
     Cost: one integration over [0, t1] plus event searches that alternate between maxima and
     minima; every evaluation of the event costs one rhs evaluation (and 2 of the expression),
-    which n_rhs does not count."""
+    which n_rhs does not count.
+
+    Parameters
+    ----------
+    name : str
+        The output's name.
+    state : str or callable
+        A state's name, or an expression ``f(t, y, p) -> float``.
+    t0, t1 : float or callable
+        The window: numbers, or functions ``t0(p)``, ``t1(p)``.
+    kind : {"max", "min"}, optional
+        The largest or the smallest value over the window.
+    unit : str, optional
+        UDUNITS-2 unit of the output.
+    long_name : str, optional
+        What the output is, in words (default: made from the declaration).
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    """
 
     name: str
     state: object  # a state's name, or a function f(t, y, p) -> float
@@ -442,7 +518,31 @@ class Floquet(_Outputs):
     2 n*n + 1 calls per Jacobian, counted in n_rhs). The engine then integrates only the n*n
     equations from Phi(0) = I (no state, no J Phi product of its own; ``initial`` is not called,
     though the work-precision reference still uses it); n_rhs counts calls of ``variational``.
-    Everything else (margin, kind, angle, statuses, methods) is as above."""
+    Everything else (margin, kind, angle, statuses, methods) is as above.
+
+    Parameters
+    ----------
+    name : str
+        The output of the largest multiplier modulus (``name_stable``, ``name_kind`` and
+        ``name_angle`` come with it).
+    unit : str, optional
+        Unit of the modulus (default ``"1"``).
+    long_name : str, optional
+        What the output is, in words.
+    initial : callable, optional
+        ``initial(p, y0)``: where the linearised motion starts, when not the model's ``initial``.
+    stable_name, kind_name : str, optional
+        Other names for the verdict and kind outputs.
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    output_meta : Mapping, optional
+        Output name -> dict of ``symbol``/``long_name``/``unit`` for the derived outputs.
+    variational : callable, optional
+        ``variational(t, Phi, p, dPhi)``: the variational system about a known orbit, integrated
+        instead of the model linearised along its own motion.
+    variational_jac : callable, optional
+        ``variational_jac(t, Phi, p, J)``: its Jacobian, for radau.
+    """
 
     name: str
     unit: str = "1"
@@ -771,6 +871,37 @@ class FirstEvent:
       ``rtol / factor``, ``atol / factor`` with what is left of ``max_steps`` (none left: MAX_STEPS),
       and that pass's value (or status) is the result; not a finite number (e.g. ``math.inf``):
       ILL_CONDITIONED (no tolerance can give ``rtol`` here). Both passes count in n_steps/n_rhs.
+
+    Parameters
+    ----------
+    name : str
+        The output's name.
+    event : callable
+        ``event(t, y, p) -> float``: the function whose root (from > 0 to <= 0) is found.
+    t_max : float or callable, optional
+        The root must come at or before this time (a number, or ``t_max(p)``), else NO_EVENT.
+    value : callable, optional
+        ``value(p, t) -> float``: the output from the root's time (default: the time itself).
+    symbol : str, optional
+        How the output is written in formulas.
+    unit : str, optional
+        UDUNITS-2 unit of the output.
+    long_name : str, optional
+        What the output is, in words (default: made from the declaration).
+    system : System, optional
+        Another equation integrated for this measurement instead of the model's.
+    refine : callable, optional
+        ``refine(p, rtol) -> factor``: integrate again at rtol / factor where the first pass says so.
+    needs_params : tuple of str, optional
+        Optional parameters the output requires.
+    n : int, optional
+        The n-th root instead of the first.
+    direction : {"down", "up"}, optional
+        "up": the roots where the event goes from < 0 to >= 0.
+    since : int, optional
+        The time from root ``since`` to root ``n`` instead of from t = 0.
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
     """
 
     name: str
@@ -854,6 +985,29 @@ class ClosedForm:
     closed forms of a model whose two-term approximation is past its separatrix): non-OK, the
     output is NaN and, when the closed form is computed, the point gets that status (the first
     failure in the kernel's order: classify, these closed forms, the measurements).
+
+    Parameters
+    ----------
+    name : str
+        The output's name.
+    func : callable
+        The formula: ``func(p)``, or ``func(p, *needs)`` of the outputs it needs.
+    symbol : str, optional
+        How the output is written in formulas.
+    unit : str, optional
+        UDUNITS-2 unit of the output.
+    long_name : str, optional
+        What the output is, in words (default: made from the declaration).
+    needs : tuple of str, optional
+        Outputs the formula takes as arguments, after ``p``.
+    output_needs : tuple of str, optional
+        The outputs it is derived from for the scene's purposes (default: ``needs``).
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    needs_params : tuple of str, optional
+        Optional parameters it requires.
+    kind : str, optional
+        What the value means for the generic figures (see :class:`Output`).
     """
 
     name: str
@@ -1334,7 +1488,33 @@ class Steady(_Outputs):
     point is NO_EVENT (the transient has not died out within the horizon) and the outputs NaN.
     Status: integration failures as reported; NONFINITE for a non-finite sample.
     Cost: one integration over the horizon (shared with the other sampled measurements) plus one
-    dense-output evaluation (3 rhs calls) per step that contains a sample."""
+    dense-output evaluation (3 rhs calls) per step that contains a sample.
+
+    Parameters
+    ----------
+    name : str
+        The output of the peak (``name_h1`` and ``name_phase`` come with it).
+    of : str or callable
+        A state's name, or ``f(t, y, p) -> float``.
+    horizon : float, optional
+        Forcing periods simulated.
+    window : float, optional
+        The fraction of the horizon at its end that is measured, in (0, 0.5].
+    samples_per_period : int, optional
+        Samples per forcing period in the window.
+    settle_rtol, settle_atol : float, optional
+        The settling test between the last two windows' peaks (``settle_rtol=None``: no test).
+    unit : str, optional
+        UDUNITS-2 unit of the output.
+    long_name : str, optional
+        What the output is, in words (default: made from the declaration).
+    value : callable, optional
+        ``value(p, x) -> float``: the stored peak and amplitude from the measured ones.
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    output_meta : Mapping, optional
+        Output name -> dict of ``symbol``/``long_name``/``unit`` for the derived outputs.
+    """
 
     name: str
     of: object
@@ -1444,7 +1624,37 @@ class Kick(_Outputs):
     t, per point (e.g. ``t / p[k]`` for a model integrated in a scaled time tau = Omega t), applied
     to a finite settling time only.
     Status: integration failures as reported; NONFINITE for a non-finite error or response sample.
-    Cost: one integration over the horizon (shared), one dense output per step with a sample."""
+    Cost: one integration over the horizon (shared), one dense output per step with a sample.
+
+    Parameters
+    ----------
+    name : str
+        The verdict's output (``name_settling`` and ``name_final`` come with it).
+    error : callable
+        ``error(t, y, p) >= 0``: the distance from the reference motion.
+    response : callable, optional
+        A second quantity that must decay too.
+    horizon : float, optional
+        Forcing periods simulated.
+    settle_threshold, decay_ratio, growth_ratio : float, optional
+        The verdict's thresholds (see above).
+    monitor_per_period, dense_per_period : int, optional
+        Samples per period over the whole horizon and in its last part.
+    late, early : float, optional
+        The fractions of the horizon compared at its end and start.
+    growth_floor : float, optional
+        Below this error the end is not read as growing.
+    unit : str, optional
+        Unit of ``name_final``.
+    time_unit : str, optional
+        Unit of ``name_settling`` (default ``"s"``).
+    time_value : callable, optional
+        ``time_value(p, t) -> float``: the stored settling time from the integration's time.
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    output_meta : Mapping, optional
+        Output name -> dict of ``symbol``/``long_name``/``unit`` for the derived outputs.
+    """
 
     name: str
     error: Callable = field(repr=False, compare=False)
@@ -1553,7 +1763,33 @@ class History(_Outputs):
     (coordinate: the instants in forcing periods; every History of a model with the same ``dim``
     must use the same horizon and samples). ``value(p, x) -> float`` (optional): each stored sample
     from the observed one, per point (applied to finite samples). Status: integration failures as
-    reported; NONFINITE for a non-finite sample. Cost: shared integration, one dense output per step with a sample."""
+    reported; NONFINITE for a non-finite sample. Cost: shared integration, one dense output per step with a sample.
+
+    Parameters
+    ----------
+    name : str
+        The output's name.
+    of : str or callable
+        A state's name, or ``f(t, y, p) -> float``.
+    horizon : float, optional
+        Forcing periods simulated.
+    samples : int, optional
+        Instants stored, evenly spread over [0, horizon] periods.
+    dim : str, optional
+        The extra dimension's name (Histories sharing one share horizon and samples).
+    dim_long_name : str, optional
+        Its coordinate's long name.
+    unit : str, optional
+        UDUNITS-2 unit of the output.
+    long_name : str, optional
+        What the output is, in words (default: made from the declaration).
+    value : callable, optional
+        ``value(p, x) -> float`` per stored sample.
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    output_meta : Mapping, optional
+        Output name -> dict of ``symbol``/``long_name``/``unit`` for the derived outputs.
+    """
 
     name: str
     of: object
