@@ -16,7 +16,12 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Param:
-    """A model parameter: a float in [lo, hi] (ends open or closed) or one of ``choices``."""
+    """A model parameter: a float in [lo, hi] (ends open or closed) or one of ``choices``.
+
+    ``symbol`` is plain text (messages, the glossary); ``latex`` the same symbol in matplotlib
+    mathtext for figure labels (e.g. ``r"$\\omega_\\xi$"``; it may define the symbol, as in
+    ``r"$\\varepsilon = \\mu A^2/\\omega^2$"``). Without one, figures write ``symbol`` as mathtext
+    themselves."""
 
     name: str
     symbol: str
@@ -29,6 +34,7 @@ class Param:
     choices: tuple[str, ...] = ()
     required: bool = True
     default: float | None = None  # value used internally when an optional parameter is absent
+    latex: str = ""  # the symbol in mathtext, for figures (stored as the variable's ``latex`` attribute)
 
     @property
     def categorical(self) -> bool:
@@ -104,7 +110,7 @@ class Output:
     """A model output. ``needs`` lists outputs it is derived from (computed, not stored,
     unless requested); ``needs_params`` lists optional parameters it requires;
     ``extra_dims`` the dimensions it has beyond the grid's; ``kind`` (one of OUTPUT_KINDS, or "")
-    tells generic figures what the value means."""
+    tells generic figures what the value means; ``latex``: the symbol in mathtext (see Param)."""
 
     name: str
     symbol: str
@@ -115,6 +121,7 @@ class Output:
     needs_params: tuple[str, ...] = ()
     extra_dims: tuple[ExtraDim, ...] = ()
     kind: str = ""  # what the value is, for generic figures: OUTPUT_KINDS names the known ones
+    latex: str = ""  # the symbol in mathtext, for figures (as Param.latex)
 
     def __post_init__(self):
         if self.kind not in ("",) + OUTPUT_KINDS:  # a misspelt kind would silently draw the wrong figure
