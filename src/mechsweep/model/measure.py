@@ -479,7 +479,7 @@ class Floquet(_Outputs):
     def output(self) -> Output:
         return self._output("", "max |λ|", self.unit,
                             self.long_name or "largest modulus of the Floquet multipliers over one forcing period",
-                            integrated=True, kind="floquet_max")
+                            latex=r"$\max|\lambda|$", integrated=True, kind="floquet_max")
 
     def outputs(self) -> tuple[Output, ...]:
         return (self.output(),
