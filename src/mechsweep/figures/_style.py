@@ -180,7 +180,7 @@ def name_text(da) -> str:
     return short_symbol(da) or mathtext(da.name) or str(da.name)
 
 
-_SUBSCRIPTED = re.compile(r"(?<![\w$\\])([A-Za-z])_([A-Za-z0-9]{1,3}|[α-ωΑ-Ω])(?![\w])")
+_SUBSCRIPTED = re.compile(r"(?<![\w$\\])([A-Za-zα-ωΑ-Ω])_([A-Za-z0-9]{1,3}|[α-ωΑ-Ω])(?![\w])")
 
 
 def prose(text: str) -> str:
@@ -188,6 +188,7 @@ def prose(text: str) -> str:
     short subscript (``O_A``, ``m_k``, ``b_xi``) as mathtext, so that no underscore is printed."""
     def sub(m):
         base, low = m.groups()
+        base = "\\" + _UNICODE_GREEK[base] if base in _UNICODE_GREEK else base
         low = "\\" + _UNICODE_GREEK[low] if low in _UNICODE_GREEK else ("\\" + low if low in GREEK else low)
         return f"${base}_{{{low}}}$"
 

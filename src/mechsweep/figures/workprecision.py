@@ -200,7 +200,7 @@ def _positions(ds, *, fig=None, ax=None):
                      f"crank positions per cycle N = {N.min()} to {N.max()}, 1 thread", fontsize=10)
         notes = [f"hollow marker: the fewest positions, N = {N.min()}; each next marker more, up to N = {N.max()}. "
                  f"Reference: {_named(ds, str(ds.attrs['reference']))}; {ds.attrs['points']} points of "
-                 f"{code(ds.attrs['scene'])}"] + _exact_maxima(ds, N)
+                 f"{code(ds.attrs['scene'])}."] + _exact_maxima(ds, N)
         fig.supxlabel(wrap(" ".join(notes), int(width_inches(fig) * 15)), fontsize=7.5, color="0.25")
     return art
 

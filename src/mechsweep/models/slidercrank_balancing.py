@@ -113,7 +113,8 @@ CURVES = {
     "Fx_phi": ("Fx", "N", f"shaking force along the stroke, exact, {_K}"),
     "Fy_phi": ("Fy", "N", f"shaking force across the stroke, exact, {_K}"),
     "Fx_tb_phi": ("Fx_tb", "N", "textbook residual along the stroke (1 − k) m_B r ω² cos φ + λ m_B r ω² cos 2φ"),
-    "Fy_tb_phi": ("Fy_tb", "N", "textbook residual across the stroke −k m_B r ω² sin φ (− g m_total)"),
+    "Fy_tb_phi": ("Fy_tb", "N", "textbook residual across the stroke −k m_B r ω² sin φ (with gravity, less g times "
+                                "the total mass)"),
     "M_phi": ("M", "N m", f"shaking moment about the crank axis, {_K}"),
     "T_phi": ("T", "N m", f"input torque, {_K}"),
 }
