@@ -201,6 +201,7 @@ def code(text) -> str:
     name's own characters (``vibrating_pendulum_stability``, ``sweeps/quickstart.toml``), never a
     subscript; plain when matplotlib cannot parse it."""
     body = re.sub(r"([_%#&{}$])", r"\\\1", str(text)).replace(" ", r"\ ")
+    body = re.sub(r"([-.,:;])", r"\\text{\1}", body)  # as text: in math, '-' is a minus and '.' punctuation
     out = r"$\mathtt{" + body + "}$"
     return out if _parses(out) else str(text)
 
