@@ -33,7 +33,10 @@ def _named(ds, text: str) -> str:
 
     def sub(m):
         word = m.group(0)
-        if word in syms:
+        # a plain word is a variable only inside a formula (next to |, -, +, /, *, =): "period" is a word in
+        # "period (elliptic closed form)", the output in "|period - period_exact|"
+        near = (text[:m.start()].rstrip()[-1:] + text[m.end():].lstrip()[:1])
+        if word in syms and ("_" in word or any(c in "|-+/*=" for c in near)):
             return syms[word]
         return code(word) if "_" in word else word
 
@@ -123,8 +126,8 @@ def workprecision(ds, *, fig=None, ax=None):
     if drift:
         art.update(_energy_drift(axes[0, 1], ds))
     if owns(fig):
-        fig.suptitle(f"Work and precision of each method, model {_model_text(ds)}: error against run time per point, "
-                     f"rtol {rtol.max():.0e} to {rtol.min():.0e}", fontsize=10)
+        fig.suptitle(wrap(f"Work and precision of each method, model {_model_text(ds)}: error against run time per "
+                          f"point, rtol {rtol.max():.0e} to {rtol.min():.0e}", int(width_inches(fig) * 12)), fontsize=10)
         fig.supxlabel(wrap(f"hollow marker: the loosest tolerance, rtol = {rtol.max():.0e}; each next marker a tighter "
                            f"one, down to {rtol.min():.0e}. Errors: the largest over the {k} points every method "
                            f"solved, the first {k} of a sample of {ds.attrs['points']} points of {code(ds.attrs['scene'])}; "
@@ -196,8 +199,9 @@ def _positions(ds, *, fig=None, ax=None):
     art["legend"] = left.legend(fontsize=6.5, loc="upper left", bbox_to_anchor=(0.0, -0.2), ncol=2)
     art["legend_right"] = right.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.2))
     if owns(fig):
-        fig.suptitle(f"Work and precision of the model {_model_text(ds)}: error against run time and against the "
-                     f"crank positions per cycle N = {N.min()} to {N.max()}, 1 thread", fontsize=10)
+        fig.suptitle(wrap(f"Work and precision of the model {_model_text(ds)}: error against run time and against "
+                          f"the crank positions per cycle N = {N.min()} to {N.max()}, 1 thread",
+                          int(width_inches(fig) * 12)), fontsize=10)
         notes = [f"hollow marker: the fewest positions, N = {N.min()}; each next marker more, up to N = {N.max()}. "
                  f"Reference: {_named(ds, str(ds.attrs['reference']))}; {ds.attrs['points']} points of "
                  f"{code(ds.attrs['scene'])}."] + _exact_maxima(ds, N)
