@@ -44,24 +44,29 @@ def _family_colors(n):
 
 
 def _limits_text(lam, bad, x_name, located_at=()):
-    """Where a curve has no feasible point, as an engineer reads it off: '$\\lambda_2$ < 0.3455' (the
-    located limit when one was located nearby, else the grid's midpoint, marked ≈)."""
-    parts = []
+    """Where a curve has no feasible point, as an engineer reads it off: '$\\lambda_2$ < 0.3455', the
+    located limit when one was located nearby, else the midpoint between grid points (then said:
+    'to the grid's spacing')."""
+    parts, gridded = [], False
     for i0, i1 in _runs(bad):
         def edge(i_bad, i_ok):
+            nonlocal gridded
             mid = 0.5 * (lam[i_bad] + lam[i_ok])
             near = [v for v in located_at if abs(v - mid) <= abs(lam[i_ok] - lam[i_bad])]
-            return f"{near[0]:.4g}" if near else f"≈ {mid:.3g}"
+            gridded |= not near
+            return near[0] if near else mid
 
         if i0 == 0 and i1 == lam.size:
             parts.append("everywhere")
         elif i0 == 0:
-            parts.append(f"{x_name} < {edge(i1 - 1, i1)}")
+            limit = edge(i1 - 1, i1)
+            tiny = 0 <= limit < 1e-3 * (lam.max() - lam.min())
+            parts.append(f"{x_name} ≈ 0 (below {limit:.4g})" if tiny else f"{x_name} < {limit:.4g}")
         elif i1 == lam.size:
-            parts.append(f"{x_name} > {edge(i0, i0 - 1)}")
+            parts.append(f"{x_name} > {edge(i0, i0 - 1):.4g}")
         else:
-            parts.append(f"{edge(i0, i0 - 1)} < {x_name} < {edge(i1 - 1, i1)}")
-    return ", ".join(parts)
+            parts.append(f"{edge(i0, i0 - 1):.4g} < {x_name} < {edge(i1 - 1, i1):.4g}")
+    return ", ".join(parts) + (" (to the grid's spacing)" if gridded and parts != ["everywhere"] else "")
 
 
 def coefficients(ds, boundaries=None, *, fig=None, ax=None):
