@@ -506,7 +506,7 @@ def _define(f: "NetCDFWriter | _MemoryFile", scene: Scene, lay: Layout, attrs: d
             for lo in range(0, axis.size, READ_BLOCK):
                 hi = min(axis.size, lo + READ_BLOCK)
                 v[lo:hi] = axis.array(lo, hi)
-        _describe(v, prm.unit, prm.long_name, prm.symbol)
+        _describe(v, prm.unit, prm.long_name, prm.symbol, prm.latex)
         v.attrs["spacing"] = axis.spacing
         if axis.spacing == "log":  # CF has no attribute for it: say it to a reader (docs: datasets)
             v.attrs["comment"] = cf.LOG_AXIS_COMMENT
@@ -518,7 +518,7 @@ def _define(f: "NetCDFWriter | _MemoryFile", scene: Scene, lay: Layout, attrs: d
         else:
             v = f.create_variable(name, (), dtype="f8")
             v[()] = value
-        _describe(v, prm.unit, prm.long_name, prm.symbol)
+        _describe(v, prm.unit, prm.long_name, prm.symbol, prm.latex)
     for dims in lay.extra.values():
         for dim, values in dims:
             if dim.name not in f.dimensions:
@@ -533,7 +533,7 @@ def _define(f: "NetCDFWriter | _MemoryFile", scene: Scene, lay: Layout, attrs: d
         extra = tuple(d.name for d, _ in lay.extra.get(name, ()))
         v = f.create_variable(name, lay.dims + extra, dtype="f8", fillvalue=np.nan,
                               chunks=_storage_chunks(lay.shape + tuple(len(x) for _, x in lay.extra.get(name, ()))))
-        _describe(v, out.unit, out.long_name, out.symbol)
+        _describe(v, out.unit, out.long_name, out.symbol, out.latex)
         if out.integrated:
             v.attrs["integrated"] = 1
         if out.kind:
@@ -706,12 +706,14 @@ def _storage_chunks(shape: tuple[int, ...]):
     return True if shape and all(n > 0 for n in shape) else None
 
 
-def _describe(var, unit: str, long_name: str, symbol: str) -> None:
+def _describe(var, unit: str, long_name: str, symbol: str, latex: str = "") -> None:
     if unit:  # a UDUNITS string; a measurement declared without one gets no units (CF: unknown), never ""
         var.attrs["units"] = unit
     var.attrs["long_name"] = long_name
     if symbol:
         var.attrs["symbol"] = symbol
+    if latex:  # the symbol in matplotlib mathtext: what figures label the variable with
+        var.attrs["latex"] = latex
 
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"

@@ -162,6 +162,14 @@ def _error(values, reference, kind):
     return err / np.abs(reference) if kind == "relative" else err
 
 
+def latex_symbols(spec) -> str:
+    """{name: mathtext symbol} of the model's outputs and parameters that declare one, as JSON: the
+    work-precision figure names the outputs by their symbols (it reads the dataset, not the model)."""
+    import json
+
+    return json.dumps({q.name: q.latex for q in spec.params + spec.outputs if getattr(q, "latex", "")})
+
+
 def main(model: str, scene_path: str | None = None, points: int = 64, scipy_points: int = 6,
          ladder=LADDER, repeats: int = 3, out_dir: str | Path = "data/bench", quiet: bool = False,
          scipy_budget_s: float = 1.0, output: str | None = None):
@@ -260,7 +268,8 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
                "reference": case.reference_name, "reference_time_s": ref_s, "points": P.shape[0],
                "scipy_points": k, "repeats": repeats, "skipped": "; ".join(skipped) or "none", "scene": case.scene,
                "compile_or_cache_load_s": ", ".join(f"{m} {s:.2f}" for m, s in compile_s.items()),
-               "threads": 1, "scipy_rhs": "the model's own rhs (its compiled function, wrapped; a measurement's "
+               "threads": 1, "latex_symbols": latex_symbols(spec),
+               "scipy_rhs": "the model's own rhs (its compiled function, wrapped; a measurement's "
                "System's where it integrates one); Radau/LSODA with the model's jac where it declares one, else "
                "scipy's finite-difference Jacobian"},
     )

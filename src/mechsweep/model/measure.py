@@ -75,13 +75,13 @@ def _crossing_events(k: int, idx: int, level: float, direction: str) -> str:
             f"solve{k}_back = dop853.make_event_solver(rhs, ev{k}_back)\n")
 
 
-_META_KEYS = ("name", "symbol", "unit", "long_name")
+_META_KEYS = ("name", "symbol", "unit", "long_name", "latex")
 
 
 class _Outputs:
     """Settable names and metadata of a measurement's outputs (Floquet, Steady, Kick, History):
     ``output_meta`` maps a generic output name (``name`` + suffix, e.g. ``"sim_settling"``) to
-    overrides {name, symbol, unit, long_name} (any of them; ``name`` not for the main output,
+    overrides {name, symbol, unit, long_name, latex} (any of them; ``name`` not for the main output,
     which is the measurement's ``name``). Kept as sorted pairs (hashable, compared)."""
 
     def __post_init__(self):
@@ -104,10 +104,10 @@ class _Outputs:
         """The name of the output whose generic name is ``name + suffix``."""
         return self._meta(self.name + suffix).get("name", self.name + suffix)
 
-    def _output(self, suffix, symbol, unit, long_name, **kw) -> Output:
+    def _output(self, suffix, symbol, unit, long_name, latex="", **kw) -> Output:
         d = self._meta(self.name + suffix)
         return Output(self.output_name(suffix), d.get("symbol", symbol), d.get("unit", unit),
-                      d.get("long_name", long_name), **kw)
+                      d.get("long_name", long_name), latex=d.get("latex", latex), **kw)
 
     def _check_meta(self):
         generic = [self.name + x for x in self._suffixes()]
@@ -551,7 +551,7 @@ class Floquet(_Outputs):
     stable_name: str = ""  # the verdict output's name; default name + "_stable"
     kind_name: str = ""  # the kind output's name; default name + "_kind"
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
-    output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name}} (_Outputs)
+    output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name, latex}} (_Outputs)
     variational: Callable | None = field(default=None, repr=False, compare=False)  # f(t, Phi, p, dPhi) about the known orbit
     variational_jac: Callable | None = field(default=None, repr=False, compare=False)  # g(t, Phi, p, JJ), for radau
     needs_forcing = True
@@ -579,7 +579,7 @@ class Floquet(_Outputs):
     def output(self) -> Output:
         return self._output("", "max |λ|", self.unit,
                             self.long_name or "largest modulus of the Floquet multipliers over one forcing period",
-                            integrated=True, kind="floquet_max")
+                            latex=r"$\max|\lambda|$", integrated=True, kind="floquet_max")
 
     def outputs(self) -> tuple[Output, ...]:
         return (self.output(),
@@ -591,8 +591,8 @@ class Floquet(_Outputs):
                              "critical Floquet multiplier: +1 real positive, -1 real negative, 0 complex pair",
                              integrated=True, needs=(self.name,)),
                 self._output("_angle", "arg μ", "rad",
-                             "argument of the critical Floquet multiplier, folded to [0, pi]: 0 real positive, pi "
-                             "real negative, else a complex pair |mu| exp(+-i angle)", integrated=True,
+                             "argument of the critical Floquet multiplier, folded to [0, π]: 0 real positive, π "
+                             "real negative, else a complex pair |μ| exp(±i angle)", integrated=True,
                              needs=(self.name,)))
 
     def values(self) -> tuple[str, ...]:
@@ -918,6 +918,7 @@ class FirstEvent:
     direction: str = "down"  # "down": event from > 0 to <= 0; "up": from < 0 to >= 0
     since: int = 0  # > 0: the time from root `since` to root n (n=2, since=1: a period), not from t = 0
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
+    latex: str = ""  # Output.latex: the symbol in mathtext, for figures
     direct = True  # integrates on its own with solver.method (compile.py)
 
     def output(self) -> Output:
@@ -925,7 +926,7 @@ class FirstEvent:
         return Output(self.name, self.symbol or self.name, self.unit,
                       self.long_name or f"value at the {which} root of {self.name}'s event"
                       + ("" if self.direction == "down" else " (upwards)"), integrated=True,
-                      needs_params=tuple(self.needs_params))
+                      needs_params=tuple(self.needs_params), latex=self.latex)
 
     def validate(self, states):
         if not callable(self.event):
@@ -1020,6 +1021,7 @@ class ClosedForm:
     classify: Callable | None = field(default=None, repr=False, compare=False)
     needs_params: tuple[str, ...] = ()  # Output.needs_params: optional parameters the formula requires
     kind: str = ""  # Output.kind: what the value is, for generic figures (e.g. "verdict")
+    latex: str = ""  # Output.latex: the symbol in mathtext, for figures
 
     def __post_init__(self):
         if self.kind:  # refused here, at the line that wrote it, rather than when the model's spec is built
@@ -1028,7 +1030,7 @@ class ClosedForm:
     def output(self) -> Output:
         return Output(self.name, self.symbol or self.name, self.unit, self.long_name or self.name,
                       needs=tuple(self.needs if self.output_needs is None else self.output_needs),
-                      needs_params=tuple(self.needs_params), kind=self.kind)
+                      needs_params=tuple(self.needs_params), kind=self.kind, latex=self.latex)
 
 
 
@@ -1527,7 +1529,7 @@ class Steady(_Outputs):
     long_name: str = ""
     value: Callable | None = field(default=None, repr=False, compare=False)
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
-    output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name}} (_Outputs)
+    output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name, latex}} (_Outputs)
     sampled = True
     n_values = 4
 
@@ -1536,14 +1538,19 @@ class Steady(_Outputs):
 
     def outputs(self) -> tuple[Output, ...]:
         what = self.of if isinstance(self.of, str) else self.name
+        # the derived outputs carry the user's words for the main one (its long_name) when given
+        about = f"{self.long_name}: " if self.long_name else ""
         return (self._output("", f"max |{what}|", self.unit,
                              self.long_name or f"steady-state peak of |{what}| over the last {self.window} of the "
                              "horizon", integrated=True),
-                self._output("_h1", "A1", self.unit, f"first-harmonic amplitude of {what} (forcing period)",
+                self._output("_h1", "A1", self.unit,
+                             f"{about}first-harmonic amplitude (forcing period)" if about else
+                             f"first-harmonic amplitude of {what} (forcing period)", latex=r"$A_1$",
                              integrated=True),
                 self._output("_phase", "phase", "rad",
-                             f"phase lag of the first harmonic of {what}: {what} = A1 cos(2 pi t / T - phase)",
-                             integrated=True))
+                             f"{about}phase lag of the first harmonic (forcing period)" if about else
+                             f"phase lag of the first harmonic of {what}: {what} ≈ A1 cos(2π t / T − phase)",
+                             latex=r"$\varphi_1$", integrated=True))
 
     def validate(self, states):
         self._check_meta()
@@ -1672,7 +1679,7 @@ class Kick(_Outputs):
     time_unit: str = "s"
     time_value: Callable | None = field(default=None, repr=False, compare=False)
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
-    output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name}} (_Outputs)
+    output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name, latex}} (_Outputs)
     sampled = True
     n_values = 5  # verdict, settling time, final error; the settling time before time_value, the simulated time
 
@@ -1801,7 +1808,7 @@ class History(_Outputs):
     long_name: str = ""
     value: Callable | None = field(default=None, repr=False, compare=False)
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
-    output_meta: object = ()  # {name: {symbol, unit, long_name}} (_Outputs; its one output is the main one)
+    output_meta: object = ()  # {name: {symbol, unit, long_name, latex}} (_Outputs; its one output is the main one)
     sampled = True
     n_values = 0
 

@@ -43,6 +43,10 @@ class Param:
         False: the scene may leave the parameter out, and ``default`` is used.
     default : float or None, optional
         The value of an optional parameter a scene does not give.
+    latex : str, optional
+        The symbol in matplotlib mathtext for figure labels (e.g. ``r"$\\omega_\\xi$"``; it may
+        define the symbol, as in ``r"$\\varepsilon = \\mu A^2/\\omega^2$"``). Without one, figures
+        write ``symbol`` as mathtext themselves.
 
     Examples
     --------
@@ -65,6 +69,7 @@ class Param:
     choices: tuple[str, ...] = ()
     required: bool = True
     default: float | None = None  # value used internally when an optional parameter is absent
+    latex: str = ""  # the symbol in mathtext, for figures (stored as the variable's ``latex`` attribute)
 
     @property
     def categorical(self) -> bool:
@@ -193,6 +198,8 @@ class Output:
         What the value means, for the generic figures: one of ``OUTPUT_KINDS``
         (``"floquet_max"``: a largest Floquet multiplier modulus, stable below 1; ``"verdict"``:
         1 stable or feasible, 0 not) or ``""``.
+    latex : str, optional
+        The symbol in matplotlib mathtext for figure labels (see :class:`Param`).
     """
 
     name: str
@@ -204,6 +211,7 @@ class Output:
     needs_params: tuple[str, ...] = ()
     extra_dims: tuple[ExtraDim, ...] = ()
     kind: str = ""  # what the value is, for generic figures: OUTPUT_KINDS names the known ones
+    latex: str = ""  # the symbol in mathtext, for figures (as Param.latex)
 
     def __post_init__(self):
         if self.kind not in ("",) + OUTPUT_KINDS:  # a misspelt kind would silently draw the wrong figure
