@@ -109,8 +109,10 @@ Other outputs and rules:
   without l3, l4, or a platform parameter pair not given.
 
 Status of a point: the most severe problem among the outputs asked for, in the order
-INFEASIBLE > NONFINITE > STEP_UNDERFLOW > MAX_STEPS > SINGULAR > NOT_REPRODUCIBLE > NOT_BALANCEABLE >
-UNDECIDED > NO_EVENT; outputs that could be computed are kept.
+INFEASIBLE > OUT_OF_RANGE > NONFINITE > STEP_UNDERFLOW > MAX_STEPS > SINGULAR > NOT_REPRODUCIBLE >
+NOT_BALANCEABLE > UNDECIDED > NO_EVENT; outputs that could be computed are kept. OUT_OF_RANGE (all
+outputs NaN, ``in_range``): inputs of such magnitudes that a quantity formed from them leaves double
+precision's range or a scaled group of the equations of motion lies beyond 2^+-300.
 NOT_REPRODUCIBLE: a simulated output (residual_amplitude, phase_error, settling_time, stable_sim,
 the histories) moved by more than reproducibility_factor (rtol |value| + atol) when the trajectory
 was integrated again at rtol / 100 (the Recheck below; the rule and its measured cost: TIGHTEN in models/_autobalancer_kernels.py);
@@ -151,6 +153,7 @@ from ..model.measure import ClosedForm, Floquet, History, Kick, Recheck, Steady 
 from ..model.ode import OdeModel
 from ..model.workprecision import WorkPrecision
 from ..special import SINCOS_MAX, ieee_sqrt, sincos, sincos_reduced
+from ._scaling import DBL_MAX, full_precision, normal
 from ._spec import ExtraDim, Output, Param, Setting
 
 TWO_PI = 2.0 * math.pi
@@ -172,7 +175,7 @@ IB_SLACK = 1e-9  # relative round-off allowed in I_B >= m a^2 (a point-mass pend
 # Status severity (most severe first): what a point shows when several problems occur.
 # NOT_REPRODUCIBLE ranks above the statuses that leave an output NaN with a reason: it warns
 # about a value that is stored and would otherwise look trustworthy.
-STATUS_ORDER = (st.INFEASIBLE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.SINGULAR, st.NOT_REPRODUCIBLE,
+STATUS_ORDER = (st.INFEASIBLE, st.OUT_OF_RANGE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.SINGULAR, st.NOT_REPRODUCIBLE,
                 st.NOT_BALANCEABLE, st.UNDECIDED, st.NO_EVENT)
 
 
@@ -548,13 +551,16 @@ OUTPUTS = (
            integrated=True, extra_dims=(REVOLUTION,)),
 )
 
-STATUSES = (st.INFEASIBLE, st.SINGULAR, st.NOT_BALANCEABLE, st.UNDECIDED, st.NOT_REPRODUCIBLE,
+STATUSES = (st.INFEASIBLE, st.SINGULAR, st.NOT_BALANCEABLE, st.UNDECIDED, st.NOT_REPRODUCIBLE, st.OUT_OF_RANGE,
             *st.INTEGRATION_FAILURES)
 STATUS_NOTES = {
     st.INFEASIBLE: "I_B < m a^2, M <= 2 m, l3 >= l4, A1 != 0 without l3 and l4, or a platform parameter "
                    "pair not given (all outputs NaN)",
     st.SINGULAR: "an undamped resonance of the platform (c_j = M Omega^2, b_j = 0): P_approx is NaN, "
                  "Floquet is still computed",
+    st.OUT_OF_RANGE: "inputs of such magnitudes that a quantity formed from them over- or underflows, or a scaled "
+                     "group of the equations of motion (M / m, c_xi / (m Omega^2), ...) lies beyond 2^300 or below "
+                     "2^-300 (all outputs NaN)",
     st.NOT_BALANCEABLE: "no isolated balanced state (A0 > 2 m a, A0 = 0, A0 = 2 m a, A1 != 0): balanced-state "
                         "outputs are NaN, residuals are kept",
     st.NO_EVENT: "the pendulums did not settle within the simulation (settling_time)",
@@ -611,10 +617,58 @@ def classify(p):
     wx, cx, bx = _xi(p)
     wy, cy, by = _eta(p)
     lengths = not math.isnan(l3) and not math.isnan(l4)
-    ok = IB >= m * a * a * (1.0 - IB_SLACK) and M > 2.0 * m
-    ok = ok and math.isfinite(wx) and math.isfinite(wy) and math.isfinite(bx) and math.isfinite(by)
+    ok = _inertia_at_least(IB, m, a) and M > 2.0 * m
+    # each pair given (by the inputs: an overflow of the derived values is a range problem, in_range)
+    for i, j in ((I_omega_xi, I_c_xi), (I_omega_eta, I_c_eta), (I_zeta_xi, I_b_xi), (I_zeta_eta, I_b_eta)):
+        ok = ok and not (math.isnan(p[i]) and math.isnan(p[j]))
     ok = ok and (not lengths or l3 < l4) and (A1 == 0.0 or lengths)
-    return st.OK if ok else st.INFEASIBLE
+    if not ok:
+        return st.INFEASIBLE
+    return st.OK if in_range(p) else st.OUT_OF_RANGE
+
+
+GROUP_RANGE = 2.0 ** 300  # scaled groups of the equations of motion: finite and at most this
+
+
+@jit
+def _inertia_at_least(IB, m, a):
+    """I_B >= m a^2 (1 - IB_SLACK), also where m a^2 over- or underflows (compared on the mantissas)."""
+    mma = m * a * a
+    if normal(mma):
+        return IB >= mma * (1.0 - IB_SLACK)
+    fm, em = math.frexp(m)
+    fa, ea = math.frexp(a)
+    fI, eI = math.frexp(IB)
+    return math.ldexp(fI, eI - em - 2 * ea) >= fm * fa * fa * (1.0 - IB_SLACK)
+
+
+@jit
+def in_range(p):
+    """The quantities the closed forms are formed from are normal numbers (or an exact 0 from a zero
+    input) where an over- or underflow would change the result: 2 m a and A0 / (2 m a) (theta), the
+    platform's omega, c, b (either parametrisation), omega_xi^2 + omega_eta^2 (omega_p), the receptance's
+    squares (P_approx; its exact zero at resonance is left to P_classify), m_k's products. Else the point
+    is OUT_OF_RANGE (e.g. omega_xi = omega_eta = 1e-200: omega_p was 0; c_xi = 1e160: P_approx was 0).
+    An underflow of a term next to a normal one it is added to (M Omega^2 = 1e-400 against c_xi) is harmless
+    and passes. The integrated outputs' scaled groups are checked by prepare."""
+    Om, M, m, a, A0 = p[I_Omega], p[I_M], p[I_m], p[I_a], p[I_A0]
+    wx, cx, bx = _xi(p)
+    wy, cy, by = _eta(p)
+    two_ma = 2.0 * m * a
+    ok = (normal(two_ma) and full_precision(A0 / two_ma) and normal(wx) and normal(cx) and full_precision(bx)
+          and normal(wy) and normal(cy) and full_precision(by) and normal(wx * wx + wy * wy))
+    MO2 = M * Om ** 2
+    for d, b in ((cx - MO2, bx), (cy - MO2, by)):  # P_approx: d / (d^2 + (b Omega)^2)
+        d2 = d * d
+        bO2 = (b * Om) ** 2
+        # each square normal, or lost below 2^-62 of the other (2^-960 > 2^62 2^-1022)
+        ok = (ok and d2 <= DBL_MAX and bO2 <= DBL_MAX and (d == 0.0 or normal(d2) or bO2 >= 2.0 ** -960)
+              and (b == 0.0 or normal(bO2) or d2 >= 2.0 ** -960))
+    mk = p[I_m4] * p[I_S4] + p[I_m5] * p[I_l4]  # m_k, where its parameters are given
+    if mk == mk:
+        ok = ok and full_precision(p[I_m4] * p[I_S4]) and full_precision(p[I_m5] * p[I_l4]) and full_precision(
+            mk / p[I_S_k])
+    return ok
 
 
 def prepare(p, rtol):
@@ -641,6 +695,9 @@ def prepare(p, rtol):
     q[IP_EH] = h / (m * a * a * Om)
     q[IP_TH1] = th1
     q[IP_TH2] = th2
+    for j in range(NP):  # the right-hand side multiplies up to three groups: keep them below 2^300
+        if not abs(q[j]) <= GROUP_RANGE:  # NaN-safe; a tiny group only scales a negligible term
+            return st.OUT_OF_RANGE
     return 0
 
 
