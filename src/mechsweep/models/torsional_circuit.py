@@ -29,7 +29,7 @@ from ..model.measure import ClosedForm, FirstEvent, System
 from ..model.ode import OdeModel
 from ..model.workprecision import WorkPrecision
 from . import duffing
-from ._scaling import exponent, full_precision, normal
+from ._scaling import exponent, normal, product_in_range, quotient_in_range
 from ._spec import Param
 
 SINGULAR_D0 = 1e-12  # (L(0)/R)^2 below this: spring of zero length at rest, formulas singular
@@ -56,17 +56,17 @@ def coefficients(sigma, lam1, lam2, s):
 
 @jit_noalloc
 def coefficients_in_range(sigma, lam1, s, D0):
-    """Every intermediate of chi and xi (coefficients) is 0 or a normal number: False for geometries
-    beyond about 1e150 R or a mounting deformation whose products leave double precision's range
-    (e.g. s0_over_r = 1e-310, or lambda1 = 1e200 where D0 overflows): chi, xi and the two-term
-    outputs are then OUT_OF_RANGE. A cancellation to 0 or to a tiny difference (xi = 0: linear) is
-    not a range problem and passes."""
+    """Every product and quotient of chi and xi (coefficients) is a normal number or an exact 0 from a
+    zero factor: False for geometries beyond about 1e150 R (D0 overflows at lambda1 = 1e200: chi was 0,
+    xi NaN, with status ok) or products below about 1e-308 (s0_over_r = 1e-310; lambda1 = 1e-200, where
+    xi ~ 3 lambda1^2 / (6 D0) underflowed to 0): chi, xi and the two-term outputs are then OUT_OF_RANGE.
+    A cancellation to 0 or to a tiny difference (xi = 0: linear) is not a range problem and passes."""
     r = math.sqrt(D0)
     G = D0 + 3.0 * sigma * lam1
     B = 3.0 * lam1 - s * G / r
-    return (full_precision(D0) and full_precision(6.0 * D0) and full_precision(3.0 * lam1)
-            and full_precision(lam1 * s) and full_precision(lam1 * s / r) and full_precision(s * G)
-            and full_precision(s * G / r) and full_precision(lam1 * B) and full_precision(lam1 * B / (6.0 * D0)))
+    return (normal(D0) and normal(6.0 * D0) and normal(3.0 * lam1) and product_in_range(lam1, s)
+            and quotient_in_range(lam1 * s, r) and product_in_range(s, G) and quotient_in_range(s * G, r)
+            and product_in_range(lam1, B) and quotient_in_range(lam1 * B, 6.0 * D0))
 
 
 @jit_noalloc
@@ -148,10 +148,13 @@ def _returns_through_zero(sigma, lam1, D0, gap, A):
     (l - L0)^2 / 2 is convex in l, so on [0, A] it is highest at an end and has no other hump in
     between. Then, the moment being odd, the motion is symmetric and swings to -A: an oscillation
     about phi = 0 whatever the two-term model says. Otherwise the lever stays in a well away from 0
-    (or creeps to 0 forever). gap = l(0) - L0 = sigma s0_over_r and l(A) - L0 (stretch) are free of
-    cancellation, so a tiny mounting deformation at a tiny amplitude is decided right."""
+    (or creeps to 0 forever). gap = l(0) - L0 = sigma s0_over_r and dl = l(A) - l(0) (stretch) are
+    free of cancellation, and the energy difference is decided by signs, so a tiny mounting
+    deformation at a tiny amplitude, or a stroke far shorter than the deformation, is decided right."""
     dl, _ = stretch(A, sigma, lam1, D0, math.sqrt(D0))
-    return abs(gap) < abs(dl + gap)
+    # V(A) - V(0) = dl (dl + 2 gap) / 2 > 0, by signs (dl far below gap is not lost to rounding)
+    e = dl + 2.0 * gap
+    return (dl > 0.0 and e > 0.0) or (dl < 0.0 and e < 0.0)
 
 
 @jit_noalloc
@@ -226,8 +229,8 @@ def point_coefficients(p):
     lam1, lam2, s = p[LAM1], p[LAM2], p[S0R]
     kk, ek = stiffness_split(p)
     code, chi, xi, D0 = coefficients(sigma, lam1, lam2, s)
-    if code == st.OK and not (coefficients_in_range(sigma, lam1, s, D0) and full_precision(kk * chi)
-                              and full_precision(kk * xi)):
+    if code == st.OK and not (coefficients_in_range(sigma, lam1, s, D0) and product_in_range(kk, chi)
+                              and product_in_range(kk, xi)):
         code = st.OUT_OF_RANGE
     return code, sigma, lam1, lam2, s, kk, ek, chi, xi, p[AMP]
 
