@@ -281,3 +281,54 @@ def test_two_term_period_near_its_separatrix_is_right_or_ill_conditioned():
         err = np.abs(cols["period"] - refs) / refs
         assert (err[ok] <= 2 * rtol).all(), (rtol, err[ok].max() / rtol)
         assert ok.sum() >= 6 and (~ok).sum() >= 2
+
+
+# ----------------------------------------------------------------------------- the exact system's own time unit
+def test_exact_moment_period_next_to_a_zero_rest_length():
+    """Tension, lambda1 = 1, lambda2 = 2e-6, s0_over_r = 1e-6, A = 0.3: the spring nearly passes through
+    the axis, xi ~ 1 / (2 D0) = 1.25e11 while the moment saturates like sin(phi). The two-term model's time
+    unit was 1e5 times too fast and the horizon ended before the first quarter period (no_event, NaN):
+    the period is 0.1263745 s (quadrature)."""
+    row = ("tension", 1.0, 2e-6, 1e-6, 0.05, 2000.0, 2e-3, 0.3)
+    ref = quadrature_period(*row)
+    assert ref == pytest.approx(0.1263745, abs=5e-8)
+    cols, status = evaluate([row], ("period_exact_moment",))
+    assert status[0] == st.OK
+    assert cols["period_exact_moment"][0] == pytest.approx(ref, rel=1e-10)
+
+
+TINY_ROWS = ([("tension", lam1, lam2, s * math.sqrt((1 - lam1) ** 2 + lam2**2), 0.05, 2000.0, 2e-3, A)
+              for lam1, lam2 in ((1.0, 3e-6), (1.0, 1e-4), (1.0 - 1e-4, 0.0), (1.0 - 1e-6, 1e-6))
+              for s, A in ((0.5, 1e-3), (1e-3, 0.3), (0.0, 2.0), (-0.5, 3.0))]
+             + [(spring, 0.8, 0.5, s, 0.05, 2000.0, 2e-3, A)
+                for spring, s, A in (("tension", 0.0, 1e-5), ("compression", 0.0, 1e-3), ("tension", 1e-12, 1e-3),
+                                     ("compression", 1e-9, 1e-5), ("tension", -1e-9, 0.3))])
+
+
+def test_exact_moment_period_for_tiny_D0_lambda2_and_s0_over_r():
+    """A sweep of tiny rest lengths (D0 from 1e-8 to 1e-12, lambda2 down to 0) and mounting deformations
+    (s0_over_r = 0, 1e-12, +-1e-9, and fractions of sqrt(D0)) at amplitudes from 1e-5 to 3 rad, both
+    springs: every point oscillates (the energy says so), is ok and within 1e-10 of the quadrature.
+    (The two-term time unit left D0 <= 1e-7 at A = 0.3 no_event; 1 - L0 / l lost 8 digits at s0_over_r = 0,
+    A = 1e-5, where the moment is now formed as (l - L0) / l.)"""
+    cols, status = evaluate(TINY_ROWS, ("period_exact_moment",))
+    for row, T, code in zip(TINY_ROWS, cols["period_exact_moment"], status):
+        ref = quadrature_period(*row)
+        assert code == st.OK, (row, code)
+        assert T == pytest.approx(ref, rel=1e-10), row
+
+
+def test_exact_time_unit_is_the_two_term_one_where_they_agree():
+    """Inside SCALE_BAND the exact system keeps the two-term model's time unit (the shipped scenes' bits),
+    outside it takes the exact moment's own (v_max / A from the energy), which never makes the period in
+    that unit shorter than 4 (the lever cannot be faster than v_max)."""
+    k = 0.05**2 * 2000.0 / 2e-3
+    for spring, lam1, lam2, s, A, kept in (("tension", 0.8, 0.5, 0.1, 0.3, True), ("tension", 0.8, 0.3, 0.1, 1.5, True),
+                                           ("tension", 1.0, 2e-6, 1e-6, 0.3, False)):
+        row = (spring, lam1, lam2, s, 0.05, 2000.0, 2e-3, A)
+        p = np.array([0.0, *row[1:], 100.0] + [0.0] * len(tc.MODEL.internal))
+        assert tc.exact_prepare(p, 1e-10) == st.OK  # plain Python: the declaration's own function
+        _, chi, xi, _ = tc.coefficients(1.0, lam1, lam2, s)
+        w2_two_term = k * (abs(chi) + abs(xi) * A * A)
+        assert (p[tc.EW] ** 2 == pytest.approx(w2_two_term, rel=1e-14)) == kept
+        assert quadrature_period(*row) * p[tc.EW] >= 4.0
