@@ -332,3 +332,15 @@ def test_exact_time_unit_is_the_two_term_one_where_they_agree():
         w2_two_term = k * (abs(chi) + abs(xi) * A * A)
         assert (p[tc.EW] ** 2 == pytest.approx(w2_two_term, rel=1e-14)) == kept
         assert quadrature_period(*row) * p[tc.EW] >= 4.0
+    # sweeps/torsional_circuit_truncation.toml (lambda2 0.3 .. 2, A 0.02 .. 1.5): the two-term unit
+    # everywhere, at most 9.2 times the exact one in w^2 (inside SCALE_BAND: the scene keeps its bits)
+    ratios = []
+    for lam2 in np.linspace(0.3, 2.0, 12):  # the scene's ends are on this grid
+        for A in np.linspace(0.02, 1.5, 12):
+            p = np.array([0.0, 0.8, lam2, 0.1, 0.05, 2000.0, 2e-3, A, 100.0] + [0.0] * len(tc.MODEL.internal))
+            assert tc.exact_prepare(p, 1e-11) == st.OK
+            D0 = tc.rest_length_squared(1.0, 0.8, lam2)
+            exact = k * tc.exact_time_scale(1.0, 0.8, D0, 0.1, A)
+            ratios.append(p[tc.EW] ** 2 / exact)
+    assert max(ratios) == pytest.approx(9.2, abs=0.05) and max(ratios) < tc.SCALE_BAND
+    assert min(ratios) > 1 / tc.SCALE_BAND

@@ -558,9 +558,9 @@ STATUS_NOTES = {
                    "pair not given (all outputs NaN)",
     st.SINGULAR: "an undamped resonance of the platform (c_j = M Omega^2, b_j = 0): P_approx is NaN, "
                  "Floquet is still computed",
-    st.OUT_OF_RANGE: "inputs of such magnitudes that a quantity formed from them over- or underflows, or a scaled "
-                     "group of the equations of motion (M / m, c_xi / (m Omega^2), ...) lies beyond 2^300 or below "
-                     "2^-300 (all outputs NaN)",
+    st.OUT_OF_RANGE: "inputs of such magnitudes that a quantity the closed forms are formed from over- or "
+                     "underflows (all outputs NaN), or a scaled group of the equations of motion (M / m, "
+                     "c_xi / (m Omega^2), ...) is beyond 2^300 (the integrated outputs NaN)",
     st.NOT_BALANCEABLE: "no isolated balanced state (A0 > 2 m a, A0 = 0, A0 = 2 m a, A1 != 0): balanced-state "
                         "outputs are NaN, residuals are kept",
     st.NO_EVENT: "the pendulums did not settle within the simulation (settling_time)",

@@ -425,7 +425,7 @@ MODEL = OdeModel(
                    needs=("a_max", "period_exact"), output_needs=()),
         ClosedForm("epsilon", epsilon, "ε = μ A² / ω²", "1", "nonlinearity parameter mu A^2 / omega^2"),
     ),
-    statuses=(st.INFEASIBLE, st.NOT_OSCILLATORY, st.NO_MOTION, *st.INTEGRATION_FAILURES),
+    statuses=(st.INFEASIBLE, st.NOT_OSCILLATORY, st.NO_MOTION, st.OUT_OF_RANGE, *st.INTEGRATION_FAILURES),
     status_notes={
         st.INFEASIBLE: "omega^2 <= 0: no stable equilibrium at phi = 0 to oscillate about",
         st.NOT_OSCILLATORY: "at or beyond the soft separatrix |mu| A^2 >= omega^2 (mu < 0)",
@@ -433,6 +433,9 @@ MODEL = OdeModel(
         st.NO_EVENT: "the quarter-period crossing did not happen within the horizon",
         st.ILL_CONDITIONED: "the period below 1 + epsilon = 6.8e-7 at the default rtol (next to the soft "
                             "separatrix); the closed form period_exact is still given",
+        st.OUT_OF_RANGE: "the integrated period where sqrt(omega^2 + |mu| A^2) is beyond double precision's normal "
+                         "range (the period then is below about 1e-308 s or above 1e308 s); every output is "
+                         "computed on the point rescaled by powers of two, right wherever its value is representable",
     },
 )
 

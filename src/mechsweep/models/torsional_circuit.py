@@ -191,9 +191,11 @@ PI_LO = 1.2246467991473532e-16  # pi - math.pi: pi = math.pi + PI_LO to twice do
 RTOL_FLOOR = 5e-14
 # Time unit of the exact system: the two-term model's w^2 = k (|chi| + |xi| A^2) where it is within this
 # factor (both ways) of the exact moment's own w_e^2 = k exact_time_scale (any unit within it serves, and
-# the shipped scenes keep their bits: their ratio reaches 9.2, at lambda2 = 0.3, A = 1.5); w_e^2 beyond it
-# (next to D0 -> 0, xi ~ 1 / (2 D0) while the moment saturates like sin(phi): the two-term unit was 1e5
-# times too fast and the horizon of 100 of its periods ended before the first quarter period)
+# sweeps/torsional_circuit_truncation.toml keeps its bits: its largest ratio is 9.2, measured by
+# tests/test_torsional_circuit.py::test_exact_time_unit_is_the_two_term_one_where_they_agree); w_e^2
+# beyond it (next to D0 -> 0, xi ~ 1 / (2 D0) while the moment saturates like sin(phi): there the
+# two-term unit is far too fast, and a horizon of 100 of its periods would end before the first
+# quarter period)
 SCALE_BAND = 16.0
 # The exact moment as (l - L0) / l (exact_moment_stretch) where the plain 1 - L0 / l could lose more
 # than this factor of round-off: |L0| > STRETCH_FORM max(|l(0) - L0|, |l(A) - L0|)
