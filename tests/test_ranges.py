@@ -471,3 +471,29 @@ def test_ellipk_over_its_whole_argument_range():
         with mp.workdps(40):
             ref = mp.ellipk(mp.mpf(m))
         assert agrees(ellipk(m), ref, 8 * U), m
+
+
+def test_autobalancer_floquet_of_a_design_at_any_scale():
+    """The Floquet multiplier depends on the scaled groups of the equations of motion only: a design
+    scaled by powers of two in mass, length and time gives bitwise the same floquet_max (the groups are
+    quotients of the scaled inputs: exact), down to masses of 1e-200 kg and speeds of 1e90 rad/s; a
+    design whose groups leave 2^+-300 (c_xi / (m Omega^2) at Omega = 1e-200) is out_of_range, never ok."""
+    names = ab.PARAM_NAMES
+    units = {"Omega": (0, 0, -1), "M": (1, 0, 0), "m": (1, 0, 0), "a": (0, 1, 0), "I_B": (1, 2, 0), "A0": (1, 1, 0),
+             "h": (1, 2, -1), "omega_xi": (0, 0, -1), "omega_eta": (0, 0, -1), "zeta_xi": (0, 0, 0),
+             "zeta_eta": (0, 0, 0)}
+    base = dict(Omega=25.0, M=10.0, m=1.0, a=0.1, I_B=0.012, A0=0.1, h=0.05, omega_xi=20.0, omega_eta=30.0,
+                zeta_xi=0.02, zeta_eta=0.02)
+
+    def row(a, c, t, **over):
+        v = {k: math.nan for k in names}
+        v["A1"] = 0.0
+        v.update({k: math.ldexp(x, a * units[k][0] + c * units[k][1] + t * units[k][2]) for k, x in base.items()})
+        v.update(over)
+        return [v[k] for k in names]
+    scalings = ((0, 0, 0), (-660, 0, 0), (300, -200, 100), (-200, 300, -300))
+    rows = [row(*k) for k in scalings] + [row(0, 0, 0, Omega=1e-200)]
+    out, status = run(ab.SPEC, rows, ("floquet_max",), rtol=1e-8, atol=1e-10)
+    assert (status[:4] == st.OK).all(), status
+    assert (out["floquet_max"][1:4] == out["floquet_max"][0]).all(), out["floquet_max"]
+    assert status[4] == st.OUT_OF_RANGE

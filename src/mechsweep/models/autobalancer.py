@@ -110,9 +110,10 @@ Other outputs and rules:
 
 Status of a point: the most severe problem among the outputs asked for, in the order
 INFEASIBLE > OUT_OF_RANGE > NONFINITE > STEP_UNDERFLOW > MAX_STEPS > SINGULAR > NOT_REPRODUCIBLE >
-NOT_BALANCEABLE > UNDECIDED > NO_EVENT; outputs that could be computed are kept. OUT_OF_RANGE (all
-outputs NaN, ``in_range``): inputs of such magnitudes that a quantity formed from them leaves double
-precision's range or a scaled group of the equations of motion lies beyond 2^+-300.
+NOT_BALANCEABLE > UNDECIDED > NO_EVENT; outputs that could be computed are kept. OUT_OF_RANGE:
+inputs of such magnitudes that a quantity leaves double precision's range (``in_range``: those every
+output needs, all outputs NaN; a closed form's own, that output NaN; prepare: a scaled group of the
+equations of motion beyond 2^300, the integrated outputs NaN).
 NOT_REPRODUCIBLE: a simulated output (residual_amplitude, phase_error, settling_time, stable_sim,
 the histories) moved by more than reproducibility_factor (rtol |value| + atol) when the trajectory
 was integrated again at rtol / 100 (the Recheck below; the rule and its measured cost: TIGHTEN in models/_autobalancer_kernels.py);
@@ -153,7 +154,7 @@ from ..model.measure import ClosedForm, Floquet, History, Kick, Recheck, Steady 
 from ..model.ode import OdeModel
 from ..model.workprecision import WorkPrecision
 from ..special import SINCOS_MAX, ieee_sqrt, sincos, sincos_reduced
-from ._scaling import DBL_MAX, full_precision, normal
+from ._scaling import DBL_MAX, full_precision, normal, product_in_range, quotient_in_range
 from ._spec import ExtraDim, Output, Param, Setting
 
 TWO_PI = 2.0 * math.pi
@@ -558,9 +559,11 @@ STATUS_NOTES = {
                    "pair not given (all outputs NaN)",
     st.SINGULAR: "an undamped resonance of the platform (c_j = M Omega^2, b_j = 0): P_approx is NaN, "
                  "Floquet is still computed",
-    st.OUT_OF_RANGE: "inputs of such magnitudes that a quantity the closed forms are formed from over- or "
-                     "underflows (all outputs NaN), or a scaled group of the equations of motion (M / m, "
-                     "c_xi / (m Omega^2), ...) is beyond 2^300 (the integrated outputs NaN)",
+    st.OUT_OF_RANGE: "inputs of such magnitudes that a quantity every output needs (2 m a, the platform's "
+                     "omega, c, b) over- or underflows (all outputs NaN), or one a closed form needs (omega_p's "
+                     "sum of squares, P_approx's squares, m_k's products: that output NaN), or a scaled group "
+                     "of the equations of motion (M / m, c_xi / (m Omega^2), ...) is beyond 2^300 (the "
+                     "integrated outputs NaN)",
     st.NOT_BALANCEABLE: "no isolated balanced state (A0 > 2 m a, A0 = 0, A0 = 2 m a, A1 != 0): balanced-state "
                         "outputs are NaN, residuals are kept",
     st.NO_EVENT: "the pendulums did not settle within the simulation (settling_time)",
@@ -644,31 +647,50 @@ def _inertia_at_least(IB, m, a):
 
 @jit
 def in_range(p):
-    """The quantities the closed forms are formed from are normal numbers (or an exact 0 from a zero
-    input) where an over- or underflow would change the result: 2 m a and A0 / (2 m a) (theta), the
-    platform's omega, c, b (either parametrisation), omega_xi^2 + omega_eta^2 (omega_p), the receptance's
-    squares (P_approx; its exact zero at resonance is left to P_classify), m_k's products. Else the point
-    is OUT_OF_RANGE (e.g. omega_xi = omega_eta = 1e-200: omega_p was 0; c_xi = 1e160: P_approx was 0).
-    An underflow of a term next to a normal one it is added to (M Omega^2 = 1e-400 against c_xi) is harmless
-    and passes. The integrated outputs' scaled groups are checked by prepare."""
-    Om, M, m, a, A0 = p[I_Omega], p[I_M], p[I_m], p[I_a], p[I_A0]
+    """The quantities every output is formed from are normal numbers (or an exact 0 from a zero input):
+    2 m a and A0 / (2 m a) (theta, the balanced state), the platform's omega, c, b (either
+    parametrisation); else the point is OUT_OF_RANGE. The closed forms' own quantities are checked by
+    their classify (first_approx_in_range, receptance_in_range, m_k_in_range), the integrated outputs'
+    scaled groups by prepare."""
+    m, a, A0 = p[I_m], p[I_a], p[I_A0]
     wx, cx, bx = _xi(p)
     wy, cy, by = _eta(p)
     two_ma = 2.0 * m * a
-    ok = (normal(two_ma) and full_precision(A0 / two_ma) and normal(wx) and normal(cx) and full_precision(bx)
-          and normal(wy) and normal(cy) and full_precision(by) and normal(wx * wx + wy * wy))
+    return (normal(two_ma) and full_precision(A0 / two_ma) and normal(wx) and normal(cx) and full_precision(bx)
+            and normal(wy) and normal(cy) and full_precision(by))
+
+
+def first_approx_in_range(p):
+    """omega_xi^2 + omega_eta^2 is a normal number (omega_p, stable_first_approx): else OUT_OF_RANGE
+    (at omega_xi = omega_eta = 1e-200 omega_p was 0)."""
+    wx = _xi(p)[0]
+    wy = _eta(p)[0]
+    return st.OK if normal(wx * wx + wy * wy) else st.OUT_OF_RANGE
+
+
+@jit
+def receptance_in_range(p):
+    """The receptance's squares d^2, (b Omega)^2 of each axis (d = c - M Omega^2) are normal, or lost
+    below 2^-62 of the other term of their sum (P_approx was 0 at c_xi = 1e160); an exact d = 0 is left
+    to the resonance test."""
+    Om, M = p[I_Omega], p[I_M]
+    _, cx, bx = _xi(p)
+    _, cy, by = _eta(p)
     MO2 = M * Om ** 2
-    for d, b in ((cx - MO2, bx), (cy - MO2, by)):  # P_approx: d / (d^2 + (b Omega)^2)
+    ok = True
+    for d, b in ((cx - MO2, bx), (cy - MO2, by)):
         d2 = d * d
         bO2 = (b * Om) ** 2
-        # each square normal, or lost below 2^-62 of the other (2^-960 > 2^62 2^-1022)
         ok = (ok and d2 <= DBL_MAX and bO2 <= DBL_MAX and (d == 0.0 or normal(d2) or bO2 >= 2.0 ** -960)
               and (b == 0.0 or normal(bO2) or d2 >= 2.0 ** -960))
-    mk = p[I_m4] * p[I_S4] + p[I_m5] * p[I_l4]  # m_k, where its parameters are given
-    if mk == mk:
-        ok = ok and full_precision(p[I_m4] * p[I_S4]) and full_precision(p[I_m5] * p[I_l4]) and full_precision(
-            mk / p[I_S_k])
     return ok
+
+
+def m_k_in_range(p):
+    """m_k's products and quotient are normal numbers or an exact 0 from a zero input."""
+    ok = (product_in_range(p[I_m4], p[I_S4]) and product_in_range(p[I_m5], p[I_l4])
+          and quotient_in_range(p[I_m4] * p[I_S4] + p[I_m5] * p[I_l4], p[I_S_k]))
+    return st.OK if ok else st.OUT_OF_RANGE
 
 
 def prepare(p, rtol):
@@ -757,6 +779,8 @@ def P_approx(p):
 
 
 def P_classify(p):
+    if not receptance_in_range(p):
+        return st.OUT_OF_RANGE
     return st.OK if math.isfinite(_receptance(p)) else st.SINGULAR
 
 
@@ -907,9 +931,9 @@ MODEL = OdeModel(
     closed_forms=(
         _closed("theta", theta, classify=has_balance),
         _closed("balanceable", balanceable),
-        _closed("m_k", m_k),
-        _closed("omega_p", omega_p),
-        _closed("stable_first_approx", stable_first_approx),
+        _closed("m_k", m_k, classify=m_k_in_range),
+        _closed("omega_p", omega_p, classify=first_approx_in_range),
+        _closed("stable_first_approx", stable_first_approx, classify=first_approx_in_range),
         _closed("P_approx", P_approx, classify=P_classify),
         _closed("stable_damped_approx", stable_damped_approx, needs=("P_approx",)),
     ),
