@@ -50,6 +50,9 @@ SYMPLECTIC_C = 3.0
 # Symmetries: time t -> t / 2^i (omega^2 -> 4^i omega^2, mu -> 4^i mu, T -> T / 2^i, v -> 2^i v,
 # a -> 4^i a) and amplitude phi -> 2^j phi (A -> 2^j A, mu -> mu / 4^j, v -> 2^j v, a -> 2^j a);
 # kv, ka and epsilon are invariant.
+PLAIN_LO, PLAIN_HI = 2.0 ** -400, 2.0 ** 400  # omega^2, A^2, |mu| A^2 within these: the plain formulas
+
+
 @jit_noalloc
 def rescaled(o2, eo2, mu, emu, A):
     """(omega2', mu', A', i, j): the point omega^2 = o2 2^eo2, mu = mu 2^emu, A (a caller whose omega^2
@@ -57,6 +60,9 @@ def rescaled(o2, eo2, mu, emu, A):
     with A' in [1/2, 1) and the larger of omega2', |mu'| A'^2 in [1/16, 2): the smaller one may
     underflow, where it is negligible (below 2^-1000 of the other). T = 2^i T', v = v' / 2^(i+j),
     a = a' / 2^(2i+j)."""
+    if eo2 == 0 and emu == 0 and PLAIN_LO <= o2 <= PLAIN_HI and PLAIN_LO <= A * A <= PLAIN_HI and (
+            mu == 0.0 or PLAIN_LO <= abs(mu * A * A) <= PLAIN_HI):
+        return o2, mu, A, 0, 0  # every intermediate of the formulas stays normal: no scaling (no libm call)
     j = -exponent(A)
     e = exponent(o2) + eo2
     if mu != 0.0 and mu == mu:
@@ -67,7 +73,10 @@ def rescaled(o2, eo2, mu, emu, A):
 
 @jit_noalloc
 def omega_split(omega):
-    """(o2, eo2) with omega^2 = o2 2^eo2, o2 = f^2 for omega = f 2^e (no overflow for any omega)."""
+    """(o2, eo2) with omega^2 = o2 2^eo2: omega * omega and 0 where that is safely normal, else
+    o2 = f^2 for omega = f 2^e (no overflow for any omega)."""
+    if 2.0 ** -200 <= abs(omega) <= 2.0 ** 200:
+        return omega * omega, 0
     f, e = math.frexp(omega)
     return f * f, 2 * e
 

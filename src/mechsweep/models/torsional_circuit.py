@@ -209,8 +209,14 @@ EXACT_TINY = 2.0 ** -900
 
 @jit_noalloc
 def stiffness_split(p):
-    """(kk, ek): k = R^2 c / I = kk 2^ek exactly, kk in [1, 4), ek even: no overflow for any R, c, I,
-    and the bits of R * R * c / I wherever that is a normal number (models/_scaling.py)."""
+    """(kk, ek): k = R^2 c / I = kk 2^ek exactly, ek even: (k, 0) where R^2 c / I is safely normal,
+    else kk in [1, 4): no overflow for any R, c, I, and the bits of R * R * c / I wherever that is a
+    normal number (models/_scaling.py)."""
+    R2 = p[RR] * p[RR]
+    R2c = R2 * p[CC]
+    k = R2c / p[II]
+    if 2.0 ** -400 <= min(R2, R2c, k) and max(R2, R2c, k) <= 2.0 ** 400:
+        return k, 0  # R^2 c / I as written (no libm call where it is safely normal)
     fR, eR = math.frexp(p[RR])
     fc, ec = math.frexp(p[CC])
     fI, eI = math.frexp(p[II])
