@@ -662,7 +662,7 @@ def in_range(p):
 
 def first_approx_in_range(p):
     """omega_xi^2 + omega_eta^2 is a normal number (omega_p, stable_first_approx): else OUT_OF_RANGE
-    (at omega_xi = omega_eta = 1e-200 omega_p was 0)."""
+    (at omega_xi = omega_eta = 1e-200 the plain sum underflows and omega_p would be 0)."""
     wx = _xi(p)[0]
     wy = _eta(p)[0]
     return st.OK if normal(wx * wx + wy * wy) else st.OUT_OF_RANGE
@@ -671,7 +671,7 @@ def first_approx_in_range(p):
 @jit
 def receptance_in_range(p):
     """The receptance's squares d^2, (b Omega)^2 of each axis (d = c - M Omega^2) are normal, or lost
-    below 2^-62 of the other term of their sum (P_approx was 0 at c_xi = 1e160); an exact d = 0 is left
+    below 2^-62 of the other term of their sum (at c_xi = 1e160, d^2 overflows and P_approx would be 0); an exact d = 0 is left
     to the resonance test."""
     Om, M = p[I_Omega], p[I_M]
     _, cx, bx = _xi(p)

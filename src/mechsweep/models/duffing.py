@@ -45,8 +45,9 @@ SYMPLECTIC_C = 3.0
 # --------------------------------------------------------------------------- closed forms
 # Every closed form and the integrated period are evaluated on a copy of the point rescaled by powers
 # of two (rescaled): the formulas are homogeneous, so the scaled values are O(1), nothing overflows or
-# underflows where the result is representable (mu = 1e308 once gave a period 18 % off: 2 s overflowed),
-# and in the usual range the results are bitwise those of the plain formulas (models/_scaling.py).
+# underflows where the result is representable (at mu = 1e308, A = 1 the plain 2 (omega^2 + mu A^2)
+# overflows and the plain period is 18 % off), and in the usual range the results are bitwise those of
+# the plain formulas (there they are the plain formulas: PLAIN_LO, PLAIN_HI; models/_scaling.py).
 # Symmetries: time t -> t / 2^i (omega^2 -> 4^i omega^2, mu -> 4^i mu, T -> T / 2^i, v -> 2^i v,
 # a -> 4^i a) and amplitude phi -> 2^j phi (A -> 2^j A, mu -> mu / 4^j, v -> 2^j v, a -> 2^j a);
 # kv, ka and epsilon are invariant.

@@ -57,9 +57,9 @@ def coefficients(sigma, lam1, lam2, s):
 @jit_noalloc
 def coefficients_in_range(sigma, lam1, s, D0):
     """Every product and quotient of chi and xi (coefficients) is a normal number or an exact 0 from a
-    zero factor: False for geometries beyond about 1e150 R (D0 overflows at lambda1 = 1e200: chi was 0,
-    xi NaN, with status ok) or products below about 1e-308 (s0_over_r = 1e-310; lambda1 = 1e-200, where
-    xi ~ 3 lambda1^2 / (6 D0) underflowed to 0): chi, xi and the two-term outputs are then OUT_OF_RANGE.
+    zero factor: False for geometries beyond about 1e150 R (D0 overflows at lambda1 = 1e200, where chi
+    would be 0 and xi NaN) or products below about 1e-308 (s0_over_r = 1e-310; lambda1 = 1e-200, where
+    xi ~ 3 lambda1^2 / (6 D0) underflows to 0): chi, xi and the two-term outputs are then OUT_OF_RANGE.
     A cancellation to 0 or to a tiny difference (xi = 0: linear) is not a range problem and passes."""
     r = math.sqrt(D0)
     G = D0 + 3.0 * sigma * lam1
