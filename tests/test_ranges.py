@@ -11,7 +11,6 @@ normal range can only be right to the resolution of zero); tol scales with the c
 formula at the point (cancellation in omega^2 + mu A^2, chi and xi, c - M Omega^2)."""
 from __future__ import annotations
 
-import itertools
 import math
 
 import mpmath as mp
@@ -290,8 +289,9 @@ def autobalancer_rows(rng, n):
         v = {k: math.nan for k in names}
         v["A1"] = 0.0
         m, a = rng.choice(mixed), rng.choice(mixed)
-        v.update(m=m, a=a, M=m * rng.choice((2.5, 10.0, 1e30, 1e200)), I_B=m * a * a * rng.choice((1.0, 1.3, 1e20)),
-                 A0=2 * m * a * rng.choice((0.0, 0.3, 0.99, 3.0)), h=rng.choice((0.0,) + mixed), Omega=rng.choice(mixed))
+        v.update(m=m, a=a, M=m * rng.choice((2.5, 10.0, 1e30, 1e200)),
+                 I_B=m * a * a * rng.choice((1.0, 1.3, 1e20)), A0=2 * m * a * rng.choice((0.0, 0.3, 0.99, 3.0)),
+                 h=rng.choice((0.0,) + mixed), Omega=rng.choice(mixed))
         if rng.random() < 0.5:
             v.update(omega_xi=rng.choice(mixed), omega_eta=rng.choice(mixed), zeta_xi=rng.choice((0.0, 0.02, 1e-200)),
                      zeta_eta=rng.choice((0.0, 0.02, 1e100)))
@@ -361,7 +361,8 @@ def test_linkage_design_at_any_scale_is_the_design_at_unit_scale(model):
     rng = np.random.default_rng(17)
     base = LINKAGE_BASE[model]
     scalings = [(0, 0, 0), (1000, 0, 0), (-1000, 0, 0), (0, 480, 0), (0, -480, 0), (0, 0, 500), (0, 0, -480),
-                (600, -200, 200)] + [tuple(int(x) for x in rng.integers(-1000, 1001, 3) // (1, 3, 3)) for _ in range(40)]
+                (600, -200, 200)]
+    scalings += [tuple(int(x) for x in rng.integers(-1000, 1001, 3) // (1, 3, 3)) for _ in range(40)]
     rows, ref_rows, kept = [], [], []
     for a, c, t in scalings:
         values = {}
@@ -370,7 +371,8 @@ def test_linkage_design_at_any_scale_is_the_design_at_unit_scale(model):
             values[name] = float(np.ldexp(x, e))
         if not values.get("g", 0.0) <= 100.0:  # g is declared in [0, 100]: slow the design's clock instead
             values["g"] = 0.0
-        if not all(2.2250738585072014e-308 <= abs(x) <= DBL_MAX for n, x in values.items() if base[n] != 0.0 and n != "g"):
+        if not all(2.2250738585072014e-308 <= abs(x) <= DBL_MAX
+                   for n, x in values.items() if base[n] != 0.0 and n != "g"):
             continue  # an input itself beyond double precision (an inertia of 2^2000 kg m2): not a similar design
         rows.append(linkage_row(spec, values))
         ref_rows.append(linkage_row(spec, {**base, "g": base["g"] if values["g"] else 0.0}))

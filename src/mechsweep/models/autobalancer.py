@@ -671,8 +671,8 @@ def first_approx_in_range(p):
 @jit
 def receptance_in_range(p):
     """The receptance's squares d^2, (b Omega)^2 of each axis (d = c - M Omega^2) are normal, or lost
-    below 2^-62 of the other term of their sum (at c_xi = 1e160, d^2 overflows and P_approx would be 0); an exact d = 0 is left
-    to the resonance test."""
+    below 2^-62 of the other term of their sum (at c_xi = 1e160, d^2 overflows and P_approx would be 0);
+    an exact d = 0 is left to the resonance test."""
     Om, M = p[I_Omega], p[I_M]
     _, cx, bx = _xi(p)
     _, cy, by = _eta(p)
