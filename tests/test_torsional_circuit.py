@@ -344,3 +344,20 @@ def test_exact_time_unit_is_the_two_term_one_where_they_agree():
             ratios.append(p[tc.EW] ** 2 / exact)
     assert max(ratios) == pytest.approx(9.2, abs=0.05) and max(ratios) < tc.SCALE_BAND
     assert min(ratios) > 1 / tc.SCALE_BAND
+
+
+@pytest.mark.parametrize("method", tc.SPEC.methods)
+def test_exact_moment_period_of_every_method_next_to_a_zero_rest_length(method):
+    """Every method at rtol 1e-10 next to D0 -> 0 (every third point of the sweep above): right within
+    1e-9 of the quadrature, or max_steps (the symplectic method's fixed steps must resolve the moment's
+    turn within |phi| ~ sqrt(D0 / lambda1): they follow the faster of the two-term and the exact time
+    units; in the exact one alone the period was 2e-7 off with status ok at D0 = 9e-12, A = 1e-3)."""
+    rows = TINY_ROWS[::3]
+    cols, status = evaluate(rows, ("period_exact_moment",), Solver.for_model(tc.SPEC, method=method, rtol=1e-10,
+                                                                             atol=1e-12))
+    for row, T, code in zip(rows, cols["period_exact_moment"], status):
+        if code == st.MAX_STEPS and method == "symplectic":
+            continue
+        assert code == st.OK, (row, code)
+        assert T == pytest.approx(quadrature_period(*row), rel=1e-9), row
+    assert (status == st.OK).sum() >= 4

@@ -181,11 +181,11 @@ def cubic_sensitivities(sigma, lam1, lam2, s, D0):
 # --------------------------------------------------------------------------- the declaration
 # p = (spring, lambda1, lambda2, s0_over_r, R, c, I, A | t_max_periods | internal slots).
 # Internal slots: the two-term system's (a, b, c, level, direction, w) as duffing's, then the exact
-# system's (sigma', lambda1, D, L0, scale, coef, level, direction, w, sqrt D, gap, form). Each
+# system's (sigma', lambda1, D, L0, scale, coef, level, direction, w, sqrt D, gap, form, step). Each
 # system's prepare writes its own slots just before its measurement.
 SPRING, LAM1, LAM2, S0R, RR, CC, II, AMP, T_MAX = range(9)
 IA, IB, IC, ILEVEL, IDIR, IW = range(9, 15)
-ES, EL1, ED, EL0, ESCALE, ECOEF, ELEVEL, EDIR, EW, ER, EGAP, EFORM = range(15, 27)
+ES, EL1, ED, EL0, ESCALE, ECOEF, ELEVEL, EDIR, EW, ER, EGAP, EFORM, ESTEP = range(15, 28)
 PI_LO = 1.2246467991473532e-16  # pi - math.pi: pi = math.pi + PI_LO to twice double precision
 # Tightened tolerances below this are not tried: the point is ILL_CONDITIONED (as the old Duffing floor)
 RTOL_FLOOR = 5e-14
@@ -437,9 +437,17 @@ def exact_prepare(p, rtol):
         return st.OUT_OF_RANGE
     # time scale of the scaled equation: the two-term model's (|chi| + |xi| A^2 > 0 for every feasible
     # A > 0; chi < 0 is allowed here: the lever may swing over the hump at phi = 0) unless it is off
-    X = abs(chi) + abs(xi) * A * A
+    X2 = abs(chi) + abs(xi) * A * A
+    X = X2
     if not (X <= SCALE_BAND * scale and scale <= SCALE_BAND * X):  # NaN-safe: NaN coefficients take scale
         X = scale
+    # symplectic steps: no coarser than in the two-term unit where that is faster. Its |xi| A^2 is the
+    # curvature of the moment at phi = 0, which sees what the exact unit does not: next to D0 -> 0 the
+    # moment turns over within |phi| ~ sqrt(D0 / lambda1), a feature a fixed step must resolve (in the
+    # exact unit alone the period was 2e-7 off at rtol 1e-10, D0 = 9e-12, A = 1e-3; measured by
+    # tests/test_torsional_circuit.py::test_exact_moment_period_of_every_method_next_to_a_zero_rest_length)
+    step = math.sqrt(X / X2)
+    p[ESTEP] = step if step < 1.0 else 1.0  # NaN (coefficients out of range): 1
     w2 = kk * X  # w^2 / 2^ek
     w = math.ldexp(math.sqrt(w2), ek // 2)
     if not normal(w):
@@ -499,6 +507,10 @@ def exact_accel(t, q, p, a):
         a[0] = -p[ECOEF] * exact_moment_stretch(p[ESCALE] * q[0], p[ES], p[EL1], p[ED], p[ER], p[EGAP], p[EL0])
     else:
         a[0] = -p[ECOEF] * exact_moment(p[ESCALE] * q[0], p[ES], p[EL1], p[ED], p[EL0])
+
+
+def exact_step_for(p, rtol):
+    return duffing.symplectic_step(rtol) * p[ESTEP]
 
 
 def exact_event(t, y, p):
@@ -591,8 +603,8 @@ def _duffing_closed(name, func, needs=(), output_needs=None):
 
 TWO_TERM = System(rhs=two_term_rhs, initial=at_rest_at_one, jac=two_term_jac, accel=two_term_accel,
                   symplectic_step=step_for, prepare=two_term_prepare)
-EXACT = System(rhs=exact_rhs, initial=at_rest_at_one, jac=exact_jac, accel=exact_accel, symplectic_step=step_for,
-               prepare=exact_prepare)
+EXACT = System(rhs=exact_rhs, initial=at_rest_at_one, jac=exact_jac, accel=exact_accel,
+               symplectic_step=exact_step_for, prepare=exact_prepare)
 
 MODEL = OdeModel(
     name="torsional_circuit",
@@ -619,7 +631,7 @@ MODEL = OdeModel(
     settings=(duffing.T_MAX_PERIODS,),
     internal=("a", "b", "c", "level", "direction", "w",
               "exact_sigma", "exact_lambda1", "exact_D", "exact_L0", "exact_scale", "exact_coef", "exact_level",
-              "exact_direction", "exact_w", "exact_sqrt_D", "exact_gap", "exact_form"),
+              "exact_direction", "exact_w", "exact_sqrt_D", "exact_gap", "exact_form", "exact_step"),
     states=("x", "dx"),
     classify=model_classify,
     initial=at_rest_at_one,
