@@ -52,6 +52,12 @@ def quotient_in_range(x, y):
 
 
 @jit_noalloc
+def times_pow2(x, e):
+    """x 2^e (math.ldexp), without the library call for e = 0 (the usual range)."""
+    return x if e == 0 else math.ldexp(x, e)
+
+
+@jit_noalloc
 def exponent(x):
     """e with |x| = f 2^e, 0.5 <= f < 1 (math.frexp's); 0 for 0, inf and NaN."""
     return math.frexp(x)[1]

@@ -25,7 +25,7 @@ from ..model.measure import ClosedForm, FirstEvent
 from ..model.ode import Invariant, OdeModel
 from ..model.workprecision import WorkPrecision
 from ..special import ellipk
-from ._scaling import exponent, normal
+from ._scaling import exponent, normal, times_pow2
 from ._spec import Param, Setting
 
 # Integration horizon of the period event, in linearised periods 2 pi / w (w^2 = omega^2 + |mu| A^2):
@@ -128,6 +128,9 @@ def a_max_plain(omega2, mu, A):
 def epsilon_split(o2, eo2, mu, emu, A):
     """epsilon = mu A^2 / omega^2 of the point omega^2 = o2 2^eo2, mu = mu 2^emu, A: the plain
     quotient of the mantissas times the power of two (correctly rounded also beyond the normal range)."""
+    if eo2 == 0 and emu == 0 and PLAIN_LO <= o2 <= PLAIN_HI and PLAIN_LO <= A * A <= PLAIN_HI and (
+            mu == 0.0 or PLAIN_LO <= abs(mu * A * A) <= PLAIN_HI):
+        return mu * A * A / o2  # as written, where every intermediate is safely normal
     fm, em = math.frexp(mu)
     fA, eA = math.frexp(A)
     fo, eo = math.frexp(o2)
@@ -141,21 +144,21 @@ def period_closed_form(omega2, mu, A):
     One formula for both signs of mu (K accepts m < 0). physics.md section 1. Evaluated on the
     point rescaled by powers of two (no overflow of omega^2 + mu A^2 for any representable T)."""
     w2, m, a, i, _ = rescaled(omega2, 0, mu, 0, A)
-    return math.ldexp(period_plain(w2, m, a), i)
+    return times_pow2(period_plain(w2, m, a), i)
 
 
 @jit
 def v_max_closed_form(omega2, mu, A):
     """Energy: v_max^2 = omega^2 A^2 + mu A^4 / 2 (velocity at phi = 0), both signs of mu."""
     w2, m, a, i, j = rescaled(omega2, 0, mu, 0, A)
-    return math.ldexp(v_max_plain(w2, m, a), -(i + j))
+    return times_pow2(v_max_plain(w2, m, a), -(i + j))
 
 
 @jit
 def a_max_closed_form(omega2, mu, A):
     """max |phi''| over the stroke; for omega^2/3 < |mu| A^2 < omega^2 (soft) it lies inside."""
     w2, m, a, i, j = rescaled(omega2, 0, mu, 0, A)
-    return math.ldexp(a_max_plain(w2, m, a), -(2 * i + j))
+    return times_pow2(a_max_plain(w2, m, a), -(2 * i + j))
 
 
 # Near the soft separatrix (delta = (omega^2 + mu A^2) / w^2 -> 0) the motion starts next to the
@@ -287,7 +290,7 @@ def scale_into(omega2, mu, A, i, p, ia):
         p[ia + 2] = 0.0
         p[ia + 3] = 0.0
         p[ia + 4] = 1.0
-    w = math.ldexp(math.sqrt(w2), -i)
+    w = times_pow2(math.sqrt(w2), -i)
     p[ia + 5] = w
     return normal(w)
 
@@ -331,17 +334,17 @@ def period_from_quarter(p, tau_q):
 
 def period_exact(p):
     _, omega2, mu, A, i, _ = point(p)
-    return math.ldexp(period_plain(omega2, mu, A), i)
+    return times_pow2(period_plain(omega2, mu, A), i)
 
 
 def v_max(p):
     _, omega2, mu, A, i, j = point(p)
-    return math.ldexp(v_max_plain(omega2, mu, A), -(i + j))
+    return times_pow2(v_max_plain(omega2, mu, A), -(i + j))
 
 
 def a_max(p):
     _, omega2, mu, A, i, j = point(p)
-    return math.ldexp(a_max_plain(omega2, mu, A), -(2 * i + j))
+    return times_pow2(a_max_plain(omega2, mu, A), -(2 * i + j))
 
 
 def kv(p, vmax, T):
@@ -370,6 +373,8 @@ def relative_error(p, value, reference):
 def relative_difference(value, reference):
     """|value - reference| / |reference|, both scaled by the power of two of reference first (exact):
     the difference of two periods near 1e-300 would be subnormal and lose its digits."""
+    if PLAIN_LO <= abs(reference) <= PLAIN_HI and abs(value) <= PLAIN_HI:
+        return abs(value - reference) / abs(reference)  # as written, where nothing leaves the normal range
     e = exponent(reference)
     r = math.ldexp(reference, -e)
     return abs(math.ldexp(value, -e) - r) / abs(r)

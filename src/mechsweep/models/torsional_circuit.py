@@ -29,7 +29,7 @@ from ..model.measure import ClosedForm, FirstEvent, System
 from ..model.ode import OdeModel
 from ..model.workprecision import WorkPrecision
 from . import duffing
-from ._scaling import exponent, normal, product_in_range, quotient_in_range
+from ._scaling import exponent, normal, product_in_range, quotient_in_range, times_pow2
 from ._spec import Param
 
 SINGULAR_D0 = 1e-12  # (L(0)/R)^2 below this: spring of zero length at rest, formulas singular
@@ -283,12 +283,12 @@ def xi_of(p):
 
 def omega2_of(p):
     _, _, _, _, _, kk, ek, chi, xi, A = point_coefficients(p)
-    return math.ldexp(kk * chi, ek)
+    return times_pow2(kk * chi, ek)
 
 
 def mu_of(p):
     _, _, _, _, _, kk, ek, chi, xi, A = point_coefficients(p)
-    return math.ldexp(kk * xi, ek)
+    return times_pow2(kk * xi, ek)
 
 
 def hardness_of(p):
@@ -298,17 +298,17 @@ def hardness_of(p):
 
 def period_exact(p):
     _, omega2, mu, A, i, _ = two_term_point(p)
-    return math.ldexp(duffing.period_plain(omega2, mu, A), i)
+    return times_pow2(duffing.period_plain(omega2, mu, A), i)
 
 
 def v_max(p):
     _, omega2, mu, A, i, j = two_term_point(p)
-    return math.ldexp(duffing.v_max_plain(omega2, mu, A), -(i + j))
+    return times_pow2(duffing.v_max_plain(omega2, mu, A), -(i + j))
 
 
 def a_max(p):
     _, omega2, mu, A, i, j = two_term_point(p)
-    return math.ldexp(duffing.a_max_plain(omega2, mu, A), -(2 * i + j))
+    return times_pow2(duffing.a_max_plain(omega2, mu, A), -(2 * i + j))
 
 
 def kv(p, vmax, T):
@@ -449,7 +449,7 @@ def exact_prepare(p, rtol):
     step = math.sqrt(X / X2)
     p[ESTEP] = step if step < 1.0 else 1.0  # NaN (coefficients out of range): 1
     w2 = kk * X  # w^2 / 2^ek
-    w = math.ldexp(math.sqrt(w2), ek // 2)
+    w = times_pow2(math.sqrt(w2), ek // 2)
     if not normal(w):
         return st.OUT_OF_RANGE
     dl, _ = stretch(A, sigma, lam1, D0, r)
@@ -547,7 +547,7 @@ def exact_refine(p, rtol, T):
       ILL_CONDITIONED.
     """
     _, sigma, lam1, lam2, s, k, ek, chi, xi, A = point_coefficients(p)
-    T = math.ldexp(T, ek // 2)  # with k = kk 2^ek: T in units of 2^(-ek/2) s, k the mantissa kk (exact)
+    T = times_pow2(T, ek // 2)  # with k = kk 2^ek: T in units of 2^(-ek/2) s, k the mantissa kk (exact)
     D0 = rest_length_squared(sigma, lam1, lam2)
     L0 = math.sqrt(D0) - sigma * s
     theta0 = (math.pi - A) + PI_LO
