@@ -8,7 +8,6 @@ import functools
 import numbers
 import os
 import platform
-import resource
 import shutil
 import signal
 import stat
@@ -446,8 +445,8 @@ def _out_of_space(exc: WriteFailed, scene: Scene, final: Path, n_chunks: int) ->
         need = int(data * (1 - done.sum() / max(1, done.size)) + data)  # the chunks to come and the dataset
     kept = _kept(final)
     reason = why_write_failed(exc.errno, exc.strerror)
-    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
-    if exc.errno == errno.EFBIG and soft != resource.RLIM_INFINITY:
+    soft = _file_size_limit()
+    if exc.errno == errno.EFBIG and soft is not None:
         need_text = f"the limit is {_mib(soft)}, the dataset needs up to {_mib(data)}"
     else:
         need_text = f"{_mib(need)} needed on the disk of {final.parent.resolve()}"
@@ -847,12 +846,23 @@ class _Signals:
             raise KeyboardInterrupt
 
 
+def _file_size_limit() -> int | None:
+    """The process's file-size limit in bytes (``ulimit -f``); None when unlimited, or where the
+    system has no such limit (no ``resource`` module: Windows)."""
+    try:
+        import resource
+    except ImportError:
+        return None
+    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    return None if soft == resource.RLIM_INFINITY else soft
+
+
 def check_file_limit(scene: Scene, final: Path) -> None:
     """Refuse, before any file is made, a run whose dataset cannot fit under the process's file-size
     limit (``ulimit -f``). Counted are only the float outputs, which are stored uncompressed: the
     dataset is at least that large, so no run that would fit is refused."""
-    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
-    if soft == resource.RLIM_INFINITY:
+    soft = _file_size_limit()
+    if soft is None:
         return
     least = _least_bytes(scene)
     if least > soft:
