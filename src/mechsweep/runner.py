@@ -1339,6 +1339,7 @@ def provenance(scene: Scene, chunks: ChunkPlan) -> dict:
         "chunk_size": chunks.max_size,
         "wall_time_s": 0.0,
         "Conventions": cf.CONVENTIONS,
+        "source": cf.source(scene.model, __version__),
         "history": cf.history(created, f"mechsweep.run(scene {scene.name!r})", __version__),
         "references": cf.references(scene.model),
     }
