@@ -47,6 +47,8 @@ def model_markdown(spec) -> str:
              "| parameter | symbol | meaning | unit | allowed |", "|---|---|---|---|---|"]
     for p in spec.params:
         opt = " (optional)" if not p.required else ""
+        opt += (f" (a scene may also call it {', '.join(f'`{a}`' for a in p.aliases)}, its former name; datasets "
+                f"name it `{p.name}`)" if p.aliases else "")
         lines.append(f"| `{p.name}` | {_cell(p.symbol or '-')} | {_cell(p.long_name)}{opt} | {_unit(p.unit)} | "
                      f"{p.allowed()} |")
     lines += ["", "| output | symbol | meaning | unit |", "|---|---|---|---|"]

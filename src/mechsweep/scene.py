@@ -275,6 +275,13 @@ class Scene:
             old = json.loads(stored)
         except ValueError:
             return False
+        aliases = self.model.aliases()  # a form written when a parameter had its former name
+        if aliases and isinstance(old, dict) and isinstance(old.get("axes"), list) and isinstance(old.get("fixed"), dict):
+            old["axes"] = [[aliases.get(a[0], a[0]), *a[1:]] if isinstance(a, list) and a and isinstance(a[0], str)
+                           else a for a in old["axes"]]
+            old["fixed"] = {aliases.get(k, k): v for k, v in old["fixed"].items()}
+            if json.dumps(old, sort_keys=True) == self.canonical():
+                return True
         new = self._canonical_dict()
         if not isinstance(old, dict) or set(old) != set(new) or not isinstance(old.get("axes"), list):
             return False
@@ -376,6 +383,7 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
         raise SceneError(p.items, label)
     outputs = _outputs(head.get("outputs"), model, p)
     axes_table, fixed_table = _table(data, "axes", p), _table(data, "fixed", p)
+    axes_table, fixed_table = _current_names(axes_table, model, "axes", p), _current_names(fixed_table, model, "fixed", p)
     axes = _axes(axes_table, model, p)
     fixed = _fixed(fixed_table, model, set(axes_table), p)
     given = set(axes_table) | set(fixed_table)  # a bad value is reported as bad, not as missing
@@ -405,7 +413,7 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
     storage = _storage(_table(data, "storage", p), name if isinstance(name, str) else "scene", p)
     execution = _execution(_table(data, "execution", p), p)
     refused = set(axes_table) - {a.name for a in axes}  # axes whose own values were refused (reported already)
-    boundaries = (_boundaries(_table(data, "boundaries", p), model, axes, outputs, p, refused)
+    boundaries = (_boundaries(_current_axis_names(_table(data, "boundaries", p), model), model, axes, outputs, p, refused)
                   if "boundaries" in data else None)
     if axes:
         n = math.prod(a.size for a in axes)
@@ -414,7 +422,7 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
         elif storage.chunk_size is not None:
             _check_chunk_count(tuple(a.size for a in axes), storage.chunk_size, p)
     if p.items:
-        raise SceneError(p.items, label)
+        raise SceneError(p.as_written(), label)
     return Scene(
         name=name.strip(),
         model=model,
@@ -432,10 +440,44 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
 
 
 # ----------------------------------------------------------------------------- sections
+def _current_names(table: Mapping, model: ModelSpec, section: str, p: "_Problems") -> Mapping:
+    """``table`` with each former name of a parameter (``Param.aliases``, e.g. the slider-crank's
+    ``lambda``, now ``lam``) replaced by the parameter's name; both given is a problem."""
+    aliases = model.aliases()
+    if not aliases or not any(isinstance(k, str) and k in aliases for k in table):
+        return table
+    out = {}
+    for key, value in table.items():
+        name = aliases.get(key, key) if isinstance(key, str) else key
+        if name != key and name in table:
+            p.add(f"{section}.{key}", f"{key} is the former name of {name}, which is given too; keep one ({name})")
+            continue
+        if name != key:
+            p.written[f"{section}.{name}"] = f"{section}.{key}"  # messages name the key as the scene wrote it
+        out[name] = value
+    return out
+
+
+def _current_axis_names(table: Mapping, model: ModelSpec) -> Mapping:
+    """The [boundaries] section with a former parameter name in along / continue_in made current."""
+    aliases = model.aliases()
+    renamed = {k: aliases[v] for k in ("along", "continue_in") if isinstance(v := table.get(k), str) and v in aliases}
+    return {**table, **renamed} if renamed else table
+
+
 class _Problems:
     def __init__(self):
         self.items: list[str] = []
         self._listed: set[str] = set()  # allowed lists already printed in full
+        self.written: dict[str, str] = {}  # "fixed.lam" -> "fixed.lambda": a key given by a former name
+
+    def as_written(self) -> list[str]:
+        """The problems, each key as the scene wrote it."""
+        out = []
+        for item in self.items:
+            key, sep, rest = item.partition(":")
+            out.append(self.written.get(key, key) + sep + rest)
+        return out
 
     def add(self, key: str, message: str) -> None:
         self.items.append(f"{key}: {message}")

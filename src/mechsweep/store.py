@@ -773,11 +773,36 @@ def open_dataset(path: str | Path, *, allow_partial: bool = False, lazy: bool | 
 
     try:
         if lazy:
-            return xr.open_dataset(path, engine="h5netcdf", chunks={} if _have_dask() else None)
+            return current_names(xr.open_dataset(path, engine="h5netcdf", chunks={} if _have_dask() else None))
         with xr.open_dataset(path, engine="h5netcdf") as ds:
-            return ds.load()
+            return current_names(ds.load())
     except (OSError, ValueError, KeyError, TypeError, RuntimeError) as exc:
         raise StoreError(f"{path} is not a readable mechsweep dataset: {_first_line(exc)}") from None
+
+
+def current_names(ds: xr.Dataset) -> xr.Dataset:
+    """A dataset written before one of its model's parameters was renamed, with the current name:
+    a variable named by a former name the declaration keeps (``Param.aliases``, e.g. the
+    slider-crank's ``lambda``, now ``lam``: a Python keyword cannot be used in ``ds.sel``). Only
+    a file with a name that is no identifier, or a keyword, looks the model up."""
+    import keyword
+
+    odd = [n for n in ds.variables if isinstance(n, str) and (keyword.iskeyword(n) or not n.isidentifier())]
+    model = ds.attrs.get("model")
+    if not odd or not isinstance(model, str):
+        return ds
+    from .models import MODELS  # (imports the built-in models: only for such an old file)
+
+    spec = MODELS.get(model)
+    renames = {a: n for a, n in (spec.aliases() if spec is not None else {}).items()
+               if a in ds.variables and n not in ds.variables}
+    if not renames:
+        return ds
+    ds = ds.rename(renames)
+    for key in ("along", "continue_in"):  # a boundaries dataset names its axes
+        if ds.attrs.get(key) in renames:
+            ds.attrs[key] = renames[ds.attrs[key]]
+    return ds
 
 
 def check_dataset_file(path: str | Path) -> None:
