@@ -53,3 +53,24 @@ def source(spec, version: str) -> str:
     own source when it declares one)."""
     origin = f" ({spec.source})" if getattr(spec, "source", "") else ""
     return f"mechsweep {version}, model {spec.name}{origin}"
+
+
+UNIT_EXAMPLES = "'m', 'kg m2', 'rad s-1', 'N m', 'm s-2', '1' for dimensionless"
+
+
+def unit_problem(unit) -> str | None:
+    """Why ``unit`` is not a unit string a CF dataset can carry (UDUNITS-2 must parse it), or None.
+    "" is allowed: no unit declared, no ``units`` attribute written (CF: unknown)."""
+    if unit == "":
+        return None
+    if not isinstance(unit, str):
+        return f"{unit!r} is not a string; expected a UDUNITS-2 unit such as {UNIT_EXAMPLES}"
+    import cf_units  # here: only loading a user model checks units (its import reads the unit database)
+
+    try:
+        parsed = cf_units.Unit(unit)
+    except (ValueError, TypeError):
+        parsed = None
+    if parsed is None or parsed.is_unknown() or parsed.is_no_unit():
+        return f"{unit!r} is not a unit UDUNITS-2 reads (CF units); expected e.g. {UNIT_EXAMPLES}"
+    return None
