@@ -235,6 +235,45 @@ class Scene:
     def shape(self) -> tuple[int, ...]:
         return tuple(a.size for a in self.axes)
 
+    def __repr__(self) -> str:
+        """One line: name, model, grid, outputs, method (the dataclass's would print the model's
+        whole declaration and the scene's text)."""
+        grid = " x ".join(f"{a.name} {a.size}" for a in self.axes) or "one point"
+        method = f", method {self.solver.method}" if self.solver is not None else ""
+        return (f"<Scene {self.name!r}: model {self.model.name}, {self.n_points:,} points ({grid}), "
+                f"outputs {', '.join(self.outputs)}{method}>")
+
+    def _repr_html_(self) -> str:
+        """A table for notebooks: the model, each axis with its values and unit, the fixed values,
+        the outputs with their units, the solver settings and where the dataset goes."""
+        from html import escape
+
+        def unit(u):
+            return f" [{escape(u)}]" if u and u != "1" else ""
+
+        def values(a: Axis) -> str:
+            if a.spacing == "list":
+                shown = ", ".join(str(v) for v in a.items[:6]) + (", ..." if a.size > 6 else "")
+                return f"{escape(shown)} ({a.size} values)"
+            return f"{a.start:g} .. {a.stop:g}, {a.num} values ({a.spacing})"
+
+        rows = [("model", f"<code>{escape(self.model.name)}</code>: {escape(self.model.description or '')}"),
+                ("grid", f"{self.n_points:,} points")]
+        rows += [(f"axis <code>{escape(a.name)}</code>", values(a) + unit(self.model.param(a.name).unit))
+                 for a in self.axes]
+        if self.fixed:
+            rows.append(("fixed", ", ".join(f"<code>{escape(k)}</code> = {escape(str(v))}"
+                                            f"{unit(self.model.param(k).unit)}" for k, v in self.fixed.items())))
+        rows.append(("outputs", ", ".join(f"<code>{escape(o)}</code>{unit(self.model.output(o).unit)}"
+                                          for o in self.outputs)))
+        if self.solver is not None:
+            rows.append(("solver", escape(", ".join(f"{k} = {v}" for k, v in self.solver.as_dict().items()))))
+        rows.append(("dataset", f"<code>{escape(self.storage.path)}</code>"))
+        body = "".join(f"<tr><th style=\"text-align:left\">{k}</th><td style=\"text-align:left\">{v}</td></tr>"
+                       for k, v in rows)
+        return (f"<div><strong>mechsweep Scene</strong> <code>{escape(self.name)}</code>"
+                f"<table>{body}</table></div>")
+
     @property
     def n_points(self) -> int:
         return int(np.prod(self.shape, dtype=np.int64)) if self.axes else 1
