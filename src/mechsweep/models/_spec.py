@@ -47,6 +47,9 @@ class Param:
         The symbol in matplotlib mathtext for figure labels (e.g. ``r"$\\omega_\\xi$"``; it may
         define the symbol, as in ``r"$\\varepsilon = \\mu A^2/\\omega^2$"``). Without one, figures
         write ``symbol`` as mathtext themselves.
+    aliases : tuple of str, optional
+        Former names a scene, a stored scene or a call may still use for the parameter (e.g.
+        ``"lambda"``, a Python keyword, for the slider-crank's ``lam``); datasets use ``name``.
 
     Examples
     --------
