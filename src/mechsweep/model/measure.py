@@ -902,6 +902,8 @@ class FirstEvent:
         The time from root ``since`` to root ``n`` instead of from t = 0.
     classify : callable, optional
         ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    latex : str, optional
+        The output's symbol in matplotlib mathtext, for figure labels (see :class:`Output`).
     """
 
     name: str
@@ -1009,6 +1011,8 @@ class ClosedForm:
         Optional parameters it requires.
     kind : str, optional
         What the value means for the generic figures (see :class:`Output`).
+    latex : str, optional
+        The symbol in matplotlib mathtext, for figure labels (see :class:`Output`).
     """
 
     name: str
