@@ -109,8 +109,10 @@ Other outputs and rules:
   without l3, l4, or a platform parameter pair not given.
 
 Status of a point: the most severe problem among the outputs asked for, in the order
-INFEASIBLE > NONFINITE > STEP_UNDERFLOW > MAX_STEPS > SINGULAR > NOT_REPRODUCIBLE > NOT_BALANCEABLE >
-UNDECIDED > NO_EVENT; outputs that could be computed are kept.
+INFEASIBLE > NONFINITE > STEP_UNDERFLOW > MAX_STEPS > STIFF > SINGULAR > NOT_REPRODUCIBLE > NOT_BALANCEABLE >
+UNDECIDED > NO_EVENT; outputs that could be computed are kept. STIFF: dop853 spent its step budget at the
+stability limit (strong pendulum damping h / (m a^2 Omega) of order 1e3 and more, a platform far stiffer
+than the crank speed); auto and radau integrate such points.
 NOT_REPRODUCIBLE: a simulated output (residual_amplitude, phase_error, settling_time, stable_sim,
 the histories) moved by more than reproducibility_factor (rtol |value| + atol) when the trajectory
 was integrated again at rtol / 100 (the Recheck below; the rule and its measured cost: TIGHTEN in models/_autobalancer_kernels.py);
@@ -172,8 +174,8 @@ IB_SLACK = 1e-9  # relative round-off allowed in I_B >= m a^2 (a point-mass pend
 # Status severity (most severe first): what a point shows when several problems occur.
 # NOT_REPRODUCIBLE ranks above the statuses that leave an output NaN with a reason: it warns
 # about a value that is stored and would otherwise look trustworthy.
-STATUS_ORDER = (st.INFEASIBLE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.SINGULAR, st.NOT_REPRODUCIBLE,
-                st.NOT_BALANCEABLE, st.UNDECIDED, st.NO_EVENT)
+STATUS_ORDER = (st.INFEASIBLE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.STIFF, st.SINGULAR,
+                st.NOT_REPRODUCIBLE, st.NOT_BALANCEABLE, st.UNDECIDED, st.NO_EVENT)
 
 
 # ----------------------------------------------------------------------------- kinematics
