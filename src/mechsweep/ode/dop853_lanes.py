@@ -44,7 +44,7 @@ import math
 
 import numpy as np
 
-from .._jit import jit, jit_inline, jit_noalloc
+from .._jit import jit, jit_inline, jit_internal_noalloc, jit_noalloc
 from ..status import MAX_STEPS, NONFINITE, OK, STEP_UNDERFLOW
 from ._common import _all_finite, _min_step
 from . import _dop853_lane_sums as sums
@@ -94,12 +94,13 @@ def _error_test(w, lf, li, l, n):
     return False
 
 
-@jit_inline
+@jit_internal_noalloc
 def _stiffness_lane(h, y, w, l, scratch, stiff_count, nonstiff_count):
     """dop853._stiffness_update for lane l after its accepted step, before its commit (model/lanes.py
     shares it). The lanes reuse the row of the last stage's argument as scratch, so that argument is
     computed again into ``scratch`` by dop853's own _stage_argument: the floats of the one-trajectory
-    solver, hence its counts."""
+    solver, hence its counts. A function of its own (called late in a budget only): inlined into the
+    lanes' per-lane loops it cost them speed."""
     _stage_argument(y[:, l], h, w[:, :, l], N_STAGES - 1, scratch)
     num = 0.0
     den = 0.0
