@@ -6,9 +6,10 @@ its right-hand side, its stage sums, its error norm each handle one float at a t
 and every loop over the lanes is written so that LLVM vectorises it (no call, no branch that
 it cannot turn into a select, lanes innermost): with AVX2 four lanes share one instruction.
 
-Each lane keeps its own time, step size, error test, step-size control and output samples, so a
-lane computes the same floats, step for step, as :func:`.dop853.make_trajectory_solver` on the
-same trajectory (tests/test_dop853_lanes.py checks bitwise equality). The lanes only share the
+Each lane keeps its own time, step size, error test, step-size control, stiffness counters (the
+test late in the step budget: a spent budget there is STIFF) and output samples, so a lane computes
+the same floats, step for step, as :func:`.dop853.make_trajectory_solver` on the same trajectory
+(tests/test_dop853_lanes.py checks bitwise equality). The lanes only share the
 moment of their attempts: every active lane attempts a step in every round, accepted or not,
 and the three extra stages of the dense output are computed for all lanes when any accepted
 lane has a sample inside its step. A lane whose trajectory ends is handed back to the caller,
