@@ -162,6 +162,53 @@ def test_scan_sign_of_A1_term_matters(lagrange):
         assert np.allclose(dz[5] * 0.1 * 25, ref[1], rtol=1e-10) == expect_match
 
 
+def test_docstring_equations_match_the_lagrange_derivation(lagrange):
+    """The module docstring's xi and eta equations, read with the sign they print before
+    d^2/dt^2 [...], against sympy's Lagrange equations at random states and accelerations."""
+    import re
+
+    names, mass, force = lagrange
+    doc = ab.__doc__
+    signs = {}
+    for q, trig in (("xi", "cos"), ("eta", "sin")):
+        found = re.search(rf"^\s*{q}:\s+M {q}'' ([+-]) d\^2/dt\^2 \[A0 {trig} phi \+ A1 {trig} psi \+ m a sum "
+                          rf"{trig} gamma_i\] = -c_{q} {q} - b_{q} {q}'$", doc, re.M)
+        assert found, f"the docstring's {q} equation is not in the form the test reads"
+        signs[q] = 1.0 if found.group(1) == "+" else -1.0
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        v = dict(Om=rng.uniform(0.5, 20), Mp=rng.uniform(1, 10), m3=rng.uniform(0, 1), S3=rng.uniform(0, 0.1),
+                 m4=rng.uniform(0, 1), S4=rng.uniform(0, 0.3), J4=rng.uniform(0, 0.01), m5=rng.uniform(0, 1),
+                 mk=rng.uniform(0, 1), Sk=rng.uniform(0, 0.2), l3=rng.uniform(0.02, 0.1), l4=rng.uniform(0.15, 0.4),
+                 m=rng.uniform(0.01, 0.5), a=rng.uniform(0.02, 0.2), JP=rng.uniform(0, 0.01), cx=rng.uniform(10, 1e4),
+                 cy=rng.uniform(10, 1e4), bx=rng.uniform(0, 50), by=rng.uniform(0, 50), h=rng.uniform(0, 1))
+        t = rng.uniform(0, 10)
+        q, qd, qdd = rng.normal(0, 0.05, 4), rng.normal(0, 0.5, 4), rng.normal(0, 5.0, 4)
+        q[2:], qd[2:] = rng.uniform(-7, 7, 2), v["Om"] * rng.uniform(0.5, 1.5, 2)
+        args = [t, *q, *qd, *[v[n] for n in names]]
+        residual = np.array(mass(*args), float) @ qdd + np.array(force(*args), float).ravel()  # Lagrange: = 0
+        M = v["Mp"] + v["m3"] + v["m4"] + v["m5"] + v["mk"] + 2 * v["m"]
+        A0 = v["m3"] * v["S3"] + (v["m4"] + v["m5"] + v["mk"]) * v["l3"]
+        A1 = v["m4"] * v["S4"] + v["m5"] * v["l4"] - v["mk"] * v["Sk"]
+        Om, lam, ma = v["Om"], v["l3"] / v["l4"], v["m"] * v["a"]
+        phi = Om * t
+        spsi = -lam * math.sin(phi)
+        cpsi = math.sqrt(1 - spsi * spsi)
+        dpsi = -lam * Om * math.cos(phi) / cpsi
+        ddpsi = (lam * Om**2 * math.sin(phi) + dpsi**2 * spsi) / cpsi
+        g, dg, ddg = q[2:], qd[2:], qdd[2:]
+        # d^2/dt^2 of the bracket: A0 e(phi) + A1 e(psi) + m a sum e(gamma_i), e = (cos, sin)
+        dd_cos = (-A0 * Om**2 * math.cos(phi) - A1 * (ddpsi * spsi + dpsi**2 * cpsi)
+                  - ma * np.sum(ddg * np.sin(g) + dg**2 * np.cos(g)))
+        dd_sin = (-A0 * Om**2 * math.sin(phi) + A1 * (ddpsi * cpsi - dpsi**2 * spsi)
+                  + ma * np.sum(ddg * np.cos(g) - dg**2 * np.sin(g)))
+        xi_doc = M * qdd[0] + signs["xi"] * dd_cos + v["cx"] * q[0] + v["bx"] * qd[0]
+        eta_doc = M * qdd[1] + signs["eta"] * dd_sin + v["cy"] * q[1] + v["by"] * qd[1]
+        scale = M * np.abs(qdd[:2]).max() + abs(dd_cos) + abs(dd_sin)
+        assert xi_doc - residual[0] == pytest.approx(0.0, abs=1e-12 * scale), "xi"
+        assert eta_doc - residual[1] == pytest.approx(0.0, abs=1e-12 * scale), "eta"
+
+
 def test_analytic_jacobian_against_finite_differences():
     rng = np.random.default_rng(3)
     J = np.empty((8, 8))
@@ -242,6 +289,46 @@ def test_isotropic_platform_stable_above_natural_frequency_only():
     assert (status == st.OK).all()
     # balanced: the platform comes to rest; unstable: it keeps vibrating
     assert out["residual_amplitude"][2:].max() < 1e-8 < 1e-5 < out["residual_amplitude"][:2].min()
+
+
+# The docstring's example of a finite basin of attraction (models/autobalancer.py, "What the kick
+# verdict means"): 2 m / M = 0.087, zeta_eta = 0, omega_xi < Omega < omega_eta.
+FINITE_BASIN = dict(Omega=22.28, M=23.0, m=1.0, a=0.1, I_B=0.01553, A0=0.01257, h=0.2665, omega_xi=20.0,
+                    omega_eta=24.86, zeta_xi=0.0364, zeta_eta=0.0)
+
+
+def test_kick_verdict_is_the_fate_of_one_kick_in_a_finite_basin():
+    """Floquet says stable (multiplier 0.99881) and stable_sim = 0 with status ok: not a contradiction.
+    The 0.1 rad kick leaves the basin for a coexisting steady motion (the platform keeps vibrating
+    at 0.074 m, the pendulums far from their balanced angles) and stays there; a 0.01 rad kick
+    comes back, given a horizon long enough for a multiplier this close to 1 (undecided at the
+    default 300 revolutions, 0.9988^300 = 0.70)."""
+    import re
+
+    # the point the module docstring describes is this one
+    doc = " ".join(ab.__doc__.split())
+    example = doc[doc.index("What the kick verdict means"):]
+    for name, value in FINITE_BASIN.items():
+        assert float(re.search(rf"\b{name} = ([0-9.]+)", example).group(1)) == value, name
+    assert "floquet_max = 0.99881" in example
+    outs = ("stable_floquet", "stable_sim", "residual_amplitude", "floquet_max")  # the kernel the tests above compile
+    verdict = {}
+    for kick in (0.1, 0.01):
+        for horizon in (300.0, 2000.0):
+            slv = solver(rtol=1e-8, atol=1e-10, perturbation=kick, horizon_revolutions=horizon)
+            out, status, _ = evaluate(outs, slv, **FINITE_BASIN)
+            verdict[kick, horizon] = (out["stable_sim"][0], int(status[0]), out["residual_amplitude"][0])
+            assert out["stable_floquet"][0] == 1.0
+            assert out["floquet_max"][0] == pytest.approx(0.99881, abs=1e-5)
+    # the 0.1 rad kick: left and stayed away, at the default horizon and at 2000 revolutions, status ok
+    for horizon in (300.0, 2000.0):
+        sim, status, residual = verdict[0.1, horizon]
+        assert sim == 0.0 and status == st.OK, verdict
+        assert residual == pytest.approx(0.074, rel=0.01)  # a steady vibration, not the balanced state
+    # the 0.01 rad kick: came back (the platform at rest to 1e-4 m), undecided within 300 revolutions
+    assert np.isnan(verdict[0.01, 300.0][0]) and verdict[0.01, 300.0][1] == st.UNDECIDED, verdict
+    sim, status, residual = verdict[0.01, 2000.0]
+    assert sim == 1.0 and status == st.OK and residual < 1e-4, verdict
 
 
 def floquet_boundaries(eps, zeta=0.02):

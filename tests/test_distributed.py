@@ -194,6 +194,7 @@ def test_a_lost_cluster_ends_with_a_message_and_the_run_resumes_identically(in_t
     assert "chunks saved in data/runs/dist.h5.partial); run again with --resume" in message
     assert len(saved) >= 2
     monkeypatch.undo()
+    monkeypatch.chdir(in_tmp)  # undo() also undid in_tmp's chdir: resume this journal, not data/runs of the cwd
     ds = mechsweep.run(SCENE, output="data/runs/dist.h5", progress=False, resume=True, threads=2)
     assert_identical(ds, reference)
 
@@ -229,5 +230,6 @@ def test_a_scheduler_killed_with_sigkill_ends_with_a_message(in_tmp, reference, 
             worker.kill()
     assert "run again with --resume" in str(caught.value)
     monkeypatch.undo()
+    monkeypatch.chdir(in_tmp)  # undo() also undid in_tmp's chdir: resume this journal, not data/runs of the cwd
     ds = mechsweep.run(SCENE, output="data/runs/dist.h5", progress=False, resume=True, threads=2)
     assert_identical(ds, reference)

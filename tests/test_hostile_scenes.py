@@ -11,6 +11,7 @@ import math
 import os
 import re
 import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +52,7 @@ CORPUS = {
     "scene_array_of_tables.toml": ["scene: expected a table [scene], got list"],
     "empty_name.toml": ["scene.name", "'   '", "non-empty string"],
     "name_int.toml": ["scene.name: 42", "non-empty string"],
+    "scene_name_nul.toml": ["scene.name: 'sweep\\x00one'", "NUL character", "HDF5"],
     "unknown_scene_key.toml": ["scene.descripton", "did you mean 'description'"],
     "unknown_model.toml": ["scene.model", "'dufing'", "did you mean 'duffing'"],
     "model_int.toml": ["scene.model", "unknown model 7", "slidercrank_balancing"],
@@ -151,6 +153,10 @@ CORPUS = {
                                                 "solver.tolerance", "unknown solver setting"],
     "fourbar_solver_garbage.toml": ["solver.rtol", "'tight'", "solver.steps", "unknown solver setting"],
     "solver_not_table_without_integration.toml": ["solver: expected a table [solver], got int 5"],
+    "atol_below_floor.toml": ["solver.atol: 1e-300", "usable range of method 'dop853', [1e-150, 1]", "nonfinite",
+                              "give atol >= 1e-150"],
+    "torsional_radau_atol_below_floor.toml": ["solver.atol: 1e-160", "method 'radau', [1e-150, 1]", "overflows"],
+    "autobalancer_auto_atol_below_floor.toml": ["solver.atol: 1e-200", "method 'auto', [1e-150, 1]"],
     # [storage]
     "storage_path_int.toml": ["storage.path: 5 is not allowed"],
     "storage_path_empty.toml": ["storage.path: '' is not allowed"],
@@ -161,11 +167,43 @@ CORPUS = {
     "chunk_size_float.toml": ["storage.chunk_size: 100.5 is not allowed"],
     "chunk_size_huge.toml": ["storage.chunk_size: 4294967296 is not allowed", "[1, 2147483648]"],
     "storage_not_table.toml": ["storage: expected a table [storage], got str"],
-    "execution_unknown_key.toml": ["execution.workers", "unknown execution key 'workers'", "(allowed: scheduler, worker_timeout)"],
+    "execution_unknown_key.toml": ["execution.workers", "unknown execution key 'workers'", "(allowed: scheduler, worker_timeout, lanes)"],
     "execution_scheduler_number.toml": ["execution.scheduler: 8786 is not allowed", "tcp://"],
     "execution_scheduler_spaces.toml": ["execution.scheduler", "is not an address", "tcp://"],
     "execution_scheduler_empty.toml": ["execution.scheduler", "is not allowed", "tcp://"],
+    # user models (tests/user_models, copied next to the scene): functions writing what they may not
+    # (model/writes.py), exits while a model loads, model files that are not Python files
+    "model_event_writes_state.toml": ["scene.model", "event of FirstEvent 'apex' writes into its state argument y",
+                                      "hostile_writes.py:37", "y[1] = -p[2] * y[1]", "state jumps are not supported"],
+    "model_event_writes_state_in_module_helper.toml": [
+        "event of FirstEvent 'apex' writes into its state argument y", "hostile_writes.py:56",
+        "through negate, which writes it at", "hostile_helpers.py:10 (v[k] = -v[k])"],
+    "model_event_writes_state_unseen.toml": ["event of FirstEvent 'apex' wrote into its state argument y (component(s) 1)",
+                                             "when run at the probe point", "hostile_writes.py:60"],
+    "model_rhs_writes_parameter.toml": ["rhs writes into its parameter argument p", "hostile_writes.py:72",
+                                        "may write only its 4th argument (dydt)"],
+    "model_prepare_writes_parameter.toml": ["prepare writes into its parameter argument p", "hostile_writes.py:100",
+                                            "only the model's internal slots of p (p[3:4]"],
+    "model_expression_writes_state.toml": ["expression of Extremum 'e_max' writes into its state argument y",
+                                           "hostile_writes.py:84 (y[:] = np.abs(y))"],
+    "model_closed_form_writes_parameter.toml": ["closed form 't_fall' writes into its parameter argument p",
+                                                "hostile_writes.py:123"],
+    "model_compute_writes_data.toml": ["compute writes into its shared data argument u", "hostile_writes.py:188",
+                                       "only row, curves and scratch"],
+    "model_sys_exit_at_import.toml": ["scene.model", "importing", "exit_sys.py", "SystemExit(0)", "exit_sys.py, line 5",
+                                      "may not exit"],
+    "model_base_exception_at_import.toml": ["Stop raised (a BaseException, not an Exception): no model today",
+                                            "exit_base.py, line 9"],
+    "model_helper_exits_at_import.toml": ["SystemExit(3)", "exit_helper_module.py, line 5",
+                                          "reached from", "exit_via_helper.py, line 4"],
+    "model_exits_at_probe.toml": ["running its functions at the probe point", "SystemExit(0)", "exit_probe.py, line 18"],
+    "model_not_a_python_file.toml": ["model_not_a_python_file.toml is not a Python file", "ends in .py"],
+    "model_file_is_a_folder.toml": ["data/runs is a folder, not a Python file"],
+    "model_file_is_a_device.toml": ["/dev/null is a character device, not a Python file"],
 }
+USER_MODELS = Path(__file__).resolve().parent / "user_models"
+# a model file of the corpus -> the modules it imports by name (copied beside it)
+COMPANIONS = {"hostile_writes.py": ("hostile_helpers.py",), "exit_via_helper.py": ("exit_helper_module.py",)}
 
 # a valid, algebraic (instant) scene for the attacks on the output path
 VALID = """\
@@ -200,7 +238,12 @@ def work(tmp_path, monkeypatch):
     monkeypatch.setattr(runner.Journal, "create", tripwire)
     monkeypatch.setattr(runner, "_save_chunks", tripwire)
     monkeypatch.setattr(runner, "evaluate_chunk", tripwire)
-    return tmp_path
+    yield tmp_path
+    # the user modules a scene imported by name from this folder (hostile_helpers, ...) must not be
+    # found by a later test that imports the same names from tests/user_models
+    for name, module in list(sys.modules.items()):
+        if str(getattr(module, "__file__", None) or "").startswith(str(tmp_path)):
+            del sys.modules[name]
 
 
 def snapshot(root: Path) -> dict:
@@ -249,9 +292,20 @@ def test_corpus_is_complete():
         assert sum(section.encode() in t for t in texts) >= 5, section
 
 
+def with_user_models(name: str, work: Path, monkeypatch) -> None:
+    """Copy the model file a scene names (and the modules it imports) from tests/user_models beside
+    it, importable by name from there, with no bytecode written (nothing in the folder may change)."""
+    for ref in re.findall(r'^model = "([\w.]+\.py):', (HOSTILE / name).read_text(errors="replace"), re.M):
+        for file in (ref,) + COMPANIONS.get(ref, ()):
+            shutil.copy(USER_MODELS / file, work / file)
+    monkeypatch.setattr("sys.dont_write_bytecode", True)
+    monkeypatch.syspath_prepend(str(work))
+
+
 @pytest.mark.parametrize("name", sorted(CORPUS))
-def test_hostile_scene_is_refused(name, work, capsys):
+def test_hostile_scene_is_refused(name, work, capsys, monkeypatch):
     shutil.copy(HOSTILE / name, work / name)
+    with_user_models(name, work, monkeypatch)
     out = work / "data" / "runs" / "out.h5"
     refused(capsys, ["run", name, "-o", str(out), "--no-progress"], work, *CORPUS[name])
     refused(capsys, ["run", name, "--no-progress"], work, *CORPUS[name])  # to its own [storage] path
@@ -402,3 +456,256 @@ def test_chunk_beyond_the_memory_is_refused_with_its_size(work, capsys):
     (work / "huge.toml").write_text(huge_scene(points, chunk_size=points))
     err = refused(capsys, ["run", "huge.toml", "--no-progress"], work, "memory")
     assert SIZE.search(err), f"no size in:\n{err}"
+
+
+# ----------------------------------------------------------------------------- scenes that are not small files
+class Hung(BaseException):
+    """Raised by the alarm: a read blocked (no Exception subclass, so no handler of the CLI takes it)."""
+
+
+@pytest.fixture
+def alarm():
+    """Fail a command that blocks (e.g. on a pipe nobody writes) instead of hanging the suite."""
+    import signal
+
+    def ring(signum, frame):
+        raise Hung("the command blocked")
+
+    previous = signal.signal(signal.SIGALRM, ring)
+    signal.alarm(20)
+    yield
+    signal.alarm(0)
+    signal.signal(signal.SIGALRM, previous)
+
+
+def _unix_socket(path: Path) -> None:
+    import socket
+
+    s = socket.socket(socket.AF_UNIX)
+    s.bind(str(path))
+    s.close()  # the socket file stays
+
+
+def make_special(kind: str, work: Path) -> str:
+    """A scene path that is not a small regular file (created in work)."""
+    path = work / "scene.toml"
+    if kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "link_to_fifo":
+        os.mkfifo(work / "pipe")
+        path.symlink_to("pipe")
+    elif kind == "socket":
+        _unix_socket(path)
+    elif kind == "folder":
+        path.mkdir()
+    elif kind == "huge":  # a sparse file: its size without its bytes on the disk
+        with open(path, "wb") as f:
+            f.truncate(200 * 2**20)
+    elif kind == "just_too_big":
+        from mechsweep.scene import MAX_SCENE_BYTES
+
+        path.write_text(VALID + "#" * (MAX_SCENE_BYTES + 1 - len(VALID)))
+    elif kind == "symlink_loop":
+        path.symlink_to("scene.toml")
+    elif kind == "broken_link":
+        path.symlink_to("nowhere.toml")
+    return path.name
+
+
+SPECIAL = {
+    "fifo": ["'scene.toml' is a named pipe (FIFO), not a scene file"],
+    "link_to_fifo": ["'scene.toml' is a named pipe (FIFO), not a scene file"],
+    "socket": ["'scene.toml' is a socket, not a scene file"],
+    "folder": ["'scene.toml' is a directory, not a scene file"],
+    "huge": ["'scene.toml' is 200 MiB", "at most 16 MiB", "range"],
+    "just_too_big": ["'scene.toml' is 16 MiB", "at most 16 MiB"],
+    "symlink_loop": ["'scene.toml' is a symbolic link loop"],
+    "broken_link": ["'scene.toml' is a broken symbolic link (to 'nowhere.toml')"],
+}
+COMMANDS = {"run": ["run", "{}", "--no-progress"], "check": ["check", "{}"], "boundaries": ["boundaries", "{}"],
+            "models": ["models", "--scene", "{}"]}
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+@pytest.mark.parametrize("kind", sorted(SPECIAL))
+def test_a_scene_that_is_not_a_small_regular_file_is_refused_without_reading_it(kind, command, work, capsys, alarm):
+    """Every command that reads a scene: a pipe nobody writes would block, a device never ends, a
+    big file would be read whole before it is found not to be a scene."""
+    name = make_special(kind, work)
+    refused(capsys, [a.format(name) for a in COMMANDS[command]], work, *SPECIAL[kind])
+
+
+def test_an_unreadable_scene_says_permission_denied(work, capsys, monkeypatch):
+    """EACCES (injected: the tests may run as root, who reads any file)."""
+    import errno
+
+    (work / "valid.toml").write_text(VALID)
+    real_open = os.open
+
+    def denied(path, *args, **kwargs):
+        if str(path).endswith("valid.toml"):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(path))
+        return real_open(path, *args, **kwargs)
+
+    monkeypatch.setattr(os, "open", denied)
+    for command in ("run", "check"):
+        refused(capsys, [a.format("valid.toml") for a in COMMANDS[command]], work,
+                "cannot read 'valid.toml': permission denied (EACCES)")
+
+
+@pytest.mark.parametrize("device", ["/dev/zero", "/dev/urandom"])
+def test_a_device_as_the_scene_is_refused_at_once_in_bounded_memory(device, tmp_path):
+    """In a child with 2 GiB of address space and a time limit: reading /dev/zero used to grow
+    without end (MemoryError at the limit)."""
+    import resource
+    import subprocess
+    import sys
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (2 * 2**30, 2 * 2**30))
+
+    for argv in (["run", device, "--no-progress"], ["check", device]):
+        child = subprocess.run([sys.executable, "-m", "mechsweep", *argv], cwd=tmp_path, capture_output=True,
+                               text=True, timeout=120, preexec_fn=limit)
+        assert child.returncode == 2, child.stderr[-2000:]
+        assert f"'{device}' is a character device, not a scene file" in child.stderr, child.stderr
+        assert "Traceback" not in child.stderr
+
+
+def test_a_scene_text_beyond_the_cap_is_refused_before_parsing():
+    from mechsweep.scene import MAX_SCENE_BYTES, SceneError, load_scene, load_scene_text
+
+    with pytest.raises(SceneError, match="the scene text is 16 MiB; a scene is at most 16 MiB"):
+        load_scene_text("#" * (MAX_SCENE_BYTES + 1), label="stored scene")
+    values = [float(i) for i in range(1, 2 * 10**6)]  # a dict scene whose TOML form is too long to store
+    with pytest.raises(SceneError, match=r"TOML form is \d+(\.\d+)? MiB; a scene is at most 16 MiB"):
+        load_scene({"scene": {"name": "s", "model": "duffing", "outputs": ["period_exact"]},
+                    "axes": {"A": values}, "fixed": {"omega": 1.0, "mu": 1.0}})
+
+
+@pytest.mark.parametrize("kind", ["fifo", "socket", "folder", "huge", "symlink_loop"])
+def test_plot_boundaries_path_that_is_not_a_dataset_is_refused(kind, work, capsys, alarm):
+    existing_dataset(work / "data" / "runs" / "d.h5")
+    name = make_special(kind, work)
+    what = {"fifo": "a named pipe (FIFO)", "socket": "a socket", "folder": "a directory",
+            "huge": "it is a file of another format, not HDF5", "symlink_loop": "symbolic link loop (ELOOP)"}[kind]
+    refused(capsys, ["plot", "data/runs/d.h5", "--boundaries", name], work, f"{name} is not a mechsweep dataset", what)
+
+
+@pytest.mark.parametrize("command", ["info", "plot"])
+def test_an_unreadable_dataset_says_permission_denied(command, work, capsys, monkeypatch):
+    import errno
+
+    existing_dataset(work / "data" / "runs" / "d.h5")
+    real_open = os.open
+
+    def denied(path, *args, **kwargs):
+        if str(path).endswith("d.h5"):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(path))
+        return real_open(path, *args, **kwargs)
+
+    monkeypatch.setattr(os, "open", denied)
+    refused(capsys, [command, "data/runs/d.h5"], work, "data/runs/d.h5 is not a mechsweep dataset: it cannot be read "
+            "(permission denied (EACCES))")
+
+
+# ----------------------------------------------------------------------------- strings a dataset cannot store
+USER = Path(__file__).resolve().parent / "user_models" / "unstorable.py"
+
+
+def user_scene(model: str, output: str = "T", kind: str = "hard") -> str:
+    return (f'[scene]\nname = "s"\nmodel = "{USER}:{model}"\noutputs = ["{output}"]\n'
+            f'[axes]\nk = [1.0, 4.0]\nkind = [{json_str(kind)}]\n')
+
+
+def json_str(text: str) -> str:
+    import json
+
+    return json.dumps(text)  # a TOML basic string (\\u0000 for a NUL)
+
+
+UNSTORABLE = {
+    "NUL_LONG_NAME": ("T", "hard", ["parameter 'k' long_name 'stiff\\x00ness'", "NUL character", "HDF5 cannot store"]),
+    "SURROGATE_UNIT": ("T", "hard", ["parameter 'k' unit 's-2\\udcff'", "lone surrogate"]),
+    "NUL_CHOICE": ("T", "soft\0", ["choice of parameter 'kind' 'soft\\x00'", "NUL character"]),
+    "NUL_NAME": ("T", "hard", ["model 'lin\\x00ear'", "NUL character"]),
+    "SLASH_OUTPUT": ("T/2", "hard", ["output 'T/2'", "'/', HDF5's path separator"]),
+    "OUTPUT_NAMED_STATUS": ("status", "hard", ["output 'status' has the name of the run's own variable 'status'"]),
+    "OUTPUT_NAMED_LIKE_PARAMETER": ("k", "hard", ["output 'k' has the name of parameter 'k'"]),
+    "NUL_REFERENCE": ("T", "hard", ["reference 'a book\\x00'", "NUL character"]),
+}
+
+
+@pytest.mark.parametrize("model", sorted(UNSTORABLE))
+def test_a_model_declaring_what_a_dataset_cannot_store_is_refused_at_load(model, work, capsys):
+    """Such a string used to pass `check`, compute every point and fail writing the file (a
+    traceback, exit 1), and every --resume the same way."""
+    output, kind, fragments = UNSTORABLE[model]
+    (work / "u.toml").write_text(user_scene(model, output, kind))
+    refused(capsys, ["check", "u.toml"], work, "scene.model", *fragments)
+    refused(capsys, ["run", "u.toml", "--no-progress"], work, "scene.model", *fragments)
+
+
+def test_two_outputs_with_one_dimension_name_and_other_values_are_refused(work, capsys):
+    """They used to compute, then fail writing the second output into the first's dimension."""
+    (work / "u.toml").write_text(f'[scene]\nname = "s"\nmodel = "{USER}:TWO_HISTORIES_ONE_DIMENSION"\n'
+                                 'outputs = ["x_history", "v_history"]\n[axes]\nk = [1.0, 4.0]\n')
+    refused(capsys, ["check", "u.toml"], work, "outputs 'x_history' and 'v_history' both have a dimension 'period', "
+            "with other values")
+    (work / "u.toml").write_text(f'[scene]\nname = "s"\nmodel = "{USER}:TWO_HISTORIES_ONE_DIMENSION"\n'
+                                 'outputs = ["x_history"]\n[axes]\nk = [1.0, 4.0]\n')
+    assert main(["check", "u.toml"]) == 0, capsys.readouterr().err
+
+
+def test_the_same_model_with_storable_strings_passes(work, capsys):
+    (work / "u.toml").write_text(user_scene("FINE"))
+    assert main(["check", "u.toml"]) == 0, capsys.readouterr().err
+
+
+@pytest.mark.parametrize("where", ["scene.name", "scene.description", "fixed.spring"])
+def test_a_dict_scene_with_a_lone_surrogate_is_refused(where):
+    """From Python a string may hold a lone surrogate; its TOML text, stored with the dataset, could
+    not be read back (and the title could not be written)."""
+    from mechsweep.scene import SceneError, load_scene
+
+    data = {"scene": {"name": "s", "model": "torsional_circuit", "outputs": ["chi"], "description": "d"},
+            "axes": {"lambda2": {"start": 0.1, "stop": 1.0, "num": 3}},
+            "fixed": {"spring": "tension", "lambda1": 0.8, "s0_over_r": 0.1}}
+    section, key = where.split(".")
+    data[section][key] = "bad\udcffvalue"
+    with pytest.raises(SceneError, match=re.escape(f"{where}: 'bad\\udcffvalue' contains '\\udcff', a lone surrogate")):
+        load_scene(data)
+
+
+def test_a_model_file_in_a_folder_whose_name_is_not_utf8_is_refused(work):
+    """The dataset stores where its model came from (its folder, to read the model again): a path
+    with bytes that are not UTF-8 is refused when the scene is loaded, not after the computation."""
+    from mechsweep.scene import SceneError, load_scene
+
+    folder = work / os.fsdecode(b"models-\xff")
+    folder.mkdir()
+    shutil.copy(USER, folder / "m.py")
+    (folder / "u.toml").write_text(user_scene("FINE").replace(str(USER), "m.py"))
+    with pytest.raises(SceneError, match="the model's path .* lone surrogate .* a path whose name is UTF-8 text"):
+        load_scene(folder / "u.toml")
+
+
+def test_an_output_path_that_is_not_utf8_is_written_with_an_escaped_history(work, monkeypatch):
+    """The command line goes into the CF history attribute: an argument whose bytes are not UTF-8
+    (a file name) is stored as its escape, not a UnicodeEncodeError after the computation."""
+    import h5py
+
+    from mechsweep import cf
+
+    monkeypatch.undo()  # a real run: no tripwires
+    monkeypatch.chdir(work)
+    (work / "valid.toml").write_text(VALID)
+    out = os.fsdecode(b"data/runs/out-\xff.h5")
+    token = cf.CLI_ARGS.set(("run", "valid.toml", "-o", out))  # as cli.main sets it
+    try:
+        runner.compute("valid.toml", output=out, progress=False)
+    finally:
+        cf.CLI_ARGS.reset(token)
+    with h5py.File(out, "r") as f:
+        assert "-o 'data/runs/out-\\udcff.h5'" in f.attrs["history"]
+    assert os.listdir(work / "data" / "runs") == [os.path.basename(out)]

@@ -175,3 +175,53 @@ def test_a_second_run_on_the_same_output_is_refused_while_the_first_writes(in_tm
     finally:
         first.kill()
         first.wait()
+
+
+# The child runs the scene with --restart and kills itself with SIGKILL on the n-th removal of a file
+# (the discarded journal half deleted).
+RESTARTER = textwrap.dedent("""
+    import os, signal, sys
+    from mechsweep import cli
+    real, seen = os.unlink, [0]
+    def unlink(*args, **kwargs):
+        seen[0] += 1
+        if seen[0] == int(sys.argv[1]):
+            os.kill(os.getpid(), signal.SIGKILL)
+        return real(*args, **kwargs)
+    os.unlink = unlink
+    sys.exit(cli.main(sys.argv[2:]))
+""")
+
+
+@pytest.mark.parametrize("damage", ["garbage", "links"])
+@pytest.mark.parametrize("n", [1, 3])
+def test_sigkill_while_restart_discards_a_damaged_journal_then_restart_is_identical(in_tmp, reference, damage, n):
+    """--restart on a damaged journal, killed while it deletes it: a second --restart completes the
+    run, identical to an uninterrupted one, and what a link in the journal pointed to is untouched."""
+    from .data.interrupt import interrupted_after
+
+    (in_tmp / "kill.toml").write_text(SCENE.format(n_a=40, n_mu=20, chunk=100))
+    out = in_tmp / "data" / "runs" / "k.h5"
+    with interrupted_after(4), pytest.raises(mechsweep.RunInterrupted):
+        mechsweep.run(mechsweep.load_scene(in_tmp / "kill.toml"), output=out, progress=False)
+    part = partial_path(out)
+    user = in_tmp / "user"
+    user.mkdir()
+    (user / "data.txt").write_text("the user's data\n")
+    if damage == "garbage":
+        (part / "run.json").write_bytes(b"\x00garbage")
+    else:  # run.json a link to the user's file, a chunk file a link to /dev/zero
+        (part / "run.json").unlink()
+        (part / "run.json").symlink_to(user / "data.txt")
+        chunk = sorted((part / "chunks").iterdir())[1]
+        chunk.unlink()
+        chunk.symlink_to("/dev/zero")
+    (in_tmp / "restarter.py").write_text(RESTARTER)
+    child = subprocess.run([sys.executable, "restarter.py", str(n), "run", "kill.toml", "-o", str(out),
+                            "--no-progress", "--restart", "--threads", "1"], cwd=in_tmp, capture_output=True, text=True)
+    assert child.returncode == -signal.SIGKILL, f"not killed: {child.stdout}{child.stderr}"
+    assert os.path.lexists(partial_path(out)) or os.path.lexists(str(part) + ".discard")
+    mechsweep.run(mechsweep.load_scene(in_tmp / "kill.toml"), output=out, restart=True, progress=False)
+    assert_identical(out, reference)
+    assert_no_leftovers(out.parent, out)
+    assert sorted(os.listdir(user)) == ["data.txt"] and (user / "data.txt").read_text() == "the user's data\n"

@@ -348,13 +348,21 @@ def test_formula1_equals_normal_equations_only_for_symmetric_uniform_positions()
 
 def test_first_harmonic_and_rms_axes_coincide_only_for_uniform_positions_and_constant_speed():
     """physics.md section 3: the least-squares first harmonic at uniform positions is the DFT
-    coefficient, so the methods differ only through phi'' != 0 or non-uniform positions."""
+    coefficient, so the methods differ only through phi'' != 0, non-uniform positions or gravity
+    (the moved counterweight's weight adds a constant -W x, which the RMS optimum uses against the
+    moment's mean and the first harmonic does not see)."""
     out, status = fourbar_outputs(["axis_x", "axis_y", "axis_x_h1", "axis_y_h1", "R_axis", "R_h1",
-                                   "dM_rms_axis", "dM_rms_h1", "M_rms_static"])
+                                   "dM_rms_axis", "dM_rms_h1", "M_rms_static"], g=0.0)
     assert status[0] == st.OK
     assert out["axis_x_h1"] == pytest.approx(out["axis_x"], rel=1e-12)
     assert out["axis_y_h1"] == pytest.approx(out["axis_y"], rel=1e-12)
     assert out["R_h1"] == pytest.approx(out["R_axis"], rel=1e-10)
+    # gravity: y (the first harmonic alone) agrees, x differs and the RMS method wins on RMS
+    out, status = fourbar_outputs(["axis_x", "axis_y", "axis_x_h1", "axis_y_h1", "dM_rms_axis", "dM_rms_h1"])
+    assert status[0] == st.OK and GEO["g"] > 0
+    assert out["axis_y_h1"] == pytest.approx(out["axis_y"], rel=1e-12)
+    assert abs(out["axis_x_h1"] - out["axis_x"]) > 1e-3 * abs(out["axis_x"])
+    assert out["dM_rms_axis"] < out["dM_rms_h1"]
     # non-constant speed: the RMS method wins on RMS, and the axes differ
     out, status = fourbar_outputs(["axis_x", "axis_y", "axis_x_h1", "axis_y_h1", "dM_rms_axis",
                                    "dM_rms_h1", "M_rms_static"], delta=0.3)
@@ -376,12 +384,13 @@ def test_first_harmonic_and_rms_axes_coincide_only_for_uniform_positions_and_con
 
 @pytest.mark.parametrize("delta", [0.0, 0.3])
 def test_model_axis_equals_the_plain_function_on_its_moment(delta):
+    # GEO has gravity: the plain functions get the moved counterweight's weight m_cw g (cw_weight)
     names = ["M_static_phi", "dM_axis_phi", "dM_h1_phi", "axis_x", "axis_y", "axis_x_h1", "axis_y_h1",
              "cw1_mr_static", "cw1_angle_static", "dM_max_axis", "M_max_static", "R_axis", "dM_rms_axis"]
     out, status = fourbar_outputs(names, delta=delta)
     w = 20.0 * (1 + delta * np.sin(B.PHI))
     al = w * 20.0 * delta * np.cos(B.PHI)
-    kw = dict(phi_dd=al, cw_angle=out["cw1_angle_static"])
+    kw = dict(phi_dd=al, cw_angle=out["cw1_angle_static"], cw_weight=GEO["g"] * out["cw1_mr_static"] / GEO["r_cw1"])
     x, y = B.rms_axis_offset(B.PHI, out["M_static_phi"], out["cw1_mr_static"], w, **kw)
     assert (out["axis_x"], out["axis_y"]) == pytest.approx((x, y), rel=1e-11)
     x1, y1 = B.first_harmonic_axis_offset(B.PHI, out["M_static_phi"], out["cw1_mr_static"], w, **kw)

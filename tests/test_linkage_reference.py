@@ -1,6 +1,8 @@
 """The two linkage models rebuilt on the closed-form layer (mechsweep.model.ClosedFormModel) give the
 same bytes as the hand-written chunk kernels they replaced: tests/data/linkage_reference.npz was
-recorded with those kernels (tests/data/make_linkage_reference.py, commit db5dda9)."""
+recorded with those kernels (tests/data/make_linkage_reference.py, commit db5dda9), except the
+four-bar's moved-axis outputs with gravity, recorded again when the counterweight's weight entered
+them (make_linkage_reference.py says which)."""
 from __future__ import annotations
 
 import importlib.util

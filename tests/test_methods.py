@@ -1,6 +1,7 @@
 """solver.method: every method of every integrated model gives the same answer within its
 tolerance; auto hands stiff points to radau; scenes refuse a method a model does not offer."""
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -126,3 +127,95 @@ def test_scene_refuses_a_method_the_model_does_not_offer():
         load_scene(base)
     base["solver"]["method"] = "radau"
     assert load_scene(base).solver.method == "radau"
+
+
+# ----------------------------------------------------------------------------- usable ranges of the tolerances
+@pytest.mark.parametrize("method", ["dop853", "radau", "auto"])
+def test_atol_below_the_floor_gives_nonfinite_everywhere_and_is_refused(method):
+    """The floor is where the adaptive methods' error norm, (rate / atol)^2 at a state that starts
+    at zero, overflows: at ATOL_FLOOR every point is ok and within its tolerance, far below it
+    (evaluated past the scene's check) every point is nonfinite, and a scene asking it is refused
+    naming the key, the value and the range."""
+    from mechsweep.scene import ATOL_FLOOR
+
+    P = np.column_stack([np.ones(DUFFING_EPS.size), DUFFING_EPS, np.ones(DUFFING_EPS.size)])
+    out, status, _, _ = evaluate("duffing", P, ("period_error",), method=method, rtol=1e-10, atol=ATOL_FLOOR)
+    assert (status == st.OK).all(), status
+    assert np.nanmax(out["period_error"]) < 2e-10
+    _, status, _, _ = evaluate("duffing", P, ("period_error",), method=method, rtol=1e-10, atol=1e-300)
+    assert (status == st.NONFINITE).all(), status
+    scene = {"scene": {"name": "t", "model": "duffing", "outputs": ["period_error"]},
+             "axes": {"mu": list(DUFFING_EPS)}, "fixed": {"omega": 1.0, "A": 1.0},
+             "solver": {"method": method, "atol": 1e-300}}
+    with pytest.raises(SceneError, match=rf"solver.atol: 1e-300 is below the usable range of method '{method}', "
+                                         r"\[1e-150, 1\]"):
+        load_scene(scene)
+    scene["solver"]["atol"] = ATOL_FLOOR
+    assert load_scene(scene).solver.atol == ATOL_FLOOR
+
+
+def test_symplectic_does_not_read_atol():
+    P = np.column_stack([np.ones(DUFFING_EPS.size), DUFFING_EPS, np.ones(DUFFING_EPS.size)])
+    runs = [evaluate("duffing", P, ("period_error",), method="symplectic", rtol=1e-10, atol=atol)
+            for atol in (1e-12, 1e-300)]
+    for a, b in zip(runs[0], runs[1]):
+        a = a["period_error"] if isinstance(a, dict) else a
+        b = b["period_error"] if isinstance(b, dict) else b
+        np.testing.assert_array_equal(a, b)
+    scene = {"scene": {"name": "t", "model": "duffing", "outputs": ["period_error"]},
+             "axes": {"mu": list(DUFFING_EPS)}, "fixed": {"omega": 1.0, "A": 1.0},
+             "solver": {"method": "symplectic", "atol": 1e-300}}
+    assert load_scene(scene).solver.atol == 1e-300
+
+
+@pytest.mark.parametrize("method", ["radau", "auto"])
+def test_radau_raises_rtol_below_100_eps_so_the_scene_warns(method):
+    """What the warning says, proven: radau's points at rtol 1e-15 are bitwise those at 100 eps."""
+    from mechsweep.scene import RADAU_MIN_RTOL, solver_warnings
+
+    assert RADAU_MIN_RTOL == 100 * np.finfo(np.float64).eps
+    P = np.column_stack([np.ones(4), np.array([0.5, 1.0, 10.0, 1e3]), np.ones(4)])
+    low = evaluate("duffing", P, ("period_error",), method="radau", rtol=1e-15, atol=1e-14)
+    raised = evaluate("duffing", P, ("period_error",), method="radau", rtol=RADAU_MIN_RTOL, atol=1e-14)
+    np.testing.assert_array_equal(low[0]["period_error"], raised[0]["period_error"])
+    np.testing.assert_array_equal(low[2], raised[2])
+    scene = load_scene({"scene": {"name": "t", "model": "duffing", "outputs": ["period_error"]},
+                        "axes": {"mu": [0.5, 1.0]}, "fixed": {"omega": 1.0, "A": 1.0},
+                        "solver": {"method": method, "rtol": 1e-15}})
+    (text,) = solver_warnings(scene)
+    assert "solver.rtol = 1e-15 is below 2.22e-14" in text and "radau raises it" in text
+    scene = load_scene({"scene": {"name": "t", "model": "duffing", "outputs": ["period_error"]},
+                        "axes": {"mu": [0.5, 1.0]}, "fixed": {"omega": 1.0, "A": 1.0},
+                        "solver": {"method": "dop853", "rtol": 1e-15}})
+    assert solver_warnings(scene) == []  # dop853 takes rtol as given
+
+
+def test_a_tiny_atol_warns_on_check_and_run(tmp_path, capsys, monkeypatch):
+    """Accepted, but suspicious: atol below ATOL_WARN. `check` prints it, `run` warns (in one line
+    on the command line), the shipped settings never do."""
+    import warnings
+
+    from mechsweep import cli
+    from mechsweep.errors import SettingsWarning
+    from mechsweep.scene import ATOL_WARN, solver_warnings
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "s.toml").write_text(
+        '[scene]\nname = "s"\nmodel = "duffing"\noutputs = ["period_error"]\n[axes]\nmu = [0.5, 1.0]\n'
+        f'[fixed]\nomega = 1.0\nA = 1.0\n[solver]\natol = {ATOL_WARN / 10:g}\n')
+    assert cli.main(["check", "s.toml"]) == 0
+    err = capsys.readouterr().err
+    assert "s.toml: warning: solver.atol = 1e-21 is below 1e-20" in err and "step_underflow" in err, err
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        mechsweep_run("s.toml")
+    assert [str(w.message)[:40] for w in seen if w.category is SettingsWarning] == [
+        "solver.atol = 1e-21 is below 1e-20: near"]
+    for path in sorted((Path(__file__).resolve().parents[1] / "sweeps").rglob("*.toml")):
+        assert solver_warnings(load_scene(path)) == [], path
+
+
+def mechsweep_run(path):
+    import mechsweep
+
+    return mechsweep.run(path, output=None, progress=False)

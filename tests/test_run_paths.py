@@ -244,3 +244,79 @@ def test_the_run_command_writes_its_file_without_importing_xarray(tmp_path):
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert proc.stdout.strip().splitlines()[-1] == "0 []"
     assert xr.open_dataset(out, engine="h5netcdf").attrs["xarray_version"] == xr.__version__
+
+
+# ----------------------------------------------------------------------------- outputs among other runs' files
+SCENE_TOML = """
+[scene]
+name = "paths"
+model = "duffing"
+outputs = ["period_exact"]
+[axes]
+A = { start = 0.1, stop = 1.0, num = 4 }
+[fixed]
+omega = 1.0
+mu = 1.0
+"""
+
+
+def _tree(root):
+    return sorted((str(p.relative_to(root)), p.is_symlink(), p.is_dir() and not p.is_symlink(),
+                   p.read_bytes() if p.is_file() and not p.is_symlink() else None) for p in root.rglob("*"))
+
+
+@pytest.mark.parametrize("output,said", [
+    ("data/runs/other.h5.partial/x.h5", "is inside"),
+    ("data/runs/other.h5.partial/chunks/x.h5", "is inside"),
+    ("data/runs/other.h5.partial/run.json", "is inside"),
+    ("data/runs/other.h5.partial.discard/x.h5", "is inside"),
+    ("data/link/x.h5", "is inside"),  # a link to the journal folder
+    ("data/runs/x.h5.partial", "is the one mechsweep gives the journal or the lock of another output"),
+    ("data/runs/x.h5.partial.discard", "is the one mechsweep gives"),
+    ("data/runs/.x.h5.lock", "is the one mechsweep gives"),
+])
+def test_an_output_in_a_journal_folder_or_named_as_a_journal_or_lock_is_refused(in_tmp, capsys, output, said):
+    """A run of other.h5 removes its journal folder when it ends (and takes .other.h5.lock and
+    other.h5.partial for its own): an output there is refused before anything is written."""
+    runs = in_tmp / "data" / "runs"
+    (runs / "other.h5.partial" / "chunks").mkdir(parents=True)
+    (runs / "other.h5.partial.discard").mkdir()
+    (in_tmp / "data" / "link").symlink_to(runs / "other.h5.partial")
+    (in_tmp / "s.toml").write_text(SCENE_TOML)
+    before = _tree(in_tmp)
+    assert main(["run", "s.toml", "-o", output, "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert said in err and "Traceback" not in err, err
+    if said == "is inside":
+        assert "the journal folder of an unfinished run of" in err and "other.h5" in err, err
+    with pytest.raises(mechsweep.StoreError, match=said):
+        mechsweep.run(mechsweep.load_scene(in_tmp / "s.toml"), output=output, progress=False)
+    assert _tree(in_tmp) == before
+
+
+@pytest.mark.parametrize("what", ["a user's file", "a link"])
+def test_a_lock_path_holding_something_else_is_refused_and_kept(in_tmp, capsys, what):
+    """Taking the lock empties the lock file (it holds the run's process id) and releasing it removes
+    it: a file there that is not a lock (or a link to one) is refused, not emptied."""
+    lock = in_tmp / "data" / "runs" / ".out.h5.lock"
+    mine = in_tmp / "mine.txt"
+    mine.write_text("the user's data\n")
+    if what == "a link":
+        lock.symlink_to(mine)
+    else:
+        lock.write_text("the user's data\n")
+    (in_tmp / "s.toml").write_text(SCENE_TOML)
+    before = _tree(in_tmp)
+    assert main(["run", "s.toml", "-o", "data/runs/out.h5", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert ".out.h5.lock (the run's lock)" in err and "move it away" in err, err
+    assert _tree(in_tmp) == before
+
+
+def test_a_lock_file_of_a_killed_run_is_taken_over(in_tmp, capsys):
+    """A lock file a killed run left (its process id, or nothing) is a lock: the run goes on."""
+    (in_tmp / "s.toml").write_text(SCENE_TOML)
+    for content in ("12345", ""):
+        (in_tmp / "data" / "runs" / ".out.h5.lock").write_text(content)
+        assert main(["run", "s.toml", "-o", "data/runs/out.h5", "--no-progress"]) == 0, capsys.readouterr().err
+        assert sorted(os.listdir(in_tmp / "data" / "runs")) == ["out.h5"]

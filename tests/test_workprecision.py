@@ -42,6 +42,29 @@ def test_errors_follow_the_tolerance_and_match_scipy_dop853(report):
                                       ds[name].sel(integrator="scipy DOP853").values)
 
 
+def test_scipy_points_span_the_scene_not_its_first_corner(monkeypatch, tmp_path):
+    """scipy solves points spread over the whole sample (in grid order), so that the methods are
+    compared across the scene: on the Duffing scene (A is its first axis) the first 6 points of the
+    sorted sample all had A <= 0.03, near-linear, where every method is at its most accurate."""
+    from mechsweep.bench import workprecision_ode as wo
+
+    seen = []
+    value = wo.OdeReference.value
+
+    def recorded(self, row, method, rtol, atol):
+        seen.append(tuple(row))
+        return value(self, row, method, rtol, atol)
+
+    monkeypatch.setattr(wo.OdeReference, "value", recorded)
+    ds = wp.main("duffing", points=64, scipy_points=6, ladder=(1e-6,), repeats=1, out_dir=tmp_path, quiet=True)
+    A = np.array(sorted({row[2] for row in seen}))  # omega, mu, A
+    assert len(A) >= 5 and A.min() <= 0.1 and A.max() >= 0.8, A
+    assert wp.spread(64, 6).tolist() == [5, 16, 26, 37, 48, 58]
+    # every method's row is over those same points: ours and scipy's DOP853 agree there
+    ours = float(ds.error_max.sel(integrator="mechsweep dop853").values[0])
+    np.testing.assert_allclose(ours, float(ds.error_max.sel(integrator="scipy DOP853").values[0]), rtol=0.05)
+
+
 def test_figure_draws_from_the_stored_report(report):
     ds, out = report
     assert "workprecision" in figures.available(ds)

@@ -31,7 +31,9 @@ counterweight of static moment S = m r, whose centre is at angle ``cw_angle`` fr
 
     Delta M = -S [phi'^2 (y cos psi - x sin psi) + phi'' (x cos psi + y sin psi)],  psi = phi + cw_angle,
 
-which for cw_angle = pi is the formula printed in physics.md section 3.
+which for cw_angle = pi is the formula printed in physics.md section 3. With gravity (M then
+includes the moment of the weights, -g sum m x_G) the moved counterweight's weight adds
+-cw_weight x, cw_weight = m_cw g: the ``cw_weight`` argument of the axis functions.
 """
 from __future__ import annotations
 
@@ -69,19 +71,21 @@ def _axis_inputs(phi, moment, omega, phi_dd):
 
 
 def rms_axis_offset(phi, moment, S, omega, *, phi_dd=0.0, cw_angle=math.pi, weights=None,
-                    method: str = "normal") -> tuple[float, float]:
+                    method: str = "normal", cw_weight=0.0) -> tuple[float, float]:
     """RMS-optimal axis O1 = (x, y) [m] of the crank counterweight (physics.md section 3).
 
     phi: crank positions [rad] (any, e.g. non-uniform); moment: the shaking moment M(phi) [N m] of
     the statically balanced mechanism at them; S: the counterweight's static moment m r [kg m];
     omega: phi' [rad/s] (scalar: constant speed, or an array per position); phi_dd: phi''
     [rad/s^2] (scalar or array); cw_angle: the counterweight's angle from the crank (pi: opposite);
-    weights: optional weights of the positions in the sum (default 1 each).
+    weights: optional weights of the positions in the sum (default 1 each); cw_weight: the
+    counterweight's weight m_cw g [N] when ``moment`` includes the moment of the weights (gravity):
+    moving the axis by x then also adds -cw_weight x (see axis_moment). Default 0: no gravity.
 
     method "normal" (default): minimise sum (M_i + Delta M_i)^2 through the 2x2 normal equations,
-    valid for any positions and speed law. method "formula1": the source's closed form (1),
+    valid for any positions, speed law and gravity. method "formula1": the source's closed form (1),
     x = sum M sin(phi) / (S w^2 sum sin^2), y = -sum M cos(phi) / (S w^2 sum cos^2) (for
-    cw_angle = pi), which needs constant speed and is the RMS optimum only when
+    cw_angle = pi), which needs constant speed and no gravity and is the RMS optimum only when
     sum sin(psi) cos(psi) = 0 (symmetric uniform positions). S = 0 gives (0, 0).
     Raises ValueError if the normal equations are singular."""
     phi, moment, w1, al1 = _axis_inputs(phi, moment, omega, phi_dd)
@@ -93,13 +97,16 @@ def rms_axis_offset(phi, moment, S, omega, *, phi_dd=0.0, cw_angle=math.pi, weig
     if method == "formula1":
         if np.ndim(omega) != 0 or np.any(np.asarray(phi_dd) != 0.0) or weights is not None:
             raise ValueError("formula (1) assumes constant speed: give a scalar omega, phi_dd = 0, no weights")
+        if cw_weight != 0.0:
+            raise ValueError("formula (1) leaves out the counterweight's weight: with cw_weight != 0 use "
+                             "method='normal'")
         if S == 0.0:
             return 0.0, 0.0
         return tuple(float(v) for v in L.axis_formula1(c, s, moment, S, float(omega), cb, sb))
     if method != "normal":
         raise ValueError(f"method {method!r} is not allowed; expected 'normal' or 'formula1'")
     w = np.ones_like(phi) if weights is None else np.ascontiguousarray(np.broadcast_to(weights, phi.shape), float)
-    ok, x, y = L.axis_fit(c, s, w1, al1, moment, w, S, cb, sb, False)
+    ok, x, y = L.axis_fit(c, s, w1, al1, moment, w, S, cb, sb, False, float(cw_weight))
     if not ok:
         raise ValueError("the normal equations are singular (e.g. omega = 0 and phi_dd = 0 everywhere)")
     return float(x), float(y)
@@ -116,30 +123,34 @@ def periodic_trapezoid_weights(phi) -> np.ndarray:
     return 0.5 * (nxt - prv)
 
 
-def first_harmonic_axis_offset(phi, moment, S, omega, *, phi_dd=0.0, cw_angle=math.pi) -> tuple[float, float]:
-    """Axis O1 = (x, y) [m] that cancels the first Fourier harmonic (in phi) of M + Delta M.
+def first_harmonic_axis_offset(phi, moment, S, omega, *, phi_dd=0.0, cw_angle=math.pi,
+                               cw_weight=0.0) -> tuple[float, float]:
+    """Axis O1 = (x, y) [m] that cancels the first Fourier harmonic (in phi) of M + Delta M
+    (cw_weight: as rms_axis_offset).
 
     The Fourier integrals over one turn use the periodic trapezoid rule at the given positions
-    (which must increase and cover one turn). With uniform positions and constant speed this is
-    the RMS optimum (the least-squares first harmonic is the DFT coefficient, physics.md
-    section 3); with phi'' != 0 or non-uniform positions the two differ."""
+    (which must increase and cover one turn). With uniform positions, constant speed and no
+    gravity this is the RMS optimum (the least-squares first harmonic is the DFT coefficient,
+    physics.md section 3); with phi'' != 0, non-uniform positions or gravity the two differ."""
     phi, moment, w1, al1 = _axis_inputs(phi, moment, omega, phi_dd)
     if S == 0.0:
         return 0.0, 0.0
     ok, x, y = L.axis_fit(np.cos(phi), np.sin(phi), w1, al1, moment, periodic_trapezoid_weights(phi),
-                          float(S), math.cos(cw_angle), math.sin(cw_angle), True)
+                          float(S), math.cos(cw_angle), math.sin(cw_angle), True, float(cw_weight))
     if not ok:
         raise ValueError("the first-harmonic conditions are singular")
     return float(x), float(y)
 
 
-def axis_moment(phi, x, y, S, omega, *, phi_dd=0.0, cw_angle=math.pi) -> np.ndarray:
+def axis_moment(phi, x, y, S, omega, *, phi_dd=0.0, cw_angle=math.pi, cw_weight=0.0) -> np.ndarray:
     """Delta M(phi) [N m] added by turning the counterweight about O1 = (x, y) instead of the crank
-    axis: -S [phi'^2 (y cos psi - x sin psi) + phi'' (x cos psi + y sin psi)], psi = phi + cw_angle."""
+    axis: -S [phi'^2 (y cos psi - x sin psi) + phi'' (x cos psi + y sin psi)] - cw_weight x,
+    psi = phi + cw_angle; cw_weight = m_cw g [N], the counterweight's weight, whose moment about
+    the crank axis moves with it (0: no gravity; the source's formula has no such term)."""
     phi, zero, w1, al1 = _axis_inputs(phi, np.zeros(np.shape(phi)), omega, phi_dd)
     out = np.empty_like(phi)
     L.axis_residual(np.cos(phi), np.sin(phi), w1, al1, zero, float(S), math.cos(cw_angle),
-                    math.sin(cw_angle), float(x), float(y), out)
+                    math.sin(cw_angle), float(x), float(y), out, float(cw_weight))
     return out
 
 

@@ -695,6 +695,9 @@ def locate_dataset(scene, ds, spec=None):
     }
     if crit.output is not None:
         attrs["criterion_accuracy"] = accuracy_text(scene, crit)
+    from .model import sources
+
+    attrs.update(sources.record(scene.model).attrs(scene.base or None))  # what the points were computed from
     if b.continue_in is not None:
         t0 = time.perf_counter()
         cdata, ccoords, n_eval, n_calls = _continue_all(scene, crit, b, res, rows, others)
@@ -730,7 +733,7 @@ def accuracy_warning(scene) -> str | None:
     """Why a given ``criterion_accuracy`` cannot be trusted (None: it can, or none was given): below
     about 100 rtol |level|, the accuracy the solver's rtol gives an integrated criterion, the band
     is narrower than the criterion's own error, and the search may lose boundaries or stop in the
-    noise (a docs-only trial: rtol 1e-8, 1e-10 given, 4 of 21 boundaries lost or wrong)."""
+    noise."""
     b = scene.boundaries
     if b is None or b.criterion_accuracy is None or b.criterion is None or scene.solver is None:
         return None
@@ -747,8 +750,8 @@ def accuracy_warning(scene) -> str | None:
 
 def status_warning(scene) -> str | None:
     """Why a ``status_change`` criterion may locate nothing: it names a status the model does not
-    list among those its points can get (``possible_statuses``; a docs-only trial named one and got 0
-    boundaries with no word why). A warning, not a refusal: a model's list may be incomplete."""
+    list among those its points can get (``possible_statuses``: without this warning such a scene
+    locates 0 boundaries with no word why). A warning, not a refusal: a model's list may be incomplete."""
     b = scene.boundaries
     if b is None or b.criterion is not None or b.status_change is None:
         return None

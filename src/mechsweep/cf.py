@@ -33,8 +33,11 @@ def command(what: str) -> str:
 
 
 def history(created: str, what: str, version: str) -> str:
-    """A CF ``history`` line: time stamp, command, and the mechsweep version that wrote the data."""
-    return f"{created}: {command(what)} (mechsweep {version})"
+    """A CF ``history`` line: time stamp, command, and the mechsweep version that wrote the data.
+    Text HDF5 can store: a lone surrogate (a command-line argument whose bytes are not UTF-8, e.g. a
+    file name) is written as its escape, ``\\udcff``, and a NUL as ``\\x00``."""
+    line = f"{created}: {command(what)} (mechsweep {version})"
+    return line.encode("utf-8", "backslashreplace").decode("utf-8").replace("\0", "\\x00")
 
 
 def references(spec) -> str:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import gc
 import math
 import os
@@ -110,7 +111,7 @@ def _main(argv: list[str] | None) -> int:
     if not getattr(args, "command", None):
         parser.print_help()
         return EXIT_INVALID
-    from .errors import InputError
+    from .errors import MechsweepError, RunInterrupted
 
     import threading
 
@@ -123,8 +124,15 @@ def _main(argv: list[str] | None) -> int:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning(args.command, warnings.showwarning)
             return args.func(args)
-    except (InputError, FileNotFoundError) as exc:
-        print(f"mechsweep {args.command}: error: {exc}", file=sys.stderr)
+    except RunInterrupted as exc:  # the journal is kept: the message says how to resume
+        print(f"mechsweep {args.command}: {exc}", file=sys.stderr)
+        return 128 + exc.signum
+    except (MechsweepError, FileNotFoundError) as exc:
+        # bad input (InputError) and a run that failed on the way (RunError: disk full, lost cluster) both
+        # exit 2 with one line, as the exit codes above say; a bug (any other exception) exits 1 with its traceback.
+        # A FileNotFoundError of the system (with an errno) is said as the others are; mechsweep's own say it all
+        text = os_error_text(exc) if isinstance(exc, FileNotFoundError) and exc.errno is not None else exc
+        print(f"mechsweep {args.command}: error: {text}", file=sys.stderr)
         return EXIT_INVALID
     except KeyboardInterrupt as exc:
         signum = exc.signum if isinstance(exc, _Terminated) else signal.SIGINT
@@ -133,6 +141,9 @@ def _main(argv: list[str] | None) -> int:
     except BrokenPipeError:  # `mechsweep models | head`: the reader left, nothing is wrong
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
         return 0
+    except OSError as exc:  # a read or write the system refused: its cause and the file, in one line
+        print(f"mechsweep {args.command}: error: {os_error_text(exc)}", file=sys.stderr)
+        return EXIT_INVALID
     finally:
         cf.CLI_ARGS.reset(cli_args)
         if main_thread:
@@ -140,11 +151,12 @@ def _main(argv: list[str] | None) -> int:
 
 
 def _show_warning(command, default):
-    """A user model's warning as one line on stderr (no source line of mechsweep's); others as usual."""
-    from .errors import UserModelWarning
+    """A user model's warning, or one on the scene's settings, as one line on stderr (no source line of
+    mechsweep's); others as usual."""
+    from .errors import SettingsWarning, UserModelWarning
 
     def show(message, category, filename, lineno, file=None, line=None):
-        if issubclass(category, UserModelWarning):
+        if issubclass(category, (UserModelWarning, SettingsWarning)):
             print(f"mechsweep {command}: warning: {message}", file=sys.stderr)
         else:
             default(message, category, filename, lineno, file, line)
@@ -401,7 +413,7 @@ def _plot(args) -> int:
         out = (folder if folder is not None else Path(args.dataset).parent) / f"{stem}.{fmt}"
     for target in figures.targets(ds, out, kind=args.kind, fmt=fmt, axes=axes):
         _check_figure_path(target, Path(args.dataset))
-    with _laid_out(args.dataset):
+    with _laid_out(args.dataset), _writing_figures(out):
         kinds = list(figures.available(ds, axes)) if args.kind is None else []
         if len(kinds) > 1 and _can_fork():  # several figures: side by side on the cores (the same files)
             written = figures.targets(ds, out, fmt=fmt, axes=axes)
@@ -517,11 +529,33 @@ def _boundaries_for(ds, args):
     return None
 
 
-def _check_figure_path(target: Path, dataset: Path) -> None:
-    """Refuse a figure path that would overwrite the dataset it is drawn from, another HDF5 file,
-    or something that is not a regular file."""
+@contextmanager
+def _writing_figures(out: Path):
+    """An OSError while the figures are written (the dataset is in memory by then: ``plot`` loads it)
+    is the figure file's: say which file and why, with what to do."""
     from .errors import InputError
 
+    try:
+        yield
+    except OSError as exc:
+        raise InputError(os_error_text(exc, out, writing="the figure")) from None
+
+
+def _check_figure_path(target: Path, dataset: Path) -> None:
+    """Refuse a figure path that would overwrite the dataset it is drawn from, another HDF5 file,
+    or something that is not a regular file, or whose folder is missing or not writable."""
+    from .errors import InputError
+
+    folder = target.parent
+    if not folder.is_dir():
+        if not os.path.lexists(folder):
+            raise InputError(f"figure path {target}: the folder {folder} does not exist; create it first "
+                             f"(mkdir -p {folder}) or give another path with -o")
+        raise InputError(f"figure path {target}: {folder} is {_entry_kind(folder)}, not a folder; give another path "
+                         "with -o")
+    if not (os.access(folder, os.W_OK) and folder.stat().st_mode & 0o222):
+        raise InputError(f"figure path {target}: cannot write into {folder} (permission denied); give another path "
+                         "with -o")
     if not os.path.lexists(target):
         return
     if os.path.exists(target) and os.path.samefile(target, dataset):
@@ -529,10 +563,64 @@ def _check_figure_path(target: Path, dataset: Path) -> None:
                          "give another figure path with -o")
     if not target.is_file():
         raise InputError(f"figure path {target} exists and is not a regular file; give another path with -o")
-    with open(target, "rb") as f:
-        if f.read(8) == b"\x89HDF\r\n\x1a\n":
-            raise InputError(f"figure path {target} is an HDF5 file (a dataset?); drawing would overwrite it: "
-                             "give another figure path with -o")
+    try:
+        with open(target, "rb") as f:
+            head = f.read(8)
+    except OSError as exc:
+        raise InputError(f"figure path {target} exists and cannot be read ({_why(exc)}), so it is not known what "
+                         "drawing would overwrite; give another path with -o") from None
+    if head == b"\x89HDF\r\n\x1a\n":
+        raise InputError(f"figure path {target} is an HDF5 file (a dataset?); drawing would overwrite it: "
+                         "give another figure path with -o")
+
+
+# errnos with which the system refuses a read or write (not a fault in a file's bytes)
+_SYSTEM_ERRNOS = frozenset(getattr(errno, n) for n in (
+    "ENOENT", "EACCES", "EPERM", "EROFS", "EISDIR", "ENOTDIR", "ELOOP", "ENOSPC", "EDQUOT", "EFBIG", "EMFILE",
+    "ENFILE", "ENAMETOOLONG", "EXDEV", "EAGAIN") if hasattr(errno, n))
+
+# what to do about a refused write, by errno ({folder}: the file's folder)
+_WRITE_ADVICE = {
+    "ENOENT": "the folder {folder} does not exist (or was removed); create it (mkdir -p {folder}) or give another "
+              "path with -o",
+    "EACCES": "give another path with -o, or make {folder} writable",
+    "EPERM": "give another path with -o",
+    "EROFS": "its file system is mounted read-only; give a path elsewhere with -o",
+    "ENOSPC": "its disk is full (of space, or of inodes); free some or give a path elsewhere with -o",
+    "EDQUOT": "your disk quota there is used up; free some or give a path elsewhere with -o",
+    "EFBIG": "it would exceed the file size limit (ulimit -f); raise it or draw fewer or smaller figures",
+    "EISDIR": "a directory has that name; give a figure file name with -o",
+    "ENOTDIR": "a part of the path is a file, not a folder; give another path with -o",
+    "ENAMETOOLONG": "give a shorter path with -o",
+}
+
+
+def _why(exc: OSError) -> str:
+    from .errors import why_os_error
+
+    return why_os_error(exc.errno, exc.strerror or str(exc))
+
+
+def _entry_kind(path) -> str:
+    from .store import file_kind
+
+    try:
+        return file_kind(os.stat(path).st_mode)
+    except OSError:
+        return "a broken link"
+
+
+def os_error_text(exc: OSError, path=None, writing: str = "") -> str:
+    """One line for an OSError: the file it names (else ``path``), its cause by errno, and, for a
+    write (``writing``: what was being written), what to do."""
+    name = exc.filename if exc.filename is not None else path
+    where = f"{name}: " if name is not None else ""
+    if not writing:
+        return f"{where}{_why(exc)}"
+    code = errno.errorcode.get(exc.errno or 0, "")
+    folder = Path(str(name)).parent if name is not None else Path(".")
+    advice = _WRITE_ADVICE.get(code, "give another path with -o").format(folder=folder)
+    return f"cannot write {writing} {name}: {_why(exc)}; {advice}"
 
 
 def select_point(ds, text: str):
@@ -622,8 +710,8 @@ def _cmd_info(args) -> int:
 def _bracket_widths(loc, width, attrs, unit) -> list[str]:
     """The final brackets' widths: relative to |x| where the boundary is away from 0, absolute next
     to 0, where a relative width means nothing. The scale is the locator's own: its tolerance is
-    rtol max(|x|, ABS_FLOOR span), span the along axis's (attribute along_span; a dataset written
-    before it was stored: relative wherever x != 0, as before)."""
+    rtol max(|x|, ABS_FLOOR span), span the along axis's (attribute along_span; a dataset without that
+    attribute, from an older version: relative wherever x != 0)."""
     import numpy as np
 
     from .boundaries import ABS_FLOOR
@@ -694,11 +782,19 @@ def _laid_out(path):
     say so in one line, exit 2."""
     from .errors import InputError
 
+    from .store import is_lock_error, lock_holder
+    from .errors import FileBusy
+
     try:
         yield
     except InputError:
         raise
-    except OSError as exc:  # a lazily opened dataset whose data turn out damaged when read
+    except OSError as exc:
+        if is_lock_error(exc):  # another process took the dataset for writing meanwhile
+            raise FileBusy(path, lock_holder(path)) from None
+        if exc.filename is not None or exc.errno in _SYSTEM_ERRNOS:  # the system's refusal, not the file's bytes
+            raise InputError(os_error_text(exc, path)) from None
+        # a lazily opened dataset whose data turn out damaged when read (HDF5 says why, without an errno)
         raise InputError(f"{path} cannot be read, it is damaged ({str(exc).splitlines()[0][:200]})") from None
     except (KeyError, IndexError, TypeError, ValueError, AttributeError) as exc:
         detail = str(exc).splitlines()[0][:200] if str(exc) else ""
@@ -759,13 +855,8 @@ def _models_in_file(name: str) -> list[str]:
     from .model.ode import OdeModel
 
     path = Path(name).resolve()
-    if not path.is_file():
-        raise InputError(f"{name!r}: model file {path} does not exist (a model is a built-in name, "
-                         "'file.py:NAME' or 'package.module:NAME')")
-    try:
-        mod = load.import_module(load._module_name(path), str(path))
-    except Exception as exc:  # the user's code raised on import
-        raise InputError(f"{name!r}: importing {path} failed: {load._where(exc, str(path))}") from None
+    load.check_model_file(name, path)  # a regular .py file; its import's failures and exits are InputErrors
+    mod = load.import_model(name, load._module_name(path), str(path), str(path))
     found = [k for k, v in vars(mod).items() if isinstance(v, (OdeModel, ClosedFormModel))]
     if not found:
         raise InputError(f"{name!r}: {path} defines no mechsweep.model.OdeModel or ClosedFormModel")
@@ -792,6 +883,9 @@ def _cmd_check(args) -> int:
         try:
             s = load_scene(path)
             print(f"{path}: ok ({s.model.name}, {s.n_points} points, outputs {', '.join(s.outputs)})")
+            from .scene import solver_warnings
+            for text in solver_warnings(s):
+                print(f"{path}: warning: {text}", file=sys.stderr)
             if s.boundaries is not None:
                 from .boundaries import warnings_for
                 for text in warnings_for(s):

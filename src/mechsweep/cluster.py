@@ -102,8 +102,13 @@ def dask_results(scene, todo, scheduler: str, threads: int | None = None, *, wor
     futures = as_completed(loop=client.loop)
     live = {}  # key -> (future, chunk), submitted and not yet handed out
 
+    from .model import sources
+
+    depends = sources.record(scene.model).attrs(scene.base or None).get("dependencies", "")
+
     def submit(chunk) -> None:
-        fut = client.submit(compute_chunk, scene.text, chunk, threads, scene.base, key=f"mechsweep-{run_id}-{chunk.index}")
+        fut = client.submit(compute_chunk, scene.text, chunk, threads, scene.base, depends,
+                            key=f"mechsweep-{run_id}-{chunk.index}")
         live[fut.key] = (fut, chunk)
         futures.add(fut)
 
@@ -235,18 +240,31 @@ def _trouble(client, timeout: float) -> str | None:
     return None
 
 
-def compute_chunk(scene_text: str, chunk, threads: int | None = None, base: str = ""):
+def compute_chunk(scene_text: str, chunk, threads: int | None = None, base: str = "", depends: str = ""):
     """A worker's task: the chunk's (outputs, status, n_steps, n_rhs), as a local run computes them,
     on ``threads`` numba threads (at most the worker's; default all of them). ``base``: the absolute
     folder of the client's scene file, against which a user model file path in the scene is
-    resolved (the worker's own working directory plays no part; the file must be readable there)."""
+    resolved (the worker's own working directory plays no part; the file must be readable there).
+    ``depends``: the client's dependency record (model/sources.py, JSON): a worker whose model
+    sources differ (a file edited since the client loaded it, another mechsweep) refuses the task
+    instead of computing points of another model."""
     import numba
 
+    from . import _jit
     from .runner import evaluate_chunk
 
     scene, params = _scene(scene_text, base)
+    if depends:
+        from .model import sources
+
+        changed = sources.differences(depends, sources.record(scene.model), base or None,
+                                      since="the run began on the client")
+        if changed:
+            raise InputError(f"the dask worker would compute from other sources than the client's: "
+                             f"{'; '.join(changed)}; restore them (the worker sees the files at the paths "
+                             "named), then run again with --resume")
     # numba's thread count is per calling thread: set it for this task's thread, every time
-    numba.set_num_threads(min(threads or numba.config.NUMBA_NUM_THREADS, numba.config.NUMBA_NUM_THREADS))
+    _jit.set_num_threads(min(threads or numba.config.NUMBA_NUM_THREADS, numba.config.NUMBA_NUM_THREADS))
     return evaluate_chunk(scene, chunk, params)
 
 

@@ -3,13 +3,21 @@
 A run of output ``PATH`` keeps its finished chunks in the folder ``PATH.partial/``:
 
 - ``run.json``: the scene (canonical form and text), the number of chunks and the provenance,
-  written before any chunk;
+  written before any chunk, with a random run id and a SHA-256 checksum of everything else in it
+  (``checksum``): a run.json edited or damaged after it was written is refused;
 - ``chunks/NNNNNNN-SIZE-CRC.npz``: one file per finished chunk (its outputs, status, step counts
   and the wall time it took), written to a temporary name, synced and renamed into place. Its name
-  carries the file's size in bytes and the CRC-32 of its bytes (8 hex digits): a chunk file that
-  does not match them (truncated, zeroed, damaged by the disk) is not counted as finished; a
-  resumed run removes it and computes that chunk again, keeping the others. (Files named
-  ``NNNNNNN.npz``, from an older version, carry no checksum: they count when numpy can read them.)
+  carries the file's size in bytes and a CRC-32 (8 hex digits) of the run id, the chunk's index
+  and the file's bytes: a chunk file that does not match them (truncated, zeroed, damaged by the
+  disk, edited, renamed to another index, taken from another run) is not counted as finished; a
+  resumed run removes it and computes that chunk again, keeping the others. (Journals of older
+  versions: files named ``NNNNNNN.npz`` carry no checksum and count when numpy can read them;
+  format 2 has no run id, its CRC covers the bytes only, and its run.json no checksum.)
+
+Nothing else is written there, and nothing else is deleted: ``drop`` removes only the entries a
+run writes (in whatever state: damaged, a link, a pipe, an empty folder in place of a file), and
+an entry it does not write (a user's file put into the folder) is never removed
+(``foreign_entries`` lists them; the runner refuses to resume or restart over them).
 
 A rename is atomic, so at any moment (a SIGKILL, a power cut after the sync) every chunk file is
 either complete or absent, and a resumed run computes exactly the chunks that have no file. The
@@ -29,11 +37,14 @@ from __future__ import annotations
 
 import errno
 import fcntl
+import hashlib
 import io
 import json
 import os
 import re
+import secrets
 import shutil
+import stat
 import zlib
 from pathlib import Path
 
@@ -43,9 +54,14 @@ from .errors import StoreError, WriteFailed
 
 # 2: chunk files named with their size and CRC-32. A journal of format 1 (names without them) is
 # still read; an older mechsweep refuses format 2 instead of not seeing its chunk files.
-FORMAT = 2
-READABLE_FORMATS = (1, 2)
+# 3: run.json carries a run id and its own checksum, and a chunk's CRC-32 covers the run id and its
+# index before its bytes (a version that reads format 2 would take every chunk file for damaged).
+FORMAT = 3
+READABLE_FORMATS = (1, 2, 3)
 _CHUNK_NAME = re.compile(r"^(\d{7,})(?:-(\d+)-([0-9a-f]{8}))?\.npz$")
+_CHUNK_TMP = re.compile(r"^\d{7,}\.npz\.tmp$")  # a chunk file being written (write_chunk)
+# What a run writes into its journal folder besides chunks/ (ASSEMBLY: the runner's dataset being assembled).
+OWN_FILES = ("run.json", "run.json.tmp", "assembly.h5")
 
 
 def partial_path(path: str | os.PathLike) -> Path:
@@ -79,7 +95,7 @@ class RunLock:
     def acquire(self) -> "RunLock":
         while True:
             try:
-                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)  # (never through a link)
             except OSError as exc:  # e.g. no inode left on a full disk
                 raise WriteFailed(self.path, exc) from None
             try:
@@ -127,7 +143,8 @@ class RunLock:
 
     def release(self) -> None:
         if self.fd is not None:
-            self.path.unlink(missing_ok=True)  # before closing: nobody can lock the old inode in between
+            if _same_file(self.fd, self.path):  # (a file put in its place meanwhile is not ours to remove)
+                self.path.unlink(missing_ok=True)  # before closing: nobody can lock the old inode in between
             os.close(self.fd)
             self.fd = None
 
@@ -136,6 +153,14 @@ class RunLock:
 
     def __exit__(self, *exc) -> None:
         self.release()
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    try:
+        mine, there = os.fstat(fd), os.lstat(path)
+    except OSError:
+        return False
+    return (mine.st_dev, mine.st_ino) == (there.st_dev, there.st_ino)
 
 
 def _read_pid(fd: int) -> str:
@@ -156,6 +181,8 @@ class Journal:
         self.chunks = folder / "chunks"
         self.files: dict[int, Path] = {}  # index -> its file, from the last done_chunks()
         self.removed: list[str] = []  # damaged chunk files done_chunks(repair=True) removed, with why
+        # the run id a chunk's CRC-32 covers (None: a journal of format 1 or 2, CRC of the bytes only)
+        self.run_id = meta.get("run_id") if isinstance(meta, dict) else None
 
     # -- creation and reopening ----------------------------------------------------
     @classmethod
@@ -163,6 +190,7 @@ class Journal:
                attrs: dict) -> "Journal":
         meta = {"format": FORMAT, "scene_canonical": canonical, "scene": text, "chunk_target": chunk_target,
                 "n_chunks": n_chunks, "attrs": attrs}
+        meta = seal(meta)
         try:
             folder.mkdir()
         except OSError as exc:
@@ -185,15 +213,13 @@ class Journal:
             raise StoreError(f"{folder} is an unfinished run of an older mechsweep version (one HDF5 file); "
                                "it cannot be resumed: start over with --restart")
         try:
-            meta = json.loads((folder / "run.json").read_text())
+            meta = json.loads((folder / "run.json").read_bytes())
         except FileNotFoundError:
             meta = None  # killed between creating the folder and writing run.json: nothing saved
         except (OSError, ValueError) as exc:
-            raise StoreError(f"{folder / 'run.json'} is unreadable ({exc}); start over with --restart") from None
-        if meta is not None and meta.get("format") not in READABLE_FORMATS:
-            raise StoreError(f"{folder} was written by another mechsweep version (journal format "
-                               f"{meta.get('format')}, this one reads {', '.join(map(str, READABLE_FORMATS))}); "
-                               "start over with --restart")
+            raise StoreError(f"{folder / 'run.json'} is unreadable ({exc}); {RESTART}") from None
+        if meta is not None and (why := meta_problem(meta)) is not None:
+            raise StoreError(f"{folder / 'run.json'} {why}; {RESTART}")
         return cls(folder, meta)
 
     def matches(self, canonical: str, chunk_target: int, n_chunks: int) -> str | None:
@@ -257,7 +283,7 @@ class Journal:
             buffer = io.BytesIO()
             np.savez(buffer, **payload)
             data = buffer.getbuffer()
-            size, crc = len(data), zlib.crc32(data)
+            size, crc = len(data), chunk_crc(data, self.run_id, index)
             with open(tmp, "wb") as f:
                 f.write(data)
                 f.flush()
@@ -285,14 +311,106 @@ class Journal:
         if m.group(2) is not None:
             if len(data) != int(m.group(2)):
                 raise BadChunk(index, path, f"{len(data)} bytes, its name says {m.group(2)}")
-            if (crc := zlib.crc32(data)) != int(m.group(3), 16):
-                raise BadChunk(index, path, f"checksum {crc:08x}, its name says {m.group(3)}")
+            if (crc := chunk_crc(data, self.run_id, index)) != int(m.group(3), 16):
+                raise BadChunk(index, path, f"checksum {crc:08x}, its name says {m.group(3)} (damaged, edited, "
+                               "or not this run's chunk of this index)")
         try:
             with np.load(io.BytesIO(data)) as z:
                 arrays = {k: z[k] for k in z.files if k != "__wall_time_s"}
                 return arrays, float(z["__wall_time_s"])
         except Exception as exc:  # a damaged file of an older version (no checksum in its name)
             raise BadChunk(index, path, f"unreadable ({type(exc).__name__}: {exc})") from None
+
+
+# The advice of every message about a journal that cannot be resumed.
+RESTART = "--restart discards the journal and starts over (its finished chunks are lost)"
+
+
+def chunk_crc(data, run_id: str | None, index: int) -> int:
+    """The CRC-32 a chunk file's name carries: of ``run_id/index`` followed by the file's bytes, so
+    that a chunk file renamed to another index, or taken from another run, does not verify (format
+    2, without a run id: of the bytes only). It detects damage and mix-ups, not a forgery: anyone
+    can compute it."""
+    if run_id is None:
+        return zlib.crc32(data)
+    return zlib.crc32(data, zlib.crc32(f"{run_id}/{index}".encode()))
+
+
+def meta_checksum(meta: dict) -> str:
+    """SHA-256 of a run.json's content: every entry but ``checksum`` and ``format`` (which says how
+    to read the file), as sorted, compact JSON (the form does not depend on the file's layout)."""
+    body = {k: v for k, v in meta.items() if k not in ("checksum", "format")}
+    text = json.dumps(body, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
+    return "sha256:" + hashlib.sha256(text.encode()).hexdigest()
+
+
+def seal(meta: dict) -> dict:
+    """``meta`` as run.json stores it (as JSON reads it back), with a new run id and its checksum."""
+    meta = json.loads(json.dumps({**meta, "run_id": secrets.token_hex(8)}))
+    meta["checksum"] = meta_checksum(meta)
+    return meta
+
+
+# run.json's entries and their kinds (besides format, and run_id and checksum from format 3 on)
+META_KINDS = {"scene_canonical": str, "scene": str, "chunk_target": int, "n_chunks": int, "attrs": dict}
+MAX_N_CHUNKS = 10_000  # grid.MAX_CHUNKS (not imported: the journal needs no grid)
+# Attributes every run's dataset has (store.RUN_ATTRS), and those the runner reads as text.
+_TEXT_ATTRS = ("scene_canonical", "model", "outputs")
+_OPTIONAL_TEXT_ATTRS = ("scene", "title", "history", "scene_folder")
+
+
+def meta_problem(meta) -> str | None:
+    """Why a run.json's content (parsed JSON) is not what a run writes, for a message ("PATH
+    {why}"), or None: of another version, an entry missing or of the wrong kind or range, or (from
+    format 3 on) not matching its checksum."""
+    if not isinstance(meta, dict):
+        return f"is not a run's journal (a JSON {type(meta).__name__}, not an object)"
+    fmt = meta.get("format")
+    if not isinstance(fmt, int) or isinstance(fmt, bool):
+        return f"is damaged (entry format missing or of the wrong kind: {fmt!r})"
+    if fmt not in READABLE_FORMATS:
+        return (f"was written by another mechsweep version (journal format {fmt}, this one reads "
+                f"{', '.join(map(str, READABLE_FORMATS))})")
+    bad = [k for k, kind in META_KINDS.items() if not isinstance(meta.get(k), kind) or isinstance(meta.get(k), bool)]
+    if bad:
+        return f"is damaged (entries {', '.join(bad)} missing or of the wrong kind)"
+    if not 1 <= meta["n_chunks"] <= MAX_N_CHUNKS or meta["chunk_target"] < 1:
+        return (f"is damaged (n_chunks = {meta['n_chunks']}, chunk_target = {meta['chunk_target']}: a run has "
+                f"1 to {MAX_N_CHUNKS:,} chunks of at least one point)")
+    if (why := seal_problem(meta)) is not None:
+        return why
+    attrs = meta["attrs"]
+    bad = [k for k in _TEXT_ATTRS if not isinstance(attrs.get(k), str)]
+    bad += [k for k in _OPTIONAL_TEXT_ATTRS if k in attrs and not isinstance(attrs[k], str)]
+    bad += [k for k, v in attrs.items() if k not in bad and not _storable(v)]
+    if bad:
+        return f"is damaged (attributes {', '.join(bad)} missing or of the wrong kind)"
+    if attrs["scene_canonical"] != meta["scene_canonical"]:
+        return "is damaged (its attribute scene_canonical differs from its entry scene_canonical)"
+    return None
+
+
+def _storable(value) -> bool:
+    """A value the dataset's attributes can hold as run.json gives it: text, a number, or a list of them."""
+    if isinstance(value, (str, int, float)):
+        return True
+    return isinstance(value, list) and (all(isinstance(v, str) for v in value) or all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) for v in value))
+
+
+def seal_problem(meta: dict) -> str | None:
+    """Why a run.json's content does not verify (for a message: "PATH {why}"), or None. A journal of
+    format 1 or 2 (written before the checksum) has none to verify."""
+    checksum = meta.get("checksum")
+    if checksum is None and meta.get("format") in (1, 2) and "run_id" not in meta:
+        return None
+    if not isinstance(checksum, str):
+        return "has no checksum (entry checksum missing or of the wrong kind): it was edited or damaged"
+    if not isinstance(meta.get("run_id"), str):
+        return "has no run id (entry run_id missing or of the wrong kind): it was edited or damaged"
+    if checksum != meta_checksum(meta):
+        return "does not match its checksum: it was edited or damaged after the run wrote it"
+    return None
 
 
 class BadChunk(StoreError):
@@ -338,17 +456,193 @@ def _sync_dir(folder: Path) -> None:
         os.close(fd)
 
 
-def drop(output: Path) -> None:
+def drop(output: Path) -> list[str]:
     """Remove the journal of ``output`` (and what a killed removal left): renamed away first, so
-    a kill mid-removal never leaves a journal that looks like a run with chunks missing."""
+    a kill mid-removal never leaves a journal that looks like a run with chunks missing. Only what
+    a run writes is removed: entries of the folder a run does not write (``foreign_entries``) stay,
+    in the folder (its own entries removed in place); they are returned, for a message."""
     folder, trash = partial_path(output), discard_path(output)
-    shutil.rmtree(trash, ignore_errors=True)
-    if folder.is_dir():
-        try:
-            os.replace(folder, trash)
-        except OSError:  # the rename failed (a full disk can refuse it): remove it in place
-            shutil.rmtree(folder, ignore_errors=True)
-            return
-        shutil.rmtree(trash, ignore_errors=True)
-    elif folder.exists():  # an older version's one-file partial
+    left = clear_discard(output)
+    try:
+        mode = os.lstat(folder).st_mode
+    except FileNotFoundError:
+        return left
+    if stat.S_ISDIR(mode):
+        if not left and not foreign_entries(folder):
+            try:
+                os.replace(folder, trash)
+            except OSError:  # the rename failed (a full disk can refuse it): remove it in place
+                pass
+            else:
+                return clear_discard(output)
+        return left + _remove_own(folder)
+    if stat.S_ISREG(mode):  # an older version's one-file partial
         folder.unlink()
+    return left
+
+
+def clear_discard(output: Path) -> list[str]:
+    """Remove what a killed ``drop`` left of the journal of ``output`` (``discard_path``); returns
+    the entries left there that a run does not write (never removed)."""
+    trash = discard_path(output)
+    try:
+        mode = os.lstat(trash).st_mode
+    except FileNotFoundError:
+        return []
+    if not stat.S_ISDIR(mode):
+        return [f"{trash} ({_what(trash)}, not a folder)"]
+    if not _entries(trash)[1]:
+        shutil.rmtree(trash, ignore_errors=True)
+        if not os.path.lexists(trash):
+            return []
+    return _remove_own(trash)
+
+
+def foreign_entries(folder: Path) -> list[str]:
+    """The entries of the journal folder ``folder`` that a run does not write (a user's files, a
+    folder holding files where a run writes a file, what cannot be listed), which no run removes."""
+    try:
+        if not stat.S_ISDIR(os.lstat(folder).st_mode):
+            return []
+    except FileNotFoundError:
+        return []
+    return _entries(folder)[1]
+
+
+def own_files_problem(output: Path) -> str | None:
+    """Why a run of ``output`` may not take over its journal, the remains of one being deleted, or
+    its lock file (a message), or None: an entry there that a run does not write (a run removes
+    the journal when it ends, or with --restart, and never deletes what it did not write), a
+    symbolic link in place of the folders or the lock, or a lock file holding something else than a
+    lock's process id (taking the lock empties it)."""
+    for folder in (partial_path(output), discard_path(output)):
+        if os.path.islink(folder):
+            return (f"{folder} is a symbolic link, not a folder mechsweep made; a run would take it for its journal: "
+                    "move it away or choose another path with -o")
+        left = foreign_entries(folder)
+        if unlisted := [e for e in left if isinstance(e, _Unlisted)]:
+            return (f"in {folder}, {_listing(unlisted)} cannot be listed: what it holds is not known, and a run "
+                    "never deletes files it did not write; give it back its permissions (chmod u+rwx) or move it "
+                    "away, then run again")
+        if left:
+            return (f"{folder} holds {_listing(left)}, which a run does not write: a run removes that folder "
+                    f"(with --restart, or when it ends) and never deletes files it did not write; move "
+                    f"{'it' if len(left) == 1 else 'them'} out of {folder}, then run again")
+    part = partial_path(output)
+    if os.path.isfile(part) and not os.path.islink(part):  # an older version's one-file journal (HDF5)
+        try:
+            with open(part, "rb") as f:
+                head = f.read(8)
+        except OSError as exc:
+            head = str(exc).encode()
+        if head and head != b"\x89HDF\r\n\x1a\n":
+            return (f"{part} is a file that is not an unfinished run (an older mechsweep kept one in an HDF5 file "
+                    "there); a run would take it for its journal: move it away or choose another path with -o")
+    lock = lock_path(output)
+    try:
+        mode = os.lstat(lock).st_mode
+    except FileNotFoundError:
+        return None
+    if stat.S_ISLNK(mode):
+        return (f"{lock} (the run's lock) is a symbolic link, not a file mechsweep made; taking the lock would "
+                "empty what it points to: move it away or choose another path with -o")
+    if stat.S_ISREG(mode):
+        try:
+            with open(lock, "rb") as f:
+                head = f.read(64)
+        except OSError as exc:
+            return (f"{lock} (the run's lock) cannot be read ({exc.strerror}); move it away or choose another "
+                    "path with -o")
+        if head.strip() and not head.strip().isdigit():
+            return (f"{lock} (the run's lock) holds something else than a run's process id; taking the lock would "
+                    "empty it: move it away or choose another path with -o")
+    return None
+
+
+def _entries(folder: Path) -> tuple[list[Path], list[str]]:
+    """The entries of journal folder ``folder`` that a run writes (paths, deepest first, run.json
+    last, in any state: a damaged file, a link, a pipe, an empty folder where a file belongs), and
+    those it does not write (names in the folder, for a message)."""
+    own, foreign = [], []
+    try:
+        listing = sorted(os.scandir(folder), key=lambda e: e.name == "run.json")
+    except OSError as exc:
+        return own, [_Unlisted(f"{os.path.basename(folder)} itself ({exc.strerror})")]
+    for entry in listing:
+        if entry.name == "chunks" and entry.is_dir(follow_symlinks=False):
+            try:
+                inner = list(os.scandir(entry.path))
+            except OSError as exc:
+                foreign.append(_Unlisted(f"chunks ({exc.strerror})"))
+                continue
+            for e in inner:
+                if _CHUNK_NAME.match(e.name) or _CHUNK_TMP.match(e.name):
+                    _own_entry(e, f"chunks/{e.name}", own, foreign)
+                else:
+                    foreign.append(f"chunks/{e.name}")
+            own.append(Path(entry.path))
+        elif entry.name in OWN_FILES or entry.name == "chunks":
+            _own_entry(entry, entry.name, own, foreign)
+        else:
+            foreign.append(entry.name)
+    return own, foreign
+
+
+class _Unlisted(str):
+    """An entry of a journal folder whose content cannot be listed (permission denied): what it holds
+    is not known, so it is not removed."""
+
+
+def _own_entry(entry: os.DirEntry, name: str, own: list, foreign: list) -> None:
+    """An entry where a run writes a file: the run's in any state, except a folder that holds
+    something (a run never makes a folder there; what is in it is not the run's)."""
+    if entry.is_dir(follow_symlinks=False):
+        try:
+            inside = os.listdir(entry.path)
+        except OSError as exc:
+            foreign.append(_Unlisted(f"{name}/ ({exc.strerror})"))
+            return
+        if inside:
+            foreign.append(f"{name}/ (a folder holding {_listing(sorted(inside))})")
+            return
+    own.append(Path(entry.path))
+
+
+def _remove_own(folder: Path) -> list[str]:
+    """Remove the entries of ``folder`` a run writes, then the folder if nothing else is in it;
+    returns what is left (never removed: not the run's)."""
+    own, foreign = _entries(folder)
+    for path in own:
+        try:
+            if stat.S_ISDIR(os.lstat(path).st_mode):
+                os.rmdir(path)  # chunks/ (empty unless it holds foreign entries), or an empty folder
+            else:
+                os.unlink(path)  # a link is removed, never what it points to
+        except FileNotFoundError:
+            pass
+        except OSError as exc:
+            if not foreign:
+                foreign.append(f"{os.path.relpath(path, folder)} (it cannot be removed: {exc.strerror})")
+    if not foreign:
+        try:
+            os.rmdir(folder)
+        except FileNotFoundError:
+            pass
+        except OSError as exc:
+            foreign.append(f"(the folder itself: it cannot be removed, {exc.strerror})")
+    return [f"{folder}: {e}" for e in foreign]
+
+
+def _listing(entries: list[str], most: int = 5) -> str:
+    shown = ", ".join(str(e) for e in entries[:most])
+    return shown + (f" and {len(entries) - most} more" if len(entries) > most else "")
+
+
+def _what(path: Path) -> str:
+    mode = os.lstat(path).st_mode
+    for test, name in ((stat.S_ISLNK, "a symbolic link"), (stat.S_ISDIR, "a directory"), (stat.S_ISREG, "a file"),
+                       (stat.S_ISFIFO, "a named pipe"), (stat.S_ISSOCK, "a socket"), (stat.S_ISCHR, "a device"),
+                       (stat.S_ISBLK, "a device")):
+        if test(mode):
+            return name
+    return "not a regular file"

@@ -11,6 +11,7 @@ import platform
 import resource
 import shutil
 import signal
+import stat
 import sys
 import threading
 import time
@@ -24,31 +25,20 @@ import numba
 import numpy as np
 
 from . import __version__
+from . import _jit
 from . import cf
 from . import status as st
-from .errors import ClusterLost, InputError, WriteFailed
+from .errors import (ClusterLost, FileBusy, InputError, OutOfSpace, RunError, RunInterrupted,  # noqa: F401  (API: runner.X)
+                     WriteFailed, why_os_error)
 from .grid import Chunk, ChunkPlan, ParameterMatrix, chunk_target, plan_chunks
-from .journal import BadChunk, Journal, RunLock, discard_path, drop, lock_path, partial_path
+from .journal import (RESTART, BadChunk, Journal, RunLock, clear_discard, discard_path, drop, lock_path,
+                      own_files_problem, partial_path)
 from .scene import Scene, check_scheduler, check_worker_timeout, load_scene, load_scene_text
 from .store import (COMPILE_KEY, LOAD_LIMIT_BYTES, Early, Held, StoreError, assemble, check_journal_files,
                     file_kind, layout, open_dataset, status_counts)
 
 if TYPE_CHECKING:
     import xarray as xr  # annotations only: `mechsweep run` does not import xarray
-
-
-class RunInterrupted(RuntimeError):
-    """The run stopped (Ctrl-C, SIGTERM) after saving every finished chunk; resume with --resume.
-    ``signum`` is the signal that stopped it (SIGINT for Ctrl-C)."""
-
-    def __init__(self, message: str, signum: int = signal.SIGINT):
-        super().__init__(message)
-        self.signum = signum
-
-
-class OutOfSpace(StoreError):
-    """A write of the run failed (disk full, file-size limit, quota, I/O error); the journal of
-    finished chunks is kept, so the run can be completed with --resume once there is room."""
 
 
 # A chunk file found damaged at assembly is computed again; if chunks keep going bad after this
@@ -58,7 +48,23 @@ REPAIR_ROUNDS = 3
 
 @dataclass(frozen=True)
 class RunSummary:
-    """What a finished run wrote, known without opening its dataset."""
+    """What a finished run wrote, known without opening its dataset (:func:`compute` returns it).
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The dataset written.
+    sizes : dict
+        Dimension -> size: the grid's axes, then the outputs' extra dimensions.
+    status : dict
+        Status code -> number of points, counted chunk by chunk (:meth:`status_names` by name).
+    wall_time_s : float
+        ``compile_time_s + compute_time_s``.
+    compile_time_s : float
+        JIT compilation (or loading the JIT cache) before the chunks.
+    compute_time_s : float
+        The chunks: kernels and the writes of the journal.
+    """
 
     path: Path
     sizes: dict  # dimension -> size: the grid's axes, then the outputs' extra dimensions
@@ -96,39 +102,84 @@ def run(
     overwrite: bool = False,
     models: Mapping | None = None,
 ) -> xr.Dataset:
-    """Compute a scene's grid and return the stored dataset.
+    """Compute a scene's grid and return its dataset.
 
-    ``output`` overrides ``[storage] path`` (by default the dataset goes there; its folder is
-    created when missing). ``output=None`` is the in-memory route: the grid is computed here and
-    returned as an in-memory Dataset, and nothing is written (no file, journal or lock; for
-    exploratory use: the values are bitwise those the file route stores; ``resume``, ``restart``,
-    ``overwrite``, ``load`` and a scheduler do not apply to it and are refused).
-    With ``resume`` an unfinished run of the same scene (``<path>.partial``) is completed,
-    computing only its missing chunks; ``restart`` discards such a run. ``threads`` sets numba's
-    thread count (default: all cores; on a dask cluster: per worker, at most its cores).
-    ``progress`` shows a progress bar (default: only on a terminal). ``scheduler`` (or the scene's
-    ``[execution] scheduler``) runs the chunks on that dask.distributed cluster instead of here.
-    ``load``: the returned dataset is in memory (True), opened lazily (False), or loaded when it
-    is at most store.LOAD_LIMIT_BYTES (None, default).
-    ``worker_timeout`` (or ``[execution] worker_timeout``): on a cluster, seconds to wait for a lost
-    scheduler or with no worker before the run stops with its journal kept.
+    Every grid point is computed by the model's compiled kernels, on all cores (or on a dask
+    cluster), and stored chunk by chunk as it finishes, so an interrupted run can be resumed.
 
-    The dataset's attributes ``compile_time_s`` (compiling the kernels, or loading them from the
-    JIT cache, before the first chunk; 0 when this process compiled them already; on a dask
-    cluster the workers compile inside their first chunk, counted as compute), ``compute_time_s``
-    (the chunks) and ``wall_time_s`` (their sum) say how long the run took.
+    Parameters
+    ----------
+    scene_or_path : str, os.PathLike, Mapping or Scene
+        The scene: a TOML file's path, a dict with the same structure, or a :class:`Scene` from
+        :func:`load_scene`.
+    output : str, os.PathLike or None, optional
+        Where the dataset goes. Default: the scene's ``[storage] path`` (relative to the working
+        directory; its folder is created when missing). ``None``: the in-memory route, nothing
+        written (no file, journal or lock; the values are bitwise those the file route stores;
+        ``resume``, ``restart``, ``overwrite``, ``load`` and a scheduler do not apply to it and are
+        refused).
+    resume : bool, optional
+        Complete an unfinished run of the same scene (``<path>.partial``), computing only its
+        missing chunks.
+    restart : bool, optional
+        Discard an unfinished run of the scene and start over.
+    threads : int, optional
+        numba's thread count (default: all cores; on a dask cluster: per worker, at most its
+        cores).
+    progress : bool, optional
+        Show a progress bar (default: only when stderr is a terminal).
+    scheduler : str, optional
+        A dask.distributed scheduler's address (or the scene's ``[execution] scheduler``): run the
+        chunks on that cluster instead of here.
+    load : bool, optional
+        True: the returned dataset is in memory; False: opened lazily; None (default): loaded when
+        it is at most ``store.LOAD_LIMIT_BYTES``.
+    worker_timeout : float, optional
+        On a cluster (or ``[execution] worker_timeout``): seconds to wait for a lost scheduler or
+        with no worker before the run stops with its journal kept.
+    overwrite : bool, optional
+        Replace an existing ``output`` that holds another scene's dataset or a file mechsweep did
+        not write (by default only a re-run of the same scene replaces its dataset).
+    models : Mapping, optional
+        Model name -> :class:`~mechsweep.model.OdeModel` (or a ``ModelSpec``) defined in Python, for
+        a scene whose ``model`` is that name. Such a model lives only in this process: it runs
+        locally (a dask cluster is refused; name the model as ``"file.py:NAME"`` or
+        ``"package.module:NAME"`` in the scene for that).
 
-    A failed write (disk full, file-size limit) raises ``OutOfSpace`` with the journal kept;
-    SIGINT and SIGTERM raise ``RunInterrupted`` (when run in the main thread). ``compute`` does
-    the same without opening the result (for status counts and sizes only).
+    Returns
+    -------
+    xarray.Dataset
+        One dimension per axis, the requested outputs with their units and long names, ``status``
+        per point (and ``n_steps``, ``n_rhs`` for integrated outputs), the scene, solver settings
+        and provenance in the attributes. ``compile_time_s`` (compiling the kernels, or loading them
+        from the JIT cache, before the first chunk; 0 when this process compiled them already; on a
+        dask cluster the workers compile inside their first chunk, counted as compute),
+        ``compute_time_s`` (the chunks) and ``wall_time_s`` (their sum) say how long it took.
 
-    An existing ``output`` is replaced only by a run of the same scene (a re-run), unless
-    ``overwrite``: a dataset of another scene, or a file mechsweep did not write, is refused.
+    Raises
+    ------
+    SceneError
+        The scene is not valid (nothing is run or written).
+    StoreError
+        The output path cannot be written, or holds what the run may not replace.
+    OutOfSpace
+        A write failed (disk full, file-size limit): the journal is kept; resume with ``resume=True``.
+    RunInterrupted
+        SIGINT or SIGTERM (when run in the main thread): the finished chunks are kept.
+    ClusterLost
+        The dask scheduler was lost, or had no worker for ``worker_timeout`` seconds.
 
-    ``models``: model name -> ``mechsweep.model.OdeModel`` (or a ``ModelSpec``) defined in Python,
-    for a scene whose ``model`` is that name. Such a model lives only in this process: it runs
-    locally (a dask cluster is refused; name the model as "file.py:NAME" or "package.module:NAME"
-    in the scene for that).
+    See Also
+    --------
+    compute : the same without opening the result (status counts and sizes only).
+    open_dataset : read a stored dataset.
+
+    Examples
+    --------
+    >>> import mechsweep
+    >>> ds = mechsweep.run("sweeps/quickstart.toml", output=None)      # doctest: +SKIP
+    >>> float(ds.period.sel(A=1.0, mu=1.0, method="nearest"))          # doctest: +SKIP
+    4.768022029112...
     """
     if output is None:
         return _run_in_memory(scene_or_path, resume=resume, restart=restart, threads=threads, progress=progress,
@@ -159,9 +210,37 @@ def compute(
     overwrite: bool = False,
     models: Mapping | None = None,
 ) -> RunSummary:
-    """``run`` without opening the result: compute the scene into its file and return a
-    :class:`RunSummary` (path, sizes, status counts, wall time). Memory stays bounded by the
-    chunk, whatever the grid; the status counts are added up as the chunks are assembled."""
+    """Compute a scene into its file without opening the result.
+
+    The same as :func:`run` (same parameters, except ``load``; the output must be a file), for grids
+    too large to hold: memory stays bounded by the chunk, whatever the grid, and the status counts
+    are added up as the chunks are assembled.
+
+    Parameters
+    ----------
+    scene_or_path : str, os.PathLike, Mapping or Scene
+        The scene, as for :func:`run`.
+    output : str or os.PathLike, optional
+        The dataset's path (default: the scene's ``[storage] path``).
+    resume, restart, overwrite : bool, optional
+        As for :func:`run`.
+    threads : int, optional
+        numba's thread count (default: all cores).
+    progress : bool, optional
+        Show a progress bar (default: only when stderr is a terminal).
+    scheduler : str, optional
+        A dask.distributed scheduler's address, as for :func:`run`.
+    worker_timeout : float, optional
+        On a cluster: seconds to wait for a lost scheduler or with no worker.
+    models : Mapping, optional
+        Model name -> a model defined in Python, as for :func:`run`.
+
+    Returns
+    -------
+    RunSummary
+        The path written, the dimensions' sizes, the number of points of each status and the
+        run's times.
+    """
     return _compute_file(scene_or_path, output=output, resume=resume, restart=restart, threads=threads,
                          progress=progress, scheduler=scheduler, worker_timeout=worker_timeout, overwrite=overwrite,
                          models=models, hold=False)[0]
@@ -178,6 +257,7 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
     if models is not None and not isinstance(models, Mapping):
         raise InputError(f"models must be a mapping of model name -> OdeModel, got {type(models).__name__}")
     scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path, models=models)
+    _warn_settings(scene)
     if output is not None and str(output).endswith(("/", os.sep)):
         raise StoreError(f"output path {output} ends with a path separator; give a file path such as "
                          f"{Path(output) / 'run.h5'}")
@@ -186,6 +266,7 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
     # missing; a folder given with output= must exist (a typo there is refused, not created)
     make_folder = output is None and not os.path.lexists(final.parent)
     check_target(final, create_folder=make_folder)
+    check_output_place(final)
     if scheduler is not None and (why := check_scheduler(scheduler)) is not None:
         raise InputError(f"scheduler {why}")
     scheduler = scheduler if scheduler is not None else scene.execution.scheduler
@@ -216,17 +297,19 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
         except OSError as exc:
             if client is not None:
                 _disconnect(client)
-            raise StoreError(f"cannot create the folder {final.parent} for output {final}: {exc.strerror}") from None
+            raise StoreError(f"cannot create the folder {final.parent} for output {final}: "
+                             f"{why_os_error(exc.errno, exc.strerror)}") from None
     try:
         with _Signals() as signals:
             try:
                 with RunLock(final):  # from here to the end, no other run touches final or its journal
-                    shutil.rmtree(discard_path(final), ignore_errors=True)  # what a killed clean-up left
+                    clear_discard(final)  # what a killed clean-up left
+                    before = _output_state(final)  # what the checks accept is what the dataset may replace
                     if not _check_existing(scene, final, resume, restart, target, len(chunks), overwrite):
                         keep = hold or hold is None and bytes_per_point(scene) * scene.n_points <= LOAD_LIMIT_BYTES
                         try:
                             counts, held = _compute(scene, final, restart, threads, progress, scheduler, target,
-                                                    chunks, signals, worker_timeout, client, keep)
+                                                    chunks, signals, worker_timeout, client, keep, before)
                         except Exception as exc:  # a failure after the checks: keep no journal without a chunk
                             if not isinstance(exc, (WriteFailed, ClusterLost)):
                                 _failed(exc, final)
@@ -247,6 +330,17 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
         if client is not None:
             _disconnect(client)
     return RunSummary(final, _sizes(scene), counts, *times), held
+
+
+def _warn_settings(scene: Scene) -> None:
+    """A SettingsWarning for each of the scene's accepted but suspicious solver settings."""
+    import warnings
+
+    from .errors import SettingsWarning
+    from .scene import solver_warnings
+
+    for text in solver_warnings(scene):
+        warnings.warn(text, SettingsWarning, stacklevel=4)
 
 
 def _journal_target(scene: Scene, final: Path) -> int | None:
@@ -287,6 +381,7 @@ def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, schedul
     if models is not None and not isinstance(models, Mapping):
         raise InputError(f"models must be a mapping of model name -> OdeModel, got {type(models).__name__}")
     scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path, models=models)
+    _warn_settings(scene)
     if scene.execution.scheduler:
         raise InputError(f"output=None (the in-memory route) runs here; the scene's [execution] scheduler "
                          f"{scene.execution.scheduler} is not used by it: give an output path to run on the cluster")
@@ -309,7 +404,7 @@ def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, schedul
     params = ParameterMatrix(scene)
     bar = None
     with _threads(threads):
-        threads_used = numba.get_num_threads()
+        threads_used = _jit.num_threads()
         compile_s = warm_up(scene, params, progress)
         t0 = _clock()
         if shown:
@@ -426,28 +521,101 @@ def _kept(final: Path) -> str:
 
 
 def _out_of_space(exc: WriteFailed, scene: Scene, final: Path, n_chunks: int) -> str:
-    """The message of a failed write: what failed, how much the run still needs, what is kept."""
+    """The message of a failed write, by its cause: for a lack of room (no space, no inode, a quota,
+    the file-size limit) how much the run still needs; for another cause (a folder removed or made
+    read-only during the run, an I/O error) what happened; and what is kept, and how to go on."""
     from .errors import why_write_failed
 
+    code = exc.errno
+    failed = f"writing {exc.path} failed"
+    folder = final.parent
+    if code == errno.ENOENT:
+        return _removed_during_run(final, failed)
+    if code not in (errno.ENOSPC, getattr(errno, "EDQUOT", None), errno.EFBIG):
+        kept = _kept(final)
+        where = Path(exc.path).parent
+        advice = {
+            errno.EACCES: f"permission to write in {where} was taken away during the run: give it back; ",
+            errno.EPERM: f"writing in {where} is no longer permitted: allow it again; ",
+            errno.EROFS: f"the file system of {where} became read-only during the run (a system remounts a disk "
+                         "so after errors: check it), make it writable; ",
+            errno.EIO: f"the disk of {where} reported an error: check it (e.g. dmesg) before going on; ",
+            errno.EISDIR: f"{exc.path} became a directory during the run: move it away; ",
+            errno.ENOTDIR: f"a folder on the way to {exc.path} was replaced by a file during the run: put it back; ",
+        }.get(code, "")
+        reason = why_write_failed(code, exc.strerror) if code == errno.EIO else why_os_error(code, exc.strerror)
+        return f"{reason}: {failed}; {advice}{kept}"
     part = partial_path(final)
     data = bytes_per_point(scene) * scene.n_points
+    done = _done_chunks(part)
+    if done is None:
+        need, files = 2 * data, n_chunks + 1
+    else:
+        need = int(data * (1 - done.sum() / max(1, done.size)) + data)  # the chunks to come and the dataset
+        files = int(done.size - done.sum()) + 1
+    kept = _kept(final)
+    reason = why_write_failed(code, exc.strerror)
+    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    free, inodes, total_inodes = _room(folder)
+    short_of_inodes = total_inodes and inodes is not None and inodes < files + 1
+    if code == errno.EFBIG and soft != resource.RLIM_INFINITY:
+        need_text = f"the limit is {_mib(soft)}, the dataset needs up to {_mib(data)}"
+    elif code == errno.ENOSPC and short_of_inodes and (free is None or free >= need):
+        # a file system that ran out of inodes (file entries) says ENOSPC too, with space to spare
+        return (f"out of inodes (file entries), not of space: the file system of {_resolved(folder)} has {inodes} of "
+                f"{total_inodes} inodes free (and {_mib(free) if free is not None else 'enough'} of space); the run "
+                f"still needs about {files} more files (one per chunk to come, and the dataset): delete files there "
+                f"or write elsewhere with -o; {failed}; {kept}")
+    elif code == errno.ENOSPC and short_of_inodes:
+        need_text = (f"{_mib(need)} and about {files} more files needed on the disk of {_resolved(folder)} (it is out "
+                     f"of space and of inodes: {inodes} of {total_inodes} free)")
+    elif code == getattr(errno, "EDQUOT", None):  # a quota counts blocks, and often files too
+        need_text = f"{_mib(need)} and about {files} more files needed within your quota on the disk of {_resolved(folder)}"
+    else:
+        need_text = f"{_mib(need)} needed on the disk of {_resolved(folder)}"
+    return f"{reason}: {need_text}; {failed}; {kept}"
+
+
+def _removed_during_run(final: Path, failed: str) -> str:
+    """The message of a write that found a file or folder of the run gone (ENOENT): which one
+    was removed, and what that means for the chunks computed so far."""
+    part = partial_path(final)
+    gone = next((p for p in (final.parent, part, part / "chunks") if not os.path.isdir(p)), None)
+    if gone == final.parent:
+        what = (f"the output folder {final.parent} was removed during the run, and the run's journal with it "
+                "(create the folder again before the next run)")
+    elif gone is not None:
+        what = f"the journal folder {gone} was removed during the run"
+    else:
+        return (f"a file of the run was removed while it was being written (ENOENT): {failed}; {_kept(final)}")
+    return f"{what} (ENOENT): {failed}; the chunks computed so far are lost: run again, from the start"
+
+
+def _done_chunks(part: Path):
+    """The done-chunk mask of the journal ``part``, or None (no journal, or one that cannot be read)."""
     try:
         journal = Journal.read(part) if part.is_dir() else None
-    except StoreError:
-        journal = None
-    if journal is None or journal.empty:
-        need = 2 * data
-    else:
-        done = journal.done_chunks()
-        need = int(data * (1 - done.sum() / max(1, done.size)) + data)  # the chunks to come and the dataset
-    kept = _kept(final)
-    reason = why_write_failed(exc.errno, exc.strerror)
-    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
-    if exc.errno == errno.EFBIG and soft != resource.RLIM_INFINITY:
-        need_text = f"the limit is {_mib(soft)}, the dataset needs up to {_mib(data)}"
-    else:
-        need_text = f"{_mib(need)} needed on the disk of {final.parent.resolve()}"
-    return f"{reason}: {need_text}; writing {exc.path} failed; {kept}"
+        return None if journal is None or journal.empty else journal.done_chunks()
+    except (StoreError, OSError):
+        return None
+
+
+def _room(folder: Path) -> tuple[int | None, int | None, int | None]:
+    """(free bytes, free inodes, total inodes) of the file system of ``folder`` (or its nearest
+    existing ancestor); None where it cannot be told (total inodes 0: a file system without a fixed
+    number of them, e.g. btrfs)."""
+    try:
+        v = os.statvfs(_existing_ancestor(folder))
+    except OSError:
+        return None, None, None
+    return v.f_bavail * v.f_frsize, v.f_favail, v.f_files
+
+
+def _resolved(folder: Path) -> Path:
+    try:
+        return folder.resolve()
+    except OSError:
+        return folder
 
 
 def _mib(n: float) -> str:
@@ -472,12 +640,16 @@ def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, targ
     a resume with another scene, an existing dataset of another scene (or a file mechsweep did
     not write) without ``overwrite``. True when ``resume`` finds the run already finished."""
     part = partial_path(final)
+    if (why := own_files_problem(final)) is not None:  # a user's file in the journal: never removed
+        raise StoreError(why)
     check_journal_files(part, contents=not restart)  # --restart discards what the folder holds
     if part.exists() and not (resume or restart):
         raise StoreError(f"an unfinished run of this output exists: {part}; continue it with --resume "
                          "or discard it with --restart")
     same = _holds_same_scene(final, scene, overwrite)  # None: no dataset there (or an empty file)
     if resume and not part.exists() and same:
+        if (why := _dataset_sources_changed(final, scene)) is not None:
+            raise StoreError(why)
         return True
     if part.exists() and not restart:
         journal = Journal.read(part)
@@ -489,7 +661,76 @@ def _check_existing(scene: Scene, final: Path, resume: bool, restart: bool, targ
             canonical = journal.meta["scene_canonical"]  # the same scene, perhaps in an older version's form
         if not journal.empty and (why := journal.matches(canonical, target, n_chunks)) is not None:
             raise StoreError(why)
+        if not journal.empty and (why := _journal_attrs_problem(journal, scene)) is not None:
+            raise StoreError(why)
+        if not journal.empty and (why := _journal_sources_changed(journal, scene)) is not None:
+            raise StoreError(why)  # the same scene, but its model's code changed since the run began
     return False
+
+
+def _journal_attrs_problem(journal: Journal, scene: Scene) -> str | None:
+    """Why the attributes an unfinished run's journal gives its dataset do not describe ``scene``
+    (its run.json edited; a journal of format 2 has no checksum to tell), or None: the model, the
+    outputs and the solver settings, which the scene determines."""
+    import json
+
+    attrs = journal.meta["attrs"]
+    expected = {"model": scene.model.name, "outputs": " ".join(scene.outputs)}
+    if scene.solver is not None:
+        expected.update({f"solver_{k}": v for k, v in scene.solver.as_dict().items()})
+    expected = json.loads(json.dumps(expected))  # as run.json holds them
+    for key in sorted(set(expected) | {k for k in attrs if k.startswith("solver_")}):
+        if key not in attrs or key not in expected or attrs[key] != expected[key]:
+            stored = repr(attrs[key]) if key in attrs else "missing"
+            wanted = repr(expected[key]) if key in expected else "none"
+            return (f"{journal.folder / 'run.json'} gives the dataset the attribute {key} = {stored}, the scene "
+                    f"{wanted}: the journal was edited; {RESTART}")
+    return None
+
+
+def _journal_sources_changed(journal: Journal, scene: Scene) -> str | None:
+    """Why the unfinished run ``journal`` cannot be resumed with the model's current sources (the
+    model file, the user modules it imports, the packages they use, mechsweep: model/sources.py), or
+    None when they are those it began with. A journal that records none (written by a version before
+    the record) is refused too: what its chunks were computed from cannot be checked."""
+    from .model import sources
+
+    attrs = journal.meta.get("attrs") if isinstance(journal.meta, dict) else None
+    stored = attrs.get("dependencies") if isinstance(attrs, dict) else None
+    if stored is None:
+        version = attrs.get("mechsweep_version", "?") if isinstance(attrs, dict) else "?"
+        return (f"{journal.folder} was started by mechsweep {version}, which did not record the sources its "
+                "results depend on (the model file, the modules it imports, mechsweep's own): its chunks cannot "
+                "be checked against the current ones; start over with --restart")
+    changed = sources.differences(stored, sources.record(scene.model), scene.base or None)
+    if not changed:
+        return None
+    return (f"cannot resume {journal.folder}: {'; '.join(changed)}; start over with --restart, or restore "
+            f"{'them' if len(changed) > 1 else 'it'} and resume")
+
+
+def _dataset_sources_changed(final: Path, scene: Scene) -> str | None:
+    """Why ``--resume`` cannot take the finished dataset ``final`` as this run's result: it was
+    computed from other sources than the model's current ones (None: the same, or a dataset of a
+    version that recorded none, which is taken as it is: nothing is computed)."""
+    import h5py
+
+    from .model import sources
+
+    try:
+        with h5py.File(final, "r") as f:
+            stored = _attr_text(f.attrs["dependencies"]) if "dependencies" in f.attrs else None
+    except Exception:  # damaged internals were refused by _holds_same_scene's check already
+        return None
+    if stored is None:
+        return None
+    changed = sources.differences(stored, sources.record(scene.model), scene.base or None,
+                                  since="this dataset was computed")
+    if not changed:
+        return None
+    return (f"{final} is finished, but computed from other sources: {'; '.join(changed)}; compute it again "
+            f"with `mechsweep run` without --resume (the dataset is replaced), or restore "
+            f"{'them' if len(changed) > 1 else 'it'}")
 
 
 def _holds_same_scene(final: Path, scene: Scene, overwrite: bool) -> bool | None:
@@ -500,6 +741,9 @@ def _holds_same_scene(final: Path, scene: Scene, overwrite: bool) -> bool | None
         return None
     try:
         same = _stored_same_scene(final, scene)
+    except FileBusy as exc:  # never replaced, whatever the flags: that process's writes would be lost
+        raise FileBusy(final, exc.holder, doing="a run would replace it and the writes of that process "
+                       "would be lost: wait until it closes the file (or stop it), or write elsewhere with -o") from None
     except StoreError as exc:
         if overwrite:
             return False
@@ -521,7 +765,7 @@ def _stored_same_scene(final: Path, scene: Scene) -> bool | None:
     StoreError when it is not a dataset mechsweep wrote."""
     import h5py
 
-    from .store import RUN_ATTRS, check_dataset_file
+    from .store import RUN_ATTRS, check_dataset_file, is_lock_error, lock_holder
 
     check_dataset_file(final)  # a regular HDF5 file with a run's (or a benchmark's) attributes
     try:
@@ -530,6 +774,8 @@ def _stored_same_scene(final: Path, scene: Scene) -> bool | None:
             attrs = {k: _attr_text(f.attrs[k]) for k in keys if k in f.attrs}
             run = all(a in attrs for a in RUN_ATTRS) and "status" in f
     except Exception as exc:  # damaged internals: as check_dataset_file says it
+        if is_lock_error(exc):  # another process opened it for writing since check_dataset_file
+            raise FileBusy(final, lock_holder(final)) from None
         raise StoreError(f"{final} is not a mechsweep dataset: it is an HDF5 file that cannot be read "
                          f"({str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__})") from None
     return same_scene(attrs, scene) if run else None
@@ -561,11 +807,13 @@ def same_scene(attrs: Mapping, scene: Scene) -> bool:
 
 def _compute(scene: Scene, final: Path, restart: bool, threads, progress, scheduler, target: int,
              chunks: ChunkPlan, signals: "_Signals", worker_timeout: float, client=None,
-             hold: bool = False) -> tuple[dict[int, int], Held | None]:
+             hold: bool = False, before: tuple | None = None) -> tuple[dict[int, int], Held | None]:
     """Compute the missing chunks into the journal, then assemble the dataset; returns the points
     per status code, and with ``hold`` the dataset kept in memory as it was written (store.Held).
     Chunk files that do not verify (found now, or while assembling) are removed and computed
-    again. ``client``: a connected dask client when ``scheduler`` is given."""
+    again. ``client``: a connected dask client when ``scheduler`` is given. ``before``: what was
+    at ``final`` when the checks passed (``_output_state``), the only file the dataset replaces
+    besides a dataset of the same scene."""
     part = partial_path(final)
     journal = Journal.read(part) if part.exists() and not restart else None
     resumed = journal is not None and not journal.empty
@@ -583,10 +831,10 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
         try:
             with _threads(None if scheduler else threads):
                 where = (f"dask scheduler {scheduler}, {threads or 'all'} numba threads per worker" if scheduler
-                         else f"local, {numba.get_num_threads()} threads")
+                         else f"local, {_jit.num_threads()} threads")
                 attrs = {**journal.meta["attrs"], "execution": where}
                 if not scheduler:
-                    attrs["threads"] = numba.get_num_threads()
+                    attrs["threads"] = _jit.num_threads()
                 # A fresh run that returns its dataset (held) writes its file while the chunks are
                 # computed (store.Early: the writer thread, overlapping the kernels); a resumed
                 # one (its history says when it was finished) is assembled at the end.
@@ -607,7 +855,7 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
                     attrs["history"] = (attrs.get("history", "") + "\n" + cf.history(
                         now, f"mechsweep.run(scene {scene.name!r}, resume=True): {len(todo)} chunk(s) computed",
                         __version__))
-            bad, counts = _finish(journal, scene, chunks, final, attrs, signals, held, early)
+            bad, counts = _finish(journal, scene, chunks, final, attrs, signals, held, early, before)
         except BaseException:
             if early is not None:  # interrupted or failed: no half-written file is left in the journal
                 early.discard()
@@ -617,7 +865,7 @@ def _compute(scene: Scene, final: Path, restart: bool, threads, progress, schedu
         for exc in bad:
             journal.discard(exc.path, exc.why)
         _report_removed(journal)
-    raise StoreError(f"chunk files in {journal.chunks} were found damaged again after {REPAIR_ROUNDS} rounds of "
+    raise RunError(f"chunk files in {journal.chunks} were found damaged again after {REPAIR_ROUNDS} rounds of "
                      "computing them anew; the disk may be failing: check it, then run again with --resume")
 
 
@@ -632,12 +880,14 @@ ASSEMBLY = "assembly.h5"
 
 
 def _finish(journal: Journal, scene: Scene, chunks: ChunkPlan, final: Path, attrs: dict,
-            signals: "_Signals", held: Held | None = None, early: Early | None = None
-            ) -> tuple[list[BadChunk], dict[int, int]]:
+            signals: "_Signals", held: Held | None = None, early: Early | None = None,
+            before: tuple | None = None) -> tuple[list[BadChunk], dict[int, int]]:
     """Assemble the dataset next to the journal (or complete ``early``, the file written while the
     chunks were computed), move it into place by one rename, drop the journal. Signals wait until a
     chunk is written (the files are closed before the run stops). Returns the chunk files that did
-    not verify (then nothing is moved into place) and the points per status."""
+    not verify (then nothing is moved into place) and the points per status. What is at ``final``
+    is checked again right before the rename (``_placing_problem``): a file that appeared there
+    while the run computed is not replaced (StoreError, the journal kept)."""
     tmp = journal.folder / ASSEMBLY
     if early is not None and early.usable(tmp, held):  # most of the file is on the disk already
         check_free_space(scene, tmp, early.path.stat().st_size)
@@ -649,13 +899,78 @@ def _finish(journal: Journal, scene: Scene, chunks: ChunkPlan, final: Path, attr
         if bad:
             os.unlink(tmp)
             return bad, counts
+        if (why := _placing_problem(final, scene, before)) is not None:
+            os.unlink(tmp)
+            raise StoreError(why)
         try:
             os.replace(tmp, final)
         except OSError as exc:
             os.unlink(tmp)
             raise WriteFailed(final, exc) from None
-        drop(final)
+        if left := drop(final):
+            print(f"mechsweep: the dataset is in place; entries a run does not write were left as they are ("
+                  f"{'; '.join(left[:5])}{' ...' if len(left) > 5 else ''}): move them away (a run of {final} "
+                  "refuses to start until then)", file=sys.stderr)
     return [], counts
+
+
+def _output_state(final: Path) -> tuple | None:
+    """What is at ``final`` (the entry itself, a link not followed: device, inode, kind, size, times),
+    None when nothing is."""
+    try:
+        s = os.lstat(final)
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+    return (s.st_dev, s.st_ino, s.st_mode, s.st_size, s.st_mtime_ns, s.st_ctime_ns)
+
+
+def _placing_problem(final: Path, scene: Scene, before: tuple | None) -> str | None:
+    """Why the finished dataset may not replace what is at ``final`` now, or None: nothing there,
+    what the checks accepted when the run started (``before``), or a dataset of the same scene
+    (the same values). Anything else came while the run computed (a file, a link, a folder, a
+    dataset of another scene) and is not the run's to replace, whatever --overwrite said about the
+    file of the start."""
+    now = _output_state(final)
+    if now is None or now == before:
+        return None
+    mode = now[2]
+    if stat.S_ISREG(mode):
+        try:
+            same = _stored_same_scene(final, scene)
+        except StoreError as exc:
+            what = str(exc).replace(f"{final} is ", "", 1)
+        else:
+            if same:
+                return None
+            what = ("a mechsweep benchmark dataset" if same is None else
+                    "a dataset of a different scene")
+    else:
+        what = "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
+    part = partial_path(final)
+    return (f"{final} {'appeared' if before is None else 'changed'} while the run computed ({what}); a run replaces "
+            "only the file its checks accepted when it started, or a dataset of the same scene, so it was left as "
+            f"it is. The finished chunks are kept in {part}: move {final} away, then run again with --resume (it "
+            "only assembles the dataset)")
+
+
+def check_output_place(final: Path) -> None:
+    """Refuse an output inside a run's journal folder (``NAME.partial/``, or ``NAME.partial.discard/``
+    being deleted), where the run of NAME would find a file it did not write, or named as the
+    journal or lock of another output (``NAME.partial``, ``.NAME.lock``: that output's run would
+    take it for its own). Links are followed: the folder the file would be in counts."""
+    suffixes = (".partial", ".partial.discard")
+    folder = Path(os.path.realpath(final.parent))
+    for f in (folder, *folder.parents):
+        if f.name.endswith(suffixes):
+            owner = f.name[:-len(".partial")] if f.name.endswith(".partial") else f.name[:-len(".partial.discard")]
+            raise StoreError(f"output path {final} is inside {f}, the journal folder of an unfinished run of "
+                             f"{f.parent / owner} (a run keeps its finished chunks there and removes the folder "
+                             "when it ends); choose another path with -o")
+    name = final.name
+    if name.endswith(suffixes) or (name.startswith(".") and name.endswith(".lock") and len(name) > len("..lock")):
+        raise StoreError(f"output path {final}: a name ending in .partial or .partial.discard, or of the form "
+                         ".NAME.lock, is the one mechsweep gives the journal or the lock of another output; "
+                         "choose another name")
 
 
 class _Signals:
@@ -757,8 +1072,9 @@ def check_target(final: Path, create_folder: bool = False) -> None:
         final.stat()
     except (FileNotFoundError, NotADirectoryError):
         pass
-    except OSError as exc:  # e.g. a path longer than the system allows
-        raise StoreError(f"output path {str(final)[:80]}...: {exc.strerror}") from None
+    except OSError as exc:  # e.g. a path longer than the system allows, a folder on the way not searchable
+        shown = str(final) if len(str(final)) <= 80 else str(final)[:80] + "..."
+        raise StoreError(f"output path {shown}: {why_os_error(exc.errno, exc.strerror)}") from None
     if final.is_dir():
         raise StoreError(f"output path {final} is a directory; give a file path such as {final / 'run.h5'}")
     if os.path.lexists(final) and not final.is_file():
@@ -904,7 +1220,7 @@ def evaluate_rows(scene: Scene, P: np.ndarray):
     n_rhs = np.zeros(n, dtype=np.int64)
     from .model.compile import planned_points  # the run's size, not the rows', chooses the kernel (lanes or not)
 
-    with np.errstate(all="ignore"), planned_points(scene.n_points):  # an overflow at an extreme point is its status
+    with np.errstate(all="ignore"), planned_points(scene.n_points, scene.execution.use_lanes()):  # an overflow at an extreme point is its status
         launching = getattr(_LAUNCH, "hook", None)
         if launching is not None:
             launching()
@@ -939,9 +1255,9 @@ _WARM: set = set()
 
 def _kernel_key(scene: Scene) -> tuple:
     """What selects a scene's kernels: the model (and the source of a user's model), the outputs
-    computed and the method. A user model file edited in the process changes ``model_key``."""
+    computed, the method and the route (``[execution] lanes``). A user model file edited in the process changes ``model_key``."""
     return (scene.model.name, scene.model_key, scene.model.source, scene.computed_outputs,
-            scene.solver.method if scene.solver is not None else None)
+            scene.solver.method if scene.solver is not None else None, scene.execution.lanes)
 
 
 def _clock() -> float:
@@ -1068,12 +1384,12 @@ def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], alr
     """Save each computed chunk to the journal as it arrives; the write of one chunk overlaps the
     computation of the next (kernels release the GIL). At most one chunk waits to be written, so
     memory stays bounded by the chunk size. Each chunk file carries its compute time (since the
-    previous chunk); the first of this session also ``compile_s``, the compile phase before it
+    previous chunk); the first this call computes also ``compile_s``, the compile phase before it
     (kept apart: store.assemble sums both kinds into the dataset's attributes).
     ``signals`` (a local run): Ctrl-C or SIGTERM while a chunk computes is acted on once that chunk
     is saved. A kernel launch cannot be stopped, so the chunk runs to its end either way; raising
-    as soon as it returned threw it away (a docs-only trial: a slow one-chunk grid, Ctrl-C, 20 s
-    later "0 of 1 chunks saved")."""
+    as soon as it returns would throw that work away (a slow one-chunk grid would end with "0 of 1
+    chunks saved")."""
     from concurrent.futures import ThreadPoolExecutor
 
     from tqdm.auto import tqdm
@@ -1149,12 +1465,12 @@ def _threads(n: int | None):
         yield
         return
     _check_threads(n)
-    before = numba.get_num_threads()
-    numba.set_num_threads(n)
+    before = _jit.num_threads()
+    _jit.set_num_threads(n)
     try:
         yield
     finally:
-        numba.set_num_threads(before)
+        _jit.set_num_threads(before)
 
 
 @functools.lru_cache(maxsize=1)
@@ -1189,4 +1505,8 @@ def provenance(scene: Scene, chunks: ChunkPlan) -> dict:
     if scene.solver is not None:
         for k, v in scene.solver.as_dict().items():
             attrs[f"solver_{k}"] = v
+    from .model import sources
+
+    # what the results are computed from (model/sources.py): a resume checks it, a reader sees it
+    attrs.update(sources.record(scene.model).attrs(scene.base or None))
     return attrs

@@ -34,7 +34,10 @@ _DEEP_KEY = re.compile(r"(?<![A-Za-z0-9_-])(?:(?:[A-Za-z0-9_-]++|\"[^\"\n]*+\"|'
 
 
 class SceneError(InputError):
-    """An invalid scene. ``problems`` lists one message per bad key."""
+    """An invalid scene (the command line's exit code 2).
+
+    ``problems`` lists one message per bad key, each naming the key, the bad value and what is
+    allowed; ``source`` is the scene's file (or ``"scene"`` for a dict)."""
 
     def __init__(self, problems: list[str], source: str = "scene"):
         self.problems = list(problems)
@@ -160,6 +163,25 @@ SOLVER_LIMITS = {
     "max_steps": (1, 10**9),
 }
 
+# Usable ranges of the tolerances by method, measured on every shipped scene with each method it
+# offers (tests/data/solver_limits.py; docs/scenes.md, "Solver settings: usable ranges"). The adaptive
+# methods scale each error by atol + rtol |y| and square it: where a state is zero (a start from rest)
+# that is (rate / atol)^2, beyond the largest float64 (1.8e308) once rate / atol > 1.3e154. Below
+# ATOL_FLOOR that happens for any rate above 1.3e4; every integrated point of every shipped scene
+# ended nonfinite with radau from atol 1e-160 (most from 1e-155), with dop853 and auto from 1e-200
+# (some from 1e-170); the Duffing and torsional scenes' points are at 1e-150 as at the default
+# (the others fail earlier, see ATOL_WARN).
+# The symplectic method takes a fixed step from rtol and never reads atol.
+ADAPTIVE_METHODS = ("dop853", "radau", "auto")
+ATOL_FLOOR = 1e-150
+_NORM_OVERFLOW = math.sqrt(sys.float_info.max)  # 1.34e154
+# Below ATOL_WARN the error control is purely relative near a state that passes through or stays
+# at zero, and asks there for errors below float64 rounding: points of shipped scenes ended
+# max_steps or step_underflow from atol 1e-20 (vibrating_pendulum, radau) and 1e-30 (autobalancer).
+ATOL_WARN = 1e-20
+# radau raises a smaller rtol to 100 eps, as scipy's Radau does (ode/radau.py, MIN_RTOL)
+RADAU_MIN_RTOL = 100.0 * float(np.finfo(np.float64).eps)
+
 
 @dataclass(frozen=True)
 class Storage:
@@ -172,6 +194,17 @@ class Execution:
     scheduler: str | None = None  # dask.distributed scheduler address; None = local threads
     # seconds a cluster run waits for a lost scheduler, or with no worker, before it stops
     worker_timeout: float = 120.0
+    # the kernels' route where SIMD lanes apply: "auto" (where they pay), "always" or "never";
+    # the results are bitwise the same either way, so it is not part of the scene's identity
+    lanes: str = "auto"
+
+    def use_lanes(self) -> bool | None:
+        """The route as the kernels take it: True (lanes), False (one point at a time) or None (auto)."""
+        return LANES_CHOICES[self.lanes]
+
+
+# [execution] lanes -> the kernels' route (model.compile.planned_points)
+LANES_CHOICES = {"auto": None, "always": True, "never": False}
 
 
 @dataclass(frozen=True)
@@ -210,6 +243,51 @@ BOUNDARY_RTOL = (1e-15, 1e-2)
 
 @dataclass(frozen=True)
 class Scene:
+    """A validated scene: what to sweep, how to compute it and where to store it (frozen).
+
+    Made by :func:`load_scene` from a TOML file or a dict, after every key and value was checked;
+    :func:`mechsweep.run` accepts it wherever it accepts a path or a dict. Its fields are the
+    scene's sections (docs/scenes.md lists every key).
+
+    Attributes
+    ----------
+    name : str
+        ``[scene] name``: the dataset's title and default file name.
+    model : ModelSpec
+        The model's declaration (built-in or a user's), with its parameters, outputs and kernels.
+    outputs : tuple of str
+        The outputs asked for; only these are stored (:attr:`computed_outputs` adds what they
+        depend on).
+    axes : tuple of Axis
+        The grid's axes in order: each becomes a dimension of the dataset.
+    fixed : Mapping[str, Any]
+        The parameters given one value.
+    solver : Solver or None
+        The ``[solver]`` settings; None when no requested output needs integration.
+    storage : Storage
+        ``[storage]``: the dataset's path (relative to the working directory) and chunk size.
+    text : str
+        The scene as written (TOML), stored with the dataset.
+    execution : Execution
+        ``[execution]``: a dask scheduler, its timeout, and the kernels' route (``lanes``).
+    base : str
+        The absolute folder a model file path (``"file.py:NAME"``) was resolved against ("" when
+        the model is not named by a file path).
+    model_key : str
+        sha256 of a user model's source ("" for a built-in model): part of the scene's identity.
+    boundaries : Boundaries or None
+        The ``[boundaries]`` section (docs/boundaries.md), or None.
+
+    Examples
+    --------
+    >>> import mechsweep
+    >>> scene = mechsweep.load_scene({"scene": {"name": "s", "model": "duffing", "outputs": ["period_exact"]},
+    ...                               "axes": {"A": {"start": 0.1, "stop": 1.0, "num": 10}},
+    ...                               "fixed": {"mu": 1.0, "omega": 1.0}})
+    >>> scene.shape, scene.n_points, scene.solver is None
+    ((10,), 10, True)
+    """
+
     name: str
     model: ModelSpec
     outputs: tuple[str, ...]
@@ -233,10 +311,12 @@ class Scene:
 
     @property
     def shape(self) -> tuple[int, ...]:
+        """The grid's shape: the number of values of each axis, in order."""
         return tuple(a.size for a in self.axes)
 
     @property
     def n_points(self) -> int:
+        """The number of grid points (1 for a scene without axes)."""
         return int(np.prod(self.shape, dtype=np.int64)) if self.axes else 1
 
     @property
@@ -265,8 +345,8 @@ class Scene:
 
     def same_as(self, stored: str) -> bool:
         """Whether the canonical form ``stored`` (of a journal or a dataset) describes this scene.
-        Also accepts the form of mechsweep versions before 2026-11-23, in which range axes were
-        written out value by value (compared here axis by axis, as floats, bit for bit)."""
+        Also accepts the older form, in which range axes were written out value by value (journals
+        and datasets of older versions keep it; compared here axis by axis, as floats, bit for bit)."""
         if stored == self.canonical():
             return True
         if not isinstance(stored, str) or not stored.startswith("{"):
@@ -297,26 +377,132 @@ class Scene:
 
 # ----------------------------------------------------------------------------- loading
 def load_scene(source: str | Path | Mapping, models: Mapping | None = None) -> Scene:
-    """Load and validate a scene from a TOML path or a dict with the same structure.
-    ``models``: model name -> OdeModel or ModelSpec given from Python, for a scene naming one."""
+    """Load and validate a scene from a TOML file or a dict with the same structure.
+
+    Every problem is collected and reported at once; nothing runs and nothing is written.
+
+    Parameters
+    ----------
+    source : str, pathlib.Path or Mapping
+        The scene file's path, or a dict with its sections (``{"scene": {...}, "axes": {...},
+        ...}``). A model file named in a file's ``[scene] model`` is relative to the file's folder;
+        in a dict, to the working directory.
+    models : Mapping, optional
+        Model name -> :class:`~mechsweep.model.OdeModel` (or a ``ModelSpec``) defined in Python,
+        for a scene whose ``model`` is that name.
+
+    Returns
+    -------
+    Scene
+        The validated, frozen scene.
+
+    Raises
+    ------
+    SceneError
+        The scene is not valid: its ``problems`` list one message per bad key, each naming the
+        key, the bad value and what is allowed.
+    """
     if isinstance(source, Mapping):
         source = _plain(source)
-        return validate(source, text=to_toml(source), label="scene", models=models)
+        if (why := _unstorable_in(source)) is not None:
+            raise SceneError([why], "scene")
+        text = to_toml(source)
+        if len(text) > MAX_SCENE_BYTES:
+            raise SceneError([f"the scene's TOML form is {_mib(len(text))}; a scene is at most "
+                              f"{_mib(MAX_SCENE_BYTES)} ({SCENE_TOO_BIG_ADVICE})"], "scene")
+        return validate(source, text=text, label="scene", models=models)
     path = Path(source)
     label = str(path)
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise SceneError([f"file {label!r} does not exist"], "scene") from None
-    except IsADirectoryError:
-        raise SceneError([f"{label!r} is a directory, not a scene file"], "scene") from None
-    except OSError as exc:
-        raise SceneError([f"cannot read {label!r}: {exc.strerror}"], "scene") from None
+    raw = read_scene_file(path)
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise SceneError([f"{label!r} is not UTF-8 text (byte {exc.start})"], label) from None
     return load_scene_text(text, label, base=path.resolve().parent, models=models)
+
+
+# A scene is a page of TOML: a few kB, and a list axis of a million values is about 13 MiB (about 3 s
+# to parse). Nothing beyond this is read: a device, a dataset or a log given as the scene by mistake
+# is refused before its bytes fill the memory.
+MAX_SCENE_BYTES = 16 * 2**20
+SCENE_TOO_BIG_ADVICE = "give a long axis as a range { start, stop, num }, not as a list of values"
+
+
+def _mib(n: int) -> str:
+    return f"{n / 2**20:.3g} MiB" if n >= 2**20 else f"{n:,} bytes"
+
+
+def _file_kind(mode: int) -> str:
+    """What a file system entry of this st_mode is, for a message."""
+    import stat
+
+    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a named pipe (FIFO)"),
+                       (stat.S_ISSOCK, "a socket"), (stat.S_ISREG, "a regular file")):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def read_scene_file(path: Path) -> bytes:
+    """The bytes of the scene file ``path``: a regular file of at most MAX_SCENE_BYTES. A folder,
+    a pipe, a socket or a device is refused without reading it (a pipe nobody writes would block,
+    /dev/zero never ends), as is a larger file; every refusal names what the path is."""
+    import errno
+    import os
+    import stat
+
+    label = str(path)
+
+    def refuse(why: str):
+        raise SceneError([why], "scene")
+
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        if os.path.islink(path):
+            refuse(f"{label!r} is a broken symbolic link (to {os.readlink(path)!r}); a scene is a TOML file")
+        refuse(f"file {label!r} does not exist")
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            refuse(f"{label!r} is a symbolic link loop (it leads back to itself); a scene is a TOML file")
+        refuse(f"cannot read {label!r}: {_os_reason(exc)}")
+    if stat.S_ISDIR(mode):
+        refuse(f"{label!r} is a directory, not a scene file")
+    if not stat.S_ISREG(mode):
+        refuse(f"{label!r} is {_file_kind(mode)}, not a scene file; a scene is a regular TOML file")
+    try:  # O_NONBLOCK: should the path have become a pipe since, the open does not wait for a writer
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
+    except OSError as exc:
+        refuse(f"cannot read {label!r}: {_os_reason(exc)}")
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            refuse(f"{label!r} is {_file_kind(info.st_mode)}, not a scene file; a scene is a regular TOML file")
+        if info.st_size > MAX_SCENE_BYTES:
+            refuse(f"{label!r} is {_mib(info.st_size)}; a scene file is at most {_mib(MAX_SCENE_BYTES)} "
+                   f"({SCENE_TOO_BIG_ADVICE}); is it a scene?")
+        parts, size = [], 0
+        while size <= MAX_SCENE_BYTES:  # a file that grows, or that says it is empty (/proc), is read up to the cap
+            block = os.read(fd, min(2**20, MAX_SCENE_BYTES + 1 - size))
+            if not block:
+                break
+            parts.append(block)
+            size += len(block)
+        if size > MAX_SCENE_BYTES:
+            refuse(f"{label!r} holds more than {_mib(MAX_SCENE_BYTES)}; a scene file is at most that "
+                   f"({SCENE_TOO_BIG_ADVICE}); is it a scene?")
+        return b"".join(parts)
+    except OSError as exc:
+        refuse(f"cannot read {label!r}: {_os_reason(exc)}")
+    finally:
+        os.close(fd)
+
+
+def _os_reason(exc: OSError) -> str:
+    from .errors import why_os_error
+
+    return why_os_error(exc.errno, exc.strerror or str(exc))
 
 
 def _plain(value):
@@ -337,6 +523,9 @@ def load_scene_text(text: str, label: str = "scene", base: Path | str | None = N
                     models: Mapping | None = None) -> Scene:
     """Load and validate a scene from its TOML text (e.g. the copy stored with a run).
     ``base``: the folder a user model file path ("my_models.py:NAME") is relative to (default: cwd)."""
+    if len(text) > MAX_SCENE_BYTES:  # e.g. the scene text stored in a dataset someone made or edited
+        raise SceneError([f"{label!r}: the scene text is {_mib(len(text))}; a scene is at most "
+                          f"{_mib(MAX_SCENE_BYTES)} ({SCENE_TOO_BIG_ADVICE})"], label)
     if text.startswith("\ufeff"):
         raise SceneError([(f"{label!r} starts with a byte-order mark (BOM, bytes EF BB BF); "
                            "save it as UTF-8 without BOM")], label)
@@ -368,6 +557,8 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
     name = head.get("name")
     if not isinstance(name, str) or not name.strip():
         p.add("scene.name", f"{_short(name)} is not allowed; expected a non-empty string")
+    elif (why := unstorable(name)) is not None:  # the dataset's title
+        p.add("scene.name", f"{_short(name)} {why}; a dataset's title must be text HDF5 can store")
     for key in head:
         if key not in ("name", "model", "outputs", "description"):
             p.unknown(f"scene.{key}", key, ("name", "model", "outputs", "description"), "key")
@@ -397,6 +588,8 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
     solver = _solver(_table(data, "solver", p), model, p)
     if not model.needs_integration(outputs):
         solver = None
+    elif (why := atol_problem(solver, model)) is not None:
+        p.add("solver.atol", why)
     elif model.methods_for is not None and not p.items:
         allowed = model.methods_for(model.closure(outputs))
         if solver.method not in allowed:
@@ -413,6 +606,8 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
             p.add("axes", f"the grid has {n:.3g} points; at most {MAX_POINTS:.3g} are allowed")
         elif storage.chunk_size is not None:
             _check_chunk_count(tuple(a.size for a in axes), storage.chunk_size, p)
+    if not p.items:
+        _check_storable(model, outputs, axes, fixed, solver, p)
     if p.items:
         raise SceneError(p.items, label)
     return Scene(
@@ -429,6 +624,135 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
         model_key=_model_source_key(head.get("model"), model, base, models),
         boundaries=boundaries,
     )
+
+
+# ----------------------------------------------------------------------------- text HDF5 can store
+def unstorable(text: str) -> str | None:
+    """Why ``text`` cannot be stored in an HDF5 (netCDF-4) dataset as a string, or None: HDF5 keeps
+    strings as UTF-8 without NUL characters. A lone surrogate (e.g. from a file name whose bytes are
+    not UTF-8) has no UTF-8 form."""
+    if "\0" in text:
+        return "contains a NUL character (\\x00)"
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError as exc:
+        return f"contains {text[exc.start]!r}, a lone surrogate that is not Unicode text (no UTF-8 form)"
+    return None
+
+
+def unstorable_name(name: str) -> str | None:
+    """Why ``name`` cannot name a variable, dimension or attribute of a netCDF-4 dataset, or None."""
+    if not isinstance(name, str) or not name:
+        return "is empty"
+    if (why := unstorable(name)) is not None:
+        return why
+    if "/" in name:
+        return "contains '/', HDF5's path separator"
+    if name in (".", ".."):
+        return "is a path, not a name"
+    return None
+
+
+def _unstorable_in(value, key: str = "") -> str | None:
+    """The first key or string of a scene dict that has no UTF-8 form (a lone surrogate): its TOML
+    text, stored with the dataset, could not be read back. None when there is none."""
+    if isinstance(value, Mapping):
+        for k, v in value.items():
+            where = f"{key}.{k}" if key else str(k)
+            if isinstance(k, str) and (why := unstorable(k.replace("\0", ""))) is not None:
+                return f"{_short_key(where)}: the key {_short(k)} {why}"
+            if (why := _unstorable_in(v, where)) is not None:
+                return why
+    elif isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            if (why := _unstorable_in(v, f"{key}[{i}]")) is not None:
+                return why
+    elif isinstance(value, str) and (why := unstorable(value.replace("\0", ""))) is not None:
+        return f"{_short_key(key)}: {_short(value)} {why}"
+    return None
+
+
+def _check_storable(model: ModelSpec, outputs, axes, fixed, solver, p: "_Problems") -> None:
+    """Every string of the model's declaration and of the scene that a run writes into its dataset
+    (names of variables, dimensions and attributes, units, long names, symbols, the values of
+    categorical parameters, the model's name, source, references and status notes) must be text HDF5
+    can store, and the names distinct (the path of a model file is checked in _model, before loading). A problem here would only show
+    at the end of the run, when the file is written: it is reported now, naming what to fix."""
+    where = f"model {model.name!r}"
+
+    def text(what: str, value, advice: str = "fix the model's declaration") -> None:
+        if isinstance(value, str) and (why := unstorable(value)) is not None:
+            p.add("scene.model", f"{where}: {what} {_short(value)} {why}, which HDF5 cannot store in a dataset; "
+                  + advice)
+
+    def name(what: str, value) -> None:
+        if (why := unstorable_name(value)) is not None:
+            p.add("scene.model", f"{where}: {what} {_short(value)} {why}, which cannot name a variable or "
+                  "attribute of a dataset; fix the model's declaration")
+
+    text("name", model.name)
+    text("source", model.source, "it names where the model was loaded from: move the model file (or module) to a "
+         "path whose name is UTF-8 text")
+    for ref in model.references:
+        text("reference", ref)
+    for code, note in model.status_notes:
+        text(f"status note of code {code}", note)
+    given = [a.name for a in axes] + list(fixed)
+    for pname in given:
+        prm = model.param(pname)
+        name("parameter", prm.name)
+        for attr in ("unit", "long_name", "symbol"):
+            text(f"parameter {prm.name!r} {attr}", getattr(prm, attr))
+    for axis in axes:
+        if model.param(axis.name).categorical:
+            for item in axis.items:
+                text(f"choice of parameter {axis.name!r}", item)
+    for pname, value in fixed.items():
+        if model.param(pname).categorical:
+            text(f"choice of parameter {pname!r}", value)
+    dims, first = {}, {}
+    settings = solver.settings if solver is not None else {}
+    for oname in outputs:
+        out = model.output(oname)
+        name("output", out.name)
+        for attr in ("unit", "long_name", "symbol", "kind"):
+            text(f"output {out.name!r} {attr}", getattr(out, attr))
+        for dim in out.extra_dims:
+            if dim.name in dims and dims[dim.name] is not dim and not _same_values(dims[dim.name], dim, settings):
+                # the file holds one coordinate per dimension name: the second would be written on the first's
+                p.add("scene.model", f"{where}: outputs {first[dim.name]!r} and {out.name!r} both have a dimension "
+                      f"{dim.name!r}, with other values; a dataset has one coordinate per dimension: give them "
+                      "different names in the model's declaration")
+            dims.setdefault(dim.name, dim)
+            first.setdefault(dim.name, out.name)
+    for dim in dims.values():
+        name("dimension", dim.name)
+        text(f"dimension {dim.name!r} unit", dim.unit)
+        text(f"dimension {dim.name!r} long_name", dim.long_name)
+    if solver is not None:
+        for k in solver.settings:
+            name("solver setting", k)
+    # every variable of the dataset has a name of its own (an output named like a parameter, or
+    # "status", would meet another variable of that name in the file)
+    seen: dict[str, str] = {}
+    own = ["status"] + (["n_steps", "n_rhs"] if solver is not None else [])
+    for kind, names in (("the run's own variable", own), ("parameter", given), ("dimension", list(dims)),
+                        ("output", list(outputs))):
+        for n in names:
+            if n in seen:
+                p.add("scene.model", f"{where}: {kind} {n!r} has the name of {seen[n]} in the dataset; each "
+                      "variable of a dataset needs a name of its own: rename it in the model's declaration")
+            else:
+                seen[n] = f"{kind} {n!r}"
+
+
+def _same_values(a, b, settings) -> bool:
+    """Whether two extra dimensions of one name have the same coordinate values."""
+    try:
+        return bool(np.array_equal(np.asarray(a.values(settings), dtype=float),
+                                   np.asarray(b.values(settings), dtype=float)))
+    except Exception:  # a declaration's own function failed: the run would say so; no claim here
+        return True
 
 
 # ----------------------------------------------------------------------------- sections
@@ -509,6 +833,11 @@ def _model(name, p: _Problems, base: Path | str | None = None, models: Mapping |
             p.add("scene.model", str(exc))
             return None
     if isinstance(name, str) and ":" in name:  # a user model: "file.py:NAME" or "package.module:NAME"
+        where = str(Path(base or Path.cwd()) / name.rpartition(":")[0]) if load.is_file_ref(name) else name
+        if (why := unstorable(where)) is not None:  # a run stores where the model came from with its dataset
+            p.add("scene.model", f"the model's path {_short(where)} {why}; a dataset stores where its model came "
+                  "from as UTF-8 text: move the model file (and the scene) to a path whose name is UTF-8 text")
+            return None
         try:
             return load.resolve(name, Path(base) if base else None)
         except InputError as exc:
@@ -779,6 +1108,38 @@ def _solver(table: Mapping, model: ModelSpec, p: _Problems) -> Solver:
     return Solver(**{**defaults.__dict__, **values, "settings": MappingProxyType(settings)})
 
 
+def atol_problem(solver: Solver, model: ModelSpec) -> str | None:
+    """Why ``solver.atol`` can never work with ``solver.method`` (see ATOL_FLOOR), or None."""
+    if solver.method not in ADAPTIVE_METHODS or solver.atol >= ATOL_FLOOR:
+        return None
+    other = (" (method 'symplectic', which this model offers, does not use atol)"
+             if "symplectic" in model.methods else "")
+    return (f"{solver.atol:g} is below the usable range of method {solver.method!r}, [{ATOL_FLOOR:g}, 1]: where a "
+            f"state is zero (a start from rest) its error norm is (rate / atol)^2, which overflows a float64 once "
+            f"rate / atol > {_NORM_OVERFLOW:.2g}, here for any rate above {_NORM_OVERFLOW * solver.atol:.2g}, and the "
+            f"points end nonfinite; give atol >= {ATOL_FLOOR:g}{other}")
+
+
+def solver_warnings(scene: "Scene") -> list[str]:
+    """Settings a run accepts but whose results deserve suspicion, one sentence each (the CLI
+    prints them; ``mechsweep.run`` warns with SettingsWarning)."""
+    s = scene.solver
+    if s is None:
+        return []
+    found = []
+    if s.method in ADAPTIVE_METHODS and s.atol < ATOL_WARN:
+        found.append(f"solver.atol = {s.atol:g} is below {ATOL_WARN:g}: near a state that passes through or stays at "
+                     "zero the error control is then purely relative and asks for errors below float64 rounding; "
+                     "points may end max_steps or step_underflow (as points of the shipped scenes did from atol "
+                     "1e-20 to 1e-30); usual is atol about 1e-12 times the size of the states")
+    if s.method in ("radau", "auto") and s.rtol < RADAU_MIN_RTOL:
+        which = "every point" if s.method == "radau" else "a point found stiff (integrated again by radau)"
+        found.append(f"solver.rtol = {s.rtol:g} is below {RADAU_MIN_RTOL:.3g} (100 x float64 eps), to which radau "
+                     f"raises it, as scipy's Radau does: {which} is integrated to rtol {RADAU_MIN_RTOL:.3g}, not "
+                     f"{s.rtol:g}")
+    return found
+
+
 def _storage(table: Mapping, name: str, p: _Problems) -> Storage:
     path = table.get("path", f"data/runs/{_slug(name)}.h5")
     chunk = table.get("chunk_size")
@@ -816,7 +1177,7 @@ def check_scheduler(address) -> str | None:
     """Why ``address`` is not a dask scheduler address, or None."""
     if not isinstance(address, str) or not address.strip():
         return f"{_short(address)} is not allowed; expected {SCHEDULER_FORMS}"
-    if any(c.isspace() for c in address) or "\0" in address or len(address) > 512:
+    if any(c.isspace() for c in address) or unstorable(address) is not None or len(address) > 512:
         return f"{_short(address)} is not an address; expected {SCHEDULER_FORMS}"
     return None
 
@@ -834,8 +1195,8 @@ def check_worker_timeout(value) -> str | None:
 
 def _execution(table: Mapping, p: _Problems) -> Execution:
     for k in table:
-        if k not in ("scheduler", "worker_timeout"):
-            p.unknown(f"execution.{k}", k, ("scheduler", "worker_timeout"), "execution key")
+        if k not in ("scheduler", "worker_timeout", "lanes"):
+            p.unknown(f"execution.{k}", k, ("scheduler", "worker_timeout", "lanes"), "execution key")
     scheduler = table.get("scheduler")
     if scheduler is not None and (why := check_scheduler(scheduler)) is not None:
         p.add("execution.scheduler", why)
@@ -844,7 +1205,12 @@ def _execution(table: Mapping, p: _Problems) -> Execution:
     if (why := check_worker_timeout(timeout)) is not None:
         p.add("execution.worker_timeout", why)
         timeout = Execution.worker_timeout
-    return Execution(scheduler=scheduler, worker_timeout=float(timeout))
+    lanes = table.get("lanes", Execution.lanes)
+    if not isinstance(lanes, str) or lanes not in LANES_CHOICES:
+        p.add("execution.lanes", f"{_short(lanes)} is not allowed; expected one of "
+                                 f"{', '.join(repr(c) for c in LANES_CHOICES)}")
+        lanes = Execution.lanes
+    return Execution(scheduler=scheduler, worker_timeout=float(timeout), lanes=lanes)
 
 
 def _not_a_range(name, axes, model) -> str | None:

@@ -1,6 +1,7 @@
-"""HDF5 datasets: netCDF4-flavoured HDF5, defined as h5netcdf defines it (``NetCDFWriter``: the same
-objects and attributes, written with h5py directly), read back by
-``xarray.open_dataset(path, engine="h5netcdf")``.
+"""HDF5 datasets in netCDF-4's layout, written with h5py directly (``NetCDFWriter``: the objects and
+attributes h5netcdf would define, with ``_NCProperties`` saying that mechsweep wrote them through h5py),
+read back by ``xarray.open_dataset(path, engine="h5netcdf")``; netCDF-C (netCDF4-python, xarray's
+netcdf4 engine) reads them as well.
 
 A run saves its finished chunks in a journal (``journal.py``); ``assemble`` writes the dataset
 from it, chunk by chunk (memory bounded by one chunk), into a temporary file that replaces the
@@ -15,6 +16,7 @@ removed and ``WriteFailed`` raised; the journal it was assembled from is untouch
 """
 from __future__ import annotations
 
+import errno
 import os
 import stat
 import sys
@@ -22,15 +24,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import h5netcdf
 import h5py
 import numpy as np
 
 from . import cf
 from . import status as st
-from .errors import StoreError, WriteFailed  # noqa: F401  (StoreError: part of this module's API)
+from .errors import FileBusy, StoreError, WriteFailed, why_os_error  # noqa: F401  (StoreError: API)
 from .grid import plan_chunks
-from .journal import BadChunk, Journal, partial_path  # noqa: F401  (partial_path: part of this module's API)
+from .journal import META_KINDS, BadChunk, Journal, partial_path  # noqa: F401  (partial_path: this module's API)
 
 if TYPE_CHECKING:  # not imported at run time: reading a dataset (plot, info) needs no model or numba
     import xarray as xr  # nor does writing one (`mechsweep run`) need xarray: imported where a Dataset is made
@@ -241,9 +242,9 @@ class Early:
 
     def prepare(self, started=None) -> None:
         """Create and define the file before the first chunk arrives: the run calls it in the writer
-        thread, idle while the first chunk is computed, so that the definition (about 8 ms of CPU with
-        NetCDFWriter, 25-30 ms through h5netcdf's bookkeeping before) no longer delays the
-        first chunk's write and the second chunk's launch behind it. ``started``: an event set when
+        thread, idle while the first chunk is computed, so that the definition (``mechsweep bench duffing
+        --breakdown`` times it) does not delay the first chunk's write and the second chunk's launch
+        behind it. ``started``: an event set when
         the first chunk's kernel is about to run (waited for at most PREPARE_WAIT seconds), so that
         this Python work holds the GIL while the kernel has released it, not while the main
         thread prepares the launch. A failure discards the file, as in ``write``."""
@@ -505,7 +506,7 @@ def _define(f: "NetCDFWriter | _MemoryFile", scene: Scene, lay: Layout, attrs: d
             for lo in range(0, axis.size, READ_BLOCK):
                 hi = min(axis.size, lo + READ_BLOCK)
                 v[lo:hi] = axis.array(lo, hi)
-        _describe(v, prm.unit, prm.long_name, prm.symbol)
+        _describe(v, prm.unit, prm.long_name, prm.symbol, prm.latex)
         v.attrs["spacing"] = axis.spacing
         if axis.spacing == "log":  # CF has no attribute for it: say it to a reader (docs: datasets)
             v.attrs["comment"] = cf.LOG_AXIS_COMMENT
@@ -517,7 +518,7 @@ def _define(f: "NetCDFWriter | _MemoryFile", scene: Scene, lay: Layout, attrs: d
         else:
             v = f.create_variable(name, (), dtype="f8")
             v[()] = value
-        _describe(v, prm.unit, prm.long_name, prm.symbol)
+        _describe(v, prm.unit, prm.long_name, prm.symbol, prm.latex)
     for dims in lay.extra.values():
         for dim, values in dims:
             if dim.name not in f.dimensions:
@@ -532,7 +533,7 @@ def _define(f: "NetCDFWriter | _MemoryFile", scene: Scene, lay: Layout, attrs: d
         extra = tuple(d.name for d, _ in lay.extra.get(name, ()))
         v = f.create_variable(name, lay.dims + extra, dtype="f8", fillvalue=np.nan,
                               chunks=_storage_chunks(lay.shape + tuple(len(x) for _, x in lay.extra.get(name, ()))))
-        _describe(v, out.unit, out.long_name, out.symbol)
+        _describe(v, out.unit, out.long_name, out.symbol, out.latex)
         if out.integrated:
             v.attrs["integrated"] = 1
         if out.kind:
@@ -595,17 +596,33 @@ class _NetCDFVariable:
         self.ds[key] = value
 
 
+def nc_properties() -> str:
+    """The file's ``_NCProperties``: what wrote it, in netCDF-C's provenance format (``version=2``
+    first, then ``key=value`` pairs separated by commas, ``\\``, ``=``, ``|`` and ``,`` escaped by a
+    backslash): mechsweep through h5py on its HDF5 library. netCDF-C reads any keys there; h5netcdf
+    writes its own name and version in the same place."""
+    def escaped(text: str) -> str:
+        return "".join("\\" + c if c in "\\=|," else c for c in text)
+
+    from . import __version__
+
+    pairs = (("mechsweep", __version__), ("h5py", h5py.__version__), ("hdf5", h5py.version.hdf5_version))
+    return "version=2," + ",".join(f"{key}={escaped(value)}" for key, value in pairs)
+
+
 class NetCDFWriter:
     """Defines a netCDF-4 file with h5py directly, as ``h5netcdf.File(target, "w")`` defines it for
     the calls ``_define`` makes (dimensions, each with its coordinate variable created next,
     variables with fixed sizes, attributes, ``del`` of an attribute): the same objects in the same
     creation order, the same dataset properties (shape, dtype, chunks, filters, fill value), the
     same attributes with their dtypes, shapes, values and order (netCDF-4's ``_Netcdf4Dimid`` and
-    ``_Netcdf4Coordinates``, h5netcdf's ``_NCProperties``), the same dimension-scale attachments.
-    tests/test_store_define.py walks a file of each shipped scene written both ways and compares
-    all of it. h5netcdf spent 25-30 ms of CPU on a small run's definition looking up the same
-    h5py objects again and again (the run breakdown of docs/performance-duffing.md, round 5); this
-    writes each once."""
+    ``_Netcdf4Coordinates``), the same dimension-scale attachments. Only the provenance the file
+    carries for netCDF-C (``_NCProperties``, :func:`nc_properties`) names mechsweep, h5py and HDF5,
+    where h5netcdf names itself. tests/test_store_define.py walks a file of each shipped scene
+    written both ways and compares all of it, and reads both with h5netcdf and with netCDF-C.
+    Written with h5py because h5netcdf looks up the same h5py objects again and again while it defines
+    a file (most of a small run's definition time: ``mechsweep bench duffing --breakdown``);
+    this writes each once."""
 
     def __init__(self, target):
         self.file = h5py.File(target, "w", track_order=True)  # as h5netcdf opens a new file (h5py >= 3.7)
@@ -666,8 +683,7 @@ class NetCDFWriter:
         try:
             if missing:  # (h5netcdf would leave a placeholder scale for it: not a layout _define makes)
                 raise ValueError(f"dimension(s) {', '.join(missing)} without a coordinate variable")
-            props = (f"version=2,h5netcdf={h5netcdf.__version__},hdf5={h5py.version.hdf5_version},"
-                     f"h5py={h5py.__version__}")  # what h5netcdf writes when it closes a new file
+            props = nc_properties()
             self.file.attrs["_NCProperties"] = np.array(props, dtype=h5py.string_dtype("ascii", len(props)))
         finally:
             self.file.close()
@@ -690,12 +706,14 @@ def _storage_chunks(shape: tuple[int, ...]):
     return True if shape and all(n > 0 for n in shape) else None
 
 
-def _describe(var, unit: str, long_name: str, symbol: str) -> None:
+def _describe(var, unit: str, long_name: str, symbol: str, latex: str = "") -> None:
     if unit:  # a UDUNITS string; a measurement declared without one gets no units (CF: unknown), never ""
         var.attrs["units"] = unit
     var.attrs["long_name"] = long_name
     if symbol:
         var.attrs["symbol"] = symbol
+    if latex:  # the symbol in matplotlib mathtext: what figures label the variable with
+        var.attrs["latex"] = latex
 
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -703,16 +721,37 @@ RUN_ATTRS = ("scene_canonical", "model", "outputs")  # every dataset `mechsweep 
 
 
 def open_dataset(path: str | Path, *, allow_partial: bool = False, lazy: bool | None = False) -> xr.Dataset:
-    """Open a mechsweep dataset.
+    """Open a dataset mechsweep wrote (``mechsweep run``, :func:`mechsweep.run`).
 
-    ``lazy=False`` loads it into memory (the file is closed again); ``lazy=True`` reads values
-    only when they are used (as dask arrays, one per storage chunk, when dask is installed);
-    ``lazy=None`` loads datasets up to LOAD_LIMIT_BYTES and opens larger ones lazily.
-    ``allow_partial`` opens an unfinished run (its missing chunks NaN, status pending) when the
-    finished file does not exist yet; that view is always loaded.
+    Reading needs neither numba nor the models' kernels: it works wherever xarray and h5netcdf do.
+    ``xarray.open_dataset(path, engine="h5netcdf")`` reads the same file; this function also
+    checks that it is a mechsweep dataset and can open an unfinished run.
 
-    Anything that is not a dataset mechsweep wrote (a folder, a device, an empty, text or damaged
-    file, an HDF5 or netCDF file from elsewhere) raises StoreError saying what the file is not.
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The dataset's file.
+    allow_partial : bool, optional
+        Open an unfinished run (its missing chunks NaN, status ``pending``) when the finished file
+        does not exist yet; that view is always loaded.
+    lazy : bool or None, optional
+        False (default): load it into memory (the file is closed again). True: read values only
+        when they are used (as dask arrays, one per storage chunk, when dask is installed). None:
+        load datasets up to ``LOAD_LIMIT_BYTES`` and open larger ones lazily.
+
+    Returns
+    -------
+    xarray.Dataset
+        The grid's dimensions and coordinates, the outputs, ``status`` (and ``n_steps``,
+        ``n_rhs``), and the attributes the run wrote (the scene, solver settings, provenance).
+
+    Raises
+    ------
+    FileNotFoundError
+        No file at ``path`` (the message says when an unfinished run is there instead).
+    StoreError
+        The file is not a dataset mechsweep wrote (a folder, a device, an empty, text or damaged
+        file, an HDF5 or netCDF file from elsewhere): the message says what it is not.
     """
     if "\0" in str(path):
         raise StoreError(f"dataset path {str(path)!r} contains a NUL character")
@@ -752,14 +791,24 @@ def check_dataset_file(path: str | Path) -> None:
     except FileNotFoundError:
         raise FileNotFoundError(f"{path} does not exist (a broken link)") from None
     except OSError as exc:
-        raise StoreError(f"{what}: it cannot be read ({exc.strerror})") from None
+        raise StoreError(f"{what}: it cannot be read ({why_os_error(exc.errno, exc.strerror)})") from None
     if not stat.S_ISREG(mode):
         raise StoreError(f"{what}: it is {file_kind(mode)}, not a file")
-    try:
-        with open(path, "rb") as f:
-            head = f.read(8)
+    try:  # O_NONBLOCK: a path that became a pipe since the stat above does not block the open
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except OSError as exc:
-        raise StoreError(f"{what}: it cannot be read ({exc.strerror})") from None
+        raise StoreError(f"{what}: it cannot be read ({why_os_error(exc.errno, exc.strerror)})") from None
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise StoreError(f"{what}: it is {file_kind(info.st_mode)}, not a file")
+        if held_for_writing(fd):
+            raise FileBusy(path, lock_holder(info))
+        head = os.read(fd, 8)
+    except OSError as exc:
+        raise StoreError(f"{what}: it cannot be read ({why_os_error(exc.errno, exc.strerror)})") from None
+    finally:
+        os.close(fd)
     if not head:
         raise StoreError(f"{what}: it is an empty file")
     if head != HDF5_SIGNATURE:
@@ -772,6 +821,10 @@ def check_dataset_file(path: str | Path) -> None:
             names = set(f.keys())
             outputs = _text(f.attrs.get("outputs", "")).split() if "outputs" in attrs else []
     except Exception as exc:  # h5py raises OSError, and others for damaged internals
+        if is_lock_error(exc):  # another process took it for writing since the probe above
+            raise FileBusy(path, lock_holder(path)) from None
+        if isinstance(exc, OSError) and exc.errno in _SYSTEM_ERRORS:  # the system's refusal, not the file's bytes
+            raise StoreError(f"{what}: it cannot be read ({why_os_error(exc.errno, exc.strerror)})") from None
         raise StoreError(f"{what}: it is an HDF5 file that cannot be read, damaged or truncated "
                          f"({_first_line(exc)})") from None
     if "mechsweep_kind" in attrs:
@@ -783,6 +836,55 @@ def check_dataset_file(path: str | Path) -> None:
     absent = [v for v in ["status", *outputs] if v not in names]
     if absent:
         raise StoreError(f"{what}: it lacks the variable(s) {', '.join(absent)} that a run writes")
+
+
+# errnos with which the system refuses a read (the file's bytes are not at fault)
+_SYSTEM_ERRORS = frozenset(getattr(errno, n) for n in ("EACCES", "EPERM", "ENOENT", "EMFILE", "ENFILE", "ENOMEM",
+                                                        "EIO", "EISDIR", "ENOTDIR", "ELOOP") if hasattr(errno, n))
+
+
+def is_lock_error(exc: BaseException) -> bool:
+    """Whether ``exc`` (of h5py opening a file) says another process holds the file's HDF5 lock."""
+    return isinstance(exc, BlockingIOError) or (isinstance(exc, OSError) and "unable to lock file" in str(exc))
+
+
+def held_for_writing(fd: int) -> bool:
+    """Whether another process holds an exclusive lock on the open file ``fd``: HDF5 takes one
+    (flock) on a file it opens for writing. Probed with a shared lock that is released at once;
+    False where file locks are not available."""
+    import fcntl
+
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except OSError:  # e.g. a file system without locks
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+    except OSError:
+        pass
+    return False
+
+
+def lock_holder(file) -> int | None:
+    """The process id holding a lock on ``file`` (a path or an os.stat_result), from /proc/locks
+    (Linux); None when it cannot be told."""
+    try:
+        info = file if isinstance(file, os.stat_result) else os.stat(file)
+        with open("/proc/locks") as f:
+            lines = f.read(1 << 20).splitlines()
+    except OSError:
+        return None
+    key = f"{os.major(info.st_dev):02x}:{os.minor(info.st_dev):02x}:{info.st_ino}"
+    for line in lines:  # "1: FLOCK  ADVISORY  WRITE 19010 fe:00:1490980 0 EOF"
+        parts = line.split()
+        if key in parts and parts.index(key) >= 1:
+            try:
+                return int(parts[parts.index(key) - 1])
+            except ValueError:
+                return None
+    return None
 
 
 def is_run_dataset(ds: xr.Dataset) -> bool:
@@ -836,56 +938,83 @@ def _open_partial(part: Path) -> xr.Dataset:
 
 def check_journal_files(part: Path, contents: bool = True) -> None:
     """Raise StoreError if the journal folder ``part`` (when it exists) or, with ``contents``, what
-    it holds is not of the kind a run makes: a folder, a file run.json, a folder chunks of files.
-    A pipe or a device there would block or be replaced."""
+    it holds is not of the kind a run makes: a folder, a file run.json that a run wrote (verified:
+    its entries and, from journal format 3 on, its checksum), a folder chunks of files. A pipe or a
+    device there would block or be replaced. Without ``contents`` (--restart, which discards what
+    the folder holds) only the folder itself is checked. The message names what is damaged and
+    that --restart discards the journal."""
+    from .journal import RESTART
+
     if not os.path.lexists(part):
         return
-    if part.is_file():  # an older version's one-file journal: Journal.read says so
+    mode = os.lstat(part).st_mode
+    if stat.S_ISREG(mode):  # an older version's one-file journal: Journal.read says so
         return
-    if not part.is_dir():
-        raise StoreError(f"{part} (the journal of unfinished runs) is {file_kind(part.stat().st_mode)}, "
-                         "not a folder mechsweep made; move it away")
+    if not stat.S_ISDIR(mode):
+        kind = "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
+        raise StoreError(f"{part} (the journal of unfinished runs) is {kind}, not a folder mechsweep made; "
+                         "move it away")
+    if not contents:
+        return
+    try:
+        _check_journal_kinds(part)
+    except OSError as exc:  # e.g. a folder that cannot be listed (permission denied)
+        raise StoreError(f"{exc.filename or part} cannot be read ({exc.strerror}); the journal {part} cannot be "
+                         f"resumed: {RESTART}") from None
+    _check_run_json(part / "run.json")
+
+
+def _check_journal_kinds(part: Path) -> None:
+    from .journal import RESTART
+
     for name, want, test in (("run.json", "a file", stat.S_ISREG), ("chunks", "a folder", stat.S_ISDIR)):
         entry = part / name
-        if os.path.lexists(entry) and not test(entry.stat().st_mode):
-            raise StoreError(f"{entry} is {file_kind(entry.stat().st_mode)}, not {want} as a run writes it; "
-                             "start over with --restart")
+        if os.path.lexists(entry) and not test(mode := os.lstat(entry).st_mode):
+            kind = "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
+            raise StoreError(f"{entry} is {kind}, not {want} as a run writes it; {RESTART}")
     for e in os.scandir(part):  # e.g. assembly.h5: a pipe there would block the run's last step
         if e.name not in ("run.json", "chunks") and not e.is_file(follow_symlinks=False):
-            raise StoreError(f"{e.path} is {file_kind(os.lstat(e.path).st_mode)}, not a file a run writes; "
-                             "start over with --restart")
-    _check_run_json(part / "run.json")
+            raise StoreError(f"{e.path} is {_lkind(e.path)}, not a file a run writes; {RESTART}")
     chunks = part / "chunks"
+    n_chunk_files = 0
     if chunks.is_dir():
         for e in os.scandir(chunks):
             if not e.is_file(follow_symlinks=False):
-                raise StoreError(f"{e.path} is not a chunk file a run writes; start over with --restart")
+                raise StoreError(f"{e.path} is not a chunk file a run writes (it is {_lkind(e.path)}): remove that "
+                                 f"entry (--resume then computes its chunk again), or {RESTART}")
+            n_chunk_files += e.name.endswith(".npz")
+    has_meta = os.path.lexists(part / "run.json")
+    if n_chunk_files and not has_meta:  # a run writes run.json before any chunk
+        raise StoreError(f"{part / 'run.json'} is missing, and {n_chunk_files} chunk file(s) are in {chunks}: the "
+                         f"journal is damaged; {RESTART}")
+    if has_meta and not os.path.lexists(chunks):  # a run makes chunks/ before run.json
+        raise StoreError(f"{chunks} is missing, and {part / 'run.json'} is there: the journal is damaged; {RESTART}")
 
 
-RUN_JSON_KEYS = {"scene_canonical": str, "scene": str, "chunk_target": int, "n_chunks": int, "attrs": dict}
+def _lkind(path) -> str:
+    mode = os.lstat(path).st_mode
+    return "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
+
+
+RUN_JSON_KEYS = META_KINDS  # run.json's entries and their kinds (journal.meta_problem checks them)
 
 
 def _check_run_json(path: Path) -> None:
     """Refuse a journal's run.json that is not what a run writes (edited, damaged, foreign)."""
     import json
 
-    from .journal import READABLE_FORMATS
+    from .journal import RESTART, meta_problem
 
     if not path.is_file():
         return
     try:
         meta = json.loads(path.read_bytes())
     except ValueError as exc:
-        raise StoreError(f"{path} is unreadable ({_first_line(exc)}); start over with --restart") from None
-    if not isinstance(meta, dict):
-        raise StoreError(f"{path} is not a run's journal (a JSON {type(meta).__name__}, not an object); "
-                         "start over with --restart")
-    if meta.get("format") not in READABLE_FORMATS:
-        return  # another version's journal: Journal.read says so
-    bad = [k for k, kind in RUN_JSON_KEYS.items() if not isinstance(meta.get(k), kind) or isinstance(meta.get(k), bool)]
-    if bad or meta["n_chunks"] < 1 or meta["chunk_target"] < 1:
-        raise StoreError(f"{path} is damaged (entries {', '.join(bad) or 'n_chunks, chunk_target'} missing or of the "
-                         "wrong kind); start over with --restart")
+        raise StoreError(f"{path} is unreadable ({_first_line(exc)}); {RESTART}") from None
+    except OSError as exc:
+        raise StoreError(f"{path} cannot be read ({exc.strerror}); {RESTART}") from None
+    if (why := meta_problem(meta)) is not None:
+        raise StoreError(f"{path} {why}; {RESTART}")
 
 
 def _assemble_partial(part: Path) -> xr.Dataset:

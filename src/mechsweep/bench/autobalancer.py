@@ -18,12 +18,21 @@
    of such points is printed). The simulation times include the model's reproducibility check
    (points whose trajectory did not settle early are integrated again at rtol / 100, see
    models/autobalancer.py, Recheck); its steps count in the steps per second.
-   scipy.integrate.solve_ivp(method="DOP853", t_eval=the model's samples; the same equations
-   written in Python with math/numpy, the same tolerances) integrates a sample of the same
-   trajectories in the same process, each the best of REPEATS runs too; its step count comes from
-   scipy's DOP853 class stepped by hand (untimed), whose samples must equal solve_ivp's. Both
-   implement the same step-size control, so their step counts agree and the ratio of steps per
-   second is the speed-up at equal accuracy.
+   scipy.integrate.solve_ivp(method="DOP853", t_eval=the model's samples, the same tolerances)
+   integrates a sample of the same trajectories in the same process, each the best of REPEATS runs
+   too, twice: with the equations written in Python with math/numpy, and with the model's own
+   compiled right-hand side (``ab.scaled_rhs`` under numba, called by scipy through a one-line
+   Python function: what a user who knows numba passes to scipy, scipy's best case). Its step count
+   comes from scipy's DOP853 class stepped by hand (untimed), whose samples must equal solve_ivp's.
+   Both implement the same step-size control, so their step counts agree and the ratio of steps
+   per second is the speed-up at equal accuracy.
+3. The strongest competitor we know for the simulation, when numbalsoda is installed: its
+   ``dop853`` (Hairer's Fortran DOP853, which returns the state at the given times, exactly what
+   the simulation samples) on the model's compiled rhs as a ``cfunc``, in a ``numba.prange`` loop
+   over the same trajectories, against mechsweep's first integration of them (the re-check off,
+   ``reproducibility_factor = 0``: the same work), on one thread and on all threads: time per
+   trajectory (its step count is not reported, and Hairer's controller is not scipy's, so the ratio
+   is of times, with the largest residual_amplitude difference printed beside it).
 """
 from __future__ import annotations
 
@@ -149,6 +158,80 @@ def solve_ivp_trajectory(p, delta, t_eval, rtol, atol):
 
 def initial_state(p, delta):
     return np.array([0.0, 0.0, p[ab.IP_TH1] + delta, p[ab.IP_TH2] - delta, 0.0, 0.0, 1.0, 1.0])
+
+
+@jit
+def _rhs_array(tau, z, p):
+    """The model's compiled rhs returning a new array, as scipy's solve_ivp wants it."""
+    dz = np.empty(8)
+    ab.scaled_rhs(tau, z, p, dz)
+    return dz
+
+
+def solve_ivp_jitted_trajectory(p, delta, t_eval, rtol, atol):
+    """solve_ivp(method="DOP853", t_eval=...) on the model's compiled rhs (scipy's best case)."""
+    from scipy.integrate import solve_ivp
+
+    sol = solve_ivp(lambda tau, z: _rhs_array(tau, z, p), (0.0, t_eval[-1]), initial_state(p, delta),
+                    method="DOP853", t_eval=t_eval, rtol=rtol, atol=atol)
+    return sol.y.T
+
+
+_NUMBALSODA = []
+
+
+def numbalsoda_available() -> bool:
+    try:
+        import numbalsoda  # noqa: F401
+        return True
+    except Exception:  # not installed, or broken: the bench says so
+        return False
+
+
+def _numbalsoda_kernel():
+    if _NUMBALSODA:
+        return _NUMBALSODA[0]
+    from numba import carray, cfunc
+    from numbalsoda import dop853, lsoda_sig
+
+    n_p = ab.NP
+
+    @cfunc(lsoda_sig)
+    def rhs(tau, u, du, p):  # the model's own compiled rhs on numbalsoda's pointers
+        ab.scaled_rhs(tau, carray(u, (8,)), carray(p, (n_p,)), carray(du, (8,)))
+
+    rhs_ptr = rhs.address
+    i_th1, i_th2 = ab.IP_TH1, ab.IP_TH2
+
+    @numba.njit(parallel=True)
+    def kernel(pp, delta, t_eval, late, rtol, atol, max_steps, residual):
+        # t_eval ends with one time past the horizon: dop853 leaves its last row unwritten where its
+        # final step ends an ulp short of it (bench/competitors.py)
+        for i in numba.prange(pp.shape[0]):
+            p = pp[i].copy()
+            y0 = np.zeros(8)
+            y0[2], y0[3], y0[6], y0[7] = p[i_th1] + delta, p[i_th2] - delta, 1.0, 1.0
+            u, ok = dop853(rhs_ptr, y0, t_eval, p, rtol, atol, max_steps)
+            r = np.nan
+            if ok:
+                r = 0.0
+                for k in range(late, t_eval.size - 1):
+                    r = max(r, math.hypot(u[k, 0], u[k, 1]))
+            residual[i] = r
+
+    _NUMBALSODA.append((kernel, rhs))  # keep the cfunc alive
+    return _NUMBALSODA[0]
+
+
+def numbalsoda_residuals(pp, delta, t_eval, rtol, atol, max_steps):
+    """residual_amplitude / a of each row of scaled parameters pp by numbalsoda's dop853, sampled at
+    t_eval (max of the platform's distance over the last 10 % of the horizon, as the scipy check)."""
+    kernel = _numbalsoda_kernel()[0]
+    times = np.append(t_eval, t_eval[-1] * (1.0 + 1e-9))
+    late = int(np.searchsorted(t_eval, 0.9 * t_eval[-1], side="left"))
+    residual = np.empty(pp.shape[0])
+    kernel(np.ascontiguousarray(pp), delta, times, late, rtol, atol, int(max_steps), residual)
+    return residual
 
 
 # ----------------------------------------------------------------------------- right-hand side cost
@@ -290,17 +373,43 @@ def _measure(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
     # scipy on the first scipy_points of those trajectories
     delta = solver.settings["perturbation"]
     k_sp = min(scipy_points, pick.size)
-    sp_steps, sp_time, diffs = [], 0.0, []
+    sp_steps, sp_time, sp_jit_time, diffs = [], 0.0, 0.0, []
+    late = t_eval >= 0.9 * t_eval[-1]
+    solve_ivp_jitted_trajectory(pp[0], delta, t_eval[:3], rtol, atol)  # compile the rhs (not timed)
     for i in range(k_sp):  # solve_ivp timed best of REPEATS, as ours: the least disturbed run
         t_best, traj = _best_of(REPEATS, solve_ivp_trajectory, pp[i], delta, t_eval, rtol, atol)
         stepped, steps = scipy_trajectory(pp[i], delta, t_eval, rtol, atol)  # its steps (the same solver)
         if not np.array_equal(stepped, traj):
             raise AssertionError("scipy's DOP853 stepped by hand and solve_ivp disagree")
+        t_jit, traj_jit = _best_of(REPEATS, solve_ivp_jitted_trajectory, pp[i], delta, t_eval, rtol, atol)
         sp_time += t_best
+        sp_jit_time += t_jit
         sp_steps.append(steps)
-        r_late = np.hypot(traj[t_eval >= 0.9 * t_eval[-1], 0], traj[t_eval >= 0.9 * t_eval[-1], 1]).max()
-        diffs.append(abs(r_late * col["a"][i] - sim["residual_amplitude"][i]))
+        for tr in (traj, traj_jit):
+            r_late = np.hypot(tr[late, 0], tr[late, 1]).max()
+            diffs.append(abs(r_late * col["a"][i] - sim["residual_amplitude"][i]))
     scipy_steps_per_s = sum(sp_steps) / sp_time
+    scipy_jit_steps_per_s = sum(sp_steps) / sp_jit_time
+
+    # numbalsoda's dop853 on the same trajectories against our first integration of them
+    nb = None
+    if numbalsoda_available():
+        first_only = Solver.for_model(ab.SPEC, rtol=rtol, atol=atol, reproducibility_factor=0.0)
+        max_steps = solver.settings.get("max_steps", Solver.max_steps)
+        nb = {}
+        numbalsoda_residuals(pp[:2], delta, t_eval, rtol, atol, max_steps)  # compile (not timed)
+        run_outputs(Psim[:2], sim_outputs, first_only)
+        for label, n_thr in (("one_thread", 1), ("all_threads", n_threads)):
+            numba.set_num_threads(n_thr)
+            try:
+                t_nb, res_nb = _best_of(REPEATS, numbalsoda_residuals, pp, delta, t_eval, rtol, atol, max_steps)
+                t_ours, (first_out, *_) = _best_of(REPEATS, run_outputs, Psim, sim_outputs, first_only)
+            finally:
+                numba.set_num_threads(n_threads)
+            nb[label] = {"numbalsoda_ms_per_trajectory": t_nb / pick.size * 1e3,
+                         "ours_ms_per_trajectory": t_ours / pick.size * 1e3, "ratio": t_nb / t_ours}
+        nb["failed"] = int(np.isnan(res_nb).sum())
+        nb["max_residual_difference_m"] = float(np.nanmax(np.abs(res_nb * col["a"] - first_out["residual_amplitude"])))
     rhs_cost = rhs_ns(pp[0])
     lane_rhs_cost = lane_rhs_ns(pp)
 
@@ -323,6 +432,10 @@ def _measure(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
         "ours_steps_same_trajectories": [int(s) for s in lane_ns[:k_sp]],  # first integration, as scipy's
         "scipy_steps_per_s": float(scipy_steps_per_s),
         "ratio_vs_scipy_per_core": float(ours_steps_per_s / scipy_steps_per_s),
+        "scipy_jitted_rhs_steps_per_s": float(scipy_jit_steps_per_s),
+        "ratio_vs_scipy_jitted_rhs_per_core": float(ours_steps_per_s / scipy_jit_steps_per_s),
+        "ratio_vs_scipy_jitted_rhs_all_threads": float(ours_all_steps_per_s / scipy_jit_steps_per_s),
+        "numbalsoda": nb,
         "sim_steps_per_s_all_threads": float(ours_all_steps_per_s),
         "ratio_vs_scipy_all_threads": float(ours_all_steps_per_s / scipy_steps_per_s),
         "one_at_a_time_steps_per_s": float(one_steps_per_s),
@@ -366,9 +479,24 @@ def _print(r: dict, solver) -> None:
           f"{r['rhs_per_step']:.1f} per step (counted as one trajectory would: lanes compute the dense "
           f"output's 3 whenever any lane needs them); a step takes {1e6 / r['sim_steps_per_s_per_core']:.2f} us "
           f"per lane on one thread")
-    print(f"  ratio mechsweep / scipy (one process): {r['ratio_vs_scipy_per_core']:,.0f}x on 1 thread, "
-          f"{r['ratio_vs_scipy_all_threads']:,.0f}x on {r['threads']} threads; "
+    print(f"  scipy solve_ivp DOP853 with the model's compiled rhs (numba), the same trajectories: "
+          f"{r['scipy_jitted_rhs_steps_per_s']:,.0f} steps/s")
+    print(f"  ratio mechsweep / scipy (one process), Python rhs: {r['ratio_vs_scipy_per_core']:,.0f}x on 1 thread, "
+          f"{r['ratio_vs_scipy_all_threads']:,.0f}x on {r['threads']} threads; compiled rhs: "
+          f"{r['ratio_vs_scipy_jitted_rhs_per_core']:,.0f}x on 1 thread, "
+          f"{r['ratio_vs_scipy_jitted_rhs_all_threads']:,.0f}x on {r['threads']} threads; "
           f"largest residual_amplitude difference {r['max_residual_difference_m']:.2e} m")
+    nb = r["numbalsoda"]
+    if nb is None:
+        print("  numbalsoda: not installed (pip install mechsweep[compare])")
+        return
+    one, every = nb["one_thread"], nb["all_threads"]
+    print(f"  numbalsoda dop853 (the model's compiled rhs as a cfunc, prange), the same {r['sim_points']} trajectories "
+          f"and samples, against mechsweep's first integration (re-check off), best of {REPEATS}: "
+          f"{one['numbalsoda_ms_per_trajectory']:.2f} against {one['ours_ms_per_trajectory']:.2f} ms/trajectory on "
+          f"1 thread ({one['ratio']:.1f}x), {every['numbalsoda_ms_per_trajectory']:.2f} against "
+          f"{every['ours_ms_per_trajectory']:.2f} on {r['threads']} threads ({every['ratio']:.1f}x); "
+          f"{nb['failed']} failed; largest residual_amplitude difference {nb['max_residual_difference_m']:.2e} m")
 
 
 if __name__ == "__main__":  # pragma: no cover

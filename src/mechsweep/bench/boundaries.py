@@ -38,8 +38,8 @@ OMEGA = (0.6, 4.0)
 RATIO = (0.0005, 0.35)
 M_PENDULUM = 0.5  # kg: 2 m = 1, so 2 m / M = 1 / M
 # floquet_max's accuracy is taken as 100 solver rtol (boundaries.criterion_accuracy): 1e-10 here, so
-# that the criterion does not limit the located boundaries above 1e-8 (at the default rtol 5e-11 it
-# did for half of them: brackets up to 7.7e-7 |Omega|, measured 2026-11-23)
+# that the criterion does not limit the located boundaries above 1e-8 (the default rtol 5e-11 gives
+# it 5e-9, which leaves many boundaries' brackets far wider than 1e-8)
 SOLVER_RTOL, SOLVER_ATOL = 1e-12, 1e-14
 
 

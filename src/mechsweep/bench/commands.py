@@ -12,7 +12,7 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
     b.add_argument("--points", type=int, default=200_000, help="grid points for mechsweep (default 200000)")
     b.add_argument("--scipy-points", type=int, default=200, help="points solved with scipy (default 200)")
     b.add_argument("--compare-points", type=int, default=20_000,
-                   help="points solved with numbalsoda and diffrax, when installed (default 20000)")
+                   help="points solved with numbalsoda (both drivers) and diffrax, when installed (default 20000)")
     b.add_argument("--repeats", type=int, default=3, help="interleaved repetitions of every timing (default 3)")
     b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
     b.add_argument("--rtol", type=float, default=None, help="default: the solver default")

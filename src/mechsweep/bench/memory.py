@@ -10,7 +10,7 @@ numba, numpy, xarray and h5py themselves) next to the dataset's size on disk. Tw
   from a wrapper process that reads the command's peak with ``getrusage(RUSAGE_CHILDREN)`` (its
   only child). The command prints the status counts without opening the dataset.
 
-The criterion of issue 6 is peak RSS <= dataset size + 300 MiB; the stronger property shown is
+The memory target is peak RSS <= dataset size + 300 MiB; the stronger property shown is
 that the peak does not grow with the grid, whatever its shape (one long axis, several short ones):
 the column "over 10^3" is the peak minus that of the same path on a 1,000-point grid.
 

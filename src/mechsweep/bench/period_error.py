@@ -3,7 +3,11 @@
 T omega of the Duffing oscillator depends on epsilon = mu A^2 / omega^2 alone, so a fine scan
 of epsilon in [-0.99, 1e4] (omega = A = 1) covers every (omega, mu, A). Prints, per (rtol, atol),
 the largest relative error of the integrated period against the elliptic closed form, where it
-occurs, and the mean number of steps: the evidence behind the default tolerances.
+occurs, the largest over hard springs (epsilon >= 0) and over soft springs (epsilon < 0) apart
+(soft springs reach larger errors at the same tolerance), and the mean number of steps: the
+evidence behind the default tolerances and behind docs/numerics.md's advice for nomograms read
+by eye (rtol 1e-6). The same scan with the symplectic method, whose fixed step is calibrated from
+rtol (models/duffing.py, symplectic_step): its largest error as a fraction of rtol.
 
 Then, towards the soft separatrix (1 + epsilon from 1e-3 to 1e-7), the error of the plain
 quarter-period integration in x = phi / A divided by rtol (the saddle's amplification, the reason
@@ -18,7 +22,7 @@ import numpy as np
 from ..models import _duffing_scaled, duffing
 from ..scene import Solver
 
-LADDER = ((1e-8, 1e-10), (1e-9, 1e-11), (1e-10, 1e-12), (1e-10, 1e-13), (5e-11, 1e-12), (2e-11, 1e-13),
+LADDER = ((1e-6, 1e-8), (1e-8, 1e-10), (1e-9, 1e-11), (1e-10, 1e-12), (1e-10, 1e-13), (5e-11, 1e-12), (2e-11, 1e-13),
           (1e-12, 1e-14))
 
 
@@ -26,7 +30,7 @@ def epsilon_scan(n_soft: int = 20_000, n_hard: int = 20_000) -> np.ndarray:
     return np.concatenate([np.linspace(-0.99, -0.001, n_soft), [0.0], np.geomspace(1e-6, 1e4, n_hard)])
 
 
-def worst_error(eps: np.ndarray, rtol: float, atol: float) -> dict:
+def worst_error(eps: np.ndarray, rtol: float, atol: float, method: str = "dop853") -> dict:
     n = eps.size
     P = np.stack([np.ones(n), eps, np.ones(n)], axis=1)
     wanted = duffing.SPEC.closure(("period_error",))
@@ -34,13 +38,18 @@ def worst_error(eps: np.ndarray, rtol: float, atol: float) -> dict:
     status = np.zeros(n, np.int8)
     n_steps = np.zeros(n, np.int64)
     n_rhs = np.zeros(n, np.int64)
-    duffing.evaluate(P, wanted, Solver.for_model(duffing.SPEC, rtol=rtol, atol=atol), out, status, n_steps, n_rhs)
+    duffing.evaluate(P, wanted, Solver.for_model(duffing.SPEC, rtol=rtol, atol=atol, method=method), out, status,
+                     n_steps, n_rhs)
     err = out["period_error"]
     worst = int(np.nanargmax(err))
+    hard = eps >= 0.0
     return {"rtol": rtol, "atol": atol, "max_error": float(err[worst]), "at_epsilon": float(eps[worst]),
+            "max_error_hard": float(np.nanmax(err[hard])) if hard.any() else math.nan,
+            "max_error_soft": float(np.nanmax(err[~hard])) if (~hard).any() else math.nan,
             "mean_steps": float(n_steps.mean()), "not_ok": int((status != 0).sum())}
 
 
+SYMPLECTIC_LADDER = ((1e-6, 1e-8), (1e-8, 1e-10), (1e-10, 1e-12), (5e-11, 1e-12), (1e-12, 1e-14))
 SEPARATRIX_GAPS = (1e-3, 1e-5, 1e-7)  # 1 + epsilon
 SEPARATRIX_RTOLS = (5e-9, 5e-11, 5e-13)
 
@@ -81,12 +90,20 @@ def main(ladder=LADDER) -> list[dict]:
     eps = epsilon_scan()
     print(f"mechsweep bench period-error: {eps.size} values of epsilon in [-0.99, 1e4], DOP853; "
           f"defaults rtol={Solver.rtol:g}, atol={Solver.atol:g}")
-    print(f"  {'rtol':>8} {'atol':>8}  {'max rel. error':>14}  {'at epsilon':>11}  {'steps/pt':>8}  not ok")
+    print(f"  {'rtol':>8} {'atol':>8}  {'max rel. error':>14}  {'at epsilon':>11}  {'hard (eps>=0)':>13}  "
+          f"{'soft (eps<0)':>12}  {'steps/pt':>8}  not ok")
     rows = []
     for rtol, atol in ladder:
         r = worst_error(eps, rtol, atol)
         rows.append(r)
         print(f"  {rtol:8.0e} {atol:8.0e}  {r['max_error']:14.3e}  {r['at_epsilon']:11.4g}  "
-              f"{r['mean_steps']:8.2f}  {r['not_ok']}")
+              f"{r['max_error_hard']:13.3e}  {r['max_error_soft']:12.3e}  {r['mean_steps']:8.2f}  {r['not_ok']}")
+    # the symplectic method's fixed step is calibrated from rtol (models/duffing.py, symplectic_step)
+    print("  symplectic (fixed step set from rtol): largest error / rtol over the same scan")
+    for rtol, atol in SYMPLECTIC_LADDER:
+        r = worst_error(eps, rtol, atol, "symplectic")
+        rows.append({**r, "method": "symplectic"})
+        print(f"  {rtol:8.0e} {atol:8.0e}  {r['max_error']:14.3e}  {r['at_epsilon']:11.4g}  "
+              f"{r['max_error'] / rtol:13.3f}  rtol  {r['mean_steps']:8.2f}  {r['not_ok']}")
     separatrix_table()
     return rows

@@ -1,6 +1,6 @@
 """`mechsweep bench startup`: the fixed costs of a run, its cold start, and its cost per point.
 
-Each figure is printed with its target beside it (issue 15, goals 2, 3 and 5), as the median of
+Each figure is printed with its target beside it (the project's start-up and cost targets), as the median of
 ``repeats`` (>= 3) measurements and their spread (min .. max):
 
 - warm ``mechsweep.run`` of 10^3 and 10^4 Duffing points (integrated period, DOP853, rtol 1e-10),

@@ -20,10 +20,13 @@ solve_ivp (DOP853, Radau, LSODA) over a ladder of tolerances, in the same proces
 - time: wall time per point after JIT compilation (the compile or cache-load time of the first
   call is reported separately), the minimum of ``repeats`` runs; ours runs the sample, repeated
   up to TIMED_POINTS points (or until a call takes TIMED_CALL_S), through the model's ``evaluate`` on one thread (what a sweep's chunk
-  does, per core; a call's fixed cost of ~0.1-0.5 ms is then spread as in a sweep); scipy runs
+  does, per core; a call's fixed cost is then spread as in a sweep); scipy runs
   ``scipy_points`` of the points one by one with the model's jitted right-hand side (scipy's
   best case: its Python-level stepping is then the whole cost), and stops a scipy method's
   ladder once a rung costs more than ``scipy_budget_s`` per point (said in the report);
+- scipy's points are spread over the whole sample (``spread``: of the sample's points in grid
+  order, the middle one of each of ``scipy_points`` equal shares), so that they span the scene's
+  grid rather than its first corner;
 - errors of all methods are compared on the points scipy solved; ours also over the whole sample;
 - cost: accepted steps and right-hand-side evaluations per point.
 
@@ -119,11 +122,28 @@ def declared_scene(declared) -> tuple[Path, str]:
 
 # ----------------------------------------------------------------------------- measurement
 def sample(scene: Scene, points: int, seed: int = 0) -> np.ndarray:
-    """`points` grid points of the scene, drawn without replacement with a fixed seed."""
+    """`points` grid points of the scene, drawn without replacement with a fixed seed, in grid order."""
     pm = ParameterMatrix(scene)
     rng = np.random.default_rng(seed)
     idx = np.sort(rng.choice(scene.n_points, size=min(points, scene.n_points), replace=False))
     return np.vstack([pm(int(i), int(i) + 1) for i in idx])
+
+
+def spread(n: int, k: int) -> np.ndarray:
+    """Positions of k of n sample points (in grid order) spread over the whole sample: the middle
+    of each of k equal shares, floor((j + 1/2) n / k), j = 0 .. k-1. Taking the first k instead
+    would take the grid's first points only (along its first axis: a Duffing sample's 6 smallest
+    amplitudes, all near-linear)."""
+    k = min(k, n)
+    return np.floor((np.arange(k) + 0.5) * n / k).astype(np.int64)
+
+
+def scipy_first(n: int, k: int) -> np.ndarray:
+    """The order of a sample of n rows that puts the k rows scipy solves (``spread``) first, the
+    others after them in grid order: every method's errors, times, steps and rhs calls are compared
+    on the first k rows."""
+    first = spread(n, k)
+    return np.concatenate([first, np.setdiff1d(np.arange(n), first)])
 
 
 def _run_ours(spec, P, output, solver):
@@ -140,6 +160,14 @@ def _run_ours(spec, P, output, solver):
 def _error(values, reference, kind):
     err = np.abs(values - reference)
     return err / np.abs(reference) if kind == "relative" else err
+
+
+def latex_symbols(spec) -> str:
+    """{name: mathtext symbol} of the model's outputs and parameters that declare one, as JSON: the
+    work-precision figure names the outputs by their symbols (it reads the dataset, not the model)."""
+    import json
+
+    return json.dumps({q.name: q.latex for q in spec.params + spec.outputs if getattr(q, "latex", "")})
 
 
 def main(model: str, scene_path: str | None = None, points: int = 64, scipy_points: int = 6,
@@ -177,6 +205,8 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     ref_s = time.perf_counter() - t0
     usable = np.isfinite(reference)
     P, reference = P[usable], reference[usable]
+    order = scipy_first(P.shape[0], scipy_points)  # scipy's points spread over the whole sample
+    P, reference = P[order], reference[order]
     ours = (spec.methods_for(spec.closure((case.output,))) if spec.methods_for is not None  # what this output offers
             else spec.methods)
     methods = [f"mechsweep {m}" for m in ours] + [f"scipy {m}" for m in SCIPY_METHODS]
@@ -238,7 +268,8 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
                "reference": case.reference_name, "reference_time_s": ref_s, "points": P.shape[0],
                "scipy_points": k, "repeats": repeats, "skipped": "; ".join(skipped) or "none", "scene": case.scene,
                "compile_or_cache_load_s": ", ".join(f"{m} {s:.2f}" for m, s in compile_s.items()),
-               "threads": 1, "scipy_rhs": "the model's own rhs (its compiled function, wrapped; a measurement's "
+               "threads": 1, "latex_symbols": latex_symbols(spec),
+               "scipy_rhs": "the model's own rhs (its compiled function, wrapped; a measurement's "
                "System's where it integrates one); Radau/LSODA with the model's jac where it declares one, else "
                "scipy's finite-difference Jacobian"},
     )
@@ -327,9 +358,9 @@ def _scene_settings(scene: Scene) -> dict:
 
 def _fill(res, a, b, values, status, ns, nr, reference, kind, time_per_point, k):
     """One cell of the report; error_max/median, steps and rhs per point over the first k points
-    (those every method solved: a docs-only trial read ours over 64 points against scipy's over 6,
-    5.9 against 3.2 steps at equal errors), error_max_sample and ok_fraction over all points this
-    method solved."""
+    (those every method solved: counted over different points, the methods' steps per point would
+    compare different sets of points, not the methods), error_max_sample and ok_fraction over all
+    points this method solved."""
     ok = (status == st.OK) & np.isfinite(values)
     err = np.where(ok, _error(values, reference, kind), np.nan)
     res["ok_fraction"][a, b] = ok.mean()
@@ -358,8 +389,9 @@ def _print(ds, path) -> None:
     a = ds.attrs
     print(f"mechsweep bench workprecision {a['model']}: {a['norm']}")
     print(f"  reference: {a['reference']} ({a['reference_time_s']:.1f} s); {a['points']} points from "
-          f"{a['scene']} (scipy: first {a['scipy_points']}); compile/cache load: {a['compile_or_cache_load_s']}")
-    print(f"  errors, time, steps and rhs per point over the first {a['scipy_points']} points (those scipy solves); "
+          f"{a['scene']} (scipy: {a['scipy_points']} of them, spread over the sample); compile/cache load: "
+          f"{a['compile_or_cache_load_s']}")
+    print(f"  errors, time, steps and rhs per point over the {a['scipy_points']} points scipy solves; "
           f"ok and the last column over all {a['points']}")
     print(f"  {'method':<22}{'rtol':>8}{'max error':>12}{'median':>12}{'time/point':>13}{'steps':>9}{'rhs':>9}"
           f"{'ok':>6}{'max (all)':>12}")

@@ -39,7 +39,7 @@ from pathlib import Path
 
 from .. import _jit
 from . import lanes as lane_kernels
-from . import load
+from . import load, sources
 
 _KERNELS: dict[str, object] = {}
 _BY_OBJECTS: dict[tuple, tuple] = {}  # kernel_for's memo: (model, chosen, closed, kernel name) by their ids
@@ -54,9 +54,9 @@ BLOCK = 16  # the fewest points a thread of Threaded is given (fewer points: few
 # the same either way (tests/test_model_lanes.py); the benches and tests set True or False to compare.
 USE_LANES: bool | None = None
 # The lane kernel compiles in about four times the CPU time of the one-point kernel and integrates
-# about twice as fast: Duffing period (sweeps/quickstart.toml, 2026-11-24 16:30 UTC, load about 1.5;
-# `mechsweep bench startup --only routes`): cold compile 22.2 s of CPU against 5.5 s, warm 931k against
-# 428k points per CPU second: the 16.6 s are repaid at about 1.3 * 10^7 points.
+# about twice as fast (Duffing period, sweeps/quickstart.toml; `mechsweep bench startup --only routes`
+# measures both): cold compile 22.2 s of CPU against 5.5 s, warm 931k against 428k points per CPU
+# second, so the 16.6 s are repaid at about 1.3 * 10^7 points.
 LANES_FROM_POINTS = 10**7
 _PLAN = threading.local()  # the size of the run being computed in this thread (planned_points)
 
@@ -279,7 +279,7 @@ def kernel_source(model, chosen, refs: dict, origin: str, shared: bool = True, c
     uses = {"dop853": bool(chosen) and (method in ("dop853", "auto") or not direct),
             "radau": direct and method in ("radau", "auto"),
             "symplectic": direct and method == "symplectic"}
-    lines = module_prologue(f"mechsweep.model.compile for model {model.name!r} ({origin}), method {method}",
+    lines = module_prologue(f"mechsweep.model.compile for model {model.name!r}, method {method}",
                             ("from mechsweep._jit import jit, jit_internal, jit_into_caller, pjit, prange",
                              "from mechsweep.ode import dop853, radau, symplectic"), refs, inline=True)
     lines.append(f"NP = {n_p}\nNSET = {n_set}\nNPI = {npi}  # p[NPI]: the point's user-error flag\nSCR = NPI + 1\n"
@@ -743,20 +743,29 @@ def _own_body(k: int, refs: dict, args: str) -> str:
 
 
 class planned_points:
-    """``with planned_points(n):`` the kernels fetched in this thread serve a run of ``n`` points (the
-    runner says so around each chunk: a chunk, or the warm-up's one point, is smaller than the run).
-    kernel_for's automatic route choice (USE_LANES None) compares it with LANES_FROM_POINTS."""
+    """``with planned_points(n, lanes):`` the kernels fetched in this thread serve a run of ``n`` points
+    (the runner says so around each chunk: a chunk, or the warm-up's one point, is smaller than the
+    run). kernel_for's automatic route choice (USE_LANES None) compares it with LANES_FROM_POINTS.
+    ``lanes``: the scene's ``[execution] lanes`` (True, False, or None for automatic), which decides
+    the route before USE_LANES does (here and in model/trajectory.py)."""
 
-    def __init__(self, n: int):
+    def __init__(self, n: int, lanes: bool | None = None):
         self.n = int(n)
+        self.lanes = lanes
 
     def __enter__(self):
-        self.before = getattr(_PLAN, "n", 0)
-        _PLAN.n = self.n
+        self.before = (getattr(_PLAN, "n", 0), getattr(_PLAN, "lanes", None))
+        _PLAN.n, _PLAN.lanes = self.n, self.lanes
         return self
 
     def __exit__(self, *exc):
-        _PLAN.n = self.before
+        _PLAN.n, _PLAN.lanes = self.before
+
+
+def planned_lanes() -> bool | None:
+    """The route this thread's run asks for (planned_points), else USE_LANES."""
+    chosen = getattr(_PLAN, "lanes", None)
+    return USE_LANES if chosen is None else chosen
 
 
 def _lanes_pay(name: str, source, points: int) -> bool:
@@ -799,12 +808,13 @@ def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str =
     ``shared=False``: every shared-path measurement integrates on its own (for comparison).
     ``lanes``: where model/lanes.py applies (a lone first event by dop853, an rhs it can rewrite), the
     kernel integrates LANES points side by side (bitwise the same results); False: one at a time;
-    None: as USE_LANES says (the benches and tests switch it to compare the two routes; its default
-    None takes the lanes where they pay, see _lanes_pay). ``points``: the points of this call; the run's
+    None: as the run's ``[execution] lanes`` says (planned_points), else as USE_LANES says (the benches
+    and tests switch it to compare the two routes; its default None takes the lanes where they pay,
+    see _lanes_pay). ``points``: the points of this call; the run's
     size (planned_points) counts when it is larger.
     A second call with the same objects returns the kernel without reading and hashing the model's
     source files again (every chunk of a run asks)."""
-    use_lanes = USE_LANES if lanes is None else lanes
+    use_lanes = planned_lanes() if lanes is None else lanes
     points = max(int(points), getattr(_PLAN, "n", 0))
     big = use_lanes is None and points >= LANES_FROM_POINTS
     memo = (id(model), tuple(map(id, chosen)), tuple(map(id, closed)), shared, method, use_lanes, big)
@@ -848,6 +858,7 @@ def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes, point
         base.update(name.encode())
         base.update(repr(ref).encode())
         base.update(load.module_source(ref[0], ref[1]))
+    base.update(sources.record(model).digest.encode())  # the user modules the model imports, recursively
     origin = origin or f"{refs['rhs'][0]}"
 
     def name_of(lane_rhs):
@@ -895,11 +906,11 @@ class Threaded:
     """The one-point kernel ``kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs)``
     on numba.get_num_threads() threads: the generated serial ``kernel(..., first, step)`` (nogil) once per
     thread, thread t computing the points t, t + T, ... (strided: cost varies along the grid), the calling
-    thread one of them. It was a ``prange`` over blocks of points (``pjit``); numba's parallel compile of
+    thread one of them. Not a ``prange`` over blocks of points (``pjit``): numba's parallel compile of
     that loop (parfor passes, the gufunc and its two wrappers, each linking and optimising the whole
-    call tree again) cost about 2.3 s of the quickstart's 11.2 s of compile CPU (2026-11-24, `bench
-    startup --only compile`, docs/performance-startup.md). Each point is computed alone (its scratch reset), so the results are the
-    same whatever the split. Anything else (``py_func``, ``stats``, numba's cache) is the serial kernel's."""
+    call tree again) costs a fifth of the quickstart's compile CPU (`mechsweep bench startup --only
+    compile`, docs/performance-startup.md). Each point is computed alone (its scratch reset), so the
+    results are the same whatever the split. Anything else (``py_func``, ``stats``, numba's cache) is the serial kernel's."""
 
     def __init__(self, serial):
         self.serial = serial
@@ -912,7 +923,7 @@ class Threaded:
 
         args = (P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs)
         n = P.shape[0]
-        threads = max(1, min(numba.get_num_threads(), (n + BLOCK - 1) // BLOCK))
+        threads = max(1, min(_jit.num_threads(), (n + BLOCK - 1) // BLOCK))
         if threads == 1:
             self.serial(*args, 0, 1)
             return

@@ -868,7 +868,7 @@ def kernel_source(model, chosen, refs: dict, origin: str, closed, lane_rhs: str)
     npi = n_p + n_set + n_int
     (m,) = chosen
     own = "" if _system(m) is None else "0"  # the suffix of the measurement's equation (compile._own_body)
-    lines = module_prologue(f"mechsweep.model.compile (lanes) for model {model.name!r} ({origin}), method dop853",
+    lines = module_prologue(f"mechsweep.model.compile (lanes) for model {model.name!r}, method dop853",
                             ("from mechsweep._jit import jit, jit_noalloc, pjit, prange",
                              "from mechsweep.model import lanes"), refs)
     lines.append(f"NP = {n_p}\nNSET = {n_set}\nNPI = {npi}  # p[NPI]: the point's user-error flag\nSCR = NPI + 1\n"

@@ -6,8 +6,9 @@ Python or numba gives one), raised while the scene is loaded, before any file is
 missing file, a file that fails to import, NAME not defined or not an OdeModel (or ClosedFormModel: its
 checks are closed.check), an rhs or initial
 that raises, reads a parameter beyond the declared ones or writes beyond the state (found by
-running them once in plain Python at a probe point), leaves a component unwritten, or that numba
-cannot compile.
+running them once in plain Python at a probe point), leaves a component unwritten, writes into an
+argument its role may not write (model/writes.py), or that numba cannot compile; and an exit while
+the model loads (sys.exit, os._exit, a KeyboardInterrupt the code raises itself: exits_refused).
 """
 from __future__ import annotations
 
@@ -15,10 +16,15 @@ import hashlib
 import importlib
 import importlib.util
 import math
+import os
 import re
+import signal
+import stat
 import sys
+import threading
 import traceback
 import types
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -128,8 +134,8 @@ def _with_engine_helpers(func):
     """``func`` with the numba functions of the user's own code that it calls by a global name
     (``@numba.njit`` helpers, and theirs) compiled again with the engine's options (_jit: fastmath
     off, ``error_model="numpy"``). numba's default error model ("python") raises ZeroDivisionError
-    on a float division by zero, which in a sweep made the point USER_ERROR, while the same code
-    without the decorator (compiled by the engine) gives IEEE +-inf / NaN: now it does either way.
+    on a float division by zero, which in a sweep would make the point USER_ERROR, while the same code
+    without the decorator (compiled by the engine) gives IEEE +-inf / NaN: recompiled, it does either way.
     The globals are a copy with the helpers swapped (numba freezes a function's globals when it
     compiles anyway); a function that calls no such helper is returned as it is."""
     from numba.core.dispatcher import Dispatcher
@@ -154,7 +160,7 @@ def _with_engine_helpers(func):
             h = types.FunctionType(helper.__code__, helper.__globals__, helper.__name__, helper.__defaults__,
                                    helper.__closure__)
             # named after its module too (see _renamed: one file may be loaded under two module names)
-            tag = hashlib.sha256((helper.__module__ or "").encode()).hexdigest()[:8]
+            tag = _module_tag(helper.__module__ or "")
             h.__module__, h.__qualname__ = helper.__module__, f"{helper.__qualname__}__engine_{tag}"
             _HELPERS[id(v)] = (v, _jit.jit(h))  # the dispatcher kept alive: its id stays its own
         swap[name] = _HELPERS[id(v)][1] if isinstance(_HELPERS[id(v)], tuple) else v
@@ -168,16 +174,28 @@ def _with_engine_helpers(func):
 
 
 def _renamed(func, module: str):
-    """``func`` with its qualified name suffixed by a hash of ``module``. numba names a function's
-    disk-cache entry after its file and qualified name only, and a cached entry re-imports the
-    module it was compiled in: one file loaded under two module names (by path in a scene, and as
-    a module, an entry point or the user's own import for run(models=...)) would otherwise load
-    the other name's entry and fail with "No module named ..." in every later process."""
+    """``func`` with its qualified name suffixed by a hash of ``module`` and of what the module's code
+    depends on (sources.module_digest). numba names a function's disk-cache entry after its file and
+    qualified name only, and a cached entry re-imports the module it was compiled in: one file loaded
+    under two module names (by path in a scene, and as a module, an entry point or the user's own
+    import for run(models=...)) would otherwise load the other name's entry and fail with "No module
+    named ..." in every later process. numba's index checks only the function's own file: the machine
+    code of a helper from another file (linked into the entry) would outlive an edit of that file,
+    while the digest gives an edited dependency a new name."""
     g = types.FunctionType(func.__code__, func.__globals__, func.__name__, func.__defaults__, func.__closure__)
     g.__kwdefaults__ = func.__kwdefaults__
     g.__module__ = func.__module__
-    g.__qualname__ = f"{func.__qualname__}__{hashlib.sha256(module.encode()).hexdigest()[:8]}"
+    g.__qualname__ = f"{func.__qualname__}__{_module_tag(module)}"
     return g
+
+
+def _module_tag(module: str) -> str:
+    """8 hex digits naming ``module`` and its dependencies (mechsweep's own modules: the name alone; the
+    cache folder is keyed by mechsweep's sources)."""
+    from .sources import module_digest
+
+    digest = module_digest(module)
+    return hashlib.sha256((module + (f"|{digest}" if digest else "")).encode()).hexdigest()[:8]
 
 
 ENTRY_POINT_GROUP = "mechsweep.models"
@@ -244,22 +262,18 @@ def resolve(ref: str, base: Path | None = None):
             path = (base or Path.cwd()) / path
         path = path.resolve()
         where = str(path)
-        if not path.is_file():
-            raise InputError(f"{ref!r}: model file {where} does not exist")
+        check_model_file(ref, path)
         module, file = _module_name(path), where
     else:
         module, file, where = left, "", left
     key = (module, file, name, module_source(module, file) if file else b"")
     if key in _RESOLVED:
         return _RESOLVED[key]
-    try:
-        mod = import_module(module, file)
-    except ModuleNotFoundError as exc:
-        if not file and exc.name and left.startswith(exc.name):
-            raise InputError(f"{ref!r}: module {left!r} is not importable ({exc})") from None
-        raise InputError(f"{ref!r}: importing {where} failed: {_where(exc, file)}") from None
-    except Exception as exc:  # the user's code raised on import
-        raise InputError(f"{ref!r}: importing {where} failed: {_where(exc, file)}") from None
+    fresh = module not in sys.modules
+    mod = import_model(ref, module, file, where, base)
+    if fresh and key[3]:  # the model file's bytes as imported now (its record's hash: model/sources.py)
+        from . import sources
+        sources.seen(file, key[3])
     file = file or getattr(mod, "__file__", "") or ""
     if not hasattr(mod, name):
         found = [k for k, v in vars(mod).items() if isinstance(v, (OdeModel, ClosedFormModel))]
@@ -281,7 +295,8 @@ def _check_any(model, ref: str, file: str) -> None:
     """check() for an OdeModel, closed.check() for a ClosedFormModel."""
     from . import closed
 
-    (closed.check if isinstance(model, closed.ClosedFormModel) else check)(model, ref, file)
+    with exits_refused(f"{ref!r}: model {model.name!r} in {file}: running its functions at the probe point", file):
+        (closed.check if isinstance(model, closed.ClosedFormModel) else check)(model, ref, file)
 
 
 def _where(exc: BaseException, file: str, func=None) -> str:
@@ -451,6 +466,7 @@ def check(model, ref: str, file: str) -> None:
                                                    ".variational_jac"))  # return nothing
         if not writes and not isinstance(value, (int, float, np.floating, np.integer)):
             raise InputError(f"{label}: {what} returned {value!r}; expected a number")
+    _check_writes(model, label, p, y0)
     pp = np.concatenate([p, np.zeros(3 * n_s + n_s * n_s)])
     funcs = [("initial", model.initial, (pp, np.zeros(n_s))), ("rhs", model.rhs, (0.0, y0.copy(), pp, np.zeros(n_s)))]
     if model.forcing_period is not None:
@@ -496,3 +512,140 @@ def _writes_nan(func, args, i) -> bool:
     with np.errstate(all="ignore"):
         func(*args)
     return out[i] != 12345.678
+
+
+def _check_writes(model, label: str, p: np.ndarray, y0: np.ndarray) -> None:
+    """Every function of the model writes only the arguments its role may write (model/writes.py:
+    an event nothing, an rhs its dydt, prepare the internal slots of p, ...), by its source and by
+    one more call at the probe point (``p`` after prepare, ``y0`` from initial)."""
+    from . import writes
+
+    writes.check(writes.ode_calls(model, p.copy(), y0.copy()), label)
+
+
+# ============================================================================= loading is an input step
+def check_model_file(ref: str, path: Path) -> None:
+    """InputError unless ``path`` is a regular file whose name ends in .py (a model file is
+    imported as Python source: a folder, a device, a FIFO or another kind of file is named as
+    what it is, not reported as a failed import)."""
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        mode = None
+    if mode is None:
+        hint = path.with_suffix(".py") if path.suffix != ".py" else None
+        raise InputError(f"{ref!r}: model file {path} does not exist"
+                         + (f" (did you mean {hint.name}?)" if hint is not None and hint.is_file() else ""))
+    kinds = ((stat.S_ISDIR, "is a folder"), (stat.S_ISFIFO, "is a FIFO (named pipe)"),
+             (stat.S_ISCHR, "is a character device"), (stat.S_ISBLK, "is a block device"),
+             (stat.S_ISSOCK, "is a socket"))
+    for test, what in kinds:
+        if test(mode):
+            raise InputError(f"{ref!r}: model file {path} {what}, not a Python file")
+    if not stat.S_ISREG(mode):
+        raise InputError(f"{ref!r}: model file {path} is not a regular file")
+    if path.suffix != ".py":
+        raise InputError(f"{ref!r}: {path} is not a Python file: a model file's name ends in .py "
+                         "(a model is a built-in name, 'file.py:NAME' or 'package.module:NAME')")
+
+
+def import_model(ref: str, module: str, file: str, where: str, base: Path | None = None):
+    """The user's module (``import_module``), every failure of its import an InputError naming the
+    file and line: an exception, and an exit (sys.exit, os._exit, KeyboardInterrupt raised by the
+    code, any other BaseException; :func:`exits_refused`). A module name that is no module but a
+    file beside the scene ("notes.txt:NAME") is named as the file it is."""
+    left = ref.rpartition(":")[0]
+    with exits_refused(f"{ref!r}: importing {where}", file):
+        try:
+            return import_module(module, file)
+        except ModuleNotFoundError as exc:
+            if not file and exc.name and left.startswith(exc.name):
+                path = (base or Path.cwd()) / left
+                if os.path.lexists(path):
+                    check_model_file(ref, path.resolve())
+                raise InputError(f"{ref!r}: module {left!r} is not importable ({exc})") from None
+            raise InputError(f"{ref!r}: importing {where} failed: {_where(exc, file)}") from None
+        except Exception as exc:  # the user's code raised on import
+            raise InputError(f"{ref!r}: importing {where} failed: {_where(exc, file)}") from None
+
+
+class ExitAtLoad(BaseException):
+    """Raised in place of ``os._exit``/``os.abort`` when the user's code calls one while a model
+    loads (:func:`exits_refused`)."""
+
+
+@contextmanager
+def exits_refused(what: str, file: str = ""):
+    """Run the user's code of a model's loading (its import, the probe) so that no way of ending
+    the process passes as success or as an interruption: SystemExit (``sys.exit``, ``exit()``),
+    ``os._exit`` and ``os.abort`` (replaced in this thread while the block runs: they cannot be
+    caught), a KeyboardInterrupt the code raises itself and any other BaseException become an
+    InputError (exit 2) naming the file and line. A real Ctrl-C or SIGTERM during the block (the
+    handler in place is wrapped to note it) goes on as the interruption it is (exit 130, 143)."""
+    ident = threading.get_ident()
+    noted: list[int] = []
+    patched = []
+
+    def stand_in(name, real):
+        def call(*args):
+            if threading.get_ident() != ident:  # another thread's exit is not the model's
+                return real(*args)
+            raise ExitAtLoad(f"{name}({', '.join(repr(a) for a in args)}) called")
+        return call
+
+    for mod in {id(m): m for m in (os, sys.modules.get("posix"), sys.modules.get("nt")) if m is not None}.values():
+        for name in ("_exit", "abort"):
+            real = getattr(mod, name, None)
+            if real is not None:
+                patched.append((mod, name, real))
+                setattr(mod, name, stand_in(f"os.{name}", real))
+    handlers = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous = signal.getsignal(sig)
+            if callable(previous):
+                def note(signum, frame, previous=previous):
+                    noted.append(signum)
+                    return previous(signum, frame)
+                handlers[sig] = previous
+                signal.signal(sig, note)
+    try:
+        yield
+    except Exception:
+        raise
+    except BaseException as exc:
+        if noted and isinstance(exc, KeyboardInterrupt):  # a real signal: the interruption it is
+            raise
+        raise InputError(f"{what}: {_exit_text(exc, file)}; loading a model may not exit or interrupt the "
+                         "process") from None
+    finally:
+        for mod, name, real in patched:
+            setattr(mod, name, real)
+        for sig, previous in handlers.items():
+            signal.signal(sig, previous)
+
+
+def _exit_text(exc: BaseException, file: str) -> str:
+    """What ended the load and where: the deepest frame of the user's code (not mechsweep's stand-in
+    nor importlib's), and the model file's line when that frame is in a module the file imports."""
+    if isinstance(exc, SystemExit):
+        what = f"SystemExit({exc.code!r}) raised (sys.exit, exit() or raise SystemExit)"
+    elif isinstance(exc, ExitAtLoad):
+        what = str(exc)
+    elif isinstance(exc, KeyboardInterrupt):
+        what = "KeyboardInterrupt raised by the code (no Ctrl-C was pressed)"
+    else:
+        text = str(exc).splitlines()[0] if str(exc) else ""
+        what = f"{type(exc).__name__} raised (a BaseException, not an Exception){': ' + text if text else ''}"
+    frames = [f for f in traceback.extract_tb(exc.__traceback__)
+              if not f.filename.startswith("<") and Path(f.filename).resolve() != Path(__file__).resolve()
+              and not Path(f.filename).resolve().is_relative_to(Path(importlib.__file__).resolve().parent)]
+    if not frames:
+        return what
+    last = frames[-1]
+    at = f"{what} at {last.filename}, line {last.lineno}"
+    if file and Path(last.filename).resolve() != Path(file).resolve():
+        own = [f for f in frames if Path(f.filename).resolve() == Path(file).resolve()]
+        if own:
+            at += f" (reached from {file}, line {own[-1].lineno})"
+    return at

@@ -32,8 +32,9 @@ import math
 import numpy as np
 
 from .. import status as st
+from .. import _jit
 from .._jit import jit
-from . import load
+from . import load, sources
 from .ode import worse
 
 BLOCK = 8  # points per scratch allocation (a block holds one trajectory of n_samples x n_states)
@@ -624,6 +625,7 @@ def kernel_for(model, method, measurements=None):
         key.update(name.encode())
         key.update(repr(ref).encode())
         key.update(load.module_source(ref[0], ref[1]))
+    key.update(sources.record(model).digest.encode())  # the user modules the model imports, recursively
     key.update((lane_rhs_for(model, method) or "").encode())  # its helpers may live in other modules
     from .compile import _switch_key
     key.update(_switch_key(model).encode())
@@ -889,6 +891,11 @@ LANE_GROUP_MIN = 16
 
 
 def _lanes_pay(mod, points: int) -> bool:
+    from .compile import _PLAN
+
+    chosen = getattr(_PLAN, "lanes", None)  # the scene's [execution] lanes (compile.planned_points)
+    if chosen is not None:
+        return chosen
     if USE_LANES is not None:
         return USE_LANES
     if points >= LANES_FROM_POINTS:
@@ -926,8 +933,6 @@ def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, raw
     (numba.get_num_threads() Python threads running the nogil queue); the points of periods shared
     by fewer than LANE_GROUP_MIN points by the one-trajectory kernel (from their status before
     setup: it runs classify and prepare again)."""
-    import numba
-
     from .compile import layout
 
     n = P.shape[0]
@@ -952,7 +957,7 @@ def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, raw
     for T in periods[counts >= LANE_GROUP_MIN]:
         idx = np.flatnonzero(ok & (TT == T)).astype(np.int64)
         te = T * s  # the same products as the one-trajectory kernel's te[j] = T * s[j]
-        n_queues = max(1, min(numba.get_num_threads(), -(-idx.size // max(1, lanes // 2))))
+        n_queues = max(1, min(_jit.num_threads(), -(-idx.size // max(1, lanes // 2))))
 
         def queue(b, idx=idx, te=te, n_queues=n_queues):
             mod.queue(lanes, idx, b, n_queues, PF, Z0, te, s, bits, K, hoff, rtol, solver.atol,

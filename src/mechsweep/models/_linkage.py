@@ -424,24 +424,29 @@ def dot4(x, y):
 
 
 @jit_noalloc
-def axis_basis(S, cb, sb, c1, s1, w1, al1):
+def axis_basis(S, cb, sb, c1, s1, w1, al1, W):
     """d(Delta M)/dx and d(Delta M)/dy for the crank counterweight (static moment S, at angle beta
-    from the crank) turning about O1 = (x, y) instead of O_A.
+    from the crank, weight W = m_cw g) turning about O1 = (x, y) instead of O_A.
 
     Its angular momentum about O_A changes by S phi' (x cos psi + y sin psi), psi = phi + beta, so
     the moment of the inertia forces changes by
-      Delta M = -S [phi'^2 (y cos psi - x sin psi) + phi'' (x cos psi + y sin psi)]
-    (physics.md section 3 prints this for beta = pi, the counterweight opposite the crank).
-    cb, sb = cos(beta), sin(beta). Returns (gx, gy) with Delta M = gx x + gy y."""
+      -S [phi'^2 (y cos psi - x sin psi) + phi'' (x cos psi + y sin psi)]
+    (physics.md section 3 prints this for beta = pi, the counterweight opposite the crank), and its
+    weight, now acting x further along the frame, changes the moment of the weights by -W x: with
+    M = -dH/dt - g sum m x_G (the shaking moment of every output, gravity included),
+      Delta M = -S [phi'^2 (y cos psi - x sin psi) + phi'' (x cos psi + y sin psi)] - W x.
+    (The source's formula has no gravity term: right only for g = 0.) cb, sb = cos(beta),
+    sin(beta). Returns (gx, gy) with Delta M = gx x + gy y."""
     cp = c1 * cb - s1 * sb
     sp = s1 * cb + c1 * sb
     w1s = w1 * w1
-    return S * (w1s * sp - al1 * cp), -S * (w1s * cp + al1 * sp)
+    return S * (w1s * sp - al1 * cp) - W, -S * (w1s * cp + al1 * sp)
 
 
 @jit_noalloc
-def axis_fit(c, s, w1, al1, moment, weight, S, cb, sb, harmonic):
-    """Axis O1 = (x, y) of the crank counterweight (static moment S, angle beta from the crank).
+def axis_fit(c, s, w1, al1, moment, weight, S, cb, sb, harmonic, W):
+    """Axis O1 = (x, y) of the crank counterweight (static moment S, angle beta from the crank,
+    weight W = m_cw g: axis_basis).
 
     harmonic False, RMS-optimal: minimise sum_i w_i (M_i + gx_i x + gy_i y)^2, the 2x2 normal
     equations [sum w gx^2, sum w gx gy; sum w gx gy, sum w gy^2] (x, y) = -(sum w M gx, sum w M gy)
@@ -455,7 +460,7 @@ def axis_fit(c, s, w1, al1, moment, weight, S, cb, sb, harmonic):
     a11 = a12 = a21 = a22 = b1 = b2 = 0.0
     if harmonic:
         for j in range(moment.shape[0]):
-            gx, gy = axis_basis(S, cb, sb, c[j], s[j], w1[j], al1[j])
+            gx, gy = axis_basis(S, cb, sb, c[j], s[j], w1[j], al1[j], W)
             wc = weight[j] * c[j]
             ws = weight[j] * s[j]
             a11 += gx * wc
@@ -466,7 +471,7 @@ def axis_fit(c, s, w1, al1, moment, weight, S, cb, sb, harmonic):
             b2 -= moment[j] * ws
     else:
         for j in range(moment.shape[0]):
-            gx, gy = axis_basis(S, cb, sb, c[j], s[j], w1[j], al1[j])
+            gx, gy = axis_basis(S, cb, sb, c[j], s[j], w1[j], al1[j], W)
             wgx = weight[j] * gx
             wgy = weight[j] * gy
             a11 += wgx * gx
@@ -480,7 +485,8 @@ def axis_fit(c, s, w1, al1, moment, weight, S, cb, sb, harmonic):
 
 @jit_noalloc
 def axis_formula1_sums(smc, sms, scc, sss, scs, S, w, cb, sb):
-    """Formula (1) of the source (physics.md section 3) at constant speed w, written for a
+    """Formula (1) of the source (physics.md section 3) at constant speed w and without gravity
+    (the counterweight's weight adds -W x to Delta M, which the formula leaves out), written for a
     counterweight at angle beta from the crank, psi = phi + beta (beta = pi gives the printed form
     x = sum M sin phi / (S w^2 sum sin^2 phi), y = -sum M cos phi / (S w^2 sum cos^2 phi)):
       x = -sum M sin psi / (S w^2 sum sin^2 psi),  y = sum M cos psi / (S w^2 sum cos^2 psi),
@@ -516,14 +522,14 @@ def axis_residual_const(c, s, moment, Sw2, cb, sb, x, y, out):
 
 
 @jit_noalloc
-def axis_residual(c, s, w1, al1, moment, S, cb, sb, x, y, out):
-    """Residual dM_i = M_i + Delta M_i of the counterweight on axis (x, y) into out;
-    returns (RMS, max |dM|)."""
+def axis_residual(c, s, w1, al1, moment, S, cb, sb, x, y, out, W):
+    """Residual dM_i = M_i + Delta M_i of the counterweight (weight W = m_cw g) on axis (x, y) into
+    out; returns (RMS, max |dM|)."""
     ss = 0.0
     mx = 0.0
     n = moment.shape[0]
     for j in range(n):
-        gx, gy = axis_basis(S, cb, sb, c[j], s[j], w1[j], al1[j])
+        gx, gy = axis_basis(S, cb, sb, c[j], s[j], w1[j], al1[j], W)
         dm = moment[j] + gx * x + gy * y
         out[j] = dm
         ss += dm * dm
@@ -543,7 +549,7 @@ def fourbar_kinematics_cycle(a1, a2, a3, a4, sigma, omega, delta, cos_phi, sin_p
     of crank_speed) into rows R_C2 .. R_AL1 of buf: the same expressions, term for term (so
     bitwise the same numbers), split into four loops. Each loop is branch-free and vectorised by
     LLVM; splitting the long chain div -> sqrt -> div of one position lets the processor overlap
-    many positions (one fused loop is latency-bound: 1.4x slower)."""
+    many positions (one fused loop is latency-bound, and slower)."""
     N = cos_phi.shape[0]
     ia2 = 1.0 / a2
     ia3 = 1.0 / a3

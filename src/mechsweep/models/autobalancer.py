@@ -20,7 +20,7 @@ A0 = m3 S3 + (m4 + m5 + m_k) l3 and A1 = m4 S4 + m5 l4 - m_k S_k. Kinetic energy
 M = every translating mass including both pendulums. Potential c_xi xi^2/2 + c_eta eta^2/2,
 Rayleigh function b_xi xi'^2/2 + b_eta eta'^2/2 + h/2 sum_i (gamma_i' - Omega)^2. Lagrange's
 equations give exactly eq. (1)-(3) of physics.md:
-  xi:    M xi'' - d^2/dt^2 [A0 cos phi + A1 cos psi + m a sum cos gamma_i] = -c_xi xi - b_xi xi'
+  xi:    M xi'' + d^2/dt^2 [A0 cos phi + A1 cos psi + m a sum cos gamma_i] = -c_xi xi - b_xi xi'
   eta:   M eta'' + d^2/dt^2 [A0 sin phi + A1 sin psi + m a sum sin gamma_i] = -c_eta eta - b_eta eta'
          (written out: -Omega^2 A0 sin phi + A1 (psi'' cos psi - psi'^2 sin psi) + ..., the sign
          physics.md prints; with psi counter-clockwise (sin psi)'' = (l3/l4) Omega^2 sin phi)
@@ -81,36 +81,65 @@ revolution, [residual_samples_per_revolution] times in the last 10 % of the hori
   unstable (0) if e_late >= growth_ratio e0 and e_before >= growth_ratio e0 (it left and stayed away
                for the last 20 % of the horizon),
   otherwise UNDECIDED (stable_sim NaN): slow convergence or slow growth within the horizon.
-The envelope test is on maxima over whole windows, so oscillating errors do not fool it. With the
-default horizon (300 revolutions) points whose Floquet multiplier is within ~0.01 of 1 converge
-or depart too slowly to be decided; raise horizon_revolutions for them.
+The envelope test is on maxima over whole windows, so oscillating errors do not fool it. A
+point whose largest Floquet multiplier rho is so close to 1 that rho^horizon is not small (0.9988^300
+= 0.70 at the example below) converges or departs too slowly to be decided within the horizon:
+UNDECIDED; raise horizon_revolutions for it.
 
-stable_sim answers "does the balanced state recover from a perturbation of `perturbation` rad";
-Floquet answers it for infinitesimal perturbations. They agree except where the basin of
-attraction is smaller than the perturbation: measured on the shipped stability chart (3600
-points, 2 m / M from 0.005 to 0.5), 10 points with heavy pendulums (2 m / M >= 0.14), weak h
-and Omega > omega_eta are Floquet-stable but leave the balanced state after a 0.1 rad kick (the
-pendulums wander on a coexisting non-synchronous motion, or return only after a long
-excursion); of three re-run with 0.01 and 0.03 rad, two settle and one converges too slowly
-(multiplier 0.9993) to be decided in 1000 revolutions. No point was found that simulation calls
-stable and Floquet unstable (3000 random points: 2053 decided by both, 1 such disagreement, same
-mechanism).
+What the kick verdict means. stable_sim is the fate of one kicked trajectory within the horizon:
+1, it came back to the balanced state; 0, it was at least growth_ratio times the kick away over the
+whole last 20 % of the horizon, i.e. it had not come back by the end. Floquet (floquet_max,
+stable_floquet) answers for infinitesimal kicks. So stable_sim = 1 is evidence of stability (a
+kicked trajectory came back), but stable_sim = 0 where stable_floquet = 1, with status ok, is not an
+error: the balanced state is stable and its basin of attraction is smaller than the kick (or the
+way back is longer than the horizon). To tell, simulate the point again with a smaller
+perturbation and a longer horizon. Example (tests/test_autobalancer.py,
+test_kick_verdict_is_the_fate_of_one_kick_in_a_finite_basin): Omega = 22.28 rad/s, M = 23 kg,
+m = 1 kg (2 m / M = 0.087), a = 0.1 m, I_B = 0.01553 kg m2, A0 = 0.01257 kg m, h = 0.2665 N m s,
+omega_xi = 20 < Omega < omega_eta = 24.86 rad/s, zeta_xi = 0.0364, zeta_eta = 0: floquet_max =
+0.99881, stable; a 0.1 rad kick leaves for a coexisting steady motion (the pendulums slip
+through every phase relative to the crank, the platform keeps vibrating at 0.074 m), stable_sim
+= 0 at 300 and at 2000 revolutions; a 0.01 rad kick comes back, stable_sim = 1 at 2000
+revolutions (UNDECIDED at the default 300, see above). On the shipped stability chart
+(`mechsweep run sweeps/autobalancer_stability_chart.toml`, then `mechsweep info` on the dataset:
+3540 points decided by both) the verdicts disagree at 9 points, all Floquet-stable with
+stable_sim = 0, where the dataset puts them: heavy pendulums (2 m / M from 0.136 to 0.277) and
+Omega > omega_eta; at none does the simulation say stable where Floquet says unstable.
 
 Other outputs and rules:
 - stable_first_approx: the source assumes omega_xi < omega_eta; for omega_xi > omega_eta the rule
   is applied to the lower and the higher of the two frequencies (with A1 = 0 the problem is
   symmetric in the two axes). Strict inequalities: 0 on the boundaries.
-- P_approx at an undamped resonance (c_j = M Omega^2, b_j = 0) is infinite: SINGULAR, NaN.
+- Resonances and boundaries within rounding. c_j - M Omega^2 is known to a few ulps of its terms (c_j =
+  M omega_j^2, M Omega^2 and an Omega typed or computed equal to omega_j are all rounded), so a detuning
+  |c_j - M Omega^2| <= RESONANCE_RTOL max(c_j, M Omega^2) (16 ulps, 3.6e-15) counts as a resonance:
+  there Re H_j = 0, and if b_j Omega is within the same tolerance too P_approx is SINGULAR (NaN; an
+  undamped resonance, where P is infinite). Nearer than NEAR_RESONANCE (1e-6) the detuning is
+  recomputed from exact products, so a P_approx given near a resonance is right to a few ulps of
+  itself. stable_damped_approx is 1 only if P < 0 beyond P's error bound (the change of P when each
+  detuning moves by the tolerance, plus rounding): a P within rounding of 0 (the damped rule's
+  boundary, e.g. omega_p when undamped) gives 0, as stable_first_approx does on its boundaries, where
+  an Omega within 8 ulps of omega_lo, omega_p or omega_hi counts as on the boundary. No verdict is
+  set by the sign of a rounding error (tests/test_autobalancer_resonance.py).
+- Mass matrix: its smallest eigenvalue, M - 2 m^2 a^2 / I_B (pendulums aligned or opposite), relative
+  to M is gap = 1 - 2 m^2 a^2 / (M I_B). gap <= RESONANCE_RTOL is INFEASIBLE (singular or indefinite:
+  M > 2 m and I_B >= m a^2 with its slack do not ensure M I_B > 2 m^2 a^2); where the accelerations'
+  round-off MASS_ERROR u / gap exceeds rtol the point is ILL_CONDITIONED (no integration, closed
+  forms kept).
 - stable_floquet is UNDECIDED when |floquet_max - 1| <= max(floquet_margin, 100 rtol) (floquet_max
-  is accurate to ~0.1 rtol, measured).
+  is within 0.032 rtol of the reference at every rtol from 1e-4 to 1e-12 over the 64 chart points
+  of `mechsweep bench workprecision autobalancer`).
 - settling_time: NO_EVENT (NaN) when the phase error is still above settle_threshold at the end.
 - INFEASIBLE (all outputs NaN): I_B < m a^2 (relative slack 1e-9), M <= 2 m (M includes both
-  pendulums; the mass matrix needs M I_B > 2 m^2 a^2), l3 >= l4 when both are given, A1 != 0
-  without l3, l4, or a platform parameter pair not given.
+  pendulums), M I_B <= 2 m^2 a^2 (1 + RESONANCE_RTOL) (the mass matrix), l3 >= l4 when both are
+  given, A1 != 0 without l3, l4, or a platform parameter pair not given.
 
 Status of a point: the most severe problem among the outputs asked for, in the order
-INFEASIBLE > NONFINITE > STEP_UNDERFLOW > MAX_STEPS > STIFF > SINGULAR > NOT_REPRODUCIBLE > NOT_BALANCEABLE >
-UNDECIDED > NO_EVENT; outputs that could be computed are kept. STIFF: dop853 spent its step budget at the
+INFEASIBLE > OUT_OF_RANGE > NONFINITE > STEP_UNDERFLOW > MAX_STEPS > STIFF > ILL_CONDITIONED > SINGULAR >
+NOT_REPRODUCIBLE > NOT_BALANCEABLE > UNDECIDED > NO_EVENT; outputs that could be computed are kept. OUT_OF_RANGE:
+inputs of such magnitudes that a quantity leaves double precision's range (``in_range``: those every
+output needs, all outputs NaN; a closed form's own, that output NaN; prepare: a scaled group of the
+equations of motion beyond 2^300, the integrated outputs NaN). STIFF: dop853 spent its step budget at the
 stability limit (strong pendulum damping h / (m a^2 Omega) of order 1e3 and more, a platform far stiffer
 than the crank speed); auto and radau integrate such points.
 NOT_REPRODUCIBLE: a simulated output (residual_amplitude, phase_error, settling_time, stable_sim,
@@ -153,6 +182,7 @@ from ..model.measure import ClosedForm, Floquet, History, Kick, Recheck, Steady 
 from ..model.ode import OdeModel
 from ..model.workprecision import WorkPrecision
 from ..special import SINCOS_MAX, ieee_sqrt, sincos, sincos_reduced
+from ._scaling import DBL_MAX, full_precision, normal, product_in_range, quotient_in_range
 from ._spec import ExtraDim, Output, Param, Setting
 
 TWO_PI = 2.0 * math.pi
@@ -171,11 +201,28 @@ NP = 12
 
 IB_SLACK = 1e-9  # relative round-off allowed in I_B >= m a^2 (a point-mass pendulum is legal)
 
+# Resonance tolerance: c_j - M Omega^2 is known only to a few ulps of its terms (c_j = M omega_j^2 and
+# M Omega^2 are rounded, and an Omega typed or computed to equal omega_j is itself rounded), so a
+# detuning |c_j - M Omega^2| <= RESONANCE_RTOL max(c_j, M Omega^2) is a resonance: 16 ulps, which covers
+# every way of building Omega = omega_j (or omega_p) tried in tests/test_autobalancer_resonance.py and
+# one ulp of Omega either side. The same relative tolerance (halved: omega ~ sqrt(c)) places Omega on a
+# frequency boundary of stable_first_approx, and bounds the mass-matrix gap of classify.
+EPS = 2.0 ** -52
+RESONANCE_RTOL = 16.0 * EPS
+# Closer than this (relative to the terms) the detuning is recomputed from exact products, so that a
+# P_approx given near a resonance is right to a few ulps of its own size, not of the terms'.
+NEAR_RESONANCE = 1e-6
+# The accelerations' relative error is MASS_ERROR u / gap, gap = 1 - 2 m^2 a^2 / (M I_B) the relative
+# distance of the mass matrix from singular (pendulums aligned or opposite): measured 2.2-2.4 u / gap
+# against 50-digit values at gaps 1e-4 .. 1e-14 (tests/test_autobalancer_resonance.py); 4 bounds it.
+MASS_ERROR = 4.0
+UNIT_ROUNDOFF = 2.0 ** -53
+
 # Status severity (most severe first): what a point shows when several problems occur.
 # NOT_REPRODUCIBLE ranks above the statuses that leave an output NaN with a reason: it warns
 # about a value that is stored and would otherwise look trustworthy.
-STATUS_ORDER = (st.INFEASIBLE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.STIFF, st.SINGULAR,
-                st.NOT_REPRODUCIBLE, st.NOT_BALANCEABLE, st.UNDECIDED, st.NO_EVENT)
+STATUS_ORDER = (st.INFEASIBLE, st.OUT_OF_RANGE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.STIFF,
+                st.ILL_CONDITIONED, st.SINGULAR, st.NOT_REPRODUCIBLE, st.NOT_BALANCEABLE, st.UNDECIDED, st.NO_EVENT)
 
 
 # ----------------------------------------------------------------------------- kinematics
@@ -489,74 +536,93 @@ SETTINGS = (
 )
 
 PARAMS = (
-    Param("Omega", "Ω", "rad s-1", "crank angular speed", **_pos),
-    Param("M", "M", "kg", "total translating mass (platform, mechanism, both pendulums)", **_pos),
-    Param("m", "m", "kg", "mass of one pendulum", **_pos),
-    Param("a", "a", "m", "pendulum arm BC (crank axis to pendulum centre of mass)", **_pos),
-    Param("I_B", "I_B", "kg m2", "pendulum moment of inertia about the crank axis (>= m a^2)", **_pos),
-    Param("A0", "A0", "kg m", "rotating unbalance m3 S3 + (m4 + m5 + m_k) l3", lo=0.0),
-    Param("h", "h", "N m s rad-1", "pendulum damping relative to the crank", lo=0.0),
-    Param("omega_xi", "ω_ξ", "rad s-1", "platform natural frequency along xi, sqrt(c_xi / M)", **_pos, **_opt),
-    Param("omega_eta", "ω_η", "rad s-1", "platform natural frequency along eta, sqrt(c_eta / M)", **_pos, **_opt),
-    Param("zeta_xi", "ζ_ξ", "1", "platform damping ratio along xi, b_xi / (2 M omega_xi)", lo=0.0, **_opt),
-    Param("zeta_eta", "ζ_η", "1", "platform damping ratio along eta, b_eta / (2 M omega_eta)", lo=0.0, **_opt),
-    Param("c_xi", "c_ξ", "N m-1", "platform stiffness along xi", **_pos, **_opt),
-    Param("c_eta", "c_η", "N m-1", "platform stiffness along eta", **_pos, **_opt),
-    Param("b_xi", "b_ξ", "N s m-1", "platform damping coefficient along xi", lo=0.0, **_opt),
-    Param("b_eta", "b_η", "N s m-1", "platform damping coefficient along eta", lo=0.0, **_opt),
-    Param("A1", "A1", "kg m", "conrod mass moment m4 S4 + m5 l4 - m_k S_k (0: corrected)",
-          required=False, default=0.0),
-    Param("l3", "l3", "m", "crank length BD", **_pos, **_opt),
-    Param("l4", "l4", "m", "conrod length DE (> l3)", **_pos, **_opt),
-    Param("m4", "m4", "kg", "conrod mass", lo=0.0, **_opt),
-    Param("S4", "S4", "m", "conrod centre of mass from D", lo=0.0, **_opt),
-    Param("m5", "m5", "kg", "slider mass", lo=0.0, **_opt),
-    Param("S_k", "S_k", "m", "correcting mass position from D (away from E)", **_pos, **_opt),
+    Param("Omega", "Ω", "rad s-1", "crank angular speed", **_pos, latex=r"$\Omega$"),
+    Param("M", "M", "kg", "total translating mass (platform, mechanism, both pendulums)", **_pos, latex="$M$"),
+    Param("m", "m", "kg", "mass of one pendulum", **_pos, latex="$m$"),
+    Param("a", "a", "m", "pendulum arm BC (crank axis to pendulum centre of mass)", **_pos, latex="$a$"),
+    Param("I_B", "I_B", "kg m2", "pendulum moment of inertia about the crank axis (at least m a²)", **_pos,
+          latex="$I_B$"),
+    Param("A0", "A0", "kg m", "rotating unbalance of the crank mechanism", lo=0.0,
+          latex=r"$A_0 = m_3 S_3 + (m_4 + m_5 + m_k)\,l_3$"),
+    Param("h", "h", "N m s rad-1", "pendulum damping relative to the crank", lo=0.0, latex="$h$"),
+    Param("omega_xi", "ω_ξ", "rad s-1", "platform natural frequency along ξ", **_pos, **_opt,
+          latex=r"$\omega_\xi = \sqrt{c_\xi/M}$"),
+    Param("omega_eta", "ω_η", "rad s-1", "platform natural frequency along η", **_pos, **_opt,
+          latex=r"$\omega_\eta = \sqrt{c_\eta/M}$"),
+    Param("zeta_xi", "ζ_ξ", "1", "platform damping ratio along ξ", lo=0.0, **_opt,
+          latex=r"$\zeta_\xi = b_\xi/(2 M \omega_\xi)$"),
+    Param("zeta_eta", "ζ_η", "1", "platform damping ratio along η", lo=0.0, **_opt,
+          latex=r"$\zeta_\eta = b_\eta/(2 M \omega_\eta)$"),
+    Param("c_xi", "c_ξ", "N m-1", "platform stiffness along ξ", **_pos, **_opt, latex=r"$c_\xi$"),
+    Param("c_eta", "c_η", "N m-1", "platform stiffness along η", **_pos, **_opt, latex=r"$c_\eta$"),
+    Param("b_xi", "b_ξ", "N s m-1", "platform damping coefficient along ξ", lo=0.0, **_opt, latex=r"$b_\xi$"),
+    Param("b_eta", "b_η", "N s m-1", "platform damping coefficient along η", lo=0.0, **_opt, latex=r"$b_\eta$"),
+    Param("A1", "A1", "kg m", "conrod mass moment (0: corrected)",
+          required=False, default=0.0, latex=r"$A_1 = m_4 S_4 + m_5 l_4 - m_k S_k$"),
+    Param("l3", "l3", "m", "crank length BD", **_pos, **_opt, latex="$l_3$"),
+    Param("l4", "l4", "m", "conrod length DE (longer than l₃)", **_pos, **_opt, latex="$l_4$"),
+    Param("m4", "m4", "kg", "conrod mass", lo=0.0, **_opt, latex="$m_4$"),
+    Param("S4", "S4", "m", "conrod centre of mass from D", lo=0.0, **_opt, latex="$S_4$"),
+    Param("m5", "m5", "kg", "slider mass", lo=0.0, **_opt, latex="$m_5$"),
+    Param("S_k", "S_k", "m", "correcting mass position from D (away from E)", **_pos, **_opt, latex="$S_k$"),
 )
 
 # The outputs' names, symbols, units, long names, kinds and dimensions (the measurements and closed
 # forms below take them from here)
 OUTPUTS = (
-    Output("theta", "Θ₁", "rad", "balancing angle of pendulum 1, arccos(-A0 / (2 m a)); Theta_2 = -Theta_1"),
-    Output("balanceable", "balanceable", "1", "1 if a balanced state exists (A0 <= 2 m a and A1 = 0)"),
-    Output("m_k", "m_k", "kg", "correcting mass (m4 S4 + m5 l4) / S_k that makes A1 = 0",
-           needs_params=("m4", "S4", "m5", "S_k", "l4")),
-    Output("omega_p", "ω_p", "rad s-1", "first-approximation boundary sqrt((omega_xi^2 + omega_eta^2) / 2)"),
+    Output("theta", "Θ₁", "rad", "balancing angle of pendulum 1 (Θ₂ = −Θ₁)",
+           latex=r"$\Theta_1 = \arccos(-A_0/(2 m a))$"),
+    Output("balanceable", "balanceable", "1", "1 if a balanced state exists (A₀ ≤ 2 m a and A₁ = 0)",
+           latex=r"$A_0 \leq 2 m a,\ A_1 = 0$"),
+    Output("m_k", "m_k", "kg", "correcting mass that makes A₁ = 0",
+           needs_params=("m4", "S4", "m5", "S_k", "l4"), latex=r"$m_k = (m_4 S_4 + m_5 l_4)/S_k$"),
+    Output("omega_p", "ω_p", "rad s-1", "first-approximation stability boundary",
+           latex=r"$\omega_p = \sqrt{(\omega_\xi^2 + \omega_\eta^2)/2}$"),
     Output("stable_first_approx", "stable (1st approx.)", "1",
-           "1 if omega_lo < Omega < omega_p or Omega > omega_hi (source's rule, corrected)", kind="verdict"),
-    Output("P_approx", "P(Ω)", "m N-1", "Re(H_xi + H_eta), receptance sum of the damped platform"),
-    Output("stable_damped_approx", "P(Ω) < 0", "1", "1 if P(Omega) < 0 (first approximation with damping)",
-           needs=("P_approx",), kind="verdict"),
+           "1 if stable by the source's first-approximation rule (corrected): ω_lo < Ω < ω_p or Ω > ω_hi",
+           kind="verdict", latex=r"$\omega_\mathrm{lo} < \Omega < \omega_p \;\vee\; \Omega > \omega_\mathrm{hi}$"),
+    Output("P_approx", "P(Ω)", "m N-1", "receptance sum of the damped platform",
+           latex=r"$P(\Omega) = \mathrm{Re}(H_\xi + H_\eta)$"),
+    Output("stable_damped_approx", "P(Ω) < 0", "1", "1 if P(Ω) < 0 (first approximation with damping)",
+           needs=("P_approx",), kind="verdict", latex=r"$P(\Omega) < 0$"),
     Output("floquet_max", "max |ρ|", "1", "largest Floquet multiplier modulus of the balanced state",
-           integrated=True),
-    Output("stable_floquet", "stable (Floquet)", "1", "1 if floquet_max < 1", integrated=True,
-           needs=("floquet_max",), kind="verdict"),
+           integrated=True, latex=r"$\max|\rho|$"),
+    Output("stable_floquet", "stable (Floquet)", "1", "1 if the largest Floquet multiplier modulus is below 1",
+           integrated=True, needs=("floquet_max",), kind="verdict", latex=r"$\max|\rho| < 1$"),
     Output("stable_sim", "stable (simulation)", "1",
            "1 if the perturbed balanced state settles, 0 if it departs (direct simulation)", integrated=True,
-           kind="verdict"),
+           kind="verdict", latex=r"$\mathrm{stable}_\mathrm{sim}$"),
     Output("residual_amplitude", "r_res", "m",
-           "max platform displacement sqrt(xi^2 + eta^2) over the last 10 % of the simulation", integrated=True),
-    Output("phase_error", "δγ", "rad", "final pendulum phase error max_i |gamma_i - Omega t - Theta_i|",
-           integrated=True),
-    Output("settling_time", "t_s", "s", "time after which the phase error stays below settle_threshold",
-           integrated=True),
-    Output("xi_history", "ξ(t)", "m", "platform displacement xi over the simulation", integrated=True,
-           extra_dims=(REVOLUTION,)),
-    Output("eta_history", "η(t)", "m", "platform displacement eta over the simulation", integrated=True,
-           extra_dims=(REVOLUTION,)),
+           "residual platform displacement, largest over the last 10 % of the simulation", integrated=True,
+           latex=r"$r_\mathrm{res} = \max\sqrt{\xi^2 + \eta^2}$"),
+    Output("phase_error", "δγ", "rad", "final pendulum phase error", integrated=True,
+           latex=r"$\delta\gamma = \max_i|\gamma_i - \Omega t - \Theta_i|$"),
+    Output("settling_time", "t_s", "s", "time after which the phase error stays below the settling threshold",
+           integrated=True, latex="$t_s$"),
+    Output("xi_history", "ξ(t)", "m", "platform displacement ξ over the simulation", integrated=True,
+           extra_dims=(REVOLUTION,), latex=r"$\xi(t)$"),
+    Output("eta_history", "η(t)", "m", "platform displacement η over the simulation", integrated=True,
+           extra_dims=(REVOLUTION,), latex=r"$\eta(t)$"),
     Output("phase_error1_history", "δγ₁(t)", "rad", "phase error of pendulum 1 over the simulation",
-           integrated=True, extra_dims=(REVOLUTION,)),
+           integrated=True, extra_dims=(REVOLUTION,), latex=r"$\delta\gamma_1(t)$"),
     Output("phase_error2_history", "δγ₂(t)", "rad", "phase error of pendulum 2 over the simulation",
-           integrated=True, extra_dims=(REVOLUTION,)),
+           integrated=True, extra_dims=(REVOLUTION,), latex=r"$\delta\gamma_2(t)$"),
 )
 
-STATUSES = (st.INFEASIBLE, st.SINGULAR, st.NOT_BALANCEABLE, st.UNDECIDED, st.NOT_REPRODUCIBLE,
+STATUSES = (st.INFEASIBLE, st.SINGULAR, st.NOT_BALANCEABLE, st.UNDECIDED, st.NOT_REPRODUCIBLE, st.OUT_OF_RANGE,
             *st.INTEGRATION_FAILURES)
 STATUS_NOTES = {
-    st.INFEASIBLE: "I_B < m a^2, M <= 2 m, l3 >= l4, A1 != 0 without l3 and l4, or a platform parameter "
-                   "pair not given (all outputs NaN)",
-    st.SINGULAR: "an undamped resonance of the platform (c_j = M Omega^2, b_j = 0): P_approx is NaN, "
-                 "Floquet is still computed",
+    st.INFEASIBLE: "I_B < m a^2, M <= 2 m, M I_B within 16 ulps of 2 m^2 a^2 or below (a singular mass matrix), "
+                   "l3 >= l4, A1 != 0 without l3 and l4, or a platform parameter pair not given (all outputs NaN)",
+    st.SINGULAR: "an undamped resonance of the platform (c_j = M Omega^2 to 16 ulps of its terms, b_j Omega "
+                 "within the same): P_approx and stable_damped_approx are NaN, Floquet is still computed",
+    st.ILL_CONDITIONED: "the mass matrix is so close to singular (M I_B near 2 m^2 a^2) that the accelerations' "
+                        "round-off exceeds rtol: the integrated outputs are NaN, the closed forms are kept",
+    st.OUT_OF_RANGE: "inputs of such magnitudes that a quantity every output needs (2 m a, the platform's "
+                     "omega, c, b) over- or underflows (all outputs NaN), or one a closed form needs (omega_p's "
+                     "sum of squares, P_approx's squares, m_k's products: that output NaN), or a scaled group "
+                     "of the equations of motion (M / m, c_xi / (m Omega^2), ...) is beyond 2^300 (the "
+                     "integrated outputs NaN)",
     st.NOT_BALANCEABLE: "no isolated balanced state (A0 > 2 m a, A0 = 0, A0 = 2 m a, A1 != 0): balanced-state "
                         "outputs are NaN, residuals are kept",
     st.NO_EVENT: "the pendulums did not settle within the simulation (settling_time)",
@@ -607,22 +673,103 @@ def _eta(p):
 
 
 def classify(p):
-    """INFEASIBLE outside the physical domain: I_B < m a^2 (relative slack IB_SLACK), M <= 2 m (the
-    mass matrix needs M I_B > 2 m^2 a^2), a platform pair not given, l3 >= l4, A1 != 0 without l3, l4."""
+    """INFEASIBLE outside the physical domain: I_B < m a^2 (relative slack IB_SLACK), M <= 2 m, or
+    M I_B within RESONANCE_RTOL of 2 m^2 a^2 or below (the mass matrix is then singular or indefinite
+    where the pendulums are aligned or opposite), a platform pair not given, l3 >= l4, A1 != 0
+    without l3, l4."""
     M, m, a, IB, A1, l3, l4 = p[I_M], p[I_m], p[I_a], p[I_IB], p[I_A1], p[I_l3], p[I_l4]
     wx, cx, bx = _xi(p)
     wy, cy, by = _eta(p)
     lengths = not math.isnan(l3) and not math.isnan(l4)
-    ok = IB >= m * a * a * (1.0 - IB_SLACK) and M > 2.0 * m
-    ok = ok and math.isfinite(wx) and math.isfinite(wy) and math.isfinite(bx) and math.isfinite(by)
+    ok = _inertia_at_least(IB, m, a) and M > 2.0 * m
+    ok = ok and not _mass_gap(M, m, a, IB) <= RESONANCE_RTOL  # NaN (inputs beyond the range): in_range says
+    # each pair given (by the inputs: an overflow of the derived values is a range problem, in_range)
+    for i, j in ((I_omega_xi, I_c_xi), (I_omega_eta, I_c_eta), (I_zeta_xi, I_b_xi), (I_zeta_eta, I_b_eta)):
+        ok = ok and not (math.isnan(p[i]) and math.isnan(p[j]))
     ok = ok and (not lengths or l3 < l4) and (A1 == 0.0 or lengths)
-    return st.OK if ok else st.INFEASIBLE
+    if not ok:
+        return st.INFEASIBLE
+    return st.OK if in_range(p) else st.OUT_OF_RANGE
+
+
+GROUP_RANGE = 2.0 ** 300  # scaled groups of the equations of motion: finite and at most this
+
+
+@jit
+def _inertia_at_least(IB, m, a):
+    """I_B >= m a^2 (1 - IB_SLACK), also where m a^2 over- or underflows (compared on the mantissas)."""
+    mma = m * a * a
+    if normal(mma):
+        return IB >= mma * (1.0 - IB_SLACK)
+    fm, em = math.frexp(m)
+    fa, ea = math.frexp(a)
+    fI, eI = math.frexp(IB)
+    return math.ldexp(fI, eI - em - 2 * ea) >= fm * fa * fa * (1.0 - IB_SLACK)
+
+
+@jit
+def in_range(p):
+    """The quantities every output is formed from are normal numbers (or an exact 0 from a zero input):
+    2 m a and A0 / (2 m a) (theta, the balanced state), the platform's omega, c, b (either
+    parametrisation); else the point is OUT_OF_RANGE. The closed forms' own quantities are checked by
+    their classify (first_approx_in_range, receptance_in_range, m_k_in_range), the integrated outputs'
+    scaled groups by prepare."""
+    m, a, A0 = p[I_m], p[I_a], p[I_A0]
+    wx, cx, bx = _xi(p)
+    wy, cy, by = _eta(p)
+    two_ma = 2.0 * m * a
+    return (normal(two_ma) and full_precision(A0 / two_ma) and normal(wx) and normal(cx) and full_precision(bx)
+            and normal(wy) and normal(cy) and full_precision(by))
+
+
+def first_approx_in_range(p):
+    """omega_xi^2 + omega_eta^2 is a normal number (omega_p, stable_first_approx): else OUT_OF_RANGE
+    (at omega_xi = omega_eta = 1e-200 the plain sum underflows and omega_p would be 0)."""
+    wx = _xi(p)[0]
+    wy = _eta(p)[0]
+    return st.OK if normal(wx * wx + wy * wy) else st.OUT_OF_RANGE
+
+
+@jit
+def receptance_in_range(p):
+    """The receptance's squares d^2, (b Omega)^2 of each axis (d = c - M Omega^2) are normal, or lost
+    below 2^-62 of the other term of their sum (at c_xi = 1e160, d^2 overflows and P_approx would be 0);
+    an exact d = 0 is left to the resonance test."""
+    Om, M = p[I_Omega], p[I_M]
+    _, cx, bx = _xi(p)
+    _, cy, by = _eta(p)
+    MO2 = M * Om ** 2
+    ok = True
+    for d, b in ((cx - MO2, bx), (cy - MO2, by)):
+        d2 = d * d
+        bO2 = (b * Om) ** 2
+        ok = (ok and d2 <= DBL_MAX and bO2 <= DBL_MAX and (d == 0.0 or normal(d2) or bO2 >= 2.0 ** -960)
+              and (b == 0.0 or normal(bO2) or d2 >= 2.0 ** -960))
+    return ok
+
+
+def m_k_in_range(p):
+    """m_k's products and quotient are normal numbers or an exact 0 from a zero input."""
+    ok = (product_in_range(p[I_m4], p[I_S4]) and product_in_range(p[I_m5], p[I_l4])
+          and quotient_in_range(p[I_m4] * p[I_S4] + p[I_m5] * p[I_l4], p[I_S_k]))
+    return st.OK if ok else st.OUT_OF_RANGE
+
+
+@jit
+def _mass_gap(M, m, a, IB):
+    """1 - 2 m^2 a^2 / (M I_B): how far the mass matrix of eq. (1)-(3) is from singular (its smallest
+    eigenvalue is M - 2 m^2 a^2 / I_B, reached with the pendulums aligned or opposite)."""
+    return 1.0 - 2.0 * ((m * a) / M) * ((m * a) / IB)  # as ratios: no overflow of (m a)^2 or M I_B
 
 
 def prepare(p, rtol):
     """The scaled parameters of the equations of motion (module docstring) into p[OFF:OFF + NP],
-    with the reference angles Theta_1,2: eq. (8) when A0 <= 2 m a, else pi for both."""
+    with the reference angles Theta_1,2: eq. (8) when A0 <= 2 m a, else pi for both.
+    ILL_CONDITIONED (no integration; the closed forms are kept) where the mass matrix is so close to
+    singular that the accelerations' round-off, MASS_ERROR u / gap, exceeds rtol."""
     Om, M, m, a, IB, A0, h = p[I_Omega], p[I_M], p[I_m], p[I_a], p[I_IB], p[I_A0], p[I_h]
+    if not MASS_ERROR * UNIT_ROUNDOFF <= rtol * _mass_gap(M, m, a, IB):
+        return st.ILL_CONDITIONED
     _, cx, bx = _xi(p)
     _, cy, by = _eta(p)
     A1, l3, l4 = p[I_A1], p[I_l3], p[I_l4]
@@ -643,6 +790,9 @@ def prepare(p, rtol):
     q[IP_EH] = h / (m * a * a * Om)
     q[IP_TH1] = th1
     q[IP_TH2] = th2
+    for j in range(NP):  # the right-hand side multiplies up to three groups: keep them below 2^300
+        if not abs(q[j]) <= GROUP_RANGE:  # NaN-safe; a tiny group only scales a negligible term
+            return st.OUT_OF_RANGE
     return 0
 
 
@@ -671,44 +821,114 @@ def omega_p(p):
     return math.sqrt(0.5 * (wx * wx + wy * wy))
 
 
+@jit_inline
+def _on_boundary(Om, w):
+    """Omega within rounding of the frequency w (RESONANCE_RTOL on squares, half of it on frequencies)."""
+    return abs(Om - w) <= 0.5 * RESONANCE_RTOL * max(abs(Om), abs(w))
+
+
 def stable_first_approx(p):
     """The source's rule, corrected [fix]: omega_lo < Omega < omega_p or Omega > omega_hi (the two
-    frequencies sorted: the source assumes omega_xi < omega_eta)."""
+    frequencies sorted: the source assumes omega_xi < omega_eta). Strict: 0 on a boundary, and an
+    Omega within rounding of a boundary (_on_boundary) is on it, so no rounding decides the verdict."""
     wx = _xi(p)[0]
     wy = _eta(p)[0]
     Om = p[I_Omega]
     lo, hi = min(wx, wy), max(wx, wy)
     wp = math.sqrt(0.5 * (wx * wx + wy * wy))
+    if _on_boundary(Om, lo) or _on_boundary(Om, wp) or _on_boundary(Om, hi):
+        return 0.0
     return 1.0 if (lo < Om and Om < wp) or Om > hi else 0.0
+
+
+@jit_inline
+def _two_product(a, b):
+    """(p, e) with p + e = a b exactly (Dekker's product; |a|, |b| below about 1e300)."""
+    p = a * b
+    t = 134217729.0 * a  # 2^27 + 1: Veltkamp's split into 26-bit halves
+    ah = t - (t - a)
+    al = a - ah
+    t = 134217729.0 * b
+    bh = t - (t - b)
+    bl = b - bh
+    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
+
+
+@jit
+def _detuning(om, c, M, Om):
+    """(d, scale) of one platform axis: d = c_j - M Omega^2 (c_j the given stiffness, or M omega_j^2
+    when omega_j is given and c is NaN), scale = max(c_j, M Omega^2). Within NEAR_RESONANCE of a
+    resonance d is recomputed from exact products (the subtraction of the leading parts is then
+    exact), so it is right to a few ulps of d itself; elsewhere the plain formula."""
+    cc = M * om * om if math.isnan(c) else c
+    k = M * Om ** 2
+    d = cc - k
+    scale = max(abs(cc), abs(k))
+    if abs(d) <= NEAR_RESONANCE * scale:
+        s, se = _two_product(Om, Om)
+        k_hi, k_lo = _two_product(M, s)
+        k_lo = k_lo + M * se
+        if math.isnan(c):
+            s, se = _two_product(om, om)
+            c_hi, c_lo = _two_product(M, s)
+            c_lo = c_lo + M * se
+        else:
+            c_hi, c_lo = c, 0.0
+        exact = (c_hi - k_hi) + (c_lo - k_lo)
+        if math.isfinite(exact):
+            d = exact
+    return d, scale
+
+
+@jit
+def _receptance_term(om, c, b, zeta, M, Om):
+    """(Re H_j, a bound on its error, singular) of one platform axis, H_j = 1 / (c_j - M Omega^2 +
+    i b_j Omega). A detuning within RESONANCE_RTOL of the terms is a resonance (d = 0: Re H_j = 0);
+    singular where the damping term b_j Omega is within that tolerance too. The bound: the change of
+    Re H_j when d moves by the tolerance, |dRe H / dd| <= 1 / |D|^2, plus 8 ulps of |H_j| (the
+    formula's and b_j's rounding)."""
+    b = _axis(om, c, b, zeta, M)[2]
+    d, scale = _detuning(om, c, M, Om)
+    tol = RESONANCE_RTOL * scale
+    beta = b * Om
+    if abs(d) <= tol:
+        d = 0.0
+        if beta <= tol:
+            return math.nan, math.nan, True
+    den = d * d + beta ** 2
+    h = d / den
+    return h, tol / den + 8.0 * EPS / math.sqrt(den), not math.isfinite(h)
 
 
 @jit
 def _receptance(p):
-    """P(Omega) = Re(H_xi + H_eta), H_j = 1 / (c_j - M Omega^2 + i b_j Omega) (m/N); infinite at an
-    undamped resonance (the engine's numba options: IEEE division)."""
+    """(P, error bound, singular): P(Omega) = Re(H_xi + H_eta), H_j = 1 / (c_j - M Omega^2 + i b_j
+    Omega) (m/N); singular at an undamped resonance (_receptance_term)."""
     Om, M = p[I_Omega], p[I_M]
-    _, cx, bx = _xi(p)
-    _, cy, by = _eta(p)
+    hx, ex, sx = _receptance_term(p[I_omega_xi], p[I_c_xi], p[I_b_xi], p[I_zeta_xi], M, Om)
+    hy, ey, sy = _receptance_term(p[I_omega_eta], p[I_c_eta], p[I_b_eta], p[I_zeta_eta], M, Om)
     total = 0.0
-    d = cx - M * Om ** 2
-    total = total + d / (d * d + (bx * Om) ** 2)
-    d = cy - M * Om ** 2
-    total = total + d / (d * d + (by * Om) ** 2)
-    return total
+    total = total + hx
+    total = total + hy
+    return total, ex + ey + EPS * abs(total), sx or sy or not math.isfinite(total)
 
 
 def P_approx(p):
-    return _receptance(p)
+    return _receptance(p)[0]
 
 
 def P_classify(p):
-    return st.OK if math.isfinite(_receptance(p)) else st.SINGULAR
+    if not receptance_in_range(p):
+        return st.OUT_OF_RANGE
+    return st.SINGULAR if _receptance(p)[2] else st.OK
 
 
 def stable_damped_approx(p, P):
+    """1 if P < 0 beyond its error bound (_receptance), else 0: strict, like stable_first_approx, so
+    a P within rounding of 0 (Omega on a boundary of the damped rule) is 0 whatever its sign."""
     if math.isnan(P):
         return math.nan
-    return 1.0 if P < 0.0 else 0.0
+    return 1.0 if P < -_receptance(p)[1] else 0.0
 
 
 # --- dynamics (the scaled equations of motion above; tau = Omega t, lengths in units of a)
@@ -792,13 +1012,14 @@ _OUT = {o.name: o for o in OUTPUTS}
 
 def _meta(output, **rename):
     o = _OUT[output]
-    return dict(symbol=o.symbol, unit=o.unit, long_name=o.long_name, **rename)
+    return dict(symbol=o.symbol, unit=o.unit, long_name=o.long_name, latex=o.latex, **rename)
 
 
 def _closed(name, func, needs=(), classify=None):
     o = _OUT[name]
     return ClosedForm(name, func, needs=needs, classify=classify, symbol=o.symbol, unit=o.unit,
-                      long_name=o.long_name, output_needs=o.needs, needs_params=o.needs_params, kind=o.kind)
+                      long_name=o.long_name, output_needs=o.needs, needs_params=o.needs_params, kind=o.kind,
+                      latex=o.latex)
 
 
 H = "horizon_revolutions"
@@ -823,7 +1044,9 @@ MODEL = OdeModel(
         # initial: that orbit's start (the work-precision reference integrates it with the state)
         Floquet("floquet_max", initial=balanced, variational=variational, variational_jac=variational_jac,
                 stable_name="stable_floquet", classify=isolated,
-                output_meta={"floquet_max": _meta("floquet_max"), "floquet_max_stable": _meta("stable_floquet")}),
+                output_meta={"floquet_max": _meta("floquet_max"), "floquet_max_stable": _meta("stable_floquet"),
+                             "floquet_max_kind": {"latex": r"$\mathrm{kind}(\rho_\mathrm{crit})$"},
+                             "floquet_max_angle": {"latex": r"$\arg\rho_\mathrm{crit}$"}}),
         # direct simulation from the perturbed balanced state: the decision rule of stable_sim
         # (module docstring) on the phase error and the platform amplitude
         Kick("stable_sim", phase_error, platform_amplitude, horizon=H, settle_threshold="settle_threshold",
@@ -840,10 +1063,10 @@ MODEL = OdeModel(
                output_meta={"residual_amplitude": _meta("residual_amplitude"),
                             "residual_amplitude_h1": dict(
                                 symbol="r₁", unit="m", long_name="first-harmonic (crank frequency) amplitude of the "
-                                "platform displacement sqrt(xi^2 + eta^2) over the last 10 % of the simulation"),
+                                "platform displacement √(ξ² + η²) over the last 10 % of the simulation", latex="$r_1$"),
                             "residual_amplitude_phase": dict(
                                 symbol="φ₁", unit="rad", long_name="phase lag of that first harmonic: "
-                                "sqrt(xi^2 + eta^2) ~ r1 cos(Omega t - phase) + other harmonics")}),
+                                "√(ξ² + η²) ≈ r₁ cos(Ω t − φ₁) + other harmonics", latex=r"$\varphi_1$")}),
         _history("xi_history", xi, value=to_metres),
         _history("eta_history", eta, value=to_metres),
         _history("phase_error1_history", phase_error1),
@@ -852,9 +1075,9 @@ MODEL = OdeModel(
     closed_forms=(
         _closed("theta", theta, classify=has_balance),
         _closed("balanceable", balanceable),
-        _closed("m_k", m_k),
-        _closed("omega_p", omega_p),
-        _closed("stable_first_approx", stable_first_approx),
+        _closed("m_k", m_k, classify=m_k_in_range),
+        _closed("omega_p", omega_p, classify=first_approx_in_range),
+        _closed("stable_first_approx", stable_first_approx, classify=first_approx_in_range),
         _closed("P_approx", P_approx, classify=P_classify),
         _closed("stable_damped_approx", stable_damped_approx, needs=("P_approx",)),
     ),
