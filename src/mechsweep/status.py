@@ -93,6 +93,7 @@ def cf_attrs(notes=()) -> dict:
     (``ModelSpec.status_notes``), kept as the attribute ``status_notes`` (JSON, by meaning)."""
     codes = sorted(MEANINGS)
     attrs = {
+        "standard_name": "status_flag",  # CF: the status of the variables naming it in ancillary_variables
         "long_name": "status of the grid point",
         "flag_values": np.array(codes, dtype=DTYPE),
         "flag_meanings": " ".join(MEANINGS[c] for c in codes),

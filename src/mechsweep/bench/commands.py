@@ -113,8 +113,34 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
                    help="with --only warmstart: alternate with the sources in SRC (another checkout's src folder)")
     b.set_defaults(func=run_startup)
     b = bsub.add_parser("quickstart", help="time the quickstart (run + plot) in fresh processes, cold and warm JIT cache")
-    b.add_argument("--scene", default="sweeps/quickstart.toml")
+    b.add_argument("--scene", default="sweeps/quickstart.toml", help="the quickstart scene (default sweeps/quickstart.toml)")
     b.set_defaults(func=run_quickstart)
+    for name, sub in bsub.choices.items():  # every bench's --help: what it measures, then an example
+        sub.formatter_class = fmt
+        if not sub.description:
+            sub.description = _sentence(next(a.help for a in bsub._choices_actions if a.dest == name))
+        sub.epilog = "example:\n  " + EXAMPLES[name]
+
+
+# one example command per bench (small enough to finish in a minute or two)
+EXAMPLES = {
+    "duffing": "mechsweep bench duffing --points 20000 --repeats 1",
+    "autobalancer": "mechsweep bench autobalancer --sim-points 64",
+    "linkage": "mechsweep bench linkage --designs 20000 --numpy-designs 2000",
+    "user-model": "mechsweep bench user-model --points 20000",
+    "period-error": "mechsweep bench period-error",
+    "workprecision": "mechsweep bench workprecision duffing --points 16 --out /tmp/bench",
+    "boundaries": "mechsweep bench boundaries --values 20",
+    "cluster": "mechsweep bench cluster --points 100000 --workers 2",
+    "memory": "mechsweep bench memory --quick",
+    "startup": "mechsweep bench startup --only warm",
+    "quickstart": "mechsweep bench quickstart",
+}
+
+
+def _sentence(text: str) -> str:
+    """A subcommand's one-line help as the first sentence of its description."""
+    return text[:1].upper() + text[1:] + ("" if text.endswith(".") else ".")
 
 
 def run_duffing(args) -> int:

@@ -51,7 +51,7 @@ from .. import status as st
 from ..grid import ParameterMatrix
 from ..models import MODELS
 from ..scene import Scene, Solver, load_scene
-from . import scenes
+from .. import examples
 
 LADDER = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13)
 ATOL_RATIO = 1e-2  # atol = 1e-2 rtol: the scaled states are O(1)
@@ -104,14 +104,14 @@ def resolve_model(model):
 def declared_scene(declared) -> tuple[Path, str]:
     """(the scene file a WorkPrecision / SizeWorkPrecision names, the label the report gives it):
     relative to the folder of the file that declares it; a ``sweeps/NAME.toml`` not found there is
-    mechsweep's packaged copy of its shipped ``sweeps/NAME.toml`` (bench/scenes), labelled so."""
+    the shipped ``sweeps/NAME.toml`` (mechsweep.examples: installed with the package), labelled so."""
     prefix = "sweeps/"
     path = Path(declared.scene)
     if not path.is_absolute():
         path = Path(declared.base or Path.cwd()) / path
     name = declared.scene[len(prefix):]
-    if not path.is_file() and declared.scene.startswith(prefix) and "/" not in name and name in scenes.names():
-        return scenes.path(name), declared.scene
+    if not path.is_file() and declared.scene.startswith(prefix) and "/" not in name and Path(name) in examples.files():
+        return examples.path(name), declared.scene
     if not path.is_file():
         from ..errors import InputError
         raise InputError(f"the model's work-precision declaration names scene {declared.scene!r}, which is not a file: "

@@ -54,8 +54,9 @@ PARAMS = (
     Param("r", "r", "m", "crank radius O A", lo=0.0, lo_open=True, latex="$r$"),
     Param("l", "l", "m", "connecting-rod length A B", lo=0.0, lo_open=True,
           required=False, default=math.nan, latex="$l$"),
-    Param("lambda", "λ", "1", "crank-to-rod ratio", lo=0.0, lo_open=True,
-          required=False, default=math.nan, latex=r"$\lambda = r/l$"),
+    # lam, not lambda (a Python keyword: no ds.sel(lambda=...)); scenes and calls may still say lambda
+    Param("lam", "λ", "1", "crank-to-rod ratio", lo=0.0, lo_open=True,
+          required=False, default=math.nan, latex=r"$\lambda = r/l$", aliases=("lambda",)),
     Param("e", "e", "m", "offset of the slider line from the crank axis (slider on y = e)", required=False,
           default=0.0, latex="$e$"),
     Param("branch", "σ", "1", "assembly branch: slider on the +x (right) or −x (left) side of the crank pin",
@@ -230,11 +231,11 @@ def slider_design(p, want, row, crv, slot, buf, cos_phi, sin_phi):
 
 
 def check(given):
-    """Exactly one of l and lambda."""
-    if "l" in given and "lambda" in given:
-        return ["fixed.lambda: give the rod length l or lambda = r / l, not both"]
-    if "l" not in given and "lambda" not in given:
-        return ["fixed.l: missing; give the rod length l or lambda = r / l"]
+    """Exactly one of l and lam."""
+    if "l" in given and "lam" in given:
+        return ["fixed.lam: give the rod length l or lambda = r / l (the parameter lam), not both"]
+    if "l" not in given and "lam" not in given:
+        return ["fixed.l: missing; give the rod length l or lambda = r / l (the parameter lam)"]
     return []
 
 
