@@ -4,7 +4,7 @@ import pytest
 
 import mechsweep
 from mechsweep import models, status as st
-from mechsweep.models._spec import ExtraDim, ModelSpec, Output, Param, Setting
+from mechsweep.model.spec import ExtraDim, ModelSpec, Output, Param, Setting
 from mechsweep.scene import SceneError, load_scene
 
 

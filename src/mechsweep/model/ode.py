@@ -11,7 +11,7 @@ import numpy as np
 
 from .. import status as st
 from ..errors import InputError
-from ..models._spec import ModelSpec, Param, Setting
+from .spec import ModelSpec, Param, Setting
 from .measure import FLOQUET_MARGIN, ClosedForm, Floquet, _number, declared_at
 
 SYMPLECTIC_ORDERS = (2, 4, 6, 8)

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from . import autobalancer, duffing, fourbar_balancing, slidercrank_balancing, torsional_circuit
-from ._spec import ModelSpec, Output, Param
+from ..model.spec import ModelSpec, Output, Param
 
 MODELS: dict[str, ModelSpec] = {
     duffing.SPEC.name: duffing.SPEC,

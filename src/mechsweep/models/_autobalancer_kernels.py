@@ -22,7 +22,7 @@ import numpy as np
 from .. import status as st
 from .._jit import call_with_literal, compile_time_switch, jit, jit_noalloc, literally, pjit, prange
 from ..ode import AUTO, DOP853, METHOD_CODES, RADAU, dop853, dop853_lanes, radau
-from ._spec import ModelSpec
+from ..model.spec import ModelSpec
 from .autobalancer import (  # noqa: F401 (re-exported: the reference's names)
     IB_SLACK, IP_ALPHA0, IP_ALPHA1, IP_DX, IP_DY, IP_EH, IP_IOTA, IP_KX, IP_KY, IP_LAM, IP_MU, IP_TH1, IP_TH2, NP,
     OUTPUTS, PAIRS, PARAM_NAMES, PARAMS, REVOLUTION, SETTINGS, STATUS_NOTES, STATUS_ORDER, STATUSES, TWO_PI,

@@ -177,7 +177,7 @@ from ..model.measure import ClosedForm, Floquet, History, Kick, Recheck, Steady 
 from ..model.ode import OdeModel
 from ..model.workprecision import WorkPrecision
 from ..special import SINCOS_MAX, ieee_sqrt, sincos, sincos_reduced
-from ._spec import ExtraDim, Output, Param, Setting
+from ..model.spec import ExtraDim, Output, Param, Setting
 
 TWO_PI = 2.0 * math.pi
 

@@ -25,7 +25,7 @@ from ..model.measure import ClosedForm, FirstEvent
 from ..model.ode import Invariant, OdeModel
 from ..model.workprecision import WorkPrecision
 from ..special import ellipk
-from ._spec import Param, Setting
+from ..model.spec import Param, Setting
 
 # Integration horizon of the period event, in linearised periods 2 pi / w (w^2 = omega^2 + |mu| A^2):
 # near the soft separatrix T grows like log(1 / distance), so 100 is reached only ~e^-200 from it.

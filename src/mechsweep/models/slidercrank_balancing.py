@@ -41,7 +41,7 @@ from ._linkage import (  # the per-design function's helpers and layout constant
     Q_TRANS, Q_TRMS, SB_FX, SB_FX0, SB_FXTB, SB_FY, SB_FY0, SB_FYTB, SB_M, SB_T, S_BRANCH, S_DELTA, S_E,
     S_FLOAD, S_G, S_K, S_OMEGA, S_R, S_RCW, branch_sign, cycle_stats, max_force, slider_assembly,
     slider_conrod_length, slider_counterweight, slider_kinematics_cycle, slider_links, slider_loads_cycle)
-from ._spec import Output, Param
+from ..model.spec import Output, Param
 from .fourbar_balancing import PHI_DIM, positions
 
 _ANGLE = dict(lo=-2.0 * math.pi, hi=2.0 * math.pi)

@@ -29,7 +29,7 @@ from ..model.measure import ClosedForm, FirstEvent, System
 from ..model.ode import OdeModel
 from ..model.workprecision import WorkPrecision
 from . import duffing
-from ._spec import Param
+from ..model.spec import Param
 
 SINGULAR_D0 = 1e-12  # (L(0)/R)^2 below this: spring of zero length at rest, formulas singular
 
