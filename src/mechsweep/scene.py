@@ -20,7 +20,8 @@ from typing import Any, Mapping
 import numpy as np
 
 from .errors import InputError
-from .models import MODELS, ModelSpec
+from .model.spec import ModelSpec
+from .models import MODELS
 
 SECTIONS = ("scene", "axes", "fixed", "solver", "storage", "execution", "boundaries")
 MAX_POINTS = 2**40  # beyond this a flat int64 index and any disk are hopeless

@@ -31,6 +31,8 @@ import numpy as np
 
 from .. import _jit
 from ..errors import InputError
+from ..models import MODELS
+from .spec import ModelSpec
 
 _FILES: dict[str, str] = {}  # module name -> path of a user model file loaded by path
 _JITTED: dict[tuple, object] = {}
@@ -225,7 +227,6 @@ def entry_points(quiet: bool = False) -> dict:
 def from_object(name: str, obj):
     """The ModelSpec of a model given from Python (``run(scene, models={name: obj})``): an OdeModel
     or a ClosedFormModel (checked as a model file's is) or a ModelSpec (used as is)."""
-    from ..models import MODELS, ModelSpec
     from .closed import ClosedFormModel
     from .ode import OdeModel
 
