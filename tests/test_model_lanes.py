@@ -12,7 +12,7 @@ import pytest
 
 from mechsweep import status as st
 from mechsweep.model import compile as mc
-from mechsweep.model import lanes, load
+from mechsweep.model import lanes, user
 from mechsweep.models import MODELS
 from mechsweep.scene import Solver
 
@@ -102,7 +102,7 @@ def test_lanes_chunk_shapes_and_skipped_points(monkeypatch):
 @pytest.mark.slow  # four kernels of their own: about 1-2 min cold on the shared 2-core machine
 def test_user_models_lanes_bitwise(monkeypatch):
     P = np.array([[1.0, a, c, f] for a in (0.1, 1.0, 2.5, 3.1, -0.5, 0.0) for c in (0.0, 0.3) for f in (0.0, 0.7)])
-    forced = load.resolve(f"{USER / 'lanes_models.py'}:FORCED")  # a lone first Crossing, math calls, t
+    forced = user.resolve(f"{USER / 'lanes_models.py'}:FORCED")  # a lone first Crossing, math calls, t
     out, new = _same(forced, P, ("t_cross",), monkeypatch, method="dop853", rtol=1e-9, atol=1e-11)
     assert new, "the lane kernel was not used"
     assert {st.OK, st.NO_EVENT} <= set(out["status"].tolist())
@@ -111,7 +111,7 @@ def test_user_models_lanes_bitwise(monkeypatch):
     assert lanes.applies(mod.FORCED, mod.FORCED.measurements[1:], "dop853") is not None
     assert lanes.applies(mod.FORCED, mod.FORCED.measurements[1:], "radau") is None
     assert lanes.applies(mod.FORCED, mod.FORCED.measurements, "dop853") is None  # two measurements
-    layer = load.resolve(f"{USER / 'layer_methods.py'}:LINEAR")  # classify, prepare, settings, closed forms
+    layer = user.resolve(f"{USER / 'layer_methods.py'}:LINEAR")  # classify, prepare, settings, closed forms
     P2 = np.array([[w, a] for w in (0.5, 1.0, 4.0, 6.0) for a in (-1.0, 0.0, 0.3, 2.0)])
     _, new = _same(layer, P2, ("period", "period_exact", "period_error"), monkeypatch, method="dop853",
                    rtol=1e-10, atol=1e-12, horizon=3.0)

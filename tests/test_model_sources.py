@@ -104,11 +104,11 @@ def project(tmp_path, monkeypatch):
     before = set(sys.modules)
     sources._forget()
     path = (tmp_path / "scenes" / "models" / "osc.py").resolve()
-    module = load.import_module(load._module_name(path), str(path))
+    module = load.import_module(load.module_name(path), str(path))
     yield tmp_path, module
     for name in set(sys.modules) - before:
         del sys.modules[name]
-        load._FILES.pop(name, None)
+        sources.FILES.pop(name, None)
     sources._forget()
 
 

@@ -804,7 +804,7 @@ def _laid_out(path):
 
 def _cmd_models(args) -> int:
     from .errors import InputError
-    from .model import load
+    from .model import user
     from .models import MODELS
 
     if args.scene and args.model:
@@ -818,14 +818,14 @@ def _cmd_models(args) -> int:
         if name in MODELS:
             specs = [MODELS[name]]
         elif ":" in name:
-            specs = [load.resolve(name)]
+            specs = [user.resolve(name)]
         elif name.endswith(".py") or "/" in name or "\\" in name:  # a model file without :NAME
             found = _models_in_file(name)
             print(f"{name} defines {len(found)} model(s): {', '.join(found)}; a scene names one as "
                   f"{name}:NAME (e.g. model = \"{name}:{found[0]}\")\n")
-            specs = [load.resolve(f"{name}:{n}") for n in found]
+            specs = [user.resolve(f"{name}:{n}") for n in found]
         else:
-            points = load.entry_points()
+            points = user.entry_points()
             if name not in points:
                 known = list(MODELS) + sorted(set(points) - set(MODELS))
                 raise InputError(f"unknown model {name!r}; models: {', '.join(known)} (or 'file.py:NAME', "
@@ -837,7 +837,7 @@ def _cmd_models(args) -> int:
         print(glossary(), end="")
         return 0
     else:
-        points = load.entry_points()
+        points = user.entry_points()
         specs = list(MODELS.values()) + [_entry_point_model(n, ep) for n, ep in points.items() if n not in MODELS]
     for spec in specs:
         print(model_markdown(spec) if args.markdown else model_text(spec))
@@ -850,13 +850,13 @@ def _models_in_file(name: str) -> list[str]:
     from pathlib import Path
 
     from .errors import InputError
-    from .model import load
+    from .model import load, user
     from .model.closed import ClosedFormModel
     from .model.ode import OdeModel
 
     path = Path(name).resolve()
-    load.check_model_file(name, path)  # a regular .py file; its import's failures and exits are InputErrors
-    mod = load.import_model(name, load._module_name(path), str(path), str(path))
+    user.check_model_file(name, path)  # a regular .py file; its import's failures and exits are InputErrors
+    mod = user.import_model(name, load.module_name(path), str(path), str(path))
     found = [k for k, v in vars(mod).items() if isinstance(v, (OdeModel, ClosedFormModel))]
     if not found:
         raise InputError(f"{name!r}: {path} defines no mechsweep.model.OdeModel or ClosedFormModel")
@@ -865,13 +865,13 @@ def _models_in_file(name: str) -> list[str]:
 
 def _entry_point_model(name: str, ep):
     from .errors import InputError
-    from .model import load
+    from .model import user
 
     dist = getattr(getattr(ep, "dist", None), "name", None)
     try:
-        return load.resolve(ep.value)
+        return user.resolve(ep.value)
     except InputError as exc:
-        raise InputError(f"entry point {name!r} (group {load.ENTRY_POINT_GROUP}"
+        raise InputError(f"entry point {name!r} (group {user.ENTRY_POINT_GROUP}"
                          f"{', package ' + dist if dist else ''}): {exc}") from None
 
 

@@ -357,7 +357,7 @@ def _memory_bytes(scene: Scene) -> int:
 
 def _from_python(scene: Scene, models: Mapping) -> bool:
     """Whether the scene's model is one of ``models`` (given from Python, not importable elsewhere)."""
-    from .model.load import from_object
+    from .model.user import from_object
 
     for name, obj in models.items():
         try:

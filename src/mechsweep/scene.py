@@ -738,42 +738,42 @@ def _table(data: Mapping, key: str, p: _Problems, required: bool = False) -> Map
 
 
 def _model(name, p: _Problems, base: Path | str | None = None, models: Mapping | None = None) -> ModelSpec | None:
-    from .model import load
+    from .model import user
 
     if name is None:
         p.add("scene.model", f"missing; expected one of {', '.join(MODELS)}")
         return None
     if models and isinstance(name, str) and name in models:  # given from Python: run(scene, models={...})
         try:
-            return load.from_object(name, models[name])
+            return user.from_object(name, models[name])
         except InputError as exc:
             p.add("scene.model", str(exc))
             return None
     if isinstance(name, str) and ":" in name:  # a user model: "file.py:NAME" or "package.module:NAME"
-        where = str(Path(base or Path.cwd()) / name.rpartition(":")[0]) if load.is_file_ref(name) else name
+        where = str(Path(base or Path.cwd()) / name.rpartition(":")[0]) if user.is_file_ref(name) else name
         if (why := unstorable(where)) is not None:  # a run stores where the model came from with its dataset
             p.add("scene.model", f"the model's path {_short(where)} {why}; a dataset stores where its model came "
                   "from as UTF-8 text: move the model file (and the scene) to a path whose name is UTF-8 text")
             return None
         try:
-            return load.resolve(name, Path(base) if base else None)
+            return user.resolve(name, Path(base) if base else None)
         except InputError as exc:
             p.add("scene.model", str(exc))
             return None
     if isinstance(name, str) and name not in MODELS:
         try:
-            points = load.entry_points()
+            points = user.entry_points()
         except InputError as exc:
             p.add("scene.model", str(exc))
             return None
         if name in points:  # registered by an installed package (entry-point group mechsweep.models)
             try:
-                return load.resolve(points[name].value)
+                return user.resolve(points[name].value)
             except InputError as exc:
-                p.add("scene.model", f"entry point {name!r} ({load.ENTRY_POINT_GROUP}): {exc}")
+                p.add("scene.model", f"entry point {name!r} ({user.ENTRY_POINT_GROUP}): {exc}")
                 return None
     if not isinstance(name, str) or name not in MODELS:
-        known = tuple(MODELS) + tuple(sorted(set(load.entry_points(quiet=True)) - set(MODELS)))
+        known = tuple(MODELS) + tuple(sorted(set(user.entry_points(quiet=True)) - set(MODELS)))
         known += tuple(sorted(set(models or ()) - set(known)))
         p.unknown("scene.model", name, known, "model")
         return None
@@ -782,7 +782,7 @@ def _model(name, p: _Problems, base: Path | str | None = None, models: Mapping |
 
 def _model_source_key(name, spec: ModelSpec, base, models) -> str:
     """sha256 of the source file a user model is declared in: the model file ("file.py:NAME",
-    resolved as load.resolve does), the module ("package.module:NAME", an entry point's target) or,
+    resolved as user.resolve does), the module ("package.module:NAME", an entry point's target) or,
     for a model given from Python, the module its rhs (an OdeModel) or evaluate (a ModelSpec) is
     defined in; followed by the declaration (parameters, outputs, settings, methods; and the
     ``source`` of a ModelSpec given from Python, whose evaluate may live in mechsweep itself).
@@ -790,7 +790,7 @@ def _model_source_key(name, spec: ModelSpec, base, models) -> str:
     "" for a built-in model."""
     import hashlib
 
-    from .model import load
+    from .model import sources, user
 
     if not isinstance(name, str) or (name in MODELS and MODELS[name] is spec and not (models and name in models)):
         return ""
@@ -801,16 +801,16 @@ def _model_source_key(name, spec: ModelSpec, base, models) -> str:
         module = getattr(getattr(func, "py_func", func), "__module__", "") or ""
     elif ":" in name:
         left = name.rpartition(":")[0]
-        if load.is_file_ref(name):
+        if user.is_file_ref(name):
             path = Path(left)
             file = str((path if path.is_absolute() else Path(base or Path.cwd()) / path).resolve())
         else:
             module = left
     else:
-        ep = load.entry_points(quiet=True).get(name)
+        ep = user.entry_points(quiet=True).get(name)
         module = ep.value.rpartition(":")[0] if ep is not None else ""
     if module:
-        file = load._FILES.get(module) or getattr(sys.modules.get(module), "__file__", "") or ""
+        file = sources.FILES.get(module) or getattr(sys.modules.get(module), "__file__", "") or ""
     try:
         data = Path(file).read_bytes() if file else b""
     except OSError:
@@ -823,9 +823,9 @@ def _model_source_key(name, spec: ModelSpec, base, models) -> str:
 
 def _model_folder(name, base) -> str:
     """The absolute folder a file-path model reference is relative to ("" for other models)."""
-    from .model import load
+    from .model import user
 
-    if isinstance(name, str) and load.is_file_ref(name):
+    if isinstance(name, str) and user.is_file_ref(name):
         return str(Path(base).resolve() if base else Path.cwd())
     return ""
 

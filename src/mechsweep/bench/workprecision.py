@@ -86,16 +86,16 @@ def resolve_model(model):
     """The ModelSpec of a model reference: a built-in name, "file.py:NAME" (relative to the current
     folder), "package.module:NAME" or an entry-point name; an InputError naming what is allowed."""
     from ..errors import InputError
-    from ..model import load
+    from ..model import user
 
     if isinstance(model, str) and model in MODELS:
         return MODELS[model]
     if isinstance(model, str) and ":" in model:
-        return load.resolve(model)
+        return user.resolve(model)
     if isinstance(model, str):
-        points = load.entry_points(quiet=True)
+        points = user.entry_points(quiet=True)
         if model in points:
-            return load.resolve(points[model].value)
+            return user.resolve(points[model].value)
     raise InputError(f"no work-precision case for model {model!r}; cases: {', '.join(all_cases())}, or a model "
                      "declared as a mechsweep.model.OdeModel or ClosedFormModel ('file.py:NAME', "
                      "'package.module:NAME' or an entry-point name)")
