@@ -113,7 +113,7 @@ def main(model: str, scene_path: str | None = None, points: int = 64, positions=
 
     from ..errors import InputError
     from ..model.closed import ClosedFormModel
-    from .workprecision import declared_scene, resolve_model, sample
+    from .cases import declared_scene, resolve_model, sample
 
     from . import _args
 
