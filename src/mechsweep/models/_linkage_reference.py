@@ -17,12 +17,13 @@ at N crank positions (the independent implementations).
   reported), the counterweight axis from the 2x2 normal equations with those integrals, maxima
   by Brent's method as above.
 
-(Moved here from bench/workprecision_linkage.py and bench/linkage.py, unchanged, so that the bench
-keeps no model-specific code; the models import this module, it imports them only inside functions.)
+The models import this module; it imports none of them (it uses the shared helpers of
+models/_linkage.py).
 """
 from __future__ import annotations
 
 import math
+import operator
 
 import numpy as np
 
@@ -42,6 +43,13 @@ FOURBAR_REFERENCE = (f"continuous crank angle: composite Gauss-Legendre ({GL_PAN
 SLIDER_REFERENCE = ("closed form: harmonic series of the slider position (RMS by Parseval), maxima by Brent's method "
                     f"from a {SEARCH_POSITIONS}-position grid")
 NUMPY = f"vectorised numpy on [designs, N] arrays, blocks of {NUMPY_BLOCK} designs, same outputs"
+
+
+def _positions(n_positions: int):
+    """(cos phi, sin phi, position sums) of n uniform crank positions, as the models compute them
+    (_linkage.crank_positions, position_sums)."""
+    _, c, s = L.crank_positions(operator.index(n_positions))
+    return c, s, L.position_sums(c, s)
 
 
 # ============================================================================= continuous-angle maxima
@@ -150,9 +158,7 @@ def numpy_slider(P: np.ndarray, n_positions: int, block: int = NUMPY_BLOCK) -> d
     """F_max, Fx_rms and F_tb_error_rel of slider-crank rows P at n_positions uniform crank
     positions: the kernel's closed forms (exact kinematics, textbook counterweight, loads) on
     [designs, N] numpy arrays, no status checks (feasible designs only)."""
-    from . import fourbar_balancing as fb
-
-    cos_phi, sin_phi, _ = fb.positions(n_positions)
+    cos_phi, sin_phi, _ = _positions(n_positions)
     c1, s1 = cos_phi[None, :], sin_phi[None, :]
     n = P.shape[0]
     res = {k: np.empty(n) for k in ("F_max", "Fx_rms", "F_tb_error_rel")}
@@ -285,11 +291,9 @@ def numpy_residuals(P: np.ndarray, block: int = 64, n_positions: int = L.N_POSIT
     for name in ("delta", "g"):
         if np.any(P[:, L.FOURBAR_PARAMS.index(name)] != 0.0):
             raise ValueError(f"the numpy four-bar residuals assume {name} = 0 (constant speed, no gravity)")
-    from . import fourbar_balancing as fb
-
     n = P.shape[0]
     res = {k: np.empty(n) for k in OUTPUTS}
-    cos_phi, sin_phi, sums = fb.positions(n_positions)
+    cos_phi, sin_phi, sums = _positions(n_positions)
     SUM_CC, SUM_SS, SUM_SC = sums
     c1 = cos_phi[None, :]
     s1 = sin_phi[None, :]
