@@ -17,6 +17,10 @@ def test_user_duffing_periods_match_the_closed_form_and_the_built_in(capsys):
     assert np.isclose(r["ratio"], r["user model_points_per_s"] / r["built-in_points_per_s"])
     out = capsys.readouterr().out
     assert "user model / built-in" in out and user_duffing.REFERENCE in out
+    # where each model's error is largest (docs/your-own-model.md reads it): a point of the grid, in rtol units
+    omega, mu, a = r["user, unscaled_max_rel_error_at"]
+    assert omega == 1.0 and 0.01 <= a <= 1.0 and 1e-3 <= mu <= 1e3
+    assert f"{r['user, unscaled_max_rel_error'] / 1e-10:.2f} rtol, at A = {a:.3g}" in out
 
 
 def test_bench_user_model_refuses_bad_options(capsys):

@@ -166,7 +166,7 @@ CORPUS = {
     "chunk_size_float.toml": ["storage.chunk_size: 100.5 is not allowed"],
     "chunk_size_huge.toml": ["storage.chunk_size: 4294967296 is not allowed", "[1, 2147483648]"],
     "storage_not_table.toml": ["storage: expected a table [storage], got str"],
-    "execution_unknown_key.toml": ["execution.workers", "unknown execution key 'workers'", "(allowed: scheduler, worker_timeout)"],
+    "execution_unknown_key.toml": ["execution.workers", "unknown execution key 'workers'", "(allowed: scheduler, worker_timeout, lanes)"],
     "execution_scheduler_number.toml": ["execution.scheduler: 8786 is not allowed", "tcp://"],
     "execution_scheduler_spaces.toml": ["execution.scheduler", "is not an address", "tcp://"],
     "execution_scheduler_empty.toml": ["execution.scheduler", "is not allowed", "tcp://"],

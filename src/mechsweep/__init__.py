@@ -4,6 +4,7 @@ Public API::
 
     ds = mechsweep.run("sweeps/quickstart.toml")        # or a dict with the same structure
     ds = mechsweep.run("sweeps/quickstart.toml", output=None)   # in memory, nothing written
+    summary = mechsweep.compute("sweeps/quickstart.toml")       # to its file, without opening it
     ds = mechsweep.open_dataset("data/runs/quickstart.h5")
     scene = mechsweep.load_scene("sweeps/quickstart.toml")
 
@@ -28,7 +29,9 @@ _EXPORTS = {
     "ClusterLost": "errors",
     "RunInterrupted": "errors",
     "MODELS": "models",
+    "RunSummary": "runner",
     "run": "runner",
+    "compute": "runner",
     "Scene": "scene",
     "load_scene": "scene",
     "open_dataset": "store",

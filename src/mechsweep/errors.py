@@ -126,12 +126,15 @@ class OutOfSpace(RunError):
 
 class ClusterLost(RunError):
     """A distributed run lost its dask scheduler, or all its workers for longer than the worker
-    timeout; the chunks already saved stay in the journal."""
+    timeout (exit code 2); the chunks already saved stay in the journal, and ``resume=True``
+    (``--resume``), on the cluster or locally, completes the run."""
 
 
 class RunInterrupted(RunError):
-    """The run stopped (Ctrl-C, SIGTERM) after saving every finished chunk; resume with --resume.
-    ``signum`` is the signal that stopped it (SIGINT for Ctrl-C)."""
+    """The run stopped (Ctrl-C, SIGTERM) after saving every finished chunk (exit code 130).
+
+    Resume it with ``mechsweep.run(..., resume=True)`` (``--resume``). ``signum`` is the signal that
+    stopped it (SIGINT for Ctrl-C)."""
 
     def __init__(self, message: str, signum: int = _signal.SIGINT):
         super().__init__(message)

@@ -48,7 +48,23 @@ REPAIR_ROUNDS = 3
 
 @dataclass(frozen=True)
 class RunSummary:
-    """What a finished run wrote, known without opening its dataset."""
+    """What a finished run wrote, known without opening its dataset (:func:`compute` returns it).
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The dataset written.
+    sizes : dict
+        Dimension -> size: the grid's axes, then the outputs' extra dimensions.
+    status : dict
+        Status code -> number of points, counted chunk by chunk (:meth:`status_names` by name).
+    wall_time_s : float
+        ``compile_time_s + compute_time_s``.
+    compile_time_s : float
+        JIT compilation (or loading the JIT cache) before the chunks.
+    compute_time_s : float
+        The chunks: kernels and the writes of the journal.
+    """
 
     path: Path
     sizes: dict  # dimension -> size: the grid's axes, then the outputs' extra dimensions
@@ -86,39 +102,84 @@ def run(
     overwrite: bool = False,
     models: Mapping | None = None,
 ) -> xr.Dataset:
-    """Compute a scene's grid and return the stored dataset.
+    """Compute a scene's grid and return its dataset.
 
-    ``output`` overrides ``[storage] path`` (by default the dataset goes there; its folder is
-    created when missing). ``output=None`` is the in-memory route: the grid is computed here and
-    returned as an in-memory Dataset, and nothing is written (no file, journal or lock; for
-    exploratory use: the values are bitwise those the file route stores; ``resume``, ``restart``,
-    ``overwrite``, ``load`` and a scheduler do not apply to it and are refused).
-    With ``resume`` an unfinished run of the same scene (``<path>.partial``) is completed,
-    computing only its missing chunks; ``restart`` discards such a run. ``threads`` sets numba's
-    thread count (default: all cores; on a dask cluster: per worker, at most its cores).
-    ``progress`` shows a progress bar (default: only on a terminal). ``scheduler`` (or the scene's
-    ``[execution] scheduler``) runs the chunks on that dask.distributed cluster instead of here.
-    ``load``: the returned dataset is in memory (True), opened lazily (False), or loaded when it
-    is at most store.LOAD_LIMIT_BYTES (None, default).
-    ``worker_timeout`` (or ``[execution] worker_timeout``): on a cluster, seconds to wait for a lost
-    scheduler or with no worker before the run stops with its journal kept.
+    Every grid point is computed by the model's compiled kernels, on all cores (or on a dask
+    cluster), and stored chunk by chunk as it finishes, so an interrupted run can be resumed.
 
-    The dataset's attributes ``compile_time_s`` (compiling the kernels, or loading them from the
-    JIT cache, before the first chunk; 0 when this process compiled them already; on a dask
-    cluster the workers compile inside their first chunk, counted as compute), ``compute_time_s``
-    (the chunks) and ``wall_time_s`` (their sum) say how long the run took.
+    Parameters
+    ----------
+    scene_or_path : str, os.PathLike, Mapping or Scene
+        The scene: a TOML file's path, a dict with the same structure, or a :class:`Scene` from
+        :func:`load_scene`.
+    output : str, os.PathLike or None, optional
+        Where the dataset goes. Default: the scene's ``[storage] path`` (relative to the working
+        directory; its folder is created when missing). ``None``: the in-memory route, nothing
+        written (no file, journal or lock; the values are bitwise those the file route stores;
+        ``resume``, ``restart``, ``overwrite``, ``load`` and a scheduler do not apply to it and are
+        refused).
+    resume : bool, optional
+        Complete an unfinished run of the same scene (``<path>.partial``), computing only its
+        missing chunks.
+    restart : bool, optional
+        Discard an unfinished run of the scene and start over.
+    threads : int, optional
+        numba's thread count (default: all cores; on a dask cluster: per worker, at most its
+        cores).
+    progress : bool, optional
+        Show a progress bar (default: only when stderr is a terminal).
+    scheduler : str, optional
+        A dask.distributed scheduler's address (or the scene's ``[execution] scheduler``): run the
+        chunks on that cluster instead of here.
+    load : bool, optional
+        True: the returned dataset is in memory; False: opened lazily; None (default): loaded when
+        it is at most ``store.LOAD_LIMIT_BYTES``.
+    worker_timeout : float, optional
+        On a cluster (or ``[execution] worker_timeout``): seconds to wait for a lost scheduler or
+        with no worker before the run stops with its journal kept.
+    overwrite : bool, optional
+        Replace an existing ``output`` that holds another scene's dataset or a file mechsweep did
+        not write (by default only a re-run of the same scene replaces its dataset).
+    models : Mapping, optional
+        Model name -> :class:`~mechsweep.model.OdeModel` (or a ``ModelSpec``) defined in Python, for
+        a scene whose ``model`` is that name. Such a model lives only in this process: it runs
+        locally (a dask cluster is refused; name the model as ``"file.py:NAME"`` or
+        ``"package.module:NAME"`` in the scene for that).
 
-    A failed write (disk full, file-size limit) raises ``OutOfSpace`` with the journal kept;
-    SIGINT and SIGTERM raise ``RunInterrupted`` (when run in the main thread). ``compute`` does
-    the same without opening the result (for status counts and sizes only).
+    Returns
+    -------
+    xarray.Dataset
+        One dimension per axis, the requested outputs with their units and long names, ``status``
+        per point (and ``n_steps``, ``n_rhs`` for integrated outputs), the scene, solver settings
+        and provenance in the attributes. ``compile_time_s`` (compiling the kernels, or loading them
+        from the JIT cache, before the first chunk; 0 when this process compiled them already; on a
+        dask cluster the workers compile inside their first chunk, counted as compute),
+        ``compute_time_s`` (the chunks) and ``wall_time_s`` (their sum) say how long it took.
 
-    An existing ``output`` is replaced only by a run of the same scene (a re-run), unless
-    ``overwrite``: a dataset of another scene, or a file mechsweep did not write, is refused.
+    Raises
+    ------
+    SceneError
+        The scene is not valid (nothing is run or written).
+    StoreError
+        The output path cannot be written, or holds what the run may not replace.
+    OutOfSpace
+        A write failed (disk full, file-size limit): the journal is kept; resume with ``resume=True``.
+    RunInterrupted
+        SIGINT or SIGTERM (when run in the main thread): the finished chunks are kept.
+    ClusterLost
+        The dask scheduler was lost, or had no worker for ``worker_timeout`` seconds.
 
-    ``models``: model name -> ``mechsweep.model.OdeModel`` (or a ``ModelSpec``) defined in Python,
-    for a scene whose ``model`` is that name. Such a model lives only in this process: it runs
-    locally (a dask cluster is refused; name the model as "file.py:NAME" or "package.module:NAME"
-    in the scene for that).
+    See Also
+    --------
+    compute : the same without opening the result (status counts and sizes only).
+    open_dataset : read a stored dataset.
+
+    Examples
+    --------
+    >>> import mechsweep
+    >>> ds = mechsweep.run("sweeps/quickstart.toml", output=None)      # doctest: +SKIP
+    >>> float(ds.period.sel(A=1.0, mu=1.0, method="nearest"))          # doctest: +SKIP
+    4.768022029112...
     """
     if output is None:
         return _run_in_memory(scene_or_path, resume=resume, restart=restart, threads=threads, progress=progress,
@@ -149,9 +210,37 @@ def compute(
     overwrite: bool = False,
     models: Mapping | None = None,
 ) -> RunSummary:
-    """``run`` without opening the result: compute the scene into its file and return a
-    :class:`RunSummary` (path, sizes, status counts, wall time). Memory stays bounded by the
-    chunk, whatever the grid; the status counts are added up as the chunks are assembled."""
+    """Compute a scene into its file without opening the result.
+
+    The same as :func:`run` (same parameters, except ``load``; the output must be a file), for grids
+    too large to hold: memory stays bounded by the chunk, whatever the grid, and the status counts
+    are added up as the chunks are assembled.
+
+    Parameters
+    ----------
+    scene_or_path : str, os.PathLike, Mapping or Scene
+        The scene, as for :func:`run`.
+    output : str or os.PathLike, optional
+        The dataset's path (default: the scene's ``[storage] path``).
+    resume, restart, overwrite : bool, optional
+        As for :func:`run`.
+    threads : int, optional
+        numba's thread count (default: all cores).
+    progress : bool, optional
+        Show a progress bar (default: only when stderr is a terminal).
+    scheduler : str, optional
+        A dask.distributed scheduler's address, as for :func:`run`.
+    worker_timeout : float, optional
+        On a cluster: seconds to wait for a lost scheduler or with no worker.
+    models : Mapping, optional
+        Model name -> a model defined in Python, as for :func:`run`.
+
+    Returns
+    -------
+    RunSummary
+        The path written, the dimensions' sizes, the number of points of each status and the
+        run's times.
+    """
     return _compute_file(scene_or_path, output=output, resume=resume, restart=restart, threads=threads,
                          progress=progress, scheduler=scheduler, worker_timeout=worker_timeout, overwrite=overwrite,
                          models=models, hold=False)[0]
@@ -1131,7 +1220,7 @@ def evaluate_rows(scene: Scene, P: np.ndarray):
     n_rhs = np.zeros(n, dtype=np.int64)
     from .model.compile import planned_points  # the run's size, not the rows', chooses the kernel (lanes or not)
 
-    with np.errstate(all="ignore"), planned_points(scene.n_points):  # an overflow at an extreme point is its status
+    with np.errstate(all="ignore"), planned_points(scene.n_points, scene.execution.use_lanes()):  # an overflow at an extreme point is its status
         launching = getattr(_LAUNCH, "hook", None)
         if launching is not None:
             launching()
@@ -1166,9 +1255,9 @@ _WARM: set = set()
 
 def _kernel_key(scene: Scene) -> tuple:
     """What selects a scene's kernels: the model (and the source of a user's model), the outputs
-    computed and the method. A user model file edited in the process changes ``model_key``."""
+    computed, the method and the route (``[execution] lanes``). A user model file edited in the process changes ``model_key``."""
     return (scene.model.name, scene.model_key, scene.model.source, scene.computed_outputs,
-            scene.solver.method if scene.solver is not None else None)
+            scene.solver.method if scene.solver is not None else None, scene.execution.lanes)
 
 
 def _clock() -> float:

@@ -35,7 +35,10 @@ _DEEP_KEY = re.compile(r"(?<![A-Za-z0-9_-])(?:(?:[A-Za-z0-9_-]++|\"[^\"\n]*+\"|'
 
 
 class SceneError(InputError):
-    """An invalid scene. ``problems`` lists one message per bad key."""
+    """An invalid scene (the command line's exit code 2).
+
+    ``problems`` lists one message per bad key, each naming the key, the bad value and what is
+    allowed; ``source`` is the scene's file (or ``"scene"`` for a dict)."""
 
     def __init__(self, problems: list[str], source: str = "scene"):
         self.problems = list(problems)
@@ -192,6 +195,17 @@ class Execution:
     scheduler: str | None = None  # dask.distributed scheduler address; None = local threads
     # seconds a cluster run waits for a lost scheduler, or with no worker, before it stops
     worker_timeout: float = 120.0
+    # the kernels' route where SIMD lanes apply: "auto" (where they pay), "always" or "never";
+    # the results are bitwise the same either way, so it is not part of the scene's identity
+    lanes: str = "auto"
+
+    def use_lanes(self) -> bool | None:
+        """The route as the kernels take it: True (lanes), False (one point at a time) or None (auto)."""
+        return LANES_CHOICES[self.lanes]
+
+
+# [execution] lanes -> the kernels' route (model.compile.planned_points)
+LANES_CHOICES = {"auto": None, "always": True, "never": False}
 
 
 @dataclass(frozen=True)
@@ -230,6 +244,51 @@ BOUNDARY_RTOL = (1e-15, 1e-2)
 
 @dataclass(frozen=True)
 class Scene:
+    """A validated scene: what to sweep, how to compute it and where to store it (frozen).
+
+    Made by :func:`load_scene` from a TOML file or a dict, after every key and value was checked;
+    :func:`mechsweep.run` accepts it wherever it accepts a path or a dict. Its fields are the
+    scene's sections (docs/scenes.md lists every key).
+
+    Attributes
+    ----------
+    name : str
+        ``[scene] name``: the dataset's title and default file name.
+    model : ModelSpec
+        The model's declaration (built-in or a user's), with its parameters, outputs and kernels.
+    outputs : tuple of str
+        The outputs asked for; only these are stored (:attr:`computed_outputs` adds what they
+        depend on).
+    axes : tuple of Axis
+        The grid's axes in order: each becomes a dimension of the dataset.
+    fixed : Mapping[str, Any]
+        The parameters given one value.
+    solver : Solver or None
+        The ``[solver]`` settings; None when no requested output needs integration.
+    storage : Storage
+        ``[storage]``: the dataset's path (relative to the working directory) and chunk size.
+    text : str
+        The scene as written (TOML), stored with the dataset.
+    execution : Execution
+        ``[execution]``: a dask scheduler, its timeout, and the kernels' route (``lanes``).
+    base : str
+        The absolute folder a model file path (``"file.py:NAME"``) was resolved against ("" when
+        the model is not named by a file path).
+    model_key : str
+        sha256 of a user model's source ("" for a built-in model): part of the scene's identity.
+    boundaries : Boundaries or None
+        The ``[boundaries]`` section (docs/boundaries.md), or None.
+
+    Examples
+    --------
+    >>> import mechsweep
+    >>> scene = mechsweep.load_scene({"scene": {"name": "s", "model": "duffing", "outputs": ["period_exact"]},
+    ...                               "axes": {"A": {"start": 0.1, "stop": 1.0, "num": 10}},
+    ...                               "fixed": {"mu": 1.0, "omega": 1.0}})
+    >>> scene.shape, scene.n_points, scene.solver is None
+    ((10,), 10, True)
+    """
+
     name: str
     model: ModelSpec
     outputs: tuple[str, ...]
@@ -253,10 +312,12 @@ class Scene:
 
     @property
     def shape(self) -> tuple[int, ...]:
+        """The grid's shape: the number of values of each axis, in order."""
         return tuple(a.size for a in self.axes)
 
     @property
     def n_points(self) -> int:
+        """The number of grid points (1 for a scene without axes)."""
         return int(np.prod(self.shape, dtype=np.int64)) if self.axes else 1
 
     @property
@@ -317,8 +378,31 @@ class Scene:
 
 # ----------------------------------------------------------------------------- loading
 def load_scene(source: str | Path | Mapping, models: Mapping | None = None) -> Scene:
-    """Load and validate a scene from a TOML path or a dict with the same structure.
-    ``models``: model name -> OdeModel or ModelSpec given from Python, for a scene naming one."""
+    """Load and validate a scene from a TOML file or a dict with the same structure.
+
+    Every problem is collected and reported at once; nothing runs and nothing is written.
+
+    Parameters
+    ----------
+    source : str, pathlib.Path or Mapping
+        The scene file's path, or a dict with its sections (``{"scene": {...}, "axes": {...},
+        ...}``). A model file named in a file's ``[scene] model`` is relative to the file's folder;
+        in a dict, to the working directory.
+    models : Mapping, optional
+        Model name -> :class:`~mechsweep.model.OdeModel` (or a ``ModelSpec``) defined in Python,
+        for a scene whose ``model`` is that name.
+
+    Returns
+    -------
+    Scene
+        The validated, frozen scene.
+
+    Raises
+    ------
+    SceneError
+        The scene is not valid: its ``problems`` list one message per bad key, each naming the
+        key, the bad value and what is allowed.
+    """
     if isinstance(source, Mapping):
         source = _plain(source)
         if (why := _unstorable_in(source)) is not None:
@@ -1112,8 +1196,8 @@ def check_worker_timeout(value) -> str | None:
 
 def _execution(table: Mapping, p: _Problems) -> Execution:
     for k in table:
-        if k not in ("scheduler", "worker_timeout"):
-            p.unknown(f"execution.{k}", k, ("scheduler", "worker_timeout"), "execution key")
+        if k not in ("scheduler", "worker_timeout", "lanes"):
+            p.unknown(f"execution.{k}", k, ("scheduler", "worker_timeout", "lanes"), "execution key")
     scheduler = table.get("scheduler")
     if scheduler is not None and (why := check_scheduler(scheduler)) is not None:
         p.add("execution.scheduler", why)
@@ -1122,7 +1206,12 @@ def _execution(table: Mapping, p: _Problems) -> Execution:
     if (why := check_worker_timeout(timeout)) is not None:
         p.add("execution.worker_timeout", why)
         timeout = Execution.worker_timeout
-    return Execution(scheduler=scheduler, worker_timeout=float(timeout))
+    lanes = table.get("lanes", Execution.lanes)
+    if not isinstance(lanes, str) or lanes not in LANES_CHOICES:
+        p.add("execution.lanes", f"{_short(lanes)} is not allowed; expected one of "
+                                 f"{', '.join(repr(c) for c in LANES_CHOICES)}")
+        lanes = Execution.lanes
+    return Execution(scheduler=scheduler, worker_timeout=float(timeout), lanes=lanes)
 
 
 def _not_a_range(name, axes, model) -> str | None:

@@ -506,7 +506,7 @@ def _define(f: "NetCDFWriter | _MemoryFile", scene: Scene, lay: Layout, attrs: d
             for lo in range(0, axis.size, READ_BLOCK):
                 hi = min(axis.size, lo + READ_BLOCK)
                 v[lo:hi] = axis.array(lo, hi)
-        _describe(v, prm.unit, prm.long_name, prm.symbol)
+        _describe(v, prm.unit, prm.long_name, prm.symbol, prm.latex)
         v.attrs["spacing"] = axis.spacing
         if axis.spacing == "log":  # CF has no attribute for it: say it to a reader (docs: datasets)
             v.attrs["comment"] = cf.LOG_AXIS_COMMENT
@@ -518,7 +518,7 @@ def _define(f: "NetCDFWriter | _MemoryFile", scene: Scene, lay: Layout, attrs: d
         else:
             v = f.create_variable(name, (), dtype="f8")
             v[()] = value
-        _describe(v, prm.unit, prm.long_name, prm.symbol)
+        _describe(v, prm.unit, prm.long_name, prm.symbol, prm.latex)
     for dims in lay.extra.values():
         for dim, values in dims:
             if dim.name not in f.dimensions:
@@ -533,7 +533,7 @@ def _define(f: "NetCDFWriter | _MemoryFile", scene: Scene, lay: Layout, attrs: d
         extra = tuple(d.name for d, _ in lay.extra.get(name, ()))
         v = f.create_variable(name, lay.dims + extra, dtype="f8", fillvalue=np.nan,
                               chunks=_storage_chunks(lay.shape + tuple(len(x) for _, x in lay.extra.get(name, ()))))
-        _describe(v, out.unit, out.long_name, out.symbol)
+        _describe(v, out.unit, out.long_name, out.symbol, out.latex)
         if out.integrated:
             v.attrs["integrated"] = 1
         if out.kind:
@@ -706,12 +706,14 @@ def _storage_chunks(shape: tuple[int, ...]):
     return True if shape and all(n > 0 for n in shape) else None
 
 
-def _describe(var, unit: str, long_name: str, symbol: str) -> None:
+def _describe(var, unit: str, long_name: str, symbol: str, latex: str = "") -> None:
     if unit:  # a UDUNITS string; a measurement declared without one gets no units (CF: unknown), never ""
         var.attrs["units"] = unit
     var.attrs["long_name"] = long_name
     if symbol:
         var.attrs["symbol"] = symbol
+    if latex:  # the symbol in matplotlib mathtext: what figures label the variable with
+        var.attrs["latex"] = latex
 
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -719,16 +721,37 @@ RUN_ATTRS = ("scene_canonical", "model", "outputs")  # every dataset `mechsweep 
 
 
 def open_dataset(path: str | Path, *, allow_partial: bool = False, lazy: bool | None = False) -> xr.Dataset:
-    """Open a mechsweep dataset.
+    """Open a dataset mechsweep wrote (``mechsweep run``, :func:`mechsweep.run`).
 
-    ``lazy=False`` loads it into memory (the file is closed again); ``lazy=True`` reads values
-    only when they are used (as dask arrays, one per storage chunk, when dask is installed);
-    ``lazy=None`` loads datasets up to LOAD_LIMIT_BYTES and opens larger ones lazily.
-    ``allow_partial`` opens an unfinished run (its missing chunks NaN, status pending) when the
-    finished file does not exist yet; that view is always loaded.
+    Reading needs neither numba nor the models' kernels: it works wherever xarray and h5netcdf do.
+    ``xarray.open_dataset(path, engine="h5netcdf")`` reads the same file; this function also
+    checks that it is a mechsweep dataset and can open an unfinished run.
 
-    Anything that is not a dataset mechsweep wrote (a folder, a device, an empty, text or damaged
-    file, an HDF5 or netCDF file from elsewhere) raises StoreError saying what the file is not.
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The dataset's file.
+    allow_partial : bool, optional
+        Open an unfinished run (its missing chunks NaN, status ``pending``) when the finished file
+        does not exist yet; that view is always loaded.
+    lazy : bool or None, optional
+        False (default): load it into memory (the file is closed again). True: read values only
+        when they are used (as dask arrays, one per storage chunk, when dask is installed). None:
+        load datasets up to ``LOAD_LIMIT_BYTES`` and open larger ones lazily.
+
+    Returns
+    -------
+    xarray.Dataset
+        The grid's dimensions and coordinates, the outputs, ``status`` (and ``n_steps``,
+        ``n_rhs``), and the attributes the run wrote (the scene, solver settings, provenance).
+
+    Raises
+    ------
+    FileNotFoundError
+        No file at ``path`` (the message says when an unfinished run is there instead).
+    StoreError
+        The file is not a dataset mechsweep wrote (a folder, a device, an empty, text or damaged
+        file, an HDF5 or netCDF file from elsewhere): the message says what it is not.
     """
     if "\0" in str(path):
         raise StoreError(f"dataset path {str(path)!r} contains a NUL character")

@@ -1,7 +1,8 @@
 """The work-precision bench's cases: a model found by its reference (built-in name, model file,
 module or entry point), the built-in models that declare a report, the scene a declaration names,
-and the fixed sample of that scene's grid points every method is measured on. Shared by the
-integrated models' report (workprecision.py) and the closed-form models' (workprecision_linkage.py).
+the fixed sample of that scene's grid points every method is measured on, and the symbols the
+report's figure names them by. Shared by the integrated models' report (workprecision.py) and the
+closed-form models' (workprecision_linkage.py).
 """
 from __future__ import annotations
 
@@ -67,3 +68,11 @@ def sample(scene: Scene, points: int, seed: int = 0) -> np.ndarray:
     rng = np.random.default_rng(seed)
     idx = np.sort(rng.choice(scene.n_points, size=min(points, scene.n_points), replace=False))
     return np.vstack([pm(int(i), int(i) + 1) for i in idx])
+
+
+def latex_symbols(spec) -> str:
+    """{name: mathtext symbol} of the model's outputs and parameters that declare one, as JSON: the
+    work-precision figure names the outputs by their symbols (it reads the dataset, not the model)."""
+    import json
+
+    return json.dumps({q.name: q.latex for q in spec.params + spec.outputs if getattr(q, "latex", "")})

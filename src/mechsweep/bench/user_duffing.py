@@ -10,7 +10,9 @@ separatrix and the ill-conditioning test (irrelevant on this hard-spring grid). 
 whole grid in memory (best of 3, compiled first); both periods are compared with the elliptic closed
 form (matched accuracy: the same scaled equation at the same tolerances). ``DUFFING_UNSCALED``
 integrates phi'' = -omega^2 phi - mu phi^3 from phi = A in its own units (a ``Crossing``), for
-information: its tolerances mean something else (its error and steps are printed beside it).
+information: its tolerances mean something else (its error and steps are printed beside it, with
+the point where each model's error is largest: docs/your-own-model.md, "Accuracy of your own
+model", reads them).
 The target: the user model reaches at least 90 % of the built-in points/s (a model of one's own
 must not pay for going through the model layer).
 """
@@ -133,7 +135,9 @@ def main(points: int = 200_000, threads: int | None = None, rtol: float | None =
                 cols, status, n_steps, _ = evaluate_chunk(scene, Chunk(0, 0, scene.n_points, ()))
                 rows[label]["best_s"] = min(rows[label]["best_s"], time.perf_counter() - t0)
                 period = cols["period"] if "period" in cols else 4.0 * cols["t_quarter"]
-                rows[label].update(max_rel_error=float(np.nanmax(np.abs(period - exact) / exact)),
+                error = np.abs(period - exact) / exact
+                worst = int(np.nanargmax(error))
+                rows[label].update(max_rel_error=float(error[worst]), max_rel_error_at=tuple(map(float, P[worst])),
                                    mean_steps=float(n_steps.mean()), ok_fraction=float((status == st.OK).mean()))
     for row in rows.values():
         row["points_per_s"] = P.shape[0] / row.pop("best_s")
@@ -145,9 +149,12 @@ def main(points: int = 200_000, threads: int | None = None, rtol: float | None =
           f"equation) against the built-in, DOP853, rtol={rtol:g}, atol={atol:g}, {n_threads} threads, "
           f"{P.shape[0]} points")
     for label, row in rows.items():
+        omega, mu, a = row["max_rel_error_at"]
         print(f"  {label:14s}: {row['points_per_s']:>12,.0f} points/s, {row['mean_steps']:.1f} steps/point, "
-              f"max relative period error {row['max_rel_error']:.2e}, {row['ok_fraction'] * 100:.1f}% ok "
-              f"(first call, compile or cache load: {row['compile_or_cache_load_s']:.1f} s)")
+              f"max relative period error {row['max_rel_error']:.2e} ({row['max_rel_error'] / rtol:.2f} rtol, at "
+              f"A = {a:.3g}, mu = {mu:.3g}, epsilon = {mu * a * a / (omega * omega):.3g}), "
+              f"{row['ok_fraction'] * 100:.1f}% ok (first call, compile or cache load: "
+              f"{row['compile_or_cache_load_s']:.1f} s)")
     print(f"  user model / built-in: {ratio:.2f} (target: at least {TARGET:.2f}); "
           f"unscaled user model / built-in: {result['ratio_unscaled']:.2f} (for information)")
     return result

@@ -50,7 +50,7 @@ import numpy as np
 from .. import status as st
 from ..scene import Scene, Solver, load_scene
 from . import workprecision_linkage
-from .cases import all_cases, declared_scene, resolve_model, sample  # noqa: F401 (the bench's functions)
+from .cases import all_cases, declared_scene, latex_symbols, resolve_model, sample  # noqa: F401 (the bench's functions)
 
 LADDER = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13)
 ATOL_RATIO = 1e-2  # atol = 1e-2 rtol: the scaled states are O(1)
@@ -205,7 +205,8 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
                "reference": case.reference_name, "reference_time_s": ref_s, "points": P.shape[0],
                "scipy_points": k, "repeats": repeats, "skipped": "; ".join(skipped) or "none", "scene": case.scene,
                "compile_or_cache_load_s": ", ".join(f"{m} {s:.2f}" for m, s in compile_s.items()),
-               "threads": 1, "scipy_rhs": "the model's own rhs (its compiled function, wrapped; a measurement's "
+               "threads": 1, "latex_symbols": latex_symbols(spec),
+               "scipy_rhs": "the model's own rhs (its compiled function, wrapped; a measurement's "
                "System's where it integrates one); Radau/LSODA with the model's jac where it declares one, else "
                "scipy's finite-difference Jacobian"},
     )

@@ -113,7 +113,7 @@ def main(model: str, scene_path: str | None = None, points: int = 64, positions=
 
     from ..errors import InputError
     from ..model.closed import ClosedFormModel
-    from .cases import declared_scene, resolve_model, sample
+    from .cases import declared_scene, latex_symbols, resolve_model, sample
 
     from . import _args
 
@@ -209,7 +209,8 @@ def main(model: str, scene_path: str | None = None, points: int = 64, positions=
                "reference_error_estimate": float(max(estimates)), "reference_time_s": ref_s,
                "points": P.shape[0], "points_drawn": drawn, "seed": seed, "repeats": repeats,
                "scene": label, "compile_or_cache_load_s": first_call_s, "threads": 1,
-               "default_positions": declared.size, case.compare_label: case.compare_name},
+               "default_positions": declared.size, case.compare_label: case.compare_name,
+               "latex_symbols": latex_symbols(spec)},
     )
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -51,22 +51,49 @@ BLOCK = 64  # designs per scratch allocation (one prange iteration)
 
 @dataclass(frozen=True)
 class ClosedFormModel:
-    """A model whose outputs are closed forms of its parameters, computed per design by
-    ``compute(p, want, row, curves, slot, scratch, *data) -> status`` (module docstring).
+    """A model whose outputs are closed forms of its parameters (no integration), computed per
+    design by one function of yours; the engine owns the parallel loop, the scratch, the statuses
+    and the NaN fill (docs/your-own-model.md, section 11).
 
-    - ``params``: :class:`Param` declarations, in the order of ``p``.
-    - ``outputs``: :class:`Output` declarations: scalars (no ``extra_dims``) and curves over ONE
-      :class:`ExtraDim` shared by all curve outputs (``extra_dims=(dim,)``); ``row`` follows the
-      scalars' order, ``slot`` the curves'.
-    - ``size``: n, the length of the extra dimension (its ``values`` must have that length), of
-      the scratch rows and ``data(n)``'s argument. A model without curves may use it too
-      (e.g. sample points for maxima); default 1.
-    - ``data``: optional ``data(n) -> tuple of numpy arrays`` shared by every design (plain
-      Python, run once per n); passed to ``compute`` after ``scratch``.
-    - ``scratch``: rows of the per-thread scratch array (``scratch`` x n floats).
-    - ``check``: optional cross-parameter rule ``check(given) -> [problems]`` (as ModelSpec.check).
-    - ``workprecision``: optional :class:`~mechsweep.model.workprecision.SizeWorkPrecision`: the
-      error of outputs against ``size`` (``mechsweep bench workprecision MODEL``).
+    Parameters
+    ----------
+    name : str
+        The model's name (how a scene names it; the dataset's ``model`` attribute).
+    description : str
+        One line saying what the model is.
+    params : tuple of Param
+        The parameters, in the order of ``p``.
+    outputs : tuple of Output
+        Scalars (no ``extra_dims``) and curves over ONE :class:`ExtraDim` shared by all curve
+        outputs (``extra_dims=(dim,)``); ``row`` follows the scalars' order, ``slot`` the curves'.
+    compute : callable
+        ``compute(p, want, row, curves, slot, scratch, *data) -> status``: one design's outputs
+        (numba-compilable): writes the wanted scalars into ``row`` and curves into
+        ``curves[slot[k]]``; returns a status code.
+    size : int, optional
+        n, the length of the extra dimension (its ``values`` must have that length), of the
+        scratch rows and ``data(n)``'s argument. A model without curves may use it too (e.g.
+        sample points for maxima); default 1.
+    data : callable, optional
+        ``data(n) -> tuple of numpy arrays`` shared by every design (plain Python, run once per n);
+        passed to ``compute`` after ``scratch``.
+    scratch : int, optional
+        Rows of the per-thread scratch array (``scratch`` x n floats).
+    check : callable, optional
+        ``check(given) -> list of problems``: the cross-parameter rules (as for
+        :class:`OdeModel`).
+    source : str, optional
+        Where the formulas come from.
+    settings : tuple of Setting, optional
+        The model's own solver settings.
+    statuses : tuple of int, optional
+        Status codes its designs can get beyond those its outputs imply.
+    status_notes : Mapping, optional
+        Status code -> what that status means for this model.
+    references : tuple of str, optional
+        The documents the model implements (the dataset's ``references``).
+    workprecision : SizeWorkPrecision, optional
+        The error of outputs against ``size`` (``mechsweep bench workprecision MODEL``).
     """
 
     name: str

@@ -743,20 +743,29 @@ def _own_body(k: int, refs: dict, args: str) -> str:
 
 
 class planned_points:
-    """``with planned_points(n):`` the kernels fetched in this thread serve a run of ``n`` points (the
-    runner says so around each chunk: a chunk, or the warm-up's one point, is smaller than the run).
-    kernel_for's automatic route choice (USE_LANES None) compares it with LANES_FROM_POINTS."""
+    """``with planned_points(n, lanes):`` the kernels fetched in this thread serve a run of ``n`` points
+    (the runner says so around each chunk: a chunk, or the warm-up's one point, is smaller than the
+    run). kernel_for's automatic route choice (USE_LANES None) compares it with LANES_FROM_POINTS.
+    ``lanes``: the scene's ``[execution] lanes`` (True, False, or None for automatic), which decides
+    the route before USE_LANES does (here and in model/trajectory.py)."""
 
-    def __init__(self, n: int):
+    def __init__(self, n: int, lanes: bool | None = None):
         self.n = int(n)
+        self.lanes = lanes
 
     def __enter__(self):
-        self.before = getattr(_PLAN, "n", 0)
-        _PLAN.n = self.n
+        self.before = (getattr(_PLAN, "n", 0), getattr(_PLAN, "lanes", None))
+        _PLAN.n, _PLAN.lanes = self.n, self.lanes
         return self
 
     def __exit__(self, *exc):
-        _PLAN.n = self.before
+        _PLAN.n, _PLAN.lanes = self.before
+
+
+def planned_lanes() -> bool | None:
+    """The route this thread's run asks for (planned_points), else USE_LANES."""
+    chosen = getattr(_PLAN, "lanes", None)
+    return USE_LANES if chosen is None else chosen
 
 
 def _lanes_pay(name: str, source, points: int) -> bool:
@@ -799,12 +808,13 @@ def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str =
     ``shared=False``: every shared-path measurement integrates on its own (for comparison).
     ``lanes``: where model/lanes.py applies (a lone first event by dop853, an rhs it can rewrite), the
     kernel integrates LANES points side by side (bitwise the same results); False: one at a time;
-    None: as USE_LANES says (the benches and tests switch it to compare the two routes; its default
-    None takes the lanes where they pay, see _lanes_pay). ``points``: the points of this call; the run's
+    None: as the run's ``[execution] lanes`` says (planned_points), else as USE_LANES says (the benches
+    and tests switch it to compare the two routes; its default None takes the lanes where they pay,
+    see _lanes_pay). ``points``: the points of this call; the run's
     size (planned_points) counts when it is larger.
     A second call with the same objects returns the kernel without reading and hashing the model's
     source files again (every chunk of a run asks)."""
-    use_lanes = USE_LANES if lanes is None else lanes
+    use_lanes = planned_lanes() if lanes is None else lanes
     points = max(int(points), getattr(_PLAN, "n", 0))
     big = use_lanes is None and points >= LANES_FROM_POINTS
     memo = (id(model), tuple(map(id, chosen)), tuple(map(id, closed)), shared, method, use_lanes, big)

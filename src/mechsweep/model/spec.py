@@ -16,7 +16,47 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Param:
-    """A model parameter: a float in [lo, hi] (ends open or closed) or one of ``choices``."""
+    """A model parameter: a float in [lo, hi] (ends open or closed) or one of ``choices``.
+
+    A scene gives every required parameter once, as an axis or as a fixed value; a value outside
+    the range is refused before anything runs, with the key, the value and :meth:`allowed` named.
+
+    Parameters
+    ----------
+    name : str
+        The key in a scene's ``[axes]`` or ``[fixed]`` table and the dataset's coordinate name.
+    symbol : str
+        How the parameter is written in formulas (``"ω"``, ``"λ1"``), for labels and the glossary.
+    unit : str
+        UDUNITS-2 unit string, as CF datasets store it (``"rad s-1"``, ``"kg m2"``, ``"1"`` for a
+        dimensionless value); a label only: nothing converts values.
+    long_name : str
+        What the parameter is, in words (the dataset's ``long_name`` attribute).
+    lo, hi : float, optional
+        The physical range (default: unbounded).
+    lo_open, hi_open : bool, optional
+        Whether ``lo`` / ``hi`` themselves are excluded (default: included).
+    choices : tuple of str, optional
+        The names of a categorical parameter (the scene gives a name, the kernel receives its
+        index as a float: 0.0, 1.0, ...).
+    required : bool, optional
+        False: the scene may leave the parameter out, and ``default`` is used.
+    default : float or None, optional
+        The value of an optional parameter a scene does not give.
+    latex : str, optional
+        The symbol in matplotlib mathtext for figure labels (e.g. ``r"$\\omega_\\xi$"``; it may
+        define the symbol, as in ``r"$\\varepsilon = \\mu A^2/\\omega^2$"``). Without one, figures
+        write ``symbol`` as mathtext themselves.
+
+    Examples
+    --------
+    >>> from mechsweep.model import Param
+    >>> L = Param("L", "L", "m", "pendulum length", lo=0.0, lo_open=True)
+    >>> L.allowed()
+    'a finite number in (0, inf)'
+    >>> L.problem(-1.0)
+    '-1.0 m is outside the physical range; expected a finite number in (0, inf)'
+    """
 
     name: str
     symbol: str
@@ -29,6 +69,7 @@ class Param:
     choices: tuple[str, ...] = ()
     required: bool = True
     default: float | None = None  # value used internally when an optional parameter is absent
+    latex: str = ""  # the symbol in mathtext, for figures (stored as the variable's ``latex`` attribute)
 
     @property
     def categorical(self) -> bool:
@@ -67,7 +108,26 @@ class Param:
 
 @dataclass(frozen=True)
 class Setting:
-    """A model-specific numerical setting, given in the scene's [solver] table."""
+    """A model-specific numerical setting, given in the scene's ``[solver]`` table (e.g. a horizon).
+
+    Its value reaches the model's functions in ``p`` after the parameters (see
+    :class:`~mechsweep.model.OdeModel`) and is stored in the dataset's attributes.
+
+    Parameters
+    ----------
+    name : str
+        The key in ``[solver]``.
+    default : float
+        The value when the scene does not give one.
+    unit : str
+        UDUNITS-2 unit string.
+    long_name : str
+        What the setting is, in words.
+    lo, hi : float
+        The allowed range (both ends included).
+    integer : bool, optional
+        True: only whole numbers are allowed.
+    """
 
     name: str
     default: float
@@ -91,7 +151,17 @@ class Setting:
 class ExtraDim:
     """A dimension an output has beyond the grid's (e.g. time samples of a trajectory).
 
-    ``values(settings)`` gives its coordinate from the solver settings."""
+    Parameters
+    ----------
+    name : str
+        The dimension's name in the dataset.
+    unit : str
+        UDUNITS-2 unit string of its coordinate.
+    long_name : str
+        What the coordinate is, in words.
+    values : callable
+        ``values(settings) -> numpy.ndarray``: the coordinate, from the scene's solver settings.
+    """
 
     name: str
     unit: str
@@ -101,10 +171,36 @@ class ExtraDim:
 
 @dataclass(frozen=True)
 class Output:
-    """A model output. ``needs`` lists outputs it is derived from (computed, not stored,
-    unless requested); ``needs_params`` lists optional parameters it requires;
-    ``extra_dims`` the dimensions it has beyond the grid's; ``kind`` (one of OUTPUT_KINDS, or "")
-    tells generic figures what the value means."""
+    """A model output: one data variable of the dataset.
+
+    The measurements of :mod:`mechsweep.model` declare their outputs themselves; a
+    :class:`~mechsweep.model.ClosedFormModel` declares them with this class.
+
+    Parameters
+    ----------
+    name : str
+        The name a scene lists in ``outputs`` and the dataset's variable name.
+    symbol : str
+        How the output is written in formulas, for labels and the glossary.
+    unit : str
+        UDUNITS-2 unit string (``"1"`` for a dimensionless value).
+    long_name : str
+        What the output is, in words (the variable's ``long_name``).
+    integrated : bool, optional
+        True when computing it needs an integration (the scene's ``[solver]`` then applies).
+    needs : tuple of str, optional
+        Outputs it is derived from: computed, not stored, unless the scene asks for them too.
+    needs_params : tuple of str, optional
+        Optional parameters it requires: a scene asking for it must give them.
+    extra_dims : tuple of ExtraDim, optional
+        The dimensions it has beyond the grid's (e.g. crank positions, time samples).
+    kind : str, optional
+        What the value means, for the generic figures: one of ``OUTPUT_KINDS``
+        (``"floquet_max"``: a largest Floquet multiplier modulus, stable below 1; ``"verdict"``:
+        1 stable or feasible, 0 not) or ``""``.
+    latex : str, optional
+        The symbol in matplotlib mathtext for figure labels (see :class:`Param`).
+    """
 
     name: str
     symbol: str
@@ -115,6 +211,7 @@ class Output:
     needs_params: tuple[str, ...] = ()
     extra_dims: tuple[ExtraDim, ...] = ()
     kind: str = ""  # what the value is, for generic figures: OUTPUT_KINDS names the known ones
+    latex: str = ""  # the symbol in mathtext, for figures (as Param.latex)
 
     def __post_init__(self):
         if self.kind not in ("",) + OUTPUT_KINDS:  # a misspelt kind would silently draw the wrong figure
@@ -179,8 +276,8 @@ class ModelSpec:
 
     def possible_statuses(self) -> tuple[int, ...]:
         """The status codes a point of this model can get: OK, the declared ``statuses``, and those
-        its outputs imply (a declared list adds to them: a docs-only trial's ``statuses=(INFEASIBLE,)``
-        hid nonfinite and user_error, which the runner gives any model): NONFINITE (a value that is
+        its outputs imply (a declared list adds to them: ``statuses=(INFEASIBLE,)`` alone would
+        hide nonfinite and user_error, which the runner gives any model): NONFINITE (a value that is
         not finite) and USER_ERROR (the model's code raised, or returned a code that is no status); for integrated
         outputs the integrator's failures (MAX_STEPS, STEP_UNDERFLOW, NO_EVENT, and STIFF when it
         offers more than one method); for a "floquet_max" output INFEASIBLE (no admissible forcing

@@ -891,6 +891,11 @@ LANE_GROUP_MIN = 16
 
 
 def _lanes_pay(mod, points: int) -> bool:
+    from .compile import _PLAN
+
+    chosen = getattr(_PLAN, "lanes", None)  # the scene's [execution] lanes (compile.planned_points)
+    if chosen is not None:
+        return chosen
     if USE_LANES is not None:
         return USE_LANES
     if points >= LANES_FROM_POINTS:

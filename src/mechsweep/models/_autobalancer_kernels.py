@@ -645,7 +645,7 @@ def sim_values(wants, s, meas, hist, good, bal):
 # meaningful. Not re-integrated (recheck_needed): trajectories that settled within the first
 # SETTLED_FRACTION of the horizon, or whose state repeats from revolution to revolution through
 # the second half; they end on an attracting periodic motion, on which integration errors decay.
-# Measured (2026-11-23): checking every point flagged no point that this selection skips (1,860
+# Measured: checking every point flagged no point that this selection skips (1,860
 # points: random mechanisms at rtol 5e-11 and 1e-8, sweeps/autobalancer_residual.toml and
 # autobalancer_stability_chart.toml); 40-59 % of the points are integrated again, and the
 # simulated outputs cost 1.8x (one thread; the second run takes ~1.1-1.2x the first's steps).

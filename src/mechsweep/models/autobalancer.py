@@ -530,65 +530,77 @@ SETTINGS = (
 )
 
 PARAMS = (
-    Param("Omega", "Ω", "rad s-1", "crank angular speed", **_pos),
-    Param("M", "M", "kg", "total translating mass (platform, mechanism, both pendulums)", **_pos),
-    Param("m", "m", "kg", "mass of one pendulum", **_pos),
-    Param("a", "a", "m", "pendulum arm BC (crank axis to pendulum centre of mass)", **_pos),
-    Param("I_B", "I_B", "kg m2", "pendulum moment of inertia about the crank axis (>= m a^2)", **_pos),
-    Param("A0", "A0", "kg m", "rotating unbalance m3 S3 + (m4 + m5 + m_k) l3", lo=0.0),
-    Param("h", "h", "N m s rad-1", "pendulum damping relative to the crank", lo=0.0),
-    Param("omega_xi", "ω_ξ", "rad s-1", "platform natural frequency along xi, sqrt(c_xi / M)", **_pos, **_opt),
-    Param("omega_eta", "ω_η", "rad s-1", "platform natural frequency along eta, sqrt(c_eta / M)", **_pos, **_opt),
-    Param("zeta_xi", "ζ_ξ", "1", "platform damping ratio along xi, b_xi / (2 M omega_xi)", lo=0.0, **_opt),
-    Param("zeta_eta", "ζ_η", "1", "platform damping ratio along eta, b_eta / (2 M omega_eta)", lo=0.0, **_opt),
-    Param("c_xi", "c_ξ", "N m-1", "platform stiffness along xi", **_pos, **_opt),
-    Param("c_eta", "c_η", "N m-1", "platform stiffness along eta", **_pos, **_opt),
-    Param("b_xi", "b_ξ", "N s m-1", "platform damping coefficient along xi", lo=0.0, **_opt),
-    Param("b_eta", "b_η", "N s m-1", "platform damping coefficient along eta", lo=0.0, **_opt),
-    Param("A1", "A1", "kg m", "conrod mass moment m4 S4 + m5 l4 - m_k S_k (0: corrected)",
-          required=False, default=0.0),
-    Param("l3", "l3", "m", "crank length BD", **_pos, **_opt),
-    Param("l4", "l4", "m", "conrod length DE (> l3)", **_pos, **_opt),
-    Param("m4", "m4", "kg", "conrod mass", lo=0.0, **_opt),
-    Param("S4", "S4", "m", "conrod centre of mass from D", lo=0.0, **_opt),
-    Param("m5", "m5", "kg", "slider mass", lo=0.0, **_opt),
-    Param("S_k", "S_k", "m", "correcting mass position from D (away from E)", **_pos, **_opt),
+    Param("Omega", "Ω", "rad s-1", "crank angular speed", **_pos, latex=r"$\Omega$"),
+    Param("M", "M", "kg", "total translating mass (platform, mechanism, both pendulums)", **_pos, latex="$M$"),
+    Param("m", "m", "kg", "mass of one pendulum", **_pos, latex="$m$"),
+    Param("a", "a", "m", "pendulum arm BC (crank axis to pendulum centre of mass)", **_pos, latex="$a$"),
+    Param("I_B", "I_B", "kg m2", "pendulum moment of inertia about the crank axis (at least m a²)", **_pos,
+          latex="$I_B$"),
+    Param("A0", "A0", "kg m", "rotating unbalance of the crank mechanism", lo=0.0,
+          latex=r"$A_0 = m_3 S_3 + (m_4 + m_5 + m_k)\,l_3$"),
+    Param("h", "h", "N m s rad-1", "pendulum damping relative to the crank", lo=0.0, latex="$h$"),
+    Param("omega_xi", "ω_ξ", "rad s-1", "platform natural frequency along ξ", **_pos, **_opt,
+          latex=r"$\omega_\xi = \sqrt{c_\xi/M}$"),
+    Param("omega_eta", "ω_η", "rad s-1", "platform natural frequency along η", **_pos, **_opt,
+          latex=r"$\omega_\eta = \sqrt{c_\eta/M}$"),
+    Param("zeta_xi", "ζ_ξ", "1", "platform damping ratio along ξ", lo=0.0, **_opt,
+          latex=r"$\zeta_\xi = b_\xi/(2 M \omega_\xi)$"),
+    Param("zeta_eta", "ζ_η", "1", "platform damping ratio along η", lo=0.0, **_opt,
+          latex=r"$\zeta_\eta = b_\eta/(2 M \omega_\eta)$"),
+    Param("c_xi", "c_ξ", "N m-1", "platform stiffness along ξ", **_pos, **_opt, latex=r"$c_\xi$"),
+    Param("c_eta", "c_η", "N m-1", "platform stiffness along η", **_pos, **_opt, latex=r"$c_\eta$"),
+    Param("b_xi", "b_ξ", "N s m-1", "platform damping coefficient along ξ", lo=0.0, **_opt, latex=r"$b_\xi$"),
+    Param("b_eta", "b_η", "N s m-1", "platform damping coefficient along η", lo=0.0, **_opt, latex=r"$b_\eta$"),
+    Param("A1", "A1", "kg m", "conrod mass moment (0: corrected)",
+          required=False, default=0.0, latex=r"$A_1 = m_4 S_4 + m_5 l_4 - m_k S_k$"),
+    Param("l3", "l3", "m", "crank length BD", **_pos, **_opt, latex="$l_3$"),
+    Param("l4", "l4", "m", "conrod length DE (longer than l₃)", **_pos, **_opt, latex="$l_4$"),
+    Param("m4", "m4", "kg", "conrod mass", lo=0.0, **_opt, latex="$m_4$"),
+    Param("S4", "S4", "m", "conrod centre of mass from D", lo=0.0, **_opt, latex="$S_4$"),
+    Param("m5", "m5", "kg", "slider mass", lo=0.0, **_opt, latex="$m_5$"),
+    Param("S_k", "S_k", "m", "correcting mass position from D (away from E)", **_pos, **_opt, latex="$S_k$"),
 )
 
 # The outputs' names, symbols, units, long names, kinds and dimensions (the measurements and closed
 # forms below take them from here)
 OUTPUTS = (
-    Output("theta", "Θ₁", "rad", "balancing angle of pendulum 1, arccos(-A0 / (2 m a)); Theta_2 = -Theta_1"),
-    Output("balanceable", "balanceable", "1", "1 if a balanced state exists (A0 <= 2 m a and A1 = 0)"),
-    Output("m_k", "m_k", "kg", "correcting mass (m4 S4 + m5 l4) / S_k that makes A1 = 0",
-           needs_params=("m4", "S4", "m5", "S_k", "l4")),
-    Output("omega_p", "ω_p", "rad s-1", "first-approximation boundary sqrt((omega_xi^2 + omega_eta^2) / 2)"),
+    Output("theta", "Θ₁", "rad", "balancing angle of pendulum 1 (Θ₂ = −Θ₁)",
+           latex=r"$\Theta_1 = \arccos(-A_0/(2 m a))$"),
+    Output("balanceable", "balanceable", "1", "1 if a balanced state exists (A₀ ≤ 2 m a and A₁ = 0)",
+           latex=r"$A_0 \leq 2 m a,\ A_1 = 0$"),
+    Output("m_k", "m_k", "kg", "correcting mass that makes A₁ = 0",
+           needs_params=("m4", "S4", "m5", "S_k", "l4"), latex=r"$m_k = (m_4 S_4 + m_5 l_4)/S_k$"),
+    Output("omega_p", "ω_p", "rad s-1", "first-approximation stability boundary",
+           latex=r"$\omega_p = \sqrt{(\omega_\xi^2 + \omega_\eta^2)/2}$"),
     Output("stable_first_approx", "stable (1st approx.)", "1",
-           "1 if omega_lo < Omega < omega_p or Omega > omega_hi (source's rule, corrected)", kind="verdict"),
-    Output("P_approx", "P(Ω)", "m N-1", "Re(H_xi + H_eta), receptance sum of the damped platform"),
-    Output("stable_damped_approx", "P(Ω) < 0", "1", "1 if P(Omega) < 0 (first approximation with damping)",
-           needs=("P_approx",), kind="verdict"),
+           "1 if stable by the source's first-approximation rule (corrected): ω_lo < Ω < ω_p or Ω > ω_hi",
+           kind="verdict", latex=r"$\omega_\mathrm{lo} < \Omega < \omega_p \;\vee\; \Omega > \omega_\mathrm{hi}$"),
+    Output("P_approx", "P(Ω)", "m N-1", "receptance sum of the damped platform",
+           latex=r"$P(\Omega) = \mathrm{Re}(H_\xi + H_\eta)$"),
+    Output("stable_damped_approx", "P(Ω) < 0", "1", "1 if P(Ω) < 0 (first approximation with damping)",
+           needs=("P_approx",), kind="verdict", latex=r"$P(\Omega) < 0$"),
     Output("floquet_max", "max |ρ|", "1", "largest Floquet multiplier modulus of the balanced state",
-           integrated=True),
-    Output("stable_floquet", "stable (Floquet)", "1", "1 if floquet_max < 1", integrated=True,
-           needs=("floquet_max",), kind="verdict"),
+           integrated=True, latex=r"$\max|\rho|$"),
+    Output("stable_floquet", "stable (Floquet)", "1", "1 if the largest Floquet multiplier modulus is below 1",
+           integrated=True, needs=("floquet_max",), kind="verdict", latex=r"$\max|\rho| < 1$"),
     Output("stable_sim", "stable (simulation)", "1",
            "1 if the perturbed balanced state settles, 0 if it departs (direct simulation)", integrated=True,
-           kind="verdict"),
+           kind="verdict", latex=r"$\mathrm{stable}_\mathrm{sim}$"),
     Output("residual_amplitude", "r_res", "m",
-           "max platform displacement sqrt(xi^2 + eta^2) over the last 10 % of the simulation", integrated=True),
-    Output("phase_error", "δγ", "rad", "final pendulum phase error max_i |gamma_i - Omega t - Theta_i|",
-           integrated=True),
-    Output("settling_time", "t_s", "s", "time after which the phase error stays below settle_threshold",
-           integrated=True),
-    Output("xi_history", "ξ(t)", "m", "platform displacement xi over the simulation", integrated=True,
-           extra_dims=(REVOLUTION,)),
-    Output("eta_history", "η(t)", "m", "platform displacement eta over the simulation", integrated=True,
-           extra_dims=(REVOLUTION,)),
+           "residual platform displacement, largest over the last 10 % of the simulation", integrated=True,
+           latex=r"$r_\mathrm{res} = \max\sqrt{\xi^2 + \eta^2}$"),
+    Output("phase_error", "δγ", "rad", "final pendulum phase error", integrated=True,
+           latex=r"$\delta\gamma = \max_i|\gamma_i - \Omega t - \Theta_i|$"),
+    Output("settling_time", "t_s", "s", "time after which the phase error stays below the settling threshold",
+           integrated=True, latex="$t_s$"),
+    Output("xi_history", "ξ(t)", "m", "platform displacement ξ over the simulation", integrated=True,
+           extra_dims=(REVOLUTION,), latex=r"$\xi(t)$"),
+    Output("eta_history", "η(t)", "m", "platform displacement η over the simulation", integrated=True,
+           extra_dims=(REVOLUTION,), latex=r"$\eta(t)$"),
     Output("phase_error1_history", "δγ₁(t)", "rad", "phase error of pendulum 1 over the simulation",
-           integrated=True, extra_dims=(REVOLUTION,)),
+           integrated=True, extra_dims=(REVOLUTION,), latex=r"$\delta\gamma_1(t)$"),
     Output("phase_error2_history", "δγ₂(t)", "rad", "phase error of pendulum 2 over the simulation",
-           integrated=True, extra_dims=(REVOLUTION,)),
+           integrated=True, extra_dims=(REVOLUTION,), latex=r"$\delta\gamma_2(t)$"),
 )
 
 STATUSES = (st.INFEASIBLE, st.SINGULAR, st.NOT_BALANCEABLE, st.UNDECIDED, st.NOT_REPRODUCIBLE,
@@ -917,13 +929,14 @@ _OUT = {o.name: o for o in OUTPUTS}
 
 def _meta(output, **rename):
     o = _OUT[output]
-    return dict(symbol=o.symbol, unit=o.unit, long_name=o.long_name, **rename)
+    return dict(symbol=o.symbol, unit=o.unit, long_name=o.long_name, latex=o.latex, **rename)
 
 
 def _closed(name, func, needs=(), classify=None):
     o = _OUT[name]
     return ClosedForm(name, func, needs=needs, classify=classify, symbol=o.symbol, unit=o.unit,
-                      long_name=o.long_name, output_needs=o.needs, needs_params=o.needs_params, kind=o.kind)
+                      long_name=o.long_name, output_needs=o.needs, needs_params=o.needs_params, kind=o.kind,
+                      latex=o.latex)
 
 
 H = "horizon_revolutions"
@@ -948,7 +961,9 @@ MODEL = OdeModel(
         # initial: that orbit's start (the work-precision reference integrates it with the state)
         Floquet("floquet_max", initial=balanced, variational=variational, variational_jac=variational_jac,
                 stable_name="stable_floquet", classify=isolated,
-                output_meta={"floquet_max": _meta("floquet_max"), "floquet_max_stable": _meta("stable_floquet")}),
+                output_meta={"floquet_max": _meta("floquet_max"), "floquet_max_stable": _meta("stable_floquet"),
+                             "floquet_max_kind": {"latex": r"$\mathrm{kind}(\rho_\mathrm{crit})$"},
+                             "floquet_max_angle": {"latex": r"$\arg\rho_\mathrm{crit}$"}}),
         # direct simulation from the perturbed balanced state: the decision rule of stable_sim
         # (module docstring) on the phase error and the platform amplitude
         Kick("stable_sim", phase_error, platform_amplitude, horizon=H, settle_threshold="settle_threshold",
@@ -965,10 +980,10 @@ MODEL = OdeModel(
                output_meta={"residual_amplitude": _meta("residual_amplitude"),
                             "residual_amplitude_h1": dict(
                                 symbol="r₁", unit="m", long_name="first-harmonic (crank frequency) amplitude of the "
-                                "platform displacement sqrt(xi^2 + eta^2) over the last 10 % of the simulation"),
+                                "platform displacement √(ξ² + η²) over the last 10 % of the simulation", latex="$r_1$"),
                             "residual_amplitude_phase": dict(
                                 symbol="φ₁", unit="rad", long_name="phase lag of that first harmonic: "
-                                "sqrt(xi^2 + eta^2) ~ r1 cos(Omega t - phase) + other harmonics")}),
+                                "√(ξ² + η²) ≈ r₁ cos(Ω t − φ₁) + other harmonics", latex=r"$\varphi_1$")}),
         _history("xi_history", xi, value=to_metres),
         _history("eta_history", eta, value=to_metres),
         _history("phase_error1_history", phase_error1),
