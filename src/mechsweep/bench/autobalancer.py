@@ -282,14 +282,14 @@ def rhs_ns(p, n: int = 2_000_000, repeats: int = REPEATS) -> float:
 def main(n_omega: int = CHART, n_ratio: int = CHART, sim_points: int = 512, scipy_points: int = 3,
          threads: int | None = None, rtol: float = Solver.rtol, atol: float = Solver.atol) -> dict:
     from ..scene import SOLVER_LIMITS
-    from . import _args
+    from . import arguments
 
-    n_omega, n_ratio = _args.count("n_omega", n_omega, 2, 10**4), _args.count("n_ratio", n_ratio, 2, 10**4)
-    sim_points = _args.count("sim_points", sim_points, 1, 10**6)
-    scipy_points = _args.count("scipy_points", scipy_points, 1, sim_points)
-    threads = _args.threads("threads", threads)
-    rtol = _args.tolerance("rtol", rtol, *SOLVER_LIMITS["rtol"])
-    atol = _args.tolerance("atol", atol, *SOLVER_LIMITS["atol"])
+    n_omega, n_ratio = arguments.count("n_omega", n_omega, 2, 10**4), arguments.count("n_ratio", n_ratio, 2, 10**4)
+    sim_points = arguments.count("sim_points", sim_points, 1, 10**6)
+    scipy_points = arguments.count("scipy_points", scipy_points, 1, sim_points)
+    threads = arguments.threads("threads", threads)
+    rtol = arguments.tolerance("rtol", rtol, *SOLVER_LIMITS["rtol"])
+    atol = arguments.tolerance("atol", atol, *SOLVER_LIMITS["atol"])
     before = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(threads)

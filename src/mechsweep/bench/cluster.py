@@ -42,14 +42,14 @@ def _same(a, b) -> bool:
 
 
 def main(points: int = 400_000, workers: int | None = None, chunk: int = 8192) -> list[dict]:
-    from . import _args
+    from . import arguments
 
-    _args.needs_distributed()
+    arguments.needs_distributed()
     from distributed import LocalCluster
 
-    points = _args.count("points", points)
-    workers = _args.count("workers", workers, 1, 256) if workers is not None else os.cpu_count() or 1
-    chunk = _args.count("chunk", chunk, 1, 2**31)
+    points = arguments.count("points", points)
+    workers = arguments.count("workers", workers, 1, 256) if workers is not None else os.cpu_count() or 1
+    chunk = arguments.count("chunk", chunk, 1, 2**31)
     scene = grid_scene(points, 5e-11, 1e-12)
     scene["storage"] = {"chunk_size": chunk}
     warm = grid_scene(2_000, 5e-11, 1e-12)

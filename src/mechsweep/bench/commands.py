@@ -147,14 +147,14 @@ def run_autobalancer(args) -> int:
 
 
 def run_boundaries(args) -> int:
-    from . import _args, boundaries
+    from . import arguments, boundaries
 
-    contour = [_args.count("--contour", n, 3, 10**6) for n in args.contour]
+    contour = [arguments.count("--contour", n, 3, 10**6) for n in args.contour]
     if len(contour) < 2:
         from ..errors import InputError
         raise InputError("--contour needs at least two grid sizes (the error's order is fitted between the last two)")
-    boundaries.main(values=_args.count("--values", args.values, 1, 10**5), grid=_args.count("--grid", args.grid, 3, 10**6),
-                    contour=tuple(contour), rtol=_args.tolerance("--rtol", args.rtol, 1e-15, 1e-2), threads=_args.threads("--threads", args.threads))
+    boundaries.main(values=arguments.count("--values", args.values, 1, 10**5), grid=arguments.count("--grid", args.grid, 3, 10**6),
+                    contour=tuple(contour), rtol=arguments.tolerance("--rtol", args.rtol, 1e-15, 1e-2), threads=arguments.threads("--threads", args.threads))
     return 0
 
 

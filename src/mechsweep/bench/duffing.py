@@ -156,15 +156,15 @@ def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = N
     import numba
 
     from ..scene import SOLVER_LIMITS
-    from . import _args
+    from . import arguments
 
-    points = _args.count("points", points)
-    scipy_points = _args.count("scipy_points", scipy_points, 1, points)
-    compare_points = _args.count("compare_points", compare_points, 1, points)
-    repeats = _args.count("repeats", repeats, 1, 100)
-    threads = _args.threads("threads", threads)
-    rtol = _args.tolerance("rtol", rtol, *SOLVER_LIMITS["rtol"])
-    atol = _args.tolerance("atol", atol, *SOLVER_LIMITS["atol"])
+    points = arguments.count("points", points)
+    scipy_points = arguments.count("scipy_points", scipy_points, 1, points)
+    compare_points = arguments.count("compare_points", compare_points, 1, points)
+    repeats = arguments.count("repeats", repeats, 1, 100)
+    threads = arguments.threads("threads", threads)
+    rtol = arguments.tolerance("rtol", rtol, *SOLVER_LIMITS["rtol"])
+    atol = arguments.tolerance("atol", atol, *SOLVER_LIMITS["atol"])
     scene = load_scene(grid_scene(points, rtol, atol))
     stored = ("period", "period_exact", "period_error", "v_max", "a_max")
     scene_stored = load_scene(grid_scene(points, rtol, atol, stored))  # the kernel as the run calls it
@@ -460,11 +460,11 @@ def breakdown(points: int = 200_000, threads: int | None = None, rtol: float = S
     import functools
     import numba
 
-    from . import _args
+    from . import arguments
 
-    points = _args.count("points", points)
-    repeats = _args.count("repeats", repeats, 1, 100)
-    threads = _args.threads("threads", threads)
+    points = arguments.count("points", points)
+    repeats = arguments.count("repeats", repeats, 1, 100)
+    threads = arguments.threads("threads", threads)
     scene = load_scene(grid_scene(points, rtol, atol, outputs))
     n = scene.n_points
     acc: dict = {}

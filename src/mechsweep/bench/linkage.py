@@ -75,13 +75,13 @@ def main(designs: int = 200_000, numpy_designs: int = 20_000, threads: int | Non
 
     import numba
 
-    from . import _args
+    from . import arguments
 
-    designs = _args.count("designs", designs)
-    numpy_designs = _args.count("numpy_designs", numpy_designs, 1, designs)
-    repeats = _args.count("repeats", repeats, 1, 1000)
+    designs = arguments.count("designs", designs)
+    numpy_designs = arguments.count("numpy_designs", numpy_designs, 1, designs)
+    repeats = arguments.count("repeats", repeats, 1, 1000)
     if threads is not None:
-        threads = min(_args.count("threads", threads, 1, 10**6), numba.config.NUMBA_NUM_THREADS)
+        threads = min(arguments.count("threads", threads, 1, 10**6), numba.config.NUMBA_NUM_THREADS)
     load_before = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
     P = design_family(designs, seed)
     with _threads(threads):

@@ -122,12 +122,12 @@ def _case(how: str, output: str, shape: tuple, folder: Path) -> dict:
 
 
 def main(quick: bool = False, folder: str | None = None) -> list[dict]:
-    from . import _args
+    from . import arguments
 
     if folder is not None:
-        path = _args.folder("dir", folder)
+        path = arguments.folder("dir", folder)
         if not path.is_dir():
-            raise _args.InputError(f"dir = {str(folder)!r} does not exist; create it first")
+            raise arguments.InputError(f"dir = {str(folder)!r} does not exist; create it first")
     cases = QUICK if quick else FULL
     rows = []
     base = {}

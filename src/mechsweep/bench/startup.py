@@ -582,18 +582,18 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
     "compile" (the scene's cold compile by function, ``repeats`` fresh processes: :func:`compile_table`),
     "warmstart" (the warm quickstart by process, alternated with the sources ``against`` when given:
     :func:`warm_start`)."""
-    from . import _args
+    from . import arguments
 
-    repeats = _args.count("--repeats", repeats, 3, 100)
+    repeats = arguments.count("--repeats", repeats, 3, 100)
     scene_path = Path(scene).resolve()
     if against is not None and not (Path(against) / "mechsweep" / "__init__.py").is_file():
-        raise _args.InputError(f"--against {against}: no mechsweep package in it; give the src folder of a "
+        raise arguments.InputError(f"--against {against}: no mechsweep package in it; give the src folder of a "
                                "checkout, e.g. /path/to/checkout/src")
     if against is not None and "warmstart" not in parts:
-        raise _args.InputError("--against applies to --only warmstart only")
+        raise arguments.InputError("--against applies to --only warmstart only")
     if parts and set(parts) & {"quickstart", "breakdown", "routes", "compile", "warmstart"}:
         if not scene_path.is_file():
-            raise _args.InputError(f"--scene {scene} does not exist (run from the repository root, or give its path)")
+            raise arguments.InputError(f"--scene {scene} does not exist (run from the repository root, or give its path)")
         from mechsweep.scene import load_scene
 
         load_scene(scene_path)  # an invalid scene is refused here, not as a failed child process

@@ -107,13 +107,13 @@ def main(points: int = 200_000, threads: int | None = None, rtol: float | None =
     from ..models import duffing
     from ..runner import _threads, evaluate_chunk
     from ..scene import SOLVER_LIMITS, Solver, load_scene
-    from . import _args
+    from . import arguments
     from .duffing import grid_scene
 
-    points = _args.count("points", points)
-    threads = _args.threads("threads", threads)
-    rtol = _args.tolerance("rtol", Solver.rtol if rtol is None else rtol, *SOLVER_LIMITS["rtol"])
-    atol = _args.tolerance("atol", Solver.atol if atol is None else atol, *SOLVER_LIMITS["atol"])
+    points = arguments.count("points", points)
+    threads = arguments.threads("threads", threads)
+    rtol = arguments.tolerance("rtol", Solver.rtol if rtol is None else rtol, *SOLVER_LIMITS["rtol"])
+    atol = arguments.tolerance("atol", Solver.atol if atol is None else atol, *SOLVER_LIMITS["atol"])
     builtin = grid_scene(points, rtol, atol, ("period",))
     user = {**builtin, "scene": {"name": "bench-duffing-user", "model": REFERENCE, "outputs": ["period"]}}
     unscaled = {**builtin, "scene": {"name": "bench-duffing-user-unscaled", "model": REFERENCE_UNSCALED,

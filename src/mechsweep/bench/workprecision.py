@@ -116,12 +116,12 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     from ..model.closed import ClosedFormModel
     from ..model.ode import OdeModel
     from ..scene import SOLVER_LIMITS
-    from . import _args
+    from . import arguments
 
-    points = _args.count("points", points, 1, 10**6)
-    scipy_points = _args.count("scipy_points", scipy_points, 1, points)
-    repeats = _args.count("repeats", repeats, 1, 1000)
-    out_dir = _args.folder("out", out_dir)
+    points = arguments.count("points", points, 1, 10**6)
+    scipy_points = arguments.count("scipy_points", scipy_points, 1, points)
+    repeats = arguments.count("repeats", repeats, 1, 1000)
+    out_dir = arguments.folder("out", out_dir)
     spec = resolve_model(model)  # what is measured is the model's declaration: no table of models here
     declared = spec.declaration
     if isinstance(declared, ClosedFormModel):  # algebraic: a ladder of its extra dimension's length, not of tolerances
@@ -130,10 +130,10 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     if not isinstance(declared, OdeModel):
         raise InputError(f"model {model!r} is not declared as a mechsweep.model.OdeModel (a ModelSpec made by hand): "
                          "the bench integrates the declaration's own rhs; it has no work-precision case")
-    ladder = _args.sequence(ladder)
+    ladder = arguments.sequence(ladder)
     if not ladder:
         raise InputError("the tolerance ladder is empty; give at least one rtol")
-    ladder = tuple(_args.tolerance("rtol", r, *SOLVER_LIMITS["rtol"]) for r in ladder)
+    ladder = tuple(arguments.tolerance("rtol", r, *SOLVER_LIMITS["rtol"]) for r in ladder)
     case, scene = _case(model, spec, declared, scene_path, output)
     model = spec.name
     P = sample(scene, points)
