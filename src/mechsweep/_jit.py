@@ -11,7 +11,7 @@ Options and why:
   by :func:`jit_noalloc`, without numba's reference counting (``_nrt=False``): numba compiles
   every function separately and, across calls, increments and decrements the reference count
   of every array argument and view with atomic instructions, about 200 of them per DOP853 step
-  (a measurable share of an autobalancer step: ``mechsweep bench autobalancer``). Such a function must
+  (a measurable share of an autobalancer step: ``python benchmarks/autobalancer.py``). Such a function must
   not allocate arrays (numba refuses to compile it if it does).
 - :func:`jit_inline` (``inline="always"`` at numba IR level, no reference counting) for small
   scalar helpers called in every right-hand side (sincos, the closed-form accelerations): LLVM

@@ -25,12 +25,6 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
                    help="with --breakdown: the outputs the run stores, comma-separated (default: period, "
                         "period_exact, period_error, v_max, a_max; goal 1 asks for: period)")
     b.set_defaults(func=run_duffing)
-    b = bsub.add_parser("autobalancer", help="Floquet chart time (200 x 200) and simulation throughput vs scipy")
-    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
-    b.add_argument("--sim-points", type=int, default=512,
-                   help="trajectories simulated by mechsweep on one thread (4x on all threads; default 512)")
-    b.add_argument("--scipy-points", type=int, default=3, help="of those, solved with scipy too (default 3)")
-    b.set_defaults(func=run_autobalancer)
     b = bsub.add_parser("linkage", help="four-bar residual sweep (360 positions/design): designs/s vs vectorised numpy")
     b.add_argument("--designs", type=int, default=200_000, help="designs for mechsweep (default 200000)")
     b.add_argument("--numpy-designs", type=int, default=20_000, help="designs for numpy (default 20000)")
@@ -136,13 +130,6 @@ def run_duffing(args) -> int:
                        compare_points=args.compare_points, repeats=args.repeats,
                        rtol=Solver.rtol if args.rtol is None else args.rtol,
                        atol=Solver.atol if args.atol is None else args.atol)
-    return 0
-
-
-def run_autobalancer(args) -> int:
-    from . import autobalancer
-
-    autobalancer.main(sim_points=args.sim_points, scipy_points=args.scipy_points, threads=args.threads)
     return 0
 
 
