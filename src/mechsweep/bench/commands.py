@@ -69,15 +69,6 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
     b.add_argument("--output", default=None, metavar="NAME",
                    help="the measured output to compare (default: the declared output, else the first measurement)")
     b.set_defaults(func=run_workprecision)
-    b = bsub.add_parser("boundaries", help="auto-balancer stability boundaries against 2 m / M: located vs "
-                                           "grid-and-contour at the same precision")
-    b.add_argument("--values", type=int, default=200, help="mass ratios 2 m / M in [0.0005, 0.35] (default 200)")
-    b.add_argument("--grid", type=int, default=100, help="Omega values of the bracketing grid (default 100)")
-    b.add_argument("--contour", type=int, nargs="+", default=[100, 200, 400], metavar="N",
-                   help="Omega values of the contour grids (default 100 200 400)")
-    b.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance in Omega (default 1e-8)")
-    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
-    b.set_defaults(func=run_boundaries)
     b = bsub.add_parser("cluster", help="throughput locally and on a dask LocalCluster of 1..W workers; identical datasets")
     b.add_argument("--points", type=int, default=400_000, help="Duffing grid points (default 400000)")
     b.add_argument("--workers", type=int, default=None, help="up to this many worker processes (default: cores)")
@@ -130,18 +121,6 @@ def run_duffing(args) -> int:
                        compare_points=args.compare_points, repeats=args.repeats,
                        rtol=Solver.rtol if args.rtol is None else args.rtol,
                        atol=Solver.atol if args.atol is None else args.atol)
-    return 0
-
-
-def run_boundaries(args) -> int:
-    from . import arguments, boundaries
-
-    contour = [arguments.count("--contour", n, 3, 10**6) for n in args.contour]
-    if len(contour) < 2:
-        from ..errors import InputError
-        raise InputError("--contour needs at least two grid sizes (the error's order is fitted between the last two)")
-    boundaries.main(values=arguments.count("--values", args.values, 1, 10**5), grid=arguments.count("--grid", args.grid, 3, 10**6),
-                    contour=tuple(contour), rtol=arguments.tolerance("--rtol", args.rtol, 1e-15, 1e-2), threads=arguments.threads("--threads", args.threads))
     return 0
 
 
