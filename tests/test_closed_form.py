@@ -287,7 +287,7 @@ def test_second_process_compiles_nothing_for_a_closed_form_user_model(tmp_path):
 BUILTIN_PROBE = """
 import json
 import numpy as np
-from mechsweep.bench import linkage as bl
+from benchmarks import linkage as bl
 from mechsweep.model import closed, load
 
 out, status = bl.mechsweep_residuals(bl.design_family(50, 1))
@@ -304,7 +304,8 @@ def test_second_process_compiles_nothing_for_the_builtin_fourbar(tmp_path):
     """The built-in linkage models go through the same generated module: in a second process the
     kernel comes from numba's disk cache (the per-design function is compiled into it: not
     compiled again either)."""
-    env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(tmp_path), PYTHONPATH=str(HERE.parent / "src"))
+    env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(tmp_path),
+               PYTHONPATH=os.pathsep.join([str(HERE.parent / "src"), str(HERE.parent)]))  # mechsweep; benchmarks
     runs = []
     for _ in range(2):
         res = subprocess.run([sys.executable, "-c", BUILTIN_PROBE], capture_output=True, text=True, env=env,

@@ -369,9 +369,6 @@ BENCH = [
     (["duffing", "--rtol", "0"], "rtol = 0.0"),
     (["duffing", "--rtol", "nan"], "rtol = nan"),
     (["duffing", "--atol", "-1"], "atol = -1.0"),
-    (["linkage", "--designs", "-1"], "designs = -1"),
-    (["linkage", "--numpy-designs", "0"], "numpy_designs = 0"),
-    (["linkage", "--threads", "0"], "threads = 0"),
     (["workprecision", "duffing", "--points", "0"], "points = 0"),
     (["workprecision", "duffing", "--scipy-points", "-2"], "scipy_points = -2"),
     (["workprecision", "duffing", "--repeats", "0"], "repeats = 0"),
@@ -403,12 +400,11 @@ def no_bench_work(work, monkeypatch):
     def tripwire(*args, **kwargs):
         raise AssertionError("the benchmark started despite a bad option")
 
-    from mechsweep.bench import cluster, duffing, linkage, memory, quickstart, workprecision, workprecision_linkage
+    from mechsweep.bench import cluster, duffing, memory, quickstart, workprecision, workprecision_linkage
 
     monkeypatch.setattr(numba, "set_num_threads", tripwire)
     for mod in (duffing, workprecision, workprecision_linkage):
         monkeypatch.setattr(mod, "load_scene", tripwire)
-    monkeypatch.setattr(linkage, "design_family", tripwire)
     monkeypatch.setattr(cluster, "run", tripwire)
     monkeypatch.setattr(memory, "_case", tripwire)
     monkeypatch.setattr(quickstart, "_timed", tripwire)
@@ -422,13 +418,11 @@ def test_bench_options_out_of_range_are_refused(argv, said, no_bench_work, capsy
 
 
 def test_bench_functions_refuse_bad_arguments_too():
-    from mechsweep.bench import duffing, linkage
+    from mechsweep.bench import duffing
     from mechsweep.errors import InputError
 
     with pytest.raises(InputError, match="points = -5"):
         duffing.main(points=np.int64(-5))
-    with pytest.raises(InputError, match="designs = True"):
-        linkage.main(designs=True)
     from mechsweep.bench import workprecision, workprecision_linkage
 
     with pytest.raises(InputError, match="rtol = 'x'"):

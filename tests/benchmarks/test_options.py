@@ -13,8 +13,11 @@ BENCH = [
     ("autobalancer", ["--sim-points", "0"], "sim_points = 0"),
     ("autobalancer", ["--scipy-points", "-1"], "scipy_points = -1"),
     ("autobalancer", ["--threads", "-2"], "threads = -2"),
+    ("linkage", ["--designs", "-1"], "designs = -1"),
+    ("linkage", ["--numpy-designs", "0"], "numpy_designs = 0"),
+    ("linkage", ["--threads", "0"], "threads = 0"),
 ]
-TRIPWIRES = {"autobalancer": "_main"}  # what each benchmark calls once its options are checked
+TRIPWIRES = {"autobalancer": "_main", "linkage": "design_family"}  # what each benchmark calls once its options are checked
 
 
 def refused(capsys, name: str, argv, root, *fragments) -> str:
@@ -53,8 +56,10 @@ def test_bench_options_out_of_range_are_refused(name, argv, said, no_bench_work,
 
 
 def test_bench_functions_refuse_bad_arguments_too():
-    from benchmarks import autobalancer
+    from benchmarks import autobalancer, linkage
     from mechsweep.errors import InputError
 
     with pytest.raises(InputError, match="sim_points = 2.5"):
         autobalancer.main(sim_points=2.5)
+    with pytest.raises(InputError, match="designs = True"):
+        linkage.main(designs=True)

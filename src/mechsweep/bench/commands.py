@@ -25,11 +25,6 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
                    help="with --breakdown: the outputs the run stores, comma-separated (default: period, "
                         "period_exact, period_error, v_max, a_max; goal 1 asks for: period)")
     b.set_defaults(func=run_duffing)
-    b = bsub.add_parser("linkage", help="four-bar residual sweep (360 positions/design): designs/s vs vectorised numpy")
-    b.add_argument("--designs", type=int, default=200_000, help="designs for mechsweep (default 200000)")
-    b.add_argument("--numpy-designs", type=int, default=20_000, help="designs for numpy (default 20000)")
-    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
-    b.set_defaults(func=run_linkage)
     b = bsub.add_parser("user-model", help="the Duffing oscillator declared as a user model against the built-in "
                                            "kernel: points/s and period error, side by side")
     b.add_argument("--points", type=int, default=200_000, help="grid points (default 200000)")
@@ -121,16 +116,6 @@ def run_duffing(args) -> int:
                        compare_points=args.compare_points, repeats=args.repeats,
                        rtol=Solver.rtol if args.rtol is None else args.rtol,
                        atol=Solver.atol if args.atol is None else args.atol)
-    return 0
-
-
-def run_linkage(args) -> int:
-    import numba
-
-    from . import linkage
-
-    linkage.main(designs=args.designs, numpy_designs=args.numpy_designs,
-                 threads=numba.config.NUMBA_NUM_THREADS if args.threads is None else args.threads)
     return 0
 
 

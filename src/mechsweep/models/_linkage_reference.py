@@ -1,6 +1,6 @@
 """Reference implementations of the two linkage models' outputs, for their work-precision
 reports (``mechsweep bench workprecision fourbar_balancing | slidercrank_balancing``, declared by
-each model as its ``SizeWorkPrecision``) and for ``mechsweep bench linkage``: outputs on the
+each model as its ``SizeWorkPrecision``) and for ``python benchmarks/linkage.py``: outputs on the
 continuous crank angle (the references) and plain vectorised numpy versions of the kernels' outputs
 at N crank positions (the independent implementations).
 
@@ -30,12 +30,12 @@ import numpy as np
 from .. import status as st
 from . import _linkage as L
 
-NUMPY_BLOCK = 64  # designs per numpy block (bench linkage: numpy's fastest size here)
+NUMPY_BLOCK = 64  # designs per numpy block (benchmarks/linkage.py: numpy's fastest size here)
 SEARCH_POSITIONS = 16384  # grid on which the maxima are located before Brent's refinement
 GL_NODES = 16  # Gauss-Legendre nodes per panel of the four-bar reference
 GL_PANELS = (256, 512)  # coarse (error estimate) and fine (reference)
 FOURBAR_OUTPUTS = ("M_rms_static", "M_max_static", "axis_x", "axis_y", "dM_rms_axis", "dM_max_axis", "R_axis")
-OUTPUTS = FOURBAR_OUTPUTS  # numpy_residuals' outputs (bench/linkage.py)
+OUTPUTS = FOURBAR_OUTPUTS  # numpy_residuals' outputs (benchmarks/linkage.py)
 
 FOURBAR_REFERENCE = (f"continuous crank angle: composite Gauss-Legendre ({GL_PANELS[1]} panels x {GL_NODES} nodes) "
                      f"for the RMS values and the axis, maxima by Brent's method from a {SEARCH_POSITIONS}-position "
