@@ -25,13 +25,6 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
                    help="with --breakdown: the outputs the run stores, comma-separated (default: period, "
                         "period_exact, period_error, v_max, a_max; goal 1 asks for: period)")
     b.set_defaults(func=run_duffing)
-    b = bsub.add_parser("user-model", help="the Duffing oscillator declared as a user model against the built-in "
-                                           "kernel: points/s and period error, side by side")
-    b.add_argument("--points", type=int, default=200_000, help="grid points (default 200000)")
-    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
-    b.add_argument("--rtol", type=float, default=None, help="default: the solver default")
-    b.add_argument("--atol", type=float, default=None, help="default: the solver default")
-    b.set_defaults(func=run_user_model)
     b = bsub.add_parser("period-error", help="worst Duffing period error over epsilon for a ladder of tolerances")
     b.set_defaults(func=run_period_error)
     b = bsub.add_parser("workprecision", formatter_class=fmt,
@@ -116,13 +109,6 @@ def run_duffing(args) -> int:
                        compare_points=args.compare_points, repeats=args.repeats,
                        rtol=Solver.rtol if args.rtol is None else args.rtol,
                        atol=Solver.atol if args.atol is None else args.atol)
-    return 0
-
-
-def run_user_model(args) -> int:
-    from . import user_duffing
-
-    user_duffing.main(points=args.points, threads=args.threads, rtol=args.rtol, atol=args.atol)
     return 0
 
 
