@@ -25,8 +25,6 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
                    help="with --breakdown: the outputs the run stores, comma-separated (default: period, "
                         "period_exact, period_error, v_max, a_max; goal 1 asks for: period)")
     b.set_defaults(func=run_duffing)
-    b = bsub.add_parser("period-error", help="worst Duffing period error over epsilon for a ladder of tolerances")
-    b.set_defaults(func=run_period_error)
     b = bsub.add_parser("workprecision", formatter_class=fmt,
                         help="error against run time for every method, ours and scipy's (DOP853, Radau, LSODA)",
                         description="Integrate a fixed sample of a scene's grid points with every method the "
@@ -109,13 +107,6 @@ def run_duffing(args) -> int:
                        compare_points=args.compare_points, repeats=args.repeats,
                        rtol=Solver.rtol if args.rtol is None else args.rtol,
                        atol=Solver.atol if args.atol is None else args.atol)
-    return 0
-
-
-def run_period_error(args) -> int:
-    from . import period_error
-
-    period_error.main()
     return 0
 
 

@@ -139,7 +139,7 @@ def period_condition(omega2, mu, A, k_omega2, k_q):
 def symplectic_step(rtol):
     """Fixed step (scaled time) of the symplectic method for a tolerance: SYMPLECTIC_STEPS(rtol)
     steps per linearised period 2 pi, calibrated so that the period error stays below rtol over
-    epsilon in [-0.99, 1e4] (measured by `mechsweep bench period-error`: at most 0.1 rtol from rtol
+    epsilon in [-0.99, 1e4] (measured by `python benchmarks/period_error.py`: at most 0.1 rtol from rtol
     1e-6 to 1e-12)."""
     return 2.0 * math.pi / math.ceil(SYMPLECTIC_C * rtol ** (-1.0 / SYMPLECTIC_ORDER))
 
