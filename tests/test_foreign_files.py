@@ -381,9 +381,6 @@ BENCH = [
     (["workprecision", "fourbar_balancing", "--repeats", "0"], "repeats = 0"),
     (["workprecision", "duffing", "--out", "a_file"], "a_file is a file, not a folder"),
     (["workprecision", "duffing", "--out", "a_file/sub"], "a_file is a file, not a folder"),
-    (["cluster", "--points", "-5"], "points = -5"),
-    (["cluster", "--workers", "0"], "workers = 0"),
-    (["cluster", "--chunk", "0"], "chunk = 0"),
     (["memory", "--dir", "a_file"], "a_file is a file, not a folder"),
     (["memory", "--dir", "no_such_folder"], "does not exist"),
     (["quickstart", "--scene", "a_file"], "TOML syntax error"),
@@ -400,12 +397,11 @@ def no_bench_work(work, monkeypatch):
     def tripwire(*args, **kwargs):
         raise AssertionError("the benchmark started despite a bad option")
 
-    from mechsweep.bench import cluster, duffing, memory, quickstart, workprecision, workprecision_linkage
+    from mechsweep.bench import duffing, memory, quickstart, workprecision, workprecision_linkage
 
     monkeypatch.setattr(numba, "set_num_threads", tripwire)
     for mod in (duffing, workprecision, workprecision_linkage):
         monkeypatch.setattr(mod, "load_scene", tripwire)
-    monkeypatch.setattr(cluster, "run", tripwire)
     monkeypatch.setattr(memory, "_case", tripwire)
     monkeypatch.setattr(quickstart, "_timed", tripwire)
     (work / "a_file").write_text("x")
@@ -431,11 +427,6 @@ def test_bench_functions_refuse_bad_arguments_too():
         workprecision_linkage.main("fourbar_balancing", positions=np.int64(3))
     with pytest.raises(InputError, match="no linkage work-precision case"):
         workprecision_linkage.main(["fourbar_balancing"])
-
-
-def test_bench_cluster_without_dask_is_a_clear_error(work, capsys, monkeypatch):
-    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed -> ImportError
-    refused(capsys, ["bench", "cluster", "--points", "1000"], work, "needs the optional packages dask and distributed")
 
 
 def test_api_takes_numpy_numbers(small_duffing):

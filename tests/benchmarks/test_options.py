@@ -4,6 +4,7 @@ allowed, no traceback, nothing written, and nothing started."""
 from __future__ import annotations
 
 import importlib
+import sys
 
 import pytest
 
@@ -16,8 +17,11 @@ BENCH = [
     ("linkage", ["--designs", "-1"], "designs = -1"),
     ("linkage", ["--numpy-designs", "0"], "numpy_designs = 0"),
     ("linkage", ["--threads", "0"], "threads = 0"),
+    ("cluster", ["--points", "-5"], "points = -5"),
+    ("cluster", ["--workers", "0"], "workers = 0"),
+    ("cluster", ["--chunk", "0"], "chunk = 0"),
 ]
-TRIPWIRES = {"autobalancer": "_main", "linkage": "design_family"}  # what each benchmark calls once its options are checked
+TRIPWIRES = {"autobalancer": "_main", "linkage": "design_family", "cluster": "run"}  # what each benchmark calls once its options are checked
 
 
 def refused(capsys, name: str, argv, root, *fragments) -> str:
@@ -63,3 +67,8 @@ def test_bench_functions_refuse_bad_arguments_too():
         autobalancer.main(sim_points=2.5)
     with pytest.raises(InputError, match="designs = True"):
         linkage.main(designs=True)
+
+
+def test_bench_cluster_without_dask_is_a_clear_error(work, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed -> ImportError
+    refused(capsys, "cluster", ["--points", "1000"], work, "needs the optional packages dask and distributed")

@@ -55,11 +55,6 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
     b.add_argument("--output", default=None, metavar="NAME",
                    help="the measured output to compare (default: the declared output, else the first measurement)")
     b.set_defaults(func=run_workprecision)
-    b = bsub.add_parser("cluster", help="throughput locally and on a dask LocalCluster of 1..W workers; identical datasets")
-    b.add_argument("--points", type=int, default=400_000, help="Duffing grid points (default 400000)")
-    b.add_argument("--workers", type=int, default=None, help="up to this many worker processes (default: cores)")
-    b.add_argument("--chunk", type=int, default=8192, help="points per chunk, i.e. per task (default 8192)")
-    b.set_defaults(func=run_cluster)
     b = bsub.add_parser("memory", help="peak resident memory of runs up to 10^8 points (one long axis, several short ones; "
                         "mechsweep.run and the `mechsweep run` command) against their dataset size")
     b.add_argument("--quick", action="store_true", help="small grids only (10^4 ... 10^6 points)")
@@ -134,13 +129,6 @@ def run_workprecision(args) -> int:
                        ladder=tuple(args.rtol) if args.rtol else workprecision.LADDER,
                        repeats=3 if args.repeats is None else args.repeats,
                        out_dir=args.out, output=args.output)
-    return 0
-
-
-def run_cluster(args) -> int:
-    from . import cluster
-
-    cluster.main(points=args.points, workers=args.workers, chunk=args.chunk)
     return 0
 
 
