@@ -140,7 +140,7 @@ def test_the_wait_policy_is_set_when_numba_starts_its_threads_and_libgomp_reads_
 def test_first_compile_of_a_process_does_not_import_scipy_linalg_and_linalg_still_works():
     """numba's CPU target imports numba.np.arraymath on a process's first compile or cache load, and
     arraymath asked for scipy's BLAS by importing scipy.linalg (a large share of every warm
-    `mechsweep run`: `mechsweep bench startup`). At mechsweep's first compile _jit answers that from
+    `mechsweep run`: `python benchmarks/startup.py`). At mechsweep's first compile _jit answers that from
     scipy's installed files: a mechsweep function without linear algebra imports no scipy.linalg, the
     answer is numba's (BLAS found), numba's own ensure_blas is in place for later callers, and np.dot
     (typing imports scipy's BLAS then) still compiles and runs."""

@@ -1,6 +1,6 @@
 """Memory bounded by the chunk for any grid shape: range axes are never expanded, the stored scene
 stays small, the chunk plan is O(1), the chunk count is capped, the command counts statuses
-without opening the dataset (issue 12, items 18-20). RSS figures are in `mechsweep bench memory`;
+without opening the dataset (issue 12, items 18-20). RSS figures are in `python benchmarks/memory.py`;
 these tests assert structure only."""
 import copy
 import json

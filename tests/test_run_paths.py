@@ -197,19 +197,6 @@ def test_reading_a_dataset_imports_no_kernels(in_tmp, small_duffing):
     assert mechsweep.run is runner.run and mechsweep.open_dataset is mechsweep.store.open_dataset
 
 
-def test_bench_startup_refuses_fewer_than_three_repeats(capsys):
-    assert main(["bench", "startup", "--repeats", "2", "--only", "warm"]) == 2
-    assert "--repeats = 2 is not allowed; expected a whole number in [3, 100]" in capsys.readouterr().err
-
-
-def test_bench_startup_against_needs_a_package_folder_and_warmstart(capsys, tmp_path):
-    assert main(["bench", "startup", "--only", "warmstart", "--against", str(tmp_path)]) == 2
-    assert f"--against {tmp_path}: no mechsweep package in it" in capsys.readouterr().err
-    src = os.path.dirname(os.path.dirname(os.path.abspath(mechsweep.__file__)))
-    assert main(["bench", "startup", "--only", "warm", "--against", src]) == 2
-    assert "--against applies to --only warmstart only" in capsys.readouterr().err
-
-
 def test_file_route_returns_the_file_dataset_without_reading_it_back(in_tmp, small_duffing, monkeypatch):
     # run(output=path) keeps the dataset in memory as the file is written (store.Held): what it
     # returns is the file's content, attributes and times included, and the file is not re-opened

@@ -97,7 +97,7 @@ def _started() -> None:
     process, ``argv`` None: a caller of ``main`` in a process of its own keeps its collector as it is).
     The imports (numpy, numba, xarray, matplotlib, the package) make hundreds of thousands of objects that
     live as long as the process, and each full collection traversed all of them (measured with
-    ``mechsweep bench startup --only warmstart``: docs/performance-startup.md). A forked figure process
+    ``python benchmarks/startup.py --only warmstart``: docs/performance-startup.md). A forked figure process
     (:func:`_side_by_side`) then also leaves the frozen objects' memory shared with its parent."""
     if _START_UP["collector"]:
         _START_UP["collector"] = False

@@ -20,8 +20,10 @@ BENCH = [
     ("cluster", ["--points", "-5"], "points = -5"),
     ("cluster", ["--workers", "0"], "workers = 0"),
     ("cluster", ["--chunk", "0"], "chunk = 0"),
+    ("memory", ["--dir", "a_file"], "a_file is a file, not a folder"),
+    ("memory", ["--dir", "no_such_folder"], "does not exist"),
 ]
-TRIPWIRES = {"autobalancer": "_main", "linkage": "design_family", "cluster": "run"}  # what each benchmark calls once its options are checked
+TRIPWIRES = {"autobalancer": "_main", "linkage": "design_family", "cluster": "run", "memory": "_case"}  # what each benchmark calls once its options are checked
 
 
 def refused(capsys, name: str, argv, root, *fragments) -> str:

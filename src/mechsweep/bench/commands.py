@@ -55,29 +55,6 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
     b.add_argument("--output", default=None, metavar="NAME",
                    help="the measured output to compare (default: the declared output, else the first measurement)")
     b.set_defaults(func=run_workprecision)
-    b = bsub.add_parser("memory", help="peak resident memory of runs up to 10^8 points (one long axis, several short ones; "
-                        "mechsweep.run and the `mechsweep run` command) against their dataset size")
-    b.add_argument("--quick", action="store_true", help="small grids only (10^4 ... 10^6 points)")
-    b.add_argument("--dir", default=None, help="folder for the temporary datasets (default: the system's temp)")
-    b.set_defaults(func=run_memory)
-    b = bsub.add_parser("startup", help="fixed costs and cold start against their targets: warm runs of 10^3 and "
-                                        "10^4 points (in memory and to a file), quickstart run + plot cold and warm, "
-                                        "cost per point 10^4 .. 10^6 (--full: 10^7, 10^8 closed form) with the "
-                                        "command's peak memory")
-    b.add_argument("--full", action="store_true", help="scale to 10^7 integrated and 10^8 closed-form points (minutes)")
-    b.add_argument("--repeats", type=int, default=3, help="measurements per figure, at least 3 (default 3)")
-    b.add_argument("--scene", default="sweeps/quickstart.toml",
-                   help="the quickstart scene (default sweeps/quickstart.toml)")
-    b.add_argument("--only", choices=("warm", "quickstart", "scaling", "breakdown", "routes", "compile", "warmstart"),
-                   nargs="+", default=None,
-                   help="measure only these parts (default: warm quickstart scaling; breakdown: where the time "
-                        "goes, by function: the file route's fixed costs, chunk launches, a cold compile; routes: "
-                        "the cold compile and warm speed of the lane and one-point kernels; compile: the scene's cold "
-                        "compile by function, LLVM against numba's own work, in --repeats fresh processes; "
-                        "warmstart: the warm quickstart by process, run and plot)")
-    b.add_argument("--against", metavar="SRC", default=None,
-                   help="with --only warmstart: alternate with the sources in SRC (another checkout's src folder)")
-    b.set_defaults(func=run_startup)
     b = bsub.add_parser("quickstart", help="time the quickstart (run + plot) in fresh processes, cold and warm JIT cache")
     b.add_argument("--scene", default="sweeps/quickstart.toml")
     b.set_defaults(func=run_quickstart)
@@ -129,21 +106,6 @@ def run_workprecision(args) -> int:
                        ladder=tuple(args.rtol) if args.rtol else workprecision.LADDER,
                        repeats=3 if args.repeats is None else args.repeats,
                        out_dir=args.out, output=args.output)
-    return 0
-
-
-def run_memory(args) -> int:
-    from . import memory
-
-    rows = memory.main(quick=args.quick, folder=args.dir)
-    return 0 if all(r["ok"] for r in rows) else 1
-
-
-def run_startup(args) -> int:
-    from . import startup
-
-    startup.main(full=args.full, repeats=args.repeats, scene=args.scene,
-                 parts=tuple(args.only) if args.only else ("warm", "quickstart", "scaling"), against=args.against)
     return 0
 
 

@@ -1,4 +1,4 @@
-"""`mechsweep bench startup`: the fixed costs of a run, its cold start, and its cost per point.
+"""`python benchmarks/startup.py`: the fixed costs of a run, its cold start, and its cost per point.
 
 Each figure is printed with its target beside it (the project's start-up and cost targets), as the median of
 ``repeats`` (>= 3) measurements and their spread (min .. max):
@@ -14,8 +14,8 @@ Each figure is printed with its target beside it (the project's start-up and cos
 - the cost per point of ``mechsweep.compute`` to a file from 10^4 to 10^6 integrated points
   (--full: to 10^7 integrated and 10^6 .. 10^8 closed-form points; beyond 10^7 points, an axis's
   most, the grid is 10^4 x 10^4), warm, and the peak resident memory of the command
-  ``mechsweep run`` on the same grid (a fresh process, interpreter included; bench memory explains
-  the measurement);
+  ``mechsweep run`` on the same grid (a fresh process, interpreter included; benchmarks/memory.py
+  explains the measurement);
 - ``--only routes``: the cold compile of the quickstart's kernels by route (SIMD lanes, one point at
   a time) in fresh processes with an empty JIT cache each, alternated, and both warm kernels' points/s
   side by side: what model/compile.py's LANES_FROM_POINTS is set from;
@@ -24,16 +24,20 @@ Each figure is printed with its target beside it (the project's start-up and cos
 """
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):  # run as `python benchmarks/NAME.py`: import from the repository's root, as -m does
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import json
 import os
 import statistics
 import subprocess
-import sys
 import tempfile
 import time
-from pathlib import Path
 
-from . import memory
+from benchmarks import memory
 
 TARGET_WARM_MS = {10**3: 10.0, 10**4: 25.0}
 TARGET_COLD_S = 8.0
@@ -582,7 +586,7 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
     "compile" (the scene's cold compile by function, ``repeats`` fresh processes: :func:`compile_table`),
     "warmstart" (the warm quickstart by process, alternated with the sources ``against`` when given:
     :func:`warm_start`)."""
-    from . import arguments
+    from mechsweep.bench import arguments
 
     repeats = arguments.count("--repeats", repeats, 3, 100)
     scene_path = Path(scene).resolve()
@@ -600,7 +604,7 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
     import numba
 
     report = {}
-    print(f"mechsweep bench startup: {numba.get_num_threads()} threads, median of {repeats} runs (min .. max)")
+    print(f"benchmarks/startup.py: {numba.get_num_threads()} threads, median of {repeats} runs (min .. max)")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         if "warm" in parts:
@@ -699,5 +703,34 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
     return report
 
 
+def cli(argv: list[str] | None = None) -> int:
+    """``python benchmarks/startup.py [--full] [--repeats N] [--scene S] [--only PART ...] [--against SRC]``."""
+    from benchmarks import _cli
+
+    p = _cli.parser("startup", "fixed costs and cold start against their targets: warm runs of 10^3 and 10^4 points "
+                               "(in memory and to a file), quickstart run + plot cold and warm, cost per point "
+                               "10^4 .. 10^6 (--full: 10^7, 10^8 closed form) with the command's peak memory")
+    p.add_argument("--full", action="store_true", help="scale to 10^7 integrated and 10^8 closed-form points (minutes)")
+    p.add_argument("--repeats", type=int, default=3, help="measurements per figure, at least 3 (default 3)")
+    p.add_argument("--scene", default="sweeps/quickstart.toml",
+                   help="the quickstart scene (default sweeps/quickstart.toml)")
+    p.add_argument("--only", choices=("warm", "quickstart", "scaling", "breakdown", "routes", "compile", "warmstart"),
+                   nargs="+", default=None,
+                   help="measure only these parts (default: warm quickstart scaling; breakdown: where the time "
+                        "goes, by function: the file route's fixed costs, chunk launches, a cold compile; routes: "
+                        "the cold compile and warm speed of the lane and one-point kernels; compile: the scene's cold "
+                        "compile by function, LLVM against numba's own work, in --repeats fresh processes; "
+                        "warmstart: the warm quickstart by process, run and plot)")
+    p.add_argument("--against", metavar="SRC", default=None,
+                   help="with --only warmstart: alternate with the sources in SRC (another checkout's src folder)")
+
+    def command(a) -> int:
+        main(full=a.full, repeats=a.repeats, scene=a.scene,
+             parts=tuple(a.only) if a.only else ("warm", "quickstart", "scaling"), against=a.against)
+        return 0
+
+    return _cli.run(p, command, argv)
+
+
 if __name__ == "__main__":
-    print(json.dumps(main(), default=str))
+    sys.exit(cli())
