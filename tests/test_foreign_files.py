@@ -381,9 +381,6 @@ BENCH = [
     (["workprecision", "fourbar_balancing", "--repeats", "0"], "repeats = 0"),
     (["workprecision", "duffing", "--out", "a_file"], "a_file is a file, not a folder"),
     (["workprecision", "duffing", "--out", "a_file/sub"], "a_file is a file, not a folder"),
-    (["quickstart", "--scene", "a_file"], "TOML syntax error"),
-    (["quickstart", "--scene", "data"], "is a directory, not a scene file"),
-    (["quickstart", "--scene", "nothing.toml"], "does not exist"),
 ]
 
 
@@ -395,12 +392,11 @@ def no_bench_work(work, monkeypatch):
     def tripwire(*args, **kwargs):
         raise AssertionError("the benchmark started despite a bad option")
 
-    from mechsweep.bench import duffing, quickstart, workprecision, workprecision_linkage
+    from mechsweep.bench import duffing, workprecision, workprecision_linkage
 
     monkeypatch.setattr(numba, "set_num_threads", tripwire)
     for mod in (duffing, workprecision, workprecision_linkage):
         monkeypatch.setattr(mod, "load_scene", tripwire)
-    monkeypatch.setattr(quickstart, "_timed", tripwire)
     (work / "a_file").write_text("x")
     return work
 

@@ -22,8 +22,11 @@ BENCH = [
     ("cluster", ["--chunk", "0"], "chunk = 0"),
     ("memory", ["--dir", "a_file"], "a_file is a file, not a folder"),
     ("memory", ["--dir", "no_such_folder"], "does not exist"),
+    ("quickstart", ["--scene", "a_file"], "TOML syntax error"),
+    ("quickstart", ["--scene", "data"], "is a directory, not a scene file"),
+    ("quickstart", ["--scene", "nothing.toml"], "does not exist"),
 ]
-TRIPWIRES = {"autobalancer": "_main", "linkage": "design_family", "cluster": "run", "memory": "_case"}  # what each benchmark calls once its options are checked
+TRIPWIRES = {"autobalancer": "_main", "linkage": "design_family", "cluster": "run", "memory": "_case", "quickstart": "_timed"}  # what each benchmark calls once its options are checked
 
 
 def refused(capsys, name: str, argv, root, *fragments) -> str:

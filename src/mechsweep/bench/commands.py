@@ -55,9 +55,6 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
     b.add_argument("--output", default=None, metavar="NAME",
                    help="the measured output to compare (default: the declared output, else the first measurement)")
     b.set_defaults(func=run_workprecision)
-    b = bsub.add_parser("quickstart", help="time the quickstart (run + plot) in fresh processes, cold and warm JIT cache")
-    b.add_argument("--scene", default="sweeps/quickstart.toml")
-    b.set_defaults(func=run_quickstart)
 
 
 def run_duffing(args) -> int:
@@ -107,12 +104,3 @@ def run_workprecision(args) -> int:
                        repeats=3 if args.repeats is None else args.repeats,
                        out_dir=args.out, output=args.output)
     return 0
-
-
-def run_quickstart(args) -> int:
-    from . import quickstart
-
-    quickstart.main(args.scene)
-    return 0
-
-

@@ -327,7 +327,7 @@ def _print(r: dict) -> None:
                   f"{m['points_per_cpu_s'] / c['points_per_cpu_s']:,.1f}x per CPU second"
                   f"{'' if m['matched'] else ' (NOT matched: our tightest rung is above its best error)'}; our ladder "
                   + ", ".join(f"{rt:g}: {e:.1e}" for rt, e in m["ladder"]))
-    print("  goals measured here (the others: mechsweep bench quickstart / memory / workprecision):")
+    print("  goals measured here (the others: benchmarks/quickstart.py, memory.py; mechsweep bench workprecision):")
     # the goal's figure is the period output's (the goal reads "period output, dataset written"); the
     # bench's five outputs are printed beside it
     run_ok = r["run_to_hdf5_period_only_points_per_s"] >= TARGET_RUN
