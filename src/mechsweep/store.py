@@ -242,8 +242,8 @@ class Early:
 
     def prepare(self, started=None) -> None:
         """Create and define the file before the first chunk arrives: the run calls it in the writer
-        thread, idle while the first chunk is computed, so that the definition (``mechsweep bench duffing
-        --breakdown`` times it) does not delay the first chunk's write and the second chunk's launch
+        thread, idle while the first chunk is computed, so that the definition (``python
+        benchmarks/duffing_breakdown.py`` times it) does not delay the first chunk's write and the second chunk's launch
         behind it. ``started``: an event set when
         the first chunk's kernel is about to run (waited for at most PREPARE_WAIT seconds), so that
         this Python work holds the GIL while the kernel has released it, not while the main
@@ -621,7 +621,7 @@ class NetCDFWriter:
     where h5netcdf names itself. tests/test_store_define.py walks a file of each shipped scene
     written both ways and compares all of it, and reads both with h5netcdf and with netCDF-C.
     Written with h5py because h5netcdf looks up the same h5py objects again and again while it defines
-    a file (most of a small run's definition time: ``mechsweep bench duffing --breakdown``);
+    a file (most of a small run's definition time: ``python benchmarks/duffing_breakdown.py``);
     this writes each once."""
 
     def __init__(self, target):

@@ -17,13 +17,6 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
     b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
     b.add_argument("--rtol", type=float, default=None, help="default: the solver default")
     b.add_argument("--atol", type=float, default=None, help="default: the solver default")
-    b.add_argument("--breakdown", action="store_true",
-                   help="only time the steps of mechsweep.run (planning, journal, kernel, HDF5, ...) against "
-                        "the kernel (the lane kernel), with each kernel launch's threads accounted (on a CPU, "
-                        "waiting for one, asleep at the launch's end), --repeats times")
-    b.add_argument("--outputs", default=None,
-                   help="with --breakdown: the outputs the run stores, comma-separated (default: period, "
-                        "period_exact, period_error, v_max, a_max; goal 1 asks for: period)")
     b.set_defaults(func=run_duffing)
     b = bsub.add_parser("workprecision", formatter_class=fmt,
                         help="error against run time for every method, ours and scipy's (DOP853, Radau, LSODA)",
@@ -61,17 +54,6 @@ def run_duffing(args) -> int:
     from ..scene import Solver
     from . import duffing as bench_duffing
 
-    if args.outputs is not None and not args.breakdown:
-        from ..errors import InputError
-
-        raise InputError(f"--outputs {args.outputs} applies to --breakdown only (the full bench times the period "
-                         "and the five stored outputs); add --breakdown or leave it out")
-    if args.breakdown:
-        outputs = {} if args.outputs is None else {"outputs": tuple(o.strip() for o in args.outputs.split(","))}
-        bench_duffing.breakdown(points=args.points, threads=args.threads, repeats=args.repeats,
-                                rtol=Solver.rtol if args.rtol is None else args.rtol,
-                                atol=Solver.atol if args.atol is None else args.atol, **outputs)
-        return 0
     bench_duffing.main(points=args.points, scipy_points=args.scipy_points, threads=args.threads,
                        compare_points=args.compare_points, repeats=args.repeats,
                        rtol=Solver.rtol if args.rtol is None else args.rtol,
