@@ -50,11 +50,11 @@ import numpy as np
 
 from mechsweep import status as st
 from mechsweep._jit import jit
-from mechsweep.models import _autobalancer_kernels as ref  # scaled parameters and sample grid for scipy
-from mechsweep.models import autobalancer as ab
 from mechsweep.model import trajectory
 from mechsweep.model.trajectory import LANES as _LANE_CHOICES
+from mechsweep.models import autobalancer as ab
 from mechsweep.scene import Solver
+from tests.reference import autobalancer_kernels as ref  # scaled parameters and sample grid for scipy
 
 LANES = _LANE_CHOICES[0]  # the lane right-hand side's cost is measured with the most lanes the model uses
 

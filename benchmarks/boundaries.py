@@ -164,7 +164,7 @@ def main(values: int = 200, grid: int = 100, contour=(100, 200, 400), rtol: floa
         # the boundaries' movement from the damped first approximation's roots P(Omega) = 0
         from scipy.optimize import brentq
 
-        from mechsweep.models import _autobalancer_kernels as ab  # the reference formula (numpy, vectorised)
+        from tests.reference import autobalancer_kernels as ab  # the reference formula (numpy, vectorised)
 
         roots = np.array([brentq(lambda v: ab.receptance_sum(v, 1.0, 1.0, 2.25, 0.04, 0.06), lo_, hi_, xtol=1e-14)
                           for lo_, hi_ in ((0.9, 1.1), (1.2, 1.35), (1.4, 1.55))])

@@ -11,7 +11,7 @@ from scipy.optimize import brentq
 
 import mechsweep
 from mechsweep import models, status as st
-from mechsweep.models import _autobalancer_kernels as K  # the hand-written kernels: rhs, Jacobian, variational system
+from .reference import autobalancer_kernels as K  # the hand-written kernels: rhs, Jacobian, variational system
 from mechsweep.models import autobalancer as ab
 from mechsweep.scene import SceneError, Solver, load_scene
 

@@ -10,7 +10,7 @@ from hypothesis import strategies as hs
 
 from mechsweep import status as st
 from mechsweep._jit import call_with_literal
-from mechsweep.models import _autobalancer_kernels as ab  # the hand-written kernels (reference implementation)
+from .reference import autobalancer_kernels as ab  # the hand-written kernels (reference implementation)
 from mechsweep.ode import METHOD_CODES, _lane_sums_codegen
 from mechsweep.scene import Solver
 from mechsweep.special import SINCOS_MAX
@@ -95,7 +95,7 @@ def mixed():
     return pp, run, simulate(pp, lanes=0, run=run)
 
 
-# The hand-written auto-balancer kernels (models/_autobalancer_kernels.py) are a reference since the
+# The hand-written auto-balancer kernels (tests/reference/autobalancer_kernels.py) are a reference since the
 # swap: no model runs them. Their lane simulations compile the whole lane solver for them (about a
 # minute cold), so these tests of them are slow; the model's own lanes run in every auto-balancer test.
 @pytest.mark.slow

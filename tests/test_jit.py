@@ -53,7 +53,7 @@ def test_noalloc_and_inline_functions_work_on_caller_arrays():
 
 
 NAMES_CODE = """
-from mechsweep.models import _autobalancer_kernels as ab  # the hand-written kernels (reference implementation)
+from tests.reference import autobalancer_kernels as ab  # the hand-written kernels (reference implementation)
 from mechsweep.ode import dop853, radau
 print(dop853._make_start(ab.rhs).py_func.__qualname__)
 print(dop853._make_start(ab.variational_rhs).py_func.__qualname__)
@@ -76,7 +76,10 @@ def test_closures_of_one_factory_get_distinct_names_the_same_in_every_process():
 
     import mechsweep
 
-    env = {**__import__("os").environ, "PYTHONPATH": str(Path(mechsweep.__file__).resolve().parents[1])}
+    import os
+
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(mechsweep.__file__).resolve().parents[1]),
+                                                        str(Path(__file__).resolve().parents[1])])}
     runs = [subprocess.run([sys.executable, "-c", NAMES_CODE], capture_output=True, text=True, env=env, check=True)
             .stdout.split() for _ in range(2)]
     assert runs[0] == runs[1]

@@ -1,5 +1,5 @@
 """Side by side in one process: the auto-balancer's simulated outputs (stable_sim,
-residual_amplitude) by the hand-written kernels (models/_autobalancer_kernels.py, the reference
+residual_amplitude) by the hand-written kernels (tests/reference/autobalancer_kernels.py, the reference
 kept for this: DOP853 lanes) and by the model, the layer declaration (models/autobalancer.py: the
 layer's sampled trajectory in DOP853 lanes, with its status rules), the same points, warm caches,
 alternating: ``python tests/data/autobalancer_layer_speed.py [points] [sim|both] [rounds] [cpu]``
@@ -17,8 +17,8 @@ sys.path[:0] = [str(HERE), str(HERE.parents[1])]  # record_autobalancer beside i
 import record_autobalancer as rec  # noqa: E402
 
 from mechsweep.models import MODELS  # noqa: E402
-from mechsweep.models import _autobalancer_kernels as K  # noqa: E402
 from mechsweep.scene import Solver  # noqa: E402
+from tests.reference import autobalancer_kernels as K  # noqa: E402
 
 old = K.SPEC
 new = MODELS["autobalancer"]
