@@ -13,7 +13,6 @@ from contextlib import contextmanager
 from pathlib import Path
 
 EXIT_INVALID = 2
-EXIT_INTERRUPTED = 130  # 128 + SIGINT; a SIGTERM exits with 128 + 15 = 143
 
 DESCRIPTION = """\
 Parameter sweeps over the dynamics of machine mechanisms, compiled with numba.

@@ -31,7 +31,7 @@ from . import cf
 from . import status as st
 from .errors import FileBusy, StoreError, WriteFailed, why_os_error  # noqa: F401  (StoreError: API)
 from .grid import plan_chunks
-from .journal import META_KINDS, BadChunk, Journal, partial_path  # noqa: F401  (partial_path: this module's API)
+from .journal import BadChunk, Journal, partial_path  # noqa: F401  (partial_path: this module's API)
 
 if TYPE_CHECKING:  # not imported at run time: reading a dataset (plot, info) needs no model or numba
     import xarray as xr  # nor does writing one (`mechsweep run`) need xarray: imported where a Dataset is made
@@ -996,7 +996,6 @@ def _lkind(path) -> str:
     return "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
 
 
-RUN_JSON_KEYS = META_KINDS  # run.json's entries and their kinds (journal.meta_problem checks them)
 
 
 def _check_run_json(path: Path) -> None:

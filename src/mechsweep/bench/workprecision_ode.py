@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import importlib
 import math
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -74,21 +73,6 @@ def declaration(ref: str, base: str | Path | None = None):
     if not isinstance(model, OdeModel):
         raise InputError(f"{ref!r} is not a mechsweep.model.OdeModel")
     return model
-
-
-def scene_declaration(scene):
-    """The OdeModel a scene names (its model reference re-read from the scene text, resolved
-    against the scene's folder); None when the scene's model is not such a declaration."""
-    try:
-        ref = tomllib.loads(scene.text)["scene"]["model"]
-    except (tomllib.TOMLDecodeError, KeyError, TypeError):
-        return None
-    if not isinstance(ref, str):
-        return None
-    try:
-        return declaration(ref, scene.base or None)
-    except InputError:
-        return None
 
 
 class OdeReference:
