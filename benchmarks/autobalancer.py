@@ -461,7 +461,7 @@ def _measure(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
 
 
 def _print(r: dict, solver) -> None:
-    print(f"mechsweep bench autobalancer: DOP853, rtol={r['rtol']:g}, atol={r['atol']:g}, {r['threads']} threads")
+    print(f"benchmarks/autobalancer.py: DOP853, rtol={r['rtol']:g}, atol={r['atol']:g}, {r['threads']} threads")
     print(f"  first call (JIT compile or cache load of both kernels): {r['compile_or_cache_load_s']:.2f} s")
     extra = (f" (measured on {r['chart_points']} points in {r['chart_s']:.2f} s, extrapolated by points)"
              if r["chart_extrapolated"] else "")

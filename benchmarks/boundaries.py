@@ -123,7 +123,7 @@ def main(values: int = 200, grid: int = 100, contour=(100, 200, 400), rtol: floa
                       refine_calls=res.calls, evaluations_mean=float(evals.mean()), evaluations_max=int(evals.max()),
                       width_rel_max=width_rel, per_line=per_line,
                       bounds={bd.BOUND_MEANINGS[c]: int((res.bound == c).sum()) for c in (bd.PARAMETER, bd.CRITERION)})
-        print(f"mechsweep bench boundaries: auto-balancer floquet_max = 1 along Omega in [{OMEGA[0]}, {OMEGA[1]}] rad/s, "
+        print(f"benchmarks/boundaries.py: auto-balancer floquet_max = 1 along Omega in [{OMEGA[0]}, {OMEGA[1]}] rad/s, "
               f"{values} mass ratios 2 m / M in [{RATIO[0]}, {RATIO[1]}] (log), {n_threads} thread(s), rtol {rtol:g}")
         print(f"  located: grid {grid} x {values} = {values * grid:,} points + refinement {res.points:,} points in "
               f"{res.calls} calls: {t_loc:.2f} s; {n_found} boundaries ({{k: n}} = "

@@ -79,7 +79,7 @@ def main(points: int = 400_000, workers: int | None = None, chunk: int = 8192) -
     n = reference["status"].size
     n_chunks = -(-n // chunk)
     base = rows[0]["seconds"]
-    print(f"mechsweep bench cluster: Duffing periods, {n:,} points in chunks of {chunk}, this machine "
+    print(f"benchmarks/cluster.py: Duffing periods, {n:,} points in chunks of {chunk}, this machine "
           f"({os.cpu_count()} cores); time includes the journal and the dataset assembly")
     print(f"  {'configuration':<34} {'wall s':>8} {'points/s':>12} {'vs local 1 thread':>18} "
           f"{'this process CPU ms/chunk':>26}  identical to local")

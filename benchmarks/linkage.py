@@ -125,7 +125,7 @@ def main(designs: int = 200_000, numpy_designs: int = 20_000, threads: int | Non
 
 
 def _print(r: dict) -> None:
-    print("mechsweep bench linkage: four-bar residual sweep (kinematics, complete force balancing, "
+    print("benchmarks/linkage.py: four-bar residual sweep (kinematics, complete force balancing, "
           f"RMS-optimal counterweight axis, residual RMS/max, efficiency), {r['positions_per_design']} "
           "positions per design")
     print(f"  designs: {r['designs']:,} random Grashof crank-rockers; {r['ok_fraction'] * 100:.1f}% ok; "

@@ -138,7 +138,7 @@ def main(quick: bool = False, folder: str | None = None) -> list[dict]:
         tmp = Path(tmp)
         _case("run", "period", (1000,), tmp)  # warm-up: compile or load the kernels once
         _case("run", "period_exact", (1000,), tmp)
-        print(f"mechsweep bench memory: peak resident memory of a run in a fresh process (interpreter and "
+        print(f"benchmarks/memory.py: peak resident memory of a run in a fresh process (interpreter and "
               f"libraries included) against the dataset on disk; criterion: peak <= disk + "
               f"{ALLOWANCE // MiB} MiB; 'over 10^3': peak minus that of the same path at 1,000 points")
         print(f"  {'path':<8} {'output':<13} {'grid':>15} {'points':>12} {'run s':>7} {'disk MiB':>9} "

@@ -111,7 +111,7 @@ def separatrix_table() -> list[dict]:
 
 def main(ladder=LADDER) -> list[dict]:
     eps = epsilon_scan()
-    print(f"mechsweep bench period-error: {eps.size} values of epsilon in [-0.99, 1e4], DOP853; "
+    print(f"benchmarks/period_error.py: {eps.size} values of epsilon in [-0.99, 1e4], DOP853; "
           f"defaults rtol={Solver.rtol:g}, atol={Solver.atol:g}")
     print(f"  {'rtol':>8} {'atol':>8}  {'max rel. error':>14}  {'at epsilon':>11}  {'hard (eps>=0)':>13}  "
           f"{'soft (eps<0)':>12}  {'steps/pt':>8}  not ok")

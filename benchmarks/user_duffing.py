@@ -151,7 +151,7 @@ def main(points: int = 200_000, threads: int | None = None, rtol: float | None =
     result = {"points": int(P.shape[0]), "threads": n_threads, "rtol": rtol, "atol": atol, **{
         f"{label}_{k}": v for label, row in rows.items() for k, v in row.items()}, "ratio": ratio,
         "ratio_unscaled": rows["user, unscaled"]["points_per_s"] / rows["built-in"]["points_per_s"]}
-    print(f"mechsweep bench user-model: Duffing declared as a user model ({REFERENCE}, the built-in's scaled "
+    print(f"benchmarks/user_duffing.py: Duffing declared as a user model ({REFERENCE}, the built-in's scaled "
           f"equation) against the built-in, DOP853, rtol={rtol:g}, atol={atol:g}, {n_threads} threads, "
           f"{P.shape[0]} points")
     for label, row in rows.items():
