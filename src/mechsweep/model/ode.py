@@ -11,8 +11,8 @@ import numpy as np
 
 from .. import status as st
 from ..errors import InputError
-from .spec import ModelSpec, Param, Setting
-from .measure import FLOQUET_MARGIN, ClosedForm, Floquet, _number, declared_at
+from .spec import ModelSpec, Param, Setting, setting_value
+from .measure import FLOQUET_MARGIN, ClosedForm, Floquet, declared_at
 
 SYMPLECTIC_ORDERS = (2, 4, 6, 8)
 
@@ -48,7 +48,7 @@ def _warn_user_error(model, P, status, S, rtol) -> None:
 def _moved(rc, settings, solver, first, second, status2) -> np.ndarray:
     """Which re-checked points moved (measure.Recheck's rule): an asked-for output that differs by more
     than factor (rtol max(|v|, |v'|) + atol), NaN in one run only, or a second run that failed."""
-    factor = _number(rc.factor, settings)
+    factor = setting_value(rc.factor, settings)
     bad = status2 != st.OK
     with np.errstate(invalid="ignore"):
         for name, a in first.items():
@@ -546,7 +546,7 @@ class OdeModel:
             _warn_user_error(model, P, status, S, rtol)
             rc = model.recheck if chosen and solver is not None and model.recheck is not None else None
             again = (np.flatnonzero(status == st.OK)
-                     if rc is not None and rc.every_measurement and _number(rc.factor, settings) > 0.0 else None)
+                     if rc is not None and rc.every_measurement and setting_value(rc.factor, settings) > 0.0 else None)
             if again is not None and again.size:  # the same kernel at the tighter rtol, closed forms left out
                 t2 = np.full((again.size, table.shape[1]), np.nan)
                 s2 = np.zeros(again.size, dtype=status.dtype)

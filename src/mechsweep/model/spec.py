@@ -336,6 +336,12 @@ class ModelSpec:
         return any(by_name[n].integrated for n in self.closure(requested))
 
 
+def setting_value(x, settings) -> float:
+    """A declared number, or the name of one of the model's settings: its value in ``settings``
+    (name -> value, the scene's [solver] settings)."""
+    return float(settings[x]) if isinstance(x, str) else float(x)
+
+
 def wanted_flags(all_names: tuple[str, ...], wanted: tuple[str, ...]) -> np.ndarray:
     """Boolean mask over a kernel's full output layout."""
     return np.array([n in wanted for n in all_names], dtype=np.bool_)
