@@ -108,7 +108,7 @@ def test_the_site_has_a_maintained_theme_and_renders_math_without_the_network(si
     assert mathjax and all(not urlsplit(src).scheme for src in mathjax), mathjax  # served from the site
     assert (site / "_static" / "mathjax" / "tex-chtml.js").is_file()
     glossary = (site / "glossary.html").read_text()
-    assert r"\(\varepsilon = \mu \,A^2 / \omega ^2\)" in glossary  # symbols are math too
+    assert r"\(\varepsilon = \mu A^2/\omega^2\)" in glossary  # symbols are math too
 
 
 def test_names_of_other_projects_link_to_their_documentation(site):

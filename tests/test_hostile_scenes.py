@@ -11,6 +11,7 @@ import math
 import os
 import re
 import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -237,7 +238,12 @@ def work(tmp_path, monkeypatch):
     monkeypatch.setattr(runner.Journal, "create", tripwire)
     monkeypatch.setattr(runner, "_save_chunks", tripwire)
     monkeypatch.setattr(runner, "evaluate_chunk", tripwire)
-    return tmp_path
+    yield tmp_path
+    # the user modules a scene imported by name from this folder (hostile_helpers, ...) must not be
+    # found by a later test that imports the same names from tests/user_models
+    for name, module in list(sys.modules.items()):
+        if str(getattr(module, "__file__", None) or "").startswith(str(tmp_path)):
+            del sys.modules[name]
 
 
 def snapshot(root: Path) -> dict:

@@ -30,7 +30,7 @@ def test_output_meta_names_and_describes_each_output():
     assert (o.symbol, o.unit, o.long_name) == ("t_s", "s", "time until |y| < 0.01")
     o = spec.output("final_error")
     assert (o.symbol, o.unit, o.long_name) == ("|y(end)|", "1", "error at the end of the simulation")
-    assert spec.output("peak_lag").unit == "deg?" and spec.output("peak_harmonic").symbol == "A1"
+    assert spec.output("peak_lag").unit == "degree" and spec.output("peak_harmonic").symbol == "A1"
     assert spec.output("y_hist").symbol == "y(t)" and spec.output("y_hist").extra_dims[0].name == "time"
     assert spec.output("mu_crit_angle").symbol == "θ" and spec.output("mu_crit_angle").needs == ("mu",)
     assert spec.output("mu_stable_old").kind == "verdict"

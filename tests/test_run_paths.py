@@ -99,7 +99,7 @@ def test_compile_phase_shown_before_the_progress_bar(in_tmp, small_duffing, monk
     _slow_compile(monkeypatch, offset=0.0, sleep=0.5)
     mechsweep.run(small_duffing, output="data/runs/s.h5", progress=True)
     err = capsys.readouterr().err
-    note = err.find("compiling kernels (first run only, cached afterwards)")
+    note = err.find("compiling kernels for model duffing (first run; cached afterwards)")
     assert note >= 0, err
     assert "kernels compiled in" in err
     assert note < err.find("small:"), "the compile note comes before the progress bar"

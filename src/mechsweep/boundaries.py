@@ -670,6 +670,7 @@ def locate_dataset(scene, ds, spec=None):
     attrs = {
         "Conventions": cf.CONVENTIONS,
         "title": f"boundaries of {scene.name} along {along}",
+        "source": cf.source(scene.model, __version__),
         "history": cf.history(created, f"mechsweep.boundaries.run_boundaries(scene {scene.name!r})", __version__),
         "references": cf.references(scene.model),
         "mechsweep_kind": "boundaries",
@@ -718,7 +719,9 @@ def write_atomic(ds, target: str | os.PathLike) -> Path:
     fd, tmp = tempfile.mkstemp(prefix="." + target.name + ".", suffix=".tmp", dir=target.parent)
     os.close(fd)
     try:
-        ds.to_netcdf(tmp, engine="h5netcdf")
+        # strings (a categorical axis) as CF character arrays, as a run's dataset stores them (store.py)
+        chars = {k: {"dtype": "S1"} for k, v in ds.variables.items() if v.dtype.kind in "OSUT"}
+        ds.to_netcdf(tmp, engine="h5netcdf", encoding=chars)
         os.replace(tmp, target)
     except BaseException:
         try:

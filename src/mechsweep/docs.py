@@ -116,6 +116,8 @@ def model_markdown(spec) -> str:
              "| parameter | symbol | meaning | unit | allowed |", "|---|---|---|---|---|"]
     for p in spec.params:
         opt = " (optional)" if not p.required else ""
+        opt += (f" (a scene may also call it {', '.join(f'`{a}`' for a in p.aliases)}, its former name; datasets "
+                f"name it `{p.name}`)" if p.aliases else "")
         lines.append(f"| `{p.name}` | {symbol_math(p.symbol, getattr(p, 'latex', ''))} | {_cell(p.long_name)}{opt} | "
                      f"{_unit(p.unit)} | {p.allowed()} |")
     lines += ["", "| output | symbol | meaning | unit |", "|---|---|---|---|"]

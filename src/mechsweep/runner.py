@@ -8,7 +8,6 @@ import functools
 import numbers
 import os
 import platform
-import resource
 import shutil
 import signal
 import stat
@@ -402,16 +401,11 @@ def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, schedul
     lay = layout(scene, len(chunks))
     store = memory_store(scene, lay, provenance(scene, chunks))
     params = ParameterMatrix(scene)
-    bar = None
     with _threads(threads):
         threads_used = _jit.num_threads()
         compile_s = warm_up(scene, params, progress)
         t0 = _clock()
-        if shown:
-            from tqdm.auto import tqdm
-
-            bar = tqdm(total=scene.n_points, unit="pt", unit_scale=scene.n_points >= 100_000, dynamic_ncols=True,
-                       desc=scene.name, smoothing=0.1)
+        bar = _progress(scene, progress)
         try:
             for chunk in chunks:
                 columns, status, n_steps, n_rhs = evaluate_chunk(scene, chunk, params)
@@ -419,11 +413,9 @@ def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, schedul
                 if scene.solver is not None:
                     arrays.update(n_steps=n_steps, n_rhs=n_rhs)
                 write_memory(store, chunk.region, arrays, lay.shape)
-                if bar is not None:
-                    bar.update(chunk.size)
+                bar.update(chunk.size)
         finally:
-            if bar is not None:
-                bar.close()
+            bar.close()
         compute_s = _clock() - t0
     store.attrs.update({"execution": f"local, {threads_used} threads", "threads": threads_used})
     store.attrs.update(time_attrs(compile_s, compute_s))
@@ -555,10 +547,10 @@ def _out_of_space(exc: WriteFailed, scene: Scene, final: Path, n_chunks: int) ->
         files = int(done.size - done.sum()) + 1
     kept = _kept(final)
     reason = why_write_failed(code, exc.strerror)
-    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    soft = _file_size_limit()
     free, inodes, total_inodes = _room(folder)
     short_of_inodes = total_inodes and inodes is not None and inodes < files + 1
-    if code == errno.EFBIG and soft != resource.RLIM_INFINITY:
+    if code == errno.EFBIG and soft is not None:
         need_text = f"the limit is {_mib(soft)}, the dataset needs up to {_mib(data)}"
     elif code == errno.ENOSPC and short_of_inodes and (free is None or free >= need):
         # a file system that ran out of inodes (file entries) says ENOSPC too, with space to spare
@@ -1016,12 +1008,23 @@ class _Signals:
             raise KeyboardInterrupt
 
 
+def _file_size_limit() -> int | None:
+    """The process's file-size limit in bytes (``ulimit -f``); None when unlimited, or where the
+    system has no such limit (no ``resource`` module: Windows)."""
+    try:
+        import resource
+    except ImportError:
+        return None
+    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    return None if soft == resource.RLIM_INFINITY else soft
+
+
 def check_file_limit(scene: Scene, final: Path) -> None:
     """Refuse, before any file is made, a run whose dataset cannot fit under the process's file-size
     limit (``ulimit -f``). Counted are only the float outputs, which are stored uncompressed: the
     dataset is at least that large, so no run that would fit is refused."""
-    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
-    if soft == resource.RLIM_INFINITY:
+    soft = _file_size_limit()
+    if soft is None:
         return
     least = _least_bytes(scene)
     if least > soft:
@@ -1246,7 +1249,9 @@ def evaluate_rows(scene: Scene, P: np.ndarray):
 # The compile phase is announced only when it lasts longer than this (seconds): a warm JIT cache
 # loads in a fraction of it, and then nothing is printed.
 COMPILE_NOTE_AFTER = 0.5
-COMPILE_NOTE = "compiling kernels (first run only, cached afterwards)"
+COMPILE_NOTE = "compiling kernels for model {model} (first run; cached afterwards)"
+# Seconds between two progress lines of a run that shows no bar (stderr no terminal: a log).
+PROGRESS_LOG_EVERY = 30.0
 
 
 # The kernels warm_up has compiled or loaded in this process, by _kernel_key.
@@ -1265,32 +1270,106 @@ def _clock() -> float:
 
 
 def _shows_progress(progress: bool | None) -> bool:
-    """Whether a progress bar is shown: ``progress``, or by default when stderr is a terminal."""
+    """Whether a progress bar is shown: ``progress``, or by default where a user watches: when
+    stderr is a terminal, or in a Jupyter notebook (tqdm.auto draws it as a widget there)."""
     if progress is not None:
         return bool(progress)
     try:
-        return sys.stderr.isatty()
+        if sys.stderr.isatty():
+            return True
     except (AttributeError, ValueError):
+        pass
+    return _in_notebook()
+
+
+def _in_notebook() -> bool:
+    """Whether this process is a Jupyter kernel (IPython's ZMQ shell), where stderr is no terminal
+    but a user watches the cell's output."""
+    ipython = sys.modules.get("IPython")
+    try:
+        shell = ipython.get_ipython() if ipython is not None else None
+    except Exception:  # an IPython too old or half imported: no notebook to show anything in
         return False
+    return type(shell).__name__ == "ZMQInteractiveShell"
+
+
+def _progress(scene: Scene, progress: bool | None, initial: int = 0):
+    """The run's progress: a tqdm bar where one is shown (``_shows_progress``), one line now and
+    then on stderr when progress is None and nobody watches (a log: ``_LogProgress``), else nothing.
+    Each has ``update(points)`` and ``close()``."""
+    if _shows_progress(progress):
+        from tqdm.auto import tqdm
+
+        return tqdm(total=scene.n_points, initial=initial, unit="pt", unit_scale=scene.n_points >= 100_000,
+                    dynamic_ncols=True, desc=scene.name, smoothing=0.1)
+    if progress is None:
+        return _LogProgress(scene.name, scene.n_points, initial)
+    return _NoProgress()
+
+
+class _NoProgress:
+    def update(self, n: int) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+class _LogProgress:
+    """Progress for a log (stderr no terminal, e.g. a batch job): at most one line per
+    PROGRESS_LOG_EVERY seconds, "mechsweep: NAME: 12,000 / 1,000,000 points, 1.2 %, ETA 3 min",
+    and a last line with the run's time when any line was written (a short run writes none)."""
+
+    def __init__(self, name: str, total: int, initial: int = 0):
+        self.name, self.total, self.done, self.first = name, total, initial, initial
+        self.t0 = self.last = time.monotonic()
+        self.lines = 0
+
+    def update(self, n: int) -> None:
+        self.done += n
+        now = time.monotonic()
+        if now - self.last >= PROGRESS_LOG_EVERY and self.done < self.total:
+            self.last = now
+            rate = (self.done - self.first) / max(now - self.t0, 1e-9)
+            eta = f", ETA {_duration((self.total - self.done) / rate)}" if rate > 0 else ""
+            self._print(f"{self.done:,} / {self.total:,} points, {100.0 * self.done / self.total:.1f} %{eta}")
+
+    def close(self) -> None:
+        if self.lines and self.done >= self.total:
+            self._print(f"{self.done:,} / {self.total:,} points, 100 %, in {_duration(time.monotonic() - self.t0)}")
+
+    def _print(self, text: str) -> None:
+        self.lines += 1
+        print(f"mechsweep: {self.name}: {text}", file=sys.stderr, flush=True)
+
+
+def _duration(seconds: float) -> str:
+    """A rough duration for a progress line: 40 s, 3 min, 2.5 h."""
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 90 * 60:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
 
 
 def warm_up(scene: Scene, params: ParameterMatrix, progress: bool | None, chunk: Chunk | None = None) -> float:
     """Compile the scene's kernels (numba compiles, or loads from its disk cache, on first call) by
     computing one point of ``chunk`` (the first of the grid by default), before the timed chunks
     and the progress bar. Its result is thrown away: the chunk computes the point again, with the
-    same result. When the phase lasts longer than COMPILE_NOTE_AFTER seconds and a progress bar
-    is shown, it is announced on stderr (with its time when it ends). Returns its seconds (0 when
+    same result. When the phase lasts longer than COMPILE_NOTE_AFTER seconds it is announced on
+    stderr, naming the model (with its time when it ends), wherever the run reports its progress:
+    a terminal, a notebook's cell, a log (all but ``progress=False``). Returns its seconds (0 when
     this process has compiled or loaded the same kernels before: then nothing is computed)."""
     key = _kernel_key(scene)
     if key in _WARM:  # compiled (or loaded) in this process already: nothing to do, no extra launch
         return 0.0
     start = 0 if chunk is None else chunk.start
-    shown = _shows_progress(progress)
+    shown = progress is not False
     noted = threading.Event()
 
     def note():
         noted.set()
-        print(f"mechsweep: {COMPILE_NOTE} ...", file=sys.stderr, flush=True)
+        print(f"mechsweep: {COMPILE_NOTE.format(model=scene.model.name)} ...", file=sys.stderr, flush=True)
 
     timer = threading.Timer(COMPILE_NOTE_AFTER, note) if shown else None
     t0 = _clock()
@@ -1392,11 +1471,7 @@ def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], alr
     chunks saved")."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from tqdm.auto import tqdm
-
-    bar = tqdm(total=scene.n_points, initial=already, unit="pt", unit_scale=scene.n_points >= 100_000,
-               dynamic_ncols=True, desc=scene.name, disable=(None if progress is None else not progress),
-               smoothing=0.1)
+    bar = _progress(scene, progress, already)
     pending = None
     clock = {"last": _clock(), "compile": compile_s}
 
@@ -1499,6 +1574,7 @@ def provenance(scene: Scene, chunks: ChunkPlan) -> dict:
         "chunk_size": chunks.max_size,
         "wall_time_s": 0.0,
         "Conventions": cf.CONVENTIONS,
+        "source": cf.source(scene.model, __version__),
         "history": cf.history(created, f"mechsweep.run(scene {scene.name!r})", __version__),
         "references": cf.references(scene.model),
     }

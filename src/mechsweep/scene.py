@@ -315,6 +315,45 @@ class Scene:
         """The grid's shape: the number of values of each axis, in order."""
         return tuple(a.size for a in self.axes)
 
+    def __repr__(self) -> str:
+        """One line: name, model, grid, outputs, method (the dataclass's would print the model's
+        whole declaration and the scene's text)."""
+        grid = " x ".join(f"{a.name} {a.size}" for a in self.axes) or "one point"
+        method = f", method {self.solver.method}" if self.solver is not None else ""
+        return (f"<Scene {self.name!r}: model {self.model.name}, {self.n_points:,} points ({grid}), "
+                f"outputs {', '.join(self.outputs)}{method}>")
+
+    def _repr_html_(self) -> str:
+        """A table for notebooks: the model, each axis with its values and unit, the fixed values,
+        the outputs with their units, the solver settings and where the dataset goes."""
+        from html import escape
+
+        def unit(u):
+            return f" [{escape(u)}]" if u and u != "1" else ""
+
+        def values(a: Axis) -> str:
+            if a.spacing == "list":
+                shown = ", ".join(str(v) for v in a.items[:6]) + (", ..." if a.size > 6 else "")
+                return f"{escape(shown)} ({a.size} values)"
+            return f"{a.start:g} .. {a.stop:g}, {a.num} values ({a.spacing})"
+
+        rows = [("model", f"<code>{escape(self.model.name)}</code>: {escape(self.model.description or '')}"),
+                ("grid", f"{self.n_points:,} points")]
+        rows += [(f"axis <code>{escape(a.name)}</code>", values(a) + unit(self.model.param(a.name).unit))
+                 for a in self.axes]
+        if self.fixed:
+            rows.append(("fixed", ", ".join(f"<code>{escape(k)}</code> = {escape(str(v))}"
+                                            f"{unit(self.model.param(k).unit)}" for k, v in self.fixed.items())))
+        rows.append(("outputs", ", ".join(f"<code>{escape(o)}</code>{unit(self.model.output(o).unit)}"
+                                          for o in self.outputs)))
+        if self.solver is not None:
+            rows.append(("solver", escape(", ".join(f"{k} = {v}" for k, v in self.solver.as_dict().items()))))
+        rows.append(("dataset", f"<code>{escape(self.storage.path)}</code>"))
+        body = "".join(f"<tr><th style=\"text-align:left\">{k}</th><td style=\"text-align:left\">{v}</td></tr>"
+                       for k, v in rows)
+        return (f"<div><strong>mechsweep Scene</strong> <code>{escape(self.name)}</code>"
+                f"<table>{body}</table></div>")
+
     @property
     def n_points(self) -> int:
         """The number of grid points (1 for a scene without axes)."""
@@ -356,6 +395,13 @@ class Scene:
             old = json.loads(stored)
         except ValueError:
             return False
+        aliases = self.model.aliases()  # a form written when a parameter had its former name
+        if aliases and isinstance(old, dict) and isinstance(old.get("axes"), list) and isinstance(old.get("fixed"), dict):
+            old["axes"] = [[aliases.get(a[0], a[0]), *a[1:]] if isinstance(a, list) and a and isinstance(a[0], str)
+                           else a for a in old["axes"]]
+            old["fixed"] = {aliases.get(k, k): v for k, v in old["fixed"].items()}
+            if json.dumps(old, sort_keys=True) == self.canonical():
+                return True
         new = self._canonical_dict()
         if not isinstance(old, dict) or set(old) != set(new) or not isinstance(old.get("axes"), list):
             return False
@@ -568,6 +614,7 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
         raise SceneError(p.items, label)
     outputs = _outputs(head.get("outputs"), model, p)
     axes_table, fixed_table = _table(data, "axes", p), _table(data, "fixed", p)
+    axes_table, fixed_table = _current_names(axes_table, model, "axes", p), _current_names(fixed_table, model, "fixed", p)
     axes = _axes(axes_table, model, p)
     fixed = _fixed(fixed_table, model, set(axes_table), p)
     given = set(axes_table) | set(fixed_table)  # a bad value is reported as bad, not as missing
@@ -599,7 +646,7 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
     storage = _storage(_table(data, "storage", p), name if isinstance(name, str) else "scene", p)
     execution = _execution(_table(data, "execution", p), p)
     refused = set(axes_table) - {a.name for a in axes}  # axes whose own values were refused (reported already)
-    boundaries = (_boundaries(_table(data, "boundaries", p), model, axes, outputs, p, refused)
+    boundaries = (_boundaries(_current_axis_names(_table(data, "boundaries", p), model), model, axes, outputs, p, refused)
                   if "boundaries" in data else None)
     if axes:
         n = math.prod(a.size for a in axes)
@@ -610,7 +657,7 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
     if not p.items:
         _check_storable(model, outputs, axes, fixed, solver, p)
     if p.items:
-        raise SceneError(p.items, label)
+        raise SceneError(p.as_written(), label)
     return Scene(
         name=name.strip(),
         model=model,
@@ -757,10 +804,44 @@ def _same_values(a, b, settings) -> bool:
 
 
 # ----------------------------------------------------------------------------- sections
+def _current_names(table: Mapping, model: ModelSpec, section: str, p: "_Problems") -> Mapping:
+    """``table`` with each former name of a parameter (``Param.aliases``, e.g. the slider-crank's
+    ``lambda``, now ``lam``) replaced by the parameter's name; both given is a problem."""
+    aliases = model.aliases()
+    if not aliases or not any(isinstance(k, str) and k in aliases for k in table):
+        return table
+    out = {}
+    for key, value in table.items():
+        name = aliases.get(key, key) if isinstance(key, str) else key
+        if name != key and name in table:
+            p.add(f"{section}.{key}", f"{key} is the former name of {name}, which is given too; keep one ({name})")
+            continue
+        if name != key:
+            p.written[f"{section}.{name}"] = f"{section}.{key}"  # messages name the key as the scene wrote it
+        out[name] = value
+    return out
+
+
+def _current_axis_names(table: Mapping, model: ModelSpec) -> Mapping:
+    """The [boundaries] section with a former parameter name in along / continue_in made current."""
+    aliases = model.aliases()
+    renamed = {k: aliases[v] for k in ("along", "continue_in") if isinstance(v := table.get(k), str) and v in aliases}
+    return {**table, **renamed} if renamed else table
+
+
 class _Problems:
     def __init__(self):
         self.items: list[str] = []
         self._listed: set[str] = set()  # allowed lists already printed in full
+        self.written: dict[str, str] = {}  # "fixed.lam" -> "fixed.lambda": a key given by a former name
+
+    def as_written(self) -> list[str]:
+        """The problems, each key as the scene wrote it."""
+        out = []
+        for item in self.items:
+            key, sep, rest = item.partition(":")
+            out.append(self.written.get(key, key) + sep + rest)
+        return out
 
     def add(self, key: str, message: str) -> None:
         self.items.append(f"{key}: {message}")

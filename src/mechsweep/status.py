@@ -26,7 +26,8 @@ STIFF = 11  # the explicit method detected stiffness and no implicit method was 
 ILL_CONDITIONED = 12  # the output is too sensitive here to reach the tolerance in double precision
 NOT_REPRODUCIBLE = 13  # the value moved by more than its tolerance when integrated again at a tighter one
 USER_ERROR = 14  # the model's own code (a user model's function) raised at this point
-LAST = USER_ERROR  # the largest code: a kernel's code outside OK..LAST is stored as USER_ERROR (runner)
+OUT_OF_RANGE = 15  # a quantity the outputs are computed from over- or underflows double precision here
+LAST = OUT_OF_RANGE  # the largest code: a kernel's code outside OK..LAST is stored as USER_ERROR (runner)
 
 # what an integration (or a tolerance it cannot reach) can end with, for models to declare
 INTEGRATION_FAILURES = (MAX_STEPS, STEP_UNDERFLOW, NONFINITE, NO_EVENT, STIFF, ILL_CONDITIONED)
@@ -48,6 +49,7 @@ MEANINGS: dict[int, str] = {
     ILL_CONDITIONED: "ill_conditioned",
     NOT_REPRODUCIBLE: "not_reproducible",
     USER_ERROR: "user_error",
+    OUT_OF_RANGE: "out_of_range",
 }
 
 DESCRIPTIONS: dict[int, str] = {
@@ -75,6 +77,9 @@ DESCRIPTIONS: dict[int, str] = {
     USER_ERROR: "the model's own code raised at this point (an exception in a function of a model declared on "
                 "the model layer, inside the compiled kernel; its message is lost), or returned a status code "
                 "that is none of these: its outputs are NaN",
+    OUT_OF_RANGE: "the inputs are of such magnitudes that a quantity the outputs are computed from would "
+                  "overflow or underflow double precision (beyond about 1e308 or below about 1e-308): the "
+                  "outputs it affects are NaN (each model's notes say where)",
 }
 
 DTYPE = np.int8
@@ -85,6 +90,7 @@ def cf_attrs(notes=()) -> dict:
     (``ModelSpec.status_notes``), kept as the attribute ``status_notes`` (JSON, by meaning)."""
     codes = sorted(MEANINGS)
     attrs = {
+        "standard_name": "status_flag",  # CF: the status of the variables naming it in ancillary_variables
         "long_name": "status of the grid point",
         "flag_values": np.array(codes, dtype=DTYPE),
         "flag_meanings": " ".join(MEANINGS[c] for c in codes),

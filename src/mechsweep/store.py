@@ -499,8 +499,7 @@ def _define(f: "NetCDFWriter | _MemoryFile", scene: Scene, lay: Layout, attrs: d
     for axis in scene.axes:
         prm = model.param(axis.name)
         if prm.categorical:
-            v = f.create_variable(axis.name, (axis.name,), dtype=h5py.string_dtype())
-            v[:] = axis.array()
+            v = _string_variable(f, axis.name, (axis.name,), axis.array())
         else:  # written block by block: a range axis is never expanded at once
             v = f.create_variable(axis.name, (axis.name,), dtype="f8")
             for lo in range(0, axis.size, READ_BLOCK):
@@ -513,8 +512,7 @@ def _define(f: "NetCDFWriter | _MemoryFile", scene: Scene, lay: Layout, attrs: d
     for name, value in scene.fixed.items():
         prm = model.param(name)
         if prm.categorical:
-            v = f.create_variable(name, (), dtype=h5py.string_dtype())
-            v[()] = value
+            v = _string_variable(f, name, (), np.array(value, dtype=object))
         else:
             v = f.create_variable(name, (), dtype="f8")
             v[()] = value
@@ -540,6 +538,7 @@ def _define(f: "NetCDFWriter | _MemoryFile", scene: Scene, lay: Layout, attrs: d
             v.attrs["mechsweep_kind"] = out.kind
         if fixed_coords:
             v.attrs["coordinates"] = fixed_coords
+        v.attrs["ancillary_variables"] = "status"  # CF: the per-point status qualifies each value
     s = f.create_variable("status", lay.dims, dtype=st.DTYPE, fillvalue=st.PENDING, chunks=chunks,
                           **_compressed(lay.shape))
     del s.attrs["_FillValue"]  # keep int8 on reading (xarray would mask it to float)
@@ -644,9 +643,12 @@ class NetCDFWriter:
     def create_variable(self, name, dims=(), dtype=None, fillvalue=None, chunks=None, **storage) -> _NetCDFVariable:
         dims = tuple(dims)
         shape = tuple(self._dimensions[d] for d in dims)
-        coordinate = dims == (name,)
+        chars = np.dtype(dtype) == np.dtype("S1") and len(dims) >= 1 and dims[-1] == name + STRLEN_SUFFIX
+        coordinate = dims == (name,) or chars and dims == (name, name + STRLEN_SUFFIX)  # a string axis: 2-D scale
         if name in self._dimensions and not coordinate or 0 in shape or name in self.file:
             raise ValueError(f"variable {name!r} {dims}: not a layout this writer defines as h5netcdf does")
+        if chars and dims[-1] not in self._scales:  # h5netcdf's placeholder of a dimension that is no variable
+            self._placeholder(dims[-1])
         if fillvalue is not None:
             fillvalue = np.array(fillvalue).astype(dtype)
             if h5py.check_string_dtype(fillvalue.dtype) is not None:
@@ -675,6 +677,15 @@ class NetCDFWriter:
         if fillvalue is not None:
             variable.attrs["_FillValue"] = ds.dtype.type(fillvalue)
         return variable
+
+    def _placeholder(self, dim: str) -> None:
+        """The dataset netCDF-4 keeps for a dimension without a coordinate variable (here: the
+        characters of a string variable), as h5netcdf creates it when the dimension is defined."""
+        n = self._dimensions[dim]
+        ds = self.file.create_dataset(dim, (n,), dtype=">f4", track_order=True)
+        ds.attrs["_Netcdf4Dimid"] = np.array(list(self._dimensions).index(dim), np.int32)
+        ds.make_scale(b"This is a netCDF dimension but not a netCDF variable." + bytes(f"{n:10}", "ascii"))
+        self._scales[dim] = ds
 
     def close(self) -> None:
         if self.file is None:
@@ -706,14 +717,42 @@ def _storage_chunks(shape: tuple[int, ...]):
     return True if shape and all(n > 0 for n in shape) else None
 
 
+STRLEN_SUFFIX = "_strlen"  # the character dimension of a string variable: NAME_strlen
+
+
+def _string_variable(f, name: str, dims: tuple[str, ...], values: np.ndarray):
+    """A variable of strings (a categorical axis or fixed value). In a file: an array of characters
+    over a dimension ``NAME_strlen`` with ``_Encoding = "utf-8"`` (CF's character arrays: CF-1.8 also
+    allows netCDF-4 strings, but checkers and older netCDF tools do not read them); xarray decodes it
+    to the strings, with the same dims. In memory (``_MemoryFile``): the strings themselves."""
+    values = np.asarray(values, dtype=object)
+    if isinstance(f, _MemoryFile):
+        v = f.create_variable(name, dims, dtype=h5py.string_dtype())
+        v[...] = values
+        return v
+    encoded = np.array([str(x).encode("utf-8") for x in values.ravel()], dtype=bytes)
+    n = max(1, encoded.dtype.itemsize)
+    strlen = name + STRLEN_SUFFIX
+    f.dimensions[strlen] = n
+    v = f.create_variable(name, dims + (strlen,), dtype="S1")
+    v[...] = encoded.astype(f"S{n}").view("S1").reshape(values.shape + (n,))
+    v.attrs["_Encoding"] = "utf-8"
+    return v
+
+
 def _describe(var, unit: str, long_name: str, symbol: str, latex: str = "") -> None:
-    if unit:  # a UDUNITS string; a measurement declared without one gets no units (CF: unknown), never ""
-        var.attrs["units"] = unit
+    if unit and not _is_strings(var):  # a UDUNITS string; a measurement declared without one gets no units
+        var.attrs["units"] = unit  # (CF: unknown), never ""; strings (categorical values) have none
     var.attrs["long_name"] = long_name
     if symbol:
         var.attrs["symbol"] = symbol
     if latex:  # the symbol in matplotlib mathtext: what figures label the variable with
         var.attrs["latex"] = latex
+
+
+def _is_strings(var) -> bool:
+    data = var.data if isinstance(var, _MemoryVariable) else var.ds if isinstance(var, _NetCDFVariable) else var
+    return np.dtype(data.dtype).kind in "OSU"
 
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -773,11 +812,36 @@ def open_dataset(path: str | Path, *, allow_partial: bool = False, lazy: bool | 
 
     try:
         if lazy:
-            return xr.open_dataset(path, engine="h5netcdf", chunks={} if _have_dask() else None)
+            return current_names(xr.open_dataset(path, engine="h5netcdf", chunks={} if _have_dask() else None))
         with xr.open_dataset(path, engine="h5netcdf") as ds:
-            return ds.load()
+            return current_names(ds.load())
     except (OSError, ValueError, KeyError, TypeError, RuntimeError) as exc:
         raise StoreError(f"{path} is not a readable mechsweep dataset: {_first_line(exc)}") from None
+
+
+def current_names(ds: xr.Dataset) -> xr.Dataset:
+    """A dataset written before one of its model's parameters was renamed, with the current name:
+    a variable named by a former name the declaration keeps (``Param.aliases``, e.g. the
+    slider-crank's ``lambda``, now ``lam``: a Python keyword cannot be used in ``ds.sel``). Only
+    a file with a name that is no identifier, or a keyword, looks the model up."""
+    import keyword
+
+    odd = [n for n in ds.variables if isinstance(n, str) and (keyword.iskeyword(n) or not n.isidentifier())]
+    model = ds.attrs.get("model")
+    if not odd or not isinstance(model, str):
+        return ds
+    from .models import MODELS  # (imports the built-in models: only for such an old file)
+
+    spec = MODELS.get(model)
+    renames = {a: n for a, n in (spec.aliases() if spec is not None else {}).items()
+               if a in ds.variables and n not in ds.variables}
+    if not renames:
+        return ds
+    ds = ds.rename(renames)
+    for key in ("along", "continue_in"):  # a boundaries dataset names its axes
+        if ds.attrs.get(key) in renames:
+            ds.attrs[key] = renames[ds.attrs[key]]
+    return ds
 
 
 def check_dataset_file(path: str | Path) -> None:

@@ -13,7 +13,7 @@ import numpy as np
 from ..grid import ParameterMatrix
 from ..models import MODELS
 from ..scene import Scene
-from . import scenes
+from .. import examples
 
 
 def all_cases() -> tuple[str, ...]:
@@ -46,14 +46,14 @@ def resolve_model(model):
 def declared_scene(declared) -> tuple[Path, str]:
     """(the scene file a WorkPrecision / SizeWorkPrecision names, the label the report gives it):
     relative to the folder of the file that declares it; a ``sweeps/NAME.toml`` not found there is
-    mechsweep's packaged copy of its shipped ``sweeps/NAME.toml`` (bench/scenes), labelled so."""
+    the shipped ``sweeps/NAME.toml`` (mechsweep.examples: installed with the package), labelled so."""
     prefix = "sweeps/"
     path = Path(declared.scene)
     if not path.is_absolute():
         path = Path(declared.base or Path.cwd()) / path
     name = declared.scene[len(prefix):]
-    if not path.is_file() and declared.scene.startswith(prefix) and "/" not in name and name in scenes.names():
-        return scenes.path(name), declared.scene
+    if not path.is_file() and declared.scene.startswith(prefix) and "/" not in name and Path(name) in examples.files():
+        return examples.path(name), declared.scene
     if not path.is_file():
         from ..errors import InputError
         raise InputError(f"the model's work-precision declaration names scene {declared.scene!r}, which is not a file: "

@@ -1,6 +1,7 @@
-"""The `mechsweep bench` subcommands: their arguments and what each runs. Each bench measures one
-study (a model, a route, a cluster) against the alternatives in the same run; the CLI only hands
-its subparsers here, so it names no model."""
+"""The `mechsweep bench` subcommands, what a user measures on their own machine: `workprecision
+MODEL` (error against time for any model, ours and scipy's methods) and `duffing` (mechsweep
+against the other ODE tools). The project's own benchmarks are in the repository's benchmarks/
+folder, not in the package. The CLI only hands its subparsers here."""
 from __future__ import annotations
 
 import argparse
@@ -48,6 +49,23 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
     b.add_argument("--output", default=None, metavar="NAME",
                    help="the measured output to compare (default: the declared output, else the first measurement)")
     b.set_defaults(func=run_workprecision)
+    for name, sub in bsub.choices.items():  # every bench's --help: what it measures, then an example
+        sub.formatter_class = fmt
+        if not sub.description:
+            sub.description = _sentence(next(a.help for a in bsub._choices_actions if a.dest == name))
+        sub.epilog = "example:\n  " + EXAMPLES[name]
+
+
+# one example command per bench (small enough to finish in a minute or two)
+EXAMPLES = {
+    "duffing": "mechsweep bench duffing --points 20000 --repeats 1",
+    "workprecision": "mechsweep bench workprecision duffing --points 16 --out /tmp/bench",
+}
+
+
+def _sentence(text: str) -> str:
+    """A subcommand's one-line help as the first sentence of its description."""
+    return text[:1].upper() + text[1:] + ("" if text.endswith(".") else ".")
 
 
 def run_duffing(args) -> int:

@@ -70,6 +70,9 @@ class Param:
     required: bool = True
     default: float | None = None  # value used internally when an optional parameter is absent
     latex: str = ""  # the symbol in mathtext, for figures (stored as the variable's ``latex`` attribute)
+    # former names a scene, a dataset or a call may still use (e.g. "lambda", which is a Python
+    # keyword: no ds.sel(lambda=...)); not in the repr, which keys a user model's scenes
+    aliases: tuple[str, ...] = field(default=(), repr=False)
 
     @property
     def categorical(self) -> bool:
@@ -309,6 +312,10 @@ class ModelSpec:
 
     def param_names(self) -> tuple[str, ...]:
         return tuple(p.name for p in self.params)
+
+    def aliases(self) -> dict[str, str]:
+        """{former name: parameter name} of the parameters declared with ``aliases``."""
+        return {a: p.name for p in self.params for a in p.aliases}
 
     def output_names(self) -> tuple[str, ...]:
         return tuple(o.name for o in self.outputs)

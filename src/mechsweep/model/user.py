@@ -13,7 +13,9 @@ the model loads (sys.exit, os._exit, a KeyboardInterrupt the code raises itself:
 from __future__ import annotations
 
 import importlib
+import keyword
 import os
+import re
 import signal
 import stat
 import sys
@@ -76,6 +78,7 @@ def from_object(name: str, obj):
     file = sources.FILES.get(module) or getattr(sys.modules.get(module), "__file__", "") or module
     _check_any(obj, f"models[{name!r}]", file)
     spec = obj.spec(origin=f"{module}:{name}")
+    check_declaration(spec, f"models[{name!r}]")
     _RESOLVED[key] = (obj, spec)
     return spec
 
@@ -115,8 +118,38 @@ def resolve(ref: str, base: Path | None = None):
                          "not a mechsweep.model.OdeModel or ClosedFormModel")
     _check_any(model, ref, file)
     spec = model.spec(origin=f"{where}:{name}")
+    check_declaration(spec, ref)
     _RESOLVED[key] = spec
     return spec
+
+
+def check_declaration(spec, ref: str) -> None:
+    """Refuse (InputError) a model whose names a dataset cannot use or whose units CF cannot read:
+    every parameter, output, setting and extra dimension is named by a Python identifier that is no
+    keyword (a dataset's dimensions and variables are selected by keyword: ``ds.sel(lam=0.3)``),
+    and its unit is one UDUNITS-2 parses (the dataset says it follows CF)."""
+    from .. import cf
+
+    items = [("parameter", p.name, "" if p.categorical else p.unit) for p in spec.params]
+    items += [("output", o.name, o.unit) for o in spec.outputs]
+    items += [("dimension", d.name, d.unit) for o in spec.outputs for d in o.extra_dims]
+    items += [("setting", s.name, s.unit) for s in spec.settings]
+    problems = []
+    for what, name, unit in items:
+        if not isinstance(name, str) or not name.isidentifier() or keyword.iskeyword(name):
+            problems.append(f"{what} {name!r}: the name must be a Python identifier that is not a keyword "
+                            f"(a dataset's dimensions and variables are selected by it, e.g. ds.sel(x=...)); "
+                            f"e.g. {_identifier(name)!r}")
+        if (why := cf.unit_problem(unit)) is not None:
+            problems.append(f"{what} {name!r}: unit {why}")
+    if problems:
+        raise InputError(f"{ref!r}: model {spec.name!r}: " + "; ".join(dict.fromkeys(problems)))
+
+
+def _identifier(name) -> str:
+    text = re.sub(r"\W", "_", str(name)) or "x"
+    text = "x" + text if text[0].isdigit() else text
+    return text + "_" if keyword.iskeyword(text) else text
 
 
 def _check_any(model, ref: str, file: str) -> None:

@@ -144,7 +144,7 @@ def param_writes(func, depths: tuple | None = None) -> dict:
     code = getattr(py, "__code__", None)
     if code is None or not isinstance(py, types.FunctionType):
         return {}
-    key = (code, depths)
+    key = (code, code.co_filename, depths)  # code objects compare equal across files: the file names the finding
     if key in _SCANS:
         return _SCANS[key]
     _SCANS[key] = {}  # a recursive helper: what is found so far

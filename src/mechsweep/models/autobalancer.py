@@ -135,8 +135,11 @@ Other outputs and rules:
   given, A1 != 0 without l3, l4, or a platform parameter pair not given.
 
 Status of a point: the most severe problem among the outputs asked for, in the order
-INFEASIBLE > NONFINITE > STEP_UNDERFLOW > MAX_STEPS > ILL_CONDITIONED > SINGULAR > NOT_REPRODUCIBLE > NOT_BALANCEABLE >
-UNDECIDED > NO_EVENT; outputs that could be computed are kept.
+INFEASIBLE > OUT_OF_RANGE > NONFINITE > STEP_UNDERFLOW > MAX_STEPS > ILL_CONDITIONED > SINGULAR >
+NOT_REPRODUCIBLE > NOT_BALANCEABLE > UNDECIDED > NO_EVENT; outputs that could be computed are kept. OUT_OF_RANGE:
+inputs of such magnitudes that a quantity leaves double precision's range (``in_range``: those every
+output needs, all outputs NaN; a closed form's own, that output NaN; prepare: a scaled group of the
+equations of motion beyond 2^300, the integrated outputs NaN).
 NOT_REPRODUCIBLE: a simulated output (residual_amplitude, phase_error, settling_time, stable_sim,
 the histories) moved by more than reproducibility_factor (rtol |value| + atol) when the trajectory
 was integrated again at rtol / 100 (the Recheck below; the rule and its measured cost: TIGHTEN in tests/reference/autobalancer_kernels.py);
@@ -177,6 +180,7 @@ from ..model.measure import ClosedForm, Floquet, History, Kick, Recheck, Steady
 from ..model.ode import OdeModel
 from ..model.workprecision import WorkPrecision
 from ..special import SINCOS_MAX, ieee_sqrt, sincos, sincos_reduced
+from ._scaling import DBL_MAX, full_precision, normal, product_in_range, quotient_in_range
 from ..model.spec import ExtraDim, Output, Param, Setting
 
 TWO_PI = 2.0 * math.pi
@@ -215,8 +219,8 @@ UNIT_ROUNDOFF = 2.0 ** -53
 # Status severity (most severe first): what a point shows when several problems occur.
 # NOT_REPRODUCIBLE ranks above the statuses that leave an output NaN with a reason: it warns
 # about a value that is stored and would otherwise look trustworthy.
-STATUS_ORDER = (st.INFEASIBLE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.ILL_CONDITIONED, st.SINGULAR,
-                st.NOT_REPRODUCIBLE, st.NOT_BALANCEABLE, st.UNDECIDED, st.NO_EVENT)
+STATUS_ORDER = (st.INFEASIBLE, st.OUT_OF_RANGE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.ILL_CONDITIONED,
+                st.SINGULAR, st.NOT_REPRODUCIBLE, st.NOT_BALANCEABLE, st.UNDECIDED, st.NO_EVENT)
 
 
 # ----------------------------------------------------------------------------- kinematics
@@ -603,7 +607,7 @@ OUTPUTS = (
            integrated=True, extra_dims=(REVOLUTION,), latex=r"$\delta\gamma_2(t)$"),
 )
 
-STATUSES = (st.INFEASIBLE, st.SINGULAR, st.NOT_BALANCEABLE, st.UNDECIDED, st.NOT_REPRODUCIBLE,
+STATUSES = (st.INFEASIBLE, st.SINGULAR, st.NOT_BALANCEABLE, st.UNDECIDED, st.NOT_REPRODUCIBLE, st.OUT_OF_RANGE,
             *st.INTEGRATION_FAILURES)
 STATUS_NOTES = {
     st.INFEASIBLE: "I_B < m a^2, M <= 2 m, M I_B within 16 ulps of 2 m^2 a^2 or below (a singular mass matrix), "
@@ -612,6 +616,11 @@ STATUS_NOTES = {
                  "within the same): P_approx and stable_damped_approx are NaN, Floquet is still computed",
     st.ILL_CONDITIONED: "the mass matrix is so close to singular (M I_B near 2 m^2 a^2) that the accelerations' "
                         "round-off exceeds rtol: the integrated outputs are NaN, the closed forms are kept",
+    st.OUT_OF_RANGE: "inputs of such magnitudes that a quantity every output needs (2 m a, the platform's "
+                     "omega, c, b) over- or underflows (all outputs NaN), or one a closed form needs (omega_p's "
+                     "sum of squares, P_approx's squares, m_k's products: that output NaN), or a scaled group "
+                     "of the equations of motion (M / m, c_xi / (m Omega^2), ...) is beyond 2^300 (the "
+                     "integrated outputs NaN)",
     st.NOT_BALANCEABLE: "no isolated balanced state (A0 > 2 m a, A0 = 0, A0 = 2 m a, A1 != 0): balanced-state "
                         "outputs are NaN, residuals are kept",
     st.NO_EVENT: "the pendulums did not settle within the simulation (settling_time)",
@@ -670,18 +679,85 @@ def classify(p):
     wx, cx, bx = _xi(p)
     wy, cy, by = _eta(p)
     lengths = not math.isnan(l3) and not math.isnan(l4)
-    ok = IB >= m * a * a * (1.0 - IB_SLACK) and M > 2.0 * m
-    ok = ok and _mass_gap(M, m, a, IB) > RESONANCE_RTOL
-    ok = ok and math.isfinite(wx) and math.isfinite(wy) and math.isfinite(bx) and math.isfinite(by)
+    ok = _inertia_at_least(IB, m, a) and M > 2.0 * m
+    ok = ok and not _mass_gap(M, m, a, IB) <= RESONANCE_RTOL  # NaN (inputs beyond the range): in_range says
+    # each pair given (by the inputs: an overflow of the derived values is a range problem, in_range)
+    for i, j in ((I_omega_xi, I_c_xi), (I_omega_eta, I_c_eta), (I_zeta_xi, I_b_xi), (I_zeta_eta, I_b_eta)):
+        ok = ok and not (math.isnan(p[i]) and math.isnan(p[j]))
     ok = ok and (not lengths or l3 < l4) and (A1 == 0.0 or lengths)
-    return st.OK if ok else st.INFEASIBLE
+    if not ok:
+        return st.INFEASIBLE
+    return st.OK if in_range(p) else st.OUT_OF_RANGE
+
+
+GROUP_RANGE = 2.0 ** 300  # scaled groups of the equations of motion: finite and at most this
+
+
+@jit
+def _inertia_at_least(IB, m, a):
+    """I_B >= m a^2 (1 - IB_SLACK), also where m a^2 over- or underflows (compared on the mantissas)."""
+    mma = m * a * a
+    if normal(mma):
+        return IB >= mma * (1.0 - IB_SLACK)
+    fm, em = math.frexp(m)
+    fa, ea = math.frexp(a)
+    fI, eI = math.frexp(IB)
+    return math.ldexp(fI, eI - em - 2 * ea) >= fm * fa * fa * (1.0 - IB_SLACK)
+
+
+@jit
+def in_range(p):
+    """The quantities every output is formed from are normal numbers (or an exact 0 from a zero input):
+    2 m a and A0 / (2 m a) (theta, the balanced state), the platform's omega, c, b (either
+    parametrisation); else the point is OUT_OF_RANGE. The closed forms' own quantities are checked by
+    their classify (first_approx_in_range, receptance_in_range, m_k_in_range), the integrated outputs'
+    scaled groups by prepare."""
+    m, a, A0 = p[I_m], p[I_a], p[I_A0]
+    wx, cx, bx = _xi(p)
+    wy, cy, by = _eta(p)
+    two_ma = 2.0 * m * a
+    return (normal(two_ma) and full_precision(A0 / two_ma) and normal(wx) and normal(cx) and full_precision(bx)
+            and normal(wy) and normal(cy) and full_precision(by))
+
+
+def first_approx_in_range(p):
+    """omega_xi^2 + omega_eta^2 is a normal number (omega_p, stable_first_approx): else OUT_OF_RANGE
+    (at omega_xi = omega_eta = 1e-200 the plain sum underflows and omega_p would be 0)."""
+    wx = _xi(p)[0]
+    wy = _eta(p)[0]
+    return st.OK if normal(wx * wx + wy * wy) else st.OUT_OF_RANGE
+
+
+@jit
+def receptance_in_range(p):
+    """The receptance's squares d^2, (b Omega)^2 of each axis (d = c - M Omega^2) are normal, or lost
+    below 2^-62 of the other term of their sum (at c_xi = 1e160, d^2 overflows and P_approx would be 0);
+    an exact d = 0 is left to the resonance test."""
+    Om, M = p[I_Omega], p[I_M]
+    _, cx, bx = _xi(p)
+    _, cy, by = _eta(p)
+    MO2 = M * Om ** 2
+    ok = True
+    for d, b in ((cx - MO2, bx), (cy - MO2, by)):
+        d2 = d * d
+        bO2 = (b * Om) ** 2
+        ok = (ok and d2 <= DBL_MAX and bO2 <= DBL_MAX and (d == 0.0 or normal(d2) or bO2 >= 2.0 ** -960)
+              and (b == 0.0 or normal(bO2) or d2 >= 2.0 ** -960))
+    return ok
+
+
+def m_k_in_range(p):
+    """m_k's products and quotient are normal numbers or an exact 0 from a zero input."""
+    ok = (product_in_range(p[I_m4], p[I_S4]) and product_in_range(p[I_m5], p[I_l4])
+          and quotient_in_range(p[I_m4] * p[I_S4] + p[I_m5] * p[I_l4], p[I_S_k]))
+    return st.OK if ok else st.OUT_OF_RANGE
 
 
 @jit
 def _mass_gap(M, m, a, IB):
     """1 - 2 m^2 a^2 / (M I_B): how far the mass matrix of eq. (1)-(3) is from singular (its smallest
     eigenvalue is M - 2 m^2 a^2 / I_B, reached with the pendulums aligned or opposite)."""
-    return 1.0 - 2.0 * (m * a) * (m * a) / (M * IB)
+    return 1.0 - 2.0 * ((m * a) / M) * ((m * a) / IB)  # as ratios: no overflow of (m a)^2 or M I_B
 
 
 def prepare(p, rtol):
@@ -712,6 +788,9 @@ def prepare(p, rtol):
     q[IP_EH] = h / (m * a * a * Om)
     q[IP_TH1] = th1
     q[IP_TH2] = th2
+    for j in range(NP):  # the right-hand side multiplies up to three groups: keep them below 2^300
+        if not abs(q[j]) <= GROUP_RANGE:  # NaN-safe; a tiny group only scales a negligible term
+            return st.OUT_OF_RANGE
     return 0
 
 
@@ -837,6 +916,8 @@ def P_approx(p):
 
 
 def P_classify(p):
+    if not receptance_in_range(p):
+        return st.OUT_OF_RANGE
     return st.SINGULAR if _receptance(p)[2] else st.OK
 
 
@@ -992,9 +1073,9 @@ MODEL = OdeModel(
     closed_forms=(
         _closed("theta", theta, classify=has_balance),
         _closed("balanceable", balanceable),
-        _closed("m_k", m_k),
-        _closed("omega_p", omega_p),
-        _closed("stable_first_approx", stable_first_approx),
+        _closed("m_k", m_k, classify=m_k_in_range),
+        _closed("omega_p", omega_p, classify=first_approx_in_range),
+        _closed("stable_first_approx", stable_first_approx, classify=first_approx_in_range),
         _closed("P_approx", P_approx, classify=P_classify),
         _closed("stable_damped_approx", stable_damped_approx, needs=("P_approx",)),
     ),

@@ -62,6 +62,7 @@ for and the static residual is identically zero (R_j = 0/0). Non-OK points have 
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import operator
 
@@ -80,10 +81,11 @@ from ._linkage import (  # the per-design function's helpers and layout constant
     K_MASSR_S, K_MMAX_S, K_MRANGE_S, K_MRMS_S, K_M_MAX, K_M_RANGE, K_M_RMS, K_R_AX, K_R_H1, K_R_IN, K_TMAX_IN,
     K_TMAX_S, K_TRANGE_S, K_TRANS, K_TRMS_IN, K_TRMS_S, K_T_MAX, K_T_RANGE, K_T_RMS, P_A1, P_A2, P_A3, P_A4,
     P_BRANCH, P_CW1, P_CW1A, P_CW3, P_CW3A, P_DELTA, P_G, P_M1, P_M2, P_M3, P_MLOAD, P_OMEGA, P_R1, P_R2,
-    P_R3, P_TH1, P_TH2, P_TH3, R_AL1, R_AL3, R_W1, axis_fit, axis_formula1_sums, axis_residual,
+    P_R3, P_TH1, P_TH2, P_TH3, P_I1, P_I2, P_I3, R_AL1, R_AL3, R_W1, axis_fit, axis_formula1_sums, axis_residual,
     axis_residual_const, branch_sign, cycle_stats, dot4, fourbar_assembly, fourbar_cw_radii,
     fourbar_kinematics_cycle, fourbar_links, fourbar_loads_cycle, fourbar_moment_cycle,
     fourbar_static_counterweights, max_force)
+from ._scaling import NONE, UnitScaling, largest_exponent
 from ..model.spec import ExtraDim, Output, Param
 
 N_POSITIONS = L.N_POSITIONS
@@ -451,10 +453,13 @@ MODEL = ClosedFormModel(
     size=N_POSITIONS,
     data=crank_data,
     scratch=L.N_BUF,
-    statuses=(st.INFEASIBLE, st.SINGULAR, st.NONFINITE),
+    statuses=(st.INFEASIBLE, st.SINGULAR, st.NONFINITE, st.OUT_OF_RANGE),
     status_notes={
         st.INFEASIBLE: "the linkage does not assemble over a full turn (no Grashof crank)",
         st.SINGULAR: "a toggle (sin of the transmission angle below 1e-3) in the cycle, e.g. a change-point linkage",
+        st.OUT_OF_RANGE: "a link length, distance, mass, inertia or counterweight more than 2^300 (1e90) from the "
+                         "largest of its kind, in the design's own units (every design is computed in units of its "
+                         "longest link, largest mass and fastest rate, so any overall scale is fine)",
     },
     # bench workprecision: error against the number of crank positions (models/_linkage_reference.py)
     workprecision=SizeWorkPrecision(
@@ -464,7 +469,27 @@ MODEL = ClosedFormModel(
         reference=R.fourbar_reference, reference_name=R.FOURBAR_REFERENCE,
         compare=R.numpy_fourbar, compare_name=R.NUMPY),
 )
-SPEC = MODEL.spec()
+
+
+def design_units(P):
+    """(a, c, t): each design's units of mass 2^a kg, length 2^c m and time 2^t s (_scaling.UnitScaling):
+    the longest link, the faster of the crank speed and sqrt(g / length), and the largest of the masses,
+    inertias / length^2, counterweight products / length and |M_load| / (length^2 / time^2)."""
+    c = largest_exponent(P[:, P_A1], P[:, P_A2], P[:, P_A3], P[:, P_A4])
+    rate = largest_exponent(P[:, P_OMEGA])
+    gravity = largest_exponent((P[:, P_G], c))
+    rate = np.maximum(rate, np.where(gravity == NONE, NONE, (gravity + 1) // 2))
+    t = -rate
+    a = largest_exponent(P[:, P_M1], P[:, P_M2], P[:, P_M3], (P[:, P_I1], 2 * c), (P[:, P_I2], 2 * c),
+                         (P[:, P_I3], 2 * c), (P[:, P_CW1], c), (P[:, P_CW3], c), (P[:, P_MLOAD], 2 * c - 2 * t))
+    return np.where(a == NONE, 0, a), c, t
+
+
+UNITS = UnitScaling(PARAMS, MODEL.outputs, design_units,
+                    spread=("a1", "a2", "a3", "a4", "r1", "r2", "r3", "r_cw1", "r_cw3", "m1", "m2", "m3", "I1", "I2",
+                            "I3", "cw1_mr", "cw3_mr"))
+_UNSCALED = MODEL.spec()
+SPEC = dataclasses.replace(_UNSCALED, evaluate=UNITS.wrap(_UNSCALED.evaluate))
 # the engine entry point: evaluate(P, wanted, solver, out, status, n_steps, n_rhs, n_positions=N_POSITIONS)
 # (algebraic: solver, n_steps and n_rhs are unused; n_positions: crank positions per cycle, for
 # convergence studies; curves then have that length)

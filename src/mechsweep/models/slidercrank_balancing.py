@@ -27,7 +27,10 @@ Statuses: INFEASIBLE if the crank cannot make a full turn (l < r + |e|); SINGULA
 """
 from __future__ import annotations
 
+import dataclasses
 import math
+
+import numpy as np
 
 from .. import status as st
 from .._jit import jit_noalloc
@@ -41,6 +44,7 @@ from ._linkage import (  # the per-design function's helpers and layout constant
     Q_TRANS, Q_TRMS, SB_FX, SB_FX0, SB_FXTB, SB_FY, SB_FY0, SB_FYTB, SB_M, SB_T, S_BRANCH, S_DELTA, S_E,
     S_FLOAD, S_G, S_K, S_OMEGA, S_R, S_RCW, branch_sign, cycle_stats, max_force, slider_assembly,
     slider_conrod_length, slider_counterweight, slider_kinematics_cycle, slider_links, slider_loads_cycle)
+from ._scaling import NONE, UnitScaling, largest_exponent
 from ..model.spec import Output, Param
 from .fourbar_balancing import PHI_DIM, positions
 
@@ -50,8 +54,9 @@ PARAMS = (
     Param("r", "r", "m", "crank radius O A", lo=0.0, lo_open=True, latex="$r$"),
     Param("l", "l", "m", "connecting-rod length A B", lo=0.0, lo_open=True,
           required=False, default=math.nan, latex="$l$"),
-    Param("lambda", "λ", "1", "crank-to-rod ratio", lo=0.0, lo_open=True,
-          required=False, default=math.nan, latex=r"$\lambda = r/l$"),
+    # lam, not lambda (a Python keyword: no ds.sel(lambda=...)); scenes and calls may still say lambda
+    Param("lam", "λ", "1", "crank-to-rod ratio", lo=0.0, lo_open=True,
+          required=False, default=math.nan, latex=r"$\lambda = r/l$", aliases=("lambda",)),
     Param("e", "e", "m", "offset of the slider line from the crank axis (slider on y = e)", required=False,
           default=0.0, latex="$e$"),
     Param("branch", "σ", "1", "assembly branch: slider on the +x (right) or −x (left) side of the crank pin",
@@ -226,11 +231,11 @@ def slider_design(p, want, row, crv, slot, buf, cos_phi, sin_phi):
 
 
 def check(given):
-    """Exactly one of l and lambda."""
-    if "l" in given and "lambda" in given:
-        return ["fixed.lambda: give the rod length l or lambda = r / l, not both"]
-    if "l" not in given and "lambda" not in given:
-        return ["fixed.l: missing; give the rod length l or lambda = r / l"]
+    """Exactly one of l and lam."""
+    if "l" in given and "lam" in given:
+        return ["fixed.lam: give the rod length l or lambda = r / l (the parameter lam), not both"]
+    if "l" not in given and "lam" not in given:
+        return ["fixed.l: missing; give the rod length l or lambda = r / l (the parameter lam)"]
     return []
 
 
@@ -252,10 +257,13 @@ MODEL = ClosedFormModel(
     data=crank_data,
     scratch=L.N_SBUF,
     check=check,
-    statuses=(st.INFEASIBLE, st.SINGULAR, st.NONFINITE),
+    statuses=(st.INFEASIBLE, st.SINGULAR, st.NONFINITE, st.OUT_OF_RANGE),
     status_notes={
         st.INFEASIBLE: "the linkage does not assemble over a full turn",
         st.SINGULAR: "a toggle (sin of the transmission angle below 1e-3) in the cycle",
+        st.OUT_OF_RANGE: "a length, distance, mass or inertia more than 2^300 (1e90) from the largest of its kind, "
+                         "in the design's own units (every design is computed in units of its crank or rod, its "
+                         "largest mass and its fastest rate, so any overall scale is fine)",
     },
     # bench workprecision: error against the number of crank positions, the reference a closed form where
     # it holds (slider_series_applies; models/_linkage_reference.py)
@@ -265,6 +273,25 @@ MODEL = ClosedFormModel(
         reference=R.slider_reference, reference_name=R.SLIDER_REFERENCE, applies=R.slider_series_applies,
         compare=R.numpy_slider, compare_name=R.NUMPY),
 )
-SPEC = MODEL.spec()
+
+
+def design_units(P):
+    """(a, c, t): each design's units of mass 2^a kg, length 2^c m and time 2^t s (_scaling.UnitScaling):
+    the longer of crank and rod, the faster of the crank speed and sqrt(g / length), and the largest of
+    the masses, inertias / length^2 and |F_load| / (length / time^2)."""
+    c = largest_exponent(P[:, L.S_R], P[:, L.S_L])
+    rate = largest_exponent(P[:, L.S_OMEGA])
+    gravity = largest_exponent((P[:, L.S_G], c))
+    rate = np.maximum(rate, np.where(gravity == NONE, NONE, (gravity + 1) // 2))
+    t = -rate
+    a = largest_exponent(P[:, L.S_M1], P[:, L.S_M2], P[:, L.S_M3], (P[:, L.S_I1], 2 * c), (P[:, L.S_I2], 2 * c),
+                         (P[:, L.S_FLOAD], c - 2 * t))
+    return np.where(a == NONE, 0, a), c, t
+
+
+UNITS = UnitScaling(PARAMS, MODEL.outputs, design_units,
+                    spread=("r", "l", "r1", "r2", "r_cw", "m1", "m2", "m3", "I1", "I2"))
+_UNSCALED = MODEL.spec()
+SPEC = dataclasses.replace(_UNSCALED, evaluate=UNITS.wrap(_UNSCALED.evaluate))
 # the engine entry point, as fourbar_balancing.evaluate (n_positions as its 8th argument)
 evaluate = SPEC.evaluate
