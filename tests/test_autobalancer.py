@@ -498,7 +498,7 @@ def scene(**over):
 @pytest.fixture
 def registered(monkeypatch):
     monkeypatch.setitem(models.MODELS, "autobalancer", ab.SPEC)
-    monkeypatch.setattr(mechsweep.scene, "MODELS", models.MODELS)
+    monkeypatch.setattr(mechsweep.scene.sections, "MODELS", models.MODELS)
 
 
 def test_check_requires_exactly_one_of_each_pair(registered):

@@ -43,7 +43,7 @@ TOY = ModelSpec(
 @pytest.fixture
 def toy(monkeypatch):
     monkeypatch.setitem(models.MODELS, "toy", TOY)
-    monkeypatch.setattr(mechsweep.scene, "MODELS", models.MODELS)
+    monkeypatch.setattr(mechsweep.scene.sections, "MODELS", models.MODELS)
 
 
 def scene(**solver):

@@ -683,7 +683,7 @@ def test_design_functions_agree_with_python(model):
 def linkage_models(monkeypatch):
     monkeypatch.setitem(models.MODELS, fb.SPEC.name, fb.SPEC)
     monkeypatch.setitem(models.MODELS, sc.SPEC.name, sc.SPEC)
-    monkeypatch.setattr(mechsweep.scene, "MODELS", models.MODELS)
+    monkeypatch.setattr(mechsweep.scene.sections, "MODELS", models.MODELS)
 
 
 def test_run_stores_curves_with_the_phi_dimension(linkage_models, in_tmp):

@@ -14,6 +14,7 @@ import xarray as xr
 
 import mechsweep
 from mechsweep import grid, runner, scene as scene_mod, store
+from mechsweep.scene import sections as scene_sections
 from mechsweep.cli import main
 from mechsweep.grid import MAX_CHUNKS, Chunk, ChunkPlan, ParameterMatrix, chunk_target, least_target, plan_chunks
 from mechsweep.scene import Axis, SceneError, load_scene
@@ -104,7 +105,7 @@ def test_values_repeating_at_float_precision_are_found_without_expanding(monkeyp
     real = Axis.array
     monkeypatch.setattr(Axis, "array", lambda self, lo=0, hi=None: spans.append(
         (hi if hi is not None else self.size) - lo) or real(self, lo, hi))
-    monkeypatch.setattr(scene_mod, "_BLOCK", 1000)
+    monkeypatch.setattr(scene_sections, "_BLOCK", 1000)
     with pytest.raises(SceneError, match="repeat at float precision"):
         load_scene(duffing({"mu": {"start": 1.0, "stop": 1.0 + 2e-12, "num": 50_000}}))
     assert spans and max(spans) <= 1000
