@@ -38,6 +38,7 @@ import time
 import numpy as np
 
 from mechsweep import boundaries as bd
+from mechsweep.boundaries import search
 from mechsweep.scene import load_scene
 
 OMEGA = (0.6, 4.0)
@@ -109,7 +110,7 @@ def main(values: int = 200, grid: int = 100, contour=(100, 200, 400), rtol: floa
         import numba
 
         n_threads = numba.get_num_threads()
-        ev = bd._Evaluator(scene, crit, rows, col)
+        ev = search.Evaluator(scene, crit, rows, col)
         ev(np.zeros(2, dtype=np.int64), np.array([1.0, 1.3]))  # compile before timing
         t0 = time.perf_counter()
         res = bd.locate(scene, crit, rows, col, np.linspace(*OMEGA, grid), rtol=rtol)

@@ -12,6 +12,7 @@ import xarray as xr
 from scipy.optimize import brentq
 
 from mechsweep import boundaries as bd
+from mechsweep.boundaries import search as bd_search
 from mechsweep.cli import main
 from mechsweep.scene import load_scene
 
@@ -632,7 +633,7 @@ def _linear_edge(x):
 
 
 def _band_edge_search(fun, power, eps=1e-9, rtol=1e-10):
-    """bd._band_edges on the one cell [1.0, 1.4] of the criterion ``fun`` (band |g| <= eps):
+    """locate._band_edges on the one cell [1.0, 1.4] of the criterion ``fun`` (band |g| <= eps):
     (A, B, loc, bound, n_eval) after the search."""
     A, B = np.array([1.0]), np.array([1.4])
     gA, gB = fun(A), fun(B)
@@ -643,9 +644,9 @@ def _band_edge_search(fun, power, eps=1e-9, rtol=1e-10):
         x = np.asarray(x)
         return fun(x), np.zeros(x.size), np.full(x.size, np.nan)
 
-    bd._band_edges(ev, np.zeros(1, dtype=int), np.array([0]), A, B, bd._sides(gA, acc(gA)), bd._sides(gB, acc(gB)),
-                   gA, gB, np.full(1, np.nan), np.full(1, np.nan), n_eval, bound, loc,
-                   lambda a, b: rtol * np.maximum(np.abs(a), np.abs(b)), acc, power)
+    bd_search._band_edges(ev, np.zeros(1, dtype=int), np.array([0]), A, B, bd_search._sides(gA, acc(gA)),
+                          bd_search._sides(gB, acc(gB)), gA, gB, np.full(1, np.nan), np.full(1, np.nan), n_eval,
+                          bound, loc, lambda a, b: rtol * np.maximum(np.abs(a), np.abs(b)), acc, power)
     return A, B, loc, bound, n_eval
 
 

@@ -200,7 +200,7 @@ LANES_CHOICES = {"auto": None, "always": True, "never": False}
 
 @dataclass(frozen=True)
 class Boundaries:
-    """The scene's [boundaries] section: where a criterion crosses along one axis (boundaries.py).
+    """The scene's [boundaries] section: where a criterion crosses along one axis (mechsweep.boundaries).
 
     Either ``criterion`` (an output of the scene) crossing ``level``, or ``status_change`` (two
     status names: the boundary between points of the first and of the second). ``rtol``: relative
@@ -297,7 +297,7 @@ class Scene:
     # a model of one name are two scenes, the same file is the same scene.
     model_key: str = ""
     # the [boundaries] section, None without one; not part of the canonical form (it does not
-    # change the grid's dataset: boundaries are located in a separate pass, boundaries.py)
+    # change the grid's dataset: boundaries are located in a separate pass, mechsweep.boundaries)
     boundaries: Boundaries | None = None
 
     @property
