@@ -626,10 +626,10 @@ def json_str(text: str) -> str:
 
 UNSTORABLE = {
     "NUL_LONG_NAME": ("T", "hard", ["parameter 'k' long_name 'stiff\\x00ness'", "NUL character", "HDF5 cannot store"]),
-    "SURROGATE_UNIT": ("T", "hard", ["parameter 'k' unit 's-2\\udcff'", "lone surrogate"]),
+    "SURROGATE_UNIT": ("T", "hard", ["parameter 'k': unit 's-2\\udcff'", "not a unit UDUNITS-2 reads"]),
     "NUL_CHOICE": ("T", "soft\0", ["choice of parameter 'kind' 'soft\\x00'", "NUL character"]),
     "NUL_NAME": ("T", "hard", ["model 'lin\\x00ear'", "NUL character"]),
-    "SLASH_OUTPUT": ("T/2", "hard", ["output 'T/2'", "'/', HDF5's path separator"]),
+    "SLASH_OUTPUT": ("T/2", "hard", ["output 'T/2'", "must be a Python identifier"]),
     "OUTPUT_NAMED_STATUS": ("status", "hard", ["output 'status' has the name of the run's own variable 'status'"]),
     "OUTPUT_NAMED_LIKE_PARAMETER": ("k", "hard", ["output 'k' has the name of parameter 'k'"]),
     "NUL_REFERENCE": ("T", "hard", ["reference 'a book\\x00'", "NUL character"]),

@@ -160,8 +160,8 @@ def test_slider_counterweight_outputs_are_the_physical_loads(g):
     # the reported moment and forces (weights included)
     P = mk.slider_designs(60, 8)
     P[:, L.SLIDER_PARAMS.index("g")] = g
-    P[:, L.SLIDER_PARAMS.index("lambda")] = np.where(np.isnan(P[:, L.SLIDER_PARAMS.index("l")]),
-                                                      np.minimum(P[:, L.SLIDER_PARAMS.index("lambda")], 0.6), np.nan)
+    P[:, L.SLIDER_PARAMS.index("lam")] = np.where(np.isnan(P[:, L.SLIDER_PARAMS.index("l")]),
+                                                      np.minimum(P[:, L.SLIDER_PARAMS.index("lam")], 0.6), np.nan)
     out, status = mk.evaluate(sc.SPEC, P, all_outputs(sc.SPEC), N)
     ok = np.flatnonzero((status == st.OK) & (out["transmission_min"] > 0.5))[:10]
     assert ok.size == 10

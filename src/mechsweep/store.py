@@ -915,9 +915,11 @@ def is_lock_error(exc: BaseException) -> bool:
 def held_for_writing(fd: int) -> bool:
     """Whether another process holds an exclusive lock on the open file ``fd``: HDF5 takes one
     (flock) on a file it opens for writing. Probed with a shared lock that is released at once;
-    False where file locks are not available."""
-    import fcntl
-
+    False where file locks are not available (no fcntl: Windows)."""
+    try:
+        import fcntl
+    except ImportError:
+        return False
     try:
         fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
     except BlockingIOError:

@@ -47,6 +47,9 @@ class Param:
         The symbol in matplotlib mathtext for figure labels (e.g. ``r"$\\omega_\\xi$"``; it may
         define the symbol, as in ``r"$\\varepsilon = \\mu A^2/\\omega^2$"``). Without one, figures
         write ``symbol`` as mathtext themselves.
+    aliases : tuple of str, optional
+        Former names a scene, a stored scene or a call may still use for the parameter (e.g.
+        ``"lambda"``, a Python keyword, for the slider-crank's ``lam``); datasets use ``name``.
 
     Examples
     --------
@@ -283,14 +286,14 @@ class ModelSpec:
         hide nonfinite and user_error, which the runner gives any model): NONFINITE (a value that is
         not finite) and USER_ERROR (the model's code raised, or returned a code that is no status); for integrated
         outputs the integrator's failures (MAX_STEPS, STEP_UNDERFLOW, NO_EVENT, and STIFF when it
-        offers more than one method); for a "floquet_max" output INFEASIBLE (no admissible forcing
-        period) and for a "verdict" output UNDECIDED."""
+        offers dop853: a step budget spent at the stability limit); for a "floquet_max" output
+        INFEASIBLE (no admissible forcing period) and for a "verdict" output UNDECIDED."""
         from .. import status as st
 
         codes = {st.OK, *self.statuses, st.NONFINITE, st.USER_ERROR}
         if any(o.integrated for o in self.outputs):
             codes |= {st.MAX_STEPS, st.STEP_UNDERFLOW, st.NO_EVENT}
-            if len(self.methods) > 1:
+            if "dop853" in self.methods:
                 codes.add(st.STIFF)
         kinds = {o.kind for o in self.outputs}
         if "floquet_max" in kinds:

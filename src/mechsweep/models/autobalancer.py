@@ -135,11 +135,13 @@ Other outputs and rules:
   given, A1 != 0 without l3, l4, or a platform parameter pair not given.
 
 Status of a point: the most severe problem among the outputs asked for, in the order
-INFEASIBLE > OUT_OF_RANGE > NONFINITE > STEP_UNDERFLOW > MAX_STEPS > ILL_CONDITIONED > SINGULAR >
+INFEASIBLE > OUT_OF_RANGE > NONFINITE > STEP_UNDERFLOW > MAX_STEPS > STIFF > ILL_CONDITIONED > SINGULAR >
 NOT_REPRODUCIBLE > NOT_BALANCEABLE > UNDECIDED > NO_EVENT; outputs that could be computed are kept. OUT_OF_RANGE:
 inputs of such magnitudes that a quantity leaves double precision's range (``in_range``: those every
 output needs, all outputs NaN; a closed form's own, that output NaN; prepare: a scaled group of the
-equations of motion beyond 2^300, the integrated outputs NaN).
+equations of motion beyond 2^300, the integrated outputs NaN). STIFF: dop853 spent its step budget at the
+stability limit (strong pendulum damping h / (m a^2 Omega) of order 1e3 and more, a platform far stiffer
+than the crank speed); auto and radau integrate such points.
 NOT_REPRODUCIBLE: a simulated output (residual_amplitude, phase_error, settling_time, stable_sim,
 the histories) moved by more than reproducibility_factor (rtol |value| + atol) when the trajectory
 was integrated again at rtol / 100 (the Recheck below; the rule and its measured cost: TIGHTEN in tests/reference/autobalancer_kernels.py);
@@ -219,8 +221,8 @@ UNIT_ROUNDOFF = 2.0 ** -53
 # Status severity (most severe first): what a point shows when several problems occur.
 # NOT_REPRODUCIBLE ranks above the statuses that leave an output NaN with a reason: it warns
 # about a value that is stored and would otherwise look trustworthy.
-STATUS_ORDER = (st.INFEASIBLE, st.OUT_OF_RANGE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.ILL_CONDITIONED,
-                st.SINGULAR, st.NOT_REPRODUCIBLE, st.NOT_BALANCEABLE, st.UNDECIDED, st.NO_EVENT)
+STATUS_ORDER = (st.INFEASIBLE, st.OUT_OF_RANGE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.STIFF,
+                st.ILL_CONDITIONED, st.SINGULAR, st.NOT_REPRODUCIBLE, st.NOT_BALANCEABLE, st.UNDECIDED, st.NO_EVENT)
 
 
 # ----------------------------------------------------------------------------- kinematics
