@@ -35,13 +35,16 @@ FORMAT = 1  # of Plan.text; a reader can tell plans of later versions apart
 LANES, POINT = "lanes", "point"
 
 
-def choose_route(points: int, facts: Mapping) -> str:
-    """The route of one kernel family of a run of ``points`` points: LANES or POINT. ``facts`` come
-    from the model (ModelSpec.plan: ``forced``, the engine's override or None; ``from_points``, the
-    run size from which the lanes repay their longer compile; ``recorded``, whether the lane kernel
-    is compiled for this CPU already). The lanes integrate about twice as fast and compile about four
-    times longer (model/compile.py, LANES_FROM_POINTS): they are taken for a run large enough to repay
-    the compile, or when there is nothing left to compile."""
+def choose_route(points: int, facts: Mapping, chosen: bool | None = None) -> str:
+    """The route of one kernel family of a run of ``points`` points: LANES or POINT. ``chosen``: the
+    scene's ``[execution] lanes`` (True "always", False "never", None "auto"), which decides first.
+    ``facts`` come from the model (ModelSpec.plan: ``forced``, the engine's override, which decides
+    next; ``from_points``, the run size from which the lanes repay their longer compile; ``recorded``,
+    whether the lane kernel is compiled for this CPU already). The lanes integrate about twice as fast
+    and compile about four times longer (model/compile.py, LANES_FROM_POINTS): they are taken for a run
+    large enough to repay the compile, or when there is nothing left to compile."""
+    if chosen is not None:
+        return LANES if chosen else POINT
     forced = facts.get("forced")
     if forced is not None:
         return LANES if forced else POINT
@@ -63,7 +66,8 @@ def routes(scene: Scene, wanted: tuple[str, ...], points: int) -> dict[str, str]
     if hook is None:
         return {}
     facts = hook(wanted, scene.solver).get("lanes", {})
-    return {family: choose_route(points, f) for family, f in sorted(facts.items())}
+    chosen = scene.execution.use_lanes()
+    return {family: choose_route(points, f, chosen) for family, f in sorted(facts.items())}
 
 
 @dataclass(frozen=True)
@@ -145,7 +149,8 @@ def make_plan(scene: Scene, target: int | None = None) -> Plan:
     computed = scene.computed_outputs
     hook = getattr(scene.model, "plan", None)
     parts = hook(computed, scene.solver) if hook is not None else {}
-    route = {family: choose_route(scene.n_points, f) for family, f in sorted(parts.get("lanes", {}).items())}
+    chosen = scene.execution.use_lanes()  # the scene's [execution] lanes
+    route = {family: choose_route(scene.n_points, f, chosen) for family, f in sorted(parts.get("lanes", {}).items())}
     return Plan(
         name=scene.name,
         model=scene.model.name,

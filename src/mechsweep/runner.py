@@ -1221,13 +1221,14 @@ def evaluate_rows(scene: Scene, P: np.ndarray):
     status = np.zeros(n, dtype=st.DTYPE)
     n_steps = np.zeros(n, dtype=np.int64)
     n_rhs = np.zeros(n, dtype=np.int64)
-    from .model.compile import planned_points  # the run's size, not the rows', chooses the kernel (lanes or not)
+    from .plan import routes  # the run's size, not the rows', chooses each kernel's route (lanes or not)
 
-    with np.errstate(all="ignore"), planned_points(scene.n_points, scene.execution.use_lanes()):  # an overflow at an extreme point is its status
+    route = {} if getattr(scene.model, "plan", None) is None else {"route": routes(scene, computed, scene.n_points)}
+    with np.errstate(all="ignore"):  # an overflow at an extreme point is its status
         launching = getattr(_LAUNCH, "hook", None)
         if launching is not None:
             launching()
-        scene.model.evaluate(P, computed, scene.solver, out, status, n_steps, n_rhs)
+        scene.model.evaluate(P, computed, scene.solver, out, status, n_steps, n_rhs, **route)
     # a code that is not a status (a user's classify returning 99 at a point its probe did not see)
     # is the model's error, not a result to store
     not_a_status = (status < st.OK) | (status > st.LAST)
