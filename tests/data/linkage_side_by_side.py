@@ -23,7 +23,7 @@ TIMING = """
 import json, sys, time
 import numpy as np
 from mechsweep.bench import linkage as bl
-from mechsweep.runner import _threads
+from mechsweep.execute import threads as _threads
 threads = int(sys.argv[1])
 P = bl.design_family(100_000, 0)
 with _threads(threads):

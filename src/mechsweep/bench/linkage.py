@@ -25,7 +25,7 @@ from .. import status as st
 from ..models import _linkage as L
 from ..models import fourbar_balancing as fb
 from ..models._linkage_reference import OUTPUTS, numpy_residuals  # noqa: F401 - the numpy side, with the model
-from ..runner import _threads
+from ..execute import threads as _threads
 
 
 def design_family(n: int, seed: int = 0) -> np.ndarray:

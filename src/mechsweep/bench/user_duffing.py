@@ -105,7 +105,7 @@ def main(points: int = 200_000, threads: int | None = None, rtol: float | None =
     from .. import status as st
     from ..grid import Chunk, parameter_matrix
     from ..models import duffing
-    from ..runner import _threads, evaluate_chunk
+    from ..execute import evaluate_chunk, threads as _threads
     from ..scene import SOLVER_LIMITS, Solver, load_scene
     from . import _args
     from .duffing import grid_scene
