@@ -105,8 +105,9 @@ class Plan:
             return _loaded(self.scene_text, self.base)[1]
         return ParameterMatrix(self.scene)
 
-    @property
+    @functools.cached_property
     def chunks(self) -> ChunkPlan:
+        """The grid's chunks (made on demand from their index: O(1) memory, whatever their number)."""
         return ChunkPlan(self.shape, self.chunk_target)
 
     @property
@@ -135,11 +136,12 @@ class Plan:
         }, sort_keys=True)
 
     def __getstate__(self):
-        """Pickled without the Scene (its model's functions need not pickle) and the parameter rows: a
-        dask worker loads the scene again from ``scene_text``."""
+        """Pickled without the Scene (its model's functions need not pickle) and what is made from it
+        on demand: a dask worker loads the scene again from ``scene_text``."""
         state = dict(self.__dict__)
         state["_scene"] = None
         state.pop("params", None)
+        state.pop("chunks", None)
         return state
 
 
