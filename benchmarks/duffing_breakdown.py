@@ -22,7 +22,8 @@ import time
 from mechsweep.bench.duffing import grid_scene
 from mechsweep.grid import Chunk
 from mechsweep.model import compile as model_compile
-from mechsweep.runner import _threads, evaluate_chunk, run
+from mechsweep.execute import evaluate_chunk, threads as _threads
+from mechsweep.runner import run
 from mechsweep.scene import Solver, load_scene
 
 
@@ -44,11 +45,11 @@ _STEPS = (
     ("runner", "load_scene", "scene: load and validate"),
     ("runner", "_check_existing", "checks: existing files, journal"),
     ("journal.Journal", "create", "journal: create (run.json, fsyncs)"),
-    ("store.Held", "__init__", "dataset in memory: define"),
+    ("store.MemorySink", "__init__", "dataset in memory: define"),
     ("grid.ParameterMatrix", "__call__", "per chunk: parameter rows"),
-    ("runner", "evaluate_rows", "per chunk: kernel + status/NONFINITE"),
+    ("execute", "evaluate_rows", "per chunk: kernel + status/NONFINITE"),
     ("journal.Journal", "write_chunk", "writer: journal chunk file + fsyncs"),
-    ("store.Held", "keep", "writer: chunk into the dataset in memory"),
+    ("store.MemorySink", "save", "writer: chunk into the dataset in memory"),
     ("store.Early", "prepare", "writer: define the HDF5 file (early)"),
     ("store.Early", "write", "writer: chunk into the HDF5 file (early)"),
     ("store", "_define", "HDF5/memory: define (store._define)"),
@@ -79,7 +80,7 @@ def _schedstat() -> dict:
 
 
 def _launch_account(acc: dict, f):
-    """A wrapper of the model's ``evaluate`` ``f`` (one chunk's kernel launch, inside runner.evaluate_rows)
+    """A wrapper of the model's ``evaluate`` ``f`` (one chunk's kernel launch, inside execute.evaluate_rows)
     that adds up, per launch, the on-CPU, run-queue wait and asleep time of the calling thread and of
     the kernel's other threads (those that ran during it, the run's writer thread excepted): asleep
     is the launch's wall time that a thread neither ran nor waited for a CPU, i.e. a thread that ran

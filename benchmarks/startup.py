@@ -72,7 +72,7 @@ def warm_small(repeats: int, folder: Path) -> dict:
     """Seconds of warm runs of 10^3 and 10^4 points, in memory and to a file: {(n, route): [s]}."""
     import mechsweep
     from mechsweep.grid import ParameterMatrix
-    from mechsweep.runner import evaluate_rows
+    from mechsweep.execute import evaluate_rows
     from mechsweep.scene import load_scene
 
     out = {}
@@ -305,12 +305,12 @@ import numba
 lap("import numba")
 from mechsweep import cli
 lap("import mechsweep.cli")
-from mechsweep import runner, scene
+from mechsweep import execute, runner, scene
 lap("import mechsweep.scene, runner (the models)")
 s = scene.load_scene(sys.argv[1])
 lap("load the scene")
 from mechsweep.grid import ParameterMatrix
-runner.evaluate_rows(s, ParameterMatrix(s)(0, 1))
+execute.evaluate_rows(s, ParameterMatrix(s)(0, 1))
 lap("first kernel call (numba's target, the cached kernel)")
 runner.compute(s, output=sys.argv[2], progress=False, overwrite=True)
 lap("compute to the file")
@@ -323,7 +323,7 @@ WARM_LOAD_CHILD = """
 import cProfile, json, pstats, sys, time
 import mechsweep
 from mechsweep.grid import ParameterMatrix
-from mechsweep.runner import evaluate_rows
+from mechsweep.execute import evaluate_rows
 scene = mechsweep.load_scene(sys.argv[1])
 P = ParameterMatrix(scene)(0, 1)
 profile = cProfile.Profile()
@@ -379,7 +379,7 @@ import json, sys, time
 import mechsweep
 from mechsweep.model import compile as mc
 from mechsweep.grid import ParameterMatrix
-from mechsweep.runner import evaluate_rows
+from mechsweep.execute import evaluate_rows
 mode = sys.argv[2]
 mc.USE_LANES = {"lanes": True, "one": False}.get(mode, mc.USE_LANES)
 if mode == "auto":
@@ -416,7 +416,7 @@ def route_speed(n: int, repeats: int) -> dict:
     kernel and the one-point kernel alternated in this process: {mode: [(wall s, CPU s)]}."""
     from mechsweep.grid import ParameterMatrix
     from mechsweep.model import compile as mc
-    from mechsweep.runner import evaluate_rows
+    from mechsweep.execute import evaluate_rows
     from mechsweep.scene import load_scene
 
     scene = load_scene(duffing(n))
@@ -490,7 +490,7 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
     import numpy as np
 
     import mechsweep
-    from mechsweep import journal, runner, store
+    from mechsweep import execute, journal, runner, store
     from mechsweep.grid import ParameterMatrix
     from mechsweep.scene import load_scene
 
@@ -508,8 +508,8 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
                 spent[label] += time.perf_counter() - t0
         return original, wrapper
 
-    patches = [(runner, n, n) for n in ("_check_existing", "_save_chunks", "_finish", "open_dataset", "drop",
-                                        "warm_up")]
+    patches = [(runner, n, n) for n in ("_check_existing", "_save_chunks", "_finish", "open_dataset", "drop")]
+    patches += [(compute, "warm_up", "warm_up")]
     patches += [(store, "_define", "store._define"), (journal.Journal, "create", "Journal.create"),
                 (journal.Journal, "write_chunk", "Journal.write_chunk")]
     small = load_scene(duffing(10**3))
@@ -534,13 +534,13 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
         print(f"    {label:<22} {seconds / repeats * 1e3:8.1f}")
     big = load_scene(duffing(10**4))
     P = ParameterMatrix(big)(0, 10**4)
-    runner.evaluate_rows(big, P)
+    execute.evaluate_rows(big, P)
     launches = {1: [], 20: []}
     for _ in range(repeats):
         for k in launches:
             t0 = time.perf_counter()
             for part in np.array_split(np.arange(10**4), k):
-                runner.evaluate_rows(big, P[part[0]:part[-1] + 1])
+                execute.evaluate_rows(big, P[part[0]:part[-1] + 1])
             launches[k].append(time.perf_counter() - t0)
     print("  10^4 points in 1 kernel call: " + _spread(launches[1], "ms", 1e3) + "; in 20 calls: "
           + _spread(launches[20], "ms", 1e3))

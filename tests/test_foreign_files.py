@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 import mechsweep
-from mechsweep import StoreError, runner
+from mechsweep import StoreError, execute, runner
 from mechsweep.cli import main
 
 from .test_hostile_scenes import VALID, existing_dataset, refused, snapshot, work  # noqa: F401 (fixture)
@@ -459,5 +459,5 @@ def test_extreme_parameters_give_no_numpy_warnings():
                   "omega_eta": 30.0, "zeta_xi": 0.05, "zeta_eta": 0.05}})
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        _, status, _, _ = runner.evaluate_chunk(scene, plan_chunks(scene.shape, 10)[0])
+        _, status, _, _ = execute.evaluate_chunk(scene, plan_chunks(scene.shape, 10)[0])
     assert (status != 0).all()

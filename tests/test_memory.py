@@ -13,7 +13,7 @@ import pytest
 import xarray as xr
 
 import mechsweep
-from mechsweep import grid, runner, scene as scene_mod, store
+from mechsweep import execute, grid, runner, scene as scene_mod, store
 from mechsweep.scene import sections as scene_sections
 from mechsweep.cli import main
 from mechsweep.grid import MAX_CHUNKS, Chunk, ChunkPlan, ParameterMatrix, chunk_target, least_target, plan_chunks
@@ -254,7 +254,7 @@ def test_command_counts_statuses_without_opening_the_dataset(in_tmp, capsys, mon
 
 
 def test_counts_of_a_resumed_run_include_the_journaled_chunks(in_tmp, monkeypatch):
-    real, calls = runner.evaluate_chunk, {"n": 0}
+    real, calls = execute.evaluate_chunk, {"n": 0}
 
     def flaky(*args):
         calls["n"] += 1
@@ -262,7 +262,7 @@ def test_counts_of_a_resumed_run_include_the_journaled_chunks(in_tmp, monkeypatc
             raise KeyboardInterrupt
         return real(*args)
     with monkeypatch.context() as mp:
-        mp.setattr(runner, "evaluate_chunk", flaky)
+        mp.setattr(execute, "evaluate_chunk", flaky)
         with pytest.raises(runner.RunInterrupted):
             runner.compute(MIXED, output="data/runs/r.h5", progress=False)
     summary = runner.compute(MIXED, output="data/runs/r.h5", resume=True, progress=False)

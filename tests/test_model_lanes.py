@@ -326,46 +326,6 @@ def test_lane_rhs_of_duffing_is_vectorised():
 
 
 
-def test_automatic_route_takes_lanes_only_where_they_pay(monkeypatch, small_duffing):
-    """USE_LANES None (the default): one point at a time for a small run whose lane kernel is not
-    compiled, the lanes for a run of LANES_FROM_POINTS points (the run's size, from the runner, not the
-    rows of the call) or once the lane kernel is compiled (in the process, or found in numba's disk
-    cache); the results are bitwise the same by either route."""
-    from mechsweep.grid import ParameterMatrix
-    from mechsweep.runner import evaluate_rows
-    from mechsweep.scene import load_scene
-
-    spec = MODELS["duffing"]
-    P = _duffing_points()[:40]
-    monkeypatch.setattr(mc, "USE_LANES", None)
-    monkeypatch.setattr(mc, "_BY_OBJECTS", {})
-    monkeypatch.setattr(mc, "_KERNELS", {})
-    monkeypatch.setattr(mc, "_compiled_on_disk", lambda name, source: False)  # as with an empty JIT cache
-    one = _evaluate(spec, P, WANTED, None, monkeypatch, method="dop853")
-    assert not _lane_kernels_used(), "a small run compiled the lane kernel"
-    monkeypatch.setattr(mc, "LANES_FROM_POINTS", 41)
-    _evaluate(spec, P, WANTED, None, monkeypatch, method="dop853")
-    assert not _lane_kernels_used()  # 40 rows, no run around them
-    scene = load_scene(small_duffing)  # 63 points: the run's one-row warm-up takes the lanes
-    monkeypatch.setattr(mc, "LANES_FROM_POINTS", scene.n_points)
-    evaluate_rows(scene, ParameterMatrix(scene)(0, 1))
-    assert _lane_kernels_used(), "the run's size did not choose the lanes"
-    monkeypatch.setattr(mc, "LANES_FROM_POINTS", 10**12)
-    lan = _evaluate(spec, P, WANTED, None, monkeypatch, method="dop853")  # the lane kernel is loaded: taken
-    for key, value in one.items():
-        assert np.array_equal(value, lan[key], equal_nan=True), key
-    (name,) = _lane_kernels_used()
-    source = Path(sys.modules[name].__file__).read_text()
-    monkeypatch.undo()
-    if mc._jit.cache_dir is not None:  # numba's index as numba reads it: this kernel's is there, none for a
-        monkeypatch.setattr(mc, "_KERNELS", {})  # module never compiled
-        assert mc._compiled_on_disk(name, lambda: source) and name in mc._KERNELS
-        fresh = "mechsweep_gen_test_never_compiled"
-        assert not mc._compiled_on_disk(fresh, lambda: source)  # no file: not even imported
-        mc.load_generated(fresh, source)
-        assert not mc._compiled_on_disk(fresh, lambda: source)
-
-
 def test_lane_blocks_are_taken_once_each_by_whichever_thread_is_free(monkeypatch):
     """The lane kernel's threads take its points in batches (lanes.take, an atomic counter) instead of
     being dealt blocks in advance: every take is handed out exactly once (10 x 10^6 takes racing on two

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import mechsweep
-from mechsweep import runner
+from mechsweep import execute, runner
 from mechsweep import status as st
 from mechsweep.cli import main
 from mechsweep.errors import InputError
@@ -150,14 +150,14 @@ def test_unfinished_run_reads_and_resumes_from_another_directory(tmp_path, monke
     folder = _scene_folder(tmp_path)
     monkeypatch.chdir(folder)
     with pytest.MonkeyPatch.context() as mp:
-        real, calls = runner.evaluate_chunk, {"n": 0}
+        real, calls = execute.evaluate_chunk, {"n": 0}
 
         def flaky(scene, chunk, *rest):
             calls["n"] += 1
             if calls["n"] > 2:
                 raise KeyboardInterrupt
             return real(scene, chunk, *rest)
-        mp.setattr(runner, "evaluate_chunk", flaky)
+        mp.setattr(execute, "evaluate_chunk", flaky)
         with pytest.raises(mechsweep.RunInterrupted):
             mechsweep.run("s.toml")
     elsewhere = tmp_path / "elsewhere" / "deeper"

@@ -297,29 +297,6 @@ def test_a_sampled_user_model_runs_and_stores_its_history(in_tmp):
     assert (ds["status"].values == st.OK).all()
 
 
-def test_the_sampled_lanes_are_taken_only_where_they_pay(monkeypatch):
-    """USE_LANES None: the lanes for a run of LANES_FROM_POINTS points, or once their functions
-    (setup and queue) are compiled; else one trajectory at a time; True/False force the route."""
-    from types import SimpleNamespace
-
-    from mechsweep.model import trajectory
-
-    def dispatcher(compiled):
-        return SimpleNamespace(signatures=["(float64[:],)"] if compiled else [])  # no disk cache: not compiled
-
-    cold = SimpleNamespace(setup=dispatcher(False), queue=dispatcher(False))
-    half = SimpleNamespace(setup=dispatcher(True), queue=dispatcher(False))
-    warm = SimpleNamespace(setup=dispatcher(True), queue=dispatcher(True))
-    monkeypatch.setattr(trajectory, "USE_LANES", None)
-    monkeypatch.setattr(trajectory, "LANES_FROM_POINTS", 500)
-    assert not trajectory._lanes_pay(cold, 499) and not trajectory._lanes_pay(half, 10)
-    assert trajectory._lanes_pay(cold, 500) and trajectory._lanes_pay(warm, 1)
-    monkeypatch.setattr(trajectory, "USE_LANES", False)
-    assert not trajectory._lanes_pay(warm, 10**9)
-    monkeypatch.setattr(trajectory, "USE_LANES", True)
-    assert trajectory._lanes_pay(cold, 1)
-
-
 @pytest.mark.slow  # compiles the lane solver for two models (about a minute cold)
 def test_lanes_give_the_one_trajectory_results_bitwise(forced, decay, monkeypatch):
     """User models that write no lane rhs (the engine rewrites theirs, model/lanes.py): FORCED's

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import mechsweep
-from mechsweep import runner
+from mechsweep import execute, runner
 from mechsweep.journal import partial_path
 
 from .data.interrupt import interrupted_after
@@ -64,13 +64,13 @@ def assert_no_leftovers(folder):
 
 
 def test_run_writes_its_file_while_the_chunks_are_computed(scene_file, reference, monkeypatch):
-    seen, real = [], runner.evaluate_chunk
+    seen, real = [], execute.evaluate_chunk
 
     def watching(scene, chunk, *rest):
         seen.append((partial_path(scene_file.parent / OUT) / "assembly.h5").exists())
         return real(scene, chunk, *rest)
 
-    monkeypatch.setattr(runner, "evaluate_chunk", watching)
+    monkeypatch.setattr(execute, "evaluate_chunk", watching)
     ds = mechsweep.run(mechsweep.load_scene(scene_file), output=OUT, progress=False)
     assert len(seen) == N_CHUNKS
     # the third chunk is computed after the first one was saved and written into the file (the file
@@ -88,7 +88,7 @@ def test_the_file_is_defined_while_the_first_chunk_is_computed(scene_file, refer
     not after that chunk is saved: the first chunk waits here until the file appears."""
     import time
 
-    seen, real = [], runner.evaluate_chunk
+    seen, real = [], execute.evaluate_chunk
     path = partial_path(scene_file.parent / OUT) / "assembly.h5"
 
     def waiting(scene, chunk, *rest):
@@ -99,7 +99,7 @@ def test_the_file_is_defined_while_the_first_chunk_is_computed(scene_file, refer
             seen.append(path.exists())
         return real(scene, chunk, *rest)
 
-    monkeypatch.setattr(runner, "evaluate_chunk", waiting)
+    monkeypatch.setattr(execute, "evaluate_chunk", waiting)
     mechsweep.run(mechsweep.load_scene(scene_file), output=OUT, progress=False)
     assert seen == [True]
     assert_same_file(scene_file.parent / OUT, reference)

@@ -3,7 +3,7 @@ import os
 
 import pytest
 
-from mechsweep import runner
+from mechsweep import execute, runner
 
 
 def test_bench_breakdown_times_the_steps_of_a_run_and_unwraps_them(in_tmp, capsys):
@@ -12,13 +12,13 @@ def test_bench_breakdown_times_the_steps_of_a_run_and_unwraps_them(in_tmp, capsy
     from mechsweep.model import compile as model_compile
     from mechsweep.models import MODELS
 
-    before = (runner.evaluate_rows, runner.load_scene, journal.Journal.write_chunk, store.Early.write,
+    before = (execute.evaluate_rows, runner.load_scene, journal.Journal.write_chunk, store.Early.write,
               grid.ParameterMatrix.__call__, MODELS["duffing"].evaluate)
 
     lanes = model_compile.USE_LANES
     (r,) = bench.breakdown(points=3000, threads=1, repeats=1, lanes=lanes)  # (no extra kernel compiled)
     assert model_compile.USE_LANES is lanes
-    assert (runner.evaluate_rows, runner.load_scene, journal.Journal.write_chunk, store.Early.write,
+    assert (execute.evaluate_rows, runner.load_scene, journal.Journal.write_chunk, store.Early.write,
             grid.ParameterMatrix.__call__, MODELS["duffing"].evaluate) == before
     steps = r["steps"]
     n_chunks = steps["per chunk: kernel + status/NONFINITE"][2]

@@ -31,7 +31,8 @@ from ..grid import Chunk
 from ..model import compile as model_compile
 from ..models import duffing
 from . import competitors
-from ..runner import _threads, evaluate_chunk, evaluate_rows, run
+from ..execute import evaluate_chunk, evaluate_rows, threads as _threads
+from ..runner import run
 from ..scene import Solver, load_scene
 
 

@@ -230,7 +230,8 @@ def run_boundaries(scene_or_path, *, data=None, output=None, threads=None, progr
     The grid's dataset is only read. Returns (path written, the boundaries Dataset). ``warn``: a
     UserWarning for each of ``warnings_for`` (the CLI prints them itself)."""
     from ..errors import InputError
-    from ..runner import _threads, compute
+    from ..execute import threads as _threads
+    from ..runner import compute
     from ..scene import Scene, load_scene
     from ..store import StoreError, open_dataset
 

@@ -1,7 +1,7 @@
 """Locate boundaries along one axis, for any model: where a criterion crosses a level, or where
 the status changes from one value to another, for every combination of the other axes.
 
-Built only on :attr:`ModelSpec.evaluate` (through ``runner.evaluate_rows`` for status changes):
+Built only on :attr:`ModelSpec.evaluate` (through ``execute.evaluate_rows`` for status changes):
 nothing here knows a model. The grid of the scene brackets every crossing between two neighbouring
 grid values; each bracket is then refined, all brackets of a round in ONE evaluate call (the
 chunk kernels run them in parallel):
@@ -126,9 +126,14 @@ class Evaluator:
         self.model = scene.model
         self.calls = 0
         self.points = 0
+        self.plan = None
         if crit.output is not None:
             want = (crit.output,) + ((crit.angle_output,) if crit.angle_output else ())
             self.wanted = self.model.closure(want)
+            # the kernel route a run of the scene's grid takes (plan.py), chosen once for every call
+            from ..plan import routes
+            self.route = ({} if getattr(self.model, "plan", None) is None
+                          else {"route": routes(scene, self.wanted, scene.n_points)})
 
     def __call__(self, line: np.ndarray, x: np.ndarray):
         """(g or NaN, status, critical angle or NaN) at the points."""
@@ -143,16 +148,19 @@ class Evaluator:
         self.points += n
         kind = np.full(n, np.nan)
         if self.crit.output is None:
-            from ..runner import evaluate_rows
+            from ..execute import evaluate_rows
 
-            _, status, _, _ = evaluate_rows(self.scene, P)
+            if self.plan is None:  # the kernels and route of a run of the scene, decided once
+                from ..plan import make_plan
+                self.plan = make_plan(self.scene)
+            _, status, _, _ = evaluate_rows(self.plan, P)
             return np.full(n, np.nan), status, kind
         solver = self.scene.solver
         out = {name: np.full((n,) + _extra(self.scene, name), np.nan) for name in self.wanted}
         status = np.zeros(n, dtype=st.DTYPE)
         ns, nr = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
         with np.errstate(all="ignore"):
-            self.model.evaluate(P, self.wanted, solver, out, status, ns, nr)
+            self.model.evaluate(P, self.wanted, solver, out, status, ns, nr, **self.route)
         g = out[self.crit.output] - self.crit.level
         g[~np.isfinite(g)] = np.nan
         if self.crit.angle_output:

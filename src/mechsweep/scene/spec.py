@@ -194,7 +194,7 @@ class Execution:
         return LANES_CHOICES[self.lanes]
 
 
-# [execution] lanes -> the kernels' route (model.compile.planned_points)
+# [execution] lanes -> the kernels' route (True, False, None: automatic; plan.choose_route decides with it first)
 LANES_CHOICES = {"auto": None, "always": True, "never": False}
 
 
