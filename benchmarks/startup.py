@@ -509,7 +509,7 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
         return original, wrapper
 
     patches = [(runner, n, n) for n in ("_check_existing", "_save_chunks", "_finish", "open_dataset", "drop")]
-    patches += [(compute, "warm_up", "warm_up")]
+    patches += [(execute, "warm_up", "warm_up")]
     patches += [(store, "_define", "store._define"), (journal.Journal, "create", "Journal.create"),
                 (journal.Journal, "write_chunk", "Journal.write_chunk")]
     small = load_scene(duffing(10**3))
