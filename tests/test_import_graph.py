@@ -33,8 +33,6 @@ ALLOWED = {
         "the lane kernel's source reuses compile.py's guards and the System's source",
     ("mechsweep.model.switches", "mechsweep.model.compile"):
         "the switch-time code is rendered with compile.py's source helpers",
-    ("mechsweep.cluster", "mechsweep.runner"):
-        "a dask task computes its chunk with runner.evaluate_chunk",
 }
 
 
