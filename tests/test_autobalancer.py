@@ -11,7 +11,7 @@ from scipy.optimize import brentq
 
 import mechsweep
 from mechsweep import models, status as st
-from mechsweep.models import _autobalancer_kernels as K  # the hand-written kernels: rhs, Jacobian, variational system
+from .reference import autobalancer_kernels as K  # the hand-written kernels: rhs, Jacobian, variational system
 from mechsweep.models import autobalancer as ab
 from mechsweep.scene import SceneError, Solver, load_scene
 
@@ -498,7 +498,7 @@ def scene(**over):
 @pytest.fixture
 def registered(monkeypatch):
     monkeypatch.setitem(models.MODELS, "autobalancer", ab.SPEC)
-    monkeypatch.setattr(mechsweep.scene, "MODELS", models.MODELS)
+    monkeypatch.setattr(mechsweep.scene.sections, "MODELS", models.MODELS)
 
 
 def test_check_requires_exactly_one_of_each_pair(registered):

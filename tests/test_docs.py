@@ -230,7 +230,8 @@ def history_in(text: str) -> list[str]:
 
 def test_docs_and_code_carry_no_issue_numbers_dates_or_session_history():
     files = [REPO / "README.md", *(REPO / "docs").rglob("*.md"), *(REPO / "docs").rglob("*.py"),
-             *(REPO / "src").rglob("*.py"), *(REPO / "sweeps").rglob("*.toml")]
+             *(REPO / "src").rglob("*.py"), *(REPO / "sweeps").rglob("*.toml"),
+             *(REPO / "benchmarks").rglob("*.py"), *(REPO / "tests" / "reference").rglob("*.py")]
     found = []
     for path in files:
         rel = path.relative_to(REPO)

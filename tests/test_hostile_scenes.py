@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from mechsweep import runner
+from mechsweep import execute, runner
 from mechsweep.cli import main
 from mechsweep.models import MODELS
 
@@ -237,7 +237,7 @@ def work(tmp_path, monkeypatch):
     monkeypatch.setattr(runner.RunLock, "acquire", tripwire)
     monkeypatch.setattr(runner.Journal, "create", tripwire)
     monkeypatch.setattr(runner, "_save_chunks", tripwire)
-    monkeypatch.setattr(runner, "evaluate_chunk", tripwire)
+    monkeypatch.setattr(execute, "evaluate_chunk", tripwire)
     yield tmp_path
     # the user modules a scene imported by name from this folder (hostile_helpers, ...) must not be
     # found by a later test that imports the same names from tests/user_models

@@ -1,5 +1,5 @@
 """Every linkage balancing method that moves or adds a mass, against the mass placed physically:
-models/_linkage_reference.py (physical placement) puts the counterweights where the method says
+tests/reference/linkage_physical.py puts the counterweights where the method says
 (the crank counterweight on the reported axis O1, the rocker counterweight, an added rocker
 inertia, the slider-crank's sized counterweight), finds the joints by a closed form of its own and
 computes the full shaking moment M = -dH/dt - g sum m x_G and force (inertia and gravity) from
@@ -18,9 +18,10 @@ import pytest
 from mechsweep import balancing as B
 from mechsweep import status as st
 from mechsweep.models import _linkage as L
-from mechsweep.models import _linkage_reference as R
 from mechsweep.models import fourbar_balancing as fb
 from mechsweep.models import slidercrank_balancing as sc
+
+from .reference import linkage_physical as R
 
 DATA = Path(__file__).resolve().parent / "data"
 _spec = importlib.util.spec_from_file_location("make_linkage_reference", DATA / "make_linkage_reference.py")

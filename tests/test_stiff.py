@@ -16,7 +16,7 @@ from scipy.integrate import solve_ivp
 
 from mechsweep import status as st
 from mechsweep.model import compile as mc
-from mechsweep.model import load
+from mechsweep.model import user
 from mechsweep.model import trajectory as tr
 from mechsweep.models import MODELS
 from mechsweep.scene import Solver
@@ -31,7 +31,7 @@ STIFF_POINT = 0
 
 
 def _spec():
-    return load.resolve(f"{USER}:STIFF_OSCILLATOR")
+    return user.resolve(f"{USER}:STIFF_OSCILLATOR")
 
 
 def evaluate(spec, P, wanted, lanes=False, monkeypatch=None, **solver):
@@ -165,7 +165,7 @@ def _autobalancer(h):
 def _phase_error_lsoda(h, revolutions):
     """The final phase error by scipy's LSODA on the model's scaled equations (the reference kernels'
     scaled parameters: c = M omega^2, b = 2 zeta M omega)."""
-    from mechsweep.models import _autobalancer_kernels as ab
+    from .reference import autobalancer_kernels as ab
 
     f = AB_FIXED
     th = math.acos(-f["A0"] / (2 * f["m"] * f["a"]))

@@ -15,14 +15,18 @@ them). Points (the default solver settings, rtol 5e-11, atol 1e-12, max_steps 10
 Numbers from it: the comment of ode/dop853.py's STIFF_WINDOW.
 """
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 
 from mechsweep import status as st
 from mechsweep._jit import jit
-from mechsweep.models import _autobalancer_kernels as ab
 from mechsweep.models.autobalancer import scaled_rhs
 from mechsweep.ode import dop853 as d
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository root: tests.reference
+from tests.reference import autobalancer_kernels as ab  # noqa: E402
 
 BUDGET = 100_000
 WINDOWS = (100, 200, 500, 1000, 5000)

@@ -370,11 +370,6 @@ def owns(fig) -> bool:
     return bool(getattr(fig, "_mechsweep_titled", False))
 
 
-def nobreak(text: str) -> str:
-    """``text`` with its spaces non-breaking (outside mathtext spans, where a space is mathtext's)."""
-    return "".join(p if p.startswith("$") else p.replace(" ", NBSP) for p in re.split(r"(\$[^$]*\$)", text))
-
-
 def title(fig, ds, what: str, caption: str | None = None, *, caption_box: bool = True) -> str:
     """Title: what the figure shows. The fixed parameters (and ``caption`` when given) go to a
     caption box under the panels, in a smaller font, with the scene's name last (a footer, not a

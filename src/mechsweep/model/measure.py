@@ -24,7 +24,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..models._spec import Output, Setting
+from .spec import Output, Setting
 
 _PACKAGE = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep
 
@@ -1828,7 +1828,7 @@ class History(_Outputs):
         return np.linspace(0.0, _number(self.horizon, settings), int(_number(self.samples, settings)))
 
     def outputs(self) -> tuple[Output, ...]:
-        from ..models._spec import ExtraDim
+        from .spec import ExtraDim
         what = self.of if isinstance(self.of, str) else self.name
         dim = ExtraDim(self.dim, "1", self.dim_long_name, self._coordinate_defaults)
         return (self._output("", f"{what}(t)", self.unit, self.long_name or f"{what} over the simulation",

@@ -256,6 +256,13 @@ class ModelSpec:
     attribute of its datasets; ``source`` when empty).
     ``methods_for(outputs)`` (optional): the methods a choice of outputs (closed under ``needs``)
     supports, when some outputs offer fewer than ``methods``; a scene asking another is refused.
+    ``plan(wanted, solver) -> dict`` (optional): what ``evaluate`` computes for ``wanted``, decided
+    before any chunk (mechsweep/plan.py stores it with the run): ``measurements`` and ``closed_forms``
+    (names), and ``lanes``: {kernel family: {"record", "recorded", "from_points", "forced"}} for each
+    kernel that can also integrate points side by side (its record name, whether it is compiled for
+    this CPU, the run size from which the lanes pay, the engine's override or None). A spec that has
+    ``plan`` takes ``evaluate(..., route={family: "lanes" or "point"})``: the route the run's plan
+    chose for each family (bitwise the same results either way); without ``route`` the engine's default.
     """
 
     name: str
@@ -306,6 +313,7 @@ class ModelSpec:
         """What status ``code`` means for this model ("" when it declares nothing)."""
         return dict(self.status_notes).get(int(code), "")
     methods_for: Callable | None = field(default=None, repr=False)
+    plan: Callable | None = field(default=None, repr=False, compare=False)
 
     def param(self, name: str) -> Param:
         return self._params_by_name()[name]
@@ -344,6 +352,12 @@ class ModelSpec:
     def needs_integration(self, requested) -> bool:
         by_name = self._outputs_by_name()
         return any(by_name[n].integrated for n in self.closure(requested))
+
+
+def setting_value(x, settings) -> float:
+    """A declared number, or the name of one of the model's settings: its value in ``settings``
+    (name -> value, the scene's [solver] settings)."""
+    return float(settings[x]) if isinstance(x, str) else float(x)
 
 
 def wanted_flags(all_names: tuple[str, ...], wanted: tuple[str, ...]) -> np.ndarray:
