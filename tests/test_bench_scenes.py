@@ -1,45 +1,46 @@
-"""`mechsweep bench` needs no repository: the scenes it samples ship as package data
-(mechsweep/bench/scenes, copies of sweeps/), found through the package, not through a path
-relative to the source tree."""
+"""`mechsweep bench` needs no repository: the scenes it samples are the shipped example scenes
+(mechsweep.examples: the repository's sweeps/, installed with the package as mechsweep/sweeps/),
+found through the package, not through a path relative to the working directory."""
 import shutil
 import subprocess
 import sys
 
 import pytest
 
-from mechsweep.bench import scenes, workprecision
+from mechsweep import examples
+from mechsweep.bench import workprecision
 
 from .conftest import REPO
 
 # every built-in model declares the scene of its work-precision report (OdeModel / ClosedFormModel
-# workprecision=...): a shipped sweeps/NAME.toml, found through the package's copy
+# workprecision=...): a shipped sweeps/NAME.toml, found through the package
 DECLARED = {name: workprecision.resolve_model(name).declaration.workprecision.scene for name in workprecision.all_cases()}
 
 
-def test_every_bench_case_has_its_packaged_scene_identical_to_the_shipped_one():
+def test_every_bench_case_finds_its_shipped_scene_through_the_package(tmp_path, monkeypatch):
     assert sorted(DECLARED) == sorted(["duffing", "torsional_circuit", "autobalancer", "fourbar_balancing",
                                        "slidercrank_balancing"])
     assert all(scene.startswith("sweeps/") for scene in DECLARED.values())
-    assert set(scenes.names()) == {scene.removeprefix("sweeps/") for scene in DECLARED.values()}
-    for name, scene in DECLARED.items():  # the declared scene resolves to the packaged copy, named as shipped
+    monkeypatch.chdir(tmp_path)  # no sweeps/ folder here
+    for name, scene in DECLARED.items():  # the declared scene resolves to the shipped one, named as shipped
         path, label = workprecision.declared_scene(workprecision.resolve_model(name).declaration.workprecision)
-        assert path == scenes.path(scene.removeprefix("sweeps/")) and label == scene
-    for name in scenes.names():
-        assert scenes.path(name).read_bytes() == (REPO / "sweeps" / name).read_bytes(), \
-            f"src/mechsweep/bench/scenes/{name} differs from sweeps/{name}: copy it again"
+        assert path == examples.path(scene.removeprefix("sweeps/")) and label == scene
+        assert path.read_bytes() == (REPO / scene).read_bytes()
 
 
-def test_an_unknown_packaged_scene_is_refused_by_name():
+def test_an_unknown_shipped_scene_is_refused_by_name():
     with pytest.raises(FileNotFoundError, match="no_such.toml"):
-        scenes.path("no_such.toml")
+        examples.path("no_such.toml")
 
 
 def test_bench_scenes_load_from_an_installed_package_without_the_repository(tmp_path):
     """Build the package as an install does (setuptools build_py with this pyproject.toml: the
-    .py files and the declared package data), put it where no sweeps/ folder is near, and load
+    .py files and the declared package data, the shipped scenes among them), put it where no sweeps/
+    folder is near, and load
     every bench case's default scene there in a fresh interpreter."""
     src = tmp_path / "project"
     shutil.copytree(REPO / "src", src / "src", ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+    shutil.copytree(REPO / "sweeps", src / "sweeps")  # the package data mechsweep.sweeps
     shutil.copy(REPO / "pyproject.toml", src)
     shutil.copy(REPO / "README.md", src)
     site = tmp_path / "site"

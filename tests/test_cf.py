@@ -1,20 +1,21 @@
-"""CF conventions of the datasets mechsweep writes (issue 16 item 7).
+"""CF conventions of the datasets mechsweep writes.
 
-No full CF checker runs here: `cfchecker` needs the UDUNITS-2 C library from the system and
-downloads the standard-name table, neither of which CI has offline. What is checked instead, on
-files written by `run` and `boundaries`: every unit is parsed by UDUNITS-2 itself (cf-units ships
-the library and its unit database in its wheel), the global attributes CF asks for
-(Conventions, history, references), the status flags (flag_values / flag_meanings), the
-`coordinates` attribute, and the log-spaced axis marking."""
+The CF checker itself runs in tests/test_cf_checker.py. Checked here, on files written by `run`
+and `boundaries`: every unit is parsed by UDUNITS-2 itself (cf-units ships the library and its
+unit database in its wheel), strings carry no units, the global attributes CF asks for
+(Conventions, source, history, references), the status flags (flag_values / flag_meanings, the
+standard name status_flag, named by every output's ancillary_variables), the `coordinates`
+attribute, and the log-spaced axis marking."""
 import numpy as np
 import pytest
 import xarray as xr
 
 cf_units = pytest.importorskip("cf_units")
 
+import mechsweep  # noqa: E402
 from mechsweep import cf  # noqa: E402
 from mechsweep.boundaries import run_boundaries  # noqa: E402
-from mechsweep.model import load  # noqa: E402
+from mechsweep.model import user  # noqa: E402
 from mechsweep.models import MODELS  # noqa: E402
 from mechsweep.runner import run  # noqa: E402
 
@@ -48,7 +49,7 @@ def udunits_problem(unit) -> str | None:
 
 
 def all_specs():
-    shipped = load.resolve(str(SWEEPS / "models" / "vibrating_pendulum.py") + ":VIBRATING_PENDULUM")
+    shipped = user.resolve(str(SWEEPS / "models" / "vibrating_pendulum.py") + ":VIBRATING_PENDULUM")
     return [*MODELS.values(), shipped]
 
 
@@ -69,7 +70,8 @@ def check_cf_file(path, model) -> None:
     """The CF checks a written file must pass (read raw: no decoding)."""
     ds = xr.open_dataset(path, engine="h5netcdf", decode_cf=False)
     try:
-        assert ds.attrs["Conventions"] == cf.CONVENTIONS
+        assert ds.attrs["Conventions"] == cf.CONVENTIONS == "CF-1.8"
+        assert ds.attrs["source"] == cf.source(model, mechsweep.__version__), ds.attrs["source"]
         history = ds.attrs["history"]
         assert history.startswith(ds.attrs["created"]) and "mechsweep " in history, history
         refs = ds.attrs["references"]
@@ -78,11 +80,17 @@ def check_cf_file(path, model) -> None:
             if var.dtype.kind in "fiu" and "flag_values" not in var.attrs:  # CF: flags need no units
                 assert "units" in var.attrs, f"{path}: {name} has no units"
                 assert udunits_problem(var.attrs["units"]) is None, (name, udunits_problem(var.attrs["units"]))
+            if "flag_values" in var.attrs and name == "status":
+                assert var.attrs["standard_name"] == "status_flag", var.attrs
             if "flag_values" in var.attrs:
                 values = np.atleast_1d(var.attrs["flag_values"])
                 meanings = str(var.attrs["flag_meanings"]).split()
                 assert len(values) == len(meanings) and len(set(meanings)) == len(meanings), name
                 assert values.dtype == var.dtype, (name, values.dtype, var.dtype)
+            if var.dtype.kind in "SOU":  # categorical values: strings have no units (CF), stored as characters
+                assert "units" not in var.attrs and var.dtype == "S1", (name, var.attrs, var.dtype)
+            if name in ds.attrs.get("outputs", "").split():
+                assert var.attrs["ancillary_variables"] == "status", name
             for other in str(var.attrs.get("coordinates", "")).split():
                 assert other in ds.variables, (name, other)
         for dim in ds.dims:

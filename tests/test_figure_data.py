@@ -1,7 +1,9 @@
 """Committed figures stay true to the code and the scenes: the data every figure draws, regenerated
 from the shipped scenes at reduced size, matches a stored fingerprint (tests/data/
-figure_fingerprints.json, rewritten by tests/data/figure_fingerprints.py); every committed PNG was
-written by docs/make_figures.py from the code and scene that are here now (docs/figures/MANIFEST.json);
+figure_fingerprints.json, rewritten by tests/data/figure_fingerprints.py), and each of those figures
+reads well (tests/figure_checks.py: no tick labels running into one another, symbols in mathtext,
+no literal underscores, legends off the data); every committed PNG was written by
+docs/make_figures.py from the code and scene that are here now (docs/figures/MANIFEST.json);
 importing and drawing change no matplotlib global state."""
 import hashlib
 import importlib.util
@@ -9,7 +11,9 @@ import json
 import subprocess
 import sys
 
+import pytest
 
+from . import figure_checks
 from .conftest import REPO
 
 FIGS = REPO / "docs" / "figures"
@@ -25,14 +29,43 @@ def _load(path, name):
 fingerprints = _load(REPO / "tests" / "data" / "figure_fingerprints.py", "figure_fingerprints")
 
 
-def test_every_figures_data_matches_its_fingerprint(tmp_path):
+@pytest.fixture(scope="module")
+def shipped(tmp_path_factory):
+    """(datasets, figures) of every shipped scene, each axis cut to a few values: run and drawn
+    once for the tests of this module."""
+    datasets = fingerprints.reduced_datasets(tmp_path_factory.mktemp("shipped"))
+    return datasets, fingerprints.drawn_figures(datasets)
+
+
+def test_every_figures_data_matches_its_fingerprint(shipped):
     """All shipped scenes, each axis cut to a few values: what each figure draws (lines, markers,
     meshes, contours) has the stored size, finite count and sums (rtol 1e-6)."""
     want = json.loads(fingerprints.STORE.read_text())
-    got = fingerprints.fingerprints(tmp_path)
+    got = fingerprints.fingerprints(None, drawn=shipped[1])
     bad = fingerprints.compare(got, want)
     assert not bad, ("figure data differ from tests/data/figure_fingerprints.json (if intended: "
                      "python tests/data/figure_fingerprints.py, and regenerate docs/figures):\n" + "\n".join(bad))
+
+
+def test_every_default_figure_of_every_shipped_scene_reads_well(shipped):
+    """On each figure of each shipped scene (at reduced size, so with few values on its axes): no two
+    tick labels of an axis overlap (their rendered extents), no text prints an underscore, no legend
+    lies over its panel's data, and every axis label naming a variable with a symbol shows it in
+    mathtext."""
+    datasets, drawn = shipped
+    problems = [f"{stem} {kind}: {p}" for stem, figs in drawn.items() for kind, fig in figs.items()
+                for p in figure_checks.check_readable(fig, datasets[stem])]
+    assert not problems, "\n".join(problems)
+
+
+def test_every_figure_title_says_what_it_shows_and_not_the_scene_name(shipped):
+    """The scene's name is the file's, not a title: it is in the caption's last line (as code)."""
+    datasets, drawn = shipped
+    for stem, figs in drawn.items():
+        name = str(datasets[stem].attrs.get("title", ""))
+        for kind, fig in figs.items():
+            head = fig._suptitle.get_text() if fig._suptitle is not None else ""
+            assert head and name not in head, (stem, kind, head)
 
 
 def test_fingerprint_comparison_sees_a_changed_value_and_forgives_the_last_ulp():

@@ -87,7 +87,7 @@ def test_figures_do_not_draw_flagged_points(datasets):
     drawn = art["integrated"].get_xdata()  # integrated markers: only finite values are picked to draw
     assert drawn.size == int(np.isfinite(figures._style.ok_values(ds, "period").values).sum())
     texts = [t.get_text() for t in art.figure.axes[0].texts]
-    assert any("1 flagged point" in t for t in texts)
+    assert any("not drawn: 1 infeasible" in t for t in texts)  # how many, and why (the status meaning)
 
 
 def test_save_writes_files(datasets, tmp_path):
@@ -164,15 +164,15 @@ def test_stability_chart_draws_located_and_continued_boundaries_only_when_given(
     assert np.isfinite(x).any() and "curve_Omega" in bds
     fig = figures.draw(ds, "stability_chart", boundaries=bds)
     ax = fig.axes[0]
-    pts = np.vstack([c.get_offsets() for c in ax.collections if "located along Omega" in c.get_label()])
+    pts = np.vstack([c.get_offsets() for c in ax.collections if "located along $\\Omega$" in c.get_label()])
     np.testing.assert_allclose(np.sort(pts[:, 0]), np.sort(x[np.isfinite(x)] / scale), rtol=1e-12)
-    curves = [line for line in ax.lines if "continued in (Omega, zeta_xi)" in line.get_label()]
+    curves = [line for line in ax.lines if "continued in ($\\Omega$, $\\zeta_\\xi$)" in line.get_label()]
     assert curves
     cx = np.asarray(bds["curve_Omega"].isel(curve=0).values, dtype=float)
     np.testing.assert_allclose(curves[0].get_xdata(), cx[np.isfinite(cx)] / scale, rtol=1e-12)
     legend = [t.get_text().replace("\n", " ") for t in ax.get_legend().get_texts()]
-    assert any("contour of the grid" in t for t in legend)
-    assert any("located along Omega" in t and "rtol 1e-08" in t for t in legend)
+    assert any("interpolated on the grid" in t for t in legend)
+    assert any("located along $\\Omega$" in t and "rtol 1e-08" in t for t in legend)
     bare = figures.draw(ds, "stability_chart").axes[0]
     assert not any("located" in c.get_label() for c in bare.collections)
     assert not any("continued" in line.get_label() for line in bare.lines)
@@ -215,8 +215,8 @@ def test_info_and_plot_of_a_boundaries_dataset(located, tmp_path, capsys):
 
 def test_an_island_too_small_to_see_is_drawn_magnified(tmp_path):
     """The damping chart's island (Omega in [27.632, 27.851] rad/s, zeta_xi in [0.02154, 0.02861])
-    on a wide, coarse chart: its continued outline is drawn in an inset zoomed on it; the chart
-    without boundaries has no inset."""
+    on a wide, coarse chart: its continued outline is drawn magnified in a panel beside the chart
+    (not inside it, where it hid data); the chart without boundaries has none."""
     import tomllib
 
     from mechsweep.boundaries import run_boundaries
@@ -229,16 +229,16 @@ def test_an_island_too_small_to_see_is_drawn_magnified(tmp_path):
     d["storage"] = {"path": str(tmp_path / "wide.h5")}
     _, bds = run_boundaries(load_scene(d))
     ds = mechsweep.open_dataset(tmp_path / "wide.h5")
-    ax = figures.draw(ds, "stability_chart", boundaries=bds).axes[0]
-    insets = [c for c in ax.child_axes if c.get_label() == "inset_axes"]  # not the top axis of frequencies
-    assert len(insets) == 1
-    inset = insets[0]
+    art = figures.artists(ds, "stability_chart", boundaries=bds)
+    inset = art["inset"]  # a panel beside the chart (inside it, it hid data)
+    assert inset in art.figure.axes and inset is not art["axes"][0, 0]
+    assert not (inset.get_position().overlaps(art["axes"][0, 0].get_position()))
     (x0, x1), (y0, y1) = inset.get_xlim(), inset.get_ylim()
     scale = float(ds["omega_xi"])
     assert x0 < 27.632 / scale and 27.851 / scale < x1 and x1 - x0 < 0.02  # the island, magnified
     assert y0 < 0.02154 and 0.02861 < y1 and y1 - y0 < 0.01
     assert any("continued" in line.get_label() for line in inset.lines)
-    assert not [c for c in figures.draw(ds, "stability_chart").axes[0].child_axes if c.get_label() == "inset_axes"]
+    assert "inset" not in figures.artists(ds, "stability_chart")
 
 
 # ----------------------------------------------------------------------------- fig= / ax= and returned artists
@@ -310,13 +310,13 @@ def test_labels_never_wrap_inside_parentheses_and_show_units():
 def test_a_bracketed_part_longer_than_a_line_wraps_and_short_ones_inside_it_stay_whole():
     """A long name whose parenthesis cannot fit on one line (a Floquet verdict's) was kept whole and
     ran off the figure; now only the parts that fit a line stay unbroken."""
-    from mechsweep.figures._style import NBSP, wrap
+    from mechsweep.figures._style import wrap
 
     text = ("1 if mu < 1 - margin, 0 if > 1 + margin (margin = max(floquet_margin, 100 rtol); NaN and "
             "status undecided within it)")
     lines = wrap(text, 34).split("\n")
     assert all(len(line) <= 34 for line in lines), lines
-    assert any(f"max(floquet_margin,{NBSP}100{NBSP}rtol)" in line for line in lines)  # the inner part: whole
+    assert any("max(floquet_margin, 100 rtol)" in line for line in lines)  # the inner part: whole
 
 
 def _wp(names):
@@ -352,7 +352,7 @@ def test_a_methods_colour_is_the_same_in_every_work_precision_figure():
 def test_what_an_engineer_reads_off_each_figure_is_there(datasets):
     """Issue 16 items 8-11, one check each: the closed form drawn over the markers and the rtol
     inside the error panel's range; natural frequencies as top ticks (not lines on the P = 0
-    curves) and the first approximation's stable side hatched; one legend entry per drawn curve;
+    curves) and the first approximation's boundary ticked on its stable side; one legend entry per drawn curve;
     every Pareto-optimal design drawn; no map drawn twice; the textbook band shaded."""
     from mechsweep.balancing import pareto_front
 
@@ -365,7 +365,9 @@ def test_what_an_engineer_reads_off_each_figure_is_there(datasets):
     top = art["frequencies"]
     assert [t.get_text() for t in top.get_xticklabels()] and not any("ω" in str(line.get_label())
                                                                      for line in art["axes"][0, 0].lines)
-    assert "P_stable" in art and "P(Ω) < 0" in " ".join(t.get_text() for t in art["legend"].get_texts())
+    # the first approximation's boundary, ticked on the side it calls stable
+    assert art["P_ticks"] and "ticked on the side it calls stable" in " ".join(
+        t.get_text().replace("\n", " ") for t in art["legend"].get_texts())
     art = figures.artists(datasets["autobalancer_residual"], "residual")
     assert len(art["legend"].get_texts()) == len({lab for _, lab in art["lines"]})
     ds = datasets["fourbar_pareto"]

@@ -145,7 +145,7 @@ def test_the_generic_figure_code_names_no_model_and_no_variable():
     """The front and the generic modules hold no built-in model's name, parameter or output; only the
     figure modules for a model (duffing.py, ...) do."""
     from mechsweep.models import MODELS
-    from mechsweep.models._spec import OUTPUT_KINDS
+    from mechsweep.model.spec import OUTPUT_KINDS
 
     folder = Path(figures.__file__).parent
     names = set(MODELS) | {x.name for spec in MODELS.values() for x in spec.outputs + spec.params}
@@ -203,7 +203,7 @@ def test_flagged_points_are_marked_and_finite_values_drawn():
     marks = art["flagged"].get_offsets()
     np.testing.assert_allclose(sorted(map(tuple, marks)), sorted([(ds.preload.values[2], ds.speed.values[3]),
                                                                   (ds.preload.values[4], ds.speed.values[5])]))
-    assert "2 point(s) flagged" in art["note"].get_text() and "drawn where finite: 1" in art["note"].get_text()
+    assert "2 flagged points" in art["note"].get_text() and "1 with a value (drawn), 1 without" in art["note"].get_text()
     curves = generic.nomogram(ds, "lift", x="speed", family="preload")
     flagged = np.concatenate([m.get_offsets() for m in curves["flagged"]])
     np.testing.assert_allclose(flagged, [(ds.speed.values[3], ds["lift"].values[3, 2, 0])])
@@ -364,7 +364,7 @@ def test_long_titles_wrap_inside_the_figure_and_a_lone_maps_legend_goes_below():
     assert ax.get_window_extent(renderer).width >= 0.6 * box.width
     assert ax.get_window_extent(renderer).height >= 0.45 * box.height  # the legend took half of it (a trial)
     # the fixed parameters head the legend (a caption box under the panel lay beneath it) ...
-    assert fig.legends[0].get_title().get_text().replace("\xa0", " ") == "fixed: mass = 2 kg"
+    assert fig.legends[0].get_title().get_text().replace("\xa0", " ").split("\n")[0] == "fixed: mass = 2 kg"
     assert fig._supxlabel is None
     # ... and the title stays inside the figure when saved at 150 dpi (matplotlib's wrap=True did not)
     import io
@@ -379,7 +379,7 @@ def test_panel_titles_give_the_slice_with_its_unit():
     list of names has none."""
     assert figures.draw(cam(), "heatmap_lift").axes[0].get_title() == "contact = steel"
     fig = figures.draw(cam(), "nomogram_lift", axes=("speed", "contact"))  # a panel per preload
-    assert [a.get_title() for a in fig.axes[:2]] == ["preload = 0 N", "preload = 10 N"]
+    assert [a.get_title().replace("\xa0", " ") for a in fig.axes[:2]] == ["$F_{0}$ = 0 N", "$F_{0}$ = 10 N"]
 
 
 def test_a_list_axis_spread_in_the_logarithm_gets_log_cells_and_crowded_contour_labels_are_thinned():
@@ -430,9 +430,10 @@ def test_a_stability_maps_legend_names_continued_curves_and_folds_too():
                "level": 1.0, "rtol": 1e-10, "continue_in": "preload"})
     art = figures.artists(ds, "stability_map", boundaries=bds)
     texts = [t.get_text().replace("\n", " ") for t in art["legend"].get_texts()]
-    assert any(t.startswith("located along speed") for t in texts)
-    assert any(t.startswith("continued in (speed, preload)") for t in texts)
-    assert "fold of a continued boundary" in texts
+    # one entry for the located points and the curves continued from them, one for the folds
+    assert any(t.startswith("boundary where") and "located along $\\Omega$" in t and "continued between them" in t
+               for t in texts)
+    assert any(t.startswith("fold of a continued boundary") for t in texts)
 
 
 def test_axes_chosen_by_the_user_replace_the_automatic_choice():
@@ -507,7 +508,7 @@ def test_a_time_history_of_one_point_is_drawn_for_any_model(tmp_path, capsys):
     one = select_point(ds, "speed=10,preload=25,contact=bronze")
     art = figures.draw(one, "history_lift_history")
     np.testing.assert_array_equal(art.axes[0].lines[0].get_ydata(), one["lift_history"].values.ravel())
-    assert "at speed = " in art.figure._suptitle.get_text() and "contact = bronze" in art.figure._suptitle.get_text()
+    assert "at $\\Omega$ = " in art.figure._suptitle.get_text() and "contact = bronze" in art.figure._suptitle.get_text()
 
 
 def test_a_point_without_time_histories_is_refused_saying_why(tmp_path, capsys):

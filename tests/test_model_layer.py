@@ -229,7 +229,7 @@ def test_closed_forms_needing_the_floquet_kind_and_angle_get_a_kernel():
     from mechsweep.engine import kernels, point
     from mechsweep.model import load
     from mechsweep.ode.methods import DOP853
-    model = load.import_module(load._module_name(MATHIEU_FILE.resolve()), str(MATHIEU_FILE.resolve())).MATHIEU_CF
+    model = load.import_module(load.module_name(MATHIEU_FILE.resolve()), str(MATHIEU_FILE.resolve())).MATHIEU_CF
     chosen, closed = model._plan(("angle2", "kind2"))
     closed = model.computable_closed_forms(chosen)
     assert kernels.kernel_for(model, chosen, closed=closed, route="point") is not None

@@ -89,7 +89,7 @@ def test_a_first_event_beside_shared_path_measurements_generates_one_kernel():
     from mechsweep.ode.methods import DOP853
 
     path = Path(MODEL.rpartition(":")[0])
-    decl = load.import_module(load._module_name(path), str(path)).MODEL
+    decl = load.import_module(load.module_name(path), str(path)).MODEL
     chosen, _ = decl._plan(("down3_short", "ke_max", "period_up"))
     assert kernels.kernel_for(decl, chosen, route="point") is not None
     plan = point.Plan(decl, chosen, (), DOP853)

@@ -8,7 +8,7 @@ import pytest
 
 from mechsweep import status as st
 from mechsweep.errors import InputError
-from mechsweep.model import ClosedForm, Floquet, History, Kick, OdeModel, Steady, load
+from mechsweep.model import ClosedForm, Floquet, History, Kick, OdeModel, Steady, user
 from mechsweep.scene import Solver, load_scene
 
 USER = Path(__file__).resolve().parent / "user_models"
@@ -30,7 +30,7 @@ def test_output_meta_names_and_describes_each_output():
     assert (o.symbol, o.unit, o.long_name) == ("t_s", "s", "time until |y| < 0.01")
     o = spec.output("final_error")
     assert (o.symbol, o.unit, o.long_name) == ("|y(end)|", "1", "error at the end of the simulation")
-    assert spec.output("peak_lag").unit == "deg?" and spec.output("peak_harmonic").symbol == "A1"
+    assert spec.output("peak_lag").unit == "degree" and spec.output("peak_harmonic").symbol == "A1"
     assert spec.output("y_hist").symbol == "y(t)" and spec.output("y_hist").extra_dims[0].name == "time"
     assert spec.output("mu_crit_angle").symbol == "θ" and spec.output("mu_crit_angle").needs == ("mu",)
     assert spec.output("mu_stable_old").kind == "verdict"
@@ -40,7 +40,7 @@ def test_output_meta_names_and_describes_each_output():
 
 
 def test_without_output_meta_the_generic_outputs_are_unchanged():
-    spec = load.resolve(f"{USER / 'forced.py'}:DECAY")
+    spec = user.resolve(f"{USER / 'forced.py'}:DECAY")
     o = {x.name: x for x in spec.outputs}
     assert [k for k in o if k.startswith("stable")] == ["stable", "stable_settling", "stable_final"]
     assert (o["stable"].symbol, o["stable_settling"].long_name, o["stable_final"].symbol) == (

@@ -1,5 +1,7 @@
 """store.NetCDFWriter defines a run's file as h5netcdf does: every object, property and attribute the
-same (walked with h5py), and xarray reads identical Datasets. Cheap: definitions only, no kernel."""
+same (walked with h5py) but the provenance stamp ``_NCProperties``, which says truthfully that
+mechsweep wrote the file through h5py; xarray reads identical Datasets with its h5netcdf and netcdf4
+(netCDF-C) engines. Cheap: definitions only, no kernel."""
 from __future__ import annotations
 
 import io
@@ -12,11 +14,12 @@ import numpy as np
 import pytest
 import xarray as xr
 
+import mechsweep
 from mechsweep.bench.duffing import grid_scene
-from mechsweep.grid import chunk_target, plan_chunks
+from mechsweep.plan import make_plan
 from mechsweep.runner import provenance
 from mechsweep.scene import load_scene
-from mechsweep.store import NetCDFWriter, _define, layout
+from mechsweep.store import NetCDFWriter, _define, layout, nc_properties
 
 from .conftest import SMALL_DUFFING, SWEEPS
 
@@ -96,8 +99,8 @@ def walk(source) -> list:
 
 def _define_both(spec):
     scene = load_scene(spec)
-    chunks = plan_chunks(scene.shape, chunk_target(scene))
-    lay, attrs = layout(scene, len(chunks)), provenance(scene, chunks)
+    plan = make_plan(scene)
+    lay, attrs = layout(scene, len(plan.chunks)), provenance(plan)
     theirs, ours = io.BytesIO(), io.BytesIO()
     with h5netcdf.File(theirs, "w") as f:
         _define(f, scene, lay, attrs)
@@ -112,13 +115,30 @@ def _define_both(spec):
 MATCHED_H5NETCDF = (1, 8)
 
 
+def _stamp(walked):
+    """The walk without the value of the file's _NCProperties (h5netcdf's names h5netcdf, ours mechsweep;
+    its length is the string type's), and that attribute's kind: the same in both files."""
+    head, *rest = walked
+    attrs = head[-1]
+    (k,) = [k for k, a in enumerate(attrs) if a[0] == "_NCProperties"]
+    key, dtype, string, cls, shape, value = attrs[k]
+    kind = (k, key, dtype[:2], string.encoding, string.length is not None, cls, shape)
+    text = value[-1].decode("ascii") if isinstance(value[-1], bytes) else value[-1]
+    return [head[:-1] + ([*attrs[:k], *attrs[k + 1:]],), *rest], kind, text
+
+
 @pytest.mark.parametrize("spec", SCENES, ids=lambda s: s["scene"]["name"])
-def test_the_file_is_the_one_h5netcdf_writes(spec):
+def test_the_file_is_the_one_h5netcdf_writes_but_says_who_wrote_it(spec):
     theirs, ours = _define_both(spec)
+    theirs.seek(0)
+    ours.seek(0)
+    a, their_kind, their_text = _stamp(walk(theirs))
+    b, our_kind, our_text = _stamp(walk(ours))
+    assert their_text.startswith("version=2,h5netcdf=")
+    assert our_text == nc_properties() == (f"version=2,mechsweep={mechsweep.__version__},h5py={h5py.__version__},"
+                                           f"hdf5={h5py.version.hdf5_version}")
+    assert our_kind == their_kind  # a scalar fixed-length ASCII string, where h5netcdf puts it
     if tuple(int(x) for x in h5netcdf.__version__.split(".")[:2]) == MATCHED_H5NETCDF:
-        theirs.seek(0)
-        ours.seek(0)
-        a, b = walk(theirs), walk(ours)
         assert len(a) == len(b)
         for x, y in zip(a, b):
             assert x == y
@@ -130,6 +150,25 @@ def test_the_file_is_the_one_h5netcdf_writes(spec):
             return {k: {e: repr(w) for e, w in v.encoding.items() if e != "source"} for k, v in ds.variables.items()}
 
         assert encoding(x) == encoding(y)
+
+
+@pytest.mark.parametrize("spec", SCENES, ids=lambda s: s["scene"]["name"])
+def test_netcdf_c_reads_the_file_as_h5netcdf_does(spec, tmp_path):
+    """netCDF-C (netCDF4-python, xarray's netcdf4 engine) takes the file for a netCDF-4 file and reads
+    the Dataset h5netcdf reads; the stamp is in netCDF-C's provenance format (version=2 first, then
+    key=value pairs: netCDF-C ignores a stamp it cannot parse, so this is checked here)."""
+    netCDF4 = pytest.importorskip("netCDF4")
+    _, ours = _define_both(spec)
+    path = tmp_path / "defined.nc"
+    path.write_bytes(ours.getvalue())
+    with netCDF4.Dataset(path) as nc:
+        assert (nc.data_model, nc.disk_format) == ("NETCDF4", "HDF5")
+        stamp = nc.getncattr("_NCProperties")
+    version, *pairs = stamp.split(",")
+    assert version == "version=2" and all(len(p.split("=")) == 2 and all(p.split("=")) for p in pairs), stamp
+    assert [p.split("=")[0] for p in pairs] == ["mechsweep", "h5py", "hdf5"]
+    with xr.open_dataset(path, engine="h5netcdf") as x, xr.open_dataset(path, engine="netcdf4") as y:
+        assert x.load().identical(y.load())
 
 
 def test_the_walk_sees_a_difference():

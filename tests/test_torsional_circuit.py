@@ -281,3 +281,83 @@ def test_two_term_period_near_its_separatrix_is_right_or_ill_conditioned():
         err = np.abs(cols["period"] - refs) / refs
         assert (err[ok] <= 2 * rtol).all(), (rtol, err[ok].max() / rtol)
         assert ok.sum() >= 6 and (~ok).sum() >= 2
+
+
+# ----------------------------------------------------------------------------- the exact system's own time unit
+def test_exact_moment_period_next_to_a_zero_rest_length():
+    """Tension, lambda1 = 1, lambda2 = 2e-6, s0_over_r = 1e-6, A = 0.3: the spring nearly passes through
+    the axis, xi ~ 1 / (2 D0) = 1.25e11 while the moment saturates like sin(phi). The two-term model's time
+    unit was 1e5 times too fast and the horizon ended before the first quarter period (no_event, NaN):
+    the period is 0.1263745 s (quadrature)."""
+    row = ("tension", 1.0, 2e-6, 1e-6, 0.05, 2000.0, 2e-3, 0.3)
+    ref = quadrature_period(*row)
+    assert ref == pytest.approx(0.1263745, abs=5e-8)
+    cols, status = evaluate([row], ("period_exact_moment",))
+    assert status[0] == st.OK
+    assert cols["period_exact_moment"][0] == pytest.approx(ref, rel=1e-10)
+
+
+TINY_ROWS = ([("tension", lam1, lam2, s * math.sqrt((1 - lam1) ** 2 + lam2**2), 0.05, 2000.0, 2e-3, A)
+              for lam1, lam2 in ((1.0, 3e-6), (1.0, 1e-4), (1.0 - 1e-4, 0.0), (1.0 - 1e-6, 1e-6))
+              for s, A in ((0.5, 1e-3), (1e-3, 0.3), (0.0, 2.0), (-0.5, 3.0))]
+             + [(spring, 0.8, 0.5, s, 0.05, 2000.0, 2e-3, A)
+                for spring, s, A in (("tension", 0.0, 1e-5), ("compression", 0.0, 1e-3), ("tension", 1e-12, 1e-3),
+                                     ("compression", 1e-9, 1e-5), ("tension", -1e-9, 0.3))])
+
+
+def test_exact_moment_period_for_tiny_D0_lambda2_and_s0_over_r():
+    """A sweep of tiny rest lengths (D0 from 1e-8 to 1e-12, lambda2 down to 0) and mounting deformations
+    (s0_over_r = 0, 1e-12, +-1e-9, and fractions of sqrt(D0)) at amplitudes from 1e-5 to 3 rad, both
+    springs: every point oscillates (the energy says so), is ok and within 1e-10 of the quadrature.
+    (The two-term time unit left D0 <= 1e-7 at A = 0.3 no_event; 1 - L0 / l lost 8 digits at s0_over_r = 0,
+    A = 1e-5, where the moment is now formed as (l - L0) / l.)"""
+    cols, status = evaluate(TINY_ROWS, ("period_exact_moment",))
+    for row, T, code in zip(TINY_ROWS, cols["period_exact_moment"], status):
+        ref = quadrature_period(*row)
+        assert code == st.OK, (row, code)
+        assert T == pytest.approx(ref, rel=1e-10), row
+
+
+def test_exact_time_unit_is_the_two_term_one_where_they_agree():
+    """Inside SCALE_BAND the exact system keeps the two-term model's time unit (the shipped scenes' bits),
+    outside it takes the exact moment's own (v_max / A from the energy), which never makes the period in
+    that unit shorter than 4 (the lever cannot be faster than v_max)."""
+    k = 0.05**2 * 2000.0 / 2e-3
+    for spring, lam1, lam2, s, A, kept in (("tension", 0.8, 0.5, 0.1, 0.3, True), ("tension", 0.8, 0.3, 0.1, 1.5, True),
+                                           ("tension", 1.0, 2e-6, 1e-6, 0.3, False)):
+        row = (spring, lam1, lam2, s, 0.05, 2000.0, 2e-3, A)
+        p = np.array([0.0, *row[1:], 100.0] + [0.0] * len(tc.MODEL.internal))
+        assert tc.exact_prepare(p, 1e-10) == st.OK  # plain Python: the declaration's own function
+        _, chi, xi, _ = tc.coefficients(1.0, lam1, lam2, s)
+        w2_two_term = k * (abs(chi) + abs(xi) * A * A)
+        assert (p[tc.EW] ** 2 == pytest.approx(w2_two_term, rel=1e-14)) == kept
+        assert quadrature_period(*row) * p[tc.EW] >= 4.0
+    # sweeps/torsional_circuit_truncation.toml (lambda2 0.3 .. 2, A 0.02 .. 1.5): the two-term unit
+    # everywhere, at most 9.2 times the exact one in w^2 (inside SCALE_BAND: the scene keeps its bits)
+    ratios = []
+    for lam2 in np.linspace(0.3, 2.0, 12):  # the scene's ends are on this grid
+        for A in np.linspace(0.02, 1.5, 12):
+            p = np.array([0.0, 0.8, lam2, 0.1, 0.05, 2000.0, 2e-3, A, 100.0] + [0.0] * len(tc.MODEL.internal))
+            assert tc.exact_prepare(p, 1e-11) == st.OK
+            D0 = tc.rest_length_squared(1.0, 0.8, lam2)
+            exact = k * tc.exact_time_scale(1.0, 0.8, D0, 0.1, A)
+            ratios.append(p[tc.EW] ** 2 / exact)
+    assert max(ratios) == pytest.approx(9.2, abs=0.05) and max(ratios) < tc.SCALE_BAND
+    assert min(ratios) > 1 / tc.SCALE_BAND
+
+
+@pytest.mark.parametrize("method", tc.SPEC.methods)
+def test_exact_moment_period_of_every_method_next_to_a_zero_rest_length(method):
+    """Every method at rtol 1e-10 next to D0 -> 0 (every third point of the sweep above): right within
+    1e-9 of the quadrature, or max_steps (the symplectic method's fixed steps must resolve the moment's
+    turn within |phi| ~ sqrt(D0 / lambda1): they follow the faster of the two-term and the exact time
+    units; in the exact one alone the period was 2e-7 off with status ok at D0 = 9e-12, A = 1e-3)."""
+    rows = TINY_ROWS[::3]
+    cols, status = evaluate(rows, ("period_exact_moment",), Solver.for_model(tc.SPEC, method=method, rtol=1e-10,
+                                                                             atol=1e-12))
+    for row, T, code in zip(rows, cols["period_exact_moment"], status):
+        if code == st.MAX_STEPS and method == "symplectic":
+            continue
+        assert code == st.OK, (row, code)
+        assert T == pytest.approx(quadrature_period(*row), rel=1e-9), row
+    assert (status == st.OK).sum() >= 4

@@ -4,6 +4,7 @@ Public API::
 
     ds = mechsweep.run("sweeps/quickstart.toml")        # or a dict with the same structure
     ds = mechsweep.run("sweeps/quickstart.toml", output=None)   # in memory, nothing written
+    summary = mechsweep.compute("sweeps/quickstart.toml")       # to its file, without opening it
     ds = mechsweep.open_dataset("data/runs/quickstart.h5")
     scene = mechsweep.load_scene("sweeps/quickstart.toml")
 
@@ -17,15 +18,22 @@ import importlib
 __version__ = "0.1.0"
 
 _EXPORTS = {
-    "ClusterLost": "errors",
-    "MODELS": "models",
-    "OutOfSpace": "runner",
-    "RunInterrupted": "runner",
-    "run": "runner",
-    "Scene": "scene",
+    # the exceptions (errors.py draws their tree)
+    "MechsweepError": "errors",
+    "InputError": "errors",
     "SceneError": "scene",
+    "StoreError": "errors",
+    "FileBusy": "errors",
+    "RunError": "errors",
+    "OutOfSpace": "errors",
+    "ClusterLost": "errors",
+    "RunInterrupted": "errors",
+    "MODELS": "models",
+    "RunSummary": "runner",
+    "run": "runner",
+    "compute": "runner",
+    "Scene": "scene",
     "load_scene": "scene",
-    "StoreError": "store",
     "open_dataset": "store",
 }
 

@@ -11,69 +11,124 @@ Options and why:
   by :func:`jit_noalloc`, without numba's reference counting (``_nrt=False``): numba compiles
   every function separately and, across calls, increments and decrements the reference count
   of every array argument and view with atomic instructions, about 200 of them per DOP853 step
-  (a measurable share of an autobalancer step: ``mechsweep bench autobalancer``). Such a function must
+  (a measurable share of an autobalancer step: ``python benchmarks/autobalancer.py``). Such a function must
   not allocate arrays (numba refuses to compile it if it does).
 - :func:`jit_inline` (``inline="always"`` at numba IR level, no reference counting) for small
   scalar helpers called in every right-hand side (sincos, the closed-form accelerations): LLVM
   inlines across separately compiled numba functions only below its size threshold, and every
-  separately compiled function costs numba a compile of its own. The integrators' small loops over a
-  state (stage sums, error norm, interpolation, copies, the RMS norms of the first step; ode/dop853.py,
-  ode/_common.py) were inlined so too, and numba analysed and typed each again at every call site;
-  they are now :func:`jit_llvm_inline`: typed once, inlined by LLVM (``alwaysinline``), bitwise the
-  same and as fast. Inlining the integrator's large functions as well (the RK step, the adaptive
-  step) gained little speed for about twice the compile time (an earlier one-off measurement).
+  separately compiled function costs numba a compile of its own. numba analyses and types such a
+  function again at every call site, so the integrators' small loops over a state (stage sums, error
+  norm, interpolation, copies, the RMS norms of the first step; ode/dop853.py, ode/_common.py) are
+  :func:`jit_llvm_inline` instead: typed once, inlined by LLVM (``alwaysinline``), bitwise the same
+  and as fast. The integrator's large functions (the RK step, the adaptive step) stay separate
+  functions: inlining them gains little speed for much more compile time.
 - :func:`jit_internal` for functions only numba code calls (the one-point kernel module's functions
   but the kernel, the integrators' internal steps): no CPython and cfunc wrappers to build, optimise
   and turn into machine code; a call from Python goes to a twin compiled on first use.
-- ``cache=True`` with a cache directory keyed by a hash of the package sources:
-  numba's own cache only checks the file of the decorated function, so a kernel
-  that calls an integrator from another module would keep stale machine code
-  after that module changed. Keying the directory on all sources makes any edit
-  start a fresh cache. ``MECHSWEEP_NO_CACHE=1`` turns caching off.
-- OpenMP threads wait passively (``OMP_WAIT_POLICY=PASSIVE``, set when mechsweep is imported
-  unless the environment sets it; :func:`_passive_openmp`): numba's ``omp`` threading layer
-  (the one this machine loads) runs each ``prange`` on libgomp, whose idle threads otherwise
-  spin for a while after every parallel region. A run launches its kernel once per chunk and
-  between launches does its own work (the writer thread's journal and HDF5 writes, the Python
-  around each chunk): the spinning worker took a core from it. Measured (Duffing lane kernel, 2
-  threads, machine loaded): a 400-point launch cost 4-8 ms of process CPU and 9-24 ms of wall
-  with spinning, 1.0 ms of each passively; a 32,768-point launch 45-49 against 46-47 ms of
-  CPU (docs/performance-duffing.md). Only a process whose libgomp is not loaded yet is changed.
-- numba's check for a BLAS is made without importing ``scipy.linalg`` (:func:`_defer_blas_check`):
-  numba 0.68 imports ``scipy.linalg.cython_blas`` (with it all of ``scipy.linalg``, 0.2-0.4 s of a
-  warm ``mechsweep run``) when its CPU target first loads ``numba.np.arraymath``, on the first
-  compile or cache load of a process, only to learn whether scipy's BLAS exists
-  (``arraymath._HAVE_BLAS``). The answer is read from scipy's installed files instead;
-  ``scipy.linalg`` is imported when a kernel uses linear algebra (numba's own ``ensure_blas``,
-  called when ``np.dot`` or ``np.linalg`` is typed: radau, Floquet), or by the compiled code itself
-  when it first calls BLAS or LAPACK (numba finds the functions by importing scipy's modules then).
+- ``cache=True`` into a folder keyed by a hash of the package sources (:func:`package_hash`):
+  numba's own cache only checks the file of the decorated function, so a kernel that calls an
+  integrator from another module would keep stale machine code after that module changed. Keying
+  the folder on all sources makes any edit start a fresh cache. The folder (:func:`cache_folder`) is
+  ``$MECHSWEEP_CACHE_DIR/numba-<hash>`` when that variable is set, else
+  ``$NUMBA_CACHE_DIR/mechsweep/numba-<hash>`` when numba's is, else
+  ``~/.cache/mechsweep/numba-<hash>`` (``$XDG_CACHE_HOME`` for ``~/.cache``); ``MECHSWEEP_NO_CACHE=1``
+  turns caching off. Each function gets its numba cache object (:class:`_LazyCache`) when it first
+  compiles or loads: importing mechsweep reads no source file, computes no hash and creates no folder.
+- Nothing is changed at import: what mechsweep's first compile or cache load needs is done then
+  (:func:`_before_compile`), and what numba's threads need, right before they start
+  (:func:`_before_threads`). The two such changes:
+- OpenMP threads wait passively (``OMP_WAIT_POLICY=PASSIVE``, set by :func:`_passive_openmp` unless
+  the environment chooses a policy): numba's ``omp`` threading layer (numba's choice where TBB is not installed)
+  runs each ``prange`` on libgomp, whose idle threads otherwise spin for a while after every
+  parallel region. A run launches its kernel once per chunk and between launches does its own work
+  (the writer thread's journal and HDF5 writes, the Python around each chunk): the spinning worker
+  took a core from it (docs/performance-duffing.md measures it). libgomp reads the variable once,
+  when it is loaded, i.e. when numba starts its threads: the first ``numba.get_num_threads()`` or
+  ``set_num_threads`` (a run asks the thread count before it compiles: mechsweep calls them through
+  :func:`num_threads` and :func:`set_num_threads`) or the first parallel kernel. It is set then, only
+  when libgomp is not loaded yet (later it would change nothing).
+- numba's check for a BLAS is made without importing ``scipy.linalg`` (:func:`_defer_blas_check`, at
+  mechsweep's first compile or cache load): numba imports ``scipy.linalg.cython_blas`` (with it all
+  of ``scipy.linalg``, a large share of a warm ``mechsweep run``: ``python benchmarks/startup.py``) when its
+  CPU target first loads ``numba.np.arraymath``, on the first compile or cache load of a process,
+  only to learn whether scipy's BLAS exists (``arraymath._HAVE_BLAS``). The answer is read from
+  scipy's installed files instead; ``scipy.linalg`` is imported when a kernel uses linear algebra
+  (numba's own ``ensure_blas``, called when ``np.dot`` or ``np.linalg`` is typed: radau, Floquet), or
+  by the compiled code itself when it first calls BLAS or LAPACK (numba finds the functions by
+  importing scipy's modules then). A process whose first compile is not mechsweep's (the user's own
+  numba code) makes numba's check as numba makes it.
 - Closures made by a factory (a solver for one right-hand side) get a qualified name that
   says what they close over (:func:`_distinct_qualname`): numba's symbol names would otherwise
   coincide between cached kernels compiled by different processes, and one kernel would run
-  another's closure (it happened: results depended on what ran earlier in the process).
+  another's closure (results would depend on what ran earlier in the process).
 """
 from __future__ import annotations
 
 import hashlib
 import os
+import threading
 from pathlib import Path
 
 import numba
-from numba.core import config as _numba_config
+from numba.core import caching as _caching
 from numba.core.registry import CPUDispatcher
 
-__all__ = ["jit", "jit_noalloc", "jit_inline", "jit_into_caller", "jit_internal", "jit_internal_noalloc", "jit_llvm_inline", "pjit", "prange", "literally", "compile_time_switch", "cache_dir"]
+__all__ = ["jit", "jit_noalloc", "jit_inline", "jit_into_caller", "jit_internal", "jit_internal_noalloc", "jit_llvm_inline", "pjit", "prange", "literally", "compile_time_switch", "cache_folder", "num_threads", "set_num_threads"]
 
+prange = numba.prange
+literally = numba.literally
+
+_OPTIONS = dict(fastmath=False, nogil=True, error_model="numpy")
+
+# Guards the once-per-process steps below: kernels may be built in several threads (a dask worker's).
+_LOCK = threading.RLock()
 
 
 def _passive_openmp(environ=os.environ) -> None:
     """Make OpenMP's idle threads sleep instead of spinning (see the module's docstring), unless
-    ``environ`` already chooses a wait policy. libgomp reads it once, when numba loads its ``omp``
-    threading layer (at the first parallel launch), so this runs at import."""
+    ``environ`` already chooses a wait policy."""
     environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 
-_passive_openmp()
+def _libgomp_loaded() -> bool:
+    """Whether this process has loaded libgomp already (then it has read its wait policy); False where
+    the process's mappings cannot be read (not Linux)."""
+    try:
+        with open("/proc/self/maps") as maps:
+            return any("libgomp" in line for line in maps)
+    except OSError:
+        return False
+
+
+_THREADS_READY: list[bool] = []
+
+
+def _before_threads() -> None:
+    """Once, before numba's threading layer starts: the passive wait policy, when libgomp is not
+    loaded yet (by numba's threads started earlier, or by another library)."""
+    if _THREADS_READY:
+        return
+    with _LOCK:
+        if _THREADS_READY:
+            return
+        from numba.np.ufunc import parallel
+
+        if not getattr(parallel, "_is_initialized", False) and not _libgomp_loaded():
+            _passive_openmp()
+        _THREADS_READY.append(True)
+
+
+def num_threads() -> int:
+    """``numba.get_num_threads()``: the first call starts numba's threads, so the wait policy is set
+    before it (:func:`_before_threads`)."""
+    _before_threads()
+    return numba.get_num_threads()
+
+
+def set_num_threads(n: int) -> None:
+    """``numba.set_num_threads(n)``, with the wait policy set before numba's threads start."""
+    _before_threads()
+    numba.set_num_threads(n)
 
 
 def _scipy_blas_installed() -> bool:
@@ -101,7 +156,8 @@ def _defer_blas_check() -> None:
     ``ensure_blas`` is put back at once, so every later caller (the typing of ``np.dot`` and
     ``np.linalg``) gets numba's own, which imports scipy's BLAS and checks its integer width.
     Nothing is done when ``arraymath`` is imported already (the answer is numba's then) or numba
-    has no such function (another numba version)."""
+    has no such function (another numba version). Called with numba's compiler lock held (from
+    :meth:`_LazyCache.load_overload`), where numba itself would import ``arraymath``."""
     import sys
 
     if "numba.np.arraymath" in sys.modules:
@@ -125,12 +181,19 @@ def _defer_blas_check() -> None:
         _linalg.ensure_blas = own
 
 
-_defer_blas_check()
+_COMPILED: list[bool] = []
 
-prange = numba.prange
-literally = numba.literally
 
-_OPTIONS = dict(fastmath=False, nogil=True, error_model="numpy")
+def _before_compile(parallel: bool) -> None:
+    """What mechsweep's first compile or cache load in a process needs (see the module's docstring):
+    numba's BLAS check without scipy.linalg; before a parallel kernel, the threads' wait policy."""
+    if parallel:
+        _before_threads()
+    if not _COMPILED:
+        with _LOCK:
+            if not _COMPILED:
+                _defer_blas_check()
+                _COMPILED.append(True)
 
 
 def _source_hash() -> str:
@@ -147,18 +210,34 @@ _PACKAGE_HASH: list[str] = []
 
 def package_hash() -> str:
     """The hash of the package sources (and numba's version) that keys the cache folder, computed
-    once per process (model/sources.py records it with every run)."""
+    once per process, when first asked for (the first kernel build; model/sources.py records it with
+    every run)."""
     if not _PACKAGE_HASH:
-        _PACKAGE_HASH.append(_source_hash())
+        with _LOCK:
+            if not _PACKAGE_HASH:
+                _PACKAGE_HASH.append(_source_hash())
     return _PACKAGE_HASH[0]
+
+
+def cache_base() -> str:
+    """The folder that holds mechsweep's cache folders (one ``numba-<hash>`` per version of the
+    sources): ``$MECHSWEEP_CACHE_DIR``, else ``$NUMBA_CACHE_DIR/mechsweep`` (numba's setting, as numba
+    read it: ``numba.config.CACHE_DIR``), else ``$XDG_CACHE_HOME/mechsweep`` or ``~/.cache/mechsweep``.
+    A subfolder of numba's: mechsweep removes its stale folders (:func:`prune_stale`) and must not
+    take the user's for its own."""
+    own = os.environ.get("MECHSWEEP_CACHE_DIR")
+    if own:
+        return own
+    numba_dir = numba.config.CACHE_DIR
+    if numba_dir:
+        return os.path.join(numba_dir, "mechsweep")
+    return os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.join(Path.home(), ".cache"), "mechsweep")
 
 
 def _make_cache_dir() -> str | None:
     if os.environ.get("MECHSWEEP_NO_CACHE", "") not in ("", "0"):
         return None
-    base = os.environ.get("MECHSWEEP_CACHE_DIR") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.join(Path.home(), ".cache"), "mechsweep"
-    )
+    base = cache_base()
     path = os.path.join(base, "numba-" + package_hash())
     try:
         os.makedirs(path, exist_ok=True)
@@ -203,7 +282,99 @@ def prune_stale(base: str, current: str, days: float = STALE_DAYS) -> list[str]:
     return removed
 
 
-cache_dir = _make_cache_dir()
+_CACHE_DIR: list[str | None] = []
+
+
+def cache_folder() -> str | None:
+    """This process's cache folder (see the module's docstring), made (and stale ones removed) on the
+    first call; None when caching is off or the folder cannot be written."""
+    if not _CACHE_DIR:
+        with _LOCK:
+            if not _CACHE_DIR:
+                _CACHE_DIR.append(_make_cache_dir())
+    return _CACHE_DIR[0]
+
+
+def __getattr__(name: str):
+    if name == "cache_dir":  # the folder as a module attribute (model/compile.py), found when first read
+        return cache_folder()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+_Locator = getattr(_caching, "UserProvidedCacheLocator", None) or getattr(_caching, "_UserProvidedCacheLocator")
+
+
+class _FolderLocator(_Locator):
+    """numba's locator for a user-provided cache folder (``numba.config.CACHE_DIR``), pointed at
+    mechsweep's folder instead: the same layout inside, without setting numba's global option."""
+
+    def __init__(self, py_func, py_file):
+        self._py_file = py_file
+        self._lineno = py_func.__code__.co_firstlineno
+        self._cache_path = os.path.join(cache_folder(), self.get_suitable_cache_subpath(py_file))
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        # numba's own check of its source file and folder (_SourceFileBackedLocatorMixin), not the
+        # parent's test of numba.config.CACHE_DIR
+        return super(_Locator, cls).from_function(py_func, py_file)
+
+
+class _FolderCacheImpl(_caching.CompileResultCacheImpl):
+    _locator_classes = [_FolderLocator]
+
+
+class _FolderCache(_caching.FunctionCache):
+    _impl_class = _FolderCacheImpl
+
+
+class _LazyCache:
+    """A mechsweep function's numba cache, made at its first compile or cache load (numba asks
+    ``load_overload`` first): until then no folder, hash or source file is touched. It also runs
+    :func:`_before_compile` there. Without a cache folder it is numba's NullCache."""
+
+    def __init__(self, py_func, parallel: bool):
+        self._py_func = py_func
+        self._parallel = parallel
+        self._made = None
+
+    def _cache(self):
+        if self._made is None:
+            with _LOCK:
+                if self._made is None:
+                    made = None
+                    if cache_folder() is not None:
+                        try:
+                            made = _FolderCache(self._py_func)
+                        except RuntimeError:  # no locator: a function without a source file
+                            made = None
+                    self._made = made if made is not None else _caching.NullCache()
+        return self._made
+
+    def load_overload(self, sig, target_context):
+        _before_compile(self._parallel)
+        return self._cache().load_overload(sig, target_context)
+
+    def save_overload(self, sig, data):
+        return self._cache().save_overload(sig, data)
+
+    def enable(self):
+        self._cache().enable()
+
+    def disable(self):
+        self._cache().disable()
+
+    def flush(self):
+        self._cache().flush()
+
+    @property
+    def cache_path(self):
+        return self._cache().cache_path
+
+    def __getattr__(self, name):  # numba's private parts (_cache_file, _cache_path: model/compile.py)
+        if name.startswith("__") or name in ("_py_func", "_parallel", "_made"):
+            raise AttributeError(name)
+        return getattr(self._cache(), name)
 
 
 def _describe(value) -> str:
@@ -232,9 +403,9 @@ def _distinct_qualname(func) -> None:
     each was compiled into a cached kernel by a different process, the counters can coincide,
     and the two kernels then define the same symbol with different machine code. Loaded into one
     process, every reference binds to whichever kernel was loaded first: e.g. the simulation
-    lanes started their trajectories with the first-step selection of the Floquet variational
-    system after a Floquet run (results then depended on which outputs a scene asked for and on
-    what ran earlier in the process; measured, tests/test_autobalancer_reproducible.py).
+    lanes would start their trajectories with the first-step selection of the Floquet variational
+    system after a Floquet run, and results would depend on which outputs a scene asked for and on
+    what ran earlier in the process (tests/test_autobalancer_reproducible.py checks they do not).
     A suffix from the closure's variables, identical in every process, keeps the symbols apart.
     """
     cells = func.__closure__
@@ -252,16 +423,11 @@ def _distinct_qualname(func) -> None:
 
 def _decorate(func, **extra):
     _distinct_qualname(func)
-    if cache_dir is None:
-        return numba.njit(**_OPTIONS, **extra)(func)
-    # numba reads config.CACHE_DIR when the dispatcher is created; set it only
-    # for our own functions so the user's numba code keeps its own cache.
-    previous = _numba_config.CACHE_DIR
-    _numba_config.CACHE_DIR = cache_dir
-    try:
-        return numba.njit(cache=True, **_OPTIONS, **extra)(func)
-    finally:
-        _numba_config.CACHE_DIR = previous
+    dispatcher = numba.njit(**_OPTIONS, **extra)(func)
+    # numba's cache=True would make the cache object now (its folder, a hash of the source file) and
+    # in numba.config.CACHE_DIR; this one is made at the first compile, in mechsweep's folder
+    dispatcher._cache = _LazyCache(func, bool(extra.get("parallel")))
+    return dispatcher
 
 
 def jit(func):
@@ -317,10 +483,9 @@ def _numba_only(func, **extra):
 def jit_internal(func):
     """Compile a function that only numba code calls (a generated module's guards, the integrators'
     steps), without the CPython and cfunc wrappers numba otherwise builds, lowers and turns into machine
-    code for every function it compiles (and links into each caller): about 25 ms of a trivial
-    function's 40 ms of compile CPU (2026-11-24, a one-off session measurement), and the largest part of
-    the compile of a function with a tuple argument (brent). Called from Python it still works (see
-    _NumbaOnly), through a twin compiled on first use."""
+    code for every function it compiles (and links into each caller): most of a trivial function's
+    compile CPU, and the largest part of the compile of a function with a tuple argument (brent).
+    Called from Python it still works (see _NumbaOnly), through a twin compiled on first use."""
     return _numba_only(func)
 
 
@@ -333,13 +498,11 @@ def jit_llvm_inline(func):
     """Compile a small helper of the integrators (stage sums, error norm, interpolation, copies, the
     first step's norms) once per signature, for numba callers only (:func:`jit_internal`, no reference
     counting), with LLVM's ``alwaysinline`` (numba's ``forceinline``): LLVM inlines it into every caller
-    when it links the caller's module, as the IR-level inlining of :func:`jit_inline` did, but numba
-    analyses and types its body once instead of again at every call site. Measured against
-    ``jit_inline`` (2026-11-24, quickstart cold, bench startup's COMPILE_CHILD alternated 3 times,
-    load 6-7): numba's own work 5.98 -> 5.13 s of CPU, LLVM's 2.43 -> 2.64 s, all 8.39 -> 7.76 s;
-    bitwise the same results, the warm one-point kernel as fast. Without ``alwaysinline`` (plain
-    separate functions) LLVM left them out of line (above its size threshold) and the kernel ran 22 %
-    slower."""
+    when it links the caller's module, as the IR-level inlining of :func:`jit_inline` does, but numba
+    analyses and types its body once instead of again at every call site: less compile CPU for the
+    same machine code (bitwise the same results, the warm one-point kernel as fast; the cold compile:
+    ``python benchmarks/startup.py``). ``alwaysinline`` is needed: as plain separate functions they are
+    above LLVM's size threshold, stay out of line and slow the kernel down."""
     return _numba_only(func, _nrt=False, forceinline=True)
 
 
@@ -353,10 +516,9 @@ def compile_time_switch(name: str, cases: dict):
 
     ``code`` must be a literal integer in the caller (a kernel makes its ``method`` argument
     one with ``literally(method)``); only the chosen case is compiled, and the kernel is cached
-    per code. Used for solver.method: compiling every integrator into every kernel cost a cold
-    Duffing sweep several times the compile time of one method (one-off measurement: 61 s
-    against 13 s); the usual alternatives do not cache (a
-    dispatcher passed as an argument, or a closure called from Python).
+    per code. Used for solver.method: compiling every integrator into every kernel would cost a cold
+    Duffing sweep several times the compile time of one method; the usual alternatives do not cache
+    (a dispatcher passed as an argument, or a closure called from Python).
     """
     from numba.core import types
     from numba.extending import overload
@@ -386,8 +548,8 @@ def call_with_literal(kernel, code: int, *args):
     """``kernel(code, *args)`` for a kernel that makes ``code`` literal with ``literally``.
 
     numba's dispatcher types a Python int as int64, attempts that signature, meets
-    ``literally`` and only then retries with the literal: tens of milliseconds per call in a
-    one-off measurement, which dominated short chunks. The compiled literal overload is called directly when it exists.
+    ``literally`` and only then retries with the literal: on every call, more than a short chunk's
+    own work. The compiled literal overload is called directly when it exists.
     """
     from numba import typeof
     from numba.core import types

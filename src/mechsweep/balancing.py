@@ -294,6 +294,11 @@ def _row(model: str, params: Mapping) -> np.ndarray:
 
 def _matrix(model: str, params: Mapping):
     spec = _spec(model)
+    aliases = spec.aliases()  # a former name (lambda: now lam) still accepted
+    both = [a for a in params if a in aliases and aliases[a] in params]
+    if both:
+        raise ValueError(f"{both[0]} is the former name of {aliases[both[0]]}, which is given too; keep one")
+    params = {aliases.get(k, k): v for k, v in params.items()}
     unknown = set(params) - set(spec.param_names())
     if unknown:
         raise ValueError(f"unknown parameter(s) {', '.join(sorted(unknown))} of {model}; "

@@ -13,7 +13,6 @@ from contextlib import contextmanager
 from pathlib import Path
 
 EXIT_INVALID = 2
-EXIT_INTERRUPTED = 130  # 128 + SIGINT; a SIGTERM exits with 128 + 15 = 143
 
 DESCRIPTION = """\
 Parameter sweeps over the dynamics of machine mechanisms, compiled with numba.
@@ -47,6 +46,85 @@ mechsweep.models), with their parameters and outputs. A user model comes in by o
 `mechsweep models my_models.py` every model the file defines, with the names a scene uses.
 Loading a model file or module executes it: only name code you trust. A model that fails to
 load is reported with its file and line (exit 2).
+
+examples:
+  mechsweep models
+  mechsweep models duffing
+  mechsweep models --scene sweeps/vibrating_pendulum_stability.toml
+"""
+
+PLOT_DESCRIPTION = """\
+Draw the figures that fit a dataset's model and dimensions (the nomograms of a built-in model,
+generic maps and curves for any other). Plots read the stored data only; they never compute.
+
+Where the figures go (NAME: the dataset's file name without .h5):
+  no -o            beside DATASET: NAME.png for one figure, NAME_<figure>.png for each of
+                   several (with --point: NAME_at_<point>... so they never replace those)
+  -o FIGURE.png    that file for one figure; for several, FIGURE_<figure>.png beside it
+                   (the suffix chooses the format: png, svg or pdf)
+  -o FOLDER        an existing folder: each figure under its default name inside it
+`--list` names the figures a dataset can draw, `--kind` draws one of them.
+
+examples:
+  mechsweep plot data/runs/quickstart.h5
+  mechsweep plot data/runs/quickstart.h5 -o /tmp/quickstart.svg
+  mechsweep plot data/runs/quickstart.h5 --list
+  mechsweep plot data/runs/autobalancer_residual.h5 --point Omega=55,A0=0.1
+"""
+
+INFO_DESCRIPTION = """\
+Summarise a dataset written by `mechsweep run` (or `mechsweep boundaries`): its dimensions and
+fixed values, each output's unit and range, how many grid points ended with each status, the cost
+(steps, wall and compile time), the solver settings and the provenance (creation time, versions).
+An unfinished run (PATH.partial/) is summarised as far as it got. Reads the file only.
+
+examples:
+  mechsweep info data/runs/quickstart.h5
+  mechsweep info data/runs/autobalancer_stability_chart.boundaries.h5
+"""
+
+CHECK_DESCRIPTION = """\
+Load and validate each scene file as `mechsweep run` would (model, axes, fixed values, outputs,
+solver, storage, boundaries), without computing anything or touching a file. Prints one line per
+valid scene (model, number of grid points, outputs) and every problem of an invalid one with its
+key, the bad value and what is allowed; exit 2 if any scene is invalid.
+
+examples:
+  mechsweep check sweeps/quickstart.toml
+  mechsweep check sweeps/*.toml
+"""
+
+BOUNDARIES_DESCRIPTION = """\
+Locate where a criterion crosses its level (or the status changes) along one axis, for every
+combination of the other axes: bracketed on the scene's grid (computed first, or completed,
+unless its dataset is finished), refined to [boundaries] rtol. Writes NAME.boundaries.h5 beside
+the grid's dataset NAME.h5 (atomically; the dataset is only read); `mechsweep plot NAME.h5` draws
+them over the charts. See docs/boundaries.md.
+
+examples:
+  mechsweep boundaries sweeps/autobalancer_stability_chart.toml
+  mechsweep boundaries sweeps/autobalancer_stability_chart.toml --data /tmp/chart.h5 -o /tmp/b.h5
+"""
+
+EXAMPLES_DESCRIPTION = """\
+Copy the example scenes that ship with mechsweep into DIR/sweeps/ (every study of the
+documentation, and the user model they name, sweeps/models/vibrating_pendulum.py), with an empty
+DIR/data/runs/ for the datasets they write: what a pip-installed mechsweep needs to run the
+quickstart without a clone of the repository. DIR is made if missing; an existing file is never
+replaced (nothing is copied then).
+
+example:
+  mechsweep examples my-study && cd my-study
+  mechsweep run sweeps/quickstart.toml && mechsweep plot data/runs/quickstart.h5
+"""
+
+BENCH_DESCRIPTION = """\
+Benchmarks print measured numbers of this machine, with ratios against the alternatives measured
+in the same run. `mechsweep bench BENCH --help` describes each.
+
+examples:
+  mechsweep bench duffing --points 20000
+  mechsweep bench workprecision duffing
 """
 
 RUN_EPILOG = """\
@@ -97,7 +175,7 @@ def _started() -> None:
     process, ``argv`` None: a caller of ``main`` in a process of its own keeps its collector as it is).
     The imports (numpy, numba, xarray, matplotlib, the package) make hundreds of thousands of objects that
     live as long as the process, and each full collection traversed all of them (measured with
-    ``mechsweep bench startup --only warmstart``: docs/performance-startup.md). A forked figure process
+    ``python benchmarks/startup.py --only warmstart``: docs/performance-startup.md). A forked figure process
     (:func:`_side_by_side`) then also leaves the frozen objects' memory shared with its parent."""
     if _START_UP["collector"]:
         _START_UP["collector"] = False
@@ -111,7 +189,7 @@ def _main(argv: list[str] | None) -> int:
     if not getattr(args, "command", None):
         parser.print_help()
         return EXIT_INVALID
-    from .errors import InputError
+    from .errors import MechsweepError, RunInterrupted
 
     import threading
 
@@ -124,8 +202,13 @@ def _main(argv: list[str] | None) -> int:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning(args.command, warnings.showwarning)
             return args.func(args)
-    except (InputError, FileNotFoundError) as exc:
-        # a FileNotFoundError of the system (with an errno) is said as the others are; mechsweep's own say it all
+    except RunInterrupted as exc:  # the journal is kept: the message says how to resume
+        print(f"mechsweep {args.command}: {exc}", file=sys.stderr)
+        return 128 + exc.signum
+    except (MechsweepError, FileNotFoundError) as exc:
+        # bad input (InputError) and a run that failed on the way (RunError: disk full, lost cluster) both
+        # exit 2 with one line, as the exit codes above say; a bug (any other exception) exits 1 with its traceback.
+        # A FileNotFoundError of the system (with an errno) is said as the others are; mechsweep's own say it all
         text = os_error_text(exc) if isinstance(exc, FileNotFoundError) and exc.errno is not None else exc
         print(f"mechsweep {args.command}: error: {text}", file=sys.stderr)
         return EXIT_INVALID
@@ -194,11 +277,12 @@ def _parser() -> argparse.ArgumentParser:
                         "for this long (default: the scene's [execution] worker_timeout, else 120)")
     p.set_defaults(func=_cmd_run)
 
-    p = sub.add_parser("plot", help="draw the nomogram of a stored dataset",
-                       description="Draw the figure that fits the dataset's model and dimensions. "
-                                   "Plots read the stored data only; they never compute.")
+    p = sub.add_parser("plot", help="draw the nomograms of a stored dataset", description=PLOT_DESCRIPTION,
+                       formatter_class=fmt)
     p.add_argument("dataset", metavar="DATASET", help="HDF5 file written by `mechsweep run`")
-    p.add_argument("-o", "--output", metavar="FIGURE", help="figure file (default: DATASET with the format's suffix)")
+    p.add_argument("-o", "--output", metavar="FIGURE",
+                   help="the figure file (for several figures: their common stem, FIGURE_<figure>.png beside it), "
+                        "or an existing folder (default: beside DATASET; see above)")
     p.add_argument("--format", choices=("png", "svg", "pdf"), default=None, help="figure format (default png)")
     p.add_argument("--kind", default=None, help="which figure, when a dataset has several (see --list)")
     p.add_argument("--list", action="store_true", help="list the figures this dataset can draw (those drawn by default, then generic ones drawn only with --kind)")
@@ -215,8 +299,9 @@ def _parser() -> argparse.ArgumentParser:
                    "and one curve per value of AXIS in the nomogram (a list axis gives curves only)")
     p.set_defaults(func=_cmd_plot)
 
-    p = sub.add_parser("info", help="summarise a stored dataset: dims, outputs, status counts, cost, provenance")
-    p.add_argument("dataset", metavar="DATASET")
+    p = sub.add_parser("info", help="summarise a stored dataset: dims, outputs, status counts, cost, provenance",
+                       description=INFO_DESCRIPTION, formatter_class=fmt)
+    p.add_argument("dataset", metavar="DATASET", help="HDF5 file written by `mechsweep run` or `mechsweep boundaries`")
     p.set_defaults(func=_cmd_info)
 
     p = sub.add_parser("models", help="list models with their parameters and outputs (name, unit, range)",
@@ -232,12 +317,7 @@ def _parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_models)
 
     p = sub.add_parser("boundaries", help="locate the boundaries a scene's [boundaries] section asks for",
-                       formatter_class=fmt,
-                       description="Locate where a criterion crosses its level (or the status changes) along one "
-                                   "axis, for every combination of the other axes: bracketed on the scene's grid "
-                                   "(computed first, or completed, unless its dataset is finished), refined to "
-                                   "[boundaries] rtol. Writes NAME.boundaries.h5 beside the grid's dataset NAME.h5 "
-                                   "(atomically; the dataset is only read). See docs/boundaries.md.")
+                       formatter_class=fmt, description=BOUNDARIES_DESCRIPTION)
     p.add_argument("scene", metavar="SCENE", help="scene TOML file with a [boundaries] section")
     p.add_argument("-o", "--output", metavar="PATH", help="output file (default: NAME.boundaries.h5 beside the dataset NAME.h5)")
     p.add_argument("--data", metavar="DATA", help="the grid's dataset (default: [storage] path of the scene)")
@@ -245,14 +325,18 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--no-progress", action="store_true", help="do not show the progress bar of the grid")
     p.set_defaults(func=_cmd_boundaries)
 
-    p = sub.add_parser("check", help="validate scene files without running them")
-    p.add_argument("scenes", nargs="+", metavar="SCENE")
+    p = sub.add_parser("check", help="validate scene files without running them", description=CHECK_DESCRIPTION,
+                       formatter_class=fmt)
+    p.add_argument("scenes", nargs="+", metavar="SCENE", help="scene TOML files")
     p.set_defaults(func=_cmd_check)
 
+    p = sub.add_parser("examples", help="copy the shipped example scenes into a folder, to run them there",
+                       description=EXAMPLES_DESCRIPTION, formatter_class=fmt)
+    p.add_argument("folder", metavar="DIR", help="the folder to copy them into (made if missing)")
+    p.set_defaults(func=_cmd_examples)
+
     p = sub.add_parser("bench", help="benchmarks: speed and accuracy against scipy / numpy, measured now",
-                       formatter_class=fmt,
-                       description="Benchmarks print measured numbers of this machine, with ratios "
-                                   "against the alternatives measured in the same run.")
+                       formatter_class=fmt, description=BENCH_DESCRIPTION)
     bsub = p.add_subparsers(dest="bench", metavar="BENCH")
     from .bench import commands as bench_commands
 
@@ -705,8 +789,8 @@ def _cmd_info(args) -> int:
 def _bracket_widths(loc, width, attrs, unit) -> list[str]:
     """The final brackets' widths: relative to |x| where the boundary is away from 0, absolute next
     to 0, where a relative width means nothing. The scale is the locator's own: its tolerance is
-    rtol max(|x|, ABS_FLOOR span), span the along axis's (attribute along_span; a dataset written
-    before it was stored: relative wherever x != 0, as before)."""
+    rtol max(|x|, ABS_FLOOR span), span the along axis's (attribute along_span; a dataset without that
+    attribute, from an older version: relative wherever x != 0)."""
     import numpy as np
 
     from .boundaries import ABS_FLOOR
@@ -799,7 +883,7 @@ def _laid_out(path):
 
 def _cmd_models(args) -> int:
     from .errors import InputError
-    from .model import load
+    from .model import user
     from .models import MODELS
 
     if args.scene and args.model:
@@ -813,14 +897,14 @@ def _cmd_models(args) -> int:
         if name in MODELS:
             specs = [MODELS[name]]
         elif ":" in name:
-            specs = [load.resolve(name)]
+            specs = [user.resolve(name)]
         elif name.endswith(".py") or "/" in name or "\\" in name:  # a model file without :NAME
             found = _models_in_file(name)
             print(f"{name} defines {len(found)} model(s): {', '.join(found)}; a scene names one as "
                   f"{name}:NAME (e.g. model = \"{name}:{found[0]}\")\n")
-            specs = [load.resolve(f"{name}:{n}") for n in found]
+            specs = [user.resolve(f"{name}:{n}") for n in found]
         else:
-            points = load.entry_points()
+            points = user.entry_points()
             if name not in points:
                 known = list(MODELS) + sorted(set(points) - set(MODELS))
                 raise InputError(f"unknown model {name!r}; models: {', '.join(known)} (or 'file.py:NAME', "
@@ -832,7 +916,7 @@ def _cmd_models(args) -> int:
         print(glossary(), end="")
         return 0
     else:
-        points = load.entry_points()
+        points = user.entry_points()
         specs = list(MODELS.values()) + [_entry_point_model(n, ep) for n, ep in points.items() if n not in MODELS]
     for spec in specs:
         print(model_markdown(spec) if args.markdown else model_text(spec))
@@ -845,13 +929,13 @@ def _models_in_file(name: str) -> list[str]:
     from pathlib import Path
 
     from .errors import InputError
-    from .model import load
+    from .model import load, user
     from .model.closed import ClosedFormModel
     from .model.ode import OdeModel
 
     path = Path(name).resolve()
-    load.check_model_file(name, path)  # a regular .py file; its import's failures and exits are InputErrors
-    mod = load.import_model(name, load._module_name(path), str(path), str(path))
+    user.check_model_file(name, path)  # a regular .py file; its import's failures and exits are InputErrors
+    mod = user.import_model(name, load.module_name(path), str(path), str(path))
     found = [k for k, v in vars(mod).items() if isinstance(v, (OdeModel, ClosedFormModel))]
     if not found:
         raise InputError(f"{name!r}: {path} defines no mechsweep.model.OdeModel or ClosedFormModel")
@@ -860,13 +944,13 @@ def _models_in_file(name: str) -> list[str]:
 
 def _entry_point_model(name: str, ep):
     from .errors import InputError
-    from .model import load
+    from .model import user
 
     dist = getattr(getattr(ep, "dist", None), "name", None)
     try:
-        return load.resolve(ep.value)
+        return user.resolve(ep.value)
     except InputError as exc:
-        raise InputError(f"entry point {name!r} (group {load.ENTRY_POINT_GROUP}"
+        raise InputError(f"entry point {name!r} (group {user.ENTRY_POINT_GROUP}"
                          f"{', package ' + dist if dist else ''}): {exc}") from None
 
 
@@ -889,6 +973,26 @@ def _cmd_check(args) -> int:
             bad += 1
             print(f"{path}: {exc}", file=sys.stderr)
     return EXIT_INVALID if bad else 0
+
+
+def _cmd_examples(args) -> int:
+    import shlex
+
+    from . import examples
+    from .errors import InputError
+
+    if os.path.exists(args.folder) and not os.path.isdir(args.folder):
+        raise InputError(f"{args.folder} exists and is not a folder; give a folder to copy the examples into")
+    try:
+        written = examples.copy(args.folder)
+    except FileExistsError as exc:
+        raise InputError(str(exc)) from None
+    except OSError as exc:
+        raise InputError(f"cannot copy the examples into {args.folder}: {exc.strerror or exc}") from None
+    root = Path(args.folder)
+    print(f"copied {len(written)} files into {root / 'sweeps'}; run the quickstart there:")
+    print(f"  cd {shlex.quote(str(root))} && mechsweep run sweeps/quickstart.toml && mechsweep plot data/runs/quickstart.h5")
+    return 0
 
 
 # ----------------------------------------------------------------------------- text helpers

@@ -8,6 +8,7 @@ codes) reads the ModelSpecs only, so it covers any model, built-in or a user's.
 """
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
 
@@ -15,11 +16,79 @@ HEADING = "# Glossary"
 INTRO = ("Symbols, meanings and units of every parameter, output and model-specific solver setting, and the\n"
          "statuses each model's points can get (generated from the model declarations by\n"
          "`mechsweep models --markdown` or `python -m mechsweep.docs docs/glossary.md`; a test keeps this\n"
-         "page in sync with the code). Units are UDUNITS-2 strings, as the datasets store them.")
+         "page in sync with the code). Units are UDUNITS-2 strings, as the datasets store them; symbols are\n"
+         "written as math (the declaration's `latex` where it gives one).")
 
 
 def _cell(text: str) -> str:
     return str(text).replace("|", "\\|")  # a bare | would end the table cell
+
+
+_GREEK = {"α": "alpha", "β": "beta", "γ": "gamma", "δ": "delta", "ε": "varepsilon", "ζ": "zeta", "η": "eta",
+          "θ": "theta", "ϑ": "vartheta", "κ": "kappa", "λ": "lambda", "μ": "mu", "ν": "nu", "ξ": "xi", "π": "pi",
+          "ρ": "rho", "σ": "sigma", "τ": "tau", "φ": "varphi", "ϕ": "phi", "χ": "chi", "ψ": "psi", "ω": "omega",
+          "Γ": "Gamma", "Δ": "Delta", "Θ": "Theta", "Λ": "Lambda", "Ξ": "Xi", "Π": "Pi", "Σ": "Sigma", "Φ": "Phi",
+          "Ψ": "Psi", "Ω": "Omega"}
+_SCRIPTS = {"⁰": "^0", "¹": "^1", "²": "^2", "³": "^3", "⁴": "^4", "⁻¹": "^{-1}", "⁻²": "^{-2}",
+            "₀": "_0", "₁": "_1", "₂": "_2", "₃": "_3", "₄": "_4"}
+_FUNCTIONS = {"max": r"\max", "min": r"\min", "arg": r"\arg", "sin": r"\sin", "cos": r"\cos", "exp": r"\exp",
+              "ln": r"\ln", "log": r"\log", "sign": r"\operatorname{sign}", "sqrt": r"\operatorname{sqrt}",
+              "RMS": r"\mathrm{RMS}"}
+_WORD = re.compile(r"[A-Za-z]{4,}")
+_SUBSCRIPT = re.compile(r"_([A-Za-z0-9,]+|[^\sA-Za-z0-9])")
+
+
+def _index(text: str, i: int, out: list) -> int:
+    """Digits right after a one-letter symbol are its index (``λ1``, ``A0``, ``f3``): a subscript."""
+    m = re.compile(r"\d+").match(text, i)
+    if m:
+        out[-1] = out[-1].rstrip() + "_{" + m.group(0) + "}"
+        return m.end()
+    return i
+
+
+def symbol_math(symbol: str, latex: str = "") -> str:
+    """A declaration's symbol as the glossary shows it: ``latex`` (the declaration's own LaTeX, when
+    it has one) or the symbol written as math, e.g. ``ε = μ A² / ω²`` -> ``$\\varepsilon = \\mu A^2 /
+    \\omega^2$``, ``v_max`` -> ``$v_{\\mathrm{max}}$``; a symbol that is words rather than a formula
+    (``stable (Floquet)``) stays text, and ``-`` stands for none."""
+    if latex:
+        return "$" + latex.strip().strip("$").replace("|", r"\vert ") + "$"
+    if not symbol:
+        return "-"
+    if any(w not in _FUNCTIONS for w in _WORD.findall(re.sub(r"_[A-Za-z0-9,]+", "", symbol))):
+        return _cell(symbol)  # words, not a formula
+    text = symbol
+    for k in sorted(_SCRIPTS, key=len, reverse=True):
+        text = text.replace(k, _SCRIPTS[k])
+    out, i = [], 0
+    while i < len(text):
+        c = text[i]
+        sub = _SUBSCRIPT.match(text, i) if c == "_" else None
+        word = re.compile(r"[A-Za-z]+").match(text, i)
+        if sub:  # one character as it is, a longer subscript upright
+            body = sub.group(1)
+            body = "\\" + _GREEK[body] if body in _GREEK else body
+            out.append("_{" + (body if len(sub.group(1)) == 1 else r"\mathrm{" + body + "}") + "}")
+            i = sub.end()
+        elif word:
+            w = word.group(0)
+            out.append(_FUNCTIONS[w] + " " if w in _FUNCTIONS else w if len(w) == 1 else r"\mathit{" + w + "}")
+            i = word.end()
+            i = _index(text, i, out) if len(w) == 1 else i
+        else:
+            if c in _GREEK:
+                out.append("\\" + _GREEK[c] + " ")
+                i = _index(text, i + 1, out) - 1
+            elif c == "|":
+                out.append(r"\vert ")
+            elif c == " ":
+                prev, nxt = text[i - 1:i], text[i + 1:i + 2]
+                out.append(r"\," if (prev.isalnum() or prev == "}") and (nxt.isalnum() or nxt in _GREEK) else " ")
+            else:
+                out.append(c)
+            i += 1
+    return "$" + re.sub(r" +", " ", "".join(out)).strip() + "$"
 
 
 def _unit(unit: str) -> str:
@@ -47,13 +116,16 @@ def model_markdown(spec) -> str:
              "| parameter | symbol | meaning | unit | allowed |", "|---|---|---|---|---|"]
     for p in spec.params:
         opt = " (optional)" if not p.required else ""
-        lines.append(f"| `{p.name}` | {_cell(p.symbol or '-')} | {_cell(p.long_name)}{opt} | {_unit(p.unit)} | "
-                     f"{p.allowed()} |")
+        opt += (f" (a scene may also call it {', '.join(f'`{a}`' for a in p.aliases)}, its former name; datasets "
+                f"name it `{p.name}`)" if p.aliases else "")
+        lines.append(f"| `{p.name}` | {symbol_math(p.symbol, getattr(p, 'latex', ''))} | {_cell(p.long_name)}{opt} | "
+                     f"{_unit(p.unit)} | {p.allowed()} |")
     lines += ["", "| output | symbol | meaning | unit |", "|---|---|---|---|"]
     for o in spec.outputs:
         how = " (integrated)" if o.integrated else ""
         how += f" (per {', '.join(d.name for d in o.extra_dims)})" if o.extra_dims else ""
-        lines.append(f"| `{o.name}` | {_cell(o.symbol)} | {_cell(o.long_name)}{how} | {_unit(o.unit)} |")
+        lines.append(f"| `{o.name}` | {symbol_math(o.symbol, getattr(o, 'latex', ''))} | {_cell(o.long_name)}{how} | "
+                     f"{_unit(o.unit)} |")
     if any(o.integrated for o in spec.outputs):
         lines += ["", "`solver.method`: " + ", ".join(f"`{m}`" for m in spec.methods) + " (default `dop853`)."]
     if spec.settings:

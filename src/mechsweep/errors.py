@@ -1,11 +1,39 @@
-"""Errors that mean "the user's input is wrong": the CLI prints them and exits with code 2."""
+"""mechsweep's exceptions, in one tree, so that a caller (and the command line) can tell bad input
+from a run that failed::
+
+    MechsweepError
+    +-- InputError (also a ValueError)   the input is wrong; nothing was computed or written   exit 2
+    |   +-- SceneError                   a scene that does not load (scene/)
+    |   +-- StoreError                   an output path, dataset or journal that cannot be used as asked
+    |       +-- FileBusy                 a file another process holds open for writing
+    |       +-- BadChunk                 a damaged chunk file of a journal (journal.py)
+    +-- RunError (also a RuntimeError)   a run that passed its checks failed; saved chunks are kept
+        +-- WriteFailed                  a write failed (errno and path; the runner says it as OutOfSpace)
+        +-- OutOfSpace                   a run's write failed (disk full, quota, ulimit -f, I/O error)  exit 2
+        +-- ClusterLost                  the dask scheduler, or every worker, was lost                  exit 2
+        +-- RunInterrupted               Ctrl-C or SIGTERM                                  exit 128 + signal
+
+``mechsweep`` re-exports the public names (``mechsweep.InputError``, ``mechsweep.RunError``, ...). A
+run failure is not an InputError: ``except ValueError`` (or ``InputError``, ``StoreError``) does
+not catch a full disk or a lost cluster, ``except RunError`` does.
+"""
 from __future__ import annotations
 
 import errno as _errno
+import signal as _signal
 
 
-class InputError(ValueError):
-    """Invalid input: a message for the user, no traceback."""
+class MechsweepError(Exception):
+    """Every error mechsweep raises on purpose: the message is for the user, no traceback needed."""
+
+
+class InputError(MechsweepError, ValueError):
+    """Invalid input: a message for the user, no traceback; nothing was computed or written."""
+
+
+class RunError(MechsweepError, RuntimeError):
+    """A run that passed its checks failed on the way (a write, the cluster, a signal); the chunks it
+    saved are kept in its journal, and the message says how to go on (``--resume``)."""
 
 
 class UserModelWarning(UserWarning):
@@ -21,7 +49,7 @@ class StoreError(InputError):
     """A problem with the output file or an unfinished run (exists, locked, from another scene, unwritable)."""
 
 
-class WriteFailed(StoreError):
+class WriteFailed(RunError):
     """Writing one of a run's files failed (disk full, file-size limit, quota, I/O error).
 
     ``path`` is the file, ``errno`` the system's error number; the runner turns it into a message
@@ -91,6 +119,23 @@ class FileBusy(StoreError):
                          + (doing or "wait until that process closes it (or stop it), then try again"))
 
 
-class ClusterLost(StoreError):
+class OutOfSpace(RunError):
+    """A write of the run failed (disk full, file-size limit, quota, I/O error); the journal of
+    finished chunks is kept, so the run can be completed with --resume once there is room."""
+
+
+class ClusterLost(RunError):
     """A distributed run lost its dask scheduler, or all its workers for longer than the worker
-    timeout; the chunks already saved stay in the journal."""
+    timeout (exit code 2); the chunks already saved stay in the journal, and ``resume=True``
+    (``--resume``), on the cluster or locally, completes the run."""
+
+
+class RunInterrupted(RunError):
+    """The run stopped (Ctrl-C, SIGTERM) after saving every finished chunk (exit code 130).
+
+    Resume it with ``mechsweep.run(..., resume=True)`` (``--resume``). ``signum`` is the signal that
+    stopped it (SIGINT for Ctrl-C)."""
+
+    def __init__(self, message: str, signum: int = _signal.SIGINT):
+        super().__init__(message)
+        self.signum = signum

@@ -36,7 +36,6 @@ size limit, quota, I/O error) into ``WriteFailed`` and leaves the journal as it 
 from __future__ import annotations
 
 import errno
-import fcntl
 import hashlib
 import io
 import json
@@ -79,6 +78,17 @@ def discard_path(path: str | os.PathLike) -> Path:
 
 
 # ----------------------------------------------------------------------------- lock
+def _fcntl():
+    """The POSIX module whose file locks guard a run (imported here, not with this module: reading
+    a dataset needs no lock, and Windows, where it does not exist, can read datasets)."""
+    try:
+        import fcntl
+    except ImportError:
+        raise StoreError("running a sweep needs file locks (fcntl), which this system does not have: sweeps run "
+                         "on Linux and macOS; here datasets can be read and plotted") from None
+    return fcntl
+
+
 class RunLock:
     """Exclusive right to write output ``path`` (and its journal), held until ``release``.
 
@@ -93,6 +103,7 @@ class RunLock:
         self.fd: int | None = None
 
     def acquire(self) -> "RunLock":
+        fcntl = _fcntl()
         while True:
             try:
                 fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)  # (never through a link)
@@ -124,6 +135,7 @@ class RunLock:
 
     def refuse_if_held(self) -> None:
         """Raise if another run holds the lock now; unlike ``acquire`` this creates no file."""
+        fcntl = _fcntl()
         try:
             fd = os.open(self.path, os.O_RDONLY)
         except FileNotFoundError:
@@ -240,10 +252,6 @@ class Journal:
         return self.meta is None
 
     # -- chunks ----------------------------------------------------------------------
-    def chunk_file(self, index: int) -> Path | None:
-        """The file of chunk ``index`` found by the last ``done_chunks``, or None."""
-        return self.files.get(index)
-
     def done_chunks(self, repair: bool = False) -> np.ndarray:
         """Boolean per chunk: its file is in the journal and has the size its name says (the
         checksum is verified when it is read). With ``repair`` (only under the run's lock) leftover

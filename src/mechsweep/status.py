@@ -22,11 +22,12 @@ NO_MOTION = 7  # zero amplitude: outputs relative to the amplitude are undefined
 NO_EVENT = 8  # an event (a crossing, settling) did not happen within the horizon
 NOT_BALANCEABLE = 9  # no balanced state: balanced-state outputs are NaN
 UNDECIDED = 10  # stability undecided (simulation inconclusive, or |multiplier| within margin of 1)
-STIFF = 11  # the explicit method detected stiffness and no implicit method was allowed to take over
+STIFF = 11  # dop853 spent its step budget at the stability limit (its stiffness test on its last steps)
 ILL_CONDITIONED = 12  # the output is too sensitive here to reach the tolerance in double precision
 NOT_REPRODUCIBLE = 13  # the value moved by more than its tolerance when integrated again at a tighter one
 USER_ERROR = 14  # the model's own code (a user model's function) raised at this point
-LAST = USER_ERROR  # the largest code: a kernel's code outside OK..LAST is stored as USER_ERROR (runner)
+OUT_OF_RANGE = 15  # a quantity the outputs are computed from over- or underflows double precision here
+LAST = OUT_OF_RANGE  # the largest code: a kernel's code outside OK..LAST is stored as USER_ERROR (runner)
 
 # what an integration (or a tolerance it cannot reach) can end with, for models to declare
 INTEGRATION_FAILURES = (MAX_STEPS, STEP_UNDERFLOW, NONFINITE, NO_EVENT, STIFF, ILL_CONDITIONED)
@@ -48,13 +49,15 @@ MEANINGS: dict[int, str] = {
     ILL_CONDITIONED: "ill_conditioned",
     NOT_REPRODUCIBLE: "not_reproducible",
     USER_ERROR: "user_error",
+    OUT_OF_RANGE: "out_of_range",
 }
 
 DESCRIPTIONS: dict[int, str] = {
     PENDING: "not computed yet (the run was interrupted; use --resume)",
     OK: "all requested outputs computed",
     MAX_STEPS: "the integrator used its whole step budget (solver.max_steps)",
-    STEP_UNDERFLOW: "the step size fell below the round-off of t (stiff or singular)",
+    STEP_UNDERFLOW: "the step size fell below the round-off of t (the equations or the solution are singular or "
+                    "not smooth there)",
     NONFINITE: "NaN or inf appeared in the state or an output",
     INFEASIBLE: "parameters outside the model's physical domain at this point",
     SINGULAR: "a formula of the model is singular at this point",
@@ -68,13 +71,18 @@ DESCRIPTIONS: dict[int, str] = {
     ILL_CONDITIONED: "the output is too sensitive here to reach solver.rtol in double precision: its condition "
                      "number with respect to the inputs times round-off exceeds rtol; a closed form, where there "
                      "is one, is still given",
-    STIFF: "the problem is stiff at this point and the explicit method stopped (use method = \"auto\" or \"radau\")",
+    STIFF: "the problem is stiff at this point: dop853 spent its step budget (solver.max_steps) with its step held "
+           "at the stability limit, as Hairer's stiffness test found on its last steps (use method = \"auto\" or "
+           "\"radau\" where the outputs offer them)",
     NOT_REPRODUCIBLE: "integrated again at a tighter tolerance, an output moved by more than the tolerance it "
                       "claims (or the second integration failed): the value is stored but its trailing digits "
                       "are not meaningful (chaotic or transient-dominated motion)",
     USER_ERROR: "the model's own code raised at this point (an exception in a function of a model declared on "
                 "the model layer, inside the compiled kernel; its message is lost), or returned a status code "
                 "that is none of these: its outputs are NaN",
+    OUT_OF_RANGE: "the inputs are of such magnitudes that a quantity the outputs are computed from would "
+                  "overflow or underflow double precision (beyond about 1e308 or below about 1e-308): the "
+                  "outputs it affects are NaN (each model's notes say where)",
 }
 
 DTYPE = np.int8
@@ -85,6 +93,7 @@ def cf_attrs(notes=()) -> dict:
     (``ModelSpec.status_notes``), kept as the attribute ``status_notes`` (JSON, by meaning)."""
     codes = sorted(MEANINGS)
     attrs = {
+        "standard_name": "status_flag",  # CF: the status of the variables naming it in ancillary_variables
         "long_name": "status of the grid point",
         "flag_values": np.array(codes, dtype=DTYPE),
         "flag_meanings": " ".join(MEANINGS[c] for c in codes),

@@ -1,6 +1,7 @@
-"""HDF5 datasets: netCDF4-flavoured HDF5, defined as h5netcdf defines it (``NetCDFWriter``: the same
-objects and attributes, written with h5py directly), read back by
-``xarray.open_dataset(path, engine="h5netcdf")``.
+"""HDF5 datasets in netCDF-4's layout, written with h5py directly (``NetCDFWriter``: the objects and
+attributes h5netcdf would define, with ``_NCProperties`` saying that mechsweep wrote them through h5py),
+read back by ``xarray.open_dataset(path, engine="h5netcdf")``; netCDF-C (netCDF4-python, xarray's
+netcdf4 engine) reads them as well.
 
 A run saves its finished chunks in a journal (``journal.py``); ``assemble`` writes the dataset
 from it, chunk by chunk (memory bounded by one chunk), into a temporary file that replaces the
@@ -23,7 +24,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import h5netcdf
 import h5py
 import numpy as np
 
@@ -31,7 +31,7 @@ from . import cf
 from . import status as st
 from .errors import FileBusy, StoreError, WriteFailed, why_os_error  # noqa: F401  (StoreError: API)
 from .grid import plan_chunks
-from .journal import META_KINDS, BadChunk, Journal, partial_path  # noqa: F401  (partial_path: this module's API)
+from .journal import BadChunk, Journal, partial_path  # noqa: F401  (partial_path: this module's API)
 
 if TYPE_CHECKING:  # not imported at run time: reading a dataset (plot, info) needs no model or numba
     import xarray as xr  # nor does writing one (`mechsweep run`) need xarray: imported where a Dataset is made
@@ -73,7 +73,7 @@ def layout(scene: Scene, n_chunks: int) -> Layout:
 
 
 def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, attrs: dict, *,
-             stop=None, held: "Held | None" = None, early: "Early | None" = None
+             stop=None, memory: "MemorySink | None" = None, early: "Early | None" = None
              ) -> tuple[list[BadChunk], dict[int, int]]:
     """Write the dataset of a journal to ``target`` (a path, or a file object for an in-memory
     view): every variable defined, each journaled chunk written into its region, one chunk in
@@ -87,19 +87,19 @@ def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, 
     ``WriteFailed`` after the file is removed. ``stop()`` is asked between chunks: when true, the
     assembly ends, the file is removed and ``KeyboardInterrupt`` raised.
 
-    ``held``: the run's dataset in memory (``Held``), filled with the chunks this process computed
-    as they were saved. Those chunks are taken from it instead of being read back from the journal,
-    the others are read from the journal into it, and the file's variables are written from it
-    whole; it ends up with the file's attributes, so that ``held.dataset()`` is the dataset the file
-    holds without opening it again.
+    ``memory``: the run's dataset in memory (``MemorySink``), filled with the chunks this process
+    computed. Those chunks are taken from it instead of being read back from the journal, the others
+    are read from the journal into it, and the file's variables are written from it whole; it ends up
+    with the file's attributes, so that ``memory.dataset()`` is the dataset the file holds without
+    opening it again.
 
-    ``early``: the file ``target`` already defined and filled with the chunks of ``held`` while they
+    ``early``: the file ``target`` already defined and filled with the chunks of ``memory`` while they
     were computed (``Early``); only what is missing (chunks of the journal from before a resume,
     the times) is written into it. An ``early`` that cannot be used (a write of it failed, a chunk
     missed it, another target) is discarded and the file written from the start, as without it."""
     if not isinstance(target, (str, os.PathLike)):
-        return _assemble(journal, scene, lay, chunks, target, attrs, lambda: False, held)
-    if early is not None and not early.usable(target, held):
+        return _assemble(journal, scene, lay, chunks, target, attrs, lambda: False, memory)
+    if early is not None and not early.usable(target, memory):
         early.discard()
         early = None
     if early is not None:
@@ -112,7 +112,7 @@ def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, 
     stop = stop or (lambda: False)
     try:
         bad, counts = _assemble(journal, scene, lay, chunks, guard, attrs,
-                                lambda: guard.error is not None or stop(), held, early)
+                                lambda: guard.error is not None or stop(), memory, early)
         if guard.error is None:
             guard.sync()
     except BaseException:
@@ -129,7 +129,7 @@ def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, 
     return bad, counts
 
 
-def _assemble(journal, scene, lay, chunks, target, attrs, stop, held=None, early=None
+def _assemble(journal, scene, lay, chunks, target, attrs, stop, memory=None, early=None
               ) -> tuple[list[BadChunk], dict[int, int]]:
     if early is None:
         with NetCDFWriter(target) as f:
@@ -146,8 +146,8 @@ def _assemble(journal, scene, lay, chunks, target, attrs, stop, held=None, early
                 stopped = True
                 break
             chunk = chunks[int(i)]
-            if held is not None and int(i) in held.times:  # computed by this process: in memory already
-                seconds, compiled = held.times[int(i)]
+            if memory is not None and int(i) in memory.times:  # computed by this process: in memory already
+                seconds, compiled = memory.times[int(i)]
                 wall_time += seconds
                 compile_time += compiled
                 continue
@@ -158,22 +158,22 @@ def _assemble(journal, scene, lay, chunks, target, attrs, stop, held=None, early
                 continue
             wall_time += seconds
             compile_time += float(arrays.pop(COMPILE_KEY, 0.0))
-            if held is not None:
-                write_memory(held.store, chunk.region, arrays, lay.shape)
+            if memory is not None:
+                write_memory(memory.store, chunk.region, arrays, lay.shape)
                 if early is None:
                     continue
-            if held is None:
+            if memory is None:
                 counts.add(arrays["status"])
             _write_region(variables, chunk.region, arrays, lay.shape)
-        if held is not None and not stopped:  # every variable at once (regions not computed: their fill values)
+        if memory is not None and not stopped:  # every variable at once (regions not computed: their fill values)
             if early is None:  # (with early: written chunk by chunk as they were computed)
                 for name, var in variables.items():
-                    var[...] = held.store.variables[name].data
-            counts.add(held.store.variables["status"].data)
+                    var[...] = memory.store.variables[name].data
+            counts.add(memory.store.variables["status"].data)
         times = time_attrs(compile_time, wall_time)
         f.attrs.update(times)
-    if held is not None:  # the attributes _define wrote, and the times
-        held.store.attrs = {**attrs, "n_chunks": lay.n_chunks, **times}
+    if memory is not None:  # the attributes _define wrote, and the times
+        memory.store.attrs = {**attrs, "n_chunks": lay.n_chunks, **times}
     missing = int(np.prod(lay.shape, dtype=np.int64)) - counts.total
     if missing:
         counts.codes[st.PENDING] = counts.codes.get(st.PENDING, 0) + missing
@@ -212,7 +212,7 @@ PREPARE_WAIT = 5.0  # seconds Early.prepare waits for the first chunk's launch (
 
 
 class Early:
-    """The dataset file of a run (with ``Held``) written while its chunks are computed, in the
+    """The dataset file of a run (with ``MemorySink``) written while its chunks are computed, in the
     writer thread: defined at the first chunk, each chunk written into its region after it is
     saved to the journal. It is the same temporary file the assembly writes (in the journal
     folder; renamed into place only when complete), so crash safety is unchanged: a kill leaves
@@ -242,9 +242,9 @@ class Early:
 
     def prepare(self, started=None) -> None:
         """Create and define the file before the first chunk arrives: the run calls it in the writer
-        thread, idle while the first chunk is computed, so that the definition (about 8 ms of CPU with
-        NetCDFWriter, 25-30 ms through h5netcdf's bookkeeping before) no longer delays the
-        first chunk's write and the second chunk's launch behind it. ``started``: an event set when
+        thread, idle while the first chunk is computed, so that the definition (``python
+        benchmarks/duffing_breakdown.py`` times it) does not delay the first chunk's write and the second chunk's launch
+        behind it. ``started``: an event set when
         the first chunk's kernel is about to run (waited for at most PREPARE_WAIT seconds), so that
         this Python work holds the GIL while the kernel has released it, not while the main
         thread prepares the launch. A failure discards the file, as in ``write``."""
@@ -277,11 +277,11 @@ class Early:
         except Exception:  # e.g. OSError opening the file: the assembly writes it from the start
             self.discard()
 
-    def usable(self, target, held: "Held | None") -> bool:
+    def usable(self, target, memory: "MemorySink | None") -> bool:
         """Whether the assembly of ``target`` can go on in this file: nothing failed and every
-        chunk ``held`` has from this process is in it."""
-        return (not self.failed and self.file is not None and self.guard.error is None and held is not None
-                and Path(target) == self.path and set(held.times) <= self.written)
+        chunk ``memory`` has from this process is in it."""
+        return (not self.failed and self.file is not None and self.guard.error is None and memory is not None
+                and Path(target) == self.path and set(memory.times) <= self.written)
 
     def take(self) -> h5py.File:
         """The open file, handed to the assembly (which closes it)."""
@@ -303,25 +303,49 @@ class Early:
             self.guard = None
 
 
-class Held:
-    """A run's dataset kept in memory while its file is written (``run`` with a dataset it returns
-    loaded): ``store`` is defined as the file is (``memory_store``), every chunk the run saves goes
-    into it too (``keep``), with its wall and compile seconds in ``times`` (chunk index -> (wall,
-    compile)). ``assemble`` then writes the file from it and sets its attributes."""
+class MemorySink:
+    """A run's dataset in memory, defined as its file is (``memory_store``): the sink of the in-memory
+    route (``run(output=None)``), and of a file run that returns its dataset loaded (beside the
+    journal and the file). A chunk computed here is computed straight into its arrays (``views``:
+    each variable's flat range of the chunk); ``save`` notes its wall and compile seconds in
+    ``times`` (chunk index -> (wall, compile)) and copies only arrays computed elsewhere (a dask
+    worker's, a chunk read back from the journal). ``assemble`` writes the file from it and gives it
+    the file's attributes."""
+
+    background = False  # nothing to write: the route saves its chunks in the computing thread
 
     def __init__(self, scene: Scene, lay: Layout, attrs: dict):
         self.store = memory_store(scene, lay, attrs)
-        self.shape = lay.shape
         self.times: dict[int, tuple[float, float]] = {}
+        n = int(np.prod(lay.shape, dtype=np.int64))
+        self._flat = {}  # variable -> the array over the grid's flat points (a view, C order)
+        for name in _variables(lay):
+            data = self.store.variables[name].data
+            flat = data.reshape((n,) + data.shape[len(lay.shape):])
+            if _address(flat) != _address(data):
+                raise AssertionError(f"the flat view of {name} is a copy")
+            self._flat[name] = flat
 
-    def keep(self, index: int, region: tuple, arrays: dict, seconds: float) -> None:
-        """A chunk saved to the journal: its arrays (and COMPILE_KEY, the compile phase it carries)."""
-        compiled = float(arrays.get(COMPILE_KEY, 0.0))
-        write_memory(self.store, region, {k: v for k, v in arrays.items() if k != COMPILE_KEY}, self.shape)
-        self.times[index] = (float(seconds), compiled)
+    def views(self, chunk) -> dict:
+        """The arrays a chunk is computed into: each variable's stretch of the chunk's flat points (a
+        chunk is a contiguous range of them, grid.py)."""
+        return {name: flat[chunk.start:chunk.stop] for name, flat in self._flat.items()}
+
+    def save(self, chunk, arrays: dict, seconds: float) -> None:
+        """A computed chunk: its arrays (and COMPILE_KEY, the compile phase it carries), its wall time."""
+        for name, flat in self._flat.items():
+            values, into = arrays[name], flat[chunk.start:chunk.stop]
+            if _address(values) != _address(into):  # (computed into ``views``: nothing to copy)
+                into[...] = values.reshape(into.shape)
+        self.times[chunk.index] = (float(seconds), float(arrays.get(COMPILE_KEY, 0.0)))
 
     def dataset(self) -> xr.Dataset:
         return self.store.dataset()
+
+
+def _address(a: np.ndarray) -> int:
+    """Where an array's data begins in memory."""
+    return a.__array_interface__["data"][0]
 
 
 # The key under which a chunk file of the journal carries the compile phase that preceded it.
@@ -499,26 +523,24 @@ def _define(f: "NetCDFWriter | _MemoryFile", scene: Scene, lay: Layout, attrs: d
     for axis in scene.axes:
         prm = model.param(axis.name)
         if prm.categorical:
-            v = f.create_variable(axis.name, (axis.name,), dtype=h5py.string_dtype())
-            v[:] = axis.array()
+            v = _string_variable(f, axis.name, (axis.name,), axis.array())
         else:  # written block by block: a range axis is never expanded at once
             v = f.create_variable(axis.name, (axis.name,), dtype="f8")
             for lo in range(0, axis.size, READ_BLOCK):
                 hi = min(axis.size, lo + READ_BLOCK)
                 v[lo:hi] = axis.array(lo, hi)
-        _describe(v, prm.unit, prm.long_name, prm.symbol)
+        _describe(v, prm.unit, prm.long_name, prm.symbol, prm.latex)
         v.attrs["spacing"] = axis.spacing
         if axis.spacing == "log":  # CF has no attribute for it: say it to a reader (docs: datasets)
             v.attrs["comment"] = cf.LOG_AXIS_COMMENT
     for name, value in scene.fixed.items():
         prm = model.param(name)
         if prm.categorical:
-            v = f.create_variable(name, (), dtype=h5py.string_dtype())
-            v[()] = value
+            v = _string_variable(f, name, (), np.array(value, dtype=object))
         else:
             v = f.create_variable(name, (), dtype="f8")
             v[()] = value
-        _describe(v, prm.unit, prm.long_name, prm.symbol)
+        _describe(v, prm.unit, prm.long_name, prm.symbol, prm.latex)
     for dims in lay.extra.values():
         for dim, values in dims:
             if dim.name not in f.dimensions:
@@ -533,13 +555,14 @@ def _define(f: "NetCDFWriter | _MemoryFile", scene: Scene, lay: Layout, attrs: d
         extra = tuple(d.name for d, _ in lay.extra.get(name, ()))
         v = f.create_variable(name, lay.dims + extra, dtype="f8", fillvalue=np.nan,
                               chunks=_storage_chunks(lay.shape + tuple(len(x) for _, x in lay.extra.get(name, ()))))
-        _describe(v, out.unit, out.long_name, out.symbol)
+        _describe(v, out.unit, out.long_name, out.symbol, out.latex)
         if out.integrated:
             v.attrs["integrated"] = 1
         if out.kind:
             v.attrs["mechsweep_kind"] = out.kind
         if fixed_coords:
             v.attrs["coordinates"] = fixed_coords
+        v.attrs["ancillary_variables"] = "status"  # CF: the per-point status qualifies each value
     s = f.create_variable("status", lay.dims, dtype=st.DTYPE, fillvalue=st.PENDING, chunks=chunks,
                           **_compressed(lay.shape))
     del s.attrs["_FillValue"]  # keep int8 on reading (xarray would mask it to float)
@@ -596,17 +619,33 @@ class _NetCDFVariable:
         self.ds[key] = value
 
 
+def nc_properties() -> str:
+    """The file's ``_NCProperties``: what wrote it, in netCDF-C's provenance format (``version=2``
+    first, then ``key=value`` pairs separated by commas, ``\\``, ``=``, ``|`` and ``,`` escaped by a
+    backslash): mechsweep through h5py on its HDF5 library. netCDF-C reads any keys there; h5netcdf
+    writes its own name and version in the same place."""
+    def escaped(text: str) -> str:
+        return "".join("\\" + c if c in "\\=|," else c for c in text)
+
+    from . import __version__
+
+    pairs = (("mechsweep", __version__), ("h5py", h5py.__version__), ("hdf5", h5py.version.hdf5_version))
+    return "version=2," + ",".join(f"{key}={escaped(value)}" for key, value in pairs)
+
+
 class NetCDFWriter:
     """Defines a netCDF-4 file with h5py directly, as ``h5netcdf.File(target, "w")`` defines it for
     the calls ``_define`` makes (dimensions, each with its coordinate variable created next,
     variables with fixed sizes, attributes, ``del`` of an attribute): the same objects in the same
     creation order, the same dataset properties (shape, dtype, chunks, filters, fill value), the
     same attributes with their dtypes, shapes, values and order (netCDF-4's ``_Netcdf4Dimid`` and
-    ``_Netcdf4Coordinates``, h5netcdf's ``_NCProperties``), the same dimension-scale attachments.
-    tests/test_store_define.py walks a file of each shipped scene written both ways and compares
-    all of it. h5netcdf spent 25-30 ms of CPU on a small run's definition looking up the same
-    h5py objects again and again (the run breakdown of docs/performance-duffing.md, round 5); this
-    writes each once."""
+    ``_Netcdf4Coordinates``), the same dimension-scale attachments. Only the provenance the file
+    carries for netCDF-C (``_NCProperties``, :func:`nc_properties`) names mechsweep, h5py and HDF5,
+    where h5netcdf names itself. tests/test_store_define.py walks a file of each shipped scene
+    written both ways and compares all of it, and reads both with h5netcdf and with netCDF-C.
+    Written with h5py because h5netcdf looks up the same h5py objects again and again while it defines
+    a file (most of a small run's definition time: ``python benchmarks/duffing_breakdown.py``);
+    this writes each once."""
 
     def __init__(self, target):
         self.file = h5py.File(target, "w", track_order=True)  # as h5netcdf opens a new file (h5py >= 3.7)
@@ -628,9 +667,12 @@ class NetCDFWriter:
     def create_variable(self, name, dims=(), dtype=None, fillvalue=None, chunks=None, **storage) -> _NetCDFVariable:
         dims = tuple(dims)
         shape = tuple(self._dimensions[d] for d in dims)
-        coordinate = dims == (name,)
+        chars = np.dtype(dtype) == np.dtype("S1") and len(dims) >= 1 and dims[-1] == name + STRLEN_SUFFIX
+        coordinate = dims == (name,) or chars and dims == (name, name + STRLEN_SUFFIX)  # a string axis: 2-D scale
         if name in self._dimensions and not coordinate or 0 in shape or name in self.file:
             raise ValueError(f"variable {name!r} {dims}: not a layout this writer defines as h5netcdf does")
+        if chars and dims[-1] not in self._scales:  # h5netcdf's placeholder of a dimension that is no variable
+            self._placeholder(dims[-1])
         if fillvalue is not None:
             fillvalue = np.array(fillvalue).astype(dtype)
             if h5py.check_string_dtype(fillvalue.dtype) is not None:
@@ -660,6 +702,15 @@ class NetCDFWriter:
             variable.attrs["_FillValue"] = ds.dtype.type(fillvalue)
         return variable
 
+    def _placeholder(self, dim: str) -> None:
+        """The dataset netCDF-4 keeps for a dimension without a coordinate variable (here: the
+        characters of a string variable), as h5netcdf creates it when the dimension is defined."""
+        n = self._dimensions[dim]
+        ds = self.file.create_dataset(dim, (n,), dtype=">f4", track_order=True)
+        ds.attrs["_Netcdf4Dimid"] = np.array(list(self._dimensions).index(dim), np.int32)
+        ds.make_scale(b"This is a netCDF dimension but not a netCDF variable." + bytes(f"{n:10}", "ascii"))
+        self._scales[dim] = ds
+
     def close(self) -> None:
         if self.file is None:
             return
@@ -667,8 +718,7 @@ class NetCDFWriter:
         try:
             if missing:  # (h5netcdf would leave a placeholder scale for it: not a layout _define makes)
                 raise ValueError(f"dimension(s) {', '.join(missing)} without a coordinate variable")
-            props = (f"version=2,h5netcdf={h5netcdf.__version__},hdf5={h5py.version.hdf5_version},"
-                     f"h5py={h5py.__version__}")  # what h5netcdf writes when it closes a new file
+            props = nc_properties()
             self.file.attrs["_NCProperties"] = np.array(props, dtype=h5py.string_dtype("ascii", len(props)))
         finally:
             self.file.close()
@@ -691,12 +741,42 @@ def _storage_chunks(shape: tuple[int, ...]):
     return True if shape and all(n > 0 for n in shape) else None
 
 
-def _describe(var, unit: str, long_name: str, symbol: str) -> None:
-    if unit:  # a UDUNITS string; a measurement declared without one gets no units (CF: unknown), never ""
-        var.attrs["units"] = unit
+STRLEN_SUFFIX = "_strlen"  # the character dimension of a string variable: NAME_strlen
+
+
+def _string_variable(f, name: str, dims: tuple[str, ...], values: np.ndarray):
+    """A variable of strings (a categorical axis or fixed value). In a file: an array of characters
+    over a dimension ``NAME_strlen`` with ``_Encoding = "utf-8"`` (CF's character arrays: CF-1.8 also
+    allows netCDF-4 strings, but checkers and older netCDF tools do not read them); xarray decodes it
+    to the strings, with the same dims. In memory (``_MemoryFile``): the strings themselves."""
+    values = np.asarray(values, dtype=object)
+    if isinstance(f, _MemoryFile):
+        v = f.create_variable(name, dims, dtype=h5py.string_dtype())
+        v[...] = values
+        return v
+    encoded = np.array([str(x).encode("utf-8") for x in values.ravel()], dtype=bytes)
+    n = max(1, encoded.dtype.itemsize)
+    strlen = name + STRLEN_SUFFIX
+    f.dimensions[strlen] = n
+    v = f.create_variable(name, dims + (strlen,), dtype="S1")
+    v[...] = encoded.astype(f"S{n}").view("S1").reshape(values.shape + (n,))
+    v.attrs["_Encoding"] = "utf-8"
+    return v
+
+
+def _describe(var, unit: str, long_name: str, symbol: str, latex: str = "") -> None:
+    if unit and not _is_strings(var):  # a UDUNITS string; a measurement declared without one gets no units
+        var.attrs["units"] = unit  # (CF: unknown), never ""; strings (categorical values) have none
     var.attrs["long_name"] = long_name
     if symbol:
         var.attrs["symbol"] = symbol
+    if latex:  # the symbol in matplotlib mathtext: what figures label the variable with
+        var.attrs["latex"] = latex
+
+
+def _is_strings(var) -> bool:
+    data = var.data if isinstance(var, _MemoryVariable) else var.ds if isinstance(var, _NetCDFVariable) else var
+    return np.dtype(data.dtype).kind in "OSU"
 
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -704,16 +784,37 @@ RUN_ATTRS = ("scene_canonical", "model", "outputs")  # every dataset `mechsweep 
 
 
 def open_dataset(path: str | Path, *, allow_partial: bool = False, lazy: bool | None = False) -> xr.Dataset:
-    """Open a mechsweep dataset.
+    """Open a dataset mechsweep wrote (``mechsweep run``, :func:`mechsweep.run`).
 
-    ``lazy=False`` loads it into memory (the file is closed again); ``lazy=True`` reads values
-    only when they are used (as dask arrays, one per storage chunk, when dask is installed);
-    ``lazy=None`` loads datasets up to LOAD_LIMIT_BYTES and opens larger ones lazily.
-    ``allow_partial`` opens an unfinished run (its missing chunks NaN, status pending) when the
-    finished file does not exist yet; that view is always loaded.
+    Reading needs neither numba nor the models' kernels: it works wherever xarray and h5netcdf do.
+    ``xarray.open_dataset(path, engine="h5netcdf")`` reads the same file; this function also
+    checks that it is a mechsweep dataset and can open an unfinished run.
 
-    Anything that is not a dataset mechsweep wrote (a folder, a device, an empty, text or damaged
-    file, an HDF5 or netCDF file from elsewhere) raises StoreError saying what the file is not.
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The dataset's file.
+    allow_partial : bool, optional
+        Open an unfinished run (its missing chunks NaN, status ``pending``) when the finished file
+        does not exist yet; that view is always loaded.
+    lazy : bool or None, optional
+        False (default): load it into memory (the file is closed again). True: read values only
+        when they are used (as dask arrays, one per storage chunk, when dask is installed). None:
+        load datasets up to ``LOAD_LIMIT_BYTES`` and open larger ones lazily.
+
+    Returns
+    -------
+    xarray.Dataset
+        The grid's dimensions and coordinates, the outputs, ``status`` (and ``n_steps``,
+        ``n_rhs``), and the attributes the run wrote (the scene, solver settings, provenance).
+
+    Raises
+    ------
+    FileNotFoundError
+        No file at ``path`` (the message says when an unfinished run is there instead).
+    StoreError
+        The file is not a dataset mechsweep wrote (a folder, a device, an empty, text or damaged
+        file, an HDF5 or netCDF file from elsewhere): the message says what it is not.
     """
     if "\0" in str(path):
         raise StoreError(f"dataset path {str(path)!r} contains a NUL character")
@@ -735,11 +836,36 @@ def open_dataset(path: str | Path, *, allow_partial: bool = False, lazy: bool | 
 
     try:
         if lazy:
-            return xr.open_dataset(path, engine="h5netcdf", chunks={} if _have_dask() else None)
+            return current_names(xr.open_dataset(path, engine="h5netcdf", chunks={} if _have_dask() else None))
         with xr.open_dataset(path, engine="h5netcdf") as ds:
-            return ds.load()
+            return current_names(ds.load())
     except (OSError, ValueError, KeyError, TypeError, RuntimeError) as exc:
         raise StoreError(f"{path} is not a readable mechsweep dataset: {_first_line(exc)}") from None
+
+
+def current_names(ds: xr.Dataset) -> xr.Dataset:
+    """A dataset written before one of its model's parameters was renamed, with the current name:
+    a variable named by a former name the declaration keeps (``Param.aliases``, e.g. the
+    slider-crank's ``lambda``, now ``lam``: a Python keyword cannot be used in ``ds.sel``). Only
+    a file with a name that is no identifier, or a keyword, looks the model up."""
+    import keyword
+
+    odd = [n for n in ds.variables if isinstance(n, str) and (keyword.iskeyword(n) or not n.isidentifier())]
+    model = ds.attrs.get("model")
+    if not odd or not isinstance(model, str):
+        return ds
+    from .models import MODELS  # (imports the built-in models: only for such an old file)
+
+    spec = MODELS.get(model)
+    renames = {a: n for a, n in (spec.aliases() if spec is not None else {}).items()
+               if a in ds.variables and n not in ds.variables}
+    if not renames:
+        return ds
+    ds = ds.rename(renames)
+    for key in ("along", "continue_in"):  # a boundaries dataset names its axes
+        if ds.attrs.get(key) in renames:
+            ds.attrs[key] = renames[ds.attrs[key]]
+    return ds
 
 
 def check_dataset_file(path: str | Path) -> None:
@@ -813,9 +939,11 @@ def is_lock_error(exc: BaseException) -> bool:
 def held_for_writing(fd: int) -> bool:
     """Whether another process holds an exclusive lock on the open file ``fd``: HDF5 takes one
     (flock) on a file it opens for writing. Probed with a shared lock that is released at once;
-    False where file locks are not available."""
-    import fcntl
-
+    False where file locks are not available (no fcntl: Windows)."""
+    try:
+        import fcntl
+    except ImportError:
+        return False
     try:
         fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
     except BlockingIOError:
@@ -958,7 +1086,6 @@ def _lkind(path) -> str:
     return "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
 
 
-RUN_JSON_KEYS = META_KINDS  # run.json's entries and their kinds (journal.meta_problem checks them)
 
 
 def _check_run_json(path: Path) -> None:

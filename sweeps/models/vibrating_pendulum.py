@@ -42,7 +42,8 @@ VIBRATING_PENDULUM = OdeModel(
               required=False, default=9.81),
         Param("L", "L", "m", "pendulum length (pivot to bob)", lo=0.0, lo_open=True),
         Param("a", "a", "m", "support displacement amplitude", lo=0.0),
-        Param("w", "omega", "rad s-1", "support angular frequency", lo=0.0, lo_open=True),
+        # latex: the symbol as figures write it (matplotlib mathtext); without it they convert the symbol
+        Param("w", "omega", "rad s-1", "support angular frequency", lo=0.0, lo_open=True, latex=r"$\omega$"),
         Param("c", "c", "N s m-1", "viscous damping coefficient at the bob", lo=0.0, required=False,
               default=0.0),
         Param("m", "m", "kg", "bob mass", lo=0.0, lo_open=True, required=False, default=1.0),

@@ -57,11 +57,9 @@ def summary(arrays) -> list[list[float]]:
     return out
 
 
-def fingerprints(workdir: Path) -> dict:
-    """{scene stem: {figure name: summary of its arrays}} for every shipped scene."""
+def reduced_datasets(workdir: Path) -> dict:
+    """{scene stem: dataset} of every shipped scene, run cut down by :func:`reduce_scene`."""
     import mechsweep
-    from mechsweep import figures
-    from mechsweep.figures._style import lines_data
     from mechsweep.scene import load_scene_text, to_toml
 
     result = {}
@@ -69,9 +67,24 @@ def fingerprints(workdir: Path) -> dict:
         data = reduce_scene(tomllib.loads(path.read_text()))
         data.setdefault("storage", {})["path"] = str(workdir / f"{path.stem}.h5")
         scene = load_scene_text(to_toml(data), label=path.name, base=path.parent)  # model paths: beside the scene
-        ds = mechsweep.run(scene, output=workdir / f"{path.stem}.h5", progress=False)
-        result[path.stem] = {kind: summary(lines_data(figures.draw(ds, kind))) for kind in figures.available(ds)}
+        result[path.stem] = mechsweep.run(scene, output=workdir / f"{path.stem}.h5", progress=False)
     return result
+
+
+def drawn_figures(datasets: dict) -> dict:
+    """{scene stem: {figure name: Figure}}: every figure drawn by default for each dataset."""
+    from mechsweep import figures
+
+    return {stem: {kind: figures.draw(ds, kind) for kind in figures.available(ds)} for stem, ds in datasets.items()}
+
+
+def fingerprints(workdir: Path, drawn: dict | None = None) -> dict:
+    """{scene stem: {figure name: summary of its arrays}} for every shipped scene (``drawn``: the
+    figures of :func:`drawn_figures`, drawn here when not given)."""
+    from mechsweep.figures._style import lines_data
+
+    drawn = drawn if drawn is not None else drawn_figures(reduced_datasets(workdir))
+    return {stem: {kind: summary(lines_data(fig)) for kind, fig in figs.items()} for stem, figs in drawn.items()}
 
 
 def compare(got: dict, want: dict, rtol: float = 1e-6) -> list[str]:

@@ -94,7 +94,7 @@ def slider_designs(n: int, seed: int) -> np.ndarray:
     use_l = rng.integers(0, 2, n).astype(bool)
     lam = rng.uniform(0.1, 1.05, n)
     P[:, col("l")] = np.where(use_l, r / lam, math.nan)
-    P[:, col("lambda")] = np.where(use_l, math.nan, lam)
+    P[:, col("lam")] = np.where(use_l, math.nan, lam)
     P[:, col("e")] = rng.choice([0.0, 0.0, 0.01, -0.02], n)
     P[:, col("branch")] = rng.integers(0, 2, n)
     for i in (1, 2):

@@ -9,8 +9,8 @@ again and again for ``secs`` seconds; a perf map (/tmp/perf-PID.map) names the c
 numba's NRT functions. Printed: the kernel's rate, the share of the samples in JIT code and libm
 (the kernels) and, of those, in NRT_incref/NRT_decref, and the hottest functions.
 
-Keys: ``lanes=0|1`` (engine.kernels.USE_LANES: the one-point kernel or the lanes), ``tlanes=0|1``
-(engine.sampling.USE_LANES), ``threads=N`` (default 1), ``secs=S`` (default 8), ``shrink=AXIS:N,...``
+Keys: ``lanes=0|1`` (model/compile.USE_LANES: the one-point kernel or the lanes), ``tlanes=0|1``
+(model/trajectory.USE_LANES), ``threads=N`` (default 1), ``secs=S`` (default 8), ``shrink=AXIS:N,...``
 (fewer values on an axis), ``outputs=a,b`` (other outputs), ``points=N`` (the ``duffing`` grid of
 ``mechsweep bench duffing``, rtol 1e-10, atol 1e-12). SCENE ``meissner``: the Meissner equation with its
 switch times declared (tests/data/nonsmooth/meissner.py), Floquet, 1,600 points. Numbers from it: docs/performance.md,
@@ -34,7 +34,7 @@ from numba.core.runtime import nrt
 from mechsweep.bench.duffing import _whole_grid, grid_scene
 from mechsweep.engine import kernels as model_compile
 from mechsweep.engine import sampling as trajectory
-from mechsweep.runner import evaluate_chunk
+from mechsweep.execute import evaluate_chunk
 from mechsweep.scene import load_scene
 
 

@@ -51,7 +51,7 @@ RENAMED = OdeModel(
             "stable_sim_settling": dict(name="settling_time", long_name="time until |y| < 0.01"),
             "stable_sim_final": dict(name="final_error", symbol="|y(end)|", unit="1")}),
         Steady("peak", "y", horizon=40.0, window=0.1, samples_per_period=8, settle_rtol=None, output_meta={
-            "peak_h1": dict(name="peak_harmonic"), "peak_phase": dict(name="peak_lag", unit="deg?")}),
+            "peak_h1": dict(name="peak_harmonic"), "peak_phase": dict(name="peak_lag", unit="degree")}),
         History("y_hist", "y", horizon=40.0, samples=9, dim="time", dim_long_name="time t",
                 output_meta={"y_hist": dict(symbol="y(t)")}),
         Floquet("mu", stable_name="mu_stable_old", output_meta={

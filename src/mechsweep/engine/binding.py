@@ -14,10 +14,8 @@ compiles nothing. A changed model gets a new digest, hence a new file, never a s
 The lane route's binding also holds the lane form of the model's rhs (engine/lane_rhs.py, the
 engine's one source transformation): text, so it needs a file of its own to be cached.
 
-After an entry point's first call (its compile saved in numba's cache) a marker file
-``<name>.compiled`` records it with this CPU's code-generation key: :func:`compiled` answers "is
-this kernel compiled, in this process or on disk?" from mechsweep's own record, without reading
-numba's private cache index.
+Whether a lane kernel is compiled already is mechsweep's own record, kept beside the binding
+files (engine/kernels.py, ``record_compiled`` and ``lanes_recorded``).
 """
 from __future__ import annotations
 
@@ -52,7 +50,6 @@ def {entry}({args}):
 _BUILDERS: dict[str, object] = {}  # binding name -> builder(*lane functions) -> namespace of entry points
 _BUILT: dict[str, object] = {}  # binding name -> the namespace built (once per process)
 _LOADED: dict[str, object] = {}  # binding name -> its imported module
-_COMPILED: set[tuple[str, str]] = set()  # (binding name, entry point) run in this process
 _LOCK = threading.RLock()
 _TMP: list[str] = []
 
@@ -127,64 +124,3 @@ def bind(name: str, what: str, entries: dict[str, str], builder, extra: str = ""
             raise
         _LOADED[name] = mod
         return mod
-
-
-def _cpu_key() -> str:
-    from numba.core.registry import cpu_target
-
-    return repr(cpu_target.target_context.codegen().magic_tuple())
-
-
-def _marker(name: str) -> Path:
-    return folder() / f"{name}.compiled"
-
-
-def mark_compiled(name: str, entry: str = "kernel") -> None:
-    """Record that entry point ``entry`` of binding ``name`` has run (compiled, or loaded from numba's
-    cache, which holds it from then on): in this process, and on disk for this CPU."""
-    if (name, entry) in _COMPILED:
-        return
-    _COMPILED.add((name, entry))
-    if _jit.cache_dir is None:
-        return
-    try:
-        marker = _marker(name)
-        line = f"{entry} {_cpu_key()}"
-        if not marker.exists() or line not in marker.read_text().splitlines():
-            with open(marker, "a") as f:
-                f.write(line + "\n")
-    except OSError:
-        pass  # a read-only cache: the record is only this process's
-
-
-def compiled(name: str, entries: tuple[str, ...] = ("kernel",)) -> bool:
-    """Whether the entry points ``entries`` of binding ``name`` are compiled: run in this process, or
-    recorded on disk for this CPU by an earlier process (mark_compiled) with the binding file there."""
-    if all((name, e) in _COMPILED for e in entries):
-        return True
-    if _jit.cache_dir is None:
-        return False
-    try:
-        marker = _marker(name)
-        if not marker.exists() or not (folder() / f"{name}.py").exists():
-            return False
-        lines = set(marker.read_text().splitlines())
-        key = _cpu_key()
-        return all(f"{e} {key}" in lines for e in entries)
-    except OSError:
-        return False
-
-
-class Marking:
-    """An entry point that records, after each call returns, that it is compiled (mark_compiled)."""
-
-    def __init__(self, func, name: str, entry: str = "kernel"):
-        self.func, self.name, self.entry = func, name, entry
-
-    def __getattr__(self, attr):
-        return getattr(self.func, attr)
-
-    def __call__(self, *args):
-        out = self.func(*args)
-        mark_compiled(self.name, self.entry)
-        return out

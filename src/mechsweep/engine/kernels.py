@@ -8,32 +8,39 @@ Routes of an OdeModel's measurements (other than the sampled trajectories, engin
   engine can rewrite in lane form (engine/lane_rhs.py), without switch times, a status order or a
   measurement's classify. :func:`lanes_apply` says whether it applies.
 
-``kernel_for(..., route=None)`` takes the lanes where they apply and pay (``LANES_FROM_POINTS``, or
-compiled already: :func:`compiled`). Each kernel is built once per process and its machine code is
-cached on disk through its binding module (engine/binding.py), named by :func:`binding_name`.
+A run names the route its plan chose (mechsweep/plan.py, ``choose_route``: the lanes for a run of at
+least LANES_FROM_POINTS points, or once :func:`lanes_recorded` says the lane kernel is compiled).
+Each kernel is built once per process and its machine code is cached on disk through its binding
+module (engine/binding.py), named by :func:`binding_name`.
 """
 from __future__ import annotations
 
 import hashlib
+import os
 import threading
+from pathlib import Path
 
+from .. import _jit
 from ..model import load, sources
 from ..ode import methods
 from . import binding, lane_rhs, lanes, point
 from .point import Threaded
 
 ROUTES = ("point", "lanes")
-# kernel_for's default route where the lanes apply: True the lanes, False one point at a time, None (the
-# default) the lanes only where they pay: for a run of at least LANES_FROM_POINTS points, or when the
-# lane kernel is compiled already (in this process, or recorded on disk: binding.compiled). The results
-# are bitwise the same either way (tests/test_model_lanes.py); the benches and tests set True or False.
+# kernel_for's route where the lanes apply and the caller names none (``lanes=None``): True the lanes,
+# False or None one point at a time. A run names the route its plan chose (mechsweep/plan.py,
+# ``choose_route``, which reads this as an override: the benches and tests set True or False to compare
+# the two routes). The results are bitwise the same either way (tests/test_model_lanes.py).
 USE_LANES: bool | None = None
 # The lane kernel compiles in more CPU time than the one-point kernel and integrates about twice as
-# fast: the crossover is measured by `mechsweep bench startup --only routes` (docs/performance-startup.md).
+# fast (Duffing period, sweeps/quickstart.toml; `python benchmarks/startup.py --only routes` measures
+# both). A plan takes the lanes for a run of at least this many points, or when they are compiled
+# already (``lanes_recorded``).
 LANES_FROM_POINTS = 10**7
-_PLAN = threading.local()  # the size of the run being computed in this thread (planned_points)
-_MEMO: dict[tuple, tuple] = {}  # kernel_for's memo by the objects' ids: (the objects kept alive, names)
+_BY_OBJECTS: dict[tuple, tuple] = {}  # names()' memo by the objects' ids: (the objects kept alive, names)
 _KERNELS: dict[str, object] = {}  # binding name -> kernel, in this process
+_RECORDED: set[str] = set()  # lane kernels compiled (or loaded from the disk cache) in this process
+_CPU: list[str] = []
 _LOCK = threading.RLock()
 
 
@@ -113,37 +120,20 @@ def lanes_apply(model, chosen, method) -> str | None:
     return lane_rhs.lane_rhs_source(model.rhs if system is None else system.rhs)
 
 
-def lane_name(model, chosen, closed, method, source: str) -> str:
+def _lane_binding(model, chosen, closed, method, source: str) -> str:
     return binding_name(model, chosen, closed, method, "lanes",
                         repr((lanes.lanes_for(len(model.states)), lanes.QUEUE)) + source)
 
 
 def lane_kernel(model, chosen, closed, method, source: str):
     """The lane kernel of this choice (engine/lanes.py); ``source``: lanes_apply's lane rhs."""
-    name = lane_name(model, chosen, closed, method, source)
+    name = _lane_binding(model, chosen, closed, method, source)
     extra = lane_rhs.binding_text(source)
     mod = binding.bind(name, f"model {model.name!r}, {lanes.lanes_for(len(model.states))} points side by side, "
                              f"method {method.name}",
                        {"kernel": lanes.ARGS}, lambda rhs_lanes: lanes.build(model, chosen, closed, rhs_lanes),
                        extra=extra, lane_names=("rhs_lanes",))
-    return binding.Marking(mod.kernel, name)
-
-
-class planned_points:
-    """``with planned_points(n):`` the kernels fetched in this thread serve a run of ``n`` points (the
-    runner says so around each chunk: a chunk, or the warm-up's one point, is smaller than the run).
-    kernel_for's automatic route (``route=None``) compares it with LANES_FROM_POINTS."""
-
-    def __init__(self, n: int):
-        self.n = int(n)
-
-    def __enter__(self):
-        self.before = getattr(_PLAN, "n", 0)
-        _PLAN.n = self.n
-        return self
-
-    def __exit__(self, *exc):
-        _PLAN.n = self.before
+    return _Recorded(mod.kernel, name)
 
 
 def _method(method):
@@ -155,53 +145,109 @@ def names(model, chosen, closed=(), method="dop853") -> dict:
     the lane rhs's source under "lane_rhs"), memoised by the objects (every chunk of a run asks)."""
     chosen, closed, method = tuple(chosen), tuple(closed), _method(method)
     memo = (id(model), tuple(map(id, chosen)), tuple(map(id, closed)), method.name)
-    known = _MEMO.get(memo)
+    known = _BY_OBJECTS.get(memo)
     if (known is not None and known[0] is model and all(a is b for a, b in zip(known[1], chosen))
             and all(a is b for a, b in zip(known[2], closed))):
         return known[3]
     out = {"point": binding_name(model, chosen, closed, point.integration_method(chosen, method), "point")}
     source = lanes_apply(model, chosen, method)
     if source is not None:
-        out["lanes"] = lane_name(model, chosen, closed, method, source)
+        out["lanes"] = _lane_binding(model, chosen, closed, method, source)
         out["lane_rhs"] = source
     with _LOCK:
-        _MEMO[memo] = (model, chosen, closed, out)  # the objects kept alive: their ids stay theirs
+        _BY_OBJECTS[memo] = (model, chosen, closed, out)  # the objects kept alive: their ids stay theirs
     return out
 
 
-def compiled(model, chosen, closed=(), method="dop853", route: str = "point") -> bool:
-    """Whether the kernel of this choice and route is compiled: built in this process, or recorded on
-    disk by an earlier process (engine/binding.py ``compiled``); False for a route that does not
-    apply. Cheap: no kernel is built or imported."""
-    name = names(model, chosen, closed, method).get(route)
-    return name is not None and binding.compiled(name)
+def lane_name(model, chosen, *, origin: str = "", closed=(), method="dop853") -> str | None:
+    """The name of the lane kernel that ``kernel_for(model, chosen, closed=closed, method=method,
+    lanes=True)`` returns (the key of its record, ``lanes_recorded``), or None when the lanes do not
+    serve this choice (then every route is one point at a time). Cheap: nothing is built or imported."""
+    return names(model, chosen, closed, method).get("lanes")
 
 
-def choose_route(model, chosen, closed=(), method="dop853", points: int = 0) -> str:
-    """The route kernel_for takes by default: the lanes where they apply and USE_LANES says so, or
-    (USE_LANES None) where they pay: a run of at least LANES_FROM_POINTS points (``points``, or the
-    run's size: planned_points), or the lane kernel compiled already."""
-    found = names(model, chosen, closed, method)
-    if "lanes" not in found or USE_LANES is False:
-        return "point"
-    if USE_LANES:
-        return "lanes"
-    points = max(int(points), getattr(_PLAN, "n", 0))
-    if points >= LANES_FROM_POINTS or binding.compiled(found["lanes"]):
-        return "lanes"
-    return "point"
+# ----------------------------------------------------------------------------- the record of compiled lanes
+def _cpu_tag() -> str:
+    """What numba's machine code is specific to: the target triple, the host CPU and its features (and
+    numba's variables that override them). A record of a lane kernel compiled on another CPU that shares
+    the cache folder (a home directory on a network disk) does not count here."""
+    if not _CPU:
+        import llvmlite.binding as llvm
+
+        parts = (llvm.get_process_triple(), llvm.get_host_cpu_name(), llvm.get_host_cpu_features().flatten(),
+                 os.environ.get("NUMBA_CPU_NAME", ""), os.environ.get("NUMBA_CPU_FEATURES", ""))
+        _CPU.append(hashlib.sha256("|".join(parts).encode()).hexdigest()[:12])
+    return _CPU[0]
 
 
-def kernel_for(model, chosen, *, closed=(), method="dop853", route: str | None = None, points: int = 0, **_):
+def _record_path(name: str) -> Path:
+    return binding.folder() / f"{name}.{_cpu_tag()}.compiled"
+
+
+def lanes_recorded(name: str) -> bool:
+    """Whether the lane kernel ``name`` (``lane_name``, or engine/sampling.py's lane_name) is compiled
+    for this CPU: in this process, or by an earlier process that left its record in the cache folder
+    (written by ``record_compiled`` once the kernel had run, i.e. once numba had compiled it and saved
+    its machine code: ``cache=True`` saves at compile time). The record is mechsweep's own, next to the
+    kernel's binding module; it lives and goes with the cache folder, which is keyed by mechsweep's sources."""
+    if name in _RECORDED:
+        return True
+    return _jit.cache_dir is not None and _record_path(name).exists()
+
+
+def record_compiled(name: str) -> None:
+    """Note that the lane kernel ``name`` has run in this process (compiled, or loaded from the disk
+    cache), in this process and, when caching is on, as a file in the cache folder."""
+    if name in _RECORDED:
+        return
+    _RECORDED.add(name)
+    if _jit.cache_dir is None:
+        return
+    path = _record_path(name)
+    if path.exists():
+        return
+    tmp = path.with_suffix(f".{os.getpid()}.{threading.get_ident()}.tmp")
+    try:
+        tmp.write_bytes(b"")
+        os.replace(tmp, path)
+    except OSError:  # a record that cannot be written costs a later run the faster route, nothing else
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
+
+
+class _Recorded:
+    """A lane kernel that records itself (``record_compiled``) after its first call returns."""
+
+    def __init__(self, kernel, name: str):
+        self.kernel, self.name = kernel, name
+
+    def __getattr__(self, attr):
+        return getattr(self.kernel, attr)
+
+    def __call__(self, *args):
+        self.kernel(*args)
+        record_compiled(self.name)
+
+
+# ----------------------------------------------------------------------------- the entry point
+def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str = "", closed=(), method="dop853",
+               lanes: bool | None = None, route: str | None = None):
     """The compiled chunk kernel ``kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps,
     n_rhs)`` of ``model`` for the measurements ``chosen`` and the closed forms ``closed`` (dependency
     order; closed form j is computed where ``need[j]``, a run-time choice) by ``method`` (a name or an
-    ode/methods.py method), by ``route`` ("point", "lanes"; None: choose_route). S: the model's
-    settings in declared order. Built once per process (memoised), compiled once (numba's disk cache
-    through the binding module)."""
+    ode/methods.py method). S: the model's settings in declared order.
+    ``lanes``: where the lanes apply (``lanes_apply``), True the kernel integrates LANES points side by
+    side (bitwise the same results; ``lane_name`` names it), False one at a time, None as USE_LANES says
+    (one at a time unless it is True). A run passes the route its plan chose. ``route`` ("point",
+    "lanes") names the route outright (an error where it does not apply).
+    Built once per process (memoised), compiled once (numba's disk cache through the binding module).
+    ``origin``, ``module``, ``attr``: unused (the binding imports the model's functions by module path)."""
     chosen, closed, method = tuple(chosen), tuple(closed), _method(method)
-    route = route or choose_route(model, chosen, closed, method, points)
     found = names(model, chosen, closed, method)
+    if route is None:
+        route = "lanes" if bool(USE_LANES if lanes is None else lanes) and "lanes" in found else "point"
     if route not in found:
         raise ValueError(f"route {route!r} does not serve this choice (routes: {', '.join(r for r in found if r in ROUTES)})")
     name = found[route]

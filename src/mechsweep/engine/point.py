@@ -31,6 +31,7 @@ import threading
 
 import numpy as np
 
+from .. import _jit
 from .. import status as st
 from .._jit import jit_internal, jit_into_caller
 from ..ode import methods
@@ -349,8 +350,7 @@ class Threaded:
     passes, the gufunc and its two wrappers, each linking and optimising the whole call tree again):
     about 2.3 s of the quickstart's 11.2 s of compile CPU (`bench startup --only compile`,
     docs/performance-startup.md). Each point is computed alone (its scratch reset), so the results
-    are the same whatever the split. Anything else (``py_func``, ``stats``) is the serial kernel's. After
-    a call it records that its binding ``name`` is compiled (binding.mark_compiled)."""
+    are the same whatever the split. Anything else (``py_func``, ``stats``) is the serial kernel's."""
 
     def __init__(self, serial, name: str = ""):
         self.serial, self.name = serial, name
@@ -359,14 +359,11 @@ class Threaded:
         return getattr(self.serial, name)
 
     def __call__(self, P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
-        import numba
-
         args = (P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs)
         n = P.shape[0]
-        threads = max(1, min(numba.get_num_threads(), (n + BLOCK - 1) // BLOCK))
+        threads = max(1, min(_jit.num_threads(), (n + BLOCK - 1) // BLOCK))
         if threads == 1:
             self.serial(*args, 0, 1)
-            binding.mark_compiled(self.name)
             return
         futures = [_pool().submit(self.serial, *args, t, threads) for t in range(1, threads)]
         try:
@@ -382,4 +379,3 @@ class Threaded:
                 raise interrupted
         for f in futures:
             f.result()
-        binding.mark_compiled(self.name)

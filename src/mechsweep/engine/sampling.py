@@ -21,6 +21,7 @@ import math
 
 import numpy as np
 
+from .. import _jit
 from .. import status as st
 from ..model.ode import worse
 from .trajectory import NO_CLASSIFY, NOT_RUN, UNUSED, columns
@@ -97,15 +98,10 @@ def kernel_for(model, method, measurements=None):
     ``kernel``; with the lanes (dop853, an rhs the engine rewrites) ``setup`` and ``queue``."""
     from . import binding
     from . import trajectory as engine
-    from .kernels import binding_name
     from .lane_rhs import binding_text
-    from ..ode.methods import method as method_of
 
     chosen = sampled_measurements(model) if measurements is None else tuple(measurements)
-    always, lock, raw = recheck_variant(model, chosen)
-    lane_rhs = lane_rhs_for(model, method)
-    m = method_of(method)
-    name = binding_name(model, chosen, (), m, "trajectory", repr((always, tuple(lock), raw)) + (lane_rhs or ""))
+    name, m, lane_rhs, (always, lock, raw) = _binding(model, method, chosen)
     known = _KERNELS.get(name)
     if known is not None:
         return known
@@ -116,9 +112,41 @@ def kernel_for(model, method, measurements=None):
                        lambda *lane: engine.build(model, chosen, m, always, lock, raw, *lane),
                        extra=binding_text(lane_rhs) if lane_rhs else "",
                        lane_names=("rhs_lanes",) if lane_rhs else ())
-    out = _Kernels(name, {e: binding.Marking(getattr(mod, e), name, e) for e in entries})
+    out = _Kernels(name, {e: getattr(mod, e) for e in entries})
     _KERNELS[name] = out
     return out
+
+
+def _binding(model, method, chosen):
+    """(binding name of the kernel of the sampled measurements ``chosen``, the method object, the lane
+    rhs or None, and the re-check's variant: always, lock, raw)."""
+    from .kernels import binding_name
+    from ..ode.methods import method as method_of
+
+    variant = recheck_variant(model, chosen)
+    lane_rhs = lane_rhs_for(model, method)
+    m = method_of(method)
+    always, lock, raw = variant
+    return (binding_name(model, chosen, (), m, "trajectory", repr((always, tuple(lock), raw)) + (lane_rhs or "")),
+            m, lane_rhs, variant)
+
+
+def lane_name(model, method) -> str | None:
+    """The name under which the lanes of the model's one sampled-trajectory kernel for ``method`` are
+    recorded once compiled (kernels.lanes_recorded), or None when the lanes do not apply (another
+    method, an rhs the rewrite does not cover: one trajectory at a time)."""
+    if lane_rhs_for(model, method) is None:
+        return None
+    memo = (id(model), method)
+    known = _LANE_NAMES.get(memo)
+    if known is not None and known[0] is model:
+        return known[1]
+    name = _binding(model, method, sampled_measurements(model))[0] + ".lanes"
+    _LANE_NAMES[memo] = (model, name)
+    return name
+
+
+_LANE_NAMES: dict[tuple, tuple] = {}  # lane_name's memo: (model, name) by (id(model), method)
 
 
 class _Kernels:
@@ -129,10 +157,10 @@ class _Kernels:
         self.__dict__.update(entries)
 
 
-def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lanes=True, per_subset=False):
-    """Run the sampled measurements ``chosen`` on the points still OK in ``status``; by DOP853
-    lanes for dop853 when the engine rewrites the model's rhs in lane form (unless ``lanes`` is
-    False: the same values). The model's one kernel (``kernel_for``) observes only the chosen ones;
+def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lanes=None, per_subset=False):
+    """Run the sampled measurements ``chosen`` on the points still OK in ``status``; with ``lanes`` by
+    DOP853 lanes for dop853 when the engine rewrites the model's rhs in lane form (False: one trajectory
+    at a time, the same values; None: as USE_LANES says, one at a time unless it is True). The model's one kernel (``kernel_for``) observes only the chosen ones;
     ``per_subset``: a kernel of the chosen ones alone instead (a compile per subset; the same values
     bitwise, for tests)."""
     method = solver.method
@@ -207,9 +235,8 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
         if getattr(m, "classify", None) is None and getattr(full[at[k]], "classify", None) is not None:
             first[at[k]] = NO_CLASSIFY  # the skip_settled Kick added above without its classify
 
-    from .kernels import _PLAN
-    use_lanes = (hasattr(mod, "queue") and lanes and lane_count(s.size, model) > 0
-                 and _lanes_pay(mod, max(n, getattr(_PLAN, "n", 0))))
+    use_lanes = (hasattr(mod, "queue") and bool(USE_LANES if lanes is None else lanes)
+                 and lane_count(s.size, model) > 0)
 
     def run(P, rtol, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs):
         m = P.shape[0]
@@ -228,6 +255,9 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
         mstat[:] = np.where(fmstat[:, at] == NO_CLASSIFY, NOT_RUN, fmstat[:, at])
 
     run(P, solver.rtol, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs)
+    if use_lanes and not per_subset and mod.queue.signatures:  # compiled and saved: a later plan may take them
+        from .kernels import record_compiled
+        record_compiled(mod.name + ".lanes")
     moved = None
     if rc is not None:
         moved = _recheck(rc, chosen, wanted, settings, solver, P, run, (vals, hist, rawv, rawh), code, mstat, n_steps,
@@ -360,10 +390,10 @@ def _recheck(rc, chosen, wanted, settings, solver, P, run, arrays, code, mstat, 
 # LANE_SAMPLES_BYTES (32, 16, then 8 lanes, else the one-trajectory kernel).
 LANES = (32, 16, 8)
 LANE_SAMPLES_BYTES = 256 * 2**20
-# evaluate's route where the lanes apply: True the lanes, False one trajectory at a time, None (the
-# default) the lanes where they pay: a run of at least LANES_FROM_POINTS points (compile.planned_points,
-# or the rows of the call), or the lane functions compiled already (in this process, or in numba's disk
-# cache). Bitwise the same results either way. The lanes' cold compile and speed: docs/model-layer.md
+# evaluate's route where the lanes apply and the caller names none: True the lanes, False or None one
+# trajectory at a time. A run names the route its plan chose (mechsweep/plan.py, ``choose_route``, which
+# reads this as an override): the lanes for a run of at least LANES_FROM_POINTS points, or once they are
+# compiled (kernels.lanes_recorded, under ``lane_name``). Bitwise the same results either way. The lanes' cold compile and speed: docs/model-layer.md
 # ("Lanes"; tests/data/trajectory_lanes_cost.py).
 USE_LANES: bool | None = None
 LANES_FROM_POINTS = 1000
@@ -372,15 +402,6 @@ LANES_FROM_POINTS = 1000
 # integrated one trajectory at a time (a round of 32 lanes with one active one costs more than ten
 # scalar steps; docs/model-layer.md, "Lanes").
 LANE_GROUP_MIN = 16
-
-
-def _lanes_pay(mod, points: int) -> bool:
-    if USE_LANES is not None:
-        return USE_LANES
-    if points >= LANES_FROM_POINTS:
-        return True
-    from . import binding
-    return binding.compiled(mod.name, ("setup", "queue"))
 
 
 def lane_count(n_samples: int, model) -> int:
@@ -396,8 +417,6 @@ def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, raw
     (numba.get_num_threads() Python threads running the nogil queue); the points of periods shared
     by fewer than LANE_GROUP_MIN points by the one-trajectory kernel (from their status before
     setup: it runs classify and prepare again)."""
-    import numba
-
     n = P.shape[0]
     n_s = len(model.states)
     n_p, n_set, n_int = len(model.params), len(model.settings), len(model.internal)
@@ -420,7 +439,7 @@ def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, raw
     for T in periods[counts >= LANE_GROUP_MIN]:
         idx = np.flatnonzero(ok & (TT == T)).astype(np.int64)
         te = T * s  # the same products as the one-trajectory kernel's te[j] = T * s[j]
-        n_queues = max(1, min(numba.get_num_threads(), -(-idx.size // max(1, lanes // 2))))
+        n_queues = max(1, min(_jit.num_threads(), -(-idx.size // max(1, lanes // 2))))
 
         def queue(b, idx=idx, te=te, n_queues=n_queues):
             mod.queue(lanes, idx, b, n_queues, PF, Z0, te, s, bits, K, hoff, rtol, solver.atol,

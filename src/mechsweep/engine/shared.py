@@ -127,7 +127,8 @@ def make_shared(rhs, observe=None, switches=None):
     on a measurement's time: values inside a step come from the step's 7th-order dense output
     (built at most once per step, 3 rhs calls), roots from Brent's method on it. Only the horizon
     clips the last step. ``max_steps`` bounds the shared integration; a failure gives its status
-    to every row not yet done (rows done before keep their values).
+    to every row not yet done (rows done before keep their values); a spent budget is STIFF where
+    dop853's stiffness test fired on its last steps, as dop853's solvers report it.
 
     ``observe(t, y, p, j) -> float`` (``observer``): the expression of an Extremum row
     of kind K_EXTREMUM_OF (column 1: j). Its rate along the trajectory is the central difference
@@ -146,6 +147,7 @@ def make_shared(rhs, observe=None, switches=None):
     dense_output = d._make_dense_output(rhs)
     interpolate = d._interpolate
     commit = d._commit
+    failure, tests_stiffness, stiffness_update = d._failure, d._tests_stiffness, d._stiffness_update
     Y_STAGE, Y_NEW, K_FSAL = d.Y_STAGE, d.Y_NEW, d.K_FSAL
     N_ST = d.N_STAGES
     N_DENSE = d.N_STAGES_EXTENDED - d.N_STAGES - 1
@@ -280,14 +282,19 @@ def make_shared(rhs, observe=None, switches=None):
                 started[i] = True
         t = 0.0
         attempts = 0
+        n_stiff = 0  # dop853's stiffness test, late in the step budget (a spent budget there: STIFF)
+        n_nonstiff = 0
         while left > 0 and t < t_end:
             status, t_new, h_abs, a = advance(t, y, p, min(t_end, t_sw), h_abs, rtol, atol, work, max_steps - attempts)
             attempts += a
             n_rhs += N_ST * a
             if status != OK:
+                status = failure(status, n_stiff)
                 break
             n_steps += 1
             h = t_new - t
+            if tests_stiffness(False, attempts, max_steps, n_stiff):  # before a dense output reuses its row
+                n_stiff, n_nonstiff = stiffness_update(h, work, n_stiff, n_nonstiff)
             dense = False
             y_new = work[Y_NEW]
             f_new = work[K_FSAL]

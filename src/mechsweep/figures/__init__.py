@@ -84,21 +84,72 @@ def _plan(ds, boundaries=None, axes=None) -> list[tuple[str, str, object, bool]]
 
 
 def available(ds, axes=None) -> dict[str, str]:
-    """Figures drawn by default for this dataset, with a sentence saying what each shows; with
-    ``axes`` = (x, y) the generic figures on those axes (see :func:`.generic.choose`)."""
+    """The figures drawn by default for a dataset (what ``mechsweep plot`` draws).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A dataset mechsweep wrote (:func:`mechsweep.open_dataset`, :func:`mechsweep.run`).
+    axes : tuple of (str or None, str or None), optional
+        ``(x, y)``: the generic figures over those axes instead (``--x``/``--y``).
+
+    Returns
+    -------
+    dict of str to str
+        Figure name (a ``kind`` for :func:`draw`) -> a sentence saying what it shows.
+    """
     return {name: text for name, text, _, default in _plan(ds, axes=axes) if default}
 
 
 def on_request(ds, axes=None) -> dict[str, str]:
-    """Generic figures that fit this dataset but are drawn only when asked for by name (the dataset's
-    model has figures of its own that fit)."""
+    """Generic figures that fit a dataset but are drawn only when asked for by name (its model has
+    figures of its own that fit).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A dataset mechsweep wrote.
+    axes : tuple of (str or None, str or None), optional
+        ``(x, y)``: the generic figures over those axes.
+
+    Returns
+    -------
+    dict of str to str
+        Figure name -> a sentence saying what it shows.
+    """
     return {name: text for name, text, _, default in _plan(ds, axes=axes) if not default}
 
 
 def artists(ds, kind: str, *, boundaries=None, fig=None, ax=None, axes=None):
-    """Draw figure ``kind`` (new, into ``fig``, or onto the Axes ``ax``) and return its artists
-    (a :class:`~._style.Drawn` dict; ``["figure"]`` is the Figure). ``axes`` = (x, y): a generic
-    figure on those axes."""
+    """Draw a figure and return every artist it made.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A dataset mechsweep wrote.
+    kind : str
+        The figure's name, one of :func:`available` or :func:`on_request`.
+    boundaries : xarray.Dataset, optional
+        The located boundaries of the same grid (``mechsweep boundaries``, ``NAME.boundaries.h5``),
+        drawn over the charts that draw boundaries.
+    fig : matplotlib.figure.Figure or matplotlib.figure.SubFigure, optional
+        Draw into this figure instead of a new one.
+    ax : matplotlib.axes.Axes, optional
+        Draw onto these axes (figures of one panel).
+    axes : tuple of (str or None, str or None), optional
+        ``(x, y)``: a generic figure over those axes.
+
+    Returns
+    -------
+    dict
+        The artists by name (a ``Drawn`` dict): ``["figure"]`` the Figure, ``["axes"]`` its axes,
+        and the lines, images and labels the figure drew.
+
+    Raises
+    ------
+    ValueError
+        ``kind`` does not fit this dataset (the message lists those that do).
+    """
     for name, _, fn, _ in _plan(ds, boundaries, axes):
         if name == kind:
             return fn(ds, fig=fig, ax=ax)
@@ -107,7 +158,40 @@ def artists(ds, kind: str, *, boundaries=None, fig=None, ax=None, axes=None):
 
 
 def draw(ds, kind: str, *, boundaries=None, fig=None, ax=None, axes=None):
-    """Figure ``kind`` as a matplotlib Figure (see :func:`artists` for what was drawn on it)."""
+    """Draw a figure and return it.
+
+    The figure is made without pyplot (no global state, no window): in a notebook it shows once
+    ``%matplotlib inline`` has run; elsewhere save it with ``fig.savefig(path)``.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A dataset mechsweep wrote.
+    kind : str
+        The figure's name, one of :func:`available` or :func:`on_request`.
+    boundaries : xarray.Dataset, optional
+        The located boundaries of the same grid, drawn over the charts that draw boundaries.
+    fig : matplotlib.figure.Figure or matplotlib.figure.SubFigure, optional
+        Draw into this figure instead of a new one.
+    ax : matplotlib.axes.Axes, optional
+        Draw onto these axes (figures of one panel).
+    axes : tuple of (str or None, str or None), optional
+        ``(x, y)``: a generic figure over those axes.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (see :func:`artists` for what was drawn on it).
+
+    Examples
+    --------
+    >>> import mechsweep
+    >>> from mechsweep import figures
+    >>> ds = mechsweep.open_dataset("data/runs/quickstart.h5")          # doctest: +SKIP
+    >>> figures.available(ds)                                          # doctest: +SKIP
+    {'amplitude_period': 'T omega against epsilon: ...', 'kinematic_coefficients': '...'}
+    >>> figures.draw(ds, "amplitude_period").savefig("period.png")    # doctest: +SKIP
+    """
     return artists(ds, kind, boundaries=boundaries, fig=fig, ax=ax, axes=axes).figure
 
 
@@ -139,10 +223,35 @@ def targets(ds, path, *, kind: str | None = None, fmt: str = "png", axes=None) -
 
 def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150, boundaries=None,
          axes=None) -> list[Path]:
-    """Write one figure (``kind``, any listed by ``available`` or ``on_request``) or every figure
-    drawn by default (``kind=None``). ``axes`` = (x, y): the generic figures on those axes instead.
+    """Write one figure, or every figure drawn by default, to files (what ``mechsweep plot`` does).
 
-    With several figures, each goes to ``<stem>_<kind>.<fmt>`` beside ``path``.
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A dataset mechsweep wrote.
+    path : str or pathlib.Path
+        The file; with several figures, each goes to ``<stem>_<kind>.<fmt>`` beside it.
+    kind : str, optional
+        One figure (any listed by :func:`available` or :func:`on_request`); None (default): every
+        figure drawn by default.
+    fmt : str, optional
+        ``"png"`` (default), ``"svg"`` or ``"pdf"``.
+    dpi : int, optional
+        Resolution of a PNG.
+    boundaries : xarray.Dataset, optional
+        The located boundaries of the same grid, drawn over the charts that draw boundaries.
+    axes : tuple of (str or None, str or None), optional
+        ``(x, y)``: the generic figures over those axes instead.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written.
+
+    Raises
+    ------
+    InputError
+        ``kind`` does not fit this dataset, or no figure does.
     """
     from ..errors import InputError
 

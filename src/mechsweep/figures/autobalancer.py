@@ -2,28 +2,33 @@
 vibration against crank speed, and time histories of one grid point."""
 from __future__ import annotations
 
-import textwrap
-
 import matplotlib.patches
 import numpy as np
 from matplotlib.colors import ListedColormap
+from matplotlib.legend_handler import HandlerTuple
+from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
 from . import located
 from ._registry import ModelFigure
-from ._style import Drawn, flag_note, label, new_figure, title
+from ._style import (Drawn, hatch_unstable, label, new_figure, prose, readable_log_ticks, short_symbol, stable_cmap,
+                     stable_patch, status_text, ticked, ticked_contour, title, unstable_patch, value_text, wrap)
 
 MODELS = ("autobalancer",)
 
-STABLE_COLORS = ListedColormap(["#f4c7c3", "#c8e6c9"])  # unstable, stable
+STABLE_COLORS = stable_cmap()  # unstable, stable (colour-blind safe; the unstable cells also dotted)
+APPROX_COLOR = "#6a3d9a"  # the first approximation (line and hatch): apart from both fills and the boundaries
+FLAGGED_COLOR = "0.8"
 
 
 def _x(ds):
-    """Crank speed axis, as Omega / omega_xi when omega_xi is a fixed value of the dataset."""
+    """Crank speed axis, as Omega / omega_xi when omega_xi is a fixed value of the dataset:
+    (values, label, scale)."""
     om = ds["Omega"]
     if "omega_xi" in ds.coords and ds["omega_xi"].ndim == 0:
         w = float(ds["omega_xi"])
-        return om.values / w, "Ω / ω_ξ, crank speed over the lower platform frequency", w
+        text = f"{short_symbol(om) or 'Omega'} / {short_symbol(ds['omega_xi']) or 'omega_xi'}"
+        return om.values / w, f"{text}, crank speed over the platform's lower natural frequency", w
     return om.values, label(om), 1.0
 
 
@@ -40,14 +45,17 @@ def _y(ds, dim):
 
 def _y_map(ds, dim):
     """(values of ``dim`` -> chart coordinate, label) for the second chart axis."""
-    ratio = "2 m / M, pendulum mass ratio"
+    def ratio():
+        m, M = (short_symbol(ds[n]) or n for n in ("m", "M"))
+        return f"2{m} / {M}, pendulum mass ratio"
+
     if dim == "m" and "M" in ds.coords and ds["M"].ndim == 0:
         M = float(ds["M"])
-        return (lambda v: 2.0 * np.asarray(v) / M), ratio
+        return (lambda v: 2.0 * np.asarray(v) / M), ratio()
     if dim == "M" and "m" in ds.coords and ds["m"].ndim == 0:
         m = float(ds["m"])
-        return (lambda v: 2.0 * m / np.asarray(v)), ratio
-    return (lambda v: np.asarray(v)), label(ds[dim])
+        return (lambda v: 2.0 * m / np.asarray(v)), ratio()
+    return (lambda v: np.asarray(v)), label(ds[dim], width=60)
 
 
 def can_stability_chart(ds) -> bool:
@@ -55,14 +63,16 @@ def can_stability_chart(ds) -> bool:
     return "Omega" in ds.dims and _y_dim(ds, "stable_floquet") is not None
 
 
-FREQUENCIES = (("omega_xi", "ω_ξ", "--"), ("omega_eta", "ω_η", ":"), ("omega_p", "ω_p", "-."))
+# the platform's natural frequencies and the first-approximation boundary between them, on a top axis
+FREQUENCIES = ("omega_xi", "omega_eta", "omega_p")
 
 
 def _frequency_ticks(ax, ds, scale):
-    """The platform's natural frequencies (first approximation) as labelled ticks on a top axis,
-    not as lines across the chart (where they would lie on the P(Omega) = 0 curves). Returns the
-    secondary axis, or None when no frequency is a fixed value of the dataset."""
-    ticks = [(v / scale, text) for name, text, _ in FREQUENCIES if (v := _scalar(ds, name)) is not None]
+    """The platform's natural frequencies (first approximation) and omega_p as labelled ticks on a
+    top axis, not as lines across the chart (where they would lie on the P(Omega) = 0 curves).
+    Returns the secondary axis, or None when none is a fixed value of the dataset."""
+    ticks = [(v / scale, short_symbol(ds[name]) or name) for name in FREQUENCIES
+             if (v := _scalar(ds, name)) is not None]
     if not ticks:
         return None
     top = ax.secondary_xaxis("top")
@@ -71,48 +81,92 @@ def _frequency_ticks(ax, ds, scale):
     return top
 
 
+def _frequency_note(ds) -> str | None:
+    """What the top axis marks (the platform's natural frequencies, and omega_p: not a natural
+    frequency, the first approximation's stability boundary between them)."""
+    shown = [n for n in FREQUENCIES if _scalar(ds, n) is not None]
+    if not shown:
+        return None
+    sym = {n: short_symbol(ds[n]) or n for n in shown}
+    natural = [sym[n] for n in ("omega_xi", "omega_eta") if n in sym]
+    parts = [f"the platform's natural frequenc{'ies' if len(natural) > 1 else 'y'} {' and '.join(natural)}"] if natural \
+        else []
+    if "omega_p" in sym:
+        parts.append(f"{sym['omega_p']}, the first approximation's stability boundary between them")
+    return "top axis: " + "; ".join(parts)
+
+
+def _chart_layout(fig, ax, zoom: bool):
+    """(figure, main Axes, Axes for the legend or None, Axes for the magnified view or None). A figure
+    of its own (or the user's ``fig``) gets a column right of the chart: the legend above, the
+    magnified view below it when there is one (inside the chart it hid data); on the user's ``ax``
+    the chart alone (the legend beside it, no magnified view)."""
+    if ax is not None:
+        f, axes = new_figure(1, 1, fig=fig, ax=ax)
+        return f, axes[0, 0], None, None
+    if not zoom:
+        f, axes = new_figure(1, 1, width=8.4, height=5.6, fig=fig)
+        return f, axes[0, 0], None, None
+    from matplotlib.figure import Figure
+
+    f = fig if fig is not None else Figure(figsize=(11.0, 6.0), layout="constrained")
+    f._mechsweep_titled = True
+    grid = f.subplot_mosaic([["chart", "legend"], ["chart", "zoom"]], width_ratios=[2.1, 1.0],
+                            height_ratios=[1.25, 1.0])
+    grid["legend"].set_axis_off()
+    return f, grid["chart"], grid["legend"], grid["zoom"]
+
+
 def stability_chart(ds, boundaries=None, *, fig=None, ax=None):
-    """Floquet stability region over crank speed and a second axis, with the damped first
-    approximation (P(Omega) = 0, its stable side P < 0 hatched), the platform's natural
-    frequencies (top ticks) and simulation verdicts; the located and continued stability boundaries
-    over it when they were computed (`mechsweep boundaries`, DATA.boundaries.h5)."""
+    """Floquet stability region over crank speed and a second axis (stable light blue, unstable
+    orange and dotted), with the damped first approximation (P(Omega) = 0, its stable side
+    P < 0 hatched), the platform's natural frequencies and omega_p (top ticks) and simulation
+    verdicts; the located and continued stability boundaries over it when they were computed
+    (`mechsweep boundaries`, DATA.boundaries.h5), a boundary closed inside the chart magnified
+    beside it."""
     ydim = _y_dim(ds, "stable_floquet")
     x, xlab, scale = _x(ds)
     y, ylab = _y(ds, ydim)
     ymap, _ = _y_map(ds, ydim)
-    fig, axes = new_figure(1, 1, width=8.0, height=5.6, fig=fig, ax=ax)
+    xmap = lambda v: np.asarray(v) / scale  # noqa: E731
+    use_boundaries = boundaries is not None and boundaries.attrs.get("along") == "Omega"
+    small = (located.small_curves(boundaries, ((x.min(), x.max()), (y.min(), y.max())), xmap=xmap, ymap=ymap)
+             if use_boundaries else None)
+    fig, ax, legend_ax, zoom_ax = _chart_layout(fig, ax, zoom=small is not None)
+    axes = np.array([[ax]], dtype=object)
     art = Drawn(figure=fig, axes=axes)
-    ax = axes[0, 0]
     verdict = ds["stable_floquet"].where(ds["status"] == 0).transpose(ydim, "Omega").values
-    art["mesh"] = ax.pcolormesh(x, y, verdict, cmap=STABLE_COLORS, vmin=0, vmax=1, shading="nearest")
     flagged = np.isnan(verdict)
+
+    def shade(a):
+        mesh = a.pcolormesh(x, y, verdict, cmap=STABLE_COLORS, vmin=0, vmax=1, shading="nearest")
+        grey = (a.pcolormesh(x, y, np.where(flagged, 1.0, np.nan), cmap=ListedColormap([FLAGGED_COLOR]),
+                             shading="nearest") if flagged.any() else None)
+        return mesh, grey, hatch_unstable(a, x, y, verdict)
+
+    art["mesh"], art["flagged"], art["unstable_hatch"] = shade(ax)
+    sym = short_symbol(ds["floquet_max"]) if "floquet_max" in ds else "max |Floquet multiplier|"
+    handles = [stable_patch(f"stable (Floquet: {sym} < 1)"), unstable_patch(f"unstable (Floquet: {sym} > 1), dotted")]
     if flagged.any():
-        ax.pcolormesh(x, y, np.where(flagged, 1.0, np.nan), cmap=ListedColormap(["0.8"]), shading="nearest")
-    handles = [ax.fill_between([], [], color=STABLE_COLORS.colors[1], label="stable (Floquet)"),
-               ax.fill_between([], [], color=STABLE_COLORS.colors[0], label="unstable (Floquet)")]
-    if flagged.any():
-        handles.append(ax.fill_between([], [], color="0.8", label="flagged (see status)"))
+        handles.append(matplotlib.patches.Patch(facecolor=FLAGGED_COLOR, lw=0,
+                                                label=f"no verdict at {int(flagged.sum())} points (see status)"))
     if "floquet_max" in ds:
         fm = ds["floquet_max"].transpose(ydim, "Omega").values
         if np.isfinite(fm).any() and np.nanmin(fm) < 1 < np.nanmax(fm):
-            art["floquet_contour"] = ax.contour(x, y, fm, levels=[1.0], colors="k",
-                                                linewidths=1.2 if boundaries is None else 0.7,
-                                                linestyles="solid" if boundaries is None else "dashed")
-            handles.append(ax.plot([], [], color="k", lw=1.2 if boundaries is None else 0.7,
-                                   ls="-" if boundaries is None else "--",
-                                   label="max |Floquet multiplier| = 1: contour of the grid "
-                                         f"({len(x)} x {len(y)}; precision ~ its spacing)")[0])
+            lw, ls = (1.2, "solid") if not use_boundaries else (0.7, "dashed")
+            art["floquet_contour"] = ax.contour(x, y, fm, levels=[1.0], colors="k", linewidths=lw, linestyles=ls)
+            handles.append(Line2D([], [], color="k", lw=lw, ls="-" if ls == "solid" else "--",
+                                  label=f"{sym} = 1 interpolated on the grid ({len(x)} × {len(y)} points)"))
     if "P_approx" in ds:
         P = ds["P_approx"].transpose(ydim, "Omega").values
         if np.isfinite(P).any() and np.nanmin(P) < 0 < np.nanmax(P):
-            art["P_stable"] = ax.contourf(x, y, P, levels=[-np.inf, 0.0], colors="none", hatches=["//"])
-            art["P_stable"].set_edgecolor((1.0, 0.5, 0.05, 0.55))
-            art["P_stable"].set_linewidth(0.0)
-            art["P_contour"] = ax.contour(x, y, P, levels=[0.0], colors="C1", linewidths=1.6)
-            handles.append(ax.plot([], [], color="C1", lw=1.6, label="P(Ω) = 0 (damped first approximation)")[0])
-            handles.append(matplotlib.patches.Patch(facecolor="none", edgecolor=(1.0, 0.5, 0.05, 0.55), hatch="//",
-                                                    lw=0,
-                                                    label="P(Ω) < 0: stable by the first approximation"))
+            # its boundary, ticked on the side it calls stable (a hatched area over the dotted one read as
+            # a third fill)
+            art["P_contour"] = ax.contour(x, y, P, levels=[0.0], colors=APPROX_COLOR, linewidths=1.4)
+            p = short_symbol(ds["P_approx"]) or "P"
+            handles.append(Line2D([], [], color=APPROX_COLOR, lw=1.4, path_effects=ticked(),
+                                  label=f"damped first approximation: boundary {p} = 0, ticked on the side it "
+                                        f"calls stable ({p} < 0)"))
     if "stable_sim" in ds:
         sim = ds["stable_sim"].where(ds["status"] == 0).transpose(ydim, "Omega").values
         yy, xx = np.meshgrid(y, x, indexing="ij")
@@ -121,45 +175,62 @@ def stability_chart(ds, boundaries=None, *, fig=None, ax=None):
         sub = (slice(None, None, step_y), slice(None, None, step_x))
         s, xs, ys = sim[sub], xx[sub], yy[sub]
         art["sim_stable"] = ax.scatter(xs[s == 1], ys[s == 1], marker="o", s=14, facecolors="none",
-                                       edgecolors="k", lw=0.8, label="simulation: stable")
-        art["sim_unstable"] = ax.scatter(xs[s == 0], ys[s == 0], marker="x", s=14, color="k", lw=0.8,
-                                         label="simulation: unstable")
-        handles += [art["sim_stable"], art["sim_unstable"]]
-    if boundaries is not None and boundaries.attrs.get("along") == "Omega":
+                                       edgecolors="k", lw=0.8)
+        art["sim_unstable"] = ax.scatter(xs[s == 0], ys[s == 0], marker="x", s=14, color="k", lw=0.8)
+        handles.append((Line2D([], [], marker="o", ls="none", mfc="none", mec="k", ms=4.5),
+                        Line2D([], [], marker="x", ls="none", color="k", ms=4.5),
+                        "direct simulation from a kicked balanced state: settles (○), departs (×)"))
+    if use_boundaries:
         line_dim = ydim if ydim in boundaries["boundary"].dims else None
-        xmap = lambda v: np.asarray(v) / scale  # noqa: E731
-        art["boundaries"] = located.overlay(ax, boundaries, line_dim=line_dim, xmap=xmap, ymap=ymap)
-        handles += [a for a in art["boundaries"] if a.get_label() and not a.get_label().startswith("_")]
-        small = located.small_curves(boundaries, ((x.min(), x.max()), (y.min(), y.max())), xmap=xmap, ymap=ymap)
-        if small is not None:  # an island too small to see: a magnified view of it
+        art["boundaries"] = located.overlay(ax, boundaries, line_dim=line_dim, xmap=xmap, ymap=ymap, ds=ds)
+        handles += located.legend_entries(art["boundaries"], boundaries, ds)
+        if zoom_ax is not None:  # an island too small to see on the chart: magnified beside it
             (x0, x1), (y0, y1) = small
             dx, dy = 0.15 * (x1 - x0), 0.15 * (y1 - y0)
-            inset = ax.inset_axes([0.04, 0.5, 0.36, 0.36])
-            inset.pcolormesh(x, y, verdict, cmap=STABLE_COLORS, vmin=0, vmax=1, shading="nearest")
-            located.overlay(inset, boundaries, line_dim=line_dim, xmap=xmap, ymap=ymap)
-            inset.set_xlim(x0 - dx, x1 + dx)
-            inset.set_ylim(y0 - dy, y1 + dy)
-            inset.tick_params(labelsize=6)
-            inset.xaxis.set_major_locator(MaxNLocator(3))
-            inset.yaxis.set_major_locator(MaxNLocator(4))
-            inset.set_title("magnified: a boundary closed inside the chart", fontsize=7)
-            ax.indicate_inset_zoom(inset, edgecolor="0.3")
-            art["inset"] = inset
+            shade(zoom_ax)
+            located.overlay(zoom_ax, boundaries, line_dim=line_dim, xmap=xmap, ymap=ymap, ds=ds)
+            zoom_ax.set_xlim(x0 - dx, x1 + dx)
+            zoom_ax.set_ylim(y0 - dy, y1 + dy)
+            zoom_ax.xaxis.set_major_locator(MaxNLocator(4))
+            zoom_ax.yaxis.set_major_locator(MaxNLocator(5))
+            zoom_ax.tick_params(labelsize=8)
+            zoom_ax.set_title(wrap(f"magnified (grey frame on the chart): a small region closed by boundaries, "
+                                   f"{xlab.split(',')[0]} = {x0:.4g} to {x1:.4g}", 44), fontsize=8)
+            ax.indicate_inset((x0 - dx, y0 - dy, 2 * dx + x1 - x0, 2 * dy + y1 - y0), inset_ax=zoom_ax,
+                              edgecolor="0.3")
+            art["inset"] = zoom_ax
     ax.set_xlabel(xlab)
     ax.set_ylabel(ylab)
     ax.set_xlim(x.min(), x.max())
     ax.set_ylim(y.min(), y.max())
     if ds[ydim].attrs.get("spacing") == "log":
         ax.set_yscale("log")
+        readable_log_ticks(ax.yaxis)
+    if "P_contour" in art:  # once the scales are set: ticks on the side the first approximation calls stable
+        art["P_ticks"] = ticked_contour(ax, art["P_contour"], x, y, P, color=APPROX_COLOR)
     art["frequencies"] = _frequency_ticks(ax, ds, scale)
-    for h in handles:  # a narrow legend leaves the chart its width
-        h.set_label("\n".join(textwrap.wrap(h.get_label(), 44)))
-    art["legend"] = ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    art["flag_note"] = flag_note(ax, ds, f"{int(flagged.sum())} flagged point(s), grey (see status)")
-    title(fig, ds, "Stability of the balanced state of the pendulum auto-balancer",
-          caption="top axis: the platform's natural frequencies (first approximation)"
-          if art["frequencies"] is not None else None)
+    art["legend"] = _legend(legend_ax or ax, handles, outside=legend_ax is None)
+    title(fig, ds, "Stability of the balanced state of the pendulum auto-balancer", caption=_frequency_note(ds))
     return art
+
+
+def _legend(ax, handles, *, outside: bool):
+    """One legend for the chart: entries given as an artist (its label) or as a tuple of artists
+    and a label (drawn side by side). ``outside``: right of ``ax``; else inside ``ax`` (an Axes of
+    its own, kept for the legend)."""
+    artists, labels = [], []
+    for h in handles:
+        if isinstance(h, tuple):
+            artists.append(h[:-1])
+            labels.append(h[-1])
+        else:
+            artists.append(h)
+            labels.append(h.get_label())
+    labels = [wrap(t, 44) for t in labels]  # a narrow legend leaves the chart its width
+    where = dict(loc="upper left", bbox_to_anchor=(1.01, 1.0)) if outside else dict(loc="upper left",
+                                                                                     bbox_to_anchor=(0.0, 1.0))
+    return ax.legend(artists, labels, fontsize=7.5, handler_map={tuple: HandlerTuple(ndivide=None, pad=0.6)},
+                     borderaxespad=0.0 if not outside else 0.5, **where)
 
 
 def _scalar(ds, name):
@@ -180,8 +251,9 @@ def can_residual(ds) -> bool:
 
 def residual(ds, *, fig=None, ax=None):
     """Residual platform vibration and settling time against crank speed, one colour per curve
-    (the same in every panel; one legend); the pendulums' final phase error where they settled;
-    the platform's natural frequencies as labelled ticks on the top axis."""
+    (the same in every panel; one legend, which says which curves have no value in a panel); the
+    pendulums' final phase error where they settled; the platform's natural frequencies as
+    labelled ticks on the top axis."""
     names = [n for n in ("residual_amplitude", "settling_time", "phase_error") if n in ds]
     fig, axes = new_figure(len(names), 1, width=7.5, height=3.0, fig=fig, ax=ax)
     art = Drawn(figure=fig, axes=axes, lines={})
@@ -191,48 +263,57 @@ def residual(ds, *, fig=None, ax=None):
     step = max(1, len(members) // 8)  # at most ~8 curves stay readable
     members = members[::step]
     settled = np.isfinite(ds["settling_time"]) if "settling_time" in ds else ds["status"] == 0
-    handles = {}
+
+    def member_text(idx):
+        return ", ".join(value_text(ds[d], ds[d].values[i]) for d, i in zip(rest, idx))
+
+    handles, missing = {}, {}
     for r, name in enumerate(names):
         a = axes[r, 0]
         # the model keeps what it could compute at a flagged point (e.g. the residual where the
         # pendulums never settle); NaN marks what it could not, and is not drawn. The phase error is
         # drawn only where the pendulums settled: elsewhere it is the phase of a wandering pendulum.
         da = ds[name].where(settled) if name == "phase_error" else ds[name]
-        missing = []
         for k, idx in enumerate(members):
-            member = da.isel(dict(zip(rest, idx)))
-            lab = ", ".join(f"{d} = {member[d].values:.4g}" for d in rest) or name
-            v = np.asarray(member.values, dtype=float)
+            lab = member_text(idx) or name
+            v = np.asarray(da.isel(dict(zip(rest, idx))).values, dtype=float)
             if not np.isfinite(v).any():
-                missing.append(lab)
+                missing.setdefault(lab, []).append(short_symbol(ds[name]) or name)
                 continue
             (line,) = a.plot(x, v, lw=1.2, color=f"C{k % 10}", label=lab)
             art["lines"][(name, lab)] = line
             handles.setdefault(lab, line)
-        if missing:
-            a.text(0.01, 0.97, "no value: " + "; ".join(missing), transform=a.transAxes, fontsize=7, va="top",
-                   color="0.35")
         v = np.asarray(da.values, dtype=float)
         pos = v[np.isfinite(v)]
         if name in ("residual_amplitude", "phase_error") and pos.size and pos.min() > 0:
             a.set_yscale("log")
         _frequency_ticks(a, ds, scale)
         a.set_xlabel(xlab)
-        a.set_ylabel(label(ds[name], width=30) + ("\n(where settled)" if name == "phase_error" else ""))
+        # the symbol and unit beside the axis, what it is above the panel: a short label beside
+        # each of three stacked panels (the long names wrapped to four lines there)
+        a.set_ylabel(label(ds[name], width=24, name=False))
+        a.set_title(wrap(prose(ds[name].attrs.get("long_name", name))
+                         + (" (drawn where the pendulums settled)" if name == "phase_error" else ""), 80),
+                    fontsize=9, loc="left")
         a.set_xlim(x.min(), x.max())
         a.grid(True, alpha=0.3)
     if rest:
-        order = [lab for lab in (", ".join(f"{d} = {ds[d].values[i]:.4g}" for d, i in zip(rest, idx))
-                                 for idx in members) if lab in handles]
-        art["legend"] = axes[0, 0].legend([handles[k] for k in order], order, fontsize=7, loc="upper left",
-                                          bbox_to_anchor=(1.01, 1.0), title="one colour per curve, all panels",
-                                          title_fontsize=7)
+        order = [member_text(idx) for idx in members]
+        shown = []
+        for k, lab in enumerate(order):
+            if lab not in handles:  # no value in any panel: a legend entry all the same, saying so
+                handles[lab] = Line2D([], [], lw=1.2, color=f"C{k % 10}")
+            note = f" (no {', '.join(missing[lab])}: never settles)" if lab in missing else ""
+            shown.append((handles[lab], lab + note))
+        art["legend"] = axes[0, 0].legend([h for h, _ in shown], [wrap(t, 34) for _, t in shown], fontsize=7,
+                                          loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                                          title="one colour per curve, all panels", title_fontsize=7)
     bad = int((ds["status"].values != 0).sum())
-    caption = "top axis: the platform's natural frequencies (first approximation)"
+    caption = _frequency_note(ds) or ""
     if bad:
-        caption += (f"; {bad} of {ds['status'].size} points flagged (see the status variable): each output is "
-                    "drawn wherever it could be computed")
-    title(fig, ds, "Residual vibration and settling of the pendulum auto-balancer", caption=caption)
+        caption += ((". " if caption else "") + f"{bad} of {ds['status'].size} points flagged ({status_text(ds)}; "
+                    "the status variable says why): each output is drawn wherever it has a value")
+    title(fig, ds, "Residual vibration and settling of the pendulum auto-balancer", caption=caption or None)
     return art
 
 
@@ -253,23 +334,21 @@ def time_history(ds, *, fig=None, ax=None):
     ax = axes[0, 0]
     for name, color in (("xi_history", "C0"), ("eta_history", "C1")):
         if name in point:
-            art[name], = ax.plot(t, point[name].values, lw=0.8, color=color,
-                                 label=point[name].attrs.get("long_name", name))
+            art[name], = ax.plot(t, point[name].values, lw=0.8, color=color, label=label(point[name], width=60))
     ax.set_ylabel("platform displacement [m]")
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
     ax = axes[1, 0]
     for name, color in (("phase_error1_history", "C2"), ("phase_error2_history", "C3")):
         if name in point:
-            art[name], = ax.plot(t, point[name].values, lw=0.9, color=color,
-                                 label=point[name].attrs.get("long_name", name))
+            art[name], = ax.plot(t, point[name].values, lw=0.9, color=color, label=label(point[name], width=60))
     ax.set_ylabel("pendulum phase error [rad]")
     ax.set_xlabel(label(point["revolution"]))
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
     for ax in axes[:, 0]:
         ax.set_xlim(t[0], t[-1])
-    where = ", ".join(f"{d} = {float(point[d]):g}" for d in ds.dims if d != "revolution" and d in point.coords)
+    where = ", ".join(value_text(point[d]) for d in ds.dims if d != "revolution" and d in point.coords)
     title(fig, point, f"Time history at {where}" if where else "Time history")
     return art
 

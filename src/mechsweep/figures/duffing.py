@@ -2,13 +2,14 @@
 
 Soft springs (every epsilon below 0, down towards the separatrix epsilon = -1, where the period
 grows like ln(1 / (1 + epsilon))) are drawn against 1 + epsilon on a log axis, so the divergence
-is a straight line and the points beyond the separatrix (flagged: no oscillation) are marked."""
+is a straight line; the points at or beyond the separatrix (1 + epsilon <= 0: no oscillation,
+flagged) have no place on that axis and are counted in the caption."""
 from __future__ import annotations
 
 import numpy as np
 
 from ._registry import ModelFigure
-from ._style import Drawn, flag_note, label, log_or_symlog, new_figure, ok_values, title
+from ._style import Drawn, flag_note, label, log_or_symlog, new_figure, ok_values, short_symbol, symbol, title
 
 MODELS = ("duffing", "torsional_circuit")  # the torsional circuit stores Duffing's outputs too
 FLOOR = 1e-17  # exact zeros of the period error drawn at the lower edge
@@ -36,13 +37,19 @@ def _soft(ds) -> bool:
     return eps.size > 1 and bool((eps < 0).all()) and eps.min() < -0.5
 
 
+def _inner(math: str) -> str:
+    """The body of a mathtext span ('$x$' -> 'x')."""
+    return math[1:-1] if math.startswith("$") and math.endswith("$") else math
+
+
 def _x(ds):
     """(x values over the grid, x label, beyond-separatrix mask or None): epsilon, or for soft
     springs 1 + epsilon (distance from the separatrix) on a log axis."""
     eps = _flat(ds["epsilon"].broadcast_like(ds["status"]))
     if not _soft(ds):
-        return eps, label(ds["epsilon"]), None
-    return (1.0 + eps, "1 + ε, distance from the separatrix ε = μ A² / ω² = −1 (log axis)",
+        return eps, label(ds["epsilon"], width=70), None
+    e = _inner(short_symbol(ds["epsilon"]) or "epsilon")
+    return (1.0 + eps, f"$1 + {e}$, distance from the soft separatrix $ {e} = -1$ ({symbol(ds['epsilon'])})",
             _status_is(ds, "not_oscillatory"))
 
 
@@ -69,21 +76,24 @@ def _spread(x, y, n=100):
     return ok[first]
 
 
-def _separatrix(ax, ds, beyond, x):
-    """Shade and say where no oscillation exists (beyond the separatrix), and how many points lie
-    there; x is drawn on a log axis so those points (1 + epsilon <= 0) get a band at the left edge."""
+def _separatrix(ax, x):
+    """A log axis of 1 + epsilon, with an arrow at its left edge pointing to the separatrix
+    (1 + epsilon -> 0, off the axis: a log axis has no place for 1 + epsilon <= 0)."""
+    from ._style import readable_log_ticks
+
     ax.set_xscale("log")
-    ok = np.isfinite(x) & (x > 0)
-    lo = x[ok].min() if ok.any() else 1e-3
-    arts = {}
-    if beyond is not None and beyond.any():
-        edge = lo / 3.0
-        arts["beyond"] = ax.axvspan(edge / 3.0, edge, color="0.85", lw=0)
-        arts["beyond_text"] = ax.text(edge / 1.7, 0.5, f"beyond the separatrix\n(ε ≤ −1): no oscillation;\n"
-                                      f"{int(beyond.sum())} points, flagged", rotation=90, ha="center", va="center",
-                                      fontsize=6.5, color="0.3", transform=ax.get_xaxis_transform(), clip_on=True)
-        ax.set_xlim(edge / 3.0, None)
-    return arts
+    readable_log_ticks(ax.xaxis)
+    return {"towards": ax.annotate("separatrix", xy=(0.0, 0.12), xytext=(0.07, 0.12), xycoords="axes fraction",
+                                   textcoords="axes fraction", ha="left", va="center", fontsize=7, color="0.3",
+                                   arrowprops=dict(arrowstyle="->", color="0.3", lw=0.8))}
+
+
+def _beyond_note(ds, beyond) -> str | None:
+    if beyond is None or not beyond.any():
+        return None
+    e = _inner(short_symbol(ds["epsilon"]) or "epsilon")
+    return (f"{int(beyond.sum())} grid points lie at or beyond the separatrix ($1 + {e} \\leq 0$: no oscillation): "
+            "flagged, and not on the log axis")
 
 
 def amplitude_period(ds, *, fig=None, ax=None):
@@ -107,14 +117,16 @@ def amplitude_period(ds, *, fig=None, ax=None):
     if "period_exact" in ds:
         te = _flat((ok_values(ds, "period_exact") * omega).broadcast_like(ds["status"]))
         art["closed_form"], = a.plot(x[order], te[order], "-", color="k", lw=1.3, zorder=3,
-                                     label="closed form 4 K(m) / √(ω² + μA²)")
-    art["linear"] = a.axhline(2 * np.pi, color="0.5", lw=0.8, ls="--", label="linear oscillator: 2π")
+                                     label=r"closed form $4K(m)/\sqrt{\omega^2 + \mu A^2}$")
+    art["linear"] = a.axhline(2 * np.pi, color="0.5", lw=0.8, ls="--", label=r"linear oscillator: $2\pi$")
     if beyond is None:
         log_or_symlog(a, x)
     else:
-        art.update(_separatrix(a, ds, beyond, x))
+        art.update(_separatrix(a, x))
     a.set_xlabel(xlab)
-    a.set_ylabel("T ω, dimensionless period")
+    t_sym = _inner(short_symbol(ds["period"]) if "period" in ds else "$T$")
+    w_sym = _inner(short_symbol(omega) or "omega")
+    a.set_ylabel(f"${t_sym}\\,{w_sym}$, dimensionless period")
     a.grid(True, alpha=0.3)
     art["legend"] = a.legend(fontsize=8)
     art["flag_note"] = flag_note(a, ds)
@@ -137,13 +149,14 @@ def amplitude_period(ds, *, fig=None, ax=None):
         if beyond is None:
             log_or_symlog(a2, x)
         else:
-            art.update({f"{k}_error": v for k, v in _separatrix(a2, ds, beyond, x).items()})
+            art.update({f"{k}_error": v for k, v in _separatrix(a2, x).items()})
         a2.set_xlim(a.get_xlim())
         a2.set_xlabel(xlab)
         a2.set_ylabel(label(ds["period_error"]))
         art["error_legend"] = a2.legend(fontsize=8, loc="lower right")
         a2.grid(True, which="major", alpha=0.3)
-    title(fig, ds, "Duffing amplitude-period relation")
+    title(fig, ds, "Duffing amplitude-period relation: period against the nonlinearity, integrated and in closed "
+                   "form", caption=_beyond_note(ds, beyond))
     return art
 
 
@@ -157,19 +170,20 @@ def kinematic_coefficients(ds, *, fig=None, ax=None):
     for row, name in enumerate(names):
         a = axes[row, 0]
         v = _flat(ok_values(ds, name).broadcast_like(ds["status"]))
-        art[name], = a.plot(x[order], v[order], ".-", ms=2, lw=0.8, color="C2", label=name)
-        ref, txt = (2 * np.pi, "2π") if name == "kv" else (4 * np.pi**2, "4π²")
+        art[name], = a.plot(x[order], v[order], ".-", ms=2, lw=0.8, color="C2", label=short_symbol(ds[name]) or name)
+        ref, txt = (2 * np.pi, r"$2\pi$") if name == "kv" else (4 * np.pi**2, r"$4\pi^2$")
         art[f"{name}_linear"] = a.axhline(ref, color="0.5", ls="--", lw=0.8, label=f"linear oscillator: {txt}")
         if beyond is None:
             log_or_symlog(a, x)
         else:
-            art.update({f"{k}_{name}": v for k, v in _separatrix(a, ds, beyond, x).items()})
+            art.update({f"{k}_{name}": v for k, v in _separatrix(a, x).items()})
         a.set_xlabel(xlab)
         a.set_ylabel(label(ds[name], width=34))
         a.grid(True, alpha=0.3)
         a.legend(fontsize=8)
         art[f"{name}_flag_note"] = flag_note(a, ds)
-    title(fig, ds, "Kinematic invariants of the Duffing oscillator")
+    title(fig, ds, "Kinematic coefficients of the Duffing oscillator against the nonlinearity",
+          caption=_beyond_note(ds, beyond))
     return art
 
 

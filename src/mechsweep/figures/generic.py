@@ -39,19 +39,21 @@ Which figures a dataset gets (:func:`choose`), per output that no figure for its
 from __future__ import annotations
 
 import itertools
-import textwrap
 from dataclasses import dataclass
 
 import matplotlib
 import matplotlib.patheffects as patheffects
 import numpy as np
 from matplotlib.colors import ListedColormap, LogNorm, Normalize
+from matplotlib.legend_handler import HandlerTuple
+from matplotlib.lines import Line2D
 from matplotlib.ticker import LogLocator, MaxNLocator
 
 from . import located
-from ._style import STATUS_OK, Drawn, label, new_figure, title, units_text
+from ._style import (STATUS_OK, Drawn, hatch_unstable, label, name_text, new_figure, prose, readable_log_ticks,
+                     stable_cmap, stable_patch, title, unstable_patch, units_text, value_text, wrap)
 
-STABLE_COLORS = ListedColormap(["#f4c7c3", "#c8e6c9"])  # unstable, stable
+STABLE_COLORS = stable_cmap()  # unstable, stable (colour-blind safe; the unstable side also hatched)
 FLOQUET_SLACK = 1e-6  # a modulus within this of 1 counts as on the unit circle (stable, undamped)
 MAX_PANELS = 4  # panels per generic figure (one per value of the axes the figure does not use)
 FAMILY_MAX = 10  # an axis with at most this many values can give a family of curves
@@ -388,7 +390,9 @@ def heatmap(ds, name, *, x, y, at=None, ax=None, colorbar=True, contours=True):
     mesh = ax.pcolormesh(_edges(xv, xlog), _edges(yv, ylog), np.ma.masked_invalid(v), norm=norm,
                          cmap=cmap, rasterized=True)
     art = {"mesh": mesh, "contours": None, "contour_labels": [], "colorbar": None, "flagged": None,
-           "note": None, "where": where}
+           "note": None, "where": where, "hatch": None}
+    if classes is not None and ds[name].attrs.get("mechsweep_kind") == "verdict":  # unstable cells dotted too
+        art["hatch"] = hatch_unstable(ax, _edges(xv, xlog), _edges(yv, ylog), v)
     # contours interpolate between grid values: not between classes, nor across an axis of fewer
     # than CONTOUR_MIN_VALUES values (straight lines between a few rows mean nothing)
     resolved = min(xv.size, yv.size) >= CONTOUR_MIN_VALUES
@@ -406,6 +410,8 @@ def heatmap(ds, name, *, x, y, at=None, ax=None, colorbar=True, contours=True):
         cb.set_label(label(ds[name], width=34))
         if art["contours"] is not None:
             cb.add_lines(art["contours"])
+        if log and classes is None:
+            readable_log_ticks(cb.ax.yaxis)
         art["colorbar"] = cb
     if flagged is not None:
         bad = flagged.broadcast_like(da).sortby([y, x]).transpose(y, x).values
@@ -415,8 +421,10 @@ def heatmap(ds, name, *, x, y, at=None, ax=None, colorbar=True, contours=True):
             art["note"] = _flag_note(ax, int(bad.sum()), int((bad & finite).sum()))
     if xlog:
         ax.set_xscale("log")
+        readable_log_ticks(ax.xaxis)
     if ylog:
         ax.set_yscale("log")
+        readable_log_ticks(ax.yaxis)
     ax.set_xlim(_edges(xv, xlog)[[0, -1]])
     ax.set_ylim(_edges(yv, ylog)[[0, -1]])
     if art["contours"] is not None:  # after the scales and limits: labels placed where they do not crowd
@@ -470,28 +478,60 @@ def _log_axis(ds, dim) -> bool:
     return bool(lg.max() / lg.min() < lin.max() / lin.min())
 
 
-def _contour_labels(ax, cs):
+def _mid_arc_positions(ax, cs, avoid):
+    """For each level of ``cs``: the point half-way along its longest line (in axes fractions) that
+    ``avoid(x, y)`` does not exclude, searched outwards from the middle (None when every point is
+    excluded)."""
+    to_axes = ax.transScale + ax.transLimits
+    found = []
+    for path in cs.get_paths():
+        verts, codes = np.asarray(path.vertices), path.codes
+        starts = [0] if codes is None else list(np.flatnonzero(codes == path.MOVETO))
+        segs = [verts[a:b] for a, b in zip(starts, starts[1:] + [len(verts)]) if b - a >= 2]
+        best = None
+        for seg in sorted(segs, key=lambda g: -np.hypot(*np.diff(to_axes.transform(g), axis=0).T).sum()):
+            f = to_axes.transform(seg)
+            arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(f, axis=0).T))])
+            bad = np.asarray(avoid(seg[:, 0], seg[:, 1]), dtype=bool)
+            for k in np.argsort(np.abs(arc - arc[-1] / 2)):
+                if not bad[k] and np.isfinite(f[k]).all():
+                    best = seg[k]
+                    break
+            if best is not None:
+                break
+        found.append(best)
+    return found
+
+
+def _contour_labels(ax, cs, *, avoid=None, fmt=None, halo=None, fontsize=8):
     """Inline labels on the contours, at most one per level, none within LABEL_GAP of another (where
-    levels bunch up, e.g. an error growing steeply near one edge, they used to pile up)."""
-    probe = ax.clabel(cs, fmt=_level_text, fontsize=8, inline=False)  # where matplotlib would put them
+    levels bunch up, e.g. an error growing steeply near one edge, they used to pile up). With
+    ``avoid(x, y) -> bool`` (data coordinates), each label sits half-way along its contour, away
+    from the points ``avoid`` marks (e.g. the edge of a region of flagged points, where contours
+    crowd); else where matplotlib would put it."""
+    fmt = fmt or _level_text
     to_axes = ax.transScale + ax.transLimits  # data -> axes fraction (no renderer needed)
+    if avoid is None:
+        probe = ax.clabel(cs, fmt=fmt, fontsize=fontsize, inline=False)  # where matplotlib would put them
+        candidates = [(t.get_text(), np.asarray(t.get_position(), dtype=float)) for t in probe]
+        for t in probe:
+            t.remove()
+        cs.labelTexts, cs.labelCValues, cs.labelXYs = [], [], []
+    else:
+        candidates = [(fmt(lv), xy) for lv, xy in zip(cs.levels, _mid_arc_positions(ax, cs, avoid)) if xy is not None]
     kept, seen = [], set()
-    for t in probe:
-        xy = np.asarray(t.get_position(), dtype=float)
+    for text, xy in candidates:
         f = to_axes.transform(xy)
-        if t.get_text() in seen or not np.isfinite(f).all():
+        if text in seen or not np.isfinite(f).all():
             continue
         if all(abs(f[0] - g[0]) >= LABEL_GAP[0] or abs(f[1] - g[1]) >= LABEL_GAP[1] for _, g in kept):
             kept.append((xy, f))
-            seen.add(t.get_text())
-    for t in probe:
-        t.remove()
-    cs.labelTexts, cs.labelCValues, cs.labelXYs = [], [], []
+            seen.add(text)
     if not kept:
         return []
-    texts = ax.clabel(cs, fmt=_level_text, fontsize=8, inline=True, manual=[tuple(xy) for xy, _ in kept])
+    texts = ax.clabel(cs, fmt=fmt, fontsize=fontsize, inline=True, manual=[tuple(xy) for xy, _ in kept])
     for t in texts:
-        t.set_path_effects(HALO)
+        t.set_path_effects(halo or HALO)
     return list(texts)
 
 
@@ -542,8 +582,10 @@ def nomogram(ds, name, *, x, family=None, at=None, ax=None):
                               color="0.35")
     if is_log(ds, x):
         ax.set_xscale("log")
+        readable_log_ticks(ax.xaxis)
     if _spans_decades(np.concatenate([ln.get_ydata() for ln in art["lines"]])):
         ax.set_yscale("log")
+        readable_log_ticks(ax.yaxis)
     if family is not None and not many:
         art["legend"] = ax.legend(fontsize=7, title=label(ds[family], width=30), title_fontsize=7)
     elif family is not None:
@@ -575,11 +617,9 @@ def _family_colors(ds, family, members):
 
 
 def _member_text(ds, family, member) -> str:
-    sym = ds[family].attrs.get("symbol") or family
     if not is_numeric(ds, family):
         return str(member)
-    unit = units_text(ds[family].attrs.get("units", ""))
-    return f"{sym} = {_value(member)}" + (f" {unit}" if unit else "")
+    return value_text(ds[family], member)
 
 
 def _end_labels(ax, ends):
@@ -610,10 +650,21 @@ def _end_labels(ax, ends):
     return texts
 
 
+def flag_note_text(n_bad: int, n_drawn: int) -> str:
+    """What a note says of the flagged points of a panel: how many, how they are marked, and how
+    many of them still have a value (drawn) or have none (left blank)."""
+    head = f"{n_bad} flagged point{'s' if n_bad != 1 else ''} (status not ok, see status) marked ×"
+    if n_drawn == n_bad:
+        return f"{head}; each has a value, drawn"
+    if n_drawn == 0:
+        return f"{head}; none has a value (left blank)"
+    return f"{head}; {n_drawn} with a value (drawn), {n_bad - n_drawn} without (left blank)"
+
+
 def _flag_note(ax, n_bad, n_drawn):
-    return ax.text(0.01, 0.01, f"{n_bad} point(s) flagged (status not ok), marked ×; drawn where finite: {n_drawn}",
-                   transform=ax.transAxes, fontsize=7, color="0.25", ha="left", va="bottom", zorder=5,
-                   bbox=dict(facecolor="white", alpha=0.85, edgecolor="none", pad=1.0))  # above contour labels
+    # under the panel's x label, outside the panel: inside, it covered data and tick labels
+    return ax.annotate(flag_note_text(n_bad, n_drawn), xy=(0.0, 0.0), xycoords=("axes fraction", ax.xaxis.label),
+                       xytext=(0, -3), textcoords="offset points", fontsize=7, color="0.25", ha="left", va="top")
 
 
 # ----------------------------------------------------------------------------- whole figures
@@ -642,7 +693,7 @@ def _panel_figure(ds, choice: Choice, *, fig=None, ax=None):
     for k in range(len(shown), nrows * ncols):
         fig.delaxes(axes[k // ncols, k % ncols])
     what = {"heatmap": "Map", "nomogram": "Nomogram", "curve": "Curve", "history": "History"}[choice.kind]
-    long = ds[choice.output].attrs.get("long_name", choice.output)
+    long = prose(ds[choice.output].attrs.get("long_name", choice.output))
     cut = f" (first {len(shown)} of {len(members)} slices of {', '.join(rest)})" if len(members) > len(shown) else ""
     if choice.kind == "history":  # the point it belongs to
         cut = " at " + ", ".join(_slice_text(ds, d, ds[d].values[0]) for d in grid_dims(ds) if d in ds.coords)
@@ -684,11 +735,13 @@ def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundarie
             other = ydim if along == xdim else xdim
             art["panels"][-1]["located"] = located.overlay(
                 ax, boundaries, line_dim=other if other in boundaries["boundary"].dims else None,
-                sel={d: i for d, i in sel.items() if d in boundaries["boundary"].dims}, transpose=along == ydim)
+                sel={d: i for d, i in sel.items() if d in boundaries["boundary"].dims}, transpose=along == ydim, ds=ds)
         if is_log(ds, xdim):
             ax.set_xscale("log")
+            readable_log_ticks(ax.xaxis)
         if is_log(ds, ydim):
             ax.set_yscale("log")
+            readable_log_ticks(ax.yaxis)
         ax.set_xlabel(label(ds[xdim]))
         ax.set_ylabel(label(ds[ydim]))
         if others:
@@ -699,50 +752,53 @@ def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundarie
                     fontsize=8, color="0.35")
     for k in range(len(members), nrows * ncols):
         fig.delaxes(axes[k // ncols, k % ncols])
-    handles = [axes[0, 0].fill_between([], [], color=STABLE_COLORS.colors[1], label="stable"),
-               axes[0, 0].fill_between([], [], color=STABLE_COLORS.colors[0], label="unstable"),
-               axes[0, 0].plot([], [], color="k", lw=1.2, label=f"{ds[name].attrs.get('symbol', name)} = 1")[0]]
+    sym = name_text(ds[name])
+    handles = [stable_patch(f"stable: {sym} ≤ 1"), unstable_patch(f"unstable: {sym} > 1 (dotted)"),
+               Line2D([], [], color="k", lw=1.2,
+                                       label="boundary between the grid's stable and unstable cells")]
     if not any(p["boundary"] is not None for p in art["panels"]):
         handles.pop()  # no grid contour drawn
-    seen = set()  # one legend entry per kind of located artist (points, continued curve, fold)
-    for a in (a for p in art["panels"] for a in p.get("located") or ()):
-        text = a.get_label()
-        if text and not text.startswith("_") and text not in seen:
-            seen.add(text)
-            handles.append(a)
-    for h in handles:  # a long label would squeeze the panels beside the legend
-        h.set_label(textwrap.fill(h.get_label(), 34))
+    overlays = [a for p in art["panels"] for a in p.get("located") or ()]
+    entries = [(h, h.get_label()) for h in handles]
+    if overlays:  # the located points and continued curves as one entry, the folds as another
+        entries += [(e[:-1] if len(e) > 2 else e[0], e[-1]) for e in located.legend_entries(overlays, boundaries, ds)]
+    # (a long label would squeeze the panels beside the legend)
+    handles, texts = [h for h, _ in entries], [wrap(t, 34) for _, t in entries]
     cut = (f" (first {len(members)} of {len(every)} slices of {', '.join(others)})" if len(every) > len(members)
            else "")
-    caption = title(fig, ds, f"Floquet stability: {ds[name].attrs.get('long_name', name)}{cut}", caption_box=not below)
+    caption = title(fig, ds, f"Floquet stability: {prose(ds[name].attrs.get('long_name', name))}{cut}",
+                    caption_box=not below)
     # beside two columns of panels; below a single column, where a legend beside it would squeeze it
     # (the fixed parameters then head the legend: a caption box under the panels would lie beneath it)
-    art["legend"] = (fig.legend(handles=handles, loc="outside lower center", fontsize=9, ncols=2,
+    tuples = {tuple: HandlerTuple(ndivide=None, pad=0.6)}
+    art["legend"] = (fig.legend(handles, texts, loc="outside lower center", fontsize=9, ncols=2, handler_map=tuples,
                                 title=caption or None, title_fontproperties={"size": 7.5}) if below else
-                     fig.legend(handles=handles, loc="outside right center", fontsize=9))
+                     fig.legend(handles, texts, loc="outside right center", fontsize=9, handler_map=tuples))
     return art
 
 
 def stability_panel(ax, x, y, values) -> dict:
-    """Stable/unstable shading of one map and the boundary between them (contour of the modulus
-    at 1 + FLOQUET_SLACK, so that an undamped stable side, at 1 up to round-off, counts as stable)."""
+    """Stable/unstable shading of one map (the unstable cells also dotted) and the boundary between
+    them: a modulus at most 1 + FLOQUET_SLACK counts as stable (an undamped stable side sits at 1
+    up to round-off), and the boundary is the contour of that verdict at 1/2, so it runs along the
+    edges of the shaded cells, between the last stable and the first unstable grid point (a contour
+    of the modulus itself hugged the stable points, where it is 1, half a cell off the shading)."""
     verdict = np.where(np.isfinite(values), (values <= 1.0 + FLOQUET_SLACK).astype(float), np.nan)
     art = {"mesh": ax.pcolormesh(x, y, verdict, cmap=STABLE_COLORS, vmin=0, vmax=1, shading="nearest"),
            "boundary": None}
-    margin = values - (1.0 + FLOQUET_SLACK)
+    art["hatch"] = hatch_unstable(ax, x, y, verdict)
     # the grid's contour only where both axes resolve it (across 3 rows it would draw straight
     # lines between rows that mean nothing; located boundaries, when given, are drawn anyway)
     resolved = min(np.size(x), np.size(y)) >= CONTOUR_MIN_VALUES
-    if resolved and np.nanmin(margin, initial=np.inf) < 0 < np.nanmax(margin, initial=-np.inf):
-        art["boundary"] = ax.contour(x, y, np.log1p(np.maximum(margin, -0.5)), levels=[0.0], colors="k",
-                                     linewidths=1.2)
+    if resolved and np.nanmin(verdict, initial=np.inf) < 0.5 < np.nanmax(verdict, initial=-np.inf):
+        art["boundary"] = ax.contour(x, y, verdict, levels=[0.5], colors="k", linewidths=1.2)
     return art
 
 
 def _slice_text(ds, dim, v) -> str:
-    """'dim = value unit' of a panel's slice (no unit for names or a dimensionless axis)."""
-    unit = units_text(ds[dim].attrs.get("units", "")) if np.asarray(v).dtype.kind not in "OUS" else ""
-    return f"{dim} = {_value(v)}" + (f" {unit}" if unit else "")
+    """'symbol = value unit' of a panel's slice (the name for a list of names, no unit for a
+    dimensionless axis), e.g. '$a$ = 0.05 m', 'position = inverted'."""
+    return value_text(ds[dim], v)
 
 
 def _value(v) -> str:

@@ -6,12 +6,11 @@ Nothing here computes a boundary: the curves are read from the boundaries datase
 """
 from __future__ import annotations
 
-import textwrap
 
 import numpy as np
 
 from ._registry import ModelFigure
-from ._style import Drawn, label, new_figure, units_text
+from ._style import Drawn, label, mathtext, new_figure, short_symbol, title, units_text, value_text, wrap
 
 KIND = "boundaries"
 LOCATED_COLOR = "#6a1b9a"
@@ -41,12 +40,24 @@ def mismatch(ds, bds) -> str | None:
     return None
 
 
-def criterion_text(bds) -> str:
-    """'floquet_max = 1' or 'status infeasible -> ok'."""
+def name_of(bds, name, ds=None) -> str:
+    """How a figure writes a variable of the scene: its symbol in mathtext, read from the dataset
+    of the grid (``ds``) or the boundaries dataset, else the name as mathtext (never a literal
+    underscore)."""
+    for where in (ds, bds):
+        if where is not None and name in where.variables:
+            sym = short_symbol(where[name])
+            if sym:
+                return sym
+    return mathtext(name) or str(name)
+
+
+def criterion_text(bds, ds=None) -> str:
+    """'$\\max|\\rho|$ = 1' or 'status infeasible → ok' (status names without underscores)."""
     if bds.attrs.get("criterion", "status") == "status":
         a, b = str(bds.attrs.get("status_change", "? ?")).split()[:2]
-        return f"status {a} → {b}"
-    return f"{bds.attrs['criterion']} = {float(bds.attrs.get('level', 1.0)):g}"
+        return f"status {a.replace('_', ' ')} → {b.replace('_', ' ')}"
+    return f"{name_of(bds, bds.attrs['criterion'], ds)} = {float(bds.attrs.get('level', 1.0)):g}"
 
 
 def tolerance_text(bds) -> str:
@@ -61,24 +72,16 @@ def tolerance_text(bds) -> str:
     return f"rtol {float(bds.attrs.get('rtol', np.nan)):.0e}{widest}"
 
 
-def _lines(bds, line_dim):
-    """(selection of the remaining dims, DataArray over (line_dim, crossing)) for every combination
-    of the boundaries' dims other than line_dim and crossing."""
-    da = bds["boundary"]
-    rest = [d for d in da.dims if d not in (line_dim, "crossing")]
-    for idx in np.ndindex(*(bds.sizes[d] for d in rest)):
-        sel = dict(zip(rest, idx))
-        yield sel, da.isel(sel)
-
-
 def overlay(ax, bds, *, line_dim=None, sel=None, xmap=None, ymap=None, color=None, label_prefix="",
-            transpose=False):
+            transpose=False, ds=None):
     """Draw the boundaries of ``bds`` on ``ax``: the located ones as points at (boundary, line) for
     every value of ``line_dim`` (an axis other than the one located along; None: vertical lines at
     the boundaries), the continued ones as curves. ``sel`` picks the other dims (isel); ``xmap`` /
     ``ymap`` map the stored values to the chart's coordinates; ``transpose``: the chart has the
     axis located along vertical (points at (line, boundary)). Returns the artists (the first of
-    each kind carries a legend label saying what it is and to what tolerance)."""
+    each kind carries a legend label saying what it is and to what tolerance; ``ds``, the dataset
+    of the grid, names the variables by their symbols; :func:`legend_entries` makes the legend's
+    entries of them)."""
     xmap = xmap or (lambda v: v)
     ymap = ymap or (lambda v: v)
     if transpose:  # every (along, other) pair below is drawn as (other, along)
@@ -87,20 +90,20 @@ def overlay(ax, bds, *, line_dim=None, sel=None, xmap=None, ymap=None, color=Non
     along = bds.attrs["along"]
     artists = []
     located = bds["boundary"].isel({k: v for k, v in sel.items() if k in bds["boundary"].dims})
-    text = f"{label_prefix}located along {along}: {criterion_text(bds)} ({tolerance_text(bds)})"
+    text = f"{label_prefix}located along {name_of(bds, along, ds)}: {criterion_text(bds, ds)} ({tolerance_text(bds)})"
     if line_dim is None:
         xs = np.asarray(located.values, dtype=float).ravel()
         for k, x in enumerate(xs[np.isfinite(xs)]):
-            artists.append(ax.axvline(xmap(x), color=color or LOCATED_COLOR, lw=1.0, ls=(0, (1, 1)),
-                                      label=text if k == 0 else None))
+            artists.append(_role(ax.axvline(xmap(x), color=color or LOCATED_COLOR, lw=1.0, ls=(0, (1, 1)),
+                                            label=text if k == 0 else None), "located", text))
     else:
         lines = located.transpose(line_dim, "crossing")
         y = np.repeat(np.asarray(bds[line_dim].values, dtype=float)[:, None], lines.sizes["crossing"], axis=1)
         x = np.asarray(lines.values, dtype=float)
         ok = np.isfinite(x)
         if ok.any():
-            artists.append(ax.scatter(xmap(x[ok]), ymap(y[ok]), s=9, marker="D", color=color or LOCATED_COLOR,
-                                      linewidths=0, zorder=4, label=text))
+            artists.append(_role(ax.scatter(xmap(x[ok]), ymap(y[ok]), s=9, marker="D", color=color or LOCATED_COLOR,
+                                            linewidths=0, zorder=4, label=text), "located", text))
     cont = bds.attrs.get("continue_in")
     if cont and f"curve_{along}" in bds:
         cx = bds[f"curve_{along}"].isel({k: v for k, v in sel.items() if k in bds[f"curve_{along}"].dims})
@@ -112,21 +115,64 @@ def overlay(ax, bds, *, line_dim=None, sel=None, xmap=None, ymap=None, color=Non
             ok = np.isfinite(px) & np.isfinite(py)
             if ok.sum() < 2:
                 continue
+            text = (f"{label_prefix}continued in ({name_of(bds, along, ds)}, {name_of(bds, cont, ds)}) from the "
+                    f"located ones (pseudo-arclength; every point on {criterion_text(bds, ds)} to the criterion's "
+                    "accuracy)")
             (line,) = ax.plot(xmap(px[ok]), ymap(py[ok]), color=color or CONTINUED_COLOR, lw=1.6, zorder=3,
-                              label=(f"{label_prefix}continued in ({along}, {cont}) from the located ones "
-                                     f"(pseudo-arclength; every point on {criterion_text(bds)} to the "
-                                     "criterion's accuracy)") if first else None)
-            artists.append(line)
+                              label=text if first else None)
+            artists.append(_role(line, "continued", text))
             first = False
         if f"fold_{along}" in bds:
             fx = np.asarray(bds[f"fold_{along}"].values, dtype=float).ravel()
             fy = np.asarray(bds[f"fold_{cont}"].values, dtype=float).ravel()
             ok = np.isfinite(fx) & np.isfinite(fy)
             if ok.any():
-                artists.append(ax.scatter(xmap(fx[ok]), ymap(fy[ok]), s=28, marker="o", facecolors="none",
-                                          edgecolors=color or CONTINUED_COLOR, zorder=5,
-                                          label=f"{label_prefix}fold of a continued boundary"))
+                text = f"{label_prefix}fold of a continued boundary (it turns back there)"
+                artists.append(_role(ax.scatter(xmap(fx[ok]), ymap(fy[ok]), s=28, marker="o", facecolors="none",
+                                                edgecolors=color or CONTINUED_COLOR, zorder=5, label=text),
+                                     "fold", text))
     return artists
+
+
+def _role(artist, role, text):
+    """Mark what an overlay artist shows (for :func:`legend_entries`)."""
+    artist._mechsweep_boundary = (role, text)
+    return artist
+
+
+def legend_entries(artists, bds, ds=None) -> list:
+    """Legend entries of :func:`overlay`'s artists, few of them: the located points and the
+    continued curves of one boundary as one entry (a tuple: the artists, then the label), the folds
+    as another. Entries of artists from several calls (panels) are given once."""
+    from matplotlib.lines import Line2D
+
+    found = {}
+    for a in artists:
+        role, text = getattr(a, "_mechsweep_boundary", (None, None))
+        if role is not None:
+            found.setdefault(role, (a, text))
+    entries = []
+    crit = criterion_text(bds, ds)
+    along = name_of(bds, bds.attrs.get("along", ""), ds)
+    marks = []
+    if "located" in found:
+        a = found["located"][0]
+        marks.append(Line2D([], [], marker="D", ls="none", ms=3.5, color=LOCATED_COLOR) if hasattr(a, "get_offsets")
+                     else Line2D([], [], color=LOCATED_COLOR, lw=1.0, ls=(0, (1, 1))))
+    if "continued" in found:
+        marks.append(Line2D([], [], color=CONTINUED_COLOR, lw=1.6))
+    if marks:
+        how = []
+        if "located" in found:
+            points = hasattr(found["located"][0], "get_offsets")  # points on grid lines, or vertical lines
+            how.append(f"located along {along} ({tolerance_text(bds)})" + (" (◆)" if points else ""))
+        if "continued" in found:
+            how.append("continued between them (line)")
+        entries.append((*marks, f"boundary where {crit}: " + ", ".join(how)))
+    if "fold" in found:
+        entries.append((Line2D([], [], marker="o", ls="none", ms=5, mfc="none", mec=CONTINUED_COLOR),
+                        "fold of a continued boundary (it turns back there)"))
+    return entries
 
 
 class _Transposed:
@@ -165,6 +211,10 @@ def small_curves(bds, box, *, xmap=None, ymap=None, frac=0.05):
         if ok.sum() < 2:
             continue
         x, y = xmap(px[ok]), ymap(py[ok])
+        tx, ty = 1e-9 * abs(bx1 - bx0), 1e-9 * abs(by1 - by0)
+        if (x.min() <= min(bx0, bx1) + tx or x.max() >= max(bx0, bx1) - tx or y.min() <= min(by0, by1) + ty
+                or y.max() >= max(by0, by1) - ty):
+            continue  # it reaches the chart's edge: a piece of a boundary that leaves it, not an island
         if (span(x.min(), x.max(), False) < frac * abs(bx1 - bx0)
                 and span(y.min(), y.max(), logy) < frac * abs(span(min(by0, by1), max(by0, by1), logy))):
             xs += [x.min(), x.max()]
@@ -199,11 +249,11 @@ def boundaries(ds, *, fig=None, ax=None):
     combos = list(np.ndindex(*(ds.sizes[d] for d in rest)))
     for k, idx in enumerate(combos[:10]):  # at most 10 colours stay readable
         sel = dict(zip(rest, idx))
-        name = ", ".join(f"{d} = {ds[d].values[i]}" for d, i in sel.items())
+        name = ", ".join(value_text(ds[d], ds[d].values[i]) for d, i in sel.items())
         art["overlays"] += overlay(ax, ds, line_dim=line_dim, sel=sel, color=f"C{k % 10}" if len(combos) > 1 else None,
                 label_prefix=f"{name}: " if name else "")
     unit = units_text(ds["boundary"].attrs.get("units", ""))
-    ax.set_xlabel(f"{along} [{unit}]" if unit else along)
+    ax.set_xlabel(f"{name_of(ds, along)} [{unit}]" if unit else name_of(ds, along))
     if line_dim is not None:
         ax.set_ylabel(label(ds[line_dim]))
         if ds[line_dim].attrs.get("spacing") == "log":
@@ -213,12 +263,10 @@ def boundaries(ds, *, fig=None, ax=None):
         ax.set_ylabel("(no other axis)")
     ax.grid(True, alpha=0.3)
     handles, labels = ax.get_legend_handles_labels()
-    art["legend"] = ax.legend(handles, ["\n".join(textwrap.wrap(lab, 44)) for lab in labels], fontsize=7,
+    art["legend"] = ax.legend(handles, [wrap(lab, 44) for lab in labels], fontsize=7,
                               loc="upper left", bbox_to_anchor=(1.01, 1.0))
     n = int(ds.attrs.get("located", 0))
-    if getattr(fig, "_mechsweep_titled", False):
-        fig.suptitle(f"Boundaries located along {along}: {criterion_text(ds)}\n"
-                     f"{ds.attrs.get('title', '')}: {n} located", fontsize=11)
+    title(fig, ds, f"Boundaries located along {name_of(ds, along)} where {criterion_text(ds)} ({n} located)")
     return art
 
 

@@ -42,29 +42,56 @@ import numpy as np
 
 from .. import status as st
 from ..errors import InputError
-from ..models._spec import ExtraDim, ModelSpec, Output, Param, Setting, wanted_flags
+from .spec import ExtraDim, ModelSpec, Output, Param, Setting, wanted_flags
 from . import load, sources
 
 
 
 @dataclass(frozen=True)
 class ClosedFormModel:
-    """A model whose outputs are closed forms of its parameters, computed per design by
-    ``compute(p, want, row, curves, slot, scratch, *data) -> status`` (module docstring).
+    """A model whose outputs are closed forms of its parameters (no integration), computed per
+    design by one function of yours; the engine owns the parallel loop, the scratch, the statuses
+    and the NaN fill (docs/your-own-model.md, section 11).
 
-    - ``params``: :class:`Param` declarations, in the order of ``p``.
-    - ``outputs``: :class:`Output` declarations: scalars (no ``extra_dims``) and curves over ONE
-      :class:`ExtraDim` shared by all curve outputs (``extra_dims=(dim,)``); ``row`` follows the
-      scalars' order, ``slot`` the curves'.
-    - ``size``: n, the length of the extra dimension (its ``values`` must have that length), of
-      the scratch rows and ``data(n)``'s argument. A model without curves may use it too
-      (e.g. sample points for maxima); default 1.
-    - ``data``: optional ``data(n) -> tuple of numpy arrays`` shared by every design (plain
-      Python, run once per n); passed to ``compute`` after ``scratch``.
-    - ``scratch``: rows of the per-thread scratch array (``scratch`` x n floats).
-    - ``check``: optional cross-parameter rule ``check(given) -> [problems]`` (as ModelSpec.check).
-    - ``workprecision``: optional :class:`~mechsweep.model.workprecision.SizeWorkPrecision`: the
-      error of outputs against ``size`` (``mechsweep bench workprecision MODEL``).
+    Parameters
+    ----------
+    name : str
+        The model's name (how a scene names it; the dataset's ``model`` attribute).
+    description : str
+        One line saying what the model is.
+    params : tuple of Param
+        The parameters, in the order of ``p``.
+    outputs : tuple of Output
+        Scalars (no ``extra_dims``) and curves over ONE :class:`ExtraDim` shared by all curve
+        outputs (``extra_dims=(dim,)``); ``row`` follows the scalars' order, ``slot`` the curves'.
+    compute : callable
+        ``compute(p, want, row, curves, slot, scratch, *data) -> status``: one design's outputs
+        (numba-compilable): writes the wanted scalars into ``row`` and curves into
+        ``curves[slot[k]]``; returns a status code.
+    size : int, optional
+        n, the length of the extra dimension (its ``values`` must have that length), of the
+        scratch rows and ``data(n)``'s argument. A model without curves may use it too (e.g.
+        sample points for maxima); default 1.
+    data : callable, optional
+        ``data(n) -> tuple of numpy arrays`` shared by every design (plain Python, run once per n);
+        passed to ``compute`` after ``scratch``.
+    scratch : int, optional
+        Rows of the per-thread scratch array (``scratch`` x n floats).
+    check : callable, optional
+        ``check(given) -> list of problems``: the cross-parameter rules (as for
+        :class:`OdeModel`).
+    source : str, optional
+        Where the formulas come from.
+    settings : tuple of Setting, optional
+        The model's own solver settings.
+    statuses : tuple of int, optional
+        Status codes its designs can get beyond those its outputs imply.
+    status_notes : Mapping, optional
+        Status code -> what that status means for this model.
+    references : tuple of str, optional
+        The documents the model implements (the dataset's ``references``).
+    workprecision : SizeWorkPrecision, optional
+        The error of outputs against ``size`` (``mechsweep bench workprecision MODEL``).
     """
 
     name: str
@@ -201,7 +228,7 @@ def kernel_for(model: ClosedFormModel, n_data: int, *, origin: str = ""):
         compute = load.jitted(*ref)
         mod = binding.bind(name, f"model {model.name!r}, closed forms per design", {"kernel": engine.ARGS},
                            lambda: engine.build(compute, model.scratch, _guarded(ref)))
-        _KERNELS[name] = _Kernel(binding.Marking(mod.kernel, name))
+        _KERNELS[name] = _Kernel(mod.kernel)
     _BY_MODEL[(id(model), n_data)] = (model, _KERNELS[name])
     return _KERNELS[name]
 
@@ -233,14 +260,14 @@ def check(model: ClosedFormModel, ref: str, file: str) -> None:
             values = np.asarray(dim.values(settings))
         except Exception as exc:
             raise InputError(f"{label}: the values of extra dimension {dim.name!r} raised: "
-                             f"{load._where(exc, file)}") from None
+                             f"{load.where(exc, file)}") from None
         if values.shape != (model.size,):
             raise InputError(f"{label}: extra dimension {dim.name!r} has {values.shape} values; expected "
                              f"size = {model.size} (the model's size)")
     try:
         data = () if model.data is None else model.data(model.size)
     except Exception as exc:
-        raise InputError(f"{label}: data({model.size}) raised: {load._where(exc, file)}") from None
+        raise InputError(f"{label}: data({model.size}) raised: {load.where(exc, file)}") from None
     if not isinstance(data, tuple) or not all(isinstance(a, np.ndarray) for a in data):
         raise InputError(f"{label}: data({model.size}) returned {type(data).__name__}; expected a tuple of "
                          "numpy arrays")
@@ -257,10 +284,10 @@ def check(model: ClosedFormModel, ref: str, file: str) -> None:
                 code = func(*args, *[a.copy() for a in data])
         except IndexError as exc:
             raise InputError(f"{label}: compute indexes beyond its arrays at the probe point p = {p.tolist()} "
-                             f"({sizes}): {load._where(exc, file)}") from None
+                             f"({sizes}): {load.where(exc, file)}") from None
         except Exception as exc:
             raise InputError(f"{label}: compute raised at the probe point p = {p.tolist()}: "
-                             f"{load._where(exc, file)}") from None
+                             f"{load.where(exc, file)}") from None
         if isinstance(code, (bool, np.bool_)) or not isinstance(code, (int, np.integer)) \
                 or int(code) not in st.MEANINGS or int(code) < 0:
             raise InputError(f"{label}: compute returned {code!r} at the probe point p = {p.tolist()}; expected "

@@ -21,7 +21,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..models._spec import Output, Setting
+from .spec import Output, Setting
 
 _PACKAGE = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep
 
@@ -71,13 +71,13 @@ def _observable(x, states, what):
         raise ValueError(f"{what}: expected a state name or a function f(t, y, p) -> float (got {x!r})")
 
 
-_META_KEYS = ("name", "symbol", "unit", "long_name")
+_META_KEYS = ("name", "symbol", "unit", "long_name", "latex")
 
 
 class _Outputs:
     """Settable names and metadata of a measurement's outputs (Floquet, Steady, Kick, History):
     ``output_meta`` maps a generic output name (``name`` + suffix, e.g. ``"sim_settling"``) to
-    overrides {name, symbol, unit, long_name} (any of them; ``name`` not for the main output,
+    overrides {name, symbol, unit, long_name, latex} (any of them; ``name`` not for the main output,
     which is the measurement's ``name``). Kept as sorted pairs (hashable, compared)."""
 
     def __post_init__(self):
@@ -100,10 +100,10 @@ class _Outputs:
         """The name of the output whose generic name is ``name + suffix``."""
         return self._meta(self.name + suffix).get("name", self.name + suffix)
 
-    def _output(self, suffix, symbol, unit, long_name, **kw) -> Output:
+    def _output(self, suffix, symbol, unit, long_name, latex="", **kw) -> Output:
         d = self._meta(self.name + suffix)
         return Output(self.output_name(suffix), d.get("symbol", symbol), d.get("unit", unit),
-                      d.get("long_name", long_name), **kw)
+                      d.get("long_name", long_name), latex=d.get("latex", latex), **kw)
 
     def _check_meta(self):
         generic = [self.name + x for x in self._suffixes()]
@@ -132,11 +132,33 @@ class Crossing:
     to at-or-below, "up": the reverse), searched on [0, t_max].
 
     Status: NO_EVENT when fewer than ``n`` such crossings happen before ``t_max``; an integration
-    failure (MAX_STEPS, STEP_UNDERFLOW, NONFINITE) as the integrator reports it.
+    failure (MAX_STEPS, STEP_UNDERFLOW, NONFINITE, STIFF) as the integrator reports it.
     Cost: one integration to the n-th crossing, 2 n - 1 event searches (crossings in the other
     direction separate consecutive ones, so a search never restarts on the root it just found).
     ``max_steps`` bounds each search. Accuracy: the root of the 7th-order dense output, to a few
-    ulp of t; the time itself carries the integration error (rtol/atol)."""
+    ulp of t; the time itself carries the integration error (rtol/atol).
+
+    Parameters
+    ----------
+    name : str
+        The output's name.
+    state : str
+        The state whose crossing is timed.
+    level : float, optional
+        The level crossed (default 0).
+    direction : {"down", "up"}, optional
+        "down": from above to at-or-below the level; "up": the reverse.
+    n : int, optional
+        The n-th such crossing (default the first).
+    t_max : float, optional
+        The crossing must happen at or before this time (else NO_EVENT).
+    unit : str, optional
+        UDUNITS-2 unit of the output.
+    long_name : str, optional
+        What the output is, in words (default: made from the declaration).
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    """
 
     name: str
     state: str
@@ -180,7 +202,27 @@ class Period:
 
     Status: NO_EVENT when the second crossing does not happen before ``t_max`` (no oscillation
     about ``level``, or a horizon shorter than about two periods); integration failures as reported.
-    Cost: integration over one to two periods, three event searches."""
+    Cost: integration over one to two periods, three event searches.
+
+    Parameters
+    ----------
+    name : str
+        The output's name.
+    state : str
+        The state whose crossings are timed.
+    level : float, optional
+        The level crossed (default 0).
+    direction : {"down", "up"}, optional
+        The direction of the two crossings.
+    t_max : float, optional
+        The second crossing must happen at or before this time (else NO_EVENT).
+    unit : str, optional
+        UDUNITS-2 unit of the output.
+    long_name : str, optional
+        What the output is, in words (default: made from the declaration).
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    """
 
     name: str
     state: str
@@ -209,8 +251,24 @@ class Period:
 class StateAt:
     """The value of a state at time ``t`` (integrated from 0 to exactly ``t``, last step clipped).
 
-    Status: integration failures as reported (MAX_STEPS, STEP_UNDERFLOW, NONFINITE).
-    Cost: one integration over [0, t]."""
+    Status: integration failures as reported (MAX_STEPS, STEP_UNDERFLOW, NONFINITE, STIFF).
+    Cost: one integration over [0, t].
+
+    Parameters
+    ----------
+    name : str
+        The output's name.
+    state : str
+        The state whose value is taken.
+    t : float
+        The time (a number, the same for every point).
+    unit : str, optional
+        UDUNITS-2 unit of the output.
+    long_name : str, optional
+        What the output is, in words (default: made from the declaration).
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    """
 
     name: str
     state: str
@@ -256,7 +314,25 @@ class Extremum:
     Status: integration failures as reported; INFEASIBLE for a window that is not one.
     Cost: one integration over [0, t1] plus event searches that alternate between maxima and
     minima; every evaluation of the event costs one rhs evaluation (and 2 of the expression),
-    which n_rhs does not count."""
+    which n_rhs does not count.
+
+    Parameters
+    ----------
+    name : str
+        The output's name.
+    state : str or callable
+        A state's name, or an expression ``f(t, y, p) -> float``.
+    t0, t1 : float or callable
+        The window: numbers, or functions ``t0(p)``, ``t1(p)``.
+    kind : {"max", "min"}, optional
+        The largest or the smallest value over the window.
+    unit : str, optional
+        UDUNITS-2 unit of the output.
+    long_name : str, optional
+        What the output is, in words (default: made from the declaration).
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    """
 
     name: str
     state: object  # a state's name, or a function f(t, y, p) -> float
@@ -346,7 +422,31 @@ class Floquet(_Outputs):
     2 n*n + 1 calls per Jacobian, counted in n_rhs). The engine then integrates only the n*n
     equations from Phi(0) = I (no state, no J Phi product of its own; ``initial`` is not called,
     though the work-precision reference still uses it); n_rhs counts calls of ``variational``.
-    Everything else (margin, kind, angle, statuses, methods) is as above."""
+    Everything else (margin, kind, angle, statuses, methods) is as above.
+
+    Parameters
+    ----------
+    name : str
+        The output of the largest multiplier modulus (``name_stable``, ``name_kind`` and
+        ``name_angle`` come with it).
+    unit : str, optional
+        Unit of the modulus (default ``"1"``).
+    long_name : str, optional
+        What the output is, in words.
+    initial : callable, optional
+        ``initial(p, y0)``: where the linearised motion starts, when not the model's ``initial``.
+    stable_name, kind_name : str, optional
+        Other names for the verdict and kind outputs.
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    output_meta : Mapping, optional
+        Output name -> dict of ``symbol``/``long_name``/``unit`` for the derived outputs.
+    variational : callable, optional
+        ``variational(t, Phi, p, dPhi)``: the variational system about a known orbit, integrated
+        instead of the model linearised along its own motion.
+    variational_jac : callable, optional
+        ``variational_jac(t, Phi, p, J)``: its Jacobian, for radau.
+    """
 
     name: str
     unit: str = "1"
@@ -355,7 +455,7 @@ class Floquet(_Outputs):
     stable_name: str = ""  # the verdict output's name; default name + "_stable"
     kind_name: str = ""  # the kind output's name; default name + "_kind"
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
-    output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name}} (_Outputs)
+    output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name, latex}} (_Outputs)
     variational: Callable | None = field(default=None, repr=False, compare=False)  # f(t, Phi, p, dPhi) about the known orbit
     variational_jac: Callable | None = field(default=None, repr=False, compare=False)  # g(t, Phi, p, JJ), for radau
     needs_forcing = True
@@ -389,7 +489,7 @@ class Floquet(_Outputs):
     def output(self) -> Output:
         return self._output("", "max |λ|", self.unit,
                             self.long_name or "largest modulus of the Floquet multipliers over one forcing period",
-                            integrated=True, kind="floquet_max")
+                            latex=r"$\max|\lambda|$", integrated=True, kind="floquet_max")
 
     def outputs(self) -> tuple[Output, ...]:
         return (self.output(),
@@ -401,8 +501,8 @@ class Floquet(_Outputs):
                              "critical Floquet multiplier: +1 real positive, -1 real negative, 0 complex pair",
                              integrated=True, needs=(self.name,)),
                 self._output("_angle", "arg μ", "rad",
-                             "argument of the critical Floquet multiplier, folded to [0, pi]: 0 real positive, pi "
-                             "real negative, else a complex pair |mu| exp(+-i angle)", integrated=True,
+                             "argument of the critical Floquet multiplier, folded to [0, π]: 0 real positive, π "
+                             "real negative, else a complex pair |μ| exp(±i angle)", integrated=True,
                              needs=(self.name,)))
 
     def values(self) -> tuple[str, ...]:
@@ -502,7 +602,8 @@ class FirstEvent:
     (dop853: 7th-order dense output; radau: the collocation polynomial; symplectic: the quintic
     Hermite interpolant of each fixed step), so values differ between methods by their errors.
     Status: NO_EVENT when no root before t_max; integration failures as the integrator reports
-    them (MAX_STEPS, STEP_UNDERFLOW, NONFINITE; STIFF is never final: auto restarts with radau).
+    them (MAX_STEPS, STEP_UNDERFLOW, NONFINITE; STIFF with dop853 where its stiffness test fired on
+    the last steps of a spent budget; with auto STIFF is never final: radau starts again).
 
     - ``direction``: "down" (default) the roots where the event goes from > 0 to <= 0, "up" from
       < 0 to >= 0 (the event negated).
@@ -526,6 +627,39 @@ class FirstEvent:
       ``rtol / factor``, ``atol / factor`` with what is left of ``max_steps`` (none left: MAX_STEPS),
       and that pass's value (or status) is the result; not a finite number (e.g. ``math.inf``):
       ILL_CONDITIONED (no tolerance can give ``rtol`` here). Both passes count in n_steps/n_rhs.
+
+    Parameters
+    ----------
+    name : str
+        The output's name.
+    event : callable
+        ``event(t, y, p) -> float``: the function whose root (from > 0 to <= 0) is found.
+    t_max : float or callable, optional
+        The root must come at or before this time (a number, or ``t_max(p)``), else NO_EVENT.
+    value : callable, optional
+        ``value(p, t) -> float``: the output from the root's time (default: the time itself).
+    symbol : str, optional
+        How the output is written in formulas.
+    unit : str, optional
+        UDUNITS-2 unit of the output.
+    long_name : str, optional
+        What the output is, in words (default: made from the declaration).
+    system : System, optional
+        Another equation integrated for this measurement instead of the model's.
+    refine : callable, optional
+        ``refine(p, rtol) -> factor``: integrate again at rtol / factor where the first pass says so.
+    needs_params : tuple of str, optional
+        Optional parameters the output requires.
+    n : int, optional
+        The n-th root instead of the first.
+    direction : {"down", "up"}, optional
+        "up": the roots where the event goes from < 0 to >= 0.
+    since : int, optional
+        The time from root ``since`` to root ``n`` instead of from t = 0.
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    latex : str, optional
+        The output's symbol in matplotlib mathtext, for figure labels (see :class:`Output`).
     """
 
     name: str
@@ -543,13 +677,14 @@ class FirstEvent:
     since: int = 0  # > 0: the time from root `since` to root n (n=2, since=1: a period), not from t = 0
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
     direct = True  # integrates on its own with solver.method (engine/events.py)
+    latex: str = ""  # Output.latex: the symbol in mathtext, for figures
 
     def output(self) -> Output:
         which = "first" if self.n == 1 else f"root {self.n}" + (f" counted from root {self.since}" if self.since else "")
         return Output(self.name, self.symbol or self.name, self.unit,
                       self.long_name or f"value at the {which} root of {self.name}'s event"
                       + ("" if self.direction == "down" else " (upwards)"), integrated=True,
-                      needs_params=tuple(self.needs_params))
+                      needs_params=tuple(self.needs_params), latex=self.latex)
 
     def validate(self, states):
         if not callable(self.event):
@@ -615,6 +750,31 @@ class ClosedForm:
     closed forms of a model whose two-term approximation is past its separatrix): non-OK, the
     output is NaN and, when the closed form is computed, the point gets that status (the first
     failure in the kernel's order: classify, these closed forms, the measurements).
+
+    Parameters
+    ----------
+    name : str
+        The output's name.
+    func : callable
+        The formula: ``func(p)``, or ``func(p, *needs)`` of the outputs it needs.
+    symbol : str, optional
+        How the output is written in formulas.
+    unit : str, optional
+        UDUNITS-2 unit of the output.
+    long_name : str, optional
+        What the output is, in words (default: made from the declaration).
+    needs : tuple of str, optional
+        Outputs the formula takes as arguments, after ``p``.
+    output_needs : tuple of str, optional
+        The outputs it is derived from for the scene's purposes (default: ``needs``).
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    needs_params : tuple of str, optional
+        Optional parameters it requires.
+    kind : str, optional
+        What the value means for the generic figures (see :class:`Output`).
+    latex : str, optional
+        The symbol in matplotlib mathtext, for figure labels (see :class:`Output`).
     """
 
     name: str
@@ -627,6 +787,7 @@ class ClosedForm:
     classify: Callable | None = field(default=None, repr=False, compare=False)
     needs_params: tuple[str, ...] = ()  # Output.needs_params: optional parameters the formula requires
     kind: str = ""  # Output.kind: what the value is, for generic figures (e.g. "verdict")
+    latex: str = ""  # Output.latex: the symbol in mathtext, for figures
 
     def __post_init__(self):
         if self.kind:  # refused here, at the line that wrote it, rather than when the model's spec is built
@@ -635,7 +796,7 @@ class ClosedForm:
     def output(self) -> Output:
         return Output(self.name, self.symbol or self.name, self.unit, self.long_name or self.name,
                       needs=tuple(self.needs if self.output_needs is None else self.output_needs),
-                      needs_params=tuple(self.needs_params), kind=self.kind)
+                      needs_params=tuple(self.needs_params), kind=self.kind, latex=self.latex)
 
 
 

@@ -11,9 +11,8 @@ import numpy as np
 
 from .. import status as st
 from ..errors import InputError
-from ..models._spec import ModelSpec, Param, Setting
+from .spec import ModelSpec, Param, Setting, setting_value
 from .measure import FLOQUET_MARGIN, ClosedForm, Floquet, declared_at
-from .sampled import _number
 
 SYMPLECTIC_ORDERS = (2, 4, 6, 8)
 
@@ -49,7 +48,7 @@ def _warn_user_error(model, P, status, S, rtol) -> None:
 def _moved(rc, settings, solver, first, second, status2) -> np.ndarray:
     """Which re-checked points moved (sampled.Recheck's rule): an asked-for output that differs by more
     than factor (rtol max(|v|, |v'|) + atol), NaN in one run only, or a second run that failed."""
-    factor = _number(rc.factor, settings)
+    factor = setting_value(rc.factor, settings)
     bad = status2 != st.OK
     with np.errstate(invalid="ignore"):
         for name, a in first.items():
@@ -88,6 +87,19 @@ def worse(current, new, order):
         return np.where(current == st.OK, new, current)
     rank = ranks(order)
     return np.where(rank[new] < rank[current], new, current)
+
+
+def _lanes(route, family: str) -> bool | None:
+    """The lane choice for the kernels of ``family`` ("kernel", "trajectory") in a plan's ``route``
+    ({family: "lanes" or "point"}); None when no route is given (the engine's default)."""
+    return None if route is None else route.get(family) == "lanes"
+
+
+def _facts(name: str, from_points: int, forced) -> dict:
+    """What a plan decides a lane route from (mechsweep/plan.py, choose_route)."""
+    from .compile import lanes_recorded
+
+    return {"record": name, "recorded": lanes_recorded(name), "from_points": int(from_points), "forced": forced}
 
 
 @contextmanager
@@ -159,7 +171,10 @@ class Invariant:
 
 @dataclass(frozen=True)
 class OdeModel:
-    """A model y' = rhs(t, y, p) released from ``initial(p, y0)`` at t = 0.
+    """An ODE model: y' = rhs(t, y, p) from ``initial(p, y0)`` at t = 0, and what to measure.
+
+    A model of your own is one of these, declared in a Python file (docs/your-own-model.md): the
+    engine compiles one parallel kernel for it and runs, stores and plots it like a built-in model.
 
     The layout of ``p`` (float64, one row per point): ``p[0 .. P-1]`` the declared ``params`` in
     order (a categorical parameter as the index of its choice), ``p[P .. P+S-1]`` the values of the
@@ -167,55 +182,121 @@ class OdeModel:
     ``internal`` slots (written by ``prepare``, zero before), then scratch the engine uses: read
     nothing beyond ``P + S + I``.
 
-    - ``states``: names of the components of y.
-    - ``rhs(t, y, p, dydt)``: plain numba-compilable Python (no decorator needed) writing every
-      ``dydt[i]``; returns nothing. ``initial(p, y0)``: writes every ``y0[i]``.
-    - ``measurements``: instances of the classes in :mod:`mechsweep.model.measure`; each gives
-      its output(s) named by its ``name``.
-    - ``closed_forms``: :class:`~mechsweep.model.measure.ClosedForm` outputs (formulas of p and of
-      other outputs), computed only when wanted.
-    - ``forcing_period``: optional ``f(p) -> T`` of a T-periodic forcing (Floquet needs it).
-    - ``jac``: optional ``jac(t, y, p, J)`` writing every ``J[i, j]`` = d dydt[i] / d y[j]; radau
-      and Floquet use it, else the engine differentiates ``rhs`` (central differences).
-    - ``accel``: optional separable form for the symplectic method: y = (q, v), q' = v and
-      ``accel(t, q, p, a)`` writes v' (len(states) even, q the first half); together with
-      ``symplectic_step(p, rtol) -> h`` (the fixed step for a tolerance) and ``symplectic_order``
-      (2, 4, 6 or 8). Only then is ``symplectic`` one of the model's methods.
-    - ``classify(p) -> status``: optional; a status code of :mod:`mechsweep.status` before any
-      computation (non-OK: every output NaN with that status; e.g. NO_MOTION, INFEASIBLE).
-    - ``prepare(p) -> status``: optional; runs before the measurements of each point (after the
-      closed forms): writes the ``internal`` slots the rhs, event and value read (e.g. a scaling)
-      and may refuse the integration (non-OK: measurements NaN with that status; closed forms kept).
-    - ``output_order``: optional order of the outputs in the ModelSpec (default: measurements, then
-      closed forms).
-    - ``status_order``: optional tuple of status codes, most severe first. Without it a point's status
-      is the first failure in the kernel's order (classify, closed forms, prepare, the measurements
-      in declared order, the sampled ones last). With it, every stage runs on every point the model's
-      ``classify``/``prepare`` accept and whose integration did not fail, and the point's status is
-      the most severe (first in this order) among the statuses of the outputs asked for; a status
-      not listed ranks above every listed one. A measurement's own ``classify(p) -> status`` (every
-      measurement class has one, as ClosedForm) skips that measurement at a point (its outputs NaN,
-      its status counted only when one of its outputs is asked for or needed) with or without an
-      order; the other measurements' values are kept.
-    - ``check(given) -> [problems]``: optional cross-parameter rules of a scene, as
-      ``ModelSpec.check``: ``given`` = {parameter: tuple of the values the scene gives it (a range
-      axis: its two ends)}, the parameters the scene does not give absent; each problem a string
-      "key: message" (e.g. "l3: missing; ..."). The scene is refused (InputError, exit 2) with them.
-    - ``invariant``: optional :class:`Invariant`, a quantity the equation conserves along undamped
-      trajectories (an energy); the work-precision bench reports its drift (sweeps never compute it).
-    - ``workprecision``: optional :class:`~mechsweep.model.workprecision.WorkPrecision`: the default
-      scene, output and exact reference (a closed form) of the model's work-precision report.
-    - ``switch_times``: optional times in [0, T) of one forcing period at which the rhs (or a
-      derivative of it) jumps, repeated every period T = forcing_period(p): a tuple of increasing
-      constants, or ``switch_times(p) -> tuple of floats`` (numba-compilable). Every integration
-      then ends a step exactly on each switch and starts the next step there afresh; the rhs is
-      never evaluated at a switch time itself (model/switches.py). A point where they are not
-      increasing times in [0, T) gets INFEASIBLE. Needs ``forcing_period``; not with ``accel``.
+    Parameters
+    ----------
+    name : str
+        The model's name: how a scene names it (with ``models=`` or an entry point) and the
+        dataset's ``model`` attribute.
+    description : str
+        One line saying what the model is (``mechsweep models``, the glossary).
+    params : tuple of Param
+        The parameters, in the order ``p`` holds them.
+    states : tuple of str
+        Names of the components of y.
+    rhs : callable
+        ``rhs(t, y, p, dydt)``: plain numba-compilable Python (no decorator needed) writing every
+        ``dydt[i]``; returns nothing.
+    initial : callable
+        ``initial(p, y0)``: writes every ``y0[i]``.
+    measurements : tuple, optional
+        Instances of the measurement classes (:class:`Crossing`, :class:`Period`, :class:`StateAt`,
+        :class:`Extremum`, :class:`Floquet`, :class:`FirstEvent`, :class:`Steady`, :class:`Kick`,
+        :class:`History`); each gives its output(s) named by its ``name``.
+    forcing_period : callable, optional
+        ``forcing_period(p) -> T`` of a T-periodic forcing (Floquet and the sampled trajectories
+        need it).
+    jac : callable, optional
+        ``jac(t, y, p, J)`` writing every ``J[i, j]`` = d dydt[i] / d y[j]; radau and Floquet use
+        it, else the engine differentiates ``rhs`` (central differences).
+    source : str, optional
+        Where the equations come from (the dataset's ``model_source``).
+    settings : tuple of Setting, optional
+        The model's own solver settings (``[solver]`` keys, e.g. a horizon).
+    statuses : tuple of int, optional
+        Status codes the model's points can get beyond those its outputs imply (``mechsweep info``
+        and the glossary list them).
+    status_notes : Mapping, optional
+        Status code -> what that status means for this model.
+    closed_forms : tuple of ClosedForm, optional
+        Outputs that are formulas of p and of other outputs, computed only when wanted.
+    internal : tuple of str, optional
+        Names of the slots after the settings that ``prepare`` writes (e.g. a scaling).
+    classify : callable, optional
+        ``classify(p) -> status``: a status code of :mod:`mechsweep.status` before any computation
+        (non-OK: every output NaN with that status; e.g. NO_MOTION, INFEASIBLE).
+    prepare : callable, optional
+        ``prepare(p, rtol) -> status``: runs before the measurements of each point (after the
+        closed forms): writes the ``internal`` slots the rhs, event and value read and may refuse
+        the integration (non-OK: measurements NaN with that status; closed forms kept).
+    accel : callable, optional
+        The separable form for the symplectic method: y = (q, v), q' = v and ``accel(t, q, p, a)``
+        writes v' (``len(states)`` even, q the first half); together with ``symplectic_step(p,
+        rtol) -> h`` (the fixed step for a tolerance) and ``symplectic_order`` (2, 4, 6 or 8).
+        Only then is ``symplectic`` one of the model's methods.
+    symplectic_step : callable, optional
+        See ``accel``.
+    symplectic_order : int, optional
+        See ``accel`` (default 8).
+    output_order : tuple of str, optional
+        The order of the outputs (default: measurements, then closed forms).
+    references : tuple of str, optional
+        The documents the model implements: the dataset's CF ``references`` attribute.
+    recheck : Recheck, optional
+        The sampled outputs integrated again at a tighter rtol, to flag those that move.
+    status_order : tuple of int, optional
+        Status codes, most severe first. Without it a point's status is the first failure in the
+        kernel's order (classify, closed forms, prepare, the measurements in declared order, the
+        sampled ones last). With it, every stage runs on every point the model's
+        ``classify``/``prepare`` accept and whose integration did not fail, and the point's status
+        is the most severe (first in this order) among the statuses of the outputs asked for; a
+        status not listed ranks above every listed one. A measurement's own ``classify(p) ->
+        status`` skips that measurement at a point (its outputs NaN, its status counted only when
+        one of its outputs is asked for or needed) with or without an order.
+    check : callable, optional
+        ``check(given) -> list of problems``: cross-parameter rules of a scene; ``given`` =
+        {parameter: tuple of the values the scene gives it (a range axis: its two ends)}, the
+        parameters the scene does not give absent; each problem a string "key: message". The
+        scene is refused (exit 2) with them.
+    invariant : Invariant, optional
+        A quantity the equation conserves along undamped trajectories (an energy); the
+        work-precision bench reports its drift (sweeps never compute it).
+    workprecision : WorkPrecision, optional
+        The default scene, output and exact reference of the model's work-precision report.
+    switch_times : tuple of float or callable, optional
+        Times in [0, T) of one forcing period at which the rhs (or a derivative of it) jumps,
+        repeated every period T = forcing_period(p): increasing constants, or ``switch_times(p) ->
+        tuple of floats`` (numba-compilable). Every integration then ends a step exactly on each
+        switch and starts the next step there afresh; the rhs is never evaluated at a switch time
+        itself. A point where they are not increasing times in [0, T) gets INFEASIBLE. Needs
+        ``forcing_period``; not with ``accel``.
 
+    Notes
+    -----
     Methods (``solver.method``): dop853, radau, auto (dop853 with the stiffness test; a stiff point
     is integrated again by radau) and, with ``accel``, symplectic. FirstEvent measurements (and a
     lone first Crossing) offer them all; the other measurements observe one DOP853 trajectory and
     offer dop853 only (a scene asking another method for them is refused when it is loaded).
+
+    Examples
+    --------
+    A harmonic oscillator and its period (in a file ``harmonic.py``; a scene names it
+    ``model = "harmonic.py:HARMONIC"``):
+
+    >>> import math
+    >>> from mechsweep.model import OdeModel, Param, Period
+    >>> def rhs(t, y, p, dydt):
+    ...     dydt[0] = y[1]
+    ...     dydt[1] = -p[0] * p[0] * y[0]
+    >>> def initial(p, y0):
+    ...     y0[0] = 1.0
+    ...     y0[1] = 0.0
+    >>> HARMONIC = OdeModel(
+    ...     name="harmonic", description="x'' + w^2 x = 0 from x = 1 at rest",
+    ...     params=(Param("w", "ω", "rad s-1", "angular frequency", lo=0.0, lo_open=True),),
+    ...     states=("x", "v"), rhs=rhs, initial=initial,
+    ...     measurements=(Period("period", "x", unit="s", long_name="period"),))
+    >>> HARMONIC.spec().output_names()
+    ('period',)
     """
 
     name: str
@@ -435,7 +516,7 @@ class OdeModel:
 
         model = self
 
-        def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
+        def evaluate(P, wanted, solver, out, status, n_steps, n_rhs, route=None):
             chosen, closed = model._plan(wanted)
             if not chosen and not closed:
                 return
@@ -449,9 +530,10 @@ class OdeModel:
                 before = status.copy()
                 rest = [o for o in wanted if not any(o == x.name for m in sampled for x in _outputs(m))]
                 if rest:
-                    evaluate(P, tuple(rest), solver, out, status, n_steps, n_rhs)
+                    evaluate(P, tuple(rest), solver, out, status, n_steps, n_rhs, route)
                 code = before.copy()
-                trajectory.evaluate(model, sampled, P, wanted, solver, out, code, n_steps, n_rhs)
+                trajectory.evaluate(model, sampled, P, wanted, solver, out, code, n_steps, n_rhs,
+                                    lanes=_lanes(route, "trajectory"))
                 S = np.array([float(solver.settings.get(x.name, x.default)) for x in model.settings], dtype=np.float64)
                 _warn_user_error(model, P, code, S, solver.rtol)
                 status[:] = worse(status, code, model.status_order)
@@ -464,7 +546,8 @@ class OdeModel:
             # closed forms by a run-time mask (one kernel for every choice of them), or none at all
             # when none is wanted (a lean kernel: a cold compile of a period-only scene compiles no formula)
             computable = model.computable_closed_forms(chosen) if closed else ()
-            kernel = kernel_for(model, chosen, closed=computable, method=method, points=P.shape[0])
+            kernel = kernel_for(model, chosen, origin=origin, module=module, attr=attr, closed=computable,
+                                method=method, lanes=_lanes(route, "kernel"))
             wanted_closed = {c.name for c in closed}
             need = np.array([c.name in wanted_closed for c in computable], dtype=np.bool_)
             cols = columns(chosen)
@@ -478,7 +561,7 @@ class OdeModel:
             _warn_user_error(model, P, status, S, rtol)
             rc = model.recheck if chosen and solver is not None and model.recheck is not None else None
             again = (np.flatnonzero(status == st.OK)
-                     if rc is not None and rc.every_measurement and _number(rc.factor, settings) > 0.0 else None)
+                     if rc is not None and rc.every_measurement and setting_value(rc.factor, settings) > 0.0 else None)
             if again is not None and again.size:  # the same kernel at the tighter rtol, closed forms left out
                 t2 = np.full((again.size, table.shape[1]), np.nan)
                 s2 = np.zeros(again.size, dtype=status.dtype)
@@ -498,6 +581,32 @@ class OdeModel:
             for j, c in enumerate(computable):
                 if c.name in out:
                     out[c.name][:] = table[:, cols[-1] + j]
+
+        def plan(wanted, solver) -> dict:
+            """What ``evaluate(P, wanted, solver, ...)`` computes and which of its kernels have a lane
+            route (see ModelSpec.plan), decided as evaluate decides, without compiling anything."""
+            chosen, closed = model._plan(wanted)
+            return {"measurements": [m.name for m in chosen], "closed_forms": [c.name for c in closed],
+                    "lanes": lane_facts(wanted, solver)}
+
+        def lane_facts(wanted, solver) -> dict:
+            from . import compile as engine, trajectory
+
+            chosen, closed = model._plan(wanted)
+            if not chosen and not closed:
+                return {}
+            sampled = tuple(m for m in chosen if getattr(m, "sampled", False))
+            if sampled:
+                rest = [o for o in wanted if not any(o == x.name for m in sampled for x in _outputs(m))]
+                facts = lane_facts(tuple(rest), solver) if rest else {}
+                name = trajectory.lane_name(model, solver.method)
+                if name is not None:
+                    facts["trajectory"] = _facts(name, trajectory.LANES_FROM_POINTS, trajectory.USE_LANES)
+                return facts
+            method = solver.method if (solver is not None and chosen) else "dop853"
+            computable = model.computable_closed_forms(chosen) if closed else ()
+            name = engine.lane_name(model, chosen, origin=origin, closed=computable, method=method)
+            return {} if name is None else {"kernel": _facts(name, engine.LANES_FROM_POINTS, engine.USE_LANES)}
 
         def _finish_measurements(model, chosen, cols, table, wanted, solver, out, status) -> list[str]:
             """The measurements' outputs from the kernel's table into ``out`` (their statuses into
@@ -542,6 +651,7 @@ class OdeModel:
             references=self.references,
             check=self.check,
             declaration=self,
+            plan=plan,
         )
         if self.recheck is not None:  # the re-check adds NOT_REPRODUCIBLE to the statuses a point can get
             import dataclasses

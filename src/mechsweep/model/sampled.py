@@ -27,7 +27,7 @@ from typing import Callable
 import numpy as np
 
 from .._jit import jit, jit_into_caller
-from ..models._spec import Output
+from .spec import Output
 from ..status import NONFINITE as st_NONFINITE, OK as st_OK
 from . import measure
 from .measure import _Outputs, _observable, _records_where
@@ -139,7 +139,33 @@ class Steady(_Outputs):
     point is NO_EVENT (the transient has not died out within the horizon) and the outputs NaN.
     Status: integration failures as reported; NONFINITE for a non-finite sample.
     Cost: one integration over the horizon (shared with the other sampled measurements) plus one
-    dense-output evaluation (3 rhs calls) per step that contains a sample."""
+    dense-output evaluation (3 rhs calls) per step that contains a sample.
+
+    Parameters
+    ----------
+    name : str
+        The output of the peak (``name_h1`` and ``name_phase`` come with it).
+    of : str or callable
+        A state's name, or ``f(t, y, p) -> float``.
+    horizon : float, optional
+        Forcing periods simulated.
+    window : float, optional
+        The fraction of the horizon at its end that is measured, in (0, 0.5].
+    samples_per_period : int, optional
+        Samples per forcing period in the window.
+    settle_rtol, settle_atol : float, optional
+        The settling test between the last two windows' peaks (``settle_rtol=None``: no test).
+    unit : str, optional
+        UDUNITS-2 unit of the output.
+    long_name : str, optional
+        What the output is, in words (default: made from the declaration).
+    value : callable, optional
+        ``value(p, x) -> float``: the stored peak and amplitude from the measured ones.
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    output_meta : Mapping, optional
+        Output name -> dict of ``symbol``/``long_name``/``unit`` for the derived outputs.
+    """
 
     name: str
     of: object
@@ -152,7 +178,7 @@ class Steady(_Outputs):
     long_name: str = ""
     value: Callable | None = field(default=None, repr=False, compare=False)
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
-    output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name}} (_Outputs)
+    output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name, latex}} (_Outputs)
     sampled = True
     n_values = 4
 
@@ -161,14 +187,19 @@ class Steady(_Outputs):
 
     def outputs(self) -> tuple[Output, ...]:
         what = self.of if isinstance(self.of, str) else self.name
+        # the derived outputs carry the user's words for the main one (its long_name) when given
+        about = f"{self.long_name}: " if self.long_name else ""
         return (self._output("", f"max |{what}|", self.unit,
                              self.long_name or f"steady-state peak of |{what}| over the last {self.window} of the "
                              "horizon", integrated=True),
-                self._output("_h1", "A1", self.unit, f"first-harmonic amplitude of {what} (forcing period)",
+                self._output("_h1", "A1", self.unit,
+                             f"{about}first-harmonic amplitude (forcing period)" if about else
+                             f"first-harmonic amplitude of {what} (forcing period)", latex=r"$A_1$",
                              integrated=True),
                 self._output("_phase", "phase", "rad",
-                             f"phase lag of the first harmonic of {what}: {what} = A1 cos(2 pi t / T - phase)",
-                             integrated=True))
+                             f"{about}phase lag of the first harmonic (forcing period)" if about else
+                             f"phase lag of the first harmonic of {what}: {what} ≈ A1 cos(2π t / T − phase)",
+                             latex=r"$\varphi_1$", integrated=True))
 
     def validate(self, states):
         self._check_meta()
@@ -256,7 +287,37 @@ class Kick(_Outputs):
     t, per point (e.g. ``t / p[k]`` for a model integrated in a scaled time tau = Omega t), applied
     to a finite settling time only.
     Status: integration failures as reported; NONFINITE for a non-finite error or response sample.
-    Cost: one integration over the horizon (shared), one dense output per step with a sample."""
+    Cost: one integration over the horizon (shared), one dense output per step with a sample.
+
+    Parameters
+    ----------
+    name : str
+        The verdict's output (``name_settling`` and ``name_final`` come with it).
+    error : callable
+        ``error(t, y, p) >= 0``: the distance from the reference motion.
+    response : callable, optional
+        A second quantity that must decay too.
+    horizon : float, optional
+        Forcing periods simulated.
+    settle_threshold, decay_ratio, growth_ratio : float, optional
+        The verdict's thresholds (see above).
+    monitor_per_period, dense_per_period : int, optional
+        Samples per period over the whole horizon and in its last part.
+    late, early : float, optional
+        The fractions of the horizon compared at its end and start.
+    growth_floor : float, optional
+        Below this error the end is not read as growing.
+    unit : str, optional
+        Unit of ``name_final``.
+    time_unit : str, optional
+        Unit of ``name_settling`` (default ``"s"``).
+    time_value : callable, optional
+        ``time_value(p, t) -> float``: the stored settling time from the integration's time.
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    output_meta : Mapping, optional
+        Output name -> dict of ``symbol``/``long_name``/``unit`` for the derived outputs.
+    """
 
     name: str
     error: Callable = field(repr=False, compare=False)
@@ -274,7 +335,7 @@ class Kick(_Outputs):
     time_unit: str = "s"
     time_value: Callable | None = field(default=None, repr=False, compare=False)
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
-    output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name}} (_Outputs)
+    output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name, latex}} (_Outputs)
     sampled = True
     n_values = 5  # verdict, settling time, final error; the settling time before time_value, the simulated time
 
@@ -374,7 +435,33 @@ class History(_Outputs):
     (coordinate: the instants in forcing periods; every History of a model with the same ``dim``
     must use the same horizon and samples). ``value(p, x) -> float`` (optional): each stored sample
     from the observed one, per point (applied to finite samples). Status: integration failures as
-    reported; NONFINITE for a non-finite sample. Cost: shared integration, one dense output per step with a sample."""
+    reported; NONFINITE for a non-finite sample. Cost: shared integration, one dense output per step with a sample.
+
+    Parameters
+    ----------
+    name : str
+        The output's name.
+    of : str or callable
+        A state's name, or ``f(t, y, p) -> float``.
+    horizon : float, optional
+        Forcing periods simulated.
+    samples : int, optional
+        Instants stored, evenly spread over [0, horizon] periods.
+    dim : str, optional
+        The extra dimension's name (Histories sharing one share horizon and samples).
+    dim_long_name : str, optional
+        Its coordinate's long name.
+    unit : str, optional
+        UDUNITS-2 unit of the output.
+    long_name : str, optional
+        What the output is, in words (default: made from the declaration).
+    value : callable, optional
+        ``value(p, x) -> float`` per stored sample.
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its outputs NaN with that status).
+    output_meta : Mapping, optional
+        Output name -> dict of ``symbol``/``long_name``/``unit`` for the derived outputs.
+    """
 
     name: str
     of: object
@@ -386,7 +473,7 @@ class History(_Outputs):
     long_name: str = ""
     value: Callable | None = field(default=None, repr=False, compare=False)
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
-    output_meta: object = ()  # {name: {symbol, unit, long_name}} (_Outputs; its one output is the main one)
+    output_meta: object = ()  # {name: {symbol, unit, long_name, latex}} (_Outputs; its one output is the main one)
     sampled = True
     n_values = 0
 
@@ -394,7 +481,7 @@ class History(_Outputs):
         return np.linspace(0.0, _number(self.horizon, settings), int(_number(self.samples, settings)))
 
     def outputs(self) -> tuple[Output, ...]:
-        from ..models._spec import ExtraDim
+        from .spec import ExtraDim
         what = self.of if isinstance(self.of, str) else self.name
         dim = ExtraDim(self.dim, "1", self.dim_long_name, self._coordinate_defaults)
         return (self._output("", f"{what}(t)", self.unit, self.long_name or f"{what} over the simulation",

@@ -11,8 +11,8 @@ the model itself: the bench keeps no table of models.
 
 ``scene``: the scene the sample of points is drawn from, a path relative to the folder of the file
 in which the declaration is written (an absolute path as it is); a path ``sweeps/NAME.toml`` that does
-not exist there names the copy of mechsweep's shipped ``sweeps/NAME.toml`` packaged with the bench
-(mechsweep/bench/scenes). Empty: no default scene (``--scene`` is then required).
+not exist there names mechsweep's shipped ``sweeps/NAME.toml`` (installed with the package:
+mechsweep.examples). Empty: no default scene (``--scene`` is then required).
 """
 from __future__ import annotations
 

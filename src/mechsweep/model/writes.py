@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from .load import with_engine_helpers
 
 
 @dataclass(frozen=True)
@@ -143,7 +144,7 @@ def param_writes(func, depths: tuple | None = None) -> dict:
     code = getattr(py, "__code__", None)
     if code is None or not isinstance(py, types.FunctionType):
         return {}
-    key = (code, depths)
+    key = (code, code.co_filename, depths)  # code objects compare equal across files: the file names the finding
     if key in _SCANS:
         return _SCANS[key]
     _SCANS[key] = {}  # a recursive helper: what is found so far
@@ -594,10 +595,8 @@ def _check_static(call: Call, label: str) -> None:
 
 
 def _check_dynamic(call: Call, label: str) -> None:
-    from .load import _with_engine_helpers
-
     own = getattr(call.func, "py_func", call.func)
-    func = _with_engine_helpers(own)
+    func = with_engine_helpers(own)
     args = call.args
     before = [a.copy() if isinstance(a, np.ndarray) else None for a in args]
     try:

@@ -131,7 +131,7 @@ FOURBAR_CURVES = ("Fx_phi", "Fy_phi", "M_phi", "T_phi", "M_static_phi", "T_stati
 
 # ----------------------------------------------------------------------------- slider-crank layout
 SLIDER_PARAMS = (
-    "r", "l", "lambda", "e", "branch",
+    "r", "l", "lam", "e", "branch",
     "m1", "r1", "theta1", "I1",
     "m2", "r2", "theta2", "I2",
     "m3",
@@ -776,7 +776,7 @@ def slider_loads(r, e, c1, s1, w1, al1, c2, s2, w2, al2, xB, vB, aB,
 
 @jit_noalloc
 def slider_conrod_length(p):
-    """l, or r / lambda when l is absent (NaN)."""
+    """l, or r / lam when l is absent (NaN)."""
     return p[S_L] if not math.isnan(p[S_L]) else p[S_R] / p[S_LAM]
 
 

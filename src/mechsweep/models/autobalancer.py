@@ -55,7 +55,7 @@ for the stability outputs (theta itself is still given there).
 Floquet: the variational equations Phi' = J(tau, z*(tau)) Phi (8x8) about the exact balanced
 solution z* (x = y = 0, gamma_i = tau + Theta_i, known in closed form), over one period tau = 2 pi:
 the 64 equations of Phi alone (``variational``, ``variational_jac``: the layer's Floquet with the
-model's own variational system; the hand-written kernels in models/_autobalancer_kernels.py, a
+model's own variational system; the hand-written kernels in tests/reference/autobalancer_kernels.py, a
 reference kept for comparison, integrate the same functions); J is the analytic Jacobian
 (directional derivatives of the closed-form accelerations, ``_jvp``). floquet_max =
 max |eig(Phi(2 pi))|; the layer adds the way the critical multiplier leaves the unit circle
@@ -135,11 +135,16 @@ Other outputs and rules:
   given, A1 != 0 without l3, l4, or a platform parameter pair not given.
 
 Status of a point: the most severe problem among the outputs asked for, in the order
-INFEASIBLE > NONFINITE > STEP_UNDERFLOW > MAX_STEPS > ILL_CONDITIONED > SINGULAR > NOT_REPRODUCIBLE > NOT_BALANCEABLE >
-UNDECIDED > NO_EVENT; outputs that could be computed are kept.
+INFEASIBLE > OUT_OF_RANGE > NONFINITE > STEP_UNDERFLOW > MAX_STEPS > STIFF > ILL_CONDITIONED > SINGULAR >
+NOT_REPRODUCIBLE > NOT_BALANCEABLE > UNDECIDED > NO_EVENT; outputs that could be computed are kept. OUT_OF_RANGE:
+inputs of such magnitudes that a quantity leaves double precision's range (``in_range``: those every
+output needs, all outputs NaN; a closed form's own, that output NaN; prepare: a scaled group of the
+equations of motion beyond 2^300, the integrated outputs NaN). STIFF: dop853 spent its step budget at the
+stability limit (strong pendulum damping h / (m a^2 Omega) of order 1e3 and more, a platform far stiffer
+than the crank speed); auto and radau integrate such points.
 NOT_REPRODUCIBLE: a simulated output (residual_amplitude, phase_error, settling_time, stable_sim,
 the histories) moved by more than reproducibility_factor (rtol |value| + atol) when the trajectory
-was integrated again at rtol / 100 (the Recheck below; the rule and its measured cost: TIGHTEN in models/_autobalancer_kernels.py);
+was integrated again at rtol / 100 (the Recheck below; the rule and its measured cost: TIGHTEN in tests/reference/autobalancer_kernels.py);
 the first value is still stored.
 Every output is a function of its point and the solver settings only: the simulation samples
 that enter the measurements do not depend on the outputs asked for (the history samples are
@@ -163,7 +168,7 @@ settling_time, phase_error), Steady (residual_amplitude) and four Histories, one
 per point; the status rules above are the measurements' own (their ``classify``: NOT_BALANCEABLE),
 ``status_order`` (the severity above) and ``Recheck`` (NOT_REPRODUCIBLE). The engine generates the
 chunk kernels and the method switch. The hand-written kernels this model used before are kept,
-unused by the model, in models/_autobalancer_kernels.py (tests and benches compare against them).
+unused by the model, in tests/reference/autobalancer_kernels.py (tests and benches compare against them).
 """
 from __future__ import annotations
 
@@ -173,12 +178,13 @@ import numpy as np
 
 from .. import status as st
 from .._jit import jit, jit_inline, jit_noalloc
-from ..model.measure import ClosedForm, Floquet  # not ..model: it imports ..models
+from ..model.measure import ClosedForm, Floquet
 from ..model.sampled import History, Kick, Recheck, Steady
 from ..model.ode import OdeModel
 from ..model.workprecision import WorkPrecision
 from ..special import SINCOS_MAX, ieee_sqrt, sincos, sincos_reduced
-from ._spec import ExtraDim, Output, Param, Setting
+from ._scaling import DBL_MAX, full_precision, normal, product_in_range, quotient_in_range
+from ..model.spec import ExtraDim, Output, Param, Setting
 
 TWO_PI = 2.0 * math.pi
 
@@ -216,8 +222,8 @@ UNIT_ROUNDOFF = 2.0 ** -53
 # Status severity (most severe first): what a point shows when several problems occur.
 # NOT_REPRODUCIBLE ranks above the statuses that leave an output NaN with a reason: it warns
 # about a value that is stored and would otherwise look trustworthy.
-STATUS_ORDER = (st.INFEASIBLE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.ILL_CONDITIONED, st.SINGULAR,
-                st.NOT_REPRODUCIBLE, st.NOT_BALANCEABLE, st.UNDECIDED, st.NO_EVENT)
+STATUS_ORDER = (st.INFEASIBLE, st.OUT_OF_RANGE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.STIFF,
+                st.ILL_CONDITIONED, st.SINGULAR, st.NOT_REPRODUCIBLE, st.NOT_BALANCEABLE, st.UNDECIDED, st.NO_EVENT)
 
 
 # ----------------------------------------------------------------------------- kinematics
@@ -531,68 +537,80 @@ SETTINGS = (
 )
 
 PARAMS = (
-    Param("Omega", "Ω", "rad s-1", "crank angular speed", **_pos),
-    Param("M", "M", "kg", "total translating mass (platform, mechanism, both pendulums)", **_pos),
-    Param("m", "m", "kg", "mass of one pendulum", **_pos),
-    Param("a", "a", "m", "pendulum arm BC (crank axis to pendulum centre of mass)", **_pos),
-    Param("I_B", "I_B", "kg m2", "pendulum moment of inertia about the crank axis (>= m a^2)", **_pos),
-    Param("A0", "A0", "kg m", "rotating unbalance m3 S3 + (m4 + m5 + m_k) l3", lo=0.0),
-    Param("h", "h", "N m s rad-1", "pendulum damping relative to the crank", lo=0.0),
-    Param("omega_xi", "ω_ξ", "rad s-1", "platform natural frequency along xi, sqrt(c_xi / M)", **_pos, **_opt),
-    Param("omega_eta", "ω_η", "rad s-1", "platform natural frequency along eta, sqrt(c_eta / M)", **_pos, **_opt),
-    Param("zeta_xi", "ζ_ξ", "1", "platform damping ratio along xi, b_xi / (2 M omega_xi)", lo=0.0, **_opt),
-    Param("zeta_eta", "ζ_η", "1", "platform damping ratio along eta, b_eta / (2 M omega_eta)", lo=0.0, **_opt),
-    Param("c_xi", "c_ξ", "N m-1", "platform stiffness along xi", **_pos, **_opt),
-    Param("c_eta", "c_η", "N m-1", "platform stiffness along eta", **_pos, **_opt),
-    Param("b_xi", "b_ξ", "N s m-1", "platform damping coefficient along xi", lo=0.0, **_opt),
-    Param("b_eta", "b_η", "N s m-1", "platform damping coefficient along eta", lo=0.0, **_opt),
-    Param("A1", "A1", "kg m", "conrod mass moment m4 S4 + m5 l4 - m_k S_k (0: corrected)",
-          required=False, default=0.0),
-    Param("l3", "l3", "m", "crank length BD", **_pos, **_opt),
-    Param("l4", "l4", "m", "conrod length DE (> l3)", **_pos, **_opt),
-    Param("m4", "m4", "kg", "conrod mass", lo=0.0, **_opt),
-    Param("S4", "S4", "m", "conrod centre of mass from D", lo=0.0, **_opt),
-    Param("m5", "m5", "kg", "slider mass", lo=0.0, **_opt),
-    Param("S_k", "S_k", "m", "correcting mass position from D (away from E)", **_pos, **_opt),
+    Param("Omega", "Ω", "rad s-1", "crank angular speed", **_pos, latex=r"$\Omega$"),
+    Param("M", "M", "kg", "total translating mass (platform, mechanism, both pendulums)", **_pos, latex="$M$"),
+    Param("m", "m", "kg", "mass of one pendulum", **_pos, latex="$m$"),
+    Param("a", "a", "m", "pendulum arm BC (crank axis to pendulum centre of mass)", **_pos, latex="$a$"),
+    Param("I_B", "I_B", "kg m2", "pendulum moment of inertia about the crank axis (at least m a²)", **_pos,
+          latex="$I_B$"),
+    Param("A0", "A0", "kg m", "rotating unbalance of the crank mechanism", lo=0.0,
+          latex=r"$A_0 = m_3 S_3 + (m_4 + m_5 + m_k)\,l_3$"),
+    Param("h", "h", "N m s rad-1", "pendulum damping relative to the crank", lo=0.0, latex="$h$"),
+    Param("omega_xi", "ω_ξ", "rad s-1", "platform natural frequency along ξ", **_pos, **_opt,
+          latex=r"$\omega_\xi = \sqrt{c_\xi/M}$"),
+    Param("omega_eta", "ω_η", "rad s-1", "platform natural frequency along η", **_pos, **_opt,
+          latex=r"$\omega_\eta = \sqrt{c_\eta/M}$"),
+    Param("zeta_xi", "ζ_ξ", "1", "platform damping ratio along ξ", lo=0.0, **_opt,
+          latex=r"$\zeta_\xi = b_\xi/(2 M \omega_\xi)$"),
+    Param("zeta_eta", "ζ_η", "1", "platform damping ratio along η", lo=0.0, **_opt,
+          latex=r"$\zeta_\eta = b_\eta/(2 M \omega_\eta)$"),
+    Param("c_xi", "c_ξ", "N m-1", "platform stiffness along ξ", **_pos, **_opt, latex=r"$c_\xi$"),
+    Param("c_eta", "c_η", "N m-1", "platform stiffness along η", **_pos, **_opt, latex=r"$c_\eta$"),
+    Param("b_xi", "b_ξ", "N s m-1", "platform damping coefficient along ξ", lo=0.0, **_opt, latex=r"$b_\xi$"),
+    Param("b_eta", "b_η", "N s m-1", "platform damping coefficient along η", lo=0.0, **_opt, latex=r"$b_\eta$"),
+    Param("A1", "A1", "kg m", "conrod mass moment (0: corrected)",
+          required=False, default=0.0, latex=r"$A_1 = m_4 S_4 + m_5 l_4 - m_k S_k$"),
+    Param("l3", "l3", "m", "crank length BD", **_pos, **_opt, latex="$l_3$"),
+    Param("l4", "l4", "m", "conrod length DE (longer than l₃)", **_pos, **_opt, latex="$l_4$"),
+    Param("m4", "m4", "kg", "conrod mass", lo=0.0, **_opt, latex="$m_4$"),
+    Param("S4", "S4", "m", "conrod centre of mass from D", lo=0.0, **_opt, latex="$S_4$"),
+    Param("m5", "m5", "kg", "slider mass", lo=0.0, **_opt, latex="$m_5$"),
+    Param("S_k", "S_k", "m", "correcting mass position from D (away from E)", **_pos, **_opt, latex="$S_k$"),
 )
 
 # The outputs' names, symbols, units, long names, kinds and dimensions (the measurements and closed
 # forms below take them from here)
 OUTPUTS = (
-    Output("theta", "Θ₁", "rad", "balancing angle of pendulum 1, arccos(-A0 / (2 m a)); Theta_2 = -Theta_1"),
-    Output("balanceable", "balanceable", "1", "1 if a balanced state exists (A0 <= 2 m a and A1 = 0)"),
-    Output("m_k", "m_k", "kg", "correcting mass (m4 S4 + m5 l4) / S_k that makes A1 = 0",
-           needs_params=("m4", "S4", "m5", "S_k", "l4")),
-    Output("omega_p", "ω_p", "rad s-1", "first-approximation boundary sqrt((omega_xi^2 + omega_eta^2) / 2)"),
+    Output("theta", "Θ₁", "rad", "balancing angle of pendulum 1 (Θ₂ = −Θ₁)",
+           latex=r"$\Theta_1 = \arccos(-A_0/(2 m a))$"),
+    Output("balanceable", "balanceable", "1", "1 if a balanced state exists (A₀ ≤ 2 m a and A₁ = 0)",
+           latex=r"$A_0 \leq 2 m a,\ A_1 = 0$"),
+    Output("m_k", "m_k", "kg", "correcting mass that makes A₁ = 0",
+           needs_params=("m4", "S4", "m5", "S_k", "l4"), latex=r"$m_k = (m_4 S_4 + m_5 l_4)/S_k$"),
+    Output("omega_p", "ω_p", "rad s-1", "first-approximation stability boundary",
+           latex=r"$\omega_p = \sqrt{(\omega_\xi^2 + \omega_\eta^2)/2}$"),
     Output("stable_first_approx", "stable (1st approx.)", "1",
-           "1 if omega_lo < Omega < omega_p or Omega > omega_hi (source's rule, corrected)", kind="verdict"),
-    Output("P_approx", "P(Ω)", "m N-1", "Re(H_xi + H_eta), receptance sum of the damped platform"),
-    Output("stable_damped_approx", "P(Ω) < 0", "1", "1 if P(Omega) < 0 (first approximation with damping)",
-           needs=("P_approx",), kind="verdict"),
+           "1 if stable by the source's first-approximation rule (corrected): ω_lo < Ω < ω_p or Ω > ω_hi",
+           kind="verdict", latex=r"$\omega_\mathrm{lo} < \Omega < \omega_p \;\vee\; \Omega > \omega_\mathrm{hi}$"),
+    Output("P_approx", "P(Ω)", "m N-1", "receptance sum of the damped platform",
+           latex=r"$P(\Omega) = \mathrm{Re}(H_\xi + H_\eta)$"),
+    Output("stable_damped_approx", "P(Ω) < 0", "1", "1 if P(Ω) < 0 (first approximation with damping)",
+           needs=("P_approx",), kind="verdict", latex=r"$P(\Omega) < 0$"),
     Output("floquet_max", "max |ρ|", "1", "largest Floquet multiplier modulus of the balanced state",
-           integrated=True),
-    Output("stable_floquet", "stable (Floquet)", "1", "1 if floquet_max < 1", integrated=True,
-           needs=("floquet_max",), kind="verdict"),
+           integrated=True, latex=r"$\max|\rho|$"),
+    Output("stable_floquet", "stable (Floquet)", "1", "1 if the largest Floquet multiplier modulus is below 1",
+           integrated=True, needs=("floquet_max",), kind="verdict", latex=r"$\max|\rho| < 1$"),
     Output("stable_sim", "stable (simulation)", "1",
            "1 if the perturbed balanced state settles, 0 if it departs (direct simulation)", integrated=True,
-           kind="verdict"),
+           kind="verdict", latex=r"$\mathrm{stable}_\mathrm{sim}$"),
     Output("residual_amplitude", "r_res", "m",
-           "max platform displacement sqrt(xi^2 + eta^2) over the last 10 % of the simulation", integrated=True),
-    Output("phase_error", "δγ", "rad", "final pendulum phase error max_i |gamma_i - Omega t - Theta_i|",
-           integrated=True),
-    Output("settling_time", "t_s", "s", "time after which the phase error stays below settle_threshold",
-           integrated=True),
-    Output("xi_history", "ξ(t)", "m", "platform displacement xi over the simulation", integrated=True,
-           extra_dims=(REVOLUTION,)),
-    Output("eta_history", "η(t)", "m", "platform displacement eta over the simulation", integrated=True,
-           extra_dims=(REVOLUTION,)),
+           "residual platform displacement, largest over the last 10 % of the simulation", integrated=True,
+           latex=r"$r_\mathrm{res} = \max\sqrt{\xi^2 + \eta^2}$"),
+    Output("phase_error", "δγ", "rad", "final pendulum phase error", integrated=True,
+           latex=r"$\delta\gamma = \max_i|\gamma_i - \Omega t - \Theta_i|$"),
+    Output("settling_time", "t_s", "s", "time after which the phase error stays below the settling threshold",
+           integrated=True, latex="$t_s$"),
+    Output("xi_history", "ξ(t)", "m", "platform displacement ξ over the simulation", integrated=True,
+           extra_dims=(REVOLUTION,), latex=r"$\xi(t)$"),
+    Output("eta_history", "η(t)", "m", "platform displacement η over the simulation", integrated=True,
+           extra_dims=(REVOLUTION,), latex=r"$\eta(t)$"),
     Output("phase_error1_history", "δγ₁(t)", "rad", "phase error of pendulum 1 over the simulation",
-           integrated=True, extra_dims=(REVOLUTION,)),
+           integrated=True, extra_dims=(REVOLUTION,), latex=r"$\delta\gamma_1(t)$"),
     Output("phase_error2_history", "δγ₂(t)", "rad", "phase error of pendulum 2 over the simulation",
-           integrated=True, extra_dims=(REVOLUTION,)),
+           integrated=True, extra_dims=(REVOLUTION,), latex=r"$\delta\gamma_2(t)$"),
 )
 
-STATUSES = (st.INFEASIBLE, st.SINGULAR, st.NOT_BALANCEABLE, st.UNDECIDED, st.NOT_REPRODUCIBLE,
+STATUSES = (st.INFEASIBLE, st.SINGULAR, st.NOT_BALANCEABLE, st.UNDECIDED, st.NOT_REPRODUCIBLE, st.OUT_OF_RANGE,
             *st.INTEGRATION_FAILURES)
 STATUS_NOTES = {
     st.INFEASIBLE: "I_B < m a^2, M <= 2 m, M I_B within 16 ulps of 2 m^2 a^2 or below (a singular mass matrix), "
@@ -601,6 +619,11 @@ STATUS_NOTES = {
                  "within the same): P_approx and stable_damped_approx are NaN, Floquet is still computed",
     st.ILL_CONDITIONED: "the mass matrix is so close to singular (M I_B near 2 m^2 a^2) that the accelerations' "
                         "round-off exceeds rtol: the integrated outputs are NaN, the closed forms are kept",
+    st.OUT_OF_RANGE: "inputs of such magnitudes that a quantity every output needs (2 m a, the platform's "
+                     "omega, c, b) over- or underflows (all outputs NaN), or one a closed form needs (omega_p's "
+                     "sum of squares, P_approx's squares, m_k's products: that output NaN), or a scaled group "
+                     "of the equations of motion (M / m, c_xi / (m Omega^2), ...) is beyond 2^300 (the "
+                     "integrated outputs NaN)",
     st.NOT_BALANCEABLE: "no isolated balanced state (A0 > 2 m a, A0 = 0, A0 = 2 m a, A1 != 0): balanced-state "
                         "outputs are NaN, residuals are kept",
     st.NO_EVENT: "the pendulums did not settle within the simulation (settling_time)",
@@ -659,18 +682,85 @@ def classify(p):
     wx, cx, bx = _xi(p)
     wy, cy, by = _eta(p)
     lengths = not math.isnan(l3) and not math.isnan(l4)
-    ok = IB >= m * a * a * (1.0 - IB_SLACK) and M > 2.0 * m
-    ok = ok and _mass_gap(M, m, a, IB) > RESONANCE_RTOL
-    ok = ok and math.isfinite(wx) and math.isfinite(wy) and math.isfinite(bx) and math.isfinite(by)
+    ok = _inertia_at_least(IB, m, a) and M > 2.0 * m
+    ok = ok and not _mass_gap(M, m, a, IB) <= RESONANCE_RTOL  # NaN (inputs beyond the range): in_range says
+    # each pair given (by the inputs: an overflow of the derived values is a range problem, in_range)
+    for i, j in ((I_omega_xi, I_c_xi), (I_omega_eta, I_c_eta), (I_zeta_xi, I_b_xi), (I_zeta_eta, I_b_eta)):
+        ok = ok and not (math.isnan(p[i]) and math.isnan(p[j]))
     ok = ok and (not lengths or l3 < l4) and (A1 == 0.0 or lengths)
-    return st.OK if ok else st.INFEASIBLE
+    if not ok:
+        return st.INFEASIBLE
+    return st.OK if in_range(p) else st.OUT_OF_RANGE
+
+
+GROUP_RANGE = 2.0 ** 300  # scaled groups of the equations of motion: finite and at most this
+
+
+@jit
+def _inertia_at_least(IB, m, a):
+    """I_B >= m a^2 (1 - IB_SLACK), also where m a^2 over- or underflows (compared on the mantissas)."""
+    mma = m * a * a
+    if normal(mma):
+        return IB >= mma * (1.0 - IB_SLACK)
+    fm, em = math.frexp(m)
+    fa, ea = math.frexp(a)
+    fI, eI = math.frexp(IB)
+    return math.ldexp(fI, eI - em - 2 * ea) >= fm * fa * fa * (1.0 - IB_SLACK)
+
+
+@jit
+def in_range(p):
+    """The quantities every output is formed from are normal numbers (or an exact 0 from a zero input):
+    2 m a and A0 / (2 m a) (theta, the balanced state), the platform's omega, c, b (either
+    parametrisation); else the point is OUT_OF_RANGE. The closed forms' own quantities are checked by
+    their classify (first_approx_in_range, receptance_in_range, m_k_in_range), the integrated outputs'
+    scaled groups by prepare."""
+    m, a, A0 = p[I_m], p[I_a], p[I_A0]
+    wx, cx, bx = _xi(p)
+    wy, cy, by = _eta(p)
+    two_ma = 2.0 * m * a
+    return (normal(two_ma) and full_precision(A0 / two_ma) and normal(wx) and normal(cx) and full_precision(bx)
+            and normal(wy) and normal(cy) and full_precision(by))
+
+
+def first_approx_in_range(p):
+    """omega_xi^2 + omega_eta^2 is a normal number (omega_p, stable_first_approx): else OUT_OF_RANGE
+    (at omega_xi = omega_eta = 1e-200 the plain sum underflows and omega_p would be 0)."""
+    wx = _xi(p)[0]
+    wy = _eta(p)[0]
+    return st.OK if normal(wx * wx + wy * wy) else st.OUT_OF_RANGE
+
+
+@jit
+def receptance_in_range(p):
+    """The receptance's squares d^2, (b Omega)^2 of each axis (d = c - M Omega^2) are normal, or lost
+    below 2^-62 of the other term of their sum (at c_xi = 1e160, d^2 overflows and P_approx would be 0);
+    an exact d = 0 is left to the resonance test."""
+    Om, M = p[I_Omega], p[I_M]
+    _, cx, bx = _xi(p)
+    _, cy, by = _eta(p)
+    MO2 = M * Om ** 2
+    ok = True
+    for d, b in ((cx - MO2, bx), (cy - MO2, by)):
+        d2 = d * d
+        bO2 = (b * Om) ** 2
+        ok = (ok and d2 <= DBL_MAX and bO2 <= DBL_MAX and (d == 0.0 or normal(d2) or bO2 >= 2.0 ** -960)
+              and (b == 0.0 or normal(bO2) or d2 >= 2.0 ** -960))
+    return ok
+
+
+def m_k_in_range(p):
+    """m_k's products and quotient are normal numbers or an exact 0 from a zero input."""
+    ok = (product_in_range(p[I_m4], p[I_S4]) and product_in_range(p[I_m5], p[I_l4])
+          and quotient_in_range(p[I_m4] * p[I_S4] + p[I_m5] * p[I_l4], p[I_S_k]))
+    return st.OK if ok else st.OUT_OF_RANGE
 
 
 @jit
 def _mass_gap(M, m, a, IB):
     """1 - 2 m^2 a^2 / (M I_B): how far the mass matrix of eq. (1)-(3) is from singular (its smallest
     eigenvalue is M - 2 m^2 a^2 / I_B, reached with the pendulums aligned or opposite)."""
-    return 1.0 - 2.0 * (m * a) * (m * a) / (M * IB)
+    return 1.0 - 2.0 * ((m * a) / M) * ((m * a) / IB)  # as ratios: no overflow of (m a)^2 or M I_B
 
 
 def prepare(p, rtol):
@@ -701,6 +791,9 @@ def prepare(p, rtol):
     q[IP_EH] = h / (m * a * a * Om)
     q[IP_TH1] = th1
     q[IP_TH2] = th2
+    for j in range(NP):  # the right-hand side multiplies up to three groups: keep them below 2^300
+        if not abs(q[j]) <= GROUP_RANGE:  # NaN-safe; a tiny group only scales a negligible term
+            return st.OUT_OF_RANGE
     return 0
 
 
@@ -826,6 +919,8 @@ def P_approx(p):
 
 
 def P_classify(p):
+    if not receptance_in_range(p):
+        return st.OUT_OF_RANGE
     return st.SINGULAR if _receptance(p)[2] else st.OK
 
 
@@ -918,13 +1013,14 @@ _OUT = {o.name: o for o in OUTPUTS}
 
 def _meta(output, **rename):
     o = _OUT[output]
-    return dict(symbol=o.symbol, unit=o.unit, long_name=o.long_name, **rename)
+    return dict(symbol=o.symbol, unit=o.unit, long_name=o.long_name, latex=o.latex, **rename)
 
 
 def _closed(name, func, needs=(), classify=None):
     o = _OUT[name]
     return ClosedForm(name, func, needs=needs, classify=classify, symbol=o.symbol, unit=o.unit,
-                      long_name=o.long_name, output_needs=o.needs, needs_params=o.needs_params, kind=o.kind)
+                      long_name=o.long_name, output_needs=o.needs, needs_params=o.needs_params, kind=o.kind,
+                      latex=o.latex)
 
 
 H = "horizon_revolutions"
@@ -949,7 +1045,9 @@ MODEL = OdeModel(
         # initial: that orbit's start (the work-precision reference integrates it with the state)
         Floquet("floquet_max", initial=balanced, variational=variational, variational_jac=variational_jac,
                 stable_name="stable_floquet", classify=isolated,
-                output_meta={"floquet_max": _meta("floquet_max"), "floquet_max_stable": _meta("stable_floquet")}),
+                output_meta={"floquet_max": _meta("floquet_max"), "floquet_max_stable": _meta("stable_floquet"),
+                             "floquet_max_kind": {"latex": r"$\mathrm{kind}(\rho_\mathrm{crit})$"},
+                             "floquet_max_angle": {"latex": r"$\arg\rho_\mathrm{crit}$"}}),
         # direct simulation from the perturbed balanced state: the decision rule of stable_sim
         # (module docstring) on the phase error and the platform amplitude
         Kick("stable_sim", phase_error, platform_amplitude, horizon=H, settle_threshold="settle_threshold",
@@ -966,10 +1064,10 @@ MODEL = OdeModel(
                output_meta={"residual_amplitude": _meta("residual_amplitude"),
                             "residual_amplitude_h1": dict(
                                 symbol="r₁", unit="m", long_name="first-harmonic (crank frequency) amplitude of the "
-                                "platform displacement sqrt(xi^2 + eta^2) over the last 10 % of the simulation"),
+                                "platform displacement √(ξ² + η²) over the last 10 % of the simulation", latex="$r_1$"),
                             "residual_amplitude_phase": dict(
                                 symbol="φ₁", unit="rad", long_name="phase lag of that first harmonic: "
-                                "sqrt(xi^2 + eta^2) ~ r1 cos(Omega t - phase) + other harmonics")}),
+                                "√(ξ² + η²) ≈ r₁ cos(Ω t − φ₁) + other harmonics", latex=r"$\varphi_1$")}),
         _history("xi_history", xi, value=to_metres),
         _history("eta_history", eta, value=to_metres),
         _history("phase_error1_history", phase_error1),
@@ -978,9 +1076,9 @@ MODEL = OdeModel(
     closed_forms=(
         _closed("theta", theta, classify=has_balance),
         _closed("balanceable", balanceable),
-        _closed("m_k", m_k),
-        _closed("omega_p", omega_p),
-        _closed("stable_first_approx", stable_first_approx),
+        _closed("m_k", m_k, classify=m_k_in_range),
+        _closed("omega_p", omega_p, classify=first_approx_in_range),
+        _closed("stable_first_approx", stable_first_approx, classify=first_approx_in_range),
         _closed("P_approx", P_approx, classify=P_classify),
         _closed("stable_damped_approx", stable_damped_approx, needs=("P_approx",)),
     ),

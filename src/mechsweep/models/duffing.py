@@ -25,7 +25,8 @@ from ..model.measure import ClosedForm, FirstEvent
 from ..model.ode import Invariant, OdeModel
 from ..model.workprecision import WorkPrecision
 from ..special import ellipk
-from ._spec import Param, Setting
+from ._scaling import exponent, normal, times_pow2
+from ..model.spec import Param, Setting
 
 # Integration horizon of the period event, in linearised periods 2 pi / w (w^2 = omega^2 + |mu| A^2):
 # near the soft separatrix T grows like log(1 / distance), so 100 is reached only ~e^-200 from it.
@@ -42,12 +43,52 @@ SYMPLECTIC_C = 3.0
 
 
 # --------------------------------------------------------------------------- closed forms
-@jit
-def classify(omega2, mu, A):
-    """Status of a Duffing point before any computation (shared by every stage)."""
+# Every closed form and the integrated period are evaluated on a copy of the point rescaled by powers
+# of two (rescaled): the formulas are homogeneous, so the scaled values are O(1), nothing overflows or
+# underflows where the result is representable (at mu = 1e308, A = 1 the plain 2 (omega^2 + mu A^2)
+# overflows and the plain period is 18 % off), and in the usual range the results are bitwise those of
+# the plain formulas (there they are the plain formulas: PLAIN_LO, PLAIN_HI; models/_scaling.py).
+# Symmetries: time t -> t / 2^i (omega^2 -> 4^i omega^2, mu -> 4^i mu, T -> T / 2^i, v -> 2^i v,
+# a -> 4^i a) and amplitude phi -> 2^j phi (A -> 2^j A, mu -> mu / 4^j, v -> 2^j v, a -> 2^j a);
+# kv, ka and epsilon are invariant.
+PLAIN_LO, PLAIN_HI = 2.0 ** -400, 2.0 ** 400  # omega^2, A^2, |mu| A^2 within these: the plain formulas
+
+
+@jit_noalloc
+def rescaled(o2, eo2, mu, emu, A):
+    """(omega2', mu', A', i, j): the point omega^2 = o2 2^eo2, mu = mu 2^emu, A (a caller whose omega^2
+    or mu would overflow passes them so) as omega2' = 4^i omega^2, mu' = 4^(i-j) mu, A' = 2^j A, exact,
+    with A' in [1/2, 1) and the larger of omega2', |mu'| A'^2 in [1/16, 2): the smaller one may
+    underflow, where it is negligible (below 2^-1000 of the other). T = 2^i T', v = v' / 2^(i+j),
+    a = a' / 2^(2i+j)."""
+    if eo2 == 0 and emu == 0 and PLAIN_LO <= o2 <= PLAIN_HI and PLAIN_LO <= A * A <= PLAIN_HI and (
+            mu == 0.0 or PLAIN_LO <= abs(mu * A * A) <= PLAIN_HI):
+        return o2, mu, A, 0, 0  # every intermediate of the formulas stays normal: no scaling (no libm call)
+    j = -exponent(A)
+    e = exponent(o2) + eo2
+    if mu != 0.0 and mu == mu:
+        e = max(e, exponent(mu) + emu - 2 * j)
+    i = -(e >> 1)
+    return math.ldexp(o2, eo2 + 2 * i), math.ldexp(mu, emu + 2 * i - 2 * j), math.ldexp(A, j), i, j
+
+
+@jit_noalloc
+def omega_split(omega):
+    """(o2, eo2) with omega^2 = o2 2^eo2: omega * omega and 0 where that is safely normal, else
+    o2 = f^2 for omega = f 2^e (no overflow for any omega)."""
+    if 2.0 ** -200 <= abs(omega) <= 2.0 ** 200:
+        return omega * omega, 0
+    f, e = math.frexp(omega)
+    return f * f, 2 * e
+
+
+@jit_noalloc
+def classify_scaled(sign, omega2, mu, A):
+    """classify() on a rescaled point (omega2, mu, A); sign: a number of the sign of omega^2 (omega2
+    itself may underflow to 0 next to a large mu A^2)."""
     if A == 0.0:
         return st.NO_MOTION
-    if not omega2 > 0.0:
+    if not sign > 0.0:
         return st.INFEASIBLE  # no stable equilibrium at phi = 0 to oscillate about
     if not omega2 + mu * A * A > 0.0:
         return st.NOT_OSCILLATORY  # at or beyond the soft separatrix |mu| A^2 = omega^2
@@ -55,27 +96,69 @@ def classify(omega2, mu, A):
 
 
 @jit
+def classify(omega2, mu, A):
+    """Status of a Duffing point before any computation (shared by every stage)."""
+    w2, m, a, _, _ = rescaled(omega2, 0, mu, 0, A)
+    return classify_scaled(omega2, w2, m, a)
+
+
+@jit_noalloc
+def period_plain(omega2, mu, A):
+    """T = 4 K(m) / sqrt(omega^2 + mu A^2), m = mu A^2 / (2 (omega^2 + mu A^2)), as written (on a
+    rescaled point: period_closed_form)."""
+    s = omega2 + mu * A * A
+    return 4.0 * ellipk(mu * A * A / (2.0 * s)) / math.sqrt(s)
+
+
+@jit_noalloc
+def v_max_plain(omega2, mu, A):
+    """Energy: v_max^2 = omega^2 A^2 + mu A^4 / 2 (velocity at phi = 0), both signs of mu."""
+    return A * math.sqrt(omega2 + 0.5 * mu * A * A)
+
+
+@jit_noalloc
+def a_max_plain(omega2, mu, A):
+    """max |phi''| over the stroke; for omega^2/3 < |mu| A^2 < omega^2 (soft) it lies inside."""
+    if mu >= 0.0 or 3.0 * (-mu) * A * A <= omega2:
+        return A * (omega2 + mu * A * A)
+    return 2.0 * omega2 * math.sqrt(omega2) / (3.0 * math.sqrt(-3.0 * mu))
+
+
+@jit_noalloc
+def epsilon_split(o2, eo2, mu, emu, A):
+    """epsilon = mu A^2 / omega^2 of the point omega^2 = o2 2^eo2, mu = mu 2^emu, A: the plain
+    quotient of the mantissas times the power of two (correctly rounded also beyond the normal range)."""
+    if eo2 == 0 and emu == 0 and PLAIN_LO <= o2 <= PLAIN_HI and PLAIN_LO <= A * A <= PLAIN_HI and (
+            mu == 0.0 or PLAIN_LO <= abs(mu * A * A) <= PLAIN_HI):
+        return mu * A * A / o2  # as written, where every intermediate is safely normal
+    fm, em = math.frexp(mu)
+    fA, eA = math.frexp(A)
+    fo, eo = math.frexp(o2)
+    return math.ldexp(fm * fA * fA / fo, em + emu + 2 * eA - eo - eo2)
+
+
+@jit
 def period_closed_form(omega2, mu, A):
     """T = 4 K(m) / sqrt(omega^2 + mu A^2), m = mu A^2 / (2 (omega^2 + mu A^2)).
 
-    One formula for both signs of mu (K accepts m < 0). physics.md section 1.
-    """
-    s = omega2 + mu * A * A
-    return 4.0 * ellipk(mu * A * A / (2.0 * s)) / math.sqrt(s)
+    One formula for both signs of mu (K accepts m < 0). physics.md section 1. Evaluated on the
+    point rescaled by powers of two (no overflow of omega^2 + mu A^2 for any representable T)."""
+    w2, m, a, i, _ = rescaled(omega2, 0, mu, 0, A)
+    return times_pow2(period_plain(w2, m, a), i)
 
 
 @jit
 def v_max_closed_form(omega2, mu, A):
     """Energy: v_max^2 = omega^2 A^2 + mu A^4 / 2 (velocity at phi = 0), both signs of mu."""
-    return A * math.sqrt(omega2 + 0.5 * mu * A * A)
+    w2, m, a, i, j = rescaled(omega2, 0, mu, 0, A)
+    return times_pow2(v_max_plain(w2, m, a), -(i + j))
 
 
 @jit
 def a_max_closed_form(omega2, mu, A):
     """max |phi''| over the stroke; for omega^2/3 < |mu| A^2 < omega^2 (soft) it lies inside."""
-    if mu >= 0.0 or 3.0 * (-mu) * A * A <= omega2:
-        return A * (omega2 + mu * A * A)
-    return 2.0 * omega2 * math.sqrt(omega2) / (3.0 * math.sqrt(-3.0 * mu))
+    w2, m, a, i, j = rescaled(omega2, 0, mu, 0, A)
+    return times_pow2(a_max_plain(w2, m, a), -(2 * i + j))
 
 
 # Near the soft separatrix (delta = (omega^2 + mu A^2) / w^2 -> 0) the motion starts next to the
@@ -139,7 +222,7 @@ def period_condition(omega2, mu, A, k_omega2, k_q):
 def symplectic_step(rtol):
     """Fixed step (scaled time) of the symplectic method for a tolerance: SYMPLECTIC_STEPS(rtol)
     steps per linearised period 2 pi, calibrated so that the period error stays below rtol over
-    epsilon in [-0.99, 1e4] (measured by `mechsweep bench period-error`: at most 0.1 rtol from rtol
+    epsilon in [-0.99, 1e4] (measured by `python benchmarks/period_error.py`: at most 0.1 rtol from rtol
     1e-6 to 1e-12)."""
     return 2.0 * math.pi / math.ceil(SYMPLECTIC_C * rtol ** (-1.0 / SYMPLECTIC_ORDER))
 
@@ -156,27 +239,40 @@ OMEGA, MU, AMP, T_MAX = 0, 1, 2, 3
 IA, IB, IC, ILEVEL, IDIR, IW = 4, 5, 6, 7, 8, 9
 
 
+@jit_noalloc
+def point(p):
+    """The point rescaled by powers of two (rescaled): (omega2', mu', A', i, j), and omega^2's
+    mantissa o2 (its sign decides INFEASIBLE)."""
+    o2, eo2 = omega_split(p[OMEGA])
+    omega2, mu, A, i, j = rescaled(o2, eo2, p[MU], 0, p[AMP])
+    return o2, omega2, mu, A, i, j
+
+
 def duffing_classify(p):
-    return classify(p[OMEGA] * p[OMEGA], p[MU], p[AMP])
+    o2, omega2, mu, A, _, _ = point(p)
+    return classify_scaled(o2, omega2, mu, A)
 
 
 def prepare(p, rtol):
     """Per point: ILL_CONDITIONED where the period's condition number times round-off exceeds rtol
-    (the closed forms are still given); else the scaled equation's coefficients, the event and w."""
-    omega2 = p[OMEGA] * p[OMEGA]
-    mu = p[MU]
-    A = p[AMP]
+    (the closed forms are still given); OUT_OF_RANGE where the linearised frequency w itself is
+    beyond double precision's normal range (the period then is too: below about 1e-308 s or
+    above 1e308 s); else the scaled equation's coefficients, the event and w."""
+    _, omega2, mu, A, i, _ = point(p)
     if not period_condition(omega2, mu, A, K_OMEGA2, K_Q) * UNIT_ROUNDOFF <= rtol:  # NaN-safe: a NaN bound flags
         return st.ILL_CONDITIONED
-    scale_into(omega2, mu, A, p, IA)
+    if not scale_into(omega2, mu, A, i, p, IA):
+        return st.OUT_OF_RANGE
     return st.OK
 
 
 @jit_noalloc
-def scale_into(omega2, mu, A, p, ia):
-    """The scaled equation's (a, b, c, level, direction, w) into p[ia:ia + 6]: the plain
-    formulation, or the saddle-centred one within SADDLE_DELTA of the soft separatrix (shared with
-    torsional_circuit's two-term system, whose slots start elsewhere)."""
+def scale_into(omega2, mu, A, i, p, ia):
+    """The scaled equation's (a, b, c, level, direction, w) into p[ia:ia + 6] for a point rescaled by
+    powers of two (rescaled: omega2, mu, A and the time exponent i; a, b, c, level and direction are
+    invariant, w = sqrt(omega^2 + |mu| A^2) is scaled back): the plain formulation, or the
+    saddle-centred one within SADDLE_DELTA of the soft separatrix (shared with torsional_circuit's
+    two-term system, whose slots start elsewhere). False where w is not a normal number."""
     muA2 = mu * A * A
     w2 = omega2 + abs(muA2)
     delta = (omega2 + muA2) / w2
@@ -195,7 +291,9 @@ def scale_into(omega2, mu, A, p, ia):
         p[ia + 2] = 0.0
         p[ia + 3] = 0.0
         p[ia + 4] = 1.0
-    p[ia + 5] = math.sqrt(w2)
+    w = times_pow2(math.sqrt(w2), -i)
+    p[ia + 5] = w
+    return normal(w)
 
 
 def initial(p, y0):
@@ -236,31 +334,51 @@ def period_from_quarter(p, tau_q):
 
 
 def period_exact(p):
-    return period_closed_form(p[OMEGA] * p[OMEGA], p[MU], p[AMP])
+    _, omega2, mu, A, i, _ = point(p)
+    return times_pow2(period_plain(omega2, mu, A), i)
 
 
 def v_max(p):
-    return v_max_closed_form(p[OMEGA] * p[OMEGA], p[MU], p[AMP])
+    _, omega2, mu, A, i, j = point(p)
+    return times_pow2(v_max_plain(omega2, mu, A), -(i + j))
 
 
 def a_max(p):
-    return a_max_closed_form(p[OMEGA] * p[OMEGA], p[MU], p[AMP])
+    _, omega2, mu, A, i, j = point(p)
+    return times_pow2(a_max_plain(omega2, mu, A), -(2 * i + j))
 
 
 def kv(p, vmax, T):
-    return vmax * T / p[AMP]  # 2 pi for the linear oscillator
+    """v_max T / A, on the rescaled point (invariant; v_max or T may be beyond the range)."""
+    _, omega2, mu, A, _, _ = point(p)
+    return v_max_plain(omega2, mu, A) * period_plain(omega2, mu, A) / A  # 2 pi for the linear oscillator
 
 
 def ka(p, amax, T):
-    return amax * T * T / p[AMP]  # 4 pi^2 for the linear oscillator
+    """a_max T^2 / A, on the rescaled point (invariant)."""
+    _, omega2, mu, A, _, _ = point(p)
+    T = period_plain(omega2, mu, A)
+    return a_max_plain(omega2, mu, A) * T * T / A  # 4 pi^2 for the linear oscillator
 
 
 def epsilon(p):
-    return p[MU] * p[AMP] * p[AMP] / (p[OMEGA] * p[OMEGA])
+    o2, eo2 = omega_split(p[OMEGA])
+    return epsilon_split(o2, eo2, p[MU], 0, p[AMP])
 
 
 def relative_error(p, value, reference):
-    return abs(value - reference) / abs(reference)
+    return relative_difference(value, reference)
+
+
+@jit_noalloc
+def relative_difference(value, reference):
+    """|value - reference| / |reference|, both scaled by the power of two of reference first (exact):
+    the difference of two periods near 1e-300 would be subnormal and lose its digits."""
+    if PLAIN_LO <= abs(reference) <= PLAIN_HI and abs(value) <= PLAIN_HI:
+        return abs(value - reference) / abs(reference)  # as written, where nothing leaves the normal range
+    e = exponent(reference)
+    r = math.ldexp(reference, -e)
+    return abs(math.ldexp(value, -e) - r) / abs(r)
 
 
 def energy(y, p):
@@ -285,9 +403,9 @@ MODEL = OdeModel(
         "mechsweep docs/physics.md section 1: the checks and corrections made to the source",
     ),
     params=(
-        Param("omega", "ω", "rad s-1", "linear natural frequency", lo=0.0, lo_open=True),
-        Param("mu", "μ", "rad-2 s-2", "cubic stiffness coefficient (>0 hard, <0 soft)"),
-        Param("A", "A", "rad", "amplitude, phi(0) = A, phi'(0) = 0", lo=0.0),
+        Param("omega", "ω", "rad s-1", "linear natural frequency", lo=0.0, lo_open=True, latex=r"$\omega$"),
+        Param("mu", "μ", "rad-2 s-2", "cubic stiffness coefficient (> 0 hard, < 0 soft)", latex=r"$\mu$"),
+        Param("A", "A", "rad", "amplitude, released at rest from φ = A", lo=0.0, latex="$A$"),
     ),
     settings=(T_MAX_PERIODS,),
     internal=("a", "b", "c", "level", "direction", "w"),
@@ -308,22 +426,24 @@ MODEL = OdeModel(
                                 reference="period_exact"),
     measurements=(
         FirstEvent("period", quarter_event, t_max=horizon, value=period_from_quarter, symbol="T", unit="s",
-                   long_name="period of the free oscillation"),
+                   long_name="period of the free oscillation", latex="$T$"),
     ),
     closed_forms=(
-        ClosedForm("period_exact", period_exact, "T_exact", "s", "period (elliptic closed form)"),
+        ClosedForm("period_exact", period_exact, "T_exact", "s", "period (elliptic closed form)",
+                   latex=r"$T_\mathrm{exact}$"),
         ClosedForm("period_error", relative_error, "|T - T_exact| / T_exact", "1",
-                   "relative error of the integrated period", needs=("period", "period_exact")),
-        ClosedForm("v_max", v_max, "v_max", "rad s-1", "maximum angular velocity"),
-        ClosedForm("a_max", a_max, "a_max", "rad s-2", "maximum angular acceleration"),
-        ClosedForm("kv", kv, "k_v = v_max T / A", "1", "velocity coefficient v_max T / A (2 pi when linear)",
-                   needs=("v_max", "period_exact"), output_needs=()),
-        ClosedForm("ka", ka, "k_a = a_max T^2 / A", "1",
-                   "acceleration coefficient a_max T^2 / A (4 pi^2 when linear)",
-                   needs=("a_max", "period_exact"), output_needs=()),
-        ClosedForm("epsilon", epsilon, "ε = μ A² / ω²", "1", "nonlinearity parameter mu A^2 / omega^2"),
+                   "relative error of the integrated period", needs=("period", "period_exact"),
+                   latex=r"$|T - T_\mathrm{exact}|/T_\mathrm{exact}$"),
+        ClosedForm("v_max", v_max, "v_max", "rad s-1", "maximum angular velocity", latex=r"$v_\max$"),
+        ClosedForm("a_max", a_max, "a_max", "rad s-2", "maximum angular acceleration", latex=r"$a_\max$"),
+        ClosedForm("kv", kv, "k_v = v_max T / A", "1", "velocity coefficient (2π when linear)",
+                   needs=("v_max", "period_exact"), output_needs=(), latex=r"$k_v = v_\max T/A$"),
+        ClosedForm("ka", ka, "k_a = a_max T^2 / A", "1", "acceleration coefficient (4π² when linear)",
+                   needs=("a_max", "period_exact"), output_needs=(), latex=r"$k_a = a_\max T^2/A$"),
+        ClosedForm("epsilon", epsilon, "ε = μ A² / ω²", "1", "nonlinearity parameter",
+                   latex=r"$\varepsilon = \mu A^2/\omega^2$"),
     ),
-    statuses=(st.INFEASIBLE, st.NOT_OSCILLATORY, st.NO_MOTION, *st.INTEGRATION_FAILURES),
+    statuses=(st.INFEASIBLE, st.NOT_OSCILLATORY, st.NO_MOTION, st.OUT_OF_RANGE, *st.INTEGRATION_FAILURES),
     status_notes={
         st.INFEASIBLE: "omega^2 <= 0: no stable equilibrium at phi = 0 to oscillate about",
         st.NOT_OSCILLATORY: "at or beyond the soft separatrix |mu| A^2 >= omega^2 (mu < 0)",
@@ -331,6 +451,9 @@ MODEL = OdeModel(
         st.NO_EVENT: "the quarter-period crossing did not happen within the horizon",
         st.ILL_CONDITIONED: "the period below 1 + epsilon = 6.8e-7 at the default rtol (next to the soft "
                             "separatrix); the closed form period_exact is still given",
+        st.OUT_OF_RANGE: "the integrated period where sqrt(omega^2 + |mu| A^2) is beyond double precision's normal "
+                         "range (the period then is below about 1e-308 s or above 1e308 s); every output is "
+                         "computed on the point rescaled by powers of two, right wherever its value is representable",
     },
 )
 

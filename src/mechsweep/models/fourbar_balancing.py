@@ -62,6 +62,7 @@ for and the static residual is identically zero (R_j = 0/0). Non-OK points have 
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import operator
 
@@ -80,14 +81,15 @@ from ._linkage import (  # the per-design function's helpers and layout constant
     K_MASSR_S, K_MMAX_S, K_MRANGE_S, K_MRMS_S, K_M_MAX, K_M_RANGE, K_M_RMS, K_R_AX, K_R_H1, K_R_IN, K_TMAX_IN,
     K_TMAX_S, K_TRANGE_S, K_TRANS, K_TRMS_IN, K_TRMS_S, K_T_MAX, K_T_RANGE, K_T_RMS, P_A1, P_A2, P_A3, P_A4,
     P_BRANCH, P_CW1, P_CW1A, P_CW3, P_CW3A, P_DELTA, P_G, P_M1, P_M2, P_M3, P_MLOAD, P_OMEGA, P_R1, P_R2,
-    P_R3, P_TH1, P_TH2, P_TH3, R_AL1, R_AL3, R_W1, axis_fit, axis_formula1_sums, axis_residual,
+    P_R3, P_TH1, P_TH2, P_TH3, P_I1, P_I2, P_I3, R_AL1, R_AL3, R_W1, axis_fit, axis_formula1_sums, axis_residual,
     axis_residual_const, branch_sign, cycle_stats, dot4, fourbar_assembly, fourbar_cw_radii,
     fourbar_kinematics_cycle, fourbar_links, fourbar_loads_cycle, fourbar_moment_cycle,
     fourbar_static_counterweights, max_force)
-from ._spec import ExtraDim, Output, Param
+from ._scaling import NONE, UnitScaling, largest_exponent
+from ..model.spec import ExtraDim, Output, Param
 
 N_POSITIONS = L.N_POSITIONS
-PHI_DIM = ExtraDim("phi", "rad", "crank angle (360 uniform positions 2 pi i / 360)",
+PHI_DIM = ExtraDim("phi", "rad", "crank angle (360 uniform positions 2π i / 360)",
                    values=lambda settings: L.PHI.copy())
 
 _ANGLE = dict(lo=-2.0 * math.pi, hi=2.0 * math.pi)
@@ -95,55 +97,59 @@ _ANGLE = dict(lo=-2.0 * math.pi, hi=2.0 * math.pi)
 
 def _link(i: int, name: str, joint: str):
     return (
-        Param(f"m{i}", f"m{i}", "kg", f"{name} mass", lo=0.0, lo_open=(i == 2)),
-        Param(f"r{i}", f"r{i}", "m", f"distance of the {name}'s centre of mass from {joint}", lo=0.0),
+        Param(f"m{i}", f"m{i}", "kg", f"{name} mass", lo=0.0, lo_open=(i == 2), latex=f"$m_{i}$"),
+        Param(f"r{i}", f"r{i}", "m", f"distance of the {name}'s centre of mass from {joint}", lo=0.0,
+              latex=f"$r_{i}$"),
         Param(f"theta{i}", f"θ{i}", "rad", f"angle of the {name}'s centre of mass from the {name} line "
-              f"(seen from {joint}, ccw)", required=False, default=0.0, **_ANGLE),
-        Param(f"I{i}", f"I{i}", "kg m2", f"{name} moment of inertia about its centre of mass", lo=0.0),
+              f"(seen from {joint}, ccw)", required=False, default=0.0, **_ANGLE, latex=f"$\\theta_{i}$"),
+        Param(f"I{i}", f"I{i}", "kg m2", f"{name} moment of inertia about its centre of mass", lo=0.0,
+              latex=f"$I_{i}$"),
     )
 
 
 PARAMS = (
-    Param("a1", "a1", "m", "crank length O_A A", lo=0.0, lo_open=True),
-    Param("a2", "a2", "m", "coupler length A B", lo=0.0, lo_open=True),
-    Param("a3", "a3", "m", "rocker length O_B B", lo=0.0, lo_open=True),
-    Param("a4", "a4", "m", "frame length O_A O_B (along x)", lo=0.0, lo_open=True),
-    Param("branch", "σ", "1", "assembly branch: open = B left of the line A -> O_B (sigma = +1), "
-          "crossed = right (sigma = -1)", choices=("open", "crossed"), required=False, default=0.0),
+    Param("a1", "a1", "m", "crank length O_A A", lo=0.0, lo_open=True, latex="$a_1$"),
+    Param("a2", "a2", "m", "coupler length A B", lo=0.0, lo_open=True, latex="$a_2$"),
+    Param("a3", "a3", "m", "rocker length O_B B", lo=0.0, lo_open=True, latex="$a_3$"),
+    Param("a4", "a4", "m", "frame length O_A O_B (along x)", lo=0.0, lo_open=True, latex="$a_4$"),
+    Param("branch", "σ", "1", "assembly branch: open = B left of the line A → O_B (σ = +1), "
+          "crossed = right (σ = −1)", choices=("open", "crossed"), required=False, default=0.0,
+          latex=r"$\sigma$"),
     *_link(1, "crank", "O_A"),
     *_link(2, "coupler", "A"),
     *_link(3, "rocker", "O_B"),
-    Param("omega", "ω", "rad s-1", "mean crank speed; phi' = omega (1 + delta sin phi)", lo=0.0, lo_open=True),
-    Param("delta", "δ", "1", "crank speed modulation: phi' = omega (1 + delta sin phi), "
-          "phi'' = omega^2 (1 + delta sin phi) delta cos phi", lo=-1.0, hi=1.0, lo_open=True, hi_open=True,
-          required=False, default=0.0),
-    Param("g", "g", "m s-2", "gravitational acceleration along -y (0: no gravity)", lo=0.0, hi=100.0,
-          required=False, default=0.0),
+    Param("omega", "ω", "rad s-1", "mean crank speed: φ′ = ω (1 + δ sin φ)", lo=0.0, lo_open=True,
+          latex=r"$\omega$"),
+    Param("delta", "δ", "1", "crank speed modulation: φ′ = ω (1 + δ sin φ), "
+          "φ″ = ω² (1 + δ sin φ) δ cos φ", lo=-1.0, hi=1.0, lo_open=True, hi_open=True,
+          required=False, default=0.0, latex=r"$\delta$"),
+    Param("g", "g", "m s-2", "gravitational acceleration along −y (0: no gravity)", lo=0.0, hi=100.0,
+          required=False, default=0.0, latex="$g$"),
     Param("M_load", "M_load", "N m", "constant useful-load torque applied to the rocker (ccw positive)",
-          required=False, default=0.0),
+          required=False, default=0.0, latex=r"$M_\mathrm{load}$"),
     Param("cw1_mr", "(m r)_cw1", "kg m", "given crank counterweight: mass-radius product", lo=0.0,
-          required=False, default=0.0),
+          required=False, default=0.0, latex=r"$(m r)_\mathrm{cw1}$"),
     Param("cw1_angle", "β1", "rad", "given crank counterweight: angle from the crank line", required=False,
-          default=0.0, **_ANGLE),
-    Param("r_cw1", "r_cw1", "m", "radius of the crank counterweight's centre (point mass); default a1",
-          lo=0.0, lo_open=True, required=False, default=math.nan),
+          default=0.0, **_ANGLE, latex=r"$\beta_1$"),
+    Param("r_cw1", "r_cw1", "m", "radius of the crank counterweight's centre (point mass); default a₁",
+          lo=0.0, lo_open=True, required=False, default=math.nan, latex=r"$r_\mathrm{cw1}$"),
     Param("cw3_mr", "(m r)_cw3", "kg m", "given rocker counterweight: mass-radius product", lo=0.0,
-          required=False, default=0.0),
+          required=False, default=0.0, latex=r"$(m r)_\mathrm{cw3}$"),
     Param("cw3_angle", "β3", "rad", "given rocker counterweight: angle from the rocker line", required=False,
-          default=0.0, **_ANGLE),
-    Param("r_cw3", "r_cw3", "m", "radius of the rocker counterweight's centre (point mass); default a3",
-          lo=0.0, lo_open=True, required=False, default=math.nan),
+          default=0.0, **_ANGLE, latex=r"$\beta_3$"),
+    Param("r_cw3", "r_cw3", "m", "radius of the rocker counterweight's centre (point mass); default a₃",
+          lo=0.0, lo_open=True, required=False, default=math.nan, latex=r"$r_\mathrm{cw3}$"),
 )
 assert tuple(p.name for p in PARAMS) == L.FOURBAR_PARAMS
 
-_GIVEN = "the mechanism as given (counterweights cw1_*, cw3_* of the parameters)"
+_GIVEN = "the mechanism as given (with the counterweights the parameters give)"
 _STATIC = "after complete shaking-force balancing (method 1)"
 SCALARS = {
-    "transmission_min": ("μ_min", "rad", "smallest transmission angle over the cycle (folded into [0, pi/2])"),
-    "Fx_range": ("f1", "N", f"f1 = max - min of the shaking force Fx over a cycle, {_GIVEN}"),
-    "Fy_range": ("f2", "N", f"f2 = max - min of the shaking force Fy over a cycle, {_GIVEN}"),
-    "M_range": ("f3", "N m", f"f3 = max - min of the shaking moment about O_A over a cycle, {_GIVEN}"),
-    "T_range": ("f4", "N m", f"f4 = max - min of the input torque over a cycle, {_GIVEN}"),
+    "transmission_min": ("μ_min", "rad", "smallest transmission angle over the cycle (folded into [0, π/2])"),
+    "Fx_range": ("f1", "N", f"range (max − min) of the shaking force Fx over a cycle, {_GIVEN}"),
+    "Fy_range": ("f2", "N", f"range (max − min) of the shaking force Fy over a cycle, {_GIVEN}"),
+    "M_range": ("f3", "N m", f"range (max − min) of the shaking moment about O_A over a cycle, {_GIVEN}"),
+    "T_range": ("f4", "N m", f"range (max − min) of the input torque over a cycle, {_GIVEN}"),
     "Fx_rms": ("Fx_rms", "N", f"RMS of the shaking force Fx, {_GIVEN}"),
     "Fy_rms": ("Fy_rms", "N", f"RMS of the shaking force Fy, {_GIVEN}"),
     "M_rms": ("M_rms", "N m", f"RMS of the shaking moment about O_A, {_GIVEN}"),
@@ -151,7 +157,7 @@ SCALARS = {
     "F_max": ("|F|_max", "N", f"largest magnitude of the shaking force, {_GIVEN}"),
     "M_max": ("|M|_max", "N m", f"largest magnitude of the shaking moment, {_GIVEN}"),
     "T_max": ("|T|_max", "N m", f"largest magnitude of the input torque, {_GIVEN}"),
-    "cw_mass": ("m_cw", "kg", "mass of the given counterweights cw1_mr / r_cw1 + cw3_mr / r_cw3"),
+    "cw_mass": ("m_cw", "kg", "mass of the given counterweights"),
     "cw1_mr_static": ("(m r)_cw1", "kg m", "crank counterweight for complete force balancing: mass-radius product"),
     "cw1_angle_static": ("β1", "rad", "crank counterweight for complete force balancing: angle from the crank line"),
     "cw3_mr_static": ("(m r)_cw3", "kg m", "rocker counterweight for complete force balancing: mass-radius product"),
@@ -162,23 +168,22 @@ SCALARS = {
     "F_max_static": ("|F|_max", "N", f"largest dynamic shaking force {_STATIC} (round-off; a check)"),
     "M_rms_static": ("RMS dM_1", "N m", f"RMS of the shaking moment {_STATIC}"),
     "M_max_static": ("max|dM_1|", "N m", f"largest |shaking moment| {_STATIC}"),
-    "M_range_static": ("f3", "N m", f"max - min of the shaking moment {_STATIC}"),
+    "M_range_static": ("f3", "N m", f"range (max − min) of the shaking moment {_STATIC}"),
     "T_rms_static": ("T_rms", "N m", f"RMS of the input torque {_STATIC}"),
     "T_max_static": ("|T|_max", "N m", f"largest |input torque| {_STATIC}"),
-    "T_range_static": ("f4", "N m", f"max - min of the input torque {_STATIC}"),
+    "T_range_static": ("f4", "N m", f"range (max − min) of the input torque {_STATIC}"),
     "axis_x": ("x", "m", "RMS-optimal axis O1 of the crank counterweight, x (method 2, normal equations)"),
     "axis_y": ("y", "m", "RMS-optimal axis O1 of the crank counterweight, y (method 2, normal equations)"),
     "dM_rms_axis": ("RMS dM_2", "N m", "RMS of the residual shaking moment, RMS-optimal counterweight axis"),
     "dM_max_axis": ("max|dM_2|", "N m", "largest |residual shaking moment|, RMS-optimal counterweight axis"),
-    "R_axis": ("R_2", "%", "efficiency of the RMS-optimal axis against static balancing, "
-                           "(max|dM_1| - max|dM_2|) / max|dM_1|"),
+    "R_axis": ("R_2", "%", "efficiency of the RMS-optimal axis against static balancing"),
     "axis_x_h1": ("x_h1", "m", "counterweight axis cancelling the first harmonic of the shaking moment, x"),
     "axis_y_h1": ("y_h1", "m", "counterweight axis cancelling the first harmonic of the shaking moment, y"),
     "dM_rms_h1": ("RMS dM_h1", "N m", "RMS of the residual shaking moment, first-harmonic axis"),
     "dM_max_h1": ("max|dM_h1|", "N m", "largest |residual shaking moment|, first-harmonic axis"),
     "R_h1": ("R_h1", "%", "efficiency of first-harmonic balancing against static balancing"),
     "J_rocker": ("J_r", "kg m2", "RMS-optimal inertia added to the rocker after force balancing "
-                                  "(<0: counter-rotating gear pair)"),
+                                  "(< 0: counter-rotating gear pair)"),
     "dM_rms_inertia": ("RMS dM_4", "N m", "RMS of the residual shaking moment with the added rocker inertia"),
     "dM_max_inertia": ("max|dM_4|", "N m", "largest |residual shaking moment| with the added rocker inertia"),
     "R_inertia": ("R_4", "%", "efficiency of the added rocker inertia against static balancing"),
@@ -199,6 +204,30 @@ CURVES = {
     "dM_inertia_phi": ("dM_4", "N m", "residual shaking moment with the added rocker inertia"),
 }
 assert tuple(SCALARS) == L.FOURBAR_OUTPUTS and tuple(CURVES) == L.FOURBAR_CURVES
+_DM1, _DM2 = r"\max|\Delta M_1|", r"\max|\Delta M_2|"
+LATEX = {  # the outputs' symbols in mathtext, for figures
+    "transmission_min": r"$\mu_\min$", "Fx_range": r"$f_1 = \max F_x - \min F_x$",
+    "Fy_range": r"$f_2 = \max F_y - \min F_y$", "M_range": r"$f_3 = \max M - \min M$",
+    "T_range": r"$f_4 = \max T - \min T$", "Fx_rms": r"$F_{x,\mathrm{rms}}$", "Fy_rms": r"$F_{y,\mathrm{rms}}$",
+    "M_rms": r"$M_\mathrm{rms}$", "T_rms": r"$T_\mathrm{rms}$", "F_max": r"$|F|_\max$", "M_max": r"$|M|_\max$",
+    "T_max": r"$|T|_\max$",
+    "cw_mass": r"$m_\mathrm{cw} = (m r)_\mathrm{cw1}/r_\mathrm{cw1} + (m r)_\mathrm{cw3}/r_\mathrm{cw3}$",
+    "cw1_mr_static": r"$(m r)_\mathrm{cw1}$", "cw1_angle_static": r"$\beta_1$", "cw3_mr_static": r"$(m r)_\mathrm{cw3}$",
+    "cw3_angle_static": r"$\beta_3$", "cw_mass_static": r"$m_\mathrm{cw}$",
+    "mass_ratio_static": r"$m_\mathrm{total}/m_\mathrm{links}$", "F_max_static": r"$|F|_\max$",
+    "M_rms_static": r"$\mathrm{RMS}\,\Delta M_1$", "M_max_static": f"${_DM1}$", "M_range_static": "$f_3$",
+    "T_rms_static": r"$T_\mathrm{rms}$", "T_max_static": r"$|T|_\max$", "T_range_static": "$f_4$",
+    "axis_x": "$x_{O_1}$", "axis_y": "$y_{O_1}$", "dM_rms_axis": r"$\mathrm{RMS}\,\Delta M_2$",
+    "dM_max_axis": f"${_DM2}$", "R_axis": f"$R_2 = ({_DM1} - {_DM2})/{_DM1}$", "axis_x_h1": r"$x_\mathrm{h1}$",
+    "axis_y_h1": r"$y_\mathrm{h1}$", "dM_rms_h1": r"$\mathrm{RMS}\,\Delta M_\mathrm{h1}$",
+    "dM_max_h1": r"$\max|\Delta M_\mathrm{h1}|$", "R_h1": r"$R_\mathrm{h1}$", "J_rocker": "$J_r$",
+    "dM_rms_inertia": r"$\mathrm{RMS}\,\Delta M_4$", "dM_max_inertia": r"$\max|\Delta M_4|$",
+    "R_inertia": "$R_4$", "T_rms_inertia": r"$T_\mathrm{rms}$", "T_max_inertia": r"$|T|_\max$",
+    "Fx_phi": "$F_x$", "Fy_phi": "$F_y$", "M_phi": "$M$", "T_phi": "$T$", "M_static_phi": r"$\Delta M_1$",
+    "T_static_phi": "$T_1$", "dM_axis_phi": r"$\Delta M_2$", "dM_h1_phi": r"$\Delta M_\mathrm{h1}$",
+    "dM_inertia_phi": r"$\Delta M_4$",
+}
+assert set(LATEX) == set(SCALARS) | set(CURVES)
 
 
 def positions(n_positions: int = N_POSITIONS):
@@ -418,16 +447,19 @@ MODEL = ClosedFormModel(
         "mechsweep docs/physics.md sections 3 and 4: the checks and corrections made to the sources",
     ),
     params=PARAMS,
-    outputs=tuple(Output(k, *v) for k, v in SCALARS.items())
-    + tuple(Output(k, *v, extra_dims=(PHI_DIM,)) for k, v in CURVES.items()),
+    outputs=tuple(Output(k, *v, latex=LATEX[k]) for k, v in SCALARS.items())
+    + tuple(Output(k, *v, extra_dims=(PHI_DIM,), latex=LATEX[k]) for k, v in CURVES.items()),
     compute=fourbar_design,
     size=N_POSITIONS,
     data=crank_data,
     scratch=L.N_BUF,
-    statuses=(st.INFEASIBLE, st.SINGULAR, st.NONFINITE),
+    statuses=(st.INFEASIBLE, st.SINGULAR, st.NONFINITE, st.OUT_OF_RANGE),
     status_notes={
         st.INFEASIBLE: "the linkage does not assemble over a full turn (no Grashof crank)",
         st.SINGULAR: "a toggle (sin of the transmission angle below 1e-3) in the cycle, e.g. a change-point linkage",
+        st.OUT_OF_RANGE: "a link length, distance, mass, inertia or counterweight more than 2^300 (1e90) from the "
+                         "largest of its kind, in the design's own units (every design is computed in units of its "
+                         "longest link, largest mass and fastest rate, so any overall scale is fine)",
     },
     # bench workprecision: error against the number of crank positions (models/_linkage_reference.py)
     workprecision=SizeWorkPrecision(
@@ -437,7 +469,27 @@ MODEL = ClosedFormModel(
         reference=R.fourbar_reference, reference_name=R.FOURBAR_REFERENCE,
         compare=R.numpy_fourbar, compare_name=R.NUMPY),
 )
-SPEC = MODEL.spec()
+
+
+def design_units(P):
+    """(a, c, t): each design's units of mass 2^a kg, length 2^c m and time 2^t s (_scaling.UnitScaling):
+    the longest link, the faster of the crank speed and sqrt(g / length), and the largest of the masses,
+    inertias / length^2, counterweight products / length and |M_load| / (length^2 / time^2)."""
+    c = largest_exponent(P[:, P_A1], P[:, P_A2], P[:, P_A3], P[:, P_A4])
+    rate = largest_exponent(P[:, P_OMEGA])
+    gravity = largest_exponent((P[:, P_G], c))
+    rate = np.maximum(rate, np.where(gravity == NONE, NONE, (gravity + 1) // 2))
+    t = -rate
+    a = largest_exponent(P[:, P_M1], P[:, P_M2], P[:, P_M3], (P[:, P_I1], 2 * c), (P[:, P_I2], 2 * c),
+                         (P[:, P_I3], 2 * c), (P[:, P_CW1], c), (P[:, P_CW3], c), (P[:, P_MLOAD], 2 * c - 2 * t))
+    return np.where(a == NONE, 0, a), c, t
+
+
+UNITS = UnitScaling(PARAMS, MODEL.outputs, design_units,
+                    spread=("a1", "a2", "a3", "a4", "r1", "r2", "r3", "r_cw1", "r_cw3", "m1", "m2", "m3", "I1", "I2",
+                            "I3", "cw1_mr", "cw3_mr"))
+_UNSCALED = MODEL.spec()
+SPEC = dataclasses.replace(_UNSCALED, evaluate=UNITS.wrap(_UNSCALED.evaluate))
 # the engine entry point: evaluate(P, wanted, solver, out, status, n_steps, n_rhs, n_positions=N_POSITIONS)
 # (algebraic: solver, n_steps and n_rhs are unused; n_positions: crank positions per cycle, for
 # convergence studies; curves then have that length)

@@ -27,7 +27,10 @@ Statuses: INFEASIBLE if the crank cannot make a full turn (l < r + |e|); SINGULA
 """
 from __future__ import annotations
 
+import dataclasses
 import math
+
+import numpy as np
 
 from .. import status as st
 from .._jit import jit_noalloc
@@ -41,82 +44,100 @@ from ._linkage import (  # the per-design function's helpers and layout constant
     Q_TRANS, Q_TRMS, SB_FX, SB_FX0, SB_FXTB, SB_FY, SB_FY0, SB_FYTB, SB_M, SB_T, S_BRANCH, S_DELTA, S_E,
     S_FLOAD, S_G, S_K, S_OMEGA, S_R, S_RCW, branch_sign, cycle_stats, max_force, slider_assembly,
     slider_conrod_length, slider_counterweight, slider_kinematics_cycle, slider_links, slider_loads_cycle)
-from ._spec import Output, Param
+from ._scaling import NONE, UnitScaling, largest_exponent
+from ..model.spec import Output, Param
 from .fourbar_balancing import PHI_DIM, positions
 
 _ANGLE = dict(lo=-2.0 * math.pi, hi=2.0 * math.pi)
 
 PARAMS = (
-    Param("r", "r", "m", "crank radius O A", lo=0.0, lo_open=True),
-    Param("l", "l", "m", "connecting-rod length A B (give l or lambda)", lo=0.0, lo_open=True,
-          required=False, default=math.nan),
-    Param("lambda", "λ", "1", "crank-to-rod ratio r / l (give l or lambda)", lo=0.0, lo_open=True,
-          required=False, default=math.nan),
+    Param("r", "r", "m", "crank radius O A", lo=0.0, lo_open=True, latex="$r$"),
+    Param("l", "l", "m", "connecting-rod length A B", lo=0.0, lo_open=True,
+          required=False, default=math.nan, latex="$l$"),
+    # lam, not lambda (a Python keyword: no ds.sel(lambda=...)); scenes and calls may still say lambda
+    Param("lam", "λ", "1", "crank-to-rod ratio", lo=0.0, lo_open=True,
+          required=False, default=math.nan, latex=r"$\lambda = r/l$", aliases=("lambda",)),
     Param("e", "e", "m", "offset of the slider line from the crank axis (slider on y = e)", required=False,
-          default=0.0),
-    Param("branch", "σ", "1", "assembly branch: slider on the +x (right) or -x (left) side of the crank pin",
-          choices=("right", "left"), required=False, default=0.0),
-    Param("m1", "m1", "kg", "crank mass", lo=0.0),
-    Param("r1", "r1", "m", "distance of the crank's centre of mass from O", lo=0.0),
+          default=0.0, latex="$e$"),
+    Param("branch", "σ", "1", "assembly branch: slider on the +x (right) or −x (left) side of the crank pin",
+          choices=("right", "left"), required=False, default=0.0, latex=r"$\sigma$"),
+    Param("m1", "m1", "kg", "crank mass", lo=0.0, latex="$m_1$"),
+    Param("r1", "r1", "m", "distance of the crank's centre of mass from O", lo=0.0, latex="$r_1$"),
     Param("theta1", "θ1", "rad", "angle of the crank's centre of mass from the crank line", required=False,
-          default=0.0, **_ANGLE),
-    Param("I1", "I1", "kg m2", "crank moment of inertia about its centre of mass", lo=0.0),
-    Param("m2", "m2", "kg", "connecting-rod mass", lo=0.0),
-    Param("r2", "r2", "m", "distance of the rod's centre of mass from the crank pin A", lo=0.0),
+          default=0.0, **_ANGLE, latex=r"$\theta_1$"),
+    Param("I1", "I1", "kg m2", "crank moment of inertia about its centre of mass", lo=0.0, latex="$I_1$"),
+    Param("m2", "m2", "kg", "connecting-rod mass", lo=0.0, latex="$m_2$"),
+    Param("r2", "r2", "m", "distance of the rod's centre of mass from the crank pin A", lo=0.0, latex="$r_2$"),
     Param("theta2", "θ2", "rad", "angle of the rod's centre of mass from the line A B", required=False,
-          default=0.0, **_ANGLE),
-    Param("I2", "I2", "kg m2", "connecting-rod moment of inertia about its centre of mass", lo=0.0),
-    Param("m3", "m3", "kg", "slider (piston) mass", lo=0.0),
-    Param("omega", "ω", "rad s-1", "mean crank speed; phi' = omega (1 + delta sin phi)", lo=0.0, lo_open=True),
-    Param("delta", "δ", "1", "crank speed modulation: phi' = omega (1 + delta sin phi)", lo=-1.0, hi=1.0,
-          lo_open=True, hi_open=True, required=False, default=0.0),
-    Param("g", "g", "m s-2", "gravitational acceleration along -y (0: no gravity)", lo=0.0, hi=100.0,
-          required=False, default=0.0),
+          default=0.0, **_ANGLE, latex=r"$\theta_2$"),
+    Param("I2", "I2", "kg m2", "connecting-rod moment of inertia about its centre of mass", lo=0.0, latex="$I_2$"),
+    Param("m3", "m3", "kg", "slider (piston) mass", lo=0.0, latex="$m_3$"),
+    Param("omega", "ω", "rad s-1", "mean crank speed: φ′ = ω (1 + δ sin φ)", lo=0.0, lo_open=True,
+          latex=r"$\omega$"),
+    Param("delta", "δ", "1", "crank speed modulation: φ′ = ω (1 + δ sin φ)", lo=-1.0, hi=1.0,
+          lo_open=True, hi_open=True, required=False, default=0.0, latex=r"$\delta$"),
+    Param("g", "g", "m s-2", "gravitational acceleration along −y (0: no gravity)", lo=0.0, hi=100.0,
+          required=False, default=0.0, latex="$g$"),
     Param("F_load", "F_load", "N", "constant useful-load force on the slider along +x", required=False,
-          default=0.0),
+          default=0.0, latex=r"$F_\mathrm{load}$"),
     Param("k", "k", "1", "fraction of the reciprocating mass balanced by the crank counterweight "
-          "(textbook: 1/3 to 1/2)", lo=0.0, hi=2.0),
+          "(textbook: 1/3 to 1/2)", lo=0.0, hi=2.0, latex="$k$"),
     Param("r_cw", "r_cw", "m", "radius of the counterweight's centre (point mass); default r", lo=0.0,
-          lo_open=True, required=False, default=math.nan),
+          lo_open=True, required=False, default=math.nan, latex=r"$r_\mathrm{cw}$"),
 )
 assert tuple(p.name for p in PARAMS) == L.SLIDER_PARAMS
 
 _K = "with the crank counterweight of fraction k"
 SCALARS = {
-    "transmission_min": ("μ_min", "rad", "smallest transmission angle (pi/2 minus the largest rod angle to the "
+    "transmission_min": ("μ_min", "rad", "smallest transmission angle (π/2 minus the largest rod angle to the "
                                          "slider line)"),
     "m_A": ("m_A", "kg", "rotating mass at the crank pin (static two-point substitution; magnitude)"),
     "m_B": ("m_B", "kg", "reciprocating mass at the slider (static two-point substitution)"),
     "cw_mr": ("m_cw r_cw", "kg m", "crank counterweight mass-radius product, (m_A + k m_B) r inline"),
     "cw_angle": ("β", "rad", "crank counterweight angle from the crank line"),
-    "cw_mass": ("m_cw", "kg", "crank counterweight mass cw_mr / r_cw"),
+    "cw_mass": ("m_cw", "kg", "crank counterweight mass"),
     "F_max": ("|F|_max", "N", f"largest magnitude of the shaking force, {_K}"),
     "Fx_max": ("|Fx|_max", "N", f"largest |Fx| (along the stroke), {_K}"),
     "Fy_max": ("|Fy|_max", "N", f"largest |Fy| (across the stroke), {_K}"),
     "Fx_rms": ("Fx_rms", "N", f"RMS of Fx, {_K}"),
     "Fy_rms": ("Fy_rms", "N", f"RMS of Fy, {_K}"),
-    "Fx_range": ("f1", "N", f"max - min of Fx, {_K}"),
-    "Fy_range": ("f2", "N", f"max - min of Fy, {_K}"),
+    "Fx_range": ("f1", "N", f"range (max − min) of Fx, {_K}"),
+    "Fy_range": ("f2", "N", f"range (max − min) of Fy, {_K}"),
     "M_rms": ("M_rms", "N m", f"RMS of the shaking moment about the crank axis, {_K}"),
     "M_max": ("|M|_max", "N m", f"largest |shaking moment|, {_K}"),
-    "M_range": ("f3", "N m", f"max - min of the shaking moment, {_K}"),
+    "M_range": ("f3", "N m", f"range (max − min) of the shaking moment, {_K}"),
     "T_rms": ("T_rms", "N m", f"RMS of the input torque, {_K}"),
     "T_max": ("|T|_max", "N m", f"largest |input torque|, {_K}"),
-    "T_range": ("f4", "N m", f"max - min of the input torque, {_K}"),
+    "T_range": ("f4", "N m", f"range (max − min) of the input torque, {_K}"),
     "F_max_unbalanced": ("|F|_max,0", "N", "largest magnitude of the shaking force without counterweight"),
     "F_tb_error_max": ("max|F - F_tb|", "N", "largest error of the textbook two-term residual force against "
                                              "exact kinematics"),
-    "F_tb_error_rel": ("max|F - F_tb| / (m_B r ω²)", "1", "textbook residual-force error relative to m_B r omega^2"),
+    "F_tb_error_rel": ("max|F - F_tb| / (m_B r ω²)", "1", "textbook residual-force error relative to m_B r ω²"),
 }
 CURVES = {
     "Fx_phi": ("Fx", "N", f"shaking force along the stroke, exact, {_K}"),
     "Fy_phi": ("Fy", "N", f"shaking force across the stroke, exact, {_K}"),
-    "Fx_tb_phi": ("Fx_tb", "N", "textbook residual (1 - k) m_B r w^2 cos phi + lambda m_B r w^2 cos 2 phi"),
-    "Fy_tb_phi": ("Fy_tb", "N", "textbook residual -k m_B r w^2 sin phi (- g m_total)"),
+    "Fx_tb_phi": ("Fx_tb", "N", "textbook residual along the stroke (1 − k) m_B r ω² cos φ + λ m_B r ω² cos 2φ"),
+    "Fy_tb_phi": ("Fy_tb", "N", "textbook residual across the stroke −k m_B r ω² sin φ (with gravity, less g times "
+                                "the total mass)"),
     "M_phi": ("M", "N m", f"shaking moment about the crank axis, {_K}"),
     "T_phi": ("T", "N m", f"input torque, {_K}"),
 }
 assert tuple(SCALARS) == L.SLIDER_OUTPUTS and tuple(CURVES) == L.SLIDER_CURVES
+LATEX = {  # the outputs' symbols in mathtext, for figures
+    "transmission_min": r"$\mu_\min$", "m_A": "$m_A$", "m_B": "$m_B$",
+    "cw_mr": r"$m_\mathrm{cw} r_\mathrm{cw} = (m_A + k\,m_B)\,r$", "cw_angle": r"$\beta$",
+    "cw_mass": r"$m_\mathrm{cw}$", "F_max": r"$|F|_\max$", "Fx_max": r"$|F_x|_\max$", "Fy_max": r"$|F_y|_\max$",
+    "Fx_rms": r"$F_{x,\mathrm{rms}}$", "Fy_rms": r"$F_{y,\mathrm{rms}}$", "Fx_range": r"$f_1 = \max F_x - \min F_x$",
+    "Fy_range": r"$f_2 = \max F_y - \min F_y$", "M_rms": r"$M_\mathrm{rms}$", "M_max": r"$|M|_\max$",
+    "M_range": r"$f_3 = \max M - \min M$", "T_rms": r"$T_\mathrm{rms}$", "T_max": r"$|T|_\max$",
+    "T_range": r"$f_4 = \max T - \min T$", "F_max_unbalanced": r"$|F|_{\max,0}$",
+    "F_tb_error_max": r"$\max|F - F_\mathrm{tb}|$",
+    "F_tb_error_rel": r"$\max|F - F_\mathrm{tb}|\,/\,(m_B r \omega^2)$",
+    "Fx_phi": "$F_x$", "Fy_phi": "$F_y$", "Fx_tb_phi": r"$F_{x,\mathrm{tb}}$", "Fy_tb_phi": r"$F_{y,\mathrm{tb}}$",
+    "M_phi": "$M$", "T_phi": "$T$",
+}
+assert set(LATEX) == set(SCALARS) | set(CURVES)
 
 
 def crank_data(n_positions: int):
@@ -210,11 +231,11 @@ def slider_design(p, want, row, crv, slot, buf, cos_phi, sin_phi):
 
 
 def check(given):
-    """Exactly one of l and lambda."""
-    if "l" in given and "lambda" in given:
-        return ["fixed.lambda: give the rod length l or lambda = r / l, not both"]
-    if "l" not in given and "lambda" not in given:
-        return ["fixed.l: missing; give the rod length l or lambda = r / l"]
+    """Exactly one of l and lam."""
+    if "l" in given and "lam" in given:
+        return ["fixed.lam: give the rod length l or lambda = r / l (the parameter lam), not both"]
+    if "l" not in given and "lam" not in given:
+        return ["fixed.l: missing; give the rod length l or lambda = r / l (the parameter lam)"]
     return []
 
 
@@ -229,17 +250,20 @@ MODEL = ClosedFormModel(
         "mechsweep docs/physics.md section 4: the checks and corrections made to the source",
     ),
     params=PARAMS,
-    outputs=tuple(Output(k, *v) for k, v in SCALARS.items())
-    + tuple(Output(k, *v, extra_dims=(PHI_DIM,)) for k, v in CURVES.items()),
+    outputs=tuple(Output(k, *v, latex=LATEX[k]) for k, v in SCALARS.items())
+    + tuple(Output(k, *v, extra_dims=(PHI_DIM,), latex=LATEX[k]) for k, v in CURVES.items()),
     compute=slider_design,
     size=L.N_POSITIONS,
     data=crank_data,
     scratch=L.N_SBUF,
     check=check,
-    statuses=(st.INFEASIBLE, st.SINGULAR, st.NONFINITE),
+    statuses=(st.INFEASIBLE, st.SINGULAR, st.NONFINITE, st.OUT_OF_RANGE),
     status_notes={
         st.INFEASIBLE: "the linkage does not assemble over a full turn",
         st.SINGULAR: "a toggle (sin of the transmission angle below 1e-3) in the cycle",
+        st.OUT_OF_RANGE: "a length, distance, mass or inertia more than 2^300 (1e90) from the largest of its kind, "
+                         "in the design's own units (every design is computed in units of its crank or rod, its "
+                         "largest mass and its fastest rate, so any overall scale is fine)",
     },
     # bench workprecision: error against the number of crank positions, the reference a closed form where
     # it holds (slider_series_applies; models/_linkage_reference.py)
@@ -249,6 +273,25 @@ MODEL = ClosedFormModel(
         reference=R.slider_reference, reference_name=R.SLIDER_REFERENCE, applies=R.slider_series_applies,
         compare=R.numpy_slider, compare_name=R.NUMPY),
 )
-SPEC = MODEL.spec()
+
+
+def design_units(P):
+    """(a, c, t): each design's units of mass 2^a kg, length 2^c m and time 2^t s (_scaling.UnitScaling):
+    the longer of crank and rod, the faster of the crank speed and sqrt(g / length), and the largest of
+    the masses, inertias / length^2 and |F_load| / (length / time^2)."""
+    c = largest_exponent(P[:, L.S_R], P[:, L.S_L])
+    rate = largest_exponent(P[:, L.S_OMEGA])
+    gravity = largest_exponent((P[:, L.S_G], c))
+    rate = np.maximum(rate, np.where(gravity == NONE, NONE, (gravity + 1) // 2))
+    t = -rate
+    a = largest_exponent(P[:, L.S_M1], P[:, L.S_M2], P[:, L.S_M3], (P[:, L.S_I1], 2 * c), (P[:, L.S_I2], 2 * c),
+                         (P[:, L.S_FLOAD], c - 2 * t))
+    return np.where(a == NONE, 0, a), c, t
+
+
+UNITS = UnitScaling(PARAMS, MODEL.outputs, design_units,
+                    spread=("r", "l", "r1", "r2", "r_cw", "m1", "m2", "m3", "I1", "I2"))
+_UNSCALED = MODEL.spec()
+SPEC = dataclasses.replace(_UNSCALED, evaluate=UNITS.wrap(_UNSCALED.evaluate))
 # the engine entry point, as fourbar_balancing.evaluate (n_positions as its 8th argument)
 evaluate = SPEC.evaluate

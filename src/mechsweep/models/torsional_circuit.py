@@ -29,7 +29,8 @@ from ..model.measure import ClosedForm, FirstEvent, System
 from ..model.ode import OdeModel
 from ..model.workprecision import WorkPrecision
 from . import duffing
-from ._spec import Param
+from ._scaling import exponent, normal, product_in_range, quotient_in_range, times_pow2
+from ..model.spec import Param
 
 SINGULAR_D0 = 1e-12  # (L(0)/R)^2 below this: spring of zero length at rest, formulas singular
 
@@ -51,6 +52,21 @@ def coefficients(sigma, lam1, lam2, s):
     chi = lam1 * s / r
     xi = lam1 * (3.0 * lam1 - s * (D0 + 3.0 * sigma * lam1) / r) / (6.0 * D0)
     return st.OK, chi, xi, D0
+
+
+@jit_noalloc
+def coefficients_in_range(sigma, lam1, s, D0):
+    """Every product and quotient of chi and xi (coefficients) is a normal number or an exact 0 from a
+    zero factor: False for geometries beyond about 1e150 R (D0 overflows at lambda1 = 1e200, where chi
+    would be 0 and xi NaN) or products below about 1e-308 (s0_over_r = 1e-310; lambda1 = 1e-200, where
+    xi ~ 3 lambda1^2 / (6 D0) underflows to 0): chi, xi and the two-term outputs are then OUT_OF_RANGE.
+    A cancellation to 0 or to a tiny difference (xi = 0: linear) is not a range problem and passes."""
+    r = math.sqrt(D0)
+    G = D0 + 3.0 * sigma * lam1
+    B = 3.0 * lam1 - s * G / r
+    return (normal(D0) and normal(6.0 * D0) and normal(3.0 * lam1) and product_in_range(lam1, s)
+            and quotient_in_range(lam1 * s, r) and product_in_range(s, G) and quotient_in_range(s * G, r)
+            and product_in_range(lam1, B) and quotient_in_range(lam1 * B, 6.0 * D0))
 
 
 @jit_noalloc
@@ -86,26 +102,59 @@ def exact_moment_slope(phi, sigma, lam1, D0, L0):
 
 
 @jit_noalloc
-def exact_classify(sigma, lam1, D0, L0, A):
+def stretch(phi, sigma, lam1, D0, r):
+    """(l(phi) - r, l(phi)) without cancellation, r = sqrt(D0) the formulation's l at 0:
+    l - r = 4 sigma lambda1 sin^2(phi / 2) / (l + r)."""
+    h = math.sin(0.5 * phi)
+    d = 4.0 * sigma * lam1 * h * h
+    length = math.sqrt(D0 + d)
+    return d / (length + r), length
+
+
+@jit_noalloc
+def exact_moment_stretch(phi, sigma, lam1, D0, r, gap, L0):
+    """exact_moment with 1 - L0 / l written as (l - L0) / l, l - L0 = (l - r) + gap (stretch; gap =
+    r - L0 given without cancellation): the plain form loses the digits of l - L0 where it is small
+    against L0 (a mounting deformation s0_over_r -> 0 at small amplitudes; u L0 / |l - L0| relative)."""
+    dl, length = stretch(phi, sigma, lam1, D0, r)
+    return sigma * lam1 * math.sin(phi) * ((dl + gap) / length)
+
+
+@jit_noalloc
+def exact_moment_stretch_slope(phi, sigma, lam1, D0, r, gap, L0):
+    """d/dphi of exact_moment_stretch (exact_moment_slope with 1 - L0 / l from stretch)."""
+    dl, length = stretch(phi, sigma, lam1, D0, r)
+    sin_phi = math.sin(phi)
+    return sigma * lam1 * (math.cos(phi) * ((dl + gap) / length)
+                           + sigma * lam1 * L0 * sin_phi * sin_phi / (length * length * length))
+
+
+@jit_noalloc
+def exact_classify(sigma, lam1, D0, gap, A):
     """Status of the exact-moment motion released at rest from phi = A: NO_MOTION for A = 0,
     NOT_OSCILLATORY unless the lever passes through phi = 0 (_returns_through_zero), else OK.
     The two-term model's classification plays no part."""
     if A == 0.0:
         return st.NO_MOTION
-    if not _returns_through_zero(sigma, lam1, D0, L0, A):
+    if not _returns_through_zero(sigma, lam1, D0, gap, A):
         return st.NOT_OSCILLATORY
     return st.OK
 
 
 @jit_noalloc
-def _returns_through_zero(sigma, lam1, D0, L0, A):
+def _returns_through_zero(sigma, lam1, D0, gap, A):
     """Energy: released at rest from A, the lever reaches phi = 0 iff the spring energy there is
     lower than at A, (l(0) - L0)^2 < (l(A) - L0)^2; l is monotonic on [0, pi] and the energy
     (l - L0)^2 / 2 is convex in l, so on [0, A] it is highest at an end and has no other hump in
     between. Then, the moment being odd, the motion is symmetric and swings to -A: an oscillation
     about phi = 0 whatever the two-term model says. Otherwise the lever stays in a well away from 0
-    (or creeps to 0 forever)."""
-    return abs(math.sqrt(D0) - L0) < abs(spring_length(A, sigma, lam1, D0) - L0)
+    (or creeps to 0 forever). gap = l(0) - L0 = sigma s0_over_r and dl = l(A) - l(0) (stretch) are
+    free of cancellation, and the energy difference is decided by signs, so a tiny mounting
+    deformation at a tiny amplitude, or a stroke far shorter than the deformation, is decided right."""
+    dl, _ = stretch(A, sigma, lam1, D0, math.sqrt(D0))
+    # V(A) - V(0) = dl (dl + 2 gap) / 2 > 0, by signs (dl far below gap is not lost to rounding)
+    e = dl + 2.0 * gap
+    return (dl > 0.0 and e > 0.0) or (dl < 0.0 and e < 0.0)
 
 
 @jit_noalloc
@@ -132,109 +181,171 @@ def cubic_sensitivities(sigma, lam1, lam2, s, D0):
 # --------------------------------------------------------------------------- the declaration
 # p = (spring, lambda1, lambda2, s0_over_r, R, c, I, A | t_max_periods | internal slots).
 # Internal slots: the two-term system's (a, b, c, level, direction, w) as duffing's, then the exact
-# system's (sigma', lambda1, D, L0, scale, coef, level, direction, w2). Each system's prepare writes
-# its own slots just before its measurement.
+# system's (sigma', lambda1, D, L0, scale, coef, level, direction, w, sqrt D, gap, form, step). Each
+# system's prepare writes its own slots just before its measurement.
 SPRING, LAM1, LAM2, S0R, RR, CC, II, AMP, T_MAX = range(9)
 IA, IB, IC, ILEVEL, IDIR, IW = range(9, 15)
-ES, EL1, ED, EL0, ESCALE, ECOEF, ELEVEL, EDIR, EW2 = range(15, 24)
+ES, EL1, ED, EL0, ESCALE, ECOEF, ELEVEL, EDIR, EW, ER, EGAP, EFORM, ESTEP = range(15, 28)
 PI_LO = 1.2246467991473532e-16  # pi - math.pi: pi = math.pi + PI_LO to twice double precision
 # Tightened tolerances below this are not tried: the point is ILL_CONDITIONED (as the old Duffing floor)
 RTOL_FLOOR = 5e-14
+# Time unit of the exact system: the two-term model's w^2 = k (|chi| + |xi| A^2) where it is within this
+# factor (both ways) of the exact moment's own w_e^2 = k exact_time_scale (any unit within it serves, and
+# sweeps/torsional_circuit_truncation.toml keeps its bits: its largest ratio is 9.2, measured by
+# tests/test_torsional_circuit.py::test_exact_time_unit_is_the_two_term_one_where_they_agree); w_e^2
+# beyond it (next to D0 -> 0, xi ~ 1 / (2 D0) while the moment saturates like sin(phi): there the
+# two-term unit is far too fast, and a horizon of 100 of its periods would end before the first
+# quarter period)
+SCALE_BAND = 16.0
+# The exact moment as (l - L0) / l (exact_moment_stretch) where the plain 1 - L0 / l could lose more
+# than this factor of round-off: |L0| > STRETCH_FORM max(|l(0) - L0|, |l(A) - L0|)
+# (s0_over_r -> 0 at small amplitudes; the shipped scenes stay below 20 and keep their bits)
+STRETCH_FORM = 64.0
+# the exact system's lengths and mounting deformation below 2^600 (its rhs forms l^3), its force
+# scale above 2^-900 (below, moments along the stroke would be subnormal)
+EXACT_BIG = 2.0 ** 600
+EXACT_TINY = 2.0 ** -900
+
+
+@jit_noalloc
+def stiffness_split(p):
+    """(kk, ek): k = R^2 c / I = kk 2^ek exactly, ek even: (k, 0) where R^2 c / I is safely normal,
+    else kk in [1, 4): no overflow for any R, c, I, and the bits of R * R * c / I wherever that is a
+    normal number (models/_scaling.py)."""
+    R2 = p[RR] * p[RR]
+    R2c = R2 * p[CC]
+    k = R2c / p[II]
+    if 2.0 ** -400 <= min(R2, R2c, k) and max(R2, R2c, k) <= 2.0 ** 400:
+        return k, 0  # R^2 c / I as written (no libm call where it is safely normal)
+    fR, eR = math.frexp(p[RR])
+    fc, ec = math.frexp(p[CC])
+    fI, eI = math.frexp(p[II])
+    kk = fR * fR * fc / fI  # in (1/8, 2)
+    e = 2 * eR + ec - eI
+    t = 1 - exponent(kk)  # kk 2^t in [1, 2)
+    if (e - t) % 2 != 0:
+        t += 1
+    return math.ldexp(kk, t), e - t
 
 
 @jit
 def point_coefficients(p):
-    """(status, sigma, lam1, lam2, s, k, chi, xi, A) of a point; k = R^2 c / I."""
+    """(status, sigma, lam1, lam2, s, kk, ek, chi, xi, A) of a point; k = R^2 c / I = kk 2^ek
+    (stiffness_split). status: SINGULAR or INFEASIBLE where formulas (4)-(7) give no coefficients,
+    OUT_OF_RANGE where chi or xi cannot be formed in double precision (coefficients_in_range)."""
     sigma = spring_sign(p[SPRING])
     lam1, lam2, s = p[LAM1], p[LAM2], p[S0R]
-    k = p[RR] * p[RR] * p[CC] / p[II]
-    code, chi, xi, _ = coefficients(sigma, lam1, lam2, s)
-    return code, sigma, lam1, lam2, s, k, chi, xi, p[AMP]
+    kk, ek = stiffness_split(p)
+    code, chi, xi, D0 = coefficients(sigma, lam1, lam2, s)
+    if code == st.OK and not (coefficients_in_range(sigma, lam1, s, D0) and product_in_range(kk, chi)
+                              and product_in_range(kk, xi)):
+        code = st.OUT_OF_RANGE
+    return code, sigma, lam1, lam2, s, kk, ek, chi, xi, p[AMP]
 
 
 def model_classify(p):
     """SINGULAR or INFEASIBLE where formulas (4)-(7) give no coefficients: every output NaN."""
+    code = point_coefficients(p)[0]
+    return st.OK if code == st.OUT_OF_RANGE else code
+
+
+def coefficients_classify(p):
+    """OUT_OF_RANGE where chi or xi cannot be formed in double precision: the coefficients and the
+    two-term outputs are NaN, the exact-moment period is still given (it has its own range)."""
     return point_coefficients(p)[0]
+
+
+@jit
+def two_term_point(p):
+    """The two-term model's point (omega^2 = k chi, mu = k xi, A) rescaled by powers of two
+    (duffing.rescaled): (status, omega2', mu', A', i, j), status the coefficients' or duffing's."""
+    code, _, _, _, _, kk, ek, chi, xi, A = point_coefficients(p)
+    o2, mu, a, i, j = duffing.rescaled(kk * chi, ek, kk * xi, ek, A)
+    if code == st.OK:
+        code = duffing.classify_scaled(chi, o2, mu, a)
+    return code, o2, mu, a, i, j
 
 
 def two_term_classify(p):
     """The two-term (Duffing) model's status (duffing.classify of omega^2 = k chi, mu = k xi)."""
-    _, _, _, _, _, k, chi, xi, A = point_coefficients(p)
-    return duffing.classify(k * chi, k * xi, A)
+    return two_term_point(p)[0]
 
 
-# ---- closed forms: the coefficients, and the Duffing closed forms of the two-term model
+# ---- closed forms: the coefficients, and the Duffing closed forms of the two-term model, evaluated on
+# the rescaled point as duffing's (bitwise the plain formulas in the usual range)
 def chi_of(p):
-    return point_coefficients(p)[6]
-
-
-def xi_of(p):
     return point_coefficients(p)[7]
 
 
+def xi_of(p):
+    return point_coefficients(p)[8]
+
+
 def omega2_of(p):
-    _, _, _, _, _, k, chi, xi, A = point_coefficients(p)
-    return k * chi
+    _, _, _, _, _, kk, ek, chi, xi, A = point_coefficients(p)
+    return times_pow2(kk * chi, ek)
 
 
 def mu_of(p):
-    _, _, _, _, _, k, chi, xi, A = point_coefficients(p)
-    return k * xi
+    _, _, _, _, _, kk, ek, chi, xi, A = point_coefficients(p)
+    return times_pow2(kk * xi, ek)
 
 
 def hardness_of(p):
-    xi = point_coefficients(p)[7]
+    xi = point_coefficients(p)[8]
     return 1.0 if xi > 0.0 else (-1.0 if xi < 0.0 else 0.0)
 
 
 def period_exact(p):
-    _, _, _, _, _, k, chi, xi, A = point_coefficients(p)
-    return duffing.period_closed_form(k * chi, k * xi, A)
+    _, omega2, mu, A, i, _ = two_term_point(p)
+    return times_pow2(duffing.period_plain(omega2, mu, A), i)
 
 
 def v_max(p):
-    _, _, _, _, _, k, chi, xi, A = point_coefficients(p)
-    return duffing.v_max_closed_form(k * chi, k * xi, A)
+    _, omega2, mu, A, i, j = two_term_point(p)
+    return times_pow2(duffing.v_max_plain(omega2, mu, A), -(i + j))
 
 
 def a_max(p):
-    _, _, _, _, _, k, chi, xi, A = point_coefficients(p)
-    return duffing.a_max_closed_form(k * chi, k * xi, A)
+    _, omega2, mu, A, i, j = two_term_point(p)
+    return times_pow2(duffing.a_max_plain(omega2, mu, A), -(2 * i + j))
 
 
 def kv(p, vmax, T):
-    return vmax * T / p[AMP]  # 2 pi for the linear oscillator
+    _, omega2, mu, A, _, _ = two_term_point(p)
+    return duffing.v_max_plain(omega2, mu, A) * duffing.period_plain(omega2, mu, A) / A  # 2 pi when linear
 
 
 def ka(p, amax, T):
-    return amax * T * T / p[AMP]  # 4 pi^2 for the linear oscillator
+    _, omega2, mu, A, _, _ = two_term_point(p)
+    T = duffing.period_plain(omega2, mu, A)
+    return duffing.a_max_plain(omega2, mu, A) * T * T / A  # 4 pi^2 for the linear oscillator
 
 
 def epsilon(p):
-    _, _, _, _, _, k, chi, xi, A = point_coefficients(p)
-    mu = k * xi
-    return mu * A * A / (k * chi)
+    _, _, _, _, _, kk, ek, chi, xi, A = point_coefficients(p)
+    return duffing.epsilon_split(kk * chi, ek, kk * xi, ek, A)
 
 
 def relative_error(p, value, reference):
-    return abs(value - reference) / abs(reference)
+    return duffing.relative_difference(value, reference)
 
 
 # ---- the two-term system: duffing's scaled equation (plain or saddle formulation) in slots IA..IW
 def two_term_prepare(p, rtol):
     """The two-term model's status, then, as duffing.prepare, ILL_CONDITIONED where the period's
     condition number (with this model's sensitivities, cubic_sensitivities) times round-off exceeds
-    rtol; else the scaled equation's coefficients, the event and w."""
-    _, sigma, lam1, lam2, s, k, chi, xi, A = point_coefficients(p)
-    omega2 = k * chi
-    mu = k * xi
-    code = duffing.classify(omega2, mu, A)
+    rtol, OUT_OF_RANGE where w is beyond the normal range; else the scaled equation's coefficients,
+    the event and w."""
+    _, sigma, lam1, lam2, s, kk, ek, chi, xi, A = point_coefficients(p)
+    code, omega2, mu, A, i, _ = two_term_point(p)
     if code != st.OK:
         return code
     k_omega2, k_q = cubic_sensitivities(sigma, lam1, lam2, s, rest_length_squared(sigma, lam1, lam2))
     if not duffing.period_condition(omega2, mu, A, k_omega2, k_q) * duffing.UNIT_ROUNDOFF <= rtol:  # NaN-safe
         return st.ILL_CONDITIONED
-    duffing.scale_into(omega2, mu, A, p, IA)
+    if not duffing.scale_into(omega2, mu, A, i, p, IA):
+        return st.OUT_OF_RANGE
     return st.OK
 
 
@@ -275,20 +386,74 @@ def two_term_period(p, tau_q):
     return 4.0 * tau_q / p[IW]
 
 
-# ---- the exact system: the scaled exact-moment equation in slots ES..EW2
+# ---- the exact system: the scaled exact-moment equation in slots ES..EFORM
+@jit_noalloc
+def exact_time_scale(sigma, lam1, D0, gap, A):
+    """w_e^2 / k = (v_max / A)^2 / k of the exact moment released at rest from A (gap = l(0) - L0 =
+    sigma s0_over_r): 2 dV / A^2, dV = V(A) - min V over [0, A] from the energy V = (l - L0)^2 / 2,
+    without cancellation: V(A) - V(0) = dl (dl + 2 gap) / 2, dl = l(A) - l(0); V(A) where the well's
+    bottom l = L0 lies inside the stroke. The quarter period is at least A / v_max: the scaled
+    equation's period is at least 4 in this unit, whatever the spring (it grows only near a hump)."""
+    dl, _ = stretch(A, sigma, lam1, D0, math.sqrt(D0))
+    vA = dl + gap  # l(A) - L0
+    if gap * vA < 0.0:
+        dV = 0.5 * vA * vA
+    else:
+        dV = 0.5 * dl * (dl + 2.0 * gap)
+    return 2.0 * dV / (A * A)
+
+
+@jit_noalloc
+def exact_in_range(lam1, D0, s, A):
+    """The exact system's inputs leave room in double precision's range: the squared spring length and
+    the mounting deformation below EXACT_BIG, A^2 and the spring's stretch over the stroke normal
+    (below A ~ 1e-154 sin^2(A / 2) underflows and the lever would look as if it never left phi = 0).
+    The force scale is checked once the motion is known to oscillate (exact_prepare)."""
+    h = math.sin(0.5 * A)
+    return D0 + 4.0 * lam1 <= EXACT_BIG and abs(s) <= EXACT_BIG and normal(A * A) and normal(4.0 * lam1 * h * h)
+
+
 def exact_prepare(p, rtol):
     """Whether the lever oscillates about phi = 0 is decided by the exact moment's potential alone
     (exact_classify), never by the two-term model; then the scaled equation, in phi / A, or, released
-    near the top (A > pi / 2), in theta = pi - phi (see exact_refine)."""
-    _, sigma, lam1, lam2, s, k, chi, xi, A = point_coefficients(p)
+    near the top (A > pi / 2), in theta = pi - phi (see exact_refine), with the time unit of
+    exact_time_scale where the two-term model's is off by more than SCALE_BAND, and the moment in
+    the form free of cancellation where the plain one would lose digits (STRETCH_FORM).
+    OUT_OF_RANGE where the exact system's quantities leave double precision's range (exact_in_range)."""
+    _, sigma, lam1, lam2, s, kk, ek, chi, xi, A = point_coefficients(p)
     D0 = rest_length_squared(sigma, lam1, lam2)
-    L0 = math.sqrt(D0) - sigma * s
-    code = exact_classify(sigma, lam1, D0, L0, A)
+    r = math.sqrt(D0)
+    gap = sigma * s  # l(0) - L0
+    L0 = r - gap
+    if A == 0.0:
+        return st.NO_MOTION
+    if not exact_in_range(lam1, D0, s, A):
+        return st.OUT_OF_RANGE
+    code = exact_classify(sigma, lam1, D0, gap, A)
     if code != st.OK:
         return code
-    # time scale of the scaled equation: as the two-term model's, with |chi| (chi < 0 is allowed
-    # here: the lever may swing over the hump at phi = 0); |chi| + |xi| A^2 > 0 for every feasible A > 0
-    w2 = k * (abs(chi) + abs(xi) * A * A)
+    scale = exact_time_scale(sigma, lam1, D0, gap, A)
+    if not (EXACT_TINY <= scale * A and scale <= EXACT_BIG):  # the force scale: moments along the stroke normal
+        return st.OUT_OF_RANGE
+    # time scale of the scaled equation: the two-term model's (|chi| + |xi| A^2 > 0 for every feasible
+    # A > 0; chi < 0 is allowed here: the lever may swing over the hump at phi = 0) unless it is off
+    X2 = abs(chi) + abs(xi) * A * A
+    X = X2
+    if not (X <= SCALE_BAND * scale and scale <= SCALE_BAND * X):  # NaN-safe: NaN coefficients take scale
+        X = scale
+    # symplectic steps: no coarser than in the two-term unit where that is faster. Its |xi| A^2 is the
+    # curvature of the moment at phi = 0, which sees what the exact unit does not: next to D0 -> 0 the
+    # moment turns over within |phi| ~ sqrt(D0 / lambda1), a feature a fixed step must resolve (in the
+    # exact unit alone the period was 2e-7 off at rtol 1e-10, D0 = 9e-12, A = 1e-3; measured by
+    # tests/test_torsional_circuit.py::test_exact_moment_period_of_every_method_next_to_a_zero_rest_length)
+    step = math.sqrt(X / X2)
+    p[ESTEP] = step if step < 1.0 else 1.0  # NaN (coefficients out of range): 1
+    w2 = kk * X  # w^2 / 2^ek
+    w = times_pow2(math.sqrt(w2), ek // 2)
+    if not normal(w):
+        return st.OUT_OF_RANGE
+    dl, _ = stretch(A, sigma, lam1, D0, r)
+    p[EFORM] = 1.0 if abs(L0) > STRETCH_FORM * max(abs(gap), abs(dl + gap)) else 0.0
     p[EL1] = lam1
     p[EL0] = L0
     theta0 = (math.pi - A) + PI_LO  # pi - A; math.pi - A is exact for A >= pi / 2 (Sterbenz)
@@ -297,36 +462,55 @@ def exact_prepare(p, rtol):
         d = 1.0 + sigma * lam1
         p[ES] = -sigma
         p[ED] = d * d + lam2 * lam2
+        r_pi = math.sqrt(p[ED])
+        p[ER] = r_pi
+        p[EGAP] = 4.0 * sigma * lam1 / (r_pi + r) + gap  # l(pi) - L0: l(pi)^2 - l(0)^2 = 4 sigma lambda1
         p[ESCALE] = theta0
-        p[ECOEF] = k / (w2 * theta0)
+        p[ECOEF] = kk / (w2 * theta0)
         p[ELEVEL] = math.pi / theta0
         p[EDIR] = -1.0
     else:
         p[ES] = sigma
         p[ED] = D0
+        p[ER] = r
+        p[EGAP] = gap
         p[ESCALE] = A
-        p[ECOEF] = k / (w2 * A)
+        p[ECOEF] = kk / (w2 * A)
         p[ELEVEL] = 0.0
         p[EDIR] = 1.0
-    p[EW2] = w2
+    p[EW] = w
     return st.OK
 
 
 def exact_rhs(t, y, p, dydt):
     # x = phi / A (or theta / theta0), tau = w t:  x'' = -coef * m(scale x)
     dydt[0] = y[1]
-    dydt[1] = -p[ECOEF] * exact_moment(p[ESCALE] * y[0], p[ES], p[EL1], p[ED], p[EL0])
+    if p[EFORM] != 0.0:
+        dydt[1] = -p[ECOEF] * exact_moment_stretch(p[ESCALE] * y[0], p[ES], p[EL1], p[ED], p[ER], p[EGAP], p[EL0])
+    else:
+        dydt[1] = -p[ECOEF] * exact_moment(p[ESCALE] * y[0], p[ES], p[EL1], p[ED], p[EL0])
 
 
 def exact_jac(t, y, p, J):
     J[0, 0] = 0.0
     J[0, 1] = 1.0
-    J[1, 0] = -p[ECOEF] * p[ESCALE] * exact_moment_slope(p[ESCALE] * y[0], p[ES], p[EL1], p[ED], p[EL0])
+    if p[EFORM] != 0.0:
+        J[1, 0] = -p[ECOEF] * p[ESCALE] * exact_moment_stretch_slope(p[ESCALE] * y[0], p[ES], p[EL1], p[ED], p[ER],
+                                                                     p[EGAP], p[EL0])
+    else:
+        J[1, 0] = -p[ECOEF] * p[ESCALE] * exact_moment_slope(p[ESCALE] * y[0], p[ES], p[EL1], p[ED], p[EL0])
     J[1, 1] = 0.0
 
 
 def exact_accel(t, q, p, a):
-    a[0] = -p[ECOEF] * exact_moment(p[ESCALE] * q[0], p[ES], p[EL1], p[ED], p[EL0])
+    if p[EFORM] != 0.0:
+        a[0] = -p[ECOEF] * exact_moment_stretch(p[ESCALE] * q[0], p[ES], p[EL1], p[ED], p[ER], p[EGAP], p[EL0])
+    else:
+        a[0] = -p[ECOEF] * exact_moment(p[ESCALE] * q[0], p[ES], p[EL1], p[ED], p[EL0])
+
+
+def exact_step_for(p, rtol):
+    return duffing.symplectic_step(rtol) * p[ESTEP]
 
 
 def exact_event(t, y, p):
@@ -335,7 +519,7 @@ def exact_event(t, y, p):
 
 
 def exact_period(p, tau_q):
-    return 4.0 * tau_q / math.sqrt(p[EW2])
+    return 4.0 * tau_q / p[EW]
 
 
 def exact_refine(p, rtol, T):
@@ -362,7 +546,8 @@ def exact_refine(p, rtol, T):
       (condition number with respect to A, lambda1, lambda2, s0_over_r times round-off), the point is
       ILL_CONDITIONED.
     """
-    _, sigma, lam1, lam2, s, k, chi, xi, A = point_coefficients(p)
+    _, sigma, lam1, lam2, s, k, ek, chi, xi, A = point_coefficients(p)
+    T = times_pow2(T, ek // 2)  # with k = kk 2^ek: T in units of 2^(-ek/2) s, k the mantissa kk (exact)
     D0 = rest_length_squared(sigma, lam1, lam2)
     L0 = math.sqrt(D0) - sigma * s
     theta0 = (math.pi - A) + PI_LO
@@ -413,13 +598,14 @@ def _duffing_closed(name, func, needs=(), output_needs=None):
     has a unit), NaN with the two-term status where the two-term model does not oscillate."""
     o = _DUF[name]
     return ClosedForm(name, func, o.symbol, o.unit, o.long_name, needs=needs, output_needs=output_needs,
-                      classify=two_term_classify, needs_params=("A",) + (_DIMENSIONAL if o.unit != "1" else ()))
+                      classify=two_term_classify, needs_params=("A",) + (_DIMENSIONAL if o.unit != "1" else ()),
+                      latex=o.latex)
 
 
 TWO_TERM = System(rhs=two_term_rhs, initial=at_rest_at_one, jac=two_term_jac, accel=two_term_accel,
                   symplectic_step=step_for, prepare=two_term_prepare)
-EXACT = System(rhs=exact_rhs, initial=at_rest_at_one, jac=exact_jac, accel=exact_accel, symplectic_step=step_for,
-               prepare=exact_prepare)
+EXACT = System(rhs=exact_rhs, initial=at_rest_at_one, jac=exact_jac, accel=exact_accel,
+               symplectic_step=exact_step_for, prepare=exact_prepare)
 
 MODEL = OdeModel(
     name="torsional_circuit",
@@ -432,21 +618,24 @@ MODEL = OdeModel(
     ),
     params=(
         Param("spring", "", "1", "spring kind", choices=("tension", "compression")),
-        Param("lambda1", "λ1", "1", "frame point offset in the lever plane / R", lo=0.0, lo_open=True),
-        Param("lambda2", "λ2", "1", "frame point offset along the axis / R", lo=0.0),
-        Param("s0_over_r", "S0/R", "1", "mounting deformation of the spring / R"),
+        Param("lambda1", "λ1", "1", "frame-point offset in the lever plane, in lever radii R", lo=0.0, lo_open=True,
+              latex=r"$\lambda_1$"),
+        Param("lambda2", "λ2", "1", "frame-point offset along the axis, in lever radii R", lo=0.0,
+              latex=r"$\lambda_2$"),
+        Param("s0_over_r", "S0/R", "1", "mounting deformation of the spring, in lever radii R", latex="$S_0/R$"),
         Param("R", "R", "m", "lever radius of the spring attachment", lo=0.0, lo_open=True,
-              required=False, default=1.0),
-        Param("c", "c", "N m-1", "spring stiffness", lo=0.0, lo_open=True, required=False, default=1.0),
+              required=False, default=1.0, latex="$R$"),
+        Param("c", "c", "N m-1", "spring stiffness", lo=0.0, lo_open=True, required=False, default=1.0,
+              latex="$c$"),
         Param("I", "I", "kg m2", "moment of inertia of the lever", lo=0.0, lo_open=True,
-              required=False, default=1.0),
-        Param("A", "A", "rad", "amplitude, phi(0) = A, phi'(0) = 0", lo=0.0, hi=math.pi,
-              required=False, default=math.nan),
+              required=False, default=1.0, latex="$I$"),
+        Param("A", "A", "rad", "amplitude, released at rest from φ = A", lo=0.0, hi=math.pi,
+              required=False, default=math.nan, latex="$A$"),
     ),
     settings=(duffing.T_MAX_PERIODS,),
     internal=("a", "b", "c", "level", "direction", "w",
               "exact_sigma", "exact_lambda1", "exact_D", "exact_L0", "exact_scale", "exact_coef", "exact_level",
-              "exact_direction", "exact_w2"),
+              "exact_direction", "exact_w", "exact_sqrt_D", "exact_gap", "exact_form", "exact_step"),
     states=("x", "dx"),
     classify=model_classify,
     initial=at_rest_at_one,
@@ -458,21 +647,25 @@ MODEL = OdeModel(
     measurements=(
         FirstEvent("period", two_term_event, t_max=horizon, value=two_term_period, symbol=_DUF["period"].symbol,
                    unit=_DUF["period"].unit, long_name=_DUF["period"].long_name, system=TWO_TERM,
-                   needs_params=("A",) + _DIMENSIONAL),
+                   needs_params=("A",) + _DIMENSIONAL, latex=_DUF["period"].latex),
         FirstEvent("period_exact_moment", exact_event, t_max=horizon, value=exact_period, symbol="T_M", unit="s",
                    long_name="period with the exact spring moment", system=EXACT, refine=exact_refine,
-                   needs_params=("A",) + _DIMENSIONAL),
+                   needs_params=("A",) + _DIMENSIONAL, latex="$T_M$"),
     ),
     closed_forms=(
-        ClosedForm("chi", chi_of, "χ = ω² I / (R² c)", "1", "linear stiffness coefficient chi"),
-        ClosedForm("xi", xi_of, "ξ = μ I / (R² c)", "1", "cubic stiffness coefficient xi"),
+        ClosedForm("chi", chi_of, "χ = ω² I / (R² c)", "1", "linear stiffness coefficient, nondimensional",
+                   classify=coefficients_classify, latex=r"$\chi = \omega^2 I/(R^2 c)$"),
+        ClosedForm("xi", xi_of, "ξ = μ I / (R² c)", "1", "cubic stiffness coefficient, nondimensional",
+                   classify=coefficients_classify, latex=r"$\xi = \mu I/(R^2 c)$"),
         ClosedForm("omega2", omega2_of, "ω²", "s-2", "squared linear natural frequency",
-                   needs_params=_DIMENSIONAL),
-        ClosedForm("mu", mu_of, "μ", "rad-2 s-2", "cubic stiffness coefficient mu", needs_params=_DIMENSIONAL),
-        ClosedForm("hardness", hardness_of, "sign ξ", "1", "characteristic: +1 hard, 0 linear, -1 soft"),
+                   needs_params=_DIMENSIONAL, classify=coefficients_classify, latex=r"$\omega^2$"),
+        ClosedForm("mu", mu_of, "μ", "rad-2 s-2", "cubic stiffness coefficient of the Duffing equation",
+                   needs_params=_DIMENSIONAL, classify=coefficients_classify, latex=r"$\mu$"),
+        ClosedForm("hardness", hardness_of, "sign ξ", "1", "characteristic: +1 hard, 0 linear, -1 soft",
+                   classify=coefficients_classify, latex=r"$\mathrm{sign}\,\xi$"),
         _duffing_closed("period_exact", period_exact),
         ClosedForm("period_error", relative_error, _DUF["period_error"].symbol, "1", _DUF["period_error"].long_name,
-                   needs=("period", "period_exact"), needs_params=("A",)),
+                   needs=("period", "period_exact"), needs_params=("A",), latex=_DUF["period_error"].latex),
         _duffing_closed("v_max", v_max),
         _duffing_closed("a_max", a_max),
         _duffing_closed("kv", kv, needs=("v_max", "period_exact"), output_needs=()),
@@ -480,11 +673,13 @@ MODEL = OdeModel(
         _duffing_closed("epsilon", epsilon),
         ClosedForm("truncation_error", relative_error, "|T_exact - T_M| / T_M", "1",
                    "relative period error of the two-term (Duffing) model against the exact moment",
-                   needs=("period_exact", "period_exact_moment"), needs_params=("A",)),
+                   needs=("period_exact", "period_exact_moment"), needs_params=("A",),
+                   latex=r"$|T_\mathrm{exact} - T_M|/T_M$"),
     ),
     output_order=("chi", "xi", "omega2", "mu", "hardness", "period", "period_exact", "period_error", "v_max",
                   "a_max", "kv", "ka", "epsilon", "period_exact_moment", "truncation_error"),
-    statuses=(st.INFEASIBLE, st.SINGULAR, st.NOT_OSCILLATORY, st.NO_MOTION, *st.INTEGRATION_FAILURES),
+    statuses=(st.INFEASIBLE, st.SINGULAR, st.NOT_OSCILLATORY, st.NO_MOTION, st.OUT_OF_RANGE,
+              *st.INTEGRATION_FAILURES),
     status_notes={
         st.INFEASIBLE: "spring free length <= 0, or omega^2 <= 0 for the two-term outputs",
         st.SINGULAR: "D0 = (L(0)/R)^2 <= 1e-12: a spring of zero length at rest",
@@ -494,6 +689,11 @@ MODEL = OdeModel(
         st.NO_MOTION: "A = 0: no motion, ratios to A undefined",
         st.ILL_CONDITIONED: "the two-term period next to its separatrix, or the exact-moment period next to a hump "
                             "of the spring's potential",
+        st.OUT_OF_RANGE: "chi or xi would over- or underflow (lambda1, lambda2 or |s0_over_r| beyond about 1e150, "
+                         "or products below about 1e-308, e.g. s0_over_r = 1e-310): the coefficients and two-term "
+                         "outputs are NaN; or the exact system's would (lengths beyond 2^600, A below about 1e-154, "
+                         "a force scale below 2^-900): period_exact_moment is NaN; or a period beyond about "
+                         "1e308 s or below 1e-308 s",
     },
     # bench workprecision: the exact-moment period against scipy DOP853 at rtol 1e-13 on the System's own rhs
     workprecision=WorkPrecision(scene="sweeps/torsional_circuit_truncation.toml", output="period_exact_moment"),
