@@ -21,8 +21,8 @@ SCENE = {"scene": {"name": "lanes", "model": "duffing", "outputs": ["period", "p
 
 
 def _lane_kernels():
-    """The generated kernels loaded in this process that integrate in lanes (as test_model_lanes)."""
-    return {name for name in mc._KERNELS if "lane_run" in Path(sys.modules[name].__file__).read_text()}
+    """The kernels' binding modules loaded in this process that integrate in lanes (as test_model_lanes)."""
+    return {name for name in mc._KERNELS if "rhs_lanes" in Path(sys.modules[name].__file__).read_text()}
 
 
 def _run(lanes, monkeypatch):

@@ -296,7 +296,7 @@ def cache_folder() -> str | None:
 
 
 def __getattr__(name: str):
-    if name == "cache_dir":  # the folder as a module attribute (model/compile.py), found when first read
+    if name == "cache_dir":  # the folder as a module attribute (engine/binding.py), found when first read
         return cache_folder()
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
@@ -371,7 +371,7 @@ class _LazyCache:
     def cache_path(self):
         return self._cache().cache_path
 
-    def __getattr__(self, name):  # numba's private parts (_cache_file, _cache_path: model/compile.py)
+    def __getattr__(self, name):  # numba's private parts (_cache_file, _cache_path)
         if name.startswith("__") or name in ("_py_func", "_parallel", "_made"):
             raise AttributeError(name)
         return getattr(self._cache(), name)

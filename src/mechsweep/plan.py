@@ -11,7 +11,7 @@ the run: in the journal and as the dataset's ``plan`` attribute.
 
 The route is chosen by one rule, :func:`choose_route`, from the run's size and a record that
 mechsweep keeps itself: the engine writes a small file next to a lane kernel's module in the cache
-folder once that kernel has run (model/compile.py, ``record_compiled``), so a later process knows
+folder once that kernel has run (engine/kernels.py, ``record_compiled``), so a later process knows
 that the faster route costs it no compile.
 
 This module imports nothing of the runner or the store.
@@ -41,7 +41,7 @@ def choose_route(points: int, facts: Mapping, chosen: bool | None = None) -> str
     ``facts`` come from the model (ModelSpec.plan: ``forced``, the engine's override, which decides
     next; ``from_points``, the run size from which the lanes repay their longer compile; ``recorded``,
     whether the lane kernel is compiled for this CPU already). The lanes integrate about twice as fast
-    and compile about four times longer (model/compile.py, LANES_FROM_POINTS): they are taken for a run
+    and compile about four times longer (engine/kernels.py, LANES_FROM_POINTS): they are taken for a run
     large enough to repay the compile, or when there is nothing left to compile."""
     if chosen is not None:
         return LANES if chosen else POINT

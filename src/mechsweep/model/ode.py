@@ -97,7 +97,7 @@ def _lanes(route, family: str) -> bool | None:
 
 def _facts(name: str, from_points: int, forced) -> dict:
     """What a plan decides a lane route from (mechsweep/plan.py, choose_route)."""
-    from .compile import lanes_recorded
+    from ..engine.kernels import lanes_recorded
 
     return {"record": name, "recorded": lanes_recorded(name), "from_points": int(from_points), "forced": forced}
 
@@ -590,7 +590,7 @@ class OdeModel:
                     "lanes": lane_facts(wanted, solver)}
 
         def lane_facts(wanted, solver) -> dict:
-            from . import compile as engine, trajectory
+            from ..engine import kernels as engine, sampling as trajectory
 
             chosen, closed = model._plan(wanted)
             if not chosen and not closed:

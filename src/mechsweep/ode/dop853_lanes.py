@@ -97,7 +97,7 @@ def _error_test(w, lf, li, l, n):
 
 @jit_internal_noalloc
 def _stiffness_lane(h, y, w, l, scratch, stiff_count, nonstiff_count):
-    """dop853._stiffness_update for lane l after its accepted step, before its commit (model/lanes.py
+    """dop853._stiffness_update for lane l after its accepted step, before its commit (engine/lanes.py
     shares it). The lanes reuse the row of the last stage's argument as scratch, so that argument is
     computed again into ``scratch`` by dop853's own _stage_argument: the floats of the one-trajectory
     solver, hence its counts. A function of its own (called late in a budget only): inlined into the
