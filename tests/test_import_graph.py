@@ -20,19 +20,20 @@ import mechsweep
 
 PACKAGE = Path(mechsweep.__file__).resolve().parent
 
-# (importer, imported): why this import may close a circle. The model layer's declarations still
-# make their kernels' source text by calling the engine, and the engine reads the declarations.
+# (importer, imported): why this import may close a circle. The engine reads the model layer's
+# declarations (engine -> model); these are the calls back from a declaration into the engine that
+# composes its kernels, each inside a function that runs only when a kernel is wanted.
 ALLOWED = {
-    ("mechsweep.model.measure", "mechsweep.model.compile"):
-        "a measurement renders its part of a kernel's source with compile.py's helpers",
-    ("mechsweep.model.ode", "mechsweep.model.compile"):
-        "OdeModel.spec() and methods_for build and rank the model's one-point kernels",
-    ("mechsweep.model.ode", "mechsweep.model.trajectory"):
-        "OdeModel's evaluate runs the sampled trajectories' kernels",
-    ("mechsweep.model.lanes", "mechsweep.model.compile"):
-        "the lane kernel's source reuses compile.py's guards and the System's source",
-    ("mechsweep.model.switches", "mechsweep.model.compile"):
-        "the switch-time code is rendered with compile.py's source helpers",
+    ("mechsweep.model.ode", "mechsweep.engine.kernels"):
+        "OdeModel.spec()'s evaluate runs the model's composed kernels (and its plan reads their lane record)",
+    ("mechsweep.model.ode", "mechsweep.engine.point"):
+        "OdeModel.methods_for and evaluate read which measurements integrate on their own and their columns",
+    ("mechsweep.model.ode", "mechsweep.engine.sampling"):
+        "OdeModel's evaluate runs the sampled trajectories' kernel",
+    ("mechsweep.model.measure", "mechsweep.engine.shared"):
+        "a measurement on the shared trajectory says what it records there with the engine's row kinds",
+    ("mechsweep.model.measure", "mechsweep.engine.floquet"):
+        "Floquet's measurement builds its variational integration from the engine's factory",
 }
 
 
@@ -165,6 +166,25 @@ def test_the_declarations_import_no_numba():
                     "from mechsweep.model import Param, Output; "
                     "print(sorted(m for m in sys.modules if m == 'numba' or m.startswith('mechsweep.')))")
     assert loaded == str(["mechsweep.model", "mechsweep.model.spec", "mechsweep.models"])
+
+
+def test_the_measurements_and_the_model_declaration_import_no_numba():
+    """The measurements (model/measure.py, model/sampled.py) and OdeModel are declarations: importing
+    them loads neither numba nor the engine (their kernels are composed when first wanted)."""
+    loaded = _fresh("import sys; import mechsweep.model.measure, mechsweep.model.sampled, mechsweep.model.ode; "
+                    "from mechsweep.model import OdeModel, Steady, RMS, FirstEvent; "
+                    "print(sorted(m for m in sys.modules if m == 'numba' or m.startswith('mechsweep.engine')))")
+    assert loaded == "[]"
+
+
+def test_the_engine_never_imports_the_run_layer():
+    """engine/ composes kernels: it reads the model layer and the integrators, never the run, store,
+    plan or command-line modules (those call the engine through a model's evaluate)."""
+    above = ("mechsweep.runner", "mechsweep.execute", "mechsweep.plan", "mechsweep.cli", "mechsweep.store",
+             "mechsweep.journal", "mechsweep.cluster", "mechsweep.run", "mechsweep.scene", "mechsweep.figures")
+    found = [f"{a} -> {b}" for (a, b) in import_edges()
+             if a.startswith("mechsweep.engine") and b.startswith(above)]
+    assert not found, found
 
 
 def test_each_built_in_model_is_declared_by_the_module_the_table_names():

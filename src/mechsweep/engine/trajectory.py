@@ -75,7 +75,8 @@ class Plan:
         self.integrator = method
         if self.switched:
             times = model.switch_times
-            lst = (fn(times, "switch_times", "p") if callable(times)
+            # the list itself unguarded: switches.functions guards its callers (a tuple has no NaN)
+            lst = (view.raw(times, "switch_times") if callable(times)
                    else switches.constant_list(tuple(float(x) for x in times)))
             check, nxt, clamp = switches.functions(lst, self.forcing, self.sw, view.npi, True)
             self.reset = switches.reset(self.sw)

@@ -26,7 +26,6 @@ from typing import Callable
 
 import numpy as np
 
-from .._jit import jit, jit_into_caller
 from .spec import Output
 from ..status import NONFINITE as st_NONFINITE, OK as st_OK
 from . import measure
@@ -246,7 +245,7 @@ class Steady(_Outputs):
         """Its observer in the sampled-trajectory kernel (engine/trajectory.py): the observable on its
         rows, then ``steady_observe`` into its columns; ``value`` on the peak and first harmonic."""
         c0, c1 = plan.cols[k], plan.cols[k + 1]
-        value = plan.transform(self.value, f"value{k}") or _same_value
+        value = plan.transform(self.value, f"value{k}") or compiled(_same_value, True)
         return _steady_observer(plan.observable(self.of, f"of{k}"), value, k, c0, c1, plan.raw)
 
     def finish(self, values, wanted, solver, out, status):
@@ -409,8 +408,8 @@ class Kick(_Outputs):
         """Its observer in the sampled-trajectory kernel (engine/trajectory.py): error (and response) on
         its rows, then ``kick_observe`` into its columns; ``time_value`` on the settling time."""
         c0, c1 = plan.cols[k], plan.cols[k + 1]
-        value = plan.transform(self.time_value, f"value{k}") or _same_value
-        response = _no_response if self.response is None else plan.observable(self.response, f"response{k}")
+        value = plan.transform(self.time_value, f"value{k}") or compiled(_same_value, True)
+        response = compiled(_no_response, True) if self.response is None else plan.observable(self.response, f"response{k}")
         return _kick_observer(plan.observable(self.error, f"error{k}"), response, self.response is not None, value, k,
                               c0, c1, plan.raw)
 
@@ -514,7 +513,7 @@ class History(_Outputs):
     def observer(self, plan, k):
         """Its observer in the sampled-trajectory kernel (engine/trajectory.py): the observable at each
         of its rows into its columns of ``hist`` (from hoff[k]), ``value`` applied to finite samples."""
-        value = plan.transform(self.value, f"value{k}") or _same_value
+        value = plan.transform(self.value, f"value{k}") or compiled(_same_value, True)
         return _history_observer(plan.observable(self.of, f"of{k}"), value, k, plan.raw)
 
     def instants(self, settings):
@@ -592,7 +591,15 @@ class Recheck:
 
 
 
-@jit
+@functools.cache
+def compiled(func, into_caller: bool = False):
+    """``func``, a per-sample helper of this module, compiled by numba (``into_caller``: inlined into
+    its callers): made on first use, so that importing the declarations loads no numba."""
+    from .._jit import jit, jit_into_caller
+
+    return (jit_into_caller if into_caller else jit)(func)
+
+
 def steady_observe(ob, s, bits, K, out):
     """Steady: out = (peak, first-harmonic amplitude, phase lag, settled 1/0) from the observable
     ob on the rows with bit 1 (last window) and bit 2 (the window before); K = (settle_rtol (< 0:
@@ -647,7 +654,6 @@ def steady_observe(ob, s, bits, K, out):
     return st_OK
 
 
-@jit
 def kick_observe(e, r, has_r, t, bits, K, out):
     """Kick: out = (verdict 1 / 0 / NaN, settling time or NaN, final error) from the error e and
     the response r on the monitor rows (bit 1); bits 2 first period, 4 early, 8 late, 16 before
@@ -710,24 +716,26 @@ def kick_observe(e, r, has_r, t, bits, K, out):
 # (engine/trajectory.py): te the sample times, traj the states there, bits[:, k] its rows' roles, K[k] its
 # constants, vals[i] its value columns (rawv: before value/time_value, where the kernel has them), hist[i]
 # the History rows from hoff[k]; ob, ob2 scratch of one float per sample.
-@jit_into_caller
 def _same_value(p, x):
     return x
 
 
-@jit_into_caller
 def _no_response(t, y, p):
     return 0.0
 
 
 @functools.cache
 def _steady_observer(of, value, k, c0, c1, raw):
+    from .._jit import jit_into_caller
+
+    steady = compiled(steady_observe)
+
     @jit_into_caller
     def observe(i, p, te, traj, s, bits, K, hoff, vals, hist, rawv, rawh, ob, ob2):
         for j in range(s.size):
             if bits[j, k]:
                 ob[j] = of(te[j], traj[j], p)
-        c = steady_observe(ob, s, bits[:, k], K[k], vals[i, c0:c1])
+        c = steady(ob, s, bits[:, k], K[k], vals[i, c0:c1])
         if raw and rawv.shape[1] != 0:  # the measured values, before the transform
             for q in range(c0, c1):
                 rawv[i, q] = vals[i, q]
@@ -742,6 +750,10 @@ def _steady_observer(of, value, k, c0, c1, raw):
 
 @functools.cache
 def _kick_observer(error, response, has_r, value, k, c0, c1, raw):
+    from .._jit import jit_into_caller
+
+    kick = compiled(kick_observe)
+
     @jit_into_caller
     def observe(i, p, te, traj, s, bits, K, hoff, vals, hist, rawv, rawh, ob, ob2):
         for j in range(s.size):
@@ -749,7 +761,7 @@ def _kick_observer(error, response, has_r, value, k, c0, c1, raw):
                 ob[j] = error(te[j], traj[j], p)
                 if has_r:
                     ob2[j] = response(te[j], traj[j], p)
-        c = kick_observe(ob, ob2, has_r, te, bits[:, k], K[k], vals[i, c0:c1])
+        c = kick(ob, ob2, has_r, te, bits[:, k], K[k], vals[i, c0:c1])
         vals[i, c0 + 3] = vals[i, c0 + 1]  # the settling time before time_value
         vals[i, c0 + 4] = te[s.size - 1]  # the simulated time
         if raw and rawv.shape[1] != 0:
@@ -766,6 +778,8 @@ def _kick_observer(error, response, has_r, value, k, c0, c1, raw):
 
 @functools.cache
 def _history_observer(of, value, k, raw):
+    from .._jit import jit_into_caller
+
     @jit_into_caller
     def observe(i, p, te, traj, s, bits, K, hoff, vals, hist, rawv, rawh, ob, ob2):
         raw_h = raw and rawh.shape[1] != 0
@@ -850,7 +864,7 @@ class RMS(_Outputs):
 
     def observer(self, plan, k):
         """The observable on its rows, the trapezoid rule of its square, ``value`` on the result."""
-        value = plan.transform(self.value, f"value{k}") or _same_value
+        value = plan.transform(self.value, f"value{k}") or compiled(_same_value, True)
         return _rms_observer(plan.observable(self.of, f"of{k}"), value, k, plan.cols[k], plan.raw)
 
     def finish(self, values, wanted, solver, out, status):
@@ -858,7 +872,6 @@ class RMS(_Outputs):
             out[self.name][:] = values[:, 0]
 
 
-@jit
 def rms_observe(ob, s, bits):
     """sqrt((1 / L) int ob^2 ds) over the rows with bits (trapezoid rule), L their span; NaN for a
     non-finite sample."""
@@ -885,12 +898,16 @@ def rms_observe(ob, s, bits):
 
 @functools.cache
 def _rms_observer(of, value, k, col, raw):
+    from .._jit import jit_into_caller
+
+    rms = compiled(rms_observe)
+
     @jit_into_caller
     def observe(i, p, te, traj, s, bits, K, hoff, vals, hist, rawv, rawh, ob, ob2):
         for j in range(s.size):
             if bits[j, k]:
                 ob[j] = of(te[j], traj[j], p)
-        r = rms_observe(ob, s, bits[:, k])
+        r = rms(ob, s, bits[:, k])
         if raw and rawv.shape[1] != 0:
             rawv[i, col] = r
         if not math.isfinite(r):
