@@ -11,7 +11,7 @@ import mechsweep
 from mechsweep import status as st
 from mechsweep.errors import InputError
 from mechsweep.engine import sampling as trajectory
-from mechsweep.model import RMS, load
+from mechsweep.model import RMS, user
 
 USER = Path(__file__).resolve().parent / "user_models" / "rms.py"
 sys.path.insert(0, str(Path(__file__).resolve().parent / "data"))
@@ -25,7 +25,7 @@ P = np.array([[1.0, 0.1, 1.0, 0.5], [1.0, 0.05, 2.0, 0.97], [2.0, 0.3, 1.0, 5.0]
 
 @pytest.fixture(scope="module")
 def model():
-    return load.resolve(f"{USER}:FORCED_RMS")
+    return user.resolve(f"{USER}:FORCED_RMS")
 
 
 def _amplitude(w, zeta, F, W):

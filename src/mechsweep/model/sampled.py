@@ -811,7 +811,31 @@ class RMS(_Outputs):
     over a whole number of periods: A / sqrt(2)). ``value(p, x) -> float`` (optional): the stored RMS
     from the measured one, per point (e.g. in SI units), applied to a finite value.
     Status: integration failures as reported; NONFINITE for a non-finite sample.
-    Cost: the shared sampled integration plus one dense-output evaluation per step with a sample."""
+    Cost: the shared sampled integration plus one dense-output evaluation per step with a sample.
+
+    Parameters
+    ----------
+    name : str
+        The output's name.
+    of : str or callable
+        A state's name, or ``f(t, y, p) -> float``.
+    horizon : float or str, optional
+        Forcing periods simulated (or the name of a setting).
+    window : float or str, optional
+        The fraction of the horizon at its end that is measured, in (0, 1].
+    samples_per_period : int or str, optional
+        Samples per forcing period in the window (at least 2).
+    unit : str, optional
+        UDUNITS-2 unit of the output.
+    long_name : str, optional
+        What the output is, in words (default: made from the declaration).
+    value : callable, optional
+        ``value(p, x) -> float``: the stored RMS from the measured one.
+    classify : callable, optional
+        ``classify(p) -> status``: skip this measurement at a point (its output NaN with that status).
+    output_meta : Mapping, optional
+        Output name -> dict of ``symbol``/``long_name``/``unit``/``latex`` for its output.
+    """
 
     name: str
     of: object
@@ -822,7 +846,7 @@ class RMS(_Outputs):
     long_name: str = ""
     value: Callable | None = field(default=None, repr=False, compare=False)
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
-    output_meta: object = ()  # {name: {symbol, unit, long_name}} (_Outputs; its one output is the main one)
+    output_meta: object = ()  # {name: {symbol, unit, long_name, latex}} (_Outputs; its one output is the main one)
     sampled = True
     n_values = 1
 
