@@ -299,7 +299,7 @@ def _kernel(point, new_work, shared_rows: tuple, n_shared: int, reset, n_p: int,
             p_size: int, n_s: int, n_values: int, n_buf: int):
     shared_M = np.array(shared_rows or ((0.0,) * 7,), dtype=np.float64)  # the shared trajectory's rows
 
-    @jit_internal
+    @jit_into_caller  # compiled into the binding's cached trampoline (no link of its own)
     def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs, first, step):
         # the points first, first + step, ... (strided: cost varies along the grid); Threaded runs one
         # such stride per thread (nogil), as a prange would, without numba's parallel compile

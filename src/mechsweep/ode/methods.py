@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import status as st
-from .._jit import jit_internal
+from .._jit import jit_internal, jit_into_caller
 from . import dop853, radau, symplectic
 
 
@@ -99,7 +99,7 @@ def _no_step(p, rtol):
 
 @functools.cache
 def _event_pass(solve, start, step):
-    @jit_internal
+    @jit_into_caller  # a thin pass around the solver: compiled into its caller (no link of its own)
     def run(p, y, t_max, rtol, atol, max_steps, work):
         start(p, y)
         h = step(p, rtol)
@@ -112,7 +112,7 @@ def _event_pass(solve, start, step):
 
 @functools.cache
 def _plain_pass(solve, start, step):
-    @jit_internal
+    @jit_into_caller  # a thin pass around the solver: compiled into its caller (no link of its own)
     def run(p, y, t_end, rtol, atol, max_steps, work):
         start(p, y)
         return solve(0.0, y, p, t_end, rtol, atol, step(p, rtol), max_steps, work)
@@ -122,7 +122,7 @@ def _plain_pass(solve, start, step):
 
 @functools.cache
 def _trajectory_pass(solve, start):
-    @jit_internal
+    @jit_into_caller  # a thin pass around the solver: compiled into its caller (no link of its own)
     def run(p, y, t_eval, rtol, atol, max_steps, work, out):
         start(p, y)
         return solve(0.0, y, p, t_eval, rtol, atol, 0.0, max_steps, work, out)
@@ -132,7 +132,7 @@ def _trajectory_pass(solve, start):
 
 @functools.cache
 def _allocator(make, n):
-    @jit_internal
+    @jit_into_caller  # a thin pass around the solver: compiled into its caller (no link of its own)
     def new():
         return make(n)
 
