@@ -166,9 +166,9 @@ def test_n_rhs_counts_every_rhs_call_also_those_of_the_engines_jacobian(method, 
     by an Extremum's root search of the derivative on the shared trajectory (one call per
     evaluation, which n_rhs used not to count). An rhs that writes into p is refused when a model
     is loaded (model/writes.py); this instrument does it on purpose, so the check is off here."""
-    from mechsweep.model import load
+    from mechsweep.model import user
 
-    monkeypatch.setattr(load, "_check_writes", lambda *args: None)
+    monkeypatch.setattr(user, "_check_writes", lambda *args: None)
     scene = load_scene({"scene": {"name": "t", "model": MODEL.replace(":MODEL", ":COUNTED"),
                                   "outputs": list(outputs)},
                         "axes": {"w": {"start": 0.5, "stop": 3.0, "num": 3}}, "fixed": {"A": A},
