@@ -9,6 +9,9 @@ measurements (Steady, Kick, History, RMS: model/sampled.py) give their ``observe
 one sampled trajectory per point (engine/trajectory.py). ClosedForm (a formula output) and System (a second equation) are
 declarations the kernels read. Nothing raises in a kernel: a failure is a status code of
 :mod:`mechsweep.status` and a NaN value.
+
+Over 700 lines on purpose: each measurement keeps its declaration, checks and what it records in a
+kernel together (the user-facing docstrings are most of it).
 """
 from __future__ import annotations
 

@@ -16,6 +16,9 @@ Each declares what it records, in one place:
   ob, ob2) -> status`` of measurement k in the kernel: its observable(s) on its rows (te: the sample
   times, traj: the states there), its values into vals[i, its columns];
 - ``finish(values, wanted, solver, out, status)``: its outputs from its value columns, in Python.
+
+Over 700 lines on purpose: each measurement keeps its declaration, checks and what it records
+(instants, observer, finish) together, so that a new one is one class here and its tests.
 """
 from __future__ import annotations
 
