@@ -1,4 +1,4 @@
-"""One dataset route for every run (runner.py): scene -> plan -> chunks -> compute -> a sink. The CLI,
+"""One dataset route for every run (execution/runner.py): scene -> plan -> chunks -> compute -> a sink. The CLI,
 ``compute``, ``run(output=path)`` and ``run(output=None)`` differ only in their sink; a dataset a run
 returns is the memory its chunks were computed into (no copy), beside the journal and the file."""
 import numpy as np
@@ -6,7 +6,7 @@ import pytest
 import xarray as xr
 
 import mechsweep
-from mechsweep import execute, runner
+from mechsweep.execution import execute, runner
 from mechsweep.cli import main
 
 
@@ -72,7 +72,7 @@ def test_a_run_to_a_file_without_a_returned_dataset_holds_no_grid_in_memory(in_t
 def test_the_public_compute_stays_the_function():
     """The module that computes chunks (execute.py) is not named after the public ``mechsweep.compute``:
     a submodule of that name would replace the function on the package once imported."""
-    import mechsweep.execute  # noqa: F401  (imported, as every run imports it)
+    import mechsweep.execution.execute  # noqa: F401  (imported, as every run imports it)
 
     assert mechsweep.compute is runner.compute and callable(mechsweep.compute)
 

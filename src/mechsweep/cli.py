@@ -346,7 +346,8 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _cmd_run(args) -> int:
-    from .runner import RunInterrupted, compute
+    from .errors import RunInterrupted
+    from .execution.runner import compute
     from .scene import load_scene
 
     scene = load_scene(args.scene)
@@ -450,7 +451,7 @@ def _cmd_plot(args) -> int:
 def _plot(args) -> int:
     from . import figures
     from .errors import InputError
-    from .store import open_dataset
+    from .store.read import open_dataset
 
     ds = open_dataset(args.dataset)
     bds = _boundaries_for(ds, args)
@@ -589,7 +590,7 @@ def _boundaries_for(ds, args):
     out with a note when it does not fit), else None."""
     from . import figures
     from .errors import InputError
-    from .store import is_run_dataset, open_dataset
+    from .store.read import is_run_dataset, open_dataset
 
     if args.no_boundaries or not is_run_dataset(ds):
         if args.boundaries and args.no_boundaries:
@@ -681,7 +682,7 @@ def _why(exc: OSError) -> str:
 
 
 def _entry_kind(path) -> str:
-    from .store import file_kind
+    from .store.read import file_kind
 
     try:
         return file_kind(os.stat(path).st_mode)
@@ -769,7 +770,7 @@ def _check_in_grid(key: str, value: float, grid) -> None:
 
 def _cmd_info(args) -> int:
     from .errors import InputError
-    from .store import is_run_dataset, open_dataset
+    from .store.read import is_run_dataset, open_dataset
 
     ds = open_dataset(args.dataset, allow_partial=True, lazy=None)
     if ds.attrs.get("mechsweep_kind") == "boundaries" and "boundary" in ds:
@@ -861,7 +862,7 @@ def _laid_out(path):
     say so in one line, exit 2."""
     from .errors import InputError
 
-    from .store import is_lock_error, lock_holder
+    from .store.read import is_lock_error, lock_holder
     from .errors import FileBusy
 
     try:

@@ -6,7 +6,7 @@ from a run that failed::
     |   +-- SceneError                   a scene that does not load (scene/)
     |   +-- StoreError                   an output path, dataset or journal that cannot be used as asked
     |       +-- FileBusy                 a file another process holds open for writing
-    |       +-- BadChunk                 a damaged chunk file of a journal (journal.py)
+    |       +-- BadChunk                 a damaged chunk file of a journal (store/journal.py)
     +-- RunError (also a RuntimeError)   a run that passed its checks failed; saved chunks are kept
         +-- WriteFailed                  a write failed (errno and path; the runner says it as OutOfSpace)
         +-- OutOfSpace                   a run's write failed (disk full, quota, ulimit -f, I/O error)  exit 2
