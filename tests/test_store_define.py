@@ -17,7 +17,7 @@ import xarray as xr
 import mechsweep
 from mechsweep.bench.duffing import grid_scene
 from mechsweep.execution.plan import make_plan
-from mechsweep.execution.runner import provenance
+from mechsweep.execution.provenance import provenance
 from mechsweep.scene import load_scene
 from mechsweep.store.write import NetCDFWriter, define as _define, layout, nc_properties
 

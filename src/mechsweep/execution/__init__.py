@@ -7,7 +7,8 @@
 - ``runner``: ``run`` and ``compute`` (``mechsweep.run``, ``mechsweep.compute``), the one route from
   a plan to a sink (the journal and the dataset's file, or memory).
 - ``checks``: what a run checks before it writes anything; ``stopping``: signals, and what a run
-  that stops says and keeps; ``progress``: the progress bar or log lines.
+  that stops says and keeps; ``progress``: the progress bar or log lines; ``provenance``: the
+  attributes a dataset starts with.
 
 The package is not named ``run``: ``mechsweep.run`` is the public function, and importing a
 submodule ``mechsweep.run`` would replace that attribute of the package by the module (the same
