@@ -278,7 +278,7 @@ def lap(name):
 
 
 PLOT_CHILD = _LAP + """
-from mechsweep.cli import _no_dask_probe
+from mechsweep.commands.plot import no_dask_probe as _no_dask_probe
 import matplotlib.figure, xarray
 lap("import matplotlib, xarray")
 from mechsweep import figures

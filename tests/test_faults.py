@@ -309,12 +309,13 @@ def test_plot_into_a_missing_folder_names_the_folder(small_dataset, capsys):
                          ids=lambda c: errno.errorcode[c])
 def test_a_figure_write_that_fails_names_its_cause(small_dataset, monkeypatch, capsys, code):
     from mechsweep import figures
+    from mechsweep.figures import jobs
 
     def save(ds, path, **kwargs):
         raise OSError(code, os.strerror(code), str(path))
 
     monkeypatch.setattr(figures, "save", save)
-    monkeypatch.setattr(cli, "_can_fork", lambda: False)
+    monkeypatch.setattr(jobs, "can_fork", lambda: False)
     assert main("plot", small_dataset, "-o", "fig.png") == 2
     err = capsys.readouterr().err
     assert "cannot write the figure fig.png" in err and f"({errno.errorcode[code]})" in err, err

@@ -143,15 +143,20 @@ def test_every_allowed_circle_edge_still_exists():
     assert not gone, "no longer imported, drop from ALLOWED: " + ", ".join(gone)
 
 
-# (importer package, imported package): the layers that point one way. The run (execution/) writes
-# through the store and is driven by the command line; the store and the figures read and write
-# datasets without knowing how they are computed.
+# (importer, imported; a package stands for its modules): the layers point one way. The run
+# (execution/) writes through the store and is driven by the command line (cli.py and commands/); the
+# store, the figures and the description of a dataset read and write datasets without knowing how they
+# are computed.
 FORBIDDEN = [
     ("mechsweep.execution", "mechsweep.cli"),
+    ("mechsweep.execution", "mechsweep.commands"),
     ("mechsweep.store", "mechsweep.cli"),
+    ("mechsweep.store", "mechsweep.commands"),
     ("mechsweep.store", "mechsweep.execution"),
     ("mechsweep.figures", "mechsweep.execution"),
     ("mechsweep.figures", "mechsweep.cli"),
+    ("mechsweep.figures", "mechsweep.commands"),
+    ("mechsweep.describe", "mechsweep.execution"),
 ]
 
 

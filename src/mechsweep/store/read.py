@@ -8,12 +8,13 @@ import errno
 import os
 import stat
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import h5py
 
-from ..errors import FileBusy, StoreError, why_os_error
+from ..errors import SYSTEM_ERRNOS, FileBusy, InputError, StoreError, os_error_text, why_os_error
 from ..grid import plan_chunks
 from .assemble import assemble
 from .journal import Journal, partial_path
@@ -385,3 +386,26 @@ def _have_dask() -> bool:
     except ImportError:
         return False
     return True
+
+
+@contextmanager
+def reading(path):
+    """Reading a dataset opened by ``open_dataset`` (``mechsweep info`` and ``plot``): a file that passed
+    the opener's checks (a run's attributes and variables) but whose
+    contents are not laid out as a run writes them (edited, or made elsewhere to look alike):
+    say so in one line, exit 2."""
+    try:
+        yield
+    except InputError:
+        raise
+    except OSError as exc:
+        if is_lock_error(exc):  # another process took the dataset for writing meanwhile
+            raise FileBusy(path, lock_holder(path)) from None
+        if exc.filename is not None or exc.errno in SYSTEM_ERRNOS:  # the system's refusal, not the file's bytes
+            raise InputError(os_error_text(exc, path)) from None
+        # a lazily opened dataset whose data turn out damaged when read (HDF5 says why, without an errno)
+        raise InputError(f"{path} cannot be read, it is damaged ({str(exc).splitlines()[0][:200]})") from None
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError) as exc:
+        detail = str(exc).splitlines()[0][:200] if str(exc) else ""
+        raise InputError(f"{path} is not laid out as a mechsweep dataset ({type(exc).__name__}: {detail}); "
+                         "was it written by `mechsweep run`?") from None
