@@ -34,7 +34,7 @@ from numba.core.runtime import nrt
 from mechsweep.bench.duffing import _whole_grid, grid_scene
 from mechsweep.engine import kernels as model_compile
 from mechsweep.engine import sampling as trajectory
-from mechsweep.execute import evaluate_chunk
+from mechsweep.execution.execute import evaluate_chunk
 from mechsweep.scene import load_scene
 
 
