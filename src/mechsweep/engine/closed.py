@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from .. import status as st
-from .._jit import jit_internal, pjit, prange
+from .._jit import jit_internal, jit_into_caller, prange
 
 BLOCK = 64  # designs per scratch allocation (one prange iteration)
 ARGS = "P, want, slot, table, curves, status, data"
@@ -54,7 +54,7 @@ def build(compute, n_scr: int, guarded: bool):
 
 @functools.cache
 def _kernel(compute, n_scr):
-    @pjit
+    @jit_into_caller  # its prange compiled into the binding's parallel trampoline (no link of its own)
     def kernel(P, want, slot, table, curves, status, data):
         n = P.shape[0]
         N = curves.shape[2]

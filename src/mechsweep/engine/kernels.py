@@ -131,7 +131,7 @@ def lane_kernel(model, chosen, closed, method, source: str):
     extra = lane_rhs.binding_text(source)
     mod = binding.bind(name, f"model {model.name!r}, {lanes.lanes_for(len(model.states))} points side by side, "
                              f"method {method.name}",
-                       {"kernel": lanes.ARGS}, lambda rhs_lanes: lanes.build(model, chosen, closed, rhs_lanes),
+                       {"kernel": (lanes.ARGS, "pjit")}, lambda rhs_lanes: lanes.build(model, chosen, closed, rhs_lanes),
                        extra=extra, lane_names=("rhs_lanes",))
     return _Recorded(mod.kernel, name)
 

@@ -30,7 +30,7 @@ from numba.core import cgutils, types as nbtypes
 from numba.extending import intrinsic
 
 from .. import status as st
-from .._jit import jit, jit_internal_noalloc, jit_noalloc, pjit, prange
+from .._jit import jit, jit_internal_noalloc, jit_into_caller, jit_noalloc, prange
 from ..status import MAX_STEPS, NO_EVENT, NONFINITE, OK, STEP_UNDERFLOW
 from ..ode import _dop853_lane_sums as sums
 from ..ode._dop853_tableau import C, N_STAGES, N_STAGES_EXTENDED
@@ -447,7 +447,7 @@ def _work(feed, conclude, run, lanes, n_s, npi, filled, n_keep, n_buf):
 def _kernel(work, lanes):
     block = lanes * QUEUE
 
-    @pjit
+    @jit_into_caller  # its prange compiled into the binding's parallel trampoline (no link of its own)
     def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
         n = P.shape[0]
         # Points are taken, not dealt: numba splits a prange's iterations evenly among the threads in

@@ -105,7 +105,7 @@ def kernel_for(model, method, measurements=None):
     known = _KERNELS.get(name)
     if known is not None:
         return known
-    entries = {"kernel": engine.KERNEL_ARGS}
+    entries = {"kernel": (engine.KERNEL_ARGS, "pjit")}
     if lane_rhs:
         entries.update(setup=engine.SETUP_ARGS, queue=engine.QUEUE_ARGS)
     mod = binding.bind(name, f"model {model.name!r}, sampled trajectories, method {m.name}", entries,

@@ -27,7 +27,7 @@ import math
 import numpy as np
 
 from .. import status as st
-from .._jit import jit_internal, jit_into_caller, pjit, prange
+from .._jit import jit_internal, jit_into_caller, prange
 from ..ode import dop853_lanes
 from . import binding, equations, point, switches
 
@@ -300,7 +300,7 @@ def build(model, chosen, method, always=-1, lock=(), raw=False, rhs_lanes=None):
 @functools.cache
 def _kernel(classify, prepare, forcing, checks, run, new_work, observe, failed, reset, n_p, n_set, npi, n_s, p_size,
             fd_at):
-    @pjit
+    @jit_into_caller  # its prange compiled into the binding's parallel trampoline (no link of its own)
     def kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, rawv, rawh, status, mstat, n_steps, n_rhs):
         n = P.shape[0]
         ns_ = s.size

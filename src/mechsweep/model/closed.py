@@ -226,7 +226,7 @@ def kernel_for(model: ClosedFormModel, n_data: int, *, origin: str = ""):
     name = "mechsweep_closed_" + key.hexdigest()[:20]
     if name not in _KERNELS:
         compute = load.jitted(*ref)
-        mod = binding.bind(name, f"model {model.name!r}, closed forms per design", {"kernel": engine.ARGS},
+        mod = binding.bind(name, f"model {model.name!r}, closed forms per design", {"kernel": (engine.ARGS, "pjit")},
                            lambda: engine.build(compute, model.scratch, _guarded(ref)))
         _KERNELS[name] = _Kernel(mod.kernel)
     _BY_MODEL[(id(model), n_data)] = (model, _KERNELS[name])
