@@ -163,6 +163,15 @@ BAD = {
     "raises": ("    raise ValueError('negative lift')", "M", ["compute raised", "negative lift", "line 14"]),
     "unwritten_output": ("    return 0", "M", ["without writing top"]),
     "no_status": ("    row[0] = p[0]", "M", ["compute returned None", "expected a status code"]),
+    # the probe point (k = 1) takes the early return; the path it skips returns no status: the compiled
+    # kernel failed there on None inside its parallel loop (a traceback, exit 1)
+    "bare_return_off_the_probe": ("    if p[0] > 0.5:\n        return 4\n    row[0] = p[0]\n    return", "M",
+                                  ["compute can return None", "OptionalType(int64)", "a return without a value",
+                                   "line 17)"]),
+    "end_reached_off_the_probe": ("    if p[0] > 0.5:\n        return 4\n    row[0] = p[0]", "M",
+                                  ["compute can return None", "its end is reached without a return", "line 16)"]),
+    "float_status_off_the_probe": ("    if p[0] > 0.5:\n        return 4\n    row[0] = p[0]\n    return 0.5", "M",
+                                   ["compute returns float64, not a status code"]),
     "missing_name": (GOOD, "NOPE", ["does not define 'NOPE'", "models it defines: M"]),
     "not_a_model": (GOOD, "NOT_A_MODEL", ["is a int, not a mechsweep.model.OdeModel or ClosedFormModel"]),
 }
@@ -197,14 +206,22 @@ def test_good_template_runs(in_tmp):
     np.testing.assert_array_equal(ds["line"].values, np.outer([1.0, 2.0], np.linspace(0, 1, 5)))
 
 
-def test_compute_raising_at_a_point_the_probe_did_not_see_is_a_status(in_tmp):
+def test_compute_raising_at_a_point_the_probe_did_not_see_is_a_user_error_with_a_warning(in_tmp):
     """The probe (k = 1) passes; at k = 3 the compiled compute raises inside the parallel loop: that
-    design is NONFINITE with NaN outputs, the others are computed."""
+    design is USER_ERROR (as an OdeModel's point is; it was NONFINITE, without a word) with NaN
+    outputs, the others are computed, and the run warns once with the exception replayed in plain
+    Python, its file and line and the design."""
+    from mechsweep.errors import UserModelWarning
+
     path = in_tmp / "late.py"
     path.write_text(HEAD + "    if p[0] > 2.5:\n        raise ValueError('too stiff')\n" + GOOD + TAIL)
-    ds = mechsweep.run({"scene": {"name": "late", "model": f"{path}:M", "outputs": ["top", "line"]},
-                        "axes": {"k": [1.0, 3.0, 2.0]}}, output="late.h5", progress=False)
-    assert ds["status"].values.tolist() == [st.OK, st.NONFINITE, st.OK]
+    with pytest.warns(UserModelWarning) as seen:
+        ds = mechsweep.run({"scene": {"name": "late", "model": f"{path}:M", "outputs": ["top", "line"]},
+                            "axes": {"k": [1.0, 3.0, 2.0]}}, output="late.h5", progress=False)
+    text = " ".join(str(w.message) for w in seen if issubclass(w.category, UserModelWarning))
+    assert "first seen at k = 3: compute raised ValueError: too stiff" in text, text
+    assert f"{path}, line 15, in compute" in text, text
+    assert ds["status"].values.tolist() == [st.OK, st.USER_ERROR, st.OK]
     assert np.isnan(ds["top"].values[1]) and np.isnan(ds["line"].values[1]).all()
     np.testing.assert_array_equal(ds["top"].values[[0, 2]], [1.0, 2.0])
 
