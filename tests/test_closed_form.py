@@ -238,6 +238,50 @@ def test_declared_statuses_add_to_those_the_outputs_imply():
     assert declared == (st.OK, st.NONFINITE, st.INFEASIBLE, st.USER_ERROR)
 
 
+def test_user_error_warnings_name_a_categorical_parameter_by_its_choice():
+    """The user_error warning says where a model's code raised as a scene gives the point: a
+    categorical parameter by its choice's name (it said 'spring = 0', the index the kernel gets),
+    for an OdeModel and a ClosedFormModel alike (diagnose.point_text); nothing is compiled."""
+    import warnings
+
+    from mechsweep.errors import UserModelWarning
+    from mechsweep.model import OdeModel, Period, closed, ode
+
+    params = (Param("k", "k", "1", "k", lo=0.0), Param("law", "law", "1", "law", choices=("linear", "cubic")))
+
+    def rhs(t, y, p, dydt):
+        if p[1] == 1.0:
+            raise ValueError("cubic law not written yet")
+        dydt[0] = y[1]
+        dydt[1] = -p[0] * y[0]
+
+    def initial(p, y0):
+        y0[0] = 1.0
+        y0[1] = 0.0
+
+    def compute(p, want, row, curves, slot, scratch):
+        if p[1] == 1.0:
+            raise ValueError("cubic law not written yet")
+        row[0] = p[0]
+        return 0
+
+    P = np.array([[2.0, 0.0], [3.0, 1.0]])
+    status = np.array([st.OK, st.USER_ERROR], dtype=st.DTYPE)
+    o_model = OdeModel(name="cat_ode", description="d", params=params, states=("x", "v"), rhs=rhs, initial=initial,
+                       measurements=(Period("period", "x"),))
+    c_model = ClosedFormModel(name="cat_closed", description="d", params=params, outputs=(Output("o", "o", "1", "o"),),
+                              compute=compute)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        ode._warn_user_error(o_model, P, status, np.zeros(0), 1e-10)
+        closed._warn_user_error(c_model, P, status, np.ones(1, dtype=bool), np.zeros(0, dtype=np.int64), 0, 1, ())
+    texts = [str(w.message) for w in seen if issubclass(w.category, UserModelWarning)]
+    assert len(texts) == 2, texts
+    for text in texts:
+        assert "first seen at k = 3, law = cubic:" in text and "ValueError: cubic law not written yet" in text, text
+    assert "rhs at t = 0 raised" in texts[0] and "compute raised" in texts[1], texts
+
+
 def test_a_status_code_that_is_none_of_mechsweeps_is_a_user_error(in_tmp):
     """compute returns 99 (or -1, PENDING's code) at designs the probe (k = 1) did not see, after writing
     its row: those designs are USER_ERROR with NaN outputs, not stored as codes no reader knows."""
