@@ -196,6 +196,21 @@ def test_bad_user_closed_form_model_exits_2_naming_the_file_and_writes_nothing(c
     assert after == before
 
 
+@pytest.mark.parametrize("latex,why", [("$k_{$", "matplotlib's mathtext parser cannot read it"),
+                                        ("k_0", "it is not mathtext between $ signs")])
+def test_a_latex_matplotlib_cannot_read_is_refused_at_loading_naming_it(latex, why, in_tmp, capsys):
+    """A declared latex labels every figure of the model: one matplotlib's mathtext parser cannot read
+    was dropped silently when a figure was drawn; it is refused at loading, naming it (exit 2)."""
+    path = in_tmp / "latex.py"
+    path.write_text(HEAD + GOOD + TAIL.replace('Param("k", "k", "1", "k", lo=0.0)',
+                                               f'Param("k", "k", "1", "k", lo=0.0, latex={latex!r})'))
+    scene = in_tmp / "s.toml"
+    scene.write_text(f'[scene]\nname = "l"\nmodel = "latex.py:M"\noutputs = ["top"]\n[axes]\nk = [1.0, 2.0]\n')
+    assert main(["check", str(scene)]) == 2
+    err = capsys.readouterr().err
+    assert f"parameter 'k': latex = {latex!r}: {why}" in err, err
+
+
 def test_good_template_runs(in_tmp):
     """The template of the bad cases, with a correct body, runs (so each bad case fails for its own line)."""
     path = in_tmp / "good.py"

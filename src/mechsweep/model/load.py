@@ -298,7 +298,8 @@ def check_declaration(spec, ref: str) -> None:
     """Refuse (InputError) a model whose names a dataset cannot use or whose units CF cannot read:
     every parameter, output, setting and extra dimension is named by a Python identifier that is no
     keyword (a dataset's dimensions and variables are selected by keyword: ``ds.sel(lam=0.3)``),
-    and its unit is one UDUNITS-2 parses (the dataset says it follows CF)."""
+    its unit is one UDUNITS-2 parses (the dataset says it follows CF), and its ``latex``, when
+    given, is mathtext matplotlib's parser reads (it labels the figures)."""
     from .. import cf
 
     items = [("parameter", p.name, "" if p.categorical else p.unit) for p in spec.params]
@@ -313,6 +314,16 @@ def check_declaration(spec, ref: str) -> None:
                             f"e.g. {_identifier(name)!r}")
         if (why := cf.unit_problem(unit)) is not None:
             problems.append(f"{what} {name!r}: unit {why}")
+    # a declared latex labels every figure of the model: one matplotlib cannot read is refused here,
+    # naming it, rather than dropped silently when a figure is drawn (matplotlib only when one is given)
+    declared = [(what, x.name, x.latex) for what, xs in (("parameter", spec.params), ("output", spec.outputs))
+                for x in xs if getattr(x, "latex", "")]
+    if declared:
+        from ..figures._style import latex_problem
+
+        for what, name, latex in declared:
+            if (why := latex_problem(latex)) is not None:
+                problems.append(f"{what} {name!r}: latex = {latex!r}: {why}")
     if problems:
         raise InputError(f"{ref!r}: model {spec.name!r}: " + "; ".join(dict.fromkeys(problems)))
 
