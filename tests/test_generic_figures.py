@@ -520,3 +520,63 @@ def test_a_point_without_time_histories_is_refused_saying_why(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--point speed=10,preload=25,contact=bronze: nothing to draw at one point" in err and "History" in err, err
     assert not list(tmp_path.glob("*.png"))
+
+
+def _unsorted(ds, dim, order):
+    """ds with the values of ``dim`` in the given order (a list axis a scene gave unsorted)."""
+    out = ds.isel({dim: list(order)})
+    out[dim].attrs["spacing"] = "list"
+    return out
+
+
+def test_plot_point_on_an_unsorted_list_axis_draws_the_point_asked_for(tmp_path, capsys):
+    """`plot --point` on a list axis that is not sorted (e = [0.0, 0.03, -0.03]) was refused as a
+    dataset 'not laid out as a mechsweep dataset (ValueError: index must be monotonic ...)': the
+    nearest grid value is now found by position."""
+    ds = _unsorted(cam(n_speed=8, n_preload=6), "preload", [0, 3, 1, 5, 2, 4])
+    ds["lift_history"].values[:] = np.arange(ds["lift_history"].size, dtype=float).reshape(ds["lift_history"].shape)
+    path = tmp_path / "cam.h5"
+    ds.to_netcdf(path, engine="h5netcdf")
+    assert main(["plot", str(path), "--point", "speed=10,preload=29,contact=bronze"]) == 0, capsys.readouterr().err
+    from mechsweep.cli import select_point
+    one = select_point(ds, "speed=10,preload=29,contact=bronze")
+    assert float(one["preload"].values[0]) == 30.0
+    expected = ds["lift_history"].sel(preload=30.0, contact="bronze").isel(speed=[int(np.argmin(abs(ds.speed.values - 10)))])
+    np.testing.assert_array_equal(one["lift_history"].values.ravel(), expected.values.ravel())
+
+
+def test_maps_of_an_unsorted_axis_draw_each_cell_at_its_value():
+    """A stability map (and a heatmap) over a list axis given unsorted draws the same cells as over
+    the sorted axis (pcolormesh was given the values in the file's order)."""
+    ds = cam(n_speed=8, n_preload=6)
+    shuffled = _unsorted(ds, "preload", [0, 3, 1, 5, 2, 4])
+    for kind in ("stability_map", "heatmap_lift"):
+        a = figures.artists(ds, kind)["axes"][0, 0].collections[0].get_array()
+        b = figures.artists(shuffled, kind)["axes"][0, 0].collections[0].get_array()
+        np.testing.assert_array_equal(np.ma.filled(a, -1.0), np.ma.filled(b, -1.0))
+
+
+def test_a_bug_while_drawing_is_not_blamed_on_the_dataset(tmp_path, capsys, monkeypatch):
+    """An exception raised while drawing a dataset that passed the layout checks is mechsweep's bug:
+    it goes on with a note saying so (a traceback, exit 1), not 'not laid out as a mechsweep
+    dataset' (exit 2), which every ValueError of the drawing code was said as; a file whose grid
+    values are not finite and distinct is still said to be badly laid out."""
+    path = tmp_path / "cam.h5"
+    cam(n_speed=8).to_netcdf(path, engine="h5netcdf")
+
+    def broken(*args, **kwargs):
+        raise ValueError("a drawing bug")
+
+    monkeypatch.setattr(generic, "heatmap", broken)
+    with pytest.raises(ValueError, match="a drawing bug") as raised:
+        main(["plot", str(path), "--kind", "heatmap_lift", "-o", str(tmp_path / "h.png")])
+    notes = " ".join(getattr(raised.value, "__notes__", []))
+    assert "internal error while drawing the figures of" in notes and "not a problem of the dataset" in notes
+    assert "not laid out" not in capsys.readouterr().err
+    monkeypatch.undo()
+    bad = cam(n_speed=8)
+    bad = bad.assign_coords(preload=("preload", np.array([0.0, 10.0, 10.0, 30.0, 40.0, 50.0]), bad.preload.attrs))
+    bad.to_netcdf(tmp_path / "bad.h5", engine="h5netcdf")
+    assert main(["plot", str(tmp_path / "bad.h5"), "-o", str(tmp_path / "b.png")]) == 2
+    assert "not laid out as a mechsweep dataset (ValueError: the values of the grid dimension 'preload' are not " \
+           "finite and distinct)" in capsys.readouterr().err

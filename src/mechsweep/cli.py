@@ -457,6 +457,7 @@ def _plot(args) -> int:
     bds = _boundaries_for(ds, args)
     _started()
     with _laid_out(args.dataset):
+        check_layout(ds)
         if args.point:
             ds = select_point(ds, args.point)
         axes = (args.x, args.y) if args.x or args.y else None
@@ -493,7 +494,7 @@ def _plot(args) -> int:
         out = (folder if folder is not None else Path(args.dataset).parent) / f"{stem}.{fmt}"
     for target in figures.targets(ds, out, kind=args.kind, fmt=fmt, axes=axes):
         _check_figure_path(target, Path(args.dataset))
-    with _laid_out(args.dataset), _writing_figures(out):
+    with _drawing(args.dataset), _writing_figures(out):
         kinds = list(figures.available(ds, axes)) if args.kind is None else []
         if len(kinds) > 1 and _can_fork():  # several figures: side by side on the cores (the same files)
             written = figures.targets(ds, out, fmt=fmt, axes=axes)
@@ -733,7 +734,17 @@ def select_point(ds, text: str):
         raise InputError(f"--point: give a value for {', '.join(missing)} too")
     numeric = {k: v for k, v in wanted.items() if ds[k].dtype.kind in "fiu"}
     other = {k: v for k, v in wanted.items() if k not in numeric}
-    return ds.sel(numeric, method="nearest").sel(other)
+    # the nearest grid value by position: a list axis need not be sorted (ds.sel(method="nearest")
+    # refused an index that is not monotonic); a tie goes to the larger value, as sel's did
+    import numpy as np
+
+    nearest = {}
+    for k, (number,) in numeric.items():
+        grid = np.asarray(ds[k].values, dtype=float)
+        gap = np.abs(grid - number)
+        ties = np.flatnonzero(gap == gap.min())
+        nearest[k] = [int(ties[np.argmax(grid[ties])])]
+    return ds.isel(nearest).sel(other)
 
 
 def point_slug(ds) -> str:
@@ -880,6 +891,44 @@ def _laid_out(path):
         detail = str(exc).splitlines()[0][:200] if str(exc) else ""
         raise InputError(f"{path} is not laid out as a mechsweep dataset ({type(exc).__name__}: {detail}); "
                          "was it written by `mechsweep run`?") from None
+
+
+def check_layout(ds) -> None:
+    """What drawing a run's figures reads of its layout, checked before anything is drawn (a
+    ValueError, said by :func:`_laid_out` as a dataset not laid out as a run writes it): every grid
+    dimension has one value per index (a 1-D coordinate), numeric ones finite and distinct."""
+    import numpy as np
+
+    if "status" not in ds:  # a benchmark's dataset: its figures read it their own way
+        return
+    grid = list(ds["status"].dims)
+    for d in grid:
+        values = ds[d]
+        if values.dims != (d,) or values.size != ds.sizes[d]:
+            raise ValueError(f"the grid dimension {d!r} has no coordinate of its own")
+        if values.dtype.kind in "fiu":
+            v = np.asarray(values.values, dtype=float)
+            if not np.isfinite(v).all() or np.unique(v).size != v.size:
+                raise ValueError(f"the values of the grid dimension {d!r} are not finite and distinct")
+
+
+@contextmanager
+def _drawing(path):
+    """Drawing the figures of a dataset that passed the layout checks: a mechsweep error (bad
+    input) or a system error is said in one line as usual (exit 2); any other exception is a bug
+    of mechsweep's drawing, not a problem of the file: it goes on (a traceback, exit 1) with a note
+    saying so, never as 'not laid out as a mechsweep dataset'."""
+    from .errors import MechsweepError
+
+    try:
+        yield
+    except (MechsweepError, OSError, KeyboardInterrupt):
+        raise
+    except Exception as exc:
+        exc.add_note(f"mechsweep plot: internal error while drawing the figures of {path}: a bug in mechsweep, not "
+                     "a problem of the dataset (it passed the layout checks); please report it with the "
+                     "command and the dataset")
+        raise
 
 
 def _cmd_models(args) -> int:

@@ -711,6 +711,7 @@ def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundarie
     if name is None:
         name = next(c.output for c in choose(ds) if c.kind == "stability_map")
     ydim, xdim = _map_axes(ds, name) if x is None and y is None else _given_map_axes(ds, name, x, y)
+    ds = ds.sortby([ydim, xdim])  # cells in the order of their values (a list axis need not be sorted)
     given = ax is not None
     others = [d for d in ds[name].dims if d not in (xdim, ydim)]
     every = list(itertools.product(*(range(ds.sizes[d]) for d in others)))
