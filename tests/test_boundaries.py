@@ -700,3 +700,29 @@ def test_a_band_edge_with_a_flat_criterion_beside_it_is_found_by_bisection_witho
         A, B, loc, bound, n_eval = _band_edge_search(fun, 2.0, rtol=rtol)
     assert bound[0] == bd.BAND_EDGE and B[0] - A[0] <= rtol * B[0]
     assert A[0] <= X0_EDGE <= B[0] and abs(loc[0] - X0_EDGE) <= rtol * X0_EDGE
+
+
+def test_a_closed_form_of_an_integrated_output_inherits_its_accuracy():
+    """ratio = T / T0 of a pendulum's integrated period T at solver rtol 1e-6: the criterion is only
+    as accurate as the integration, so its accuracy is 100 rtol max(|value|, |level|) (it was 16 ulp,
+    "a closed form": brackets 1e-10 wide, bound 'parameter', the true boundary outside them). Each
+    bracket now holds the boundary of the exact period 4 K(sin^2(A/2)) sqrt(L/g), bound 'criterion'."""
+    from scipy.special import ellipk
+
+    level, g, L = 1.1, 9.81, 0.8
+    scene, rows, res = _locate({
+        "scene": {"name": "pr", "model": f"{HERE / 'user_models' / 'pendulum_ratio.py'}:PENDULUM_RATIO",
+                  "outputs": ["ratio"]},
+        "axes": {"A": {"start": 0.2, "stop": 2.0, "num": 7}}, "fixed": {"g": g, "L": L},
+        "solver": {"rtol": 1e-6, "atol": 1e-9},
+        "boundaries": {"along": "A", "criterion": "ratio", "level": level}})
+    exact = brentq(lambda a: 2.0 * ellipk(math.sin(a / 2) ** 2) / math.pi - level, 0.2, 2.0, xtol=1e-15)
+    found = res.bound >= 0
+    loc, width = res.location[found][0], res.width[found][0]
+    assert abs(loc - exact) <= width / 2 and width < 1e-2, (loc, width, exact)
+    assert abs(loc - exact) > 1e-9 * exact  # the integration's error: a bracket of rtol 1e-10 would miss it
+    assert found.sum() == 1 and res.bound[found][0] == bd.CRITERION
+    crit = bd.criterion_of(scene)
+    assert bd.from_integration(scene.model, "ratio")
+    assert bd.criterion_accuracy(scene.model, scene.solver, crit, np.array([1.0]))[0] == pytest.approx(1e-4 * level)
+    assert "(a closed form of integrated outputs: their accuracy)" in bd.accuracy_text(scene, crit)
