@@ -2,12 +2,15 @@
 from __future__ import annotations
 
 import copy
+import sys
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 SWEEPS = REPO / "sweeps"
+if str(REPO) not in sys.path:  # the developer benchmarks (benchmarks/) and tests/reference, imported from the root
+    sys.path.insert(0, str(REPO))
 
 SMALL_DUFFING = {
     "scene": {"name": "small", "model": "duffing",

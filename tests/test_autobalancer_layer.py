@@ -1,7 +1,7 @@
 """The built-in auto-balancer is the model layer's declaration (models/autobalancer.py); its values
 against the hand-written kernels' recorded before any change (tests/data/autobalancer_reference.npz,
 tests/data/record_autobalancer.py) and against the kernels themselves, kept as a reference
-implementation in models/_autobalancer_kernels.py: every status bitwise, the simulated outputs the
+implementation in tests/reference/autobalancer_kernels.py: every status bitwise, the simulated outputs the
 same bits except residual_amplitude (1 ulp), floquet_max and its n_steps/n_rhs bitwise (the model's
 Floquet integrates its own variational system, the 64 equations about the exact orbit, as the old
 kernel); docs/model-layer.md."""
@@ -13,7 +13,7 @@ import pytest
 
 from mechsweep import status as st
 from mechsweep.models import MODELS
-from mechsweep.models import _autobalancer_kernels as K
+from .reference import autobalancer_kernels as K
 from mechsweep.models import autobalancer as ab
 
 DATA = Path(__file__).resolve().parent / "data"

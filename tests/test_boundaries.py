@@ -12,6 +12,7 @@ import xarray as xr
 from scipy.optimize import brentq
 
 from mechsweep import boundaries as bd
+from mechsweep.boundaries import search as bd_search
 from mechsweep.cli import main
 from mechsweep.scene import load_scene
 
@@ -297,7 +298,7 @@ def test_scene_without_boundaries_is_refused_and_a_failed_write_keeps_the_old_fi
 
 # ---------------------------------------------------------------- a built-in model: the auto-balancer
 def _balancer(ratios, outputs=("floquet_max",), rtol=1e-10, num=35, **solver):
-    from mechsweep.bench.boundaries import scene_dict
+    from benchmarks.boundaries import scene_dict
 
     d = scene_dict(len(ratios), num, rtol)
     d["solver"].update(solver)
@@ -316,8 +317,9 @@ def test_autobalancer_located_boundaries_agree_with_brentq_and_converge_on_the_f
     from scipy.optimize import brentq
 
     from mechsweep import status as st
-    from mechsweep.bench.boundaries import scene_dict
-    from mechsweep.models import _autobalancer_kernels as ab  # the reference formula (numpy)
+    from benchmarks.boundaries import scene_dict
+
+    from .reference import autobalancer_kernels as ab  # the reference formula (numpy)
 
     scene, rows, res = _balancer([0.02, 0.0005])
     assert np.isin(res.bound, (bd.PARAMETER, bd.CRITERION)).all() and res.location.shape == (2, 3)
@@ -387,27 +389,6 @@ def test_autobalancer_heavy_pendulum_boundaries_confirmed_by_direct_simulation()
     # direction +1: floquet_max rises through 1 as Omega grows: stable below, unstable above
     expected = np.where(d[:, None] > 0, [[1.0, 0.0]], [[0.0, 1.0]])
     np.testing.assert_array_equal(sim, expected, err_msg=f"{status.reshape(-1, 2)} {x}")
-
-
-def test_bench_boundaries_small(capsys):
-    assert main(["bench", "boundaries", "--contour", "100"]) == 2
-    assert "--contour needs at least two" in capsys.readouterr().err
-    assert main(["bench", "boundaries", "--values", "0"]) == 2
-    from mechsweep.bench import boundaries as bench
-
-    r = bench.main(values=2, grid=100, contour=(50, 400), threads=1)
-    out = capsys.readouterr().out
-    assert "located: grid 100 x 2" in out and out.count("grid and contour:") == 2
-    assert r["per_line"].tolist() == [1, 3]  # 2 m / M = 0.35: the window has closed; 0.0005: all three
-    assert r["contour_median_error"][1] < r["contour_median_error"][0] / 4 and r["needed_grid"] > 400
-    # continued from 2 m / M = 0.0005, the lower and the omega_p boundary end at one point: the window
-    # omega_xi < Omega < omega_p closes there (2 m / M = 0.0578, Omega = 1.2896 rad/s, measured); the
-    # upper one turns back in Omega and leaves the chart at 2 m / M = 0.35
-    np.testing.assert_allclose(r["movement"][0.02], [0.12443, 0.00363, 0.18658], atol=2e-5)  # README's 12, 0.4, 19 %
-    lower, mid, upper = r["curves"]
-    assert lower.stop == mid.stop == "step_too_small" and upper.stop == "edge"
-    np.testing.assert_allclose(lower.points[-1], mid.points[-1], rtol=1e-5)
-    assert 0.05 < 1.0 / lower.points[-1][1] < 0.065 and len(upper.folds) == 1
 
 
 # ---------------------------------------------------------------- continuation in two parameters
@@ -652,7 +633,7 @@ def _linear_edge(x):
 
 
 def _band_edge_search(fun, power, eps=1e-9, rtol=1e-10):
-    """bd._band_edges on the one cell [1.0, 1.4] of the criterion ``fun`` (band |g| <= eps):
+    """locate._band_edges on the one cell [1.0, 1.4] of the criterion ``fun`` (band |g| <= eps):
     (A, B, loc, bound, n_eval) after the search."""
     A, B = np.array([1.0]), np.array([1.4])
     gA, gB = fun(A), fun(B)
@@ -663,9 +644,9 @@ def _band_edge_search(fun, power, eps=1e-9, rtol=1e-10):
         x = np.asarray(x)
         return fun(x), np.zeros(x.size), np.full(x.size, np.nan)
 
-    bd._band_edges(ev, np.zeros(1, dtype=int), np.array([0]), A, B, bd._sides(gA, acc(gA)), bd._sides(gB, acc(gB)),
-                   gA, gB, np.full(1, np.nan), np.full(1, np.nan), n_eval, bound, loc,
-                   lambda a, b: rtol * np.maximum(np.abs(a), np.abs(b)), acc, power)
+    bd_search._band_edges(ev, np.zeros(1, dtype=int), np.array([0]), A, B, bd_search._sides(gA, acc(gA)),
+                          bd_search._sides(gB, acc(gB)), gA, gB, np.full(1, np.nan), np.full(1, np.nan), n_eval,
+                          bound, loc, lambda a, b: rtol * np.maximum(np.abs(a), np.abs(b)), acc, power)
     return A, B, loc, bound, n_eval
 
 

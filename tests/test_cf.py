@@ -15,7 +15,7 @@ cf_units = pytest.importorskip("cf_units")
 import mechsweep  # noqa: E402
 from mechsweep import cf  # noqa: E402
 from mechsweep.boundaries import run_boundaries  # noqa: E402
-from mechsweep.model import load  # noqa: E402
+from mechsweep.model import user  # noqa: E402
 from mechsweep.models import MODELS  # noqa: E402
 from mechsweep.runner import run  # noqa: E402
 
@@ -49,7 +49,7 @@ def udunits_problem(unit) -> str | None:
 
 
 def all_specs():
-    shipped = load.resolve(str(SWEEPS / "models" / "vibrating_pendulum.py") + ":VIBRATING_PENDULUM")
+    shipped = user.resolve(str(SWEEPS / "models" / "vibrating_pendulum.py") + ":VIBRATING_PENDULUM")
     return [*MODELS.values(), shipped]
 
 

@@ -116,10 +116,10 @@ def test_only_wanted_curves_are_computed_and_slots_follow_them():
 
 def test_run_accepts_a_closed_form_model_object(in_tmp):
     """mechsweep.run(scene, models={name: ClosedFormModel}) checks it as a file's model and runs it."""
-    from mechsweep.model import load
+    from mechsweep.model import load, user
 
-    load.resolve(f"{CAM}:CAM")  # imports the file as mechsweep makes a module of it
-    model = load.import_module(load._module_name(CAM.resolve()), str(CAM.resolve())).CAM
+    user.resolve(f"{CAM}:CAM")  # imports the file as mechsweep makes a module of it
+    model = load.import_module(load.module_name(CAM.resolve()), str(CAM.resolve())).CAM
     assert isinstance(model, ClosedFormModel)
     scene = cam_scene(["v_max", "a_max", "pressure_angle_max", "s_u", "a_u"])
     scene["scene"]["model"] = "my_cam"
@@ -246,8 +246,8 @@ def test_declared_statuses_add_to_those_the_outputs_imply():
     any model (a declared list replaced them before: a docs-only trial lost them from `models`)."""
     import dataclasses
 
-    from mechsweep.model import load
-    spec = load.resolve(f"{CAM}:CAM")
+    from mechsweep.model import user
+    spec = user.resolve(f"{CAM}:CAM")
     assert set(dataclasses.replace(spec, statuses=()).possible_statuses()) == {st.OK, st.NONFINITE, st.USER_ERROR}
     declared = dataclasses.replace(spec, statuses=(st.INFEASIBLE,)).possible_statuses()
     assert declared == (st.OK, st.NONFINITE, st.INFEASIBLE, st.USER_ERROR)
@@ -311,7 +311,7 @@ def test_a_status_code_that_is_none_of_mechsweeps_is_a_user_error(in_tmp):
 
 
 def test_a_closed_form_user_model_from_python_is_checked():
-    from mechsweep.model import load
+    from mechsweep.model import user
 
     def compute(p, want, row, curves, slot, scratch):
         row[0] = p[0]
@@ -319,7 +319,7 @@ def test_a_closed_form_user_model_from_python_is_checked():
     bad = ClosedFormModel(name="local", description="d", params=(Param("k", "k", "1", "k"),),
                           outputs=(Output("a", "a", "1", "a"),), compute=compute)
     with pytest.raises(InputError, match="compute must be a function defined at the top level"):
-        load.from_object("local", bad)
+        user.from_object("local", bad)
 
 
 # ---------------------------------------------------------------- disk cache
@@ -363,7 +363,7 @@ def test_second_process_compiles_nothing_for_a_closed_form_user_model(tmp_path):
 BUILTIN_PROBE = """
 import json
 import numpy as np
-from mechsweep.bench import linkage as bl
+from benchmarks import linkage as bl
 from mechsweep.model import closed, load
 
 out, status = bl.mechsweep_residuals(bl.design_family(50, 1))
@@ -380,7 +380,8 @@ def test_second_process_compiles_nothing_for_the_builtin_fourbar(tmp_path):
     """The built-in linkage models go through the same generated module: in a second process the
     kernel comes from numba's disk cache (the per-design function is compiled into it: not
     compiled again either)."""
-    env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(tmp_path), PYTHONPATH=str(HERE.parent / "src"))
+    env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(tmp_path),
+               PYTHONPATH=os.pathsep.join([str(HERE.parent / "src"), str(HERE.parent)]))  # mechsweep; benchmarks
     runs = []
     for _ in range(2):
         res = subprocess.run([sys.executable, "-c", BUILTIN_PROBE], capture_output=True, text=True, env=env,

@@ -15,6 +15,7 @@ import mechsweep
 from mechsweep import cluster, runner
 from mechsweep.errors import ClusterLost, InputError
 from mechsweep.journal import partial_path
+from mechsweep.plan import make_plan
 
 distributed = pytest.importorskip("distributed")
 
@@ -108,10 +109,10 @@ def test_bad_scheduler_address_is_refused_before_any_file(in_tmp, address):
     assert list((in_tmp / "data" / "runs").iterdir()) == []
 
 
-def _threads_after_a_chunk(text, chunk, threads):
+def _threads_after_a_chunk(plan, chunk, threads):
     import numba
 
-    cluster.compute_chunk(text, chunk, threads)
+    cluster.compute_chunk(plan, chunk, threads)
     return numba.get_num_threads()
 
 
@@ -120,7 +121,7 @@ def test_threads_apply_to_the_worker_task(local_cluster):
     chunk = runner.plan_chunks(scene.shape, 400)[0]
     with distributed.Client(local_cluster.scheduler_address) as client:
         for threads, expected in ((1, 1), (10**6, None)):  # None: all of the worker's, and no more
-            got = client.submit(_threads_after_a_chunk, scene.text, chunk, threads, pure=False).result()
+            got = client.submit(_threads_after_a_chunk, make_plan(scene), chunk, threads, pure=False).result()
             most = client.submit(lambda: __import__("numba").config.NUMBA_NUM_THREADS, pure=False).result()
             assert got == (expected or most)
 

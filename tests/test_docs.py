@@ -140,11 +140,16 @@ def test_command_lines_copy_as_typed(site):
 
 def test_the_tutorials_ran_in_the_build_and_show_their_results(site):
     """Each tutorial page is a notebook executed by the build: its cells' outputs are on the page,
-    with the figures drawn, and nothing went to stderr (a warning in a tutorial is a defect)."""
+    with the figures drawn, and nothing but the compile note went to stderr (a warning in a tutorial is a
+    defect)."""
     for name in TUTORIALS:
         html = (site / "tutorial" / f"{name}.html").read_text()
         assert html.count('class="cell_output') >= 2, name
-        assert "output stderr" not in html and "Traceback" not in html, name
+        assert "Traceback" not in html, name
+        for block in re.findall(r'class="output stderr.*?<pre>(.*?)</pre>', html, re.S):
+            lines = [x for x in re.sub(r"<[^>]+>", "", block).splitlines() if x.strip()]
+            # the compile note and its timing (every front end shows them) are the only stderr allowed
+            assert all(x.startswith("mechsweep: ") and "compil" in x for x in lines), (name, lines)
         if name != "cluster":
             assert re.search(r'<img [^>]*src="[^"]*_images/[0-9a-f]{16,}\.png"', html), name
     assert "bitwise identical: True" in (site / "tutorial" / "cluster.html").read_text()
@@ -225,7 +230,8 @@ def history_in(text: str) -> list[str]:
 
 def test_docs_and_code_carry_no_issue_numbers_dates_or_session_history():
     files = [REPO / "README.md", *(REPO / "docs").rglob("*.md"), *(REPO / "docs").rglob("*.py"),
-             *(REPO / "src").rglob("*.py"), *(REPO / "sweeps").rglob("*.toml")]
+             *(REPO / "src").rglob("*.py"), *(REPO / "sweeps").rglob("*.toml"),
+             *(REPO / "benchmarks").rglob("*.py"), *(REPO / "tests" / "reference").rglob("*.py")]
     found = []
     for path in files:
         rel = path.relative_to(REPO)

@@ -378,7 +378,39 @@ def test_stiffness_test_stops_van_der_pol_in_its_stiff_phase():
     plain = make_solver(van_der_pol)
     y = np.array([2.0, 0.0])
     code, _, _ = plain(0.0, y, np.array([1000.0]), 3000.0, 1e-6, 1e-9, 0.0, 5000, workspace(2))
-    assert code == status.MAX_STEPS  # without the test the same budget is simply used up
+    # without the test on every step the same budget is used up; the test on its last steps says why
+    assert code == status.STIFF
+
+
+def _plain(kind, rhs, p, t_end, budget, stiffness_test=False):
+    """(status, n_steps, y) of dop853's solver ``kind`` from (2, 0) to t_end (the event never fires)."""
+    y = np.array([2.0, 0.0])
+    if kind == "solve":
+        r = make_solver(rhs, stiffness_test=stiffness_test)(0.0, y, p, t_end, 1e-6, 1e-9, 0.0, budget, workspace(2))
+    elif kind == "event":
+        r = make_event_solver(rhs, coordinate_above_level, stiffness_test=stiffness_test)(
+            0.0, y, p, t_end, 1e-6, 1e-9, 0.0, budget, workspace(2))
+        r = (r[0], r[2])
+    else:
+        r = make_trajectory_solver(rhs, stiffness_test=stiffness_test)(
+            0.0, y, p, np.array([0.0, 1.0, t_end]), 1e-6, 1e-9, 0.0, budget, workspace(2), np.empty((3, 2)))
+    return r[0], r[1], y
+
+
+@pytest.mark.parametrize("kind", ["solve", "event", "trajectory"])
+def test_plain_solvers_say_stiff_where_their_budget_ends_at_the_stability_limit(kind):
+    """Without ``stiffness_test`` the test runs on the last STIFF_WINDOW attempts of the budget only:
+    van der Pol's slow branch (mu = 1000) spends 5000 attempts at the stability limit: STIFF. A budget
+    of 10 (too few for the 15 steps the test needs) and a harmonic oscillator cut short keep
+    MAX_STEPS, and the test changes no step: the state where they stop is the solver's without it."""
+    vdp = np.array([1000.0, -5.0])  # level -5: never reached
+    assert _plain(kind, van_der_pol, vdp, 3000.0, 5000)[0] == status.STIFF
+    assert _plain(kind, van_der_pol, vdp, 3000.0, 10)[0] == status.MAX_STEPS
+    osc = np.array([1.0, -5.0])
+    code, n_steps, y = _plain(kind, harmonic, osc, 2000 * np.pi, 3000)
+    assert code == status.MAX_STEPS and n_steps > 2000
+    with_test = _plain(kind, harmonic, osc, 2000 * np.pi, 3000, stiffness_test=True)
+    assert with_test[:2] == (code, n_steps) and np.array_equal(with_test[2], y)
 
 
 @pytest.mark.parametrize("kind", ["solve", "event", "trajectory"])

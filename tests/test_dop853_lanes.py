@@ -10,7 +10,7 @@ from hypothesis import strategies as hs
 
 from mechsweep import status as st
 from mechsweep._jit import call_with_literal
-from mechsweep.models import _autobalancer_kernels as ab  # the hand-written kernels (reference implementation)
+from .reference import autobalancer_kernels as ab  # the hand-written kernels (reference implementation)
 from mechsweep.ode import METHOD_CODES, _lane_sums_codegen
 from mechsweep.scene import Solver
 from mechsweep.special import SINCOS_MAX
@@ -95,7 +95,7 @@ def mixed():
     return pp, run, simulate(pp, lanes=0, run=run)
 
 
-# The hand-written auto-balancer kernels (models/_autobalancer_kernels.py) are a reference since the
+# The hand-written auto-balancer kernels (tests/reference/autobalancer_kernels.py) are a reference since the
 # swap: no model runs them. Their lane simulations compile the whole lane solver for them (about a
 # minute cold), so these tests of them are slow; the model's own lanes run in every auto-balancer test.
 @pytest.mark.slow
@@ -139,20 +139,3 @@ def test_lanes_shrink_to_keep_the_samples_within_budget():
 def test_fewer_points_than_lanes():
     pp = mixed_points(5, seed=4)
     assert_same(simulate(pp, lanes=ab.LANES, histories=False), simulate(pp, lanes=0, histories=False))
-
-
-@pytest.mark.slow
-def test_benchmark_runs_and_compares_the_same_steps():
-    """`mechsweep bench autobalancer` on a tiny sample: the lanes and the one-at-a-time kernel take
-    the same steps, and both beat scipy on the same trajectories (timings themselves: not asserted)."""
-    from mechsweep.bench import autobalancer as bench
-
-    r = bench.main(n_omega=2, n_ratio=2, sim_points=4, scipy_points=1, threads=1)
-    assert r["one_at_a_time_same_steps"] and r["auto_same_steps_elsewhere"]
-    assert r["ours_steps_same_trajectories"][0] == pytest.approx(r["scipy_mean_steps"], rel=0.5)
-    assert r["max_residual_difference_m"] < 1e-9  # both scipy routes: Python rhs and the model's compiled rhs
-    assert r["scipy_jitted_rhs_steps_per_s"] > 0
-    nb = r["numbalsoda"]  # the strongest competitor, when installed: the same trajectories, none failed
-    if nb is not None:
-        assert nb["failed"] == 0 and nb["max_residual_difference_m"] < 1e-9
-        assert nb["one_thread"]["ratio"] > 0 and nb["all_threads"]["ratio"] > 0

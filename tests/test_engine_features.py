@@ -4,7 +4,7 @@ import pytest
 
 import mechsweep
 from mechsweep import models, status as st
-from mechsweep.models._spec import ExtraDim, ModelSpec, Output, Param, Setting
+from mechsweep.model.spec import ExtraDim, ModelSpec, Output, Param, Setting
 from mechsweep.scene import SceneError, load_scene
 
 
@@ -43,7 +43,7 @@ TOY = ModelSpec(
 @pytest.fixture
 def toy(monkeypatch):
     monkeypatch.setitem(models.MODELS, "toy", TOY)
-    monkeypatch.setattr(mechsweep.scene, "MODELS", models.MODELS)
+    monkeypatch.setattr(mechsweep.scene.sections, "MODELS", models.MODELS)
 
 
 def scene(**solver):

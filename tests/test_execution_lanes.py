@@ -11,7 +11,7 @@ import pytest
 import mechsweep
 from mechsweep.cli import main
 from mechsweep.model import compile as mc
-from mechsweep.model import trajectory
+from mechsweep.plan import choose_route, make_plan
 from mechsweep.scene import SceneError, load_scene
 
 # the Duffing kernels tests/test_model_lanes.py compiles (lanes and one point): nothing new to compile
@@ -52,14 +52,15 @@ def test_the_scene_key_decides_before_the_module_switch(monkeypatch):
     monkeypatch.setattr(mc, "USE_LANES", True)
     _, used = _run("never", monkeypatch)
     assert not used
-    with mc.planned_points(10, False):
-        assert mc.planned_lanes() is False
-        assert trajectory._lanes_pay(None, 10**9) is False  # the sampled trajectories' route too
-    with mc.planned_points(10, True):
-        assert trajectory._lanes_pay(None, 0) is True
-    with mc.planned_points(10, None):
-        assert mc.planned_lanes() is True  # "auto": the module switch
-    assert mc.planned_lanes() is True and getattr(mc._PLAN, "lanes", None) is None
+    # the run's plan (plan.choose_route), for every kernel family: the sampled trajectories' route too
+    large = {"forced": True, "from_points": 1, "recorded": True}  # everything says lanes but the scene
+    assert choose_route(10**9, large, load_scene({**SCENE, "execution": {"lanes": "never"}}).execution.use_lanes()) \
+        == "point"
+    small = {"forced": False, "from_points": 10**9, "recorded": False}
+    assert choose_route(0, small, load_scene({**SCENE, "execution": {"lanes": "always"}}).execution.use_lanes()) \
+        == "lanes"
+    assert choose_route(10, large, load_scene(SCENE).execution.use_lanes()) == "lanes"  # "auto": the module switch
+    assert make_plan(load_scene({**SCENE, "execution": {"lanes": "never"}})).routes == {"kernel": "point"}
 
 
 @pytest.mark.parametrize("value", ["yes", True, 1, "Always", ["always"]])

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import mechsweep
-from mechsweep import cli, journal, runner
+from mechsweep import cli, execute, journal, runner
 from mechsweep.journal import Journal, partial_path
 from mechsweep.errors import InputError
 from mechsweep.scene import Execution
@@ -468,8 +468,8 @@ def test_a_damaged_chunk_file_is_recomputed_and_the_others_kept(scene_file, refe
     damage(files[2], how)
     capsys.readouterr()
     computed = []
-    real = runner.evaluate_chunk
-    monkeypatch.setattr(runner, "evaluate_chunk", lambda scene, chunk, *r: computed.append(chunk.index) or
+    real = execute.evaluate_chunk
+    monkeypatch.setattr(execute, "evaluate_chunk", lambda scene, chunk, *r: computed.append(chunk.index) or
                         real(scene, chunk, *r))
     resume_and_compare(scene_file.parent, reference)
     assert sorted(computed) == [2, 5, 6, 7], "only the damaged chunk and the missing ones are computed"
@@ -500,8 +500,8 @@ def test_a_journal_of_an_older_version_without_checksums_is_still_resumed(scene_
     meta = partial_path(scene_file.parent / OUT) / "run.json"
     meta.write_text(json.dumps({**json.loads(meta.read_text()), "format": 1}))
     computed = []
-    real = runner.evaluate_chunk
-    monkeypatch.setattr(runner, "evaluate_chunk", lambda scene, chunk, *r: computed.append(chunk.index) or
+    real = execute.evaluate_chunk
+    monkeypatch.setattr(execute, "evaluate_chunk", lambda scene, chunk, *r: computed.append(chunk.index) or
                         real(scene, chunk, *r))
     resume_and_compare(scene_file.parent, reference)
     assert sorted(computed) == [5, 6, 7]
@@ -940,8 +940,8 @@ def test_a_journal_of_the_previous_format_is_resumed_and_its_attributes_checked(
     assert "attribute solver_rtol = 1.0" in capsys.readouterr().err
     _write_meta(part, meta)
     computed = []
-    real = runner.evaluate_chunk
-    monkeypatch.setattr(runner, "evaluate_chunk", lambda scene, chunk, *r: computed.append(chunk.index) or
+    real = execute.evaluate_chunk
+    monkeypatch.setattr(execute, "evaluate_chunk", lambda scene, chunk, *r: computed.append(chunk.index) or
                         real(scene, chunk, *r))
     resume_and_compare(scene_file.parent, reference)
     assert sorted(computed) == [3, 4, 5, 6, 7]
@@ -1035,8 +1035,8 @@ def test_a_chunk_file_moved_swapped_edited_or_from_another_run_is_computed_again
     again = TAMPERED[how](part, partial_path(other / "o.h5"))
     (part / "swap").unlink(missing_ok=True)
     computed = []
-    real = runner.evaluate_chunk
-    monkeypatch.setattr(runner, "evaluate_chunk", lambda scene, chunk, *r: computed.append(chunk.index) or
+    real = execute.evaluate_chunk
+    monkeypatch.setattr(execute, "evaluate_chunk", lambda scene, chunk, *r: computed.append(chunk.index) or
                         real(scene, chunk, *r))
     capsys.readouterr()
     resume_and_compare(scene_file.parent, reference)
@@ -1125,8 +1125,8 @@ def test_a_file_that_appears_at_the_output_path_during_the_run_is_never_replaced
     else:
         target.unlink()
     computed = []
-    real = runner.evaluate_chunk
-    monkeypatch.setattr(runner, "evaluate_chunk", lambda scene, chunk, *r: computed.append(chunk.index) or
+    real = execute.evaluate_chunk
+    monkeypatch.setattr(execute, "evaluate_chunk", lambda scene, chunk, *r: computed.append(chunk.index) or
                         real(scene, chunk, *r))
     resume_and_compare(folder, reference)
     assert computed == []

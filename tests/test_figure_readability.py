@@ -112,7 +112,7 @@ def _as_stored(q) -> xr.DataArray:
     from mechsweep.store import _describe
 
     class Attrs:
-        dtype = np.dtype(float)  # a float variable (the store gives a string variable no units)
+        dtype = np.dtype(np.float64)  # a numeric variable (strings get no units)
 
         def __init__(self):
             self.attrs = {}

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 import mechsweep
-from mechsweep import StoreError, runner
+from mechsweep import StoreError, execute, runner
 from mechsweep.cli import main
 
 from .test_hostile_scenes import VALID, existing_dataset, refused, snapshot, work  # noqa: F401 (fixture)
@@ -369,12 +369,6 @@ BENCH = [
     (["duffing", "--rtol", "0"], "rtol = 0.0"),
     (["duffing", "--rtol", "nan"], "rtol = nan"),
     (["duffing", "--atol", "-1"], "atol = -1.0"),
-    (["autobalancer", "--sim-points", "0"], "sim_points = 0"),
-    (["autobalancer", "--scipy-points", "-1"], "scipy_points = -1"),
-    (["autobalancer", "--threads", "-2"], "threads = -2"),
-    (["linkage", "--designs", "-1"], "designs = -1"),
-    (["linkage", "--numpy-designs", "0"], "numpy_designs = 0"),
-    (["linkage", "--threads", "0"], "threads = 0"),
     (["workprecision", "duffing", "--points", "0"], "points = 0"),
     (["workprecision", "duffing", "--scipy-points", "-2"], "scipy_points = -2"),
     (["workprecision", "duffing", "--repeats", "0"], "repeats = 0"),
@@ -387,14 +381,6 @@ BENCH = [
     (["workprecision", "fourbar_balancing", "--repeats", "0"], "repeats = 0"),
     (["workprecision", "duffing", "--out", "a_file"], "a_file is a file, not a folder"),
     (["workprecision", "duffing", "--out", "a_file/sub"], "a_file is a file, not a folder"),
-    (["cluster", "--points", "-5"], "points = -5"),
-    (["cluster", "--workers", "0"], "workers = 0"),
-    (["cluster", "--chunk", "0"], "chunk = 0"),
-    (["memory", "--dir", "a_file"], "a_file is a file, not a folder"),
-    (["memory", "--dir", "no_such_folder"], "does not exist"),
-    (["quickstart", "--scene", "a_file"], "TOML syntax error"),
-    (["quickstart", "--scene", "data"], "is a directory, not a scene file"),
-    (["quickstart", "--scene", "nothing.toml"], "does not exist"),
 ]
 
 
@@ -406,17 +392,11 @@ def no_bench_work(work, monkeypatch):
     def tripwire(*args, **kwargs):
         raise AssertionError("the benchmark started despite a bad option")
 
-    from mechsweep.bench import (autobalancer, cluster, duffing, linkage, memory, quickstart, workprecision,
-                                 workprecision_linkage)
+    from mechsweep.bench import duffing, workprecision, workprecision_linkage
 
     monkeypatch.setattr(numba, "set_num_threads", tripwire)
     for mod in (duffing, workprecision, workprecision_linkage):
         monkeypatch.setattr(mod, "load_scene", tripwire)
-    monkeypatch.setattr(autobalancer, "_main", tripwire)
-    monkeypatch.setattr(linkage, "design_family", tripwire)
-    monkeypatch.setattr(cluster, "run", tripwire)
-    monkeypatch.setattr(memory, "_case", tripwire)
-    monkeypatch.setattr(quickstart, "_timed", tripwire)
     (work / "a_file").write_text("x")
     return work
 
@@ -427,15 +407,11 @@ def test_bench_options_out_of_range_are_refused(argv, said, no_bench_work, capsy
 
 
 def test_bench_functions_refuse_bad_arguments_too():
-    from mechsweep.bench import autobalancer, duffing, linkage
+    from mechsweep.bench import duffing
     from mechsweep.errors import InputError
 
     with pytest.raises(InputError, match="points = -5"):
         duffing.main(points=np.int64(-5))
-    with pytest.raises(InputError, match="sim_points = 2.5"):
-        autobalancer.main(sim_points=2.5)
-    with pytest.raises(InputError, match="designs = True"):
-        linkage.main(designs=True)
     from mechsweep.bench import workprecision, workprecision_linkage
 
     with pytest.raises(InputError, match="rtol = 'x'"):
@@ -444,11 +420,6 @@ def test_bench_functions_refuse_bad_arguments_too():
         workprecision_linkage.main("fourbar_balancing", positions=np.int64(3))
     with pytest.raises(InputError, match="no linkage work-precision case"):
         workprecision_linkage.main(["fourbar_balancing"])
-
-
-def test_bench_cluster_without_dask_is_a_clear_error(work, capsys, monkeypatch):
-    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed -> ImportError
-    refused(capsys, ["bench", "cluster", "--points", "1000"], work, "needs the optional packages dask and distributed")
 
 
 def test_api_takes_numpy_numbers(small_duffing):
@@ -488,5 +459,5 @@ def test_extreme_parameters_give_no_numpy_warnings():
                   "omega_eta": 30.0, "zeta_xi": 0.05, "zeta_eta": 0.05}})
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        _, status, _, _ = runner.evaluate_chunk(scene, plan_chunks(scene.shape, 10)[0])
+        _, status, _, _ = execute.evaluate_chunk(scene, plan_chunks(scene.shape, 10)[0])
     assert (status != 0).all()

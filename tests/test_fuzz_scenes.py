@@ -20,7 +20,7 @@ from pathlib import Path
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from mechsweep import runner
+from mechsweep import execute, runner
 from mechsweep.cli import main
 from mechsweep.models import MODELS
 from mechsweep.scene import load_scene_text, to_toml
@@ -182,8 +182,9 @@ def test_fuzzed_scenes_exit_0_or_2_and_change_nothing(monkeypatch, capsys):
     def tripwire(*args, **kwargs):
         raise WorkStarted
 
-    for name in ("_connect", "_save_chunks", "evaluate_chunk"):
+    for name in ("_connect", "_save_chunks"):
         monkeypatch.setattr(runner, name, tripwire, raising=False)  # raising: _connect is new
+    monkeypatch.setattr(execute, "evaluate_chunk", tripwire)
     monkeypatch.setattr(runner.RunLock, "acquire", tripwire)
     monkeypatch.setattr(runner.Journal, "create", tripwire)
     seen = collections.Counter()

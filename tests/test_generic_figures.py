@@ -145,7 +145,7 @@ def test_the_generic_figure_code_names_no_model_and_no_variable():
     """The front and the generic modules hold no built-in model's name, parameter or output; only the
     figure modules for a model (duffing.py, ...) do."""
     from mechsweep.models import MODELS
-    from mechsweep.models._spec import OUTPUT_KINDS
+    from mechsweep.model.spec import OUTPUT_KINDS
 
     folder = Path(figures.__file__).parent
     names = set(MODELS) | {x.name for spec in MODELS.values() for x in spec.outputs + spec.params}

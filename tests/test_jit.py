@@ -53,7 +53,7 @@ def test_noalloc_and_inline_functions_work_on_caller_arrays():
 
 
 NAMES_CODE = """
-from mechsweep.models import _autobalancer_kernels as ab  # the hand-written kernels (reference implementation)
+from tests.reference import autobalancer_kernels as ab  # the hand-written kernels (reference implementation)
 from mechsweep.ode import dop853, radau
 print(dop853._make_start(ab.rhs).py_func.__qualname__)
 print(dop853._make_start(ab.variational_rhs).py_func.__qualname__)
@@ -76,7 +76,10 @@ def test_closures_of_one_factory_get_distinct_names_the_same_in_every_process():
 
     import mechsweep
 
-    env = {**__import__("os").environ, "PYTHONPATH": str(Path(mechsweep.__file__).resolve().parents[1])}
+    import os
+
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(mechsweep.__file__).resolve().parents[1]),
+                                                        str(Path(__file__).resolve().parents[1])])}
     runs = [subprocess.run([sys.executable, "-c", NAMES_CODE], capture_output=True, text=True, env=env, check=True)
             .stdout.split() for _ in range(2)]
     assert runs[0] == runs[1]
@@ -140,7 +143,7 @@ def test_the_wait_policy_is_set_when_numba_starts_its_threads_and_libgomp_reads_
 def test_first_compile_of_a_process_does_not_import_scipy_linalg_and_linalg_still_works():
     """numba's CPU target imports numba.np.arraymath on a process's first compile or cache load, and
     arraymath asked for scipy's BLAS by importing scipy.linalg (a large share of every warm
-    `mechsweep run`: `mechsweep bench startup`). At mechsweep's first compile _jit answers that from
+    `mechsweep run`: `python benchmarks/startup.py`). At mechsweep's first compile _jit answers that from
     scipy's installed files: a mechsweep function without linear algebra imports no scipy.linalg, the
     answer is numba's (BLAS found), numba's own ensure_blas is in place for later callers, and np.dot
     (typing imports scipy's BLAS then) still compiles and runs."""

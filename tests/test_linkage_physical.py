@@ -1,5 +1,5 @@
 """Every linkage balancing method that moves or adds a mass, against the mass placed physically:
-models/_linkage_reference.py (physical placement) puts the counterweights where the method says
+tests/reference/linkage_physical.py puts the counterweights where the method says
 (the crank counterweight on the reported axis O1, the rocker counterweight, an added rocker
 inertia, the slider-crank's sized counterweight), finds the joints by a closed form of its own and
 computes the full shaking moment M = -dH/dt - g sum m x_G and force (inertia and gravity) from
@@ -18,9 +18,10 @@ import pytest
 from mechsweep import balancing as B
 from mechsweep import status as st
 from mechsweep.models import _linkage as L
-from mechsweep.models import _linkage_reference as R
 from mechsweep.models import fourbar_balancing as fb
 from mechsweep.models import slidercrank_balancing as sc
+
+from .reference import linkage_physical as R
 
 DATA = Path(__file__).resolve().parent / "data"
 _spec = importlib.util.spec_from_file_location("make_linkage_reference", DATA / "make_linkage_reference.py")
@@ -159,8 +160,8 @@ def test_slider_counterweight_outputs_are_the_physical_loads(g):
     # the reported moment and forces (weights included)
     P = mk.slider_designs(60, 8)
     P[:, L.SLIDER_PARAMS.index("g")] = g
-    P[:, L.SLIDER_PARAMS.index("lambda")] = np.where(np.isnan(P[:, L.SLIDER_PARAMS.index("l")]),
-                                                      np.minimum(P[:, L.SLIDER_PARAMS.index("lambda")], 0.6), np.nan)
+    P[:, L.SLIDER_PARAMS.index("lam")] = np.where(np.isnan(P[:, L.SLIDER_PARAMS.index("l")]),
+                                                      np.minimum(P[:, L.SLIDER_PARAMS.index("lam")], 0.6), np.nan)
     out, status = mk.evaluate(sc.SPEC, P, all_outputs(sc.SPEC), N)
     ok = np.flatnonzero((status == st.OK) & (out["transmission_min"] > 0.5))[:10]
     assert ok.size == 10

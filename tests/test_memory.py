@@ -1,6 +1,6 @@
 """Memory bounded by the chunk for any grid shape: range axes are never expanded, the stored scene
 stays small, the chunk plan is O(1), the chunk count is capped, the command counts statuses
-without opening the dataset (issue 12, items 18-20). RSS figures are in `mechsweep bench memory`;
+without opening the dataset (issue 12, items 18-20). RSS figures are in `python benchmarks/memory.py`;
 these tests assert structure only."""
 import copy
 import json
@@ -13,7 +13,8 @@ import pytest
 import xarray as xr
 
 import mechsweep
-from mechsweep import grid, runner, scene as scene_mod, store
+from mechsweep import execute, grid, runner, scene as scene_mod, store
+from mechsweep.scene import sections as scene_sections
 from mechsweep.cli import main
 from mechsweep.grid import MAX_CHUNKS, Chunk, ChunkPlan, ParameterMatrix, chunk_target, least_target, plan_chunks
 from mechsweep.scene import Axis, SceneError, load_scene
@@ -104,7 +105,7 @@ def test_values_repeating_at_float_precision_are_found_without_expanding(monkeyp
     real = Axis.array
     monkeypatch.setattr(Axis, "array", lambda self, lo=0, hi=None: spans.append(
         (hi if hi is not None else self.size) - lo) or real(self, lo, hi))
-    monkeypatch.setattr(scene_mod, "_BLOCK", 1000)
+    monkeypatch.setattr(scene_sections, "_BLOCK", 1000)
     with pytest.raises(SceneError, match="repeat at float precision"):
         load_scene(duffing({"mu": {"start": 1.0, "stop": 1.0 + 2e-12, "num": 50_000}}))
     assert spans and max(spans) <= 1000
@@ -253,7 +254,7 @@ def test_command_counts_statuses_without_opening_the_dataset(in_tmp, capsys, mon
 
 
 def test_counts_of_a_resumed_run_include_the_journaled_chunks(in_tmp, monkeypatch):
-    real, calls = runner.evaluate_chunk, {"n": 0}
+    real, calls = execute.evaluate_chunk, {"n": 0}
 
     def flaky(*args):
         calls["n"] += 1
@@ -261,7 +262,7 @@ def test_counts_of_a_resumed_run_include_the_journaled_chunks(in_tmp, monkeypatc
             raise KeyboardInterrupt
         return real(*args)
     with monkeypatch.context() as mp:
-        mp.setattr(runner, "evaluate_chunk", flaky)
+        mp.setattr(execute, "evaluate_chunk", flaky)
         with pytest.raises(runner.RunInterrupted):
             runner.compute(MIXED, output="data/runs/r.h5", progress=False)
     summary = runner.compute(MIXED, output="data/runs/r.h5", resume=True, progress=False)

@@ -8,7 +8,7 @@ import pytest
 
 from mechsweep import status as st
 from mechsweep.models import MODELS
-from mechsweep.models import _autobalancer_kernels as ab  # the hand-written kernels (reference implementation)
+from .reference import autobalancer_kernels as ab  # the hand-written kernels (reference implementation)
 from mechsweep.models import torsional_circuit as tc
 from mechsweep.scene import SceneError, Solver, load_scene
 

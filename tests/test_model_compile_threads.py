@@ -43,10 +43,10 @@ def test_kernel_for_the_same_objects_reads_no_model_source_again(monkeypatch):
     from the cache is looked up (and read) again."""
     from pathlib import Path
 
-    from mechsweep.model import load
+    from mechsweep.model import load, user
 
     path = Path(__file__).parent / "user_models" / "api_models.py"
-    load.resolve(f"{path}:OSC")  # imports the file as the engine does; kernel_for takes its OdeModel
+    user.resolve(f"{path}:OSC")  # imports the file as the engine does; kernel_for takes its OdeModel
     osc = sys.modules[next(n for n, m in sys.modules.items()
                            if getattr(m, "__file__", None) == str(path))].OSC
     chosen = osc.measurements
@@ -68,7 +68,7 @@ def test_one_point_kernel_is_serial_code_split_over_python_threads(monkeypatch, 
     import numpy as np
 
     from mechsweep.grid import ParameterMatrix
-    from mechsweep.runner import evaluate_rows
+    from mechsweep.execute import evaluate_rows
     from mechsweep.scene import load_scene
 
     monkeypatch.setattr(mc, "USE_LANES", False)

@@ -8,7 +8,7 @@ import pytest
 
 from mechsweep.cli import main
 from mechsweep.errors import InputError
-from mechsweep.model import load
+from mechsweep.model import user
 from mechsweep.models import MODELS
 
 from .conftest import SWEEPS
@@ -69,10 +69,10 @@ def test_a_model_given_from_python_is_checked_too(tmp_path, monkeypatch):
     import spring_api
 
     with pytest.raises(InputError, match="parameter 'k': unit 'metres please' is not a unit UDUNITS-2 reads"):
-        load.from_object("spring_api_model", spring_api.M)
+        user.from_object("spring_api_model", spring_api.M)
 
 
-@pytest.mark.parametrize("spec", [*MODELS.values(), load.resolve(str(SWEEPS / "models" / "vibrating_pendulum.py")
+@pytest.mark.parametrize("spec", [*MODELS.values(), user.resolve(str(SWEEPS / "models" / "vibrating_pendulum.py")
                                                                  + ":VIBRATING_PENDULUM")], ids=lambda s: s.name)
 def test_every_built_in_and_shipped_declaration_passes(spec):
-    load.check_declaration(spec, spec.name)
+    user.check_declaration(spec, spec.name)

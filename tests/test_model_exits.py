@@ -21,7 +21,7 @@ import pytest
 import mechsweep
 from mechsweep.cli import main
 from mechsweep.errors import InputError
-from mechsweep.model import load
+from mechsweep.model import user
 
 HERE = Path(__file__).resolve().parent
 USER = HERE / "user_models"
@@ -50,17 +50,17 @@ def importable(monkeypatch):
 ], ids=["sys_exit", "base_exception", "helper_module", "package_module", "at_the_probe"])
 def test_an_exit_while_a_model_loads_is_an_input_error_with_file_and_line(ref, fragments, importable):
     with pytest.raises(InputError) as info:
-        load.resolve(ref)
+        user.resolve(ref)
     for piece in fragments:
         assert piece in str(info.value), str(info.value)
 
 
 def test_an_exit_in_an_entry_points_module_is_exit_2(in_tmp, importable, monkeypatch, capsys):
-    ep = metadata.EntryPoint(name="exit_ep", value="exitpkg.models:M", group=load.ENTRY_POINT_GROUP)
+    ep = metadata.EntryPoint(name="exit_ep", value="exitpkg.models:M", group=user.ENTRY_POINT_GROUP)
     real = metadata.entry_points
 
     def entry_points(**kw):
-        return metadata.EntryPoints([ep]) if kw.get("group") == load.ENTRY_POINT_GROUP else real(**kw)
+        return metadata.EntryPoints([ep]) if kw.get("group") == user.ENTRY_POINT_GROUP else real(**kw)
     monkeypatch.setattr(metadata, "entry_points", entry_points)
     (in_tmp / "s.toml").write_text(scene("exit_ep"))
     for argv in (["check", "s.toml"], ["run", "s.toml", "--no-progress"], ["models", "exit_ep"]):
@@ -74,9 +74,9 @@ def test_the_stand_ins_and_the_signal_handlers_are_put_back(importable):
     real_exit, real_abort = os._exit, os.abort
     handlers = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
     with pytest.raises(InputError):
-        load.resolve(f"{USER}/exit_sys.py:M")
+        user.resolve(f"{USER}/exit_sys.py:M")
     with pytest.raises(InputError, match=r"os\._exit\(7\) called"):
-        with load.exits_refused("test"):
+        with user.exits_refused("test"):
             os._exit(7)
     assert os._exit is real_exit and os.abort is real_abort
     assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == handlers
@@ -124,16 +124,16 @@ def test_a_real_signal_while_a_model_imports_is_still_an_interruption(tmp_path, 
 ])
 def test_a_model_file_that_is_not_a_python_file_is_named_as_what_it_is(ref, said, capsys):
     with pytest.raises(InputError) as info:
-        load.resolve(ref)
+        user.resolve(ref)
     assert said in str(info.value) and "AttributeError" not in str(info.value), str(info.value)
 
 
 def test_a_module_name_that_is_a_file_beside_the_scene_is_named_as_that_file(tmp_path):
     (tmp_path / "notes.txt").write_text("not Python\n")
     with pytest.raises(InputError, match=r"notes.txt is not a Python file: a model file's name ends in .py"):
-        load.resolve("notes.txt:X", tmp_path)
+        user.resolve("notes.txt:X", tmp_path)
     with pytest.raises(InputError, match=r"module 'no_such_module.sub' is not importable"):
-        load.resolve("no_such_module.sub:X", tmp_path)
+        user.resolve("no_such_module.sub:X", tmp_path)
 
 
 def test_models_command_on_a_file_that_is_not_python(capsys):

@@ -12,7 +12,7 @@ import pytest
 
 from mechsweep import status as st
 from mechsweep.model import compile as mc
-from mechsweep.model import lanes, load
+from mechsweep.model import lanes, user
 from mechsweep.models import MODELS
 from mechsweep.scene import Solver
 
@@ -102,7 +102,7 @@ def test_lanes_chunk_shapes_and_skipped_points(monkeypatch):
 @pytest.mark.slow  # four kernels of their own: about 1-2 min cold on the shared 2-core machine
 def test_user_models_lanes_bitwise(monkeypatch):
     P = np.array([[1.0, a, c, f] for a in (0.1, 1.0, 2.5, 3.1, -0.5, 0.0) for c in (0.0, 0.3) for f in (0.0, 0.7)])
-    forced = load.resolve(f"{USER / 'lanes_models.py'}:FORCED")  # a lone first Crossing, math calls, t
+    forced = user.resolve(f"{USER / 'lanes_models.py'}:FORCED")  # a lone first Crossing, math calls, t
     out, new = _same(forced, P, ("t_cross",), monkeypatch, method="dop853", rtol=1e-9, atol=1e-11)
     assert new, "the lane kernel was not used"
     assert {st.OK, st.NO_EVENT} <= set(out["status"].tolist())
@@ -111,7 +111,7 @@ def test_user_models_lanes_bitwise(monkeypatch):
     assert lanes.applies(mod.FORCED, mod.FORCED.measurements[1:], "dop853") is not None
     assert lanes.applies(mod.FORCED, mod.FORCED.measurements[1:], "radau") is None
     assert lanes.applies(mod.FORCED, mod.FORCED.measurements, "dop853") is None  # two measurements
-    layer = load.resolve(f"{USER / 'layer_methods.py'}:LINEAR")  # classify, prepare, settings, closed forms
+    layer = user.resolve(f"{USER / 'layer_methods.py'}:LINEAR")  # classify, prepare, settings, closed forms
     P2 = np.array([[w, a] for w in (0.5, 1.0, 4.0, 6.0) for a in (-1.0, 0.0, 0.3, 2.0)])
     _, new = _same(layer, P2, ("period", "period_exact", "period_error"), monkeypatch, method="dop853",
                    rtol=1e-10, atol=1e-12, horizon=3.0)
@@ -324,46 +324,6 @@ def test_lane_rhs_of_duffing_is_vectorised():
     assert re.findall(r"\bv?mulpd\b", asm), "no packed multiply: the lane loop was not vectorised"
     assert not re.findall(r"vfn?m(add|sub)\d+[ps]d", asm)
 
-
-
-def test_automatic_route_takes_lanes_only_where_they_pay(monkeypatch, small_duffing):
-    """USE_LANES None (the default): one point at a time for a small run whose lane kernel is not
-    compiled, the lanes for a run of LANES_FROM_POINTS points (the run's size, from the runner, not the
-    rows of the call) or once the lane kernel is compiled (in the process, or found in numba's disk
-    cache); the results are bitwise the same by either route."""
-    from mechsweep.grid import ParameterMatrix
-    from mechsweep.runner import evaluate_rows
-    from mechsweep.scene import load_scene
-
-    spec = MODELS["duffing"]
-    P = _duffing_points()[:40]
-    monkeypatch.setattr(mc, "USE_LANES", None)
-    monkeypatch.setattr(mc, "_BY_OBJECTS", {})
-    monkeypatch.setattr(mc, "_KERNELS", {})
-    monkeypatch.setattr(mc, "_compiled_on_disk", lambda name, source: False)  # as with an empty JIT cache
-    one = _evaluate(spec, P, WANTED, None, monkeypatch, method="dop853")
-    assert not _lane_kernels_used(), "a small run compiled the lane kernel"
-    monkeypatch.setattr(mc, "LANES_FROM_POINTS", 41)
-    _evaluate(spec, P, WANTED, None, monkeypatch, method="dop853")
-    assert not _lane_kernels_used()  # 40 rows, no run around them
-    scene = load_scene(small_duffing)  # 63 points: the run's one-row warm-up takes the lanes
-    monkeypatch.setattr(mc, "LANES_FROM_POINTS", scene.n_points)
-    evaluate_rows(scene, ParameterMatrix(scene)(0, 1))
-    assert _lane_kernels_used(), "the run's size did not choose the lanes"
-    monkeypatch.setattr(mc, "LANES_FROM_POINTS", 10**12)
-    lan = _evaluate(spec, P, WANTED, None, monkeypatch, method="dop853")  # the lane kernel is loaded: taken
-    for key, value in one.items():
-        assert np.array_equal(value, lan[key], equal_nan=True), key
-    (name,) = _lane_kernels_used()
-    source = Path(sys.modules[name].__file__).read_text()
-    monkeypatch.undo()
-    if mc._jit.cache_dir is not None:  # numba's index as numba reads it: this kernel's is there, none for a
-        monkeypatch.setattr(mc, "_KERNELS", {})  # module never compiled
-        assert mc._compiled_on_disk(name, lambda: source) and name in mc._KERNELS
-        fresh = "mechsweep_gen_test_never_compiled"
-        assert not mc._compiled_on_disk(fresh, lambda: source)  # no file: not even imported
-        mc.load_generated(fresh, source)
-        assert not mc._compiled_on_disk(fresh, lambda: source)
 
 
 def test_lane_blocks_are_taken_once_each_by_whichever_thread_is_free(monkeypatch):

@@ -230,7 +230,7 @@ def test_closed_forms_needing_the_floquet_kind_and_angle_get_a_kernel():
 
     from mechsweep.model import compile as mc
     from mechsweep.model import load
-    model = load.import_module(load._module_name(MATHIEU_FILE.resolve()), str(MATHIEU_FILE.resolve())).MATHIEU_CF
+    model = load.import_module(load.module_name(MATHIEU_FILE.resolve()), str(MATHIEU_FILE.resolve())).MATHIEU_CF
     chosen, closed = model._plan(("angle2", "kind2"))
     kernel = mc.kernel_for(model, chosen, closed=model.computable_closed_forms(chosen), origin=str(MATHIEU_FILE))
     source = inspect.getsource(inspect.getmodule(kernel.py_func))

@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 
 import mechsweep
-from mechsweep import runner
+from mechsweep import execute, runner
 from mechsweep import status as st
 from mechsweep.cli import main
 from mechsweep.errors import InputError
 from mechsweep.journal import partial_path
-from mechsweep.model import load
+from mechsweep.model import load, user
 
 HERE = Path(__file__).parent / "user_models"
 FILE = HERE / "api_models.py"
@@ -46,8 +46,8 @@ atol = 1e-14
 def osc():
     """The OdeModel object, imported from its file (the module mechsweep makes of that file, so
     every test here shares one compiled kernel)."""
-    load.resolve(f"{FILE}:OSC")
-    return load.import_module(load._module_name(FILE.resolve())).OSC
+    user.resolve(f"{FILE}:OSC")
+    return load.import_module(load.module_name(FILE.resolve())).OSC
 
 
 def _check(ds, w=(0.5, 1.0, 1.5, 2.0)):
@@ -94,11 +94,11 @@ def test_run_accepts_an_ode_model_from_python(in_tmp, osc):
 @pytest.fixture
 def entry_point(monkeypatch):
     """An installed package registering tests/user_models/ep_models.py:OSC as "ep_osc"."""
-    ep = metadata.EntryPoint(name="ep_osc", value="tests.user_models.ep_models:OSC", group=load.ENTRY_POINT_GROUP)
+    ep = metadata.EntryPoint(name="ep_osc", value="tests.user_models.ep_models:OSC", group=user.ENTRY_POINT_GROUP)
     real = metadata.entry_points
 
     def entry_points(**kw):
-        if kw.get("group") == load.ENTRY_POINT_GROUP:
+        if kw.get("group") == user.ENTRY_POINT_GROUP:
             return metadata.EntryPoints([ep])
         return real(**kw)
     monkeypatch.setattr(metadata, "entry_points", entry_points)
@@ -123,9 +123,9 @@ def test_one_file_under_two_module_names_shares_no_disk_cache_entry(tmp_path):
     failed with "numba cannot compile initial: No module named ..." (exit 2 for ever after)."""
     path = tmp_path / "twice.py"
     path.write_text(FILE.read_text().replace("api_oscillator", "twice_oscillator"))
-    first = (f"from mechsweep.model import load; "
-             f"load.from_object('twice', load.import_module('twice_alias', {str(path)!r}).OSC)")
-    second = f"from mechsweep.model import load; print(load.resolve({str(path) + ':OSC'!r}).name)"
+    first = (f"from mechsweep.model import load, user; "
+             f"user.from_object('twice', load.import_module('twice_alias', {str(path)!r}).OSC)")
+    second = f"from mechsweep.model import user; print(user.resolve({str(path) + ':OSC'!r}).name)"
     for code in (first, second):
         out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
         assert out.returncode == 0, out.stderr[-500:]
@@ -150,14 +150,14 @@ def test_unfinished_run_reads_and_resumes_from_another_directory(tmp_path, monke
     folder = _scene_folder(tmp_path)
     monkeypatch.chdir(folder)
     with pytest.MonkeyPatch.context() as mp:
-        real, calls = runner.evaluate_chunk, {"n": 0}
+        real, calls = execute.evaluate_chunk, {"n": 0}
 
         def flaky(scene, chunk, *rest):
             calls["n"] += 1
             if calls["n"] > 2:
                 raise KeyboardInterrupt
             return real(scene, chunk, *rest)
-        mp.setattr(runner, "evaluate_chunk", flaky)
+        mp.setattr(execute, "evaluate_chunk", flaky)
         with pytest.raises(mechsweep.RunInterrupted):
             mechsweep.run("s.toml")
     elsewhere = tmp_path / "elsewhere" / "deeper"
@@ -313,7 +313,7 @@ def test_guards_inline_a_users_function_only_when_it_has_no_raise_statement():
     from mechsweep.model import load
     from mechsweep.models import duffing
 
-    module = load.import_module(load._module_name(FILE.resolve()), str(FILE.resolve()))
+    module = load.import_module(load.module_name(FILE.resolve()), str(FILE.resolve()))
     rhs = load.function_ref(module.OSC.rhs, "rhs", module.OSC.name)  # raises for w > 2.5
     initial = load.function_ref(module.OSC.initial, "initial", module.OSC.name)
     assert load.inlined(*rhs) is load.jitted(*rhs)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from mechsweep import status as st
-from mechsweep.model import load
+from mechsweep.model import user
 from mechsweep.models import MODELS
 from mechsweep.scene import SceneError, Solver, load_scene
 
@@ -64,7 +64,7 @@ def test_duffing_spec_is_a_declaration_with_every_method():
 
 
 def _user():
-    return load.resolve(f"{USER}:LINEAR")
+    return user.resolve(f"{USER}:LINEAR")
 
 
 def _evaluate(spec, P, wanted, **solver):
@@ -137,7 +137,7 @@ def test_an_exception_in_the_models_code_at_run_time_is_user_error(monkeypatch):
     from mechsweep.model import ode
     monkeypatch.setattr(mc, "USE_LANES", True)
     ode._EXPLAINED.clear()  # warned once per cause in a process
-    spec = load.resolve(f"{USER}:RAISING")
+    spec = user.resolve(f"{USER}:RAISING")
     P = np.array([[1.0, 0.5], [2.5, 0.5], [4.0, 0.5]])
     with pytest.warns(UserModelWarning, match=r"at w = 2.5, .*closed form inverse raised ValueError: w too large "
                       r"for this formula \(.*layer_methods.py, line 85, in raising_closed_form\)"):

@@ -88,7 +88,7 @@ def test_a_first_event_beside_shared_path_measurements_generates_one_kernel():
     from mechsweep.model import load
 
     path = Path(MODEL.rpartition(":")[0])
-    decl = load.import_module(load._module_name(path), str(path)).MODEL
+    decl = load.import_module(load.module_name(path), str(path)).MODEL
     chosen, _ = decl._plan(("down3_short", "ke_max", "period_up"))
     refs = {name: load.function_ref(f, name, decl.name) for name, f in mc._functions(decl, chosen, ())}
     source = mc.kernel_source(decl, chosen, refs, "test")

@@ -8,7 +8,7 @@ import pytest
 
 from mechsweep import status as st
 from mechsweep.errors import InputError
-from mechsweep.model import ClosedForm, Floquet, History, Kick, OdeModel, Steady, load
+from mechsweep.model import ClosedForm, Floquet, History, Kick, OdeModel, Steady, user
 from mechsweep.scene import Solver, load_scene
 
 USER = Path(__file__).resolve().parent / "user_models"
@@ -40,7 +40,7 @@ def test_output_meta_names_and_describes_each_output():
 
 
 def test_without_output_meta_the_generic_outputs_are_unchanged():
-    spec = load.resolve(f"{USER / 'forced.py'}:DECAY")
+    spec = user.resolve(f"{USER / 'forced.py'}:DECAY")
     o = {x.name: x for x in spec.outputs}
     assert [k for k in o if k.startswith("stable")] == ["stable", "stable_settling", "stable_final"]
     assert (o["stable"].symbol, o["stable_settling"].long_name, o["stable_final"].symbol) == (

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from mechsweep import status as st
-from mechsweep.model import load
+from mechsweep.model import user
 
 USER = Path(__file__).resolve().parent / "user_models" / "forced.py"
 sys.path.insert(0, str(Path(__file__).resolve().parent / "data"))
@@ -18,12 +18,12 @@ from points import evaluate as evaluate_points  # noqa: E402  (tests/data)
 
 @pytest.fixture(scope="module")
 def forced():
-    return load.resolve(f"{USER}:FORCED")
+    return user.resolve(f"{USER}:FORCED")
 
 
 @pytest.fixture(scope="module")
 def decay():
-    return load.resolve(f"{USER}:DECAY")
+    return user.resolve(f"{USER}:DECAY")
 
 
 def _evaluate(spec, P, wanted, **solver):
@@ -170,7 +170,7 @@ def test_the_one_kernel_gives_each_subset_what_its_own_kernel_gives(decay, monke
     assert status.tolist() == [st.OK, st.OK, st.NO_EVENT, st.NO_EVENT, st.OK, st.OK] and np.isfinite(out["y_rel"]).all()
     # SEVERITY's amp (Steady) is SINGULAR where F < 0 (its classify), x_hist NOT_OSCILLATORY where
     # zeta >= 1: x_hist alone on the one kernel is what x_hist's own kernel gives, amp's rule unused
-    severity = load.resolve(f"{USER.parent / 'severity.py'}:SEVERITY")
+    severity = user.resolve(f"{USER.parent / 'severity.py'}:SEVERITY")
     P = np.array([[1.0, 0.1, -1.0, 0.5], [1.0, 1.5, 1.0, 0.9], [2.0, 0.2, 1.0, 1.0]])
     out, status, ns, _ = _per_subset(severity, P, ("x_hist",), monkeypatch, rtol=1e-9, atol=1e-12,
                                      horizon_periods=20.0)
@@ -236,7 +236,7 @@ def test_history_without_a_forcing_period_is_labelled_in_time(decay):
     assert decay.output("y_hist").extra_dims[0].long_name == "time t"  # a label given is kept
     # Steady (allowed: e.g. a peak of an autonomous motion) says its T in every output's long name
     assert decay.output("peak_rel").long_name.endswith("(T = 1 time unit: the model declares no forcing period)")
-    assert "T = 1 time unit" not in load.resolve(f"{USER}:FORCED").output("amp_h1").long_name
+    assert "T = 1 time unit" not in user.resolve(f"{USER}:FORCED").output("amp_h1").long_name
 
 
 def test_kick_growth_floor_decides_an_error_at_its_noise_floor():
@@ -263,7 +263,7 @@ def test_sampled_measurements_offer_the_trajectory_methods_only(forced, decay):
 
 
 def test_floquet_alone_offers_radau_and_auto():
-    cubic = load.resolve(f"{USER}:CUBIC")
+    cubic = user.resolve(f"{USER}:CUBIC")
     assert cubic.methods_for(("mu",)) == ("dop853", "radau", "auto")
     assert cubic.methods_for(("mu", "rest_stable")) == ("dop853", "radau", "auto")
 
@@ -271,7 +271,7 @@ def test_floquet_alone_offers_radau_and_auto():
 @pytest.mark.slow  # about 30 s of compilation per method
 @pytest.mark.parametrize("method", ["dop853", "radau", "auto"])
 def test_floquet_by_every_method_and_about_its_own_orbit_start(method):
-    cubic = load.resolve(f"{USER}:CUBIC")
+    cubic = user.resolve(f"{USER}:CUBIC")
     P = np.array([[0.5, 2.0], [2.0, 0.3], [1.0, 5.0]])
     out, status, ns, _ = _evaluate(cubic, P, ("mu", "mu_stable", "mu_rest", "rest_stable", "rest_kind"), method=method,
                                    rtol=1e-11, atol=1e-13)
@@ -295,29 +295,6 @@ def test_a_sampled_user_model_runs_and_stores_its_history(in_tmp):
     A, phi = _forced_closed(1.0, 0.1, 1.0, np.array([0.5, 0.97]))
     np.testing.assert_allclose(ds["amp_h1"].values, A, rtol=2e-7)
     assert (ds["status"].values == st.OK).all()
-
-
-def test_the_sampled_lanes_are_taken_only_where_they_pay(monkeypatch):
-    """USE_LANES None: the lanes for a run of LANES_FROM_POINTS points, or once their functions
-    (setup and queue) are compiled; else one trajectory at a time; True/False force the route."""
-    from types import SimpleNamespace
-
-    from mechsweep.model import trajectory
-
-    def dispatcher(compiled):
-        return SimpleNamespace(signatures=["(float64[:],)"] if compiled else [])  # no disk cache: not compiled
-
-    cold = SimpleNamespace(setup=dispatcher(False), queue=dispatcher(False))
-    half = SimpleNamespace(setup=dispatcher(True), queue=dispatcher(False))
-    warm = SimpleNamespace(setup=dispatcher(True), queue=dispatcher(True))
-    monkeypatch.setattr(trajectory, "USE_LANES", None)
-    monkeypatch.setattr(trajectory, "LANES_FROM_POINTS", 500)
-    assert not trajectory._lanes_pay(cold, 499) and not trajectory._lanes_pay(half, 10)
-    assert trajectory._lanes_pay(cold, 500) and trajectory._lanes_pay(warm, 1)
-    monkeypatch.setattr(trajectory, "USE_LANES", False)
-    assert not trajectory._lanes_pay(warm, 10**9)
-    monkeypatch.setattr(trajectory, "USE_LANES", True)
-    assert trajectory._lanes_pay(cold, 1)
 
 
 @pytest.mark.slow  # compiles the lane solver for two models (about a minute cold)
@@ -355,7 +332,7 @@ def test_lanes_give_the_one_trajectory_results_bitwise(forced, decay, monkeypatc
 
 @pytest.mark.slow  # compiles a kernel (about 7 s)
 def test_recheck_flags_a_chaotic_trajectory_and_keeps_the_first_values():
-    lorenz = load.resolve(f"{USER}:LORENZ")
+    lorenz = user.resolve(f"{USER}:LORENZ")
     assert st.NOT_REPRODUCIBLE in lorenz.possible_statuses()
     P = np.array([[10.0, 28.0, 8.0 / 3.0], [10.0, 0.5, 8.0 / 3.0]])  # chaotic; a stable focus
     on, s_on, n_on, r_on = _evaluate(lorenz, P, ("xpeak",), rtol=1e-8, atol=1e-10)
@@ -370,11 +347,11 @@ def test_recheck_flags_a_chaotic_trajectory_and_keeps_the_first_values():
 
 @pytest.mark.slow  # compiles a kernel (about 12 s)
 def test_recheck_skips_the_points_that_settled_early():
-    checked = load.resolve(f"{USER}:DECAY_CHECKED")
+    checked = user.resolve(f"{USER}:DECAY_CHECKED")
     # settles at ln(10) / lam: 4.6 s (< 20 s, half the horizon: skipped), 23 s (integrated again)
     P = np.array([[0.5, 0.1], [0.1, 0.1]])
     out, status, ns, _ = _evaluate(checked, P, ("stable",), rtol=1e-9, atol=1e-14)
-    plain, s2, ns2, _ = _evaluate(load.resolve(f"{USER}:DECAY"), P, ("stable",), rtol=1e-9, atol=1e-14)
+    plain, s2, ns2, _ = _evaluate(user.resolve(f"{USER}:DECAY"), P, ("stable",), rtol=1e-9, atol=1e-14)
     assert status.tolist() == [st.OK, st.OK] and s2.tolist() == [st.OK, st.OK]
     assert ns[0] == ns2[0] and ns[1] > ns2[1]
     np.testing.assert_array_equal(out["stable"], plain["stable"])
@@ -399,7 +376,7 @@ def test_radau_counts_the_rhs_calls_of_the_engines_jacobian():
     counted in n_rhs (they were not, on this route). DECAY_FD_JAC declares the same differences as its
     jac (same floats, so the same steps), whose calls are not rhs calls: the counts differ by exactly
     2 n per Jacobian, and by some at every point."""
-    decay, fdj = load.resolve(f"{USER}:DECAY"), load.resolve(f"{USER}:DECAY_FD_JAC")
+    decay, fdj = user.resolve(f"{USER}:DECAY"), user.resolve(f"{USER}:DECAY_FD_JAC")
     P = np.array([[0.5, 1.0], [2.0, 3.0], [0.05, 1.0], [-0.1, 1.0]])
     a = _evaluate(decay, P, ("stable", "y_hist"), method="radau", rtol=1e-8, atol=1e-12)
     b = _evaluate(fdj, P, ("stable", "y_hist"), method="radau", rtol=1e-8, atol=1e-12)

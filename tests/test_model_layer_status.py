@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from mechsweep import status as st
-from mechsweep.model import OdeModel, load
+from mechsweep.model import OdeModel, user
 from mechsweep.scene import Solver
 
 USER = Path(__file__).resolve().parent / "user_models" / "severity.py"
@@ -19,7 +19,7 @@ P = np.array([[1.0, 0.2, 1.0, 0.5], [1.0, 0.2, -1.0, 0.5], [1.0, 0.0, -1.0, 0.5]
 
 
 def _evaluate(name, wanted, P=P):
-    spec = load.resolve(f"{USER}:{name}")
+    spec = user.resolve(f"{USER}:{name}")
     n = P.shape[0]
     slv = Solver.for_model(spec, rtol=1e-10, atol=1e-12)
     out = {k: np.full((n,) + tuple(len(d.values(slv.settings)) for d in spec.output(k).extra_dims), np.nan)

@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 
 from mechsweep import status as st
-from mechsweep.model import load
+from mechsweep.model import user
 from mechsweep.scene import Solver
 
 USER = Path(__file__).resolve().parent / "user_models" / "layer_systems.py"
 
 
 def _evaluate(P, wanted, **solver):
-    spec = load.resolve(f"{USER}:SYSTEMS")
+    spec = user.resolve(f"{USER}:SYSTEMS")
     n = P.shape[0]
     out = {k: np.full(n, np.nan) for k in wanted}
     status, ns, nr = np.zeros(n, np.int8), np.zeros(n, np.int64), np.zeros(n, np.int64)

@@ -104,11 +104,11 @@ def project(tmp_path, monkeypatch):
     before = set(sys.modules)
     sources._forget()
     path = (tmp_path / "scenes" / "models" / "osc.py").resolve()
-    module = load.import_module(load._module_name(path), str(path))
+    module = load.import_module(load.module_name(path), str(path))
     yield tmp_path, module
     for name in set(sys.modules) - before:
         del sys.modules[name]
-        load._FILES.pop(name, None)
+        sources.FILES.pop(name, None)
     sources._forget()
 
 
@@ -229,6 +229,7 @@ def test_a_dask_worker_with_other_sources_refuses_the_chunk():
     from mechsweep.errors import InputError
     from mechsweep.grid import plan_chunks
     from mechsweep.models import MODELS
+    from mechsweep.plan import make_plan
 
     scene = mechsweep.load_scene({"scene": {"name": "q", "model": "duffing", "outputs": ["period_exact"]},
                                   "axes": {"A": [0.1, 0.2]}, "fixed": {"omega": 1.0, "mu": 1.0}})
@@ -236,16 +237,16 @@ def test_a_dask_worker_with_other_sources_refuses_the_chunk():
     other = json.dumps({**stored, "mechsweep_sources": "0123456789abcdef"})
     with pytest.raises(InputError, match="the dask worker would compute from other sources than the client's: "
                                          "mechsweep changed since the run began on the client"):
-        compute_chunk(scene.text, plan_chunks(scene.shape, 2)[0], 1, "", other)
+        compute_chunk(make_plan(scene), plan_chunks(scene.shape, 2)[0], 1, other)
 
 
 # ----------------------------------------------------------------------------- end to end
 STOP_AFTER_FIRST_CHUNK = textwrap.dedent("""
     import sys
     import mechsweep
-    from mechsweep import runner
+    from mechsweep import execute, runner
 
-    real, calls = runner.evaluate_chunk, [0]
+    real, calls = execute.evaluate_chunk, [0]
 
     def first_only(*args):
         calls[0] += 1
@@ -253,7 +254,7 @@ STOP_AFTER_FIRST_CHUNK = textwrap.dedent("""
             raise KeyboardInterrupt  # as Ctrl-C after the first chunk
         return real(*args)
 
-    runner.evaluate_chunk = first_only
+    execute.evaluate_chunk = first_only
     try:
         mechsweep.run(sys.argv[1], output=sys.argv[2], progress=False)
     except runner.RunInterrupted as exc:

@@ -18,7 +18,7 @@ import pytest
 
 import mechsweep.models
 from mechsweep.errors import InputError
-from mechsweep.model import closed, load, writes
+from mechsweep.model import closed, load, user, writes
 from mechsweep.model.closed import ClosedFormModel
 from mechsweep.model.ode import OdeModel
 
@@ -108,7 +108,7 @@ def user_models_importable(monkeypatch):
 
 def _refused(name: str) -> str:
     with pytest.raises(InputError) as info:
-        load.resolve(f"{HOSTILE}:{name}")
+        user.resolve(f"{HOSTILE}:{name}")
     return str(info.value)
 
 
@@ -130,9 +130,9 @@ def test_a_write_the_source_does_not_show_is_found_at_the_probe_point(name, user
 
 def test_a_model_given_from_python_is_checked_too(user_models_importable):
     """run(scene, models={...}): the object passes the same checks as a model file."""
-    mod = load.import_module(load._module_name(HOSTILE), str(HOSTILE))
+    mod = load.import_module(load.module_name(HOSTILE), str(HOSTILE))
     with pytest.raises(InputError, match=r"models\['ball'\].*event of FirstEvent 'apex' writes into its state "):
-        load.from_object("ball", mod.EVENT_WRITES_STATE)
+        user.from_object("ball", mod.EVENT_WRITES_STATE)
 
 
 def test_the_bouncing_ball_is_refused_through_the_cli_with_exit_2(in_tmp, capsys, monkeypatch):
@@ -335,12 +335,12 @@ def test_writing_a_local_array_or_a_copy_is_not_a_finding(func):
 def test_writes_that_the_roles_allow_pass_the_load_time_checks(monkeypatch):
     """tests/user_models/writes_allowed.py writes its outputs through aliases, slices and helpers,
     prepare its internal slots by index, by a view and by a helper, compute its row, curves and
-    scratch: load.check and closed.check accept both models (numba's compile is left out: it
+    scratch: user.check and closed.check accept both models (numba's compile is left out: it
     follows the write check)."""
     monkeypatch.setattr(load, "jitted", lambda *ref: (lambda *args: None))
     path = USER / "writes_allowed.py"
-    mod = load.import_module(load._module_name(path), str(path))
-    load.check(mod.ALLOWED, "ALLOWED", str(path))
+    mod = load.import_module(load.module_name(path), str(path))
+    user.check(mod.ALLOWED, "ALLOWED", str(path))
     closed.check(mod.ALLOWED_CLOSED, "ALLOWED_CLOSED", str(path))
 
 
@@ -355,7 +355,7 @@ def _shipped_models():
     files += [f for f in sorted(glob.glob(str(USER / "*.py")))
               if re.search(r"(OdeModel|ClosedFormModel)\(", Path(f).read_text())
               and not Path(f).name.startswith(("hostile", "exit_")) and "__main__" not in Path(f).read_text()]
-    mods += [load.import_module(load._module_name(Path(f)), f) for f in files]
+    mods += [load.import_module(load.module_name(Path(f)), f) for f in files]
     seen = {}
     for mod in mods:
         for name, obj in vars(mod).items():
@@ -372,7 +372,7 @@ def test_every_shipped_model_passes_the_write_check():
     checked = 0
     for label, model in _shipped_models():
         if isinstance(model, OdeModel):
-            calls = writes.ode_calls(model, load._probe_layout(model), np.ones(len(model.states)))
+            calls = writes.ode_calls(model, user._probe_layout(model), np.ones(len(model.states)))
         else:
             data = () if model.data is None else model.data(model.size)
             calls = writes.closed_calls(model, closed._probe_arrays(model, load.probe_params(model), np.nan),
@@ -381,7 +381,7 @@ def test_every_shipped_model_passes_the_write_check():
             with pytest.raises(InputError, match=r"rhs writes into its parameter argument p at .*measure_more.py"):
                 writes.check(calls, label)
             continue
-        # the built-in models never pass through load.check: their source is what is checked here (a
+        # the built-in models never pass through user.check: their source is what is checked here (a
         # call from Python would compile their numba helpers for nothing)
         writes.check(calls, label, dynamic=not label.startswith("mechsweep.models."))
         checked += 1

@@ -34,7 +34,7 @@ EDGES = (5e-324, 1e-310, 2.2250738585072014e-308, 1e-300, 1e-200, 1e-154, 1e-100
 
 def run(spec, P, outputs, **solver):
     """spec.evaluate as the runner applies it: an ok point with an output that is not finite is
-    nonfinite (runner.evaluate_chunk)."""
+    nonfinite (execute.evaluate_chunk)."""
     P = np.ascontiguousarray(P, dtype=float)
     n = P.shape[0]
     wanted = spec.closure(outputs)

@@ -35,9 +35,9 @@ def test_glossary_of_a_model_it_has_never_heard_of():
     """A user model (tests/user_models/mathieu.py): its parameters, outputs, the setting its Floquet
     measurement adds and the statuses derived from its outputs (none declared)."""
     from mechsweep import status as st
-    from mechsweep.model import load
+    from mechsweep.model import user
 
-    spec = load.resolve(str(REPO / "tests" / "user_models" / "mathieu.py") + ":MATHIEU")
+    spec = user.resolve(str(REPO / "tests" / "user_models" / "mathieu.py") + ":MATHIEU")
     text = docs.glossary([spec])
     assert text.startswith("# Glossary\n") and f"## `{spec.name}`: {spec.description}" in text
     for name in spec.param_names() + spec.output_names() + tuple(s.name for s in spec.settings):

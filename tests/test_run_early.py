@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import mechsweep
-from mechsweep import runner
+from mechsweep import execute, runner
 from mechsweep.journal import partial_path
 
 from .data.interrupt import interrupted_after
@@ -64,13 +64,13 @@ def assert_no_leftovers(folder):
 
 
 def test_run_writes_its_file_while_the_chunks_are_computed(scene_file, reference, monkeypatch):
-    seen, real = [], runner.evaluate_chunk
+    seen, real = [], execute.evaluate_chunk
 
     def watching(scene, chunk, *rest):
         seen.append((partial_path(scene_file.parent / OUT) / "assembly.h5").exists())
         return real(scene, chunk, *rest)
 
-    monkeypatch.setattr(runner, "evaluate_chunk", watching)
+    monkeypatch.setattr(execute, "evaluate_chunk", watching)
     ds = mechsweep.run(mechsweep.load_scene(scene_file), output=OUT, progress=False)
     assert len(seen) == N_CHUNKS
     # the third chunk is computed after the first one was saved and written into the file (the file
@@ -88,7 +88,7 @@ def test_the_file_is_defined_while_the_first_chunk_is_computed(scene_file, refer
     not after that chunk is saved: the first chunk waits here until the file appears."""
     import time
 
-    seen, real = [], runner.evaluate_chunk
+    seen, real = [], execute.evaluate_chunk
     path = partial_path(scene_file.parent / OUT) / "assembly.h5"
 
     def waiting(scene, chunk, *rest):
@@ -99,7 +99,7 @@ def test_the_file_is_defined_while_the_first_chunk_is_computed(scene_file, refer
             seen.append(path.exists())
         return real(scene, chunk, *rest)
 
-    monkeypatch.setattr(runner, "evaluate_chunk", waiting)
+    monkeypatch.setattr(execute, "evaluate_chunk", waiting)
     mechsweep.run(mechsweep.load_scene(scene_file), output=OUT, progress=False)
     assert seen == [True]
     assert_same_file(scene_file.parent / OUT, reference)
@@ -161,35 +161,6 @@ def test_an_interrupted_run_leaves_no_half_written_file_and_resumes(scene_file, 
     assert_no_leftovers(scene_file.parent)
 
 
-def test_bench_breakdown_times_the_steps_of_a_run_and_unwraps_them(in_tmp, capsys):
-    from mechsweep import grid, journal, store
-    from mechsweep.bench import duffing as bench
-
-    from mechsweep.model import compile as model_compile
-    from mechsweep.models import MODELS
-
-    before = (runner.evaluate_rows, runner.load_scene, journal.Journal.write_chunk, store.Early.write,
-              grid.ParameterMatrix.__call__, MODELS["duffing"].evaluate)
-
-    lanes = model_compile.USE_LANES
-    (r,) = bench.breakdown(points=3000, threads=1, repeats=1, lanes=lanes)  # (no extra kernel compiled)
-    assert model_compile.USE_LANES is lanes
-    assert (runner.evaluate_rows, runner.load_scene, journal.Journal.write_chunk, store.Early.write,
-            grid.ParameterMatrix.__call__, MODELS["duffing"].evaluate) == before
-    steps = r["steps"]
-    n_chunks = steps["per chunk: kernel + status/NONFINITE"][2]
-    assert n_chunks >= 1
-    for label in ("per chunk: parameter rows", "writer: journal chunk file + fsyncs",
-                  "writer: chunk into the HDF5 file (early)"):
-        assert steps[label][2] == n_chunks, label
-    assert steps["end: assembly, fsync, rename, drop journal"][2] == 1
-    assert 0 < r["kernel_wall_s"] and 0 < r["run_wall_s"]
-    if os.path.exists("/proc/self/task"):  # each launch's threads accounted (on a CPU, waiting, asleep)
-        launches = r["launches"]
-        assert launches["n"] == n_chunks and launches["caller"][0] > 0 and launches["threads"] == 1
-    assert "mechsweep.run breakdown: 3,010 points" in capsys.readouterr().out
-
-
 LINE = """
 [scene]
 name = "line"
@@ -201,23 +172,6 @@ mu = { start = 1e-3, stop = 1e3, num = 100000, spacing = "log" }
 A = 0.5
 omega = 1.0
 """
-
-
-def test_bench_duffing_outputs_choose_the_breakdowns_outputs_and_are_refused_without_it(monkeypatch):
-    import argparse
-
-    from mechsweep.bench import commands
-    from mechsweep.bench import duffing as bench
-    from mechsweep.errors import InputError
-
-    args = argparse.Namespace(points=3000, threads=1, repeats=1, rtol=None, atol=None, scipy_points=1,
-                              compare_points=1, breakdown=False, outputs="period")
-    with pytest.raises(InputError, match="--outputs period applies to --breakdown only"):
-        commands.run_duffing(args)
-    seen = []
-    monkeypatch.setattr(bench, "breakdown", lambda **kw: seen.append(kw["outputs"]))
-    commands.run_duffing(argparse.Namespace(**{**vars(args), "breakdown": True, "outputs": "period, v_max"}))
-    assert seen == [("period", "v_max")]
 
 
 def test_without_a_progress_bar_a_grid_is_cut_in_few_large_chunks_and_resumes_with_its_own_cut(in_tmp):

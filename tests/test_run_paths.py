@@ -8,7 +8,7 @@ import pytest
 import xarray as xr
 
 import mechsweep
-from mechsweep import runner
+from mechsweep import execute, runner
 from mechsweep.cli import main
 from mechsweep.errors import InputError
 
@@ -17,7 +17,8 @@ from .conftest import REPO
 # what differs between two runs of a scene (their times), and between the routes: the in-memory
 # route cuts the grid into as few chunks as memory allows when no progress bar is shown
 # what differs between two runs of one scene: when (created, history begins with the time), how long, how chunked
-TIME_ATTRS = ("created", "history", "wall_time_s", "compile_time_s", "compute_time_s", "chunk_size", "n_chunks")
+# (the plan records the chunk cut too)
+TIME_ATTRS = ("created", "history", "wall_time_s", "compile_time_s", "compute_time_s", "chunk_size", "n_chunks", "plan")
 
 
 def _files(root):
@@ -67,19 +68,19 @@ def test_in_memory_route_refuses_file_options(in_tmp, small_duffing, option):
 def _slow_compile(monkeypatch, offset=1000.0, sleep=0.0):
     """The first evaluation of a run (the compile phase) moves the run's clock on by ``offset`` s."""
     shift = [0.0]
-    monkeypatch.setattr(runner, "_WARM", set())  # as in a fresh process: the compile phase runs
-    real = runner.evaluate_rows
+    monkeypatch.setattr(execute, "_WARM", set())  # as in a fresh process: the compile phase runs
+    real = execute.evaluate_rows
     calls = [0]
 
-    def evaluate_rows(scene, P):
+    def evaluate_rows(scene, P, *rest):
         calls[0] += 1
         if calls[0] == 1:
             shift[0] += offset
             time.sleep(sleep)
-        return real(scene, P)
+        return real(scene, P, *rest)
 
-    monkeypatch.setattr(runner, "evaluate_rows", evaluate_rows)
-    monkeypatch.setattr(runner, "_clock", lambda: time.perf_counter() + shift[0])
+    monkeypatch.setattr(execute, "evaluate_rows", evaluate_rows)
+    monkeypatch.setattr(execute, "clock", lambda: time.perf_counter() + shift[0])
     return calls
 
 
@@ -95,7 +96,7 @@ def test_compile_time_stored_apart_from_compute_time(in_tmp, small_duffing, monk
 
 
 def test_compile_phase_shown_before_the_progress_bar(in_tmp, small_duffing, monkeypatch, capsys):
-    monkeypatch.setattr(runner, "COMPILE_NOTE_AFTER", 0.05)
+    monkeypatch.setattr(execute, "COMPILE_NOTE_AFTER", 0.05)
     _slow_compile(monkeypatch, offset=0.0, sleep=0.5)
     mechsweep.run(small_duffing, output="data/runs/s.h5", progress=True)
     err = capsys.readouterr().err
@@ -197,21 +198,8 @@ def test_reading_a_dataset_imports_no_kernels(in_tmp, small_duffing):
     assert mechsweep.run is runner.run and mechsweep.open_dataset is mechsweep.store.open_dataset
 
 
-def test_bench_startup_refuses_fewer_than_three_repeats(capsys):
-    assert main(["bench", "startup", "--repeats", "2", "--only", "warm"]) == 2
-    assert "--repeats = 2 is not allowed; expected a whole number in [3, 100]" in capsys.readouterr().err
-
-
-def test_bench_startup_against_needs_a_package_folder_and_warmstart(capsys, tmp_path):
-    assert main(["bench", "startup", "--only", "warmstart", "--against", str(tmp_path)]) == 2
-    assert f"--against {tmp_path}: no mechsweep package in it" in capsys.readouterr().err
-    src = os.path.dirname(os.path.dirname(os.path.abspath(mechsweep.__file__)))
-    assert main(["bench", "startup", "--only", "warm", "--against", src]) == 2
-    assert "--against applies to --only warmstart only" in capsys.readouterr().err
-
-
 def test_file_route_returns_the_file_dataset_without_reading_it_back(in_tmp, small_duffing, monkeypatch):
-    # run(output=path) keeps the dataset in memory as the file is written (store.Held): what it
+    # run(output=path) keeps the dataset in memory as the file is written (store.MemorySink): what it
     # returns is the file's content, attributes and times included, and the file is not re-opened
     from mechsweep import journal
 

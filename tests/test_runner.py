@@ -9,7 +9,7 @@ import pytest
 import xarray as xr
 
 import mechsweep
-from mechsweep import runner
+from mechsweep import execute, runner
 from mechsweep import status as st
 from mechsweep.store import StoreError, partial_path
 
@@ -52,15 +52,13 @@ def test_algebraic_scene_never_compiles_an_integrator(in_tmp):
         import sys
         import mechsweep
         from mechsweep.model import compile as mc
-        from mechsweep.models import _duffing_scaled
         ds = mechsweep.run({"scene": {"name": "alg", "model": "duffing", "outputs": ["period_exact", "kv"]},
                             "axes": {"A": [0.1, 0.5]}, "fixed": {"omega": 1.0, "mu": 2.0}},
                            output="data/runs/alg.h5")
         assert "n_steps" not in ds and "solver_rtol" not in ds.attrs
         assert mc._KERNELS, "the generated kernel should have run"
         generated = [sys.modules[name] for name in mc._KERNELS]
-        compiled = [k for k in (_duffing_scaled.quarter_period_solver,) if k.signatures]
-        compiled += [f"{m.__name__}.{n}" for m in generated for n, f in vars(m).items()
+        compiled = [f"{m.__name__}.{n}" for m in generated for n, f in vars(m).items()
                      if (n.startswith(("solve", "shared")) or n in ("rhs", "jac", "accel"))
                      and getattr(f, "signatures", None)]
         compiled += [n for m in generated for n in vars(m) if n.startswith(("solve", "shared"))]
@@ -101,7 +99,7 @@ def test_a_signal_during_a_chunk_stops_the_run_once_that_chunk_is_saved(in_tmp, 
 
     from mechsweep.journal import Journal
 
-    real, calls = runner.evaluate_chunk, [0]
+    real, calls = execute.evaluate_chunk, [0]
 
     def signalled(*args):
         calls[0] += 1
@@ -109,12 +107,12 @@ def test_a_signal_during_a_chunk_stops_the_run_once_that_chunk_is_saved(in_tmp, 
             os.kill(os.getpid(), signal.SIGINT)  # handled in this thread during the real chunk below
         return real(*args)
 
-    monkeypatch.setattr(runner, "evaluate_chunk", signalled)
+    monkeypatch.setattr(execute, "evaluate_chunk", signalled)
     with pytest.raises(mechsweep.RunInterrupted, match=f"{during} of 7 chunks saved"):
         mechsweep.run(small_duffing, output="data/runs/s.h5", progress=False)
     assert calls[0] == during
     assert Journal.read(partial_path("data/runs/s.h5")).done_chunks().sum() == during
-    monkeypatch.setattr(runner, "evaluate_chunk", real)
+    monkeypatch.setattr(execute, "evaluate_chunk", real)
     done = mechsweep.run(small_duffing, output="data/runs/s.h5", resume=True, progress=False)
     assert (done["status"].values != st.PENDING).all()
 
@@ -232,15 +230,15 @@ def test_a_failure_after_the_checks_leaves_no_blocking_journal(in_tmp, small_duf
     raises): with no chunk saved the journal is removed, so the next run starts without --restart;
     with chunks saved it is kept and the exception says how to go on."""
     calls = []
-    real = runner.evaluate_chunk
+    real = execute.evaluate_chunk
 
-    def failing(scene, chunk, params):
+    def failing(scene, chunk, *rest):
         calls.append(chunk)
         if len(calls) == fail_at:
             raise RuntimeError("bug in a chunk")
-        return real(scene, chunk, params)
+        return real(scene, chunk, *rest)
 
-    monkeypatch.setattr(runner, "evaluate_chunk", failing)
+    monkeypatch.setattr(execute, "evaluate_chunk", failing)
     with pytest.raises(RuntimeError, match="bug in a chunk") as info:
         runner.compute(small_duffing, output="data/runs/s.h5", progress=False)
     notes = "".join(getattr(info.value, "__notes__", []))
@@ -250,7 +248,7 @@ def test_a_failure_after_the_checks_leaves_no_blocking_journal(in_tmp, small_duf
         assert sorted(p.name for p in (in_tmp / "data/runs").iterdir()) == []
     else:
         assert part.exists() and "run again with --resume" in notes and "--restart" in notes
-    monkeypatch.setattr(runner, "evaluate_chunk", real)
+    monkeypatch.setattr(execute, "evaluate_chunk", real)
     if fail_at == 1:  # nothing blocks the next run
         runner.compute(small_duffing, output="data/runs/s.h5", progress=False)
     else:

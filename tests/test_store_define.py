@@ -16,7 +16,7 @@ import xarray as xr
 
 import mechsweep
 from mechsweep.bench.duffing import grid_scene
-from mechsweep.grid import chunk_target, plan_chunks
+from mechsweep.plan import make_plan
 from mechsweep.runner import provenance
 from mechsweep.scene import load_scene
 from mechsweep.store import NetCDFWriter, _define, layout, nc_properties
@@ -99,8 +99,8 @@ def walk(source) -> list:
 
 def _define_both(spec):
     scene = load_scene(spec)
-    chunks = plan_chunks(scene.shape, chunk_target(scene))
-    lay, attrs = layout(scene, len(chunks)), provenance(scene, chunks)
+    plan = make_plan(scene)
+    lay, attrs = layout(scene, len(plan.chunks)), provenance(plan)
     theirs, ours = io.BytesIO(), io.BytesIO()
     with h5netcdf.File(theirs, "w") as f:
         _define(f, scene, lay, attrs)

@@ -128,7 +128,7 @@ def test_a_list_is_kept_as_a_tuple():
 
 def test_load_check_refuses_a_function_not_returning_floats(tmp_path):
     """A user's switch_times(p) that returns ints is refused when the model is loaded (exit 2)."""
-    from mechsweep.model import load
+    from mechsweep.model import user
 
     def ints(p):
         return (1, 2)
@@ -136,7 +136,7 @@ def test_load_check_refuses_a_function_not_returning_floats(tmp_path):
     m = OdeModel(name="ints", description="", params=(Param("a", "a", "1", "a"),), states=("x", "v"), rhs=_rhs,
                  initial=_initial, forcing_period=_period, switch_times=ints, measurements=(Floquet("mu"),))
     with pytest.raises(InputError, match="switch_times returned \\(1, 2\\); expected a non-empty tuple of floats"):
-        load.check(m, "x.py:INTS", "x.py")
+        user.check(m, "x.py:INTS", "x.py")
 
 
 @pytest.mark.slow

@@ -11,7 +11,7 @@ import xarray as xr
 from mechsweep import balancing as B
 from mechsweep import cli, figures
 from mechsweep import status as st
-from mechsweep.bench import linkage as bench_linkage
+from benchmarks import linkage as bench_linkage
 from mechsweep.bench import workprecision as wp
 from mechsweep.bench import workprecision_linkage as wl
 from mechsweep.models import _linkage as L

@@ -11,7 +11,7 @@ Options and why:
   by :func:`jit_noalloc`, without numba's reference counting (``_nrt=False``): numba compiles
   every function separately and, across calls, increments and decrements the reference count
   of every array argument and view with atomic instructions, about 200 of them per DOP853 step
-  (a measurable share of an autobalancer step: ``mechsweep bench autobalancer``). Such a function must
+  (a measurable share of an autobalancer step: ``python benchmarks/autobalancer.py``). Such a function must
   not allocate arrays (numba refuses to compile it if it does).
 - :func:`jit_inline` (``inline="always"`` at numba IR level, no reference counting) for small
   scalar helpers called in every right-hand side (sincos, the closed-form accelerations): LLVM
@@ -49,7 +49,7 @@ Options and why:
   when libgomp is not loaded yet (later it would change nothing).
 - numba's check for a BLAS is made without importing ``scipy.linalg`` (:func:`_defer_blas_check`, at
   mechsweep's first compile or cache load): numba imports ``scipy.linalg.cython_blas`` (with it all
-  of ``scipy.linalg``, a large share of a warm ``mechsweep run``: ``mechsweep bench startup``) when its
+  of ``scipy.linalg``, a large share of a warm ``mechsweep run``: ``python benchmarks/startup.py``) when its
   CPU target first loads ``numba.np.arraymath``, on the first compile or cache load of a process,
   only to learn whether scipy's BLAS exists (``arraymath._HAVE_BLAS``). The answer is read from
   scipy's installed files instead; ``scipy.linalg`` is imported when a kernel uses linear algebra
@@ -501,7 +501,7 @@ def jit_llvm_inline(func):
     when it links the caller's module, as the IR-level inlining of :func:`jit_inline` does, but numba
     analyses and types its body once instead of again at every call site: less compile CPU for the
     same machine code (bitwise the same results, the warm one-point kernel as fast; the cold compile:
-    ``mechsweep bench startup``). ``alwaysinline`` is needed: as plain separate functions they are
+    ``python benchmarks/startup.py``). ``alwaysinline`` is needed: as plain separate functions they are
     above LLVM's size threshold, stay out of line and slow the kernel down."""
     return _numba_only(func, _nrt=False, forceinline=True)
 

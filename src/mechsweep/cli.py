@@ -13,7 +13,6 @@ from contextlib import contextmanager
 from pathlib import Path
 
 EXIT_INVALID = 2
-EXIT_INTERRUPTED = 130  # 128 + SIGINT; a SIGTERM exits with 128 + 15 = 143
 
 DESCRIPTION = """\
 Parameter sweeps over the dynamics of machine mechanisms, compiled with numba.
@@ -176,7 +175,7 @@ def _started() -> None:
     process, ``argv`` None: a caller of ``main`` in a process of its own keeps its collector as it is).
     The imports (numpy, numba, xarray, matplotlib, the package) make hundreds of thousands of objects that
     live as long as the process, and each full collection traversed all of them (measured with
-    ``mechsweep bench startup --only warmstart``: docs/performance-startup.md). A forked figure process
+    ``python benchmarks/startup.py --only warmstart``: docs/performance-startup.md). A forked figure process
     (:func:`_side_by_side`) then also leaves the frozen objects' memory shared with its parent."""
     if _START_UP["collector"]:
         _START_UP["collector"] = False
@@ -933,7 +932,7 @@ def _drawing(path):
 
 def _cmd_models(args) -> int:
     from .errors import InputError
-    from .model import load
+    from .model import user
     from .models import MODELS
 
     if args.scene and args.model:
@@ -947,14 +946,14 @@ def _cmd_models(args) -> int:
         if name in MODELS:
             specs = [MODELS[name]]
         elif ":" in name:
-            specs = [load.resolve(name)]
+            specs = [user.resolve(name)]
         elif name.endswith(".py") or "/" in name or "\\" in name:  # a model file without :NAME
             found = _models_in_file(name)
             print(f"{name} defines {len(found)} model(s): {', '.join(found)}; a scene names one as "
                   f"{name}:NAME (e.g. model = \"{name}:{found[0]}\")\n")
-            specs = [load.resolve(f"{name}:{n}") for n in found]
+            specs = [user.resolve(f"{name}:{n}") for n in found]
         else:
-            points = load.entry_points()
+            points = user.entry_points()
             if name not in points:
                 known = list(MODELS) + sorted(set(points) - set(MODELS))
                 raise InputError(f"unknown model {name!r}; models: {', '.join(known)} (or 'file.py:NAME', "
@@ -966,7 +965,7 @@ def _cmd_models(args) -> int:
         print(glossary(), end="")
         return 0
     else:
-        points = load.entry_points()
+        points = user.entry_points()
         specs = list(MODELS.values()) + [_entry_point_model(n, ep) for n, ep in points.items() if n not in MODELS]
     for spec in specs:
         print(model_markdown(spec) if args.markdown else model_text(spec))
@@ -979,13 +978,13 @@ def _models_in_file(name: str) -> list[str]:
     from pathlib import Path
 
     from .errors import InputError
-    from .model import load
+    from .model import load, user
     from .model.closed import ClosedFormModel
     from .model.ode import OdeModel
 
     path = Path(name).resolve()
-    load.check_model_file(name, path)  # a regular .py file; its import's failures and exits are InputErrors
-    mod = load.import_model(name, load._module_name(path), str(path), str(path))
+    user.check_model_file(name, path)  # a regular .py file; its import's failures and exits are InputErrors
+    mod = user.import_model(name, load.module_name(path), str(path), str(path))
     found = [k for k, v in vars(mod).items() if isinstance(v, (OdeModel, ClosedFormModel))]
     if not found:
         raise InputError(f"{name!r}: {path} defines no mechsweep.model.OdeModel or ClosedFormModel")
@@ -994,13 +993,13 @@ def _models_in_file(name: str) -> list[str]:
 
 def _entry_point_model(name: str, ep):
     from .errors import InputError
-    from .model import load
+    from .model import user
 
     dist = getattr(getattr(ep, "dist", None), "name", None)
     try:
-        return load.resolve(ep.value)
+        return user.resolve(ep.value)
     except InputError as exc:
-        raise InputError(f"entry point {name!r} (group {load.ENTRY_POINT_GROUP}"
+        raise InputError(f"entry point {name!r} (group {user.ENTRY_POINT_GROUP}"
                          f"{', package ' + dist if dist else ''}): {exc}") from None
 
 

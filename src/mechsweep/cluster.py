@@ -1,22 +1,22 @@
 """Chunks as tasks on a dask.distributed cluster.
 
-Each task carries the scene's text and one chunk; a worker parses the scene once (cached per
-process), runs the same numba kernels as a local run on its own threads, and returns the chunk's
-arrays. The client that submitted the tasks is the only writer: it saves each result to the run's
-journal as it arrives (in any order), so a failure loses at most the chunks in flight. At most
-IN_FLIGHT_PER_THREAD tasks per worker thread are submitted at a time, so the client's memory stays
-bounded by that many chunks, whatever the grid. If a worker dies, the scheduler runs its tasks
-again on another worker; a chunk is saved once, when its result arrives, whichever worker made it.
-If the scheduler goes away (its tasks are cancelled), does not answer, or has no worker at all for
-``worker_timeout`` seconds, the run stops with ``ClusterLost``, naming the scheduler and the
-chunks lost; the chunks already saved stay in the journal for a --resume.
+Each task carries the run's plan (plan.py: it pickles with the scene's text, not the Scene) and one
+chunk; a worker loads the scene once (cached per process) and computes the chunk from the plan with
+the function a local run calls (execute.evaluate_chunk: the same kernels, routes and status rules)
+on its own threads, and returns the chunk's arrays. The client that submitted the tasks is the only
+writer: it saves each result to the run's journal as it arrives (in any order), so a failure loses at
+most the chunks in flight. At most IN_FLIGHT_PER_THREAD tasks per worker thread are submitted at a
+time, so the client's memory stays bounded by that many chunks, whatever the grid. If a worker dies,
+the scheduler runs its tasks again on another worker; a chunk is saved once, when its result
+arrives, whichever worker made it. If the scheduler goes away (its tasks are cancelled), does not
+answer, or has no worker at all for ``worker_timeout`` seconds, the run stops with ``ClusterLost``,
+naming the scheduler and the chunks lost; the chunks already saved stay in the journal for a --resume.
 
 Needs the optional packages ``dask`` and ``distributed`` (``pip install "mechsweep[distributed]"``)
 on the client and on every worker, with the same mechsweep version.
 """
 from __future__ import annotations
 
-import functools
 from concurrent.futures import CancelledError
 import itertools
 import time
@@ -84,7 +84,7 @@ def _check_address(scheduler: str) -> None:
                          "such as 'tcp://10.0.0.5:8786' or 'localhost:8786'") from None
 
 
-def dask_results(scene, todo, scheduler: str, threads: int | None = None, *, worker_timeout: float = 120.0,
+def dask_results(plan, todo, scheduler: str, threads: int | None = None, *, worker_timeout: float = 120.0,
                  client=None):
     """Yield ``(chunk, result)`` as the cluster at ``scheduler`` finishes them. Closing the
     generator cancels the tasks still in flight (and disconnects, unless ``client`` was given:
@@ -104,11 +104,11 @@ def dask_results(scene, todo, scheduler: str, threads: int | None = None, *, wor
 
     from .model import sources
 
+    scene = plan.scene
     depends = sources.record(scene.model).attrs(scene.base or None).get("dependencies", "")
 
     def submit(chunk) -> None:
-        fut = client.submit(compute_chunk, scene.text, chunk, threads, scene.base, depends,
-                            key=f"mechsweep-{run_id}-{chunk.index}")
+        fut = client.submit(compute_chunk, plan, chunk, threads, depends, key=f"mechsweep-{run_id}-{chunk.index}")
         live[fut.key] = (fut, chunk)
         futures.add(fut)
 
@@ -240,24 +240,24 @@ def _trouble(client, timeout: float) -> str | None:
     return None
 
 
-def compute_chunk(scene_text: str, chunk, threads: int | None = None, base: str = "", depends: str = ""):
-    """A worker's task: the chunk's (outputs, status, n_steps, n_rhs), as a local run computes them,
-    on ``threads`` numba threads (at most the worker's; default all of them). ``base``: the absolute
-    folder of the client's scene file, against which a user model file path in the scene is
-    resolved (the worker's own working directory plays no part; the file must be readable there).
-    ``depends``: the client's dependency record (model/sources.py, JSON): a worker whose model
-    sources differ (a file edited since the client loaded it, another mechsweep) refuses the task
-    instead of computing points of another model."""
+def compute_chunk(plan, chunk, threads: int | None = None, depends: str = ""):
+    """A worker's task: the chunk's (outputs, status, n_steps, n_rhs), computed from the run's ``plan``
+    as a local run computes them (execute.evaluate_chunk), on ``threads`` numba threads (at most the
+    worker's; default all of them). A user model file path in the scene is resolved against the
+    client's scene folder (``plan.base``; the worker's own working directory plays no part; the file
+    must be readable there). ``depends``: the client's dependency record (model/sources.py, JSON): a
+    worker whose model sources differ (a file edited since the client loaded it, another mechsweep)
+    refuses the task instead of computing points of another model."""
     import numba
 
     from . import _jit
-    from .runner import evaluate_chunk
+    from .execute import evaluate_chunk
 
-    scene, params = _scene(scene_text, base)
+    scene = plan.scene
     if depends:
         from .model import sources
 
-        changed = sources.differences(depends, sources.record(scene.model), base or None,
+        changed = sources.differences(depends, sources.record(scene.model), plan.base or None,
                                       since="the run began on the client")
         if changed:
             raise InputError(f"the dask worker would compute from other sources than the client's: "
@@ -265,13 +265,4 @@ def compute_chunk(scene_text: str, chunk, threads: int | None = None, base: str 
                              "named), then run again with --resume")
     # numba's thread count is per calling thread: set it for this task's thread, every time
     _jit.set_num_threads(min(threads or numba.config.NUMBA_NUM_THREADS, numba.config.NUMBA_NUM_THREADS))
-    return evaluate_chunk(scene, chunk, params)
-
-
-@functools.lru_cache(maxsize=4)
-def _scene(text: str, base: str = ""):
-    from .grid import ParameterMatrix
-    from .scene import load_scene_text
-
-    scene = load_scene_text(text, label="scene sent by the mechsweep client", base=base or None)
-    return scene, ParameterMatrix(scene)
+    return evaluate_chunk(plan, chunk)

@@ -3,7 +3,7 @@ from a run that failed::
 
     MechsweepError
     +-- InputError (also a ValueError)   the input is wrong; nothing was computed or written   exit 2
-    |   +-- SceneError                   a scene that does not load (scene.py)
+    |   +-- SceneError                   a scene that does not load (scene/)
     |   +-- StoreError                   an output path, dataset or journal that cannot be used as asked
     |       +-- FileBusy                 a file another process holds open for writing
     |       +-- BadChunk                 a damaged chunk file of a journal (journal.py)

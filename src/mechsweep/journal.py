@@ -252,10 +252,6 @@ class Journal:
         return self.meta is None
 
     # -- chunks ----------------------------------------------------------------------
-    def chunk_file(self, index: int) -> Path | None:
-        """The file of chunk ``index`` found by the last ``done_chunks``, or None."""
-        return self.files.get(index)
-
     def done_chunks(self, repair: bool = False) -> np.ndarray:
         """Boolean per chunk: its file is in the journal and has the size its name says (the
         checksum is verified when it is read). With ``repair`` (only under the run's lock) leftover

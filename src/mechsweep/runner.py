@@ -1,11 +1,22 @@
-"""Run a scene: plan chunks, evaluate each with the model's kernels, store it at once."""
+"""Run a scene: one route for every run.
+
+    scene -> plan (plan.py: what to compute and how, once) -> chunks -> compute (execute.py here, or
+    cluster.py on a dask cluster: the same evaluate_chunk) -> a sink
+
+The sink of a run with an output file (the CLI, ``compute``, ``run(output=path)``) is the journal of
+finished chunks (journal.py: crash-safe, resumable), then the dataset assembled from it (store.py) and
+moved into place by one rename. ``run(output=None)`` is the same route into a sink in memory
+(store.MemorySink), and so is the dataset ``run(output=path)`` returns: its chunks are computed into
+the dataset's arrays, saved to the journal, and written into the file while the next chunk computes
+(store.Early), so that it is neither copied nor read back. The rest of this module checks a run's
+output place, its existing files and its room before anything is written, and says what is kept
+when a run stops."""
 from __future__ import annotations
 
 import contextlib
 import datetime as _dt
 import errno
 import functools
-import numbers
 import os
 import platform
 import shutil
@@ -26,14 +37,17 @@ import numpy as np
 from . import __version__
 from . import _jit
 from . import cf
+from . import execute
 from . import status as st
+from .execute import check_threads, shows_progress
 from .errors import (ClusterLost, FileBusy, InputError, OutOfSpace, RunError, RunInterrupted,  # noqa: F401  (API: runner.X)
                      WriteFailed, why_os_error)
-from .grid import Chunk, ChunkPlan, ParameterMatrix, chunk_target, plan_chunks
+from .grid import Chunk, chunk_target, plan_chunks
 from .journal import (RESTART, BadChunk, Journal, RunLock, clear_discard, discard_path, drop, lock_path,
                       own_files_problem, partial_path)
+from .plan import Plan, extra_shape, make_plan
 from .scene import Scene, check_scheduler, check_worker_timeout, load_scene, load_scene_text
-from .store import (COMPILE_KEY, LOAD_LIMIT_BYTES, Early, Held, StoreError, assemble, check_journal_files,
+from .store import (COMPILE_KEY, LOAD_LIMIT_BYTES, Early, MemorySink, StoreError, assemble, check_journal_files,
                     file_kind, layout, open_dataset, status_counts)
 
 if TYPE_CHECKING:
@@ -187,12 +201,12 @@ def run(
     if isinstance(output, _ScenePath):
         output = None
     lazy = None if load is None else not load
-    summary, held = _compute_file(scene_or_path, output=output, resume=resume, restart=restart, threads=threads,
-                                  progress=progress, scheduler=scheduler, worker_timeout=worker_timeout,
-                                  overwrite=overwrite, models=models, hold=load)
-    if held is not None and (load or summary.path.stat().st_size <= LOAD_LIMIT_BYTES):
-        # the dataset the file holds, kept in memory while it was written: not read back (see store.Held)
-        return held.dataset()
+    summary, memory = _compute_file(scene_or_path, output=output, resume=resume, restart=restart, threads=threads,
+                                    progress=progress, scheduler=scheduler, worker_timeout=worker_timeout,
+                                    overwrite=overwrite, models=models, keep=load)
+    if memory is not None and (load or summary.path.stat().st_size <= LOAD_LIMIT_BYTES):
+        # the dataset the file holds, computed into memory as it was written: not read back (store.MemorySink)
+        return memory.dataset()
     return open_dataset(summary.path, lazy=lazy)
 
 
@@ -242,14 +256,14 @@ def compute(
     """
     return _compute_file(scene_or_path, output=output, resume=resume, restart=restart, threads=threads,
                          progress=progress, scheduler=scheduler, worker_timeout=worker_timeout, overwrite=overwrite,
-                         models=models, hold=False)[0]
+                         models=models, keep=False)[0]
 
 
 def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, scheduler, worker_timeout, overwrite,
-                  models, hold: bool | None) -> tuple[RunSummary, "Held | None"]:
-    """``compute``, and with ``hold`` (True, or None for a dataset of at most store.LOAD_LIMIT_BYTES)
-    the dataset kept in memory as it is written (store.Held; None when the run computed nothing:
-    a resume that found it finished)."""
+                  models, keep: bool | None) -> tuple[RunSummary, MemorySink | None]:
+    """``compute``, and with ``keep`` (True, or None for a dataset of at most store.LOAD_LIMIT_BYTES)
+    the dataset in memory, filled as the file is written (store.MemorySink; None when the run computed
+    nothing: a resume that found it finished)."""
     if resume and restart:
         raise InputError("resume and restart (--resume --restart) together are refused: --resume keeps the "
                          "finished chunks of an unfinished run, --restart discards them; choose one")
@@ -273,20 +287,21 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
         raise InputError(f"model {scene.model.name!r} was given from Python (models=...); a dask worker cannot "
                          "import it: name it in the scene as 'file.py:NAME' or 'package.module:NAME' to run it "
                          f"on the cluster {scheduler}, or run without a scheduler")
-    _check_threads(threads, here=scheduler is None)  # before any file is created
+    check_threads(threads, here=scheduler is None)  # before any file is created
     if worker_timeout is not None and (why := check_worker_timeout(worker_timeout)) is not None:
         raise InputError(f"worker timeout {why}")
     worker_timeout = worker_timeout if worker_timeout is not None else scene.execution.worker_timeout
     # Without a progress bar the grid is not cut into at least 20 chunks (grid.default_chunk_target:
     # small chunks cost the lane kernel CPU); an unfinished run is resumed with its own cut.
     target = _journal_target(scene, final) if resume else None
-    target = target or chunk_target(scene, many=_shows_progress(progress))
+    target = target or chunk_target(scene, many=shows_progress(progress))
     check_size(scene, final, min(target, scene.n_points), saved_bytes(final) if not restart else 0)
     check_file_limit(scene, final)
     # Conflicts are refused before the lock (taking it touches the folder), and checked again
     # under it: another run may have changed the files meanwhile.
     RunLock(final).refuse_if_held()
-    chunks = plan_chunks(scene.shape, target)
+    plan = make_plan(scene, target)  # what to compute and how, decided once for every chunk
+    chunks = plan.chunks
     finished = _check_existing(scene, final, resume, restart, target, len(chunks), overwrite)
     # A cluster that does not answer is refused here, before the lock and the journal exist.
     client = _connect(scheduler) if scheduler and not finished else None
@@ -305,19 +320,19 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
                     clear_discard(final)  # what a killed clean-up left
                     before = _output_state(final)  # what the checks accept is what the dataset may replace
                     if not _check_existing(scene, final, resume, restart, target, len(chunks), overwrite):
-                        keep = hold or hold is None and bytes_per_point(scene) * scene.n_points <= LOAD_LIMIT_BYTES
+                        keep = keep or keep is None and bytes_per_point(scene) * scene.n_points <= LOAD_LIMIT_BYTES
                         try:
-                            counts, held = _compute(scene, final, restart, threads, progress, scheduler, target,
-                                                    chunks, signals, worker_timeout, client, keep, before)
+                            counts, memory = _compute(plan, final, restart, threads, progress, scheduler, signals,
+                                                      worker_timeout, client, keep, before)
                         except Exception as exc:  # a failure after the checks: keep no journal without a chunk
                             if not isinstance(exc, (WriteFailed, ClusterLost)):
                                 _failed(exc, final)
                             raise
                     else:  # True: a resume found the run finished
-                        counts, held = status_counts(final), None
-                    # the times the file was given: from the dataset held in memory when there is one
+                        counts, memory = status_counts(final), None
+                    # the times the file was given: from the dataset in memory when there is one
                     # (the same floats; store._assemble), else read back from the file
-                    times = _times(final) if held is None else _held_times(held)
+                    times = _times(final) if memory is None else _memory_times(memory)
             except WriteFailed as exc:
                 raise OutOfSpace(_out_of_space(exc, scene, final, len(chunks))) from None
             except ClusterLost as exc:
@@ -328,7 +343,7 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
     finally:
         if client is not None:
             _disconnect(client)
-    return RunSummary(final, _sizes(scene), counts, *times), held
+    return RunSummary(final, _sizes(scene), counts, *times), memory
 
 
 def _warn_settings(scene: Scene) -> None:
@@ -364,12 +379,12 @@ def _journal_target(scene: Scene, final: Path) -> int | None:
 
 def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, scheduler, load, worker_timeout,
                    overwrite, models) -> xr.Dataset:
-    """``run(output=None)``: the grid computed here by the kernels the file route uses (a point's
-    result does not depend on the chunk it is in: bitwise the values the file route stores), into an
-    in-memory Dataset described by the code that describes a file (store._define). Nothing is
-    written: no file, journal, lock or folder, and no signal handler is installed (Ctrl-C raises
-    KeyboardInterrupt; nothing is kept)."""
-    from .store import memory_store, time_attrs, write_memory
+    """``run(output=None)``: the route of every run into a sink in memory (store.MemorySink, described
+    by the code that describes a file, store._define), computed here by the kernels the file route
+    uses (a point's result does not depend on the chunk it is in: bitwise the values the file route
+    stores). Nothing is written: no file, journal, lock or folder, and no signal handler is installed
+    (Ctrl-C raises KeyboardInterrupt; nothing is kept)."""
+    from .store import time_attrs
 
     given = [name for name, value in (("resume", resume), ("restart", restart), ("overwrite", overwrite))
              if value] + [name for name, value in (("load", load), ("scheduler", scheduler),
@@ -384,42 +399,27 @@ def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, schedul
     if scene.execution.scheduler:
         raise InputError(f"output=None (the in-memory route) runs here; the scene's [execution] scheduler "
                          f"{scene.execution.scheduler} is not used by it: give an output path to run on the cluster")
-    _check_threads(threads)
+    check_threads(threads)
     need = _memory_bytes(scene)
     available = _available_memory()
     if available is not None and need > available:
         raise StoreError(f"the dataset of {scene.n_points:,} points would need about {_size(need)} of memory, "
                          f"{_size(available)} is available; give an output path (the file route keeps memory "
                          "bounded by a chunk) or make the grid coarser")
-    shown = _shows_progress(progress)
     # Without a progress bar to feed, chunks only bound the scratch memory: as few as that allows
     # (each chunk is one parallel launch, costly on a busy machine). Results do not depend on the cut.
     target = chunk_target(scene)
-    if not (shown or scene.storage.chunk_size):
+    if not (shows_progress(progress) or scene.storage.chunk_size):
         target = max(target, min(scene.n_points, _values_bound(scene)))
-    chunks = plan_chunks(scene.shape, target)
-    lay = layout(scene, len(chunks))
-    store = memory_store(scene, lay, provenance(scene, chunks))
-    params = ParameterMatrix(scene)
-    with _threads(threads):
+    plan = make_plan(scene, target)
+    memory = MemorySink(scene, layout(scene, len(plan.chunks)), provenance(plan))
+    with execute.threads(threads):
         threads_used = _jit.num_threads()
-        compile_s = warm_up(scene, params, progress)
-        t0 = _clock()
-        bar = _progress(scene, progress)
-        try:
-            for chunk in chunks:
-                columns, status, n_steps, n_rhs = evaluate_chunk(scene, chunk, params)
-                arrays = {**columns, "status": status}
-                if scene.solver is not None:
-                    arrays.update(n_steps=n_steps, n_rhs=n_rhs)
-                write_memory(store, chunk.region, arrays, lay.shape)
-                bar.update(chunk.size)
-        finally:
-            bar.close()
-        compute_s = _clock() - t0
-    store.attrs.update({"execution": f"local, {threads_used} threads", "threads": threads_used})
-    store.attrs.update(time_attrs(compile_s, compute_s))
-    return store.dataset()
+        compile_s = _route(plan, list(plan.chunks), memory, progress=progress)
+    compute_s = sum(seconds for seconds, _ in memory.times.values())
+    memory.store.attrs.update({"execution": f"local, {threads_used} threads", "threads": threads_used})
+    memory.store.attrs.update(time_attrs(compile_s, compute_s))
+    return memory.dataset()
 
 
 def _values_bound(scene: Scene) -> int:
@@ -438,7 +438,7 @@ def _memory_bytes(scene: Scene) -> int:
 
 def _from_python(scene: Scene, models: Mapping) -> bool:
     """Whether the scene's model is one of ``models`` (given from Python, not importable elsewhere)."""
-    from .model.load import from_object
+    from .model.user import from_object
 
     for name, obj in models.items():
         try:
@@ -458,10 +458,10 @@ def _sizes(scene: Scene) -> dict:
     return sizes
 
 
-def _held_times(held: Held) -> tuple[float, float, float]:
-    """(wall, compile, compute) seconds, as _times reads them from the file, from the dataset held in
+def _memory_times(memory: MemorySink) -> tuple[float, float, float]:
+    """(wall, compile, compute) seconds, as _times reads them from the file, from the dataset in
     memory (store._assemble gives it the file's attributes)."""
-    attrs = held.store.attrs
+    attrs = memory.store.attrs
     return float(attrs["wall_time_s"]), float(attrs["compile_time_s"]), float(attrs["compute_time_s"])
 
 
@@ -797,68 +797,109 @@ def same_scene(attrs: Mapping, scene: Scene) -> bool:
         return False
 
 
-def _compute(scene: Scene, final: Path, restart: bool, threads, progress, scheduler, target: int,
-             chunks: ChunkPlan, signals: "_Signals", worker_timeout: float, client=None,
-             hold: bool = False, before: tuple | None = None) -> tuple[dict[int, int], Held | None]:
-    """Compute the missing chunks into the journal, then assemble the dataset; returns the points
-    per status code, and with ``hold`` the dataset kept in memory as it was written (store.Held).
-    Chunk files that do not verify (found now, or while assembling) are removed and computed
-    again. ``client``: a connected dask client when ``scheduler`` is given. ``before``: what was
-    at ``final`` when the checks passed (``_output_state``), the only file the dataset replaces
-    besides a dataset of the same scene."""
+def _compute(plan: Plan, final: Path, restart: bool, threads, progress, scheduler, signals: "_Signals",
+             worker_timeout: float, client=None, keep: bool = False, before: tuple | None = None
+             ) -> tuple[dict[int, int], MemorySink | None]:
+    """The route into the file sink: compute the missing chunks into the journal, then assemble the
+    dataset; returns the points per status code, and with ``keep`` the dataset in memory, filled as
+    the file was written (store.MemorySink). Chunk files that do not verify (found now, or while
+    assembling) are removed and computed again. ``client``: a connected dask client when ``scheduler``
+    is given. ``before``: what was at ``final`` when the checks passed (``_output_state``), the only
+    file the dataset replaces besides a dataset of the same scene."""
+    scene, chunks = plan.scene, plan.chunks
     part = partial_path(final)
     journal = Journal.read(part) if part.exists() and not restart else None
     resumed = journal is not None and not journal.empty
     if journal is None or journal.empty:  # none, discarded, or killed before its first word
         drop(final)
-        journal = Journal.create(part, canonical=scene.canonical(), text=scene.text, chunk_target=target,
-                                 n_chunks=len(chunks), attrs=provenance(scene, chunks))
+        journal = Journal.create(part, canonical=scene.canonical(), text=scene.text, chunk_target=plan.chunk_target,
+                                 n_chunks=len(chunks), attrs=provenance(plan))
     lay = layout(scene, len(chunks))
-    held = Held(scene, lay, journal.meta["attrs"]) if hold else None
+    memory = MemorySink(scene, lay, journal.meta["attrs"]) if keep else None
     for _ in range(REPAIR_ROUNDS):
         done = journal.done_chunks(repair=True)
         _report_removed(journal)
         todo = [chunks[int(i)] for i in np.flatnonzero(~done)]  # at most grid.MAX_CHUNKS
         early = None
         try:
-            with _threads(None if scheduler else threads):
+            with execute.threads(None if scheduler else threads):
                 where = (f"dask scheduler {scheduler}, {threads or 'all'} numba threads per worker" if scheduler
                          else f"local, {_jit.num_threads()} threads")
-                attrs = {**journal.meta["attrs"], "execution": where}
+                # the plan computing now (a resumed run's journal holds the plan it began with)
+                attrs = {**journal.meta["attrs"], "plan": plan.text(), "execution": where}
                 if not scheduler:
                     attrs["threads"] = _jit.num_threads()
-                # A fresh run that returns its dataset (held) writes its file while the chunks are
+                # A fresh run that returns its dataset (memory) writes its file while the chunks are
                 # computed (store.Early: the writer thread, overlapping the kernels); a resumed
                 # one (its history says when it was finished) is assembled at the end.
-                if held is not None and todo and not resumed and not done.any():
+                if memory is not None and todo and not resumed and not done.any():
                     early = Early(journal.folder / ASSEMBLY, scene, lay, attrs)
-                # here the kernels are compiled (or loaded from the JIT cache) before the timed chunks;
-                # dask workers compile inside their first chunk (counted as compute time)
-                params = ParameterMatrix(scene)
-                compile_s = warm_up(scene, params, progress, todo[0]) if todo and not scheduler else 0.0
-                started = threading.Event() if early is not None and not scheduler else None
-                launches = None if scheduler else _Launches()
-                results = (_dask_results(scene, todo, scheduler, threads, worker_timeout, client) if scheduler
-                           else _local_results(scene, todo, params, started, launches))
-                _save_chunks(scene, journal, results, todo, scene.n_points - sum(c.size for c in todo), progress,
-                             compile_s, held, early, started, launches, None if scheduler else signals)
+                _route(plan, todo, _FileSink(journal, memory, early), progress=progress, scheduler=scheduler,
+                       threads=threads, client=client, worker_timeout=worker_timeout, signals=signals)
                 if resumed and todo:  # the history says that another run finished the dataset
                     now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
                     attrs["history"] = (attrs.get("history", "") + "\n" + cf.history(
                         now, f"mechsweep.run(scene {scene.name!r}, resume=True): {len(todo)} chunk(s) computed",
                         __version__))
-            bad, counts = _finish(journal, scene, chunks, final, attrs, signals, held, early, before)
+            bad, counts = _finish(journal, scene, chunks, final, attrs, signals, memory, early, before)
         except BaseException:
             if early is not None:  # interrupted or failed: no half-written file is left in the journal
                 early.discard()
             raise
         if not bad:
-            return counts, held
+            return counts, memory
         for exc in bad:
             journal.discard(exc.path, exc.why)
         _report_removed(journal)
     raise RunError(f"chunk files in {journal.chunks} were found damaged again after {REPAIR_ROUNDS} rounds of "
                      "computing them anew; the disk may be failing: check it, then run again with --resume")
+
+
+class _FileSink:
+    """The sink of a run with an output file: each chunk saved to the journal (crash-safe, resumable),
+    and, for a run that returns its dataset, kept in memory (``memory``: the chunk was computed into its
+    arrays) and written into the dataset's file at once (``early``, store.Early)."""
+
+    background = True  # journal and HDF5 writes run in a writer thread, beside the next chunk's kernel
+
+    def __init__(self, journal: Journal, memory: MemorySink | None = None, early: Early | None = None):
+        self.journal, self.memory, self.early = journal, memory, early
+
+    def views(self, chunk: Chunk) -> dict | None:
+        return self.memory.views(chunk) if self.memory is not None else None
+
+    def prepare(self, launches) -> None:
+        """In the writer thread before the first chunk arrives: define the early file."""
+        if self.early is not None:
+            self.early.prepare(launches)
+
+    def save(self, chunk: Chunk, arrays: dict, seconds: float) -> None:
+        self.journal.write_chunk(chunk.index, arrays, seconds)
+        if self.memory is not None:  # saved: kept for the dataset run() returns
+            self.memory.save(chunk, arrays, seconds)
+        if self.early is not None:  # and into the dataset's file, while the next chunk is computed
+            self.early.write(chunk.index, chunk.region, arrays)
+
+
+def _route(plan: Plan, todo: list[Chunk], sink, *, progress, scheduler: str | None = None, threads=None,
+           client=None, worker_timeout: float | None = None, signals: "_Signals | None" = None) -> float:
+    """Every run's route from its plan to its sink: the chunks ``todo`` computed here (execute.py: the
+    kernels compiled or loaded first, timed apart) or on the dask cluster ``scheduler`` (cluster.py,
+    the same evaluate_chunk), each saved to ``sink`` as it arrives. Returns the compile phase's seconds."""
+    local = scheduler is None
+    compile_s = execute.warm_up(plan, progress, todo[0]) if todo and local else 0.0
+    launches = execute.Launches() if local else None
+    if local:
+        results = execute.local_results(plan, todo, launches, sink.views)
+    else:
+        from .cluster import dask_results
+
+        results = dask_results(plan, todo, scheduler, threads, worker_timeout=worker_timeout, client=client)
+    # a local run acts on Ctrl-C or SIGTERM once the chunk being computed is saved; a cluster's run at once
+    # (closing its results cancels the tasks in flight)
+    _save_chunks(plan, sink, results, plan.n_points - sum(c.size for c in todo), progress, compile_s, launches,
+                 signals if local else None)
+    return compile_s
 
 
 def _report_removed(journal: Journal) -> None:
@@ -871,8 +912,8 @@ def _report_removed(journal: Journal) -> None:
 ASSEMBLY = "assembly.h5"
 
 
-def _finish(journal: Journal, scene: Scene, chunks: ChunkPlan, final: Path, attrs: dict,
-            signals: "_Signals", held: Held | None = None, early: Early | None = None,
+def _finish(journal: Journal, scene: Scene, chunks, final: Path, attrs: dict,
+            signals: "_Signals", memory: MemorySink | None = None, early: Early | None = None,
             before: tuple | None = None) -> tuple[list[BadChunk], dict[int, int]]:
     """Assemble the dataset next to the journal (or complete ``early``, the file written while the
     chunks were computed), move it into place by one rename, drop the journal. Signals wait until a
@@ -881,13 +922,13 @@ def _finish(journal: Journal, scene: Scene, chunks: ChunkPlan, final: Path, attr
     is checked again right before the rename (``_placing_problem``): a file that appeared there
     while the run computed is not replaced (StoreError, the journal kept)."""
     tmp = journal.folder / ASSEMBLY
-    if early is not None and early.usable(tmp, held):  # most of the file is on the disk already
+    if early is not None and early.usable(tmp, memory):  # most of the file is on the disk already
         check_free_space(scene, tmp, early.path.stat().st_size)
     else:
         check_free_space(scene, tmp)
     with signals.deferred():
         bad, counts = assemble(journal, scene, layout(scene, len(chunks)), chunks, tmp, attrs,
-                               stop=signals.pending, held=held, early=early)
+                               stop=signals.pending, memory=memory, early=early)
         if bad:
             os.unlink(tmp)
             return bad, counts
@@ -1195,109 +1236,15 @@ def _writable(path: Path) -> bool:
     return os.access(path, os.W_OK) and bool(path.stat().st_mode & 0o222)
 
 
-def extra_shape(scene: Scene, name: str) -> tuple[int, ...]:
-    """Sizes of an output's dimensions beyond the grid's."""
-    settings = scene.solver.settings if scene.solver is not None else {}
-    return tuple(len(d.values(settings)) for d in scene.model.output(name).extra_dims)
-
-
-def evaluate_chunk(scene: Scene, chunk: Chunk, params: ParameterMatrix | None = None):
-    """Compute one chunk. Returns (requested outputs by name, status, n_steps, n_rhs)."""
-    return evaluate_rows(scene, (params or ParameterMatrix(scene))(chunk.start, chunk.stop))
-
-
-# This thread's run, while it computes a chunk: called right before the chunk's kernel is launched
-# (_Launches: the run's writer thread waits for it).
-_LAUNCH = threading.local()
-
-
-def evaluate_rows(scene: Scene, P: np.ndarray):
-    """Compute the scene's outputs on any parameter rows ``P`` (float64 [n, n_params]), exactly as a
-    chunk of its grid is computed (same outputs asked, same status rules). Returns (requested
-    outputs by name, status, n_steps, n_rhs)."""
-    computed = scene.computed_outputs
-    n = P.shape[0]
-    out = {name: np.full((n,) + extra_shape(scene, name), np.nan) for name in computed}
-    status = np.zeros(n, dtype=st.DTYPE)
-    n_steps = np.zeros(n, dtype=np.int64)
-    n_rhs = np.zeros(n, dtype=np.int64)
-    from .model.compile import planned_points  # the run's size, not the rows', chooses the kernel (lanes or not)
-
-    with np.errstate(all="ignore"), planned_points(scene.n_points, scene.execution.use_lanes()):  # an overflow at an extreme point is its status
-        launching = getattr(_LAUNCH, "hook", None)
-        if launching is not None:
-            launching()
-        scene.model.evaluate(P, computed, scene.solver, out, status, n_steps, n_rhs)
-    # a code that is not a status (a user's classify returning 99 at a point its probe did not see)
-    # is the model's error, not a result to store
-    not_a_status = (status < st.OK) | (status > st.LAST)
-    if not_a_status.any():
-        status[not_a_status] = st.USER_ERROR
-        for values in out.values():
-            values[not_a_status] = np.nan
-    requested = {name: out[name] for name in scene.outputs}
-    # A point is ok only if everything asked of it is finite (never a NaN with status ok).
-    # An overflow (inf) is never stored as a value: it becomes NaN, the point NONFINITE.
-    finite = np.ones(n, dtype=bool)
-    for values in requested.values():
-        finite &= np.isfinite(values.reshape(n, -1)).all(axis=1)
-        values[np.isinf(values)] = np.nan
-    status[(status == st.OK) & ~finite] = st.NONFINITE
-    return requested, status, n_steps, n_rhs
-
-
-# The compile phase is announced only when it lasts longer than this (seconds): a warm JIT cache
-# loads in a fraction of it, and then nothing is printed.
-COMPILE_NOTE_AFTER = 0.5
-COMPILE_NOTE = "compiling kernels for model {model} (first run; cached afterwards)"
 # Seconds between two progress lines of a run that shows no bar (stderr no terminal: a log).
 PROGRESS_LOG_EVERY = 30.0
 
 
-# The kernels warm_up has compiled or loaded in this process, by _kernel_key.
-_WARM: set = set()
-
-
-def _kernel_key(scene: Scene) -> tuple:
-    """What selects a scene's kernels: the model (and the source of a user's model), the outputs
-    computed, the method and the route (``[execution] lanes``). A user model file edited in the process changes ``model_key``."""
-    return (scene.model.name, scene.model_key, scene.model.source, scene.computed_outputs,
-            scene.solver.method if scene.solver is not None else None, scene.execution.lanes)
-
-
-def _clock() -> float:
-    return time.perf_counter()
-
-
-def _shows_progress(progress: bool | None) -> bool:
-    """Whether a progress bar is shown: ``progress``, or by default where a user watches: when
-    stderr is a terminal, or in a Jupyter notebook (tqdm.auto draws it as a widget there)."""
-    if progress is not None:
-        return bool(progress)
-    try:
-        if sys.stderr.isatty():
-            return True
-    except (AttributeError, ValueError):
-        pass
-    return _in_notebook()
-
-
-def _in_notebook() -> bool:
-    """Whether this process is a Jupyter kernel (IPython's ZMQ shell), where stderr is no terminal
-    but a user watches the cell's output."""
-    ipython = sys.modules.get("IPython")
-    try:
-        shell = ipython.get_ipython() if ipython is not None else None
-    except Exception:  # an IPython too old or half imported: no notebook to show anything in
-        return False
-    return type(shell).__name__ == "ZMQInteractiveShell"
-
-
 def _progress(scene: Scene, progress: bool | None, initial: int = 0):
-    """The run's progress: a tqdm bar where one is shown (``_shows_progress``), one line now and
-    then on stderr when progress is None and nobody watches (a log: ``_LogProgress``), else nothing.
+    """The run's progress: a tqdm bar where one is shown (``execute.shows_progress``), one line now
+    and then on stderr when progress is None and nobody watches (a log: ``_LogProgress``), else nothing.
     Each has ``update(points)`` and ``close()``."""
-    if _shows_progress(progress):
+    if shows_progress(progress):
         from tqdm.auto import tqdm
 
         return tqdm(total=scene.n_points, initial=initial, unit="pt", unit_scale=scene.n_points >= 100_000,
@@ -1352,150 +1299,51 @@ def _duration(seconds: float) -> str:
     return f"{seconds / 3600:.1f} h"
 
 
-def warm_up(scene: Scene, params: ParameterMatrix, progress: bool | None, chunk: Chunk | None = None) -> float:
-    """Compile the scene's kernels (numba compiles, or loads from its disk cache, on first call) by
-    computing one point of ``chunk`` (the first of the grid by default), before the timed chunks
-    and the progress bar. Its result is thrown away: the chunk computes the point again, with the
-    same result. When the phase lasts longer than COMPILE_NOTE_AFTER seconds it is announced on
-    stderr, naming the model (with its time when it ends), wherever the run reports its progress:
-    a terminal, a notebook's cell, a log (all but ``progress=False``). Returns its seconds (0 when
-    this process has compiled or loaded the same kernels before: then nothing is computed)."""
-    key = _kernel_key(scene)
-    if key in _WARM:  # compiled (or loaded) in this process already: nothing to do, no extra launch
-        return 0.0
-    start = 0 if chunk is None else chunk.start
-    shown = progress is not False
-    noted = threading.Event()
-
-    def note():
-        noted.set()
-        print(f"mechsweep: {COMPILE_NOTE.format(model=scene.model.name)} ...", file=sys.stderr, flush=True)
-
-    timer = threading.Timer(COMPILE_NOTE_AFTER, note) if shown else None
-    t0 = _clock()
-    if timer is not None:
-        timer.daemon = True
-        timer.start()
-    try:
-        evaluate_rows(scene, params(start, start + 1))
-    finally:
-        if timer is not None:
-            timer.cancel()
-    seconds = _clock() - t0
-    _WARM.add(key)
-    if noted.is_set():
-        print(f"mechsweep: kernels compiled in {seconds:.1f} s", file=sys.stderr, flush=True)
-    return seconds
-
-
-# Seconds the writer thread waits for the next chunk's launch before it writes a chunk anyway.
-LAUNCH_WAIT = 1.0
-
-
-class _Launches:
-    """The kernel launches of a run's chunks computed here, counted as they begin, so that the
-    writer thread starts on chunk k only once chunk k + 1's kernel runs: the writer's Python (the
-    journal file's npz and CRC, h5py's writes) then holds the GIL while the kernel, which releases
-    it, computes, instead of while the run's thread does the chunk boundary's Python (the status
-    checks, the next parameter rows, the launch), when both threads of the kernel wait for it.
-    ``end()``: no launch follows (the last chunk is written at once). Ordering only: the writer
-    waits at most LAUNCH_WAIT seconds, and what it writes and when it is synced are unchanged."""
-
-    def __init__(self):
-        self._n = 0
-        self._ended = False
-        self._cv = threading.Condition()
-
-    def launching(self) -> None:
-        with self._cv:
-            self._n += 1
-            self._cv.notify_all()
-
-    def end(self) -> None:
-        with self._cv:
-            self._ended = True
-            self._cv.notify_all()
-
-    def wait_beyond(self, n: int, timeout: float = LAUNCH_WAIT) -> None:
-        """Until more than ``n`` launches have begun (or no more will)."""
-        with self._cv:
-            self._cv.wait_for(lambda: self._ended or self._n > n, timeout)
-
-
-def _local_results(scene: Scene, todo: list[Chunk], params: ParameterMatrix | None = None,
-                   started: threading.Event | None = None, launches: _Launches | None = None):
-    """Chunks computed here, in order, each by the numba kernels on all threads; ``started`` is set
-    when the first chunk's kernel is launched (its parameter rows and scratch made: the writer's
-    Python then runs beside the kernel, which releases the GIL, not beside that Python, which
-    would wait for the GIL); ``launches`` counts each chunk's launch as it begins."""
-    params = params or ParameterMatrix(scene)
-
-    def launching():
-        if launches is not None:
-            launches.launching()
-        if started is not None:
-            started.set()
-
-    try:
-        for chunk in todo:
-            _LAUNCH.hook = launching if launches is not None or started is not None else None
-            try:
-                result = evaluate_chunk(scene, chunk, params)
-            finally:
-                _LAUNCH.hook = None
-            yield chunk, result
-    finally:
-        if launches is not None:
-            launches.end()
-
-
-def _dask_results(scene: Scene, todo: list[Chunk], scheduler: str, threads: int | None, worker_timeout: float,
-                  client=None):
-    from .cluster import dask_results
-
-    return dask_results(scene, todo, scheduler, threads, worker_timeout=worker_timeout, client=client)
-
-
-def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], already: int, progress,
-                 compile_s: float = 0.0, held: Held | None = None, early: Early | None = None,
-                 started: threading.Event | None = None, launches: _Launches | None = None,
-                 signals: "_Signals | None" = None) -> None:
-    """Save each computed chunk to the journal as it arrives; the write of one chunk overlaps the
-    computation of the next (kernels release the GIL). At most one chunk waits to be written, so
-    memory stays bounded by the chunk size. Each chunk file carries its compute time (since the
-    previous chunk); the first this call computes also ``compile_s``, the compile phase before it
-    (kept apart: store.assemble sums both kinds into the dataset's attributes).
-    ``signals`` (a local run): Ctrl-C or SIGTERM while a chunk computes is acted on once that chunk
-    is saved. A kernel launch cannot be stopped, so the chunk runs to its end either way; raising
-    as soon as it returns would throw that work away (a slow one-chunk grid would end with "0 of 1
-    chunks saved")."""
+def _save_chunks(plan: Plan, sink, results, already: int, progress, compile_s: float = 0.0,
+                 launches: "execute.Launches | None" = None, signals: "_Signals | None" = None) -> None:
+    """Save each computed chunk to ``sink`` as it arrives, with its compute time (since the previous
+    chunk; the first this call computes also ``compile_s``, the compile phase before it, kept apart:
+    store.assemble sums both kinds into the dataset's attributes). A sink that writes
+    (``sink.background``) does so in a writer thread: the write of one chunk overlaps the computation
+    of the next (kernels release the GIL), and at most one chunk waits to be written, so memory stays
+    bounded by the chunk size. ``signals`` (a local run to a file): Ctrl-C or SIGTERM while a chunk
+    computes is acted on once that chunk is saved. A kernel launch cannot be stopped, so the chunk
+    runs to its end either way; raising as soon as it returns would throw that work away (a slow
+    one-chunk grid would end with "0 of 1 chunks saved")."""
     from concurrent.futures import ThreadPoolExecutor
 
-    bar = _progress(scene, progress, already)
+    bar = _progress(plan.scene, progress, already)
     pending = None
-    clock = {"last": _clock(), "compile": compile_s}
+    clock = {"last": execute.clock(), "compile": compile_s}
+    solver = plan.solver is not None
 
     def write(chunk, result, seq):
-        if launches is not None:  # not while the run's thread prepares the next launch (_Launches)
+        if launches is not None and sink.background:  # not while the run's thread prepares the next launch
             launches.wait_beyond(seq + 1)
         columns, status, n_steps, n_rhs = result
         arrays = {**columns, "status": status}
-        if scene.solver is not None:
+        if solver:
             arrays.update(n_steps=n_steps, n_rhs=n_rhs)
         if clock["compile"]:
             arrays[COMPILE_KEY] = np.float64(clock["compile"])
             clock["compile"] = 0.0
-        now = _clock()  # the wall time up to this chunk is saved with it (survives a kill)
-        journal.write_chunk(chunk.index, arrays, now - clock["last"])
-        if held is not None:  # saved: kept for the dataset run() returns (store.Held)
-            held.keep(chunk.index, chunk.region, arrays, now - clock["last"])
-        if early is not None:  # and into the dataset's file, while the next chunk is computed
-            early.write(chunk.index, chunk.region, arrays)
+        now = execute.clock()  # the wall time up to this chunk is saved with it (survives a kill)
+        sink.save(chunk, arrays, now - clock["last"])
         clock["last"] = now
 
+    if not sink.background:  # nothing to write: each chunk is saved where it was computed
+        try:
+            for seq, (chunk, result) in enumerate(results):
+                write(chunk, result, seq)
+                bar.update(chunk.size)
+        finally:
+            close = getattr(results, "close", None)
+            if close is not None:
+                close()
+            bar.close()
+        return
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="mechsweep-writer") as writer:
-        if early is not None:  # the file is defined while the first chunk is computed (store.Early.prepare)
-            writer.submit(early.prepare, started)
+        writer.submit(sink.prepare, launches)  # (store.Early: the file is defined while the first chunk computes)
         try:
             with signals.deferred() if signals is not None else contextlib.nullcontext():
                 for seq, (chunk, result) in enumerate(results):
@@ -1513,39 +1361,12 @@ def _save_chunks(scene: Scene, journal: Journal, results, todo: list[Chunk], alr
         finally:
             if pending is not None and not pending.done():
                 pending.exception()  # let the last write finish before leaving
-            if started is not None:
-                started.set()  # (a run stopped before its first launch: the writer waits no longer)
+            if launches is not None:
+                launches.end()  # (a run stopped before its first launch: the writer waits no longer)
             close = getattr(results, "close", None)
             if close is not None:
                 close()  # a distributed run cancels what is still in flight
             bar.close()
-
-
-def _check_threads(n: int | None, here: bool = True) -> None:
-    """Threads for this machine's kernels; on a cluster the workers' cores are not known here
-    (each worker uses at most its own)."""
-    if n is None:
-        return
-    if isinstance(n, bool) or not isinstance(n, numbers.Integral):
-        raise InputError(f"threads = {n!r} is not allowed; expected a whole number (numba threads)")
-    if here and not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
-        raise InputError(f"threads = {n} is outside [1, {numba.config.NUMBA_NUM_THREADS}] (cores available)")
-    if not here and n < 1:
-        raise InputError(f"threads = {n} is not allowed; expected at least 1 (numba threads per dask worker)")
-
-
-@contextmanager
-def _threads(n: int | None):
-    if n is None:
-        yield
-        return
-    _check_threads(n)
-    before = _jit.num_threads()
-    _jit.set_num_threads(n)
-    try:
-        yield
-    finally:
-        _jit.set_num_threads(before)
 
 
 @functools.lru_cache(maxsize=1)
@@ -1555,7 +1376,9 @@ def _xarray_version() -> str:
     return _version("xarray")
 
 
-def provenance(scene: Scene, chunks: ChunkPlan) -> dict:
+def provenance(plan: Plan) -> dict:
+    """The attributes a run's dataset (and its journal) starts with: the scene, its plan, versions."""
+    scene = plan.scene
     created = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
     attrs = {
         "title": scene.name,
@@ -1571,7 +1394,7 @@ def provenance(scene: Scene, chunks: ChunkPlan) -> dict:
         "numpy_version": np.__version__,
         "xarray_version": _xarray_version(),  # xarray is not imported by the command `mechsweep run` (0.3 s of CPU)
         "python_version": platform.python_version(),
-        "chunk_size": chunks.max_size,
+        "chunk_size": plan.chunks.max_size,
         "wall_time_s": 0.0,
         "Conventions": cf.CONVENTIONS,
         "source": cf.source(scene.model, __version__),
@@ -1585,4 +1408,5 @@ def provenance(scene: Scene, chunks: ChunkPlan) -> dict:
 
     # what the results are computed from (model/sources.py): a resume checks it, a reader sees it
     attrs.update(sources.record(scene.model).attrs(scene.base or None))
+    attrs["plan"] = plan.text()  # what is computed and how (plan.py)
     return attrs

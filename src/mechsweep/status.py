@@ -22,7 +22,7 @@ NO_MOTION = 7  # zero amplitude: outputs relative to the amplitude are undefined
 NO_EVENT = 8  # an event (a crossing, settling) did not happen within the horizon
 NOT_BALANCEABLE = 9  # no balanced state: balanced-state outputs are NaN
 UNDECIDED = 10  # stability undecided (simulation inconclusive, or |multiplier| within margin of 1)
-STIFF = 11  # the explicit method detected stiffness and no implicit method was allowed to take over
+STIFF = 11  # dop853 spent its step budget at the stability limit (its stiffness test on its last steps)
 ILL_CONDITIONED = 12  # the output is too sensitive here to reach the tolerance in double precision
 NOT_REPRODUCIBLE = 13  # the value moved by more than its tolerance when integrated again at a tighter one
 USER_ERROR = 14  # the model's own code (a user model's function) raised at this point
@@ -56,7 +56,8 @@ DESCRIPTIONS: dict[int, str] = {
     PENDING: "not computed yet (the run was interrupted; use --resume)",
     OK: "all requested outputs computed",
     MAX_STEPS: "the integrator used its whole step budget (solver.max_steps)",
-    STEP_UNDERFLOW: "the step size fell below the round-off of t (stiff or singular)",
+    STEP_UNDERFLOW: "the step size fell below the round-off of t (the equations or the solution are singular or "
+                    "not smooth there)",
     NONFINITE: "NaN or inf appeared in the state or an output",
     INFEASIBLE: "parameters outside the model's physical domain at this point",
     SINGULAR: "a formula of the model is singular at this point",
@@ -70,7 +71,9 @@ DESCRIPTIONS: dict[int, str] = {
     ILL_CONDITIONED: "the output is too sensitive here to reach solver.rtol in double precision: its condition "
                      "number with respect to the inputs times round-off exceeds rtol; a closed form, where there "
                      "is one, is still given",
-    STIFF: "the problem is stiff at this point and the explicit method stopped (use method = \"auto\" or \"radau\")",
+    STIFF: "the problem is stiff at this point: dop853 spent its step budget (solver.max_steps) with its step held "
+           "at the stability limit, as Hairer's stiffness test found on its last steps (use method = \"auto\" or "
+           "\"radau\" where the outputs offer them)",
     NOT_REPRODUCIBLE: "integrated again at a tighter tolerance, an output moved by more than the tolerance it "
                       "claims (or the second integration failed): the value is stored but its trailing digits "
                       "are not meaningful (chaotic or transient-dominated motion)",

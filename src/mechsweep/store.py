@@ -31,7 +31,7 @@ from . import cf
 from . import status as st
 from .errors import FileBusy, StoreError, WriteFailed, why_os_error  # noqa: F401  (StoreError: API)
 from .grid import plan_chunks
-from .journal import META_KINDS, BadChunk, Journal, partial_path  # noqa: F401  (partial_path: this module's API)
+from .journal import BadChunk, Journal, partial_path  # noqa: F401  (partial_path: this module's API)
 
 if TYPE_CHECKING:  # not imported at run time: reading a dataset (plot, info) needs no model or numba
     import xarray as xr  # nor does writing one (`mechsweep run`) need xarray: imported where a Dataset is made
@@ -73,7 +73,7 @@ def layout(scene: Scene, n_chunks: int) -> Layout:
 
 
 def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, attrs: dict, *,
-             stop=None, held: "Held | None" = None, early: "Early | None" = None
+             stop=None, memory: "MemorySink | None" = None, early: "Early | None" = None
              ) -> tuple[list[BadChunk], dict[int, int]]:
     """Write the dataset of a journal to ``target`` (a path, or a file object for an in-memory
     view): every variable defined, each journaled chunk written into its region, one chunk in
@@ -87,19 +87,19 @@ def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, 
     ``WriteFailed`` after the file is removed. ``stop()`` is asked between chunks: when true, the
     assembly ends, the file is removed and ``KeyboardInterrupt`` raised.
 
-    ``held``: the run's dataset in memory (``Held``), filled with the chunks this process computed
-    as they were saved. Those chunks are taken from it instead of being read back from the journal,
-    the others are read from the journal into it, and the file's variables are written from it
-    whole; it ends up with the file's attributes, so that ``held.dataset()`` is the dataset the file
-    holds without opening it again.
+    ``memory``: the run's dataset in memory (``MemorySink``), filled with the chunks this process
+    computed. Those chunks are taken from it instead of being read back from the journal, the others
+    are read from the journal into it, and the file's variables are written from it whole; it ends up
+    with the file's attributes, so that ``memory.dataset()`` is the dataset the file holds without
+    opening it again.
 
-    ``early``: the file ``target`` already defined and filled with the chunks of ``held`` while they
+    ``early``: the file ``target`` already defined and filled with the chunks of ``memory`` while they
     were computed (``Early``); only what is missing (chunks of the journal from before a resume,
     the times) is written into it. An ``early`` that cannot be used (a write of it failed, a chunk
     missed it, another target) is discarded and the file written from the start, as without it."""
     if not isinstance(target, (str, os.PathLike)):
-        return _assemble(journal, scene, lay, chunks, target, attrs, lambda: False, held)
-    if early is not None and not early.usable(target, held):
+        return _assemble(journal, scene, lay, chunks, target, attrs, lambda: False, memory)
+    if early is not None and not early.usable(target, memory):
         early.discard()
         early = None
     if early is not None:
@@ -112,7 +112,7 @@ def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, 
     stop = stop or (lambda: False)
     try:
         bad, counts = _assemble(journal, scene, lay, chunks, guard, attrs,
-                                lambda: guard.error is not None or stop(), held, early)
+                                lambda: guard.error is not None or stop(), memory, early)
         if guard.error is None:
             guard.sync()
     except BaseException:
@@ -129,7 +129,7 @@ def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, 
     return bad, counts
 
 
-def _assemble(journal, scene, lay, chunks, target, attrs, stop, held=None, early=None
+def _assemble(journal, scene, lay, chunks, target, attrs, stop, memory=None, early=None
               ) -> tuple[list[BadChunk], dict[int, int]]:
     if early is None:
         with NetCDFWriter(target) as f:
@@ -146,8 +146,8 @@ def _assemble(journal, scene, lay, chunks, target, attrs, stop, held=None, early
                 stopped = True
                 break
             chunk = chunks[int(i)]
-            if held is not None and int(i) in held.times:  # computed by this process: in memory already
-                seconds, compiled = held.times[int(i)]
+            if memory is not None and int(i) in memory.times:  # computed by this process: in memory already
+                seconds, compiled = memory.times[int(i)]
                 wall_time += seconds
                 compile_time += compiled
                 continue
@@ -158,22 +158,22 @@ def _assemble(journal, scene, lay, chunks, target, attrs, stop, held=None, early
                 continue
             wall_time += seconds
             compile_time += float(arrays.pop(COMPILE_KEY, 0.0))
-            if held is not None:
-                write_memory(held.store, chunk.region, arrays, lay.shape)
+            if memory is not None:
+                write_memory(memory.store, chunk.region, arrays, lay.shape)
                 if early is None:
                     continue
-            if held is None:
+            if memory is None:
                 counts.add(arrays["status"])
             _write_region(variables, chunk.region, arrays, lay.shape)
-        if held is not None and not stopped:  # every variable at once (regions not computed: their fill values)
+        if memory is not None and not stopped:  # every variable at once (regions not computed: their fill values)
             if early is None:  # (with early: written chunk by chunk as they were computed)
                 for name, var in variables.items():
-                    var[...] = held.store.variables[name].data
-            counts.add(held.store.variables["status"].data)
+                    var[...] = memory.store.variables[name].data
+            counts.add(memory.store.variables["status"].data)
         times = time_attrs(compile_time, wall_time)
         f.attrs.update(times)
-    if held is not None:  # the attributes _define wrote, and the times
-        held.store.attrs = {**attrs, "n_chunks": lay.n_chunks, **times}
+    if memory is not None:  # the attributes _define wrote, and the times
+        memory.store.attrs = {**attrs, "n_chunks": lay.n_chunks, **times}
     missing = int(np.prod(lay.shape, dtype=np.int64)) - counts.total
     if missing:
         counts.codes[st.PENDING] = counts.codes.get(st.PENDING, 0) + missing
@@ -212,7 +212,7 @@ PREPARE_WAIT = 5.0  # seconds Early.prepare waits for the first chunk's launch (
 
 
 class Early:
-    """The dataset file of a run (with ``Held``) written while its chunks are computed, in the
+    """The dataset file of a run (with ``MemorySink``) written while its chunks are computed, in the
     writer thread: defined at the first chunk, each chunk written into its region after it is
     saved to the journal. It is the same temporary file the assembly writes (in the journal
     folder; renamed into place only when complete), so crash safety is unchanged: a kill leaves
@@ -242,8 +242,8 @@ class Early:
 
     def prepare(self, started=None) -> None:
         """Create and define the file before the first chunk arrives: the run calls it in the writer
-        thread, idle while the first chunk is computed, so that the definition (``mechsweep bench duffing
-        --breakdown`` times it) does not delay the first chunk's write and the second chunk's launch
+        thread, idle while the first chunk is computed, so that the definition (``python
+        benchmarks/duffing_breakdown.py`` times it) does not delay the first chunk's write and the second chunk's launch
         behind it. ``started``: an event set when
         the first chunk's kernel is about to run (waited for at most PREPARE_WAIT seconds), so that
         this Python work holds the GIL while the kernel has released it, not while the main
@@ -277,11 +277,11 @@ class Early:
         except Exception:  # e.g. OSError opening the file: the assembly writes it from the start
             self.discard()
 
-    def usable(self, target, held: "Held | None") -> bool:
+    def usable(self, target, memory: "MemorySink | None") -> bool:
         """Whether the assembly of ``target`` can go on in this file: nothing failed and every
-        chunk ``held`` has from this process is in it."""
-        return (not self.failed and self.file is not None and self.guard.error is None and held is not None
-                and Path(target) == self.path and set(held.times) <= self.written)
+        chunk ``memory`` has from this process is in it."""
+        return (not self.failed and self.file is not None and self.guard.error is None and memory is not None
+                and Path(target) == self.path and set(memory.times) <= self.written)
 
     def take(self) -> h5py.File:
         """The open file, handed to the assembly (which closes it)."""
@@ -303,25 +303,49 @@ class Early:
             self.guard = None
 
 
-class Held:
-    """A run's dataset kept in memory while its file is written (``run`` with a dataset it returns
-    loaded): ``store`` is defined as the file is (``memory_store``), every chunk the run saves goes
-    into it too (``keep``), with its wall and compile seconds in ``times`` (chunk index -> (wall,
-    compile)). ``assemble`` then writes the file from it and sets its attributes."""
+class MemorySink:
+    """A run's dataset in memory, defined as its file is (``memory_store``): the sink of the in-memory
+    route (``run(output=None)``), and of a file run that returns its dataset loaded (beside the
+    journal and the file). A chunk computed here is computed straight into its arrays (``views``:
+    each variable's flat range of the chunk); ``save`` notes its wall and compile seconds in
+    ``times`` (chunk index -> (wall, compile)) and copies only arrays computed elsewhere (a dask
+    worker's, a chunk read back from the journal). ``assemble`` writes the file from it and gives it
+    the file's attributes."""
+
+    background = False  # nothing to write: the route saves its chunks in the computing thread
 
     def __init__(self, scene: Scene, lay: Layout, attrs: dict):
         self.store = memory_store(scene, lay, attrs)
-        self.shape = lay.shape
         self.times: dict[int, tuple[float, float]] = {}
+        n = int(np.prod(lay.shape, dtype=np.int64))
+        self._flat = {}  # variable -> the array over the grid's flat points (a view, C order)
+        for name in _variables(lay):
+            data = self.store.variables[name].data
+            flat = data.reshape((n,) + data.shape[len(lay.shape):])
+            if _address(flat) != _address(data):
+                raise AssertionError(f"the flat view of {name} is a copy")
+            self._flat[name] = flat
 
-    def keep(self, index: int, region: tuple, arrays: dict, seconds: float) -> None:
-        """A chunk saved to the journal: its arrays (and COMPILE_KEY, the compile phase it carries)."""
-        compiled = float(arrays.get(COMPILE_KEY, 0.0))
-        write_memory(self.store, region, {k: v for k, v in arrays.items() if k != COMPILE_KEY}, self.shape)
-        self.times[index] = (float(seconds), compiled)
+    def views(self, chunk) -> dict:
+        """The arrays a chunk is computed into: each variable's stretch of the chunk's flat points (a
+        chunk is a contiguous range of them, grid.py)."""
+        return {name: flat[chunk.start:chunk.stop] for name, flat in self._flat.items()}
+
+    def save(self, chunk, arrays: dict, seconds: float) -> None:
+        """A computed chunk: its arrays (and COMPILE_KEY, the compile phase it carries), its wall time."""
+        for name, flat in self._flat.items():
+            values, into = arrays[name], flat[chunk.start:chunk.stop]
+            if _address(values) != _address(into):  # (computed into ``views``: nothing to copy)
+                into[...] = values.reshape(into.shape)
+        self.times[chunk.index] = (float(seconds), float(arrays.get(COMPILE_KEY, 0.0)))
 
     def dataset(self) -> xr.Dataset:
         return self.store.dataset()
+
+
+def _address(a: np.ndarray) -> int:
+    """Where an array's data begins in memory."""
+    return a.__array_interface__["data"][0]
 
 
 # The key under which a chunk file of the journal carries the compile phase that preceded it.
@@ -620,7 +644,7 @@ class NetCDFWriter:
     where h5netcdf names itself. tests/test_store_define.py walks a file of each shipped scene
     written both ways and compares all of it, and reads both with h5netcdf and with netCDF-C.
     Written with h5py because h5netcdf looks up the same h5py objects again and again while it defines
-    a file (most of a small run's definition time: ``mechsweep bench duffing --breakdown``);
+    a file (most of a small run's definition time: ``python benchmarks/duffing_breakdown.py``);
     this writes each once."""
 
     def __init__(self, target):
@@ -915,9 +939,11 @@ def is_lock_error(exc: BaseException) -> bool:
 def held_for_writing(fd: int) -> bool:
     """Whether another process holds an exclusive lock on the open file ``fd``: HDF5 takes one
     (flock) on a file it opens for writing. Probed with a shared lock that is released at once;
-    False where file locks are not available."""
-    import fcntl
-
+    False where file locks are not available (no fcntl: Windows)."""
+    try:
+        import fcntl
+    except ImportError:
+        return False
     try:
         fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
     except BlockingIOError:
@@ -1060,7 +1086,6 @@ def _lkind(path) -> str:
     return "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
 
 
-RUN_JSON_KEYS = META_KINDS  # run.json's entries and their kinds (journal.meta_problem checks them)
 
 
 def _check_run_json(path: Path) -> None:

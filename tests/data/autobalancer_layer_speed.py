@@ -1,9 +1,9 @@
 """Side by side in one process: the auto-balancer's simulated outputs (stable_sim,
-residual_amplitude) by the hand-written kernels (models/_autobalancer_kernels.py, the reference
+residual_amplitude) by the hand-written kernels (tests/reference/autobalancer_kernels.py, the reference
 kept for this: DOP853 lanes) and by the model, the layer declaration (models/autobalancer.py: the
 layer's sampled trajectory in DOP853 lanes, with its status rules), the same points, warm caches,
 alternating: ``python tests/data/autobalancer_layer_speed.py [points] [sim|both] [rounds] [cpu]``
-(sim: stable_sim alone; floquet: floquet_max on the points of ``mechsweep bench autobalancer``'s
+(sim: stable_sim alone; floquet: floquet_max on the points of ``python benchmarks/autobalancer.py``'s
 chart, at the solver's default tolerances, as that bench times it; rounds: alternating pairs, default 3; cpu: points per CPU second of the
 process instead of wall-clock; the median ratio is printed)."""
 import sys
@@ -13,12 +13,12 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
+sys.path[:0] = [str(HERE), str(HERE.parents[1])]  # record_autobalancer beside it; the repository root
 import record_autobalancer as rec  # noqa: E402
 
 from mechsweep.models import MODELS  # noqa: E402
-from mechsweep.models import _autobalancer_kernels as K  # noqa: E402
 from mechsweep.scene import Solver  # noqa: E402
+from tests.reference import autobalancer_kernels as K  # noqa: E402
 
 old = K.SPEC
 new = MODELS["autobalancer"]
@@ -41,7 +41,7 @@ def run(spec, wanted):
 
 OLD = ("stable_sim",) if sys.argv[2:3] == ["sim"] else ("stable_sim", "residual_amplitude")
 if sys.argv[2:3] == ["floquet"]:
-    from mechsweep.bench.autobalancer import chart_parameters
+    from benchmarks.autobalancer import chart_parameters
     side = max(2, int(round(n ** 0.5)))
     P = chart_parameters(side, side)
     n = P.shape[0]

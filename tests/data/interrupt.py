@@ -4,15 +4,15 @@ import contextlib
 
 import pytest
 
-from mechsweep import runner
+from mechsweep import execute, runner
 
 
 @contextlib.contextmanager
 def interrupted_after(after: int):
     """Within it, a run is stopped (KeyboardInterrupt, as Ctrl-C) when chunk ``after`` + 1 is about
     to be computed: the first ``after`` chunks are computed (and saved) by the real
-    ``runner.evaluate_chunk``."""
-    real, calls = runner.evaluate_chunk, [0]
+    ``execute.evaluate_chunk``."""
+    real, calls = execute.evaluate_chunk, [0]
 
     def interrupted(*args):
         calls[0] += 1
@@ -21,5 +21,5 @@ def interrupted_after(after: int):
         return real(*args)
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(runner, "evaluate_chunk", interrupted)
+        mp.setattr(execute, "evaluate_chunk", interrupted)
         yield

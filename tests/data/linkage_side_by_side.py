@@ -5,7 +5,7 @@
     python tests/data/linkage_side_by_side.py /tmp/before/src src [rounds]
 
 1. Timing: ``rounds`` (default 5) rounds, each running one fresh process per version and thread
-   count (1 and 2) that times bench linkage's four-bar residual sweep (``mechsweep_residuals``,
+   count (1 and 2) that times benchmarks/linkage.py's four-bar residual sweep (``mechsweep_residuals``,
    100,000 designs) 15 times and reports the best and median designs/s. The versions alternate,
    so both see the same background load; the load average is printed with each line.
 2. Machine code: with caching off, each version's per-design function fourbar_design is compiled
@@ -22,8 +22,11 @@ import sys
 TIMING = """
 import json, sys, time
 import numpy as np
-from mechsweep.bench import linkage as bl
-from mechsweep.runner import _threads
+try:
+    from mechsweep.bench import linkage as bl  # where the bench was in the earlier version
+except ImportError:
+    from benchmarks import linkage as bl
+from mechsweep.execute import threads as _threads
 threads = int(sys.argv[1])
 P = bl.design_family(100_000, 0)
 with _threads(threads):
@@ -36,7 +39,10 @@ print(json.dumps({"best": P.shape[0] / min(ts), "median": P.shape[0] / float(np.
 
 ASM = r"""
 import re, sys
-from mechsweep.bench import linkage as bl
+try:
+    from mechsweep.bench import linkage as bl  # where the bench was in the earlier version
+except ImportError:
+    from benchmarks import linkage as bl
 bl.mechsweep_residuals(bl.design_family(16, 0))
 try:
     from mechsweep.model import load
@@ -56,7 +62,8 @@ print("\n".join(lines))
 
 
 def run(src: str, code: str, *args, env=None) -> str:
-    env = dict(os.environ, PYTHONPATH=src, **(env or {}))
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # benchmarks/
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, root]), **(env or {}))
     return subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, env=env,
                           check=True).stdout
 

@@ -2,7 +2,7 @@
 ``python tests/data/record_autobalancer.py [record|compare]``.
 
 ``record`` writes tests/data/autobalancer_reference.npz with the CURRENT code; it was run once on
-commit 016a0b6 (the hand-written kernels, now models/_autobalancer_kernels.py). ``compare [prefix]``
+commit 016a0b6 (the hand-written kernels, now tests/reference/autobalancer_kernels.py). ``compare [prefix]``
 computes every case (whose label starts with prefix) again with the model as registered (since the
 swap: the layer declaration, models/autobalancer.py) and reports, per array, whether it is bitwise
 equal to the file, within the documented tolerance (``verdict``: residual_amplitude 1 ulp; since
@@ -130,7 +130,7 @@ def evaluate_case(P, wanted, kw):
 
 def evaluate_scene(path, method):
     from mechsweep.grid import Chunk
-    from mechsweep.runner import evaluate_chunk
+    from mechsweep.execute import evaluate_chunk
     from mechsweep.scene import load_scene
 
     scene = load_scene(small_scene(path, method))

@@ -1,6 +1,6 @@
 """The auto-balancer's sample instants, old kernel against the layer (docs/model-layer.md, "Why
 residual_amplitude stays 1 ulp off"): the hand-written kernel's grid (linspace in tau, merged in
-tau: models/_autobalancer_kernels.sample_grid) against the layer's (linspace in forcing periods s,
+tau: tests/reference/autobalancer_kernels.sample_grid) against the layer's (linspace in forcing periods s,
 merged in s, t = T s: model/trajectory.grid) and against the layer's rows with each part's
 instants computed in time with the old association (linspace(f0 (T E), T E, n)), for Kick +
 Steady + the re-check's whole periods at the model's default settings and several horizons.
@@ -8,13 +8,17 @@ Steady + the re-check's whole periods at the model's default settings and severa
     python tests/data/sample_instants.py
 """
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 
 from mechsweep.model import trajectory as tr
 from mechsweep.model.measure import Kick, Steady
-from mechsweep.models import _autobalancer_kernels as K
 from mechsweep.models import autobalancer as ab
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository root: tests.reference
+from tests.reference import autobalancer_kernels as K  # noqa: E402
 
 
 def main():

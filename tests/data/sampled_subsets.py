@@ -39,7 +39,7 @@ def _run(spec, model, P, wanted, lanes=True, **kw):
 def cases():
     import record_autobalancer as rec
 
-    from mechsweep.model import load
+    from mechsweep.model import user
     from mechsweep.models import autobalancer as ab
 
     P = rec.design_points()
@@ -59,7 +59,7 @@ def cases():
     for method in ("radau", "auto"):
         for name in ("kick", "steady", "all"):
             yield f"ab-{name}-{method}", (ab.SPEC, ab.MODEL, P, ab_sets[name], True, dict(kw, method=method))
-    decay = load.resolve(f"{USER / 'forced.py'}:DECAY")
+    decay = user.resolve(f"{USER / 'forced.py'}:DECAY")
     lam = np.array([0.5, 0.2, -0.05, 1e-6, 30.0, 0.3])
     Pd = np.column_stack([lam, np.array([0.1, 0.3, 0.1, 0.1, 0.1, 2.0])])
     d_sets = {"stable": ("stable", "stable_settling"), "hist": ("y_hist",), "rel": ("kick_rel_settling", "peak_rel"),
@@ -72,7 +72,7 @@ def cases():
     Ps = np.array([[1.0, 0.1, 1.0, 0.5], [1.0, 0.2, -1.0, 0.9], [2.0, 1.5, 1.0, 1.0], [1.0, 2.0, -1.0, 1.0],
                    [1.0, 0.0, 0.0, 1.3], [1.5, 0.3, 0.0, 2.0]])
     for model in ("SEVERITY", "FIRST"):
-        spec = load.resolve(f"{USER / 'severity.py'}:{model}")
+        spec = user.resolve(f"{USER / 'severity.py'}:{model}")
         for name, wanted in {"amp": ("amp",), "hist": ("x_hist",), "amp_hist": ("amp", "x_hist"),
                              "all": ("mu", "amp", "x_hist", "amp_exact")}.items():
             yield f"{model}-{name}", (spec, None, Ps, wanted, True, dict(rtol=1e-9, atol=1e-12, horizon_periods=30.0))

@@ -24,11 +24,11 @@ HERE = Path(__file__).resolve().parent
 
 
 def problem(model: str, n: int, short: bool):
-    from mechsweep.model import load
+    from mechsweep.model import user
     from mechsweep.models import MODELS
 
     if model.startswith("forced"):
-        spec = load.resolve(f"{HERE.parent / 'user_models' / 'forced.py'}:FORCED")
+        spec = user.resolve(f"{HERE.parent / 'user_models' / 'forced.py'}:FORCED")
         # four forcing frequencies (four lane groups), the amplitude varied within each; forced_distinct:
         # every point its own frequency (its own period: too few points for lanes)
         W = np.repeat(np.linspace(0.3, 3.0, 4), -(-n // 4))[:n] if model == "forced" else np.linspace(0.3, 3.0, n)

@@ -1,6 +1,7 @@
-"""The `mechsweep bench` subcommands: their arguments and what each runs. Each bench measures one
-study (a model, a route, a cluster) against the alternatives in the same run; the CLI only hands
-its subparsers here, so it names no model."""
+"""The `mechsweep bench` subcommands, what a user measures on their own machine: `workprecision
+MODEL` (error against time for any model, ours and scipy's methods) and `duffing` (mechsweep
+against the other ODE tools). The project's own benchmarks are in the repository's benchmarks/
+folder, not in the package. The CLI only hands its subparsers here."""
 from __future__ import annotations
 
 import argparse
@@ -17,34 +18,7 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
     b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
     b.add_argument("--rtol", type=float, default=None, help="default: the solver default")
     b.add_argument("--atol", type=float, default=None, help="default: the solver default")
-    b.add_argument("--breakdown", action="store_true",
-                   help="only time the steps of mechsweep.run (planning, journal, kernel, HDF5, ...) against "
-                        "the kernel (the lane kernel), with each kernel launch's threads accounted (on a CPU, "
-                        "waiting for one, asleep at the launch's end), --repeats times")
-    b.add_argument("--outputs", default=None,
-                   help="with --breakdown: the outputs the run stores, comma-separated (default: period, "
-                        "period_exact, period_error, v_max, a_max; goal 1 asks for: period)")
     b.set_defaults(func=run_duffing)
-    b = bsub.add_parser("autobalancer", help="Floquet chart time (200 x 200) and simulation throughput vs scipy")
-    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
-    b.add_argument("--sim-points", type=int, default=512,
-                   help="trajectories simulated by mechsweep on one thread (4x on all threads; default 512)")
-    b.add_argument("--scipy-points", type=int, default=3, help="of those, solved with scipy too (default 3)")
-    b.set_defaults(func=run_autobalancer)
-    b = bsub.add_parser("linkage", help="four-bar residual sweep (360 positions/design): designs/s vs vectorised numpy")
-    b.add_argument("--designs", type=int, default=200_000, help="designs for mechsweep (default 200000)")
-    b.add_argument("--numpy-designs", type=int, default=20_000, help="designs for numpy (default 20000)")
-    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
-    b.set_defaults(func=run_linkage)
-    b = bsub.add_parser("user-model", help="the Duffing oscillator declared as a user model against the built-in "
-                                           "kernel: points/s and period error, side by side")
-    b.add_argument("--points", type=int, default=200_000, help="grid points (default 200000)")
-    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
-    b.add_argument("--rtol", type=float, default=None, help="default: the solver default")
-    b.add_argument("--atol", type=float, default=None, help="default: the solver default")
-    b.set_defaults(func=run_user_model)
-    b = bsub.add_parser("period-error", help="worst Duffing period error over epsilon for a ladder of tolerances")
-    b.set_defaults(func=run_period_error)
     b = bsub.add_parser("workprecision", formatter_class=fmt,
                         help="error against run time for every method, ours and scipy's (DOP853, Radau, LSODA)",
                         description="Integrate a fixed sample of a scene's grid points with every method the "
@@ -75,46 +49,6 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
     b.add_argument("--output", default=None, metavar="NAME",
                    help="the measured output to compare (default: the declared output, else the first measurement)")
     b.set_defaults(func=run_workprecision)
-    b = bsub.add_parser("boundaries", help="auto-balancer stability boundaries against 2 m / M: located vs "
-                                           "grid-and-contour at the same precision")
-    b.add_argument("--values", type=int, default=200, help="mass ratios 2 m / M in [0.0005, 0.35] (default 200)")
-    b.add_argument("--grid", type=int, default=100, help="Omega values of the bracketing grid (default 100)")
-    b.add_argument("--contour", type=int, nargs="+", default=[100, 200, 400], metavar="N",
-                   help="Omega values of the contour grids (default 100 200 400)")
-    b.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance in Omega (default 1e-8)")
-    b.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
-    b.set_defaults(func=run_boundaries)
-    b = bsub.add_parser("cluster", help="throughput locally and on a dask LocalCluster of 1..W workers; identical datasets")
-    b.add_argument("--points", type=int, default=400_000, help="Duffing grid points (default 400000)")
-    b.add_argument("--workers", type=int, default=None, help="up to this many worker processes (default: cores)")
-    b.add_argument("--chunk", type=int, default=8192, help="points per chunk, i.e. per task (default 8192)")
-    b.set_defaults(func=run_cluster)
-    b = bsub.add_parser("memory", help="peak resident memory of runs up to 10^8 points (one long axis, several short ones; "
-                        "mechsweep.run and the `mechsweep run` command) against their dataset size")
-    b.add_argument("--quick", action="store_true", help="small grids only (10^4 ... 10^6 points)")
-    b.add_argument("--dir", default=None, help="folder for the temporary datasets (default: the system's temp)")
-    b.set_defaults(func=run_memory)
-    b = bsub.add_parser("startup", help="fixed costs and cold start against their targets: warm runs of 10^3 and "
-                                        "10^4 points (in memory and to a file), quickstart run + plot cold and warm, "
-                                        "cost per point 10^4 .. 10^6 (--full: 10^7, 10^8 closed form) with the "
-                                        "command's peak memory")
-    b.add_argument("--full", action="store_true", help="scale to 10^7 integrated and 10^8 closed-form points (minutes)")
-    b.add_argument("--repeats", type=int, default=3, help="measurements per figure, at least 3 (default 3)")
-    b.add_argument("--scene", default="sweeps/quickstart.toml",
-                   help="the quickstart scene (default sweeps/quickstart.toml)")
-    b.add_argument("--only", choices=("warm", "quickstart", "scaling", "breakdown", "routes", "compile", "warmstart"),
-                   nargs="+", default=None,
-                   help="measure only these parts (default: warm quickstart scaling; breakdown: where the time "
-                        "goes, by function: the file route's fixed costs, chunk launches, a cold compile; routes: "
-                        "the cold compile and warm speed of the lane and one-point kernels; compile: the scene's cold "
-                        "compile by function, LLVM against numba's own work, in --repeats fresh processes; "
-                        "warmstart: the warm quickstart by process, run and plot)")
-    b.add_argument("--against", metavar="SRC", default=None,
-                   help="with --only warmstart: alternate with the sources in SRC (another checkout's src folder)")
-    b.set_defaults(func=run_startup)
-    b = bsub.add_parser("quickstart", help="time the quickstart (run + plot) in fresh processes, cold and warm JIT cache")
-    b.add_argument("--scene", default="sweeps/quickstart.toml", help="the quickstart scene (default sweeps/quickstart.toml)")
-    b.set_defaults(func=run_quickstart)
     for name, sub in bsub.choices.items():  # every bench's --help: what it measures, then an example
         sub.formatter_class = fmt
         if not sub.description:
@@ -125,16 +59,7 @@ def add_parsers(bsub, fmt=argparse.RawDescriptionHelpFormatter) -> None:
 # one example command per bench (small enough to finish in a minute or two)
 EXAMPLES = {
     "duffing": "mechsweep bench duffing --points 20000 --repeats 1",
-    "autobalancer": "mechsweep bench autobalancer --sim-points 64",
-    "linkage": "mechsweep bench linkage --designs 20000 --numpy-designs 2000",
-    "user-model": "mechsweep bench user-model --points 20000",
-    "period-error": "mechsweep bench period-error",
     "workprecision": "mechsweep bench workprecision duffing --points 16 --out /tmp/bench",
-    "boundaries": "mechsweep bench boundaries --values 20",
-    "cluster": "mechsweep bench cluster --points 100000 --workers 2",
-    "memory": "mechsweep bench memory --quick",
-    "startup": "mechsweep bench startup --only warm",
-    "quickstart": "mechsweep bench quickstart",
 }
 
 
@@ -147,64 +72,10 @@ def run_duffing(args) -> int:
     from ..scene import Solver
     from . import duffing as bench_duffing
 
-    if args.outputs is not None and not args.breakdown:
-        from ..errors import InputError
-
-        raise InputError(f"--outputs {args.outputs} applies to --breakdown only (the full bench times the period "
-                         "and the five stored outputs); add --breakdown or leave it out")
-    if args.breakdown:
-        outputs = {} if args.outputs is None else {"outputs": tuple(o.strip() for o in args.outputs.split(","))}
-        bench_duffing.breakdown(points=args.points, threads=args.threads, repeats=args.repeats,
-                                rtol=Solver.rtol if args.rtol is None else args.rtol,
-                                atol=Solver.atol if args.atol is None else args.atol, **outputs)
-        return 0
     bench_duffing.main(points=args.points, scipy_points=args.scipy_points, threads=args.threads,
                        compare_points=args.compare_points, repeats=args.repeats,
                        rtol=Solver.rtol if args.rtol is None else args.rtol,
                        atol=Solver.atol if args.atol is None else args.atol)
-    return 0
-
-
-def run_autobalancer(args) -> int:
-    from . import autobalancer
-
-    autobalancer.main(sim_points=args.sim_points, scipy_points=args.scipy_points, threads=args.threads)
-    return 0
-
-
-def run_boundaries(args) -> int:
-    from . import _args, boundaries
-
-    contour = [_args.count("--contour", n, 3, 10**6) for n in args.contour]
-    if len(contour) < 2:
-        from ..errors import InputError
-        raise InputError("--contour needs at least two grid sizes (the error's order is fitted between the last two)")
-    boundaries.main(values=_args.count("--values", args.values, 1, 10**5), grid=_args.count("--grid", args.grid, 3, 10**6),
-                    contour=tuple(contour), rtol=_args.tolerance("--rtol", args.rtol, 1e-15, 1e-2), threads=_args.threads("--threads", args.threads))
-    return 0
-
-
-def run_linkage(args) -> int:
-    import numba
-
-    from . import linkage
-
-    linkage.main(designs=args.designs, numpy_designs=args.numpy_designs,
-                 threads=numba.config.NUMBA_NUM_THREADS if args.threads is None else args.threads)
-    return 0
-
-
-def run_user_model(args) -> int:
-    from . import user_duffing
-
-    user_duffing.main(points=args.points, threads=args.threads, rtol=args.rtol, atol=args.atol)
-    return 0
-
-
-def run_period_error(args) -> int:
-    from . import period_error
-
-    period_error.main()
     return 0
 
 
@@ -233,34 +104,3 @@ def run_workprecision(args) -> int:
                        repeats=3 if args.repeats is None else args.repeats,
                        out_dir=args.out, output=args.output)
     return 0
-
-
-def run_cluster(args) -> int:
-    from . import cluster
-
-    cluster.main(points=args.points, workers=args.workers, chunk=args.chunk)
-    return 0
-
-
-def run_memory(args) -> int:
-    from . import memory
-
-    rows = memory.main(quick=args.quick, folder=args.dir)
-    return 0 if all(r["ok"] for r in rows) else 1
-
-
-def run_startup(args) -> int:
-    from . import startup
-
-    startup.main(full=args.full, repeats=args.repeats, scene=args.scene,
-                 parts=tuple(args.only) if args.only else ("warm", "quickstart", "scaling"), against=args.against)
-    return 0
-
-
-def run_quickstart(args) -> int:
-    from . import quickstart
-
-    quickstart.main(args.scene)
-    return 0
-
-

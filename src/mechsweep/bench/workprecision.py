@@ -48,10 +48,9 @@ import numba
 import numpy as np
 
 from .. import status as st
-from ..grid import ParameterMatrix
-from ..models import MODELS
 from ..scene import Scene, Solver, load_scene
-from .. import examples
+from . import workprecision_linkage
+from .cases import all_cases, declared_scene, latex_symbols, resolve_model, sample  # noqa: F401 (the bench's functions)
 
 LADDER = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13)
 ATOL_RATIO = 1e-2  # atol = 1e-2 rtol: the scaled states are O(1)
@@ -74,61 +73,7 @@ class Case:
     declaration: object = None  # the model's OdeModel (its invariant: the drift experiment)
 
 
-def all_cases() -> tuple[str, ...]:
-    """Every built-in model that declares its work-precision report: an OdeModel's
-    ``WorkPrecision`` (a ladder of tolerances) or a ClosedFormModel's ``SizeWorkPrecision`` (a ladder
-    of its extra dimension's length, :mod:`mechsweep.bench.workprecision_linkage`)."""
-    return tuple(name for name, spec in MODELS.items()
-                 if getattr(spec.declaration, "workprecision", None) is not None)
-
-
-def resolve_model(model):
-    """The ModelSpec of a model reference: a built-in name, "file.py:NAME" (relative to the current
-    folder), "package.module:NAME" or an entry-point name; an InputError naming what is allowed."""
-    from ..errors import InputError
-    from ..model import load
-
-    if isinstance(model, str) and model in MODELS:
-        return MODELS[model]
-    if isinstance(model, str) and ":" in model:
-        return load.resolve(model)
-    if isinstance(model, str):
-        points = load.entry_points(quiet=True)
-        if model in points:
-            return load.resolve(points[model].value)
-    raise InputError(f"no work-precision case for model {model!r}; cases: {', '.join(all_cases())}, or a model "
-                     "declared as a mechsweep.model.OdeModel or ClosedFormModel ('file.py:NAME', "
-                     "'package.module:NAME' or an entry-point name)")
-
-
-def declared_scene(declared) -> tuple[Path, str]:
-    """(the scene file a WorkPrecision / SizeWorkPrecision names, the label the report gives it):
-    relative to the folder of the file that declares it; a ``sweeps/NAME.toml`` not found there is
-    the shipped ``sweeps/NAME.toml`` (mechsweep.examples: installed with the package), labelled so."""
-    prefix = "sweeps/"
-    path = Path(declared.scene)
-    if not path.is_absolute():
-        path = Path(declared.base or Path.cwd()) / path
-    name = declared.scene[len(prefix):]
-    if not path.is_file() and declared.scene.startswith(prefix) and "/" not in name and Path(name) in examples.files():
-        return examples.path(name), declared.scene
-    if not path.is_file():
-        from ..errors import InputError
-        raise InputError(f"the model's work-precision declaration names scene {declared.scene!r}, which is not a file: "
-                         f"{path} (a path relative to the folder of the file that declares it, {declared.base}); "
-                         "give --scene S.toml or correct the declaration")
-    return path, str(path)
-
-
 # ----------------------------------------------------------------------------- measurement
-def sample(scene: Scene, points: int, seed: int = 0) -> np.ndarray:
-    """`points` grid points of the scene, drawn without replacement with a fixed seed, in grid order."""
-    pm = ParameterMatrix(scene)
-    rng = np.random.default_rng(seed)
-    idx = np.sort(rng.choice(scene.n_points, size=min(points, scene.n_points), replace=False))
-    return np.vstack([pm(int(i), int(i) + 1) for i in idx])
-
-
 def spread(n: int, k: int) -> np.ndarray:
     """Positions of k of n sample points (in grid order) spread over the whole sample: the middle
     of each of k equal shares, floor((j + 1/2) n / k), j = 0 .. k-1. Taking the first k instead
@@ -162,14 +107,6 @@ def _error(values, reference, kind):
     return err / np.abs(reference) if kind == "relative" else err
 
 
-def latex_symbols(spec) -> str:
-    """{name: mathtext symbol} of the model's outputs and parameters that declare one, as JSON: the
-    work-precision figure names the outputs by their symbols (it reads the dataset, not the model)."""
-    import json
-
-    return json.dumps({q.name: q.latex for q in spec.params + spec.outputs if getattr(q, "latex", "")})
-
-
 def main(model: str, scene_path: str | None = None, points: int = 64, scipy_points: int = 6,
          ladder=LADDER, repeats: int = 3, out_dir: str | Path = "data/bench", quiet: bool = False,
          scipy_budget_s: float = 1.0, output: str | None = None):
@@ -179,12 +116,12 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     from ..model.closed import ClosedFormModel
     from ..model.ode import OdeModel
     from ..scene import SOLVER_LIMITS
-    from . import _args, workprecision_linkage
+    from . import arguments
 
-    points = _args.count("points", points, 1, 10**6)
-    scipy_points = _args.count("scipy_points", scipy_points, 1, points)
-    repeats = _args.count("repeats", repeats, 1, 1000)
-    out_dir = _args.folder("out", out_dir)
+    points = arguments.count("points", points, 1, 10**6)
+    scipy_points = arguments.count("scipy_points", scipy_points, 1, points)
+    repeats = arguments.count("repeats", repeats, 1, 1000)
+    out_dir = arguments.folder("out", out_dir)
     spec = resolve_model(model)  # what is measured is the model's declaration: no table of models here
     declared = spec.declaration
     if isinstance(declared, ClosedFormModel):  # algebraic: a ladder of its extra dimension's length, not of tolerances
@@ -193,10 +130,10 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     if not isinstance(declared, OdeModel):
         raise InputError(f"model {model!r} is not declared as a mechsweep.model.OdeModel (a ModelSpec made by hand): "
                          "the bench integrates the declaration's own rhs; it has no work-precision case")
-    ladder = _args.sequence(ladder)
+    ladder = arguments.sequence(ladder)
     if not ladder:
         raise InputError("the tolerance ladder is empty; give at least one rtol")
-    ladder = tuple(_args.tolerance("rtol", r, *SOLVER_LIMITS["rtol"]) for r in ladder)
+    ladder = tuple(arguments.tolerance("rtol", r, *SOLVER_LIMITS["rtol"]) for r in ladder)
     case, scene = _case(model, spec, declared, scene_path, output)
     model = spec.name
     P = sample(scene, points)

@@ -113,9 +113,9 @@ def main(model: str, scene_path: str | None = None, points: int = 64, positions=
 
     from ..errors import InputError
     from ..model.closed import ClosedFormModel
-    from .workprecision import declared_scene, latex_symbols, resolve_model, sample
+    from .cases import declared_scene, latex_symbols, resolve_model, sample
 
-    from . import _args
+    from . import arguments
 
     spec = resolve_model(model) if isinstance(model, str) else None
     declared = getattr(spec, "declaration", None)
@@ -124,13 +124,13 @@ def main(model: str, scene_path: str | None = None, points: int = 64, positions=
         raise InputError(f"no linkage work-precision case for model {model!r}: a closed-form model declares one as "
                          "ClosedFormModel(..., workprecision=SizeWorkPrecision(scene='S.toml', outputs={...}, "
                          "reference=..., compare=...)) (mechsweep.model.SizeWorkPrecision)")
-    points = _args.count("points", points, 1, 10**6)
-    repeats = _args.count("repeats", repeats, 1, 1000)
-    out_dir = _args.folder("out", out_dir)
-    positions = _args.sequence(case.sizes if positions is None else positions)
+    points = arguments.count("points", points, 1, 10**6)
+    repeats = arguments.count("repeats", repeats, 1, 1000)
+    out_dir = arguments.folder("out", out_dir)
+    positions = arguments.sequence(case.sizes if positions is None else positions)
     if not positions:
         raise InputError("the ladder of crank positions is empty; give at least one")
-    positions = tuple(_args.count("positions", n, 1, 10**6) for n in positions)
+    positions = tuple(arguments.count("positions", n, 1, 10**6) for n in positions)
     if min(positions) < 4:
         raise InputError(f"need at least 4 crank positions per cycle, got {min(positions)}")
     path, label = (Path(scene_path), str(scene_path)) if scene_path is not None else declared_scene(case)

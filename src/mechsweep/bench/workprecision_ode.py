@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import importlib
 import math
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -52,43 +51,28 @@ def declaration(ref: str, base: str | Path | None = None):
     """The OdeModel object a model reference names: "file.py:NAME" (relative to ``base``, default
     the cwd), "package.module:NAME" or an entry-point name. Loads it the way a scene does (with its
     checks), so the object is the one the engine runs."""
-    from ..model import load
+    from ..model import load, user
     from ..model.ode import OdeModel
     from ..models import MODELS
 
     if ":" not in ref:
-        points = load.entry_points()
+        points = user.entry_points()
         if ref in MODELS or ref not in points:
             raise InputError(f"model {ref!r} is not declared as a mechsweep.model.OdeModel that this bench can "
                              "find; give 'file.py:NAME', 'package.module:NAME' or an entry-point name")
         ref = points[ref].value
-    load.resolve(ref, Path(base) if base else None)  # the checks; imports the module
+    user.resolve(ref, Path(base) if base else None)  # the checks; imports the module
     left, _, name = ref.rpartition(":")
-    if load.is_file_ref(ref):
+    if user.is_file_ref(ref):
         path = Path(left)
         path = ((Path(base) if base else Path.cwd()) / path if not path.is_absolute() else path).resolve()
-        module = load.import_module(load._module_name(path), str(path))
+        module = load.import_module(load.module_name(path), str(path))
     else:
         module = importlib.import_module(left)
     model = getattr(module, name)
     if not isinstance(model, OdeModel):
         raise InputError(f"{ref!r} is not a mechsweep.model.OdeModel")
     return model
-
-
-def scene_declaration(scene):
-    """The OdeModel a scene names (its model reference re-read from the scene text, resolved
-    against the scene's folder); None when the scene's model is not such a declaration."""
-    try:
-        ref = tomllib.loads(scene.text)["scene"]["model"]
-    except (tomllib.TOMLDecodeError, KeyError, TypeError):
-        return None
-    if not isinstance(ref, str):
-        return None
-    try:
-        return declaration(ref, scene.base or None)
-    except InputError:
-        return None
 
 
 class OdeReference:

@@ -72,16 +72,6 @@ def tolerance_text(bds) -> str:
     return f"rtol {float(bds.attrs.get('rtol', np.nan)):.0e}{widest}"
 
 
-def _lines(bds, line_dim):
-    """(selection of the remaining dims, DataArray over (line_dim, crossing)) for every combination
-    of the boundaries' dims other than line_dim and crossing."""
-    da = bds["boundary"]
-    rest = [d for d in da.dims if d not in (line_dim, "crossing")]
-    for idx in np.ndindex(*(bds.sizes[d] for d in rest)):
-        sel = dict(zip(rest, idx))
-        yield sel, da.isel(sel)
-
-
 def overlay(ax, bds, *, line_dim=None, sel=None, xmap=None, ymap=None, color=None, label_prefix="",
             transpose=False, ds=None):
     """Draw the boundaries of ``bds`` on ``ax``: the located ones as points at (boundary, line) for

@@ -42,7 +42,7 @@ import numpy as np
 
 from .. import status as st
 from ..errors import InputError
-from ..models._spec import ExtraDim, ModelSpec, Output, Param, Setting, wanted_flags
+from .spec import ExtraDim, ModelSpec, Output, Param, Setting, wanted_flags
 from . import load, sources
 from .compile import load_generated
 

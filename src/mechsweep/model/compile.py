@@ -48,17 +48,18 @@ _LOAD_LOCK = threading.Lock()
 _TMP: list[str] = []
 
 BLOCK = 16  # the fewest points a thread of Threaded is given (fewer points: fewer threads)
-# kernel_for's default route where model/lanes.py applies: True the SIMD-lane kernel, False one point at a
-# time, None (the default) the lane kernel only where it pays: for a run of at least LANES_FROM_POINTS
-# points, or when it is compiled already (in this process or in the disk cache). The results are bitwise
-# the same either way (tests/test_model_lanes.py); the benches and tests set True or False to compare.
+# kernel_for's route where model/lanes.py applies and the caller names none (``lanes=None``): True the
+# SIMD-lane kernel, False or None one point at a time. A run names the route its plan chose
+# (mechsweep/plan.py, ``choose_route``, which reads this as an override: the benches and tests set True or
+# False to compare the two routes). The results are bitwise the same either way (tests/test_model_lanes.py).
 USE_LANES: bool | None = None
 # The lane kernel compiles in about four times the CPU time of the one-point kernel and integrates
 # about twice as fast (Duffing period, sweeps/quickstart.toml; `mechsweep bench startup --only routes`
 # measures both): cold compile 22.2 s of CPU against 5.5 s, warm 931k against 428k points per CPU
-# second, so the 16.6 s are repaid at about 1.3 * 10^7 points.
+# second, so the 16.6 s are repaid at about 1.3 * 10^7 points. A plan takes the lanes for a run of at
+# least this many points, or when they are compiled already (``lanes_recorded``).
 LANES_FROM_POINTS = 10**7
-_PLAN = threading.local()  # the size of the run being computed in this thread (planned_points)
+_RECORDED: set[str] = set()  # lane kernels compiled (or loaded from the disk cache) in this process
 
 
 def _folder() -> Path:
@@ -742,90 +743,112 @@ def _own_body(k: int, refs: dict, args: str) -> str:
     return out
 
 
-class planned_points:
-    """``with planned_points(n, lanes):`` the kernels fetched in this thread serve a run of ``n`` points
-    (the runner says so around each chunk: a chunk, or the warm-up's one point, is smaller than the
-    run). kernel_for's automatic route choice (USE_LANES None) compares it with LANES_FROM_POINTS.
-    ``lanes``: the scene's ``[execution] lanes`` (True, False, or None for automatic), which decides
-    the route before USE_LANES does (here and in model/trajectory.py)."""
+def _cpu_tag() -> str:
+    """What numba's machine code is specific to: the target triple, the host CPU and its features (and
+    numba's variables that override them). A record of a lane kernel compiled on another CPU that shares
+    the cache folder (a home directory on a network disk) does not count here."""
+    if not _CPU:
+        import llvmlite.binding as llvm
 
-    def __init__(self, n: int, lanes: bool | None = None):
-        self.n = int(n)
-        self.lanes = lanes
-
-    def __enter__(self):
-        self.before = (getattr(_PLAN, "n", 0), getattr(_PLAN, "lanes", None))
-        _PLAN.n, _PLAN.lanes = self.n, self.lanes
-        return self
-
-    def __exit__(self, *exc):
-        _PLAN.n, _PLAN.lanes = self.before
+        parts = (llvm.get_process_triple(), llvm.get_host_cpu_name(), llvm.get_host_cpu_features().flatten(),
+                 os.environ.get("NUMBA_CPU_NAME", ""), os.environ.get("NUMBA_CPU_FEATURES", ""))
+        _CPU.append(hashlib.sha256("|".join(parts).encode()).hexdigest()[:12])
+    return _CPU[0]
 
 
-def planned_lanes() -> bool | None:
-    """The route this thread's run asks for (planned_points), else USE_LANES."""
-    chosen = getattr(_PLAN, "lanes", None)
-    return USE_LANES if chosen is None else chosen
+_CPU: list[str] = []
 
 
-def _lanes_pay(name: str, source, points: int) -> bool:
-    """Whether the automatic route takes the lane kernel ``name`` (module source ``source()``): a run of
-    at least LANES_FROM_POINTS points, or the kernel compiled already: loaded in this process, or its
-    module file written by an earlier process and numba's disk cache holding machine code for it (its
-    index read as numba reads it: the module file's stamp checked, and this CPU's)."""
-    if points >= LANES_FROM_POINTS or name in _KERNELS:
+def _record_path(name: str) -> Path:
+    return _folder() / f"{name}.{_cpu_tag()}.compiled"
+
+
+def lanes_recorded(name: str) -> bool:
+    """Whether the lane kernel ``name`` (``lane_name``, or trajectory.lane_name) is compiled for this CPU:
+    in this process, or by an earlier process that left its record in the cache folder (written by
+    ``record_compiled`` once the kernel had run, i.e. once numba had compiled it and saved its machine
+    code: ``cache=True`` saves at compile time). The record is mechsweep's own, next to the kernel's
+    module file; it lives and goes with the cache folder, which is keyed by mechsweep's sources."""
+    if name in _RECORDED:
         return True
-    return _compiled_on_disk(name, source)
+    return _jit.cache_dir is not None and _record_path(name).exists()
 
 
-def _compiled_on_disk(name: str, source) -> bool:
-    """Whether numba's disk cache holds machine code for this CPU of the kernel of the generated module
-    ``name`` (source ``source()``), as numba reads its index; if so, the kernel is loaded into _KERNELS.
-    The module is imported only when its file exists (an earlier process wrote it)."""
-    if _jit.cache_dir is None or not (_folder() / f"{name}.py").exists():
-        return False
-    kernel = load_generated(name, source()).kernel
+def record_compiled(name: str) -> None:
+    """Note that the lane kernel ``name`` has run in this process (compiled, or loaded from the disk
+    cache), in this process and, when caching is on, as a file in the cache folder."""
+    if name in _RECORDED:
+        return
+    _RECORDED.add(name)
+    if _jit.cache_dir is None:
+        return
+    path = _record_path(name)
+    if path.exists():
+        return
+    tmp = path.with_suffix(f".{os.getpid()}.{threading.get_ident()}.tmp")
     try:
-        cache = kernel._cache
-        index = cache._cache_file._load_index()
-        magic = kernel.targetctx.codegen().magic_tuple()
-        found = any(key[1] == magic and os.path.exists(os.path.join(cache._cache_path, file))
-                    for key, file in index.items())
-    except Exception:  # numba's private cache layout changed: compile the one-point kernel rather than guess
-        found = False
-    if found:
-        _KERNELS[name] = kernel
-    return found
+        tmp.write_bytes(b"")
+        os.replace(tmp, path)
+    except OSError:  # a record that cannot be written costs a later run the faster route, nothing else
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
+
+
+class _Recorded:
+    """A lane kernel that records itself (``record_compiled``) after its first call returns."""
+
+    def __init__(self, kernel, name: str):
+        self.kernel, self.name = kernel, name
+
+    def __getattr__(self, attr):
+        return getattr(self.kernel, attr)
+
+    def __call__(self, *args):
+        self.kernel(*args)
+        record_compiled(self.name)
+
+
+def lane_name(model, chosen, *, origin: str = "", closed=(), method: str = "dop853") -> str | None:
+    """The name of the lane kernel that ``kernel_for(model, chosen, closed=closed, method=method,
+    lanes=True)`` returns (the key of its record, ``lanes_recorded``), or None when model/lanes.py does
+    not apply to this choice (then every route is one point at a time)."""
+    memo = (id(model), tuple(map(id, chosen)), tuple(map(id, closed)), method)
+    known = _LANE_NAMES.get(memo)
+    if known is not None and known[0] is model and all(a is b for a, b in zip(known[1], chosen)) and all(
+            a is b for a, b in zip(known[2], closed)):
+        return known[3]
+    name, lanes = _kernel_name(model, chosen, origin, True, closed, method, True, build=False)
+    _LANE_NAMES[memo] = (model, tuple(chosen), tuple(closed), name if lanes else None)
+    return name if lanes else None
+
+
+_LANE_NAMES: dict[tuple, tuple] = {}  # lane_name's memo, as kernel_for's
 
 
 def kernel_for(model, chosen, *, origin: str = "", module: str = "", attr: str = "", shared: bool = True,
-               closed=(), method: str = "dop853", lanes: bool | None = None, points: int = 0):
+               closed=(), method: str = "dop853", lanes: bool | None = None):
     """The compiled chunk kernel ``kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps,
     n_rhs)`` of ``model`` for the measurements ``chosen`` and the closed forms ``closed`` (dependency
     order; closed form j is computed where ``need[j]``, a run-time choice: one kernel serves every
     choice of closed forms) by ``method`` (cached in-process and on disk); S: the model's settings
     in declared order.
     ``shared=False``: every shared-path measurement integrates on its own (for comparison).
-    ``lanes``: where model/lanes.py applies (a lone first event by dop853, an rhs it can rewrite), the
-    kernel integrates LANES points side by side (bitwise the same results); False: one at a time;
-    None: as the run's ``[execution] lanes`` says (planned_points), else as USE_LANES says (the benches
-    and tests switch it to compare the two routes; its default None takes the lanes where they pay,
-    see _lanes_pay). ``points``: the points of this call; the run's
-    size (planned_points) counts when it is larger.
+    ``lanes``: where model/lanes.py applies (a lone first event by dop853, an rhs it can rewrite), True
+    the kernel integrates LANES points side by side (bitwise the same results; ``lane_name`` names it),
+    False one at a time, None as USE_LANES says (one at a time unless it is True). A run passes the route
+    its plan chose.
     A second call with the same objects returns the kernel without reading and hashing the model's
     source files again (every chunk of a run asks)."""
-    use_lanes = planned_lanes() if lanes is None else lanes
-    points = max(int(points), getattr(_PLAN, "n", 0))
-    big = use_lanes is None and points >= LANES_FROM_POINTS
-    memo = (id(model), tuple(map(id, chosen)), tuple(map(id, closed)), shared, method, use_lanes, big)
+    use_lanes = bool(USE_LANES if lanes is None else lanes)
+    memo = (id(model), tuple(map(id, chosen)), tuple(map(id, closed)), shared, method, use_lanes)
     known = _BY_OBJECTS.get(memo)
     if (known is not None and known[0] is model and all(a is b for a, b in zip(known[1], chosen))
             and all(a is b for a, b in zip(known[2], closed)) and known[3] in _KERNELS):
-        if known[4] in _KERNELS:  # the lane kernel the automatic route passed over, loaded since
-            return _KERNELS[known[4]]
         return _KERNELS[known[3]]
-    name, passed = _kernel_name(model, chosen, origin, shared, closed, method, use_lanes, points)
-    _BY_OBJECTS[memo] = (model, tuple(chosen), tuple(closed), name, passed)  # the objects kept alive: ids stay theirs
+    name, _ = _kernel_name(model, chosen, origin, shared, closed, method, use_lanes)
+    _BY_OBJECTS[memo] = (model, tuple(chosen), tuple(closed), name)  # the objects kept alive: ids stay theirs
     return _KERNELS[name]
 
 
@@ -838,9 +861,9 @@ def _switch_key(model):
     return repr(("switch_times", constants(model) or "function", SIDE))
 
 
-def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes, points=0) -> tuple[str, str | None]:
-    """The kernel's module name (a hash of the model's sources and the choices), the kernel loaded
-    into _KERNELS under it; and the name of the lane kernel the automatic route passed over (or None)."""
+def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes, build=True) -> tuple[str, bool]:
+    """The kernel's module name (a hash of the model's sources and the choices), the kernel loaded into
+    _KERNELS under it (unless not ``build``), and whether it is the lane kernel."""
     refs = {}
     for name, func in _functions(model, chosen, closed):
         refs[name] = load.function_ref(func, name, model.name)
@@ -851,42 +874,30 @@ def _kernel_name(model, chosen, origin, shared, closed, method, use_lanes, point
                      if type(m).__name__ == "FirstEvent")  # the lane kernel finds the first root of the event as given
     # the lane kernels (model/lanes.py) know neither a measurement's classify nor a status order
     plain = not getattr(model, "status_order", ()) and not any(getattr(m, "classify", None) for m in chosen)
-    lane_rhs = (lane_kernels.applies(model, chosen, method) if (use_lanes is not False and first_root and plain)
-                else None)
-    base = hashlib.sha256()
+    lane_rhs = lane_kernels.applies(model, chosen, method) if (use_lanes and first_root and plain) else None
+    key = hashlib.sha256()
     for name, ref in refs.items():
-        base.update(name.encode())
-        base.update(repr(ref).encode())
-        base.update(load.module_source(ref[0], ref[1]))
-    base.update(sources.record(model).digest.encode())  # the user modules the model imports, recursively
+        key.update(name.encode())
+        key.update(repr(ref).encode())
+        key.update(load.module_source(ref[0], ref[1]))
+    key.update(sources.record(model).digest.encode())  # the user modules the model imports, recursively
     origin = origin or f"{refs['rhs'][0]}"
-
-    def name_of(lane_rhs):
-        key = base.copy()
-        key.update(_switch_key(model).encode())
-        key.update(repr((model.name, layout(model), len(model.states), getattr(model, "symplectic_order", 0),
-                         tuple(getattr(m, "key", lambda: m)() for m in chosen),
-                         tuple((c.name, c.needs) for c in closed), shared, method,
-                         lane_rhs and (lane_kernels.lanes_for(len(model.states)), lane_kernels.QUEUE))).encode())
-        key.update((lane_rhs or "").encode())  # the inlined helpers may live in other modules
-        return "mechsweep_gen_" + key.hexdigest()[:20]
-
-    passed = None
-    if lane_rhs and use_lanes is None:
-        lane_name = name_of(lane_rhs)
-        if not _lanes_pay(lane_name, lambda: lane_kernels.kernel_source(model, chosen, refs, origin, closed, lane_rhs),
-                          points):
-            lane_rhs, passed = None, lane_name
-    name = name_of(lane_rhs)
-    if name in _KERNELS:
-        return name, passed
+    key.update(_switch_key(model).encode())
+    key.update(repr((model.name, layout(model), len(model.states), getattr(model, "symplectic_order", 0),
+                     tuple(getattr(m, "key", lambda: m)() for m in chosen),
+                     tuple((c.name, c.needs) for c in closed), shared, method,
+                     lane_rhs and (lane_kernels.lanes_for(len(model.states)), lane_kernels.QUEUE))).encode())
+    key.update((lane_rhs or "").encode())  # the inlined helpers may live in other modules
+    name = "mechsweep_gen_" + key.hexdigest()[:20]
+    if not build or name in _KERNELS:
+        return name, bool(lane_rhs)
     if lane_rhs:
-        _KERNELS[name] = load_generated(name, lane_kernels.kernel_source(model, chosen, refs, origin, closed,
-                                                                         lane_rhs)).kernel
+        _KERNELS[name] = _Recorded(load_generated(name, lane_kernels.kernel_source(model, chosen, refs, origin, closed,
+                                                                                   lane_rhs)).kernel, name)
     else:
         _KERNELS[name] = Threaded(load_generated(name, kernel_source(model, chosen, refs, origin, shared, closed,
                                                                        method, direct)).kernel)
-    return name, passed
+    return name, bool(lane_rhs)
 
 
 _POOL: list[ThreadPoolExecutor] = []

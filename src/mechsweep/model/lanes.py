@@ -56,7 +56,8 @@ from ..ode import _dop853_lane_sums as sums
 from ..ode._dop853_tableau import C, N_STAGES, N_STAGES_EXTENDED
 from ..ode.dop853 import (F_DENSE, K_FSAL, WORK_ROWS, Y_NEW, Y_STAGE, _make_dense_output, _make_root_locator,
                           _make_start)
-from ..ode.dop853_lanes import _begin_advance, _error_sums, _error_test, _finish, _spread
+from ..ode.dop853 import _failure, _tests_stiffness
+from ..ode.dop853_lanes import _begin_advance, _error_sums, _error_test, _finish, _spread, _stiffness_lane
 
 LANES = 0  # points side by side per thread; 0: lanes_for(number of states)
 QUEUE = 32  # the lane kernel has a worker (its own lanes) per LANES * QUEUE points of a launch
@@ -77,7 +78,8 @@ T, T_NEW, H, H_ABS, MIN_STEP, TAU, SUM5, SUM3, T_MAX, G_OLD, RESULT = range(11)
 N_LF = 11
 # Rows of LI (per-lane integers), as dop853_lanes' where its helpers read them.
 STATE, POINT, STATUS, N_STEPS, N_RHS, N_ATTEMPTS, K_NEXT, REJECTED, LAST_NONFINITE, ACCEPTED = range(10)
-N_LI = 10
+N_STIFF, N_NONSTIFF = 10, 11  # the counters of dop853's stiffness test (run late in the step budget only)
+N_LI = 12
 IDLE, ACTIVE, DONE = 0, 1, 2
 
 
@@ -712,6 +714,8 @@ def make_lane_event_solver(rhs_lanes, rhs, event):
         li[N_STEPS, lane] = 0
         li[N_ATTEMPTS, lane] = 0
         li[ACCEPTED, lane] = 0
+        li[N_STIFF, lane] = 0
+        li[N_NONSTIFF, lane] = 0
         lf[T, lane] = 0.0
         lf[RESULT, lane] = 0.0
         status, h_abs, n_rhs = start(0.0, y0, p, t_max, rtol, atol, 0.0, sw)
@@ -761,7 +765,7 @@ def make_lane_event_solver(rhs_lanes, rhs, event):
                 lf[RESULT, l] = lf[T, l]
                 continue
             if li[N_ATTEMPTS, l] >= max_steps:
-                _finish(li, l, MAX_STEPS)
+                _finish(li, l, _failure(MAX_STEPS, li[N_STIFF, l]))
                 lf[RESULT, l] = lf[T, l]
                 continue
             li[N_ATTEMPTS, l] += 1
@@ -781,9 +785,10 @@ def make_lane_event_solver(rhs_lanes, rhs, event):
             _error_test(w, lf, li, l, n)
 
     @jit_noalloc
-    def events(w, y, lf, li, sw, pr, yv):
+    def events(w, y, lf, li, sw, pr, yv, max_steps):
         """dop853 event solver's logic after an accepted step, per accepted lane: the event at the
-        step end; a sign change: dense output and root on the one-point workspace; else commit."""
+        step end; a sign change: dense output and root on the one-point workspace; else its stiffness
+        test late in the step budget, and commit."""
         n, lanes = y.shape
         y_new = yv[0]
         y_old = yv[1]
@@ -811,6 +816,9 @@ def make_lane_event_solver(rhs_lanes, rhs, event):
                 lf[RESULT, l] = locate_root(t, h, g_old, t_new, g_new, y_old, p, sw)
                 _finish(li, l, OK)
                 continue
+            if _tests_stiffness(False, li[N_ATTEMPTS, l], max_steps, li[N_STIFF, l]):
+                li[N_STIFF, l], li[N_NONSTIFF, l] = _stiffness_lane(t_new - t, y, w, l, sw[Y_STAGE], li[N_STIFF, l],
+                                                                    li[N_NONSTIFF, l])
             for i in range(n):
                 y[i, l] = y_new[i]
                 w[0, i, l] = w[K_FSAL, i, l]  # first same as last
@@ -844,7 +852,7 @@ def make_lane_event_solver(rhs_lanes, rhs, event):
             sums.error_estimates(wf, e5, e3)
             _error_sums(y, w, e5, e3, rtol, atol, lf[SUM5], lf[SUM3])
             error_tests(w, lf, li, n)
-            events(w, y, lf, li, sw, pr, yv)
+            events(w, y, lf, li, sw, pr, yv, max_steps)
 
     return load, run
 

@@ -11,8 +11,8 @@ import numpy as np
 
 from .. import status as st
 from ..errors import InputError
-from ..models._spec import ModelSpec, Param, Setting
-from .measure import FLOQUET_MARGIN, ClosedForm, Floquet, _number, declared_at
+from .spec import ModelSpec, Param, Setting, setting_value
+from .measure import FLOQUET_MARGIN, ClosedForm, Floquet, declared_at
 
 SYMPLECTIC_ORDERS = (2, 4, 6, 8)
 
@@ -48,7 +48,7 @@ def _warn_user_error(model, P, status, S, rtol) -> None:
 def _moved(rc, settings, solver, first, second, status2) -> np.ndarray:
     """Which re-checked points moved (measure.Recheck's rule): an asked-for output that differs by more
     than factor (rtol max(|v|, |v'|) + atol), NaN in one run only, or a second run that failed."""
-    factor = _number(rc.factor, settings)
+    factor = setting_value(rc.factor, settings)
     bad = status2 != st.OK
     with np.errstate(invalid="ignore"):
         for name, a in first.items():
@@ -87,6 +87,19 @@ def worse(current, new, order):
         return np.where(current == st.OK, new, current)
     rank = ranks(order)
     return np.where(rank[new] < rank[current], new, current)
+
+
+def _lanes(route, family: str) -> bool | None:
+    """The lane choice for the kernels of ``family`` ("kernel", "trajectory") in a plan's ``route``
+    ({family: "lanes" or "point"}); None when no route is given (the engine's default)."""
+    return None if route is None else route.get(family) == "lanes"
+
+
+def _facts(name: str, from_points: int, forced) -> dict:
+    """What a plan decides a lane route from (mechsweep/plan.py, choose_route)."""
+    from .compile import lanes_recorded
+
+    return {"record": name, "recorded": lanes_recorded(name), "from_points": int(from_points), "forced": forced}
 
 
 @contextmanager
@@ -502,7 +515,7 @@ class OdeModel:
 
         model = self
 
-        def evaluate(P, wanted, solver, out, status, n_steps, n_rhs):
+        def evaluate(P, wanted, solver, out, status, n_steps, n_rhs, route=None):
             chosen, closed = model._plan(wanted)
             if not chosen and not closed:
                 return
@@ -516,9 +529,10 @@ class OdeModel:
                 before = status.copy()
                 rest = [o for o in wanted if not any(o == x.name for m in sampled for x in _outputs(m))]
                 if rest:
-                    evaluate(P, tuple(rest), solver, out, status, n_steps, n_rhs)
+                    evaluate(P, tuple(rest), solver, out, status, n_steps, n_rhs, route)
                 code = before.copy()
-                trajectory.evaluate(model, sampled, P, wanted, solver, out, code, n_steps, n_rhs)
+                trajectory.evaluate(model, sampled, P, wanted, solver, out, code, n_steps, n_rhs,
+                                    lanes=_lanes(route, "trajectory"))
                 S = np.array([float(solver.settings.get(x.name, x.default)) for x in model.settings], dtype=np.float64)
                 _warn_user_error(model, P, code, S, solver.rtol)
                 status[:] = worse(status, code, model.status_order)
@@ -532,7 +546,7 @@ class OdeModel:
             # when none is wanted (a lean kernel: a cold compile of a period-only scene compiles no formula)
             computable = model.computable_closed_forms(chosen) if closed else ()
             kernel = kernel_for(model, chosen, origin=origin, module=module, attr=attr, closed=computable,
-                                method=method, points=P.shape[0])
+                                method=method, lanes=_lanes(route, "kernel"))
             wanted_closed = {c.name for c in closed}
             need = np.array([c.name in wanted_closed for c in computable], dtype=np.bool_)
             cols = columns(chosen)
@@ -546,7 +560,7 @@ class OdeModel:
             _warn_user_error(model, P, status, S, rtol)
             rc = model.recheck if chosen and solver is not None and model.recheck is not None else None
             again = (np.flatnonzero(status == st.OK)
-                     if rc is not None and rc.every_measurement and _number(rc.factor, settings) > 0.0 else None)
+                     if rc is not None and rc.every_measurement and setting_value(rc.factor, settings) > 0.0 else None)
             if again is not None and again.size:  # the same kernel at the tighter rtol, closed forms left out
                 t2 = np.full((again.size, table.shape[1]), np.nan)
                 s2 = np.zeros(again.size, dtype=status.dtype)
@@ -566,6 +580,32 @@ class OdeModel:
             for j, c in enumerate(computable):
                 if c.name in out:
                     out[c.name][:] = table[:, cols[-1] + j]
+
+        def plan(wanted, solver) -> dict:
+            """What ``evaluate(P, wanted, solver, ...)`` computes and which of its kernels have a lane
+            route (see ModelSpec.plan), decided as evaluate decides, without compiling anything."""
+            chosen, closed = model._plan(wanted)
+            return {"measurements": [m.name for m in chosen], "closed_forms": [c.name for c in closed],
+                    "lanes": lane_facts(wanted, solver)}
+
+        def lane_facts(wanted, solver) -> dict:
+            from . import compile as engine, trajectory
+
+            chosen, closed = model._plan(wanted)
+            if not chosen and not closed:
+                return {}
+            sampled = tuple(m for m in chosen if getattr(m, "sampled", False))
+            if sampled:
+                rest = [o for o in wanted if not any(o == x.name for m in sampled for x in _outputs(m))]
+                facts = lane_facts(tuple(rest), solver) if rest else {}
+                name = trajectory.lane_name(model, solver.method)
+                if name is not None:
+                    facts["trajectory"] = _facts(name, trajectory.LANES_FROM_POINTS, trajectory.USE_LANES)
+                return facts
+            method = solver.method if (solver is not None and chosen) else "dop853"
+            computable = model.computable_closed_forms(chosen) if closed else ()
+            name = engine.lane_name(model, chosen, origin=origin, closed=computable, method=method)
+            return {} if name is None else {"kernel": _facts(name, engine.LANES_FROM_POINTS, engine.USE_LANES)}
 
         def _finish_measurements(model, chosen, cols, table, wanted, solver, out, status) -> list[str]:
             """The measurements' outputs from the kernel's table into ``out`` (their statuses into
@@ -610,6 +650,7 @@ class OdeModel:
             references=self.references,
             check=self.check,
             declaration=self,
+            plan=plan,
         )
         if self.recheck is not None:  # the re-check adds NOT_REPRODUCIBLE to the statuses a point can get
             import dataclasses

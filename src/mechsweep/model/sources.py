@@ -55,6 +55,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 FORMAT = 1  # of the stored form (Record.stored)
+FILES: dict[str, str] = {}  # module name -> path of a user model file imported by its path (load.import_module)
 _HASHES: dict[str, str] = {}  # absolute path -> sha256 of the file, first seen in this process
 _EDGES: dict[tuple, tuple[str, ...]] = {}  # (module name, its file) -> the modules it refers to
 _DIGESTS: dict[tuple, str] = {}  # (module name, its file) -> module_digest
@@ -441,9 +442,7 @@ def _main_module(target) -> str:
 
 
 def _by_path(name: str) -> bool:
-    from . import load
-
-    return name in load._FILES
+    return name in FILES
 
 
 # ----------------------------------------------------------------------------- modules and files

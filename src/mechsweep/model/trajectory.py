@@ -608,9 +608,20 @@ def kernel_for(model, method, measurements=None):
     declares (or only ``measurements``, the model's own, in their order: a kernel per subset, as
     before; for comparison), the ones that observe chosen per call (``evaluate``), as the closed
     forms are (one kernel per model and method, whatever subset of outputs is asked for)."""
-    from .compile import _functions, load_generated
+    from .compile import load_generated
 
     chosen = sampled_measurements(model) if measurements is None else tuple(measurements)
+    name, refs, always, lock, raw = _module_name(model, method, chosen)
+    if name not in _KERNELS:
+        _KERNELS[name] = load_generated(name, kernel_source(model, chosen, refs, method, always, lock, raw))
+    return _KERNELS[name]
+
+
+def _module_name(model, method, chosen):
+    """(module name of the kernel of the sampled measurements ``chosen``, the function references, and
+    the re-check's variant: always, lock, raw)."""
+    from .compile import _functions
+
     always, lock, raw = recheck_variant(model, chosen)
     funcs = [(n, f) for n, f in _functions(model, (), ()) if n in ("rhs", "initial", "forcing", "jac", "classify",
                                                                       "prepare", "switch_times")]
@@ -631,10 +642,25 @@ def kernel_for(model, method, measurements=None):
     key.update(_switch_key(model).encode())
     key.update(repr((model.name, _layout(model), len(model.states), tuple(m.key() for m in chosen), method,
                      _order(model), always, tuple(lock), raw)).encode())
-    name = "mechsweep_traj_" + key.hexdigest()[:20]
-    if name not in _KERNELS:
-        _KERNELS[name] = load_generated(name, kernel_source(model, chosen, refs, method, always, lock, raw))
-    return _KERNELS[name]
+    return "mechsweep_traj_" + key.hexdigest()[:20], refs, always, lock, raw
+
+
+def lane_name(model, method) -> str | None:
+    """The name under which the lanes of the model's one sampled-trajectory kernel for ``method`` are
+    recorded once compiled (compile.lanes_recorded), or None when the lanes do not apply (another
+    method, an rhs the rewrite does not cover: one trajectory at a time)."""
+    if lane_rhs_for(model, method) is None:
+        return None
+    memo = (id(model), method)
+    known = _LANE_NAMES.get(memo)
+    if known is not None and known[0] is model:
+        return known[1]
+    name = _module_name(model, method, sampled_measurements(model))[0] + ".lanes"
+    _LANE_NAMES[memo] = (model, name)
+    return name
+
+
+_LANE_NAMES: dict[tuple, tuple] = {}  # lane_name's memo: (model, name) by (id(model), method)
 
 
 def _layout(model):
@@ -642,10 +668,10 @@ def _layout(model):
     return layout(model)
 
 
-def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lanes=True, per_subset=False):
-    """Run the sampled measurements ``chosen`` on the points still OK in ``status``; by DOP853
-    lanes for dop853 when the engine rewrites the model's rhs in lane form (unless ``lanes`` is
-    False: the same values). The model's one kernel (``kernel_for``) observes only the chosen ones;
+def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lanes=None, per_subset=False):
+    """Run the sampled measurements ``chosen`` on the points still OK in ``status``; with ``lanes`` by
+    DOP853 lanes for dop853 when the engine rewrites the model's rhs in lane form (False: one trajectory
+    at a time, the same values; None: as USE_LANES says, one at a time unless it is True). The model's one kernel (``kernel_for``) observes only the chosen ones;
     ``per_subset``: a kernel of the chosen ones alone instead (a compile per subset; the same values
     bitwise, for tests)."""
     method = solver.method
@@ -720,9 +746,8 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
         if getattr(m, "classify", None) is None and getattr(full[at[k]], "classify", None) is not None:
             first[at[k]] = NO_CLASSIFY  # the skip_settled Kick added above without its classify
 
-    from .compile import _PLAN
-    use_lanes = (hasattr(mod, "queue") and lanes and lane_count(s.size, model) > 0
-                 and _lanes_pay(mod, max(n, getattr(_PLAN, "n", 0))))
+    use_lanes = (hasattr(mod, "queue") and bool(USE_LANES if lanes is None else lanes)
+                 and lane_count(s.size, model) > 0)
 
     def run(P, rtol, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs):
         m = P.shape[0]
@@ -741,6 +766,9 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
         mstat[:] = np.where(fmstat[:, at] == NO_CLASSIFY, NOT_RUN, fmstat[:, at])
 
     run(P, solver.rtol, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs)
+    if use_lanes and not per_subset and mod.queue.signatures:  # compiled and saved: a later plan may take them
+        from .compile import record_compiled
+        record_compiled(mod.__name__ + ".lanes")
     moved = None
     if rc is not None:
         moved = _recheck(rc, chosen, wanted, settings, solver, P, run, (vals, hist, rawv, rawh), code, mstat, n_steps,
@@ -876,11 +904,11 @@ def _recheck(rc, chosen, wanted, settings, solver, P, run, arrays, code, mstat, 
 # LANE_SAMPLES_BYTES (32, 16, then 8 lanes, else the one-trajectory kernel).
 LANES = (32, 16, 8)
 LANE_SAMPLES_BYTES = 256 * 2**20
-# evaluate's route where the lanes apply: True the lanes, False one trajectory at a time, None (the
-# default) the lanes where they pay: a run of at least LANES_FROM_POINTS points (compile.planned_points,
-# or the rows of the call), or the lane functions compiled already (in this process, or in numba's disk
-# cache). Bitwise the same results either way. The lanes' cold compile and speed: docs/model-layer.md
-# ("Lanes"; tests/data/trajectory_lanes_cost.py).
+# evaluate's route where the lanes apply and the caller names none: True the lanes, False or None one
+# trajectory at a time. A run names the route its plan chose (mechsweep/plan.py, ``choose_route``, which
+# reads this as an override): the lanes for a run of at least LANES_FROM_POINTS points, or once they are
+# compiled (compile.lanes_recorded, under ``lane_name``). Bitwise the same results either way. The lanes'
+# cold compile and speed: docs/model-layer.md ("Lanes"; tests/data/trajectory_lanes_cost.py).
 USE_LANES: bool | None = None
 LANES_FROM_POINTS = 1000
 # The lanes of a queue share one forcing period (one t_eval): the points of a period shared by fewer
@@ -888,36 +916,6 @@ LANES_FROM_POINTS = 1000
 # integrated one trajectory at a time (a round of 32 lanes with one active one costs more than ten
 # scalar steps; docs/model-layer.md, "Lanes").
 LANE_GROUP_MIN = 16
-
-
-def _lanes_pay(mod, points: int) -> bool:
-    from .compile import _PLAN
-
-    chosen = getattr(_PLAN, "lanes", None)  # the scene's [execution] lanes (compile.planned_points)
-    if chosen is not None:
-        return chosen
-    if USE_LANES is not None:
-        return USE_LANES
-    if points >= LANES_FROM_POINTS:
-        return True
-    return all(_compiled(f) for f in (mod.setup, mod.queue))
-
-
-def _compiled(dispatcher) -> bool:
-    """Whether the generated module's function is compiled: in this process, or machine code for
-    this CPU in numba's disk cache (its index read as numba reads it, as compile._compiled_on_disk)."""
-    import os
-
-    if dispatcher.signatures:
-        return True
-    try:
-        cache = dispatcher._cache
-        index = cache._cache_file._load_index()
-        magic = dispatcher.targetctx.codegen().magic_tuple()
-        return any(key[1] == magic and os.path.exists(os.path.join(cache._cache_path, file))
-                   for key, file in index.items())
-    except Exception:  # no disk cache, or numba's private layout changed: not compiled
-        return False
 
 
 def lane_count(n_samples: int, model) -> int:

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from .load import with_engine_helpers
 
 
 @dataclass(frozen=True)
@@ -594,10 +595,8 @@ def _check_static(call: Call, label: str) -> None:
 
 
 def _check_dynamic(call: Call, label: str) -> None:
-    from .load import _with_engine_helpers
-
     own = getattr(call.func, "py_func", call.func)
-    func = _with_engine_helpers(own)
+    func = with_engine_helpers(own)
     args = call.args
     before = [a.copy() if isinstance(a, np.ndarray) else None for a in args]
     try:

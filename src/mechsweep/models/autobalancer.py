@@ -55,7 +55,7 @@ for the stability outputs (theta itself is still given there).
 Floquet: the variational equations Phi' = J(tau, z*(tau)) Phi (8x8) about the exact balanced
 solution z* (x = y = 0, gamma_i = tau + Theta_i, known in closed form), over one period tau = 2 pi:
 the 64 equations of Phi alone (``variational``, ``variational_jac``: the layer's Floquet with the
-model's own variational system; the hand-written kernels in models/_autobalancer_kernels.py, a
+model's own variational system; the hand-written kernels in tests/reference/autobalancer_kernels.py, a
 reference kept for comparison, integrate the same functions); J is the analytic Jacobian
 (directional derivatives of the closed-form accelerations, ``_jvp``). floquet_max =
 max |eig(Phi(2 pi))|; the layer adds the way the critical multiplier leaves the unit circle
@@ -135,14 +135,16 @@ Other outputs and rules:
   given, A1 != 0 without l3, l4, or a platform parameter pair not given.
 
 Status of a point: the most severe problem among the outputs asked for, in the order
-INFEASIBLE > OUT_OF_RANGE > NONFINITE > STEP_UNDERFLOW > MAX_STEPS > ILL_CONDITIONED > SINGULAR >
+INFEASIBLE > OUT_OF_RANGE > NONFINITE > STEP_UNDERFLOW > MAX_STEPS > STIFF > ILL_CONDITIONED > SINGULAR >
 NOT_REPRODUCIBLE > NOT_BALANCEABLE > UNDECIDED > NO_EVENT; outputs that could be computed are kept. OUT_OF_RANGE:
 inputs of such magnitudes that a quantity leaves double precision's range (``in_range``: those every
 output needs, all outputs NaN; a closed form's own, that output NaN; prepare: a scaled group of the
-equations of motion beyond 2^300, the integrated outputs NaN).
+equations of motion beyond 2^300, the integrated outputs NaN). STIFF: dop853 spent its step budget at the
+stability limit (strong pendulum damping h / (m a^2 Omega) of order 1e3 and more, a platform far stiffer
+than the crank speed); auto and radau integrate such points.
 NOT_REPRODUCIBLE: a simulated output (residual_amplitude, phase_error, settling_time, stable_sim,
 the histories) moved by more than reproducibility_factor (rtol |value| + atol) when the trajectory
-was integrated again at rtol / 100 (the Recheck below; the rule and its measured cost: TIGHTEN in models/_autobalancer_kernels.py);
+was integrated again at rtol / 100 (the Recheck below; the rule and its measured cost: TIGHTEN in tests/reference/autobalancer_kernels.py);
 the first value is still stored.
 Every output is a function of its point and the solver settings only: the simulation samples
 that enter the measurements do not depend on the outputs asked for (the history samples are
@@ -166,7 +168,7 @@ settling_time, phase_error), Steady (residual_amplitude) and four Histories, one
 per point; the status rules above are the measurements' own (their ``classify``: NOT_BALANCEABLE),
 ``status_order`` (the severity above) and ``Recheck`` (NOT_REPRODUCIBLE). The engine generates the
 chunk kernels and the method switch. The hand-written kernels this model used before are kept,
-unused by the model, in models/_autobalancer_kernels.py (tests and benches compare against them).
+unused by the model, in tests/reference/autobalancer_kernels.py (tests and benches compare against them).
 """
 from __future__ import annotations
 
@@ -176,12 +178,12 @@ import numpy as np
 
 from .. import status as st
 from .._jit import jit, jit_inline, jit_noalloc
-from ..model.measure import ClosedForm, Floquet, History, Kick, Recheck, Steady  # not ..model: it imports ..models
+from ..model.measure import ClosedForm, Floquet, History, Kick, Recheck, Steady
 from ..model.ode import OdeModel
 from ..model.workprecision import WorkPrecision
 from ..special import SINCOS_MAX, ieee_sqrt, sincos, sincos_reduced
 from ._scaling import DBL_MAX, full_precision, normal, product_in_range, quotient_in_range
-from ._spec import ExtraDim, Output, Param, Setting
+from ..model.spec import ExtraDim, Output, Param, Setting
 
 TWO_PI = 2.0 * math.pi
 
@@ -219,8 +221,8 @@ UNIT_ROUNDOFF = 2.0 ** -53
 # Status severity (most severe first): what a point shows when several problems occur.
 # NOT_REPRODUCIBLE ranks above the statuses that leave an output NaN with a reason: it warns
 # about a value that is stored and would otherwise look trustworthy.
-STATUS_ORDER = (st.INFEASIBLE, st.OUT_OF_RANGE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.ILL_CONDITIONED,
-                st.SINGULAR, st.NOT_REPRODUCIBLE, st.NOT_BALANCEABLE, st.UNDECIDED, st.NO_EVENT)
+STATUS_ORDER = (st.INFEASIBLE, st.OUT_OF_RANGE, st.NONFINITE, st.STEP_UNDERFLOW, st.MAX_STEPS, st.STIFF,
+                st.ILL_CONDITIONED, st.SINGULAR, st.NOT_REPRODUCIBLE, st.NOT_BALANCEABLE, st.UNDECIDED, st.NO_EVENT)
 
 
 # ----------------------------------------------------------------------------- kinematics

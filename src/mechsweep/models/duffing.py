@@ -26,7 +26,7 @@ from ..model.ode import Invariant, OdeModel
 from ..model.workprecision import WorkPrecision
 from ..special import ellipk
 from ._scaling import exponent, normal, times_pow2
-from ._spec import Param, Setting
+from ..model.spec import Param, Setting
 
 # Integration horizon of the period event, in linearised periods 2 pi / w (w^2 = omega^2 + |mu| A^2):
 # near the soft separatrix T grows like log(1 / distance), so 100 is reached only ~e^-200 from it.
@@ -222,7 +222,7 @@ def period_condition(omega2, mu, A, k_omega2, k_q):
 def symplectic_step(rtol):
     """Fixed step (scaled time) of the symplectic method for a tolerance: SYMPLECTIC_STEPS(rtol)
     steps per linearised period 2 pi, calibrated so that the period error stays below rtol over
-    epsilon in [-0.99, 1e4] (measured by `mechsweep bench period-error`: at most 0.1 rtol from rtol
+    epsilon in [-0.99, 1e4] (measured by `python benchmarks/period_error.py`: at most 0.1 rtol from rtol
     1e-6 to 1e-12)."""
     return 2.0 * math.pi / math.ceil(SYMPLECTIC_C * rtol ** (-1.0 / SYMPLECTIC_ORDER))
 

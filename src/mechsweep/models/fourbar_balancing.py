@@ -86,7 +86,7 @@ from ._linkage import (  # the per-design function's helpers and layout constant
     fourbar_kinematics_cycle, fourbar_links, fourbar_loads_cycle, fourbar_moment_cycle,
     fourbar_static_counterweights, max_force)
 from ._scaling import NONE, UnitScaling, largest_exponent
-from ._spec import ExtraDim, Output, Param
+from ..model.spec import ExtraDim, Output, Param
 
 N_POSITIONS = L.N_POSITIONS
 PHI_DIM = ExtraDim("phi", "rad", "crank angle (360 uniform positions 2π i / 360)",

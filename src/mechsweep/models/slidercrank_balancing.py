@@ -45,7 +45,7 @@ from ._linkage import (  # the per-design function's helpers and layout constant
     S_FLOAD, S_G, S_K, S_OMEGA, S_R, S_RCW, branch_sign, cycle_stats, max_force, slider_assembly,
     slider_conrod_length, slider_counterweight, slider_kinematics_cycle, slider_links, slider_loads_cycle)
 from ._scaling import NONE, UnitScaling, largest_exponent
-from ._spec import Output, Param
+from ..model.spec import Output, Param
 from .fourbar_balancing import PHI_DIM, positions
 
 _ANGLE = dict(lo=-2.0 * math.pi, hi=2.0 * math.pi)

@@ -30,7 +30,7 @@ from ..model.ode import OdeModel
 from ..model.workprecision import WorkPrecision
 from . import duffing
 from ._scaling import exponent, normal, product_in_range, quotient_in_range, times_pow2
-from ._spec import Param
+from ..model.spec import Param
 
 SINGULAR_D0 = 1e-12  # (L(0)/R)^2 below this: spring of zero length at rest, formulas singular
 

@@ -6,9 +6,10 @@ its right-hand side, its stage sums, its error norm each handle one float at a t
 and every loop over the lanes is written so that LLVM vectorises it (no call, no branch that
 it cannot turn into a select, lanes innermost): with AVX2 four lanes share one instruction.
 
-Each lane keeps its own time, step size, error test, step-size control and output samples, so a
-lane computes the same floats, step for step, as :func:`.dop853.make_trajectory_solver` on the
-same trajectory (tests/test_dop853_lanes.py checks bitwise equality). The lanes only share the
+Each lane keeps its own time, step size, error test, step-size control, stiffness counters (the
+test late in the step budget: a spent budget there is STIFF) and output samples, so a lane computes
+the same floats, step for step, as :func:`.dop853.make_trajectory_solver` on the same trajectory
+(tests/test_dop853_lanes.py checks bitwise equality). The lanes only share the
 moment of their attempts: every active lane attempts a step in every round, accepted or not,
 and the three extra stages of the dense output are computed for all lanes when any accepted
 lane has a sample inside its step. A lane whose trajectory ends is handed back to the caller,
@@ -44,13 +45,13 @@ import math
 
 import numpy as np
 
-from .._jit import jit, jit_inline, jit_noalloc
+from .._jit import jit, jit_inline, jit_internal_noalloc, jit_noalloc
 from ..status import MAX_STEPS, NONFINITE, OK, STEP_UNDERFLOW
 from ._common import _all_finite, _min_step
 from . import _dop853_lane_sums as sums
 from ._dop853_tableau import C, INTERPOLATOR_POWER, N_STAGES, N_STAGES_EXTENDED
-from .dop853 import (ERROR_EXPONENT, F_DENSE, K_FSAL, MIN_FACTOR, SAFETY, WORK_ROWS, Y_NEW, Y_STAGE, _interpolate,
-                     _make_start, _step_factor)
+from .dop853 import (ERROR_EXPONENT, F_DENSE, K_FSAL, MIN_FACTOR, SAFETY, WORK_ROWS, Y_NEW, Y_STAGE, _failure,
+                     _interpolate, _make_start, _stage_argument, _step_factor, _stiffness_count, _tests_stiffness)
 
 __all__ = ["workspace", "make_lane_trajectory_solver", "idle", "lane_result", "TRAJ"]
 
@@ -62,7 +63,8 @@ T, T_NEW, H, H_ABS, MIN_STEP, TAU, SUM5, SUM3 = range(8)
 N_LF = 8
 # Rows of LI (per-lane integers).
 STATE, POINT, STATUS, N_STEPS, N_RHS, N_ATTEMPTS, K_NEXT, REJECTED, LAST_NONFINITE, ACCEPTED, DENSE = range(11)
-N_LI = 11
+N_STIFF, N_NONSTIFF = 11, 12  # the counters of dop853's stiffness test (run late in the step budget only)
+N_LI = 13
 # Lane states.
 IDLE, ACTIVE, DONE = 0, 1, 2
 
@@ -91,6 +93,22 @@ def _error_test(w, lf, li, l, n):
     li[LAST_NONFINITE, l] = 0 if finite else 1
     li[REJECTED, l] = 1
     return False
+
+
+@jit_internal_noalloc
+def _stiffness_lane(h, y, w, l, scratch, stiff_count, nonstiff_count):
+    """dop853._stiffness_update for lane l after its accepted step, before its commit (model/lanes.py
+    shares it). The lanes reuse the row of the last stage's argument as scratch, so that argument is
+    computed again into ``scratch`` by dop853's own _stage_argument: the floats of the one-trajectory
+    solver, hence its counts. A function of its own (called late in a budget only): inlined into the
+    lanes' per-lane loops it cost them speed."""
+    _stage_argument(y[:, l], h, w[:, :, l], N_STAGES - 1, scratch)
+    num = 0.0
+    den = 0.0
+    for i in range(scratch.size):
+        num += (w[K_FSAL, i, l] - w[N_STAGES - 1, i, l]) ** 2
+        den += (w[Y_NEW, i, l] - scratch[i]) ** 2
+    return _stiffness_count(h, num, den, stiff_count, nonstiff_count)
 
 
 @jit
@@ -210,6 +228,8 @@ def make_lane_trajectory_solver(rhs_lanes, rhs):
         li[K_NEXT, lane] = k
         li[ACCEPTED, lane] = 0
         li[DENSE, lane] = 0
+        li[N_STIFF, lane] = 0
+        li[N_NONSTIFF, lane] = 0
         if n_eval == 0:
             li[N_RHS, lane] = 0
             _finish(li, lane, OK)
@@ -259,7 +279,7 @@ def make_lane_trajectory_solver(rhs_lanes, rhs):
                 _finish(li, l, NONFINITE if li[LAST_NONFINITE, l] else STEP_UNDERFLOW)
                 continue
             if li[N_ATTEMPTS, l] >= max_steps:
-                _finish(li, l, MAX_STEPS)
+                _finish(li, l, _failure(MAX_STEPS, li[N_STIFF, l]))
                 continue
             li[N_ATTEMPTS, l] += 1
             li[N_RHS, l] += N_STAGES
@@ -285,8 +305,9 @@ def make_lane_trajectory_solver(rhs_lanes, rhs):
         return any_dense
 
     @jit_noalloc
-    def commit(w, y, lf, li, traj, t_eval):
-        """Samples and new state of every accepted lane (dop853's trajectory solver)."""
+    def commit(w, y, lf, li, traj, t_eval, max_steps, scratch):
+        """Samples and new state of every accepted lane (dop853's trajectory solver; its stiffness
+        test late in the step budget, ``scratch`` a row of n floats)."""
         n, lanes = y.shape
         n_eval = t_eval.size
         t_end = t_eval[n_eval - 1]
@@ -297,6 +318,9 @@ def make_lane_trajectory_solver(rhs_lanes, rhs):
             t_new = lf[T_NEW, l]
             h = lf[H, l]
             li[N_STEPS, l] += 1
+            if _tests_stiffness(False, li[N_ATTEMPTS, l], max_steps, li[N_STIFF, l]):
+                li[N_STIFF, l], li[N_NONSTIFF, l] = _stiffness_lane(h, y, w, l, scratch, li[N_STIFF, l],
+                                                                    li[N_NONSTIFF, l])
             k = li[K_NEXT, l]
             if li[DENSE, l]:
                 li[N_RHS, l] += N_STAGES_EXTENDED - N_STAGES - 1
@@ -343,6 +367,6 @@ def make_lane_trajectory_solver(rhs_lanes, rhs):
                 stages(w, pl, lf, wf, yf, hk, N_STAGES + 1, N_STAGES_EXTENDED - 1)
                 _first_dense_rows(lf[H], y, w)
                 sums.dense_rows(hk, wf, F_DENSE + 3)
-            commit(w, y, lf, li, traj, t_eval)
+            commit(w, y, lf, li, traj, t_eval, max_steps, sw[Y_STAGE])
 
     return load, run

@@ -1,8 +1,8 @@
-"""`mechsweep bench period-error`: the tolerance ladder's errors, hard and soft springs apart
+"""`python benchmarks/period_error.py`: the tolerance ladder's errors, hard and soft springs apart
 (docs/numerics.md quotes them: rtol 1e-6 for nomograms read by eye, the defaults)."""
 import numpy as np
 
-from mechsweep.bench import period_error as pe
+from benchmarks import period_error as pe
 
 
 def test_rtol_1e6_keeps_hard_springs_below_3_5e7_and_soft_ones_reach_ten_times_more():

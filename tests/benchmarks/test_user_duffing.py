@@ -1,10 +1,9 @@
-"""The user-model Duffing of `mechsweep bench user-model`: declared on the model layer and named by
+"""The user-model Duffing of `python benchmarks/user_duffing.py`: declared on the model layer and named by
 its module path, it gives the periods of the built-in model (same points, closed form), and the
 bench reports both rates and their ratio (timings are printed, never asserted)."""
 import numpy as np
 
-from mechsweep.bench import user_duffing
-from mechsweep.cli import main
+from benchmarks import user_duffing
 
 
 def test_user_duffing_periods_match_the_closed_form_and_the_built_in(capsys):
@@ -24,5 +23,5 @@ def test_user_duffing_periods_match_the_closed_form_and_the_built_in(capsys):
 
 
 def test_bench_user_model_refuses_bad_options(capsys):
-    assert main(["bench", "user-model", "--points", "-5"]) == 2
+    assert user_duffing.cli(["--points", "-5"]) == 2
     assert "points" in capsys.readouterr().err

@@ -1,4 +1,4 @@
-"""`mechsweep bench boundaries`: located boundaries against grid-and-contour, side by side.
+"""`python benchmarks/boundaries.py`: located boundaries against grid-and-contour, side by side.
 
 The three Floquet stability boundaries of the pendulum auto-balancer along Omega (the lower one
 near omega_xi, the one near omega_p, the upper one near omega_eta; omega_xi = 1, omega_eta =
@@ -26,13 +26,20 @@ done before any timing.
 """
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):  # run as `python benchmarks/NAME.py`: import from the repository's root, as -m does
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import math
 import time
 
 import numpy as np
 
-from .. import boundaries as bd
-from ..scene import load_scene
+from mechsweep import boundaries as bd
+from mechsweep.boundaries import search
+from mechsweep.scene import load_scene
 
 OMEGA = (0.6, 4.0)
 RATIO = (0.0005, 0.35)
@@ -92,7 +99,7 @@ def _rows_at(rows: np.ndarray, ratios, m_col: int) -> np.ndarray:
 
 def main(values: int = 200, grid: int = 100, contour=(100, 200, 400), rtol: float = 1e-8,
          threads: int | None = None) -> dict:
-    from ..runner import _threads
+    from mechsweep.execute import threads as _threads
 
     scene = load_scene(scene_dict(values, grid, rtol))
     crit = bd.criterion_of(scene)
@@ -103,7 +110,7 @@ def main(values: int = 200, grid: int = 100, contour=(100, 200, 400), rtol: floa
         import numba
 
         n_threads = numba.get_num_threads()
-        ev = bd._Evaluator(scene, crit, rows, col)
+        ev = search.Evaluator(scene, crit, rows, col)
         ev(np.zeros(2, dtype=np.int64), np.array([1.0, 1.3]))  # compile before timing
         t0 = time.perf_counter()
         res = bd.locate(scene, crit, rows, col, np.linspace(*OMEGA, grid), rtol=rtol)
@@ -117,7 +124,7 @@ def main(values: int = 200, grid: int = 100, contour=(100, 200, 400), rtol: floa
                       refine_calls=res.calls, evaluations_mean=float(evals.mean()), evaluations_max=int(evals.max()),
                       width_rel_max=width_rel, per_line=per_line,
                       bounds={bd.BOUND_MEANINGS[c]: int((res.bound == c).sum()) for c in (bd.PARAMETER, bd.CRITERION)})
-        print(f"mechsweep bench boundaries: auto-balancer floquet_max = 1 along Omega in [{OMEGA[0]}, {OMEGA[1]}] rad/s, "
+        print(f"benchmarks/boundaries.py: auto-balancer floquet_max = 1 along Omega in [{OMEGA[0]}, {OMEGA[1]}] rad/s, "
               f"{values} mass ratios 2 m / M in [{RATIO[0]}, {RATIO[1]}] (log), {n_threads} thread(s), rtol {rtol:g}")
         print(f"  located: grid {grid} x {values} = {values * grid:,} points + refinement {res.points:,} points in "
               f"{res.calls} calls: {t_loc:.2f} s; {n_found} boundaries ({{k: n}} = "
@@ -158,7 +165,7 @@ def main(values: int = 200, grid: int = 100, contour=(100, 200, 400), rtol: floa
         # the boundaries' movement from the damped first approximation's roots P(Omega) = 0
         from scipy.optimize import brentq
 
-        from ..models import _autobalancer_kernels as ab  # the reference formula (numpy, vectorised)
+        from tests.reference import autobalancer_kernels as ab  # the reference formula (numpy, vectorised)
 
         roots = np.array([brentq(lambda v: ab.receptance_sum(v, 1.0, 1.0, 2.25, 0.04, 0.06), lo_, hi_, xtol=1e-14)
                           for lo_, hi_ in ((0.9, 1.1), (1.2, 1.35), (1.4, 1.55))])
@@ -196,3 +203,34 @@ def main(values: int = 200, grid: int = 100, contour=(100, 200, 400), rtol: floa
                           f"2 m / M = {2 * M_PENDULUM / ends[i][1]:.6f} (a corner of floquet_max, where the largest "
                           "multiplier changes: the window closes there)")
     return report
+
+
+def cli(argv: list[str] | None = None) -> int:
+    """``python benchmarks/boundaries.py [--values N] [--grid N] [--contour N ...] [--rtol R] [--threads N]``."""
+    from benchmarks import _cli
+    from mechsweep.bench import arguments
+    from mechsweep.errors import InputError
+
+    p = _cli.parser("boundaries", "auto-balancer stability boundaries against 2 m / M: located vs grid-and-contour "
+                                  "at the same precision")
+    p.add_argument("--values", type=int, default=200, help="mass ratios 2 m / M in [0.0005, 0.35] (default 200)")
+    p.add_argument("--grid", type=int, default=100, help="Omega values of the bracketing grid (default 100)")
+    p.add_argument("--contour", type=int, nargs="+", default=[100, 200, 400], metavar="N",
+                   help="Omega values of the contour grids (default 100 200 400)")
+    p.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance in Omega (default 1e-8)")
+    p.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
+
+    def command(a) -> int:
+        contour = [arguments.count("--contour", n, 3, 10**6) for n in a.contour]
+        if len(contour) < 2:
+            raise InputError("--contour needs at least two grid sizes (the error's order is fitted between the last two)")
+        main(values=arguments.count("--values", a.values, 1, 10**5), grid=arguments.count("--grid", a.grid, 3, 10**6),
+             contour=tuple(contour), rtol=arguments.tolerance("--rtol", a.rtol, 1e-15, 1e-2),
+             threads=arguments.threads("--threads", a.threads))
+        return 0
+
+    return _cli.run(p, command, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(cli())

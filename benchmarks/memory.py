@@ -1,4 +1,4 @@
-"""`mechsweep bench memory`: peak resident memory of a run against the size of its dataset.
+"""`python benchmarks/memory.py`: peak resident memory of a run against the size of its dataset.
 
 Each case runs in a fresh process (JIT cache loaded, not compiled: a warm-up process runs first)
 and reports that process's peak resident set size (``ru_maxrss``, which includes the interpreter,
@@ -19,14 +19,18 @@ Cases: Duffing closed-form periods (algebraic, ``period_exact``) and integrated 
 """
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):  # run as `python benchmarks/NAME.py`: import from the repository's root, as -m does
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import json
 import math
 import subprocess
-import sys
 import tempfile
 import textwrap
 import time
-from pathlib import Path
 
 MiB = 2**20
 ALLOWANCE = 300 * MiB
@@ -34,10 +38,9 @@ ALLOWANCE = 300 * MiB
 RUN_CHILD = textwrap.dedent("""
     import json, resource, sys, time
     import mechsweep
-    from mechsweep.bench.memory import scene
-    shape, output, path = json.loads(sys.argv[1]), sys.argv[2], sys.argv[3]
+    scene, path = json.loads(sys.argv[1]), sys.argv[2]
     t0 = time.perf_counter()
-    ds = mechsweep.run(scene(shape, output), output=path, progress=False, load=False)
+    ds = mechsweep.run(scene, output=path, progress=False, load=False)
     seconds = time.perf_counter() - t0
     ds.close()
     print(json.dumps({"peak_rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
@@ -103,9 +106,9 @@ def _case(how: str, output: str, shape: tuple, folder: Path) -> dict:
     path = folder / f"{name}.h5"
     t0 = time.perf_counter()
     if how == "run":
-        argv = [sys.executable, "-c", RUN_CHILD, json.dumps(list(shape)), output, str(path)]
+        argv = [sys.executable, "-c", RUN_CHILD, json.dumps(scene(shape, output)), str(path)]
     else:
-        from ..scene import to_toml
+        from mechsweep.scene import to_toml
 
         toml = folder / f"{name}.toml"
         toml.write_text(to_toml(scene(shape, output)))
@@ -122,12 +125,12 @@ def _case(how: str, output: str, shape: tuple, folder: Path) -> dict:
 
 
 def main(quick: bool = False, folder: str | None = None) -> list[dict]:
-    from . import _args
+    from mechsweep.bench import arguments
 
     if folder is not None:
-        path = _args.folder("dir", folder)
+        path = arguments.folder("dir", folder)
         if not path.is_dir():
-            raise _args.InputError(f"dir = {str(folder)!r} does not exist; create it first")
+            raise arguments.InputError(f"dir = {str(folder)!r} does not exist; create it first")
     cases = QUICK if quick else FULL
     rows = []
     base = {}
@@ -135,7 +138,7 @@ def main(quick: bool = False, folder: str | None = None) -> list[dict]:
         tmp = Path(tmp)
         _case("run", "period", (1000,), tmp)  # warm-up: compile or load the kernels once
         _case("run", "period_exact", (1000,), tmp)
-        print(f"mechsweep bench memory: peak resident memory of a run in a fresh process (interpreter and "
+        print(f"benchmarks/memory.py: peak resident memory of a run in a fresh process (interpreter and "
               f"libraries included) against the dataset on disk; criterion: peak <= disk + "
               f"{ALLOWANCE // MiB} MiB; 'over 10^3': peak minus that of the same path at 1,000 points")
         print(f"  {'path':<8} {'output':<13} {'grid':>15} {'points':>12} {'run s':>7} {'disk MiB':>9} "
@@ -157,3 +160,23 @@ def main(quick: bool = False, folder: str | None = None) -> list[dict]:
 def _power(n: int) -> str:
     k = round(math.log10(n)) if n > 0 else 0
     return f"10^{k}" if 10**k == n and k > 1 else str(n)
+
+
+def cli(argv: list[str] | None = None) -> int:
+    """``python benchmarks/memory.py [--quick] [--dir DIR]``: exit 1 when a case misses its target."""
+    from benchmarks import _cli
+
+    p = _cli.parser("memory", "peak resident memory of runs up to 10^8 points (one long axis, several short ones; "
+                              "mechsweep.run and the `mechsweep run` command) against their dataset size")
+    p.add_argument("--quick", action="store_true", help="small grids only (10^4 ... 10^6 points)")
+    p.add_argument("--dir", default=None, help="folder for the temporary datasets (default: the system's temp)")
+
+    def command(a) -> int:
+        rows = main(quick=a.quick, folder=a.dir)
+        return 0 if all(r["ok"] for r in rows) else 1
+
+    return _cli.run(p, command, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(cli())

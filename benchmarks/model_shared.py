@@ -2,7 +2,7 @@
 integration per measurement (the first stage's kernel), on tests/user_models/oscillators.py LINEAR
 (7 measurements). Prints times, steps and rhs calls; asserts nothing about time.
 
-    python -m mechsweep.bench.model_shared [path/to/oscillators.py] [n_points]
+    python benchmarks/model_shared.py [path/to/oscillators.py] [n_points]
 """
 from __future__ import annotations
 
@@ -12,17 +12,16 @@ from pathlib import Path
 
 import numpy as np
 
+OSCILLATORS = Path(__file__).resolve().parents[1] / "tests" / "user_models" / "oscillators.py"
 
-def main(argv=None) -> None:
+
+def main(path: str | Path = OSCILLATORS, n: int = 20000) -> None:
     from mechsweep import status as st
     from mechsweep.model import load
     from mechsweep.model.compile import kernel_for
 
-    argv = list(sys.argv[1:] if argv is None else argv)
-    path = argv[0] if argv else str(Path(__file__).resolve().parents[3] / "tests" / "user_models" / "oscillators.py")
-    n = int(argv[1]) if len(argv) > 1 else 20000
     path = str(Path(path).resolve())
-    model = load.import_module(load._module_name(Path(path)), path).LINEAR
+    model = load.import_module(load.module_name(Path(path)), path).LINEAR
     chosen = model.measurements
     P = np.column_stack([np.linspace(0.5, 10.0, n), np.full(n, 0.7)])
     rtol, atol, max_steps = 1e-10, 1e-12, 100_000
@@ -53,5 +52,22 @@ def main(argv=None) -> None:
           f"per output: " + ", ".join(f"{m.name} {np.nanmax(np.abs(a[:, j] - b[:, j])):.1e}" for j, m in enumerate(chosen)))
 
 
+def cli(argv: list[str] | None = None) -> int:
+    """``python benchmarks/model_shared.py [path/to/oscillators.py] [n_points]``."""
+    if __package__ in (None, ""):  # run as a script: import from the repository's root, as -m does
+        sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from benchmarks import _cli
+
+    p = _cli.parser("model_shared", __doc__)
+    p.add_argument("path", nargs="?", default=str(OSCILLATORS), help="the model file (default: the tests' oscillators.py)")
+    p.add_argument("n", nargs="?", type=int, default=20000, help="grid points (default 20000)")
+
+    def command(a) -> int:
+        main(a.path, a.n)
+        return 0
+
+    return _cli.run(p, command, argv)
+
+
 if __name__ == "__main__":
-    main()
+    sys.exit(cli())

@@ -1,4 +1,4 @@
-"""`mechsweep bench linkage`: four-bar residual sweep, mechsweep against vectorised numpy, same run.
+"""`python benchmarks/linkage.py`: four-bar residual sweep, mechsweep against vectorised numpy, same run.
 
 The computation (per design, 360 crank positions phi_i = 2 pi i / 360, constant crank speed):
 closed-form four-bar kinematics (positions, velocities, accelerations), counterweights for
@@ -16,16 +16,22 @@ mass, centre and inertia varied). mechsweep runs on ``threads`` numba threads (d
 """
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):  # run as `python benchmarks/NAME.py`: import from the repository's root, as -m does
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import math
 import time
 
 import numpy as np
 
-from .. import status as st
-from ..models import _linkage as L
-from ..models import fourbar_balancing as fb
-from ..models._linkage_reference import OUTPUTS, numpy_residuals  # noqa: F401 - the numpy side, with the model
-from ..runner import _threads
+from mechsweep import status as st
+from mechsweep.models import _linkage as L
+from mechsweep.models import fourbar_balancing as fb
+from mechsweep.models._linkage_reference import OUTPUTS, numpy_residuals  # noqa: F401 - the numpy side, with the model
+from mechsweep.execute import threads as _threads
 
 
 def design_family(n: int, seed: int = 0) -> np.ndarray:
@@ -75,13 +81,13 @@ def main(designs: int = 200_000, numpy_designs: int = 20_000, threads: int | Non
 
     import numba
 
-    from . import _args
+    from mechsweep.bench import arguments
 
-    designs = _args.count("designs", designs)
-    numpy_designs = _args.count("numpy_designs", numpy_designs, 1, designs)
-    repeats = _args.count("repeats", repeats, 1, 1000)
+    designs = arguments.count("designs", designs)
+    numpy_designs = arguments.count("numpy_designs", numpy_designs, 1, designs)
+    repeats = arguments.count("repeats", repeats, 1, 1000)
     if threads is not None:
-        threads = min(_args.count("threads", threads, 1, 10**6), numba.config.NUMBA_NUM_THREADS)
+        threads = min(arguments.count("threads", threads, 1, 10**6), numba.config.NUMBA_NUM_THREADS)
     load_before = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
     P = design_family(designs, seed)
     with _threads(threads):
@@ -119,7 +125,7 @@ def main(designs: int = 200_000, numpy_designs: int = 20_000, threads: int | Non
 
 
 def _print(r: dict) -> None:
-    print("mechsweep bench linkage: four-bar residual sweep (kinematics, complete force balancing, "
+    print("benchmarks/linkage.py: four-bar residual sweep (kinematics, complete force balancing, "
           f"RMS-optimal counterweight axis, residual RMS/max, efficiency), {r['positions_per_design']} "
           "positions per design")
     print(f"  designs: {r['designs']:,} random Grashof crank-rockers; {r['ok_fraction'] * 100:.1f}% ok; "
@@ -132,3 +138,26 @@ def _print(r: dict) -> None:
           f"max relative difference {r['max_rel_difference']:.1e}")
     print(f"  (load average before the run: {r['load_average_before']:.2f}; other processes on the cores "
           "lower the speed-up of the threads)")
+
+
+def cli(argv: list[str] | None = None) -> int:
+    """``python benchmarks/linkage.py [--designs N] [--numpy-designs N] [--threads N]``."""
+    import numba
+
+    from benchmarks import _cli
+
+    p = _cli.parser("linkage", "four-bar residual sweep (360 positions/design): designs/s vs vectorised numpy")
+    p.add_argument("--designs", type=int, default=200_000, help="designs for mechsweep (default 200000)")
+    p.add_argument("--numpy-designs", type=int, default=20_000, help="designs for numpy (default 20000)")
+    p.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
+
+    def command(a) -> int:
+        main(designs=a.designs, numpy_designs=a.numpy_designs,
+             threads=numba.config.NUMBA_NUM_THREADS if a.threads is None else a.threads)
+        return 0
+
+    return _cli.run(p, command, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(cli())

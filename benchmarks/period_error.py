@@ -1,4 +1,4 @@
-"""`mechsweep bench period-error`: worst period error over epsilon for a ladder of tolerances.
+"""`python benchmarks/period_error.py`: worst period error over epsilon for a ladder of tolerances.
 
 T omega of the Duffing oscillator depends on epsilon = mu A^2 / omega^2 alone, so a fine scan
 of epsilon in [-0.99, 1e4] (omega = A = 1) covers every (omega, mu, A). Prints, per (rtol, atol),
@@ -15,12 +15,20 @@ the model switches to saddle coordinates there), and the error the model gives a
 """
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):  # run as `python benchmarks/NAME.py`: import from the repository's root, as -m does
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import math
 
 import numpy as np
 
-from ..models import _duffing_scaled, duffing
-from ..scene import Solver
+from mechsweep._jit import jit
+from mechsweep.models import duffing
+from mechsweep.ode import dop853
+from mechsweep.scene import Solver
 
 LADDER = ((1e-6, 1e-8), (1e-8, 1e-10), (1e-9, 1e-11), (1e-10, 1e-12), (1e-10, 1e-13), (5e-11, 1e-12), (2e-11, 1e-13),
           (1e-12, 1e-14))
@@ -49,6 +57,22 @@ def worst_error(eps: np.ndarray, rtol: float, atol: float, method: str = "dop853
             "mean_steps": float(n_steps.mean()), "not_ok": int((status != 0).sum())}
 
 
+# The plain quarter-period integration, without the model's saddle coordinates: x = phi / A,
+# x'' = -(p0 x + p1 x^3 + p2 x^2) from x = 1 at rest to the event p7 (x - p6) = 0, with
+# p = (a, b, 0, ., ., ., 0, 1) (x'' = -a x - b x^3, event x = 0).
+@jit
+def _scaled_rhs(t, y, p, dydt):
+    dydt[0] = y[1]
+    dydt[1] = -p[0] * y[0] - p[1] * y[0] * y[0] * y[0] - p[2] * y[0] * y[0]
+
+
+@jit
+def _phi_event(t, y, p):
+    return p[7] * (y[0] - p[6])
+
+
+quarter_period_solver = dop853.make_event_solver(_scaled_rhs, _phi_event)
+
 SYMPLECTIC_LADDER = ((1e-6, 1e-8), (1e-8, 1e-10), (1e-10, 1e-12), (5e-11, 1e-12), (1e-12, 1e-14))
 SEPARATRIX_GAPS = (1e-3, 1e-5, 1e-7)  # 1 + epsilon
 SEPARATRIX_RTOLS = (5e-9, 5e-11, 5e-13)
@@ -59,10 +83,9 @@ def plain_period_error(gap: float, rtol: float) -> float:
     equation x = phi / A with rtol, atol = rtol / 50 (not the saddle coordinates the model uses)."""
     omega2, mu, A = 1.0, -(1.0 - gap), 1.0
     w2 = omega2 + abs(mu)
-    p = np.array([omega2 / w2, mu / w2, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])  # plain formulation, _duffing_scaled.N_P slots
+    p = np.array([omega2 / w2, mu / w2, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])  # the plain formulation (above)
     y = np.array([1.0, 0.0])
-    code, tq, _, _ = _duffing_scaled.quarter_period_solver(0.0, y, p, 200 * math.pi, rtol, rtol / 50, 0.0, 10**6,
-                                                   _duffing_scaled.dop853.workspace(2))
+    code, tq, _, _ = quarter_period_solver(0.0, y, p, 200 * math.pi, rtol, rtol / 50, 0.0, 10**6, dop853.workspace(2))
     exact = duffing.period_closed_form(omega2, mu, A)
     return abs(4.0 * tq / math.sqrt(w2) - exact) / exact if code == 0 else math.nan
 
@@ -88,7 +111,7 @@ def separatrix_table() -> list[dict]:
 
 def main(ladder=LADDER) -> list[dict]:
     eps = epsilon_scan()
-    print(f"mechsweep bench period-error: {eps.size} values of epsilon in [-0.99, 1e4], DOP853; "
+    print(f"benchmarks/period_error.py: {eps.size} values of epsilon in [-0.99, 1e4], DOP853; "
           f"defaults rtol={Solver.rtol:g}, atol={Solver.atol:g}")
     print(f"  {'rtol':>8} {'atol':>8}  {'max rel. error':>14}  {'at epsilon':>11}  {'hard (eps>=0)':>13}  "
           f"{'soft (eps<0)':>12}  {'steps/pt':>8}  not ok")
@@ -107,3 +130,20 @@ def main(ladder=LADDER) -> list[dict]:
               f"{r['max_error'] / rtol:13.3f}  rtol  {r['mean_steps']:8.2f}  {r['not_ok']}")
     separatrix_table()
     return rows
+
+
+def cli(argv: list[str] | None = None) -> int:
+    """``python benchmarks/period_error.py``."""
+    from benchmarks import _cli
+
+    p = _cli.parser("period_error", "worst Duffing period error over epsilon for a ladder of tolerances")
+
+    def command(a) -> int:
+        main()
+        return 0
+
+    return _cli.run(p, command, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(cli())

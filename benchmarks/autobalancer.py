@@ -1,4 +1,4 @@
-"""`mechsweep bench autobalancer`: Floquet chart throughput and direct-simulation speed, measured now.
+"""`python benchmarks/autobalancer.py`: Floquet chart throughput and direct-simulation speed, measured now.
 
 1. Floquet chart: floquet_max on an Omega x mass-ratio grid (Omega in [0.5, 2.5] rad/s, 2 m / M in
    [1e-3, 0.1] log; omega_xi = 1, omega_eta = 1.5 rad/s, zeta = 0.02, A0 = m a, h = m a^2 x 1 rad/s),
@@ -36,19 +36,25 @@
 """
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):  # run as `python benchmarks/NAME.py`: import from the repository's root, as -m does
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import math
 import time
 
 import numba
 import numpy as np
 
-from .. import status as st
-from .._jit import jit
-from ..models import _autobalancer_kernels as ref  # scaled parameters and sample grid for scipy
-from ..models import autobalancer as ab
-from ..model import trajectory
-from ..model.trajectory import LANES as _LANE_CHOICES
-from ..scene import Solver
+from mechsweep import status as st
+from mechsweep._jit import jit
+from mechsweep.model import trajectory
+from mechsweep.model.trajectory import LANES as _LANE_CHOICES
+from mechsweep.models import autobalancer as ab
+from mechsweep.scene import Solver
+from tests.reference import autobalancer_kernels as ref  # scaled parameters and sample grid for scipy
 
 LANES = _LANE_CHOICES[0]  # the lane right-hand side's cost is measured with the most lanes the model uses
 
@@ -281,15 +287,15 @@ def rhs_ns(p, n: int = 2_000_000, repeats: int = REPEATS) -> float:
 # ----------------------------------------------------------------------------- main
 def main(n_omega: int = CHART, n_ratio: int = CHART, sim_points: int = 512, scipy_points: int = 3,
          threads: int | None = None, rtol: float = Solver.rtol, atol: float = Solver.atol) -> dict:
-    from ..scene import SOLVER_LIMITS
-    from . import _args
+    from mechsweep.scene import SOLVER_LIMITS
+    from mechsweep.bench import arguments
 
-    n_omega, n_ratio = _args.count("n_omega", n_omega, 2, 10**4), _args.count("n_ratio", n_ratio, 2, 10**4)
-    sim_points = _args.count("sim_points", sim_points, 1, 10**6)
-    scipy_points = _args.count("scipy_points", scipy_points, 1, sim_points)
-    threads = _args.threads("threads", threads)
-    rtol = _args.tolerance("rtol", rtol, *SOLVER_LIMITS["rtol"])
-    atol = _args.tolerance("atol", atol, *SOLVER_LIMITS["atol"])
+    n_omega, n_ratio = arguments.count("n_omega", n_omega, 2, 10**4), arguments.count("n_ratio", n_ratio, 2, 10**4)
+    sim_points = arguments.count("sim_points", sim_points, 1, 10**6)
+    scipy_points = arguments.count("scipy_points", scipy_points, 1, sim_points)
+    threads = arguments.threads("threads", threads)
+    rtol = arguments.tolerance("rtol", rtol, *SOLVER_LIMITS["rtol"])
+    atol = arguments.tolerance("atol", atol, *SOLVER_LIMITS["atol"])
     before = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(threads)
@@ -455,7 +461,7 @@ def _measure(n_omega, n_ratio, sim_points, scipy_points, rtol, atol):
 
 
 def _print(r: dict, solver) -> None:
-    print(f"mechsweep bench autobalancer: DOP853, rtol={r['rtol']:g}, atol={r['atol']:g}, {r['threads']} threads")
+    print(f"benchmarks/autobalancer.py: DOP853, rtol={r['rtol']:g}, atol={r['atol']:g}, {r['threads']} threads")
     print(f"  first call (JIT compile or cache load of both kernels): {r['compile_or_cache_load_s']:.2f} s")
     extra = (f" (measured on {r['chart_points']} points in {r['chart_s']:.2f} s, extrapolated by points)"
              if r["chart_extrapolated"] else "")
@@ -499,5 +505,22 @@ def _print(r: dict, solver) -> None:
           f"{nb['failed']} failed; largest residual_amplitude difference {nb['max_residual_difference_m']:.2e} m")
 
 
-if __name__ == "__main__":  # pragma: no cover
-    main()
+def cli(argv: list[str] | None = None) -> int:
+    """``python benchmarks/autobalancer.py [--threads N] [--sim-points N] [--scipy-points N]``."""
+    from benchmarks import _cli
+
+    p = _cli.parser("autobalancer", "Floquet chart time (200 x 200) and simulation throughput vs scipy")
+    p.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
+    p.add_argument("--sim-points", type=int, default=512,
+                   help="trajectories simulated by mechsweep on one thread (4x on all threads; default 512)")
+    p.add_argument("--scipy-points", type=int, default=3, help="of those, solved with scipy too (default 3)")
+
+    def command(a) -> int:
+        main(sim_points=a.sim_points, scipy_points=a.scipy_points, threads=a.threads)
+        return 0
+
+    return _cli.run(p, command, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(cli())

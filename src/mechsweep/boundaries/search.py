@@ -1,7 +1,7 @@
 """Locate boundaries along one axis, for any model: where a criterion crosses a level, or where
 the status changes from one value to another, for every combination of the other axes.
 
-Built only on :attr:`ModelSpec.evaluate` (through ``runner.evaluate_rows`` for status changes):
+Built only on :attr:`ModelSpec.evaluate` (through ``execute.evaluate_rows`` for status changes):
 nothing here knows a model. The grid of the scene brackets every crossing between two neighbouring
 grid values; each bracket is then refined, all brackets of a round in ONE evaluate call (the
 chunk kernels run them in parallel):
@@ -29,18 +29,12 @@ values) are not seen: the grid must resolve the boundaries it is asked to locate
 """
 from __future__ import annotations
 
-import datetime as _dt
 import math
-import os
-import tempfile
-import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from . import cf
-from . import status as st
+from .. import status as st
 
 # which bound stopped a located point (stored as the variable boundary_bound)
 PARAMETER, CRITERION, BAND_EDGE, INTERRUPTED, BUDGET = 0, 1, 2, 3, 4
@@ -147,7 +141,7 @@ class Located:
     points: int = 0  # points evaluated in refinement in all
 
 
-class _Evaluator:
+class Evaluator:
     """Evaluates criterion classes and values at (line, x) pairs, in one call per round."""
 
     def __init__(self, scene, crit: Criterion, rows: np.ndarray, col: int):
@@ -155,9 +149,14 @@ class _Evaluator:
         self.model = scene.model
         self.calls = 0
         self.points = 0
+        self.plan = None
         if crit.output is not None:
             want = (crit.output,) + ((crit.angle_output,) if crit.angle_output else ())
             self.wanted = self.model.closure(want)
+            # the kernel route a run of the scene's grid takes (plan.py), chosen once for every call
+            from ..plan import routes
+            self.route = ({} if getattr(self.model, "plan", None) is None
+                          else {"route": routes(scene, self.wanted, scene.n_points)})
 
     def __call__(self, line: np.ndarray, x: np.ndarray):
         """(g or NaN, status, critical angle or NaN) at the points."""
@@ -172,16 +171,19 @@ class _Evaluator:
         self.points += n
         kind = np.full(n, np.nan)
         if self.crit.output is None:
-            from .runner import evaluate_rows
+            from ..execute import evaluate_rows
 
-            _, status, _, _ = evaluate_rows(self.scene, P)
+            if self.plan is None:  # the kernels and route of a run of the scene, decided once
+                from ..plan import make_plan
+                self.plan = make_plan(self.scene)
+            _, status, _, _ = evaluate_rows(self.plan, P)
             return np.full(n, np.nan), status, kind
         solver = self.scene.solver
         out = {name: np.full((n,) + _extra(self.scene, name), np.nan) for name in self.wanted}
         status = np.zeros(n, dtype=st.DTYPE)
         ns, nr = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
         with np.errstate(all="ignore"):
-            self.model.evaluate(P, self.wanted, solver, out, status, ns, nr)
+            self.model.evaluate(P, self.wanted, solver, out, status, ns, nr, **self.route)
         g = out[self.crit.output] - self.crit.level
         g[~np.isfinite(g)] = np.nan
         if self.crit.angle_output:
@@ -243,7 +245,7 @@ def locate(scene, crit: Criterion, rows: np.ndarray, col: int, grid: np.ndarray,
     order = np.argsort(grid, kind="stable")
     xs = grid[order]
     L, G = rows.shape[0], xs.size
-    ev = _Evaluator(scene, crit, rows, col)
+    ev = Evaluator(scene, crit, rows, col)
     if grid_g is None and grid_status is None:
         line = np.repeat(np.arange(L), G)
         g, status, ang = ev(line, np.tile(xs, L))
@@ -574,7 +576,6 @@ def _band_edges(ev, br_line, idx, A, B, s_a, s_b, g_a, g_b, ang_a, ang_b, n_eval
     loc[idx[ok]] = 0.5 * (E + U)[ok]
 
 
-# ----------------------------------------------------------------------------- a scene's boundaries
 def kind_of_angle(angle: np.ndarray) -> np.ndarray:
     """The crossing kind (+1, -1, 0 complex pair, NaN) of a critical multiplier's argument (exactly
     0 or pi for a real one: the Floquet measurement snaps it with the same test as its kind)."""
@@ -582,539 +583,8 @@ def kind_of_angle(angle: np.ndarray) -> np.ndarray:
     return np.where(angle == 0.0, 1.0, np.where(angle == np.pi, -1.0, np.where(np.isnan(angle), np.nan, 0.0)))
 
 
-def criterion_of(scene, spec=None) -> Criterion:
-    """The :class:`Criterion` of a scene's [boundaries] section (or of ``spec``, a scene.Boundaries)."""
-    b = spec if spec is not None else scene.boundaries
-    if b.criterion is None:
-        codes = {name: code for code, name in st.MEANINGS.items()}
-        return Criterion(status_change=(codes[b.status_change[0]], codes[b.status_change[1]]))
-    kind = None
-    if scene.model.output(b.criterion).kind == "floquet_max" and f"{b.criterion}_angle" in scene.model.output_names():
-        kind = f"{b.criterion}_angle"
-    return Criterion(output=b.criterion, level=b.level, accuracy=b.criterion_accuracy, angle_output=kind)
-
-
-def sibling_path(data: str | os.PathLike) -> Path:
-    """Where the boundaries of the dataset ``data`` are written by default: DATA.boundaries.h5."""
-    data = Path(data)
-    return data.with_name(data.stem + ".boundaries.h5")
-
-
-def _encoded(scene, axis) -> np.ndarray:
+def encoded(scene, axis) -> np.ndarray:
     prm = scene.model.param(axis.name)
     if axis.spacing == "list":
         return np.array([prm.encode(v) for v in axis.items], dtype=float)
     return axis.array()
-
-
-def base_rows(scene, along: str) -> tuple[np.ndarray, int, tuple]:
-    """Parameter rows of every combination of the axes other than ``along`` (C order of the scene's
-    axes), the column of ``along``, and the other axes."""
-    others = [a for a in scene.axes if a.name != along]
-    names = scene.model.param_names()
-    grids = np.meshgrid(*[_encoded(scene, a) for a in others], indexing="ij") if others else []
-    L = int(np.prod([a.size for a in others], dtype=np.int64)) if others else 1
-    rows = np.empty((L, len(names)))
-    other_pos = {a.name: k for k, a in enumerate(others)}
-    for c, prm in enumerate(scene.model.params):
-        if prm.name in other_pos:
-            rows[:, c] = grids[other_pos[prm.name]].ravel()
-        elif prm.name in scene.fixed:
-            rows[:, c] = prm.encode(scene.fixed[prm.name])
-        elif prm.name == along:
-            rows[:, c] = np.nan
-        else:
-            rows[:, c] = prm.default
-    return rows, names.index(along), tuple(others)
-
-
-def locate_dataset(scene, ds, spec=None):
-    """Locate the boundaries a scene's [boundaries] section (or ``spec``) asks for, bracketed by the
-    scene's finished dataset ``ds``. Returns a new xarray Dataset (dims: the other axes, crossing)."""
-    import xarray as xr
-
-    from . import __version__
-
-    b = spec if spec is not None else scene.boundaries
-    crit = criterion_of(scene, b)
-    along = b.along
-    axis = next(a for a in scene.axes if a.name == along)
-    rows, col, others = base_rows(scene, along)
-    dims = [a.name for a in scene.axes]
-    order = [d for d in dims if d != along] + [along]
-    L, G = rows.shape[0], axis.size
-
-    def grid_of(name):
-        return np.asarray(ds[name].transpose(*order).values).reshape(L, G)
-
-    t0 = time.perf_counter()
-    if crit.output is not None:
-        res = locate(scene, crit, rows, col, _encoded(scene, axis), rtol=b.rtol,
-                     grid_g=grid_of(crit.output) - crit.level,
-                     grid_angle=grid_of(crit.angle_output) if crit.angle_output and crit.angle_output in ds else None)
-    else:
-        res = locate(scene, crit, rows, col, _encoded(scene, axis), rtol=b.rtol, grid_status=grid_of("status"))
-    wall = time.perf_counter() - t0
-    shape = tuple(a.size for a in others) + (res.location.shape[1],)
-    odims = tuple(a.name for a in others) + ("crossing",)
-    prm = scene.model.param(along)
-    coords = {a.name: ds[a.name] for a in others}
-    coords["crossing"] = ("crossing", np.arange(shape[-1]), {"long_name": "index of the crossing along " + along,
-                                                             "units": "1"})
-    if crit.output is not None:
-        what = f"{crit.output} = {crit.level:g}"
-    else:
-        what = f"status {b.status_change[0]} -> {b.status_change[1]}"
-
-    def var(values, unit, long_name, **attrs):
-        return (odims, values.reshape(shape), {"units": unit, "long_name": long_name, **attrs})
-
-    codes = np.array(sorted(BOUND_MEANINGS), dtype=np.int8)
-    rising = ("the criterion rises through its level" if crit.output else
-              f"status {b.status_change[0]} below, {b.status_change[1]} above")
-    data = {
-        "boundary": var(res.location, prm.unit, f"{along} ({prm.long_name}) where {what}"),
-        "boundary_width": var(res.width, prm.unit, f"width of the final bracket of {along} (both ends evaluated)"),
-        "boundary_bound": var(res.bound, "1", "which accuracy bound applied (-1: no crossing)",
-                              flag_values=codes, flag_meanings=" ".join(BOUND_MEANINGS[c] for c in codes),
-                              comment="; ".join(f"{BOUND_MEANINGS[c]}: {BOUND_DESCRIPTIONS[c]}" for c in codes)),
-        "boundary_direction": var(res.direction, "1", f"+1: {rising} as {along} grows; -1 the reverse; 0 no crossing"),
-        "boundary_evaluations": var(res.evaluations, "1", "criterion evaluations spent locating this crossing "
-                                    "(after the grid)"),
-    }
-    if crit.angle_output:
-        data["boundary_kind"] = var(res.kind, "1", "critical Floquet multiplier on the unstable side: +1 real "
-                                    "positive, -1 real negative, 0 complex pair")
-        data["boundary_angle"] = var(res.angle, "rad", "argument of the critical Floquet multiplier on the unstable "
-                                     "side, in [0, pi]: on the boundary the multiplier is exp(+-i angle)")
-    located = res.bound[(res.bound == PARAMETER) | (res.bound == CRITERION) | (res.bound == BAND_EDGE)]
-    ev = res.evaluations[res.bound >= 0]
-    created = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
-    attrs = {
-        "Conventions": cf.CONVENTIONS,
-        "title": f"boundaries of {scene.name} along {along}",
-        "source": cf.source(scene.model, __version__),
-        "history": cf.history(created, f"mechsweep.boundaries.run_boundaries(scene {scene.name!r})", __version__),
-        "references": cf.references(scene.model),
-        "mechsweep_kind": "boundaries",
-        "model": scene.model.name,
-        "along": along,
-        # the along axis's span (its encoded grid): the scale below which a bracket's width is read
-        # as absolute (|x| <= ABS_FLOOR * span, as the locator's tolerance does; `mechsweep info`)
-        "along_span": float(np.ptp(_encoded(scene, axis))) if axis.size > 1 else 1.0,
-        "criterion": crit.output or "status",
-        **({"level": crit.level} if crit.output else {"status_change": " ".join(b.status_change)}),
-        "rtol": b.rtol,
-        "boundaries": str(b.as_dict()),
-        "scene": scene.text,
-        "scene_canonical": scene.canonical(),
-        "created": created,
-        "mechsweep_version": __version__,
-        "wall_time_s": wall,
-        "evaluate_calls": res.calls,
-        "evaluated_points": res.points,
-        "located": int(located.size),
-        "evaluations_per_point_mean": float(ev.mean()) if ev.size else 0.0,
-        "evaluations_per_point_max": int(ev.max()) if ev.size else 0,
-    }
-    if crit.output is not None:
-        attrs["criterion_accuracy"] = accuracy_text(scene, crit)
-    from .model import sources
-
-    attrs.update(sources.record(scene.model).attrs(scene.base or None))  # what the points were computed from
-    if b.continue_in is not None:
-        t0 = time.perf_counter()
-        cdata, ccoords, n_eval, n_calls = _continue_all(scene, crit, b, res, rows, others)
-        data.update(cdata)
-        coords.update(ccoords)
-        attrs.update(continue_in=b.continue_in, continuation_wall_time_s=time.perf_counter() - t0,
-                     continuation_evaluated_points=n_eval, continuation_calls=n_calls)
-    if scene.solver is not None:
-        for k, v in scene.solver.as_dict().items():
-            attrs[f"solver_{k}"] = v
-    return xr.Dataset(data, coords=coords, attrs=attrs)
-
-
-def write_atomic(ds, target: str | os.PathLike) -> Path:
-    """Write ``ds`` to ``target`` through a temporary file in the same folder and a rename: an
-    existing file is replaced whole or not at all."""
-    target = Path(target)
-    fd, tmp = tempfile.mkstemp(prefix="." + target.name + ".", suffix=".tmp", dir=target.parent)
-    os.close(fd)
-    try:
-        # strings (a categorical axis) as CF character arrays, as a run's dataset stores them (store.py)
-        chars = {k: {"dtype": "S1"} for k, v in ds.variables.items() if v.dtype.kind in "OSUT"}
-        ds.to_netcdf(tmp, engine="h5netcdf", encoding=chars)
-        os.replace(tmp, target)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    return target
-
-
-def accuracy_warning(scene) -> str | None:
-    """Why a given ``criterion_accuracy`` cannot be trusted (None: it can, or none was given): below
-    about 100 rtol |level|, the accuracy the solver's rtol gives an integrated criterion, the band
-    is narrower than the criterion's own error, and the search may lose boundaries or stop in the
-    noise."""
-    b = scene.boundaries
-    if b is None or b.criterion_accuracy is None or b.criterion is None or scene.solver is None:
-        return None
-    if not from_integration(scene.model, b.criterion) or b.level == 0.0:
-        return None
-    floor = 100.0 * scene.solver.rtol * abs(b.level)
-    if b.criterion_accuracy >= floor:
-        return None
-    return (f"boundaries.criterion_accuracy = {b.criterion_accuracy:g} is below the accuracy solver.rtol = "
-            f"{scene.solver.rtol:g} gives the criterion (about 100 rtol |level| = {floor:g}): boundaries may be "
-            f"lost or located in the noise; tighten solver.rtol to {b.criterion_accuracy / (100.0 * abs(b.level)):g} "
-            "or less, or leave criterion_accuracy out")
-
-
-def status_warning(scene) -> str | None:
-    """Why a ``status_change`` criterion may locate nothing: it names a status the model does not
-    list among those its points can get (``possible_statuses``: without this warning such a scene
-    locates 0 boundaries with no word why). A warning, not a refusal: a model's list may be incomplete."""
-    b = scene.boundaries
-    if b is None or b.criterion is not None or b.status_change is None:
-        return None
-    listed = {st.MEANINGS[c] for c in scene.model.possible_statuses()}
-    missing = [name for name in b.status_change if name not in listed]
-    if not missing:
-        return None
-    return (f"boundaries.status_change names {', '.join(repr(m) for m in missing)}, which model "
-            f"{scene.model.name!r} does not list among its statuses ({', '.join(sorted(listed))}): "
-            "there may be no such boundary to locate")
-
-
-def warnings_for(scene) -> list[str]:
-    """What a [boundaries] section may get wrong without being invalid (accuracy, statuses)."""
-    return [text for text in (accuracy_warning(scene), status_warning(scene)) if text]
-
-
-def run_boundaries(scene_or_path, *, data=None, output=None, threads=None, progress=False, warn=True):
-    """The scene's [boundaries] pass: its grid (computed, or completed with resume, unless finished),
-    then the located boundaries, written atomically to ``output`` (default: DATA.boundaries.h5).
-    The grid's dataset is only read. Returns (path written, the boundaries Dataset). ``warn``: a
-    UserWarning for each of ``warnings_for`` (the CLI prints them itself)."""
-    from .errors import InputError
-    from .runner import _threads, compute
-    from .scene import Scene, load_scene
-    from .store import StoreError, open_dataset
-
-    scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path)
-    if scene.boundaries is None:
-        raise InputError(f"scene {scene.name!r} has no [boundaries] section; add one, e.g. "
-                         "[boundaries] along = \"AXIS\", criterion = \"OUTPUT\", level = 1.0")
-    for text in warnings_for(scene) if warn else ():
-        import warnings
-        warnings.warn(text, UserWarning, stacklevel=2)
-    data = Path(data if data is not None else scene.storage.path)
-    target = Path(output) if output is not None else sibling_path(data)
-    if target.resolve() == data.resolve():
-        raise StoreError(f"boundaries output {target} is the grid's dataset itself; choose another path with -o")
-    if not target.parent.is_dir():
-        raise StoreError(f"the folder {target.parent} for output {target} does not exist; create it first")
-    if target.exists() and not target.is_file():
-        raise StoreError(f"{target} exists and is not a regular file; choose another path with -o")
-    if target.is_file():
-        with open(target, "rb") as f:
-            head = f.read(8)
-        if head and head != b"\x89HDF\r\n\x1a\n":
-            raise StoreError(f"{target} exists and is not an HDF5 dataset; it would be overwritten: "
-                             "choose another path with -o")
-    compute(scene, output=data, resume=True, threads=threads, progress=progress)
-    ds = open_dataset(data)
-    with _threads(threads):
-        out = locate_dataset(scene, ds)
-    return write_atomic(out, target), out
-
-
-# ----------------------------------------------------------------------------- continuation in two parameters
-@dataclass
-class Curve:
-    """A boundary followed in two parameters: points (x, y) in order, the folds met (where the
-    curve turns back along x or along y: two boundaries of a one-axis search meet there), why it
-    stopped, and its cost."""
-
-    points: np.ndarray  # (n, 2)
-    folds: list  # (x, y, axis name, located): the tangent's component along that axis vanishes there
-    stop: str  # "edge", "closed", "max_points", "step_too_small", "no_value"
-    evaluations: int
-    calls: int
-
-
-def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_name: str, start, *,
-                      box=None, step: float = 0.02, step_min: float = 1e-7, step_max: float = 0.05,
-                      max_points: int = 2000, tol: float = 1e-10, direction: int = 0, log=None) -> Curve:
-    """Follow g(x, y) = criterion - level = 0 from ``start`` (a point on it, e.g. located along one
-    axis) by pseudo-arclength continuation, through folds, until it leaves ``box`` ((x_lo, x_hi),
-    (y_lo, y_hi); default: the scene's axes) or closes.
-
-    Works in the box's scaled coordinates (both spans 1; log10 of a coordinate whose scene axis is
-    log-spaced, or as ``log`` = (bool, bool) says). Predictor: a step ``step`` along the unit
-    tangent; corrector: Newton on (g = 0, tangent . (p - predicted) = 0) with the gradient by forward
-    differences (step 1e-7 of the span), its three evaluations in one call; converged when the
-    Newton step is below ``tol`` (of the span) and |g| within the criterion's accuracy. The step grows
-    1.5x after a corrector of at most 2 iterations, and halves (down to ``step_min``) when the
-    corrector fails or the tangent turns by more than 30 degrees. The last point is on the box's
-    edge (Newton with that coordinate fixed). Only criteria that change sign (not band edges or
-    status changes) can be continued this way. ``direction``: +1 / -1 along the tangent (-g_y, g_x),
-    0 (default) away from the box's nearest edge."""
-    names = scene.model.param_names()
-    cx, cy = names.index(x_name), names.index(y_name)
-    if box is None:
-        box = tuple(tuple(sorted(float(v) for v in next(a for a in scene.axes if a.name == n).ends))
-                    for n in (x_name, y_name))
-    if log is None:  # log coordinates along an axis the scene spaces logarithmically
-        log = tuple(any(a.name == n and a.spacing == "log" for a in scene.axes) for n in (x_name, y_name))
-    logs = np.array(log, dtype=bool)
-    edges = np.array(box, dtype=float)
-    edges[logs] = np.log10(edges[logs])
-    lo, span = edges[:, 0], edges[:, 1] - edges[:, 0]
-    ev = _Evaluator(scene, crit, np.asarray(row, dtype=float)[None, :], cx)
-    h = 1e-7
-
-    def to_xy(us):
-        xy = lo + np.asarray(us) * span
-        return np.where(logs, 10.0 ** np.where(logs, xy, 0.0), xy)  # no power of a linear coordinate (overflow)
-
-    def evaluate(us):
-        P = np.repeat(ev.rows, len(us), axis=0)
-        xy = to_xy(us)
-        P[:, cx], P[:, cy] = xy[:, 0], xy[:, 1]
-        g, _, _ = ev.at(P)
-        return g
-
-    def g_grad(u):
-        g = evaluate([u, u + [h, 0.0], u + [0.0, h]])
-        return g[0], np.array([(g[1] - g[0]) / h, (g[2] - g[0]) / h])
-
-    def eps_of(g):
-        return criterion_accuracy(scene.model, scene.solver, crit, np.array([g + crit.level]))[0]
-
-    def correct(u, t, pred, fixed=None):
-        """Newton from u; returns (point, gradient, iterations) or None."""
-        for it in range(1, 9):
-            g0, G = g_grad(u)
-            if not (np.isfinite(g0) and np.isfinite(G).all()):
-                return None
-            if fixed is None:
-                J = np.array([G, t])
-                rhs = -np.array([g0, t @ (u - pred)])
-            else:  # one coordinate held on the box's edge
-                J = np.array([G, [1.0, 0.0] if fixed == 0 else [0.0, 1.0]])
-                rhs = -np.array([g0, 0.0])
-            try:
-                du = np.linalg.solve(J, rhs)
-            except np.linalg.LinAlgError:
-                return None
-            u = u + du
-            if np.abs(du).max() <= tol and abs(g0) <= eps_of(g0):
-                return u, G, it
-        return None
-
-    def tangent(G, previous):
-        t = np.array([-G[1], G[0]]) / np.hypot(*G)
-        return t if previous @ t >= 0 else -t
-
-    def fold_between(u, t, q, tq, k):
-        """The fold between the curve points u and q (tangents t, tq; component k changes sign):
-        the point of the curve where the tangent's k-th component vanishes, i.e. the curve's
-        extremum in coordinate k. Illinois on that component over the chord u -> q, each trial
-        point corrected onto the curve in the plane normal to the chord. The component comes from
-        forward-difference gradients (noise ~ criterion accuracy / h), so the bracket stops at
-        FOLD_TOL of the chart; the extremal coordinate, quadratic in the position along the curve
-        there, is then exact to the corrector's tolerance. None where a correction fails."""
-        d = q - u
-        chord = d / np.hypot(*d)
-        f0, s0, f1, s1 = 0.0, t[k], 1.0, tq[k]
-        at = None
-        for _ in range(60):
-            f = f1 - s1 * (f1 - f0) / (s1 - s0)
-            if not 0.0 < f < 1.0 or not np.isfinite(f):
-                f = 0.5 * (f0 + f1)
-            pred = u + f * d
-            got = correct(pred.copy(), chord, pred)
-            if got is None:
-                return None
-            at, G, _ = got
-            sf = tangent(G, chord)[k]
-            if sf == 0.0:
-                return at
-            if sf * s1 < 0:  # the fold lies between f and f1
-                f0, s0 = f1, s1
-            else:  # Illinois: the end kept has its value halved
-                s0 *= 0.5
-            f1, s1 = f, sf
-            if abs(f1 - f0) * np.hypot(*d) <= FOLD_TOL:
-                return at
-        return at
-
-    start = np.asarray(start, dtype=float)
-    # no logarithm of a linear coordinate (a start at 0 on a linear axis warned of a division by zero)
-    u = (np.where(logs, np.log10(np.where(logs, np.abs(start), 1.0)), start) - lo) / span
-    g0, G = g_grad(u)
-    t = np.array([-G[1], G[0]]) / np.hypot(*G)
-    if direction == 0:  # into the box: away from the nearest edge
-        near = np.where(u - 0.5 > 0, 1.0 - u, u)
-        k = int(np.argmin(near))
-        inward = -1.0 if u[k] > 0.5 else 1.0
-        direction = 1 if t[k] * inward >= 0 else -1
-    t = t * (1 if direction > 0 else -1)
-    pts, folds, stop = [u.copy()], [], "max_points"
-    s = step
-    while len(pts) < max_points:
-        pred = u + s * t
-        got = correct(pred.copy(), t, pred)
-        if got is not None:
-            q, Gq, it = got
-            tq = tangent(Gq, t)
-            if tq @ t < math.cos(math.radians(30)):
-                got = None
-        if got is None:
-            s *= 0.5
-            if s < step_min:
-                stop = "step_too_small" if g_grad(u)[0] == g_grad(u)[0] else "no_value"
-                break
-            continue
-        outside = (q < 0) | (q > 1)
-        if outside.any():
-            k = int(np.argmax(outside))  # the coordinate that left the box first
-            edge = 0.0 if q[k] < 0 else 1.0
-            f = (edge - u[k]) / (q[k] - u[k])
-            e = u + f * (q - u)
-            e[k] = edge
-            got = correct(e, t, e, fixed=k)
-            if got is not None:
-                pts.append(got[0])
-            stop = "edge"
-            break
-        for k, name in ((0, x_name), (1, y_name)):
-            if tq[k] * t[k] < 0:  # the curve turned back along this axis between u and q
-                at = fold_between(u, t, q, tq, k)
-                if at is None:  # a correction failed: between the two points, as their tangents say
-                    f = t[k] / (t[k] - tq[k])
-                    folds.append(tuple(to_xy(u + f * (q - u))) + (name, False))
-                else:
-                    folds.append(tuple(to_xy(at)) + (name, True))
-        if len(pts) > 3 and np.hypot(*(q - pts[0])) < s:
-            pts.append(q)
-            stop = "closed"
-            break
-        pts.append(q)
-        u, t = q, tq
-        if it <= 2:
-            s = min(1.5 * s, step_max)
-    return Curve(points=to_xy(np.array(pts)), folds=folds, stop=stop, evaluations=ev.points, calls=ev.calls)
-
-
-CURVE_STOPS = ("edge", "closed", "max_points", "step_too_small", "no_value")
-# where a fold's bracket stops, in the chart's scaled coordinates (both spans 1): the tangent there
-# comes from forward differences, so its zero is not known better; the fold's extremal coordinate
-# moves by the square of this (times the curve's curvature)
-FOLD_TOL = 1e-7
-
-
-def _crosses_near(points: np.ndarray, x: float, y: float, span_x: float) -> bool:
-    """Whether the polyline ``points`` (n, 2) crosses the line at ``y`` within 1e-3 of the span plus
-    the crossing segment's own extent along x of ``x`` (the start lies on a curve already followed)."""
-    px, py = points[:, 0], points[:, 1]
-    for k in np.flatnonzero((py[:-1] - y) * (py[1:] - y) <= 0):
-        dy = py[k + 1] - py[k]
-        xc = px[k] if dy == 0 else px[k] + (y - py[k]) / dy * (px[k + 1] - px[k])
-        if abs(xc - x) <= 1e-3 * span_x + abs(px[k + 1] - px[k]):
-            return True
-    return False
-
-
-def _continue_all(scene, crit, b, res: Located, rows: np.ndarray, others: tuple):
-    """Follow, for every combination of the axes other than (along, continue_in), each boundary
-    located (by a sign change) on the lines at both ends of the continue_in axis, skipping a start
-    that lies on a curve already followed; then, both ways, each one located on an inner line that
-    no curve followed so far crosses (a boundary touching neither end line, e.g. an island).
-    Returns (variables, coordinates, points, calls)."""
-    along, cont = b.along, b.continue_in
-    names = [a.name for a in others]
-    ci = names.index(cont)
-    sizes = [a.size for a in others]
-    C = res.location.shape[1]
-    loc = np.moveaxis(res.location.reshape(sizes + [C]), ci, -2)
-    ok = np.moveaxis(np.isin(res.bound, (PARAMETER, CRITERION)).reshape(sizes + [C]), ci, -2)
-    R = np.moveaxis(rows.reshape(sizes + [rows.shape[1]]), ci, -2)
-    cvals = _encoded(scene, others[ci])
-    rest = loc.shape[:-2]
-    box = tuple(tuple(sorted(float(v) for v in next(a for a in scene.axes if a.name == n).ends)) for n in (along, cont))
-    span = np.array([box[0][1] - box[0][0], box[1][1] - box[1][0]])
-    found, n_eval, n_calls = {}, 0, 0
-    for r in np.ndindex(*rest):
-        curves = []
-        for end in (0, -1):
-            for x in loc[r][end][ok[r][end]]:
-                start = np.array([x, cvals[end]])
-                if any(np.min(np.hypot(*((c.points - start) / span).T)) < 1e-6 for c in curves):
-                    continue  # already on a curve followed from elsewhere
-                c = continue_boundary(scene, crit, R[r][end], along, cont, start, box=box)
-                n_eval += c.evaluations
-                n_calls += c.calls
-                curves.append(c)
-        # then a boundary touching neither end line (e.g. an island): from a crossing located on an
-        # inner line that no curve followed so far passes through, both ways
-        for j in range(1, len(cvals) - 1):
-            for x in loc[r][j][ok[r][j]]:
-                if any(_crosses_near(c.points, x, cvals[j], span[0]) for c in curves):
-                    continue
-                for d in (1, -1):
-                    c = continue_boundary(scene, crit, R[r][j], along, cont, np.array([x, cvals[j]]), box=box,
-                                          direction=d)
-                    n_eval += c.evaluations
-                    n_calls += c.calls
-                    curves.append(c)
-        found[r] = curves
-    K = max([len(c) for c in found.values()] + [0])
-    N = max([len(c.points) for cs in found.values() for c in cs] + [0])
-    F = max([len(c.folds) for cs in found.values() for c in cs] + [0])
-    cx, cy = np.full(rest + (K, N), np.nan), np.full(rest + (K, N), np.nan)
-    stop = np.full(rest + (K,), -1, dtype=np.int8)
-    fx, fy = np.full(rest + (K, F), np.nan), np.full(rest + (K, F), np.nan)
-    faxis = np.full(rest + (K, F), -1, dtype=np.int8)
-    flocated = np.full(rest + (K, F), -1, dtype=np.int8)
-    for r, cs in found.items():
-        for k, c in enumerate(cs):
-            cx[r + (k, slice(0, len(c.points)))] = c.points[:, 0]
-            cy[r + (k, slice(0, len(c.points)))] = c.points[:, 1]
-            stop[r + (k,)] = CURVE_STOPS.index(c.stop)
-            for j, (x, y, ax, located) in enumerate(c.folds):
-                fx[r + (k, j)], fy[r + (k, j)], faxis[r + (k, j)] = x, y, 0 if ax == along else 1
-                flocated[r + (k, j)] = int(located)
-    rest_dims = tuple(n for n in names if n != cont)
-    pa, pc = scene.model.param(along), scene.model.param(cont)
-    codes = np.arange(len(CURVE_STOPS), dtype=np.int8)
-    data = {
-        f"curve_{along}": (rest_dims + ("curve", "point"), cx,
-                           {"units": pa.unit, "long_name": f"{along} along the continued boundary (NaN after its end)"}),
-        f"curve_{cont}": (rest_dims + ("curve", "point"), cy,
-                          {"units": pc.unit, "long_name": f"{cont} along the continued boundary (NaN after its end)"}),
-        "curve_stop": (rest_dims + ("curve",), stop,
-                       {"units": "1", "long_name": "why the continuation stopped (-1: no curve)", "flag_values": codes,
-                        "flag_meanings": " ".join(CURVE_STOPS),
-                        "comment": "edge: it left the chart (last point on its edge); closed: it came back to its "
-                                   "start; step_too_small: the boundary ends or has a corner here (two boundaries "
-                                   "ending at one point meet there)"}),
-        f"fold_{along}": (rest_dims + ("curve", "fold"), fx, {"units": pa.unit, "long_name": f"{along} at a fold"}),
-        f"fold_{cont}": (rest_dims + ("curve", "fold"), fy, {"units": pc.unit, "long_name": f"{cont} at a fold"}),
-        "fold_axis": (rest_dims + ("curve", "fold"), faxis,
-                      {"units": "1", "long_name": f"the axis the curve turns back along at the fold: 0 {along}, "
-                                                  f"1 {cont} (-1: no fold)"}),
-        "fold_located": (rest_dims + ("curve", "fold"), flocated,
-                         {"units": "1", "long_name": "whether the fold was located on the curve (1), or, where a "
-                                                     "correction failed there, interpolated between the two curve "
-                                                     "points around it (0); -1: no fold"}),
-    }
-    coords = {"curve": ("curve", np.arange(K), {"units": "1", "long_name": "index of the continued boundary"}),
-              "point": ("point", np.arange(N), {"units": "1", "long_name": "index of the point along the curve"}),
-              "fold": ("fold", np.arange(F), {"units": "1", "long_name": "index of the fold along the curve"})}
-    return data, coords, n_eval, n_calls

@@ -1,4 +1,4 @@
-"""`mechsweep bench cluster`: throughput of one scene run locally and on a dask cluster of
+"""`python benchmarks/cluster.py`: throughput of one scene run locally and on a dask cluster of
 1 ... W worker processes on this machine, in the same run, and whether the datasets are identical.
 
 Every configuration runs the same Duffing amplitude-period scene (integrated periods) into its own
@@ -11,16 +11,21 @@ and the journal writer, i.e. the cost of a task outside the workers).
 """
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):  # run as `python benchmarks/NAME.py`: import from the repository's root, as -m does
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import os
 import resource
 import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 
-from ..runner import run
-from .duffing import grid_scene
+from mechsweep.runner import run
+from mechsweep.bench.duffing import grid_scene
 
 COMPARED = ("period", "status", "n_steps", "n_rhs")
 
@@ -42,14 +47,14 @@ def _same(a, b) -> bool:
 
 
 def main(points: int = 400_000, workers: int | None = None, chunk: int = 8192) -> list[dict]:
-    from . import _args
+    from mechsweep.bench import arguments
 
-    _args.needs_distributed()
+    arguments.needs_distributed()
     from distributed import LocalCluster
 
-    points = _args.count("points", points)
-    workers = _args.count("workers", workers, 1, 256) if workers is not None else os.cpu_count() or 1
-    chunk = _args.count("chunk", chunk, 1, 2**31)
+    points = arguments.count("points", points)
+    workers = arguments.count("workers", workers, 1, 256) if workers is not None else os.cpu_count() or 1
+    chunk = arguments.count("chunk", chunk, 1, 2**31)
     scene = grid_scene(points, 5e-11, 1e-12)
     scene["storage"] = {"chunk_size": chunk}
     warm = grid_scene(2_000, 5e-11, 1e-12)
@@ -74,7 +79,7 @@ def main(points: int = 400_000, workers: int | None = None, chunk: int = 8192) -
     n = reference["status"].size
     n_chunks = -(-n // chunk)
     base = rows[0]["seconds"]
-    print(f"mechsweep bench cluster: Duffing periods, {n:,} points in chunks of {chunk}, this machine "
+    print(f"benchmarks/cluster.py: Duffing periods, {n:,} points in chunks of {chunk}, this machine "
           f"({os.cpu_count()} cores); time includes the journal and the dataset assembly")
     print(f"  {'configuration':<34} {'wall s':>8} {'points/s':>12} {'vs local 1 thread':>18} "
           f"{'this process CPU ms/chunk':>26}  identical to local")
@@ -84,3 +89,23 @@ def main(points: int = 400_000, workers: int | None = None, chunk: int = 8192) -
               f"{1e3 * r['cpu'] / n_chunks:26.1f}  {'yes' if r['same'] else 'NO'}")
     print("  (this process: kernels when local; on dask the client, the scheduler and the journal writer)")
     return rows
+
+
+def cli(argv: list[str] | None = None) -> int:
+    """``python benchmarks/cluster.py [--points N] [--workers W] [--chunk N]``."""
+    from benchmarks import _cli
+
+    p = _cli.parser("cluster", "throughput locally and on a dask LocalCluster of 1..W workers; identical datasets")
+    p.add_argument("--points", type=int, default=400_000, help="Duffing grid points (default 400000)")
+    p.add_argument("--workers", type=int, default=None, help="up to this many worker processes (default: cores)")
+    p.add_argument("--chunk", type=int, default=8192, help="points per chunk, i.e. per task (default 8192)")
+
+    def command(a) -> int:
+        main(points=a.points, workers=a.workers, chunk=a.chunk)
+        return 0
+
+    return _cli.run(p, command, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(cli())

@@ -1,4 +1,4 @@
-"""`mechsweep bench startup`: the fixed costs of a run, its cold start, and its cost per point.
+"""`python benchmarks/startup.py`: the fixed costs of a run, its cold start, and its cost per point.
 
 Each figure is printed with its target beside it (the project's start-up and cost targets), as the median of
 ``repeats`` (>= 3) measurements and their spread (min .. max):
@@ -14,8 +14,8 @@ Each figure is printed with its target beside it (the project's start-up and cos
 - the cost per point of ``mechsweep.compute`` to a file from 10^4 to 10^6 integrated points
   (--full: to 10^7 integrated and 10^6 .. 10^8 closed-form points; beyond 10^7 points, an axis's
   most, the grid is 10^4 x 10^4), warm, and the peak resident memory of the command
-  ``mechsweep run`` on the same grid (a fresh process, interpreter included; bench memory explains
-  the measurement);
+  ``mechsweep run`` on the same grid (a fresh process, interpreter included; benchmarks/memory.py
+  explains the measurement);
 - ``--only routes``: the cold compile of the quickstart's kernels by route (SIMD lanes, one point at
   a time) in fresh processes with an empty JIT cache each, alternated, and both warm kernels' points/s
   side by side: what model/compile.py's LANES_FROM_POINTS is set from;
@@ -24,16 +24,20 @@ Each figure is printed with its target beside it (the project's start-up and cos
 """
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):  # run as `python benchmarks/NAME.py`: import from the repository's root, as -m does
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import json
 import os
 import statistics
 import subprocess
-import sys
 import tempfile
 import time
-from pathlib import Path
 
-from . import memory
+from benchmarks import memory
 
 TARGET_WARM_MS = {10**3: 10.0, 10**4: 25.0}
 TARGET_COLD_S = 8.0
@@ -68,7 +72,7 @@ def warm_small(repeats: int, folder: Path) -> dict:
     """Seconds of warm runs of 10^3 and 10^4 points, in memory and to a file: {(n, route): [s]}."""
     import mechsweep
     from mechsweep.grid import ParameterMatrix
-    from mechsweep.runner import evaluate_rows
+    from mechsweep.execute import evaluate_rows
     from mechsweep.scene import load_scene
 
     out = {}
@@ -301,12 +305,12 @@ import numba
 lap("import numba")
 from mechsweep import cli
 lap("import mechsweep.cli")
-from mechsweep import runner, scene
+from mechsweep import execute, runner, scene
 lap("import mechsweep.scene, runner (the models)")
 s = scene.load_scene(sys.argv[1])
 lap("load the scene")
 from mechsweep.grid import ParameterMatrix
-runner.evaluate_rows(s, ParameterMatrix(s)(0, 1))
+execute.evaluate_rows(s, ParameterMatrix(s)(0, 1))
 lap("first kernel call (numba's target, the cached kernel)")
 runner.compute(s, output=sys.argv[2], progress=False, overwrite=True)
 lap("compute to the file")
@@ -319,7 +323,7 @@ WARM_LOAD_CHILD = """
 import cProfile, json, pstats, sys, time
 import mechsweep
 from mechsweep.grid import ParameterMatrix
-from mechsweep.runner import evaluate_rows
+from mechsweep.execute import evaluate_rows
 scene = mechsweep.load_scene(sys.argv[1])
 P = ParameterMatrix(scene)(0, 1)
 profile = cProfile.Profile()
@@ -375,7 +379,7 @@ import json, sys, time
 import mechsweep
 from mechsweep.model import compile as mc
 from mechsweep.grid import ParameterMatrix
-from mechsweep.runner import evaluate_rows
+from mechsweep.execute import evaluate_rows
 mode = sys.argv[2]
 mc.USE_LANES = {"lanes": True, "one": False}.get(mode, mc.USE_LANES)
 if mode == "auto":
@@ -412,7 +416,7 @@ def route_speed(n: int, repeats: int) -> dict:
     kernel and the one-point kernel alternated in this process: {mode: [(wall s, CPU s)]}."""
     from mechsweep.grid import ParameterMatrix
     from mechsweep.model import compile as mc
-    from mechsweep.runner import evaluate_rows
+    from mechsweep.execute import evaluate_rows
     from mechsweep.scene import load_scene
 
     scene = load_scene(duffing(n))
@@ -486,7 +490,7 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
     import numpy as np
 
     import mechsweep
-    from mechsweep import journal, runner, store
+    from mechsweep import execute, journal, runner, store
     from mechsweep.grid import ParameterMatrix
     from mechsweep.scene import load_scene
 
@@ -504,8 +508,8 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
                 spent[label] += time.perf_counter() - t0
         return original, wrapper
 
-    patches = [(runner, n, n) for n in ("_check_existing", "_save_chunks", "_finish", "open_dataset", "drop",
-                                        "warm_up")]
+    patches = [(runner, n, n) for n in ("_check_existing", "_save_chunks", "_finish", "open_dataset", "drop")]
+    patches += [(execute, "warm_up", "warm_up")]
     patches += [(store, "_define", "store._define"), (journal.Journal, "create", "Journal.create"),
                 (journal.Journal, "write_chunk", "Journal.write_chunk")]
     small = load_scene(duffing(10**3))
@@ -530,13 +534,13 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
         print(f"    {label:<22} {seconds / repeats * 1e3:8.1f}")
     big = load_scene(duffing(10**4))
     P = ParameterMatrix(big)(0, 10**4)
-    runner.evaluate_rows(big, P)
+    execute.evaluate_rows(big, P)
     launches = {1: [], 20: []}
     for _ in range(repeats):
         for k in launches:
             t0 = time.perf_counter()
             for part in np.array_split(np.arange(10**4), k):
-                runner.evaluate_rows(big, P[part[0]:part[-1] + 1])
+                execute.evaluate_rows(big, P[part[0]:part[-1] + 1])
             launches[k].append(time.perf_counter() - t0)
     print("  10^4 points in 1 kernel call: " + _spread(launches[1], "ms", 1e3) + "; in 20 calls: "
           + _spread(launches[20], "ms", 1e3))
@@ -582,25 +586,25 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
     "compile" (the scene's cold compile by function, ``repeats`` fresh processes: :func:`compile_table`),
     "warmstart" (the warm quickstart by process, alternated with the sources ``against`` when given:
     :func:`warm_start`)."""
-    from . import _args
+    from mechsweep.bench import arguments
 
-    repeats = _args.count("--repeats", repeats, 3, 100)
+    repeats = arguments.count("--repeats", repeats, 3, 100)
     scene_path = Path(scene).resolve()
     if against is not None and not (Path(against) / "mechsweep" / "__init__.py").is_file():
-        raise _args.InputError(f"--against {against}: no mechsweep package in it; give the src folder of a "
+        raise arguments.InputError(f"--against {against}: no mechsweep package in it; give the src folder of a "
                                "checkout, e.g. /path/to/checkout/src")
     if against is not None and "warmstart" not in parts:
-        raise _args.InputError("--against applies to --only warmstart only")
+        raise arguments.InputError("--against applies to --only warmstart only")
     if parts and set(parts) & {"quickstart", "breakdown", "routes", "compile", "warmstart"}:
         if not scene_path.is_file():
-            raise _args.InputError(f"--scene {scene} does not exist (run from the repository root, or give its path)")
+            raise arguments.InputError(f"--scene {scene} does not exist (run from the repository root, or give its path)")
         from mechsweep.scene import load_scene
 
         load_scene(scene_path)  # an invalid scene is refused here, not as a failed child process
     import numba
 
     report = {}
-    print(f"mechsweep bench startup: {numba.get_num_threads()} threads, median of {repeats} runs (min .. max)")
+    print(f"benchmarks/startup.py: {numba.get_num_threads()} threads, median of {repeats} runs (min .. max)")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         if "warm" in parts:
@@ -699,5 +703,34 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
     return report
 
 
+def cli(argv: list[str] | None = None) -> int:
+    """``python benchmarks/startup.py [--full] [--repeats N] [--scene S] [--only PART ...] [--against SRC]``."""
+    from benchmarks import _cli
+
+    p = _cli.parser("startup", "fixed costs and cold start against their targets: warm runs of 10^3 and 10^4 points "
+                               "(in memory and to a file), quickstart run + plot cold and warm, cost per point "
+                               "10^4 .. 10^6 (--full: 10^7, 10^8 closed form) with the command's peak memory")
+    p.add_argument("--full", action="store_true", help="scale to 10^7 integrated and 10^8 closed-form points (minutes)")
+    p.add_argument("--repeats", type=int, default=3, help="measurements per figure, at least 3 (default 3)")
+    p.add_argument("--scene", default="sweeps/quickstart.toml",
+                   help="the quickstart scene (default sweeps/quickstart.toml)")
+    p.add_argument("--only", choices=("warm", "quickstart", "scaling", "breakdown", "routes", "compile", "warmstart"),
+                   nargs="+", default=None,
+                   help="measure only these parts (default: warm quickstart scaling; breakdown: where the time "
+                        "goes, by function: the file route's fixed costs, chunk launches, a cold compile; routes: "
+                        "the cold compile and warm speed of the lane and one-point kernels; compile: the scene's cold "
+                        "compile by function, LLVM against numba's own work, in --repeats fresh processes; "
+                        "warmstart: the warm quickstart by process, run and plot)")
+    p.add_argument("--against", metavar="SRC", default=None,
+                   help="with --only warmstart: alternate with the sources in SRC (another checkout's src folder)")
+
+    def command(a) -> int:
+        main(full=a.full, repeats=a.repeats, scene=a.scene,
+             parts=tuple(a.only) if a.only else ("warm", "quickstart", "scaling"), against=a.against)
+        return 0
+
+    return _cli.run(p, command, argv)
+
+
 if __name__ == "__main__":
-    print(json.dumps(main(), default=str))
+    sys.exit(cli())

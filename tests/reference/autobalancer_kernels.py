@@ -1,5 +1,5 @@
-"""The auto-balancer's hand-written kernels: a private reference implementation, kept to compare
-the model layer against (tests, benches, tests/data/record_autobalancer.py); NOT used by the model.
+"""The auto-balancer's hand-written kernels: a reference implementation the model layer is compared
+against (tests, benchmarks/autobalancer.py, tests/data/record_autobalancer.py); not part of mechsweep.
 
 The built-in model "autobalancer" is the layer declaration in models/autobalancer.py (its module
 docstring has the physics, the decision rules and the statuses). This module is the code that was
@@ -19,18 +19,18 @@ import math
 import numba
 import numpy as np
 
-from .. import status as st
-from .._jit import call_with_literal, compile_time_switch, jit, jit_noalloc, literally, pjit, prange
-from ..ode import AUTO, DOP853, METHOD_CODES, RADAU, dop853, dop853_lanes, radau
-from ._spec import ModelSpec
-from .autobalancer import (  # noqa: F401 (re-exported: the reference's names)
+from mechsweep import status as st
+from mechsweep._jit import call_with_literal, compile_time_switch, jit, jit_noalloc, literally, pjit, prange
+from mechsweep.model.spec import ModelSpec
+from mechsweep.models.autobalancer import (  # noqa: F401 (re-exported: the reference's names)
     IB_SLACK, IP_ALPHA0, IP_ALPHA1, IP_DX, IP_DY, IP_EH, IP_IOTA, IP_KX, IP_KY, IP_LAM, IP_MU, IP_TH1, IP_TH2, NP,
     OUTPUTS, PAIRS, PARAM_NAMES, PARAMS, REVOLUTION, SETTINGS, STATUS_NOTES, STATUS_ORDER, STATUSES, TWO_PI,
-    _jacobian_block, _jvp, accelerations, accelerations_trig, check, conrod_terms, history_revolutions,
-    initial_state, phase_errors, variational_jacobian, variational_rhs, wrap)
-from .autobalancer import scaled_jacobian as jacobian
-from .autobalancer import scaled_rhs as rhs
-from .autobalancer import scaled_rhs_lanes as rhs_lanes
+    accelerations, accelerations_trig, check, conrod_terms, history_revolutions, initial_state, phase_errors,
+    variational_jacobian, variational_rhs, wrap)
+from mechsweep.models.autobalancer import scaled_jacobian as jacobian
+from mechsweep.models.autobalancer import scaled_rhs as rhs
+from mechsweep.models.autobalancer import scaled_rhs_lanes as rhs_lanes
+from mechsweep.ode import AUTO, DOP853, METHOD_CODES, RADAU, dop853, dop853_lanes, radau
 
 BLOCK = 8  # points per scratch allocation in the parallel loops
 LATE_FRACTION = 0.1  # last 10 % of the horizon: residual amplitude and late envelopes

@@ -47,6 +47,9 @@ class Param:
         The symbol in matplotlib mathtext for figure labels (e.g. ``r"$\\omega_\\xi$"``; it may
         define the symbol, as in ``r"$\\varepsilon = \\mu A^2/\\omega^2$"``). Without one, figures
         write ``symbol`` as mathtext themselves.
+    aliases : tuple of str, optional
+        Former names a scene, a stored scene or a call may still use for the parameter (e.g.
+        ``"lambda"``, a Python keyword, for the slider-crank's ``lam``); datasets use ``name``.
 
     Examples
     --------
@@ -253,6 +256,13 @@ class ModelSpec:
     attribute of its datasets; ``source`` when empty).
     ``methods_for(outputs)`` (optional): the methods a choice of outputs (closed under ``needs``)
     supports, when some outputs offer fewer than ``methods``; a scene asking another is refused.
+    ``plan(wanted, solver) -> dict`` (optional): what ``evaluate`` computes for ``wanted``, decided
+    before any chunk (mechsweep/plan.py stores it with the run): ``measurements`` and ``closed_forms``
+    (names), and ``lanes``: {kernel family: {"record", "recorded", "from_points", "forced"}} for each
+    kernel that can also integrate points side by side (its record name, whether it is compiled for
+    this CPU, the run size from which the lanes pay, the engine's override or None). A spec that has
+    ``plan`` takes ``evaluate(..., route={family: "lanes" or "point"})``: the route the run's plan
+    chose for each family (bitwise the same results either way); without ``route`` the engine's default.
     """
 
     name: str
@@ -283,14 +293,14 @@ class ModelSpec:
         hide nonfinite and user_error, which the runner gives any model): NONFINITE (a value that is
         not finite) and USER_ERROR (the model's code raised, or returned a code that is no status); for integrated
         outputs the integrator's failures (MAX_STEPS, STEP_UNDERFLOW, NO_EVENT, and STIFF when it
-        offers more than one method); for a "floquet_max" output INFEASIBLE (no admissible forcing
-        period) and for a "verdict" output UNDECIDED."""
+        offers dop853: a step budget spent at the stability limit); for a "floquet_max" output
+        INFEASIBLE (no admissible forcing period) and for a "verdict" output UNDECIDED."""
         from .. import status as st
 
         codes = {st.OK, *self.statuses, st.NONFINITE, st.USER_ERROR}
         if any(o.integrated for o in self.outputs):
             codes |= {st.MAX_STEPS, st.STEP_UNDERFLOW, st.NO_EVENT}
-            if len(self.methods) > 1:
+            if "dop853" in self.methods:
                 codes.add(st.STIFF)
         kinds = {o.kind for o in self.outputs}
         if "floquet_max" in kinds:
@@ -303,6 +313,7 @@ class ModelSpec:
         """What status ``code`` means for this model ("" when it declares nothing)."""
         return dict(self.status_notes).get(int(code), "")
     methods_for: Callable | None = field(default=None, repr=False)
+    plan: Callable | None = field(default=None, repr=False, compare=False)
 
     def param(self, name: str) -> Param:
         return self._params_by_name()[name]
@@ -341,6 +352,12 @@ class ModelSpec:
     def needs_integration(self, requested) -> bool:
         by_name = self._outputs_by_name()
         return any(by_name[n].integrated for n in self.closure(requested))
+
+
+def setting_value(x, settings) -> float:
+    """A declared number, or the name of one of the model's settings: its value in ``settings``
+    (name -> value, the scene's [solver] settings)."""
+    return float(settings[x]) if isinstance(x, str) else float(x)
 
 
 def wanted_flags(all_names: tuple[str, ...], wanted: tuple[str, ...]) -> np.ndarray:

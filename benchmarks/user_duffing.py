@@ -1,4 +1,4 @@
-"""`mechsweep bench user-model`: the Duffing oscillator declared as a user model (on the model
+"""`python benchmarks/user_duffing.py`: the Duffing oscillator declared as a user model (on the model
 layer, as a user would write it in a file) against the built-in Duffing, on the same grid, the same
 tolerances and threads, in one run.
 
@@ -18,12 +18,18 @@ must not pay for going through the model layer).
 """
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):  # run as `python benchmarks/NAME.py`: import from the repository's root, as -m does
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 import math
 import time
 
 import numpy as np
 
-from ..model import Crossing, FirstEvent, OdeModel, Param
+from mechsweep.model import Crossing, FirstEvent, OdeModel, Param
 
 TARGET = 0.90
 
@@ -71,7 +77,7 @@ DUFFING = OdeModel(
     measurements=(FirstEvent("period", x_event, t_max=200.0 * math.pi, value=period_from_quarter, symbol="T",
                              unit="s", long_name="period: 4 times the first zero of x = phi / A"),),
 )
-REFERENCE = "mechsweep.bench.user_duffing:DUFFING"  # how a scene names it (the "package.module:NAME" door)
+REFERENCE = "benchmarks.user_duffing:DUFFING"  # how a scene names it (the "package.module:NAME" door)
 
 
 # ---- unscaled: phi(t) itself
@@ -95,25 +101,25 @@ DUFFING_UNSCALED = OdeModel(
     measurements=(Crossing("t_quarter", "phi", level=0.0, direction="down", n=1, t_max=100.0, unit="s",
                            long_name="time of the first zero of phi: a quarter period"),),
 )
-REFERENCE_UNSCALED = "mechsweep.bench.user_duffing:DUFFING_UNSCALED"
+REFERENCE_UNSCALED = "benchmarks.user_duffing:DUFFING_UNSCALED"
 
 
 def main(points: int = 200_000, threads: int | None = None, rtol: float | None = None,
          atol: float | None = None) -> dict:
     import numba
 
-    from .. import status as st
-    from ..grid import Chunk, parameter_matrix
-    from ..models import duffing
-    from ..runner import _threads, evaluate_chunk
-    from ..scene import SOLVER_LIMITS, Solver, load_scene
-    from . import _args
-    from .duffing import grid_scene
+    from mechsweep import status as st
+    from mechsweep.grid import Chunk, parameter_matrix
+    from mechsweep.models import duffing
+    from mechsweep.execute import evaluate_chunk, threads as _threads
+    from mechsweep.scene import SOLVER_LIMITS, Solver, load_scene
+    from mechsweep.bench import arguments
+    from mechsweep.bench.duffing import grid_scene
 
-    points = _args.count("points", points)
-    threads = _args.threads("threads", threads)
-    rtol = _args.tolerance("rtol", Solver.rtol if rtol is None else rtol, *SOLVER_LIMITS["rtol"])
-    atol = _args.tolerance("atol", Solver.atol if atol is None else atol, *SOLVER_LIMITS["atol"])
+    points = arguments.count("points", points)
+    threads = arguments.threads("threads", threads)
+    rtol = arguments.tolerance("rtol", Solver.rtol if rtol is None else rtol, *SOLVER_LIMITS["rtol"])
+    atol = arguments.tolerance("atol", Solver.atol if atol is None else atol, *SOLVER_LIMITS["atol"])
     builtin = grid_scene(points, rtol, atol, ("period",))
     user = {**builtin, "scene": {"name": "bench-duffing-user", "model": REFERENCE, "outputs": ["period"]}}
     unscaled = {**builtin, "scene": {"name": "bench-duffing-user-unscaled", "model": REFERENCE_UNSCALED,
@@ -145,7 +151,7 @@ def main(points: int = 200_000, threads: int | None = None, rtol: float | None =
     result = {"points": int(P.shape[0]), "threads": n_threads, "rtol": rtol, "atol": atol, **{
         f"{label}_{k}": v for label, row in rows.items() for k, v in row.items()}, "ratio": ratio,
         "ratio_unscaled": rows["user, unscaled"]["points_per_s"] / rows["built-in"]["points_per_s"]}
-    print(f"mechsweep bench user-model: Duffing declared as a user model ({REFERENCE}, the built-in's scaled "
+    print(f"benchmarks/user_duffing.py: Duffing declared as a user model ({REFERENCE}, the built-in's scaled "
           f"equation) against the built-in, DOP853, rtol={rtol:g}, atol={atol:g}, {n_threads} threads, "
           f"{P.shape[0]} points")
     for label, row in rows.items():
@@ -158,3 +164,25 @@ def main(points: int = 200_000, threads: int | None = None, rtol: float | None =
     print(f"  user model / built-in: {ratio:.2f} (target: at least {TARGET:.2f}); "
           f"unscaled user model / built-in: {result['ratio_unscaled']:.2f} (for information)")
     return result
+
+
+def cli(argv: list[str] | None = None) -> int:
+    """``python benchmarks/user_duffing.py [--points N] [--threads N] [--rtol R] [--atol A]``."""
+    from benchmarks import _cli
+
+    p = _cli.parser("user_duffing", "the Duffing oscillator declared as a user model against the built-in kernel: "
+                                    "points/s and period error, side by side")
+    p.add_argument("--points", type=int, default=200_000, help="grid points (default 200000)")
+    p.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
+    p.add_argument("--rtol", type=float, default=None, help="default: the solver default")
+    p.add_argument("--atol", type=float, default=None, help="default: the solver default")
+
+    def command(a) -> int:
+        main(points=a.points, threads=a.threads, rtol=a.rtol, atol=a.atol)
+        return 0
+
+    return _cli.run(p, command, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(cli())
