@@ -310,6 +310,61 @@ def test_stability_map_draws_every_valued_point_and_the_located_boundaries():
     assert "located" not in figures.artists(ds, "stability_map")["panels"][0]
 
 
+def _speed_boundaries(ds, continued=False):
+    """A boundaries dataset of ds's grid (speed x preload) located along speed: one crossing per
+    preload at 30 + 10 i; ``continued``: one curve continued in preload, through those points."""
+    crossing = np.array([[30.0 + 10 * i, np.nan] for i in range(ds.sizes["preload"])])
+    data = {"boundary": (("preload", "crossing"), crossing, {"units": "rad/s"}),
+            "boundary_width": (("preload", "crossing"), np.full(crossing.shape, 1e-9), {"units": "rad/s"})}
+    attrs = {"mechsweep_kind": "boundaries", "model": "cam_follower", "along": "speed", "criterion": "lift",
+             "level": 20.0, "rtol": 1e-10}
+    if continued:
+        data["curve_speed"] = (("curve", "point"), crossing[:, :1].T, {"units": "rad/s"})
+        data["curve_preload"] = (("curve", "point"), ds["preload"].values[None, :], {"units": "N"})
+        attrs["continue_in"] = "preload"
+    return xr.Dataset(data, coords={"preload": ds["preload"].values, "crossing": [0, 1]}, attrs=attrs)
+
+
+def test_a_heatmap_over_the_located_axis_draws_the_located_boundaries():
+    """Boundaries located along speed are drawn over the heatmap whose axes are speed and preload
+    (speed vertical: the points at (preload, boundary)), with the continued curve and a legend
+    saying what they are, readable; a nomogram draws none (it plots the output against speed)."""
+    from . import figure_checks as fc
+
+    ds = _axes_of(cam(), "speed", "preload")
+    bds = _speed_boundaries(ds, continued=True)
+    assert figures.boundary_figures(ds, bds) == ["stability_map", "heatmap_lift"]
+    art = figures.artists(ds, "heatmap_lift", boundaries=bds)
+    assert (art["panels"][0]["located"] and (generic.choose(ds)[1].x, generic.choose(ds)[1].y)
+            == ("preload", "speed"))
+    points, curve = art["panels"][0]["located"][:2]
+    np.testing.assert_allclose(points.get_offsets()[:, 0], ds["preload"].values)
+    np.testing.assert_allclose(points.get_offsets()[:, 1], 30.0 + 10 * np.arange(ds.sizes["preload"]))
+    np.testing.assert_allclose(curve.get_xdata(), ds["preload"].values)
+    assert "boundary where" in " ".join(t.get_text() for t in art["legend"].get_texts())
+    assert fc.check_readable(art["figure"], ds) == []
+    assert "located" not in figures.artists(ds, "heatmap_lift")["panels"][0]
+    assert "located" not in figures.artists(ds, "nomogram_lift", boundaries=bds)["panels"][0]
+
+
+def test_plot_refuses_boundaries_no_figure_drawn_can_draw(tmp_path, capsys):
+    """`plot --boundaries` on a figure that cannot draw them (a nomogram) is refused, naming the
+    figures that can (it was ignored without a word); drawn with figures some of which cannot,
+    a note says which show them."""
+    ds = _axes_of(cam(n_speed=12), "speed", "preload")
+    ds.to_netcdf(tmp_path / "cam.h5", engine="h5netcdf")
+    _speed_boundaries(ds).to_netcdf(tmp_path / "b.h5", engine="h5netcdf")
+    args = ["plot", str(tmp_path / "cam.h5"), "--boundaries", str(tmp_path / "b.h5")]
+    assert main(args + ["--kind", "nomogram_lift"]) == 2
+    err = capsys.readouterr().err
+    assert "none of the figures drawn (nomogram_lift) draws located boundaries" in err
+    assert "stability_map, heatmap_lift" in err
+    assert main(args + ["--kind", "heatmap_lift"]) == 0
+    assert "note" not in capsys.readouterr().err
+    assert main(args) == 0
+    assert "drawn on stability_map, heatmap_lift; not on nomogram_lift" in capsys.readouterr().err
+
+
 def test_discrete_outputs_are_drawn_by_class_without_contours():
     """A declared verdict (0/1) and an output of a few whole numbers (a -1/0/+1 kind) get one flat
     colour per value and a colour bar ticked at the values, no interpolated contours (they used to

@@ -290,8 +290,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="select one grid point (nearest values), e.g. --point Omega=12.5,m=0.2; "
                         "draws its time histories when the dataset stores them")
     p.add_argument("--boundaries", metavar="PATH",
-                   help="located boundaries (`mechsweep boundaries`) to draw over the charts that show them "
-                        "(default: DATASET.boundaries.h5 beside the dataset, when it exists)")
+                   help="located boundaries (`mechsweep boundaries`) to draw over the charts that show them: "
+                        "stability maps and heatmaps with the axis they were located along (refused when no "
+                        "figure drawn shows them; default: DATASET.boundaries.h5 beside the dataset, when it "
+                        "exists)")
     p.add_argument("--no-boundaries", action="store_true", help="draw the charts without located boundaries")
     p.add_argument("--x", metavar="AXIS", help="draw the generic figures (stability map, heatmap, nomogram) with AXIS "
                    "across; only the outputs over it (default: the figures' own choice, see --list)")
@@ -472,6 +474,8 @@ def _plot(args) -> int:
         for k, doc in extra.items():
             print(f"{k} (on request: --kind {k}): {doc}")
         return 0
+    if bds is not None and args.boundaries:
+        _check_boundaries_drawn(ds, bds, args, [args.kind] if args.kind else list(kinds), axes)
     # -o naming an existing folder: the figures go into it under their default names (a folder named
     # like a figure file, x.png, is taken as a figure path and refused below: not a regular file)
     folder = None
@@ -607,6 +611,30 @@ def _boundaries_for(ds, args):
         raise InputError(f"--boundaries {path}: not located on the grid of {args.dataset}: {why}")
     print(f"note: {path} not drawn: {why}", file=sys.stderr)
     return None
+
+
+def _check_boundaries_drawn(ds, bds, args, drawing, axes) -> None:
+    """--boundaries PATH is drawn by some of the figures ``drawing`` (refused, exit 2, when by none:
+    naming the figures of this dataset that draw them, or saying which would); a note names the
+    figures drawn without them (a nomogram, a curve: an output against one axis)."""
+    from . import figures
+    from .errors import InputError
+
+    can = figures.boundary_figures(ds, bds, axes)
+    drawn = [k for k in drawing if k in can]
+    along = bds.attrs.get("along")
+    if not drawn:
+        what = ", ".join(drawing) or "none"
+        if can:
+            raise InputError(f"--boundaries {args.boundaries}: none of the figures drawn ({what}) draws located "
+                             f"boundaries; the figures of this dataset that do: {', '.join(can)} (--kind NAME)")
+        raise InputError(f"--boundaries {args.boundaries}: no figure of this dataset draws them (figures drawn: "
+                         f"{what}): a stability map or heatmap with {along!r} as one of its two axes does (--x, "
+                         "--y choose a heatmap's axes); a nomogram or curve has no place for them")
+    left = [k for k in drawing if k not in can]
+    if left:
+        print(f"note: --boundaries {args.boundaries}: drawn on {', '.join(drawn)}; not on {', '.join(left)} "
+              f"(only a stability map or heatmap with {along!r} as one of its axes draws them)", file=sys.stderr)
 
 
 @contextmanager

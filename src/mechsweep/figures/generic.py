@@ -122,11 +122,19 @@ class Choice:
     description: str
 
     def draw(self, ds, *, fig=None, ax=None, boundaries=None):
-        """The figure's artists (a Drawn dict; ``["figure"]`` is the Figure). A stability map draws
-        ``boundaries`` (located on this grid, along one of its two axes) over the shading."""
+        """The figure's artists (a Drawn dict; ``["figure"]`` is the Figure). A stability map and a
+        heatmap draw ``boundaries`` (located on this grid) over the chart when it was located along
+        one of their two axes (:meth:`draws`); the other figures leave them out."""
         if self.kind == "stability_map":
             return stability_map(ds, self.output, x=self.x, y=self.y, fig=fig, ax=ax, boundaries=boundaries)
-        return _panel_figure(ds, self, fig=fig, ax=ax)
+        return _panel_figure(ds, self, fig=fig, ax=ax, boundaries=boundaries if self.draws(boundaries) else None)
+
+    def draws(self, boundaries) -> bool:
+        """Whether this figure draws ``boundaries`` (a boundaries dataset of its grid): a map (stability
+        map or heatmap) with the axis they were located along as one of its two axes. A nomogram or a
+        curve plots an output's value against one axis, where a boundary in the parameters has no place."""
+        return (boundaries is not None and self.kind in ("stability_map", "heatmap")
+                and boundaries.attrs.get("along") in (self.x, self.y))
 
 
 def _map_axes(ds, name) -> tuple[str, str]:
@@ -668,8 +676,9 @@ def _flag_note(ax, n_bad, n_drawn):
 
 
 # ----------------------------------------------------------------------------- whole figures
-def _panel_figure(ds, choice: Choice, *, fig=None, ax=None):
-    """One panel per value of the axes the figure does not use (at most MAX_PANELS)."""
+def _panel_figure(ds, choice: Choice, *, fig=None, ax=None, boundaries=None):
+    """One panel per value of the axes the figure does not use (at most MAX_PANELS). A heatmap draws
+    ``boundaries`` (located along one of its axes, on this grid) over each panel, with a legend."""
     used = (choice.x,) if choice.y is None else (choice.x, choice.y)
     rest = [d for d in _axes(ds, choice.output) if d not in used]
     members = list(itertools.product(*(list(ds[d].values) for d in rest)))
@@ -679,13 +688,18 @@ def _panel_figure(ds, choice: Choice, *, fig=None, ax=None):
     heat = choice.kind == "heatmap"
     if ax is not None:  # the user's Axes: one per panel, none left over
         ncols, nrows = 1, len(shown)
-    fig, axes = new_figure(nrows, ncols, width=6.0 if heat else 6.6, height=4.6 if heat else 4.0, fig=fig, ax=ax)
+    over = heat and boundaries is not None
+    # located boundaries: their legend goes under the panels, in a taller figure (the panel keeps its height)
+    fig, axes = new_figure(nrows, ncols, width=6.0 if heat else 6.6,
+                           height=(4.6 + (1.6 / nrows if over else 0.0)) if heat else 4.0, fig=fig, ax=ax)
     art = Drawn(figure=fig, axes=axes, panels=[])
     for k, values in enumerate(shown):
         a = axes[k // ncols, k % ncols]
         at = dict(zip(rest, values))
         if heat:
             art["panels"].append(heatmap(ds, choice.output, x=choice.x, y=choice.y, at=at, ax=a))
+            if over:
+                art["panels"][-1]["located"] = _located_over(a, ds, boundaries, choice.x, choice.y, at)
         else:
             art["panels"].append(nomogram(ds, choice.output, x=choice.x, family=choice.y, at=at, ax=a))
         if at:
@@ -697,8 +711,32 @@ def _panel_figure(ds, choice: Choice, *, fig=None, ax=None):
     cut = f" (first {len(shown)} of {len(members)} slices of {', '.join(rest)})" if len(members) > len(shown) else ""
     if choice.kind == "history":  # the point it belongs to
         cut = " at " + ", ".join(_slice_text(ds, d, ds[d].values[0]) for d in grid_dims(ds) if d in ds.coords)
-    title(fig, ds, f"{what}: {long}{cut}")
+    overlays = [a for p in art["panels"] for a in p.get("located") or ()]
+    caption = title(fig, ds, f"{what}: {long}{cut}", caption_box=not overlays)
+    if overlays:  # what the located points and curves are, under the panels (the caption heads it)
+        entries = [(e[:-1] if len(e) > 2 else e[0], e[-1]) for e in located.legend_entries(overlays, boundaries, ds)]
+        art["legend"] = fig.legend([h for h, _ in entries], [wrap(t, 60) for _, t in entries],
+                                   loc="outside lower center", fontsize=8.5,
+                                   handler_map={tuple: HandlerTuple(ndivide=None, pad=0.6)},
+                                   title=caption or None, title_fontproperties={"size": 7.5})
     return art
+
+
+def _located_over(ax, ds, boundaries, xdim, ydim, at) -> list:
+    """Draw ``boundaries`` (located along ``xdim`` or ``ydim``) on the panel of ``ds`` at ``at``
+    (the values of the other axes): the located points and, when continued in the chart's other
+    axis, the curves (:func:`located.overlay`). Returns the artists."""
+    along = boundaries.attrs.get("along")
+    other = ydim if along == xdim else xdim
+    dims = boundaries["boundary"].dims
+    sel = {}
+    for d in dims:
+        if d in (xdim, ydim, "crossing"):
+            continue
+        values = np.asarray(ds[d].values)
+        sel[d] = int(np.flatnonzero(values == at[d])[0]) if d in at else 0  # a one-value axis: its value
+    return located.overlay(ax, boundaries, line_dim=other if other in dims else None, sel=sel,
+                           transpose=along == ydim, ds=ds, chart_other=other)
 
 
 def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundaries=None):
@@ -736,7 +774,8 @@ def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundarie
             other = ydim if along == xdim else xdim
             art["panels"][-1]["located"] = located.overlay(
                 ax, boundaries, line_dim=other if other in boundaries["boundary"].dims else None,
-                sel={d: i for d, i in sel.items() if d in boundaries["boundary"].dims}, transpose=along == ydim, ds=ds)
+                sel={d: i for d, i in sel.items() if d in boundaries["boundary"].dims}, transpose=along == ydim, ds=ds,
+                chart_other=other)
         if is_log(ds, xdim):
             ax.set_xscale("log")
             readable_log_ticks(ax.xaxis)
