@@ -520,6 +520,44 @@ def test_continuation_from_a_zero_coordinate_on_a_linear_axis_warns_nothing():
     assert (curve.points[:, 1] == 0.0).all()
 
 
+def _box_crossings(s, c):
+    """Where the line y = s x + c meets the edges of the unit square, sorted by x (exact)."""
+    found = [(x, s * x + c) for x in (0.0, 1.0) if 0.0 <= s * x + c <= 1.0]
+    found += [((y - c) / s, y) for y in (0.0, 1.0) if 0.0 < (y - c) / s < 1.0]
+    return sorted(set(found))
+
+
+@pytest.mark.parametrize("s,c", [
+    (2.0, -0.998),  # leaves through the top edge 0.001 before the corner (x = 1 was held: y = 1.002)
+    (1.5, -0.4653125),  # the same 0.023 before it
+    (-3.0, 2.997),  # down through the bottom edge near the corner (x = 0.999)
+    (2.0, 0.2),  # from the top edge to the left one; level 0: the corrector's test never converged
+    (2.0, -1.0),  # through the corner (1, 1) itself
+])
+def test_continuation_of_a_straight_boundary_is_the_line_once_and_inside_the_chart(tmp_path, s, c):
+    """g = y - s x - c, level 0, continued in (x, y) over the unit square from the crossings located
+    along x on the lines y = 0 and y = 1: one curve (the start on the other end line lies on it and
+    is not followed again; it was followed a second time from there), every point on the line to
+    round-off and inside the chart, from one edge crossing of the line to the other (a curve leaving
+    near a corner ended beyond the chart, on the edge its chord reached first, not the one it
+    crossed). A level-0 closed form reached its end (its accuracy 16 ulp |g| is never met by g's
+    round-off: the curve stopped after its first point, step_too_small)."""
+    scene = load_scene({
+        "scene": {"name": "line", "model": f"{HERE / 'user_models' / 'line_boundary.py'}:LINE", "outputs": ["g"]},
+        "axes": {"x": {"start": 0.0, "stop": 1.0, "num": 11}, "y": {"start": 0.0, "stop": 1.0, "num": 6}},
+        "fixed": {"s": s, "c": c}, "storage": {"path": str(tmp_path / "line.h5")},
+        "boundaries": {"along": "x", "criterion": "g", "level": 0.0, "continue_in": "y"}})
+    _, ds = bd.run_boundaries(scene, warn=False)
+    x, y = ds["curve_x"].values, ds["curve_y"].values
+    assert x.shape[0] == 1 and ds["curve_stop"].values.tolist() == [bd.CURVE_STOPS.index("edge")]
+    ok = np.isfinite(x[0])
+    x, y = x[0][ok], y[0][ok]
+    assert ((x >= 0) & (x <= 1) & (y >= 0) & (y <= 1)).all()
+    np.testing.assert_allclose(y - s * x - c, 0.0, atol=1e-12)
+    ends = sorted([(x[0], y[0]), (x[-1], y[-1])])
+    np.testing.assert_allclose(ends, _box_crossings(s, c), rtol=0, atol=1e-9)
+
+
 def test_scene_continue_in_stores_the_tongue_with_its_fold(tmp_path, capsys):
     """[boundaries] continue_in = "q": the boundaries located along a at the ends of the q axis are
     followed in (a, q); the tongue's two edges at q = 0.6 are one curve (the second start lies on
