@@ -224,6 +224,20 @@ def test_bad_boundaries_section_exits_2_naming_the_key(in_tmp, capsys, section, 
     assert not any((in_tmp / "data" / "runs").iterdir())
 
 
+def test_a_misspelt_criterion_is_named_without_a_level_it_may_not_need():
+    """A Floquet criterion needs no level (1, the unit circle): misspelt, the scene was also told
+    'boundaries.level: missing', which a Floquet criterion never needs (a docs-only trial wrote
+    mu_maxx for its mu_max and looked for the level first). The criterion alone is named."""
+    from mechsweep.errors import InputError
+    with pytest.raises(InputError) as info:
+        load_scene({"scene": {"name": "b", "model": "autobalancer", "outputs": ["floquet_max"]},
+                    "axes": {"Omega": {"start": 10.0, "stop": 40.0, "num": 5}},
+                    "boundaries": {"along": "Omega", "criterion": "floquet_mx"}})
+    text = str(info.value)
+    assert "boundaries.criterion: unknown criterion" in text and "did you mean 'floquet_max'?" in text, text
+    assert "boundaries.level" not in text, text
+
+
 @pytest.mark.parametrize("accuracy, warned", [(1e-10, True), (3e-8, True), (1e-5, False), (None, False)])
 def test_a_criterion_accuracy_below_what_rtol_gives_is_warned_of(in_tmp, capsys, accuracy, warned):
     """rtol 1e-8 gives an integrated criterion at level 3 about 100 rtol |level| = 3e-6: a band given

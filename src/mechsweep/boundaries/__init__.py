@@ -16,5 +16,5 @@ from .search import (ABS_FLOOR, BAND_EDGE, BOUND_DESCRIPTIONS, BOUND_MEANINGS, B
 __all__ = ["ABS_FLOOR", "BAND_EDGE", "BOUND_DESCRIPTIONS", "BOUND_MEANINGS", "BUDGET", "CRITERION", "CURVE_STOPS",
            "FOLD_TOL", "INTERRUPTED", "MAX_EVALUATIONS", "PARAMETER", "STALL_ROUNDS", "Criterion", "Curve", "Located",
            "accuracy_text", "accuracy_warning", "base_rows", "continue_boundary", "criterion_accuracy",
-           "criterion_of", "from_integration", "kind_of_angle", "locate", "locate_dataset", "run_boundaries", "sibling_path",
-           "status_warning", "warnings_for", "write_atomic"]
+           "criterion_of", "from_integration", "kind_of_angle", "locate", "locate_dataset", "run_boundaries",
+           "sibling_path", "status_warning", "warnings_for", "write_atomic"]
