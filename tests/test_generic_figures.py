@@ -365,6 +365,45 @@ def test_plot_refuses_boundaries_no_figure_drawn_can_draw(tmp_path, capsys):
     assert "drawn on stability_map, heatmap_lift; not on nomogram_lift" in capsys.readouterr().err
 
 
+def _undamped(ds):
+    """ds as an undamped model's run asked for a verdict: every stable point has the modulus 1 to
+    round-off, status undecided, and the verdict (1 stable, 0 unstable) NaN there."""
+    from mechsweep import status as st
+
+    ds = ds.copy(deep=True)
+    stable = ds["floquet"].values <= 1.0
+    ds["floquet"].values[stable] = 1.0 + 1e-12
+    ds["status"].values[...] = np.where(stable, st.UNDECIDED, st.OK)
+    ds["stable"] = (ds["floquet"].dims, np.where(stable, np.nan, 0.0),
+                    {"units": "1", "long_name": "1 if stable, 0 if unstable, NaN within the margin",
+                     "mechsweep_kind": "verdict"})
+    ds.attrs["outputs"] += " stable"
+    return ds
+
+
+def test_an_undamped_chart_says_its_stable_side_is_undecided_and_a_thinned_family_says_so():
+    """On an undamped model's chart the stability map's stable entry says its points are at 1
+    within the margin, status undecided (neutrally stable); the verdict's nomogram over a family
+    of 30 values asked by --y names that status in its note (its stable side is blank) and says
+    that every 3rd value of the family is drawn (it drew 10 of 30 curves without a word)."""
+    from . import figure_checks as fc
+
+    ds = _undamped(_axes_of(cam(), "speed", "preload"))
+    n_stable = int((ds["floquet"].values <= 1.0 + 1e-6).sum())
+    art = figures.artists(ds, "stability_map")
+    stable_text = " ".join(art["legend"].get_texts()[0].get_text().split())  # as wrapped to the legend
+    assert f"{n_stable} of them at 1 within the margin (status undecided" in stable_text, stable_text
+    art = figures.artists(ds, "nomogram_stable", axes=("preload", "speed"))
+    panel = art["panels"][0]
+    assert len(panel["lines"]) == 10 and panel["thinned"] == "every 3rd of 30 values drawn"
+    assert "every 3rd of 30 values drawn" in " ".join(panel["colorbar"].ax.get_ylabel().split())
+    drawn = int((ds["floquet"].isel(speed=slice(None, None, 3)).values <= 1.0 + 1e-6).sum())  # on the curves drawn
+    assert f"{drawn} flagged points (status undecided {drawn}, see status)" in " ".join(panel["note"].get_text().split())
+    assert fc.check_readable(art["figure"], ds) == []
+    damped = figures.artists(cam(), "stability_map")
+    assert "undecided" not in damped["legend"].get_texts()[0].get_text()
+
+
 def test_discrete_outputs_are_drawn_by_class_without_contours():
     """A declared verdict (0/1) and an output of a few whole numbers (a -1/0/+1 kind) get one flat
     colour per value and a colour bar ticked at the values, no interpolated contours (they used to
