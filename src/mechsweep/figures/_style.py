@@ -16,6 +16,8 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import Locator, LogLocator
 
+from .._mathtext import _parses, latex_problem  # noqa: F401 (latex_problem: the labels' own check)
+
 STATUS_OK = 0
 NBSP = "\u00a0"
 HALO_DARK = [patheffects.withStroke(linewidth=2.6, foreground="0.1")]  # white lines seen on light and dark colours
@@ -157,36 +159,6 @@ def safe(text) -> str:
     """``text`` when matplotlib draws it (:func:`renders`), else the same as plain text (its ``$``
     escaped): the last guard of every label made from a dataset's attributes."""
     return text if renders(text) else escaped(text)
-
-
-def latex_problem(text) -> str | None:
-    """Why a declared ``latex`` string cannot label a figure (None: it can): it must hold
-    mathtext (between ``$`` signs) that matplotlib's parser reads."""
-    from matplotlib.cbook import is_math_text
-
-    text = str(text)
-    if "\n" in text or not is_math_text(text):
-        return "it is not mathtext between $ signs (one line), e.g. '$\\omega_0$'"
-    if not _parses(text):
-        return "matplotlib's mathtext parser cannot read it"
-    return None
-
-
-_PARSED: dict[str, bool] = {}
-
-
-def _parses(text: str) -> bool:
-    """Whether matplotlib's mathtext parses ``text`` (cached)."""
-    if text not in _PARSED:
-        from matplotlib.font_manager import FontProperties
-        from matplotlib.mathtext import MathTextParser
-
-        try:
-            MathTextParser("path").parse(text, 72, FontProperties())
-            _PARSED[text] = True
-        except Exception:  # noqa: BLE001 (any parse failure: the label goes without mathtext)
-            _PARSED[text] = False
-    return _PARSED[text]
 
 
 def symbol(da) -> str:

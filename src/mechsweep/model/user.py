@@ -148,7 +148,7 @@ def check_declaration(spec, ref: str) -> None:
     declared = [(what, x.name, x.latex) for what, xs in (("parameter", spec.params), ("output", spec.outputs))
                 for x in xs if getattr(x, "latex", "")]
     if declared:
-        from ..figures._style import latex_problem
+        from .._mathtext import latex_problem
 
         for what, name, latex in declared:
             if (why := latex_problem(latex)) is not None:
