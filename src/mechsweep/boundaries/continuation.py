@@ -205,7 +205,9 @@ def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_na
         u, t = q, tq
         if it <= 2:
             s = min(1.5 * s, step_max)
-    return Curve(points=to_xy(np.array(pts)), folds=folds, stop=stop, evaluations=ev.points, calls=ev.calls)
+    # in the chart's own coordinates too (10 ** (log10 of an end) can miss the end by an ulp)
+    xy = np.clip(to_xy(np.array(pts)), [min(box[0]), min(box[1])], [max(box[0]), max(box[1])])
+    return Curve(points=xy, folds=folds, stop=stop, evaluations=ev.points, calls=ev.calls)
 
 
 CURVE_STOPS = ("edge", "closed", "max_points", "step_too_small", "no_value")
