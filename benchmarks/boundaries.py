@@ -99,7 +99,7 @@ def _rows_at(rows: np.ndarray, ratios, m_col: int) -> np.ndarray:
 
 def main(values: int = 200, grid: int = 100, contour=(100, 200, 400), rtol: float = 1e-8,
          threads: int | None = None) -> dict:
-    from mechsweep.execute import threads as _threads
+    from mechsweep.execution.execute import threads as _threads
 
     scene = load_scene(scene_dict(values, grid, rtol))
     crit = bd.criterion_of(scene)

@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-from mechsweep.runner import run
+from mechsweep.execution.runner import run
 from mechsweep.bench.duffing import grid_scene
 
 COMPARED = ("period", "status", "n_steps", "n_rhs")

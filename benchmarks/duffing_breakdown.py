@@ -22,8 +22,8 @@ import time
 from mechsweep.bench.duffing import grid_scene
 from mechsweep.grid import Chunk
 from mechsweep.model import compile as model_compile
-from mechsweep.execute import evaluate_chunk, threads as _threads
-from mechsweep.runner import run
+from mechsweep.execution.execute import evaluate_chunk, threads as _threads
+from mechsweep.execution.runner import run
 from mechsweep.scene import Solver, load_scene
 
 
@@ -42,22 +42,23 @@ def _timed(f):
 # measured runs only, its wall and thread CPU time added up per call (a step inside another is
 # counted in both). The writer thread's steps run while the main thread computes the next chunk.
 _STEPS = (
-    ("runner", "load_scene", "scene: load and validate"),
-    ("runner", "_check_existing", "checks: existing files, journal"),
-    ("journal.Journal", "create", "journal: create (run.json, fsyncs)"),
-    ("store.MemorySink", "__init__", "dataset in memory: define"),
-    ("grid.ParameterMatrix", "__call__", "per chunk: parameter rows"),
-    ("execute", "evaluate_rows", "per chunk: kernel + status/NONFINITE"),
-    ("journal.Journal", "write_chunk", "writer: journal chunk file + fsyncs"),
-    ("store.MemorySink", "save", "writer: chunk into the dataset in memory"),
-    ("store.Early", "prepare", "writer: define the HDF5 file (early)"),
-    ("store.Early", "write", "writer: chunk into the HDF5 file (early)"),
-    ("store", "_define", "HDF5/memory: define (store._define)"),
-    ("runner", "_save_chunks", "all chunks (main thread, wall)"),
-    ("runner", "_finish", "end: assembly, fsync, rename, drop journal"),
-    ("store", "_assemble", "end: assembly (HDF5 writes, close)"),
-    ("runner", "drop", "end: drop the journal"),
-    ("runner", "_times", "end: read the times back"),
+    ("execution.runner", "load_scene", "scene: load and validate"),
+    ("execution.runner", "check_existing", "checks: existing files, journal"),
+    ("store.journal:Journal", "create", "journal: create (run.json, fsyncs)"),
+    ("store.assemble:MemorySink", "__init__", "dataset in memory: define"),
+    ("grid:ParameterMatrix", "__call__", "per chunk: parameter rows"),
+    ("execution.execute", "evaluate_rows", "per chunk: kernel + status/NONFINITE"),
+    ("store.journal:Journal", "write_chunk", "writer: journal chunk file + fsyncs"),
+    ("store.assemble:MemorySink", "save", "writer: chunk into the dataset in memory"),
+    ("store.assemble:Early", "prepare", "writer: define the HDF5 file (early)"),
+    ("store.assemble:Early", "write", "writer: chunk into the HDF5 file (early)"),
+    ("store.write", "define", "HDF5/memory: define (store.write.define)"),
+    ("store.assemble", "define", "HDF5/memory: define (store.write.define)"),
+    ("execution.runner", "_save_chunks", "all chunks (main thread, wall)"),
+    ("execution.runner", "_finish", "end: assembly, fsync, rename, drop journal"),
+    ("store.assemble", "_assemble", "end: assembly (HDF5 writes, close)"),
+    ("execution.runner", "drop", "end: drop the journal"),
+    ("execution.runner", "_times", "end: read the times back"),
 )
 
 
@@ -122,7 +123,7 @@ def _launch_account(acc: dict, f):
 def _owner(path: str):
     import importlib
 
-    module, _, cls = path.partition(".")
+    module, _, cls = path.partition(":")  # "package.module:Class" or "package.module"
     obj = importlib.import_module(f"mechsweep.{module}")
     return getattr(obj, cls, None) if cls else obj  # None: a step this version does not have
 

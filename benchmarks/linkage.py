@@ -31,7 +31,7 @@ from mechsweep import status as st
 from mechsweep.models import _linkage as L
 from mechsweep.models import fourbar_balancing as fb
 from mechsweep.models._linkage_reference import OUTPUTS, numpy_residuals  # noqa: F401 - the numpy side, with the model
-from mechsweep.execute import threads as _threads
+from mechsweep.execution.execute import threads as _threads
 
 
 def design_family(n: int, seed: int = 0) -> np.ndarray:

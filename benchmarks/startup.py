@@ -72,7 +72,7 @@ def warm_small(repeats: int, folder: Path) -> dict:
     """Seconds of warm runs of 10^3 and 10^4 points, in memory and to a file: {(n, route): [s]}."""
     import mechsweep
     from mechsweep.grid import ParameterMatrix
-    from mechsweep.execute import evaluate_rows
+    from mechsweep.execution.execute import evaluate_rows
     from mechsweep.scene import load_scene
 
     out = {}
@@ -180,7 +180,7 @@ def warm_start(scene: Path, repeats: int, folder: Path, against: str | None = No
 
 def scaling(sizes: list[tuple[int, str]], repeats: int, folder: Path) -> list[dict]:
     """Warm cost per point of ``compute`` to a file, and the peak RSS of the command on the same grid."""
-    from mechsweep.runner import compute
+    from mechsweep.execution.runner import compute
     from mechsweep.scene import load_scene
 
     rows = []
@@ -208,7 +208,7 @@ def _scaling_verdict(rows: list[dict]) -> None:
     """Goal 5 against its target: CPU per point of the two largest grids of each output (linear:
     about 1), and the command's peak memory against the dataset's size and a chunk's estimate."""
     from mechsweep.grid import chunk_target
-    from mechsweep.runner import CHUNK_MEMORY_FACTOR, bytes_per_point
+    from mechsweep.execution.checks import CHUNK_MEMORY_FACTOR, bytes_per_point
     from mechsweep.scene import load_scene
 
     for output in dict.fromkeys(r["output"] for r in rows):
@@ -226,7 +226,7 @@ def _scaling_verdict(rows: list[dict]) -> None:
     print(f"    goal 5, memory: command peak RSS {small['peak_rss'] / 2**20:.0f} .. "
           f"{max(r['peak_rss'] for r in rows) / 2**20:.0f} MiB from {min(r['points'] for r in rows):,} to "
           f"{max(r['points'] for r in rows):,} points; the largest dataset {big['disk'] / 2**20:.0f} MiB, a chunk's "
-          f"estimate (runner.CHUNK_MEMORY_FACTOR x its outputs) {chunk / 2**20:.1f} MiB (target: within chunk + "
+          f"estimate (checks.CHUNK_MEMORY_FACTOR x its outputs) {chunk / 2**20:.1f} MiB (target: within chunk + "
           "interpreter, i.e. not growing with the grid)")
 
 
@@ -278,7 +278,7 @@ def lap(name):
 
 
 PLOT_CHILD = _LAP + """
-from mechsweep.cli import _no_dask_probe
+from mechsweep.commands.plot import no_dask_probe as _no_dask_probe
 import matplotlib.figure, xarray
 lap("import matplotlib, xarray")
 from mechsweep import figures
@@ -305,7 +305,8 @@ import numba
 lap("import numba")
 from mechsweep import cli
 lap("import mechsweep.cli")
-from mechsweep import execute, runner, scene
+from mechsweep import scene
+from mechsweep.execution import execute, runner
 lap("import mechsweep.scene, runner (the models)")
 s = scene.load_scene(sys.argv[1])
 lap("load the scene")
@@ -323,7 +324,7 @@ WARM_LOAD_CHILD = """
 import cProfile, json, pstats, sys, time
 import mechsweep
 from mechsweep.grid import ParameterMatrix
-from mechsweep.execute import evaluate_rows
+from mechsweep.execution.execute import evaluate_rows
 scene = mechsweep.load_scene(sys.argv[1])
 P = ParameterMatrix(scene)(0, 1)
 profile = cProfile.Profile()
@@ -379,7 +380,7 @@ import json, sys, time
 import mechsweep
 from mechsweep.model import compile as mc
 from mechsweep.grid import ParameterMatrix
-from mechsweep.execute import evaluate_rows
+from mechsweep.execution.execute import evaluate_rows
 mode = sys.argv[2]
 mc.USE_LANES = {"lanes": True, "one": False}.get(mode, mc.USE_LANES)
 if mode == "auto":
@@ -416,7 +417,7 @@ def route_speed(n: int, repeats: int) -> dict:
     kernel and the one-point kernel alternated in this process: {mode: [(wall s, CPU s)]}."""
     from mechsweep.grid import ParameterMatrix
     from mechsweep.model import compile as mc
-    from mechsweep.execute import evaluate_rows
+    from mechsweep.execution.execute import evaluate_rows
     from mechsweep.scene import load_scene
 
     scene = load_scene(duffing(n))
@@ -490,7 +491,8 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
     import numpy as np
 
     import mechsweep
-    from mechsweep import execute, journal, runner, store
+    from mechsweep.execution import execute, runner
+    from mechsweep.store import assemble, journal, write
     from mechsweep.grid import ParameterMatrix
     from mechsweep.scene import load_scene
 
@@ -508,9 +510,9 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
                 spent[label] += time.perf_counter() - t0
         return original, wrapper
 
-    patches = [(runner, n, n) for n in ("_check_existing", "_save_chunks", "_finish", "open_dataset", "drop")]
+    patches = [(runner, n, n) for n in ("check_existing", "_save_chunks", "_finish", "open_dataset", "drop")]
     patches += [(execute, "warm_up", "warm_up")]
-    patches += [(store, "_define", "store._define"), (journal.Journal, "create", "Journal.create"),
+    patches += [(write, "define", "store.define"), (assemble, "define", "store.define"), (journal.Journal, "create", "Journal.create"),
                 (journal.Journal, "write_chunk", "Journal.write_chunk")]
     small = load_scene(duffing(10**3))
     path = folder / "breakdown.h5"
@@ -529,7 +531,7 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
         for owner, name, original in originals:
             setattr(owner, name, original)
     print(f"  file route, 10^3 points, warm: {total * 1e3:.1f} ms a run (mean of {repeats}); inside it, ms a run "
-          "(nested: _finish holds store._define, _save_chunks holds Journal.write_chunk):")
+          "(nested: _finish holds store.define, _save_chunks holds Journal.write_chunk):")
     for label, seconds in sorted(spent.items(), key=lambda kv: -kv[1]):
         print(f"    {label:<22} {seconds / repeats * 1e3:8.1f}")
     big = load_scene(duffing(10**4))

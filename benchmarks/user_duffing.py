@@ -111,7 +111,7 @@ def main(points: int = 200_000, threads: int | None = None, rtol: float | None =
     from mechsweep import status as st
     from mechsweep.grid import Chunk, parameter_matrix
     from mechsweep.models import duffing
-    from mechsweep.execute import evaluate_chunk, threads as _threads
+    from mechsweep.execution.execute import evaluate_chunk, threads as _threads
     from mechsweep.scene import SOLVER_LIMITS, Solver, load_scene
     from mechsweep.bench import arguments
     from mechsweep.bench.duffing import grid_scene

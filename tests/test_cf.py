@@ -17,7 +17,7 @@ from mechsweep import cf  # noqa: E402
 from mechsweep.boundaries import run_boundaries  # noqa: E402
 from mechsweep.model import user  # noqa: E402
 from mechsweep.models import MODELS  # noqa: E402
-from mechsweep.runner import run  # noqa: E402
+from mechsweep.execution.runner import run  # noqa: E402
 
 from .conftest import SWEEPS  # noqa: E402
 

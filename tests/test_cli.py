@@ -123,7 +123,7 @@ def test_info_compares_any_two_verdicts_and_says_where_values_are_missing():
     """A model info has never heard of: its verdict outputs (declared kind) are compared, every
     output says how many points hold a value and why the others do not, and the model's own
     status notes stored with the dataset are shown."""
-    from mechsweep.cli import describe
+    from mechsweep.describe import describe
 
     ds = _dataset("some_user_model", ["ok_a", "ok_b", "x"], notes={"undecided": "the pendulum dithers"})
     text = describe(ds)
@@ -140,7 +140,7 @@ def test_info_cost_of_an_unfinished_run_is_per_computed_point():
     import numpy as np
 
     from mechsweep import status as st
-    from mechsweep.cli import describe
+    from mechsweep.describe import describe
 
     ds = _dataset("some_user_model", ["x"])
     ds["status"][:4] = st.PENDING
@@ -155,7 +155,7 @@ def test_info_ranges_cover_every_value_also_at_points_whose_status_is_not_ok():
     """The range of an output is over all its finite values: a value at a point whose status is
     not ok (e.g. a multiplier > 1 where another output failed) is shown; the range over the ok
     points beside it when it differs, and how many values sit at such points."""
-    from mechsweep.cli import describe
+    from mechsweep.describe import describe
 
     text = describe(_dataset("some_user_model", ["ok_a", "ok_b", "x"]))
     lines = text.splitlines()
@@ -172,7 +172,7 @@ def test_info_ranges_cover_every_value_also_at_points_whose_status_is_not_ok():
 def test_info_reads_the_declared_kinds_of_a_built_in_model_for_an_old_dataset():
     """A dataset written before kinds were stored: the built-in declaration says which outputs are
     verdicts (none is named in the reader), and its status notes are shown."""
-    from mechsweep.cli import describe
+    from mechsweep.describe import describe
 
     ds = _dataset("autobalancer", ["stable_floquet", "stable_sim", "floquet_max"], kinds=False)
     text = describe(ds)
@@ -226,7 +226,7 @@ def test_info_gives_a_boundary_next_to_zero_its_bracket_width_absolute():
     import xarray as xr
 
     from mechsweep.boundaries import PARAMETER
-    from mechsweep.cli import describe_boundaries
+    from mechsweep.describe import describe_boundaries
 
     loc = np.array([[2.0, 1e-12, 0.5], [-4.0, np.nan, 3e-7]])  # axis span 10: scale 1e-5
     width = np.array([[2e-10, 3e-15, 1e-10], [8e-10, np.nan, 4e-13]])

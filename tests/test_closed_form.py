@@ -18,7 +18,7 @@ import mechsweep
 from mechsweep import status as st
 from mechsweep.cli import main
 from mechsweep.errors import InputError
-from mechsweep.journal import partial_path
+from mechsweep.store.journal import partial_path
 from mechsweep.model import ClosedFormModel, ExtraDim, Output, Param
 from mechsweep.scene import load_scene
 

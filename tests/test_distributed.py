@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 import mechsweep
-from mechsweep import cluster, runner
+from mechsweep.execution import cluster, runner
 from mechsweep.errors import ClusterLost, InputError
-from mechsweep.journal import partial_path
-from mechsweep.plan import make_plan
+from mechsweep.store.journal import partial_path
+from mechsweep.execution.plan import make_plan
 
 distributed = pytest.importorskip("distributed")
 

@@ -7,9 +7,10 @@ import signal
 import pytest
 
 import mechsweep
-from mechsweep import errors, runner, store
+from mechsweep import errors, store
+from mechsweep.execution import runner
 from mechsweep.cli import main
-from mechsweep.journal import BadChunk
+from mechsweep.store.journal import BadChunk
 from mechsweep.scene import SceneError
 
 from .conftest import SWEEPS

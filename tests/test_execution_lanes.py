@@ -11,7 +11,7 @@ import pytest
 import mechsweep
 from mechsweep.cli import main
 from mechsweep.model import compile as mc
-from mechsweep.plan import choose_route, make_plan
+from mechsweep.execution.plan import choose_route, make_plan
 from mechsweep.scene import SceneError, load_scene
 
 # the Duffing kernels tests/test_model_lanes.py compiles (lanes and one point): nothing new to compile

@@ -13,8 +13,10 @@ import numpy as np
 import pytest
 
 import mechsweep
-from mechsweep import cli, execute, journal, runner
-from mechsweep.journal import Journal, partial_path
+from mechsweep import cli
+from mechsweep.execution import execute, runner
+from mechsweep.store import journal
+from mechsweep.store.journal import Journal, partial_path
 from mechsweep.errors import InputError
 from mechsweep.scene import Execution
 
@@ -307,12 +309,13 @@ def test_plot_into_a_missing_folder_names_the_folder(small_dataset, capsys):
                          ids=lambda c: errno.errorcode[c])
 def test_a_figure_write_that_fails_names_its_cause(small_dataset, monkeypatch, capsys, code):
     from mechsweep import figures
+    from mechsweep.figures import jobs
 
     def save(ds, path, **kwargs):
         raise OSError(code, os.strerror(code), str(path))
 
     monkeypatch.setattr(figures, "save", save)
-    monkeypatch.setattr(cli, "_can_fork", lambda: False)
+    monkeypatch.setattr(jobs, "can_fork", lambda: False)
     assert main("plot", small_dataset, "-o", "fig.png") == 2
     err = capsys.readouterr().err
     assert "cannot write the figure fig.png" in err and f"({errno.errorcode[code]})" in err, err
@@ -348,7 +351,9 @@ CHILD = textwrap.dedent("""
     limit = int(os.environ.get("FSIZE_LIMIT", "0"))
     if limit:
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-    from mechsweep import cli, journal, runner
+    from mechsweep import cli
+    from mechsweep.execution import runner
+    from mechsweep.store import journal
     fill = os.environ.get("FILL")
     if fill:  # fill the disk of the output at one moment: 'chunk' after 2 chunks, 'assembly' just before it
         def filler(leave):
@@ -590,7 +595,8 @@ SCENE_DICT = {"scene": {"name": "faults", "model": "duffing", "outputs": ["perio
 # ----------------------------------------------------------------------------- signals
 SIGNALLER = textwrap.dedent("""
     import os, signal, sys
-    from mechsweep import cli, journal
+    from mechsweep import cli
+    from mechsweep.store import journal
     sig, site = getattr(signal, sys.argv[1]), sys.argv[2]
     if site == "computing":  # after the second chunk is saved (in the writer thread, the third computing)
         write, seen = journal.Journal.write_chunk, [0]
@@ -898,7 +904,7 @@ def test_an_edited_attribute_under_a_recomputed_checksum_is_refused(scene_file, 
     """The checksum is no signature (anyone can compute it): the attributes the scene determines
     (model, outputs, solver settings) are also compared with the scene being resumed, naming the one
     that differs. This is what guards a journal of format 2, which has no checksum."""
-    from mechsweep.journal import meta_checksum
+    from mechsweep.store.journal import meta_checksum
 
     interrupted_run(scene_file, after=3)
     part = partial_path(scene_file.parent / OUT)
@@ -1174,7 +1180,8 @@ def test_overwrite_covers_only_the_file_the_run_started_with(scene_file, monkeyp
 
 APPEARER = textwrap.dedent("""
     import os, sys
-    from mechsweep import cli, journal
+    from mechsweep import cli
+    from mechsweep.store import journal
     write, seen = journal.Journal.write_chunk, [0]
     def write_chunk(self, *a):
         write(self, *a)

@@ -108,8 +108,8 @@ def test_the_check_sees_overlapping_tick_labels():
 
 
 def _as_stored(q) -> xr.DataArray:
-    """A parameter or output as a dataset stores it (mechsweep.store._describe)."""
-    from mechsweep.store import _describe
+    """A parameter or output as a dataset stores it (mechsweep.store.write._describe)."""
+    from mechsweep.store.write import _describe
 
     class Attrs:
         dtype = np.dtype(np.float64)  # a numeric variable (strings get no units)

@@ -20,7 +20,8 @@ import numpy as np
 import pytest
 
 import mechsweep
-from mechsweep import StoreError, execute, runner
+from mechsweep import StoreError
+from mechsweep.execution import checks, execute, runner
 from mechsweep.cli import main
 
 from .test_hostile_scenes import VALID, existing_dataset, refused, snapshot, work  # noqa: F401 (fixture)
@@ -201,7 +202,7 @@ def test_run_refuses_lock_and_journal_paths_of_the_wrong_kind(what, work, capsys
 # ----------------------------------------------------------------------------- item 9: scheduler
 def test_unreachable_scheduler_leaves_nothing_behind(work, capsys, monkeypatch):
     pytest.importorskip("distributed")
-    from mechsweep import cluster
+    from mechsweep.execution import cluster
 
     monkeypatch.setattr(cluster, "CONNECT_TIMEOUT_S", 1)
     (work / "valid.toml").write_text(VALID)
@@ -278,7 +279,7 @@ def test_damaged_data_is_refused_however_the_dataset_is_opened(work, capsys, mon
     import h5py
     import xarray as xr
 
-    from mechsweep import store
+    from mechsweep.store import read as store_read
 
     n = 5000
     xr.Dataset({"period_exact": ("A", np.linspace(1, 2, n)), "status": ("A", np.zeros(n, np.int8))},
@@ -293,7 +294,7 @@ def test_damaged_data_is_refused_however_the_dataset_is_opened(work, capsys, mon
     (work / "z.h5").write_bytes(bytes(data))
     refused(capsys, ["info", "z.h5"], work, "z.h5 is not a readable mechsweep dataset", "filter returned failure")
     refused(capsys, ["plot", "z.h5"], work, "z.h5 is not a readable mechsweep dataset")
-    monkeypatch.setattr(store, "LOAD_LIMIT_BYTES", 0)  # info opens it lazily
+    monkeypatch.setattr(store_read, "LOAD_LIMIT_BYTES", 0)  # info opens it lazily
     refused(capsys, ["info", "z.h5"], work, "z.h5 cannot be read, it is damaged", "filter returned failure")
 
 
@@ -319,9 +320,9 @@ def test_same_scene_is_recognised_through_its_stored_text():
     whose stored scene text is the same scene counts as the same scene."""
     scene = mechsweep.scene.load_scene_text(VALID)
     attrs = {"scene_canonical": "an older spelling", "scene": VALID}
-    assert runner.same_scene(attrs, scene)
-    assert not runner.same_scene({**attrs, "scene": OTHER}, scene)
-    assert not runner.same_scene({"scene_canonical": "x", "scene": "not toml ["}, scene)
+    assert checks.same_scene(attrs, scene)
+    assert not checks.same_scene({**attrs, "scene": OTHER}, scene)
+    assert not checks.same_scene({"scene_canonical": "x", "scene": "not toml ["}, scene)
 
 
 # ----------------------------------------------------------------------------- plot: figure path, --point

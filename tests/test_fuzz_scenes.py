@@ -20,7 +20,7 @@ from pathlib import Path
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from mechsweep import execute, runner
+from mechsweep.execution import execute, runner
 from mechsweep.cli import main
 from mechsweep.models import MODELS
 from mechsweep.scene import load_scene_text, to_toml

@@ -598,7 +598,7 @@ def test_a_time_history_of_one_point_is_drawn_for_any_model(tmp_path, capsys):
     assert main(["plot", str(path), "--point", "speed=10,preload=25,contact=bronze"]) == 0
     written = capsys.readouterr().out.split()[-1]
     assert written.endswith(".png") and Path(written).stat().st_size > 10_000
-    from mechsweep.cli import select_point
+    from mechsweep.commands.plot import select_point
     one = select_point(ds, "speed=10,preload=25,contact=bronze")
     art = figures.draw(one, "history_lift_history")
     np.testing.assert_array_equal(art.axes[0].lines[0].get_ydata(), one["lift_history"].values.ravel())
@@ -632,7 +632,7 @@ def test_plot_point_on_an_unsorted_list_axis_draws_the_point_asked_for(tmp_path,
     path = tmp_path / "cam.h5"
     ds.to_netcdf(path, engine="h5netcdf")
     assert main(["plot", str(path), "--point", "speed=10,preload=29,contact=bronze"]) == 0, capsys.readouterr().err
-    from mechsweep.cli import select_point
+    from mechsweep.commands.plot import select_point
     one = select_point(ds, "speed=10,preload=29,contact=bronze")
     assert float(one["preload"].values[0]) == 30.0
     expected = ds["lift_history"].sel(preload=30.0, contact="bronze").isel(speed=[int(np.argmin(abs(ds.speed.values - 10)))])

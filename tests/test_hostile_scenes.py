@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from mechsweep import execute, runner
+from mechsweep.execution import execute, runner
 from mechsweep.cli import main
 from mechsweep.models import MODELS
 

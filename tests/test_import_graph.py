@@ -143,11 +143,45 @@ def test_every_allowed_circle_edge_still_exists():
     assert not gone, "no longer imported, drop from ALLOWED: " + ", ".join(gone)
 
 
+# (importer, imported; a package stands for its modules): the layers point one way. The run
+# (execution/) writes through the store and is driven by the command line (cli.py and commands/); the
+# store, the figures and the description of a dataset read and write datasets without knowing how they
+# are computed.
+FORBIDDEN = [
+    ("mechsweep.execution", "mechsweep.cli"),
+    ("mechsweep.execution", "mechsweep.commands"),
+    ("mechsweep.store", "mechsweep.cli"),
+    ("mechsweep.store", "mechsweep.commands"),
+    ("mechsweep.store", "mechsweep.execution"),
+    ("mechsweep.figures", "mechsweep.execution"),
+    ("mechsweep.figures", "mechsweep.cli"),
+    ("mechsweep.figures", "mechsweep.commands"),
+    ("mechsweep.describe", "mechsweep.execution"),
+]
+
+
+def _inside(module: str, package: str) -> bool:
+    return module == package or module.startswith(package + ".")
+
+
+def test_the_layers_import_one_way():
+    edges = import_edges()
+    wrong = [f"{a} -> {b} ({', '.join(where)})" for (a, b), where in sorted(edges.items())
+             for low, high in FORBIDDEN if _inside(a, low) and _inside(b, high)]
+    assert not wrong, "imports against the layers' direction:\n" + "\n".join(wrong)
+
+
+def test_the_layer_rules_name_packages_that_exist():
+    # a rule about a package renamed or removed would pass without checking anything
+    mods = modules()
+    assert all(low in mods and high in mods for low, high in FORBIDDEN)
+
+
 def test_the_graph_sees_function_level_imports_and_circles():
     # the reader of the graph itself: a function-level import is an edge, and two modules importing
     # each other are a circle
     edges = import_edges()
-    assert ("mechsweep.runner", "mechsweep.cluster") in edges  # runner imports cluster inside functions
+    assert ("mechsweep.execution.runner", "mechsweep.execution.cluster") in edges  # runner imports cluster inside functions
     assert circles({("a", "b"): [], ("b", "c"): [], ("c", "a"): [], ("c", "d"): []}) == [["a", "b", "c"]]
 
 

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import mechsweep
-from mechsweep.journal import partial_path
+from mechsweep.store.journal import partial_path
 
 SCENE = """
 [scene]
@@ -87,7 +87,9 @@ KILLER = textwrap.dedent("""
     import os, signal, sys
     import numpy as np, shutil
     import mechsweep
-    from mechsweep import journal, runner, store
+    from mechsweep import store
+    from mechsweep.execution import runner
+    from mechsweep.store import journal
 
     site, n = sys.argv[1], int(sys.argv[2])
     seen = [0]

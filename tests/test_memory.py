@@ -13,7 +13,9 @@ import pytest
 import xarray as xr
 
 import mechsweep
-from mechsweep import execute, grid, runner, scene as scene_mod, store
+from mechsweep import grid, scene as scene_mod
+from mechsweep.store import read as store_read, write as store_write
+from mechsweep.execution import execute, runner
 from mechsweep.scene import sections as scene_sections
 from mechsweep.cli import main
 from mechsweep.grid import MAX_CHUNKS, Chunk, ChunkPlan, ParameterMatrix, chunk_target, least_target, plan_chunks
@@ -142,7 +144,7 @@ def test_run_never_expands_a_long_axis(in_tmp, monkeypatch):
     real = Axis.array
     monkeypatch.setattr(Axis, "array", lambda self, lo=0, hi=None: spans.append(
         (hi if hi is not None else self.size) - lo) or real(self, lo, hi))
-    monkeypatch.setattr(store, "READ_BLOCK", 5000)
+    monkeypatch.setattr(store_write, "READ_BLOCK", 5000)
     data = duffing({"mu": {"start": 1e-3, "stop": 1e3, "num": 120_000, "spacing": "log"}}, chunk_size=20_000)
     summary = runner.compute(data, output="data/runs/long.h5", progress=False)
     assert summary.status == {0: 120_000}
@@ -243,7 +245,7 @@ def test_command_counts_statuses_without_opening_the_dataset(in_tmp, capsys, mon
     def refuse(*args, **kwargs):
         raise AssertionError("the command opened the dataset")
     with monkeypatch.context() as mp:
-        mp.setattr(store, "open_dataset", refuse)
+        mp.setattr(store_read, "open_dataset", refuse)
         mp.setattr(runner, "open_dataset", refuse)
         mp.setattr(xr, "open_dataset", refuse)
         assert main(["run", "s.toml", "-o", "data/runs/m.h5", "--no-progress"]) == 0

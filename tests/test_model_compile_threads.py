@@ -68,7 +68,7 @@ def test_one_point_kernel_is_serial_code_split_over_python_threads(monkeypatch, 
     import numpy as np
 
     from mechsweep.grid import ParameterMatrix
-    from mechsweep.execute import evaluate_rows
+    from mechsweep.execution.execute import evaluate_rows
     from mechsweep.scene import load_scene
 
     monkeypatch.setattr(mc, "USE_LANES", False)

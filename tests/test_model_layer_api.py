@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 import mechsweep
-from mechsweep import execute, runner
+from mechsweep.execution import execute, runner
 from mechsweep import status as st
 from mechsweep.cli import main
 from mechsweep.errors import InputError
-from mechsweep.journal import partial_path
+from mechsweep.store.journal import partial_path
 from mechsweep.model import load, user
 
 HERE = Path(__file__).parent / "user_models"

@@ -19,7 +19,7 @@ import pytest
 
 import mechsweep
 from mechsweep import _jit
-from mechsweep.journal import partial_path
+from mechsweep.store.journal import partial_path
 from mechsweep.model import load, sources
 
 HERE = Path(__file__).resolve().parent
@@ -225,11 +225,11 @@ def test_a_new_or_dropped_dependency_and_a_package_version_are_named(project):
 
 def test_a_dask_worker_with_other_sources_refuses_the_chunk():
     """A worker that would compute with other sources than the client's raises instead."""
-    from mechsweep.cluster import compute_chunk
+    from mechsweep.execution.cluster import compute_chunk
     from mechsweep.errors import InputError
     from mechsweep.grid import plan_chunks
     from mechsweep.models import MODELS
-    from mechsweep.plan import make_plan
+    from mechsweep.execution.plan import make_plan
 
     scene = mechsweep.load_scene({"scene": {"name": "q", "model": "duffing", "outputs": ["period_exact"]},
                                   "axes": {"A": [0.1, 0.2]}, "fixed": {"omega": 1.0, "mu": 1.0}})
@@ -244,7 +244,7 @@ def test_a_dask_worker_with_other_sources_refuses_the_chunk():
 STOP_AFTER_FIRST_CHUNK = textwrap.dedent("""
     import sys
     import mechsweep
-    from mechsweep import execute, runner
+    from mechsweep.execution import execute, runner
 
     real, calls = execute.evaluate_chunk, [0]
 

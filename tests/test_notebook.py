@@ -10,7 +10,7 @@ import sys
 import pytest
 
 import mechsweep
-from mechsweep import runner
+from mechsweep.execution import progress
 
 SCENE = {"scene": {"name": "nb", "model": "duffing", "outputs": ["period_exact", "kv"]},
          "axes": {"A": {"start": 0.1, "stop": 1.0, "num": 30}, "mu": {"start": 0.1, "stop": 10.0, "num": 20}},
@@ -40,7 +40,7 @@ def test_a_notebook_shows_the_scene_the_compile_note_and_a_progress_bar(tmp_path
 
 
 def test_off_a_terminal_a_run_reports_progress_now_and_then(in_tmp, monkeypatch, capsys):
-    monkeypatch.setattr(runner, "PROGRESS_LOG_EVERY", 0.0)  # a line at every chunk
+    monkeypatch.setattr(progress, "PROGRESS_LOG_EVERY", 0.0)  # a line at every chunk
     monkeypatch.setattr(sys.stderr, "isatty", lambda: False, raising=False)
     scene = {**SCENE, "storage": {"chunk_size": 200}}
     mechsweep.run(scene, output="log.h5")  # progress=None: stderr is no terminal -> a log
@@ -54,8 +54,8 @@ def test_off_a_terminal_a_run_reports_progress_now_and_then(in_tmp, monkeypatch,
 
 def test_the_progress_line_and_its_eta(monkeypatch, capsys):
     now = [100.0]
-    monkeypatch.setattr(runner.time, "monotonic", lambda: now[0])
-    log = runner._LogProgress("big", 1_000_000)
+    monkeypatch.setattr(progress.time, "monotonic", lambda: now[0])
+    log = progress.LogProgress("big", 1_000_000)
     now[0] += 10.0
     log.update(5_000)  # 10 s since the start: too early for a line
     now[0] += 25.0
@@ -63,7 +63,7 @@ def test_the_progress_line_and_its_eta(monkeypatch, capsys):
     assert capsys.readouterr().err == "mechsweep: big: 12,000 / 1,000,000 points, 1.2 %, ETA 48 min\n"
     log.close()  # not finished: no closing line
     assert capsys.readouterr().err == ""
-    assert runner._duration(40) == "40 s" and runner._duration(180) == "3 min" and runner._duration(9000) == "2.5 h"
+    assert progress.duration(40) == "40 s" and progress.duration(180) == "3 min" and progress.duration(9000) == "2.5 h"
 
 
 def test_scene_repr_is_one_line():

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import mechsweep
-from mechsweep import execute, plan as planning
-from mechsweep.journal import Journal, partial_path
+from mechsweep.execution import execute, plan as planning
+from mechsweep.store.journal import Journal, partial_path
 from mechsweep.model import compile as mc
 from mechsweep.scene import load_scene
 

@@ -1,4 +1,4 @@
-"""One dataset route for every run (runner.py): scene -> plan -> chunks -> compute -> a sink. The CLI,
+"""One dataset route for every run (execution/runner.py): scene -> plan -> chunks -> compute -> a sink. The CLI,
 ``compute``, ``run(output=path)`` and ``run(output=None)`` differ only in their sink; a dataset a run
 returns is the memory its chunks were computed into (no copy), beside the journal and the file."""
 import numpy as np
@@ -6,7 +6,7 @@ import pytest
 import xarray as xr
 
 import mechsweep
-from mechsweep import execute, runner
+from mechsweep.execution import execute, runner
 from mechsweep.cli import main
 
 
@@ -72,7 +72,49 @@ def test_a_run_to_a_file_without_a_returned_dataset_holds_no_grid_in_memory(in_t
 def test_the_public_compute_stays_the_function():
     """The module that computes chunks (execute.py) is not named after the public ``mechsweep.compute``:
     a submodule of that name would replace the function on the package once imported."""
-    import mechsweep.execute  # noqa: F401  (imported, as every run imports it)
+    import mechsweep.execution.execute  # noqa: F401  (imported, as every run imports it)
 
     assert mechsweep.compute is runner.compute and callable(mechsweep.compute)
 
+
+
+@pytest.mark.parametrize("output", [None, "data/runs/w.h5"])
+def test_each_chunk_is_written_once_into_each_place_that_keeps_it(in_tmp, small_duffing, monkeypatch, output):
+    """``run(output=path)`` keeps each chunk in three places, each written once: the journal (a crash
+    loses no saved chunk; ``--resume``), the dataset's file (written while the next chunk computes)
+    and the dataset it returns (the memory the chunk was computed into: nothing copied, nothing read
+    back). ``run(output=None)`` keeps it in memory only."""
+    import collections
+
+    from mechsweep.store import assemble, journal
+
+    written = collections.Counter()
+
+    def counting(owner, name, key):
+        real = getattr(owner, name)
+
+        def wrapper(*args, **kwargs):
+            written[key(*args)] += 1
+            return real(*args, **kwargs)
+        monkeypatch.setattr(owner, name, wrapper)
+
+    counting(journal.Journal, "write_chunk", lambda self, index, *a: ("journal", index))
+    counting(assemble, "write_region", lambda variables, region, *a: ("file", str(region)))
+    counting(journal.Journal, "read_chunk", lambda self, index, *a: ("read back", index))
+    real_save = assemble.MemorySink.save
+
+    def save(self, chunk, arrays, seconds):
+        views = self.views(chunk)
+        if not all(np.shares_memory(arrays[name], views[name]) for name in views):
+            written[("memory copy", chunk.index)] += 1
+        return real_save(self, chunk, arrays, seconds)
+
+    monkeypatch.setattr(assemble.MemorySink, "save", save)
+    ds = mechsweep.run(small_duffing, output=output, progress=False)
+    n_chunks = int(ds.attrs["n_chunks"])
+    assert n_chunks > 1
+    if output is None:
+        assert written == {}
+    else:
+        assert sorted(kind for kind, _ in written) == ["file"] * n_chunks + ["journal"] * n_chunks
+        assert set(written.values()) == {1}, written  # each chunk once into the journal, once into the file

@@ -1,4 +1,4 @@
-"""`run()` writes its dataset's file while the chunks are computed (store.Early, issue 15 goal 1):
+"""`run()` writes its dataset's file while the chunks are computed (store.assemble.Early):
 the file it places is the one the chunk-by-chunk assembly writes (every variable bitwise), and a
 failed write of it changes nothing a run promises: a passing failure is repaired by the assembly,
 a lasting one is reported with the journal kept, and the run resumes to the same dataset."""
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import mechsweep
-from mechsweep import execute, runner
-from mechsweep.journal import partial_path
+from mechsweep.execution import execute, runner
+from mechsweep.store.journal import partial_path
 
 from .data.interrupt import interrupted_after
 from .test_faults import SCENE as FAULTS_SCENE
@@ -84,7 +84,7 @@ def test_run_writes_its_file_while_the_chunks_are_computed(scene_file, reference
 
 
 def test_the_file_is_defined_while_the_first_chunk_is_computed(scene_file, reference, monkeypatch):
-    """store.Early.prepare runs in the writer thread as soon as the first chunk's kernel is launched,
+    """store.assemble.Early.prepare runs in the writer thread as soon as the first chunk's kernel is launched,
     not after that chunk is saved: the first chunk waits here until the file appears."""
     import time
 

@@ -8,7 +8,7 @@ import pytest
 import xarray as xr
 
 import mechsweep
-from mechsweep import execute, runner
+from mechsweep.execution import execute, runner
 from mechsweep.cli import main
 from mechsweep.errors import InputError
 
@@ -190,7 +190,7 @@ def test_reading_a_dataset_imports_no_kernels(in_tmp, small_duffing):
     mechsweep.run(small_duffing, output="data/runs/s.h5")
     code = ("import sys, mechsweep; from mechsweep.cli import main; mechsweep.open_dataset('data/runs/s.h5'); "
             "assert main(['plot', 'data/runs/s.h5', '--list']) == 0; "
-            "print(sorted(m for m in ('numba', 'mechsweep.models', 'mechsweep.runner') if m in sys.modules))")
+            "print(sorted(m for m in ('numba', 'mechsweep.models', 'mechsweep.execution.runner') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=in_tmp,
                          env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
     assert out.returncode == 0, out.stderr
@@ -199,9 +199,9 @@ def test_reading_a_dataset_imports_no_kernels(in_tmp, small_duffing):
 
 
 def test_file_route_returns_the_file_dataset_without_reading_it_back(in_tmp, small_duffing, monkeypatch):
-    # run(output=path) keeps the dataset in memory as the file is written (store.MemorySink): what it
+    # run(output=path) keeps the dataset in memory as the file is written (store.assemble.MemorySink): what it
     # returns is the file's content, attributes and times included, and the file is not re-opened
-    from mechsweep import journal
+    from mechsweep.store import journal
 
     returned = mechsweep.run(small_duffing, output="data/runs/h.h5")
     xr.testing.assert_identical(returned, mechsweep.open_dataset("data/runs/h.h5"))

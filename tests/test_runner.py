@@ -9,9 +9,10 @@ import pytest
 import xarray as xr
 
 import mechsweep
-from mechsweep import execute, runner
+from mechsweep.execution import checks, execute, runner
 from mechsweep import status as st
-from mechsweep.store import StoreError, partial_path
+from mechsweep.errors import StoreError
+from mechsweep.store.journal import partial_path
 
 from .conftest import REPO
 from .data.interrupt import interrupted_after
@@ -97,7 +98,7 @@ def test_a_signal_during_a_chunk_stops_the_run_once_that_chunk_is_saved(in_tmp, 
     import os
     import signal
 
-    from mechsweep.journal import Journal
+    from mechsweep.store.journal import Journal
 
     real, calls = execute.evaluate_chunk, [0]
 
@@ -175,7 +176,7 @@ def test_a_second_writer_is_refused_and_touches_nothing(in_tmp, small_duffing):
         mechsweep.run(small_duffing, output="data/runs/busy.h5")
     part = partial_path("data/runs/busy.h5")
     saved = sorted(p.name for p in (part / "chunks").iterdir())
-    code = ("import time; from mechsweep.journal import RunLock; RunLock('data/runs/busy.h5').acquire(); "
+    code = ("import time; from mechsweep.store.journal import RunLock; RunLock('data/runs/busy.h5').acquire(); "
             "print('locked', flush=True); time.sleep(60)")
     holder = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
     try:
@@ -203,18 +204,18 @@ def test_size_estimate_is_the_file_size(in_tmp, small_duffing):
     for the float outputs, which are stored raw."""
     scene = mechsweep.load_scene(small_duffing)
     mechsweep.run(scene, output="data/runs/size.h5", progress=False)
-    data = runner.bytes_per_point(scene) * scene.n_points
+    data = checks.bytes_per_point(scene) * scene.n_points
     floats = 8 * len(scene.outputs) * scene.n_points
     actual = (in_tmp / "data" / "runs" / "size.h5").stat().st_size
     assert floats <= actual <= data + 200_000
 
 
 def test_big_datasets_open_lazily_with_dask_chunks(in_tmp, small_duffing, monkeypatch):
-    from mechsweep import store
+    from mechsweep.store import read as store_read
 
     loaded = mechsweep.run(small_duffing, output="data/runs/lazy.h5", progress=False)
     assert loaded["period"].chunks is None  # small: in memory
-    monkeypatch.setattr(store, "LOAD_LIMIT_BYTES", 0)  # now every file counts as big
+    monkeypatch.setattr(store_read, "LOAD_LIMIT_BYTES", 0)  # now every file counts as big
     with mechsweep.open_dataset("data/runs/lazy.h5", lazy=None) as lazy:
         assert lazy["period"].chunks is not None, "not opened lazily as dask arrays"
         for name in ("period", "status", "n_steps"):

@@ -9,7 +9,7 @@ import mechsweep
 def test_plot_does_not_import_dask_and_leaves_xarray_as_it_was(in_tmp, small_duffing):
     """xarray imports dask.array (and with it scipy.fft, 0.4-1 s) to ask whether each new variable is a
     dask array; `mechsweep plot` draws loaded datasets and tells xarray not to ask while it runs
-    (cli._no_dask_probe), then puts xarray's own probe back: a dask array made afterwards in the same
+    (commands/plot.py, no_dask_probe), then puts xarray's own probe back: a dask array made afterwards in the same
     process is still one to xarray. Nor dask at all: xarray also imports dask.base (0.05-0.2 s) to ask
     whether each index it makes while opening the dataset is a dask collection. The command's process
     (main() with sys.argv) freezes its start-up's objects for the garbage collector and turns it back on."""
@@ -29,22 +29,22 @@ def test_plot_does_not_import_dask_and_leaves_xarray_as_it_was(in_tmp, small_duf
     assert out.stdout.strip().splitlines()[-2:] == ["[] False xarray.namedarray.utils", "((2, 2),)"]
     assert sorted(p.name for p in (in_tmp / "data/runs").glob("*.png")) == ["s_amplitude_period.png",
                                                                             "s_kinematic_coefficients.png"]
-    # the two figures were drawn side by side: one here, one in a forked process (cli._side_by_side)
+    # the two figures were drawn side by side: one here, one in a forked process (figures/jobs.py, side_by_side)
     here, collector, frozen = out.stdout.strip().splitlines()[-3].split()
-    assert (collector, frozen) == ("True", "True")  # the start-up's objects frozen, the collector on (cli._started)
+    assert (collector, frozen) == ("True", "True")  # the start-up's objects frozen, the collector on (commands.started)
     pids = (in_tmp / "pids").read_text().split()
     assert len(pids) == 2 and here in pids and len(set(pids)) == 2
 
 
 def test_side_by_side_runs_jobs_in_forked_processes_and_raises_what_they_raised(tmp_path):
-    """cli._side_by_side (`mechsweep plot`'s figures on two cores): the first job here, the others in
+    """figures.jobs.side_by_side (`mechsweep plot`'s figures on two cores): the first job here, the others in
     forked children; an exception of a child is raised here with its type; an exception here is raised
     only after the children have finished (a sibling's figure is not cut off half written)."""
     import time
 
     import pytest
 
-    from mechsweep.cli import _side_by_side
+    from mechsweep.figures.jobs import side_by_side as _side_by_side
 
     def mark(name, delay=0.0, fail=None):
         def job():

@@ -1,4 +1,4 @@
-"""store.NetCDFWriter defines a run's file as h5netcdf does: every object, property and attribute the
+"""store.write.NetCDFWriter defines a run's file as h5netcdf does: every object, property and attribute the
 same (walked with h5py) but the provenance stamp ``_NCProperties``, which says truthfully that
 mechsweep wrote the file through h5py; xarray reads identical Datasets with its h5netcdf and netcdf4
 (netCDF-C) engines. Cheap: definitions only, no kernel."""
@@ -16,10 +16,10 @@ import xarray as xr
 
 import mechsweep
 from mechsweep.bench.duffing import grid_scene
-from mechsweep.plan import make_plan
-from mechsweep.runner import provenance
+from mechsweep.execution.plan import make_plan
+from mechsweep.execution.provenance import provenance
 from mechsweep.scene import load_scene
-from mechsweep.store import NetCDFWriter, _define, layout, nc_properties
+from mechsweep.store.write import NetCDFWriter, define as _define, layout, nc_properties
 
 from .conftest import SMALL_DUFFING, SWEEPS
 

@@ -8,7 +8,7 @@ import pytest
 
 import mechsweep
 from mechsweep.errors import StoreError
-from mechsweep.runner import same_scene
+from mechsweep.execution.checks import same_scene
 from mechsweep.scene import load_scene, load_scene_text
 
 MODEL = '''

@@ -29,12 +29,12 @@ _EXPORTS = {
     "ClusterLost": "errors",
     "RunInterrupted": "errors",
     "MODELS": "models",
-    "RunSummary": "runner",
-    "run": "runner",
-    "compute": "runner",
+    "RunSummary": "execution.runner",
+    "run": "execution.runner",
+    "compute": "execution.runner",
     "Scene": "scene",
     "load_scene": "scene",
-    "open_dataset": "store",
+    "open_dataset": "store.read",
 }
 
 __all__ = sorted([*_EXPORTS, "__version__"])

@@ -6,7 +6,7 @@ from a run that failed::
     |   +-- SceneError                   a scene that does not load (scene/)
     |   +-- StoreError                   an output path, dataset or journal that cannot be used as asked
     |       +-- FileBusy                 a file another process holds open for writing
-    |       +-- BadChunk                 a damaged chunk file of a journal (journal.py)
+    |       +-- BadChunk                 a damaged chunk file of a journal (store/journal.py)
     +-- RunError (also a RuntimeError)   a run that passed its checks failed; saved chunks are kept
         +-- WriteFailed                  a write failed (errno and path; the runner says it as OutOfSpace)
         +-- OutOfSpace                   a run's write failed (disk full, quota, ulimit -f, I/O error)  exit 2
@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import errno as _errno
 import signal as _signal
+from pathlib import Path
 
 
 class MechsweepError(Exception):
@@ -139,3 +140,43 @@ class RunInterrupted(RunError):
     def __init__(self, message: str, signum: int = _signal.SIGINT):
         super().__init__(message)
         self.signum = signum
+
+
+# ----------------------------------------------------------------------------- an OSError in one line
+# errnos with which the system refuses a read or write (not a fault in a file's bytes)
+SYSTEM_ERRNOS = frozenset(getattr(_errno, n) for n in (
+    "ENOENT", "EACCES", "EPERM", "EROFS", "EISDIR", "ENOTDIR", "ELOOP", "ENOSPC", "EDQUOT", "EFBIG", "EMFILE",
+    "ENFILE", "ENAMETOOLONG", "EXDEV", "EAGAIN") if hasattr(_errno, n))
+
+
+# what to do about a refused write, by errno ({folder}: the file's folder)
+_WRITE_ADVICE = {
+    "ENOENT": "the folder {folder} does not exist (or was removed); create it (mkdir -p {folder}) or give another "
+              "path with -o",
+    "EACCES": "give another path with -o, or make {folder} writable",
+    "EPERM": "give another path with -o",
+    "EROFS": "its file system is mounted read-only; give a path elsewhere with -o",
+    "ENOSPC": "its disk is full (of space, or of inodes); free some or give a path elsewhere with -o",
+    "EDQUOT": "your disk quota there is used up; free some or give a path elsewhere with -o",
+    "EFBIG": "it would exceed the file size limit (ulimit -f); raise it or draw fewer or smaller figures",
+    "EISDIR": "a directory has that name; give a figure file name with -o",
+    "ENOTDIR": "a part of the path is a file, not a folder; give another path with -o",
+    "ENAMETOOLONG": "give a shorter path with -o",
+}
+
+
+def _why(exc: OSError) -> str:
+    return why_os_error(exc.errno, exc.strerror or str(exc))
+
+
+def os_error_text(exc: OSError, path=None, writing: str = "") -> str:
+    """One line for an OSError: the file it names (else ``path``), its cause by errno, and, for a
+    write (``writing``: what was being written), what to do."""
+    name = exc.filename if exc.filename is not None else path
+    where = f"{name}: " if name is not None else ""
+    if not writing:
+        return f"{where}{_why(exc)}"
+    code = _errno.errorcode.get(exc.errno or 0, "")
+    folder = Path(str(name)).parent if name is not None else Path(".")
+    advice = _WRITE_ADVICE.get(code, "give another path with -o").format(folder=folder)
+    return f"cannot write {writing} {name}: {_why(exc)}; {advice}"

@@ -3,22 +3,24 @@ import os
 
 import pytest
 
-from mechsweep import execute, runner
+from mechsweep.execution import execute, runner
 
 
 def test_bench_breakdown_times_the_steps_of_a_run_and_unwraps_them(in_tmp, capsys):
     from benchmarks import duffing_breakdown as bench
-    from mechsweep import grid, journal, store
+    from mechsweep import grid
+    from mechsweep.store import assemble
+    from mechsweep.store import journal
     from mechsweep.model import compile as model_compile
     from mechsweep.models import MODELS
 
-    before = (execute.evaluate_rows, runner.load_scene, journal.Journal.write_chunk, store.Early.write,
+    before = (execute.evaluate_rows, runner.load_scene, journal.Journal.write_chunk, assemble.Early.write,
               grid.ParameterMatrix.__call__, MODELS["duffing"].evaluate)
 
     lanes = model_compile.USE_LANES
     (r,) = bench.breakdown(points=3000, threads=1, repeats=1, lanes=lanes)  # (no extra kernel compiled)
     assert model_compile.USE_LANES is lanes
-    assert (execute.evaluate_rows, runner.load_scene, journal.Journal.write_chunk, store.Early.write,
+    assert (execute.evaluate_rows, runner.load_scene, journal.Journal.write_chunk, assemble.Early.write,
             grid.ParameterMatrix.__call__, MODELS["duffing"].evaluate) == before
     steps = r["steps"]
     n_chunks = steps["per chunk: kernel + status/NONFINITE"][2]

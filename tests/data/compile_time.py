@@ -6,7 +6,7 @@ import sys
 import time
 
 from mechsweep.grid import Chunk
-from mechsweep.execute import evaluate_chunk
+from mechsweep.execution.execute import evaluate_chunk
 from mechsweep.scene import load_scene
 
 model, method = sys.argv[1], sys.argv[2]

@@ -4,7 +4,7 @@ import contextlib
 
 import pytest
 
-from mechsweep import execute, runner
+from mechsweep.execution import execute, runner
 
 
 @contextlib.contextmanager

@@ -9,7 +9,7 @@ import time
 
 from mechsweep.bench.duffing import grid_scene
 from mechsweep.grid import Chunk
-from mechsweep.execute import evaluate_chunk, threads as _threads
+from mechsweep.execution.execute import evaluate_chunk, threads as _threads
 from mechsweep.scene import Solver, load_scene
 
 points = int(sys.argv[1]) if len(sys.argv) > 1 else 200_000

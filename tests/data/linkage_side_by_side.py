@@ -26,7 +26,7 @@ try:
     from mechsweep.bench import linkage as bl  # where the bench was in the earlier version
 except ImportError:
     from benchmarks import linkage as bl
-from mechsweep.execute import threads as _threads
+from mechsweep.execution.execute import threads as _threads
 threads = int(sys.argv[1])
 P = bl.design_family(100_000, 0)
 with _threads(threads):

@@ -34,7 +34,7 @@ from numba.core.runtime import nrt
 from mechsweep.bench.duffing import _whole_grid, grid_scene
 from mechsweep.model import compile as model_compile
 from mechsweep.model import trajectory
-from mechsweep.execute import evaluate_chunk
+from mechsweep.execution.execute import evaluate_chunk
 from mechsweep.scene import load_scene
 
 

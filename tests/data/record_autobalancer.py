@@ -130,7 +130,7 @@ def evaluate_case(P, wanted, kw):
 
 def evaluate_scene(path, method):
     from mechsweep.grid import Chunk
-    from mechsweep.execute import evaluate_chunk
+    from mechsweep.execution.execute import evaluate_chunk
     from mechsweep.scene import load_scene
 
     scene = load_scene(small_scene(path, method))

@@ -21,7 +21,7 @@ def compute(path: Path, method: str) -> dict:
     import tomllib
 
     from mechsweep.grid import Chunk
-    from mechsweep.execute import evaluate_chunk
+    from mechsweep.execution.execute import evaluate_chunk
     from mechsweep.scene import load_scene
 
     raw = tomllib.loads(path.read_text())

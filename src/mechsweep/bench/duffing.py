@@ -31,8 +31,8 @@ from ..grid import Chunk
 from ..model import compile as model_compile
 from ..models import duffing
 from . import competitors
-from ..execute import evaluate_chunk, evaluate_rows, threads as _threads
-from ..runner import run
+from ..execution.execute import evaluate_chunk, evaluate_rows, threads as _threads
+from ..execution.runner import run
 from ..scene import Solver, load_scene
 
 

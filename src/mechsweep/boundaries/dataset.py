@@ -171,7 +171,7 @@ def write_atomic(ds, target: str | os.PathLike) -> Path:
     fd, tmp = tempfile.mkstemp(prefix="." + target.name + ".", suffix=".tmp", dir=target.parent)
     os.close(fd)
     try:
-        # strings (a categorical axis) as CF character arrays, as a run's dataset stores them (store.py)
+        # strings (a categorical axis) as CF character arrays, as a run's dataset stores them (store/write.py)
         chars = {k: {"dtype": "S1"} for k, v in ds.variables.items() if v.dtype.kind in "OSUT"}
         ds.to_netcdf(tmp, engine="h5netcdf", encoding=chars)
         os.replace(tmp, target)
@@ -230,10 +230,11 @@ def run_boundaries(scene_or_path, *, data=None, output=None, threads=None, progr
     The grid's dataset is only read. Returns (path written, the boundaries Dataset). ``warn``: a
     UserWarning for each of ``warnings_for`` (the CLI prints them itself)."""
     from ..errors import InputError
-    from ..execute import threads as _threads
-    from ..runner import compute
+    from ..execution.execute import threads as _threads
+    from ..execution.runner import compute
     from ..scene import Scene, load_scene
-    from ..store import StoreError, open_dataset
+    from ..errors import StoreError
+    from ..store.read import open_dataset
 
     scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path)
     if scene.boundaries is None:

@@ -153,8 +153,8 @@ class Evaluator:
         if crit.output is not None:
             want = (crit.output,) + ((crit.angle_output,) if crit.angle_output else ())
             self.wanted = self.model.closure(want)
-            # the kernel route a run of the scene's grid takes (plan.py), chosen once for every call
-            from ..plan import routes
+            # the kernel route a run of the scene's grid takes (execution/plan.py), chosen once for every call
+            from ..execution.plan import routes
             self.route = ({} if getattr(self.model, "plan", None) is None
                           else {"route": routes(scene, self.wanted, scene.n_points)})
 
@@ -171,10 +171,10 @@ class Evaluator:
         self.points += n
         kind = np.full(n, np.nan)
         if self.crit.output is None:
-            from ..execute import evaluate_rows
+            from ..execution.execute import evaluate_rows
 
             if self.plan is None:  # the kernels and route of a run of the scene, decided once
-                from ..plan import make_plan
+                from ..execution.plan import make_plan
                 self.plan = make_plan(self.scene)
             _, status, _, _ = evaluate_rows(self.plan, P)
             return np.full(n, np.nan), status, kind

@@ -257,7 +257,7 @@ class ModelSpec:
     ``methods_for(outputs)`` (optional): the methods a choice of outputs (closed under ``needs``)
     supports, when some outputs offer fewer than ``methods``; a scene asking another is refused.
     ``plan(wanted, solver) -> dict`` (optional): what ``evaluate`` computes for ``wanted``, decided
-    before any chunk (mechsweep/plan.py stores it with the run): ``measurements`` and ``closed_forms``
+    before any chunk (mechsweep/execution/plan.py stores it with the run): ``measurements`` and ``closed_forms``
     (names), and ``lanes``: {kernel family: {"record", "recorded", "from_points", "forced"}} for each
     kernel that can also integrate points side by side (its record name, whether it is compiled for
     this CPU, the run size from which the lanes pay, the engine's override or None). A spec that has

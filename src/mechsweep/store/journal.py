@@ -49,7 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import StoreError, WriteFailed
+from ..errors import StoreError, WriteFailed
 
 # 2: chunk files named with their size and CRC-32. A journal of format 1 (names without them) is
 # still read; an older mechsweep refuses format 2 instead of not seeing its chunk files.
@@ -362,7 +362,7 @@ def seal(meta: dict) -> dict:
 # run.json's entries and their kinds (besides format, and run_id and checksum from format 3 on)
 META_KINDS = {"scene_canonical": str, "scene": str, "chunk_target": int, "n_chunks": int, "attrs": dict}
 MAX_N_CHUNKS = 10_000  # grid.MAX_CHUNKS (not imported: the journal needs no grid)
-# Attributes every run's dataset has (store.RUN_ATTRS), and those the runner reads as text.
+# Attributes every run's dataset has (store.read.RUN_ATTRS), and those the runner reads as text.
 _TEXT_ATTRS = ("scene_canonical", "model", "outputs")
 _OPTIONAL_TEXT_ATTRS = ("scene", "title", "history", "scene_folder")
 

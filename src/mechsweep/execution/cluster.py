@@ -22,7 +22,7 @@ import itertools
 import time
 import uuid
 
-from .errors import ClusterLost, InputError
+from ..errors import ClusterLost, InputError
 
 IN_FLIGHT_PER_THREAD = 2
 CONNECT_TIMEOUT_S = 20
@@ -102,7 +102,7 @@ def dask_results(plan, todo, scheduler: str, threads: int | None = None, *, work
     futures = as_completed(loop=client.loop)
     live = {}  # key -> (future, chunk), submitted and not yet handed out
 
-    from .model import sources
+    from ..model import sources
 
     scene = plan.scene
     depends = sources.record(scene.model).attrs(scene.base or None).get("dependencies", "")
@@ -250,12 +250,12 @@ def compute_chunk(plan, chunk, threads: int | None = None, depends: str = ""):
     refuses the task instead of computing points of another model."""
     import numba
 
-    from . import _jit
+    from .. import _jit
     from .execute import evaluate_chunk
 
     scene = plan.scene
     if depends:
-        from .model import sources
+        from ..model import sources
 
         changed = sources.differences(depends, sources.record(scene.model), plan.base or None,
                                       since="the run began on the client")

@@ -26,10 +26,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .grid import ChunkPlan, ParameterMatrix, chunk_target
+from ..grid import ChunkPlan, ParameterMatrix, chunk_target
 
 if TYPE_CHECKING:
-    from .scene import Scene
+    from ..scene import Scene
 
 FORMAT = 1  # of Plan.text; a reader can tell plans of later versions apart
 LANES, POINT = "lanes", "point"
@@ -174,7 +174,7 @@ def make_plan(scene: Scene, target: int | None = None) -> Plan:
 @functools.lru_cache(maxsize=4)
 def _loaded(text: str, base: str = ""):
     """A scene sent as text (to a dask worker) and its parameter rows, loaded once per process."""
-    from .scene import load_scene_text
+    from ..scene import load_scene_text
 
     scene = load_scene_text(text, label="scene sent by the mechsweep client", base=base or None)
     return scene, ParameterMatrix(scene)

@@ -15,10 +15,10 @@ from contextlib import contextmanager
 import numba
 import numpy as np
 
-from . import _jit
-from . import status as st
-from .errors import InputError
-from .grid import Chunk, ParameterMatrix
+from .. import _jit
+from .. import status as st
+from ..errors import InputError
+from ..grid import Chunk, ParameterMatrix
 from .plan import Plan, make_plan
 
 
