@@ -137,8 +137,6 @@ def _plot(args) -> int:
         for k, doc in extra.items():
             print(f"{k} (on request: --kind {k}): {doc}")
         return 0
-    if bds is not None and args.boundaries:
-        _check_boundaries_drawn(ds, bds, args, [args.kind] if args.kind else list(kinds), axes)
     # -o naming an existing folder: the figures go into it under their default names (a folder named
     # like a figure file, x.png, is taken as a figure path and refused below: not a regular file)
     folder = None
@@ -160,6 +158,8 @@ def _plot(args) -> int:
         out = (folder if folder is not None else Path(args.dataset).parent) / f"{stem}.{fmt}"
     for target in figures.targets(ds, out, kind=args.kind, fmt=fmt, axes=axes):
         _check_figure_path(target, Path(args.dataset))
+    if bds is not None and args.boundaries:  # (a --kind this dataset has not is refused above)
+        _check_boundaries_drawn(ds, bds, args, [args.kind] if args.kind else list(kinds), axes)
     with _drawing(args.dataset), _writing_figures(out):
         kinds = list(figures.available(ds, axes)) if args.kind is None else []
         if len(kinds) > 1 and jobs.can_fork():  # several figures: side by side on the cores (the same files)
