@@ -224,6 +224,20 @@ def test_bad_boundaries_section_exits_2_naming_the_key(in_tmp, capsys, section, 
     assert not any((in_tmp / "data" / "runs").iterdir())
 
 
+def test_a_misspelt_criterion_is_named_without_a_level_it_may_not_need():
+    """A Floquet criterion needs no level (1, the unit circle): misspelt, the scene was also told
+    'boundaries.level: missing', which a Floquet criterion never needs (a docs-only trial wrote
+    mu_maxx for its mu_max and looked for the level first). The criterion alone is named."""
+    from mechsweep.errors import InputError
+    with pytest.raises(InputError) as info:
+        load_scene({"scene": {"name": "b", "model": "autobalancer", "outputs": ["floquet_max"]},
+                    "axes": {"Omega": {"start": 10.0, "stop": 40.0, "num": 5}},
+                    "boundaries": {"along": "Omega", "criterion": "floquet_mx"}})
+    text = str(info.value)
+    assert "boundaries.criterion: unknown criterion" in text and "did you mean 'floquet_max'?" in text, text
+    assert "boundaries.level" not in text, text
+
+
 @pytest.mark.parametrize("accuracy, warned", [(1e-10, True), (3e-8, True), (1e-5, False), (None, False)])
 def test_a_criterion_accuracy_below_what_rtol_gives_is_warned_of(in_tmp, capsys, accuracy, warned):
     """rtol 1e-8 gives an integrated criterion at level 3 about 100 rtol |level| = 3e-6: a band given
@@ -520,6 +534,44 @@ def test_continuation_from_a_zero_coordinate_on_a_linear_axis_warns_nothing():
     assert (curve.points[:, 1] == 0.0).all()
 
 
+def _box_crossings(s, c):
+    """Where the line y = s x + c meets the edges of the unit square, sorted by x (exact)."""
+    found = [(x, s * x + c) for x in (0.0, 1.0) if 0.0 <= s * x + c <= 1.0]
+    found += [((y - c) / s, y) for y in (0.0, 1.0) if 0.0 < (y - c) / s < 1.0]
+    return sorted(set(found))
+
+
+@pytest.mark.parametrize("s,c", [
+    (2.0, -0.998),  # leaves through the top edge 0.001 before the corner (x = 1 was held: y = 1.002)
+    (1.5, -0.4653125),  # the same 0.023 before it
+    (-3.0, 2.997),  # down through the bottom edge near the corner (x = 0.999)
+    (2.0, 0.2),  # from the top edge to the left one; level 0: the corrector's test never converged
+    (2.0, -1.0),  # through the corner (1, 1) itself
+])
+def test_continuation_of_a_straight_boundary_is_the_line_once_and_inside_the_chart(tmp_path, s, c):
+    """g = y - s x - c, level 0, continued in (x, y) over the unit square from the crossings located
+    along x on the lines y = 0 and y = 1: one curve (the start on the other end line lies on it and
+    is not followed again; it was followed a second time from there), every point on the line to
+    round-off and inside the chart, from one edge crossing of the line to the other (a curve leaving
+    near a corner ended beyond the chart, on the edge its chord reached first, not the one it
+    crossed). A level-0 closed form reached its end (its accuracy 16 ulp |g| is never met by g's
+    round-off: the curve stopped after its first point, step_too_small)."""
+    scene = load_scene({
+        "scene": {"name": "line", "model": f"{HERE / 'user_models' / 'line_boundary.py'}:LINE", "outputs": ["g"]},
+        "axes": {"x": {"start": 0.0, "stop": 1.0, "num": 11}, "y": {"start": 0.0, "stop": 1.0, "num": 6}},
+        "fixed": {"s": s, "c": c}, "storage": {"path": str(tmp_path / "line.h5")},
+        "boundaries": {"along": "x", "criterion": "g", "level": 0.0, "continue_in": "y"}})
+    _, ds = bd.run_boundaries(scene, warn=False)
+    x, y = ds["curve_x"].values, ds["curve_y"].values
+    assert x.shape[0] == 1 and ds["curve_stop"].values.tolist() == [bd.CURVE_STOPS.index("edge")]
+    ok = np.isfinite(x[0])
+    x, y = x[0][ok], y[0][ok]
+    assert ((x >= 0) & (x <= 1) & (y >= 0) & (y <= 1)).all()
+    np.testing.assert_allclose(y - s * x - c, 0.0, atol=1e-12)
+    ends = sorted([(x[0], y[0]), (x[-1], y[-1])])
+    np.testing.assert_allclose(ends, _box_crossings(s, c), rtol=0, atol=1e-9)
+
+
 def test_scene_continue_in_stores_the_tongue_with_its_fold(tmp_path, capsys):
     """[boundaries] continue_in = "q": the boundaries located along a at the ends of the q axis are
     followed in (a, q); the tongue's two edges at q = 0.6 are one curve (the second start lies on
@@ -681,3 +733,29 @@ def test_a_band_edge_with_a_flat_criterion_beside_it_is_found_by_bisection_witho
         A, B, loc, bound, n_eval = _band_edge_search(fun, 2.0, rtol=rtol)
     assert bound[0] == bd.BAND_EDGE and B[0] - A[0] <= rtol * B[0]
     assert A[0] <= X0_EDGE <= B[0] and abs(loc[0] - X0_EDGE) <= rtol * X0_EDGE
+
+
+def test_a_closed_form_of_an_integrated_output_inherits_its_accuracy():
+    """ratio = T / T0 of a pendulum's integrated period T at solver rtol 1e-6: the criterion is only
+    as accurate as the integration, so its accuracy is 100 rtol max(|value|, |level|) (it was 16 ulp,
+    "a closed form": brackets 1e-10 wide, bound 'parameter', the true boundary outside them). Each
+    bracket now holds the boundary of the exact period 4 K(sin^2(A/2)) sqrt(L/g), bound 'criterion'."""
+    from scipy.special import ellipk
+
+    level, g, L = 1.1, 9.81, 0.8
+    scene, rows, res = _locate({
+        "scene": {"name": "pr", "model": f"{HERE / 'user_models' / 'pendulum_ratio.py'}:PENDULUM_RATIO",
+                  "outputs": ["ratio"]},
+        "axes": {"A": {"start": 0.2, "stop": 2.0, "num": 7}}, "fixed": {"g": g, "L": L},
+        "solver": {"rtol": 1e-6, "atol": 1e-9},
+        "boundaries": {"along": "A", "criterion": "ratio", "level": level}})
+    exact = brentq(lambda a: 2.0 * ellipk(math.sin(a / 2) ** 2) / math.pi - level, 0.2, 2.0, xtol=1e-15)
+    found = res.bound >= 0
+    loc, width = res.location[found][0], res.width[found][0]
+    assert abs(loc - exact) <= width / 2 and width < 1e-2, (loc, width, exact)
+    assert abs(loc - exact) > 1e-9 * exact  # the integration's error: a bracket of rtol 1e-10 would miss it
+    assert found.sum() == 1 and res.bound[found][0] == bd.CRITERION
+    crit = bd.criterion_of(scene)
+    assert bd.from_integration(scene.model, "ratio")
+    assert bd.criterion_accuracy(scene.model, scene.solver, crit, np.array([1.0]))[0] == pytest.approx(1e-4 * level)
+    assert "(a closed form of integrated outputs: their accuracy)" in bd.accuracy_text(scene, crit)

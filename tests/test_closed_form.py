@@ -163,6 +163,15 @@ BAD = {
     "raises": ("    raise ValueError('negative lift')", "M", ["compute raised", "negative lift", "line 14"]),
     "unwritten_output": ("    return 0", "M", ["without writing top"]),
     "no_status": ("    row[0] = p[0]", "M", ["compute returned None", "expected a status code"]),
+    # the probe point (k = 1) takes the early return; the path it skips returns no status: the compiled
+    # kernel failed there on None inside its parallel loop (a traceback, exit 1)
+    "bare_return_off_the_probe": ("    if p[0] > 0.5:\n        return 4\n    row[0] = p[0]\n    return", "M",
+                                  ["compute can return None", "OptionalType(int64)", "a return without a value",
+                                   "line 17)"]),
+    "end_reached_off_the_probe": ("    if p[0] > 0.5:\n        return 4\n    row[0] = p[0]", "M",
+                                  ["compute can return None", "its end is reached without a return", "line 16)"]),
+    "float_status_off_the_probe": ("    if p[0] > 0.5:\n        return 4\n    row[0] = p[0]\n    return 0.5", "M",
+                                   ["compute returns float64, not a status code"]),
     "missing_name": (GOOD, "NOPE", ["does not define 'NOPE'", "models it defines: M"]),
     "not_a_model": (GOOD, "NOT_A_MODEL", ["is a int, not a mechsweep.model.OdeModel or ClosedFormModel"]),
 }
@@ -187,6 +196,21 @@ def test_bad_user_closed_form_model_exits_2_naming_the_file_and_writes_nothing(c
     assert after == before
 
 
+@pytest.mark.parametrize("latex,why", [("$k_{$", "matplotlib's mathtext parser cannot read it"),
+                                        ("k_0", "it is not mathtext between $ signs")])
+def test_a_latex_matplotlib_cannot_read_is_refused_at_loading_naming_it(latex, why, in_tmp, capsys):
+    """A declared latex labels every figure of the model: one matplotlib's mathtext parser cannot read
+    was dropped silently when a figure was drawn; it is refused at loading, naming it (exit 2)."""
+    path = in_tmp / "latex.py"
+    path.write_text(HEAD + GOOD + TAIL.replace('Param("k", "k", "1", "k", lo=0.0)',
+                                               f'Param("k", "k", "1", "k", lo=0.0, latex={latex!r})'))
+    scene = in_tmp / "s.toml"
+    scene.write_text(f'[scene]\nname = "l"\nmodel = "latex.py:M"\noutputs = ["top"]\n[axes]\nk = [1.0, 2.0]\n')
+    assert main(["check", str(scene)]) == 2
+    err = capsys.readouterr().err
+    assert f"parameter 'k': latex = {latex!r}: {why}" in err, err
+
+
 def test_good_template_runs(in_tmp):
     """The template of the bad cases, with a correct body, runs (so each bad case fails for its own line)."""
     path = in_tmp / "good.py"
@@ -197,14 +221,22 @@ def test_good_template_runs(in_tmp):
     np.testing.assert_array_equal(ds["line"].values, np.outer([1.0, 2.0], np.linspace(0, 1, 5)))
 
 
-def test_compute_raising_at_a_point_the_probe_did_not_see_is_a_status(in_tmp):
+def test_compute_raising_at_a_point_the_probe_did_not_see_is_a_user_error_with_a_warning(in_tmp):
     """The probe (k = 1) passes; at k = 3 the compiled compute raises inside the parallel loop: that
-    design is NONFINITE with NaN outputs, the others are computed."""
+    design is USER_ERROR (as an OdeModel's point is; it was NONFINITE, without a word) with NaN
+    outputs, the others are computed, and the run warns once with the exception replayed in plain
+    Python, its file and line and the design."""
+    from mechsweep.errors import UserModelWarning
+
     path = in_tmp / "late.py"
     path.write_text(HEAD + "    if p[0] > 2.5:\n        raise ValueError('too stiff')\n" + GOOD + TAIL)
-    ds = mechsweep.run({"scene": {"name": "late", "model": f"{path}:M", "outputs": ["top", "line"]},
-                        "axes": {"k": [1.0, 3.0, 2.0]}}, output="late.h5", progress=False)
-    assert ds["status"].values.tolist() == [st.OK, st.NONFINITE, st.OK]
+    with pytest.warns(UserModelWarning) as seen:
+        ds = mechsweep.run({"scene": {"name": "late", "model": f"{path}:M", "outputs": ["top", "line"]},
+                            "axes": {"k": [1.0, 3.0, 2.0]}}, output="late.h5", progress=False)
+    text = " ".join(str(w.message) for w in seen if issubclass(w.category, UserModelWarning))
+    assert "first seen at k = 3: compute raised ValueError: too stiff" in text, text
+    assert f"{path}, line 15, in compute" in text, text
+    assert ds["status"].values.tolist() == [st.OK, st.USER_ERROR, st.OK]
     assert np.isnan(ds["top"].values[1]) and np.isnan(ds["line"].values[1]).all()
     np.testing.assert_array_equal(ds["top"].values[[0, 2]], [1.0, 2.0])
 
@@ -219,6 +251,50 @@ def test_declared_statuses_add_to_those_the_outputs_imply():
     assert set(dataclasses.replace(spec, statuses=()).possible_statuses()) == {st.OK, st.NONFINITE, st.USER_ERROR}
     declared = dataclasses.replace(spec, statuses=(st.INFEASIBLE,)).possible_statuses()
     assert declared == (st.OK, st.NONFINITE, st.INFEASIBLE, st.USER_ERROR)
+
+
+def test_user_error_warnings_name_a_categorical_parameter_by_its_choice():
+    """The user_error warning says where a model's code raised as a scene gives the point: a
+    categorical parameter by its choice's name (it said 'spring = 0', the index the kernel gets),
+    for an OdeModel and a ClosedFormModel alike (diagnose.point_text); nothing is compiled."""
+    import warnings
+
+    from mechsweep.errors import UserModelWarning
+    from mechsweep.model import OdeModel, Period, closed, ode
+
+    params = (Param("k", "k", "1", "k", lo=0.0), Param("law", "law", "1", "law", choices=("linear", "cubic")))
+
+    def rhs(t, y, p, dydt):
+        if p[1] == 1.0:
+            raise ValueError("cubic law not written yet")
+        dydt[0] = y[1]
+        dydt[1] = -p[0] * y[0]
+
+    def initial(p, y0):
+        y0[0] = 1.0
+        y0[1] = 0.0
+
+    def compute(p, want, row, curves, slot, scratch):
+        if p[1] == 1.0:
+            raise ValueError("cubic law not written yet")
+        row[0] = p[0]
+        return 0
+
+    P = np.array([[2.0, 0.0], [3.0, 1.0]])
+    status = np.array([st.OK, st.USER_ERROR], dtype=st.DTYPE)
+    o_model = OdeModel(name="cat_ode", description="d", params=params, states=("x", "v"), rhs=rhs, initial=initial,
+                       measurements=(Period("period", "x"),))
+    c_model = ClosedFormModel(name="cat_closed", description="d", params=params, outputs=(Output("o", "o", "1", "o"),),
+                              compute=compute)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        ode._warn_user_error(o_model, P, status, np.zeros(0), 1e-10)
+        closed._warn_user_error(c_model, P, status, np.ones(1, dtype=bool), np.zeros(0, dtype=np.int64), 0, 1, ())
+    texts = [str(w.message) for w in seen if issubclass(w.category, UserModelWarning)]
+    assert len(texts) == 2, texts
+    for text in texts:
+        assert "first seen at k = 3, law = cubic:" in text and "ValueError: cubic law not written yet" in text, text
+    assert "rhs at t = 0 raised" in texts[0] and "compute raised" in texts[1], texts
 
 
 def test_a_status_code_that_is_none_of_mechsweeps_is_a_user_error(in_tmp):

@@ -188,3 +188,57 @@ def test_the_readability_check_sees_an_underscore_a_label_without_mathtext_and_a
     ax.plot(np.linspace(0, 1, 50), np.full(50, 0.5), label="on the data")
     ax.legend(loc="center")
     assert fc.legends_over_data(fig)
+
+
+def _drawn(*texts):
+    """Draw each text on a figure (Agg), as a title, label or caption is drawn: raises where
+    matplotlib cannot (a mathtext error)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    fig = Figure(figsize=(3, 2))
+    FigureCanvasAgg(fig)
+    for k, text in enumerate(texts):
+        fig.text(0.01, 0.1 * k, text)
+    fig.canvas.draw()
+
+
+def test_a_symbol_with_a_space_makes_a_fixed_parameters_caption_matplotlib_draws():
+    """A fixed parameter whose symbol holds a space ("m_e e"): its caption was '$m_{e}\\<nbsp>e$' (the
+    spaces made non-breaking inside the mathtext too), which matplotlib cannot parse, and every
+    figure of the dataset failed."""
+    ds = cam().assign_coords(me=xr.DataArray(0.01, attrs={"symbol": "m_e e", "units": "kg m", "long_name": "unbalance"}))
+    text = _style.fixed_text(ds)
+    assert text == "$m_{e}\\ e$\u00a0=\u00a00.01\u00a0kg\u00a0m", text
+    _drawn(text)
+    fig = figures.draw(_axes_of_two(ds), "heatmap_lift")
+    fig.savefig(__import__("io").BytesIO(), format="png")
+
+
+def _axes_of_two(ds):
+    return ds.isel(contact=slice(0, 1))
+
+
+TEXT = __import__("hypothesis").strategies.text(
+    alphabet=__import__("hypothesis").strategies.sampled_from(list("aAmx_^{}\\$ ()[]/|-+*=,.:;'%#&~0123"
+                                                                   "αωΔ²₁·≤\u00a0")), max_size=14)
+
+
+@__import__("hypothesis").settings(max_examples=150, deadline=None, derandomize=True, database=None)
+@__import__("hypothesis").given(symbol=TEXT, long_name=TEXT, unit=TEXT, latex=TEXT, choice=TEXT)
+def test_any_declared_text_gives_labels_matplotlib_draws(symbol, long_name, unit, latex, choice):
+    """Whatever a model declares (symbol, long name, unit, latex, a categorical choice's name), the
+    labels made from it (axis label, value text, the fixed parameters' caption, a name in running
+    text, a long name in a title) are drawn by matplotlib without a mathtext error: each piece is
+    checked by matplotlib's parser and falls back to plain text (its $ escaped) where it fails."""
+    attrs = {"symbol": symbol, "long_name": long_name, "units": unit, "latex": latex}
+    da = xr.DataArray(0.25, name="q", attrs=attrs)
+    cat = xr.DataArray(choice, name="c", attrs=attrs)
+    ds = xr.Dataset(coords={"q": da, "c": cat})
+    texts = [_style.label(da), _style.label(da, width=12), _style.value_text(da), _style.value_text(cat),
+             _style.fixed_text(ds), _style.name_text(da), _style.prose(long_name), _style.units_text(unit),
+             _style.mathtext(symbol), _style.symbol(da)]
+    for text in texts:
+        try:
+            _drawn(text)
+        except Exception as exc:  # the declaration and the label in the message
+            raise AssertionError(f"{attrs}: {text!r}: {type(exc).__name__}") from exc

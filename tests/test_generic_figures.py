@@ -310,6 +310,100 @@ def test_stability_map_draws_every_valued_point_and_the_located_boundaries():
     assert "located" not in figures.artists(ds, "stability_map")["panels"][0]
 
 
+def _speed_boundaries(ds, continued=False):
+    """A boundaries dataset of ds's grid (speed x preload) located along speed: one crossing per
+    preload at 30 + 10 i; ``continued``: one curve continued in preload, through those points."""
+    crossing = np.array([[30.0 + 10 * i, np.nan] for i in range(ds.sizes["preload"])])
+    data = {"boundary": (("preload", "crossing"), crossing, {"units": "rad/s"}),
+            "boundary_width": (("preload", "crossing"), np.full(crossing.shape, 1e-9), {"units": "rad/s"})}
+    attrs = {"mechsweep_kind": "boundaries", "model": "cam_follower", "along": "speed", "criterion": "lift",
+             "level": 20.0, "rtol": 1e-10}
+    if continued:
+        data["curve_speed"] = (("curve", "point"), crossing[:, :1].T, {"units": "rad/s"})
+        data["curve_preload"] = (("curve", "point"), ds["preload"].values[None, :], {"units": "N"})
+        attrs["continue_in"] = "preload"
+    return xr.Dataset(data, coords={"preload": ds["preload"].values, "crossing": [0, 1]}, attrs=attrs)
+
+
+def test_a_heatmap_over_the_located_axis_draws_the_located_boundaries():
+    """Boundaries located along speed are drawn over the heatmap whose axes are speed and preload
+    (speed vertical: the points at (preload, boundary)), with the continued curve and a legend
+    saying what they are, readable; a nomogram draws none (it plots the output against speed)."""
+    from . import figure_checks as fc
+
+    ds = _axes_of(cam(), "speed", "preload")
+    bds = _speed_boundaries(ds, continued=True)
+    assert figures.boundary_figures(ds, bds) == ["stability_map", "heatmap_lift"]
+    art = figures.artists(ds, "heatmap_lift", boundaries=bds)
+    assert (art["panels"][0]["located"] and (generic.choose(ds)[1].x, generic.choose(ds)[1].y)
+            == ("preload", "speed"))
+    points, curve = art["panels"][0]["located"][:2]
+    np.testing.assert_allclose(points.get_offsets()[:, 0], ds["preload"].values)
+    np.testing.assert_allclose(points.get_offsets()[:, 1], 30.0 + 10 * np.arange(ds.sizes["preload"]))
+    np.testing.assert_allclose(curve.get_xdata(), ds["preload"].values)
+    assert "boundary where" in " ".join(t.get_text() for t in art["legend"].get_texts())
+    assert fc.check_readable(art["figure"], ds) == []
+    assert "located" not in figures.artists(ds, "heatmap_lift")["panels"][0]
+    assert "located" not in figures.artists(ds, "nomogram_lift", boundaries=bds)["panels"][0]
+
+
+def test_plot_refuses_boundaries_no_figure_drawn_can_draw(tmp_path, capsys):
+    """`plot --boundaries` on a figure that cannot draw them (a nomogram) is refused, naming the
+    figures that can (it was ignored without a word); drawn with figures some of which cannot,
+    a note says which show them."""
+    ds = _axes_of(cam(n_speed=12), "speed", "preload")
+    ds.to_netcdf(tmp_path / "cam.h5", engine="h5netcdf")
+    _speed_boundaries(ds).to_netcdf(tmp_path / "b.h5", engine="h5netcdf")
+    args = ["plot", str(tmp_path / "cam.h5"), "--boundaries", str(tmp_path / "b.h5")]
+    assert main(args + ["--kind", "nomogram_lift"]) == 2
+    err = capsys.readouterr().err
+    assert "none of the figures drawn (nomogram_lift) draws located boundaries" in err
+    assert "stability_map, heatmap_lift" in err
+    assert main(args + ["--kind", "heatmap_lift"]) == 0
+    assert "note" not in capsys.readouterr().err
+    assert main(args) == 0
+    assert "drawn on stability_map, heatmap_lift; not on nomogram_lift" in capsys.readouterr().err
+
+
+def _undamped(ds):
+    """ds as an undamped model's run asked for a verdict: every stable point has the modulus 1 to
+    round-off, status undecided, and the verdict (1 stable, 0 unstable) NaN there."""
+    from mechsweep import status as st
+
+    ds = ds.copy(deep=True)
+    stable = ds["floquet"].values <= 1.0
+    ds["floquet"].values[stable] = 1.0 + 1e-12
+    ds["status"].values[...] = np.where(stable, st.UNDECIDED, st.OK)
+    ds["stable"] = (ds["floquet"].dims, np.where(stable, np.nan, 0.0),
+                    {"units": "1", "long_name": "1 if stable, 0 if unstable, NaN within the margin",
+                     "mechsweep_kind": "verdict"})
+    ds.attrs["outputs"] += " stable"
+    return ds
+
+
+def test_an_undamped_chart_says_its_stable_side_is_undecided_and_a_thinned_family_says_so():
+    """On an undamped model's chart the stability map's stable entry says its points are at 1
+    within the margin, status undecided (neutrally stable); the verdict's nomogram over a family
+    of 30 values asked by --y names that status in its note (its stable side is blank) and says
+    that every 3rd value of the family is drawn (it drew 10 of 30 curves without a word)."""
+    from . import figure_checks as fc
+
+    ds = _undamped(_axes_of(cam(), "speed", "preload"))
+    n_stable = int((ds["floquet"].values <= 1.0 + 1e-6).sum())
+    art = figures.artists(ds, "stability_map")
+    stable_text = " ".join(art["legend"].get_texts()[0].get_text().split())  # as wrapped to the legend
+    assert f"{n_stable} of them at 1 within the margin (status undecided" in stable_text, stable_text
+    art = figures.artists(ds, "nomogram_stable", axes=("preload", "speed"))
+    panel = art["panels"][0]
+    assert len(panel["lines"]) == 10 and panel["thinned"] == "every 3rd of 30 values drawn"
+    assert "every 3rd of 30 values drawn" in " ".join(panel["colorbar"].ax.get_ylabel().split())
+    drawn = int((ds["floquet"].isel(speed=slice(None, None, 3)).values <= 1.0 + 1e-6).sum())  # on the curves drawn
+    assert f"{drawn} flagged points (status undecided {drawn}, see status)" in " ".join(panel["note"].get_text().split())
+    assert fc.check_readable(art["figure"], ds) == []
+    damped = figures.artists(cam(), "stability_map")
+    assert "undecided" not in damped["legend"].get_texts()[0].get_text()
+
+
 def test_discrete_outputs_are_drawn_by_class_without_contours():
     """A declared verdict (0/1) and an output of a few whole numbers (a -1/0/+1 kind) get one flat
     colour per value and a colour bar ticked at the values, no interpolated contours (they used to
@@ -520,3 +614,63 @@ def test_a_point_without_time_histories_is_refused_saying_why(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--point speed=10,preload=25,contact=bronze: nothing to draw at one point" in err and "History" in err, err
     assert not list(tmp_path.glob("*.png"))
+
+
+def _unsorted(ds, dim, order):
+    """ds with the values of ``dim`` in the given order (a list axis a scene gave unsorted)."""
+    out = ds.isel({dim: list(order)})
+    out[dim].attrs["spacing"] = "list"
+    return out
+
+
+def test_plot_point_on_an_unsorted_list_axis_draws_the_point_asked_for(tmp_path, capsys):
+    """`plot --point` on a list axis that is not sorted (e = [0.0, 0.03, -0.03]) was refused as a
+    dataset 'not laid out as a mechsweep dataset (ValueError: index must be monotonic ...)': the
+    nearest grid value is now found by position."""
+    ds = _unsorted(cam(n_speed=8, n_preload=6), "preload", [0, 3, 1, 5, 2, 4])
+    ds["lift_history"].values[:] = np.arange(ds["lift_history"].size, dtype=float).reshape(ds["lift_history"].shape)
+    path = tmp_path / "cam.h5"
+    ds.to_netcdf(path, engine="h5netcdf")
+    assert main(["plot", str(path), "--point", "speed=10,preload=29,contact=bronze"]) == 0, capsys.readouterr().err
+    from mechsweep.commands.plot import select_point
+    one = select_point(ds, "speed=10,preload=29,contact=bronze")
+    assert float(one["preload"].values[0]) == 30.0
+    expected = ds["lift_history"].sel(preload=30.0, contact="bronze").isel(speed=[int(np.argmin(abs(ds.speed.values - 10)))])
+    np.testing.assert_array_equal(one["lift_history"].values.ravel(), expected.values.ravel())
+
+
+def test_maps_of_an_unsorted_axis_draw_each_cell_at_its_value():
+    """A stability map (and a heatmap) over a list axis given unsorted draws the same cells as over
+    the sorted axis (pcolormesh was given the values in the file's order)."""
+    ds = cam(n_speed=8, n_preload=6)
+    shuffled = _unsorted(ds, "preload", [0, 3, 1, 5, 2, 4])
+    for kind in ("stability_map", "heatmap_lift"):
+        a = figures.artists(ds, kind)["axes"][0, 0].collections[0].get_array()
+        b = figures.artists(shuffled, kind)["axes"][0, 0].collections[0].get_array()
+        np.testing.assert_array_equal(np.ma.filled(a, -1.0), np.ma.filled(b, -1.0))
+
+
+def test_a_bug_while_drawing_is_not_blamed_on_the_dataset(tmp_path, capsys, monkeypatch):
+    """An exception raised while drawing a dataset that passed the layout checks is mechsweep's bug:
+    it goes on with a note saying so (a traceback, exit 1), not 'not laid out as a mechsweep
+    dataset' (exit 2), which every ValueError of the drawing code was said as; a file whose grid
+    values are not finite and distinct is still said to be badly laid out."""
+    path = tmp_path / "cam.h5"
+    cam(n_speed=8).to_netcdf(path, engine="h5netcdf")
+
+    def broken(*args, **kwargs):
+        raise ValueError("a drawing bug")
+
+    monkeypatch.setattr(generic, "heatmap", broken)
+    with pytest.raises(ValueError, match="a drawing bug") as raised:
+        main(["plot", str(path), "--kind", "heatmap_lift", "-o", str(tmp_path / "h.png")])
+    notes = " ".join(getattr(raised.value, "__notes__", []))
+    assert "internal error while drawing the figures of" in notes and "not a problem of the dataset" in notes
+    assert "not laid out" not in capsys.readouterr().err
+    monkeypatch.undo()
+    bad = cam(n_speed=8)
+    bad = bad.assign_coords(preload=("preload", np.array([0.0, 10.0, 10.0, 30.0, 40.0, 50.0]), bad.preload.attrs))
+    bad.to_netcdf(tmp_path / "bad.h5", engine="h5netcdf")
+    assert main(["plot", str(tmp_path / "bad.h5"), "-o", str(tmp_path / "b.png")]) == 2
+    assert "not laid out as a mechsweep dataset (ValueError: the values of the grid dimension 'preload' are not " \
+           "finite and distinct)" in capsys.readouterr().err

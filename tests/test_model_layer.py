@@ -324,6 +324,13 @@ BAD = {
         "    dydt[1] = -y[0]\n\n\nBAD = Period('p2', 'xx')\n"
         "M2 = OdeModel(name='f', description='d', params=(), states=('x', 'v'), rhs=rhs, initial=initial, "
         "measurements=(BAD,))", "M", ["importing", "'xx'", "line 16)"]),
+    # a status function whose path the probe (k = 1) does not take returns nothing: numba types it
+    # Optional, and the kernel failed on None at every point that took that path
+    "classify_returns_nothing_off_the_probe": (
+        "    dydt[1] = -y[0]\n\n\ndef classify(p):\n    if p[0] > 2.0:\n        return\n    return 0\n\n\n"
+        "M2 = OdeModel(name='f', description='d', params=(Param('k', 'k', '1', 'k', lo=0.0),), states=('x', 'v'), "
+        "rhs=rhs, initial=initial, classify=classify, measurements=(Period('period', 'x'),))",
+        "M2", ["classify can return None", "a return without a value", "line 18)"]),
     "missing_name": ("    dydt[1] = -y[0]", "NOPE", ["does not define 'NOPE'", "models it defines: M"]),
     "misspelt_name": ("    dydt[1] = -y[0]", "MM", ["does not define 'MM'; did you mean 'M'?", "models it defines: M"]),
     "not_a_model": ("    dydt[1] = -y[0]", "NOT_A_MODEL", ["is a int, not a mechsweep.model.OdeModel"]),

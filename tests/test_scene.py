@@ -135,3 +135,19 @@ def test_a_long_list_of_allowed_names_is_printed_once():
     text = str(err.value)
     assert all(f"'{o}'" in text for o in outputs)
     assert text.count("dM_inertia_phi") == 1 and text.count("(allowed: as above)") == len(outputs) - 1, text
+
+
+def test_a_method_for_a_model_that_integrates_nothing_says_so():
+    """solver.method for a closed-form model (every output a closed form) is refused saying that
+    no integration method applies; it was 'unknown method ... (allowed: dop853)', as if dop853
+    integrated something there (a docs-only trial asked radau for its slider-crank)."""
+    import tomllib
+
+    data = tomllib.loads((SWEEPS / "fourbar_methods.toml").read_text())
+    data["solver"] = {"method": "radau"}
+    with pytest.raises(SceneError) as err:
+        load_scene(data)
+    text = str(err.value)
+    assert ("solver.method: 'radau' is not allowed: model 'fourbar_balancing' integrates nothing (every output is a "
+            "closed form), so no integration method applies; leave solver.method out") in text, text
+    assert "allowed: dop853" not in text

@@ -11,10 +11,10 @@ from .dataset import (accuracy_warning, base_rows, criterion_of, locate_dataset,
                       status_warning, warnings_for, write_atomic)
 from .search import (ABS_FLOOR, BAND_EDGE, BOUND_DESCRIPTIONS, BOUND_MEANINGS, BUDGET, CRITERION, INTERRUPTED,
                      MAX_EVALUATIONS, PARAMETER, STALL_ROUNDS, Criterion, Located, accuracy_text, criterion_accuracy,
-                     kind_of_angle, locate)
+                     from_integration, kind_of_angle, locate)
 
 __all__ = ["ABS_FLOOR", "BAND_EDGE", "BOUND_DESCRIPTIONS", "BOUND_MEANINGS", "BUDGET", "CRITERION", "CURVE_STOPS",
            "FOLD_TOL", "INTERRUPTED", "MAX_EVALUATIONS", "PARAMETER", "STALL_ROUNDS", "Criterion", "Curve", "Located",
            "accuracy_text", "accuracy_warning", "base_rows", "continue_boundary", "criterion_accuracy",
-           "criterion_of", "kind_of_angle", "locate", "locate_dataset", "run_boundaries", "sibling_path",
-           "status_warning", "warnings_for", "write_atomic"]
+           "criterion_of", "from_integration", "kind_of_angle", "locate", "locate_dataset", "run_boundaries",
+           "sibling_path", "status_warning", "warnings_for", "write_atomic"]

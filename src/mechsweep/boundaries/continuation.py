@@ -37,7 +37,8 @@ def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_na
     Newton step is below ``tol`` (of the span) and |g| within the criterion's accuracy. The step grows
     1.5x after a corrector of at most 2 iterations, and halves (down to ``step_min``) when the
     corrector fails or the tangent turns by more than 30 degrees. The last point is on the box's
-    edge (Newton with that coordinate fixed). Only criteria that change sign (not band edges or
+    edge the curve crosses (Newton with that coordinate fixed; near a corner the other edge when
+    the curve leaves through it), inside the box. Only criteria that change sign (not band edges or
     status changes) can be continued this way. ``direction``: +1 / -1 along the tangent (-g_y, g_x),
     0 (default) away from the box's nearest edge."""
     names = scene.model.param_names()
@@ -89,7 +90,10 @@ def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_na
             except np.linalg.LinAlgError:
                 return None
             u = u + du
-            if np.abs(du).max() <= tol and abs(g0) <= eps_of(g0):
+            # on the curve: |g| within the criterion's accuracy, or within what a move of tol (the
+            # position's own tolerance) changes it by: a criterion of level 0 has an accuracy
+            # relative to |g| itself (16 ulp |g| for a closed form), which its round-off never meets
+            if np.abs(du).max() <= tol and abs(g0) <= max(eps_of(g0), tol * np.hypot(*G)):
                 return u, G, it
         return None
 
@@ -130,6 +134,27 @@ def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_na
                 return at
         return at
 
+    def on_edge(u, q, outside):
+        """The point where the curve leaves the box between u (inside) and q: Newton with one
+        coordinate held on its edge, the edge the chord u -> q reaches first; when the curve
+        itself leaves through the other edge of a corner (the chord cut the corner), with that
+        coordinate held instead. Clipped to the box (round-off of the held coordinate's corner);
+        None when no correction lands in the box."""
+        reach = [((0.0 if q[k] < 0 else 1.0) - u[k]) / (q[k] - u[k]) if outside[k] else np.inf for k in (0, 1)]
+        order = [int(np.argmin(reach)), int(np.argmax(reach))]
+        for k in order:
+            edge = 0.0 if (q[k] < 0 if outside[k] else q[k] < u[k]) else 1.0
+            f = min(1.0, (edge - u[k]) / (q[k] - u[k])) if q[k] != u[k] else 1.0
+            e = u + f * (q - u)
+            e[k] = edge
+            got = correct(e, t, e, fixed=k)
+            if got is None:
+                continue
+            p = got[0]
+            if ((p >= -tol) & (p <= 1.0 + tol)).all():
+                return np.clip(p, 0.0, 1.0)
+        return None
+
     start = np.asarray(start, dtype=float)
     # no logarithm of a linear coordinate (a start at 0 on a linear axis warned of a division by zero)
     u = (np.where(logs, np.log10(np.where(logs, np.abs(start), 1.0)), start) - lo) / span
@@ -159,14 +184,9 @@ def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_na
             continue
         outside = (q < 0) | (q > 1)
         if outside.any():
-            k = int(np.argmax(outside))  # the coordinate that left the box first
-            edge = 0.0 if q[k] < 0 else 1.0
-            f = (edge - u[k]) / (q[k] - u[k])
-            e = u + f * (q - u)
-            e[k] = edge
-            got = correct(e, t, e, fixed=k)
-            if got is not None:
-                pts.append(got[0])
+            end = on_edge(u, q, outside)
+            if end is not None:
+                pts.append(end)
             stop = "edge"
             break
         for k, name in ((0, x_name), (1, y_name)):
@@ -185,7 +205,9 @@ def continue_boundary(scene, crit: Criterion, row: np.ndarray, x_name: str, y_na
         u, t = q, tq
         if it <= 2:
             s = min(1.5 * s, step_max)
-    return Curve(points=to_xy(np.array(pts)), folds=folds, stop=stop, evaluations=ev.points, calls=ev.calls)
+    # in the chart's own coordinates too (10 ** (log10 of an end) can miss the end by an ulp)
+    xy = np.clip(to_xy(np.array(pts)), [min(box[0]), min(box[1])], [max(box[0]), max(box[1])])
+    return Curve(points=xy, folds=folds, stop=stop, evaluations=ev.points, calls=ev.calls)
 
 
 CURVE_STOPS = ("edge", "closed", "max_points", "step_too_small", "no_value")
@@ -220,6 +242,7 @@ def continue_all(scene, crit, b, res: Located, rows: np.ndarray, others: tuple):
     C = res.location.shape[1]
     loc = np.moveaxis(res.location.reshape(sizes + [C]), ci, -2)
     ok = np.moveaxis(np.isin(res.bound, (PARAMETER, CRITERION)).reshape(sizes + [C]), ci, -2)
+    width = np.moveaxis(res.width.reshape(sizes + [C]), ci, -2)
     R = np.moveaxis(rows.reshape(sizes + [rows.shape[1]]), ci, -2)
     cvals = encoded(scene, others[ci])
     rest = loc.shape[:-2]
@@ -229,10 +252,13 @@ def continue_all(scene, crit, b, res: Located, rows: np.ndarray, others: tuple):
     for r in np.ndindex(*rest):
         curves = []
         for end in (0, -1):
-            for x in loc[r][end][ok[r][end]]:
+            for x, w in zip(loc[r][end][ok[r][end]], width[r][end][ok[r][end]]):
                 start = np.array([x, cvals[end]])
-                if any(np.min(np.hypot(*((c.points - start) / span).T)) < 1e-6 for c in curves):
-                    continue  # already on a curve followed from elsewhere
+                # already on a curve followed from elsewhere (its last point is on this end line, where
+                # the curve left the chart): within the located bracket, or 1e-6 of the chart
+                near = max(1e-6, 2.0 * float(w) / span[0]) if np.isfinite(w) else 1e-6
+                if any(np.min(np.hypot(*((c.points - start) / span).T)) < near for c in curves):
+                    continue
                 c = continue_boundary(scene, crit, R[r][end], along, cont, start, box=box)
                 n_eval += c.evaluations
                 n_calls += c.calls

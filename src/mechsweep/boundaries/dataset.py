@@ -16,7 +16,7 @@ from .. import cf
 from .. import status as st
 from .continuation import continue_all
 from .search import (BAND_EDGE, BOUND_DESCRIPTIONS, BOUND_MEANINGS, CRITERION, PARAMETER, Criterion, accuracy_text,
-                     encoded, locate)
+                     encoded, from_integration, locate)
 
 def criterion_of(scene, spec=None) -> Criterion:
     """The :class:`Criterion` of a scene's [boundaries] section (or of ``spec``, a scene.Boundaries)."""
@@ -192,7 +192,7 @@ def accuracy_warning(scene) -> str | None:
     b = scene.boundaries
     if b is None or b.criterion_accuracy is None or b.criterion is None or scene.solver is None:
         return None
-    if not scene.model.output(b.criterion).integrated or b.level == 0.0:
+    if not from_integration(scene.model, b.criterion) or b.level == 0.0:
         return None
     floor = 100.0 * scene.solver.rtol * abs(b.level)
     if b.criterion_accuracy >= floor:

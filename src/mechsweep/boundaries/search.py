@@ -73,11 +73,33 @@ class Criterion:
     # from which the kind of crossing follows
 
 
+def from_integration(model, name: str) -> bool:
+    """Whether output ``name``'s value comes from an integration: an integrated output, or a closed
+    form of integrated outputs, however deep (its ``needs``; for a model-layer closed form also the
+    outputs its formula reads when its declared output needs leave them out, e.g. ``output_needs=()``):
+    such a value is only as accurate as the integration."""
+    by_name = {o.name: o for o in model.outputs}
+    forms = {c.name: c for c in getattr(getattr(model, "declaration", None), "closed_forms", ())}
+    stack, seen = [name], set()
+    while stack:
+        n = stack.pop()
+        if n in seen:
+            continue
+        seen.add(n)
+        if n in by_name and by_name[n].integrated:
+            return True
+        stack.extend(by_name[n].needs if n in by_name else ())
+        stack.extend(getattr(forms.get(n), "needs", ()))
+    return False
+
+
 def criterion_accuracy(model, solver, crit: Criterion, values: np.ndarray) -> np.ndarray:
     """Absolute accuracy of criterion values ``values`` (the band |g| <= eps that cannot be told from
     the level). Given in the scene, it is used as is. Else: an output of kind "floquet_max": the
     verdict margin of the Floquet measurement, max(solver.floquet_margin (default 1e-8), 100 rtol);
-    another integrated output: 100 rtol max(|value|, |level|); a closed form: 16 ulp of the same."""
+    another integrated output, or a closed form computed from integrated outputs (it inherits their
+    accuracy: :func:`from_integration`): 100 rtol max(|value|, |level|); a closed form of the
+    parameters alone: 16 ulp of the same."""
     if crit.accuracy is not None:
         return np.full(values.shape, crit.accuracy)
     out = model.output(crit.output)
@@ -85,7 +107,7 @@ def criterion_accuracy(model, solver, crit: Criterion, values: np.ndarray) -> np
     if out.kind == "floquet_max":
         margin = float(solver.settings.get("floquet_margin", 1e-8)) if solver is not None else 1e-8
         return np.full(values.shape, max(margin, 100.0 * (solver.rtol if solver is not None else 0.0)))
-    if out.integrated and solver is not None:
+    if solver is not None and from_integration(model, crit.output):
         return 100.0 * solver.rtol * scale
     return 16.0 * np.finfo(float).eps * scale
 
@@ -98,8 +120,9 @@ def accuracy_text(scene, crit: Criterion) -> str:
     if out.kind == "floquet_max":
         eps = criterion_accuracy(scene.model, solver, crit, np.zeros(1))[0]
         return f"{eps:g}: the Floquet verdict margin max(floquet_margin, 100 rtol)"
-    if out.integrated and solver is not None:
-        return f"100 rtol max(|value|, |level|) = {100 * solver.rtol:g} max(|value|, |level|)"
+    if solver is not None and from_integration(scene.model, crit.output):
+        of = "" if out.integrated else " (a closed form of integrated outputs: their accuracy)"
+        return f"100 rtol max(|value|, |level|) = {100 * solver.rtol:g} max(|value|, |level|){of}"
     return "16 ulp of max(|value|, |level|) (a closed form)"
 
 

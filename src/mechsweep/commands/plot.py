@@ -42,8 +42,10 @@ def add_parser(sub, fmt) -> None:
                    help="select one grid point (nearest values), e.g. --point Omega=12.5,m=0.2; "
                         "draws its time histories when the dataset stores them")
     p.add_argument("--boundaries", metavar="PATH",
-                   help="located boundaries (`mechsweep boundaries`) to draw over the charts that show them "
-                        "(default: DATASET.boundaries.h5 beside the dataset, when it exists)")
+                   help="located boundaries (`mechsweep boundaries`) to draw over the charts that show them: "
+                        "stability maps and heatmaps with the axis they were located along (refused when no "
+                        "figure drawn shows them; default: DATASET.boundaries.h5 beside the dataset, when it "
+                        "exists)")
     p.add_argument("--no-boundaries", action="store_true", help="draw the charts without located boundaries")
     p.add_argument("--x", metavar="AXIS", help="draw the generic figures (stability map, heatmap, nomogram) with AXIS "
                    "across; only the outputs over it (default: the figures' own choice, see --list)")
@@ -119,6 +121,7 @@ def _plot(args) -> int:
     bds = _boundaries_for(ds, args)
     started()
     with reading(args.dataset):
+        check_layout(ds)
         if args.point:
             ds = select_point(ds, args.point)
         axes = (args.x, args.y) if args.x or args.y else None
@@ -155,7 +158,9 @@ def _plot(args) -> int:
         out = (folder if folder is not None else Path(args.dataset).parent) / f"{stem}.{fmt}"
     for target in figures.targets(ds, out, kind=args.kind, fmt=fmt, axes=axes):
         _check_figure_path(target, Path(args.dataset))
-    with reading(args.dataset), _writing_figures(out):
+    if bds is not None and args.boundaries:  # (a --kind this dataset has not is refused above)
+        _check_boundaries_drawn(ds, bds, args, [args.kind] if args.kind else list(kinds), axes)
+    with _drawing(args.dataset), _writing_figures(out):
         kinds = list(figures.available(ds, axes)) if args.kind is None else []
         if len(kinds) > 1 and jobs.can_fork():  # several figures: side by side on the cores (the same files)
             written = figures.targets(ds, out, fmt=fmt, axes=axes)
@@ -191,6 +196,68 @@ def _boundaries_for(ds, args):
         raise InputError(f"--boundaries {path}: not located on the grid of {args.dataset}: {why}")
     print(f"note: {path} not drawn: {why}", file=sys.stderr)
     return None
+
+
+def _check_boundaries_drawn(ds, bds, args, drawing, axes) -> None:
+    """--boundaries PATH is drawn by some of the figures ``drawing`` (refused, exit 2, when by none:
+    naming the figures of this dataset that draw them, or saying which would); a note names the
+    figures drawn without them (a nomogram, a curve: an output against one axis)."""
+    from .. import figures
+    from ..errors import InputError
+
+    can = figures.boundary_figures(ds, bds, axes)
+    drawn = [k for k in drawing if k in can]
+    along = bds.attrs.get("along")
+    if not drawn:
+        what = ", ".join(drawing) or "none"
+        if can:
+            raise InputError(f"--boundaries {args.boundaries}: none of the figures drawn ({what}) draws located "
+                             f"boundaries; the figures of this dataset that do: {', '.join(can)} (--kind NAME)")
+        raise InputError(f"--boundaries {args.boundaries}: no figure of this dataset draws them (figures drawn: "
+                         f"{what}): a stability map or heatmap with {along!r} as one of its two axes does (--x, "
+                         "--y choose a heatmap's axes); a nomogram or curve has no place for them")
+    left = [k for k in drawing if k not in can]
+    if left:
+        print(f"note: --boundaries {args.boundaries}: drawn on {', '.join(drawn)}; not on {', '.join(left)} "
+              f"(only a stability map or heatmap with {along!r} as one of its axes draws them)", file=sys.stderr)
+
+
+def check_layout(ds) -> None:
+    """What drawing a run's figures reads of its layout, checked before anything is drawn (a
+    ValueError, said by ``store.read.reading`` as a dataset not laid out as a run writes it): every
+    grid dimension has one value per index (a 1-D coordinate), numeric ones finite and distinct."""
+    import numpy as np
+
+    if "status" not in ds:  # a benchmark's dataset: its figures read it their own way
+        return
+    grid = list(ds["status"].dims)
+    for d in grid:
+        values = ds[d]
+        if values.dims != (d,) or values.size != ds.sizes[d]:
+            raise ValueError(f"the grid dimension {d!r} has no coordinate of its own")
+        if values.dtype.kind in "fiu":
+            v = np.asarray(values.values, dtype=float)
+            if not np.isfinite(v).all() or np.unique(v).size != v.size:
+                raise ValueError(f"the values of the grid dimension {d!r} are not finite and distinct")
+
+
+@contextmanager
+def _drawing(path):
+    """Drawing the figures of a dataset that passed the layout checks: a mechsweep error (bad
+    input) or a system error is said in one line as usual (exit 2); any other exception is a bug
+    of mechsweep's drawing, not a problem of the file: it goes on (a traceback, exit 1) with a note
+    saying so, never as 'not laid out as a mechsweep dataset'."""
+    from ..errors import MechsweepError
+
+    try:
+        yield
+    except (MechsweepError, OSError, KeyboardInterrupt):
+        raise
+    except Exception as exc:
+        exc.add_note(f"mechsweep plot: internal error while drawing the figures of {path}: a bug in mechsweep, not "
+                     "a problem of the dataset (it passed the layout checks); please report it with the "
+                     "command and the dataset")
+        raise
 
 
 @contextmanager
@@ -277,7 +344,17 @@ def select_point(ds, text: str):
         raise InputError(f"--point: give a value for {', '.join(missing)} too")
     numeric = {k: v for k, v in wanted.items() if ds[k].dtype.kind in "fiu"}
     other = {k: v for k, v in wanted.items() if k not in numeric}
-    return ds.sel(numeric, method="nearest").sel(other)
+    # the nearest grid value by position: a list axis need not be sorted (ds.sel(method="nearest")
+    # refused an index that is not monotonic); a tie goes to the larger value, as sel's did
+    import numpy as np
+
+    nearest = {}
+    for k, (number,) in numeric.items():
+        grid = np.asarray(ds[k].values, dtype=float)
+        gap = np.abs(grid - number)
+        ties = np.flatnonzero(gap == gap.min())
+        nearest[k] = [int(ties[np.argmax(grid[ties])])]
+    return ds.isel(nearest).sel(other)
 
 
 def point_slug(ds) -> str:

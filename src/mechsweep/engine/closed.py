@@ -6,7 +6,7 @@
         non-OK: that status, the design's row and curves NaN
 
 An exception the user's compute raises at a design the load-time probe did not see must not escape
-the parallel loop: that design ends NONFINITE, NaN (mechsweep's own computes never raise: no guard).
+the parallel loop: that design ends USER_ERROR, NaN (mechsweep's own computes never raise: no guard).
 """
 from __future__ import annotations
 
@@ -37,15 +37,15 @@ def _guarded(call):
     def compute(p, want, row, crv, slot, scratch, data):
         try:
             return call(p, want, row, crv, slot, scratch, data)
-        except Exception:
-            return st.NONFINITE
+        except Exception:  # evaluate replays the design in plain Python to say why (model/diagnose.py)
+            return st.USER_ERROR
 
     return compute
 
 
 def build(compute, n_scr: int, guarded: bool):
     """The entry point ``kernel`` of a ClosedFormModel whose jitted ``compute`` needs ``n_scr`` scratch
-    rows; ``guarded``: a user's function (an exception ends the design NONFINITE)."""
+    rows; ``guarded``: a user's function (an exception ends the design USER_ERROR)."""
     from . import binding
 
     call = _call(compute)

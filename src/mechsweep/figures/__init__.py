@@ -78,9 +78,24 @@ def _plan(ds, boundaries=None, axes=None) -> list[tuple[str, str, object, bool]]
     plan = [(f.name, f.description, _draw_fn(f, boundaries), True) for f in model]
     fitting = boundaries if boundaries is not None and located.mismatch(ds, boundaries) is None else None
     x, y = axes if given else (None, None)
-    plan += [(c.name, c.description, (lambda ds, c=c, **kw: c.draw(ds, boundaries=fitting, **kw))
-              if c.kind == "stability_map" else c.draw, not model) for c in generic.choose(ds, drawn, x=x, y=y)]
+    plan += [(c.name, c.description, (lambda ds, c=c, **kw: c.draw(ds, boundaries=fitting, **kw)), not model)
+             for c in generic.choose(ds, drawn, x=x, y=y)]
     return plan
+
+
+def boundary_figures(ds, boundaries, axes=None) -> list[str]:
+    """The figures of ``ds`` (drawn by default or on request, as :func:`available` and
+    :func:`on_request` list them) that draw ``boundaries`` over their chart: a model's figure
+    that declares it draws boundaries, a stability map or heatmap with the axis they were located
+    along as one of its two axes. Empty when ``boundaries`` were not located on this grid."""
+    if boundaries is None or located.mismatch(ds, boundaries) is not None:
+        return []
+    given = axes is not None and any(a is not None for a in axes)
+    model = [] if given else [f for f in MODEL_FIGURES if f.fits_dataset(ds)]
+    drawn = set().union(*(f.drawn(ds) for f in model))
+    x, y = axes if given else (None, None)
+    return ([f.name for f in model if f.boundaries]
+            + [c.name for c in generic.choose(ds, drawn, x=x, y=y) if c.draws(boundaries)])
 
 
 def available(ds, axes=None) -> dict[str, str]:

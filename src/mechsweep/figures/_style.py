@@ -16,6 +16,8 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import Locator, LogLocator
 
+from .._mathtext import _parses, latex_problem  # noqa: F401 (latex_problem: the labels' own check)
+
 STATUS_OK = 0
 NBSP = "\u00a0"
 HALO_DARK = [patheffects.withStroke(linewidth=2.6, foreground="0.1")]  # white lines seen on light and dark colours
@@ -83,12 +85,15 @@ def _is_name(text: str) -> bool:
 def mathtext(symbol) -> str:
     """A plain-text symbol as matplotlib mathtext, e.g. ``omega_xi`` -> ``$\\omega_{\\xi}$``,
     ``A1`` -> ``$A_{1}$``, ``max |λ|`` -> ``$\\max|\\lambda|$``, ``T²`` -> ``$T^{2}$``; one that already
-    holds ``$`` is returned as it is. Empty when the symbol is empty or is a word rather than a
-    symbol (``position``, ``stable (kick)``: those are names), or when matplotlib cannot parse the
-    result (a figure must never fail on a label)."""
+    holds ``$`` is returned as it is when matplotlib renders it. Empty when the symbol is empty or
+    is a word rather than a symbol (``position``, ``stable (kick)``: those are names). A symbol
+    whose mathtext matplotlib cannot parse is given as plain text, its ``$`` escaped (a figure
+    must never fail on a label, whatever a user declares)."""
     text = "" if symbol is None else str(symbol).strip()
-    if not text or "$" in text:
+    if not text:
         return text
+    if "$" in text:
+        return text if renders(text) else escaped(text)
     if _is_name(text):
         return ""
     tokens = _TOKEN.findall(text)
@@ -132,31 +137,35 @@ def mathtext(symbol) -> str:
             out.append(t)
         i += 1
     result = "$" + re.sub(r"\s+$", "", "".join(out)).replace(" \\ ", "\\ ") + "$"
-    return result if _parses(result) else ""
+    return result if _parses(result) else escaped(text)
 
 
-_PARSED: dict[str, bool] = {}
+def escaped(text) -> str:
+    """``text`` as plain text that matplotlib never reads as mathtext: every ``$`` escaped
+    (matplotlib draws ``\\$`` as ``$``)."""
+    return re.sub(r"(?<!\\)\$", r"\\$", str(text))
 
 
-def _parses(text: str) -> bool:
-    """Whether matplotlib's mathtext parses ``text`` (cached)."""
-    if text not in _PARSED:
-        from matplotlib.font_manager import FontProperties
-        from matplotlib.mathtext import MathTextParser
+def renders(text) -> bool:
+    """Whether matplotlib draws ``text`` without a mathtext error: each line (matplotlib lays out
+    and parses a text line by line) either holds no mathtext (no even number of unescaped ``$``)
+    or is parsed by matplotlib's mathtext parser."""
+    from matplotlib.cbook import is_math_text
 
-        try:
-            MathTextParser("path").parse(text, 72, FontProperties())
-            _PARSED[text] = True
-        except Exception:  # noqa: BLE001 (any parse failure: the label goes without mathtext)
-            _PARSED[text] = False
-    return _PARSED[text]
+    return all(not is_math_text(line) or _parses(line) for line in str(text).split("\n"))
+
+
+def safe(text) -> str:
+    """``text`` when matplotlib draws it (:func:`renders`), else the same as plain text (its ``$``
+    escaped): the last guard of every label made from a dataset's attributes."""
+    return text if renders(text) else escaped(text)
 
 
 def symbol(da) -> str:
     """The variable's symbol in mathtext: its ``latex`` attribute (declared by the model), else its
     plain ``symbol`` converted (:func:`mathtext`); '' when it has neither (or the symbol is a word)."""
     latex = str(da.attrs.get("latex", "") or "")
-    if latex and "$" in latex and _parses(latex):
+    if latex and "$" in latex and renders(latex):
         return latex
     return mathtext(da.attrs.get("symbol", ""))
 
@@ -177,7 +186,7 @@ def short_symbol(da) -> str:
 def name_text(da) -> str:
     """How a figure names a variable in running text: its short symbol, else its name (written as
     mathtext when that parses, so that an underscore is a subscript and never printed)."""
-    return short_symbol(da) or mathtext(da.name) or str(da.name)
+    return short_symbol(da) or mathtext(da.name) or escaped(da.name)
 
 
 _SUBSCRIPTED = re.compile(r"(?<![\w$\\])([A-Za-zα-ωΑ-Ω])_([A-Za-z0-9]{1,3}|[α-ωΑ-Ω])(?![\w])")
@@ -192,8 +201,10 @@ def prose(text: str) -> str:
         low = "\\" + _UNICODE_GREEK[low] if low in _UNICODE_GREEK else ("\\" + low if low in GREEK else low)
         return f"${base}_{{{low}}}$"
 
-    parts = re.split(r"(\$[^$]*\$)", str(text))
-    return "".join(p if p.startswith("$") else _SUBSCRIPTED.sub(sub, p) for p in parts)
+    # a user's mathtext span is kept where matplotlib parses it; any other $ is drawn as a $
+    parts = _MATH_SPLIT.split(str(text))
+    return "".join((p if _parses(p) else escaped(p)) if p.startswith("$") and len(p) > 1
+                   else _SUBSCRIPTED.sub(sub, escaped(p)) for p in parts)
 
 
 def code(text) -> str:
@@ -220,7 +231,7 @@ def units_text(unit) -> str:
     for token in unit.split():
         m = _POWER.match(token)
         if not m:
-            return unit
+            return escaped(unit)
         base, power = m.groups()
         out.append(base if power in (None, "1") else f"{base}$^{{{power}}}$")
     return " ".join(out)
@@ -232,13 +243,14 @@ def value_text(da, value=None, *, digits: int = 4) -> str:
     unit as figures write it; a name for a categorical value."""
     v = np.asarray(da.values if value is None else value)
     if v.dtype.kind in "OUS":
-        return f"{name_text(da)} = {v}"
-    unit = units_text(da.attrs.get("units", "")).replace(" ", NBSP)
-    return f"{name_text(da)} = {float(v):.{digits}g}" + (f"{NBSP}{unit}" if unit else "")
+        return safe(f"{name_text(da)} = {escaped(v)}")
+    unit = nobreak(units_text(da.attrs.get("units", "")))
+    return safe(f"{name_text(da)} = {float(v):.{digits}g}" + (f"{NBSP}{unit}" if unit else ""))
 
 
 # ----------------------------------------------------------------------------- wrapping
-_MATH = re.compile(r"\$[^$]*\$")
+_MATH = re.compile(r"(?<!\\)\$[^$]*(?<!\\)\$")  # a mathtext span (an escaped \$ is a dollar sign)
+_MATH_SPLIT = re.compile(r"((?<!\\)\$[^$]*(?<!\\)\$)")
 
 
 def visible_len(text: str) -> int:
@@ -298,8 +310,8 @@ def label(da, width: int = 42, *, name: bool = True) -> str:
     long = prose(str(da.attrs.get("long_name", da.name)))
     sym = symbol(da)
     head = (f"{sym}, {long}" if sym else long) if name else (sym or long)
-    unit = units_text(da.attrs.get("units", "")).replace(" ", NBSP)  # "[N m]" never split over two lines
-    return wrap(f"{head} [{unit}]" if unit else head, width)
+    unit = nobreak(units_text(da.attrs.get("units", "")))  # "[N m]" never split over two lines
+    return safe(wrap(f"{head} [{unit}]" if unit else head, width))
 
 
 def fixed_text(ds, skip=()) -> str:
@@ -308,8 +320,9 @@ def fixed_text(ds, skip=()) -> str:
     for k in ds.coords:
         if k in ds.dims or k in skip or ds[k].ndim:
             continue
-        parts.append(value_text(ds[k], digits=6).replace(" ", NBSP))
-    return ", ".join(parts)
+        # non-breaking outside mathtext only: a space inside it is mathtext's ("$m_{e}\\ e$")
+        parts.append(nobreak(value_text(ds[k], digits=6)))
+    return safe(", ".join(parts))
 
 
 def status_counts(ds) -> list[tuple[str, int]]:
@@ -370,6 +383,11 @@ def owns(fig) -> bool:
     return bool(getattr(fig, "_mechsweep_titled", False))
 
 
+def nobreak(text: str) -> str:
+    """``text`` with its spaces non-breaking (outside mathtext spans, where a space is mathtext's)."""
+    return "".join(p if p.startswith("$") and len(p) > 1 else p.replace(" ", NBSP) for p in _MATH_SPLIT.split(text))
+
+
 def title(fig, ds, what: str, caption: str | None = None, *, caption_box: bool = True) -> str:
     """Title: what the figure shows. The fixed parameters (and ``caption`` when given) go to a
     caption box under the panels, in a smaller font, with the scene's name last (a footer, not a
@@ -380,12 +398,12 @@ def title(fig, ds, what: str, caption: str | None = None, *, caption_box: bool =
         return ""
     # wrapped here, by characters for the figure's width (~11 per inch at 11 pt): matplotlib's own
     # wrap=True measured at the screen's dpi and let a title saved at 150 dpi run off both edges
-    fig.suptitle(wrap(what, max(20, int(width_inches(fig) * 11))), fontsize=11)
+    fig.suptitle(safe(wrap(what, max(20, int(width_inches(fig) * 11)))), fontsize=11)
     fixed = fixed_text(ds)
     scene = str(ds.attrs.get("title", "") or "")
     lines = [c for c in (caption, f"fixed: {fixed}" if fixed else "", f"scene: {code(scene)}" if scene else "") if c]
     chars = int(width_inches(fig) * 15)  # ~15 characters per inch at 7.5 pt
-    text = "\n".join(wrap(c, chars) for c in lines)
+    text = "\n".join(safe(wrap(c, chars)) for c in lines)
     if text and caption_box:
         fig.supxlabel(text, fontsize=7.5, color="0.25", ha="center",
                       bbox=dict(boxstyle="round,pad=0.4", facecolor="0.96", edgecolor="0.8"))

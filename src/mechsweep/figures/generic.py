@@ -58,7 +58,7 @@ FLOQUET_SLACK = 1e-6  # a modulus within this of 1 counts as on the unit circle 
 MAX_PANELS = 4  # panels per generic figure (one per value of the axes the figure does not use)
 FAMILY_MAX = 10  # an axis with at most this many values can give a family of curves
 LEGEND_MAX = 5  # up to this many curves: a legend; more: a colour scale and labels at the curve ends
-MAX_CURVES = 12  # more values than this on the family axis: every k-th value is drawn (said in the title)
+MAX_CURVES = 12  # more values than this on the family axis: every k-th value is drawn (said with the family)
 LOG_DECADES = 3  # a positive colour scale or y axis spanning at least this many decades is logarithmic
 HALO = [patheffects.withStroke(linewidth=2.4, foreground="white")]  # keeps black lines visible on dark colours
 FLAG_STYLE = dict(marker="x", s=14, color="0.5", linewidths=0.8, zorder=4,  # grey, haloed: seen on any colour
@@ -122,11 +122,19 @@ class Choice:
     description: str
 
     def draw(self, ds, *, fig=None, ax=None, boundaries=None):
-        """The figure's artists (a Drawn dict; ``["figure"]`` is the Figure). A stability map draws
-        ``boundaries`` (located on this grid, along one of its two axes) over the shading."""
+        """The figure's artists (a Drawn dict; ``["figure"]`` is the Figure). A stability map and a
+        heatmap draw ``boundaries`` (located on this grid) over the chart when it was located along
+        one of their two axes (:meth:`draws`); the other figures leave them out."""
         if self.kind == "stability_map":
             return stability_map(ds, self.output, x=self.x, y=self.y, fig=fig, ax=ax, boundaries=boundaries)
-        return _panel_figure(ds, self, fig=fig, ax=ax)
+        return _panel_figure(ds, self, fig=fig, ax=ax, boundaries=boundaries if self.draws(boundaries) else None)
+
+    def draws(self, boundaries) -> bool:
+        """Whether this figure draws ``boundaries`` (a boundaries dataset of its grid): a map (stability
+        map or heatmap) with the axis they were located along as one of its two axes. A nomogram or a
+        curve plots an output's value against one axis, where a boundary in the parameters has no place."""
+        return (boundaries is not None and self.kind in ("stability_map", "heatmap")
+                and boundaries.attrs.get("along") in (self.x, self.y))
 
 
 def _map_axes(ds, name) -> tuple[str, str]:
@@ -418,7 +426,7 @@ def heatmap(ds, name, *, x, y, at=None, ax=None, colorbar=True, contours=True):
         if bad.any():
             yy, xx = np.meshgrid(yv, xv, indexing="ij")
             art["flagged"] = ax.scatter(xx[bad], yy[bad], **FLAG_STYLE)
-            art["note"] = _flag_note(ax, int(bad.sum()), int((bad & finite).sum()))
+            art["note"] = _flag_note(ax, int(bad.sum()), int((bad & finite).sum()), _status_counts(_status_codes(ds, where)))
     if xlog:
         ax.set_xscale("log")
         readable_log_ticks(ax.xaxis)
@@ -554,13 +562,16 @@ def nomogram(ds, name, *, x, family=None, at=None, ax=None):
     xv = np.asarray(ds[x].values, dtype=float)[order]
     members = [None] if family is None else list(ds[family].values)
     step = max(1, -(-len(members) // MAX_CURVES))
+    total = len(members)
     members = members[::step]
+    # the curves left out are said where the family is named (legend title, colour bar, else a note)
+    thinned = f"every {_ordinal(step)} of {total} values drawn" if step > 1 else ""
     many = len(members) > LEGEND_MAX
     colors, cmap_norm = _family_colors(ds, family, members)
     art = {"lines": [], "end_labels": [], "legend": None, "colorbar": None, "flagged": [], "note": None,
-           "where": where}
+           "where": where, "thinned": thinned, "thinned_note": None}
     n_bad = n_bad_drawn = 0
-    ends = []
+    ends, codes = [], []  # codes: the statuses of the curves drawn
     for member, color in zip(members, colors):
         sel = {} if member is None else {family: member}
         yv = np.asarray(da.sel(sel).values, dtype=float)[order]
@@ -568,6 +579,7 @@ def nomogram(ds, name, *, x, family=None, at=None, ax=None):
         (line,) = ax.plot(xv, yv, color=color, lw=1.4, label=text, marker="." if xv.size <= 25 else None, ms=4)
         art["lines"].append(line)
         if flagged is not None:
+            codes.append(_status_codes(ds, {**where, **sel}))
             bad = np.asarray(flagged.broadcast_like(da).sel(sel).values)[order]
             shown = bad & np.isfinite(yv)
             n_bad += int(bad.sum())
@@ -587,16 +599,20 @@ def nomogram(ds, name, *, x, family=None, at=None, ax=None):
         ax.set_yscale("log")
         readable_log_ticks(ax.yaxis)
     if family is not None and not many:
-        art["legend"] = ax.legend(fontsize=7, title=label(ds[family], width=30), title_fontsize=7)
+        art["legend"] = ax.legend(fontsize=7, title=label(ds[family], width=30) + (f"\n({thinned})" if thinned else ""),
+                                  title_fontsize=7)
     elif family is not None:
         art["end_labels"] = _end_labels(ax, ends)
         if cmap_norm is not None:
             sm = matplotlib.cm.ScalarMappable(norm=cmap_norm[1], cmap=cmap_norm[0])
             cb = ax.figure.colorbar(sm, ax=ax, pad=0.09)
-            cb.set_label(label(ds[family], width=30))
+            cb.set_label(label(ds[family], width=30) + (f"\n({thinned})" if thinned else ""))
             art["colorbar"] = cb
+        elif thinned:  # names at the curve ends only: the note above the panel says it
+            art["thinned_note"] = ax.text(0.0, 1.01, f"curves: {family}, {thinned}", transform=ax.transAxes,
+                                          ha="left", va="bottom", fontsize=7, color="0.35")
     if n_bad:
-        art["note"] = _flag_note(ax, n_bad, n_bad_drawn)
+        art["note"] = _flag_note(ax, n_bad, n_bad_drawn, _status_counts(np.concatenate(codes)))
     ax.set_xlabel(label(ds[x]))
     ax.set_ylabel(label(ds[name]))
     ax.grid(True, alpha=0.3)
@@ -650,10 +666,13 @@ def _end_labels(ax, ends):
     return texts
 
 
-def flag_note_text(n_bad: int, n_drawn: int) -> str:
+def flag_note_text(n_bad: int, n_drawn: int, statuses=None) -> str:
     """What a note says of the flagged points of a panel: how many, how they are marked, and how
-    many of them still have a value (drawn) or have none (left blank)."""
-    head = f"{n_bad} flagged point{'s' if n_bad != 1 else ''} (status not ok, see status) marked ×"
+    many of them still have a value (drawn) or have none (left blank). ``statuses``: {status name:
+    count} of those points, named in the note (e.g. 'undecided 300': an undamped model's stable
+    side, where a verdict output has no value)."""
+    why = ("status " + ", ".join(f"{k} {n}" for k, n in statuses.items()) if statuses else "status not ok")
+    head = f"{n_bad} flagged point{'s' if n_bad != 1 else ''} ({why}, see status) marked ×"
     if n_drawn == n_bad:
         return f"{head}; each has a value, drawn"
     if n_drawn == 0:
@@ -661,15 +680,42 @@ def flag_note_text(n_bad: int, n_drawn: int) -> str:
     return f"{head}; {n_drawn} with a value (drawn), {n_bad - n_drawn} without (left blank)"
 
 
-def _flag_note(ax, n_bad, n_drawn):
-    # under the panel's x label, outside the panel: inside, it covered data and tick labels
-    return ax.annotate(flag_note_text(n_bad, n_drawn), xy=(0.0, 0.0), xycoords=("axes fraction", ax.xaxis.label),
-                       xytext=(0, -3), textcoords="offset points", fontsize=7, color="0.25", ha="left", va="top")
+def _flag_note(ax, n_bad, n_drawn, statuses=None):
+    # under the panel's x label, outside the panel: inside, it covered data and tick labels. Wrapped
+    # to the panel's width (about 17 characters an inch at 7 pt): a line wider than the panel made the
+    # constrained layout shrink the panel to make room for it, down to nothing
+    chars = max(30, int(ax.get_position().width * ax.figure.get_figwidth() * 17))
+    return ax.annotate(wrap(flag_note_text(n_bad, n_drawn, statuses), chars), xy=(0.0, 0.0),
+                       xycoords=("axes fraction", ax.xaxis.label), xytext=(0, -3), textcoords="offset points",
+                       fontsize=7, color="0.25", ha="left", va="top")
+
+
+def _status_codes(ds, where) -> np.ndarray:
+    """The status codes of the points of ``ds`` at ``where`` (labels; every point of the other axes)."""
+    if "status" not in ds:
+        return np.array([], dtype=int)
+    return np.asarray(ds["status"].sel({d: v for d, v in where.items() if d in ds["status"].dims}).values).ravel()
+
+
+def _status_counts(codes) -> dict:
+    """{status name: count} of the codes that are not ok, most frequent first."""
+    from .. import status as st
+
+    codes = np.asarray(codes)
+    found, counts = np.unique(codes[codes != STATUS_OK], return_counts=True)
+    # status names without underscores (a figure's text is mathtext: max_steps would read as a subscript)
+    return {st.MEANINGS.get(int(c), str(int(c))).replace("_", " "): int(n)
+            for c, n in sorted(zip(found, counts), key=lambda x: -x[1])}
+
+
+def _ordinal(k: int) -> str:
+    return f"{k}{'th' if 10 <= k % 100 <= 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(k % 10, 'th')}"
 
 
 # ----------------------------------------------------------------------------- whole figures
-def _panel_figure(ds, choice: Choice, *, fig=None, ax=None):
-    """One panel per value of the axes the figure does not use (at most MAX_PANELS)."""
+def _panel_figure(ds, choice: Choice, *, fig=None, ax=None, boundaries=None):
+    """One panel per value of the axes the figure does not use (at most MAX_PANELS). A heatmap draws
+    ``boundaries`` (located along one of its axes, on this grid) over each panel, with a legend."""
     used = (choice.x,) if choice.y is None else (choice.x, choice.y)
     rest = [d for d in _axes(ds, choice.output) if d not in used]
     members = list(itertools.product(*(list(ds[d].values) for d in rest)))
@@ -679,13 +725,18 @@ def _panel_figure(ds, choice: Choice, *, fig=None, ax=None):
     heat = choice.kind == "heatmap"
     if ax is not None:  # the user's Axes: one per panel, none left over
         ncols, nrows = 1, len(shown)
-    fig, axes = new_figure(nrows, ncols, width=6.0 if heat else 6.6, height=4.6 if heat else 4.0, fig=fig, ax=ax)
+    over = heat and boundaries is not None
+    # located boundaries: their legend goes under the panels, in a taller figure (the panel keeps its height)
+    fig, axes = new_figure(nrows, ncols, width=6.0 if heat else 6.6,
+                           height=(4.6 + (1.6 / nrows if over else 0.0)) if heat else 4.0, fig=fig, ax=ax)
     art = Drawn(figure=fig, axes=axes, panels=[])
     for k, values in enumerate(shown):
         a = axes[k // ncols, k % ncols]
         at = dict(zip(rest, values))
         if heat:
             art["panels"].append(heatmap(ds, choice.output, x=choice.x, y=choice.y, at=at, ax=a))
+            if over:
+                art["panels"][-1]["located"] = _located_over(a, ds, boundaries, choice.x, choice.y, at)
         else:
             art["panels"].append(nomogram(ds, choice.output, x=choice.x, family=choice.y, at=at, ax=a))
         if at:
@@ -697,8 +748,32 @@ def _panel_figure(ds, choice: Choice, *, fig=None, ax=None):
     cut = f" (first {len(shown)} of {len(members)} slices of {', '.join(rest)})" if len(members) > len(shown) else ""
     if choice.kind == "history":  # the point it belongs to
         cut = " at " + ", ".join(_slice_text(ds, d, ds[d].values[0]) for d in grid_dims(ds) if d in ds.coords)
-    title(fig, ds, f"{what}: {long}{cut}")
+    overlays = [a for p in art["panels"] for a in p.get("located") or ()]
+    caption = title(fig, ds, f"{what}: {long}{cut}", caption_box=not overlays)
+    if overlays:  # what the located points and curves are, under the panels (the caption heads it)
+        entries = [(e[:-1] if len(e) > 2 else e[0], e[-1]) for e in located.legend_entries(overlays, boundaries, ds)]
+        art["legend"] = fig.legend([h for h, _ in entries], [wrap(t, 60) for _, t in entries],
+                                   loc="outside lower center", fontsize=8.5,
+                                   handler_map={tuple: HandlerTuple(ndivide=None, pad=0.6)},
+                                   title=caption or None, title_fontproperties={"size": 7.5})
     return art
+
+
+def _located_over(ax, ds, boundaries, xdim, ydim, at) -> list:
+    """Draw ``boundaries`` (located along ``xdim`` or ``ydim``) on the panel of ``ds`` at ``at``
+    (the values of the other axes): the located points and, when continued in the chart's other
+    axis, the curves (:func:`located.overlay`). Returns the artists."""
+    along = boundaries.attrs.get("along")
+    other = ydim if along == xdim else xdim
+    dims = boundaries["boundary"].dims
+    sel = {}
+    for d in dims:
+        if d in (xdim, ydim, "crossing"):
+            continue
+        values = np.asarray(ds[d].values)
+        sel[d] = int(np.flatnonzero(values == at[d])[0]) if d in at else 0  # a one-value axis: its value
+    return located.overlay(ax, boundaries, line_dim=other if other in dims else None, sel=sel,
+                           transpose=along == ydim, ds=ds, chart_other=other)
 
 
 def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundaries=None):
@@ -711,6 +786,7 @@ def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundarie
     if name is None:
         name = next(c.output for c in choose(ds) if c.kind == "stability_map")
     ydim, xdim = _map_axes(ds, name) if x is None and y is None else _given_map_axes(ds, name, x, y)
+    ds = ds.sortby([ydim, xdim])  # cells in the order of their values (a list axis need not be sorted)
     given = ax is not None
     others = [d for d in ds[name].dims if d not in (xdim, ydim)]
     every = list(itertools.product(*(range(ds.sizes[d]) for d in others)))
@@ -735,7 +811,8 @@ def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundarie
             other = ydim if along == xdim else xdim
             art["panels"][-1]["located"] = located.overlay(
                 ax, boundaries, line_dim=other if other in boundaries["boundary"].dims else None,
-                sel={d: i for d, i in sel.items() if d in boundaries["boundary"].dims}, transpose=along == ydim, ds=ds)
+                sel={d: i for d, i in sel.items() if d in boundaries["boundary"].dims}, transpose=along == ydim, ds=ds,
+                chart_other=other)
         if is_log(ds, xdim):
             ax.set_xscale("log")
             readable_log_ticks(ax.xaxis)
@@ -753,7 +830,12 @@ def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundarie
     for k in range(len(members), nrows * ncols):
         fig.delaxes(axes[k // ncols, k % ncols])
     sym = name_text(ds[name])
-    handles = [stable_patch(f"stable: {sym} ≤ 1"), unstable_patch(f"unstable: {sym} > 1 (dotted)"),
+    # stable points whose status is undecided (the modulus at 1 within the verdict's margin: neutrally
+    # stable, as every stable point of an undamped model is) are said so: shaded stable all the same
+    undecided = _undecided_stable(ds, name, others, members)
+    neutral = (f"; {undecided} of them at 1 within the margin (status undecided: neutrally stable, "
+               "e.g. undamped)" if undecided else "")
+    handles = [stable_patch(f"stable: {sym} ≤ 1{neutral}"), unstable_patch(f"unstable: {sym} > 1 (dotted)"),
                Line2D([], [], color="k", lw=1.2,
                                        label="boundary between the grid's stable and unstable cells")]
     if not any(p["boundary"] is not None for p in art["panels"]):
@@ -775,6 +857,23 @@ def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundarie
                                 title=caption or None, title_fontproperties={"size": 7.5}) if below else
                      fig.legend(handles, texts, loc="outside right center", fontsize=9, handler_map=tuples))
     return art
+
+
+def _undecided_stable(ds, name, others, members) -> int:
+    """How many points drawn stable (modulus <= 1 + FLOQUET_SLACK) on the panels ``members`` have
+    status undecided (read from the dataset)."""
+    if "status" not in ds:
+        return 0
+    from .. import status as st
+
+    n = 0
+    for idx in members:
+        sel = dict(zip(others, idx))
+        v = np.asarray(ds[name].isel(sel).values, dtype=float)
+        code = np.asarray(ds["status"].isel({d: i for d, i in sel.items() if d in ds["status"].dims})
+                          .broadcast_like(ds[name].isel(sel)).transpose(*ds[name].isel(sel).dims).values)
+        n += int(((code == st.UNDECIDED) & (v <= 1.0 + FLOQUET_SLACK)).sum())
+    return n
 
 
 def stability_panel(ax, x, y, values) -> dict:

@@ -73,7 +73,7 @@ def tolerance_text(bds) -> str:
 
 
 def overlay(ax, bds, *, line_dim=None, sel=None, xmap=None, ymap=None, color=None, label_prefix="",
-            transpose=False, ds=None):
+            transpose=False, ds=None, chart_other=None):
     """Draw the boundaries of ``bds`` on ``ax``: the located ones as points at (boundary, line) for
     every value of ``line_dim`` (an axis other than the one located along; None: vertical lines at
     the boundaries), the continued ones as curves. ``sel`` picks the other dims (isel); ``xmap`` /
@@ -81,7 +81,9 @@ def overlay(ax, bds, *, line_dim=None, sel=None, xmap=None, ymap=None, color=Non
     axis located along vertical (points at (line, boundary)). Returns the artists (the first of
     each kind carries a legend label saying what it is and to what tolerance; ``ds``, the dataset
     of the grid, names the variables by their symbols; :func:`legend_entries` makes the legend's
-    entries of them)."""
+    entries of them). ``chart_other``: the chart's axis other than the one located along, when
+    known: the continued curves, which lie in (along, continue_in), are drawn only when it is
+    continue_in (on a chart of another axis they would be drawn in the wrong coordinates)."""
     xmap = xmap or (lambda v: v)
     ymap = ymap or (lambda v: v)
     if transpose:  # every (along, other) pair below is drawn as (other, along)
@@ -105,7 +107,7 @@ def overlay(ax, bds, *, line_dim=None, sel=None, xmap=None, ymap=None, color=Non
             artists.append(_role(ax.scatter(xmap(x[ok]), ymap(y[ok]), s=9, marker="D", color=color or LOCATED_COLOR,
                                             linewidths=0, zorder=4, label=text), "located", text))
     cont = bds.attrs.get("continue_in")
-    if cont and f"curve_{along}" in bds:
+    if cont and f"curve_{along}" in bds and chart_other in (None, cont):
         cx = bds[f"curve_{along}"].isel({k: v for k, v in sel.items() if k in bds[f"curve_{along}"].dims})
         cy = bds[f"curve_{cont}"].isel({k: v for k, v in sel.items() if k in bds[f"curve_{cont}"].dims})
         first = True

@@ -172,6 +172,7 @@ class ClosedFormModel:
             table = np.full((n, len(scalars)), np.nan)
             crv = np.full((n, len(names), n_ext) if names else (0, 0, n_ext), np.nan)
             kernel(P, want, slot, table, crv, status, *data)
+            _warn_user_error(model, P, status, want, slot, crv.shape[1], n_ext, data)
             for name in wanted:
                 if name in names:
                     out[name][:] = crv[:, names.index(name), :]
@@ -182,6 +183,30 @@ class ClosedFormModel:
                          evaluate=evaluate, source=self.source or origin, settings=self.settings, check=self.check,
                          statuses=self.statuses, status_notes=self.status_notes, references=self.references,
                          declaration=self)
+
+
+_EXPLAINED: set = set()  # (model, explanation) already warned about in this process
+
+
+def _warn_user_error(model: ClosedFormModel, P, status, want, slot, n_curves: int, n_ext: int, data) -> None:
+    """Designs with status USER_ERROR (compute raised there): replay the first in plain Python and
+    warn (once per model and cause in a process) with the exception, its file and line, and the
+    design, as for an OdeModel (model/ode.py)."""
+    bad = np.flatnonzero(status == st.USER_ERROR)
+    if not bad.size:
+        return
+    from .diagnose import explain_closed, point_text
+
+    why = explain_closed(model, P[bad[0]], want, slot, n_curves, n_ext, data)
+    if (model.name, why) in _EXPLAINED:
+        return
+    _EXPLAINED.add((model.name, why))
+    import warnings
+
+    from ..errors import UserModelWarning
+    warnings.warn(f"model {model.name!r}: its own code raised (status user_error; the run's status counts say how "
+                  f"often); first seen at {point_text(model.params, P[bad[0]])}: {why}", UserModelWarning,
+                  stacklevel=3)
 
 
 _DATA: dict[int, tuple] = {}
@@ -251,7 +276,8 @@ def check(model: ClosedFormModel, ref: str, file: str) -> None:
     beyond its arrays (an undeclared parameter, an output or curve beyond the declared ones, a
     scratch row beyond ``scratch``), returns no status code, or (status OK, every output wanted)
     leaves an output or a curve value unwritten, all found by running it once in plain Python at
-    a probe point; then ``compute`` that numba cannot compile."""
+    a probe point; then ``compute`` that numba cannot compile, or whose compiled result is not a
+    status code on every path (a bare ``return``, or a float, on a path the probe did not take)."""
     label = f"{ref!r}: model {model.name!r} in {file}"
     dim = model.dim
     if dim is not None:
@@ -312,3 +338,8 @@ def check(model: ClosedFormModel, ref: str, file: str) -> None:
         disp(*_probe_arrays(model, p.copy(), math.nan), *data)
     except Exception as exc:
         raise load.compile_failure(exc, file, label, "compute") from None
+    # every path returns a status code, also those the probe point did not take (a bare return
+    # there made the compiled kernel fail on None inside its parallel loop)
+    problem = load.return_problem(disp, "compute", status=True)
+    if problem is not None:
+        raise InputError(f"{label}: {problem}")

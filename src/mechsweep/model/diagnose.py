@@ -9,7 +9,8 @@ rhs and Jacobian at t = 0 and at the start of each segment of the first forcing 
 each switch, at the time the solvers pass there), with the initial state (the state at the switch is
 not integrated here). The first exception gives its type, message, and the file and line in the
 model's code. Code reached only later in the integration (at t > 0 elsewhere, in a refinement, or
-in a formula of measured values) is not replayed: the answer then says so."""
+in a formula of measured values) is not replayed: the answer then says so. A ClosedFormModel's
+``compute`` is replayed whole at the design (:func:`explain_closed`)."""
 from __future__ import annotations
 
 import math
@@ -89,6 +90,41 @@ def _calls(model, p, y0, rtol):
         if not c.needs:
             out.append((f"closed form {c.name}", lambda f=c.func: _py(f)(p)))
     return out
+
+
+def point_text(params, row) -> str:
+    """'k = 3, spring = tanh': a point's parameters as a scene gives them (a categorical one by the
+    name of its choice, not the index the kernel receives)."""
+    parts = []
+    for q, v in zip(params, row):
+        v = float(v)
+        choices = getattr(q, "choices", ())
+        if choices and v.is_integer() and 0 <= int(v) < len(choices):
+            parts.append(f"{q.name} = {choices[int(v)]}")
+        else:
+            parts.append(f"{q.name} = {v:g}")
+    return ", ".join(parts)
+
+
+def explain_closed(model, row: np.ndarray, want: np.ndarray, slot: np.ndarray, n_curves: int, n: int,
+                   data: tuple) -> str:
+    """One line: what a ClosedFormModel's ``compute`` raised at the design ``row``, replayed in plain
+    Python with the run's arguments (``want``, ``slot``, ``n_curves`` wanted curves of ``n`` values,
+    the shared ``data``; the scratch rows zero, where the kernel leaves the previous design's
+    values), or that it raised nothing there."""
+    func = _py(model.compute)
+    scratch = np.zeros((model.scratch, n))
+    args = (np.array(row, dtype=np.float64), np.array(want, dtype=np.bool_), np.full(len(model.scalars), np.nan),
+            np.full((n_curves, n), np.nan), np.array(slot, dtype=np.int64), scratch)
+    try:
+        with np.errstate(all="ignore"):
+            code = func(*args, *[np.array(a) for a in data])
+    except Exception as e:  # noqa: BLE001 - the user's exception is the answer
+        return f"compute raised {type(e).__name__}: {e} ({_where(e)})"
+    if code is None:
+        return "compute returned None (expected a status code)"
+    return (f"no exception in plain Python at this design (compute returned {code!r}; replayed with its scratch "
+            "zeroed, where the kernel leaves the previous design's values)")
 
 
 def explain(model, row: np.ndarray, settings: np.ndarray, rtol: float) -> str:

@@ -251,3 +251,96 @@ def compile_failure(exc: Exception, file: str | None, label: str, what: str) -> 
 
 
 _where = where  # the name model/closed.py calls it by
+
+
+def return_problem(disp, what: str, *, status: bool = False) -> str | None:
+    """Why the compiled user function ``disp`` cannot be called for its value (None: it can): a
+    path that returns nothing (numba types the result as Optional: at a point where that path is
+    taken the compiled code fails on None, inside the parallel loop), or, with ``status``, a
+    result that is no whole number (a float status 0.5 would be stored as 0, ok). Judged from
+    the types numba inferred, whatever path the probe point took; the message names the line
+    of a bare ``return`` or the end reached without one (:func:`_missing_returns`)."""
+    from numba.core import types as nb
+
+    found = [c.signature.return_type for c in getattr(disp, "overloads", {}).values()]
+    bad = next((t for t in found if isinstance(t, (nb.Optional, nb.NoneType))
+                or (status and not isinstance(t, nb.Integer))), None)
+    if bad is None:
+        return None
+    expected = "a status code of mechsweep.status (an int, e.g. st.OK)" if status else "a value"
+    if isinstance(bad, (nb.Optional, nb.NoneType)):
+        where = _missing_returns(getattr(disp, "py_func", disp))
+        return (f"{what} can return None (numba types its result as {bad}): every path must return {expected}"
+                + (f"; {where}" if where else ""))
+    return f"{what} returns {bad}, not {expected}"
+
+
+def _missing_returns(func) -> str:
+    """Where ``func`` returns nothing: each bare ``return`` (or ``return None``) and its end when
+    the last statement can complete, with file and line (judged from the source; '' when the
+    source cannot be read)."""
+    import ast
+    import inspect
+    import textwrap
+
+    try:
+        lines, first = inspect.getsourcelines(func)
+        tree = ast.parse(textwrap.dedent("".join(lines)))
+        file = inspect.getsourcefile(func) or ""
+    except (OSError, TypeError, SyntaxError):
+        return ""
+    fn = tree.body[0] if tree.body else None
+    if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+        return ""
+    at = (lambda n: n.lineno + first - 1)  # noqa: E731 (the file's line of a node)
+    bare = []
+    stack = list(fn.body)
+    while stack:
+        node = stack.pop()
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda, ast.ClassDef)):
+            continue  # a nested function's returns are its own
+        if isinstance(node, ast.Return) and (node.value is None or (isinstance(node.value, ast.Constant)
+                                                                     and node.value.value is None)):
+            bare.append(at(node))
+        stack.extend(ast.iter_child_nodes(node))
+    place = (lambda n: f"({file}, line {n})" if file else f"(line {n})")  # noqa: E731
+    parts = [f"a return without a value {place(n)}" for n in sorted(bare)]
+    if _completes(fn.body):
+        parts.append(f"its end is reached without a return {place(at(fn.body[-1]))}")
+    return "; ".join(parts)
+
+
+def _completes(body) -> bool:
+    """Whether control can run off the end of the statements ``body`` (True when unsure)."""
+    import ast
+
+    def breaks(stmts) -> bool:  # a break of this loop (not of a loop nested in it)
+        stack = list(stmts)
+        while stack:
+            node = stack.pop()
+            if isinstance(node, ast.Break):
+                return True
+            if not isinstance(node, (ast.For, ast.AsyncFor, ast.While, ast.FunctionDef, ast.AsyncFunctionDef,
+                                     ast.Lambda, ast.ClassDef)):
+                stack.extend(ast.iter_child_nodes(node))
+        return False
+
+    def completes(s) -> bool:
+        if isinstance(s, (ast.Return, ast.Raise)):
+            return False
+        if isinstance(s, ast.If):
+            return _completes(s.body) or _completes(s.orelse)
+        if isinstance(s, (ast.With, ast.AsyncWith)):
+            return _completes(s.body)
+        if isinstance(s, ast.Try):
+            if s.finalbody and not _completes(s.finalbody):
+                return False
+            return (_completes(s.body) and _completes(s.orelse)) or any(_completes(h.body) for h in s.handlers)
+        if isinstance(s, ast.While):
+            forever = isinstance(s.test, ast.Constant) and bool(s.test.value)
+            return breaks(s.body) or (not forever and _completes(s.orelse))
+        if isinstance(s, (ast.For, ast.AsyncFor)):
+            return breaks(s.body) or _completes(s.orelse)
+        return True
+
+    return all(completes(s) for s in body)

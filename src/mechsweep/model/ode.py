@@ -32,7 +32,7 @@ def _warn_user_error(model, P, status, S, rtol) -> None:
     bad = np.nonzero(status == st.USER_ERROR)[0]
     if not bad.size:
         return
-    from .diagnose import explain
+    from .diagnose import explain, point_text
     why = explain(model, P[bad[0]], S, rtol)
     if (model.name, why) in _EXPLAINED:
         return
@@ -40,7 +40,7 @@ def _warn_user_error(model, P, status, S, rtol) -> None:
     import warnings
 
     from ..errors import UserModelWarning
-    at = ", ".join(f"{q.name} = {v:g}" for q, v in zip(model.params, P[bad[0]]))
+    at = point_text(model.params, P[bad[0]])  # a categorical parameter by its choice's name
     warnings.warn(f"model {model.name!r}: its own code raised (status user_error; the run's status counts say "
                   f"how often); first seen at {at}: {why}", UserModelWarning, stacklevel=2)
 

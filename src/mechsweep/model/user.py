@@ -127,7 +127,8 @@ def check_declaration(spec, ref: str) -> None:
     """Refuse (InputError) a model whose names a dataset cannot use or whose units CF cannot read:
     every parameter, output, setting and extra dimension is named by a Python identifier that is no
     keyword (a dataset's dimensions and variables are selected by keyword: ``ds.sel(lam=0.3)``),
-    and its unit is one UDUNITS-2 parses (the dataset says it follows CF)."""
+    its unit is one UDUNITS-2 parses (the dataset says it follows CF), and its ``latex``, when
+    given, is mathtext matplotlib's parser reads (it labels the figures)."""
     from .. import cf
 
     items = [("parameter", p.name, "" if p.categorical else p.unit) for p in spec.params]
@@ -142,6 +143,16 @@ def check_declaration(spec, ref: str) -> None:
                             f"e.g. {_identifier(name)!r}")
         if (why := cf.unit_problem(unit)) is not None:
             problems.append(f"{what} {name!r}: unit {why}")
+    # a declared latex labels every figure of the model: one matplotlib cannot read is refused here,
+    # naming it, rather than dropped silently when a figure is drawn (matplotlib only when one is given)
+    declared = [(what, x.name, x.latex) for what, xs in (("parameter", spec.params), ("output", spec.outputs))
+                for x in xs if getattr(x, "latex", "")]
+    if declared:
+        from .._mathtext import latex_problem
+
+        for what, name, latex in declared:
+            if (why := latex_problem(latex)) is not None:
+                problems.append(f"{what} {name!r}: latex = {latex!r}: {why}")
     if problems:
         raise InputError(f"{ref!r}: model {spec.name!r}: " + "; ".join(dict.fromkeys(problems)))
 
@@ -218,7 +229,9 @@ def _extra_functions(model):
 def check(model, ref: str, file: str) -> None:
     """Run the model's functions once in plain Python at a probe point (p of exactly the declared
     length: parameters, settings, internal slots; an undeclared read is an IndexError): classify,
-    prepare, initial, rhs, then the others; then compile them with numba."""
+    prepare, initial, rhs, then the others; then compile them with numba (and refuse one whose
+    value is used but that can return None, or a status function whose result is no int:
+    :func:`load.return_problem`)."""
     label = f"{ref!r}: model {model.name!r} in {file}"
     n_p, n_s = len(model.params), len(model.states)
     p = _probe_layout(model)
@@ -292,12 +305,19 @@ def check(model, ref: str, file: str) -> None:
     if getattr(model, "prepare", None) is not None:
         funcs.append(("prepare", model.prepare, (pp.copy(), 1e-10)))
     funcs += [(what, func, build(pp, y0)) for what, func, build in extra]
+    writers = ("initial", "rhs", "jac", "accel", "variational", "variational_jac")  # their results are unused
     for what, func, args in funcs:
         module, path, qual = load.function_ref(func, what, model.name)
         try:
-            load.jitted(module, path, qual)(*args)
+            disp = load.jitted(module, path, qual)
+            disp(*args)
         except Exception as exc:
             raise load.compile_failure(exc, file, label, what) from None
+        if what.rsplit(".", 1)[-1] in writers:
+            continue
+        problem = load.return_problem(disp, what, status=what.rsplit(".", 1)[-1] in ("classify", "prepare"))
+        if problem is not None:
+            raise InputError(f"{label}: {problem}")
 
 
 def _writes_nan(func, args, i) -> bool:

@@ -451,7 +451,11 @@ def _solver(table: Mapping, model: ModelSpec, p: _Problems) -> Solver:
     for k, v in table.items():
         key = f"solver.{k}"
         if k == "method":
-            if v not in model.methods:
+            if v not in model.methods and not any(o.integrated for o in model.outputs):
+                # a closed-form model: no method integrates anything there (its dop853 is a placeholder)
+                p.add(key, f"{short(v)} is not allowed: model {model.name!r} integrates nothing (every output is a "
+                      "closed form), so no integration method applies; leave solver.method out")
+            elif v not in model.methods:
                 p.unknown(key, v, model.methods, f"method of {model.name!r}")
             else:
                 values[k] = v
@@ -632,6 +636,8 @@ def _boundaries(table: Mapping, model: ModelSpec, axes: list, outputs: tuple, p:
         if lv is None:
             if crit is not None and model.output(crit).kind == "floquet_max":
                 lv = 1.0  # the unit circle
+            elif crit is None:
+                pass  # an unknown criterion (said above): whether it needs a level (a Floquet one not) is unknown
             else:
                 p.add("boundaries.level", f"missing; the value of {crit or 'the criterion'} at the boundary "
                       "(a finite number)")
