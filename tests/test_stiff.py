@@ -105,7 +105,7 @@ def test_lanes_say_stiff_as_the_one_point_kernel(monkeypatch):
     one = evaluate(spec, P, ("t_down",), lanes=False, monkeypatch=monkeypatch, method="dop853")
     monkeypatch.setattr(mc, "_KERNELS", {})
     lan = evaluate(spec, P, ("t_down",), lanes=True, monkeypatch=monkeypatch, method="dop853")
-    assert any("lane_run" in Path(mc.sys.modules[k].__file__).read_text() for k in mc._KERNELS)
+    assert any(isinstance(k, mc._Recorded) for k in mc._KERNELS.values())  # a lane kernel ran
     np.testing.assert_array_equal(one[0]["t_down"], lan[0]["t_down"])
     for a, b in zip(one[1:], lan[1:]):  # status, n_steps, n_rhs
         np.testing.assert_array_equal(a, b)
