@@ -15,6 +15,7 @@ from mechsweep import boundaries as bd
 from mechsweep.boundaries import search as bd_search
 from mechsweep.cli import main
 from mechsweep.scene import load_scene
+from tests import evaluating
 
 HERE = Path(__file__).resolve().parents[1]
 MATHIEU_FILE = HERE / "user_models" / "mathieu.py"
@@ -148,8 +149,6 @@ def test_damped_mathieu_boundaries_by_illinois_bracket_the_crossing():
     """Damped (c = 0.1): the multiplier crosses 1 transversally, so Illinois refines a sign change;
     with the criterion's accuracy given as 1e-12 the bracket reaches 1e-10 |a| in about a dozen
     evaluations, and the criterion has opposite signs on either side of it."""
-    from mechsweep import status as st
-
     scene, rows, res = _locate({
         "scene": {"name": "md", "model": f"{MATHIEU_FILE}:MATHIEU_JAC", "outputs": ["max_multiplier"]},
         "axes": {"a": {"start": -1.0, "stop": 5.0, "num": 31}, "q": [1.5]}, "fixed": {"c": 0.1},
@@ -161,10 +160,7 @@ def test_damped_mathieu_boundaries_by_illinois_bracket_the_crossing():
     assert res.evaluations.max() <= 20, res.evaluations
     P = np.repeat(rows[:1], 2 * loc.size, axis=0)
     P[:, 0] = np.concatenate([loc - width, loc + width])
-    out = {"max_multiplier": np.full(P.shape[0], np.nan)}
-    status = np.zeros(P.shape[0], st.DTYPE)
-    n = np.zeros(P.shape[0], np.int64)
-    scene.model.evaluate(P, ("max_multiplier",), scene.solver, out, status, n, n.copy())
+    out, status, _, _ = evaluating.evaluate(scene.model, P, ("max_multiplier",), scene.solver)
     g = out["max_multiplier"] - 1.0
     below, above = g[:loc.size], g[loc.size:]
     assert (np.sign(below) == -np.sign(above)).all() and (np.sign(above) == res.direction[0]).all()
@@ -330,7 +326,6 @@ def test_autobalancer_located_boundaries_agree_with_brentq_and_converge_on_the_f
     tests/test_autobalancer.py measures on its own grid."""
     from scipy.optimize import brentq
 
-    from mechsweep import status as st
     from benchmarks.boundaries import scene_dict
 
     from tests.reference import autobalancer_kernels as ab  # the reference formula (numpy)
@@ -362,9 +357,7 @@ def test_autobalancer_located_boundaries_agree_with_brentq_and_converge_on_the_f
     def g(row, x):
         P = row[None, :].copy()
         P[0, 0] = x
-        out = {"floquet_max": np.full(1, np.nan)}
-        n = np.zeros(1, np.int64)
-        scene.model.evaluate(P, ("floquet_max",), scene.solver, out, np.zeros(1, st.DTYPE), n, n.copy())
+        out, _, _, _ = evaluating.evaluate(scene.model, P, ("floquet_max",), scene.solver)
         return out["floquet_max"][0] - 1.0
 
     for i in range(2):
@@ -384,8 +377,6 @@ def test_autobalancer_heavy_pendulum_boundaries_confirmed_by_direct_simulation()
     the direct simulation of the kicked balanced state (stable_sim, over 1500 revolutions: at 0.2 the
     default 300 leave both sides of the upper boundary undecided) settles on the side where the
     criterion falls below 1 and departs on the other."""
-    from mechsweep import status as st
-
     # the window at 0.05 is 0.04 rad/s wide; near the boundaries the kick decays or grows slowly
     scene, rows, res = _balancer([0.05, 0.2], rtol=1e-8, num=200, horizon_revolutions=1500)
     found = np.isfinite(res.location)
@@ -394,11 +385,7 @@ def test_autobalancer_heavy_pendulum_boundaries_confirmed_by_direct_simulation()
     x, d = res.location[found], res.direction[found]
     P = np.repeat(rows[line], 2, axis=0)
     P[:, 0] = np.column_stack([x * 0.98, x * 1.02]).ravel()
-    n = P.shape[0]
-    out = {"stable_sim": np.full(n, np.nan)}
-    status = np.zeros(n, st.DTYPE)
-    c = np.zeros(n, np.int64)
-    scene.model.evaluate(P, ("stable_sim",), scene.solver, out, status, c, c.copy())
+    out, status, _, _ = evaluating.evaluate(scene.model, P, ("stable_sim",), scene.solver)
     sim = out["stable_sim"].reshape(-1, 2)
     # direction +1: floquet_max rises through 1 as Omega grows: stable below, unstable above
     expected = np.where(d[:, None] > 0, [[1.0, 0.0]], [[0.0, 1.0]])
@@ -412,8 +399,6 @@ def test_continuation_follows_the_damped_mathieu_tongue_through_its_fold():
     q: the two boundaries of a search along a meet there; for small c the tip is near a = 1, q = c)
     and back up to the chart's edge q = 0.6, where it ends on the tongue's right edge as located
     along a. Every point is on the boundary: re-evaluated, |max_multiplier - 1| <= 1e-9."""
-    from mechsweep import status as st
-
     scene = load_scene({
         "scene": {"name": "tongue", "model": f"{MATHIEU_FILE}:MATHIEU_JAC", "outputs": ["max_multiplier"]},
         "axes": {"a": {"start": 0.3, "stop": 1.7, "num": 29}, "q": {"start": 0.0, "stop": 0.6, "num": 7}},
@@ -442,9 +427,7 @@ def test_continuation_follows_the_damped_mathieu_tongue_through_its_fold():
     assert (q_b[1:] > q_fold + 1e-8).all(), (q_b, q_fold)
     P = np.repeat(rows[-1:], len(pts), axis=0)
     P[:, 0], P[:, 1] = pts[:, 0], pts[:, 1]
-    out = {"max_multiplier": np.full(len(pts), np.nan)}
-    n = np.zeros(len(pts), np.int64)
-    scene.model.evaluate(P, ("max_multiplier",), scene.solver, out, np.zeros(len(pts), st.DTYPE), n, n.copy())
+    out, _, _, _ = evaluating.evaluate(scene.model, P, ("max_multiplier",), scene.solver)
     assert np.abs(out["max_multiplier"] - 1.0).max() <= 1e-9
     assert np.diff(pts, axis=0).max() < 0.05 * 1.4 and len(pts) < 300  # steps adapt, within step_max
 

@@ -13,6 +13,7 @@ import pytest
 from mechsweep import status as st
 from mechsweep.errors import InputError
 from mechsweep.scene import load_scene
+from tests import evaluating
 
 HERE = Path(__file__).resolve().parents[1]
 MATHIEU_FILE = HERE / "user_models" / "mathieu.py"
@@ -25,11 +26,7 @@ def evaluate(name, P, method="dop853", rtol=1e-12, atol=1e-14):
     scene = load_scene({"scene": {"name": "t", "model": f"{MATHIEU_FILE}:{name}", "outputs": list(FLOQUET)},
                         "axes": {"a": {"start": 0.0, "stop": 1.0, "num": 2}}, "fixed": {"q": 1.0, "c": 0.0},
                         "solver": {"rtol": rtol, "atol": atol, "method": method}})
-    n = P.shape[0]
-    out = {k: np.full(n, np.nan) for k in FLOQUET}
-    status, ns, nr = np.zeros(n, st.DTYPE), np.zeros(n, np.int64), np.zeros(n, np.int64)
-    scene.model.evaluate(np.asarray(P, dtype=float), FLOQUET, scene.solver, out, status, ns, nr)
-    return out, status, ns, nr
+    return evaluating.evaluate(scene.model, P, FLOQUET, scene.solver)
 
 
 def _same(a, b):

@@ -10,19 +10,13 @@ from mechsweep import status as st
 from mechsweep.models import MODELS
 from tests.reference import autobalancer_kernels as ab  # the hand-written kernels (reference implementation)
 from mechsweep.models import torsional_circuit as tc
-from mechsweep.scene import SceneError, Solver, load_scene
+from mechsweep.scene import SceneError, load_scene
+from tests import evaluating
 
 
 def evaluate(model, P, outputs, **solver):
     spec = MODELS[model]
-    n = P.shape[0]
-    wanted = spec.closure(outputs)
-    out = {k: np.full((n,), np.nan) for k in wanted}
-    status = np.zeros(n, st.DTYPE)
-    ns = np.zeros(n, np.int64)
-    nr = np.zeros(n, np.int64)
-    spec.evaluate(P, wanted, Solver.for_model(spec, **solver), out, status, ns, nr)
-    return out, status, ns, nr
+    return evaluating.evaluate(spec, P, spec.closure(outputs), **solver)
 
 
 DUFFING_EPS = np.array([-0.99, -0.9, -0.5, 0.0, 0.01, 1.0, 10.0, 1e2, 1e3, 1e4])

@@ -14,7 +14,7 @@ from mechsweep import status as st
 from mechsweep.model import compile as mc
 from mechsweep.model import lanes, user
 from mechsweep.models import MODELS
-from mechsweep.scene import Solver
+from tests.evaluating import evaluate
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 USER = Path(__file__).resolve().parents[1] / "user_models"
@@ -25,11 +25,7 @@ _spec.loader.exec_module(rr)
 
 def _evaluate(spec, P, wanted, use_lanes, monkeypatch, status0=None, **solver):
     monkeypatch.setattr(mc, "USE_LANES", use_lanes)
-    n = P.shape[0]
-    out = {k: np.full(n, np.nan) for k in wanted}
-    status = np.zeros(n, np.int8) if status0 is None else status0.copy()
-    ns, nr = np.zeros(n, np.int64), np.zeros(n, np.int64)
-    spec.evaluate(P, wanted, Solver.for_model(spec, **solver), out, status, ns, nr)
+    out, status, ns, nr = evaluate(spec, P, wanted, status=status0, **solver)
     return {**out, "status": status, "n_steps": ns, "n_rhs": nr}
 
 

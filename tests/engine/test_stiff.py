@@ -19,7 +19,7 @@ from mechsweep.model import compile as mc
 from mechsweep.model import user
 from mechsweep.model import trajectory as tr
 from mechsweep.models import MODELS
-from mechsweep.scene import Solver
+from tests import evaluating
 
 USER = Path(__file__).resolve().parents[1] / "user_models" / "stiff_oscillator.py"
 
@@ -39,13 +39,7 @@ def evaluate(spec, P, wanted, lanes=False, monkeypatch=None, **solver):
     if monkeypatch is not None:
         monkeypatch.setattr(mc, "USE_LANES", lanes)
         monkeypatch.setattr(tr, "USE_LANES", lanes)
-    n = P.shape[0]
-    slv = Solver.for_model(spec, **solver)
-    out = {k: np.full((n,) + tuple(len(d.values(slv.settings)) for d in spec.output(k).extra_dims), np.nan)
-           for k in wanted}
-    status, ns, nr = np.zeros(n, np.int8), np.zeros(n, np.int64), np.zeros(n, np.int64)
-    spec.evaluate(P, wanted, slv, out, status, ns, nr)
-    return out, status, ns, nr
+    return evaluating.evaluate(spec, P, wanted, **solver)
 
 
 def steady(P, t):

@@ -21,7 +21,7 @@ HERE = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(HERE / "user_models"))
 sys.path.insert(0, str(HERE / "data"))
 import switched  # noqa: E402
-from points import evaluate  # noqa: E402
+from tests.evaluating import evaluate  # noqa: E402
 
 T = 2.0 * math.pi
 

@@ -17,6 +17,7 @@ from mechsweep import status as st
 from mechsweep.cli import main
 from mechsweep.errors import InputError
 from mechsweep.scene import load_scene
+from tests import evaluating
 
 HERE = Path(__file__).resolve().parents[1]
 MODELS = HERE / "user_models" / "oscillators.py"
@@ -25,12 +26,7 @@ MODELS = HERE / "user_models" / "oscillators.py"
 def evaluate(ref, outputs, P, rtol=1e-12, atol=1e-14, **settings):
     """Evaluate outputs of a user model on the rows of P (the scene only supplies the model and solver)."""
     scene = _scene(ref, outputs, rtol, atol, settings)
-    spec = scene.model
-    n = P.shape[0]
-    out = {name: np.full(n, np.nan) for name in outputs}
-    status, ns, nr = np.zeros(n, st.DTYPE), np.zeros(n, np.int64), np.zeros(n, np.int64)
-    spec.evaluate(np.asarray(P, dtype=float), tuple(outputs), scene.solver, out, status, ns, nr)
-    return out, status, ns, nr
+    return evaluating.evaluate(scene.model, P, outputs, scene.solver)
 
 
 def _scene(ref, outputs, rtol, atol, settings=None):

@@ -15,7 +15,8 @@ import pytest
 from mechsweep import status as st
 from mechsweep.model import user
 from mechsweep.models import MODELS
-from mechsweep.scene import SceneError, Solver, load_scene
+from mechsweep.scene import SceneError, load_scene
+from tests.evaluating import evaluate as _evaluate
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 USER = Path(__file__).resolve().parents[1] / "user_models" / "layer_methods.py"
@@ -65,14 +66,6 @@ def test_duffing_spec_is_a_declaration_with_every_method():
 
 def _user():
     return user.resolve(f"{USER}:LINEAR")
-
-
-def _evaluate(spec, P, wanted, **solver):
-    n = P.shape[0]
-    out = {k: np.full(n, np.nan) for k in wanted}
-    status, ns, nr = np.zeros(n, np.int8), np.zeros(n, np.int64), np.zeros(n, np.int64)
-    spec.evaluate(P, wanted, Solver.for_model(spec, **solver), out, status, ns, nr)
-    return out, status, ns, nr
 
 
 @pytest.mark.parametrize("method", ["dop853", pytest.param("radau", marks=slow), pytest.param("symplectic", marks=slow),

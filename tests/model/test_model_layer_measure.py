@@ -12,6 +12,7 @@ import pytest
 
 from mechsweep import status as st
 from mechsweep.scene import load_scene
+from tests import evaluating
 
 MODEL = f"{Path(__file__).resolve().parents[1] / 'user_models' / 'measure_more.py'}:MODEL"
 W = np.array([0.5, 1.0, 1.7, 3.0])
@@ -23,11 +24,7 @@ def evaluate(outputs, method="dop853", rtol=1e-12, atol=1e-14):
     scene = load_scene({"scene": {"name": "t", "model": MODEL, "outputs": list(outputs)},
                         "axes": {"w": {"start": 0.5, "stop": 3.0, "num": 3}}, "fixed": {"A": A},
                         "solver": {"rtol": rtol, "atol": atol, "method": method}})
-    n = P.shape[0]
-    out = {k: np.full(n, np.nan) for k in outputs}
-    status, ns, nr = np.zeros(n, st.DTYPE), np.zeros(n, np.int64), np.zeros(n, np.int64)
-    scene.model.evaluate(P, tuple(outputs), scene.solver, out, status, ns, nr)
-    return out, status, ns, nr
+    return evaluating.evaluate(scene.model, P, outputs, scene.solver)
 
 
 def test_nth_root_of_an_expression_in_either_direction_and_a_period():
@@ -173,10 +170,7 @@ def test_n_rhs_counts_every_rhs_call_also_those_of_the_engines_jacobian(method, 
                                   "outputs": list(outputs)},
                         "axes": {"w": {"start": 0.5, "stop": 3.0, "num": 3}}, "fixed": {"A": A},
                         "solver": {"rtol": 1e-8, "atol": 1e-10, "method": method}})
-    n = P.shape[0]
-    out = {k: np.full(n, np.nan) for k in outputs}
-    status, ns, nr = np.zeros(n, st.DTYPE), np.zeros(n, np.int64), np.zeros(n, np.int64)
-    scene.model.evaluate(P, outputs, scene.solver, out, status, ns, nr)
+    out, status, ns, nr = evaluating.evaluate(scene.model, P, outputs, scene.solver)
     assert (status == st.OK).all()
     if outputs[0] == "t_zero":
         np.testing.assert_allclose(out["t_zero"], math.pi / 2 / W, rtol=1e-6)

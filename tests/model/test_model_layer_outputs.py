@@ -10,6 +10,7 @@ from mechsweep import status as st
 from mechsweep.errors import InputError
 from mechsweep.model import ClosedForm, Floquet, History, Kick, OdeModel, Steady, user
 from mechsweep.scene import Solver, load_scene
+from tests import evaluating
 
 USER = Path(__file__).resolve().parents[1] / "user_models"
 FILE = USER / "declared_meta.py"
@@ -116,14 +117,10 @@ def test_renamed_outputs_get_the_generic_values_and_statuses():
                         (generic.spec(), ("stable_sim", "stable_sim_settling", "stable_sim_final", "peak", "peak_h1",
                                           "peak_phase", "y_hist"))):
         slv = Solver.for_model(spec, rtol=1e-10, atol=1e-13, max_steps=10**6)
-        out = {k: np.full((4, 9) if k == "y_hist" else 4, np.nan) for k in names}
-        status, ns, nr = np.zeros(4, np.int8), np.zeros(4, np.int64), np.zeros(4, np.int64)
-        spec.evaluate(P, names, slv, out, status, ns, nr)
+        out, status, _, _ = evaluating.evaluate(spec, P, names, slv)
         runs.append(([out[k] for k in names], status))
         # the settling output alone still decides NO_EVENT (lam < 0 never settles)
-        one = {names[1]: np.full(4, np.nan)}
-        status1 = np.zeros(4, np.int8)
-        spec.evaluate(P, names[1:2], slv, one, status1, ns, nr)
+        _, status1, _, _ = evaluating.evaluate(spec, P, names[1:2], slv)
         assert status1[2] == st.NO_EVENT
     (a, sa), (b, sb) = runs
     for x, y in zip(a, b):

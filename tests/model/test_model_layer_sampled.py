@@ -2,7 +2,6 @@
 model/trajectory.py) against closed forms, on user models written as a user would
 (tests/user_models/forced.py)."""
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,8 +11,7 @@ from mechsweep import status as st
 from mechsweep.model import user
 
 USER = Path(__file__).resolve().parents[1] / "user_models" / "forced.py"
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "data"))
-from points import evaluate as evaluate_points  # noqa: E402  (tests/data)
+from tests.evaluating import evaluate as _evaluate
 
 
 @pytest.fixture(scope="module")
@@ -24,10 +22,6 @@ def forced():
 @pytest.fixture(scope="module")
 def decay():
     return user.resolve(f"{USER}:DECAY")
-
-
-def _evaluate(spec, P, wanted, **solver):
-    return evaluate_points(spec, P, wanted, **solver)
 
 
 def _forced_closed(w, zeta, F, W):

@@ -9,7 +9,7 @@ import pytest
 
 from mechsweep import status as st
 from mechsweep.model import OdeModel, user
-from mechsweep.scene import Solver
+from tests.evaluating import evaluate
 
 USER = Path(__file__).resolve().parents[1] / "user_models" / "severity.py"
 # w, zeta, F, W: OK; F < 0 (amp does not apply); zeta = 0 (mu UNDECIDED) and F < 0;
@@ -19,13 +19,7 @@ P = np.array([[1.0, 0.2, 1.0, 0.5], [1.0, 0.2, -1.0, 0.5], [1.0, 0.0, -1.0, 0.5]
 
 
 def _evaluate(name, wanted, P=P):
-    spec = user.resolve(f"{USER}:{name}")
-    n = P.shape[0]
-    slv = Solver.for_model(spec, rtol=1e-10, atol=1e-12)
-    out = {k: np.full((n,) + tuple(len(d.values(slv.settings)) for d in spec.output(k).extra_dims), np.nan)
-           for k in wanted}
-    status, ns = np.zeros(n, np.int8), np.zeros(n, np.int64)
-    spec.evaluate(P, wanted, slv, out, status, ns, np.zeros(n, np.int64))
+    out, status, ns, _ = evaluate(user.resolve(f"{USER}:{name}"), P, wanted, rtol=1e-10, atol=1e-12)
     return out, status, ns
 
 

@@ -10,18 +10,13 @@ import pytest
 
 from mechsweep import status as st
 from mechsweep.model import user
-from mechsweep.scene import Solver
+from tests.evaluating import evaluate
 
 USER = Path(__file__).resolve().parents[1] / "user_models" / "layer_systems.py"
 
 
 def _evaluate(P, wanted, **solver):
-    spec = user.resolve(f"{USER}:SYSTEMS")
-    n = P.shape[0]
-    out = {k: np.full(n, np.nan) for k in wanted}
-    status, ns, nr = np.zeros(n, np.int8), np.zeros(n, np.int64), np.zeros(n, np.int64)
-    spec.evaluate(P, wanted, Solver.for_model(spec, **solver), out, status, ns, nr)
-    return out, status, ns, nr
+    return evaluate(user.resolve(f"{USER}:SYSTEMS"), P, wanted, **solver)
 
 
 # The two integrating tests compile two kernels each (~13 s cold on the shared 2-core machine): slow.

@@ -14,6 +14,7 @@ from mechsweep import models, status as st
 from tests.reference import autobalancer_kernels as K  # the hand-written kernels: rhs, Jacobian, variational system
 from mechsweep.models import autobalancer as ab
 from mechsweep.scene import SceneError, Solver, load_scene
+from tests import evaluating
 
 TAUS = (0.0, 0.37, 1.9, 3.3, 5.1)
 
@@ -24,19 +25,8 @@ def solver(**kw):
 
 def evaluate(outputs, slv=None, **params):
     """Run SPEC.evaluate on the broadcast parameters; returns (outputs dict, status, n_steps)."""
-    arrays = {k: np.atleast_1d(np.asarray(v, float)) for k, v in params.items()}
-    n = max(a.size for a in arrays.values())
-    P = np.empty((n, len(ab.SPEC.params)))
-    for j, prm in enumerate(ab.SPEC.params):
-        P[:, j] = np.broadcast_to(arrays[prm.name], (n,)) if prm.name in arrays else prm.default
-    slv = slv or solver()
-    wanted = ab.SPEC.closure(outputs)
-    out = {name: np.full((n,) + tuple(len(d.values(slv.settings)) for d in ab.SPEC.output(name).extra_dims),
-                         np.nan) for name in wanted}
-    status = np.zeros(n, np.int8)
-    ns = np.zeros(n, np.int64)
-    nr = np.zeros(n, np.int64)
-    ab.SPEC.evaluate(P, wanted, slv, out, status, ns, nr)
+    P = evaluating.rows(ab.SPEC, **params)
+    out, status, ns, _ = evaluating.evaluate(ab.SPEC, P, ab.SPEC.closure(outputs), slv or solver())
     return out, status, ns
 
 

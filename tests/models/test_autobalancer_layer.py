@@ -15,6 +15,7 @@ from mechsweep import status as st
 from mechsweep.models import MODELS
 from tests.reference import autobalancer_kernels as K
 from mechsweep.models import autobalancer as ab
+from tests.evaluating import evaluate
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 
@@ -26,9 +27,7 @@ def _rec():
 
 
 def _evaluate(spec, P, wanted, **kw):
-    sys.path.insert(0, str(DATA))
-    import points
-    return points.evaluate(spec, P, wanted, quiet=True, **kw)
+    return evaluate(spec, P, wanted, quiet=True, **kw)
 
 
 def test_the_registered_autobalancer_is_the_layer_declaration():

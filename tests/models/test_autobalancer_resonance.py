@@ -6,8 +6,6 @@ of a rounding error. Also the mass matrix near singular (M I_B -> 2 m^2 a^2): IN
 ILL_CONDITIONED, never a number with status ok. The rules: models/autobalancer.py, "Resonances and
 boundaries within rounding" and "Mass matrix"."""
 import math
-import sys
-from pathlib import Path
 
 import mpmath as mp
 import numpy as np
@@ -19,8 +17,7 @@ import mechsweep
 from mechsweep import status as st
 from mechsweep.models import autobalancer as ab
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "data"))
-import points  # noqa: E402
+from tests import evaluating
 
 CLOSED = ("stable_first_approx", "P_approx", "stable_damped_approx")
 BASE = dict(m=0.05, a=0.1, I_B=6e-4, A0=5e-3, h=1e-3)  # feasible pendulums; only the platform varies
@@ -28,17 +25,12 @@ BASE = dict(m=0.05, a=0.1, I_B=6e-4, A0=5e-3, h=1e-3)  # feasible pendulums; onl
 
 def rows(**params):
     """Parameter rows (broadcast) in the model's order; absent parameters at their defaults."""
-    arrays = {k: np.atleast_1d(np.asarray(v, float)) for k, v in params.items()}
-    n = max(a.size for a in arrays.values())
-    P = np.empty((n, len(ab.SPEC.params)))
-    for j, prm in enumerate(ab.SPEC.params):
-        P[:, j] = np.broadcast_to(arrays[prm.name], (n,)) if prm.name in arrays else prm.default
-    return P
+    return evaluating.rows(ab.SPEC, **params)
 
 
 def closed(**params):
     """(outputs, status) of the first-approximation outputs (one compiled closed-form kernel)."""
-    out, status, _, _ = points.evaluate(ab.SPEC, rows(**(BASE | params)), ab.SPEC.closure(CLOSED), quiet=True)
+    out, status, _, _ = evaluating.evaluate(ab.SPEC, rows(**(BASE | params)), ab.SPEC.closure(CLOSED), quiet=True)
     return out, status
 
 
@@ -287,14 +279,14 @@ def test_a_mass_matrix_singular_within_rounding_is_infeasible_and_near_it_ill_co
     base = dict(Omega=25.0, m=m, a=a, A0=0.19, h=0.02, omega_xi=20.0, omega_eta=30.0, zeta_xi=0.05, zeta_eta=0.05)
     # M > 2 m and I_B >= m a^2 within its slack, yet M I_B < 2 m^2 a^2 (indefinite) or equal to rounding
     P = rows(**base, M=[2.0 * (1 + 1e-12), 2.0 * (1 + 1e-15)], I_B=[m * a * a * (1 - 1e-10), m * a * a])
-    out, status, _, _ = points.evaluate(ab.SPEC, P, ab.SPEC.closure(("theta", "floquet_max")), quiet=True,
+    out, status, _, _ = evaluating.evaluate(ab.SPEC, P, ab.SPEC.closure(("theta", "floquet_max")), quiet=True,
                                         rtol=1e-8, atol=1e-10)
     assert (status == st.INFEASIBLE).all(), status
     assert all(np.isnan(v).all() for v in out.values())
     # positive definite but the accelerations' round-off 4 u / gap above rtol: no integration
     gaps = np.array([1e-9, 3e-8, 1e-6])  # 4 u / gap: 4e-7, 1.5e-8 (above rtol), 4e-10
     P = rows(**base, M=2.0 * (1 + gaps), I_B=m * a * a)
-    out, status, ns, _ = points.evaluate(ab.SPEC, P, ab.SPEC.closure(("theta", "floquet_max")), quiet=True,
+    out, status, ns, _ = evaluating.evaluate(ab.SPEC, P, ab.SPEC.closure(("theta", "floquet_max")), quiet=True,
                                          rtol=1e-8, atol=1e-10)
     assert status.tolist()[:2] == [st.ILL_CONDITIONED] * 2 and status[2] == st.OK, status
     assert np.isnan(out["floquet_max"][:2]).all() and (ns[:2] == 0).all() and np.isfinite(out["floquet_max"][2])

@@ -14,19 +14,14 @@ from hypothesis import strategies as hs
 from mechsweep import status as st
 from mechsweep.models import duffing as d
 from mechsweep.scene import Solver
+from tests import evaluating
 
 
 def evaluate(omega, mu, A, outputs, solver=None):
     solver = solver or Solver.for_model(d.SPEC)
     omega, mu, A = np.broadcast_arrays(*(np.atleast_1d(np.asarray(x, float)) for x in (omega, mu, A)))
     P = np.stack([omega, mu, A], axis=1).astype(float)
-    n = P.shape[0]
-    wanted = d.SPEC.closure(outputs)
-    out = {name: np.full(n, np.nan) for name in wanted}
-    status = np.zeros(n, np.int8)
-    ns = np.zeros(n, np.int64)
-    nr = np.zeros(n, np.int64)
-    d.evaluate(P, wanted, solver, out, status, ns, nr)
+    out, status, ns, _ = evaluating.evaluate(d.SPEC, P, d.SPEC.closure(outputs), solver)
     return out, status, ns
 
 
@@ -171,11 +166,8 @@ def test_period_near_the_soft_separatrix_is_right_or_ill_conditioned(method):
     P, ref, kappa = separatrix_grid()
     n = P.shape[0]
     for rtol in (5e-11, 1e-9):
-        out = {k: np.full(n, np.nan) for k in ("period", "period_exact")}
-        status = np.zeros(n, np.int8)
-        ns = np.zeros(n, np.int64)
-        d.evaluate(P, ("period", "period_exact"), Solver.for_model(d.SPEC, rtol=rtol, atol=rtol / 50, method=method),
-                   out, status, ns, ns.copy())
+        out, status, _, _ = evaluating.evaluate(d.SPEC, P, ("period", "period_exact"), rtol=rtol, atol=rtol / 50,
+                                                method=method)
         ok = status == st.OK
         err = np.abs(out["period"] - ref) / ref
         assert (err[ok] <= rtol).all(), (rtol, err[ok].max() / rtol, P[ok][np.argmax(err[ok])])

@@ -22,7 +22,7 @@ from mechsweep.models import autobalancer as ab
 from mechsweep.models import duffing, fourbar_balancing, slidercrank_balancing
 from mechsweep.models import torsional_circuit as tc
 from mechsweep.models import _linkage_reference as LR
-from mechsweep.scene import Solver
+from tests import evaluating
 
 U = 2.0**-53
 TINY = 4 * 2.0**-1074
@@ -35,15 +35,8 @@ EDGES = (5e-324, 1e-310, 2.2250738585072014e-308, 1e-300, 1e-200, 1e-154, 1e-100
 def run(spec, P, outputs, **solver):
     """spec.evaluate as the runner applies it: an ok point with an output that is not finite is
     nonfinite (execute.evaluate_chunk)."""
-    P = np.ascontiguousarray(P, dtype=float)
-    n = P.shape[0]
-    wanted = spec.closure(outputs)
-    out = {name: np.full((n,) + ((360,) if spec.output(name).extra_dims else ()), np.nan) for name in wanted}
-    status = np.zeros(n, st.DTYPE)
-    ns = np.zeros(n, np.int64)
-    nr = np.zeros(n, np.int64)
-    with np.errstate(all="ignore"):
-        spec.evaluate(P, wanted, Solver.for_model(spec, **solver), out, status, ns, nr)
+    out, status, _, _ = evaluating.evaluate(spec, P, spec.closure(outputs), quiet=True, **solver)
+    n = status.size
     out = {k: out[k] for k in outputs}
     finite = np.ones(n, dtype=bool)
     for values in out.values():

@@ -11,6 +11,7 @@ import sympy as sy
 from mechsweep import status as st
 from mechsweep.models import torsional_circuit as tc
 from mechsweep.scene import Solver
+from tests import evaluating
 
 from .test_extreme_scenes import exact_moment_rhs, first_zero_crossing
 
@@ -21,12 +22,7 @@ PARAMS = [("tension", 0.8, 0.5, 0.1), ("tension", 0.8, 1.5, 0.3), ("tension", 0.
 def evaluate(rows, outputs, solver=None):
     solver = solver or Solver.for_model(tc.SPEC)
     P = np.array([[0.0 if r[0] == "tension" else 1.0, *r[1:]] for r in rows], dtype=float)
-    wanted = tc.SPEC.closure(outputs)
-    out = {name: np.full(len(rows), np.nan) for name in wanted}
-    status = np.zeros(len(rows), np.int8)
-    ns = np.zeros(len(rows), np.int64)
-    nr = np.zeros(len(rows), np.int64)
-    tc.evaluate(P, wanted, solver, out, status, ns, nr)
+    out, status, _, _ = evaluating.evaluate(tc.SPEC, P, tc.SPEC.closure(outputs), solver)
     return out, status
 
 

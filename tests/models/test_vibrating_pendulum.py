@@ -21,6 +21,7 @@ from mechsweep.cli import main
 from mechsweep.scene import load_scene
 
 from tests.conftest import SWEEPS
+from tests import evaluating
 
 SCENE = SWEEPS / "vibrating_pendulum_stability.toml"
 REF = f"{SWEEPS / 'models' / 'vibrating_pendulum.py'}:VIBRATING_PENDULUM"
@@ -32,11 +33,7 @@ def floquet(rows, rtol=1e-12, atol=1e-14):
     scene = load_scene({"scene": {"name": "t", "model": REF, "outputs": ["max_multiplier"]},
                         "axes": {"a": [0.0, 0.01]}, "fixed": {"L": L, "w": 10.0, "position": "hanging"},
                         "solver": {"rtol": rtol, "atol": atol}})
-    P = np.asarray(rows, dtype=float)
-    n = P.shape[0]
-    out = {"max_multiplier": np.full(n, np.nan)}
-    status, ns, nr = np.zeros(n, st.DTYPE), np.zeros(n, np.int64), np.zeros(n, np.int64)
-    scene.model.evaluate(P, ("max_multiplier",), scene.solver, out, status, ns, nr)
+    out, status, _, _ = evaluating.evaluate(scene.model, rows, ("max_multiplier",), scene.solver)
     assert (status == st.OK).all(), status
     return out["max_multiplier"]
 
