@@ -14,7 +14,7 @@ from tests.conftest import REPO
 
 USER = REPO / "tests" / "user_models"
 LINEAR = f"{USER / 'oscillators.py'}:LINEAR"
-PENDULUM = f"{USER / 'oscillators.py'}:PENDULUM"  # its period kernel is the one tests/test_model_layer.py compiles
+PENDULUM = f"{USER / 'oscillators.py'}:PENDULUM"  # its period kernel: the one tests/model/test_model_layer.py compiles
 
 SCENE = """
 [scene]

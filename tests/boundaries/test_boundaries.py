@@ -323,7 +323,7 @@ def test_autobalancer_located_boundaries_agree_with_brentq_and_converge_on_the_f
     brackets;
     as 2 m / M goes from 0.02 to 0.0005 (40x lighter) their distance to the damped first
     approximation's roots P(Omega) = 0 shrinks 30 to 60x (linear convergence), as
-    tests/test_autobalancer.py measures on its own grid."""
+    tests/models/test_autobalancer.py measures on its own grid."""
     from scipy.optimize import brentq
 
     from benchmarks.boundaries import scene_dict

@@ -14,7 +14,7 @@ from mechsweep.model import compile as mc
 from mechsweep.execution.plan import choose_route, make_plan
 from mechsweep.scene import SceneError, load_scene
 
-# the Duffing kernels tests/test_model_lanes.py compiles (lanes and one point): nothing new to compile
+# the Duffing kernels tests/engine/test_model_lanes.py compiles (lanes and one point): nothing new to compile
 SCENE = {"scene": {"name": "lanes", "model": "duffing", "outputs": ["period", "period_exact", "period_error"]},
          "axes": {"A": {"start": 0.05, "stop": 2.0, "num": 7}, "mu": {"start": -0.5, "stop": 100.0, "num": 6}},
          "fixed": {"omega": 1.0}}

@@ -53,7 +53,7 @@ def _duffing_points():
     return np.vstack([P, extra])
 
 
-WANTED = ("period", "period_exact", "period_error")  # the kernel of tests/test_model_layer_builtin.py's w0 case
+WANTED = ("period", "period_exact", "period_error")  # the kernel of tests/model/test_model_layer_builtin.py's w0 case
 
 
 def test_duffing_lanes_bitwise_one_point_route(monkeypatch):

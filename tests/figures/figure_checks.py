@@ -1,7 +1,7 @@
 """What a reader of a figure needs, checked on the drawn figure (never on pixels): colours apart for
 colour-blind eyes, tick labels that do not run into one another, symbols in mathtext, no literal
-underscores, legends off the data. Used by tests/test_figure_data.py (every shipped scene's
-figures) and tests/test_figure_readability.py."""
+underscores, legends off the data. Used by tests/figures/test_figure_data.py (every shipped scene's
+figures) and tests/figures/test_figure_readability.py."""
 from __future__ import annotations
 
 import re

@@ -1,7 +1,7 @@
 """Committed figures stay true to the code and the scenes: the data every figure draws, regenerated
 from the shipped scenes at reduced size, matches a stored fingerprint (tests/data/
 figure_fingerprints.json, rewritten by tests/data/figure_fingerprints.py), and each of those figures
-reads well (tests/figure_checks.py: no tick labels running into one another, symbols in mathtext,
+reads well (tests/figures/figure_checks.py: no tick labels running into one another, symbols in mathtext,
 no literal underscores, legends off the data); every committed PNG was written by
 docs/make_figures.py from the code and scene that are here now (docs/figures/MANIFEST.json);
 importing and drawing change no matplotlib global state."""

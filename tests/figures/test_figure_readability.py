@@ -2,7 +2,7 @@
 stable/unstable colours stay apart for colour-blind eyes and the unstable side carries a second cue;
 tick labels of log axes with few values do not run into one another; every symbol a model declares
 reaches the labels as mathtext; derived outputs carry the user's words. The shipped scenes' figures
-get the same checks in tests/test_figure_data.py."""
+get the same checks in tests/figures/test_figure_data.py."""
 import sys
 from pathlib import Path
 

@@ -268,7 +268,7 @@ def test_plot_lists_full_descriptions_and_draws_the_generic_figures(tmp_path, ca
 
 
 def test_a_user_model_run_is_plotted_with_generic_figures(tmp_path, capsys):
-    """The user-model scene of tests/test_model_layer.py (same outputs: its compiled kernel is reused):
+    """The user-model scene of tests/model/test_model_layer.py (same outputs: its compiled kernel is reused):
     one list axis, so one curve per output; the period is drawn at every point although five points
     are flagged (another output, period_short, finds no event there)."""
     scene = mechsweep.load_scene(HERE / "user_models" / "linear.toml")

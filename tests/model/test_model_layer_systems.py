@@ -2,7 +2,7 @@
 System of its own (rhs, initial, jac, prepare) instead of the model's, a FirstEvent's refine runs a
 second pass at a tightened tolerance, and a ClosedForm's classify gives NaN and a status where the
 formula does not apply. The built-in torsional circuit is declared with them
-(tests/test_model_layer_builtin.py compares it bit for bit with the hand-written kernels)."""
+(tests/model/test_model_layer_builtin.py compares it bit for bit with the hand-written kernels)."""
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +21,7 @@ def _evaluate(P, wanted, **solver):
 
 # The two integrating tests compile two kernels each (~13 s cold on the shared 2-core machine): slow.
 # The default run covers the same generated code through the built-in torsional circuit
-# (tests/test_torsional_circuit.py: two Systems, and the refined pass near the hump at phi = 0).
+# (tests/models/test_torsional_circuit.py: two Systems, and the refined pass near the hump at phi = 0).
 @pytest.mark.slow
 @pytest.mark.parametrize("method", ["dop853", "radau"])
 def test_a_measurement_integrates_its_own_system_with_its_own_prepare(method):

@@ -34,7 +34,7 @@ AT_MODEL = slice(None, None, R.PHYSICAL_OVERSAMPLE)  # the model's 360 positions
 
 
 def all_outputs(spec):
-    # every scalar and curve: the same compiled kernel as tests/test_linkage_reference.py's
+    # every scalar and curve: the same compiled kernel as tests/models/test_linkage_reference.py's
     return [o.name for o in spec.outputs if not o.extra_dims] + [o.name for o in spec.outputs if o.extra_dims]
 
 
