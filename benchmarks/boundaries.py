@@ -2,7 +2,7 @@
 
 The three Floquet stability boundaries of the pendulum auto-balancer along Omega (the lower one
 near omega_xi, the one near omega_p, the upper one near omega_eta; omega_xi = 1, omega_eta =
-1.5 rad/s, zeta = 0.02, A0 = m a, h = m a^2 x 1 rad/s, as tests/test_autobalancer.py) for
+1.5 rad/s, zeta = 0.02, A0 = m a, h = m a^2 x 1 rad/s, as tests/models/test_autobalancer.py) for
 ``values`` mass ratios 2 m / M from 0.0005 to 0.35 (log spaced; m = 0.5 kg fixed, M varies),
 through the model's scene interface only (mechsweep.boundaries on ModelSpec.evaluate):
 

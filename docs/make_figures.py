@@ -17,7 +17,7 @@ Datasets go to data/runs/ and data/bench/ (git-ignored), figures to docs/figures
 Every figure written is recorded in docs/figures/MANIFEST.json with a hash of the code that draws
 it (the figure modules, see ``mechsweep.figures.source_files``), of the file declaring the scene's
 model (units and names label the figure) and of its scene file, and the hash of the PNG itself:
-tests/test_figure_data.py fails when a committed figure is older than the
+tests/figures/test_figure_data.py fails when a committed figure is older than the
 code or scene it comes from, or was written without its manifest entry.
 """
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Importing mechsweep changes nothing outside it: no environment variable, no numba function or
 option, no numba module imported early, no source file read and no folder made; what a kernel needs
-is done when mechsweep first compiles or loads one (tests/test_jit.py)."""
+is done when mechsweep first compiles or loads one (tests/engine/test_jit.py)."""
 from __future__ import annotations
 
 import json

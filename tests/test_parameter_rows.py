@@ -8,7 +8,7 @@ import pytest
 from mechsweep.grid import ParameterMatrix, plan_chunks
 from mechsweep.scene import load_scene
 
-from .test_store_define import SWEEPS, _shrunk
+from tests.store.test_store_define import SWEEPS, _shrunk
 
 A = {"start": 0.01, "stop": 1.0, "num": 7}
 MU = {"start": 1e-3, "stop": 1e3, "num": 11, "spacing": "log"}

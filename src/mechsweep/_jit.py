@@ -405,7 +405,7 @@ def _distinct_qualname(func) -> None:
     process, every reference binds to whichever kernel was loaded first: e.g. the simulation
     lanes would start their trajectories with the first-step selection of the Floquet variational
     system after a Floquet run, and results would depend on which outputs a scene asked for and on
-    what ran earlier in the process (tests/test_autobalancer_reproducible.py checks they do not).
+    what ran earlier in the process (tests/models/test_autobalancer_reproducible.py checks they do not).
     A suffix from the closure's variables, identical in every process, keeps the symbols apart.
     """
     cells = func.__closure__

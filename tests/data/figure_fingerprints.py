@@ -3,7 +3,7 @@
 The figures of each scene in sweeps/ (cut down by :func:`reduce_scene`) are drawn and the arrays on
 them (line and marker coordinates, colour-mesh values, contour paths: what ``_style.lines_data``
 reads off the figure, never pixels) are summarised per array as (size, finite count, sum, sum of
-|values|). tests/test_figure_data.py recomputes them and compares with the stored JSON to a
+|values|). tests/figures/test_figure_data.py recomputes them and compares with the stored JSON to a
 relative tolerance, so a change in what any figure draws (or in the numbers under it) is seen, but
 not a last-ulp difference.
 

@@ -7,10 +7,10 @@ Recorded with the code of commit 28a0ab7 (models/_linkage.py fourbar_kernel / sl
 except the four-bar's method-2 outputs (axis_*, dM_*_axis, R_axis, the *_h1 ones and their
 curves) on the design-grid rows with gravity (g != 0), recorded again when the moved crank
 counterweight's weight entered Delta M (models/_linkage.py axis_basis; those kernels left it out,
-tests/test_linkage_physical.py shows the difference against the mass placed physically): with
+tests/models/test_linkage_physical.py shows the difference against the mass placed physically): with
 the old file, every differing array was one of those outputs of a four-bar grid and every
 differing value on a row with g != 0; the shipped scenes' bytes did not change.
-tests/test_linkage_reference.py recomputes every case with the current code and asks for the
+tests/models/test_linkage_reference.py recomputes every case with the current code and asks for the
 same bytes (a sha256 of each array; the scalar values of the designs' grids are stored too, to
 show where a difference is).
 

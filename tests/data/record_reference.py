@@ -2,7 +2,7 @@
 
 The .npz files next to this script were written by this script on the code BEFORE the built-in
 Duffing and torsional circuit moved onto the model layer (commit 28a0ab7, hand-written chunk
-kernels); tests/test_model_layer_builtin.py asserts the current code reproduces them bit for bit
+kernels); tests/model/test_model_layer_builtin.py asserts the current code reproduces them bit for bit
 (values, status, n_steps, n_rhs) for every method, output subset and edge case listed here.
 Re-running it on the current code must write identical files.
 """

@@ -6,7 +6,7 @@ the reports must stay the same numbers when what they measure moves (docs/model-
     python tests/data/workprecision_numbers.py record FILE [small|full]   # with the code before
     python tests/data/workprecision_numbers.py compare FILE [small|full]  # with the code after
 
-small: tests/test_workprecision.py's configuration (6 points, scipy on 3, rtol 1e-5, 1e-8, 1e-11)
+small: tests/bench/test_workprecision.py's configuration (6 points, scipy on 3, rtol 1e-5, 1e-8, 1e-11)
 and 8 points at N = 12, 45, 360, 1440 for the closed-form models; full: every default. The
 models: those the bench names in both versions (duffing, torsional_circuit, autobalancer,
 fourbar_balancing, slidercrank_balancing). scipy's rungs past its time budget depend on timing:

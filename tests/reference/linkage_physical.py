@@ -4,7 +4,7 @@ come from a closed form of their own (the law of cosines at O_B, not the kernels
 intersection), velocities and accelerations from exact derivatives in phi of those positions
 (spectral differentiation of the smooth 2 pi-periodic positions on a fine uniform grid), and the
 shaking moment and force from the definitions M = -dH_O/dt - g sum m x_G, F = -sum m a_G -
-(0, g sum m), gravity included. tests/test_linkage_physical.py compares the models' outputs with it.
+(0, g sum m), gravity included. tests/models/test_linkage_physical.py compares the models' outputs with it.
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""A user model for tests/test_model_layer_api.py, written as a user would (outside the package):
+"""A user model for tests/model/test_model_layer_api.py, written as a user would (outside the package):
 x'' + w^2 x = 0 from x = 1, x' = 0, so x(1) = cos(w). Its rhs raises for w > 2.5, a branch the
 scene-load probe (w = 1, the default) does not reach. One cheap measurement: one small kernel."""
 from mechsweep.model import OdeModel, Param, StateAt

@@ -1,4 +1,4 @@
-"""A closed-form user model (used by tests/test_closed_form.py): the rise of a cam follower.
+"""A closed-form user model (used by tests/model/test_closed_form.py): the rise of a cam follower.
 
 A translating roller follower rises by h while the cam turns through the rise angle beta at
 constant speed omega, by the cycloidal or the simple-harmonic law (x = theta / beta in [0, 1]):

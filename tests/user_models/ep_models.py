@@ -1,4 +1,4 @@
-"""The model tests/test_model_layer_api.py registers as an entry point (a module of its own:
+"""The model tests/model/test_model_layer_api.py registers as an entry point (a module of its own:
 the file-path door uses api_models.py). x'' + w^2 x = 0 from x = 1: x(1) = cos(w)."""
 from mechsweep.model import OdeModel, Param, StateAt
 

@@ -1,5 +1,5 @@
 """A model whose classify calls sys.exit when it is run in plain Python at the probe point (the
-engine runs it once when the model is loaded; tests/test_model_exits.py)."""
+engine runs it once when the model is loaded; tests/model/test_model_exits.py)."""
 import sys
 
 from mechsweep.model import OdeModel, Param, StateAt

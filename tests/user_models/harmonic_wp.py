@@ -1,4 +1,4 @@
-"""A user model that declares its own work-precision report (tests/test_workprecision_ode.py), as a
+"""A user model that declares its own work-precision report (tests/bench/test_workprecision_ode.py), as a
 user would: x'' + w^2 x = 0 from x = A, x' = 0, its period measured by integration and its exact
 value 2 pi / w given as a ClosedForm, which the report uses as its reference; the scene is named
 relative to this file."""

@@ -1,4 +1,4 @@
-"""Models whose functions write into an argument their role may not write (tests/test_model_writes.py,
+"""Models whose functions write into an argument their role may not write (tests/model/test_model_writes.py,
 tests/hostile/model_*.toml): each must be refused when loaded, naming the function, the argument
 and the line. A bouncing ball y'' = -g from y = h at rest; its events look for the apex (v from
 > 0 to <= 0 after the bounce); EVENT_WRITES_STATE bounces by writing the state in its event, behind

@@ -1,5 +1,5 @@
 """A linear oscillator x'' = -w^2 x declared with every feature of the model layer's engine side
-(tests/test_model_layer_builtin.py): a setting and internal slots in p, classify and prepare, a
+(tests/model/test_model_layer_builtin.py): a setting and internal slots in p, classify and prepare, a
 FirstEvent with a point-dependent event and a value transform, closed forms with needs, and the
 separable form (accel) for the symplectic method; no jac (radau uses the engine's Jacobian).
 p = (w, A | horizon | w_scaled, sign)."""

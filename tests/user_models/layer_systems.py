@@ -1,4 +1,4 @@
-"""Two equations of one model and a refined measurement (tests/test_model_layer_systems.py).
+"""Two equations of one model and a refined measurement (tests/model/test_model_layer_systems.py).
 p = (w, A, tighten | stiff_scaled): the model's own equation x'' = -w^2 x (measurement "period",
 quarter period times 4: 2 pi / w), a System x'' = -4 w^2 x of its own (measurement "half",
 period pi / w; its prepare refuses w > 5 with INFEASIBLE), and a FirstEvent "refined" on the

@@ -1,5 +1,5 @@
 """A boundary that is a straight line, y = s x + c, as a closed form g = y - s x - c (level 0): its
-continuation in the (x, y) chart is known exactly (tests/test_boundaries.py)."""
+continuation in the (x, y) chart is known exactly (tests/boundaries/test_boundaries.py)."""
 from mechsweep.model import ClosedFormModel, Output, Param
 
 

@@ -1,5 +1,5 @@
 """Mathieu's equation x'' + (a - 2 q cos 2t) x = 0 (period pi) as a user model, for the Floquet
-measurement (tests/test_model_layer.py): its stability boundaries are the characteristic-value
+measurement (tests/model/test_model_layer.py): its stability boundaries are the characteristic-value
 curves a = a_n(q), a = b_n(q) (scipy.special.mathieu_a / mathieu_b)."""
 import math
 

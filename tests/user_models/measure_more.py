@@ -1,6 +1,6 @@
 """A linear oscillator x'' = -w^2 x from x = A, x' = 0 (x = A cos(w t), v = -A w sin(w t)) for the
 measurements of expressions, n-th roots and windows that are functions of p
-(tests/test_model_layer_measure.py). No jac: radau differentiates the rhs itself."""
+(tests/model/test_model_layer_measure.py). No jac: radau differentiates the rhs itself."""
 import math
 
 import numba

@@ -1,4 +1,4 @@
-"""User models for tests/test_model_layer.py, written as a user would (outside the package).
+"""User models for tests/model/test_model_layer.py, written as a user would (outside the package).
 
 x'' + w^2 x = 0 from x = A, x' = 0: x = A cos(w t), period 2 pi / w, max x' = A w.
 theta'' + (g / L) sin(theta) = 0 from theta = A: period 4 K(sin^2(A/2)) sqrt(L/g); its energy

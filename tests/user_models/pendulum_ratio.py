@@ -1,5 +1,5 @@
 """The pendulum of oscillators.py with a closed form of its integrated period: T / T0, the period
-over the small-swing period 2 pi sqrt(L / g) (tests/test_boundaries.py locates where it crosses a
+over the small-swing period 2 pi sqrt(L / g) (tests/boundaries/test_boundaries.py locates where it crosses a
 level: a criterion only as accurate as the integration)."""
 import math
 

@@ -1,4 +1,4 @@
-"""A damped oscillator driven slowly, started on its steady motion (tests/test_stiff.py):
+"""A damped oscillator driven slowly, started on its steady motion (tests/engine/test_stiff.py):
 x'' + 2 zeta w x' + w^2 x = F cos(W t), p = (w, zeta, F, W), x(0), x'(0) on
 x = A cos(W t - phi), A = F / sqrt((w^2 - W^2)^2 + (2 zeta w W)^2), phi = atan2(2 zeta w W, w^2 - W^2),
 so x(t) is that closed form at every t. With W << w the motion is slow while the free modes decay at

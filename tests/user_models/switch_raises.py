@@ -1,4 +1,4 @@
-"""A user model for tests/test_switch_times.py whose own code raises only on the switch-times route,
+"""A user model for tests/engine/test_switch_times.py whose own code raises only on the switch-times route,
 at points the load-time probe (k = 0, the default) does not reach: x'' + (1 + 0.5 sign(cos t)) x = 0
 from x = 1, v = 0, switches at pi/2 and 3 pi/2. k = 1: the rhs raises past the switch at pi/2 (in
 the piece where cos t < 0) and nowhere at t = 0; k = 2: switch_times raises. x_end on the one-point

@@ -2,7 +2,7 @@
 rhs jumps at t = pi/2 and 3 pi/2 of each period 2 pi. SWITCHED declares those switch times
 (OdeModel(switch_times=...), model/switches.py), UNDECLARED is the same equation without them;
 SWITCHED_JAC and UNDECLARED_JAC the same two with the exact Jacobian.
-Its exact solution is a product of 2 x 2 closed-form matrices (tests/test_switch_times.py)."""
+Its exact solution is a product of 2 x 2 closed-form matrices (tests/engine/test_switch_times.py)."""
 import math
 
 from mechsweep.model import Extremum, FirstEvent, Floquet, History, OdeModel, Param, StateAt
@@ -15,7 +15,7 @@ def rhs(t, y, p, dydt):
     dydt[1] = -(p[0] + p[1] * s) * y[0]
 
 
-def jac(t, y, p, J):  # exact (the Floquet references of tests/test_workprecision_ode.py: no difference quotients)
+def jac(t, y, p, J):  # exact (the Floquet references of tests/bench/test_workprecision_ode.py: no difference quotients)
     ct = math.cos(t)
     s = 1.0 if ct > 0.0 else (-1.0 if ct < 0.0 else 0.0)
     J[0, 0] = 0.0

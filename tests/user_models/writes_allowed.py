@@ -1,5 +1,5 @@
 """Functions that write only what their role may write, in the ways that look like forbidden ones
-(tests/test_model_writes.py: the write check finds nothing here): the output argument through an
+(tests/model/test_model_writes.py: the write check finds nothing here): the output argument through an
 alias, a slice or a helper, local arrays, a rebound argument name, an element read into a local
 and updated in place, prepare's internal slots by index, through a view and through a helper,
 arguments named otherwise than in the docs. x'' = -w^2 x from x = A at rest."""

@@ -37,7 +37,7 @@ Loads (per position), for links described by first moments and inertias about th
   input torque   T = (dE_kin/dt + dV/dt - P_load) / phi'         (power balance, virtual work)
       four-bar: P_load = M_load phi3' (constant torque M_load on the rocker, ccw positive);
       slider-crank: P_load = F_load x_B' (constant force F_load on the slider along +x).
-tests/test_linkage.py checks F and M against finite differences of the total momentum and
+tests/models/test_linkage.py checks F and M against finite differences of the total momentum and
 angular momentum, T against energy balance and a Newton-Euler solve of the joint forces.
 """
 from __future__ import annotations

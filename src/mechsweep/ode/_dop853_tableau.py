@@ -10,7 +10,7 @@ and the coefficients of the 7th-order dense output (CONTD8).
 The numbers are the float64 values of scipy's ``dop853_coefficients`` module
 (which transcribes dop853.f), printed with ``repr`` so they round-trip exactly;
 they are written out here so that the package does not import scipy's private
-module at run time. ``tests/test_dop853.py`` checks them against scipy.
+module at run time. ``tests/ode/test_dop853.py`` checks them against scipy.
 
 Layout (stage index s = 0..15, n = state size):
 - stages 0..11 are the 12 stages of the 8th-order step, stage 12 is

@@ -9,7 +9,7 @@ it cannot turn into a select, lanes innermost): with AVX2 four lanes share one i
 Each lane keeps its own time, step size, error test, step-size control, stiffness counters (the
 test late in the step budget: a spent budget there is STIFF) and output samples, so a lane computes
 the same floats, step for step, as :func:`.dop853.make_trajectory_solver` on the same trajectory
-(tests/test_dop853_lanes.py checks bitwise equality). The lanes only share the
+(tests/ode/test_dop853_lanes.py checks bitwise equality). The lanes only share the
 moment of their attempts: every active lane attempts a step in every round, accepted or not,
 and the three extra stages of the dense output are computed for all lanes when any accepted
 lane has a sample inside its step. A lane whose trajectory ends is handed back to the caller,

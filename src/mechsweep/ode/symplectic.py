@@ -39,7 +39,7 @@ Methods (``order``):
     (40 steps per period): 50-2000x more accurate than Yoshida's (1990)
     15-stage solutions A and D.
 
-  ``tests/test_symplectic.py`` checks sum w = 1, sum w^3 = 0 (and w^5, w^7 for
+  ``tests/ode/test_symplectic.py`` checks sum w = 1, sum w^3 = 0 (and w^5, w^7 for
   orders 6, 8) and measures the convergence order on the Duffing oscillator.
 
 Usage::

@@ -303,7 +303,7 @@ class NetCDFWriter:
     same attributes with their dtypes, shapes, values and order (netCDF-4's ``_Netcdf4Dimid`` and
     ``_Netcdf4Coordinates``), the same dimension-scale attachments. Only the provenance the file
     carries for netCDF-C (``_NCProperties``, :func:`nc_properties`) names mechsweep, h5py and HDF5,
-    where h5netcdf names itself. tests/test_store_define.py walks a file of each shipped scene
+    where h5netcdf names itself. tests/store/test_store_define.py walks a file of each shipped scene
     written both ways and compares all of it, and reads both with h5netcdf and with netCDF-C.
     Written with h5py because h5netcdf looks up the same h5py objects again and again while it defines
     a file (most of a small run's definition time: ``python benchmarks/duffing_breakdown.py``);

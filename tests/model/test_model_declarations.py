@@ -1,0 +1,78 @@
+"""A user model is refused at load, naming the problem, when a dataset could not carry its
+declaration: a unit UDUNITS-2 does not read (the dataset claims CF), or a name that is no Python
+identifier or is a keyword (a dataset's dimensions are selected by keyword, ``ds.sel(lam=0.3)``).
+Every built-in model's declaration passes the same check."""
+from __future__ import annotations
+
+import pytest
+
+from mechsweep.cli import main
+from mechsweep.errors import InputError
+from mechsweep.model import user
+from mechsweep.models import MODELS
+
+from tests.conftest import SWEEPS
+
+MODEL = '''
+from mechsweep.model import OdeModel, Param, Period
+
+
+def rhs(t, y, p, dydt):
+    dydt[0] = y[1]
+    dydt[1] = -p[0] * y[0]
+
+
+def initial(p, y0):
+    y0[0] = 1.0
+    y0[1] = 0.0
+
+
+M = OdeModel(name="spring", description="x'' + k x = 0",
+             params=(Param({name!r}, "k", {unit!r}, "stiffness over mass", lo=0.0, lo_open=True),),
+             states=("x", "v"), rhs=rhs, initial=initial,
+             measurements=(Period("period", "x", t_max=100.0, unit={out_unit!r}),))
+'''
+
+
+def _scene(tmp_path, name="k", unit="s-2", out_unit="s"):
+    (tmp_path / "spring.py").write_text(MODEL.format(name=name, unit=unit, out_unit=out_unit))
+    scene = tmp_path / "s.toml"
+    scene.write_text(f'[scene]\nname = "s"\nmodel = "spring.py:M"\noutputs = ["period"]\n\n[fixed]\n{name} = 4.0\n'
+                     if name.isidentifier() else
+                     f'[scene]\nname = "s"\nmodel = "spring.py:M"\noutputs = ["period"]\n\n[fixed]\n"{name}" = 4.0\n')
+    return scene
+
+
+@pytest.mark.parametrize("name, unit, out_unit, words", [
+    ("k", "metres please", "s", ["parameter 'k'", "'metres please'", "UDUNITS-2", "'kg m2'", "'rad s-1'"]),
+    ("k", "s-2", "seconds?", ["output 'period'", "'seconds?'", "UDUNITS-2", "'m'"]),
+    ("lambda", "s-2", "s", ["parameter 'lambda'", "identifier that is not a keyword", "'lambda_'"]),
+    ("k-1", "s-2", "s", ["parameter 'k-1'", "identifier", "'k_1'"]),
+])
+def test_a_model_the_dataset_cannot_carry_is_refused_at_load(tmp_path, capsys, name, unit, out_unit, words):
+    scene = _scene(tmp_path, name, unit, out_unit)
+    assert main(["check", str(scene)]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "'spring.py:M'" in err and "model 'spring'" in err, err
+    for w in words:
+        assert w in err, (w, err)
+
+
+@pytest.mark.parametrize("unit", ["s-2", "rad/s2", "1/s^2", "N m kg-1 m-2"])
+def test_units_udunits_reads_load(tmp_path, capsys, unit):
+    assert main(["check", str(_scene(tmp_path, unit=unit))]) == 0, capsys.readouterr().err
+
+
+def test_a_model_given_from_python_is_checked_too(tmp_path, monkeypatch):
+    (tmp_path / "spring_api.py").write_text(MODEL.format(name="k", unit="metres please", out_unit="s"))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import spring_api
+
+    with pytest.raises(InputError, match="parameter 'k': unit 'metres please' is not a unit UDUNITS-2 reads"):
+        user.from_object("spring_api_model", spring_api.M)
+
+
+@pytest.mark.parametrize("spec", [*MODELS.values(), user.resolve(str(SWEEPS / "models" / "vibrating_pendulum.py")
+                                                                 + ":VIBRATING_PENDULUM")], ids=lambda s: s.name)
+def test_every_built_in_and_shipped_declaration_passes(spec):
+    user.check_declaration(spec, spec.name)
