@@ -30,7 +30,7 @@ ROUTES = ("point", "lanes")
 # kernel_for's route where the lanes apply and the caller names none (``lanes=None``): True the lanes,
 # False or None one point at a time. A run names the route its plan chose (mechsweep/plan.py,
 # ``choose_route``, which reads this as an override: the benches and tests set True or False to compare
-# the two routes). The results are bitwise the same either way (tests/test_model_lanes.py).
+# the two routes). The results are bitwise the same either way (tests/engine/test_model_lanes.py).
 USE_LANES: bool | None = None
 # The lane kernel compiles in about three times the CPU time of the one-point kernel and integrates
 # about twice as fast (Duffing period, sweeps/quickstart.toml; `python benchmarks/startup.py --only

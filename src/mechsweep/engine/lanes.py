@@ -1,5 +1,5 @@
 """SIMD lanes for the one-point route's first-event kernels: LANES points integrated side by side per
-thread, bitwise the one-point kernel's results (tests/test_model_lanes.py).
+thread, bitwise the one-point kernel's results (tests/engine/test_model_lanes.py).
 
 Where it applies (engine/kernels.py ``lanes_apply``): one measurement that integrates on its own (a
 FirstEvent, possibly of a System, or a lone first Crossing) to its first root downwards, without

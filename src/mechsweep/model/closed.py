@@ -26,7 +26,7 @@ its 8th argument, for convergence studies).
 
 Compilation: as for OdeModel, the parallel kernel is composed in engine/closed.py and cached on
 disk through its binding module (engine/binding.py): a second process loads it from numba's disk
-cache (measured in tests/test_closed_form.py). The binding's name is keyed by a hash of the compute
+cache (measured in tests/model/test_closed_form.py). The binding's name is keyed by a hash of the compute
 function's module source, its name, the model's dependency record, the numbers of parameters and
 data arrays, the scratch rows and the block size.
 """

@@ -847,3 +847,12 @@ Extremum.shared_row = _row_extremum
 
 
 MEASUREMENTS = (Crossing, Period, StateAt, Extremum, Floquet, FirstEvent)  # model/sampled.py adds its own
+
+
+def __getattr__(name: str):
+    # the sampled measurements live in model/sampled.py (which imports this module); they stay
+    # importable from here, as they were
+    if name in ("Steady", "Kick", "History", "Recheck", "RMS"):
+        from . import sampled
+        return getattr(sampled, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

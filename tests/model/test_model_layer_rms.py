@@ -1,7 +1,6 @@
 """RMS, a sampled-trajectory measurement (model/sampled.py), against the closed form of a forced damped
 oscillator on every route: one trajectory at a time by each method, the SIMD lanes, a dask cluster."""
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,9 +12,9 @@ from mechsweep.errors import InputError
 from mechsweep.engine import sampling as trajectory
 from mechsweep.model import RMS, user
 
-USER = Path(__file__).resolve().parent / "user_models" / "rms.py"
-sys.path.insert(0, str(Path(__file__).resolve().parent / "data"))
-from points import evaluate  # noqa: E402  (tests/data)
+from tests.evaluating import evaluate
+
+USER = Path(__file__).resolve().parents[1] / "user_models" / "rms.py"
 
 WANTED = ("x_rms", "v_rms", "x_rel")
 # below, near and above resonance (settled within 200 periods); F < 0; zeta = 0: x_rel's classify skips it
