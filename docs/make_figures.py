@@ -1,11 +1,13 @@
 """Regenerate every committed figure: run each shipped scene, then draw its figures; then the
 work-precision reports of the integrated models (tolerance ladder) and of the linkage models
-(crank-position ladder); then the generic-figures example of docs/your-own-model.md.
+(crank-position ladder); then the generic-figures example of docs/your-own-model.md and the
+picture of docs/architecture.md.
 
     python docs/make_figures.py               # all scenes in sweeps/ and every work-precision report
     python docs/make_figures.py quickstart    # only scenes whose file name contains 'quickstart'
     python docs/make_figures.py workprecision # only the work-precision reports
     python docs/make_figures.py workprecision_fourbar_balancing  # only that model's report
+    python docs/make_figures.py architecture  # only the picture of docs/architecture.md (no scene run)
     python docs/make_figures.py --reuse       # redraw from the datasets already in data/ (a run that
                                               # finished is reused, the boundaries and reports are read back)
 
@@ -116,6 +118,11 @@ def main(filters: list[str], reuse: bool = False) -> None:
                 [ROOT / "docs" / "generic_figures_example.py", here / "generic.py", here / "_style.py",
                  ROOT / "sweeps" / "models" / "vibrating_pendulum.py"],
                 ROOT / "sweeps" / "vibrating_pendulum_stability.toml")
+    if not filters or any(f in "architecture" for f in filters):  # docs/architecture.md's picture
+        sys.path.insert(0, str(ROOT / "docs"))
+        import make_architecture_figure
+
+        _record(manifest, make_architecture_figure.main(), [ROOT / "docs" / "make_architecture_figure.py"])
     MANIFEST.write_text(json.dumps(dict(sorted(manifest.items())), indent=1) + "\n")
     print(f"-> {MANIFEST.relative_to(ROOT)}")
 

@@ -94,7 +94,7 @@ def test_docs_build_without_warnings_and_every_internal_link_resolves(site):
     assert (site / "index.html").is_file()
     for page in ("quickstart", "scenes", "cli", "datasets", "cluster", "gallery", "glossary", "api", "physics",
                  "numerics", "performance", "performance-duffing", "performance-startup", "boundaries", "testing",
-                 "your-own-model", "model-layer", "tutorial/index", *(f"tutorial/{t}" for t in TUTORIALS)):
+                 "your-own-model", "model-layer", "architecture", "tutorial/index", *(f"tutorial/{t}" for t in TUTORIALS)):
         assert (site / f"{page}.html").is_file(), page
     assert broken_links(site) == []
 
