@@ -1,4 +1,5 @@
-"""Run a scene: one route for every run.
+"""Run a scene: one route for every run (about 700 lines: the route, its sinks and the run's
+end, read together).
 
     scene -> plan (plan.py: what to compute and how, once) -> chunks -> compute (execute.py here, or
     cluster.py on a dask cluster: the same evaluate_chunk) -> a sink

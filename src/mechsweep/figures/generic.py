@@ -1,5 +1,8 @@
 """Figures for any model, chosen from what the dataset declares, never from variable names.
 
+Over 700 lines on purpose: the three generic drawings share their labelling, flag notes and
+thinning rules, and ``choose`` decides among them in one place.
+
 Three drawings, each on one matplotlib ``Axes`` (``ax=``; a new figure when omitted), returning its
 artists and changing no matplotlib global state:
 

@@ -1,5 +1,8 @@
 """Planar four-bar and slider-crank: closed-form kinematics, inertia loads and balancing helpers.
 
+Over 700 lines on purpose: the kinematics and loads of both linkages share one set of conventions
+(below) and their balancing methods reuse the same position functions.
+
 Pure numba functions on floats and arrays; they write into caller-owned arrays and return status
 codes (never raise), and allocate nothing: compiled without numba's reference counting (jit_noalloc). No units, no xarray, no scene: the per-design functions of the models
 ``fourbar_balancing`` and ``slidercrank_balancing`` (closed-form models on the model layer, which

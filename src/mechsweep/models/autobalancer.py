@@ -1,5 +1,8 @@
 """Slider-crank on an elastic platform, balanced by two pendulums on the crank axis.
 
+Over 700 lines on purpose: a model is one module, its derivation, declarations and per-point
+functions beside the source equations they implement.
+
 Source: Dubovik & Zamyatin, "Static balancing of a slider-crank mechanism"; equations (1)-(8)
 as corrected in physics.md section 2 (damping of the pendulums relative to the crank, platform
 damping, omega^2 = c / M, the factor 2 in the balancing condition, "or" between the two stable

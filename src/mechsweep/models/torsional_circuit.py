@@ -1,5 +1,8 @@
 """Spatial torsional oscillating circuit: rocking lever + out-of-plane spring -> Duffing equation.
 
+Over 700 lines on purpose: a model is one module, its declarations and per-point functions beside
+the source formulas they implement.
+
 Source: Klyuchkovskyi, "Synthesis of motion laws of the rocking link of spatial torsional
 oscillating circuits"; formulas (4)-(7) as checked in ../shared/physics.md section 1.
 

@@ -1,5 +1,8 @@
 """Adaptive implicit Radau IIA integrator (order 5, 3 stages) in numba.
 
+Over 700 lines on purpose: one integrator, its step, Newton iteration, error estimate, controller
+and allocation-free linear algebra read together, as in Hairer and Wanner's code it follows.
+
 Same algorithm as ``scipy.integrate.solve_ivp(method="Radau")`` (Hairer &
 Wanner, *Solving ODEs II*, Sec. IV.8): the collocation system is solved by
 simplified Newton iterations on the transformed system (one real n x n and
