@@ -164,7 +164,7 @@ same window.
 On the model layer (docs/model-layer.md): this module is the declaration (``MODEL``, an OdeModel):
 the parameters, settings and outputs above, the equations of motion in scaled form (``scaled_rhs``,
 ``scaled_jacobian``, called by ``rhs``/``jac`` with the scaled parameters that ``prepare`` writes
-into the internal slots; the engine writes the lane form of ``rhs`` itself, model/lanes.py, bitwise
+into the internal slots; the engine writes the lane form of ``rhs`` itself, engine/lane_rhs.py, bitwise
 ``scaled_rhs_lanes``, which only the hand-written reference kernels still use), ``classify`` (INFEASIBLE), the closed
 forms, and the measurements: Floquet (floquet_max, stable_floquet), Kick (stable_sim,
 settling_time, phase_error), Steady (residual_amplitude) and four Histories, one sampled trajectory
@@ -641,8 +641,8 @@ STATUS_NOTES = {
 # ----------------------------------------------------------------------------- the model on the layer
 # Per point the engine calls prepare (the scaled parameters into the internal slots p[OFF:OFF+NP]),
 # classify (INFEASIBLE), the closed forms, and the measurements (one sampled trajectory for the
-# Kick, Steady and the Histories, one variational integration for Floquet): model/compile.py and
-# model/trajectory.py generate the chunk kernels and the method switch from this declaration.
+# Kick, Steady and the Histories, one variational integration for Floquet): the engine (engine/)
+# composes the chunk kernels for the scene's method from this declaration.
 IX = {name: j for j, name in enumerate(PARAM_NAMES)}
 I_Omega, I_M, I_m, I_a, I_IB, I_A0, I_h = (IX[k] for k in ("Omega", "M", "m", "a", "I_B", "A0", "h"))
 I_omega_xi, I_c_xi, I_b_xi, I_zeta_xi = (IX[k] for k in ("omega_xi", "c_xi", "b_xi", "zeta_xi"))

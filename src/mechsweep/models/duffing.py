@@ -1,6 +1,6 @@
 """Undamped Duffing oscillator phi'' + omega^2 phi + mu phi^3 = 0, phi(0) = A, phi'(0) = 0,
-declared on the model layer (mechsweep.model): the engine generates its chunk kernel for the
-scene's method and outputs (model/compile.py), as for any user model.
+declared on the model layer (mechsweep.model): the engine composes its chunk kernel for the
+scene's method and outputs (engine/kernels.py), as for any user model.
 
 Source: Klyuchkovskyi, torsional oscillating circuits, equation (3); closed forms from
 ../shared/physics.md section 1 (amplitude-period relation and kinematic invariants).
