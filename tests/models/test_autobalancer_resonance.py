@@ -291,3 +291,15 @@ def test_a_mass_matrix_singular_within_rounding_is_infeasible_and_near_it_ill_co
     assert status.tolist()[:2] == [st.ILL_CONDITIONED] * 2 and status[2] == st.OK, status
     assert np.isnan(out["floquet_max"][:2]).all() and (ns[:2] == 0).all() and np.isfinite(out["floquet_max"][2])
     np.testing.assert_allclose(out["theta"], math.acos(-0.19 / 0.2))  # the closed forms are kept
+
+
+def test_m_k_without_its_parameters_leaves_the_points_status_to_the_other_outputs():
+    # m4, S4, m5, S_k absent (NaN, as the evaluate API leaves them; a scene asking for m_k must give
+    # them): m_k is NaN and says nothing of the point, which keeps the status theta gives it
+    P = rows(**BASE, Omega=[10.0, 30.0, 0.5], M=2.0, omega_xi=20.0, omega_eta=25.0, zeta_xi=0.05, zeta_eta=0.05)
+    alone, status_alone, _, _ = evaluating.evaluate(ab.SPEC, P, ab.SPEC.closure(("theta",)), quiet=True)
+    both, status_both, _, _ = evaluating.evaluate(ab.SPEC, P, ab.SPEC.closure(("theta", "m_k")), quiet=True)
+    assert np.isnan(both["m_k"]).all()
+    assert np.array_equal(both["theta"], alone["theta"], equal_nan=True)
+    assert status_both.tolist() == status_alone.tolist()
+    assert st.OUT_OF_RANGE not in status_both.tolist()

@@ -752,7 +752,11 @@ def receptance_in_range(p):
 
 
 def m_k_in_range(p):
-    """m_k's products and quotient are normal numbers or an exact 0 from a zero input."""
+    """m_k's products and quotient are normal numbers or an exact 0 from a zero input. Where its
+    parameters are not given (NaN: a scene that asks for m_k must give them), m_k is NaN and leaves
+    the point's status to the other outputs."""
+    if math.isnan(p[I_m4] + p[I_S4] + p[I_m5] + p[I_l4] + p[I_S_k]):
+        return st.OK
     ok = (product_in_range(p[I_m4], p[I_S4]) and product_in_range(p[I_m5], p[I_l4])
           and quotient_in_range(p[I_m4] * p[I_S4] + p[I_m5] * p[I_l4], p[I_S_k]))
     return st.OK if ok else st.OUT_OF_RANGE
