@@ -1,8 +1,14 @@
 """Record the auto-balancer's values before it moves onto the model layer:
-``python tests/data/record_autobalancer.py [record|compare]``.
+``python tests/data/record_autobalancer.py [record|stiff|compare]``.
 
 ``record`` writes tests/data/autobalancer_reference.npz with the CURRENT code; it was run once on
-commit 016a0b6 (the hand-written kernels, now tests/reference/autobalancer_kernels.py). ``compare [prefix]``
+commit 016a0b6 (the hand-written kernels, now tests/reference/autobalancer_kernels.py). ``stiff``
+re-stamps, from those kernels as they are now, the statuses the dop853 solver's stiffness test
+turned from MAX_STEPS into STIFF (a step budget spent at the stability limit; the test changes no
+step): only those entries change, and it stops if the kernels differ from the file anywhere else.
+Re-stamped so: point 25 of the design grid (the stiff platform, h = 1e4) in every grid-dop853 case,
+points 9-11 of scene-autobalancer_damping_range-dop853 and 2, 5, 8 of
+scene-autobalancer_stiff_platform-dop853. ``compare [prefix]``
 computes every case (whose label starts with prefix) again with the model as registered (since the
 swap: the layer declaration, models/autobalancer.py) and reports, per array, whether it is bitwise
 equal to the file, within the documented tolerance (``verdict``: residual_amplitude 1 ulp; since
@@ -108,12 +114,17 @@ def scene_cases():
     return [(f"scene-{p.stem}-{m}", p, m) for p in SCENES for m in METHODS]
 
 
-def evaluate_case(P, wanted, kw):
+def evaluate_case(P, wanted, kw, spec=None):
+    """The arrays of one design case by the registered model (spec: another ModelSpec instead)."""
     from mechsweep.models import MODELS
     from mechsweep.scene import Solver
 
-    spec = MODELS["autobalancer"]
+    spec = MODELS["autobalancer"] if spec is None else spec
     solver = Solver.for_model(spec, **kw)
+    return _evaluate(spec, P, wanted, solver)
+
+
+def _evaluate(spec, P, wanted, solver):
     n = P.shape[0]
     out = {}
     for name in wanted:
@@ -136,6 +147,32 @@ def evaluate_scene(path, method):
     scene = load_scene(small_scene(path, method))
     cols, status, n_steps, n_rhs = evaluate_chunk(scene, Chunk(0, 0, scene.n_points, ()))
     return {**cols, "status": status, "n_steps": n_steps, "n_rhs": n_rhs}
+
+
+def reference_spec():
+    """The hand-written kernels' ModelSpec (tests/reference/autobalancer_kernels.py)."""
+    if str(REPO) not in sys.path:
+        sys.path.insert(0, str(REPO))
+    from tests.reference import autobalancer_kernels
+
+    return autobalancer_kernels.SPEC
+
+
+def reference_arrays(select=None):
+    """(label, arrays) of every case (select: a filter on the label) by the hand-written kernels as
+    they are now; a scene's points and solver as the scene gives them."""
+    from mechsweep.grid import parameter_matrix
+    from mechsweep.scene import load_scene
+
+    spec = reference_spec()
+    for label, P, wanted, kw in design_cases():
+        if select is None or select(label):
+            yield label, evaluate_case(P, wanted, kw, spec)
+    for label, path, method in scene_cases():
+        if select is None or select(label):
+            scene = load_scene(small_scene(path, method))
+            P = parameter_matrix(scene, 0, scene.n_points)
+            yield label, _evaluate(spec, P, tuple(scene.computed_outputs), scene.solver)
 
 
 def all_arrays(select=None):
@@ -189,8 +226,45 @@ def compare(select=None):
     return result
 
 
+def stamp_stiff(select=None):
+    """The file's arrays with each MAX_STEPS the hand-written kernels now give as STIFF re-stamped
+    STIFF, and the re-stamped [(case, point)]. Raises where the kernels differ from the file in
+    anything else (a value, a count, another status): that is not the stiffness test's change."""
+    from mechsweep import status as st
+
+    ref = np.load(FILE)
+    arrays = {k: ref[k] for k in ref.files}
+    stamped = []
+    for label, res in reference_arrays(select):
+        for k, v in res.items():
+            key = f"{label}/{k}"
+            if key not in arrays:  # an output the file does not hold
+                continue
+            e = arrays[key]
+            if k == "status":
+                moved = (e == st.MAX_STEPS) & (v == st.STIFF)
+                same = np.where(moved, st.STIFF, e)
+                if not np.array_equal(same, v):
+                    raise AssertionError(f"{key}: the kernels differ beyond MAX_STEPS -> STIFF at "
+                                         f"{np.nonzero(same != v)[0].tolist()}")
+                if moved.any():
+                    arrays[key] = same.astype(e.dtype)
+                    stamped += [(label, int(i)) for i in np.nonzero(moved)[0]]
+            elif e.dtype != v.dtype or not np.array_equal(e, v, equal_nan=True):
+                raise AssertionError(f"{key}: the kernels differ from the file")
+    return arrays, stamped
+
+
 def main(mode="compare", prefix=""):
     select = (lambda label: label.startswith(prefix)) if prefix else None
+    if mode == "stiff":
+        arrays, stamped = stamp_stiff(select)
+        if stamped:
+            np.savez_compressed(FILE, **arrays)
+        for label, i in stamped:
+            print(f"{label} point {i}: max_steps -> stiff")
+        print("re-stamped", len(stamped), "statuses in", FILE)
+        return 0
     if mode == "record":
         arrays = {f"{label}/{k}": v for label, res, _, _ in all_arrays() for k, v in res.items()}
         np.savez_compressed(FILE, **arrays)

@@ -50,7 +50,7 @@ def test_the_model_layer_imports_first_in_a_fresh_process():
 def test_the_autobalancer_gives_the_reference_statuses_and_values():
     # the model's classify (INFEASIBLE), its measurements' classify (NOT_BALANCEABLE), status_order
     # (the old SEVERITY) and the Recheck (NOT_REPRODUCIBLE): every status of the dop853 design-grid
-    # cases as the hand-written model's (UNDECIDED, NO_EVENT, SINGULAR, MAX_STEPS among them)
+    # cases as the hand-written model's (UNDECIDED, NO_EVENT, SINGULAR, MAX_STEPS, STIFF among them)
     rec = _rec()
     r = rec.compare(lambda label: label.startswith("grid-dop853"))
     assert len({label for label, _ in r}) >= 8
