@@ -112,3 +112,14 @@ def stored_notes(status_attrs) -> dict[str, str]:
     except (TypeError, ValueError):
         return {}
     return {str(k): str(v) for k, v in notes.items()} if isinstance(notes, dict) else {}
+
+
+def ranks(order) -> np.ndarray:
+    """rank[code] for a model's ``status_order`` (most severe first): a listed status its position,
+    a status not listed -1 (above every listed one: an unexpected problem is shown, not hidden),
+    OK last."""
+    rank = np.full(max(MEANINGS) + 1, -1, dtype=np.int64)
+    for r, code in enumerate(order):
+        rank[int(code)] = r
+    rank[OK] = len(order)
+    return rank

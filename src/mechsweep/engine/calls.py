@@ -145,7 +145,7 @@ def guard_value(f, npi: int, args: str):
 @functools.cache
 def folder(order: tuple):
     """``fold(code, c)``: the point's status after a stage gave ``c``: the first failure wins, or
-    with a model's ``status_order`` (most severe first) the more severe (model/ode.py ranks)."""
+    with a model's ``status_order`` (most severe first) the more severe (status.ranks)."""
     if not order:
         @jit_into_caller
         def fold(code, c):
@@ -153,9 +153,8 @@ def folder(order: tuple):
                 return c
             return code
         return fold
-    from ..model.ode import ranks
 
-    rank = ranks(order)
+    rank = st.ranks(order)
 
     @jit_into_caller
     def worse(code, c):

@@ -10,6 +10,7 @@ from typing import Callable
 import numpy as np
 
 from .. import status as st
+from ..status import ranks
 from ..errors import InputError
 from .spec import ModelSpec, Param, Setting, setting_value
 from .measure import FLOQUET_MARGIN, ClosedForm, Floquet, declared_at
@@ -68,19 +69,8 @@ def _mark_not_reproducible(status, moved, order) -> None:
         status[:] = np.where(moved & soft, st.NOT_REPRODUCIBLE, status)
 
 
-def ranks(order) -> np.ndarray:
-    """rank[code] for a model's ``status_order`` (most severe first): a listed status its position,
-    a status not listed -1 (above every listed one: an unexpected problem is shown, not hidden),
-    OK last."""
-    rank = np.full(max(st.MEANINGS) + 1, -1, dtype=np.int64)
-    for r, code in enumerate(order):
-        rank[int(code)] = r
-    rank[st.OK] = len(order)
-    return rank
-
-
 def worse(current, new, order):
-    """Element-wise the more severe of two status arrays in ``order`` (see ranks); equal ranks keep
+    """Element-wise the more severe of two status arrays in ``order`` (see status.ranks); equal ranks keep
     ``current``. Without an order: ``current`` where it is not OK, else ``new`` (first failure wins)."""
     new = np.broadcast_to(np.asarray(new, dtype=current.dtype), current.shape)
     if not order:
