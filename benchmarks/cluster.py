@@ -70,7 +70,7 @@ def main(points: int = 400_000, workers: int | None = None, chunk: int = 8192) -
             rows.append({"where": f"local, {threads} numba thread(s)", "seconds": seconds, "cpu": cpu,
                          "same": _same(ds, reference)})
         for w in range(1, workers + 1):
-            with LocalCluster(n_workers=w, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+            with LocalCluster(n_workers=w, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster:
                 address = cluster.scheduler_address
                 run(warm, output=tmp / "warm.h5", progress=False, restart=True, scheduler=address, threads=1)
                 seconds, cpu, ds = _timed_run(scene, tmp / f"dask{w}.h5", scheduler=address, threads=1)

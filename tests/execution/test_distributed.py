@@ -32,7 +32,7 @@ COMPARED = ("period", "period_exact", "v_max", "status", "n_steps", "n_rhs", "A"
 @pytest.fixture(scope="module")
 def local_cluster():
     # two worker processes of one task slot each (2-core CI machine); runs ask for one numba thread
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as c:
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as c:
         yield c
 
 

@@ -410,7 +410,7 @@ def test_dask_worker_runs_a_closed_form_user_model(tmp_path, monkeypatch):
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
     monkeypatch.chdir(elsewhere)
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as c:
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0") as c:
         ds = mechsweep.run(tmp_path / "s.toml", output=elsewhere / "d.h5", scheduler=c.scheduler_address, threads=1,
                            progress=False)
     assert ds.attrs["execution"].startswith("dask scheduler")

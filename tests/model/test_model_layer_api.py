@@ -238,7 +238,7 @@ def test_dask_worker_imports_the_user_model_file_relative_to_the_scene(tmp_path,
     elsewhere = tmp_path / "elsewhere" / "deeper"
     elsewhere.mkdir(parents=True)
     monkeypatch.chdir(elsewhere)
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as c:
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0") as c:
         ds = mechsweep.run(folder / "s.toml", output=elsewhere / "d.h5", scheduler=c.scheduler_address, threads=1,
                            progress=False)
     _check(ds)

@@ -85,7 +85,7 @@ def test_rms_scene_runs_on_a_dask_cluster_as_locally(in_tmp):
              "fixed": {"w": 1.0, "F": 1.0}, "solver": {"rtol": 1e-9, "atol": 1e-12},
              "storage": {"chunk_size": 4}}
     local = mechsweep.run(scene, output="data/runs/local.h5", progress=False)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as c:
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as c:
         remote = mechsweep.run(scene, output="data/runs/dask.h5", progress=False, scheduler=c.scheduler_address)
     for name in WANTED + ("status", "n_steps", "n_rhs"):
         np.testing.assert_array_equal(remote[name].values, local[name].values, err_msg=name)
