@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import h5py
 
-from ..errors import SYSTEM_ERRNOS, FileBusy, InputError, StoreError, os_error_text, why_os_error
+from ..errors import SYSTEM_ERRNOS, FileBusy, InputError, StoreError, file_kind, os_error_text, why_os_error
 from ..grid import plan_chunks
 from .assemble import assemble
 from .journal import Journal, partial_path
@@ -238,16 +238,6 @@ def _text(value) -> str:
     if isinstance(value, bytes):
         return value.decode(errors="replace")
     return value if isinstance(value, str) else str(value)
-
-
-def file_kind(mode: int) -> str:
-    """What a file system entry of this st_mode is, for a message."""
-    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"),
-                       (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a named pipe (FIFO)"),
-                       (stat.S_ISSOCK, "a socket"), (stat.S_ISREG, "a regular file")):
-        if test(mode):
-            return name
-    return "not a regular file"
 
 
 def _looks_like_text(path: Path) -> bool:
