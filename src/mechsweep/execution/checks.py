@@ -291,7 +291,11 @@ def check_free_space(scene: Scene, tmp: Path, written: int = 0) -> None:
 
 
 def _least_bytes(scene: Scene) -> int:
-    return 8 * scene.n_points * sum(int(np.prod(extra_shape(scene, name), dtype=np.int64)) for name in scene.outputs)
+    return 8 * scene.n_points * _values_per_point(scene)
+
+
+def _values_per_point(scene: Scene) -> int:
+    return sum(int(np.prod(extra_shape(scene, name), dtype=np.int64)) for name in scene.outputs)
 
 
 def existing_ancestor(path: Path) -> Path:
@@ -370,8 +374,7 @@ def bytes_per_point(scene: Scene) -> int:
     """Bytes of one grid point before compression: every requested output (with its extra
     dimensions, float64), status (int8), and for integrated outputs n_steps and n_rhs (int64).
     Only the integer variables are compressed, so the file is at most this size per point."""
-    values = sum(int(np.prod(extra_shape(scene, name), dtype=np.int64)) for name in scene.outputs)
-    return 8 * values + 1 + (16 if scene.solver is not None else 0)
+    return 8 * _values_per_point(scene) + 1 + (16 if scene.solver is not None else 0)
 
 
 def check_size(scene: Scene, final: Path, chunk_points: int, saved: int) -> None:

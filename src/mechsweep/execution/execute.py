@@ -1,9 +1,6 @@
-"""Execute a plan: compute its chunks with ``evaluate_chunk``, the one function a local run and a dask
-worker (cluster.py) both call; the local loop over a run's chunks, and the compile phase before it.
-(Not named ``compute``: that is the public ``mechsweep.compute``, which a submodule would shadow.)
-
-A chunk's values may be computed straight into the arrays of the dataset a run keeps in memory
-(``out``: views of its flat range), so that they are not copied again."""
+"""Execute a plan: ``evaluate_chunk``, the one function a local run and a dask worker (cluster.py)
+both call; the local loop over a run's chunks, and the compile phase before it. A chunk's values
+may be computed straight into the arrays of the dataset a run keeps in memory (``out``)."""
 from __future__ import annotations
 
 import numbers
@@ -107,10 +104,6 @@ def _kernel_key(plan: Plan) -> tuple:
             scene.solver.method if scene.solver is not None else None, plan.route)
 
 
-def clock() -> float:
-    return time.perf_counter()
-
-
 def shows_progress(progress: bool | None) -> bool:
     """Whether a progress bar is shown: ``progress``, or by default where a user watches: when
     stderr is a terminal, or in a Jupyter notebook (tqdm.auto draws it as a widget there)."""
@@ -155,7 +148,7 @@ def warm_up(plan: Plan, progress: bool | None, chunk: Chunk | None = None) -> fl
         print(f"mechsweep: {COMPILE_NOTE.format(model=plan.model)} ...", file=sys.stderr, flush=True)
 
     timer = threading.Timer(COMPILE_NOTE_AFTER, note) if shown else None
-    t0 = clock()
+    t0 = time.perf_counter()
     if timer is not None:
         timer.daemon = True
         timer.start()
@@ -164,7 +157,7 @@ def warm_up(plan: Plan, progress: bool | None, chunk: Chunk | None = None) -> fl
     finally:
         if timer is not None:
             timer.cancel()
-    seconds = clock() - t0
+    seconds = time.perf_counter() - t0
     _WARM.add(key)
     if noted.is_set():
         print(f"mechsweep: kernels compiled in {seconds:.1f} s", file=sys.stderr, flush=True)
@@ -178,12 +171,10 @@ LAUNCH_WAIT = 1.0
 
 class Launches:
     """The kernel launches of a run's chunks computed here, counted as they begin, so that the
-    writer thread starts on chunk k only once chunk k + 1's kernel runs: the writer's Python (the
-    journal file's npz and CRC, h5py's writes) then holds the GIL while the kernel, which releases
-    it, computes, instead of while the run's thread does the chunk boundary's Python (the status
-    checks, the next parameter rows, the launch), when both threads of the kernel wait for it.
-    ``end()``: no launch follows (the last chunk is written at once). Ordering only: the writer
-    waits at most LAUNCH_WAIT seconds, and what it writes and when it is synced are unchanged."""
+    writer thread starts on chunk k only once chunk k + 1's kernel runs: the writer's Python then
+    holds the GIL while the kernel (which releases it) computes, not while the run's thread does
+    the chunk boundary's Python. ``end()``: no launch follows. Ordering only: the writer waits at
+    most LAUNCH_WAIT seconds; what it writes and when it is synced are unchanged."""
 
     def __init__(self):
         self._n = 0
