@@ -99,10 +99,11 @@ _REASONS = {
 
 
 def file_kind(mode: int) -> str:
-    """What a file system entry of this st_mode is, for a message."""
-    for test, name in ((_stat.S_ISDIR, "a directory"), (_stat.S_ISCHR, "a character device"),
-                       (_stat.S_ISBLK, "a block device"), (_stat.S_ISFIFO, "a named pipe (FIFO)"),
-                       (_stat.S_ISSOCK, "a socket"), (_stat.S_ISREG, "a regular file")):
+    """What a file system entry of this st_mode (of stat, or of lstat) is, for a message."""
+    for test, name in ((_stat.S_ISLNK, "a symbolic link"), (_stat.S_ISDIR, "a directory"),
+                       (_stat.S_ISCHR, "a character device"), (_stat.S_ISBLK, "a block device"),
+                       (_stat.S_ISFIFO, "a named pipe (FIFO)"), (_stat.S_ISSOCK, "a socket"),
+                       (_stat.S_ISREG, "a regular file")):
         if test(mode):
             return name
     return "not a regular file"

@@ -225,7 +225,7 @@ def placing_problem(final: Path, scene: Scene, before: tuple | None) -> str | No
             what = ("a mechsweep benchmark dataset" if same is None else
                     "a dataset of a different scene")
     else:
-        what = "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
+        what = file_kind(mode)
     part = partial_path(final)
     return (f"{final} {'appeared' if before is None else 'changed'} while the run computed ({what}); a run replaces "
             "only the file its checks accepted when it started, or a dataset of the same scene, so it was left as "

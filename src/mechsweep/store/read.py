@@ -283,8 +283,7 @@ def check_journal_files(part: Path, contents: bool = True) -> None:
     if stat.S_ISREG(mode):  # an older version's one-file journal: Journal.read says so
         return
     if not stat.S_ISDIR(mode):
-        kind = "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
-        raise StoreError(f"{part} (the journal of unfinished runs) is {kind}, not a folder mechsweep made; "
+        raise StoreError(f"{part} (the journal of unfinished runs) is {file_kind(mode)}, not a folder mechsweep made; "
                          "move it away")
     if not contents:
         return
@@ -302,8 +301,7 @@ def _check_journal_kinds(part: Path) -> None:
     for name, want, test in (("run.json", "a file", stat.S_ISREG), ("chunks", "a folder", stat.S_ISDIR)):
         entry = part / name
         if os.path.lexists(entry) and not test(mode := os.lstat(entry).st_mode):
-            kind = "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
-            raise StoreError(f"{entry} is {kind}, not {want} as a run writes it; {RESTART}")
+            raise StoreError(f"{entry} is {file_kind(mode)}, not {want} as a run writes it; {RESTART}")
     for e in os.scandir(part):  # e.g. assembly.h5: a pipe there would block the run's last step
         if e.name not in ("run.json", "chunks") and not e.is_file(follow_symlinks=False):
             raise StoreError(f"{e.path} is {_lkind(e.path)}, not a file a run writes; {RESTART}")
@@ -324,8 +322,7 @@ def _check_journal_kinds(part: Path) -> None:
 
 
 def _lkind(path) -> str:
-    mode = os.lstat(path).st_mode
-    return "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
+    return file_kind(os.lstat(path).st_mode)
 
 
 def _check_run_json(path: Path) -> None:
