@@ -227,18 +227,8 @@ def compute(
         The scene, as for :func:`run`.
     output : str or os.PathLike, optional
         The dataset's path (default: the scene's ``[storage] path``).
-    resume, restart, overwrite : bool, optional
+    resume, restart, overwrite, threads, progress, scheduler, worker_timeout, models : optional
         As for :func:`run`.
-    threads : int, optional
-        numba's thread count (default: all cores).
-    progress : bool, optional
-        Show a progress bar (default: only when stderr is a terminal).
-    scheduler : str, optional
-        A dask.distributed scheduler's address, as for :func:`run`.
-    worker_timeout : float, optional
-        On a cluster: seconds to wait for a lost scheduler or with no worker.
-    models : Mapping, optional
-        Model name -> a model defined in Python, as for :func:`run`.
 
     Returns
     -------
