@@ -206,10 +206,9 @@ def output_state(final: Path) -> tuple | None:
 
 def placing_problem(final: Path, scene: Scene, before: tuple | None) -> str | None:
     """Why the finished dataset may not replace what is at ``final`` now, or None: nothing there,
-    what the checks accepted when the run started (``before``), or a dataset of the same scene
-    (the same values). Anything else came while the run computed (a file, a link, a folder, a
-    dataset of another scene) and is not the run's to replace, whatever --overwrite said about the
-    file of the start."""
+    what the checks accepted when the run started (``before``), or a dataset of the same scene.
+    Anything else came while the run computed and is not the run's to replace, whatever
+    --overwrite said about the file of the start."""
     now = output_state(final)
     if now is None or now == before:
         return None
@@ -234,10 +233,9 @@ def placing_problem(final: Path, scene: Scene, before: tuple | None) -> str | No
 
 
 def check_output_place(final: Path) -> None:
-    """Refuse an output inside a run's journal folder (``NAME.partial/``, or ``NAME.partial.discard/``
-    being deleted), where the run of NAME would find a file it did not write, or named as the
-    journal or lock of another output (``NAME.partial``, ``.NAME.lock``: that output's run would
-    take it for its own). Links are followed: the folder the file would be in counts."""
+    """Refuse an output inside a run's journal folder (``NAME.partial/``, ``NAME.partial.discard/``),
+    where the run of NAME would find a file it did not write, or named as another output's journal
+    or lock (``NAME.partial``, ``.NAME.lock``). Links are followed: the folder the file is in counts."""
     suffixes = (".partial", ".partial.discard")
     folder = Path(os.path.realpath(final.parent))
     for f in (folder, *folder.parents):

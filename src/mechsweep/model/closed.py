@@ -280,15 +280,7 @@ def check(model: ClosedFormModel, ref: str, file: str) -> None:
     results = []
     for fill in (math.nan, _SENTINEL):
         args = _probe_arrays(model, p.copy(), fill)
-        try:
-            with np.errstate(all="ignore"):
-                code = func(*args, *[a.copy() for a in data])
-        except IndexError as exc:
-            raise InputError(f"{label}: compute indexes beyond its arrays at the probe point p = {p.tolist()} "
-                             f"({sizes}): {load.where(exc, file)}") from None
-        except Exception as exc:
-            raise InputError(f"{label}: compute raised at the probe point p = {p.tolist()}: "
-                             f"{load.where(exc, file)}") from None
+        code = load.probe_call(label, "compute", func, (*args, *[a.copy() for a in data]), p, sizes, file)
         if isinstance(code, (bool, np.bool_)) or not isinstance(code, (int, np.integer)) \
                 or int(code) not in st.MEANINGS or int(code) < 0:
             raise InputError(f"{label}: compute returned {code!r} at the probe point p = {p.tolist()}; expected "

@@ -201,6 +201,20 @@ def where(exc: BaseException, file: str, func=None) -> str:
     return f"{msg} ({file}, line {line})" if line else msg
 
 
+def probe_call(label: str, what: str, func, args: tuple, p: np.ndarray, sizes: str, file: str, own=None):
+    """``func(*args)`` at the probe point ``p``, an exception an InputError naming the function and
+    the line of the user's file (``sizes``: what the model declares, for an IndexError)."""
+    try:
+        with np.errstate(all="ignore"):
+            return func(*args)
+    except IndexError as exc:
+        raise InputError(f"{label}: {what} indexes beyond its arrays at the probe point p = {p.tolist()} "
+                         f"({sizes}): {where(exc, file, own)}") from None
+    except Exception as exc:
+        raise InputError(f"{label}: {what} raised at the probe point p = {p.tolist()}: "
+                         f"{where(exc, file, own)}") from None
+
+
 def probe_params(model) -> np.ndarray:
     """One admissible parameter point: the default, else 1 clipped into the declared range."""
     values = []

@@ -235,16 +235,8 @@ def check(model, ref: str, file: str) -> None:
 
     def probe(what, func, args):
         own = getattr(func, "py_func", func)
-        func = load.with_engine_helpers(own)  # the user's numba helpers as the kernel runs them
-        try:
-            with np.errstate(all="ignore"):
-                return func(*args)
-        except IndexError as exc:
-            raise InputError(f"{label}: {what} indexes beyond its arrays at the probe point p = {p.tolist()} "
-                             f"({layout}): {load.where(exc, file, own)}") from None
-        except Exception as exc:
-            raise InputError(f"{label}: {what} raised at the probe point p = {p.tolist()}: "
-                             f"{load.where(exc, file, own)}") from None
+        # the user's numba helpers as the kernel runs them
+        return load.probe_call(label, what, load.with_engine_helpers(own), args, p, layout, file, own)
 
     for what in ("classify", "prepare"):
         func = getattr(model, what, None)

@@ -270,11 +270,9 @@ def _open_partial(part: Path) -> xr.Dataset:
 
 def check_journal_files(part: Path, contents: bool = True) -> None:
     """Raise StoreError if the journal folder ``part`` (when it exists) or, with ``contents``, what
-    it holds is not of the kind a run makes: a folder, a file run.json that a run wrote (verified:
-    its entries and, from journal format 3 on, its checksum), a folder chunks of files. A pipe or a
-    device there would block or be replaced. Without ``contents`` (--restart, which discards what
-    the folder holds) only the folder itself is checked. The message names what is damaged and
-    that --restart discards the journal."""
+    it holds is not what a run makes: a folder, a verified run.json, a folder chunks of files (a
+    pipe or a device there would block or be replaced). Without ``contents`` (--restart discards
+    what the folder holds) only the folder itself is checked."""
     from .journal import RESTART
 
     if not os.path.lexists(part):
