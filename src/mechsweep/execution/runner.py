@@ -14,7 +14,6 @@ import datetime as _dt
 import os
 import signal
 import sys
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Mapping
@@ -620,7 +619,7 @@ def _save_chunks(plan: Plan, sink, results, already: int, progress, compile_s: f
 
     bar = make_progress(plan.scene, progress, already)
     pending = None
-    clock = {"last": time.perf_counter(), "compile": compile_s}
+    clock = {"last": execute.clock(), "compile": compile_s}
     solver = plan.solver is not None
 
     def write(chunk, result, seq):
@@ -633,7 +632,7 @@ def _save_chunks(plan: Plan, sink, results, already: int, progress, compile_s: f
         if clock["compile"]:
             arrays[COMPILE_KEY] = np.float64(clock["compile"])
             clock["compile"] = 0.0
-        now = time.perf_counter()  # the wall time up to this chunk is saved with it (survives a kill)
+        now = execute.clock()  # the wall time up to this chunk is saved with it (survives a kill)
         sink.save(chunk, arrays, now - clock["last"])
         clock["last"] = now
 
