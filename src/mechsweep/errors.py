@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import errno as _errno
 import signal as _signal
+import stat as _stat
 from pathlib import Path
 
 
@@ -95,6 +96,17 @@ _REASONS = {
     "EFBIG": "file too large (file size limit, ulimit -f)",
     "EIO": "I/O error (EIO)",
 }
+
+
+def file_kind(mode: int) -> str:
+    """What a file system entry of this st_mode (of stat, or of lstat) is, for a message."""
+    for test, name in ((_stat.S_ISLNK, "a symbolic link"), (_stat.S_ISDIR, "a directory"),
+                       (_stat.S_ISCHR, "a character device"), (_stat.S_ISBLK, "a block device"),
+                       (_stat.S_ISFIFO, "a named pipe (FIFO)"), (_stat.S_ISSOCK, "a socket"),
+                       (_stat.S_ISREG, "a regular file")):
+        if test(mode):
+            return name
+    return "not a regular file"
 
 
 def why_os_error(code: int | None, strerror: str = "") -> str:

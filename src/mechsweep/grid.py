@@ -115,23 +115,19 @@ def chunk_target(scene: Scene, many: bool = True) -> int:
     return target
 
 
-INTEGRATED_CHUNK = 65536  # points of a default chunk of integrated outputs (before the caps below)
+INTEGRATED_CHUNK = 65536  # points of a default chunk of integrated outputs (about 40 ms of Duffing periods on 2 cores)
 CHUNK_VALUES = 2**22  # float64 values of one chunk's outputs (32 MiB), whatever their extra dims
 
 
 def default_chunk_target(scene: Scene, many: bool = True) -> int:
-    """Points per chunk: a few seconds of work, many chunks for the progress bar and resume,
-    and at most CHUNK_VALUES output values (a 360-position curve counts 360 per point).
-    ``many=False`` (a run without a progress bar): not cut into at least 20 chunks. Small chunks
-    cost the lane kernel CPU: each launch ends with rounds in which each thread's lanes run idle
-    as the last points finish, and each is a barrier for the threads
-    (docs/performance-duffing.md, `python benchmarks/duffing_breakdown.py`)."""
+    """Points per chunk: many chunks for the progress bar and resume, and at most CHUNK_VALUES
+    output values (a 360-position curve counts 360 per point). ``many=False`` (no progress bar):
+    not cut into at least 20 chunks. Each chunk costs a kernel launch (whose lanes idle at its end,
+    a barrier for the threads), a journal file with its fsyncs and some Python: 8192-point chunks
+    spent 15-20 % of a 2*10^5-point run's CPU on them, 32768-point chunks still 5 % of a
+    10^6-point run's (docs/performance-duffing.md, `python benchmarks/duffing_breakdown.py`)."""
     if scene.storage.chunk_size:
         return scene.storage.chunk_size
-    # integrated: 65536 points (about 40 ms of a Duffing period on 2 cores); each chunk costs a
-    # kernel launch (its lanes idle at its end), a journal file with its fsyncs and some Python:
-    # 8192-point chunks spent 15-20 % of a 2*10^5-point run's CPU on them, and 32768-point chunks
-    # still 5 % of a 10^6-point run's (docs/performance-duffing.md, `benchmarks/duffing_breakdown.py`)
     per_chunk = INTEGRATED_CHUNK if scene.solver is not None else 262_144
     settings = scene.solver.settings if scene.solver is not None else {}
     values_per_point = sum(

@@ -78,8 +78,9 @@ DESCRIPTIONS: dict[int, str] = {
                       "claims (or the second integration failed): the value is stored but its trailing digits "
                       "are not meaningful (chaotic or transient-dominated motion)",
     USER_ERROR: "the model's own code raised at this point (an exception in a function of a model declared on "
-                "the model layer, inside the compiled kernel; its message is lost), or returned a status code "
-                "that is none of these: its outputs are NaN",
+                "the model layer, inside the compiled kernel), or returned a status code that is none of these: "
+                "its outputs are NaN; the run replays the first such point in plain Python and warns "
+                "(UserModelWarning) with the exception's message, its file and line, and the point",
     OUT_OF_RANGE: "the inputs are of such magnitudes that a quantity the outputs are computed from would "
                   "overflow or underflow double precision (beyond about 1e308 or below about 1e-308): the "
                   "outputs it affects are NaN (each model's notes say where)",

@@ -297,6 +297,13 @@ def test_user_error_warnings_name_a_categorical_parameter_by_its_choice():
     assert "rhs at t = 0 raised" in texts[0] and "compute raised" in texts[1], texts
 
 
+def test_the_user_error_description_says_where_the_message_goes():
+    """The status description stored with every dataset points to the warning that carries the
+    exception's message (the replay above), not to a message that is lost."""
+    text = st.DESCRIPTIONS[st.USER_ERROR]
+    assert "lost" not in text and "UserModelWarning" in text and "file and line" in text, text
+
+
 def test_a_status_code_that_is_none_of_mechsweeps_is_a_user_error(in_tmp):
     """compute returns 99 (or -1, PENDING's code) at designs the probe (k = 1) did not see, after writing
     its row: those designs are USER_ERROR with NaN outputs, not stored as codes no reader knows."""

@@ -74,6 +74,18 @@ def test_all_problems_reported_together():
     assert problems(mutate).count("\n") >= 1
 
 
+def test_a_key_that_is_not_text_is_reported_not_a_traceback():
+    """A dict scene may have keys TOML cannot: an unknown section or key that is a number is
+    reported like any unknown key (it was a TypeError from the message's formatting)."""
+    data = copy.deepcopy(SMALL_DUFFING)
+    data[3] = {}
+    data["scene"][7] = 1
+    with pytest.raises(SceneError) as info:
+        load_scene(data)
+    assert any(p.startswith("3: unknown section 3") for p in info.value.problems), info.value.problems
+    assert any(p.startswith("scene.7: unknown key 7") for p in info.value.problems), info.value.problems
+
+
 def test_categorical_parameter():
     data = {"scene": {"name": "t", "model": "torsional_circuit", "outputs": ["chi"]},
             "axes": {"spring": ["tension", "compresion"], "lambda2": {"start": 0, "stop": 1, "num": 3}},

@@ -318,14 +318,7 @@ def locate(scene, crit: Criterion, rows: np.ndarray, col: int, grid: np.ndarray,
         code_b = grid_status[br_line[bis], br_hi[bis]]
         active = np.ones(bis.size, dtype=bool)
         while active.any():
-            idx = np.nonzero(active)[0]
-            j = bis[idx]
-            done = (B[j] - A[j]) <= tol_of(A[j], B[j])
-            bound[j[done]] = PARAMETER
-            over = ~done & (n_eval[j] >= MAX_EVALUATIONS)
-            bound[j[over]] = BUDGET
-            active[idx[done | over]] = False
-            idx = np.nonzero(active)[0]
+            idx = _retire(active, bis, A, B, n_eval, bound, tol_of)
             if not idx.size:
                 break
             j = bis[idx]
@@ -354,14 +347,7 @@ def locate(scene, crit: Criterion, rows: np.ndarray, col: int, grid: np.ndarray,
         probe_h = np.full(ill.size, np.nan)
         active = np.ones(ill.size, dtype=bool)
         while active.any():
-            idx = np.nonzero(active)[0]
-            j = ill[idx]
-            done = (B[j] - A[j]) <= tol_of(A[j], B[j])
-            bound[j[done]] = PARAMETER
-            over = ~done & (n_eval[j] >= MAX_EVALUATIONS)
-            bound[j[over]] = BUDGET
-            active[idx[done | over]] = False
-            idx = np.nonzero(active)[0]
+            idx = _retire(active, ill, A, B, n_eval, bound, tol_of)
             if not idx.size:
                 break
             probing = ~np.isnan(probe_x[idx])
@@ -469,6 +455,19 @@ def locate(scene, crit: Criterion, rows: np.ndarray, col: int, grid: np.ndarray,
     res.evaluations[br_line, slot] = n_eval
     res.calls, res.points = ev.calls, ev.points
     return res
+
+
+def _retire(active, which, A, B, n_eval, bound, tol_of) -> np.ndarray:
+    """End the active brackets ``which[active]`` within the tolerance (PARAMETER) or out of budget
+    (BUDGET); returns the positions still active."""
+    idx = np.nonzero(active)[0]
+    j = which[idx]
+    done = (B[j] - A[j]) <= tol_of(A[j], B[j])
+    bound[j[done]] = PARAMETER
+    over = ~done & (n_eval[j] >= MAX_EVALUATIONS)
+    bound[j[over]] = BUDGET
+    active[idx[done | over]] = False
+    return np.nonzero(active)[0]
 
 
 def _band_edges(ev, br_line, idx, A, B, s_a, s_b, g_a, g_b, ang_a, ang_b, n_eval, bound, loc, tol_of, accuracy,

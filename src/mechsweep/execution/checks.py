@@ -206,10 +206,9 @@ def output_state(final: Path) -> tuple | None:
 
 def placing_problem(final: Path, scene: Scene, before: tuple | None) -> str | None:
     """Why the finished dataset may not replace what is at ``final`` now, or None: nothing there,
-    what the checks accepted when the run started (``before``), or a dataset of the same scene
-    (the same values). Anything else came while the run computed (a file, a link, a folder, a
-    dataset of another scene) and is not the run's to replace, whatever --overwrite said about the
-    file of the start."""
+    what the checks accepted when the run started (``before``), or a dataset of the same scene.
+    Anything else came while the run computed and is not the run's to replace, whatever
+    --overwrite said about the file of the start."""
     now = output_state(final)
     if now is None or now == before:
         return None
@@ -225,7 +224,7 @@ def placing_problem(final: Path, scene: Scene, before: tuple | None) -> str | No
             what = ("a mechsweep benchmark dataset" if same is None else
                     "a dataset of a different scene")
     else:
-        what = "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
+        what = file_kind(mode)
     part = partial_path(final)
     return (f"{final} {'appeared' if before is None else 'changed'} while the run computed ({what}); a run replaces "
             "only the file its checks accepted when it started, or a dataset of the same scene, so it was left as "
@@ -234,10 +233,9 @@ def placing_problem(final: Path, scene: Scene, before: tuple | None) -> str | No
 
 
 def check_output_place(final: Path) -> None:
-    """Refuse an output inside a run's journal folder (``NAME.partial/``, or ``NAME.partial.discard/``
-    being deleted), where the run of NAME would find a file it did not write, or named as the
-    journal or lock of another output (``NAME.partial``, ``.NAME.lock``: that output's run would
-    take it for its own). Links are followed: the folder the file would be in counts."""
+    """Refuse an output inside a run's journal folder (``NAME.partial/``, ``NAME.partial.discard/``),
+    where the run of NAME would find a file it did not write, or named as another output's journal
+    or lock (``NAME.partial``, ``.NAME.lock``). Links are followed: the folder the file is in counts."""
     suffixes = (".partial", ".partial.discard")
     folder = Path(os.path.realpath(final.parent))
     for f in (folder, *folder.parents):
@@ -291,7 +289,11 @@ def check_free_space(scene: Scene, tmp: Path, written: int = 0) -> None:
 
 
 def _least_bytes(scene: Scene) -> int:
-    return 8 * scene.n_points * sum(int(np.prod(extra_shape(scene, name), dtype=np.int64)) for name in scene.outputs)
+    return 8 * scene.n_points * _values_per_point(scene)
+
+
+def _values_per_point(scene: Scene) -> int:
+    return sum(int(np.prod(extra_shape(scene, name), dtype=np.int64)) for name in scene.outputs)
 
 
 def existing_ancestor(path: Path) -> Path:
@@ -370,8 +372,7 @@ def bytes_per_point(scene: Scene) -> int:
     """Bytes of one grid point before compression: every requested output (with its extra
     dimensions, float64), status (int8), and for integrated outputs n_steps and n_rhs (int64).
     Only the integer variables are compressed, so the file is at most this size per point."""
-    values = sum(int(np.prod(extra_shape(scene, name), dtype=np.int64)) for name in scene.outputs)
-    return 8 * values + 1 + (16 if scene.solver is not None else 0)
+    return 8 * _values_per_point(scene) + 1 + (16 if scene.solver is not None else 0)
 
 
 def check_size(scene: Scene, final: Path, chunk_points: int, saved: int) -> None:

@@ -1,20 +1,15 @@
 """Chunks as tasks on a dask.distributed cluster.
 
-Each task carries the run's plan (plan.py: it pickles with the scene's text, not the Scene) and one
-chunk; a worker loads the scene once (cached per process) and computes the chunk from the plan with
-the function a local run calls (execute.evaluate_chunk: the same kernels, routes and status rules)
-on its own threads, and returns the chunk's arrays. The client that submitted the tasks is the only
-writer: it saves each result to the run's journal as it arrives (in any order), so a failure loses at
-most the chunks in flight. At most IN_FLIGHT_PER_THREAD tasks per worker thread are submitted at a
-time, so the client's memory stays bounded by that many chunks, whatever the grid. If a worker dies,
-the scheduler runs its tasks again on another worker; a chunk is saved once, when its result
-arrives, whichever worker made it. If the scheduler goes away (its tasks are cancelled), does not
-answer, or has no worker at all for ``worker_timeout`` seconds, the run stops with ``ClusterLost``,
-naming the scheduler and the chunks lost; the chunks already saved stay in the journal for a --resume.
+Each task carries the run's plan and one chunk; a worker computes it with the function a local run
+calls (execute.evaluate_chunk) and returns the chunk's arrays. The client is the only writer: it
+saves each result to the journal as it arrives, so a failure loses at most the chunks in flight,
+of which there are at most IN_FLIGHT_PER_THREAD per worker thread (the client's memory stays
+bounded whatever the grid). A dead worker's tasks run again elsewhere; a chunk is saved once. A
+scheduler that goes away, does not answer, or has no worker for ``worker_timeout`` seconds stops
+the run with ``ClusterLost``; the chunks saved stay in the journal for a --resume.
 
-Needs the optional packages ``dask`` and ``distributed`` (``pip install "mechsweep[distributed]"``)
-on the client and on every worker, with the same mechsweep version.
-"""
+Needs ``dask`` and ``distributed`` (``pip install "mechsweep[distributed]"``) on the client and on
+every worker, with the same mechsweep version."""
 from __future__ import annotations
 
 from concurrent.futures import CancelledError
@@ -165,10 +160,7 @@ def _disconnect(client, live: dict, quiet: bool, cancel: bool, close: bool = Tru
 
 def disconnect(client) -> None:
     """Close a client made by ``connect``; a scheduler that has gone meanwhile is not waited for."""
-    try:
-        client.close(timeout=CONNECT_TIMEOUT_S)
-    except Exception:
-        pass
+    _disconnect(client, {}, quiet=False, cancel=False)
 
 
 def _lost(live: dict) -> str:

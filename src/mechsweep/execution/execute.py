@@ -1,9 +1,6 @@
-"""Execute a plan: compute its chunks with ``evaluate_chunk``, the one function a local run and a dask
-worker (cluster.py) both call; the local loop over a run's chunks, and the compile phase before it.
-(Not named ``compute``: that is the public ``mechsweep.compute``, which a submodule would shadow.)
-
-A chunk's values may be computed straight into the arrays of the dataset a run keeps in memory
-(``out``: views of its flat range), so that they are not copied again."""
+"""Execute a plan: ``evaluate_chunk``, the one function a local run and a dask worker (cluster.py)
+both call; the local loop over a run's chunks, and the compile phase before it. A chunk's values
+may be computed straight into the arrays of the dataset a run keeps in memory (``out``)."""
 from __future__ import annotations
 
 import numbers
@@ -108,6 +105,7 @@ def _kernel_key(plan: Plan) -> tuple:
 
 
 def clock() -> float:
+    """The run's clock (a seam: tests move it on to time the compile phase apart)."""
     return time.perf_counter()
 
 
@@ -178,12 +176,10 @@ LAUNCH_WAIT = 1.0
 
 class Launches:
     """The kernel launches of a run's chunks computed here, counted as they begin, so that the
-    writer thread starts on chunk k only once chunk k + 1's kernel runs: the writer's Python (the
-    journal file's npz and CRC, h5py's writes) then holds the GIL while the kernel, which releases
-    it, computes, instead of while the run's thread does the chunk boundary's Python (the status
-    checks, the next parameter rows, the launch), when both threads of the kernel wait for it.
-    ``end()``: no launch follows (the last chunk is written at once). Ordering only: the writer
-    waits at most LAUNCH_WAIT seconds, and what it writes and when it is synced are unchanged."""
+    writer thread starts on chunk k only once chunk k + 1's kernel runs: the writer's Python then
+    holds the GIL while the kernel (which releases it) computes, not while the run's thread does
+    the chunk boundary's Python. ``end()``: no launch follows. Ordering only: the writer waits at
+    most LAUNCH_WAIT seconds; what it writes and when it is synced are unchanged."""
 
     def __init__(self):
         self._n = 0

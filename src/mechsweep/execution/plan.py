@@ -1,21 +1,15 @@
 """Scene -> Plan: what a run computes and how, decided once, before any chunk runs.
 
-A :class:`Plan` holds every decision a run makes about its computation: the outputs it stores and
-those they need (computed, not stored), the model's measurements and closed forms behind them, the
-solver settings as plain values, the kernel route of each kernel family that has a choice
-("lanes": points integrated side by side, or "point": one at a time; bitwise the same results), and
-the cut of the grid into chunks. The runner makes it once; every chunk is computed from it, here or
-on a dask worker (a plan pickles without its Scene, which a worker loads again from the scene's
-text), and nothing is decided again per chunk. Its text form (``Plan.text``, JSON) is stored with
-the run: in the journal and as the dataset's ``plan`` attribute.
+A :class:`Plan` holds the outputs stored and those they need, the model's measurements and closed
+forms behind them, the solver settings as plain values, the kernel route of each kernel family
+("lanes": points side by side, or "point": one at a time; bitwise the same results) and the cut
+of the grid into chunks. Every chunk is computed from it, here or on a dask worker (a plan pickles
+without its Scene: a worker loads it again from the scene's text). ``Plan.text`` (JSON) is stored
+in the journal and as the dataset's ``plan`` attribute.
 
-The route is chosen by one rule, :func:`choose_route`, from the run's size and a record that
-mechsweep keeps itself: the engine writes a small file next to a lane kernel's module in the cache
-folder once that kernel has run (engine/kernels.py, ``record_compiled``), so a later process knows
-that the faster route costs it no compile.
-
-This module imports nothing of the runner or the store.
-"""
+The route is chosen by :func:`choose_route`, from the run's size and a record mechsweep keeps
+itself: the engine notes in the cache folder when a lane kernel has run (engine/kernels.py,
+``record_compiled``), so that a later process knows the faster route costs it no compile."""
 from __future__ import annotations
 
 import functools

@@ -1,17 +1,12 @@
-"""Run a scene: one route for every run (about 700 lines: the route, its sinks and the run's
-end, read together).
+"""Run a scene: scene -> plan (plan.py) -> chunks computed here (execute.py) or on a dask cluster
+(cluster.py) -> a sink (about 700 lines: the route, its sinks and the run's end, read together).
 
-    scene -> plan (plan.py: what to compute and how, once) -> chunks -> compute (execute.py here, or
-    cluster.py on a dask cluster: the same evaluate_chunk) -> a sink
-
-The sink of a run with an output file (the CLI, ``compute``, ``run(output=path)``) is the journal of
-finished chunks (store/journal.py: crash-safe, resumable), then the dataset assembled from it
-(store/assemble.py) and moved into place by one rename. ``run(output=None)`` is the same route into
-a sink in memory (store.assemble.MemorySink), and so is the dataset ``run(output=path)`` returns: its
-chunks are computed into the dataset's arrays, saved to the journal, and written into the file while
-the next chunk computes (store.assemble.Early), so that each chunk is written once into each place
-that needs it, and neither copied nor read back. What a run checks before it writes anything is in
-checks.py; what it says and keeps when it stops, in stopping.py."""
+A run with an output file saves each chunk to the journal (store/journal.py: crash-safe,
+resumable), then assembles the dataset from it and moves it into place by one rename; the dataset
+``run(output=path)`` returns is also kept in memory and written into the file while the next chunk
+computes (store.assemble: MemorySink, Early). ``run(output=None)`` is the same route into a
+MemorySink alone. The checks before anything is written are in checks.py; what a stopped run says
+and keeps, in stopping.py."""
 from __future__ import annotations
 
 import contextlib
@@ -231,18 +226,8 @@ def compute(
         The scene, as for :func:`run`.
     output : str or os.PathLike, optional
         The dataset's path (default: the scene's ``[storage] path``).
-    resume, restart, overwrite : bool, optional
+    resume, restart, overwrite, threads, progress, scheduler, worker_timeout, models : optional
         As for :func:`run`.
-    threads : int, optional
-        numba's thread count (default: all cores).
-    progress : bool, optional
-        Show a progress bar (default: only when stderr is a terminal).
-    scheduler : str, optional
-        A dask.distributed scheduler's address, as for :func:`run`.
-    worker_timeout : float, optional
-        On a cluster: seconds to wait for a lost scheduler or with no worker.
-    models : Mapping, optional
-        Model name -> a model defined in Python, as for :func:`run`.
 
     Returns
     -------
@@ -257,16 +242,12 @@ def compute(
 
 def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, scheduler, worker_timeout, overwrite,
                   models, keep: bool | None) -> tuple[RunSummary, MemorySink | None]:
-    """``compute``, and with ``keep`` (True, or None for a dataset of at most store.LOAD_LIMIT_BYTES)
-    the dataset in memory, filled as the file is written (store.assemble.MemorySink; None when the run computed
-    nothing: a resume that found it finished)."""
+    """``compute``, and with ``keep`` (True, or None up to store.LOAD_LIMIT_BYTES) the dataset in memory,
+    filled as the file is written (None when a resume found the run finished)."""
     if resume and restart:
         raise InputError("resume and restart (--resume --restart) together are refused: --resume keeps the "
                          "finished chunks of an unfinished run, --restart discards them; choose one")
-    if models is not None and not isinstance(models, Mapping):
-        raise InputError(f"models must be a mapping of model name -> OdeModel, got {type(models).__name__}")
-    scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path, models=models)
-    _warn_settings(scene)
+    scene = _scene(scene_or_path, models)
     if output is not None and str(output).endswith(("/", os.sep)):
         raise StoreError(f"output path {output} ends with a path separator; give a file path such as "
                          f"{Path(output) / 'run.h5'}")
@@ -342,15 +323,19 @@ def _compute_file(scene_or_path, *, output, resume, restart, threads, progress, 
     return RunSummary(final, _sizes(scene), counts, *times), memory
 
 
-def _warn_settings(scene: Scene) -> None:
-    """A SettingsWarning for each of the scene's accepted but suspicious solver settings."""
+def _scene(scene_or_path, models: Mapping | None) -> Scene:
+    """The scene of a run, with a SettingsWarning for each accepted but suspicious solver setting."""
     import warnings
 
     from ..errors import SettingsWarning
     from ..scene import solver_warnings
 
+    if models is not None and not isinstance(models, Mapping):
+        raise InputError(f"models must be a mapping of model name -> OdeModel, got {type(models).__name__}")
+    scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path, models=models)
     for text in solver_warnings(scene):
         warnings.warn(text, SettingsWarning, stacklevel=4)
+    return scene
 
 
 def _journal_target(scene: Scene, final: Path) -> int | None:
@@ -375,11 +360,8 @@ def _journal_target(scene: Scene, final: Path) -> int | None:
 
 def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, scheduler, load, worker_timeout,
                    overwrite, models) -> xr.Dataset:
-    """``run(output=None)``: the route of every run into a sink in memory (store.assemble.MemorySink, described
-    by the code that describes a file, store.write.define), computed here by the kernels the file route
-    uses (a point's result does not depend on the chunk it is in: bitwise the values the file route
-    stores). Nothing is written: no file, journal, lock or folder, and no signal handler is installed
-    (Ctrl-C raises KeyboardInterrupt; nothing is kept)."""
+    """``run(output=None)``: the route of every run into a MemorySink, bitwise the values the file route
+    stores. Nothing is written (no file, journal, lock or folder) and no signal handler is installed."""
     from ..store.assemble import time_attrs
 
     given = [name for name, value in (("resume", resume), ("restart", restart), ("overwrite", overwrite))
@@ -388,10 +370,7 @@ def _run_in_memory(scene_or_path, *, resume, restart, threads, progress, schedul
     if given:
         raise InputError(f"output=None (the in-memory route) computes here and writes nothing: {', '.join(given)} "
                          "does not apply to it; give an output path to use it")
-    if models is not None and not isinstance(models, Mapping):
-        raise InputError(f"models must be a mapping of model name -> OdeModel, got {type(models).__name__}")
-    scene = scene_or_path if isinstance(scene_or_path, Scene) else load_scene(scene_or_path, models=models)
-    _warn_settings(scene)
+    scene = _scene(scene_or_path, models)
     if scene.execution.scheduler:
         raise InputError(f"output=None (the in-memory route) runs here; the scene's [execution] scheduler "
                          f"{scene.execution.scheduler} is not used by it: give an output path to run on the cluster")
@@ -455,8 +434,7 @@ def _sizes(scene: Scene) -> dict:
 
 
 def _memory_times(memory: MemorySink) -> tuple[float, float, float]:
-    """(wall, compile, compute) seconds, as _times reads them from the file, from the dataset in
-    memory (store.assemble gives it the file's attributes)."""
+    """(wall, compile, compute) seconds, as _times reads them from the file."""
     attrs = memory.store.attrs
     return float(attrs["wall_time_s"]), float(attrs["compile_time_s"]), float(attrs["compute_time_s"])
 
@@ -474,7 +452,7 @@ def _times(final: Path) -> tuple[float, float, float]:
 
 
 def _connect(scheduler: str):
-    from .cluster import connect
+    from .cluster import connect  # dask is imported only for a run on a cluster
 
     return connect(scheduler)
 
@@ -488,12 +466,10 @@ def _disconnect(client) -> None:
 def _compute(plan: Plan, final: Path, restart: bool, threads, progress, scheduler, signals: "Signals",
              worker_timeout: float, client=None, keep: bool = False, before: tuple | None = None
              ) -> tuple[dict[int, int], MemorySink | None]:
-    """The route into the file sink: compute the missing chunks into the journal, then assemble the
-    dataset; returns the points per status code, and with ``keep`` the dataset in memory, filled as
-    the file was written (store.assemble.MemorySink). Chunk files that do not verify (found now, or while
-    assembling) are removed and computed again. ``client``: a connected dask client when ``scheduler``
-    is given. ``before``: what was at ``final`` when the checks passed (``output_state``), the only
-    file the dataset replaces besides a dataset of the same scene."""
+    """The route into the file sink: the missing chunks into the journal, then the dataset assembled;
+    returns the points per status code and, with ``keep``, the dataset in memory. Chunk files that do
+    not verify are removed and computed again. ``before``: what was at ``final`` when the checks
+    passed (``output_state``), the only file the dataset replaces besides one of the same scene."""
     scene, chunks = plan.scene, plan.chunks
     part = partial_path(final)
     journal = Journal.read(part) if part.exists() and not restart else None
@@ -517,9 +493,8 @@ def _compute(plan: Plan, final: Path, restart: bool, threads, progress, schedule
                 attrs = {**journal.meta["attrs"], "plan": plan.text(), "execution": where}
                 if not scheduler:
                     attrs["threads"] = _jit.num_threads()
-                # A fresh run that returns its dataset (memory) writes its file while the chunks are
-                # computed (store.assemble.Early: the writer thread, overlapping the kernels); a resumed
-                # one (its history says when it was finished) is assembled at the end.
+                # a fresh run that returns its dataset writes its file while the chunks compute; a
+                # resumed one (its history says when it was finished) is assembled at the end
                 if memory is not None and todo and not resumed and not done.any():
                     early = Early(journal.folder / ASSEMBLY, scene, lay, attrs)
                 _route(plan, todo, _FileSink(journal, memory, early), progress=progress, scheduler=scheduler,
@@ -544,9 +519,8 @@ def _compute(plan: Plan, final: Path, restart: bool, threads, progress, schedule
 
 
 class _FileSink:
-    """The sink of a run with an output file: each chunk saved to the journal (crash-safe, resumable),
-    and, for a run that returns its dataset, kept in memory (``memory``: the chunk was computed into its
-    arrays) and written into the dataset's file at once (``early``, store.assemble.Early)."""
+    """The sink of a run with an output file: each chunk saved to the journal and, for a run that
+    returns its dataset, kept in ``memory`` and written into the dataset's file at once (``early``)."""
 
     background = True  # journal and HDF5 writes run in a writer thread, beside the next chunk's kernel
 
@@ -571,9 +545,9 @@ class _FileSink:
 
 def _route(plan: Plan, todo: list[Chunk], sink, *, progress, scheduler: str | None = None, threads=None,
            client=None, worker_timeout: float | None = None, signals: "Signals | None" = None) -> float:
-    """Every run's route from its plan to its sink: the chunks ``todo`` computed here (execute.py: the
-    kernels compiled or loaded first, timed apart) or on the dask cluster ``scheduler`` (cluster.py,
-    the same evaluate_chunk), each saved to ``sink`` as it arrives. Returns the compile phase's seconds."""
+    """Every run's route from its plan to its sink: the chunks ``todo`` computed here (the kernels
+    compiled first, timed apart) or on the dask cluster ``scheduler``, each saved to ``sink`` as it
+    arrives. Returns the compile phase's seconds."""
     local = scheduler is None
     compile_s = execute.warm_up(plan, progress, todo[0]) if todo and local else 0.0
     launches = execute.Launches() if local else None
@@ -603,12 +577,10 @@ ASSEMBLY = "assembly.h5"
 def _finish(journal: Journal, scene: Scene, chunks, final: Path, attrs: dict,
             signals: "Signals", memory: MemorySink | None = None, early: Early | None = None,
             before: tuple | None = None) -> tuple[list[BadChunk], dict[int, int]]:
-    """Assemble the dataset next to the journal (or complete ``early``, the file written while the
-    chunks were computed), move it into place by one rename, drop the journal. Signals wait until a
-    chunk is written (the files are closed before the run stops). Returns the chunk files that did
-    not verify (then nothing is moved into place) and the points per status. What is at ``final``
-    is checked again right before the rename (``placing_problem``): a file that appeared there
-    while the run computed is not replaced (StoreError, the journal kept)."""
+    """Assemble the dataset next to the journal (or complete ``early``), move it into place by one
+    rename, drop the journal; signals wait until the files are closed. Returns the chunk files that
+    did not verify (then nothing is moved) and the points per status. A file that appeared at
+    ``final`` while the run computed is not replaced (StoreError, the journal kept)."""
     tmp = journal.folder / ASSEMBLY
     if early is not None and early.usable(tmp, memory):  # most of the file is on the disk already
         check_free_space(scene, tmp, early.path.stat().st_size)
@@ -637,15 +609,12 @@ def _finish(journal: Journal, scene: Scene, chunks, final: Path, attrs: dict,
 
 def _save_chunks(plan: Plan, sink, results, already: int, progress, compile_s: float = 0.0,
                  launches: "execute.Launches | None" = None, signals: "Signals | None" = None) -> None:
-    """Save each computed chunk to ``sink`` as it arrives, with its compute time (since the previous
-    chunk; the first this call computes also ``compile_s``, the compile phase before it, kept apart:
-    store.assemble sums both kinds into the dataset's attributes). A sink that writes
-    (``sink.background``) does so in a writer thread: the write of one chunk overlaps the computation
-    of the next (kernels release the GIL), and at most one chunk waits to be written, so memory stays
-    bounded by the chunk size. ``signals`` (a local run to a file): Ctrl-C or SIGTERM while a chunk
-    computes is acted on once that chunk is saved. A kernel launch cannot be stopped, so the chunk
-    runs to its end either way; raising as soon as it returns would throw that work away (a slow
-    one-chunk grid would end with "0 of 1 chunks saved")."""
+    """Save each computed chunk to ``sink`` as it arrives, with its compute time since the previous
+    chunk (the first also with ``compile_s``, kept apart). A sink that writes (``sink.background``)
+    does so in a writer thread: one chunk's write overlaps the next one's kernels (they release the
+    GIL), and at most one chunk waits, so memory stays bounded by the chunk size. ``signals``: Ctrl-C
+    or SIGTERM while a chunk computes is acted on once that chunk is saved (a kernel launch cannot be
+    stopped; raising as it returns would throw its work away)."""
     from concurrent.futures import ThreadPoolExecutor
 
     bar = make_progress(plan.scene, progress, already)
@@ -673,10 +642,7 @@ def _save_chunks(plan: Plan, sink, results, already: int, progress, compile_s: f
                 write(chunk, result, seq)
                 bar.update(chunk.size)
         finally:
-            close = getattr(results, "close", None)
-            if close is not None:
-                close()
-            bar.close()
+            _close(results, bar)
         return
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="mechsweep-writer") as writer:
         writer.submit(sink.prepare, launches)  # (store.assemble.Early: the file is defined while the first chunk computes)
@@ -699,7 +665,11 @@ def _save_chunks(plan: Plan, sink, results, already: int, progress, compile_s: f
                 pending.exception()  # let the last write finish before leaving
             if launches is not None:
                 launches.end()  # (a run stopped before its first launch: the writer waits no longer)
-            close = getattr(results, "close", None)
-            if close is not None:
-                close()  # a distributed run cancels what is still in flight
-            bar.close()
+            _close(results, bar)
+
+
+def _close(results, bar) -> None:
+    close = getattr(results, "close", None)
+    if close is not None:
+        close()  # a distributed run cancels what is still in flight
+    bar.close()

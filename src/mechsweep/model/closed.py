@@ -1,35 +1,11 @@
 """ClosedFormModel: a model whose outputs are closed forms of its parameters (no integration).
 
-The user writes one per-design function in plain numba-compilable Python; the engine owns the
-rest: the parallel chunk loop over designs, the scratch space per thread, which outputs are
-wanted, status codes, the NaN fill of failed designs, the extra dimension of curve outputs and
-the data every design shares (e.g. crank positions). See docs/your-own-model.md, "Closed-form
-models".
-
-The contract of ``compute(p, want, row, curves, slot, scratch, *data) -> status``:
-
-- ``p``: the design's parameters in declared order (a categorical one as its choice's index);
-  exactly ``len(params)`` long.
-- ``want``: booleans over the scalar outputs (declaration order): the outputs a scene asks for
-  (with their ``needs``). Writing an output that is not wanted is allowed (it is ignored).
-- ``row``: float64 over the scalar outputs, prefilled NaN: write ``row[k]`` for wanted output k.
-- ``curves``: float64 (number of wanted curves, n); ``slot[c]`` is the row of curve output c
-  (declaration order of the curve outputs) in ``curves``, or -1 when it is not wanted.
-- ``scratch``: float64 (``scratch``, n), the same array for the designs of one block on one
-  thread: contents left by the previous design, never NaN-filled.
-- ``data``: the arrays ``data(n)`` returned, once per chunk (cached per n), shared read-only.
-- returns a status code of :mod:`mechsweep.status` (``st.OK`` = 0); any other code makes the
-  engine store it and fill the design's row and curves with NaN.
-
-n is the length of the extra dimension (``size``; :meth:`spec`'s ``evaluate`` takes another as
-its 8th argument, for convergence studies).
-
-Compilation: as for OdeModel, the parallel kernel is composed in engine/closed.py and cached on
-disk through its binding module (engine/binding.py): a second process loads it from numba's disk
-cache (measured in tests/model/test_closed_form.py). The binding's name is keyed by a hash of the compute
-function's module source, its name, the model's dependency record, the numbers of parameters and
-data arrays, the scratch rows and the block size.
-"""
+The user writes one per-design function, ``compute(p, want, row, curves, slot, scratch, *data) ->
+status``, in plain numba-compilable Python (its contract: docs/your-own-model.md, section 11); the
+engine owns the rest: the parallel loop over designs (engine/closed.py), the scratch per thread,
+the statuses, the NaN fill of failed designs and the data every design shares. The kernel is
+cached on disk through its binding module (engine/binding.py), keyed by the compute function's
+module source and name, the model's dependency record and the kernel's shape."""
 from __future__ import annotations
 
 import hashlib
@@ -44,7 +20,6 @@ from .. import status as st
 from ..errors import InputError
 from .spec import ExtraDim, ModelSpec, Output, Param, Setting, wanted_flags
 from . import load, sources
-
 
 
 @dataclass(frozen=True)
@@ -305,15 +280,7 @@ def check(model: ClosedFormModel, ref: str, file: str) -> None:
     results = []
     for fill in (math.nan, _SENTINEL):
         args = _probe_arrays(model, p.copy(), fill)
-        try:
-            with np.errstate(all="ignore"):
-                code = func(*args, *[a.copy() for a in data])
-        except IndexError as exc:
-            raise InputError(f"{label}: compute indexes beyond its arrays at the probe point p = {p.tolist()} "
-                             f"({sizes}): {load.where(exc, file)}") from None
-        except Exception as exc:
-            raise InputError(f"{label}: compute raised at the probe point p = {p.tolist()}: "
-                             f"{load.where(exc, file)}") from None
+        code = load.probe_call(label, "compute", func, (*args, *[a.copy() for a in data]), p, sizes, file)
         if isinstance(code, (bool, np.bool_)) or not isinstance(code, (int, np.integer)) \
                 or int(code) not in st.MEANINGS or int(code) < 0:
             raise InputError(f"{label}: compute returned {code!r} at the probe point p = {p.tolist()}; expected "

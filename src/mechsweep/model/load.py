@@ -1,12 +1,9 @@
-"""A user model's module and functions as the engine compiles them: the module imported (by its
-path for a model file, under a name of its own: :func:`module_name`), its source bytes, a function's
-reference (module, path, qualified name) for the generated kernel modules, and the numba dispatcher
-of each function with mechsweep's options (:func:`jitted`, :func:`inlined`; its own numba helpers
-compiled again so: :func:`with_engine_helpers`), named for numba's disk cache after its module and
-what that depends on. Also the probe point a model's functions are first run at
-(:func:`probe_params`) and the text of a failure at the line of the user's file (:func:`where`,
-:func:`compile_failure`). Finding a model by reference and checking it: model/user.py.
-"""
+"""A user model's module and functions as the engine compiles them: the module imported (a model
+file under a name of its own, :func:`module_name`), a function's reference (module, path, qualified
+name), and its numba dispatcher with mechsweep's options (:func:`jitted`, :func:`inlined`,
+:func:`with_engine_helpers`), named for numba's disk cache after its module and what that depends
+on. Also the probe point (:func:`probe_params`) and a failure's text at the line of the user's file
+(:func:`where`, :func:`compile_failure`). Finding and checking a model: model/user.py."""
 from __future__ import annotations
 
 import hashlib
@@ -90,13 +87,11 @@ _INLINED: dict[tuple, object] = {}
 
 
 def inlined(module: str, path: str, qualname: str):
-    """The user function of :func:`jitted`, compiled into each numba caller (numba IR inlining,
-    _jit.jit_into_caller): the one-point kernel's guards take it so (compile.module_prologue), which
-    saves numba a compile of its own per function (typing, lowering, an LLVM module optimised and
-    turned into machine code, then linked and optimised again in the guard). Called from Python it
-    runs as jitted's. A function with a ``raise`` (or ``assert``) statement of its own stays jitted's:
-    numba's ``try`` in the guard does not catch a raise inlined into its body (measured: the exception
-    escaped the kernel), while an exception raised by a function it calls is caught either way."""
+    """The user function of :func:`jitted`, compiled into each numba caller (_jit.jit_into_caller):
+    the one-point kernel's guards take it so (engine/calls.py), which saves numba a compile of its
+    own per function. A function with a ``raise`` (or ``assert``) of its own stays jitted's: numba's
+    ``try`` in the guard does not catch a raise inlined into its body (measured: the exception
+    escaped the kernel), while one raised by a function it calls is caught either way."""
     key = (module, path, qualname)
     if key not in _INLINED:
         func = jitted(module, path, qualname)
@@ -165,14 +160,11 @@ def with_engine_helpers(func):
 
 
 def _renamed(func, module: str):
-    """``func`` with its qualified name suffixed by a hash of ``module`` and of what the module's code
-    depends on (sources.module_digest). numba names a function's disk-cache entry after its file and
-    qualified name only, and a cached entry re-imports the module it was compiled in: one file loaded
-    under two module names (by path in a scene, and as a module, an entry point or the user's own
-    import for run(models=...)) would otherwise load the other name's entry and fail with "No module
-    named ..." in every later process. numba's index checks only the function's own file: the machine
-    code of a helper from another file (linked into the entry) would outlive an edit of that file,
-    while the digest gives an edited dependency a new name."""
+    """``func`` with its qualified name suffixed by a hash of ``module`` and of what its code depends
+    on (sources.module_digest). numba names a disk-cache entry after the file and qualified name
+    only, and the entry re-imports the module it was compiled in: one file loaded under two module
+    names would otherwise load the other name's entry ("No module named ..."). And numba's index
+    checks only the function's own file: the digest gives an edited dependency a new name."""
     g = types.FunctionType(func.__code__, func.__globals__, func.__name__, func.__defaults__, func.__closure__)
     g.__kwdefaults__ = func.__kwdefaults__
     g.__module__ = func.__module__
@@ -207,6 +199,20 @@ def where(exc: BaseException, file: str, func=None) -> str:
     text = exc.msg if isinstance(exc, SyntaxError) and exc.msg else str(exc)
     msg = f"{type(exc).__name__}: {text.splitlines()[0] if text else ''}".rstrip(": ")
     return f"{msg} ({file}, line {line})" if line else msg
+
+
+def probe_call(label: str, what: str, func, args: tuple, p: np.ndarray, sizes: str, file: str, own=None):
+    """``func(*args)`` at the probe point ``p``, an exception an InputError naming the function and
+    the line of the user's file (``sizes``: what the model declares, for an IndexError)."""
+    try:
+        with np.errstate(all="ignore"):
+            return func(*args)
+    except IndexError as exc:
+        raise InputError(f"{label}: {what} indexes beyond its arrays at the probe point p = {p.tolist()} "
+                         f"({sizes}): {where(exc, file, own)}") from None
+    except Exception as exc:
+        raise InputError(f"{label}: {what} raised at the probe point p = {p.tolist()}: "
+                         f"{where(exc, file, own)}") from None
 
 
 def probe_params(model) -> np.ndarray:
@@ -248,9 +254,6 @@ def compile_failure(exc: Exception, file: str | None, label: str, what: str) -> 
         why += (f" ({helper.group(1)} is a plain Python function: a helper that {what} calls must be a numba "
                 f"function; decorate it with @numba.njit)")
     return InputError(f"{label}: numba cannot compile {what}{at}: {why}")
-
-
-_where = where  # the name model/closed.py calls it by
 
 
 def return_problem(disp, what: str, *, status: bool = False) -> str | None:

@@ -2,6 +2,7 @@
 composes the chunk kernel (mechsweep.engine) and the ModelSpec the runner, store and scene read."""
 from __future__ import annotations
 
+import dataclasses
 import math
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -29,7 +30,6 @@ _EXPLAINED: set = set()  # (model, explanation) already warned about in this pro
 def _warn_user_error(model, P, status, S, rtol) -> None:
     """Points with status USER_ERROR: replay the first in plain Python and warn (once per model and
     cause in a process) with the exception, its file and line, and the point."""
-    from .. import status as st
     bad = np.nonzero(status == st.USER_ERROR)[0]
     if not bad.size:
         return
@@ -77,6 +77,13 @@ def worse(current, new, order):
         return np.where(current == st.OK, new, current)
     rank = ranks(order)
     return np.where(rank[new] < rank[current], new, current)
+
+
+def _check_method(model, method: str, wanted) -> None:
+    allowed = model.methods_for(wanted)
+    if method not in allowed:
+        raise InputError(f"solver.method: {method!r} is not offered by model {model.name!r} for the outputs "
+                         f"{', '.join(wanted)} (allowed: {', '.join(allowed)})")
 
 
 def _lanes(route, family: str) -> bool | None:
@@ -371,8 +378,6 @@ class OdeModel:
             with _at_declaration(m):
                 self._check_measurement(m)
         if self.forcing_period is None:  # T = 1: a History's instants are times, labelled so
-            import dataclasses
-
             from .sampled import History
             default = History.__dataclass_fields__["dim_long_name"].default
             object.__setattr__(self, "measurements", tuple(
@@ -513,10 +518,7 @@ class OdeModel:
             sampled = tuple(m for m in chosen if getattr(m, "sampled", False))
             if sampled:  # one sampled trajectory per point (engine/sampling.py), after the other outputs
                 from ..engine import sampling as trajectory
-                allowed = model.methods_for(wanted)
-                if solver.method not in allowed:
-                    raise InputError(f"solver.method: {solver.method!r} is not offered by model {model.name!r} for "
-                                     f"the outputs {', '.join(wanted)} (allowed: {', '.join(allowed)})")
+                _check_method(model, solver.method, wanted)
                 before = status.copy()
                 rest = [o for o in wanted if not any(o == x.name for m in sampled for x in _outputs(m))]
                 if rest:
@@ -529,10 +531,7 @@ class OdeModel:
                 status[:] = worse(status, code, model.status_order)
                 return
             method = solver.method if (solver is not None and chosen) else "dop853"
-            allowed = model.methods_for(wanted)
-            if method not in allowed:
-                raise InputError(f"solver.method: {method!r} is not offered by model {model.name!r} for the outputs "
-                                 f"{', '.join(wanted)} (allowed: {', '.join(allowed)})")
+            _check_method(model, method, wanted)
             # closed forms by a run-time mask (one kernel for every choice of them), or none at all
             # when none is wanted (a lean kernel: a cold compile of a period-only scene compiles no formula)
             computable = model.computable_closed_forms(chosen) if closed else ()
@@ -617,7 +616,6 @@ class OdeModel:
         outputs = (tuple(o for m in self.measurements for o in _outputs(m))
                    + tuple(c.output() for c in self.closed_forms))
         if self.forcing_period is None:  # Steady's horizon, window and harmonic: T = 1, said so
-            import dataclasses
             steady = {o.name for m in self.measurements if type(m).__name__ == "Steady" for o in _outputs(m)}
             outputs = tuple(dataclasses.replace(o, long_name=f"{o.long_name} (T = 1 time unit: the model declares "
                                                 "no forcing period)") if o.name in steady else o for o in outputs)
@@ -644,10 +642,8 @@ class OdeModel:
             plan=plan,
         )
         if self.recheck is not None:  # the re-check adds NOT_REPRODUCIBLE to the statuses a point can get
-            import dataclasses
             spec = dataclasses.replace(spec, statuses=spec.possible_statuses() + (st.NOT_REPRODUCIBLE,))
         if self.switch_times is not None:  # a point whose switch times are not increasing times in [0, T)
-            import dataclasses
             notes = dict(spec.status_notes)
             notes.setdefault(st.INFEASIBLE, "(also) the switch times are not strictly increasing times in [0, T) "
                                             "of the forcing period T here")

@@ -1,41 +1,29 @@
 """What a model's results are computed from: its dependency record.
 
-A model's numbers depend on more than its scene: on the source of the model file and of every
-module of the user's that it imports (a helper's function is compiled into the kernel, a
-helper's constant is frozen into it), on the versions of third-party packages it uses, and on
-mechsweep itself (the integrators; a built-in model is mechsweep's own source). :func:`record`
-gathers them once per model and process, and the same record serves
+A model's numbers depend on more than its scene: on the model file and every module of the user's
+it imports (a helper's function is compiled into the kernel, its constants frozen into it), on the
+third-party packages it uses, and on mechsweep itself. :func:`record` gathers them once per model
+and process, and the record serves
 
-- the kernel caches (engine/kernels.py, model/closed.py, engine/sampling.py): a kernel's binding module name carries
-  :attr:`Record.digest`, and every user function the engine compiles carries the digest of its own
-  module's dependencies (:func:`module_digest`, load.jitted): an edited helper gives new names,
-  hence a new compile, never the machine code of the old helper from numba's disk cache (whose
+- the kernel caches: a kernel's binding module name carries :attr:`Record.digest`, and every user
+  function the engine compiles carries its module's :func:`module_digest` (load.jitted), so an
+  edited helper gives a new compile, never the old machine code from numba's disk cache (whose
   index checks only the decorated function's own file);
-- the journal and the dataset: ``provenance`` stores :meth:`Record.stored` in the attributes
-  ``dependencies`` (JSON) and ``source_files`` (``sha256sum`` lines), and a resume compares the
-  stored record with the current one (:func:`differences`), refusing one that differs and naming
-  what changed.
+- the journal and the dataset: ``provenance`` stores :meth:`Record.stored` as the attributes
+  ``dependencies`` (JSON) and ``source_files`` (``sha256sum`` lines), and a resume refuses a record
+  that differs, naming what changed (:func:`differences`).
 
-What counts (found without importing anything: the loaded modules, and the files of imports not
-loaded, located as Python's path finder would):
+What counts (found without importing anything, located as Python's path finder would): the modules
+that define the declaration's functions and, from each module of the user's, recursively, the
+modules its source imports, those its globals come from and its parent packages. A *user's* module
+(outside the standard library, mechsweep and site-packages) counts by the sha256 of its file and
+of the values of its global constants (numba freezes them; a value read from a data file at import
+changes with no edit); a module in site-packages by its distribution's version, except the model's
+own package, hashed as a user's. Also mechsweep's version and a hash of its sources
+(_jit.package_hash), and the versions of numba and numpy.
 
-- the modules that define the declaration's functions (for a model given as a ModelSpec, its
-  ``evaluate``), and from each module of the user's, recursively, the modules its source imports
-  (``import`` and ``from ... import`` anywhere in the file, resolved as Python would) and those its
-  globals come from (a function, class or module bound to a name; a package's submodules only where
-  its source imports them), and its parent packages;
-- a *user's* module is one outside the standard library, outside mechsweep and outside
-  site-packages: its file is hashed (sha256), and so are the values of its global constants
-  (numbers, strings, arrays: numba freezes them into the code that reads them, and a value read
-  from a data file at import changes with no edit of the source). A module in site-packages counts
-  by its distribution's name and version (its files are not read), except the model's own package
-  (an installed model, e.g. an entry point's), whose files are hashed as a user's;
-- mechsweep's version and a hash of its package sources (_jit.package_hash: the key of the JIT
-  cache folder), and the versions of numba and numpy, which compile and run every kernel.
-
-A file's hash (and its module's values) is taken once per process, the first time it is needed (for
-the model file's bytes, when it is imported): a process keeps the code it imported, and its record
-describes that code even if the file is edited while the process runs (a new process sees the edit).
+A file's hash is taken once per process, when first needed (the model file's bytes when it is
+imported): the record describes the code the process imported, even if the file is edited since.
 """
 from __future__ import annotations
 

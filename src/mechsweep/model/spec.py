@@ -71,11 +71,9 @@ class Param:
     hi_open: bool = False
     choices: tuple[str, ...] = ()
     required: bool = True
-    default: float | None = None  # value used internally when an optional parameter is absent
-    latex: str = ""  # the symbol in mathtext, for figures (stored as the variable's ``latex`` attribute)
-    # former names a scene, a dataset or a call may still use (e.g. "lambda", which is a Python
-    # keyword: no ds.sel(lambda=...)); not in the repr, which keys a user model's scenes
-    aliases: tuple[str, ...] = field(default=(), repr=False)
+    default: float | None = None
+    latex: str = ""  # stored as the variable's ``latex`` attribute
+    aliases: tuple[str, ...] = field(default=(), repr=False)  # not in the repr, which keys a user model's scenes
 
     @property
     def categorical(self) -> bool:

@@ -1,15 +1,14 @@
-"""User models, found by reference and checked as they load: ``"my_models.py:NAME"`` (a path relative to the scene file) or
-``"package.module:NAME"``. Loading a model file executes it, as any Python import does.
+"""User models, found by reference and checked as they load: ``"my_models.py:NAME"`` (a path
+relative to the scene file) or ``"package.module:NAME"``. Loading a model file executes it, as any
+Python import does.
 
 Every problem is an :class:`~mechsweep.errors.InputError` naming the file (and the line, where
-Python or numba gives one), raised while the scene is loaded, before any file is written:
-missing file, a file that fails to import, NAME not defined or not an OdeModel (or ClosedFormModel: its
-checks are closed.check), an rhs or initial
-that raises, reads a parameter beyond the declared ones or writes beyond the state (found by
-running them once in plain Python at a probe point), leaves a component unwritten, writes into an
-argument its role may not write (model/writes.py), or that numba cannot compile; and an exit while
-the model loads (sys.exit, os._exit, a KeyboardInterrupt the code raises itself: exits_refused).
-"""
+Python or numba gives one), raised while the scene is loaded, before any file is written: a file
+that is missing or fails to import, NAME not defined or not an OdeModel (or ClosedFormModel:
+closed.check), a function that raises, reads or writes beyond its arrays or leaves a component
+unwritten at a probe point (run once in plain Python), writes into an argument its role may not
+write (model/writes.py), or that numba cannot compile; and an exit while the model loads
+(exits_refused)."""
 from __future__ import annotations
 
 import importlib
@@ -197,26 +196,20 @@ def _extra_functions(model):
     if getattr(model, "accel", None) is not None:
         out.append(("accel", model.accel, lambda p, y: (0.0, y[:n_s // 2].copy(), p, np.zeros(n_s // 2))))
         out.append(("symplectic_step", model.symplectic_step, lambda p, y: (p, 1e-10)))
+    args = {"event": lambda p, y: (0.0, y.copy(), p),
+            "t_max": lambda p, y: (p,),
+            "value": lambda p, y: (p, 1.0),
+            "refine": lambda p, y: (p, 1e-10, 1.0),
+            "of": lambda p, y: (0.0, y.copy(), p),  # an Extremum's expression f(t, y, p)
+            "t0": lambda p, y: (p,),  # an Extremum's window ends t0(p), t1(p)
+            "t1": lambda p, y: (p,),
+            # Floquet's variational system about the known orbit: Phi = I
+            "variational": lambda p, y: (0.0, np.eye(n_s).ravel(), p, np.full(n_s * n_s, np.nan)),
+            "variational_jac": lambda p, y: (0.0, np.eye(n_s).ravel(), p, np.zeros((n_s * n_s, n_s * n_s)))}
     for m in model.measurements:
         for role, func in getattr(m, "functions", lambda: ())():
-            if role == "event":
-                out.append((f"{m.name}.event", func, lambda p, y: (0.0, y.copy(), p)))
-            elif role == "t_max":
-                out.append((f"{m.name}.t_max", func, lambda p, y: (p,)))
-            elif role == "value":
-                out.append((f"{m.name}.value", func, lambda p, y: (p, 1.0)))
-            elif role == "refine":
-                out.append((f"{m.name}.refine", func, lambda p, y: (p, 1e-10, 1.0)))
-            elif role == "of" and not getattr(m, "sampled", False):  # an Extremum's expression f(t, y, p)
-                out.append((f"{m.name}.{role}", func, lambda p, y: (0.0, y.copy(), p)))
-            elif role in ("t0", "t1"):  # an Extremum's window end t0(p), t1(p)
-                out.append((f"{m.name}.{role}", func, lambda p, y: (p,)))
-            elif role == "variational":  # Floquet's variational system about the known orbit: Phi = I
-                out.append((f"{m.name}.variational", func,
-                            lambda p, y: (0.0, np.eye(n_s).ravel(), p, np.full(n_s * n_s, np.nan))))
-            elif role == "variational_jac":
-                out.append((f"{m.name}.variational_jac", func,
-                            lambda p, y: (0.0, np.eye(n_s).ravel(), p, np.zeros((n_s * n_s, n_s * n_s)))))
+            if role in args and not (role == "of" and getattr(m, "sampled", False)):
+                out.append((f"{m.name}.{role}", func, args[role]))
             elif role in ("rhs", "initial", "jac", "accel", "symplectic_step", "prepare"):
                 out.append((f"{m.name}.system.{role}", func, _system_args(role, n_s)))
     for c in getattr(model, "closed_forms", ()):
@@ -242,16 +235,8 @@ def check(model, ref: str, file: str) -> None:
 
     def probe(what, func, args):
         own = getattr(func, "py_func", func)
-        func = load.with_engine_helpers(own)  # the user's numba helpers as the kernel runs them
-        try:
-            with np.errstate(all="ignore"):
-                return func(*args)
-        except IndexError as exc:
-            raise InputError(f"{label}: {what} indexes beyond its arrays at the probe point p = {p.tolist()} "
-                             f"({layout}): {load.where(exc, file, own)}") from None
-        except Exception as exc:
-            raise InputError(f"{label}: {what} raised at the probe point p = {p.tolist()}: "
-                             f"{load.where(exc, file, own)}") from None
+        # the user's numba helpers as the kernel runs them
+        return load.probe_call(label, what, load.with_engine_helpers(own), args, p, layout, file, own)
 
     for what in ("classify", "prepare"):
         func = getattr(model, what, None)

@@ -12,6 +12,7 @@ from typing import Mapping
 
 import numpy as np
 
+from ..errors import file_kind
 from .sections import validate
 from .spec import Scene, SceneError
 from .text import unstorable_in
@@ -77,18 +78,6 @@ def _mib(n: int) -> str:
     return f"{n / 2**20:.3g} MiB" if n >= 2**20 else f"{n:,} bytes"
 
 
-def _file_kind(mode: int) -> str:
-    """What a file system entry of this st_mode is, for a message."""
-    import stat
-
-    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"),
-                       (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a named pipe (FIFO)"),
-                       (stat.S_ISSOCK, "a socket"), (stat.S_ISREG, "a regular file")):
-        if test(mode):
-            return name
-    return "not a regular file"
-
-
 def read_scene_file(path: Path) -> bytes:
     """The bytes of the scene file ``path``: a regular file of at most MAX_SCENE_BYTES. A folder,
     a pipe, a socket or a device is refused without reading it (a pipe nobody writes would block,
@@ -115,7 +104,7 @@ def read_scene_file(path: Path) -> bytes:
     if stat.S_ISDIR(mode):
         refuse(f"{label!r} is a directory, not a scene file")
     if not stat.S_ISREG(mode):
-        refuse(f"{label!r} is {_file_kind(mode)}, not a scene file; a scene is a regular TOML file")
+        refuse(f"{label!r} is {file_kind(mode)}, not a scene file; a scene is a regular TOML file")
     try:  # O_NONBLOCK: should the path have become a pipe since, the open does not wait for a writer
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
     except OSError as exc:
@@ -123,7 +112,7 @@ def read_scene_file(path: Path) -> bytes:
     try:
         info = os.fstat(fd)
         if not stat.S_ISREG(info.st_mode):
-            refuse(f"{label!r} is {_file_kind(info.st_mode)}, not a scene file; a scene is a regular TOML file")
+            refuse(f"{label!r} is {file_kind(info.st_mode)}, not a scene file; a scene is a regular TOML file")
         if info.st_size > MAX_SCENE_BYTES:
             refuse(f"{label!r} is {_mib(info.st_size)}; a scene file is at most {_mib(MAX_SCENE_BYTES)} "
                    f"({SCENE_TOO_BIG_ADVICE}); is it a scene?")

@@ -26,18 +26,14 @@ def validate(data: Mapping, *, text: str, label: str = "scene", base: Path | str
     p = _Problems()
     if not isinstance(data, Mapping):
         raise SceneError([f"a scene is a table of sections, got {type(data).__name__}"], label)
-    for key in data:
-        if key not in SECTIONS:
-            p.unknown(key, key, SECTIONS, "section")
+    p.unknown_keys(data, "", SECTIONS, "section")
     head = _table(data, "scene", p, required=True)
     name = head.get("name")
     if not isinstance(name, str) or not name.strip():
         p.add("scene.name", f"{short(name)} is not allowed; expected a non-empty string")
     elif (why := unstorable(name)) is not None:  # the dataset's title
         p.add("scene.name", f"{short(name)} {why}; a dataset's title must be text HDF5 can store")
-    for key in head:
-        if key not in ("name", "model", "outputs", "description"):
-            p.unknown(f"scene.{key}", key, ("name", "model", "outputs", "description"), "key")
+    p.unknown_keys(head, "scene.", ("name", "model", "outputs", "description"), "key")
     model = _model(head.get("model"), p, base, models)
     if model is None:
         raise SceneError(p.items, label)
@@ -154,6 +150,12 @@ class _Problems:
         text = "as above" if listed in self._listed and len(listed) > 80 else listed
         self._listed.add(listed)
         self.add(short_key(key), f"unknown {what} {short(name)}{tip} (allowed: {text})")
+
+    def unknown_keys(self, table: Mapping, prefix: str, allowed, what: str) -> None:
+        """Each key of ``table`` that is not ``allowed``, reported as ``prefix + key``."""
+        for key in table:
+            if key not in allowed:
+                self.unknown(f"{prefix}{key}", key, allowed, what)
 
 
 class _Shown:
@@ -356,10 +358,7 @@ def _range_axis(key, name, spec, prm, p) -> Axis | None:
     if prm.categorical:
         p.add(key, f"{name} is categorical; give a list of values, e.g. {list(prm.choices)!r}")
         return None
-    allowed_keys = ("start", "stop", "num", "spacing")
-    for k in spec:
-        if k not in allowed_keys:
-            p.unknown(f"{key}.{k}", k, allowed_keys, "axis key")
+    p.unknown_keys(spec, f"{key}.", ("start", "stop", "num", "spacing"), "axis key")
     ok = True
     for end in ("start", "stop"):
         if end not in spec:
@@ -515,9 +514,7 @@ def solver_warnings(scene: "Scene") -> list[str]:
 def _storage(table: Mapping, name: str, p: _Problems) -> Storage:
     path = table.get("path", f"data/runs/{_slug(name)}.h5")
     chunk = table.get("chunk_size")
-    for k in table:
-        if k not in ("path", "chunk_size"):
-            p.unknown(f"storage.{k}", k, ("path", "chunk_size"), "storage key")
+    p.unknown_keys(table, "storage.", ("path", "chunk_size"), "storage key")
     if not isinstance(path, str) or not path.strip():
         p.add("storage.path", f"{short(path)} is not allowed; expected a file path string")
         path = "invalid"
@@ -566,9 +563,7 @@ def check_worker_timeout(value) -> str | None:
 
 
 def _execution(table: Mapping, p: _Problems) -> Execution:
-    for k in table:
-        if k not in ("scheduler", "worker_timeout", "lanes"):
-            p.unknown(f"execution.{k}", k, ("scheduler", "worker_timeout", "lanes"), "execution key")
+    p.unknown_keys(table, "execution.", ("scheduler", "worker_timeout", "lanes"), "execution key")
     scheduler = table.get("scheduler")
     if scheduler is not None and (why := check_scheduler(scheduler)) is not None:
         p.add("execution.scheduler", why)
@@ -604,9 +599,7 @@ def _boundaries(table: Mapping, model: ModelSpec, axes: list, outputs: tuple, p:
     from .. import status as st
 
     n0 = len(p.items)
-    for k in table:
-        if k not in BOUNDARY_KEYS:
-            p.unknown(f"boundaries.{k}", k, BOUNDARY_KEYS, "boundaries key")
+    p.unknown_keys(table, "boundaries.", BOUNDARY_KEYS, "boundaries key")
     ranged = [a.name for a in axes if a.size >= 2 and not model.param(a.name).categorical]
     along = table.get("along")
     if along is None:

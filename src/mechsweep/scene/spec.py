@@ -263,11 +263,14 @@ class Scene:
         ``[execution]``: a dask scheduler, its timeout, and the kernels' route (``lanes``).
     base : str
         The absolute folder a model file path (``"file.py:NAME"``) was resolved against ("" when
-        the model is not named by a file path).
+        the model is not named by a file path); stored with a run and sent to dask workers, so
+        that the stored text is read again against it from any working directory.
     model_key : str
-        sha256 of a user model's source ("" for a built-in model): part of the scene's identity.
+        sha256 of a user model's source ("" for a built-in model): part of the canonical form (two
+        files declaring a model of one name are two scenes, the same file is the same scene).
     boundaries : Boundaries or None
-        The ``[boundaries]`` section (docs/boundaries.md), or None.
+        The ``[boundaries]`` section (docs/boundaries.md), or None; not part of the canonical form
+        (boundaries are located in a separate pass and do not change the grid's dataset).
 
     Examples
     --------
@@ -284,20 +287,12 @@ class Scene:
     outputs: tuple[str, ...]
     axes: tuple[Axis, ...]
     fixed: Mapping[str, Any]
-    solver: Solver | None  # None when no requested output needs integration
+    solver: Solver | None
     storage: Storage
-    text: str  # the scene as the user wrote it (TOML), stored with the dataset
+    text: str
     execution: Execution = Execution()
-    # absolute folder a user model file path of ``model`` ("file.py:NAME") was resolved against;
-    # "" when the model is not named by a file path. Stored with a run and sent to dask workers,
-    # so the stored text is re-read against it from any working directory.
     base: str = ""
-    # sha256 of the source a user model is declared in (its model file or module; see
-    # _model_source_key); "" for a built-in model. Part of the canonical form: two files declaring
-    # a model of one name are two scenes, the same file is the same scene.
     model_key: str = ""
-    # the [boundaries] section, None without one; not part of the canonical form (it does not
-    # change the grid's dataset: boundaries are located in a separate pass, mechsweep.boundaries)
     boundaries: Boundaries | None = None
 
     @property

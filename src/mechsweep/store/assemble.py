@@ -27,27 +27,19 @@ def assemble(journal: Journal, scene: Scene, lay: Layout, chunks: list, target, 
              stop=None, memory: "MemorySink | None" = None, early: "Early | None" = None
              ) -> tuple[list[BadChunk], dict[int, int]]:
     """Write the dataset of a journal to ``target`` (a path, or a file object for an in-memory
-    view): every variable defined, each journaled chunk written into its region, one chunk in
-    memory at a time. Chunks not in the journal keep the fill values (NaN, status PENDING), and so
-    do chunk files that do not verify: they are returned (the file is still complete). The
-    attributes ``compute_time_s`` (the sum of the written chunks' wall times), ``compile_time_s``
-    (the compile phases the chunk files carry) and ``wall_time_s`` (their sum). Also returned: the
-    number of points per status code, counted as the chunks pass (PENDING for chunks not written).
+    view), one chunk in memory at a time. Chunks not in the journal keep the fill values (NaN,
+    status PENDING), and so do chunk files that do not verify: they are returned. Also returned:
+    the points per status code. The time attributes are the sums the chunk files carry.
 
     To a path the file is written through ``GuardedFile`` and synced; a failed write raises
     ``WriteFailed`` after the file is removed. ``stop()`` is asked between chunks: when true, the
-    assembly ends, the file is removed and ``KeyboardInterrupt`` raised.
+    file is removed and ``KeyboardInterrupt`` raised.
 
-    ``memory``: the run's dataset in memory (``MemorySink``), filled with the chunks this process
-    computed. Those chunks are taken from it instead of being read back from the journal, the others
-    are read from the journal into it, and the file's variables are written from it whole; it ends up
-    with the file's attributes, so that ``memory.dataset()`` is the dataset the file holds without
-    opening it again.
-
-    ``early``: the file ``target`` already defined and filled with the chunks of ``memory`` while they
-    were computed (``Early``); only what is missing (chunks of the journal from before a resume,
-    the times) is written into it. An ``early`` that cannot be used (a write of it failed, a chunk
-    missed it, another target) is discarded and the file written from the start, as without it."""
+    ``memory`` (a MemorySink): the chunks this process computed are taken from it, not read back;
+    the others are read from the journal into it; it ends with the file's attributes, so that
+    ``memory.dataset()`` is the dataset the file holds. ``early``: the file already filled with
+    ``memory``'s chunks while they were computed; only what is missing is written into it. An
+    ``early`` that cannot be used is discarded and the file written from the start."""
     if not isinstance(target, (str, os.PathLike)):
         return _assemble(journal, scene, lay, chunks, target, attrs, lambda: False, memory)
     if early is not None and not early.usable(target, memory):
@@ -150,15 +142,11 @@ PREPARE_WAIT = 5.0  # seconds Early.prepare waits for the first chunk's launch (
 
 
 class Early:
-    """The dataset file of a run (with ``MemorySink``) written while its chunks are computed, in the
-    writer thread: defined at the first chunk, each chunk written into its region after it is
-    saved to the journal. It is the same temporary file the assembly writes (in the journal
-    folder; renamed into place only when complete), so crash safety is unchanged: a kill leaves
-    it half written in the journal folder, and the resumed run writes it anew from the journal.
-
-    It is an optimisation only: the first write that fails (``GuardedFile`` records it) or any
-    other error discards it (closed, removed), and the assembly then writes the file from the
-    start exactly as without it, meeting (and reporting) the same failure if it persists."""
+    """The dataset file of a run (with ``MemorySink``) written in the writer thread while its chunks
+    are computed, each chunk after it is saved to the journal. It is the temporary file the
+    assembly writes (in the journal folder, renamed into place only when complete), so crash safety
+    is unchanged: a resumed run writes it anew from the journal. An optimisation only: any failure
+    discards it, and the assembly writes the file from the start as without it."""
 
     def __init__(self, path, scene: Scene, lay: Layout, attrs: dict):
         self.path = Path(path)
@@ -179,13 +167,10 @@ class Early:
         self.variables = {name: self.file[name] for name in names}
 
     def prepare(self, started=None) -> None:
-        """Create and define the file before the first chunk arrives: the run calls it in the writer
-        thread, idle while the first chunk is computed, so that the definition (``python
-        benchmarks/duffing_breakdown.py`` times it) does not delay the first chunk's write and the second chunk's launch
-        behind it. ``started``: an event set when
-        the first chunk's kernel is about to run (waited for at most PREPARE_WAIT seconds), so that
-        this Python work holds the GIL while the kernel has released it, not while the main
-        thread prepares the launch. A failure discards the file, as in ``write``."""
+        """Create and define the file in the writer thread while the first chunk computes, so that
+        the definition does not delay the first write. ``started``: set when the first chunk's kernel
+        is about to run (waited for at most PREPARE_WAIT seconds), so that this Python work holds
+        the GIL while the kernel has released it. A failure discards the file, as in ``write``."""
         if started is not None:
             started.wait(PREPARE_WAIT)
         if self.failed or self.file is not None:
@@ -242,13 +227,10 @@ class Early:
 
 
 class MemorySink:
-    """A run's dataset in memory, defined as its file is (``memory_store``): the sink of the in-memory
-    route (``run(output=None)``), and of a file run that returns its dataset loaded (beside the
-    journal and the file). A chunk computed here is computed straight into its arrays (``views``:
-    each variable's flat range of the chunk); ``save`` notes its wall and compile seconds in
-    ``times`` (chunk index -> (wall, compile)) and copies only arrays computed elsewhere (a dask
-    worker's, a chunk read back from the journal). ``assemble`` writes the file from it and gives it
-    the file's attributes."""
+    """A run's dataset in memory, defined as its file is (``memory_store``): the sink of
+    ``run(output=None)``, and of a file run that returns its dataset. A chunk computed here is
+    computed straight into its arrays (``views``); ``save`` notes its seconds in ``times`` (chunk
+    index -> (wall, compile)) and copies only arrays computed elsewhere."""
 
     background = False  # nothing to write: the route saves its chunks in the computing thread
 
@@ -291,9 +273,8 @@ COMPILE_KEY = "__compile_time_s"
 
 
 def time_attrs(compile_s: float, compute_s: float) -> dict:
-    """The dataset's time attributes: ``compile_time_s`` (JIT compilation, or loading the JIT
-    cache, before the chunks), ``compute_time_s`` (the chunks: kernels and writes of the journal)
-    and ``wall_time_s``, their sum (the run's time, as before they were stored apart)."""
+    """The dataset's time attributes: ``compile_time_s`` (before the chunks), ``compute_time_s`` (the
+    chunks: kernels and journal writes) and ``wall_time_s``, their sum."""
     return {"compile_time_s": float(compile_s), "compute_time_s": float(compute_s),
             "wall_time_s": float(compile_s) + float(compute_s)}
 

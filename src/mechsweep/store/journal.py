@@ -6,29 +6,22 @@ A run of output ``PATH`` keeps its finished chunks in the folder ``PATH.partial/
   written before any chunk, with a random run id and a SHA-256 checksum of everything else in it
   (``checksum``): a run.json edited or damaged after it was written is refused;
 - ``chunks/NNNNNNN-SIZE-CRC.npz``: one file per finished chunk (its outputs, status, step counts
-  and the wall time it took), written to a temporary name, synced and renamed into place. Its name
-  carries the file's size in bytes and a CRC-32 (8 hex digits) of the run id, the chunk's index
-  and the file's bytes: a chunk file that does not match them (truncated, zeroed, damaged by the
-  disk, edited, renamed to another index, taken from another run) is not counted as finished; a
-  resumed run removes it and computes that chunk again, keeping the others. (Journals of older
-  versions: files named ``NNNNNNN.npz`` carry no checksum and count when numpy can read them;
-  format 2 has no run id, its CRC covers the bytes only, and its run.json no checksum.)
+  and wall time), written to a temporary name, synced and renamed into place. Its name carries the
+  file's size and a CRC-32 of the run id, the chunk's index and the file's bytes: a chunk file that
+  does not match them (truncated, damaged, edited, renamed, from another run) is not counted; a
+  resumed run removes it and computes that chunk again. (Older formats: ``NNNNNNN.npz`` without a
+  checksum counts when numpy reads it; format 2 has no run id, and its run.json no checksum.)
 
-Nothing else is written there, and nothing else is deleted: ``drop`` removes only the entries a
-run writes (in whatever state: damaged, a link, a pipe, an empty folder in place of a file), and
-an entry it does not write (a user's file put into the folder) is never removed
-(``foreign_entries`` lists them; the runner refuses to resume or restart over them).
+Only what a run writes is ever deleted (``drop``, in whatever state it is); an entry a run does not
+write is never removed (``foreign_entries``; the runner refuses to resume or restart over it).
 
-A rename is atomic, so at any moment (a SIGKILL, a power cut after the sync) every chunk file is
-either complete or absent, and a resumed run computes exactly the chunks that have no file. The
-HDF5 dataset is assembled from the journal only when every chunk is in, into a temporary file in
-the journal folder that replaces ``PATH`` by one rename; the journal is then dropped. An HDF5 file
-is never written in place while a run is under way: a kill in the middle of an HDF5 write can leave
-a file the library cannot open again, a chunk file cannot.
+A rename is atomic, so after a kill or a power cut every chunk file is complete or absent, and a
+resumed run computes exactly the chunks that have no file. The HDF5 dataset is assembled only when
+every chunk is in, into a temporary file that replaces ``PATH`` by one rename: a kill in the middle
+of an HDF5 write can leave a file the library cannot open again, a chunk file cannot.
 
-The lock is ``.PATH.lock`` beside the output, held with ``flock`` for the whole run (the kernel
-releases it when the process dies, however it dies), so a second run on the same output is refused
-at once instead of interleaving its writes.
+The lock is ``.PATH.lock`` beside the output, held with ``flock`` for the whole run (released by
+the kernel however the process dies), so a second run on the same output is refused at once.
 
 Every write here (lock, run.json, chunk files, folder syncs) turns a system error (disk full, file
 size limit, quota, I/O error) into ``WriteFailed`` and leaves the journal as it was before it.

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import h5py
 
-from ..errors import SYSTEM_ERRNOS, FileBusy, InputError, StoreError, os_error_text, why_os_error
+from ..errors import SYSTEM_ERRNOS, FileBusy, InputError, StoreError, file_kind, os_error_text, why_os_error
 from ..grid import plan_chunks
 from .assemble import assemble
 from .journal import Journal, partial_path
@@ -240,16 +240,6 @@ def _text(value) -> str:
     return value if isinstance(value, str) else str(value)
 
 
-def file_kind(mode: int) -> str:
-    """What a file system entry of this st_mode is, for a message."""
-    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"),
-                       (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a named pipe (FIFO)"),
-                       (stat.S_ISSOCK, "a socket"), (stat.S_ISREG, "a regular file")):
-        if test(mode):
-            return name
-    return "not a regular file"
-
-
 def _looks_like_text(path: Path) -> bool:
     with open(path, "rb") as f:
         block = f.read(4096)
@@ -280,11 +270,9 @@ def _open_partial(part: Path) -> xr.Dataset:
 
 def check_journal_files(part: Path, contents: bool = True) -> None:
     """Raise StoreError if the journal folder ``part`` (when it exists) or, with ``contents``, what
-    it holds is not of the kind a run makes: a folder, a file run.json that a run wrote (verified:
-    its entries and, from journal format 3 on, its checksum), a folder chunks of files. A pipe or a
-    device there would block or be replaced. Without ``contents`` (--restart, which discards what
-    the folder holds) only the folder itself is checked. The message names what is damaged and
-    that --restart discards the journal."""
+    it holds is not what a run makes: a folder, a verified run.json, a folder chunks of files (a
+    pipe or a device there would block or be replaced). Without ``contents`` (--restart discards
+    what the folder holds) only the folder itself is checked."""
     from .journal import RESTART
 
     if not os.path.lexists(part):
@@ -293,8 +281,7 @@ def check_journal_files(part: Path, contents: bool = True) -> None:
     if stat.S_ISREG(mode):  # an older version's one-file journal: Journal.read says so
         return
     if not stat.S_ISDIR(mode):
-        kind = "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
-        raise StoreError(f"{part} (the journal of unfinished runs) is {kind}, not a folder mechsweep made; "
+        raise StoreError(f"{part} (the journal of unfinished runs) is {file_kind(mode)}, not a folder mechsweep made; "
                          "move it away")
     if not contents:
         return
@@ -312,8 +299,7 @@ def _check_journal_kinds(part: Path) -> None:
     for name, want, test in (("run.json", "a file", stat.S_ISREG), ("chunks", "a folder", stat.S_ISDIR)):
         entry = part / name
         if os.path.lexists(entry) and not test(mode := os.lstat(entry).st_mode):
-            kind = "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
-            raise StoreError(f"{entry} is {kind}, not {want} as a run writes it; {RESTART}")
+            raise StoreError(f"{entry} is {file_kind(mode)}, not {want} as a run writes it; {RESTART}")
     for e in os.scandir(part):  # e.g. assembly.h5: a pipe there would block the run's last step
         if e.name not in ("run.json", "chunks") and not e.is_file(follow_symlinks=False):
             raise StoreError(f"{e.path} is {_lkind(e.path)}, not a file a run writes; {RESTART}")
@@ -334,8 +320,7 @@ def _check_journal_kinds(part: Path) -> None:
 
 
 def _lkind(path) -> str:
-    mode = os.lstat(path).st_mode
-    return "a symbolic link" if stat.S_ISLNK(mode) else file_kind(mode)
+    return file_kind(os.lstat(path).st_mode)
 
 
 def _check_run_json(path: Path) -> None:

@@ -297,17 +297,12 @@ def nc_properties() -> str:
 
 class NetCDFWriter:
     """Defines a netCDF-4 file with h5py directly, as ``h5netcdf.File(target, "w")`` defines it for
-    the calls ``define`` makes (dimensions, each with its coordinate variable created next,
-    variables with fixed sizes, attributes, ``del`` of an attribute): the same objects in the same
-    creation order, the same dataset properties (shape, dtype, chunks, filters, fill value), the
-    same attributes with their dtypes, shapes, values and order (netCDF-4's ``_Netcdf4Dimid`` and
-    ``_Netcdf4Coordinates``), the same dimension-scale attachments. Only the provenance the file
-    carries for netCDF-C (``_NCProperties``, :func:`nc_properties`) names mechsweep, h5py and HDF5,
-    where h5netcdf names itself. tests/store/test_store_define.py walks a file of each shipped scene
-    written both ways and compares all of it, and reads both with h5netcdf and with netCDF-C.
-    Written with h5py because h5netcdf looks up the same h5py objects again and again while it defines
-    a file (most of a small run's definition time: ``python benchmarks/duffing_breakdown.py``);
-    this writes each once."""
+    the calls ``define`` makes: the same objects in the same order, with the same properties,
+    attributes and dimension scales; only ``_NCProperties`` (:func:`nc_properties`) names mechsweep,
+    h5py and HDF5 where h5netcdf names itself (tests/store/test_store_define.py compares both ways
+    for each shipped scene, and reads both with h5netcdf and netCDF-C). Why: h5netcdf looks up the
+    same h5py objects again and again while it defines a file (most of a small run's definition
+    time, ``python benchmarks/duffing_breakdown.py``); this writes each once."""
 
     def __init__(self, target):
         self.file = h5py.File(target, "w", track_order=True)  # as h5netcdf opens a new file (h5py >= 3.7)
@@ -498,8 +493,5 @@ def memory_store(scene: Scene, lay: Layout, attrs: dict) -> _MemoryFile:
 
 
 def write_memory(f: _MemoryFile, region: tuple, arrays: dict, shape: tuple[int, ...]) -> None:
-    """Write one chunk's arrays (flat over its points) into ``region`` of the grid, as ``_assemble``
-    writes a chunk into the file."""
-    rshape = _region_shape(region, shape)
-    for name, values in arrays.items():
-        f.variables[name][region + (slice(None),) * (values.ndim - 1)] = values.reshape(rshape + values.shape[1:])
+    """Write one chunk's arrays into ``region`` of the grid, as ``write_region`` writes the file's."""
+    write_region({name: f.variables[name] for name in arrays}, region, arrays, shape)
