@@ -18,7 +18,7 @@ load is reported with its file and line (exit 2).
 
 examples:
   mechsweep models
-  mechsweep models duffing
+  mechsweep models NAME                # one model, by a name the list above gives
   mechsweep models --scene sweeps/vibrating_pendulum_stability.toml
 """
 

@@ -24,7 +24,7 @@ examples:
   mechsweep plot data/runs/quickstart.h5
   mechsweep plot data/runs/quickstart.h5 -o /tmp/quickstart.svg
   mechsweep plot data/runs/quickstart.h5 --list
-  mechsweep plot data/runs/autobalancer_residual.h5 --point Omega=55,A0=0.1
+  mechsweep plot data/runs/NAME.h5 --point AXIS=VALUE,AXIS=VALUE
 """
 
 
@@ -39,7 +39,7 @@ def add_parser(sub, fmt) -> None:
     p.add_argument("--kind", default=None, help="which figure, when a dataset has several (see --list)")
     p.add_argument("--list", action="store_true", help="list the figures this dataset can draw (those drawn by default, then generic ones drawn only with --kind)")
     p.add_argument("--point", metavar="KEY=VALUE,...",
-                   help="select one grid point (nearest values), e.g. --point Omega=12.5,m=0.2; "
+                   help="select one grid point (the nearest value on each axis with more than one); "
                         "draws its time histories when the dataset stores them")
     p.add_argument("--boundaries", metavar="PATH",
                    help="located boundaries (`mechsweep boundaries`) to draw over the charts that show them: "
