@@ -158,14 +158,19 @@ def _plot(args) -> int:
         out = (folder if folder is not None else Path(args.dataset).parent) / f"{stem}.{fmt}"
     for target in figures.targets(ds, out, kind=args.kind, fmt=fmt, axes=axes):
         _check_figure_path(target, Path(args.dataset))
-    if bds is not None and args.boundaries:  # (a --kind this dataset has not is refused above)
-        _check_boundaries_drawn(ds, bds, args, [args.kind] if args.kind else list(kinds), axes)
+    drawing = [args.kind] if args.kind else list(kinds)  # (a --kind this dataset has not is refused above)
+    can = figures.boundary_figures(ds, bds, axes) if bds is not None else []
+    if bds is not None and args.boundaries:
+        _check_boundaries_drawn(ds, bds, args, drawing, can, axes)
+    elif not set(drawing) & set(can):
+        bds = None  # found beside the dataset: drawn only when a figure shows them
     with _drawing(args.dataset), _writing_figures(out):
         kinds = list(figures.available(ds, axes)) if args.kind is None else []
         if len(kinds) > 1 and jobs.can_fork():  # several figures: side by side on the cores (the same files)
             written = figures.targets(ds, out, fmt=fmt, axes=axes)
-            jobs.side_by_side([lambda k=k, path=path: figures.save(ds, path, kind=k, fmt=fmt, boundaries=bds, axes=axes)
-                           for k, path in zip(kinds, written)])
+            jobs.side_by_side([lambda k=k, path=path: figures.save(ds, path, kind=k, fmt=fmt, axes=axes,
+                                                                   boundaries=bds if k in can else None)
+                               for k, path in zip(kinds, written)])
         else:
             written = figures.save(ds, out, kind=args.kind, fmt=fmt, boundaries=bds, axes=axes)
     for path in written:
@@ -198,28 +203,21 @@ def _boundaries_for(ds, args):
     return None
 
 
-def _check_boundaries_drawn(ds, bds, args, drawing, axes) -> None:
+def _check_boundaries_drawn(ds, bds, args, drawing, can, axes) -> None:
     """--boundaries PATH is drawn by some of the figures ``drawing`` (refused, exit 2, when by none:
-    naming the figures of this dataset that draw them, or saying which would); a note names the
-    figures drawn without them (a nomogram, a curve: an output against one axis)."""
+    naming the figures of this dataset that draw them, ``can``, or saying which would); a note names
+    the figures drawn without them (a nomogram, a curve: an output against one axis)."""
     from .. import figures
     from ..errors import InputError
 
-    can = figures.boundary_figures(ds, bds, axes)
-    drawn = [k for k in drawing if k in can]
-    along = bds.attrs.get("along")
-    if not drawn:
-        what = ", ".join(drawing) or "none"
-        if can:
-            raise InputError(f"--boundaries {args.boundaries}: none of the figures drawn ({what}) draws located "
-                             f"boundaries; the figures of this dataset that do: {', '.join(can)} (--kind NAME)")
-        raise InputError(f"--boundaries {args.boundaries}: no figure of this dataset draws them (figures drawn: "
-                         f"{what}): a stability map or heatmap with {along!r} as one of its two axes does (--x, "
-                         "--y choose a heatmap's axes); a nomogram or curve has no place for them")
+    why = figures.boundaries_problem(ds, bds, drawing, axes, kind_arg="--kind NAME", axes_arg="--x, --y")
+    if why is not None:
+        raise InputError(f"--boundaries {args.boundaries}: {why}")
     left = [k for k in drawing if k not in can]
     if left:
-        print(f"note: --boundaries {args.boundaries}: drawn on {', '.join(drawn)}; not on {', '.join(left)} "
-              f"(only a stability map or heatmap with {along!r} as one of its axes draws them)", file=sys.stderr)
+        print(f"note: --boundaries {args.boundaries}: drawn on {', '.join(k for k in drawing if k in can)}; not on "
+              f"{', '.join(left)} (only a stability map or heatmap with {bds.attrs.get('along')!r} as one of its "
+              "axes draws them)", file=sys.stderr)
 
 
 def check_layout(ds) -> None:

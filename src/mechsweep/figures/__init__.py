@@ -98,6 +98,26 @@ def boundary_figures(ds, boundaries, axes=None) -> list[str]:
             + [c.name for c in generic.choose(ds, drawn, x=x, y=y) if c.draws(boundaries)])
 
 
+def boundaries_problem(ds, boundaries, kinds, axes=None, *, kind_arg="kind=NAME", axes_arg="axes=(x, y)"):
+    """Why ``boundaries`` cannot be drawn with the figures ``kinds`` of ``ds`` (None: one of them
+    draws them): not located on this grid, or none of those figures draws located boundaries (the
+    text names the figures of ``ds`` that do, else which would). ``kind_arg`` / ``axes_arg``: how
+    the caller chooses a figure and its axes (the command line's options, or the API's)."""
+    why = located.mismatch(ds, boundaries)
+    if why is not None:
+        return f"not located on the grid of this dataset: {why}"
+    can = boundary_figures(ds, boundaries, axes)
+    if any(k in can for k in kinds):
+        return None
+    what = ", ".join(kinds) or "none"
+    if can:
+        return (f"none of the figures drawn ({what}) draws located boundaries; the figures of this dataset that "
+                f"do: {', '.join(can)} ({kind_arg})")
+    return (f"no figure of this dataset draws them (figures drawn: {what}): a stability map or heatmap with "
+            f"{boundaries.attrs.get('along')!r} as one of its two axes does ({axes_arg} choose a heatmap's axes); "
+            "a nomogram or curve has no place for them")
+
+
 def available(ds, axes=None) -> dict[str, str]:
     """The figures drawn by default for a dataset (what ``mechsweep plot`` draws).
 
@@ -254,7 +274,8 @@ def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150,
     dpi : int, optional
         Resolution of a PNG.
     boundaries : xarray.Dataset, optional
-        The located boundaries of the same grid, drawn over the charts that draw boundaries.
+        The located boundaries of the same grid, drawn over the charts that draw boundaries
+        (refused when they were not located on this grid or no figure written draws them).
     axes : tuple of (str or None, str or None), optional
         ``(x, y)``: the generic figures over those axes instead.
 
@@ -266,7 +287,7 @@ def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150,
     Raises
     ------
     InputError
-        ``kind`` does not fit this dataset, or no figure does.
+        ``kind`` does not fit this dataset, or no figure does, or ``boundaries`` would not be drawn.
     """
     from ..errors import InputError
 
@@ -281,6 +302,10 @@ def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150,
         raise InputError(f"no generic figure of this dataset is over {_axes_text(axes)}" if given else
                          "no figure fits this dataset (a generic figure needs a float output over at least one "
                          "numeric axis with more than one value)")
+    if boundaries is not None:
+        why = boundaries_problem(ds, boundaries, [kind] if kind else list(kinds), axes)
+        if why is not None:
+            raise InputError(f"boundaries: {why}")
     written = []
     for k, out in zip([kind] if kind else list(kinds), targets(ds, path, kind=kind, fmt=fmt, axes=axes)):
         fig = plan[k](ds).figure
