@@ -38,7 +38,8 @@ def add_parser(sub, fmt) -> None:
 
 
 def command(args) -> int:
-    from ..describe import model_markdown, model_text
+    from ..describe import model_text
+    from ..docs import model_markdown
     from ..errors import InputError
     from ..model import user
     from ..models import MODELS

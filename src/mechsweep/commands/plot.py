@@ -61,20 +61,15 @@ def command(args) -> int:
 
 @contextmanager
 def no_dask_probe():
-    """While the body runs, xarray takes dask to be absent unless ``dask.array`` is already imported.
+    """While the body runs, xarray takes dask to be absent unless dask is already imported.
 
-    xarray asks, for every variable it makes (``ds.a == 0``, ``where``, ...), whether the data is a
-    dask array, and to find out imports ``dask.array`` when dask is installed (with it scipy.fft:
-    0.4-1.0 s of a warm ``mechsweep plot``, more than drawing one figure). ``plot`` opens its
-    datasets loaded into memory (``open_dataset``'s default, numpy arrays), so no dask array can
-    occur in it. The answer is put into xarray's cache of such probes for the body only and taken
-    out again afterwards (a caller of ``main`` in the same process, e.g. a test that later opens a
-    dataset lazily, gets xarray's own probe). When xarray's internals differ, nothing is done.
-
-    The same for xarray's other question, whether an array is a dask collection (asked of every
-    index it makes, e.g. when it opens a dataset): it imports ``dask.base`` to answer when dask is
-    installed (most of the plot's opening of the quickstart's dataset). While the body runs, the answer is no without that import as long as
-    dask is not imported (no object can be a dask collection then), else xarray's own."""
+    xarray asks of every variable it makes whether the data is a dask array (and of every index
+    whether it is a dask collection), and imports ``dask.array`` (with scipy.fft) or ``dask.base`` to
+    find out when dask is installed, which cost a warm ``plot`` more than drawing a figure. ``plot``
+    opens its datasets into memory (numpy arrays), so no dask object can occur in it. The answers
+    are put into xarray's caches for the body only and taken out afterwards (a caller of ``main``
+    that later opens a dataset lazily gets xarray's own probes); when xarray's internals differ,
+    nothing is done."""
     seeded = False
     collection = None
     try:
@@ -194,7 +189,7 @@ def _boundaries_for(ds, args):
     if path is None:
         return None
     bds = open_dataset(path)
-    why = figures.boundaries_mismatch(ds, bds)
+    why = figures.located.mismatch(ds, bds)
     if why is None:
         return bds
     if args.boundaries:
@@ -336,8 +331,7 @@ def select_point(ds, text: str):
             raise InputError(f"--point: {key} = {value!r} is not in the grid ({', '.join(map(str, ds[key].values))})")
         else:
             wanted[key] = [value.strip()]
-    grid_dims = [d for d in ds["status"].dims]
-    missing = [d for d in grid_dims if d not in wanted and ds.sizes[d] > 1]
+    missing = [d for d in ds["status"].dims if d not in wanted and ds.sizes[d] > 1]
     if missing:
         raise InputError(f"--point: give a value for {', '.join(missing)} too")
     numeric = {k: v for k, v in wanted.items() if ds[k].dtype.kind in "fiu"}

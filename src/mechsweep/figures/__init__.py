@@ -55,32 +55,26 @@ def sibling_boundaries(path):
     return target if target.is_file() else None
 
 
-def boundaries_mismatch(ds, bds) -> str | None:
-    """Why ``bds`` cannot be drawn over the charts of ``ds`` (None: it can)."""
-    return located.mismatch(ds, bds)
-
-
-def _draw_fn(f, boundaries):
-    """The figure's draw(ds, fig=, ax=) -> Drawn; a figure that draws boundaries gets ``boundaries``
-    when they were located on the grid of ds (else None: the chart alone)."""
-    if not f.boundaries:
-        return f.draw
-    return lambda ds, **kw: f.draw(ds, boundaries=boundaries if boundaries is not None
-                                   and located.mismatch(ds, boundaries) is None else None, **kw)
-
-
-def _plan(ds, boundaries=None, axes=None) -> list[tuple[str, str, object, bool]]:
-    """(name, description, draw(ds) -> Figure, drawn by default) for every figure that fits.
-    ``axes`` = (x, y), either None: the generic figures only, on those axes, all drawn by default."""
+def _fitting(ds, axes=None) -> tuple[list[ModelFigure], list]:
+    """The model's figures that fit ``ds`` and the generic figures (:class:`.generic.Choice`) of the
+    outputs they leave. ``axes`` = (x, y), either None: the generic figures only, on those axes."""
     given = axes is not None and any(a is not None for a in axes)
     model = [] if given else [f for f in MODEL_FIGURES if f.fits_dataset(ds)]
     drawn = set().union(*(f.drawn(ds) for f in model))
-    plan = [(f.name, f.description, _draw_fn(f, boundaries), True) for f in model]
-    fitting = boundaries if boundaries is not None and located.mismatch(ds, boundaries) is None else None
     x, y = axes if given else (None, None)
-    plan += [(c.name, c.description, (lambda ds, c=c, **kw: c.draw(ds, boundaries=fitting, **kw)), not model)
-             for c in generic.choose(ds, drawn, x=x, y=y)]
-    return plan
+    return model, generic.choose(ds, drawn, x=x, y=y)
+
+
+def _plan(ds, boundaries=None, axes=None) -> list[tuple[str, str, object, bool]]:
+    """(name, description, draw(ds) -> Figure, drawn by default) for every figure that fits; the
+    generic ones are drawn by default when no model's figure fits. The figures that draw boundaries
+    get ``boundaries`` when they were located on the grid of ds (else None: the chart alone)."""
+    model, choices = _fitting(ds, axes)
+    fitting = boundaries if boundaries is not None and located.mismatch(ds, boundaries) is None else None
+    plan = [(f.name, f.description, (lambda ds, f=f, **kw: f.draw(ds, boundaries=fitting, **kw)) if f.boundaries
+             else f.draw, True) for f in model]
+    return plan + [(c.name, c.description, (lambda ds, c=c, **kw: c.draw(ds, boundaries=fitting, **kw)), not model)
+                   for c in choices]
 
 
 def boundary_figures(ds, boundaries, axes=None) -> list[str]:
@@ -90,12 +84,8 @@ def boundary_figures(ds, boundaries, axes=None) -> list[str]:
     along as one of its two axes. Empty when ``boundaries`` were not located on this grid."""
     if boundaries is None or located.mismatch(ds, boundaries) is not None:
         return []
-    given = axes is not None and any(a is not None for a in axes)
-    model = [] if given else [f for f in MODEL_FIGURES if f.fits_dataset(ds)]
-    drawn = set().union(*(f.drawn(ds) for f in model))
-    x, y = axes if given else (None, None)
-    return ([f.name for f in model if f.boundaries]
-            + [c.name for c in generic.choose(ds, drawn, x=x, y=y) if c.draws(boundaries)])
+    model, choices = _fitting(ds, axes)
+    return [f.name for f in model if f.boundaries] + [c.name for c in choices if c.draws(boundaries)]
 
 
 def boundaries_problem(ds, boundaries, kinds, axes=None, *, kind_arg="kind=NAME", axes_arg="axes=(x, y)"):
