@@ -804,13 +804,9 @@ def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundarie
         sel = dict(zip(others, idx))
         values = ds[name].isel(sel).transpose(ydim, xdim).values
         art["panels"].append(stability_panel(ax, x, y, values))
-        along = boundaries.attrs.get("along") if boundaries is not None else None
-        if along in (xdim, ydim):
-            other = ydim if along == xdim else xdim
-            art["panels"][-1]["located"] = located.overlay(
-                ax, boundaries, line_dim=other if other in boundaries["boundary"].dims else None,
-                sel={d: i for d, i in sel.items() if d in boundaries["boundary"].dims}, transpose=along == ydim, ds=ds,
-                chart_other=other)
+        if boundaries is not None and boundaries.attrs.get("along") in (xdim, ydim):
+            at = {d: ds[d].values[i] for d, i in sel.items()}
+            art["panels"][-1]["located"] = _located_over(ax, ds, boundaries, xdim, ydim, at)
         if is_log(ds, xdim):
             log_scale(ax, "x")
         if is_log(ds, ydim):
