@@ -36,8 +36,6 @@ Benchmarks print measured numbers of this machine, with ratios against the alter
 in the same run. `mechsweep bench BENCH --help` describes each.
 
 examples:
-  mechsweep bench duffing --points 20000
-  mechsweep bench workprecision duffing
 """
 
 
@@ -122,11 +120,13 @@ def _parser() -> argparse.ArgumentParser:
     for command in (run, plot, info, models, boundaries, check, examples):  # the order --help lists them in
         command.add_parser(sub, fmt)
 
-    p = sub.add_parser("bench", help="benchmarks: speed and accuracy against scipy / numpy, measured now",
-                       formatter_class=fmt, description=BENCH_DESCRIPTION)
-    bsub = p.add_subparsers(dest="bench", metavar="BENCH")
     from .bench import commands as bench_commands
 
+    # the examples are the benches' own (the bench package names what it measures)
+    bench_examples = "".join(f"  {text}\n" for text in bench_commands.EXAMPLES.values())
+    p = sub.add_parser("bench", help="benchmarks: speed and accuracy against scipy / numpy, measured now",
+                       formatter_class=fmt, description=BENCH_DESCRIPTION + bench_examples)
+    bsub = p.add_subparsers(dest="bench", metavar="BENCH")
     bench_commands.add_parsers(bsub, fmt)
     p.set_defaults(func=lambda a: (p.print_help(), EXIT_INVALID)[1])
     return parser

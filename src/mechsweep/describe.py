@@ -1,6 +1,6 @@
 """What a dataset or a model holds, in words: ``mechsweep info`` (``describe`` a run's dataset,
-``describe_boundaries`` a boundaries dataset) and ``mechsweep models`` (``model_text``,
-``model_markdown``). Reads a Dataset and a model's declaration; computes and writes nothing."""
+``describe_boundaries`` a boundaries dataset) and ``mechsweep models`` (``model_text``; the
+glossary's tables are docs.py's). Reads a Dataset and a model's declaration; computes and writes nothing."""
 from __future__ import annotations
 
 
@@ -240,10 +240,3 @@ def model_text(spec) -> str:
     lines.append("  statuses: " + ", ".join(status.MEANINGS.get(c, str(c)) for c in spec.possible_statuses()))
     lines += [f"    {status.MEANINGS.get(c, str(c)):<20} {t}" for c, t in spec.status_notes]
     return "\n".join(lines)
-
-
-def model_markdown(spec) -> str:
-    """Glossary tables of one model (docs/glossary.md embeds them; a test keeps them in sync)."""
-    from .docs import model_markdown as markdown
-
-    return markdown(spec)

@@ -135,10 +135,9 @@ def model_markdown(spec) -> str:
     codes = spec.possible_statuses()
     how = "declared, and those its outputs imply" if spec.statuses else "derived from its outputs"
     lines += ["", f"Statuses ({how}): " + ", ".join(f"`{st.MEANINGS.get(c, c)}`" for c in codes) + "."]
-    notes = [(c, t) for c, t in spec.status_notes]
-    if notes:
+    if spec.status_notes:
         lines += ["", "| status | for this model |", "|---|---|"]
-        lines += [f"| `{st.MEANINGS.get(c, c)}` | {_cell(t)} |" for c, t in notes]
+        lines += [f"| `{st.MEANINGS.get(c, c)}` | {_cell(t)} |" for c, t in spec.status_notes]
     return "\n".join(lines) + "\n"
 
 

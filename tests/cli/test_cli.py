@@ -198,6 +198,28 @@ def test_status_texts_name_no_model():
     assert all(spec.status_notes for spec in MODELS.values())
 
 
+def test_the_command_line_modules_name_no_model():
+    """cli.py and the command modules name no built-in model, none of their parameters or outputs
+    (their help examples were a model's name and axes); a shipped scene's path may stand in a
+    help text (sweeps/NAME.toml: the scene, not the model), and the bench examples are the bench
+    package's own."""
+    import re
+    from pathlib import Path
+
+    import mechsweep.cli
+    from mechsweep.models import MODELS
+
+    names = set()
+    for spec in MODELS.values():
+        names |= {spec.name, *spec.name.split("_")}
+        names |= {n for n in spec.param_names() + spec.output_names() if len(n) > 2 or "_" in n}
+    folder = Path(mechsweep.cli.__file__).parent
+    for path in [folder / "cli.py", *sorted((folder / "commands").glob("*.py"))]:
+        source = path.read_text()
+        found = sorted(n for n in names if re.search(rf"(?<![\w./]){re.escape(n)}(?!\w)", source))
+        assert not found, (path.name, found)
+
+
 def test_a_run_stores_its_model_status_notes_and_info_shows_those_it_met(in_tmp, capsys):
     import json
 

@@ -365,6 +365,24 @@ def test_plot_refuses_boundaries_no_figure_drawn_can_draw(tmp_path, capsys):
     assert "drawn on stability_map, heatmap_lift; not on nomogram_lift" in capsys.readouterr().err
 
 
+def test_save_refuses_boundaries_no_figure_written_draws(tmp_path):
+    """figures.save with boundaries refuses them as `plot --boundaries` does when no figure it writes
+    draws them (a nomogram: they were dropped without a word), naming the figure and those that do,
+    and when they were not located on the dataset's grid; nothing is written."""
+    from mechsweep.errors import InputError
+
+    ds = _axes_of(cam(n_speed=12), "speed", "preload")
+    bds = _speed_boundaries(ds)
+    with pytest.raises(InputError, match=r"none of the figures drawn \(nomogram_lift\) draws located boundaries; "
+                                         r"the figures of this dataset that do: stability_map, heatmap_lift"):
+        figures.save(ds, tmp_path / "n.png", kind="nomogram_lift", boundaries=bds)
+    other = bds.assign_coords(preload=bds["preload"].values + 1.0)
+    with pytest.raises(InputError, match="not located on the grid of this dataset: its axis 'preload'"):
+        figures.save(ds, tmp_path / "n.png", kind="heatmap_lift", boundaries=other)
+    assert not list(tmp_path.iterdir())
+    assert figures.save(ds, tmp_path / "h.png", kind="heatmap_lift", boundaries=bds) == [tmp_path / "h.png"]
+
+
 def _undamped(ds):
     """ds as an undamped model's run asked for a verdict: every stable point has the modulus 1 to
     round-off, status undecided, and the verdict (1 stable, 0 unstable) NaN there."""

@@ -27,15 +27,11 @@ def command(args) -> int:
     from ..store.read import is_run_dataset, open_dataset, reading
 
     ds = open_dataset(args.dataset, allow_partial=True, lazy=None)
-    if ds.attrs.get("mechsweep_kind") == "boundaries" and "boundary" in ds:
-        with reading(args.dataset):
-            text = describe_boundaries(ds)
-        print(text)
-        return 0
-    if not is_run_dataset(ds):
+    boundaries = ds.attrs.get("mechsweep_kind") == "boundaries" and "boundary" in ds
+    if not boundaries and not is_run_dataset(ds):
         raise InputError(f"{args.dataset} is a mechsweep benchmark dataset ({ds.attrs.get('mechsweep_kind')}), "
                          "not a run; `mechsweep plot` draws it, `info` summarises runs")
     with reading(args.dataset):
-        text = describe(ds)
+        text = describe_boundaries(ds) if boundaries else describe(ds)
     print(text)
     return 0

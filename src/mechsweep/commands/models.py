@@ -18,7 +18,7 @@ load is reported with its file and line (exit 2).
 
 examples:
   mechsweep models
-  mechsweep models duffing
+  mechsweep models NAME                # one model, by a name the list above gives
   mechsweep models --scene sweeps/vibrating_pendulum_stability.toml
 """
 
@@ -38,7 +38,8 @@ def add_parser(sub, fmt) -> None:
 
 
 def command(args) -> int:
-    from ..describe import model_markdown, model_text
+    from ..describe import model_text
+    from ..docs import model_markdown
     from ..errors import InputError
     from ..model import user
     from ..models import MODELS

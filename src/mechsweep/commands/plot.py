@@ -24,7 +24,7 @@ examples:
   mechsweep plot data/runs/quickstart.h5
   mechsweep plot data/runs/quickstart.h5 -o /tmp/quickstart.svg
   mechsweep plot data/runs/quickstart.h5 --list
-  mechsweep plot data/runs/autobalancer_residual.h5 --point Omega=55,A0=0.1
+  mechsweep plot data/runs/NAME.h5 --point AXIS=VALUE,AXIS=VALUE
 """
 
 
@@ -39,7 +39,7 @@ def add_parser(sub, fmt) -> None:
     p.add_argument("--kind", default=None, help="which figure, when a dataset has several (see --list)")
     p.add_argument("--list", action="store_true", help="list the figures this dataset can draw (those drawn by default, then generic ones drawn only with --kind)")
     p.add_argument("--point", metavar="KEY=VALUE,...",
-                   help="select one grid point (nearest values), e.g. --point Omega=12.5,m=0.2; "
+                   help="select one grid point (the nearest value on each axis with more than one); "
                         "draws its time histories when the dataset stores them")
     p.add_argument("--boundaries", metavar="PATH",
                    help="located boundaries (`mechsweep boundaries`) to draw over the charts that show them: "
@@ -61,20 +61,15 @@ def command(args) -> int:
 
 @contextmanager
 def no_dask_probe():
-    """While the body runs, xarray takes dask to be absent unless ``dask.array`` is already imported.
+    """While the body runs, xarray takes dask to be absent unless dask is already imported.
 
-    xarray asks, for every variable it makes (``ds.a == 0``, ``where``, ...), whether the data is a
-    dask array, and to find out imports ``dask.array`` when dask is installed (with it scipy.fft:
-    0.4-1.0 s of a warm ``mechsweep plot``, more than drawing one figure). ``plot`` opens its
-    datasets loaded into memory (``open_dataset``'s default, numpy arrays), so no dask array can
-    occur in it. The answer is put into xarray's cache of such probes for the body only and taken
-    out again afterwards (a caller of ``main`` in the same process, e.g. a test that later opens a
-    dataset lazily, gets xarray's own probe). When xarray's internals differ, nothing is done.
-
-    The same for xarray's other question, whether an array is a dask collection (asked of every
-    index it makes, e.g. when it opens a dataset): it imports ``dask.base`` to answer when dask is
-    installed (most of the plot's opening of the quickstart's dataset). While the body runs, the answer is no without that import as long as
-    dask is not imported (no object can be a dask collection then), else xarray's own."""
+    xarray asks of every variable it makes whether the data is a dask array (and of every index
+    whether it is a dask collection), and imports ``dask.array`` (with scipy.fft) or ``dask.base`` to
+    find out when dask is installed, which cost a warm ``plot`` more than drawing a figure. ``plot``
+    opens its datasets into memory (numpy arrays), so no dask object can occur in it. The answers
+    are put into xarray's caches for the body only and taken out afterwards (a caller of ``main``
+    that later opens a dataset lazily gets xarray's own probes); when xarray's internals differ,
+    nothing is done."""
     seeded = False
     collection = None
     try:
@@ -158,14 +153,19 @@ def _plot(args) -> int:
         out = (folder if folder is not None else Path(args.dataset).parent) / f"{stem}.{fmt}"
     for target in figures.targets(ds, out, kind=args.kind, fmt=fmt, axes=axes):
         _check_figure_path(target, Path(args.dataset))
-    if bds is not None and args.boundaries:  # (a --kind this dataset has not is refused above)
-        _check_boundaries_drawn(ds, bds, args, [args.kind] if args.kind else list(kinds), axes)
+    drawing = [args.kind] if args.kind else list(kinds)  # (a --kind this dataset has not is refused above)
+    can = figures.boundary_figures(ds, bds, axes) if bds is not None else []
+    if bds is not None and args.boundaries:
+        _check_boundaries_drawn(ds, bds, args, drawing, can, axes)
+    elif not set(drawing) & set(can):
+        bds = None  # found beside the dataset: drawn only when a figure shows them
     with _drawing(args.dataset), _writing_figures(out):
         kinds = list(figures.available(ds, axes)) if args.kind is None else []
         if len(kinds) > 1 and jobs.can_fork():  # several figures: side by side on the cores (the same files)
             written = figures.targets(ds, out, fmt=fmt, axes=axes)
-            jobs.side_by_side([lambda k=k, path=path: figures.save(ds, path, kind=k, fmt=fmt, boundaries=bds, axes=axes)
-                           for k, path in zip(kinds, written)])
+            jobs.side_by_side([lambda k=k, path=path: figures.save(ds, path, kind=k, fmt=fmt, axes=axes,
+                                                                   boundaries=bds if k in can else None)
+                               for k, path in zip(kinds, written)])
         else:
             written = figures.save(ds, out, kind=args.kind, fmt=fmt, boundaries=bds, axes=axes)
     for path in written:
@@ -189,7 +189,7 @@ def _boundaries_for(ds, args):
     if path is None:
         return None
     bds = open_dataset(path)
-    why = figures.boundaries_mismatch(ds, bds)
+    why = figures.located.mismatch(ds, bds)
     if why is None:
         return bds
     if args.boundaries:
@@ -198,28 +198,21 @@ def _boundaries_for(ds, args):
     return None
 
 
-def _check_boundaries_drawn(ds, bds, args, drawing, axes) -> None:
+def _check_boundaries_drawn(ds, bds, args, drawing, can, axes) -> None:
     """--boundaries PATH is drawn by some of the figures ``drawing`` (refused, exit 2, when by none:
-    naming the figures of this dataset that draw them, or saying which would); a note names the
-    figures drawn without them (a nomogram, a curve: an output against one axis)."""
+    naming the figures of this dataset that draw them, ``can``, or saying which would); a note names
+    the figures drawn without them (a nomogram, a curve: an output against one axis)."""
     from .. import figures
     from ..errors import InputError
 
-    can = figures.boundary_figures(ds, bds, axes)
-    drawn = [k for k in drawing if k in can]
-    along = bds.attrs.get("along")
-    if not drawn:
-        what = ", ".join(drawing) or "none"
-        if can:
-            raise InputError(f"--boundaries {args.boundaries}: none of the figures drawn ({what}) draws located "
-                             f"boundaries; the figures of this dataset that do: {', '.join(can)} (--kind NAME)")
-        raise InputError(f"--boundaries {args.boundaries}: no figure of this dataset draws them (figures drawn: "
-                         f"{what}): a stability map or heatmap with {along!r} as one of its two axes does (--x, "
-                         "--y choose a heatmap's axes); a nomogram or curve has no place for them")
+    why = figures.boundaries_problem(ds, bds, drawing, axes, kind_arg="--kind NAME", axes_arg="--x, --y")
+    if why is not None:
+        raise InputError(f"--boundaries {args.boundaries}: {why}")
     left = [k for k in drawing if k not in can]
     if left:
-        print(f"note: --boundaries {args.boundaries}: drawn on {', '.join(drawn)}; not on {', '.join(left)} "
-              f"(only a stability map or heatmap with {along!r} as one of its axes draws them)", file=sys.stderr)
+        print(f"note: --boundaries {args.boundaries}: drawn on {', '.join(k for k in drawing if k in can)}; not on "
+              f"{', '.join(left)} (only a stability map or heatmap with {bds.attrs.get('along')!r} as one of its "
+              "axes draws them)", file=sys.stderr)
 
 
 def check_layout(ds) -> None:
@@ -338,8 +331,7 @@ def select_point(ds, text: str):
             raise InputError(f"--point: {key} = {value!r} is not in the grid ({', '.join(map(str, ds[key].values))})")
         else:
             wanted[key] = [value.strip()]
-    grid_dims = [d for d in ds["status"].dims]
-    missing = [d for d in grid_dims if d not in wanted and ds.sizes[d] > 1]
+    missing = [d for d in ds["status"].dims if d not in wanted and ds.sizes[d] > 1]
     if missing:
         raise InputError(f"--point: give a value for {', '.join(missing)} too")
     numeric = {k: v for k, v in wanted.items() if ds[k].dtype.kind in "fiu"}

@@ -55,32 +55,26 @@ def sibling_boundaries(path):
     return target if target.is_file() else None
 
 
-def boundaries_mismatch(ds, bds) -> str | None:
-    """Why ``bds`` cannot be drawn over the charts of ``ds`` (None: it can)."""
-    return located.mismatch(ds, bds)
-
-
-def _draw_fn(f, boundaries):
-    """The figure's draw(ds, fig=, ax=) -> Drawn; a figure that draws boundaries gets ``boundaries``
-    when they were located on the grid of ds (else None: the chart alone)."""
-    if not f.boundaries:
-        return f.draw
-    return lambda ds, **kw: f.draw(ds, boundaries=boundaries if boundaries is not None
-                                   and located.mismatch(ds, boundaries) is None else None, **kw)
-
-
-def _plan(ds, boundaries=None, axes=None) -> list[tuple[str, str, object, bool]]:
-    """(name, description, draw(ds) -> Figure, drawn by default) for every figure that fits.
-    ``axes`` = (x, y), either None: the generic figures only, on those axes, all drawn by default."""
+def _fitting(ds, axes=None) -> tuple[list[ModelFigure], list]:
+    """The model's figures that fit ``ds`` and the generic figures (:class:`.generic.Choice`) of the
+    outputs they leave. ``axes`` = (x, y), either None: the generic figures only, on those axes."""
     given = axes is not None and any(a is not None for a in axes)
     model = [] if given else [f for f in MODEL_FIGURES if f.fits_dataset(ds)]
     drawn = set().union(*(f.drawn(ds) for f in model))
-    plan = [(f.name, f.description, _draw_fn(f, boundaries), True) for f in model]
-    fitting = boundaries if boundaries is not None and located.mismatch(ds, boundaries) is None else None
     x, y = axes if given else (None, None)
-    plan += [(c.name, c.description, (lambda ds, c=c, **kw: c.draw(ds, boundaries=fitting, **kw)), not model)
-             for c in generic.choose(ds, drawn, x=x, y=y)]
-    return plan
+    return model, generic.choose(ds, drawn, x=x, y=y)
+
+
+def _plan(ds, boundaries=None, axes=None) -> list[tuple[str, str, object, bool]]:
+    """(name, description, draw(ds) -> Figure, drawn by default) for every figure that fits; the
+    generic ones are drawn by default when no model's figure fits. The figures that draw boundaries
+    get ``boundaries`` when they were located on the grid of ds (else None: the chart alone)."""
+    model, choices = _fitting(ds, axes)
+    fitting = boundaries if boundaries is not None and located.mismatch(ds, boundaries) is None else None
+    plan = [(f.name, f.description, (lambda ds, f=f, **kw: f.draw(ds, boundaries=fitting, **kw)) if f.boundaries
+             else f.draw, True) for f in model]
+    return plan + [(c.name, c.description, (lambda ds, c=c, **kw: c.draw(ds, boundaries=fitting, **kw)), not model)
+                   for c in choices]
 
 
 def boundary_figures(ds, boundaries, axes=None) -> list[str]:
@@ -90,12 +84,28 @@ def boundary_figures(ds, boundaries, axes=None) -> list[str]:
     along as one of its two axes. Empty when ``boundaries`` were not located on this grid."""
     if boundaries is None or located.mismatch(ds, boundaries) is not None:
         return []
-    given = axes is not None and any(a is not None for a in axes)
-    model = [] if given else [f for f in MODEL_FIGURES if f.fits_dataset(ds)]
-    drawn = set().union(*(f.drawn(ds) for f in model))
-    x, y = axes if given else (None, None)
-    return ([f.name for f in model if f.boundaries]
-            + [c.name for c in generic.choose(ds, drawn, x=x, y=y) if c.draws(boundaries)])
+    model, choices = _fitting(ds, axes)
+    return [f.name for f in model if f.boundaries] + [c.name for c in choices if c.draws(boundaries)]
+
+
+def boundaries_problem(ds, boundaries, kinds, axes=None, *, kind_arg="kind=NAME", axes_arg="axes=(x, y)"):
+    """Why ``boundaries`` cannot be drawn with the figures ``kinds`` of ``ds`` (None: one of them
+    draws them): not located on this grid, or none of those figures draws located boundaries (the
+    text names the figures of ``ds`` that do, else which would). ``kind_arg`` / ``axes_arg``: how
+    the caller chooses a figure and its axes (the command line's options, or the API's)."""
+    why = located.mismatch(ds, boundaries)
+    if why is not None:
+        return f"not located on the grid of this dataset: {why}"
+    can = boundary_figures(ds, boundaries, axes)
+    if any(k in can for k in kinds):
+        return None
+    what = ", ".join(kinds) or "none"
+    if can:
+        return (f"none of the figures drawn ({what}) draws located boundaries; the figures of this dataset that "
+                f"do: {', '.join(can)} ({kind_arg})")
+    return (f"no figure of this dataset draws them (figures drawn: {what}): a stability map or heatmap with "
+            f"{boundaries.attrs.get('along')!r} as one of its two axes does ({axes_arg} choose a heatmap's axes); "
+            "a nomogram or curve has no place for them")
 
 
 def available(ds, axes=None) -> dict[str, str]:
@@ -254,7 +264,8 @@ def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150,
     dpi : int, optional
         Resolution of a PNG.
     boundaries : xarray.Dataset, optional
-        The located boundaries of the same grid, drawn over the charts that draw boundaries.
+        The located boundaries of the same grid, drawn over the charts that draw boundaries
+        (refused when they were not located on this grid or no figure written draws them).
     axes : tuple of (str or None, str or None), optional
         ``(x, y)``: the generic figures over those axes instead.
 
@@ -266,7 +277,7 @@ def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150,
     Raises
     ------
     InputError
-        ``kind`` does not fit this dataset, or no figure does.
+        ``kind`` does not fit this dataset, or no figure does, or ``boundaries`` would not be drawn.
     """
     from ..errors import InputError
 
@@ -281,6 +292,10 @@ def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150,
         raise InputError(f"no generic figure of this dataset is over {_axes_text(axes)}" if given else
                          "no figure fits this dataset (a generic figure needs a float output over at least one "
                          "numeric axis with more than one value)")
+    if boundaries is not None:
+        why = boundaries_problem(ds, boundaries, [kind] if kind else list(kinds), axes)
+        if why is not None:
+            raise InputError(f"boundaries: {why}")
     written = []
     for k, out in zip([kind] if kind else list(kinds), targets(ds, path, kind=kind, fmt=fmt, axes=axes)):
         fig = plan[k](ds).figure

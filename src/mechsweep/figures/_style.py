@@ -16,7 +16,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import Locator, LogLocator
 
-from .._mathtext import _parses, latex_problem  # noqa: F401 (latex_problem: the labels' own check)
+from .._mathtext import _parses
 
 STATUS_OK = 0
 NBSP = "\u00a0"
@@ -113,19 +113,13 @@ def mathtext(symbol) -> str:
                 out.append(r"\ ")
         elif t in _UNICODE_GREEK:
             out.append("\\" + _UNICODE_GREEK[t] + " ")
-        elif t in _SUBSCRIPTS:
+        elif t in _SUBSCRIPTS or t in _SUPERSCRIPTS:  # a run of them: one script
+            mark, table = ("_", _SUBSCRIPTS) if t in _SUBSCRIPTS else ("^", _SUPERSCRIPTS)
             run = ""
-            while i < len(tokens) and tokens[i] in _SUBSCRIPTS:
-                run += _SUBSCRIPTS[tokens[i]]
+            while i < len(tokens) and tokens[i] in table:
+                run += table[tokens[i]]
                 i += 1
-            out.append(f"_{{{run}}}")
-            continue
-        elif t in _SUPERSCRIPTS:
-            run = ""
-            while i < len(tokens) and tokens[i] in _SUPERSCRIPTS:
-                run += _SUPERSCRIPTS[tokens[i]]
-                i += 1
-            out.append(f"^{{{run}}}")
+            out.append(f"{mark}{{{run}}}")
             continue
         elif t in _OPERATORS:
             out.append(_OPERATORS[t])
@@ -173,14 +167,18 @@ def symbol(da) -> str:
 _DEFINED = re.compile(r"^\$([^$=<>]*?)\s*=\s*[^$]*\$$")
 
 
-def short_symbol(da) -> str:
-    """The symbol alone, without a definition the declaration may add (``$k_v = v_max T/A$`` ->
-    ``$k_v$``), for values (``k_v = 2.5``) and legends; '' when there is none."""
-    sym = symbol(da)
+def undefined(sym: str) -> str:
+    """A mathtext symbol without a definition the declaration may add (``$k_v = v_max T/A$`` ->
+    ``$k_v$``)."""
     m = _DEFINED.match(sym)
-    if m and " " not in m.group(1).strip() and m.group(1).strip():
-        return f"${m.group(1).strip()}$"
-    return sym
+    head = m.group(1).strip() if m else ""
+    return f"${head}$" if head and " " not in head else sym
+
+
+def short_symbol(da) -> str:
+    """The variable's symbol alone (:func:`undefined`), for values (``k_v = 2.5``) and legends; ''
+    when there is none."""
+    return undefined(symbol(da))
 
 
 def name_text(da) -> str:
@@ -425,16 +423,14 @@ def log_or_symlog(ax, values, axis="x") -> None:
     v = v[np.isfinite(v)]
     if v.size == 0:
         return
-    setter = ax.set_xscale if axis == "x" else ax.set_yscale
     if (v > 0).all():
         if v.max() / v.min() > 50:
-            setter("log")
-            readable_log_ticks(ax.xaxis if axis == "x" else ax.yaxis)
+            log_scale(ax, axis)
     elif (v < 0).any() and (v > 0).any():
         # asinh: linear near 0, logarithmic far from it, smooth in between (symlog's kink at its
         # threshold drew a kink into every smooth curve)
-        setter("asinh", linear_width=max(np.min(np.abs(v[v != 0])), 1e-3))
-        readable_asinh_ticks(ax.xaxis if axis == "x" else ax.yaxis)
+        getattr(ax, f"set_{axis}scale")("asinh", linear_width=max(np.min(np.abs(v[v != 0])), 1e-3))
+        readable_asinh_ticks(getattr(ax, f"{axis}axis"))
     # all <= 0 (soft springs up to the separatrix): a linear axis shows T -> inf best
 
 
@@ -480,6 +476,12 @@ def readable_log_ticks(axis) -> None:
     axis.set_major_formatter(FuncFormatter(fmt))
     axis.set_minor_locator(_LL(base=10, subs=np.arange(2, 10) * 1.0, numticks=30))
     axis.set_minor_formatter(NullFormatter())
+
+
+def log_scale(ax, axis: str) -> None:
+    """A log scale on the ``axis`` ("x" or "y") of ``ax``, its ticks readable (:func:`readable_log_ticks`)."""
+    getattr(ax, f"set_{axis}scale")("log")
+    readable_log_ticks(getattr(ax, f"{axis}axis"))
 
 
 class _AsinhTicks(Locator):

@@ -11,7 +11,7 @@ from matplotlib.ticker import MaxNLocator
 
 from . import located
 from ._registry import ModelFigure
-from ._style import (Drawn, hatch_unstable, label, new_figure, prose, readable_log_ticks, short_symbol, stable_cmap,
+from ._style import (Drawn, hatch_unstable, label, log_scale, new_figure, prose, short_symbol, stable_cmap,
                      stable_patch, status_text, ticked, ticked_contour, title, unstable_patch, value_text, wrap)
 
 MODELS = ("autobalancer",)
@@ -37,14 +37,9 @@ def _y_dim(ds, name):
     return dims[0] if len(dims) == 1 else None
 
 
-def _y(ds, dim):
-    """Second chart axis; a pendulum or platform mass axis is shown as the mass ratio 2 m / M."""
-    ymap, ylab = _y_map(ds, dim)
-    return ymap(np.asarray(ds[dim].values, dtype=float)), ylab
-
-
 def _y_map(ds, dim):
-    """(values of ``dim`` -> chart coordinate, label) for the second chart axis."""
+    """(values of ``dim`` -> chart coordinate, label) for the second chart axis; a pendulum or
+    platform mass axis is shown as the mass ratio 2 m / M."""
     def ratio():
         m, M = (short_symbol(ds[n]) or n for n in ("m", "M"))
         return f"2{m} / {M}, pendulum mass ratio"
@@ -126,8 +121,8 @@ def stability_chart(ds, boundaries=None, *, fig=None, ax=None):
     beside it."""
     ydim = _y_dim(ds, "stable_floquet")
     x, xlab, scale = _x(ds)
-    y, ylab = _y(ds, ydim)
-    ymap, _ = _y_map(ds, ydim)
+    ymap, ylab = _y_map(ds, ydim)
+    y = ymap(np.asarray(ds[ydim].values, dtype=float))
     xmap = lambda v: np.asarray(v) / scale  # noqa: E731
     use_boundaries = boundaries is not None and boundaries.attrs.get("along") == "Omega"
     small = (located.small_curves(boundaries, ((x.min(), x.max()), (y.min(), y.max())), xmap=xmap, ymap=ymap)
@@ -204,8 +199,7 @@ def stability_chart(ds, boundaries=None, *, fig=None, ax=None):
     ax.set_xlim(x.min(), x.max())
     ax.set_ylim(y.min(), y.max())
     if ds[ydim].attrs.get("spacing") == "log":
-        ax.set_yscale("log")
-        readable_log_ticks(ax.yaxis)
+        log_scale(ax, "y")
     if "P_contour" in art:  # once the scales are set: ticks on the side the first approximation calls stable
         art["P_ticks"] = ticked_contour(ax, art["P_contour"], x, y, P, color=APPROX_COLOR)
     art["frequencies"] = _frequency_ticks(ax, ds, scale)
@@ -331,23 +325,17 @@ def time_history(ds, *, fig=None, ax=None):
     fig, axes = new_figure(2, 1, width=8.0, height=3.2, fig=fig, ax=ax)
     art = Drawn(figure=fig, axes=axes)
     t = point["revolution"].values
-    ax = axes[0, 0]
-    for name, color in (("xi_history", "C0"), ("eta_history", "C1")):
-        if name in point:
-            art[name], = ax.plot(t, point[name].values, lw=0.8, color=color, label=label(point[name], width=60))
-    ax.set_ylabel("platform displacement [m]")
-    ax.legend(fontsize=8)
-    ax.grid(True, alpha=0.3)
-    ax = axes[1, 0]
-    for name, color in (("phase_error1_history", "C2"), ("phase_error2_history", "C3")):
-        if name in point:
-            art[name], = ax.plot(t, point[name].values, lw=0.9, color=color, label=label(point[name], width=60))
-    ax.set_ylabel("pendulum phase error [rad]")
-    ax.set_xlabel(label(point["revolution"]))
-    ax.legend(fontsize=8)
-    ax.grid(True, alpha=0.3)
-    for ax in axes[:, 0]:
+    panels = ((HISTORIES[:2], 0.8, "platform displacement [m]"), (HISTORIES[2:], 0.9, "pendulum phase error [rad]"))
+    for ax, (names, lw, text) in zip(axes[:, 0], panels):
+        for name in names:
+            if name in point:
+                art[name], = ax.plot(t, point[name].values, lw=lw, color=f"C{HISTORIES.index(name)}",
+                                     label=label(point[name], width=60))
+        ax.set_ylabel(text)
+        ax.legend(fontsize=8)
+        ax.grid(True, alpha=0.3)
         ax.set_xlim(t[0], t[-1])
+    axes[1, 0].set_xlabel(label(point["revolution"]))
     where = ", ".join(value_text(point[d]) for d in ds.dims if d != "revolution" and d in point.coords)
     title(fig, point, f"Time history at {where}" if where else "Time history")
     return art

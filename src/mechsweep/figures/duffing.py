@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from ._registry import ModelFigure
-from ._style import Drawn, flag_note, label, log_or_symlog, new_figure, ok_values, short_symbol, symbol, title
+from ._style import (Drawn, flag_note, label, log_or_symlog, log_scale, new_figure, ok_values, short_symbol, symbol,
+                     title)
 
 MODELS = ("duffing", "torsional_circuit")  # the torsional circuit stores Duffing's outputs too
 FLOOR = 1e-17  # exact zeros of the period error drawn at the lower edge
@@ -76,16 +77,18 @@ def _spread(x, y, n=100):
     return ok[first]
 
 
-def _separatrix(ax, x):
-    """A log axis of 1 + epsilon, with an arrow at its left edge pointing to the separatrix
-    (1 + epsilon -> 0, off the axis: a log axis has no place for 1 + epsilon <= 0)."""
-    from ._style import readable_log_ticks
-
-    ax.set_xscale("log")
-    readable_log_ticks(ax.xaxis)
-    return {"towards": ax.annotate("separatrix", xy=(0.0, 0.12), xytext=(0.07, 0.12), xycoords="axes fraction",
-                                   textcoords="axes fraction", ha="left", va="center", fontsize=7, color="0.3",
-                                   arrowprops=dict(arrowstyle="->", color="0.3", lw=0.8))}
+def _x_scale(ax, x, beyond, art, key="") -> None:
+    """The x scale of a panel: epsilon on the scale its values ask for (:func:`log_or_symlog`); for
+    soft springs (``beyond`` given) a log axis of 1 + epsilon, with an arrow at its left edge pointing
+    to the separatrix (1 + epsilon -> 0, off the axis: a log axis has no place for 1 + epsilon <= 0),
+    stored in ``art`` as ``towards`` + ``key``."""
+    if beyond is None:
+        log_or_symlog(ax, x)
+        return
+    log_scale(ax, "x")
+    art["towards" + key] = ax.annotate("separatrix", xy=(0.0, 0.12), xytext=(0.07, 0.12), xycoords="axes fraction",
+                                       textcoords="axes fraction", ha="left", va="center", fontsize=7, color="0.3",
+                                       arrowprops=dict(arrowstyle="->", color="0.3", lw=0.8))
 
 
 def _beyond_note(ds, beyond) -> str | None:
@@ -119,10 +122,7 @@ def amplitude_period(ds, *, fig=None, ax=None):
         art["closed_form"], = a.plot(x[order], te[order], "-", color="k", lw=1.3, zorder=3,
                                      label=r"closed form $4K(m)/\sqrt{\omega^2 + \mu A^2}$")
     art["linear"] = a.axhline(2 * np.pi, color="0.5", lw=0.8, ls="--", label=r"linear oscillator: $2\pi$")
-    if beyond is None:
-        log_or_symlog(a, x)
-    else:
-        art.update(_separatrix(a, x))
+    _x_scale(a, x, beyond, art)
     a.set_xlabel(xlab)
     t_sym = _inner(short_symbol(ds["period"]) if "period" in ds else "$T$")
     w_sym = _inner(short_symbol(omega) or "omega")
@@ -146,10 +146,7 @@ def amplitude_period(ds, *, fig=None, ax=None):
         a2.set_ylim(bottom, top)
         if rtol:
             art["rtol"] = a2.axhline(rtol, color="C0", lw=1.0, ls="--", label=f"solver rtol = {rtol:g}")
-        if beyond is None:
-            log_or_symlog(a2, x)
-        else:
-            art.update({f"{k}_error": v for k, v in _separatrix(a2, x).items()})
+        _x_scale(a2, x, beyond, art, "_error")
         a2.set_xlim(a.get_xlim())
         a2.set_xlabel(xlab)
         a2.set_ylabel(label(ds["period_error"]))
@@ -173,10 +170,7 @@ def kinematic_coefficients(ds, *, fig=None, ax=None):
         art[name], = a.plot(x[order], v[order], ".-", ms=2, lw=0.8, color="C2", label=short_symbol(ds[name]) or name)
         ref, txt = (2 * np.pi, r"$2\pi$") if name == "kv" else (4 * np.pi**2, r"$4\pi^2$")
         art[f"{name}_linear"] = a.axhline(ref, color="0.5", ls="--", lw=0.8, label=f"linear oscillator: {txt}")
-        if beyond is None:
-            log_or_symlog(a, x)
-        else:
-            art.update({f"{k}_{name}": v for k, v in _separatrix(a, x).items()})
+        _x_scale(a, x, beyond, art, f"_{name}")
         a.set_xlabel(xlab)
         a.set_ylabel(label(ds[name], width=34))
         a.grid(True, alpha=0.3)

@@ -53,8 +53,8 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import LogLocator, MaxNLocator
 
 from . import located
-from ._style import (STATUS_OK, Drawn, hatch_unstable, label, name_text, new_figure, prose, readable_log_ticks,
-                     stable_cmap, stable_patch, title, unstable_patch, units_text, value_text, wrap)
+from ._style import (STATUS_OK, Drawn, hatch_unstable, label, log_scale, name_text, new_figure, prose,
+                     readable_log_ticks, stable_cmap, stable_patch, title, unstable_patch, units_text, value_text, wrap)
 
 STABLE_COLORS = stable_cmap()  # unstable, stable (colour-blind safe; the unstable side also hatched)
 FLOQUET_SLACK = 1e-6  # a modulus within this of 1 counts as on the unit circle (stable, undamped)
@@ -431,11 +431,9 @@ def heatmap(ds, name, *, x, y, at=None, ax=None, colorbar=True, contours=True):
             art["flagged"] = ax.scatter(xx[bad], yy[bad], **FLAG_STYLE)
             art["note"] = _flag_note(ax, int(bad.sum()), int((bad & finite).sum()), _status_counts(_status_codes(ds, where)))
     if xlog:
-        ax.set_xscale("log")
-        readable_log_ticks(ax.xaxis)
+        log_scale(ax, "x")
     if ylog:
-        ax.set_yscale("log")
-        readable_log_ticks(ax.yaxis)
+        log_scale(ax, "y")
     ax.set_xlim(_edges(xv, xlog)[[0, -1]])
     ax.set_ylim(_edges(yv, ylog)[[0, -1]])
     if art["contours"] is not None:  # after the scales and limits: labels placed where they do not crowd
@@ -516,7 +514,7 @@ def _mid_arc_positions(ax, cs, avoid):
 
 def _contour_labels(ax, cs, *, avoid=None, fmt=None, halo=None, fontsize=8):
     """Inline labels on the contours, at most one per level, none within LABEL_GAP of another (where
-    levels bunch up, e.g. an error growing steeply near one edge, they used to pile up). With
+    levels bunch up, e.g. an error growing steeply near one edge, they would pile up). With
     ``avoid(x, y) -> bool`` (data coordinates), each label sits half-way along its contour, away
     from the points ``avoid`` marks (e.g. the edge of a region of flagged points, where contours
     crowd); else where matplotlib would put it."""
@@ -570,6 +568,7 @@ def nomogram(ds, name, *, x, family=None, at=None, ax=None):
     # the curves left out are said where the family is named (legend title, colour bar, else a note)
     thinned = f"every {_ordinal(step)} of {total} values drawn" if step > 1 else ""
     many = len(members) > LEGEND_MAX
+    numeric_family = family is not None and is_numeric(ds, family)  # a curve's text: its value, else its name
     colors, cmap_norm = _family_colors(ds, family, members)
     art = {"lines": [], "end_labels": [], "legend": None, "colorbar": None, "flagged": [], "note": None,
            "where": where, "thinned": thinned, "thinned_note": None}
@@ -578,7 +577,7 @@ def nomogram(ds, name, *, x, family=None, at=None, ax=None):
     for member, color in zip(members, colors):
         sel = {} if member is None else {family: member}
         yv = np.asarray(da.sel(sel).values, dtype=float)[order]
-        text = None if member is None else _member_text(ds, family, member)
+        text = None if member is None else value_text(ds[family], member) if numeric_family else str(member)
         (line,) = ax.plot(xv, yv, color=color, lw=1.4, label=text, marker="." if xv.size <= 25 else None, ms=4)
         art["lines"].append(line)
         if flagged is not None:
@@ -596,11 +595,9 @@ def nomogram(ds, name, *, x, family=None, at=None, ax=None):
         art["note"] = ax.text(0.5, 0.5, "no finite value to draw", transform=ax.transAxes, ha="center",
                               color="0.35")
     if is_log(ds, x):
-        ax.set_xscale("log")
-        readable_log_ticks(ax.xaxis)
+        log_scale(ax, "x")
     if _spans_decades(np.concatenate([ln.get_ydata() for ln in art["lines"]])):
-        ax.set_yscale("log")
-        readable_log_ticks(ax.yaxis)
+        log_scale(ax, "y")
     if family is not None and not many:
         art["legend"] = ax.legend(fontsize=7, title=label(ds[family], width=30) + (f"\n({thinned})" if thinned else ""),
                                   title_fontsize=7)
@@ -633,12 +630,6 @@ def _family_colors(ds, family, members):
     cmap = matplotlib.colormaps["viridis"]
     return [cmap(0.9 * norm(v)) for v in values], (matplotlib.colors.ListedColormap(cmap(np.linspace(0, 0.9, 256))),
                                                    norm)
-
-
-def _member_text(ds, family, member) -> str:
-    if not is_numeric(ds, family):
-        return str(member)
-    return value_text(ds[family], member)
 
 
 def _end_labels(ax, ends):
@@ -716,6 +707,16 @@ def _ordinal(k: int) -> str:
 
 
 # ----------------------------------------------------------------------------- whole figures
+def _grid(n, ax) -> tuple[int, int]:
+    """(rows, columns) of ``n`` panels: two columns, or one column on the user's Axes (one per panel)."""
+    return (n, 1) if ax is not None else (-(-n // min(2, n)), min(2, n))
+
+
+def _legend_entries(overlays, boundaries, ds) -> list:
+    """(handle, text) of the located boundaries drawn on the panels: a tuple of artists as one handle."""
+    return [(e[:-1] if len(e) > 2 else e[0], e[-1]) for e in located.legend_entries(overlays, boundaries, ds)]
+
+
 def _panel_figure(ds, choice: Choice, *, fig=None, ax=None, boundaries=None):
     """One panel per value of the axes the figure does not use (at most MAX_PANELS). A heatmap draws
     ``boundaries`` (located along one of its axes, on this grid) over each panel, with a legend."""
@@ -723,11 +724,8 @@ def _panel_figure(ds, choice: Choice, *, fig=None, ax=None, boundaries=None):
     rest = [d for d in _axes(ds, choice.output) if d not in used]
     members = list(itertools.product(*(list(ds[d].values) for d in rest)))
     shown = members[:MAX_PANELS]
-    ncols = min(2, len(shown))
-    nrows = -(-len(shown) // ncols)
+    nrows, ncols = _grid(len(shown), ax)
     heat = choice.kind == "heatmap"
-    if ax is not None:  # the user's Axes: one per panel, none left over
-        ncols, nrows = 1, len(shown)
     over = heat and boundaries is not None
     # located boundaries: their legend goes under the panels, in a taller figure (the panel keeps its height)
     fig, axes = new_figure(nrows, ncols, width=6.0 if heat else 6.6,
@@ -743,18 +741,18 @@ def _panel_figure(ds, choice: Choice, *, fig=None, ax=None, boundaries=None):
         else:
             art["panels"].append(nomogram(ds, choice.output, x=choice.x, family=choice.y, at=at, ax=a))
         if at:
-            a.set_title(", ".join(_slice_text(ds, d, v) for d, v in at.items()), fontsize=9)
-    for k in range(len(shown), nrows * ncols):
-        fig.delaxes(axes[k // ncols, k % ncols])
+            a.set_title(", ".join(value_text(ds[d], v) for d, v in at.items()), fontsize=9)
+    for a in axes.ravel()[len(shown):]:
+        fig.delaxes(a)
     what = {"heatmap": "Map", "nomogram": "Nomogram", "curve": "Curve", "history": "History"}[choice.kind]
     long = prose(ds[choice.output].attrs.get("long_name", choice.output))
     cut = f" (first {len(shown)} of {len(members)} slices of {', '.join(rest)})" if len(members) > len(shown) else ""
     if choice.kind == "history":  # the point it belongs to
-        cut = " at " + ", ".join(_slice_text(ds, d, ds[d].values[0]) for d in grid_dims(ds) if d in ds.coords)
+        cut = " at " + ", ".join(value_text(ds[d], ds[d].values[0]) for d in grid_dims(ds) if d in ds.coords)
     overlays = [a for p in art["panels"] for a in p.get("located") or ()]
     caption = title(fig, ds, f"{what}: {long}{cut}", caption_box=not overlays)
     if overlays:  # what the located points and curves are, under the panels (the caption heads it)
-        entries = [(e[:-1] if len(e) > 2 else e[0], e[-1]) for e in located.legend_entries(overlays, boundaries, ds)]
+        entries = _legend_entries(overlays, boundaries, ds)
         art["legend"] = fig.legend([h for h, _ in entries], [wrap(t, 60) for _, t in entries],
                                    loc="outside lower center", fontsize=8.5,
                                    handler_map={tuple: HandlerTuple(ndivide=None, pad=0.6)},
@@ -794,10 +792,7 @@ def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundarie
     others = [d for d in ds[name].dims if d not in (xdim, ydim)]
     every = list(itertools.product(*(range(ds.sizes[d]) for d in others)))
     members = every[:MAX_PANELS]  # as choose's description says (--list)
-    ncols = min(2, len(members))
-    nrows = -(-len(members) // ncols)
-    if ax is not None:  # the user's Axes: one per panel, none left over
-        ncols, nrows = 1, len(members)
+    nrows, ncols = _grid(len(members), ax)
     below = ncols == 1 and not given  # one column: the legend goes below (beside, it would squeeze the panel)
     # ... in a taller figure, so that the panel keeps its height (the legend took half of it)
     fig, axes = new_figure(nrows, ncols, width=6.0 if below else 5.2, height=(4.0 + 2.2 / nrows) if below else 4.0,
@@ -809,29 +804,23 @@ def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundarie
         sel = dict(zip(others, idx))
         values = ds[name].isel(sel).transpose(ydim, xdim).values
         art["panels"].append(stability_panel(ax, x, y, values))
-        along = boundaries.attrs.get("along") if boundaries is not None else None
-        if along in (xdim, ydim):
-            other = ydim if along == xdim else xdim
-            art["panels"][-1]["located"] = located.overlay(
-                ax, boundaries, line_dim=other if other in boundaries["boundary"].dims else None,
-                sel={d: i for d, i in sel.items() if d in boundaries["boundary"].dims}, transpose=along == ydim, ds=ds,
-                chart_other=other)
+        if boundaries is not None and boundaries.attrs.get("along") in (xdim, ydim):
+            at = {d: ds[d].values[i] for d, i in sel.items()}
+            art["panels"][-1]["located"] = _located_over(ax, ds, boundaries, xdim, ydim, at)
         if is_log(ds, xdim):
-            ax.set_xscale("log")
-            readable_log_ticks(ax.xaxis)
+            log_scale(ax, "x")
         if is_log(ds, ydim):
-            ax.set_yscale("log")
-            readable_log_ticks(ax.yaxis)
+            log_scale(ax, "y")
         ax.set_xlabel(label(ds[xdim]))
         ax.set_ylabel(label(ds[ydim]))
         if others:
-            ax.set_title(", ".join(_slice_text(ds, d, ds[d].values[i]) for d, i in sel.items()), fontsize=10)
+            ax.set_title(", ".join(value_text(ds[d], ds[d].values[i]) for d, i in sel.items()), fontsize=10)
         missing = int((~np.isfinite(values)).sum())
         if missing:
             ax.text(0.01, 0.01, f"{missing} point(s) without a value (see status), not drawn", transform=ax.transAxes,
                     fontsize=8, color="0.35")
-    for k in range(len(members), nrows * ncols):
-        fig.delaxes(axes[k // ncols, k % ncols])
+    for a in axes.ravel()[len(members):]:
+        fig.delaxes(a)
     sym = name_text(ds[name])
     # stable points whose status is undecided (the modulus at 1 within the verdict's margin: neutrally
     # stable, as every stable point of an undamped model is) are said so: shaded stable all the same
@@ -846,7 +835,7 @@ def stability_map(ds, name=None, *, x=None, y=None, fig=None, ax=None, boundarie
     overlays = [a for p in art["panels"] for a in p.get("located") or ()]
     entries = [(h, h.get_label()) for h in handles]
     if overlays:  # the located points and continued curves as one entry, the folds as another
-        entries += [(e[:-1] if len(e) > 2 else e[0], e[-1]) for e in located.legend_entries(overlays, boundaries, ds)]
+        entries += _legend_entries(overlays, boundaries, ds)
     # (a long label would squeeze the panels beside the legend)
     handles, texts = [h for h, _ in entries], [wrap(t, 34) for _, t in entries]
     cut = (f" (first {len(members)} of {len(every)} slices of {', '.join(others)})" if len(every) > len(members)
@@ -895,12 +884,6 @@ def stability_panel(ax, x, y, values) -> dict:
     if resolved and np.nanmin(verdict, initial=np.inf) < 0.5 < np.nanmax(verdict, initial=-np.inf):
         art["boundary"] = ax.contour(x, y, verdict, levels=[0.5], colors="k", linewidths=1.2)
     return art
-
-
-def _slice_text(ds, dim, v) -> str:
-    """'symbol = value unit' of a panel's slice (the name for a list of names, no unit for a
-    dimensionless axis), e.g. '$a$ = 0.05 m', 'position = inverted'."""
-    return value_text(ds[dim], v)
 
 
 def _value(v) -> str:

@@ -6,7 +6,7 @@ import numpy as np
 
 from ._registry import ModelFigure
 from ._style import (HALO_DARK, Drawn, flag_note, label, name_text, new_figure, ok_values, prose, short_symbol, symbol,
-                     readable_log_ticks, status_text, title, units_text, value_text, wrap)
+                     log_scale, status_text, title, units_text, value_text, wrap)
 
 FOURBAR, SLIDER = "fourbar_balancing", "slidercrank_balancing"
 
@@ -253,8 +253,7 @@ def slider_residual(ds, *, fig=None, ax=None):
         else:
             art["error"], = a2.plot(k, np.asarray(err.values, dtype=float).ravel(), color="C3")
             a2.set_xlabel(label(ds["k"], width=60))
-        a2.set_yscale("log")
-        readable_log_ticks(a2.yaxis)
+        log_scale(a2, "y")
         a2.set_ylabel(label(ds["F_tb_error_rel"], width=34))
         a2.grid(True, which="both", alpha=0.3)
     caption = f"residual forces {prose(tail)}" if names and tail else None

@@ -91,7 +91,7 @@ def overlay(ax, bds, *, line_dim=None, sel=None, xmap=None, ymap=None, color=Non
     sel = sel or {}
     along = bds.attrs["along"]
     artists = []
-    located = bds["boundary"].isel({k: v for k, v in sel.items() if k in bds["boundary"].dims})
+    located = _isel(bds["boundary"], sel)
     text = f"{label_prefix}located along {name_of(bds, along, ds)}: {criterion_text(bds, ds)} ({tolerance_text(bds)})"
     if line_dim is None:
         xs = np.asarray(located.values, dtype=float).ravel()
@@ -108,8 +108,7 @@ def overlay(ax, bds, *, line_dim=None, sel=None, xmap=None, ymap=None, color=Non
                                             linewidths=0, zorder=4, label=text), "located", text))
     cont = bds.attrs.get("continue_in")
     if cont and f"curve_{along}" in bds and chart_other in (None, cont):
-        cx = bds[f"curve_{along}"].isel({k: v for k, v in sel.items() if k in bds[f"curve_{along}"].dims})
-        cy = bds[f"curve_{cont}"].isel({k: v for k, v in sel.items() if k in bds[f"curve_{cont}"].dims})
+        cx, cy = _isel(bds[f"curve_{along}"], sel), _isel(bds[f"curve_{cont}"], sel)
         first = True
         for k in range(cx.sizes["curve"]):
             px = np.asarray(cx.isel(curve=k).values, dtype=float)
@@ -134,6 +133,11 @@ def overlay(ax, bds, *, line_dim=None, sel=None, xmap=None, ymap=None, color=Non
                                                 edgecolors=color or CONTINUED_COLOR, zorder=5, label=text),
                                      "fold", text))
     return artists
+
+
+def _isel(da, sel):
+    """``da`` at the indices ``sel`` gives of its own dimensions."""
+    return da.isel({k: v for k, v in sel.items() if k in da.dims})
 
 
 def _role(artist, role, text):

@@ -69,6 +69,15 @@ def _limits_text(lam, bad, x_name, located_at=()):
     return ", ".join(parts) + (" (to the grid's spacing)" if gridded and parts != ["everywhere"] else "")
 
 
+def _located_at(boundaries, spring, fam, val) -> list[float]:
+    """The located limits along lambda2 of the curve of ``val`` (of the family ``fam``) for ``spring``."""
+    if boundaries is None:
+        return []
+    b = boundaries["boundary"]
+    pick = {d: v for d, v in (("spring", spring), (fam, val)) if d is not None and d in b.dims}
+    return [v for v in np.asarray(b.sel(pick).values, dtype=float).ravel() if np.isfinite(v)]
+
+
 def coefficients(ds, boundaries=None, *, fig=None, ax=None):
     """chi and xi against lambda2, one curve per value of the family axis (e.g. S0/R; one colour and
     marker each, one legend beside the panels saying where each curve has no feasible design);
@@ -95,12 +104,7 @@ def coefficients(ds, boundaries=None, *, fig=None, ax=None):
         for k, val in enumerate(members):
             st = (sub["status"].sel({fam: val}) if fam else sub["status"]).values != 0
             if st.any():
-                at = ()
-                if boundaries is not None:
-                    b = boundaries["boundary"]
-                    pick = {d: v for d, v in (("spring", spring), (fam, val)) if d is not None and d in b.dims}
-                    at = [v for v in np.asarray(b.sel(pick).values, dtype=float).ravel() if np.isfinite(v)]
-                where = _limits_text(lam, st, x_name, at)
+                where = _limits_text(lam, st, x_name, _located_at(boundaries, spring, fam, val))
                 notes[k].append(f"{spring}: none for {where}" if spring is not None else f"none for {where}")
         for r, name in enumerate(rows):
             a = axes[r, c]
@@ -111,12 +115,8 @@ def coefficients(ds, boundaries=None, *, fig=None, ax=None):
                                            marker=FAMILY_MARKERS[k % len(FAMILY_MARKERS)], ms=3.5,
                                            markevery=(k * every // max(1, len(members)), every),
                                            label=f"{val:g}" if fam else None)[0])
-                if boundaries is not None:
-                    b = boundaries["boundary"]
-                    pick = {d: v for d, v in (("spring", spring), (fam, val)) if d is not None and d in b.dims}
-                    for xb in np.asarray(b.sel(pick).values, dtype=float).ravel():
-                        if np.isfinite(xb):
-                            art["located"].append(a.axvline(xb, color=colors[k], lw=1.0, ls=":"))
+                for xb in _located_at(boundaries, spring, fam, val):
+                    art["located"].append(a.axvline(xb, color=colors[k], lw=1.0, ls=":"))
             a.axhline(0.0, color="0.3", lw=0.6)
             if name == "xi":
                 v = np.asarray(da.values, dtype=float)

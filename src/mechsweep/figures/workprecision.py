@@ -8,10 +8,7 @@ import zlib
 import numpy as np
 
 from ._registry import ModelFigure
-from ._style import Drawn, code, label, mathtext, new_figure, owns, width_inches, wrap
-
-_DEFINED = re.compile(r"^\$([^$=<>]*?)\s*=\s*[^$]*\$$")
-
+from ._style import Drawn, code, label, mathtext, new_figure, owns, undefined, width_inches, wrap
 
 def _symbols(ds) -> dict:
     """{name: mathtext symbol, without its definition} the bench stored from the model's declaration."""
@@ -19,11 +16,7 @@ def _symbols(ds) -> dict:
         found = json.loads(str(ds.attrs.get("latex_symbols", "") or "{}"))
     except ValueError:
         return {}
-    out = {}
-    for name, latex in found.items():
-        m = _DEFINED.match(str(latex))
-        out[name] = f"${m.group(1).strip()}$" if m and " " not in m.group(1).strip() else str(latex)
-    return out
+    return {name: undefined(str(latex)) for name, latex in found.items()}
 
 
 def _named(ds, text: str) -> str:
@@ -140,14 +133,10 @@ def _energy_drift(ax, ds):
     """Energy error against integrated periods: linear growth of the explicit method, none for
     the symplectic one (its error sits at round-off). Colour by method, line style by tolerance."""
     lines = {}
-    rtols = []
-    for name in ds["drift_run"].values:
-        r = str(name).split("rtol")[-1].strip() if "rtol" in str(name) else ""
-        if r not in rtols:
-            rtols.append(r)
+    runs = [str(name).split("rtol")[-1].strip() if "rtol" in str(name) else "" for name in ds["drift_run"].values]
+    rtols = list(dict.fromkeys(runs))  # one line style per tolerance, in the order met
     for i, name in enumerate(ds["drift_run"].values):
-        r = str(name).split("rtol")[-1].strip() if "rtol" in str(name) else ""
-        j = rtols.index(r)
+        j = rtols.index(runs[i])
         e = np.maximum(ds["energy_error"].isel(drift_run=i).values, 1e-17)  # exact zeros drawn at the floor
         lines[str(name)], = ax.loglog(ds["periods"].values, e, marker=MARKERS[j % len(MARKERS)],
                                       ls=("-", "--", ":", "-.")[j % 4], color=method_color(name),
