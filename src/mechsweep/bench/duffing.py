@@ -48,10 +48,6 @@ def grid_scene(points: int, rtol: float, atol: float, outputs=("period",)) -> di
     }
 
 
-def _whole_grid(scene) -> Chunk:
-    return Chunk(0, 0, scene.n_points, ())
-
-
 def _timed(f):
     """(wall s, process CPU s, result) of f()."""
     t0, c0 = time.perf_counter(), time.process_time()
@@ -67,11 +63,6 @@ LABELS = {"scipy": "scipy solve_ivp DOP853 + event",  # what each competitor is 
           "diffrax": "diffrax Tsit5 + Event (vmap, jit)"}
 
 
-def scipy_periods(omega, mu, A, rtol, atol):
-    """Same scaled problem, same tolerances, scipy's DOP853 with a terminal event."""
-    return competitors.scipy_periods(np.column_stack([omega, mu, A]), rtol, atol)
-
-
 def _rates(n, times):
     """(best, worst) points/s of wall-clock and CPU times."""
     return n / min(times), n / max(times)
@@ -80,7 +71,7 @@ def _rates(n, times):
 def _ours(scene, threads, lanes, rows, key):
     model_compile.USE_LANES = lanes
     with _threads(threads):
-        wall, cpu, result = _timed(lambda: evaluate_chunk(scene, _whole_grid(scene)))
+        wall, cpu, result = _timed(lambda: evaluate_chunk(scene, Chunk(0, 0, scene.n_points, ())))
     rows.setdefault(key, {"wall": [], "cpu": []})
     rows[key]["wall"].append(wall)
     rows[key]["cpu"].append(cpu)
