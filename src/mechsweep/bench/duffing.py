@@ -68,14 +68,19 @@ def _rates(n, times):
     return n / min(times), n / max(times)
 
 
-def _ours(scene, threads, lanes, rows, key):
-    model_compile.USE_LANES = lanes
-    with _threads(threads):
-        wall, cpu, result = _timed(lambda: evaluate_chunk(scene, Chunk(0, 0, scene.n_points, ())))
+def _record(rows, key, f):
+    """Time f() (_timed) into rows[key]'s wall and CPU times; returns f's result."""
+    wall, cpu, result = _timed(f)
     rows.setdefault(key, {"wall": [], "cpu": []})
     rows[key]["wall"].append(wall)
     rows[key]["cpu"].append(cpu)
     return result
+
+
+def _ours(scene, threads, lanes, rows, key):
+    model_compile.USE_LANES = lanes
+    with _threads(threads):
+        return _record(rows, key, lambda: evaluate_chunk(scene, Chunk(0, 0, scene.n_points, ())))
 
 
 def _competitor(name, P, exact, ours_err, rtol, atol, repeats):
@@ -178,11 +183,8 @@ def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = N
                 _ours(scene_stored, n_threads, True, rows, "kernel_stored")
                 for key, outputs in (("run", stored), ("run_period", ("period",))):
                     with tempfile.TemporaryDirectory() as tmp:
-                        wall, cpu, _ = _timed(lambda: run(grid_scene(points, rtol, atol, outputs),
-                                                          output=os.path.join(tmp, "bench.h5"), progress=False))
-                    rows.setdefault(key, {"wall": [], "cpu": []})
-                    rows[key]["wall"].append(wall)
-                    rows[key]["cpu"].append(cpu)
+                        _record(rows, key, lambda: run(grid_scene(points, rtol, atol, outputs),
+                                                       output=os.path.join(tmp, "bench.h5"), progress=False))
     finally:
         model_compile.USE_LANES = use_lanes
     cols, status, n_steps, n_rhs = results[True]

@@ -47,7 +47,7 @@ import numba
 import numpy as np
 
 from .. import status as st
-from ..scene import Scene, Solver, load_scene
+from ..scene import Solver, load_scene
 from . import workprecision_linkage
 from .cases import all_cases, declared_scene, fastest, latex_symbols, resolve_model, sample, tiled, write  # noqa: F401
 
@@ -154,7 +154,7 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     try:
         for a, method in enumerate(ours):
             for b, rtol in enumerate(ladder):
-                solver = Solver.for_model(spec, **{**_scene_settings(scene), "method": method, "rtol": rtol,
+                solver = Solver.for_model(spec, **{**dict(scene.solver.settings), "method": method, "rtol": rtol,
                                                    "atol": rtol * ATOL_RATIO})
                 if method not in compile_s:
                     t0 = time.perf_counter()
@@ -230,7 +230,7 @@ def _case(model: str, spec, declared, scene_path, output):
     if output not in spec.output_names():
         raise InputError(f"--output {output!r} is not an output of model {spec.name!r}; "
                          f"expected one of {', '.join(spec.output_names())}")
-    settings = _scene_settings(scene)
+    settings = dict(scene.solver.settings)
     ode = wo.OdeReference(declared, output, settings)
     exact = wp.reference if (wp is not None and wp.reference and output == wp.output) else None
     if exact:  # the model's closed form, evaluated by the engine
@@ -268,10 +268,6 @@ def _with_drift(ds, declaration):
     ds.attrs["drift_problem"] = f"{inv.problem or f'{declaration.name} at {at}'}, one integration over {span} periods"
     ds.attrs["drift_quantity"] = inv.name
     return ds
-
-
-def _scene_settings(scene: Scene) -> dict:
-    return dict(scene.solver.settings)
 
 
 def _fill(res, a, b, values, status, ns, nr, reference, kind, time_per_point, k):
