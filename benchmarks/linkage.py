@@ -30,7 +30,7 @@ import numpy as np
 from mechsweep import status as st
 from mechsweep.models import _linkage as L
 from mechsweep.models import fourbar_balancing as fb
-from mechsweep.models._linkage_reference import FOURBAR_OUTPUTS as OUTPUTS, numpy_fourbar  # the numpy side, with the model
+from mechsweep.models._linkage_reference import FOURBAR_OUTPUTS as OUTPUTS, numpy_fourbar  # the numpy side
 from mechsweep.execution.execute import threads as _threads
 
 

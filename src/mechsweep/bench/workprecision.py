@@ -19,8 +19,9 @@ solve_ivp (DOP853, Radau, LSODA) over a ladder of tolerances, in the same proces
   of ours, :mod:`mechsweep.bench.workprecision_ode`; the maximum and the median over the sample;
 - time: wall time per point after JIT compilation (the compile or cache-load time of the first
   call is reported separately), the minimum of ``repeats`` runs; ours runs the sample, repeated
-  up to cases.TIMED_POINTS points (or until a call takes cases.TIMED_CALL_S), through the model's ``evaluate`` on one thread (what a sweep's chunk
-  does, per core; a call's fixed cost is then spread as in a sweep); scipy runs
+  up to cases.TIMED_POINTS points (or until a call takes cases.TIMED_CALL_S), through the model's
+  ``evaluate`` on one thread (what a sweep's chunk does, per core; a call's fixed cost is then
+  spread as in a sweep); scipy runs
   ``scipy_points`` of the points one by one with the model's jitted right-hand side (scipy's
   best case: its Python-level stepping is then the whole cost), and stops a scipy method's
   ladder once a rung costs more than ``scipy_budget_s`` per point (said in the report);
