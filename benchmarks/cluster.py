@@ -48,9 +48,13 @@ def _same(a, b) -> bool:
 
 def main(points: int = 400_000, workers: int | None = None, chunk: int = 8192) -> list[dict]:
     from mechsweep.bench import arguments
+    from mechsweep.errors import InputError
 
-    arguments.needs_distributed()
-    from distributed import LocalCluster
+    try:
+        from distributed import LocalCluster
+    except ImportError:
+        raise InputError("this benchmark needs the optional packages dask and distributed: "
+                         "pip install \"mechsweep[distributed]\"") from None
 
     points = arguments.count("points", points)
     workers = arguments.count("workers", workers, 1, 256) if workers is not None else os.cpu_count() or 1

@@ -30,7 +30,7 @@ import numpy as np
 from mechsweep import status as st
 from mechsweep.models import _linkage as L
 from mechsweep.models import fourbar_balancing as fb
-from mechsweep.models._linkage_reference import OUTPUTS, numpy_residuals  # noqa: F401 - the numpy side, with the model
+from mechsweep.models._linkage_reference import FOURBAR_OUTPUTS as OUTPUTS, numpy_fourbar  # the numpy side
 from mechsweep.execution.execute import threads as _threads
 
 
@@ -99,7 +99,7 @@ def main(designs: int = 200_000, numpy_designs: int = 20_000, threads: int | Non
         with _threads(1):
             one_s, _ = _best(lambda: mechsweep_residuals(P[:numpy_designs * 2]), repeats)
     Pn = P[:numpy_designs]
-    numpy_s, ref = _best(lambda: numpy_residuals(Pn), repeats)
+    numpy_s, ref = _best(lambda: numpy_fourbar(Pn), repeats)
     worst = 0.0
     for k in OUTPUTS:
         a, b = ours[k][:numpy_designs], ref[k]

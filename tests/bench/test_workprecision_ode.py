@@ -16,6 +16,12 @@ USER = REPO / "tests" / "user_models"
 LINEAR = f"{USER / 'oscillators.py'}:LINEAR"
 PENDULUM = f"{USER / 'oscillators.py'}:PENDULUM"  # its period kernel: the one tests/model/test_model_layer.py compiles
 
+
+def declaration(ref):
+    """The OdeModel object a model reference names, as the bench loads it."""
+    return wp.resolve_model(ref).declaration
+
+
 SCENE = """
 [scene]
 name = "lin"
@@ -34,21 +40,21 @@ def test_scipy_versions_of_the_measurements_match_the_closed_forms():
     the Floquet modulus of Mathieu's equation (central differences; the model's jac)."""
     from scipy.special import ellipk
 
-    lin = wo.declaration(LINEAR)
+    lin = declaration(LINEAR)
     P = np.array([[w, 0.7] for w in (0.5, 1.7, 10.0)])
     w = P[:, 0]
     np.testing.assert_allclose(wo.OdeReference(lin, "period").reference(P), 2 * np.pi / w, rtol=1e-11)
     np.testing.assert_allclose(wo.OdeReference(lin, "x_at_2").reference(P), 0.7 * np.cos(2 * w), atol=1e-11)
     np.testing.assert_allclose(wo.OdeReference(lin, "v_max").reference(P), 0.7 * w, rtol=1e-11)
     np.testing.assert_allclose(wo.OdeReference(lin, "t_half_down").reference(P), np.pi / 3 / w, rtol=1e-11)
-    pend = wo.declaration(f"{USER / 'oscillators.py'}:PENDULUM")
+    pend = declaration(f"{USER / 'oscillators.py'}:PENDULUM")
     A = 2.5
     ref = wo.OdeReference(pend, "period").reference(np.array([[9.81, 0.5, A]]))[0]
     assert ref == pytest.approx(4 * ellipk(math.sin(A / 2) ** 2) * math.sqrt(0.5 / 9.81), rel=1e-11)
     # undamped, inside the first stability region: both multipliers on the unit circle
-    undamped = wo.OdeReference(wo.declaration(f"{USER / 'mathieu.py'}:MATHIEU"), "max_multiplier")
+    undamped = wo.OdeReference(declaration(f"{USER / 'mathieu.py'}:MATHIEU"), "max_multiplier")
     assert undamped.reference(np.array([[0.2, 0.5]]))[0] == pytest.approx(1.0, abs=1e-10)
-    damped = wo.OdeReference(wo.declaration(f"{USER / 'mathieu.py'}:MATHIEU_JAC"), "max_multiplier")
+    damped = wo.OdeReference(declaration(f"{USER / 'mathieu.py'}:MATHIEU_JAC"), "max_multiplier")
     assert "the model's jac" in damped.reference_name
     assert damped.reference(np.array([[0.2, 0.5, 0.2]]))[0] == pytest.approx(math.exp(-0.2 * math.pi / 2), rel=1e-10)
 
@@ -91,7 +97,7 @@ def test_scipy_versions_of_nth_roots_and_extrema_of_expressions():
     """FirstEvent (n-th root, either direction) and Extremum of an expression over windows given by
     functions of p, re-done by scipy on the model's own functions: x = A cos(w t), v = -A w sin(w t)
     (tests/user_models/measure_more.py)."""
-    more = wo.declaration(f"{USER / 'measure_more.py'}:MODEL")
+    more = declaration(f"{USER / 'measure_more.py'}:MODEL")
     P = np.array([[w, 0.7] for w in (0.5, 1.7, 3.0)])
     w = P[:, 0]
     np.testing.assert_allclose(wo.OdeReference(more, "down3").reference(P), 17 * np.pi / 4 / w, rtol=1e-11)
@@ -110,7 +116,7 @@ def test_scipy_versions_of_a_system_and_a_refined_measurement():
     from x = 1, its prepare refusing w > 5) and one with a refine (factor = the parameter tighten):
     scipy runs the System's rhs and initial state after its prepare, and refine decides as the
     engine's: a second pass at rtol / f, atol / f from the start (both counted), not finite: NaN."""
-    model = wo.declaration(f"{USER / 'layer_systems.py'}:SYSTEMS")
+    model = declaration(f"{USER / 'layer_systems.py'}:SYSTEMS")
     P = np.array([[1.0, 0.5, 1.0], [2.0, 0.3, 1.0], [6.0, 0.5, 1.0]])
     half = wo.OdeReference(model, "half").reference(P)
     np.testing.assert_allclose(half[:2], np.pi / P[:2, 0], rtol=1e-11)  # the System's equation, not the model's
@@ -180,7 +186,7 @@ def test_a_model_without_a_declared_report_is_told_what_to_declare(tmp_path):
 
     from mechsweep.model import WorkPrecision
 
-    lost = dataclasses.replace(wo.declaration(HARMONIC), name="lost", workprecision=WorkPrecision(scene="nowhere.toml"))
+    lost = dataclasses.replace(declaration(HARMONIC), name="lost", workprecision=WorkPrecision(scene="nowhere.toml"))
     with pytest.raises(InputError, match=r"names scene 'nowhere.toml', which is not a file: .*tests/bench/nowhere.toml \(a "
                                          r"path relative to the folder of the file that declares it"):
         wp.declared_scene(lost.workprecision)
@@ -233,11 +239,11 @@ def test_the_reference_steps_onto_a_models_switch_times():
                    for d, e, _ in P])
     err = {}
     for name in ("SWITCHED", "UNDECLARED"):
-        ref = wo.OdeReference(wo.declaration(f"{USER / 'switched.py'}:{name}"), "x_end")
+        ref = wo.OdeReference(declaration(f"{USER / 'switched.py'}:{name}"), "x_end")
         assert ref.reference_name.endswith("restarted at each of its switch times") == (name == "SWITCHED")
         at = np.array([ref.value(row, "DOP853", 1e-10, 1e-12)[0] for row in P])
         err[name] = (np.abs(ref.reference(P) - x10).max(), np.abs(at - x10).max())
-        floquet = wo.OdeReference(wo.declaration(f"{USER / 'switched.py'}:{name}_JAC"), "mu")
+        floquet = wo.OdeReference(declaration(f"{USER / 'switched.py'}:{name}_JAC"), "mu")
         err[name] += (np.abs(floquet.reference(P) / mu - 1.0).max(),)
     assert err["SWITCHED"][0] < 1e-12 and err["SWITCHED"][1] < 3e-10 and err["SWITCHED"][2] < 1e-12, err
     assert err["UNDECLARED"][0] > 3e-12 and err["UNDECLARED"][1] > 3e-9 and err["UNDECLARED"][2] > 2e-12, err

@@ -9,7 +9,7 @@ def test_bench_numpy_reference_is_the_same_computation(capsys):
 
     P = bench.design_family(200, seed=4)
     ours, status = bench.mechsweep_residuals(P)
-    ref = bench.numpy_residuals(P, block=64)
+    ref = bench.numpy_fourbar(P, block=64)
     assert (status == st.OK).all()
     for k in bench.OUTPUTS:
         np.testing.assert_allclose(ours[k], ref[k], rtol=1e-11, atol=1e-11 * np.abs(ref[k]).max())

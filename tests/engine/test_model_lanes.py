@@ -226,9 +226,10 @@ def test_lane_rhs_of_the_autobalancer_is_its_rhs_per_lane():
     accelerations_trig -> conrod_terms, sincos, ieee_sqrt, inlined; run here as plain Python, the
     same IEEE arithmetic): per lane bitwise the scalar rhs, also for angles beyond sincos_reduced's
     range (sincos's libm branch, taken by the loop run again) and infinite; a NaN angle gives NaN as
-    the scalar rhs does (the fast loop's sincos_reduced, as the hand-written scaled_rhs_lanes);
-    and in every case the bits of the hand-written scaled_rhs_lanes."""
+    the scalar rhs does (the fast loop's sincos_reduced, as the hand-written rhs_lanes);
+    and in every case the bits of the hand-written rhs_lanes (tests/reference/autobalancer_kernels.py)."""
     from mechsweep.models import autobalancer as ab
+    from tests.reference import autobalancer_kernels as ref
 
     src = lane_rhs.lane_rhs_source(ab.MODEL.rhs)
     assert src is not None and "if _lb:" in src
@@ -248,7 +249,7 @@ def test_lane_rhs_of_the_autobalancer_is_its_rhs_per_lane():
         else:
             _, dZ = _per_lane(ab.MODEL.rhs, src, 8, P.shape[0], rng, L, tau, Z, P)
         hand = np.empty((8, L))
-        ab.scaled_rhs_lanes(tau, Z, np.ascontiguousarray(P[ab.OFF:ab.OFF + ab.NP]), hand)
+        ref.rhs_lanes(tau, Z, np.ascontiguousarray(P[ab.OFF:ab.OFF + ab.NP]), hand)
         assert np.array_equal(hand.view(np.int64), dZ.view(np.int64)), case
 
 
@@ -256,7 +257,7 @@ def test_lane_rhs_of_the_autobalancer_is_its_rhs_per_lane():
 @pytest.mark.skipif(__import__("platform").machine() not in ("x86_64", "AMD64"), reason="x86 assembly")
 def test_lane_rhs_of_the_autobalancer_is_vectorised():
     """Compiled, the same bits per lane, and LLVM vectorises the fast loop (packed multiplies, no
-    fused multiply-adds), as the hand-written scaled_rhs_lanes."""
+    fused multiply-adds), as the hand-written rhs_lanes."""
     import re
 
     from mechsweep.models import autobalancer as ab

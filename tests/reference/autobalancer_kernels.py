@@ -10,7 +10,8 @@ simulation (``simulation_kernel`` one trajectory at a time, ``simulate_lanes`` i
 ``evaluate`` with its own method switch, under ``SPEC`` (a ModelSpec named "autobalancer" that is
 not registered in MODELS). The equations of motion, Jacobian, phase errors, initial state,
 parameters, settings, outputs' metadata and cross-parameter rules are imported from
-models/autobalancer.py (one place), under the names this code used (rhs, rhs_lanes, jacobian).
+models/autobalancer.py (one place), under the names this code used (rhs, jacobian); the hand-written lane
+right-hand side ``rhs_lanes`` is here (the model's lane form is written by the engine, engine/lane_rhs.py).
 """
 from __future__ import annotations
 
@@ -29,8 +30,51 @@ from mechsweep.models.autobalancer import (  # noqa: F401 (re-exported: the refe
     variational_jacobian, variational_rhs, wrap)
 from mechsweep.models.autobalancer import scaled_jacobian as jacobian
 from mechsweep.models.autobalancer import scaled_rhs as rhs
-from mechsweep.models.autobalancer import scaled_rhs_lanes as rhs_lanes
+from mechsweep.special import SINCOS_MAX, sincos_reduced
 from mechsweep.ode import AUTO, DOP853, METHOD_CODES, RADAU, dop853, dop853_lanes, radau
+
+
+@jit_noalloc
+def rhs_lanes(tau, Z, P, dZ):
+    """rhs() (models/autobalancer.py's scaled_rhs) for several trajectories side by side (lanes):
+    tau[l], state Z[:, l], scaled parameters P[:, l], derivative into dZ[:, l]. Bitwise the same
+    floats as rhs() per lane.
+
+    The main loop has no branch and no call, so LLVM vectorises it over the lanes (4 doubles
+    per AVX2 instruction); the velocity rows are copied in a separate loop because writing all
+    eight rows of dZ in one loop needs more run-time aliasing checks than LLVM makes, and it
+    then leaves the loop scalar. An angle beyond the reduction range of sincos_reduced (or
+    infinite) sends every lane through the scalar rhs, with libm's sin and cos; NaN stays on the
+    fast path (sincos_reduced gives NaN for it, like libm; idle lanes may hold NaN)."""
+    lanes = Z.shape[1]
+    beyond = 0
+    for l in range(lanes):
+        beyond += 1 if max(abs(Z[2, l]), abs(Z[3, l]), abs(tau[l])) > SINCOS_MAX else 0  # NaN: not beyond
+    if beyond:
+        for l in range(lanes):
+            xdd, ydd, g1dd, g2dd, _, _, _, _, _, _, _, _ = accelerations(
+                tau[l], Z[0, l], Z[1, l], Z[2, l], Z[3, l], Z[4, l], Z[5, l], Z[6, l], Z[7, l], P[:, l])
+            dZ[4, l] = xdd
+            dZ[5, l] = ydd
+            dZ[6, l] = g1dd
+            dZ[7, l] = g2dd
+    else:
+        for l in range(lanes):
+            s1, k1 = sincos_reduced(Z[2, l])
+            s2, k2 = sincos_reduced(Z[3, l])
+            st_, ct_ = sincos_reduced(tau[l])
+            xdd, ydd, g1dd, g2dd, _, _, _, _, _, _, _, _ = accelerations_trig(
+                Z[0, l], Z[1, l], Z[4, l], Z[5, l], Z[6, l], Z[7, l], s1, k1, s2, k2, st_, ct_, P[IP_MU, l],
+                1.0 / P[IP_IOTA, l], P[IP_EH, l], P[IP_KX, l], P[IP_KY, l], P[IP_DX, l], P[IP_DY, l],
+                P[IP_ALPHA0, l], P[IP_ALPHA1, l], P[IP_LAM, l])
+            dZ[4, l] = xdd
+            dZ[5, l] = ydd
+            dZ[6, l] = g1dd
+            dZ[7, l] = g2dd
+    for r in range(4):
+        for l in range(lanes):
+            dZ[r, l] = Z[4 + r, l]
+
 
 BLOCK = 8  # points per scratch allocation in the parallel loops
 LATE_FRACTION = 0.1  # last 10 % of the horizon: residual amplitude and late envelopes

@@ -55,11 +55,3 @@ def folder(name: str, value) -> Path:
             break
     return path
 
-
-def needs_distributed() -> None:
-    try:
-        import dask  # noqa: F401
-        import distributed  # noqa: F401
-    except ImportError:
-        raise InputError("this benchmark needs the optional packages dask and distributed: "
-                         "pip install \"mechsweep[distributed]\"") from None

@@ -6,6 +6,9 @@ closed-form models' (workprecision_linkage.py).
 """
 from __future__ import annotations
 
+import math
+import re
+import time
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +17,9 @@ from ..grid import ParameterMatrix
 from ..models import MODELS
 from ..scene import Scene
 from .. import examples
+
+TIMED_POINTS = 1024  # our time per point: the sample repeated up to this many points ...
+TIMED_CALL_S = 0.05  # ... or until one call takes this long
 
 
 def all_cases() -> tuple[str, ...]:
@@ -76,3 +82,32 @@ def latex_symbols(spec) -> str:
     import json
 
     return json.dumps({q.name: q.latex for q in spec.params + spec.outputs if getattr(q, "latex", "")})
+
+
+def fastest(fn, repeats: int) -> float:
+    """The shortest wall time of ``repeats`` calls of fn()."""
+    best = math.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def tiled(P, once_s: float):
+    """The sample repeated until a call takes ~TIMED_CALL_S (at most TIMED_POINTS points), so that a
+    call's fixed cost is spread as over a sweep's chunk; once_s: one call's time on P."""
+    tiles = int(min(max(1, TIMED_POINTS // P.shape[0]), max(1, math.ceil(TIMED_CALL_S / max(once_s, 1e-9)))))
+    return np.tile(P, (tiles, 1))
+
+
+def write(ds, out_dir, model: str, table_dims) -> Path:
+    """The report into out_dir/workprecision_MODEL.h5 and its variables of dims ``table_dims`` into
+    the .csv beside it; returns the .h5 path."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / f"workprecision_{re.sub(r'[^A-Za-z0-9_.-]', '_', model)}.h5"
+    ds.to_netcdf(path, engine="h5netcdf")
+    table = [name for name in ds.data_vars if ds[name].dims == table_dims]
+    ds[table].to_dataframe().to_csv(path.with_suffix(".csv"))
+    return path

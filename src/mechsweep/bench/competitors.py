@@ -26,6 +26,7 @@ zero of x (a quarter period, tau_q; T = 4 tau_q / w), as the mechsweep kernel do
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -71,12 +72,8 @@ def scipy_periods(P, rtol, atol):
     return T
 
 
-_NUMBALSODA = []
-
-
+@functools.cache  # compiled once; the cfuncs stay alive with it
 def _numbalsoda_kernel():
-    if _NUMBALSODA:
-        return _NUMBALSODA[0]
     import numba
     from numba import cfunc
     from numbalsoda import lsoda_sig, solve_ivp
@@ -105,8 +102,7 @@ def _numbalsoda_kernel():
                             rtol, atol)
             tq[i] = sol.t_event if (sol.success and sol.event_found) else np.nan
 
-    _NUMBALSODA.append((kernel, rhs, event))  # keep the cfuncs alive
-    return _NUMBALSODA[0]
+    return kernel, rhs, event
 
 
 def numbalsoda_event_periods(P, rtol, atol):
@@ -117,12 +113,8 @@ def numbalsoda_event_periods(P, rtol, atol):
     return 4.0 * tq / w
 
 
-_HENON = []
-
-
+@functools.cache  # compiled once; the cfuncs stay alive with it
 def _numbalsoda_henon_kernel():
-    if _HENON:
-        return _HENON[0]
     import numba
     from numba import cfunc
     from numbalsoda import dop853, lsoda_sig
@@ -168,8 +160,7 @@ def _numbalsoda_henon_kernel():
             w, ok = dop853(henon_ptr, u0, span, d, rtol, atol)
             tq[i] = w[1, 0] if ok else np.nan
 
-    _HENON.append((kernel, rhs, henon))  # keep the cfuncs alive
-    return _HENON[0]
+    return kernel, rhs, henon
 
 
 def numbalsoda_periods(P, rtol, atol):
@@ -183,13 +174,8 @@ def numbalsoda_periods(P, rtol, atol):
     return 4.0 * tq / w
 
 
-_DIFFRAX = {}
-
-
+@functools.cache  # one traced solver per tolerance pair
 def _diffrax_solver(rtol, atol):
-    key = (rtol, atol)
-    if key in _DIFFRAX:
-        return _DIFFRAX[key]
     import jax
 
     jax.config.update("jax_enable_x64", True)
@@ -214,8 +200,7 @@ def _diffrax_solver(rtol, atol):
         found = sol.result == diffrax.RESULTS.event_occurred
         return jnp.where(found, sol.ts[-1], jnp.nan)
 
-    _DIFFRAX[key] = jax.jit(jax.vmap(one))
-    return _DIFFRAX[key]
+    return jax.jit(jax.vmap(one))
 
 
 def diffrax_periods(P, rtol, atol):

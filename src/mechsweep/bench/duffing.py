@@ -48,10 +48,6 @@ def grid_scene(points: int, rtol: float, atol: float, outputs=("period",)) -> di
     }
 
 
-def _whole_grid(scene) -> Chunk:
-    return Chunk(0, 0, scene.n_points, ())
-
-
 def _timed(f):
     """(wall s, process CPU s, result) of f()."""
     t0, c0 = time.perf_counter(), time.process_time()
@@ -67,24 +63,24 @@ LABELS = {"scipy": "scipy solve_ivp DOP853 + event",  # what each competitor is 
           "diffrax": "diffrax Tsit5 + Event (vmap, jit)"}
 
 
-def scipy_periods(omega, mu, A, rtol, atol):
-    """Same scaled problem, same tolerances, scipy's DOP853 with a terminal event."""
-    return competitors.scipy_periods(np.column_stack([omega, mu, A]), rtol, atol)
-
-
 def _rates(n, times):
     """(best, worst) points/s of wall-clock and CPU times."""
     return n / min(times), n / max(times)
 
 
-def _ours(scene, threads, lanes, rows, key):
-    model_compile.USE_LANES = lanes
-    with _threads(threads):
-        wall, cpu, result = _timed(lambda: evaluate_chunk(scene, _whole_grid(scene)))
+def _record(rows, key, f):
+    """Time f() (_timed) into rows[key]'s wall and CPU times; returns f's result."""
+    wall, cpu, result = _timed(f)
     rows.setdefault(key, {"wall": [], "cpu": []})
     rows[key]["wall"].append(wall)
     rows[key]["cpu"].append(cpu)
     return result
+
+
+def _ours(scene, threads, lanes, rows, key):
+    model_compile.USE_LANES = lanes
+    with _threads(threads):
+        return _record(rows, key, lambda: evaluate_chunk(scene, Chunk(0, 0, scene.n_points, ())))
 
 
 def _competitor(name, P, exact, ours_err, rtol, atol, repeats):
@@ -187,11 +183,8 @@ def main(points: int = 200_000, scipy_points: int = 200, threads: int | None = N
                 _ours(scene_stored, n_threads, True, rows, "kernel_stored")
                 for key, outputs in (("run", stored), ("run_period", ("period",))):
                     with tempfile.TemporaryDirectory() as tmp:
-                        wall, cpu, _ = _timed(lambda: run(grid_scene(points, rtol, atol, outputs),
-                                                          output=os.path.join(tmp, "bench.h5"), progress=False))
-                    rows.setdefault(key, {"wall": [], "cpu": []})
-                    rows[key]["wall"].append(wall)
-                    rows[key]["cpu"].append(cpu)
+                        _record(rows, key, lambda: run(grid_scene(points, rtol, atol, outputs),
+                                                       output=os.path.join(tmp, "bench.h5"), progress=False))
     finally:
         model_compile.USE_LANES = use_lanes
     cols, status, n_steps, n_rhs = results[True]

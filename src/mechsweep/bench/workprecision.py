@@ -19,8 +19,9 @@ solve_ivp (DOP853, Radau, LSODA) over a ladder of tolerances, in the same proces
   of ours, :mod:`mechsweep.bench.workprecision_ode`; the maximum and the median over the sample;
 - time: wall time per point after JIT compilation (the compile or cache-load time of the first
   call is reported separately), the minimum of ``repeats`` runs; ours runs the sample, repeated
-  up to TIMED_POINTS points (or until a call takes TIMED_CALL_S), through the model's ``evaluate`` on one thread (what a sweep's chunk
-  does, per core; a call's fixed cost is then spread as in a sweep); scipy runs
+  up to cases.TIMED_POINTS points (or until a call takes cases.TIMED_CALL_S), through the model's
+  ``evaluate`` on one thread (what a sweep's chunk does, per core; a call's fixed cost is then
+  spread as in a sweep); scipy runs
   ``scipy_points`` of the points one by one with the model's jitted right-hand side (scipy's
   best case: its Python-level stepping is then the whole cost), and stops a scipy method's
   ladder once a rung costs more than ``scipy_budget_s`` per point (said in the report);
@@ -38,7 +39,6 @@ Duffing oscillator's energy: its drift also, to DIR/workprecision_MODEL_energy.c
 from __future__ import annotations
 
 import math
-import re
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,15 +48,13 @@ import numba
 import numpy as np
 
 from .. import status as st
-from ..scene import Scene, Solver, load_scene
+from ..scene import Solver, load_scene
 from . import workprecision_linkage
-from .cases import all_cases, declared_scene, latex_symbols, resolve_model, sample  # noqa: F401 (the bench's functions)
+from .cases import all_cases, declared_scene, fastest, latex_symbols, resolve_model, sample, tiled, write  # noqa: F401
 
 LADDER = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13)
 ATOL_RATIO = 1e-2  # atol = 1e-2 rtol: the scaled states are O(1)
 SCIPY_METHODS = ("DOP853", "Radau", "LSODA")
-TIMED_POINTS = 1024  # our time per point: the sample repeated up to this many points ...
-TIMED_CALL_S = 0.05  # ... or until one call takes this long
 
 
 @dataclass(frozen=True)
@@ -157,26 +155,18 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     try:
         for a, method in enumerate(ours):
             for b, rtol in enumerate(ladder):
-                solver = Solver.for_model(spec, **{**_scene_settings(scene), "method": method, "rtol": rtol,
+                solver = Solver.for_model(spec, **{**dict(scene.solver.settings), "method": method, "rtol": rtol,
                                                    "atol": rtol * ATOL_RATIO})
                 if method not in compile_s:
                     t0 = time.perf_counter()
                     _run_ours(spec, P[:1], case.output, solver)
                     compile_s[method] = time.perf_counter() - t0
                 values, status, ns, nr = _run_ours(spec, P, case.output, solver)
+                # timed on the points scipy solves (the table compares the methods on them), tiled
                 t0 = time.perf_counter()
                 _run_ours(spec, P[:k], case.output, solver)
-                once = time.perf_counter() - t0
-                # timed on the points scipy solves (the table compares the methods on them), repeated
-                # until a call takes ~TIMED_CALL_S (at most TIMED_POINTS points), so that a call's fixed
-                # cost is spread as over a sweep's chunk
-                tiles = int(min(max(1, TIMED_POINTS // k), max(1, math.ceil(TIMED_CALL_S / once))))
-                P_timed = np.tile(P[:k], (tiles, 1))
-                best = math.inf
-                for _ in range(repeats):
-                    t0 = time.perf_counter()
-                    _run_ours(spec, P_timed, case.output, solver)
-                    best = min(best, time.perf_counter() - t0)
+                P_timed = tiled(P[:k], time.perf_counter() - t0)
+                best = fastest(lambda: _run_ours(spec, P_timed, case.output, solver), repeats)
                 _fill(res, a, b, values, status, ns, nr, reference, case.error, best / P_timed.shape[0], k)
     finally:
         numba.set_num_threads(before)
@@ -189,12 +179,9 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
                 break
             values, nfev, steps, best = np.full(k, np.nan), np.zeros(k, np.int64), np.zeros(k, np.int64), 0.0
             for i in range(k):
-                t_i = math.inf
-                for _ in range(repeats):
-                    t0 = time.perf_counter()
+                def solve(i=i, method=method, rtol=rtol):
                     values[i], nfev[i], steps[i] = case.scipy_value(P[i], method, rtol, rtol * ATOL_RATIO)
-                    t_i = min(t_i, time.perf_counter() - t0)
-                best += t_i
+                best += fastest(solve, repeats)
             status = np.where(np.isfinite(values), st.OK, st.NONFINITE)
             _fill(res, a, b, values, status, steps, nfev, reference[:k], case.error, best / k, k)
     ds = xr.Dataset(
@@ -212,12 +199,7 @@ def main(model: str, scene_path: str | None = None, points: int = 64, scipy_poin
     )
     if case.declaration is not None and case.declaration.invariant is not None:
         ds = _with_drift(ds, case.declaration)
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / f"workprecision_{re.sub(r'[^A-Za-z0-9_.-]', '_', model)}.h5"
-    ds.to_netcdf(path, engine="h5netcdf")
-    table = [name for name in ds.data_vars if ds[name].dims == ("integrator", "rtol")]
-    ds[table].to_dataframe().to_csv(path.with_suffix(".csv"))
+    path = write(ds, out_dir, model, ("integrator", "rtol"))
     if "energy_error" in ds:
         ds[["energy_error"]].to_dataframe().to_csv(path.with_name(f"{path.stem}_energy.csv"))
     if not quiet:
@@ -249,7 +231,7 @@ def _case(model: str, spec, declared, scene_path, output):
     if output not in spec.output_names():
         raise InputError(f"--output {output!r} is not an output of model {spec.name!r}; "
                          f"expected one of {', '.join(spec.output_names())}")
-    settings = _scene_settings(scene)
+    settings = dict(scene.solver.settings)
     ode = wo.OdeReference(declared, output, settings)
     exact = wp.reference if (wp is not None and wp.reference and output == wp.output) else None
     if exact:  # the model's closed form, evaluated by the engine
@@ -287,10 +269,6 @@ def _with_drift(ds, declaration):
     ds.attrs["drift_problem"] = f"{inv.problem or f'{declaration.name} at {at}'}, one integration over {span} periods"
     ds.attrs["drift_quantity"] = inv.name
     return ds
-
-
-def _scene_settings(scene: Scene) -> dict:
-    return dict(scene.solver.settings)
 
 
 def _fill(res, a, b, values, status, ns, nr, reference, kind, time_per_point, k):

@@ -31,7 +31,6 @@ symmetry).
 from __future__ import annotations
 
 import math
-import re
 import time
 from pathlib import Path
 
@@ -41,9 +40,6 @@ import numpy as np
 from .. import status as st
 from ..scene import load_scene
 
-TIMED_POINTS = 1024  # our time per point: the sample repeated up to this many points ...
-TIMED_CALL_S = 0.05  # ... or until one call takes this long
-
 
 # ============================================================================= measurement
 def _evaluate_ours(spec, P, outputs, n_positions):
@@ -52,22 +48,6 @@ def _evaluate_ours(spec, P, outputs, n_positions):
     status = np.zeros(n, st.DTYPE)
     spec.evaluate(P, outputs, None, out, status, None, None, n_positions)  # the closed-form engine's size
     return out, status
-
-
-def _fastest(fn, repeats):
-    best = math.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
-
-
-def _tiled(P, once_s):
-    """The sample repeated until a call takes ~TIMED_CALL_S (at most TIMED_POINTS points), so that a
-    call's fixed cost is spread as over a sweep's chunk."""
-    tiles = int(min(max(1, TIMED_POINTS // P.shape[0]), max(1, math.ceil(TIMED_CALL_S / max(once_s, 1e-9)))))
-    return np.tile(P, (tiles, 1))
 
 
 ROUNDOFF = 1e-13  # relative errors at or below this are round-off (a few hundred ulp)
@@ -113,9 +93,8 @@ def main(model: str, scene_path: str | None = None, points: int = 64, positions=
 
     from ..errors import InputError
     from ..model.closed import ClosedFormModel
-    from .cases import declared_scene, latex_symbols, resolve_model, sample
-
     from . import arguments
+    from .cases import declared_scene, fastest, latex_symbols, resolve_model, sample, tiled, write
 
     spec = resolve_model(model) if isinstance(model, str) else None
     declared = getattr(spec, "declaration", None)
@@ -163,11 +142,11 @@ def main(model: str, scene_path: str | None = None, points: int = 64, positions=
         for b, n in enumerate(positions):
             t0 = time.perf_counter()
             ours, status = _evaluate_ours(spec, P, outputs, n)
-            P_timed = _tiled(P, time.perf_counter() - t0)
-            ours_s = _fastest(lambda: _evaluate_ours(spec, P_timed, outputs, n), repeats)
+            P_timed = tiled(P, time.perf_counter() - t0)
+            ours_s = fastest(lambda: _evaluate_ours(spec, P_timed, outputs, n), repeats)
             time_per_point[0, b] = ours_s / P_timed.shape[0]
             theirs = case.compare(P, n)
-            time_per_point[1, b] = _fastest(lambda: case.compare(P_timed, n), repeats) / P_timed.shape[0]
+            time_per_point[1, b] = fastest(lambda: case.compare(P_timed, n), repeats) / P_timed.shape[0]
             for a, values in enumerate((ours, theirs)):
                 for o, name in enumerate(outputs):
                     err = np.abs(values[name] - reference[name]) / np.abs(reference[name])
@@ -212,12 +191,7 @@ def main(model: str, scene_path: str | None = None, points: int = 64, positions=
                "default_positions": declared.size, case.compare_label: case.compare_name,
                "latex_symbols": latex_symbols(spec)},
     )
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / f"workprecision_{re.sub(r'[^A-Za-z0-9_.-]', '_', spec.name)}.h5"
-    ds.to_netcdf(path, engine="h5netcdf")
-    table = [name for name in ds.data_vars if ds[name].dims == dims3]
-    ds[table].to_dataframe().to_csv(path.with_suffix(".csv"))
+    path = write(ds, out_dir, spec.name, dims3)
     if not quiet:
         _print(ds, path)
     return ds

@@ -35,9 +35,7 @@ user's (workprecision.main).
 """
 from __future__ import annotations
 
-import importlib
 import math
-from pathlib import Path
 
 import numpy as np
 
@@ -47,39 +45,24 @@ REFERENCE_RTOL = 1e-13
 REFERENCE_ATOL = 1e-15
 
 
-def declaration(ref: str, base: str | Path | None = None):
-    """The OdeModel object a model reference names: "file.py:NAME" (relative to ``base``, default
-    the cwd), "package.module:NAME" or an entry-point name. Loads it the way a scene does (with its
-    checks), so the object is the one the engine runs."""
-    from ..model import load, user
-    from ..model.ode import OdeModel
-    from ..models import MODELS
+def _plain(f):
+    """A declaration's Python function (a jitted one's py_func)."""
+    return getattr(f, "py_func", f)
 
-    if ":" not in ref:
-        points = user.entry_points()
-        if ref in MODELS or ref not in points:
-            raise InputError(f"model {ref!r} is not declared as a mechsweep.model.OdeModel that this bench can "
-                             "find; give 'file.py:NAME', 'package.module:NAME' or an entry-point name")
-        ref = points[ref].value
-    user.resolve(ref, Path(base) if base else None)  # the checks; imports the module
-    left, _, name = ref.rpartition(":")
-    if user.is_file_ref(ref):
-        path = Path(left)
-        path = ((Path(base) if base else Path.cwd()) / path if not path.is_absolute() else path).resolve()
-        module = load.import_module(load.module_name(path), str(path))
-    else:
-        module = importlib.import_module(left)
-    model = getattr(module, name)
-    if not isinstance(model, OdeModel):
-        raise InputError(f"{ref!r} is not a mechsweep.model.OdeModel")
-    return model
+
+def _compiled(model, func, what):
+    """The model's function ``func`` compiled as the engine's (None where it declares none)."""
+    from ..model import load
+
+    if func is None or not callable(func):
+        return None
+    return load.jitted(*load.function_ref(func, what, model.name))
 
 
 class OdeReference:
     """scipy's version of one measured output of an OdeModel."""
 
     def __init__(self, model, output: str, settings: dict | None = None):
-        from ..model import load
         from ..model import measure as ms
 
         self.model = model
@@ -105,10 +88,7 @@ class OdeReference:
         self._tail = len(model.internal) + 1 + 3 * self.n + self.n * self.n + 1
 
         def compiled(func, what):
-            if func is None or not callable(func):
-                return None
-            module, path, qual = load.function_ref(func, what, model.name)
-            return load.jitted(module, path, qual)
+            return _compiled(model, func, what)
         self._rhs = compiled(model.rhs, "rhs")
         self._initial = compiled(model.initial, "initial")
         self._jac = compiled(model.jac, "jac")
@@ -171,10 +151,9 @@ class OdeReference:
     def _switches(self, p):
         """(T, switch times in [0, T)) at ``p``, or None where the engine's check refuses them
         (switches.switch_check: INFEASIBLE)."""
-        plain = lambda f: getattr(f, "py_func", f)  # noqa: E731
-        T = float(plain(self.model.forcing_period)(p))
+        T = float(_plain(self.model.forcing_period)(p))
         sw = self.model.switch_times
-        times = tuple(float(x) for x in (plain(sw)(p) if callable(sw) else sw))
+        times = tuple(float(x) for x in (_plain(sw)(p) if callable(sw) else sw))
         if not (math.isfinite(T) and T > 0.0 and times and all(math.isfinite(x) and 0.0 <= x < T for x in times)
                 and all(a < b for a, b in zip(times, times[1:]))):
             return None
@@ -454,16 +433,13 @@ def invariant_drift(model):
     invariant. A point the model's classify or prepare refuses is an InputError (the declaration's
     ``at`` is wrong)."""
     from .. import status as st
-    from ..model import load
     from ..ode import dop853, symplectic
 
     inv = model.invariant
     if inv is None:
         return None
-    plain = lambda f: getattr(f, "py_func", f)  # noqa: E731 - the declaration's Python functions
-
     def compiled(func, what):
-        return load.jitted(*load.function_ref(func, what, model.name))
+        return _compiled(model, func, what)
     n = len(model.states)
     row = []
     for q in model.params:
@@ -479,14 +455,14 @@ def invariant_drift(model):
         p = np.array(row + settings + [0.0] * tail)
         for role in ("classify", "prepare"):
             f = getattr(model, role)
-            code = None if f is None else (plain(f)(p) if role == "classify" else plain(f)(p, rtol))
+            code = None if f is None else (_plain(f)(p) if role == "classify" else _plain(f)(p, rtol))
             if code is not None and code != st.OK:
                 raise InputError(f"model {model.name!r}: its invariant's point at = {inv.at!r} is refused by its "
                                  f"{role} (status {st.MEANINGS.get(int(code), code)}) at rtol {rtol:g}")
-        T = float(plain(inv.period)(p)) if callable(inv.period) else float(inv.period)
+        T = float(_plain(inv.period)(p)) if callable(inv.period) else float(inv.period)
         y0 = np.empty(n)
-        plain(model.initial)(p, y0)
-        e0 = plain(inv.func)(y0, p)
+        _plain(model.initial)(p, y0)
+        e0 = _plain(inv.func)(y0, p)
         for name in ("dop853",) + (("symplectic",) if composed is not None else ()):
             err, cost = [], 0
             y, t = y0.copy(), 0.0
@@ -497,12 +473,12 @@ def invariant_drift(model):
                     _, _, nr = explicit(t, y, p, t_end, rtol, rtol * 1e-2, 0.0, 10**8, dop853.workspace(n))
                     state = y
                 else:
-                    steps = int(math.ceil((t_end - t) / float(plain(model.symplectic_step)(p, rtol))))
+                    steps = int(math.ceil((t_end - t) / float(_plain(model.symplectic_step)(p, rtol))))
                     _, _, nr = composed(t, q, v, p, t_end, steps, symplectic.workspace(n // 2))
                     state = np.concatenate([q, v])
                 cost += nr
                 t = t_end
-                err.append(abs(plain(inv.func)(state, p) - e0) / abs(e0))
+                err.append(abs(_plain(inv.func)(state, p) - e0) / abs(e0))
             names.append(f"mechsweep {name}, rtol {rtol:g}")
             errors.append(err)
             costs.append(cost)

@@ -626,39 +626,34 @@ def fourbar_loads_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m
 
 @jit_noalloc
 def fourbar_moment_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, g, cos_phi, sin_phi, buf):
-    """Only the shaking moment (row B_M): the cheaper loop when no force or torque is asked
-    for. The expressions are those of fourbar_loads, term for term, so M is bitwise the same."""
+    """Only the shaking moment (row B_M), when no force or torque is asked for: fourbar_loads
+    inlined, whose unused force and torque LLVM drops, so M is bitwise fourbar_loads_cycle's."""
     for j in range(cos_phi.shape[0]):
-        c1 = cos_phi[j]
-        s1 = sin_phi[j]
-        w1 = buf[R_W1, j]
-        al1 = buf[R_AL1, j]
-        c2 = buf[R_C2, j]
-        s2 = buf[R_S2, j]
-        c3 = buf[R_C3, j]
-        s3 = buf[R_S3, j]
-        w2 = buf[R_W2, j]
-        w3 = buf[R_W3, j]
-        al2 = buf[R_AL2, j]
-        al3 = buf[R_AL3, j]
-        w1s = w1 * w1
-        u1x = U1x * c1 - U1y * s1
-        ax = a1 * c1
-        ay = a1 * s1
-        aax = a1 * (-al1 * s1 - w1s * c1)
-        aay = a1 * (al1 * c1 - w1s * s1)
-        w2s = w2 * w2
-        v2x = V2x * c2 - V2y * s2
-        v2y = V2x * s2 + V2y * c2
-        ma2x = m2 * aax - al2 * v2y - w2s * v2x
-        ma2y = m2 * aay + al2 * v2x - w2s * v2y
-        w3s = w3 * w3
-        u3x = U3x * c3 - U3y * s3
-        u3y = U3x * s3 + U3y * c3
-        ma3y = al3 * u3x - w3s * u3y
-        dH = (J1 * al1 + (J2A * al2 + (ax * ma2y - ay * ma2x) + (v2x * aay - v2y * aax))
-              + (J3 * al3 + a4 * ma3y))
-        buf[B_M, j] = -dH - g * (u1x + m2 * ax + v2x + m3 * a4 + u3x)
+        buf[B_M, j] = fourbar_loads(a1, a4, cos_phi[j], sin_phi[j], buf[R_W1, j], buf[R_AL1, j],
+                                    buf[R_C2, j], buf[R_S2, j], buf[R_C3, j], buf[R_S3, j],
+                                    buf[R_W2, j], buf[R_W3, j], buf[R_AL2, j], buf[R_AL3, j],
+                                    U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, 0.0, g, 0.0)[2]
+
+
+@jit_noalloc
+def stats_into(row, x, k_range, k_rms, k_max):
+    """cycle_stats of curve x into row: its range (max - min) at k_range, RMS at k_rms and largest
+    magnitude at k_max (not written where k_max < 0). Returns the largest magnitude."""
+    lo, hi, rms = cycle_stats(x)
+    row[k_range] = hi - lo
+    row[k_rms] = rms
+    if k_max >= 0:
+        row[k_max] = max(hi, -lo)
+    return max(hi, -lo)
+
+
+@jit_noalloc
+def copy_curve(crv, slot, x):
+    """x into row slot of the curves, where the curve is asked for (slot >= 0); element by element:
+    a whole-row copy needs numba's NRT."""
+    if slot >= 0:
+        for j in range(x.shape[0]):
+            crv[slot, j] = x[j]
 
 
 @jit_noalloc

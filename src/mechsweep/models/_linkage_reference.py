@@ -35,7 +35,6 @@ SEARCH_POSITIONS = 16384  # grid on which the maxima are located before Brent's 
 GL_NODES = 16  # Gauss-Legendre nodes per panel of the four-bar reference
 GL_PANELS = (256, 512)  # coarse (error estimate) and fine (reference)
 FOURBAR_OUTPUTS = ("M_rms_static", "M_max_static", "axis_x", "axis_y", "dM_rms_axis", "dM_max_axis", "R_axis")
-OUTPUTS = FOURBAR_OUTPUTS  # numpy_residuals' outputs (benchmarks/linkage.py)
 
 FOURBAR_REFERENCE = (f"continuous crank angle: composite Gauss-Legendre ({GL_PANELS[1]} panels x {GL_NODES} nodes) "
                      f"for the RMS values and the axis, maxima by Brent's method from a {SEARCH_POSITIONS}-position "
@@ -278,13 +277,8 @@ def fourbar_reference(p):
     return fine, estimate
 
 
-def numpy_fourbar(P: np.ndarray, n_positions: int) -> dict:
-    return numpy_residuals(P, block=NUMPY_BLOCK, n_positions=n_positions)
-
-
-
 # ============================================================================= four-bar: numpy at N positions
-def numpy_residuals(P: np.ndarray, block: int = 64, n_positions: int = L.N_POSITIONS) -> dict:
+def numpy_fourbar(P: np.ndarray, n_positions: int = L.N_POSITIONS, block: int = NUMPY_BLOCK) -> dict:
     """The same computation as the mechsweep kernel, vectorised with numpy over [designs, N]
     (N = n_positions uniform crank positions, 360 as in sweeps). Constant crank speed and no
     gravity only (delta = 0, g = 0): a ValueError otherwise."""
@@ -292,7 +286,7 @@ def numpy_residuals(P: np.ndarray, block: int = 64, n_positions: int = L.N_POSIT
         if np.any(P[:, L.FOURBAR_PARAMS.index(name)] != 0.0):
             raise ValueError(f"the numpy four-bar residuals assume {name} = 0 (constant speed, no gravity)")
     n = P.shape[0]
-    res = {k: np.empty(n) for k in OUTPUTS}
+    res = {k: np.empty(n) for k in FOURBAR_OUTPUTS}
     cos_phi, sin_phi, sums = _positions(n_positions)
     SUM_CC, SUM_SS, SUM_SC = sums
     c1 = cos_phi[None, :]

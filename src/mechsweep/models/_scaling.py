@@ -10,8 +10,8 @@ inputs").
 Scaling by a power of two (math.ldexp) is exact as long as the result is a normal number, and
 IEEE rounding commutes with it: a formula homogeneous in its inputs, evaluated on inputs scaled
 by powers of two and scaled back, gives the very same bits wherever neither evaluation leaves the
-normal range. The scaled forms of the models rely on this: bitwise the old results in the usual
-range, right results beyond it.
+normal range. The scaled forms of the models rely on this: bitwise the plain formulas' results in
+the usual range, right results beyond it.
 """
 from __future__ import annotations
 

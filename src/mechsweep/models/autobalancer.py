@@ -58,8 +58,7 @@ for the stability outputs (theta itself is still given there).
 Floquet: the variational equations Phi' = J(tau, z*(tau)) Phi (8x8) about the exact balanced
 solution z* (x = y = 0, gamma_i = tau + Theta_i, known in closed form), over one period tau = 2 pi:
 the 64 equations of Phi alone (``variational``, ``variational_jac``: the layer's Floquet with the
-model's own variational system; the hand-written kernels in tests/reference/autobalancer_kernels.py, a
-reference kept for comparison, integrate the same functions); J is the analytic Jacobian
+model's own variational system); J is the analytic Jacobian
 (directional derivatives of the closed-form accelerations, ``_jvp``). floquet_max =
 max |eig(Phi(2 pi))|; the layer adds the way the critical multiplier leaves the unit circle
 (floquet_max_kind: +1, -1 or a complex pair) and its angle (floquet_max_angle).
@@ -164,14 +163,11 @@ same window.
 On the model layer (docs/model-layer.md): this module is the declaration (``MODEL``, an OdeModel):
 the parameters, settings and outputs above, the equations of motion in scaled form (``scaled_rhs``,
 ``scaled_jacobian``, called by ``rhs``/``jac`` with the scaled parameters that ``prepare`` writes
-into the internal slots; the engine writes the lane form of ``rhs`` itself, engine/lane_rhs.py, bitwise
-``scaled_rhs_lanes``, which only the hand-written reference kernels still use), ``classify`` (INFEASIBLE), the closed
-forms, and the measurements: Floquet (floquet_max, stable_floquet), Kick (stable_sim,
-settling_time, phase_error), Steady (residual_amplitude) and four Histories, one sampled trajectory
-per point; the status rules above are the measurements' own (their ``classify``: NOT_BALANCEABLE),
-``status_order`` (the severity above) and ``Recheck`` (NOT_REPRODUCIBLE). The engine generates the
-chunk kernels and the method switch. The hand-written kernels this model used before are kept,
-unused by the model, in tests/reference/autobalancer_kernels.py (tests and benches compare against them).
+into the internal slots), ``classify`` (INFEASIBLE), the closed forms, and the measurements: Floquet
+(floquet_max, stable_floquet), Kick (stable_sim, settling_time, phase_error), Steady
+(residual_amplitude) and four Histories, one sampled trajectory per point; the status rules above
+are the measurements' own (their ``classify``: NOT_BALANCEABLE), ``status_order`` (the severity
+above) and ``Recheck`` (NOT_REPRODUCIBLE).
 """
 from __future__ import annotations
 
@@ -184,7 +180,7 @@ from .._jit import jit, jit_inline, jit_noalloc
 from ..model.measure import ClosedForm, Floquet, History, Kick, Recheck, Steady
 from ..model.ode import OdeModel
 from ..model.workprecision import WorkPrecision
-from ..special import SINCOS_MAX, ieee_sqrt, sincos, sincos_reduced
+from ..special import ieee_sqrt, sincos
 from ._scaling import DBL_MAX, full_precision, normal, product_in_range, quotient_in_range
 from ..model.spec import ExtraDim, Output, Param, Setting
 
@@ -301,47 +297,6 @@ def scaled_rhs(tau, z, p, dz):
     dz[5] = ydd
     dz[6] = g1dd
     dz[7] = g2dd
-
-
-@jit_noalloc
-def scaled_rhs_lanes(tau, Z, P, dZ):
-    """scaled_rhs() for several trajectories side by side (lanes): tau[l], state Z[:, l], scaled
-    parameters P[:, l], derivative into dZ[:, l]. Bitwise the same floats as rhs() per lane.
-
-    The main loop has no branch and no call, so LLVM vectorises it over the lanes (4 doubles
-    per AVX2 instruction); the velocity rows are copied in a separate loop because writing all
-    eight rows of dZ in one loop needs more run-time aliasing checks than LLVM makes, and it
-    then leaves the loop scalar. An angle beyond the reduction range of sincos_reduced (or
-    infinite) sends every lane through the scalar rhs, with libm's sin and cos; NaN stays on the
-    fast path (sincos_reduced gives NaN for it, like libm; idle lanes may hold NaN)."""
-    lanes = Z.shape[1]
-    beyond = 0
-    for l in range(lanes):
-        beyond += 1 if max(abs(Z[2, l]), abs(Z[3, l]), abs(tau[l])) > SINCOS_MAX else 0  # NaN: not beyond
-    if beyond:
-        for l in range(lanes):
-            xdd, ydd, g1dd, g2dd, _, _, _, _, _, _, _, _ = accelerations(
-                tau[l], Z[0, l], Z[1, l], Z[2, l], Z[3, l], Z[4, l], Z[5, l], Z[6, l], Z[7, l], P[:, l])
-            dZ[4, l] = xdd
-            dZ[5, l] = ydd
-            dZ[6, l] = g1dd
-            dZ[7, l] = g2dd
-    else:
-        for l in range(lanes):
-            s1, k1 = sincos_reduced(Z[2, l])
-            s2, k2 = sincos_reduced(Z[3, l])
-            st_, ct_ = sincos_reduced(tau[l])
-            xdd, ydd, g1dd, g2dd, _, _, _, _, _, _, _, _ = accelerations_trig(
-                Z[0, l], Z[1, l], Z[4, l], Z[5, l], Z[6, l], Z[7, l], s1, k1, s2, k2, st_, ct_, P[IP_MU, l],
-                1.0 / P[IP_IOTA, l], P[IP_EH, l], P[IP_KX, l], P[IP_KY, l], P[IP_DX, l], P[IP_DY, l],
-                P[IP_ALPHA0, l], P[IP_ALPHA1, l], P[IP_LAM, l])
-            dZ[4, l] = xdd
-            dZ[5, l] = ydd
-            dZ[6, l] = g1dd
-            dZ[7, l] = g2dd
-    for r in range(4):
-        for l in range(lanes):
-            dZ[r, l] = Z[4 + r, l]
 
 
 @jit_inline

@@ -84,8 +84,8 @@ def omega_split(omega):
 
 @jit_noalloc
 def classify_scaled(sign, omega2, mu, A):
-    """classify() on a rescaled point (omega2, mu, A); sign: a number of the sign of omega^2 (omega2
-    itself may underflow to 0 next to a large mu A^2)."""
+    """The status of a Duffing point before any computation, from the rescaled point (omega2, mu, A);
+    sign: a number of the sign of omega^2 (omega2 itself may underflow to 0 next to a large mu A^2)."""
     if A == 0.0:
         return st.NO_MOTION
     if not sign > 0.0:
@@ -93,13 +93,6 @@ def classify_scaled(sign, omega2, mu, A):
     if not omega2 + mu * A * A > 0.0:
         return st.NOT_OSCILLATORY  # at or beyond the soft separatrix |mu| A^2 = omega^2
     return st.OK
-
-
-@jit
-def classify(omega2, mu, A):
-    """Status of a Duffing point before any computation (shared by every stage)."""
-    w2, m, a, _, _ = rescaled(omega2, 0, mu, 0, A)
-    return classify_scaled(omega2, w2, m, a)
 
 
 @jit_noalloc
@@ -165,13 +158,13 @@ def a_max_closed_form(omega2, mu, A):
 # saddle x_s = sqrt(a / -b) = 1 + O(delta) and lingers there for a time ~ log(1 / delta). In x = phi/A
 # the distance to the saddle, u = x_s - x ~ delta / 2, is carried as a difference of two numbers
 # near 1: every local error (rtol |x|) and every rounding of x is an error of u of relative size
-# rtol / delta, and the period's error grew like (2e-3 / delta)^0.85 times rtol (measured; the old
-# tightening of rtol by that fitted factor missed points by up to 2.85x). Below SADDLE_DELTA the
+# rtol / delta, and the period's error grows like (2e-3 / delta)^0.85 times rtol (measured; tightening
+# rtol by that fitted factor misses points by up to 2.85x). Below SADDLE_DELTA the
 # period is therefore integrated in saddle coordinates z = (x_s - x) / u0, u0 = x_s - 1:
 #     z'' = 2 a z + 3 b x_s u0 z^2 - b u0^2 z^3,  z(0) = 1, z'(0) = 0,  event z = x_s / u0 (x = 0),
 # exact (a x_s + b x_s^3 = 0 is used analytically, no constant term is left to cancel); u0 and x_s
 # are formed from delta without cancellation, so the tolerance is relative to the distance from the
-# saddle and the integration error no longer grows as delta -> 0.
+# saddle and the integration error does not grow as delta -> 0.
 # What cannot be helped is the data: s = omega^2 + mu A^2 is a difference, and its inputs are known
 # to a unit of round-off u at best. The condition number of the period with respect to the inputs,
 # kappa = sum_p |d ln T / d ln p|, follows from d ln T = -S (omega^2/s) d ln omega^2

@@ -82,9 +82,9 @@ from ._linkage import (  # the per-design function's helpers and layout constant
     K_TMAX_S, K_TRANGE_S, K_TRANS, K_TRMS_IN, K_TRMS_S, K_T_MAX, K_T_RANGE, K_T_RMS, P_A1, P_A2, P_A3, P_A4,
     P_BRANCH, P_CW1, P_CW1A, P_CW3, P_CW3A, P_DELTA, P_G, P_M1, P_M2, P_M3, P_MLOAD, P_OMEGA, P_R1, P_R2,
     P_R3, P_TH1, P_TH2, P_TH3, P_I1, P_I2, P_I3, R_AL1, R_AL3, R_W1, axis_fit, axis_formula1_sums, axis_residual,
-    axis_residual_const, branch_sign, cycle_stats, dot4, fourbar_assembly, fourbar_cw_radii,
+    axis_residual_const, branch_sign, copy_curve, dot4, fourbar_assembly, fourbar_cw_radii,
     fourbar_kinematics_cycle, fourbar_links, fourbar_loads_cycle, fourbar_moment_cycle,
-    fourbar_static_counterweights, max_force)
+    fourbar_static_counterweights, max_force, stats_into)
 from ._scaling import NONE, UnitScaling, largest_exponent
 from ..model.spec import ExtraDim, Output, Param
 
@@ -300,26 +300,14 @@ def fourbar_design(p, want, row, crv, slot, buf, cos_phi, sin_phi, sums, unit):
         fourbar_loads_cycle(a1, a4, U1x, U1y, J1, m2, V2x, V2y, J2A, U3x, U3y, J3, m3, mtot, g, M_load,
                             cos_phi, sin_phi, buf)
         # method 5: the textbook's four indices f1..f4 and their RMS
-        lo, hi, rms = cycle_stats(Fx)
-        row[K_FX_RANGE] = hi - lo
-        row[K_FX_RMS] = rms
-        lo, hi, rms = cycle_stats(Fy)
-        row[K_FY_RANGE] = hi - lo
-        row[K_FY_RMS] = rms
-        lo, hi, rms = cycle_stats(Ms)
-        row[K_M_RANGE] = hi - lo
-        row[K_M_RMS] = rms
-        row[K_M_MAX] = max(hi, -lo)
-        lo, hi, rms = cycle_stats(Ts)
-        row[K_T_RANGE] = hi - lo
-        row[K_T_RMS] = rms
-        row[K_T_MAX] = max(hi, -lo)
+        stats_into(row, Fx, K_FX_RANGE, K_FX_RMS, -1)
+        stats_into(row, Fy, K_FY_RANGE, K_FY_RMS, -1)
+        stats_into(row, Ms, K_M_RANGE, K_M_RMS, K_M_MAX)
+        stats_into(row, Ts, K_T_RANGE, K_T_RMS, K_T_MAX)
         row[K_F_MAX] = max_force(Fx, Fy, 0.0)
         row[K_CW_MASS] = cwm
         for c, b in ((C_FX, B_FX), (C_FY, B_FY), (C_M, B_M), (C_T, B_T)):
-            if slot[c] >= 0:
-                for j in range(N):  # element by element: a whole-row copy needs numba's NRT
-                    crv[slot[c], j] = buf[b, j]
+            copy_curve(crv, slot[c], buf[b])
 
     if not need_static:
         return st.OK
@@ -344,22 +332,11 @@ def fourbar_design(p, want, row, crv, slot, buf, cos_phi, sin_phi, sums, unit):
     row[K_MASSR_S] = (m_links + cwm) / m_links
     if need_F:
         row[K_FMAX_S] = max_force(Fx, Fy, g * mtot)  # the dynamic part (the weight is static)
-    lo, hi, rms = cycle_stats(Ms)
-    dm1_max = max(hi, -lo)  # max |dM_1|: the residual of plain static balancing
-    row[K_MRMS_S] = rms
-    row[K_MMAX_S] = dm1_max
-    row[K_MRANGE_S] = hi - lo
+    dm1_max = stats_into(row, Ms, K_MRANGE_S, K_MRMS_S, K_MMAX_S)  # max |dM_1|: the residual of static balancing
     if need_T:
-        lo, hi, rms = cycle_stats(Ts)
-        row[K_TRMS_S] = rms
-        row[K_TMAX_S] = max(hi, -lo)
-        row[K_TRANGE_S] = hi - lo
-    if slot[C_MS] >= 0:
-        for j in range(N):
-            crv[slot[C_MS], j] = Ms[j]
-    if slot[C_TS] >= 0:
-        for j in range(N):
-            crv[slot[C_TS], j] = Ts[j]
+        stats_into(row, Ts, K_TRANGE_S, K_TRMS_S, K_TMAX_S)
+    copy_curve(crv, slot[C_MS], Ms)
+    copy_curve(crv, slot[C_TS], Ts)
     if (need_axis or need_h1 or need_in) and not dm1_max > 0.0:
         return st.SINGULAR  # nothing to balance: efficiencies R_j = 0 / 0
 

@@ -42,8 +42,9 @@ from ._linkage import (  # the per-design function's helpers and layout constant
     D_FX, D_FXTB, D_FY, D_FYTB, D_M, D_T, Q_CW, Q_CWA, Q_CWM, Q_FMAX, Q_FMAX_UNB, Q_FXMAX, Q_FXRANGE, Q_FXRMS,
     Q_FYMAX, Q_FYRANGE, Q_FYRMS, Q_MA, Q_MB, Q_MMAX, Q_MRANGE, Q_MRMS, Q_TB_ERR, Q_TB_REL, Q_TMAX, Q_TRANGE,
     Q_TRANS, Q_TRMS, SB_FX, SB_FX0, SB_FXTB, SB_FY, SB_FY0, SB_FYTB, SB_M, SB_T, S_BRANCH, S_DELTA, S_E,
-    S_FLOAD, S_G, S_K, S_OMEGA, S_R, S_RCW, branch_sign, cycle_stats, max_force, slider_assembly,
-    slider_conrod_length, slider_counterweight, slider_kinematics_cycle, slider_links, slider_loads_cycle)
+    S_FLOAD, S_G, S_K, S_OMEGA, S_R, S_RCW, branch_sign, copy_curve, max_force, slider_assembly,
+    slider_conrod_length, slider_counterweight, slider_kinematics_cycle, slider_links, slider_loads_cycle,
+    stats_into)
 from ._scaling import NONE, UnitScaling, largest_exponent
 from ..model.spec import Output, Param
 from .fourbar_balancing import PHI_DIM, positions
@@ -184,23 +185,11 @@ def slider_design(p, want, row, crv, slot, buf, cos_phi, sin_phi):
     slider_loads_cycle(r, e, U1x, U1y, J1, m2, V2x, V2y, J2A, m3, mtot, g, F_load, cos_phi, sin_phi, buf, SB_FX)
     Fx = buf[SB_FX]
     Fy = buf[SB_FY]
-    lo, hi, rms = cycle_stats(Fx)
-    row[Q_FXMAX] = max(hi, -lo)
-    row[Q_FXRMS] = rms
-    row[Q_FXRANGE] = hi - lo
-    lo, hi, rms = cycle_stats(Fy)
-    row[Q_FYMAX] = max(hi, -lo)
-    row[Q_FYRMS] = rms
-    row[Q_FYRANGE] = hi - lo
+    stats_into(row, Fx, Q_FXRANGE, Q_FXRMS, Q_FXMAX)
+    stats_into(row, Fy, Q_FYRANGE, Q_FYRMS, Q_FYMAX)
     row[Q_FMAX] = max_force(Fx, Fy, 0.0)
-    lo, hi, rms = cycle_stats(buf[SB_M])
-    row[Q_MMAX] = max(hi, -lo)
-    row[Q_MRMS] = rms
-    row[Q_MRANGE] = hi - lo
-    lo, hi, rms = cycle_stats(buf[SB_T])
-    row[Q_TMAX] = max(hi, -lo)
-    row[Q_TRMS] = rms
-    row[Q_TRANGE] = hi - lo
+    stats_into(row, buf[SB_M], Q_MRANGE, Q_MRMS, Q_MMAX)
+    stats_into(row, buf[SB_T], Q_TRANGE, Q_TRMS, Q_TMAX)
     if want[Q_FMAX_UNB]:
         bU1x, bU1y, bJ1, _, _, _, _, _, bmtot, _ = slider_links(p, 0.0, 0.0, r_cw)
         slider_loads_cycle(r, e, bU1x, bU1y, bJ1, m2, V2x, V2y, J2A, m3, bmtot, g, F_load, cos_phi, sin_phi, buf,
@@ -224,9 +213,7 @@ def slider_design(p, want, row, crv, slot, buf, cos_phi, sin_phi):
         if want[Q_TB_REL]:
             row[Q_TB_REL] = err / abs(amp)
     for c, b in ((D_FX, SB_FX), (D_FY, SB_FY), (D_FXTB, SB_FXTB), (D_FYTB, SB_FYTB), (D_M, SB_M), (D_T, SB_T)):
-        if slot[c] >= 0:
-            for j in range(N):  # element by element: a whole-row copy needs numba's NRT
-                crv[slot[c], j] = buf[b, j]
+        copy_curve(crv, slot[c], buf[b])
     return st.OK
 
 

@@ -190,7 +190,7 @@ SPRING, LAM1, LAM2, S0R, RR, CC, II, AMP, T_MAX = range(9)
 IA, IB, IC, ILEVEL, IDIR, IW = range(9, 15)
 ES, EL1, ED, EL0, ESCALE, ECOEF, ELEVEL, EDIR, EW, ER, EGAP, EFORM, ESTEP = range(15, 28)
 PI_LO = 1.2246467991473532e-16  # pi - math.pi: pi = math.pi + PI_LO to twice double precision
-# Tightened tolerances below this are not tried: the point is ILL_CONDITIONED (as the old Duffing floor)
+# Tightened tolerances below this are not tried: the point is ILL_CONDITIONED
 RTOL_FLOOR = 5e-14
 # Time unit of the exact system: the two-term model's w^2 = k (|chi| + |xi| A^2) where it is within this
 # factor (both ways) of the exact moment's own w_e^2 = k exact_time_scale (any unit within it serves, and
@@ -270,7 +270,7 @@ def two_term_point(p):
 
 
 def two_term_classify(p):
-    """The two-term (Duffing) model's status (duffing.classify of omega^2 = k chi, mu = k xi)."""
+    """The two-term (Duffing) model's status (duffing.classify_scaled of omega^2 = k chi, mu = k xi)."""
     return two_term_point(p)[0]
 
 
