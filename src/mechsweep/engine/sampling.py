@@ -23,7 +23,6 @@ import numpy as np
 
 from .. import _jit
 from .. import status as st
-from ..model.ode import worse
 from .trajectory import NO_CLASSIFY, NOT_RUN, UNUSED, columns
 
 BLOCK = 8  # points per scratch allocation (a block holds one trajectory of n_samples x n_states)
@@ -273,14 +272,11 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
             if order:  # its own status (OK where it has values), ranked into the point's
                 own = np.zeros_like(code)
                 m.finish(v, wanted, solver, out, own)
-                code[:] = worse(code, own, order)
+                code[:] = st.worse(code, own, order)
             else:
                 m.finish(v, wanted, solver, out, code)
-    if moved is not None and order:
-        code[:] = worse(code, np.where(moved, st.NOT_REPRODUCIBLE, st.OK), order)
-    elif moved is not None:  # above the statuses that leave a value NaN for a reason, below failures
-        soft = (code == st.OK) | (code == st.NO_EVENT) | (code == st.UNDECIDED)
-        code[:] = np.where(moved & soft, st.NOT_REPRODUCIBLE, code)
+    if moved is not None:
+        st.mark_not_reproducible(code, moved, order)
     status[:] = code
 
 

@@ -1,9 +1,9 @@
 """Generic measurements of an :class:`~mechsweep.model.ode.OdeModel`: declarations of what to record.
 
-Each measurement declares its output(s) (name, unit, long name) and knows what it records in a
-kernel: ``point(plan, k)`` gives its block in the one-point kernel (engine/point.py): Crossing, Period,
-StateAt and Extremum are rows (``shared_row``) of one shared DOP853 integration per point
-(engine/shared.py), FirstEvent (and a lone first Crossing) integrates on its own by the scene's method
+Each measurement declares its output(s) (name, unit, long name) and what it records in a kernel:
+Crossing, Period, StateAt and Extremum are rows (``shared_row``) of one shared DOP853 integration per
+point (engine/shared.py); the others give their block in the one-point kernel (engine/point.py) from
+``point(plan, k)``: FirstEvent (and a lone first Crossing) integrates on its own by the scene's method
 (engine/events.py), Floquet integrates its variational equations (engine/floquet.py). The sampled
 measurements (Steady, Kick, History, RMS: model/sampled.py) give their ``observer(plan, k)`` of the
 one sampled trajectory per point (engine/trajectory.py). ClosedForm (a formula output) and System (a second equation) are
@@ -190,10 +190,10 @@ class Crossing:
             raise ValueError(f"{self.name}: level = {self.level!r}; expected a finite number")
 
     def point(self, plan, k):
-        """Its block in the one-point kernel (engine/point.py): a row of the shared trajectory, or
-        integrated on its own when it is the kernel's only measurement (a first crossing)."""
-        from ..engine import events, shared
-        return shared.member(plan, k) if k in plan.group else events.block(plan, self, k)
+        """Its block in the one-point kernel (engine/point.py) when it is the kernel's only measurement
+        (a first crossing): integrated on its own (else a row of the shared trajectory)."""
+        from ..engine import events
+        return events.block(plan, self, k)
 
 
 @_records_where
@@ -243,11 +243,6 @@ class Period:
     def validate(self, states):
         Crossing(self.name, self.state, self.level, self.direction, 2, self.t_max).validate(states)
 
-    def point(self, plan, k):
-        """Its block in the one-point kernel (engine/point.py): a row of the shared trajectory."""
-        from ..engine import shared
-        return shared.member(plan, k)
-
 
 @_records_where
 @dataclass(frozen=True)
@@ -290,11 +285,6 @@ class StateAt:
         if not (_is_number(self.t) and math.isfinite(self.t) and self.t >= 0):
             raise ValueError(f"{self.name}: StateAt t = {self.t!r}; expected a finite number >= 0 (a fixed time: "
                              "for a time that depends on the parameters use Extremum's t0/t1 or FirstEvent)")
-
-    def point(self, plan, k):
-        """Its block in the one-point kernel (engine/point.py): a row of the shared trajectory."""
-        from ..engine import shared
-        return shared.member(plan, k)
 
 
 @_records_where
@@ -377,11 +367,6 @@ class Extremum:
             return None if callable(x) else float(x)
         return ("Extremum", self.name, self.state if isinstance(self.state, str) else None, num(self.t0),
                 num(self.t1), self.kind)
-
-    def point(self, plan, k):
-        """Its block in the one-point kernel (engine/point.py): a row of the shared trajectory."""
-        from ..engine import shared
-        return shared.member(plan, k)
 
 
 @_records_where
@@ -847,12 +832,3 @@ Extremum.shared_row = _row_extremum
 
 
 MEASUREMENTS = (Crossing, Period, StateAt, Extremum, Floquet, FirstEvent)  # model/sampled.py adds its own
-
-
-def __getattr__(name: str):
-    # the sampled measurements live in model/sampled.py (which imports this module); they stay
-    # importable from here, as they were
-    if name in ("Steady", "Kick", "History", "Recheck", "RMS"):
-        from . import sampled
-        return getattr(sampled, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
