@@ -141,8 +141,8 @@ _LANE_NAMES: dict[tuple, tuple] = {}  # lane_name's memo: (model, name) by (id(m
 def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lanes=None, per_subset=False):
     """Run the sampled measurements ``chosen`` on the points still OK in ``status``; with ``lanes`` by
     DOP853 lanes for dop853 when the engine rewrites the model's rhs in lane form (False: one trajectory
-    at a time, the same values; None: as USE_LANES says, one at a time unless it is True). The model's one kernel (``kernel_for``) observes only the chosen ones;
-    ``per_subset``: a kernel of the chosen ones alone instead (a compile per subset; the same values
+    at a time, the same values; None: as USE_LANES says, one at a time unless it is True). The model's
+    one kernel (``kernel_for``) observes only the chosen ones; ``per_subset``: a kernel of the chosen ones alone instead (a compile per subset; the same values
     bitwise, for tests)."""
     method = solver.method
     settings = dict(solver.settings)
@@ -342,17 +342,16 @@ def _recheck(rc, chosen, wanted, settings, solver, P, run, arrays, code, mstat, 
     return moved
 
 
-# The lanes (method dop853, an rhs the engine rewrites in lane form): as the hand-written auto-balancer kernels
-# chose them. Each lane keeps its trajectory's samples (n_samples x n_states floats) until it
+# The lanes (method dop853, an rhs the engine rewrites in lane form). Each lane keeps its trajectory's samples (n_samples x n_states floats) until it
 # ends: with long horizons or dense sampling fewer lanes, so that a queue's samples stay within
 # LANE_SAMPLES_BYTES (32, 16, then 8 lanes, else the one-trajectory kernel).
 LANES = (32, 16, 8)
 LANE_SAMPLES_BYTES = 256 * 2**20
 # evaluate's route where the lanes apply and the caller names none: True the lanes, False or None one
-# trajectory at a time. A run names the route its plan chose (mechsweep/plan.py, ``choose_route``, which
+# trajectory at a time. A run names the route its plan chose (execution/plan.py, ``choose_route``, which
 # reads this as an override): the lanes for a run of at least LANES_FROM_POINTS points, or once they are
-# compiled (kernels.lanes_recorded, under ``lane_name``). Bitwise the same results either way. The lanes' cold compile and speed: docs/model-layer.md
-# ("Lanes"; tests/data/trajectory_lanes_cost.py).
+# compiled (kernels.lanes_recorded, under ``lane_name``). Bitwise the same results either way. The lanes'
+# cold compile and speed: docs/model-layer.md ("Lanes"; tests/data/trajectory_lanes_cost.py).
 USE_LANES: bool | None = None
 LANES_FROM_POINTS = 1000
 # The lanes of a queue share one forcing period (one t_eval): the points of a period shared by fewer

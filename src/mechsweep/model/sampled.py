@@ -30,6 +30,7 @@ from typing import Callable
 import numpy as np
 
 from .spec import Output
+from .. import status as st
 from ..status import NONFINITE as st_NONFINITE, OK as st_OK
 from . import measure
 from .measure import _Outputs, _check_function, _observable, _records_where
@@ -152,6 +153,12 @@ class _Sampled(_Outputs):
         """Its ``value`` transform in the kernel (the identity when it has none)."""
         return plan.transform(getattr(self, self.VALUE), f"value{k}") or compiled(_same_value, True)
 
+    def finish(self, values, wanted, solver, out, status):
+        """Its outputs from its value columns (its j-th output is its j-th column)."""
+        for j, suffix in enumerate(self._suffixes()):
+            if self.output_name(suffix) in out:
+                out[self.output_name(suffix)][:] = values[:, j]
+
     def _window(self, settings):
         """(H, w, n): the horizon, the window's fraction of it and the window's number of samples."""
         H, w = _number(self.horizon, settings), _number(self.window, settings)
@@ -260,7 +267,7 @@ class Steady(_Sampled):
     def constants(self, settings):
         """The numbers the kernel's observer reads (K row)."""
         check = self.settle_rtol is not None
-        # the third: whether the first harmonic is computed (trajectory.evaluate clears it when
+        # the third: whether the first harmonic is computed (engine/sampling.py's evaluate clears it when
         # neither name_h1 nor name_phase is asked for: no cos/sin per sample then)
         return (_number(self.settle_rtol, settings) if check else -1.0, _number(self.settle_atol, settings), 1.0)
 
@@ -271,14 +278,10 @@ class Steady(_Sampled):
                                 plan.cols[k + 1], plan.raw)
 
     def finish(self, values, wanted, solver, out, status):
-        from .. import status as st
         settled = values[:, 3] == 1.0
-        unsettled = np.isfinite(values[:, 0]) & ~settled
-        names = [self.output_name(x) for x in self._suffixes()]
-        for j, name in enumerate(names):
-            if name in out:
-                out[name][:] = np.where(settled, values[:, j], np.nan)
-        if any(x in wanted for x in names):
+        super().finish(np.where(settled[:, None], values, np.nan), wanted, solver, out, status)
+        if any(self.output_name(x) in wanted for x in self._suffixes()):
+            unsettled = np.isfinite(values[:, 0]) & ~settled
             status[:] = np.where((status == st.OK) & unsettled, st.NO_EVENT, status)
 
 
@@ -409,12 +412,9 @@ class Kick(_Sampled):
                               self._value(plan, k), k, plan.cols[k], plan.cols[k + 1], plan.raw)
 
     def finish(self, values, wanted, solver, out, status):
-        from .. import status as st
+        super().finish(values, wanted, solver, out, status)
         ok = np.isfinite(values[:, 2])
         verdict, t_settle = values[:, 0], values[:, 1]
-        for j, suffix in enumerate(self._suffixes()):
-            if self.output_name(suffix) in out:
-                out[self.output_name(suffix)][:] = values[:, j]
         if self.name in wanted:
             status[:] = np.where((status == st.OK) & ok & np.isnan(verdict), st.UNDECIDED, status)
         if self.output_name("_settling") in wanted:
@@ -840,10 +840,6 @@ class RMS(_Sampled):
     def observer(self, plan, k):
         """The observable on its rows, the trapezoid rule of its square, ``value`` on the result."""
         return _rms_observer(plan.observable(self.of, f"of{k}"), self._value(plan, k), k, plan.cols[k], plan.raw)
-
-    def finish(self, values, wanted, solver, out, status):
-        if self.name in out:
-            out[self.name][:] = values[:, 0]
 
 
 def rms_observe(ob, s, bits):
