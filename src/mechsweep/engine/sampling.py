@@ -24,6 +24,7 @@ import numpy as np
 
 from .. import _jit
 from .. import status as st
+from ..model.spec import setting_value
 from .trajectory import NO_CLASSIFY, NOT_RUN, UNUSED, columns
 
 METHODS = ("dop853", "radau", "auto")
@@ -142,8 +143,8 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
     """Run the sampled measurements ``chosen`` on the points still OK in ``status``; with ``lanes`` by
     DOP853 lanes for dop853 when the engine rewrites the model's rhs in lane form (False: one trajectory
     at a time, the same values; None: as USE_LANES says, one at a time unless it is True). The model's
-    one kernel (``kernel_for``) observes only the chosen ones; ``per_subset``: a kernel of the chosen ones alone instead (a compile per subset; the same values
-    bitwise, for tests)."""
+    one kernel (``kernel_for``) observes only the chosen ones; ``per_subset``: a kernel of the chosen
+    ones alone instead (a compile per subset; the same values bitwise, for tests)."""
     method = solver.method
     settings = dict(solver.settings)
     rc = _active_recheck(model, settings)
@@ -154,8 +155,7 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
     always, lock, raw = (-1, (), False) if rc is None else recheck_variant(model, chosen)
     s, bits, K = grid(chosen, settings)
     if lock:  # the whole forcing periods of the second half of the Kick's horizon: one more bits column
-        from ..model.sampled import _number
-        H = _number(chosen[always].horizon, settings)
+        H = setting_value(chosen[always].horizon, settings)
         whole = np.arange(math.ceil(0.5 * H), math.floor(H) + 1, dtype=np.float64)
         s2 = np.unique(np.concatenate([s, whole]))
         bits2 = np.zeros((s2.size, bits.shape[1] + 1), dtype=np.int64)
@@ -271,9 +271,8 @@ def integrated(mstat, code) -> np.ndarray:
 
 def _active_recheck(model, settings):
     """The model's Recheck where its factor is > 0 (else None: no re-check)."""
-    from ..model.sampled import _number
     rc = getattr(model, "recheck", None)
-    if rc is None or not _number(rc.factor, settings) > 0.0:
+    if rc is None or not setting_value(rc.factor, settings) > 0.0:
         return None
     return rc
 
@@ -298,9 +297,8 @@ def _recheck(rc, chosen, wanted, settings, solver, P, run, arrays, code, mstat, 
              lock):
     """The model's Recheck (sampled.Recheck): which points moved when integrated again at the
     tighter rtol."""
-    from ..model.sampled import _number
     vals, hist, rawv, rawh = arrays
-    factor = _number(rc.factor, settings)
+    factor = setting_value(rc.factor, settings)
     check = integrated(mstat, code)
     names = [m.name for m in chosen]
     if rc.skip_settled in names:  # settled early (integration time, before time_value): not again
@@ -335,16 +333,14 @@ def _recheck(rc, chosen, wanted, settings, solver, P, run, arrays, code, mstat, 
 
     a = table(vals[idx], hist[idx], measured(mstat[idx], code[idx], order))
     b = table(vals2, hist2, measured(mstat2, code2, order))
-    with np.errstate(invalid="ignore"):
-        tol = factor * (solver.rtol * np.maximum(np.abs(a), np.abs(b)) + solver.atol)
-        bad = (np.abs(a - b) > tol) | (np.isnan(a) != np.isnan(b))
-    moved[idx] = bad.any(axis=1) | ~integrated(mstat2, code2)
+    moved[idx] = rc.moved(a, b, factor, solver).any(axis=1) | ~integrated(mstat2, code2)
     return moved
 
 
-# The lanes (method dop853, an rhs the engine rewrites in lane form). Each lane keeps its trajectory's samples (n_samples x n_states floats) until it
-# ends: with long horizons or dense sampling fewer lanes, so that a queue's samples stay within
-# LANE_SAMPLES_BYTES (32, 16, then 8 lanes, else the one-trajectory kernel).
+# The lanes (method dop853, an rhs the engine rewrites in lane form). Each lane keeps its trajectory's
+# samples (n_samples x n_states floats) until it ends: with long horizons or dense sampling fewer
+# lanes, so that a queue's samples stay within LANE_SAMPLES_BYTES (32, 16, then 8 lanes, else the
+# one-trajectory kernel).
 LANES = (32, 16, 8)
 LANE_SAMPLES_BYTES = 256 * 2**20
 # evaluate's route where the lanes apply and the caller names none: True the lanes, False or None one

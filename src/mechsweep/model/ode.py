@@ -51,11 +51,8 @@ def _moved(rc, settings, solver, first, second, status2) -> np.ndarray:
     than factor (rtol max(|v|, |v'|) + atol), NaN in one run only, or a second run that failed."""
     factor = setting_value(rc.factor, settings)
     bad = status2 != st.OK
-    with np.errstate(invalid="ignore"):
-        for name, a in first.items():
-            b = second[name]
-            tol = factor * (solver.rtol * np.maximum(np.abs(a), np.abs(b)) + solver.atol)
-            bad |= (np.abs(a - b) > tol) | (np.isnan(a) != np.isnan(b))
+    for name, a in first.items():
+        bad |= rc.moved(a, second[name], factor, solver)
     return bad
 
 

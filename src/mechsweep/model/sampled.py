@@ -29,7 +29,7 @@ from typing import Callable
 
 import numpy as np
 
-from .spec import Output
+from .spec import Output, setting_value
 from .. import status as st
 from ..status import NONFINITE as st_NONFINITE, OK as st_OK
 from . import measure
@@ -39,11 +39,6 @@ __all__ = ["Steady", "Kick", "History", "RMS", "Recheck"]  # mechsweep.model exp
 
 TWO_PI = 2.0 * math.pi
 
-
-
-def _number(x, settings) -> float:
-    """A measurement field: a number, or the name of one of the model's settings."""
-    return float(settings[x]) if isinstance(x, str) else float(x)
 
 
 def _check_numbers(m, fields):
@@ -143,7 +138,8 @@ class _Sampled(_Outputs):
     def functions(self):
         observed = [(f, getattr(self, f)) for f in self._present(self.OBSERVED)]
         value = getattr(self, self.VALUE)
-        return tuple((f, x) for f, x in observed if not isinstance(x, str)) + ((("value", value),) if value is not None else ())
+        functions = tuple((f, x) for f, x in observed if not isinstance(x, str))
+        return functions + ((("value", value),) if value is not None else ())
 
     def key(self) -> tuple:
         return (type(self).__name__, self.name) + tuple(
@@ -161,8 +157,8 @@ class _Sampled(_Outputs):
 
     def _window(self, settings):
         """(H, w, n): the horizon, the window's fraction of it and the window's number of samples."""
-        H, w = _number(self.horizon, settings), _number(self.window, settings)
-        return H, w, max(2, int(math.ceil(_number(self.samples_per_period, settings) * w * H)) + 1)
+        H, w = setting_value(self.horizon, settings), setting_value(self.window, settings)
+        return H, w, max(2, int(math.ceil(setting_value(self.samples_per_period, settings) * w * H)) + 1)
 
 
 @_records_where
@@ -269,7 +265,8 @@ class Steady(_Sampled):
         check = self.settle_rtol is not None
         # the third: whether the first harmonic is computed (engine/sampling.py's evaluate clears it when
         # neither name_h1 nor name_phase is asked for: no cos/sin per sample then)
-        return (_number(self.settle_rtol, settings) if check else -1.0, _number(self.settle_atol, settings), 1.0)
+        return (setting_value(self.settle_rtol, settings) if check else -1.0, setting_value(self.settle_atol, settings),
+                1.0)
 
     def observer(self, plan, k):
         """Its observer in the sampled-trajectory kernel (engine/trajectory.py): the observable on its
@@ -384,9 +381,9 @@ class Kick(_Sampled):
     def instants(self, settings):
         """(s, bits): 1 every monitor row, 2 the first period, 4 the first ``early`` fraction, 8 the
         last ``late`` fraction, 16 the ``late`` fraction before it (bits 2-16 only on monitor rows)."""
-        H = _number(self.horizon, settings)
-        mon = int(_number(self.monitor_per_period, settings))
-        dense = int(_number(self.dense_per_period, settings))
+        H = setting_value(self.horizon, settings)
+        mon = int(setting_value(self.monitor_per_period, settings))
+        dense = int(setting_value(self.dense_per_period, settings))
         late0 = (1.0 - self.late) * H
         parts = [np.linspace(0.0, H, max(2, int(math.ceil(mon * H)) + 1)),
                  np.linspace(late0, H, max(2, int(math.ceil(dense * self.late * H)) + 1)),
@@ -394,20 +391,21 @@ class Kick(_Sampled):
         return [(x, self._bits) for x in parts]
 
     def _bits(self, s, settings):
-        H = _number(self.horizon, settings)
+        H = setting_value(self.horizon, settings)
         late0, before0 = (1.0 - self.late) * H, (1.0 - 2.0 * self.late) * H
         return (1 | np.where(s <= min(1.0, H), 2, 0) | np.where(s <= self.early * H, 4, 0)
                 | np.where(s >= late0, 8, 0) | np.where((s >= before0) & (s < late0), 16, 0))
 
     def constants(self, settings):
-        settle = _number(self.settle_threshold, settings)
-        floor = 1e-3 * settle if self.growth_floor is None else _number(self.growth_floor, settings)
-        return (settle, _number(self.decay_ratio, settings), _number(self.growth_ratio, settings), floor)
+        settle = setting_value(self.settle_threshold, settings)
+        floor = 1e-3 * settle if self.growth_floor is None else setting_value(self.growth_floor, settings)
+        return (settle, setting_value(self.decay_ratio, settings), setting_value(self.growth_ratio, settings), floor)
 
     def observer(self, plan, k):
         """Its observer in the sampled-trajectory kernel (engine/trajectory.py): error (and response) on
         its rows, then ``kick_observe`` into its columns; ``time_value`` on the settling time."""
-        response = compiled(_no_response, True) if self.response is None else plan.observable(self.response, f"response{k}")
+        response = (compiled(_no_response, True) if self.response is None
+                    else plan.observable(self.response, f"response{k}"))
         return _kick_observer(plan.observable(self.error, f"error{k}"), response, self.response is not None,
                               self._value(plan, k), k, plan.cols[k], plan.cols[k + 1], plan.raw)
 
@@ -472,7 +470,7 @@ class History(_Sampled):
     n_values = 0
 
     def coordinate(self, settings) -> np.ndarray:
-        return np.linspace(0.0, _number(self.horizon, settings), int(_number(self.samples, settings)))
+        return np.linspace(0.0, setting_value(self.horizon, settings), int(setting_value(self.samples, settings)))
 
     def outputs(self) -> tuple[Output, ...]:
         from .spec import ExtraDim
@@ -560,6 +558,13 @@ class Recheck:
 
     def tight_rtol(self, rtol: float) -> float:
         return min(rtol, max(rtol / self.tighten, self.rtol_floor))
+
+    def moved(self, a, b, factor, solver):
+        """Where a value of the first run ``a`` moved in the second ``b``: by more than
+        factor (rtol max(|a|, |b|) + atol), or NaN in one run only."""
+        with np.errstate(invalid="ignore"):
+            tol = factor * (solver.rtol * np.maximum(np.abs(a), np.abs(b)) + solver.atol)
+            return (np.abs(a - b) > tol) | (np.isnan(a) != np.isnan(b))
 
 
 
