@@ -17,6 +17,8 @@ Each declares what it records, in one place:
   times, traj: the states there), its values into vals[i, its columns];
 - ``finish(values, wanted, solver, out, status)``: its outputs from its value columns, in Python.
 
+What they check and report alike (fields and ranges, settings named, functions, key) is ``_Sampled``'s.
+
 Over 700 lines on purpose: each measurement keeps its declaration, checks and what it records
 (instants, observer, finish) together, so that a new one is one class here and its tests.
 """
@@ -38,7 +40,6 @@ from .measure import _Outputs, _check_function, _observable, _records_where
 __all__ = ["Steady", "Kick", "History", "RMS", "Recheck"]  # mechsweep.model exports them
 
 TWO_PI = 2.0 * math.pi
-
 
 
 def _check_numbers(m, fields):
