@@ -28,14 +28,8 @@ ALLOWED = {
         "OdeModel.spec()'s evaluate runs the model's composed kernels (and its plan reads their lane record)",
     ("mechsweep.model.ode", "mechsweep.engine.point"):
         "OdeModel.methods_for and evaluate read which measurements integrate on their own and their columns",
-    ("mechsweep.model.ode", "mechsweep.engine.sampling"):
-        "OdeModel's evaluate runs the sampled trajectories' kernel",
-    ("mechsweep.model.measure", "mechsweep.engine.shared"):
-        "a measurement on the shared trajectory says what it records there with the engine's row kinds",
     ("mechsweep.model.measure", "mechsweep.engine.floquet"):
         "Floquet's measurement builds its variational integration from the engine's factory",
-    ("mechsweep.model.measure", "mechsweep.model.sampled"):
-        "the sampled measurements (model/sampled.py, which reads this module) stay importable from here",
 }
 
 
@@ -65,11 +59,29 @@ def _type_checking_only(tree) -> set[int]:
     return skip
 
 
+def lazy_exports(mods) -> dict[str, dict[str, str]]:
+    """package -> {name: module} of the names a package's ``__init__`` imports when first used
+    (PEP 562: its ``_EXPORTS`` table of name -> submodule): ``from package import name`` runs that
+    module, as a plain import of it would."""
+    out = {}
+    for module, (path, is_package) in mods.items():
+        if not is_package:
+            continue
+        for node in ast.parse(path.read_text(), str(path)).body:
+            if (isinstance(node, ast.Assign) and [ast.unparse(t) for t in node.targets] == ["_EXPORTS"]
+                    and isinstance(node.value, ast.Dict)):
+                table = ast.literal_eval(node.value)
+                out[module] = {name: f"{module}.{sub.lstrip('.')}" for name, sub in table.items()}
+    return out
+
+
 def import_edges() -> dict[tuple[str, str], list[str]]:
     """(importer, imported module) -> where ("file:line") for every import between the package's
     modules. Importing a.b.c runs a, a.b and a.b.c: an edge to each (but not to the importer's own
-    parent packages, which are running already); ``from a import b`` also reaches module a.b."""
+    parent packages, which are running already); ``from a import b`` also reaches module a.b, or
+    the module a's ``_EXPORTS`` names for b (``lazy_exports``)."""
     mods = modules()
+    lazy = lazy_exports(mods)
     edges: dict[tuple[str, str], list[str]] = {}
     for module, (path, is_package) in mods.items():
         tree = ast.parse(path.read_text(), str(path))
@@ -82,6 +94,7 @@ def import_edges() -> dict[tuple[str, str], list[str]]:
             elif isinstance(node, ast.ImportFrom):
                 base = _absolute(module, is_package, node.level, node.module)
                 targets = [base] + [f"{base}.{a.name}" for a in node.names if f"{base}.{a.name}" in mods]
+                targets += [lazy[base][a.name] for a in node.names if a.name in lazy.get(base, {})]
             else:
                 continue
             for target in targets:
@@ -192,6 +205,8 @@ def test_the_graph_sees_function_level_imports_and_circles():
     # each other are a circle
     edges = import_edges()
     assert ("mechsweep.execution.runner", "mechsweep.execution.cluster") in edges  # runner imports cluster inside functions
+    # a name a package exports lazily (its __init__'s _EXPORTS) reaches the module that defines it
+    assert lazy_exports(modules())["mechsweep.model"]["Steady"] == "mechsweep.model.sampled"
     assert circles({("a", "b"): [], ("b", "c"): [], ("c", "a"): [], ("c", "d"): []}) == [["a", "b", "c"]]
 
 

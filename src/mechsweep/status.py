@@ -124,3 +124,23 @@ def ranks(order) -> np.ndarray:
         rank[int(code)] = r
     rank[OK] = len(order)
     return rank
+
+
+def worse(current, new, order):
+    """Element-wise the more severe of two status arrays in ``order`` (see ``ranks``); equal ranks keep
+    ``current``. Without an order: ``current`` where it is not OK, else ``new`` (first failure wins)."""
+    new = np.broadcast_to(np.asarray(new, dtype=current.dtype), current.shape)
+    if not order:
+        return np.where(current == OK, new, current)
+    rank = ranks(order)
+    return np.where(rank[new] < rank[current], new, current)
+
+
+def mark_not_reproducible(status, moved, order) -> None:
+    """NOT_REPRODUCIBLE where ``moved``: ranked by the model's status order, else above the statuses
+    that leave a value NaN for a reason (NO_EVENT, UNDECIDED) and OK, below integration failures."""
+    if order:
+        status[:] = worse(status, np.where(moved, NOT_REPRODUCIBLE, OK), order)
+    else:
+        soft = (status == OK) | (status == NO_EVENT) | (status == UNDECIDED)
+        status[:] = np.where(moved & soft, NOT_REPRODUCIBLE, status)

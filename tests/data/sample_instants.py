@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from mechsweep.engine import sampling as tr
-from mechsweep.model.measure import Kick, Steady
+from mechsweep.model.sampled import Kick, Steady
 from mechsweep.models import autobalancer as ab
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository root: tests.reference

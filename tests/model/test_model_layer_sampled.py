@@ -201,6 +201,33 @@ def test_numeric_fields_of_sampled_measurements_are_checked(kind, field, value, 
     assert str(info.value) == f"{kind} 'm': {field} = {value!r} is not allowed; expected {allowed} (or the name of a setting)"
 
 
+def test_each_sampled_measurement_reports_its_settings_functions_and_key():
+    """What the kernels and the scene read of a declaration: the settings its fields name (in field
+    order; Kick's late and early are plain numbers), the functions it calls by role (a state's name
+    is no function) and its key."""
+    from mechsweep.model import RMS, History, Kick, Steady
+
+    def f(t, y, p):
+        return 0.0
+
+    def g(p, x):
+        return x
+
+    cases = [
+        (Steady("a", "y", horizon="H", settle_rtol=None, settle_atol="A"), ("H", "A"), (), ("Steady", "a", "y")),
+        (Steady("a", f, value=g), (), ("of", "value"), ("Steady", "a", None)),
+        (Kick("k", f, response="y", growth_floor="G", time_value=g), ("G",), ("error", "value"),
+         ("Kick", "k", None, "y", False, 0.1, 0.1)),
+        (Kick("k", "y", horizon="H", late=0.2), ("H",), (), ("Kick", "k", "y", None, True, 0.2, 0.1)),
+        (History("h", f, samples="N"), ("N",), ("of",), ("History", "h", None)),
+        (RMS("r", "y", window="W", samples_per_period="S", value=g), ("W", "S"), ("value",), ("RMS", "r", "y")),
+    ]
+    for m, settings, roles, key in cases:
+        assert m.setting_names() == settings, m
+        assert tuple(role for role, _ in m.functions()) == roles, m
+        assert m.key() == key, m
+
+
 def test_a_field_naming_a_setting_is_checked_against_the_setting_range():
     from mechsweep.model import History, OdeModel, Setting
     kw = dict(name="x", description="", params=(), states=("y",), rhs=lambda t, y, p, d: None,

@@ -242,7 +242,7 @@ def build(model, chosen, closed, method):
     if plan.group:
         links.append(shared.integration(plan))
     for k, m in enumerate(plan.chosen):
-        block = m.point(plan, k)
+        block = shared.member(plan, k) if k in plan.group else m.point(plan, k)
         slots = tuple((e, plan.extra[x][2]) for x, (j, e, _) in plan.extra.items() if j == k)
         classify = view.fn(getattr(m, "classify", None), f"mclassify{k}", "status1")
         links.append(measure_link(block, classify, plan.cols[k], plan.slot[m.name], tuple(sorted(slots)), view.npi,

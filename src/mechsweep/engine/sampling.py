@@ -18,28 +18,22 @@ measurement's ``finish``: statuses NO_EVENT, UNDECIDED) and runs the model's Rec
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 
 from .. import _jit
 from .. import status as st
-from ..model.ode import worse
+from ..model.spec import setting_value
 from .trajectory import NO_CLASSIFY, NOT_RUN, UNUSED, columns
 
-BLOCK = 8  # points per scratch allocation (a block holds one trajectory of n_samples x n_states)
 METHODS = ("dop853", "radau", "auto")
-TWO_PI = 2.0 * math.pi
 _KERNELS: dict[str, object] = {}
 
 
-def is_sampled(m) -> bool:
-    return getattr(m, "sampled", False)
-
-
 def grid(chosen, settings):
-    """(s, bits, K, hist_rows): the sample instants in forcing periods (sorted, unique), bits[j, k]
-    the roles of instant j for measurement k (0: not its instant), K[k] its constants, and for
-    each History the number of its rows."""
+    """(s, bits, K): the sample instants in forcing periods (sorted, unique), bits[j, k] the roles of
+    instant j for measurement k (0: not its instant), K[k] its constants."""
     parts = [(m, inst) for m in chosen for inst in m.instants(settings)]
     s = np.unique(np.concatenate([x for _, (x, _) in parts]))
     bits = np.zeros((s.size, len(chosen)), dtype=np.int64)
@@ -55,10 +49,6 @@ def grid(chosen, settings):
     return s, bits, K
 
 
-def _order(model) -> tuple:
-    return tuple(getattr(model, "status_order", ()))
-
-
 def lane_rhs_for(model, method) -> str | None:
     """The engine's lane form of the model's rhs (engine/lane_rhs.py) for dop853, or None (another
     method, or an rhs the rewrite does not cover: one trajectory at a time)."""
@@ -70,7 +60,7 @@ def lane_rhs_for(model, method) -> str | None:
 
 def sampled_measurements(model) -> tuple:
     """Every sampled measurement the model declares, in declaration order: the kernel's columns."""
-    return tuple(m for m in model.measurements if is_sampled(m))
+    return tuple(m for m in model.measurements if getattr(m, "sampled", False))
 
 
 def recheck_variant(model, measurements):
@@ -112,7 +102,7 @@ def kernel_for(model, method, measurements=None):
                        lambda *lane: engine.build(model, chosen, m, always, lock, raw, *lane),
                        extra=binding_text(lane_rhs) if lane_rhs else "",
                        lane_names=("rhs_lanes",) if lane_rhs else ())
-    out = _Kernels(name, {e: getattr(mod, e) for e in entries})
+    out = SimpleNamespace(name=name, **{e: getattr(mod, e) for e in entries})  # its entry points, and its name
     _KERNELS[name] = out
     return out
 
@@ -149,39 +139,23 @@ def lane_name(model, method) -> str | None:
 _LANE_NAMES: dict[tuple, tuple] = {}  # lane_name's memo: (model, name) by (id(model), method)
 
 
-class _Kernels:
-    """A sampled-trajectory kernel's entry points (attributes), and its binding's name."""
-
-    def __init__(self, name, entries):
-        self.name = name
-        self.__dict__.update(entries)
-
-
 def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lanes=None, per_subset=False):
     """Run the sampled measurements ``chosen`` on the points still OK in ``status``; with ``lanes`` by
     DOP853 lanes for dop853 when the engine rewrites the model's rhs in lane form (False: one trajectory
-    at a time, the same values; None: as USE_LANES says, one at a time unless it is True). The model's one kernel (``kernel_for``) observes only the chosen ones;
-    ``per_subset``: a kernel of the chosen ones alone instead (a compile per subset; the same values
-    bitwise, for tests)."""
+    at a time, the same values; None: as USE_LANES says, one at a time unless it is True). The model's
+    one kernel (``kernel_for``) observes only the chosen ones; ``per_subset``: a kernel of the chosen
+    ones alone instead (a compile per subset; the same values bitwise, for tests)."""
     method = solver.method
     settings = dict(solver.settings)
     rc = _active_recheck(model, settings)
-    always, lock, raw = -1, (), False
-    if rc is not None and rc.skip_settled is not None:  # its Kick observed everywhere, asked for or not
-        names = [m.name for m in chosen]
-        if rc.skip_settled not in names:
-            import dataclasses
-            kick = next(m for m in model.measurements if m.name == rc.skip_settled)
-            chosen = tuple(chosen) + (dataclasses.replace(kick, classify=None),)
-        always = [m.name for m in chosen].index(rc.skip_settled)
-        if rc.skip_locked:
-            rates = dict(rc.lock_rates)
-            lock = tuple(float(rates.get(x, 0.0)) for x in model.states)
-        raw = bool(rc.measured_units)
+    if rc is not None and rc.skip_settled is not None and rc.skip_settled not in [m.name for m in chosen]:
+        import dataclasses  # its Kick observed everywhere, asked for or not
+        kick = next(m for m in model.measurements if m.name == rc.skip_settled)
+        chosen = tuple(chosen) + (dataclasses.replace(kick, classify=None),)
+    always, lock, raw = (-1, (), False) if rc is None else recheck_variant(model, chosen)
     s, bits, K = grid(chosen, settings)
     if lock:  # the whole forcing periods of the second half of the Kick's horizon: one more bits column
-        from ..model.sampled import _number
-        H = _number(chosen[always].horizon, settings)
+        H = setting_value(chosen[always].horizon, settings)
         whole = np.arange(math.ceil(0.5 * H), math.floor(H) + 1, dtype=np.float64)
         s2 = np.unique(np.concatenate([s, whole]))
         bits2 = np.zeros((s2.size, bits.shape[1] + 1), dtype=np.int64)
@@ -191,12 +165,9 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
     for k, m in enumerate(chosen):
         if type(m).__name__ == "Steady" and not {m.output_name("_h1"), m.output_name("_phase")} & set(wanted):
             K[k, 2] = 0.0  # no first harmonic asked for: the observer skips its cos/sin per sample
-    hoff = np.zeros(len(chosen), dtype=np.int64)
-    n_hist = 0
-    for k, m in enumerate(chosen):
-        if m.n_values == 0:
-            hoff[k] = n_hist
-            n_hist += int(np.count_nonzero(bits[:, k]))
+    hw = history_widths(chosen, bits)
+    hoff = np.array([sum(hw[:k]) if w else 0 for k, w in enumerate(hw)], dtype=np.int64)
+    n_hist = sum(hw)
     cols = columns(chosen)
     n = P.shape[0]
     vals = np.full((n, cols[-1] + (1 if lock else 0)), np.nan)
@@ -211,7 +182,7 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
     code = status.copy()
     mstat = np.full((n, len(chosen)), NOT_RUN, dtype=np.int64)
     P = np.ascontiguousarray(P, dtype=np.float64)
-    order = _order(model)
+    order = tuple(getattr(model, "status_order", ()))
     # the kernel's layout: every sampled measurement of the model (kernel_for); the chosen ones
     # observe, the others are UNUSED (their bits columns zero, no value columns read back)
     f_lock = recheck_variant(model, full)[1]
@@ -261,26 +232,22 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
     moved = None
     if rc is not None:
         moved = _recheck(rc, chosen, wanted, settings, solver, P, run, (vals, hist, rawv, rawh), code, mstat, n_steps,
-                         n_rhs, cols, bits, order, lock)
+                         n_rhs, cols, hw, hoff, order, lock)
     good = measured(mstat, code, order)
     for k, m in enumerate(chosen):
         if m.n_values == 0:
             if m.name in out:
-                w = int(np.count_nonzero(bits[:, k]))
-                out[m.name][:] = np.where(good[:, k, None], hist[:, hoff[k]:hoff[k] + w], np.nan)
+                out[m.name][:] = np.where(good[:, k, None], hist[:, hoff[k]:hoff[k] + hw[k]], np.nan)
         else:
             v = np.where(good[:, k, None], vals[:, cols[k]:cols[k + 1]], np.nan)
             if order:  # its own status (OK where it has values), ranked into the point's
                 own = np.zeros_like(code)
                 m.finish(v, wanted, solver, out, own)
-                code[:] = worse(code, own, order)
+                code[:] = st.worse(code, own, order)
             else:
                 m.finish(v, wanted, solver, out, code)
-    if moved is not None and order:
-        code[:] = worse(code, np.where(moved, st.NOT_REPRODUCIBLE, st.OK), order)
-    elif moved is not None:  # above the statuses that leave a value NaN for a reason, below failures
-        soft = (code == st.OK) | (code == st.NO_EVENT) | (code == st.UNDECIDED)
-        code[:] = np.where(moved & soft, st.NOT_REPRODUCIBLE, code)
+    if moved is not None:
+        st.mark_not_reproducible(code, moved, order)
     status[:] = code
 
 
@@ -304,34 +271,34 @@ def integrated(mstat, code) -> np.ndarray:
 
 def _active_recheck(model, settings):
     """The model's Recheck where its factor is > 0 (else None: no re-check)."""
-    from ..model.sampled import _number
     rc = getattr(model, "recheck", None)
-    if rc is None or not _number(rc.factor, settings) > 0.0:
+    if rc is None or not setting_value(rc.factor, settings) > 0.0:
         return None
     return rc
 
 
-def _compared(chosen, wanted, cols, bits, width):
-    """(value columns, History columns) the re-check compares: those of the asked-for outputs (a
-    Steady's or Kick's j-th output is its j-th column)."""
-    use = np.zeros(width, dtype=bool)
-    huse = []
+def history_widths(chosen, bits) -> list[int]:
+    """The number of rows of each chosen History (0 for the other measurements)."""
+    return [int(np.count_nonzero(bits[:, k])) if m.n_values == 0 else 0 for k, m in enumerate(chosen)]
+
+
+def _compared(chosen, wanted, cols, hw):
+    """The columns the re-check compares, the value columns then the History columns: those of the
+    asked-for outputs (a Steady's or Kick's j-th output is its j-th column)."""
+    use = np.zeros(cols[-1], dtype=bool)
     for k, m in enumerate(chosen):
-        if m.n_values == 0:
-            huse += [m.name in wanted] * int(np.count_nonzero(bits[:, k]))
-            continue
-        for j, o in enumerate(m.outputs()):
+        for j, o in enumerate(m.outputs() if m.n_values else ()):
             use[cols[k] + j] = o.name in wanted
-    return use, np.array(huse, dtype=bool)
+    huse = [m.name in wanted for m, w in zip(chosen, hw) for _ in range(w)]
+    return np.concatenate([use, np.array(huse, dtype=bool)])
 
 
-def _recheck(rc, chosen, wanted, settings, solver, P, run, arrays, code, mstat, n_steps, n_rhs, cols, bits, order,
+def _recheck(rc, chosen, wanted, settings, solver, P, run, arrays, code, mstat, n_steps, n_rhs, cols, hw, hoff, order,
              lock):
     """The model's Recheck (sampled.Recheck): which points moved when integrated again at the
     tighter rtol."""
-    from ..model.sampled import _number
     vals, hist, rawv, rawh = arrays
-    factor = _number(rc.factor, settings)
+    factor = setting_value(rc.factor, settings)
     check = integrated(mstat, code)
     names = [m.name for m in chosen]
     if rc.skip_settled in names:  # settled early (integration time, before time_value): not again
@@ -346,10 +313,7 @@ def _recheck(rc, chosen, wanted, settings, solver, P, run, arrays, code, mstat, 
     if idx.size == 0:
         return moved
     P2 = np.ascontiguousarray(P[idx])
-    vals2 = np.full((idx.size, vals.shape[1]), np.nan)
-    hist2 = np.full((idx.size, hist.shape[1]), np.nan)
-    rawv2 = np.full((idx.size, rawv.shape[1]), np.nan)
-    rawh2 = np.full((idx.size, rawh.shape[1]), np.nan)
+    vals2, hist2, rawv2, rawh2 = (np.full((idx.size, x.shape[1]), np.nan) for x in arrays)
     code2 = np.zeros(idx.size, dtype=code.dtype)
     mstat2 = np.full((idx.size, mstat.shape[1]), NOT_RUN, dtype=mstat.dtype)
     ns2, nr2 = np.zeros(idx.size, dtype=n_steps.dtype), np.zeros(idx.size, dtype=n_rhs.dtype)
@@ -358,43 +322,32 @@ def _recheck(rc, chosen, wanted, settings, solver, P, run, arrays, code, mstat, 
     n_rhs[idx] += nr2
     # the asked-for outputs where their measurement applies, as stored (after value/time_value) or
     # as measured (measured_units)
-    use, huse = _compared(chosen, wanted, cols, bits, cols[-1])
+    use = _compared(chosen, wanted, cols, hw)
     if rc.measured_units:
         vals, hist, vals2, hist2 = rawv, rawh, rawv2, rawh2
 
-    def table(v, h, good):
+    def table(v, h, good):  # each measurement's columns (a History's in hist) from its own mask
         cv = [np.where(good[:, k, None], v[:, cols[k]:cols[k + 1]], np.nan) for k in range(len(chosen))]
-        hh = np.full(h.shape, np.nan)
-        pos = 0
-        for k, m in enumerate(chosen):  # each History's own columns from its own mask
-            if m.n_values == 0:
-                w = int(np.count_nonzero(bits[:, k]))
-                hh[:, pos:pos + w] = np.where(good[:, k, None], h[:, pos:pos + w], np.nan)
-                pos += w
-        return np.concatenate(cv + [np.empty((v.shape[0], 0))], axis=1)[:, use], hh[:, huse]
+        ch = [np.where(good[:, k, None], h[:, hoff[k]:hoff[k] + w], np.nan) for k, w in enumerate(hw) if w]
+        return np.concatenate(cv + ch + [np.empty((v.shape[0], 0))], axis=1)[:, use]
 
-    a1, a2 = table(vals[idx], hist[idx], measured(mstat[idx], code[idx], order))
-    b1, b2 = table(vals2, hist2, measured(mstat2, code2, order))
-    a = np.concatenate([a1, a2], axis=1)
-    b = np.concatenate([b1, b2], axis=1)
-    with np.errstate(invalid="ignore"):
-        tol = factor * (solver.rtol * np.maximum(np.abs(a), np.abs(b)) + solver.atol)
-        bad = (np.abs(a - b) > tol) | (np.isnan(a) != np.isnan(b))
-    moved[idx] = bad.any(axis=1) | ~integrated(mstat2, code2)
+    a = table(vals[idx], hist[idx], measured(mstat[idx], code[idx], order))
+    b = table(vals2, hist2, measured(mstat2, code2, order))
+    moved[idx] = rc.moved(a, b, factor, solver).any(axis=1) | ~integrated(mstat2, code2)
     return moved
 
 
-# The lanes (method dop853, an rhs the engine rewrites in lane form): as the hand-written auto-balancer kernels
-# chose them. Each lane keeps its trajectory's samples (n_samples x n_states floats) until it
-# ends: with long horizons or dense sampling fewer lanes, so that a queue's samples stay within
-# LANE_SAMPLES_BYTES (32, 16, then 8 lanes, else the one-trajectory kernel).
+# The lanes (method dop853, an rhs the engine rewrites in lane form). Each lane keeps its trajectory's
+# samples (n_samples x n_states floats) until it ends: with long horizons or dense sampling fewer
+# lanes, so that a queue's samples stay within LANE_SAMPLES_BYTES (32, 16, then 8 lanes, else the
+# one-trajectory kernel).
 LANES = (32, 16, 8)
 LANE_SAMPLES_BYTES = 256 * 2**20
 # evaluate's route where the lanes apply and the caller names none: True the lanes, False or None one
-# trajectory at a time. A run names the route its plan chose (mechsweep/plan.py, ``choose_route``, which
+# trajectory at a time. A run names the route its plan chose (execution/plan.py, ``choose_route``, which
 # reads this as an override): the lanes for a run of at least LANES_FROM_POINTS points, or once they are
-# compiled (kernels.lanes_recorded, under ``lane_name``). Bitwise the same results either way. The lanes' cold compile and speed: docs/model-layer.md
-# ("Lanes"; tests/data/trajectory_lanes_cost.py).
+# compiled (kernels.lanes_recorded, under ``lane_name``). Bitwise the same results either way. The lanes'
+# cold compile and speed: docs/model-layer.md ("Lanes"; tests/data/trajectory_lanes_cost.py).
 USE_LANES: bool | None = None
 LANES_FROM_POINTS = 1000
 # The lanes of a queue share one forcing period (one t_eval): the points of a period shared by fewer

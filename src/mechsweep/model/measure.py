@@ -1,9 +1,9 @@
 """Generic measurements of an :class:`~mechsweep.model.ode.OdeModel`: declarations of what to record.
 
-Each measurement declares its output(s) (name, unit, long name) and knows what it records in a
-kernel: ``point(plan, k)`` gives its block in the one-point kernel (engine/point.py): Crossing, Period,
-StateAt and Extremum are rows (``shared_row``) of one shared DOP853 integration per point
-(engine/shared.py), FirstEvent (and a lone first Crossing) integrates on its own by the scene's method
+Each measurement declares its output(s) (name, unit, long name) and what it records in a kernel:
+Crossing, Period, StateAt and Extremum are rows (``shared_row``) of one shared DOP853 integration per
+point (engine/shared.py); the others give their block in the one-point kernel (engine/point.py) from
+``point(plan, k)``: FirstEvent (and a lone first Crossing) integrates on its own by the scene's method
 (engine/events.py), Floquet integrates its variational equations (engine/floquet.py). The sampled
 measurements (Steady, Kick, History, RMS: model/sampled.py) give their ``observer(plan, k)`` of the
 one sampled trajectory per point (engine/trajectory.py). ClosedForm (a formula output) and System (a second equation) are
@@ -64,6 +64,12 @@ def _check_state(state, states, what):
         raise ValueError(f"{what}: state {state!r} is not one of the model's states {states}")
     return states.index(state)
 
+
+
+def _check_function(m, field_name, text):
+    """``field_name`` of measurement ``m`` is a function (or None where it is optional)."""
+    if getattr(m, field_name) is not None and not callable(getattr(m, field_name)):
+        raise ValueError(f"{m.name}: {field_name} must be a function {text}")
 
 
 def _observable(x, states, what):
@@ -128,6 +134,17 @@ class _Outputs:
             raise ValueError(f"{self.name}: output_meta gives repeated output names {names}")
 
 
+# Crossing, Period, StateAt and Extremum of one point observe ONE DOP853 integration from t = 0
+# (engine/shared.py). Each is a row of a float table, its ``shared_row``: (kind, state index, sign,
+# level, n, ta, tb).
+K_CROSSING, K_PERIOD, K_STATE_AT, K_EXTREMUM, K_EXTREMUM_OF = 0.0, 1.0, 2.0, 3.0, 4.0  # OF: of an expression
+
+
+def _crossing_row(m, kind, n, states):
+    sign = 1.0 if m.direction == "down" else -1.0
+    return (kind, float(states.index(m.state)), sign, float(m.level), float(n), float(m.t_max), 0.0)
+
+
 @_records_where
 @dataclass(frozen=True)
 class Crossing:
@@ -190,10 +207,13 @@ class Crossing:
             raise ValueError(f"{self.name}: level = {self.level!r}; expected a finite number")
 
     def point(self, plan, k):
-        """Its block in the one-point kernel (engine/point.py): a row of the shared trajectory, or
-        integrated on its own when it is the kernel's only measurement (a first crossing)."""
-        from ..engine import events, shared
-        return shared.member(plan, k) if k in plan.group else events.block(plan, self, k)
+        """Its block in the one-point kernel (engine/point.py) when it is the kernel's only measurement
+        (a first crossing): integrated on its own (else a row of the shared trajectory)."""
+        from ..engine import events
+        return events.block(plan, self, k)
+
+    def shared_row(self, states):
+        return _crossing_row(self, K_CROSSING, self.n, states)
 
 
 @_records_where
@@ -243,10 +263,8 @@ class Period:
     def validate(self, states):
         Crossing(self.name, self.state, self.level, self.direction, 2, self.t_max).validate(states)
 
-    def point(self, plan, k):
-        """Its block in the one-point kernel (engine/point.py): a row of the shared trajectory."""
-        from ..engine import shared
-        return shared.member(plan, k)
+    def shared_row(self, states):
+        return _crossing_row(self, K_PERIOD, 2, states)
 
 
 @_records_where
@@ -291,10 +309,8 @@ class StateAt:
             raise ValueError(f"{self.name}: StateAt t = {self.t!r}; expected a finite number >= 0 (a fixed time: "
                              "for a time that depends on the parameters use Extremum's t0/t1 or FirstEvent)")
 
-    def point(self, plan, k):
-        """Its block in the one-point kernel (engine/point.py): a row of the shared trajectory."""
-        from ..engine import shared
-        return shared.member(plan, k)
+    def shared_row(self, states):
+        return (K_STATE_AT, float(states.index(self.state)), 1.0, 0.0, 0.0, float(self.t), 0.0)
 
 
 @_records_where
@@ -378,10 +394,15 @@ class Extremum:
         return ("Extremum", self.name, self.state if isinstance(self.state, str) else None, num(self.t0),
                 num(self.t1), self.kind)
 
-    def point(self, plan, k):
-        """Its block in the one-point kernel (engine/point.py): a row of the shared trajectory."""
-        from ..engine import shared
-        return shared.member(plan, k)
+    def shared_row(self, states):
+        """A state's row; an expression's (K_EXTREMUM_OF) gets its measurement's index in column 1
+        from engine/shared.py. A window end that is a function of p is NaN here (the kernel writes it
+        per point)."""
+        sign = 1.0 if self.kind == "max" else -1.0
+        t0, t1 = (math.nan if callable(x) else float(x) for x in (self.t0, self.t1))
+        if not isinstance(self.state, str):
+            return (K_EXTREMUM_OF, -1.0, sign, 0.0, 0.0, t0, t1)
+        return (K_EXTREMUM, float(states.index(self.state)), sign, 0.0, 0.0, t0, t1)
 
 
 @_records_where
@@ -519,18 +540,13 @@ class Floquet(_Outputs):
             if getattr(self, field_name) and "name" in self._meta(self.name + suffix):
                 raise ValueError(f"{self.name}: both {field_name} and output_meta[{self.name + suffix!r}]['name'] "
                                  "name the same output; give one")
-        if self.initial is not None and not callable(self.initial):
-            raise ValueError(f"{self.name}: initial must be a function initial(p, y0) (the start of the orbit)")
-        if self.variational is not None and not callable(self.variational):
-            raise ValueError(f"{self.name}: variational must be a function variational(t, Phi, p, dPhi) (the "
-                             f"variational system about the known orbit; got {self.variational!r})")
-        if self.variational_jac is not None:
-            if self.variational is None:
-                raise ValueError(f"{self.name}: variational_jac is the Jacobian of variational; give variational= "
-                                 "too (or neither: the engine then integrates the state with its variational system)")
-            if not callable(self.variational_jac):
-                raise ValueError(f"{self.name}: variational_jac must be a function variational_jac(t, Phi, p, JJ) "
-                                 f"(got {self.variational_jac!r})")
+        _check_function(self, "initial", "initial(p, y0) (the start of the orbit)")
+        _check_function(self, "variational", "variational(t, Phi, p, dPhi) (the variational system about the known "
+                        f"orbit; got {self.variational!r})")
+        if self.variational_jac is not None and self.variational is None:
+            raise ValueError(f"{self.name}: variational_jac is the Jacobian of variational; give variational= "
+                             "too (or neither: the engine then integrates the state with its variational system)")
+        _check_function(self, "variational_jac", f"variational_jac(t, Phi, p, JJ) (got {self.variational_jac!r})")
 
     def functions(self):
         """``initial``: where the linearisation starts when it is not the model's ``initial(p)``
@@ -696,12 +712,10 @@ class FirstEvent:
                                              and self.t_max > 0):
             raise ValueError(f"{self.name}: t_max = {self.t_max!r}; expected a finite number > 0 "
                              "or a function t_max(p)")
-        if self.value is not None and not callable(self.value):
-            raise ValueError(f"{self.name}: value must be a function value(p, t) -> float")
+        _check_function(self, "value", "value(p, t) -> float")
         if self.system is not None and not isinstance(self.system, System):
             raise ValueError(f"{self.name}: system must be a mechsweep.model.System (got {self.system!r})")
-        if self.refine is not None and not callable(self.refine):
-            raise ValueError(f"{self.name}: refine must be a function refine(p, rtol, value) -> float")
+        _check_function(self, "refine", "refine(p, rtol, value) -> float")
         if not (isinstance(self.n, int) and not isinstance(self.n, bool) and self.n >= 1):
             raise ValueError(f"{self.name}: n = {self.n!r}; expected a whole number >= 1")
         if self.direction not in DIRECTIONS:
@@ -808,51 +822,4 @@ FLOQUET_MARGIN = Setting("floquet_margin", 1e-8, "1",
                          "(the margin used is max(floquet_margin, 100 rtol))", 0.0, 0.1)
 
 
-# ---------------------------------------------------------------- one shared trajectory
-# Crossing, Period, StateAt and Extremum of one point observe ONE DOP853 integration from t = 0
-# (make_shared). Each is a row of a float table: (kind, state index, sign, level, n, ta, tb).
-K_CROSSING, K_PERIOD, K_STATE_AT, K_EXTREMUM, K_EXTREMUM_OF = 0.0, 1.0, 2.0, 3.0, 4.0  # OF: of an expression
-SHARED_COLS = 7
-
-
-def _row_crossing(m, states):
-    sign = 1.0 if m.direction == "down" else -1.0
-    return (K_CROSSING, float(states.index(m.state)), sign, float(m.level), float(m.n), float(m.t_max), 0.0)
-
-
-def _row_period(m, states):
-    sign = 1.0 if m.direction == "down" else -1.0
-    return (K_PERIOD, float(states.index(m.state)), sign, float(m.level), 2.0, float(m.t_max), 0.0)
-
-
-def _row_state_at(m, states):
-    return (K_STATE_AT, float(states.index(m.state)), 1.0, 0.0, 0.0, float(m.t), 0.0)
-
-
-def _row_extremum(m, states):
-    """A state's row; an expression's (K_EXTREMUM_OF) gets its measurement's index in column 1 from
-    engine/shared.py.
-    A window end that is a function of p is NaN here (the kernel writes it per point)."""
-    sign = 1.0 if m.kind == "max" else -1.0
-    t0, t1 = (math.nan if callable(x) else float(x) for x in (m.t0, m.t1))
-    if not isinstance(m.state, str):
-        return (K_EXTREMUM_OF, -1.0, sign, 0.0, 0.0, t0, t1)
-    return (K_EXTREMUM, float(states.index(m.state)), sign, 0.0, 0.0, t0, t1)
-
-
-Crossing.shared_row = _row_crossing
-Period.shared_row = _row_period
-StateAt.shared_row = _row_state_at
-Extremum.shared_row = _row_extremum
-
-
 MEASUREMENTS = (Crossing, Period, StateAt, Extremum, Floquet, FirstEvent)  # model/sampled.py adds its own
-
-
-def __getattr__(name: str):
-    # the sampled measurements live in model/sampled.py (which imports this module); they stay
-    # importable from here, as they were
-    if name in ("Steady", "Kick", "History", "Recheck", "RMS"):
-        from . import sampled
-        return getattr(sampled, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

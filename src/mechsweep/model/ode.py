@@ -11,7 +11,7 @@ from typing import Callable
 import numpy as np
 
 from .. import status as st
-from ..status import ranks
+from ..status import mark_not_reproducible, worse
 from ..errors import InputError
 from .spec import ModelSpec, Param, Setting, setting_value
 from .measure import FLOQUET_MARGIN, ClosedForm, Floquet, declared_at
@@ -51,32 +51,9 @@ def _moved(rc, settings, solver, first, second, status2) -> np.ndarray:
     than factor (rtol max(|v|, |v'|) + atol), NaN in one run only, or a second run that failed."""
     factor = setting_value(rc.factor, settings)
     bad = status2 != st.OK
-    with np.errstate(invalid="ignore"):
-        for name, a in first.items():
-            b = second[name]
-            tol = factor * (solver.rtol * np.maximum(np.abs(a), np.abs(b)) + solver.atol)
-            bad |= (np.abs(a - b) > tol) | (np.isnan(a) != np.isnan(b))
+    for name, a in first.items():
+        bad |= rc.moved(a, second[name], factor, solver)
     return bad
-
-
-def _mark_not_reproducible(status, moved, order) -> None:
-    """NOT_REPRODUCIBLE where ``moved``: ranked by the model's status order, else above the statuses
-    that leave a value NaN for a reason (NO_EVENT, UNDECIDED) and OK, below integration failures."""
-    if order:
-        status[:] = worse(status, np.where(moved, st.NOT_REPRODUCIBLE, st.OK), order)
-    else:
-        soft = (status == st.OK) | (status == st.NO_EVENT) | (status == st.UNDECIDED)
-        status[:] = np.where(moved & soft, st.NOT_REPRODUCIBLE, status)
-
-
-def worse(current, new, order):
-    """Element-wise the more severe of two status arrays in ``order`` (see status.ranks); equal ranks keep
-    ``current``. Without an order: ``current`` where it is not OK, else ``new`` (first failure wins)."""
-    new = np.broadcast_to(np.asarray(new, dtype=current.dtype), current.shape)
-    if not order:
-        return np.where(current == st.OK, new, current)
-    rank = ranks(order)
-    return np.where(rank[new] < rank[current], new, current)
 
 
 def _check_method(model, method: str, wanted) -> None:
@@ -566,7 +543,7 @@ class OdeModel:
                 moved = _moved(rc, settings, solver, {n: out[n][again] for n in finished}, out2, s2)
                 flag = np.zeros(status.size, dtype=bool)
                 flag[again] = moved
-                _mark_not_reproducible(status, flag, model.status_order)
+                mark_not_reproducible(status, flag, model.status_order)
             for j, c in enumerate(computable):
                 if c.name in out:
                     out[c.name][:] = table[:, cols[-1] + j]

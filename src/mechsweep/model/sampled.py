@@ -17,6 +17,8 @@ Each declares what it records, in one place:
   times, traj: the states there), its values into vals[i, its columns];
 - ``finish(values, wanted, solver, out, status)``: its outputs from its value columns, in Python.
 
+What they check and report alike (fields and ranges, settings named, functions, key) is ``_Sampled``'s.
+
 Over 700 lines on purpose: each measurement keeps its declaration, checks and what it records
 (instants, observer, finish) together, so that a new one is one class here and its tests.
 """
@@ -29,20 +31,15 @@ from typing import Callable
 
 import numpy as np
 
-from .spec import Output
+from .spec import Output, setting_value
+from .. import status as st
 from ..status import NONFINITE as st_NONFINITE, OK as st_OK
 from . import measure
-from .measure import _Outputs, _observable, _records_where
+from .measure import _Outputs, _check_function, _observable, _records_where
 
 __all__ = ["Steady", "Kick", "History", "RMS", "Recheck"]  # mechsweep.model exports them
 
 TWO_PI = 2.0 * math.pi
-
-
-
-def _number(x, settings) -> float:
-    """A measurement field: a number, or the name of one of the model's settings."""
-    return float(settings[x]) if isinstance(x, str) else float(x)
 
 
 def _check_numbers(m, fields):
@@ -108,15 +105,66 @@ _HISTORY = {"horizon": _POSITIVE, "samples": _Range(2.0, integer=True)}
 _RMS = {"horizon": _POSITIVE, "window": _Range(0.0, 1.0, lo_open=True), "samples_per_period": _Range(2.0)}
 
 
-def _check_value(m, field_name):
-    f = getattr(m, field_name)
-    if f is not None and not callable(f):
-        raise ValueError(f"{m.name}: {field_name} must be a function {field_name}(p, x) -> float (got {f!r})")
+class _Sampled(_Outputs):
+    """What every sampled measurement checks and reports the same way: its observables (``OBSERVED``:
+    a state's name or a function f(t, y, p)), its numeric fields and their ranges (``RULES``; each may
+    name a setting unless in ``FIXED``; one in ``OPTIONAL`` may be None) and its ``value`` transform
+    (the field ``VALUE``)."""
+
+    OBSERVED = ("of",)
+    RULES = {}
+    FIXED = ()
+    OPTIONAL = ()
+    VALUE = "value"
+    sampled = True
+
+    def _present(self, fields):
+        return [f for f in fields if not (f in self.OPTIONAL and getattr(self, f) is None)]
+
+    def validate(self, states):
+        self._check_meta()
+        for f in self._present(self.OBSERVED):
+            _observable(getattr(self, f), states, self.name)
+        _check_numbers(self, self._present(f for f in self.RULES if f not in self.FIXED))
+        _check_ranges(self, self.RULES)
+        _check_function(self, self.VALUE, f"{self.VALUE}(p, x) -> float (got {getattr(self, self.VALUE)!r})")
+
+    def check_settings(self, settings):
+        """The fields that name a setting: the setting's range within the field's."""
+        _check_ranges(self, self.RULES, settings)
+
+    def setting_names(self):
+        return tuple(x for x in (getattr(self, f) for f in self.RULES if f not in self.FIXED) if isinstance(x, str))
+
+    def functions(self):
+        observed = [(f, getattr(self, f)) for f in self._present(self.OBSERVED)]
+        value = getattr(self, self.VALUE)
+        functions = tuple((f, x) for f, x in observed if not isinstance(x, str))
+        return functions + ((("value", value),) if value is not None else ())
+
+    def key(self) -> tuple:
+        return (type(self).__name__, self.name) + tuple(
+            x if isinstance(x, str) else None for x in (getattr(self, f) for f in self.OBSERVED))
+
+    def _value(self, plan, k):
+        """Its ``value`` transform in the kernel (the identity when it has none)."""
+        return plan.transform(getattr(self, self.VALUE), f"value{k}") or compiled(_same_value, True)
+
+    def finish(self, values, wanted, solver, out, status):
+        """Its outputs from its value columns (its j-th output is its j-th column)."""
+        for j, suffix in enumerate(self._suffixes()):
+            if self.output_name(suffix) in out:
+                out[self.output_name(suffix)][:] = values[:, j]
+
+    def _window(self, settings):
+        """(H, w, n): the horizon, the window's fraction of it and the window's number of samples."""
+        H, w = setting_value(self.horizon, settings), setting_value(self.window, settings)
+        return H, w, max(2, int(math.ceil(setting_value(self.samples_per_period, settings) * w * H)) + 1)
 
 
 @_records_where
 @dataclass(frozen=True)
-class Steady(_Outputs):
+class Steady(_Sampled):
     """Steady-state amplitude of an observable ``of`` (a state name or ``f(t, y, p)``) after a
     transient, over the last ``window`` (a fraction) of a simulation of ``horizon`` forcing periods.
     Three outputs (and a fourth kernel value):
@@ -181,7 +229,8 @@ class Steady(_Outputs):
     value: Callable | None = field(default=None, repr=False, compare=False)
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
     output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name, latex}} (_Outputs)
-    sampled = True
+    RULES = _STEADY
+    OPTIONAL = ("settle_rtol",)
     n_values = 4
 
     def _suffixes(self):
@@ -203,35 +252,10 @@ class Steady(_Outputs):
                              f"phase lag of the first harmonic of {what}: {what} ≈ A1 cos(2π t / T − phase)",
                              latex=r"$\varphi_1$", integrated=True))
 
-    def validate(self, states):
-        self._check_meta()
-        _observable(self.of, states, self.name)
-        _check_numbers(self, ("horizon", "window", "samples_per_period", "settle_atol"))
-        if self.settle_rtol is not None:
-            _check_numbers(self, ("settle_rtol",))
-        _check_ranges(self, _STEADY)
-        _check_value(self, "value")
-
-    def check_settings(self, settings):
-        """The fields that name a setting: the setting's range within the field's."""
-        _check_ranges(self, _STEADY, settings)
-
-    def setting_names(self):
-        return tuple(x for x in (self.horizon, self.window, self.samples_per_period, self.settle_rtol,
-                                 self.settle_atol) if isinstance(x, str))
-
-    def functions(self):
-        out = () if isinstance(self.of, str) else (("of", self.of),)
-        return out + ((("value", self.value),) if self.value is not None else ())
-
-    def key(self) -> tuple:
-        return ("Steady", self.name, self.of if isinstance(self.of, str) else None)
-
     def instants(self, settings):
         """(s, bits): this measurement's sample instants in forcing periods and their roles
         (1: the last window, 2: the window before it)."""
-        H, w = _number(self.horizon, settings), _number(self.window, settings)
-        n = max(2, int(math.ceil(_number(self.samples_per_period, settings) * w * H)) + 1)
+        H, w, n = self._window(settings)
         out = [(np.linspace((1.0 - w) * H, H, n), 1)]
         if self.settle_rtol is not None:  # the window before, for the settling test
             out.append((np.linspace((1.0 - 2.0 * w) * H, (1.0 - w) * H, n), 2))
@@ -240,32 +264,28 @@ class Steady(_Outputs):
     def constants(self, settings):
         """The numbers the kernel's observer reads (K row)."""
         check = self.settle_rtol is not None
-        # the third: whether the first harmonic is computed (trajectory.evaluate clears it when
+        # the third: whether the first harmonic is computed (engine/sampling.py's evaluate clears it when
         # neither name_h1 nor name_phase is asked for: no cos/sin per sample then)
-        return (_number(self.settle_rtol, settings) if check else -1.0, _number(self.settle_atol, settings), 1.0)
+        return (setting_value(self.settle_rtol, settings) if check else -1.0, setting_value(self.settle_atol, settings),
+                1.0)
 
     def observer(self, plan, k):
         """Its observer in the sampled-trajectory kernel (engine/trajectory.py): the observable on its
         rows, then ``steady_observe`` into its columns; ``value`` on the peak and first harmonic."""
-        c0, c1 = plan.cols[k], plan.cols[k + 1]
-        value = plan.transform(self.value, f"value{k}") or compiled(_same_value, True)
-        return _steady_observer(plan.observable(self.of, f"of{k}"), value, k, c0, c1, plan.raw)
+        return _steady_observer(plan.observable(self.of, f"of{k}"), self._value(plan, k), k, plan.cols[k],
+                                plan.cols[k + 1], plan.raw)
 
     def finish(self, values, wanted, solver, out, status):
-        from .. import status as st
         settled = values[:, 3] == 1.0
-        unsettled = np.isfinite(values[:, 0]) & ~settled
-        names = [self.output_name(x) for x in self._suffixes()]
-        for j, name in enumerate(names):
-            if name in out:
-                out[name][:] = np.where(settled, values[:, j], np.nan)
-        if any(x in wanted for x in names):
+        super().finish(np.where(settled[:, None], values, np.nan), wanted, solver, out, status)
+        if any(self.output_name(x) in wanted for x in self._suffixes()):
+            unsettled = np.isfinite(values[:, 0]) & ~settled
             status[:] = np.where((status == st.OK) & unsettled, st.NO_EVENT, status)
 
 
 @_records_where
 @dataclass(frozen=True)
-class Kick(_Outputs):
+class Kick(_Sampled):
     """Stability verdict of a motion from a kick: the model's ``initial(p)`` is the kicked state,
     ``error(t, y, p) >= 0`` the distance from the reference motion (e.g. a phase error), optional
     ``response(t, y, p) >= 0`` a second quantity that must decay too (e.g. a platform amplitude);
@@ -338,7 +358,11 @@ class Kick(_Outputs):
     time_value: Callable | None = field(default=None, repr=False, compare=False)
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
     output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name, latex}} (_Outputs)
-    sampled = True
+    OBSERVED = ("error", "response")
+    RULES = _KICK
+    FIXED = ("late", "early")
+    OPTIONAL = ("response", "growth_floor")
+    VALUE = "time_value"
     n_values = 5  # verdict, settling time, final error; the settling time before time_value, the simulated time
 
     def _suffixes(self):
@@ -352,44 +376,15 @@ class Kick(_Outputs):
                              "time after which the error stays below settle_threshold", integrated=True),
                 self._output("_final", "e_end", self.unit, "error at the end of the simulation", integrated=True))
 
-    def validate(self, states):
-        self._check_meta()
-        _observable(self.error, states, self.name)
-        if self.response is not None:
-            _observable(self.response, states, self.name)
-        _check_numbers(self, ("horizon", "settle_threshold", "decay_ratio", "growth_ratio", "monitor_per_period",
-                              "dense_per_period") + (() if self.growth_floor is None else ("growth_floor",)))
-        _check_ranges(self, _KICK)
-        _check_value(self, "time_value")
-
-    def check_settings(self, settings):
-        """The fields that name a setting: the setting's range within the field's."""
-        _check_ranges(self, _KICK, settings)
-
-    def setting_names(self):
-        return tuple(x for x in (self.horizon, self.settle_threshold, self.decay_ratio, self.growth_ratio,
-                                 self.monitor_per_period, self.dense_per_period, self.growth_floor)
-                     if isinstance(x, str))
-
-    def functions(self):
-        out = [] if isinstance(self.error, str) else [("error", self.error)]
-        if self.response is not None and not isinstance(self.response, str):
-            out.append(("response", self.response))
-        if self.time_value is not None:
-            out.append(("value", self.time_value))
-        return tuple(out)
-
     def key(self) -> tuple:
-        return ("Kick", self.name, self.error if isinstance(self.error, str) else None,
-                self.response if isinstance(self.response, str) else None, self.response is None,
-                float(self.late), float(self.early))
+        return super().key() + (self.response is None, float(self.late), float(self.early))
 
     def instants(self, settings):
         """(s, bits): 1 every monitor row, 2 the first period, 4 the first ``early`` fraction, 8 the
         last ``late`` fraction, 16 the ``late`` fraction before it (bits 2-16 only on monitor rows)."""
-        H = _number(self.horizon, settings)
-        mon = int(_number(self.monitor_per_period, settings))
-        dense = int(_number(self.dense_per_period, settings))
+        H = setting_value(self.horizon, settings)
+        mon = int(setting_value(self.monitor_per_period, settings))
+        dense = int(setting_value(self.dense_per_period, settings))
         late0 = (1.0 - self.late) * H
         parts = [np.linspace(0.0, H, max(2, int(math.ceil(mon * H)) + 1)),
                  np.linspace(late0, H, max(2, int(math.ceil(dense * self.late * H)) + 1)),
@@ -397,32 +392,28 @@ class Kick(_Outputs):
         return [(x, self._bits) for x in parts]
 
     def _bits(self, s, settings):
-        H = _number(self.horizon, settings)
+        H = setting_value(self.horizon, settings)
         late0, before0 = (1.0 - self.late) * H, (1.0 - 2.0 * self.late) * H
         return (1 | np.where(s <= min(1.0, H), 2, 0) | np.where(s <= self.early * H, 4, 0)
                 | np.where(s >= late0, 8, 0) | np.where((s >= before0) & (s < late0), 16, 0))
 
     def constants(self, settings):
-        settle = _number(self.settle_threshold, settings)
-        floor = 1e-3 * settle if self.growth_floor is None else _number(self.growth_floor, settings)
-        return (settle, _number(self.decay_ratio, settings), _number(self.growth_ratio, settings), floor)
+        settle = setting_value(self.settle_threshold, settings)
+        floor = 1e-3 * settle if self.growth_floor is None else setting_value(self.growth_floor, settings)
+        return (settle, setting_value(self.decay_ratio, settings), setting_value(self.growth_ratio, settings), floor)
 
     def observer(self, plan, k):
         """Its observer in the sampled-trajectory kernel (engine/trajectory.py): error (and response) on
         its rows, then ``kick_observe`` into its columns; ``time_value`` on the settling time."""
-        c0, c1 = plan.cols[k], plan.cols[k + 1]
-        value = plan.transform(self.time_value, f"value{k}") or compiled(_same_value, True)
-        response = compiled(_no_response, True) if self.response is None else plan.observable(self.response, f"response{k}")
-        return _kick_observer(plan.observable(self.error, f"error{k}"), response, self.response is not None, value, k,
-                              c0, c1, plan.raw)
+        response = (compiled(_no_response, True) if self.response is None
+                    else plan.observable(self.response, f"response{k}"))
+        return _kick_observer(plan.observable(self.error, f"error{k}"), response, self.response is not None,
+                              self._value(plan, k), k, plan.cols[k], plan.cols[k + 1], plan.raw)
 
     def finish(self, values, wanted, solver, out, status):
-        from .. import status as st
+        super().finish(values, wanted, solver, out, status)
         ok = np.isfinite(values[:, 2])
         verdict, t_settle = values[:, 0], values[:, 1]
-        for j, suffix in enumerate(self._suffixes()):
-            if self.output_name(suffix) in out:
-                out[self.output_name(suffix)][:] = values[:, j]
         if self.name in wanted:
             status[:] = np.where((status == st.OK) & ok & np.isnan(verdict), st.UNDECIDED, status)
         if self.output_name("_settling") in wanted:
@@ -431,7 +422,7 @@ class Kick(_Outputs):
 
 @_records_where
 @dataclass(frozen=True)
-class History(_Outputs):
+class History(_Sampled):
     """Samples of an observable ``of`` (a state name or ``f(t, y, p)``) at ``samples`` instants
     evenly spread over [0, horizon] forcing periods: an output with one extra dimension ``dim``
     (coordinate: the instants in forcing periods; every History of a model with the same ``dim``
@@ -476,11 +467,11 @@ class History(_Outputs):
     value: Callable | None = field(default=None, repr=False, compare=False)
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
     output_meta: object = ()  # {name: {symbol, unit, long_name, latex}} (_Outputs; its one output is the main one)
-    sampled = True
+    RULES = _HISTORY
     n_values = 0
 
     def coordinate(self, settings) -> np.ndarray:
-        return np.linspace(0.0, _number(self.horizon, settings), int(_number(self.samples, settings)))
+        return np.linspace(0.0, setting_value(self.horizon, settings), int(setting_value(self.samples, settings)))
 
     def outputs(self) -> tuple[Output, ...]:
         from .spec import ExtraDim
@@ -492,32 +483,10 @@ class History(_Outputs):
     def _coordinate_defaults(self, settings):
         return self.coordinate(settings)
 
-    def validate(self, states):
-        self._check_meta()
-        _observable(self.of, states, self.name)
-        _check_numbers(self, ("horizon", "samples"))
-        _check_ranges(self, _HISTORY)
-        _check_value(self, "value")
-
-    def check_settings(self, settings):
-        """The fields that name a setting: the setting's range within the field's."""
-        _check_ranges(self, _HISTORY, settings)
-
-    def setting_names(self):
-        return tuple(x for x in (self.horizon, self.samples) if isinstance(x, str))
-
-    def functions(self):
-        out = () if isinstance(self.of, str) else (("of", self.of),)
-        return out + ((("value", self.value),) if self.value is not None else ())
-
-    def key(self) -> tuple:
-        return ("History", self.name, self.of if isinstance(self.of, str) else None)
-
     def observer(self, plan, k):
         """Its observer in the sampled-trajectory kernel (engine/trajectory.py): the observable at each
         of its rows into its columns of ``hist`` (from hoff[k]), ``value`` applied to finite samples."""
-        value = plan.transform(self.value, f"value{k}") or compiled(_same_value, True)
-        return _history_observer(plan.observable(self.of, f"of{k}"), value, k, plan.raw)
+        return _history_observer(plan.observable(self.of, f"of{k}"), self._value(plan, k), k, plan.raw)
 
     def instants(self, settings):
         return [(self.coordinate(settings), 1)]
@@ -590,6 +559,13 @@ class Recheck:
 
     def tight_rtol(self, rtol: float) -> float:
         return min(rtol, max(rtol / self.tighten, self.rtol_floor))
+
+    def moved(self, a, b, factor, solver):
+        """Where a value of the first run ``a`` moved in the second ``b``: by more than
+        factor (rtol max(|a|, |b|) + atol), or NaN in one run only."""
+        with np.errstate(invalid="ignore"):
+            tol = factor * (solver.rtol * np.maximum(np.abs(a), np.abs(b)) + solver.atol)
+            return (np.abs(a - b) > tol) | (np.isnan(a) != np.isnan(b))
 
 
 
@@ -806,7 +782,7 @@ def _history_observer(of, value, k, raw):
 
 @_records_where
 @dataclass(frozen=True)
-class RMS(_Outputs):
+class RMS(_Sampled):
     """Root mean square of an observable ``of`` (a state name or ``f(t, y, p)``) over the last
     ``window`` (a fraction, 0 < window <= 1) of a simulation of ``horizon`` forcing periods:
     sqrt(int x^2 dt / L) over the window of length L, by the trapezoid rule on ``samples_per_period``
@@ -850,7 +826,7 @@ class RMS(_Outputs):
     value: Callable | None = field(default=None, repr=False, compare=False)
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
     output_meta: object = ()  # {name: {symbol, unit, long_name, latex}} (_Outputs; its one output is the main one)
-    sampled = True
+    RULES = _RMS
     n_values = 1
 
     def outputs(self) -> tuple[Output, ...]:
@@ -859,31 +835,9 @@ class RMS(_Outputs):
                              self.long_name or f"root mean square of {what} over the last {self.window} of the horizon",
                              integrated=True),)
 
-    def validate(self, states):
-        self._check_meta()
-        _observable(self.of, states, self.name)
-        _check_numbers(self, ("horizon", "window", "samples_per_period"))
-        _check_ranges(self, _RMS)
-        _check_value(self, "value")
-
-    def check_settings(self, settings):
-        """The fields that name a setting: the setting's range within the field's."""
-        _check_ranges(self, _RMS, settings)
-
-    def setting_names(self):
-        return tuple(x for x in (self.horizon, self.window, self.samples_per_period) if isinstance(x, str))
-
-    def functions(self):
-        out = () if isinstance(self.of, str) else (("of", self.of),)
-        return out + ((("value", self.value),) if self.value is not None else ())
-
-    def key(self) -> tuple:
-        return ("RMS", self.name, self.of if isinstance(self.of, str) else None)
-
     def instants(self, settings):
         """(s, bits): the window's sample instants in forcing periods, role 1."""
-        H, w = _number(self.horizon, settings), _number(self.window, settings)
-        n = max(2, int(math.ceil(_number(self.samples_per_period, settings) * w * H)) + 1)
+        H, w, n = self._window(settings)
         return [(np.linspace((1.0 - w) * H, H, n), 1)]
 
     def constants(self, settings):
@@ -891,12 +845,7 @@ class RMS(_Outputs):
 
     def observer(self, plan, k):
         """The observable on its rows, the trapezoid rule of its square, ``value`` on the result."""
-        value = plan.transform(self.value, f"value{k}") or compiled(_same_value, True)
-        return _rms_observer(plan.observable(self.of, f"of{k}"), value, k, plan.cols[k], plan.raw)
-
-    def finish(self, values, wanted, solver, out, status):
-        if self.name in out:
-            out[self.name][:] = values[:, 0]
+        return _rms_observer(plan.observable(self.of, f"of{k}"), self._value(plan, k), k, plan.cols[k], plan.raw)
 
 
 def rms_observe(ob, s, bits):

@@ -177,7 +177,8 @@ import numpy as np
 
 from .. import status as st
 from .._jit import jit, jit_inline, jit_noalloc
-from ..model.measure import ClosedForm, Floquet, History, Kick, Recheck, Steady
+from ..model.measure import ClosedForm, Floquet
+from ..model.sampled import History, Kick, Recheck, Steady
 from ..model.ode import OdeModel
 from ..model.workprecision import WorkPrecision
 from ..special import ieee_sqrt, sincos
