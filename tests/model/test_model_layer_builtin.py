@@ -121,14 +121,17 @@ def _load(scene, root):
         os.chdir(cwd)
 
 
-def test_an_exception_in_the_models_code_at_run_time_is_user_error(monkeypatch):
+# the one-point kernel in the default suite; the SIMD-lane kernel (a run of this size takes it only
+# when told to) is slow: about 20 s more of compile, for a kernel of its own
+@pytest.mark.parametrize("lanes", [False, pytest.param(True, marks=slow)], ids=["point", "lanes"])
+def test_an_exception_in_the_models_code_at_run_time_is_user_error(monkeypatch, lanes):
     """The probe (w = 1) passes; inside the kernel the closed form raises for w > 2 and the event for
     w > 3: those points get USER_ERROR (not NONFINITE) and NaN, the others are computed (the event's
-    exception in the SIMD-lane kernel, which a run of this size takes only when told to)."""
+    exception in the one-point kernel and in the SIMD-lane kernel)."""
     from mechsweep.errors import UserModelWarning
     from mechsweep.engine import kernels as mc
     from mechsweep.model import ode
-    monkeypatch.setattr(mc, "USE_LANES", True)
+    monkeypatch.setattr(mc, "USE_LANES", lanes)
     ode._EXPLAINED.clear()  # warned once per cause in a process
     spec = user.resolve(f"{USER}:RAISING")
     P = np.array([[1.0, 0.5], [2.5, 0.5], [4.0, 0.5]])
