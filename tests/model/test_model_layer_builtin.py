@@ -82,8 +82,9 @@ def test_user_model_methods_prepare_and_closed_forms(method):
     assert status.tolist() == [st.OK, st.OK, st.NO_MOTION, st.INFEASIBLE]  # classify, then prepare
     assert np.isnan(out["period_exact"][2]) and out["period_exact"][3] == 2 * np.pi / 6.0  # kept after prepare
     assert np.isnan(out["period"][3]) and np.isnan(out["period_error"][3]) and ns[3] == 0
-    # the horizon is a setting in p: too short, no event
-    out, status, _, _ = _evaluate(spec, P[:1], ("period",), method=method, rtol=1e-10, atol=1e-12, horizon=1.0)
+    # the horizon is a setting in p: too short, no event (the outputs above: their kernel, no other)
+    out, status, _, _ = _evaluate(spec, P[:1], ("period", "period_exact", "period_error"), method=method, rtol=1e-10,
+                                  atol=1e-12, horizon=1.0)
     assert status[0] == st.NO_EVENT
 
 
