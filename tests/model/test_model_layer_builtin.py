@@ -82,8 +82,9 @@ def test_user_model_methods_prepare_and_closed_forms(method):
     assert status.tolist() == [st.OK, st.OK, st.NO_MOTION, st.INFEASIBLE]  # classify, then prepare
     assert np.isnan(out["period_exact"][2]) and out["period_exact"][3] == 2 * np.pi / 6.0  # kept after prepare
     assert np.isnan(out["period"][3]) and np.isnan(out["period_error"][3]) and ns[3] == 0
-    # the horizon is a setting in p: too short, no event
-    out, status, _, _ = _evaluate(spec, P[:1], ("period",), method=method, rtol=1e-10, atol=1e-12, horizon=1.0)
+    # the horizon is a setting in p: too short, no event (the outputs above: their kernel, no other)
+    out, status, _, _ = _evaluate(spec, P[:1], ("period", "period_exact", "period_error"), method=method, rtol=1e-10,
+                                  atol=1e-12, horizon=1.0)
     assert status[0] == st.NO_EVENT
 
 
@@ -121,14 +122,17 @@ def _load(scene, root):
         os.chdir(cwd)
 
 
-def test_an_exception_in_the_models_code_at_run_time_is_user_error(monkeypatch):
+# the one-point kernel in the default suite; the SIMD-lane kernel (a run of this size takes it only
+# when told to) is slow: about 20 s more of compile, for a kernel of its own
+@pytest.mark.parametrize("lanes", [False, pytest.param(True, marks=slow)], ids=["point", "lanes"])
+def test_an_exception_in_the_models_code_at_run_time_is_user_error(monkeypatch, lanes):
     """The probe (w = 1) passes; inside the kernel the closed form raises for w > 2 and the event for
     w > 3: those points get USER_ERROR (not NONFINITE) and NaN, the others are computed (the event's
-    exception in the SIMD-lane kernel, which a run of this size takes only when told to)."""
+    exception in the one-point kernel and in the SIMD-lane kernel)."""
     from mechsweep.errors import UserModelWarning
     from mechsweep.engine import kernels as mc
     from mechsweep.model import ode
-    monkeypatch.setattr(mc, "USE_LANES", True)
+    monkeypatch.setattr(mc, "USE_LANES", lanes)
     ode._EXPLAINED.clear()  # warned once per cause in a process
     spec = user.resolve(f"{USER}:RAISING")
     P = np.array([[1.0, 0.5], [2.5, 0.5], [4.0, 0.5]])
