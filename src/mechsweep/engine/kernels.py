@@ -15,6 +15,7 @@ module (engine/binding.py), named by :func:`binding_name`.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import threading
@@ -132,9 +133,10 @@ def lane_kernel(model, chosen, closed, method, source: str):
     extra = lane_rhs.binding_text(source)
     mod = binding.bind(name, f"model {model.name!r}, {lanes.lanes_for(len(model.states))} points side by side, "
                              f"method {method.name}",
-                       {"kernel": (lanes.ARGS, "pjit")}, lambda rhs_lanes: lanes.build(model, chosen, closed, rhs_lanes),
+                       {"kernel": lanes.ARGS}, lambda rhs_lanes: lanes.build(model, chosen, closed, rhs_lanes),
                        extra=extra, lane_names=("rhs_lanes",))
-    return _Recorded(mod.kernel, name)
+    tails = functools.partial(lanes.shared_counter, lanes=lanes.lanes_for(len(model.states)))
+    return _Recorded(Threaded(mod.kernel, name, tails), name)
 
 
 def _method(method):
