@@ -125,10 +125,6 @@ def workspace(n):
 # ---------------------------------------------------------------------------
 
 
-
-
-
-
 @jit_llvm_inline
 def _stage_argument(y, h, work, s, out):
     """out = y + h * sum_{j<s} A[s, j] K[j]: the state at which stage s is evaluated."""
