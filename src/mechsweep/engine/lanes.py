@@ -30,7 +30,7 @@ from numba.core import cgutils, types as nbtypes
 from numba.extending import intrinsic
 
 from .. import status as st
-from .._jit import jit_inline, jit_internal, jit_internal_noalloc, jit_into_caller
+from .._jit import jit_internal, jit_internal_noalloc, jit_into_caller
 from ..status import MAX_STEPS, NO_EVENT, NONFINITE, OK, STEP_UNDERFLOW
 from ..ode import _dop853_lane_sums as sums
 from ..ode._dop853_tableau import N_STAGES, N_STAGES_EXTENDED
@@ -135,7 +135,7 @@ def make_lane_event_solver(rhs_lanes, rhs, event):
     start = _make_start(rhs)
     dense_output = _make_dense_output(rhs)
     locate_root = _make_root_locator(event)
-    stages = jit_inline(lane_stages(rhs_lanes))  # compiled into run
+    stages = lane_stages(rhs_lanes)
 
     @jit_internal_noalloc
     def load(ws, lane, point, y0, t_max, rtol, atol):
@@ -169,7 +169,7 @@ def make_lane_event_solver(rhs_lanes, rhs, event):
         else:
             _begin_advance(lf, li, lane)
 
-    @jit_inline  # compiled into run
+    @jit_internal_noalloc
     def prepare_attempts(lf, li, max_steps):
         """The checks of dop853's advance() before an attempt, and its step, per lane."""
         attempting = 0
@@ -195,7 +195,7 @@ def make_lane_event_solver(rhs_lanes, rhs, event):
             attempting += 1
         return attempting
 
-    @jit_inline  # compiled into run
+    @jit_internal_noalloc
     def error_tests(w, lf, li, n):
         """Accept or reject each attempting lane (dop853's advance())."""
         for l in range(li.shape[1]):
@@ -203,7 +203,7 @@ def make_lane_event_solver(rhs_lanes, rhs, event):
                 continue
             _error_test(w, lf, li, l, n)
 
-    @jit_inline  # compiled into run
+    @jit_internal_noalloc
     def events(w, y, lf, li, sw, pr, yv, max_steps):
         """dop853 event solver's logic after an accepted step, per accepted lane: the event at the
         step end; a sign change: dense output and root on the one-point workspace; else its stiffness
@@ -304,7 +304,7 @@ def build(model, chosen, closed, rhs_lanes):
 
 @functools.cache
 def _feed(classify, before, prepare, after, prepare0, t_max, start, load, conclude, m_at, n_p, n_set, filled, npi):
-    @jit_inline  # compiled into refill
+    @jit_internal_noalloc
     def feed(lane, i, n, stride, ws, keep, y, buf, P, S, need, rtol, atol, table, status, n_steps, n_rhs):
         """The next point of this queue (from i on, every stride-th) that needs the integration goes
         into the lane (returns the index after it); points settled before it are written here. keep[lane]:

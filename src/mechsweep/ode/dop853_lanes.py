@@ -190,10 +190,13 @@ def _begin_advance(lf, li, lane):
     li[LAST_NONFINITE, lane] = 0
 
 
+@functools.cache
 def lane_stages(rhs_lanes):
-    """``stages(w, pl, lf, wf, yf, hk, first, last)`` (to be compiled by the caller): stages first..last
-    of every lane; 1..12 make a step (dop853 rk_step; stage 12 is f(t + h, y_new), C[12] = 1), 13..15 the
-    dense output. One loop, so that the lane right-hand side is compiled into one place."""
+    """``stages(w, pl, lf, wf, yf, hk, first, last)``: stages first..last of every lane; 1..12 make a step
+    (dop853 rk_step; stage 12 is f(t + h, y_new), C[12] = 1), 13..15 the dense output. One loop, so that
+    the lane right-hand side is compiled into one place; a function of its own (compiled into its caller,
+    the lanes ran slower)."""
+    @jit_internal_noalloc
     def stages(w, pl, lf, wf, yf, hk, first, last):
         tau = lf[TAU]
         for s in range(first, last + 1):
@@ -267,7 +270,7 @@ def make_lane_trajectory_solver(rhs_lanes, rhs):
         else:
             _begin_advance(lf, li, lane)
 
-    stages = jit_internal_noalloc(lane_stages(rhs_lanes))
+    stages = lane_stages(rhs_lanes)
 
     @jit_noalloc
     def prepare_attempts(lf, li, t_end, max_steps):
