@@ -696,6 +696,12 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
             for mode, rows in speed.items():
                 print(f"    {mode:<5} {_spread([n / r[0] for r in rows], 'points/s', fmt=',.0f'):<44} "
                       f"{_spread([n / r[1] for r in rows], 'points per CPU s', fmt=',.0f')}")
+            extra = statistics.median(r["compile_cpu"] for r in comp["lanes"]) - statistics.median(
+                r["compile_cpu"] for r in comp["one"])
+            saved = statistics.median(r[1] for r in speed["one"]) / n - statistics.median(r[1] for r in speed["lanes"]) / n
+            report["crossover"] = extra / saved if saved > 0 else float("inf")
+            print(f"  the lanes' extra compile ({extra:.1f} CPU s) is repaid at {report['crossover']:.3g} points "
+                  f"(CPU s saved per point {saved * 1e6:.3f} us): engine/kernels.py's LANES_FROM_POINTS")
         if "compile" in parts:
             for i in range(repeats):
                 compile_table(compile_child(scene_path, tmp, i), top=60)

@@ -39,27 +39,13 @@ def ref(model_name: str, func, role: str) -> tuple:
 # ----------------------------------------------------------------------------- guards
 @functools.cache
 def guard_fill(f, npi: int):
-    """``g(t, y, p, out)`` (rhs, accel, a variational system): NaN into ``out`` if ``f`` raises."""
+    """``g(t, y, p, out)`` (rhs, accel, a variational system, a Jacobian): NaN into ``out`` if ``f`` raises."""
     @jit_internal
     def g(t, y, p, out):
         try:
             f(t, y, p, out)
         except Exception:
-            out[:] = np.nan
-            p[npi] = 1.0
-
-    return g
-
-
-@functools.cache
-def guard_fill_2d(f, npi: int):
-    """``g(t, y, p, J)`` (a Jacobian): NaN into ``J`` if ``f`` raises."""
-    @jit_internal
-    def g(t, y, p, J):
-        try:
-            f(t, y, p, J)
-        except Exception:
-            J[:, :] = np.nan
+            out.fill(np.nan)
             p[npi] = 1.0
 
     return g

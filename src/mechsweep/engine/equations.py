@@ -13,7 +13,7 @@ from ..ode.methods import Equation
 from . import calls, switches
 
 # how a route's guard treats each kind of function (calls.py)
-_GUARDS = {"fill": calls.guard_fill, "fill2d": calls.guard_fill_2d, "initial": calls.guard_initial}
+_GUARDS = {"fill": calls.guard_fill, "fill2d": calls.guard_fill, "initial": calls.guard_initial}
 
 
 class View:

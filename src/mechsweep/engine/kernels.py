@@ -15,6 +15,7 @@ module (engine/binding.py), named by :func:`binding_name`.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import threading
@@ -32,11 +33,11 @@ ROUTES = ("point", "lanes")
 # ``choose_route``, which reads this as an override: the benches and tests set True or False to compare
 # the two routes). The results are bitwise the same either way (tests/engine/test_model_lanes.py).
 USE_LANES: bool | None = None
-# The lane kernel compiles in about three times the CPU time of the one-point kernel and integrates
-# about twice as fast (Duffing period, sweeps/quickstart.toml; `python benchmarks/startup.py --only
-# routes` measures both): its extra compile, about 17 s of CPU, is repaid at about 10^7 points. A plan
-# takes the lanes for a run of at least this many points, or when they are compiled already
-# (``lanes_recorded``).
+# The lane kernel compiles in about twice the CPU time of the one-point kernel and integrates about
+# twice as fast (Duffing period, sweeps/quickstart.toml; `python benchmarks/startup.py --only routes`
+# measures both and prints the crossover): its extra compile, about 11 s of CPU, is repaid at about
+# 10^7 points. A plan takes the lanes for a run of at least this many points, or when they are
+# compiled already (``lanes_recorded``).
 LANES_FROM_POINTS = 10**7
 _BY_OBJECTS: dict[tuple, tuple] = {}  # names()' memo by the objects' ids: (the objects kept alive, names)
 _KERNELS: dict[str, object] = {}  # binding name -> kernel, in this process
@@ -132,9 +133,10 @@ def lane_kernel(model, chosen, closed, method, source: str):
     extra = lane_rhs.binding_text(source)
     mod = binding.bind(name, f"model {model.name!r}, {lanes.lanes_for(len(model.states))} points side by side, "
                              f"method {method.name}",
-                       {"kernel": (lanes.ARGS, "pjit")}, lambda rhs_lanes: lanes.build(model, chosen, closed, rhs_lanes),
+                       {"kernel": lanes.ARGS}, lambda rhs_lanes: lanes.build(model, chosen, closed, rhs_lanes),
                        extra=extra, lane_names=("rhs_lanes",))
-    return _Recorded(mod.kernel, name)
+    tails = functools.partial(lanes.shared_counter, lanes=lanes.lanes_for(len(model.states)))
+    return _Recorded(Threaded(mod.kernel, name, tails), name)
 
 
 def _method(method):

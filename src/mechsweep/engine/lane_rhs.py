@@ -17,7 +17,8 @@ fastmath is off, so LLVM neither reassociates nor fuses multiply-adds), so each 
 scalar rhs's floats.
 
 ``lane_rhs_source(func)`` returns the text of ``rhs_lanes(tau, Z, P, dZ)`` decorated ``@jit_noalloc``
-(it goes into the kernel's binding module, engine/binding.py, which imports that name), or None.
+(it goes into the kernel's binding module, engine/binding.py, which binds that name to
+``jit_internal_noalloc``: only the kernel calls it), or None.
 """
 from __future__ import annotations
 
@@ -571,4 +572,5 @@ def _numba_decorated(fdef, names=("njit", "jit")) -> bool:
 
 def binding_text(source: str) -> str:
     """The lane rhs ``source`` as a kernel's binding module holds it: with the names its text uses."""
-    return "import math\n\nfrom mechsweep._jit import jit_noalloc\n\n" + source
+    # only the kernel calls it: jit_noalloc without the wrappers a Python caller needs (_jit.jit_internal)
+    return "import math\n\nfrom mechsweep._jit import jit_internal_noalloc as jit_noalloc\n\n" + source

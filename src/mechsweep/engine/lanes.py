@@ -30,20 +30,21 @@ from numba.core import cgutils, types as nbtypes
 from numba.extending import intrinsic
 
 from .. import status as st
-from .._jit import jit, jit_internal_noalloc, jit_into_caller, jit_noalloc, prange
+from .._jit import jit_internal, jit_internal_noalloc, jit_into_caller
 from ..status import MAX_STEPS, NO_EVENT, NONFINITE, OK, STEP_UNDERFLOW
 from ..ode import _dop853_lane_sums as sums
-from ..ode._dop853_tableau import C, N_STAGES, N_STAGES_EXTENDED
+from ..ode._dop853_tableau import N_STAGES, N_STAGES_EXTENDED
 from ..ode.dop853 import (F_DENSE, K_FSAL, WORK_ROWS, Y_NEW, Y_STAGE, _make_dense_output, _make_root_locator,
                           _make_start)
 from ..ode.dop853 import _failure, _tests_stiffness
-from ..ode.dop853_lanes import _begin_advance, _error_sums, _error_test, _finish, _spread, _stiffness_lane
+from ..ode.dop853_lanes import (_begin_advance, _error_sums, _error_test, _finish, _spread, _stiffness_lane,
+                                lane_stages)
 from . import binding, calls, events
 
 LANES = 0  # points side by side per thread; 0: lanes_for(number of states)
 QUEUE = 32  # the lane kernel has a worker (its own lanes) per LANES * QUEUE points of a launch
 GRAB = 16  # points a thread of the lane kernel takes at a time from its launch's shared counter
-ARGS = "P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs"
+ARGS = "P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs, taken"
 
 
 def lanes_for(n_states: int) -> int:
@@ -66,7 +67,7 @@ N_LI = 12
 IDLE, ACTIVE, DONE = 0, 1, 2
 
 
-@jit
+@jit_internal
 def workspace(n, n_lp, lanes, n_p):
     """Everything the lanes of one thread need, as a tuple (indexed by W, Y, PL, LF, LI, SW, WF, YF,
     HK, PR, YV): stages W (WORK_ROWS, n, lanes) in dop853's row layout, states Y (n, lanes), the
@@ -98,7 +99,7 @@ def _fetch_add(typingctx, counter, k):
     return nbtypes.int64(counter, k), codegen
 
 
-@jit_noalloc
+@jit_internal_noalloc
 def take(counter, k=1):
     """The first of the next ``k`` items of a launch for the calling thread: counter[0], then
     counter[0] += k, as one atomic step. The lane kernel's threads take their points this way, in
@@ -108,13 +109,13 @@ def take(counter, k=1):
     return _fetch_add(counter, k)
 
 
-@jit_noalloc
+@jit_internal_noalloc
 def idle(ws, lane):
     """No point left for the lane: it keeps being stepped with h = 0 and is never read."""
     ws[LI][STATE, lane] = IDLE
 
 
-@jit_noalloc
+@jit_internal_noalloc
 def lane_result(ws, lane):
     """(point, status, t, n_steps, n_rhs) of the point that has just ended in the lane (t: the
     root's time when OK, else the time reached, as dop853's event solver returns them)."""
@@ -134,8 +135,9 @@ def make_lane_event_solver(rhs_lanes, rhs, event):
     start = _make_start(rhs)
     dense_output = _make_dense_output(rhs)
     locate_root = _make_root_locator(event)
+    stages = lane_stages(rhs_lanes)
 
-    @jit_noalloc
+    @jit_internal_noalloc
     def load(ws, lane, point, y0, t_max, rtol, atol):
         w, y, pl, lf, li, sw, wf, yf, hk, pr, yv = ws
         p = pr[lane]
@@ -167,21 +169,7 @@ def make_lane_event_solver(rhs_lanes, rhs, event):
         else:
             _begin_advance(lf, li, lane)
 
-    @jit_noalloc
-    def stages(w, pl, lf, wf, yf, hk):
-        """Stages 1..12 of every lane (dop853 rk_step; stage 12 is f(t + h, y_new), C[12] = 1)."""
-        tau = lf[TAU]
-        for s in range(1, N_STAGES + 1):
-            for l in range(tau.size):
-                tau[l] = lf[T, l] + C[s] * lf[H, l]
-            if s == K_FSAL:
-                sums.solution(yf, hk, wf, wf[Y_NEW])
-                rhs_lanes(tau, w[Y_NEW], pl, w[s])
-            else:
-                sums.stage_argument(s, yf, hk, wf, wf[Y_STAGE])
-                rhs_lanes(tau, w[Y_STAGE], pl, w[s])
-
-    @jit_noalloc
+    @jit_internal_noalloc
     def prepare_attempts(lf, li, max_steps):
         """The checks of dop853's advance() before an attempt, and its step, per lane."""
         attempting = 0
@@ -207,7 +195,7 @@ def make_lane_event_solver(rhs_lanes, rhs, event):
             attempting += 1
         return attempting
 
-    @jit_noalloc
+    @jit_internal_noalloc
     def error_tests(w, lf, li, n):
         """Accept or reject each attempting lane (dop853's advance())."""
         for l in range(li.shape[1]):
@@ -215,7 +203,7 @@ def make_lane_event_solver(rhs_lanes, rhs, event):
                 continue
             _error_test(w, lf, li, l, n)
 
-    @jit_noalloc
+    @jit_internal_noalloc
     def events(w, y, lf, li, sw, pr, yv, max_steps):
         """dop853 event solver's logic after an accepted step, per accepted lane: the event at the
         step end; a sign change: dense output and root on the one-point workspace; else its stiffness
@@ -261,7 +249,7 @@ def make_lane_event_solver(rhs_lanes, rhs, event):
                 lf[RESULT, l] = t_new
                 _finish(li, l, NO_EVENT)
 
-    @jit_noalloc
+    @jit_internal_noalloc
     def run(ws, rtol, atol, max_steps):
         w, y, pl, lf, li, sw, wf, yf, hk, pr, yv = ws
         n, lanes = y.shape
@@ -279,7 +267,7 @@ def make_lane_event_solver(rhs_lanes, rhs, event):
             if prepare_attempts(lf, li, max_steps) == 0:
                 continue  # every active lane ended in the checks
             _spread(lf[H], hk, lanes)
-            stages(w, pl, lf, wf, yf, hk)
+            stages(w, pl, lf, wf, yf, hk, 1, N_STAGES)
             sums.error_estimates(wf, e5, e3)
             _error_sums(y, w, e5, e3, rtol, atol, lf[SUM5], lf[SUM3])
             error_tests(w, lf, li, n)
@@ -309,10 +297,9 @@ def build(model, chosen, closed, rhs_lanes):
     feed = _feed(plan.classify, calls.chain(point.closed_links(plan, False)), plan.prepare,
                  calls.chain(point.closed_links(plan, True)), prepare0, t_max, start, load, conclude,
                  1 + plan.slot[m.name], view.n_p, view.n_set, view.scr + plan.n_scr, view.npi)
-    lanes = lanes_for(view.n_s)
-    work = _work(feed, conclude, run, lanes, view.n_s, view.npi, view.scr + plan.n_scr, 1 + plan.n_values,
-                 plan.n_buf)
-    return binding.Entries(kernel=_kernel(work, lanes))
+    work = _work(feed, conclude, run, lanes_for(view.n_s), view.n_s, view.npi, view.scr + plan.n_scr,
+                 1 + plan.n_values, plan.n_buf)
+    return binding.Entries(kernel=work)
 
 
 @functools.cache
@@ -415,10 +402,15 @@ def _work(feed, conclude, run, lanes, n_s, npi, filled, n_keep, n_buf):
             if ws[LI][STATE, lane] != IDLE:
                 return
 
-    @jit
-    def work(taken, P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
-        """One thread's share of the launch: its lanes, each refilled as its point ends, from batches of
-        points it takes until none is left (nothing is allocated if none is left at its start)."""
+    @jit_into_caller  # compiled into the binding's trampoline (no link of its own)
+    def work(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs, taken):
+        """One thread's share of the launch (engine/point.py's Threaded runs it on each thread): its lanes,
+        each refilled as its point ends, from batches of points it takes from the launch's counter
+        ``taken`` until none is left (nothing is allocated if none is left at its start).
+
+        Points are taken, not dealt: a thread that lost its core for a while (the run's writer thread,
+        another process) takes fewer, so the threads end within about a point's integration of each
+        other, and each thread's lanes run idle only once per launch, at its end."""
         n = P.shape[0]
         lo = take(taken, GRAB)
         if lo >= n:
@@ -443,26 +435,15 @@ def _work(feed, conclude, run, lanes, n_s, npi, filled, n_keep, n_buf):
     return work
 
 
-@functools.cache
-def _kernel(work, lanes):
-    block = lanes * QUEUE
+def workers(n: int, lanes: int) -> int:
+    """The threads worth starting for a launch of ``n`` points (engine/point.py's Threaded starts at most
+    numba.get_num_threads()): one per LANES * QUEUE points, and for a small launch up to 16, one per
+    16 * LANES points."""
+    return max((n + lanes * QUEUE - 1) // (lanes * QUEUE), min((n + 16 * lanes - 1) // (16 * lanes), 16))
 
-    @jit_into_caller  # its prange compiled into the binding's parallel trampoline (no link of its own)
-    def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
-        n = P.shape[0]
-        # Points are taken, not dealt: numba splits a prange's iterations evenly among the threads in
-        # advance (its omp layer), so a thread that lost its core for a while (the run's writer thread,
-        # another process) made the others wait at the end of each launch. Here each thread's lanes take
-        # the launch's points in batches of GRAB from one shared counter (take, atomic) until none is
-        # left, so the threads end within about a point's integration of each other, and each thread's
-        # lanes run idle only once per launch, at its end. Each prange iteration is a worker with its own
-        # lanes: the first worker of each thread does the work, the others find nothing taken by them;
-        # their number is enough for any thread count that can have points (up to 16 for a small launch,
-        # one per LANES * QUEUE points beyond). The thread count is not read here:
-        # numba.get_num_threads() would keep the kernel out of the disk cache.
-        n_workers = max((n + block - 1) // block, min((n + 16 * lanes - 1) // (16 * lanes), 16))
-        taken = np.zeros(1, dtype=np.int64)
-        for worker in prange(n_workers):
-            work(taken, P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs)
 
-    return kernel
+def shared_counter(n: int, threads: int, lanes: int) -> list[tuple]:
+    """The last argument of each thread's call of the lane kernel (Threaded's ``tails``): one counter of
+    the launch's points taken, shared by its threads (``take``)."""
+    taken = np.zeros(1, dtype=np.int64)
+    return [(taken,)] * max(1, min(threads, workers(n, lanes)))

@@ -343,32 +343,40 @@ def _pool() -> ThreadPoolExecutor:
         return _POOL[0]
 
 
-class Threaded:
-    """The one-point kernel ``kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs)``
-    on numba.get_num_threads() threads: the serial ``kernel(..., first, step)`` (nogil) once per
-    thread, thread t computing the points t, t + T, ... (strided: cost varies along the grid), the
-    calling thread one of them. A ``prange`` over blocks of points cost numba's parallel compile (parfor
-    passes, the gufunc and its two wrappers, each linking and optimising the whole call tree again):
-    about 2.3 s of the quickstart's 11.2 s of compile CPU (`bench startup --only compile`,
-    docs/performance-startup.md). Each point is computed alone (its scratch reset), so the results
-    are the same whatever the split. Anything else (``py_func``, ``stats``) is the serial kernel's."""
+def strides(n: int, threads: int) -> list[tuple]:
+    """The last arguments of each thread's call of the one-point kernel (Threaded's ``tails``): thread
+    t of T computes the points t, t + T, ... (strided: cost varies along the grid), at least BLOCK
+    points a thread."""
+    threads = max(1, min(threads, (n + BLOCK - 1) // BLOCK))
+    return [(t, threads) for t in range(threads)]
 
-    def __init__(self, serial, name: str = ""):
-        self.serial, self.name = serial, name
+
+class Threaded:
+    """A chunk kernel ``kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs)``
+    on numba.get_num_threads() threads: the serial ``kernel(..., *tail)`` (nogil) once per thread, with
+    the thread's ``tails(n, threads)`` (``strides``: the one-point kernel; lanes.shared_counter: the lane
+    kernel), the calling thread one of them. A ``prange`` cost numba's parallel compile (parfor passes,
+    the gufunc and its two wrappers, each linking and optimising the whole call tree again): about
+    2.3 s of the one-point kernel's compile CPU and more of the lane kernel's
+    (`python benchmarks/startup.py --only compile`, docs/performance-startup.md). Each point is
+    computed alone, so the results are the same whatever the split. Anything else (``py_func``,
+    ``stats``) is the serial kernel's."""
+
+    def __init__(self, serial, name: str = "", tails=strides):
+        self.serial, self.name, self.tails = serial, name, tails
 
     def __getattr__(self, name):
         return getattr(self.serial, name)
 
     def __call__(self, P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
         args = (P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs)
-        n = P.shape[0]
-        threads = max(1, min(_jit.num_threads(), (n + BLOCK - 1) // BLOCK))
-        if threads == 1:
-            self.serial(*args, 0, 1)
+        first, *others = self.tails(P.shape[0], _jit.num_threads())
+        if not others:
+            self.serial(*args, *first)
             return
-        futures = [_pool().submit(self.serial, *args, t, threads) for t in range(1, threads)]
+        futures = [_pool().submit(self.serial, *args, *tail) for tail in others]
         try:
-            self.serial(*args, 0, threads)
+            self.serial(*args, *first)
         finally:  # never return (nor raise, e.g. KeyboardInterrupt) while a thread still writes the arrays
             interrupted = None
             while not all(f.done() for f in futures):

@@ -286,20 +286,48 @@ def build(model, chosen, method, always=-1, lock=(), raw=False, rhs_lanes=None):
     checks, observe, failed = _parts(plan)
     fd_at = view.scr + 3 * view.n_s if plan.fd_count else -1
     run = plan.integrator.trajectory_pass(plan.equation(), plan.initial)
-    kernel = _kernel(plan.classify, plan.prepare, plan.forcing, checks, run, plan.integrator.workspace(view.n_s),
-                     observe, failed, plan.reset, view.n_p, view.n_set, view.npi, view.n_s, plan.p_size, fd_at)
+    admit = _admit(plan.classify, plan.prepare, plan.forcing, checks, plan.reset, view.n_p, view.n_set)
+    kernel = _kernel(admit, run, plan.integrator.workspace(view.n_s), observe, failed, view.n_s, plan.p_size,
+                     view.npi, fd_at)
     entries = dict(kernel=kernel)
     if rhs_lanes is not None:
-        entries["setup"] = _setup(plan.classify, plan.prepare, plan.forcing, checks, plan.initial, view.n_p,
-                                  view.n_set)
+        entries["setup"] = _setup(admit, plan.initial)
         load, run_lanes = dop853_lanes.make_lane_trajectory_solver(rhs_lanes, plan.equation().rhs)
         entries["queue"] = _queue(load, run_lanes, observe, failed, view.n_s, view.npi)
     return binding.Entries(**entries)
 
 
 @functools.cache
-def _kernel(classify, prepare, forcing, checks, run, new_work, observe, failed, reset, n_p, n_set, npi, n_s, p_size,
-            fd_at):
+def _admit(classify, prepare, forcing, checks, reset, n_p, n_set):
+    @jit_into_caller
+    def admit(i, p, P, S, rtol, mstat):
+        """Point i's p filled from its row of P and the settings S: (status, T, whether it is
+        integrated): the model's classify and prepare, the forcing period T (not finite > 0:
+        INFEASIBLE) and the measurements' classify (none applies: not integrated)."""
+        for j in range(n_p):
+            p[j] = P[i, j]
+        for j in range(n_set):
+            p[n_p + j] = S[j]
+        for j in range(n_p + n_set, p.size):
+            p[j] = 0.0
+        reset(p)
+        c = classify(p)
+        if c != st.OK:
+            return c, math.nan, False
+        c = prepare(p, rtol)
+        if c != st.OK:
+            return c, math.nan, False
+        T = forcing(p)
+        if not (math.isfinite(T) and T > 0.0):
+            return st.INFEASIBLE, T, False
+        code, go = checks(i, p, mstat, st.OK, False)
+        return code, T, go
+
+    return admit
+
+
+@functools.cache
+def _kernel(admit, run, new_work, observe, failed, n_s, p_size, npi, fd_at):
     @jit_into_caller  # its prange compiled into the binding's parallel trampoline (no link of its own)
     def kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, rawv, rawh, status, mstat, n_steps, n_rhs):
         n = P.shape[0]
@@ -316,27 +344,8 @@ def _kernel(classify, prepare, forcing, checks, run, new_work, observe, failed, 
             for i in range(blk, n, n_blocks):
                 if status[i] != st.OK:
                     continue
-                for j in range(n_p):
-                    p[j] = P[i, j]
-                for j in range(n_set):
-                    p[n_p + j] = S[j]
-                for j in range(n_p + n_set, p.size):
-                    p[j] = 0.0
-                reset(p)
-                c = classify(p)
-                if c != st.OK:
-                    status[i] = c
-                    continue
-                c = prepare(p, rtol)
-                if c != st.OK:
-                    status[i] = c
-                    continue
-                T = forcing(p)
-                if not (math.isfinite(T) and T > 0.0):
-                    status[i] = st.INFEASIBLE
-                    continue
-                code, go = checks(i, p, mstat, st.OK, False)
-                if not go:  # no measurement applies here: not integrated
+                code, T, go = admit(i, p, P, S, rtol, mstat)
+                if not go:  # not integrated
                     status[i] = code
                     continue
                 for j in range(ns_):
@@ -360,7 +369,7 @@ def _kernel(classify, prepare, forcing, checks, run, new_work, observe, failed, 
 
 
 @functools.cache
-def _setup(classify, prepare, forcing, checks, initial, n_p, n_set):
+def _setup(admit, initial):
     @jit_internal
     def setup(P, S, rtol, PF, Z0, TT, status, mstat):
         # serial: a parallel region just before the lane queues (Python threads) may leave the threading
@@ -370,27 +379,9 @@ def _setup(classify, prepare, forcing, checks, initial, n_p, n_set):
             if status[i] != st.OK:
                 continue
             p = PF[i]
-            for j in range(n_p):
-                p[j] = P[i, j]
-            for j in range(n_set):
-                p[n_p + j] = S[j]
-            for j in range(n_p + n_set, p.size):
-                p[j] = 0.0
-            c = classify(p)
-            if c != st.OK:
-                status[i] = c
-                continue
-            c = prepare(p, rtol)
-            if c != st.OK:
-                status[i] = c
-                continue
-            T = forcing(p)
-            if not (math.isfinite(T) and T > 0.0):
-                status[i] = st.INFEASIBLE
-                continue
-            code, go = checks(i, p, mstat, st.OK, False)
+            code, T, go = admit(i, p, P, S, rtol, mstat)
             status[i] = code
-            if not go:  # no measurement applies here: not integrated (TT stays NaN)
+            if not go:  # not integrated (TT stays NaN)
                 continue
             TT[i] = T
             initial(p, Z0[i])

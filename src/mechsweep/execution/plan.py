@@ -35,7 +35,7 @@ def choose_route(points: int, facts: Mapping, chosen: bool | None = None) -> str
     ``facts`` come from the model (ModelSpec.plan: ``forced``, the engine's override, which decides
     next; ``from_points``, the run size from which the lanes repay their longer compile; ``recorded``,
     whether the lane kernel is compiled for this CPU already). The lanes integrate about twice as fast
-    and compile about four times longer (engine/kernels.py, LANES_FROM_POINTS): they are taken for a run
+    and compile about twice as long (engine/kernels.py, LANES_FROM_POINTS): they are taken for a run
     large enough to repay the compile, or when there is nothing left to compile."""
     if chosen is not None:
         return LANES if chosen else POINT

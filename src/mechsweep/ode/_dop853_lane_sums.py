@@ -2,10 +2,10 @@
 
 Arrays are flat over (state component, lane): y, h (the lane's step repeated per component)
 and every row of w have n * lanes elements."""
-from .._jit import jit_noalloc
+from .._jit import jit_internal_noalloc
 
 
-@jit_noalloc
+@jit_internal_noalloc
 def stage_argument(s, y, h, w, out):
     """out = y + h * sum_{j<s} A[s, j] K[j], stages 1..11 and 13..15."""
     if s == 1:
@@ -52,14 +52,14 @@ def stage_argument(s, y, h, w, out):
             out[k] = y[k] + h[k] * (-0.42889630158379194 * w[0, k] + -4.697621415361164 * w[5, k] + 7.683421196062599 * w[6, k] + 4.06898981839711 * w[7, k] + 0.3567271874552811 * w[8, k] + -0.0013990241651590145 * w[12, k] + 2.9475147891527724 * w[13, k] + -9.15095847217987 * w[14, k])
 
 
-@jit_noalloc
+@jit_internal_noalloc
 def solution(y, h, w, out):
     """out = y + h * sum_j B[j] K[j]: the 8th-order solution."""
     for k in range(y.size):
         out[k] = y[k] + h[k] * (0.054293734116568765 * w[0, k] + 4.450312892752409 * w[5, k] + 1.8915178993145003 * w[6, k] + -5.801203960010585 * w[7, k] + 0.3111643669578199 * w[8, k] + -0.1521609496625161 * w[9, k] + 0.20136540080403034 * w[10, k] + 0.04471061572777259 * w[11, k])
 
 
-@jit_noalloc
+@jit_internal_noalloc
 def error_estimates(w, e5, e3):
     """The 5th- and 3rd-order error estimates (before scaling)."""
     for k in range(e5.size):
@@ -67,7 +67,7 @@ def error_estimates(w, e5, e3):
         e3[k] = -0.18980075407240762 * w[0, k] + 4.450312892752409 * w[5, k] + 1.8915178993145003 * w[6, k] + -5.801203960010585 * w[7, k] + -0.4226823213237919 * w[8, k] + -0.1521609496625161 * w[9, k] + 0.20136540080403034 * w[10, k] + 0.02265179219836082 * w[11, k]
 
 
-@jit_noalloc
+@jit_internal_noalloc
 def dense_rows(h, w, first):
     """Rows first .. first + 3 of the dense output: h * sum_j D[r, j] K[j]."""
     for k in range(h.size):

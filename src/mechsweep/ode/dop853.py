@@ -125,10 +125,6 @@ def workspace(n):
 # ---------------------------------------------------------------------------
 
 
-
-
-
-
 @jit_llvm_inline
 def _stage_argument(y, h, work, s, out):
     """out = y + h * sum_{j<s} A[s, j] K[j]: the state at which stage s is evaluated."""
@@ -456,7 +452,7 @@ def make_solver(rhs, stiffness_test=False):
     start = _make_start(rhs)
     advance = _make_advance(rhs)
 
-    @jit_noalloc
+    @jit_internal_noalloc
     def solve(t0, y, p, t_end, rtol, atol, h0, max_steps, work):
         status, h_abs, n_rhs = start(t0, y, p, t_end, rtol, atol, h0, work)
         n_steps = 0
@@ -502,7 +498,7 @@ def make_event_solver(rhs, event, stiffness_test=False):
     dense_output = _make_dense_output(rhs)
     locate_root = _make_root_locator(event)
 
-    @jit_noalloc
+    @jit_internal_noalloc
     def solve(t0, y, p, t_max, rtol, atol, h0, max_steps, work):
         status, h_abs, n_rhs = start(t0, y, p, t_max, rtol, atol, h0, work)
         n_steps = 0
@@ -566,7 +562,7 @@ def make_trajectory_solver(rhs, stiffness_test=False):
     advance = _make_advance(rhs)
     dense_output = _make_dense_output(rhs)
 
-    @jit_noalloc
+    @jit_internal_noalloc
     def solve(t0, y, p, t_eval, rtol, atol, h0, max_steps, work, out):
         out[:, :] = np.nan
         n_eval = t_eval.size

@@ -49,7 +49,7 @@ from .._jit import jit, jit_inline, jit_internal_noalloc, jit_noalloc
 from ..status import MAX_STEPS, NONFINITE, OK, STEP_UNDERFLOW
 from ._common import _all_finite, _min_step
 from . import _dop853_lane_sums as sums
-from ._dop853_tableau import C, INTERPOLATOR_POWER, N_STAGES, N_STAGES_EXTENDED
+from ._dop853_tableau import C, N_STAGES, N_STAGES_EXTENDED
 from .dop853 import (ERROR_EXPONENT, F_DENSE, K_FSAL, MIN_FACTOR, SAFETY, WORK_ROWS, Y_NEW, Y_STAGE, _failure,
                      _interpolate, _make_start, _stage_argument, _step_factor, _stiffness_count, _tests_stiffness)
 
@@ -139,13 +139,13 @@ def lane_result(ws, lane):
     return li[POINT, lane], li[STATUS, lane], li[N_STEPS, lane], li[N_RHS, lane]
 
 
-@jit_noalloc
+@jit_internal_noalloc
 def _finish(li, lane, status):
     li[STATE, lane] = DONE
     li[STATUS, lane] = status
 
 
-@jit_noalloc
+@jit_internal_noalloc
 def _error_sums(y, w, e5, e3, rtol, atol, sum5, sum3):
     """The sums of squares of scipy's DOP853 error norm per lane (dop853._error_norm), from the
     flat estimates e5, e3 (component i of lane l at i * lanes + l)."""
@@ -160,7 +160,7 @@ def _error_sums(y, w, e5, e3, rtol, atol, sum5, sum3):
             sum3[l] += (e3[i * lanes + l] / scale) ** 2
 
 
-@jit_noalloc
+@jit_internal_noalloc
 def _first_dense_rows(h, y, w):
     """The first three dense-output rows of every lane (dop853._dense_coefficients)."""
     n, lanes = y.shape
@@ -172,7 +172,7 @@ def _first_dense_rows(h, y, w):
             w[F_DENSE + 2, i, l] = 2.0 * delta - h[l] * (w[K_FSAL, i, l] + w[0, i, l])
 
 
-@jit_noalloc
+@jit_internal_noalloc
 def _spread(h, hk, lanes):
     """hk[i * lanes + l] = h[l]: the step of each lane beside each of its components (two loops: an
     index k % lanes cost an integer division per element, measurable at 2 states x 64 lanes)."""
@@ -181,13 +181,35 @@ def _spread(h, hk, lanes):
             hk[i * lanes + l] = h[l]
 
 
-@jit_noalloc
+@jit_internal_noalloc
 def _begin_advance(lf, li, lane):
     """What dop853's advance() does on entry: floor the step at 10 ulp of t, clear the flags."""
     lf[MIN_STEP, lane] = _min_step(lf[T, lane])
     lf[H_ABS, lane] = max(lf[H_ABS, lane], lf[MIN_STEP, lane])
     li[REJECTED, lane] = 0
     li[LAST_NONFINITE, lane] = 0
+
+
+@functools.cache
+def lane_stages(rhs_lanes):
+    """``stages(w, pl, lf, wf, yf, hk, first, last)``: stages first..last of every lane; 1..12 make a step
+    (dop853 rk_step; stage 12 is f(t + h, y_new), C[12] = 1), 13..15 the dense output. One loop, so that
+    the lane right-hand side is compiled into one place; a function of its own (compiled into its caller,
+    the lanes ran slower)."""
+    @jit_internal_noalloc
+    def stages(w, pl, lf, wf, yf, hk, first, last):
+        tau = lf[TAU]
+        for s in range(first, last + 1):
+            for l in range(tau.size):
+                tau[l] = lf[T, l] + C[s] * lf[H, l]
+            if s == K_FSAL:
+                sums.solution(yf, hk, wf, wf[Y_NEW])
+                rhs_lanes(tau, w[Y_NEW], pl, w[s])
+            else:
+                sums.stage_argument(s, yf, hk, wf, wf[Y_STAGE])
+                rhs_lanes(tau, w[Y_STAGE], pl, w[s])
+
+    return stages
 
 
 @functools.cache
@@ -248,21 +270,7 @@ def make_lane_trajectory_solver(rhs_lanes, rhs):
         else:
             _begin_advance(lf, li, lane)
 
-    @jit_noalloc
-    def stages(w, pl, lf, wf, yf, hk, first, last):
-        """Stages first..last of every lane: 1..12 make a step (dop853 rk_step; stage 12 is
-        f(t + h, y_new), C[12] = 1), 13..15 the dense output. One loop, so that the lane
-        right-hand side is compiled into one place."""
-        tau = lf[TAU]
-        for s in range(first, last + 1):
-            for l in range(tau.size):
-                tau[l] = lf[T, l] + C[s] * lf[H, l]
-            if s == K_FSAL:
-                sums.solution(yf, hk, wf, wf[Y_NEW])
-                rhs_lanes(tau, w[Y_NEW], pl, w[s])
-            else:
-                sums.stage_argument(s, yf, hk, wf, wf[Y_STAGE])
-                rhs_lanes(tau, w[Y_STAGE], pl, w[s])
+    stages = lane_stages(rhs_lanes)
 
     @jit_noalloc
     def prepare_attempts(lf, li, t_end, max_steps):
