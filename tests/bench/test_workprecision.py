@@ -79,7 +79,7 @@ def test_unknown_model_is_an_input_error():
         wp.main("quickstart")
 
 
-def test_energy_drift_grows_for_dop853_and_not_for_symplectic(report, tmp_path):
+def test_energy_drift_grows_for_dop853_and_not_for_symplectic(report):
     ds, _ = report
     for i, name in enumerate(ds.drift_run.values):
         e = ds.energy_error.values[i]
@@ -90,6 +90,11 @@ def test_energy_drift_grows_for_dop853_and_not_for_symplectic(report, tmp_path):
     # the drift is the one the Duffing declaration asks for (its Invariant: energy, the point, periods)
     assert ds.attrs["drift_problem"] == "x'' = -x/2 - x^3/2, x(0) = 1, x'(0) = 0, one integration over 10^4 periods"
     assert ds.energy_error.attrs["long_name"] == "relative energy error |E - E0| / E0"
+
+
+@pytest.mark.slow  # compiles every method of a second built-in model; the generic route stays in the
+# default suite through the user models of tests/bench/test_workprecision_ode.py
+def test_a_model_without_an_invariant_takes_the_generic_route(tmp_path):
     other = wp.main("torsional_circuit", points=2, scipy_points=1, ladder=(1e-6,), repeats=1, out_dir=tmp_path,
                     quiet=True)
     assert "energy_error" not in other  # the torsional circuit declares no invariant

@@ -372,6 +372,9 @@ def test_autobalancer_located_boundaries_agree_with_brentq_and_converge_on_the_f
     assert ((ratio > 30) & (ratio < 60)).all(), ratio
 
 
+@pytest.mark.slow  # 200-point lines over 1500 revolutions; in the default suite the located boundaries are
+# checked against brentq above and Floquet against simulation on both sides of every boundary by
+# tests/models/test_autobalancer.py (light pendulums)
 def test_autobalancer_heavy_pendulum_boundaries_confirmed_by_direct_simulation():
     """Heavy pendulums (2 m / M = 0.05 and 0.2): on either side of every located boundary (2 % off)
     the direct simulation of the kicked balanced state (stable_sim, over 1500 revolutions: at 0.2 the
