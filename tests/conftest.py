@@ -28,6 +28,24 @@ def small_duffing():
     return copy.deepcopy(SMALL_DUFFING)
 
 
+def assert_run_refused_naming(folder, capsys, scene, path, expected):
+    """``mechsweep run SCENE`` exits 2 with a message naming ``path`` and each of ``expected``, no
+    traceback, and no file written below ``folder``."""
+    from mechsweep.cli import main
+
+    def files():
+        return sorted(p.relative_to(folder) for p in folder.rglob("*") if "__pycache__" not in p.parts)
+
+    before = files()
+    assert main(["run", str(scene), "--no-progress", "--threads", "1"]) == 2
+    err = capsys.readouterr().err
+    assert str(path) in err, err
+    for piece in expected:
+        assert piece in err, err
+    assert "Traceback" not in err
+    assert files() == before
+
+
 @pytest.fixture
 def in_tmp(tmp_path, monkeypatch):
     """Run in an empty directory with a data/runs folder, like a fresh checkout."""

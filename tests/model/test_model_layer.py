@@ -18,6 +18,7 @@ from mechsweep.cli import main
 from mechsweep.errors import InputError
 from mechsweep.scene import load_scene
 from tests import evaluating
+from tests.conftest import assert_run_refused_naming
 
 HERE = Path(__file__).resolve().parents[1]
 MODELS = HERE / "user_models" / "oscillators.py"
@@ -344,15 +345,7 @@ def test_bad_user_model_exits_2_naming_the_file_and_writes_nothing(case, in_tmp,
     scene = in_tmp / "s.toml"
     scene.write_text(f'[scene]\nname = "bad"\nmodel = "{path.name}:{name}"\noutputs = ["period"]\n'
                      '[axes]\nk = { start = 1.0, stop = 2.0, num = 2 }\n')
-    before = sorted(p.relative_to(in_tmp) for p in in_tmp.rglob("*") if "__pycache__" not in p.parts)
-    assert main(["run", str(scene), "--no-progress", "--threads", "1"]) == 2
-    err = capsys.readouterr().err
-    assert str(path) in err, err
-    for piece in expected:
-        assert piece in err, err
-    assert "Traceback" not in err
-    after = sorted(p.relative_to(in_tmp) for p in in_tmp.rglob("*") if "__pycache__" not in p.parts)
-    assert after == before
+    assert_run_refused_naming(in_tmp, capsys, scene, path, expected)
 
 
 # ---------------------------------------------------------------- disk cache
