@@ -18,7 +18,9 @@ Each figure is printed with its target beside it (the project's start-up and cos
   explains the measurement);
 - ``--only routes``: the cold compile of the quickstart's kernels by route (SIMD lanes, one point at
   a time) in fresh processes with an empty JIT cache each, alternated, and both warm kernels' points/s
-  side by side: what engine/kernels.py's LANES_FROM_POINTS is set from;
+  side by side: what engine/kernels.py's LANES_FROM_POINTS is set from; likewise the sampled-trajectory
+  kernel (one trajectory at a time, sweeps/autobalancer_residual.toml) and the closed-form kernel
+  (sweeps/fourbar_pareto.toml), each warm in the process that compiled it (``--routes`` picks some);
 - ``--only compile``: the scene's cold compile by function (numba's compile events in a fresh process with
   an empty JIT cache; each function's own time split into LLVM's work and numba's own), ``repeats`` times.
 """
@@ -378,34 +380,49 @@ print(json.dumps({"compile_cpu": compile_cpu, "run": min(runs), "roots": hashlib
 ROUTE_CHILD = """
 import json, sys, time
 import mechsweep
-from mechsweep.engine import kernels as mc
+from mechsweep.engine import kernels as mc, sampling
 from mechsweep.grid import ParameterMatrix
 from mechsweep.execution.execute import evaluate_rows
-mode = sys.argv[2]
+mode, warm = sys.argv[2], int(sys.argv[3])
 mc.USE_LANES = {"lanes": True, "one": False}.get(mode, mc.USE_LANES)
 if mode == "auto":
     mc.USE_LANES = None
+sampling.USE_LANES = False  # the sampled-trajectory route: one trajectory at a time
 scene = mechsweep.load_scene(sys.argv[1])
 P = ParameterMatrix(scene)(0, scene.n_points)
 c0, t0 = time.process_time(), time.perf_counter()
 evaluate_rows(scene, P[:1])  # the compile (the run's warm-up point)
 compile_cpu, compile_wall = time.process_time() - c0, time.perf_counter() - t0
 lane_kernels = sum(isinstance(k, mc._Recorded) for k in mc._KERNELS.values())
+runs = []
+if warm:  # the warm kernel on every (scene.n_points / warm)-th row: (points, wall s, CPU s) per repetition
+    rows = P[::max(1, scene.n_points // warm)]
+    for _ in range(3):
+        c0, t0 = time.process_time(), time.perf_counter()
+        evaluate_rows(scene, rows)
+        runs.append((rows.shape[0], time.perf_counter() - t0, time.process_time() - c0))
 print(json.dumps({"compile_cpu": compile_cpu, "compile_wall": compile_wall, "kernels": len(mc._KERNELS),
-                  "lane_kernels": lane_kernels}))
+                  "lane_kernels": lane_kernels, "warm": runs}))
 """
+ROOT = Path(__file__).resolve().parents[1]
+# the routes measured on scenes of their own: {mode: (scene, rows of the warm measurement)}
+OTHER_ROUTES = {"trajectory": (ROOT / "sweeps" / "autobalancer_residual.toml", 120),
+                "closed": (ROOT / "sweeps" / "fourbar_pareto.toml", 20_000)}
+ROUTES = ("lanes", "one") + tuple(OTHER_ROUTES)
 
 
 def route_compile(scene: Path, repeats: int, folder: Path, modes=("lanes", "one")) -> dict:
     """Cold compile of ``scene``'s kernels (its first point, as the run's warm-up) in fresh processes with
     an empty JIT cache each, by route: "lanes" (engine.kernels.USE_LANES True), "one" (one point at a time),
-    alternated ``repeats`` times: {mode: [{compile_cpu, compile_wall, kernels, lane_kernels}]}."""
+    "trajectory" and "closed" (OTHER_ROUTES' scenes, then their warm kernels in the same process),
+    alternated ``repeats`` times: {mode: [{compile_cpu, compile_wall, kernels, lane_kernels, warm}]}."""
     out = {m: [] for m in modes}
     for i in range(repeats):
         for mode in modes:
             env = dict(os.environ, MECHSWEEP_CACHE_DIR=str(folder / f"cache-route-{mode}-{i}"))
-            proc = subprocess.run([sys.executable, "-c", ROUTE_CHILD, str(scene), mode], env=env, capture_output=True,
-                                  text=True)
+            path, warm = OTHER_ROUTES.get(mode, (scene, 0))
+            proc = subprocess.run([sys.executable, "-c", ROUTE_CHILD, str(path), mode, str(warm)], env=env,
+                                  capture_output=True, text=True)
             if proc.returncode != 0:
                 raise RuntimeError(f"route compile failed:\n{proc.stderr[-2000:]}")
             out[mode].append(json.loads(proc.stdout.strip().splitlines()[-1]))
@@ -582,9 +599,11 @@ def breakdown(scene: Path, folder: Path, repeats: int) -> None:
 
 
 def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.toml",
-         parts: tuple[str, ...] = ("warm", "quickstart", "scaling"), against: str | None = None) -> dict:
+         parts: tuple[str, ...] = ("warm", "quickstart", "scaling"), against: str | None = None,
+         routes: tuple[str, ...] = ROUTES) -> dict:
     """Measure and print ``parts``: "warm", "quickstart", "scaling" (the default), "breakdown"
-    (where the time goes; see :func:`breakdown`), "routes" (:func:`route_compile`, :func:`route_speed`),
+    (where the time goes; see :func:`breakdown`), "routes" (:func:`route_compile`, :func:`route_speed`;
+    ``routes``: which of ROUTES),
     "compile" (the scene's cold compile by function, ``repeats`` fresh processes: :func:`compile_table`),
     "warmstart" (the warm quickstart by process, alternated with the sources ``against`` when given:
     :func:`warm_start`)."""
@@ -681,27 +700,36 @@ def main(full: bool = False, repeats: int = 3, scene: str = "sweeps/quickstart.t
                       f"{r['command_s']:.1f} s)", flush=True)
             _scaling_verdict(rows)
         if "routes" in parts:
-            comp = route_compile(scene_path, repeats, tmp)
+            comp = route_compile(scene_path, repeats, tmp, tuple(m for m in ROUTES if m in routes))
             report["routes"] = comp
-            print(f"  cold compile of {scene_path.name}'s kernels by route (fresh processes, empty JIT cache each, "
-                  "alternated; CPU and wall seconds of the first point):")
+            print(f"  cold compile by route (fresh processes, empty JIT cache each, alternated; CPU and wall seconds "
+                  f"of the first point; lanes, one: {scene_path.name}):")
             for mode, rows in comp.items():
-                print(f"    {mode:<5} CPU {_spread([r['compile_cpu'] for r in rows], 's', fmt='.2f'):<30} wall "
-                      f"{_spread([r['compile_wall'] for r in rows], 's', fmt='.2f')}; kernels {rows[0]['kernels']}, "
-                      f"in lanes {rows[0]['lane_kernels']}")
-            n = 10**5
-            speed = route_speed(n, repeats)
-            report["route_speed"] = speed
-            print(f"  warm kernels, Duffing period, {n:,} points, alternated in one process:")
-            for mode, rows in speed.items():
-                print(f"    {mode:<5} {_spread([n / r[0] for r in rows], 'points/s', fmt=',.0f'):<44} "
-                      f"{_spread([n / r[1] for r in rows], 'points per CPU s', fmt=',.0f')}")
-            extra = statistics.median(r["compile_cpu"] for r in comp["lanes"]) - statistics.median(
-                r["compile_cpu"] for r in comp["one"])
-            saved = statistics.median(r[1] for r in speed["one"]) / n - statistics.median(r[1] for r in speed["lanes"]) / n
-            report["crossover"] = extra / saved if saved > 0 else float("inf")
-            print(f"  the lanes' extra compile ({extra:.1f} CPU s) is repaid at {report['crossover']:.3g} points "
-                  f"(CPU s saved per point {saved * 1e6:.3f} us): engine/kernels.py's LANES_FROM_POINTS")
+                where = f" ({OTHER_ROUTES[mode][0].name})" if mode in OTHER_ROUTES else ""
+                kernels = "" if where else f"; kernels {rows[0]['kernels']}, in lanes {rows[0]['lane_kernels']}"
+                print(f"    {mode + where:<40} CPU {_spread([r['compile_cpu'] for r in rows], 's', fmt='.2f'):<30} "
+                      f"wall {_spread([r['compile_wall'] for r in rows], 's', fmt='.2f')}{kernels}")
+            for mode, rows in comp.items():
+                if mode in OTHER_ROUTES:
+                    runs = [run for r in rows for run in r["warm"]]
+                    print(f"    {mode} warm, {runs[0][0]:,} points, 3 runs in each of those processes: "
+                          f"{_spread([n / w for n, w, _ in runs], 'points/s', fmt=',.0f')}, "
+                          f"{_spread([n / c for n, _, c in runs], 'points per CPU s', fmt=',.0f')}")
+            if {"lanes", "one"} <= set(comp):  # their warm speed side by side, and the crossover
+                n = 10**5
+                speed = route_speed(n, repeats)
+                report["route_speed"] = speed
+                print(f"  warm kernels, Duffing period, {n:,} points, alternated in one process:")
+                for mode, rows in speed.items():
+                    print(f"    {mode:<5} {_spread([n / r[0] for r in rows], 'points/s', fmt=',.0f'):<44} "
+                          f"{_spread([n / r[1] for r in rows], 'points per CPU s', fmt=',.0f')}")
+                extra = statistics.median(r["compile_cpu"] for r in comp["lanes"]) - statistics.median(
+                    r["compile_cpu"] for r in comp["one"])
+                saved = (statistics.median(r[1] for r in speed["one"])
+                         - statistics.median(r[1] for r in speed["lanes"])) / n
+                report["crossover"] = extra / saved if saved > 0 else float("inf")
+                print(f"  the lanes' extra compile ({extra:.1f} CPU s) is repaid at {report['crossover']:.3g} points "
+                      f"(CPU s saved per point {saved * 1e6:.3f} us): engine/kernels.py's LANES_FROM_POINTS")
         if "compile" in parts:
             for i in range(repeats):
                 compile_table(compile_child(scene_path, tmp, i), top=60)
@@ -731,10 +759,14 @@ def cli(argv: list[str] | None = None) -> int:
                         "warmstart: the warm quickstart by process, run and plot)")
     p.add_argument("--against", metavar="SRC", default=None,
                    help="with --only warmstart: alternate with the sources in SRC (another checkout's src folder)")
+    p.add_argument("--routes", choices=ROUTES, nargs="+", default=ROUTES,
+                   help="with --only routes: these routes only (default: all; lanes and one also give their warm "
+                        "speed and crossover)")
 
     def command(a) -> int:
         main(full=a.full, repeats=a.repeats, scene=a.scene,
-             parts=tuple(a.only) if a.only else ("warm", "quickstart", "scaling"), against=a.against)
+             parts=tuple(a.only) if a.only else ("warm", "quickstart", "scaling"), against=a.against,
+             routes=tuple(a.routes))
         return 0
 
     return _cli.run(p, command, argv)

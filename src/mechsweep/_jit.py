@@ -1,7 +1,9 @@
 """The only place where numba options are set.
 
-Every kernel in mechsweep is decorated with :func:`jit` (serial) or :func:`pjit`
-(``parallel=True``, for the chunk kernels that ``prange`` over grid points).
+Every kernel in mechsweep is serial code decorated with :func:`jit` or one of its variants below; the
+chunk kernels run on Python threads (engine/point.py, ``Threaded``), which spares them numba's parallel
+compile. :func:`pjit` (``parallel=True``) compiles a loop over ``prange`` for code outside the engine
+(the tests' reference kernels).
 
 Options and why:
 - ``fastmath=False``: results must be bitwise reproducible and IEEE-correct
@@ -507,7 +509,8 @@ def jit_llvm_inline(func):
 
 
 def pjit(func):
-    """Compile a chunk kernel whose outer loop is a ``prange`` over points."""
+    """Compile a function whose outer loop is a ``prange`` (not the engine's chunk kernels: see the
+    module's docstring)."""
     return _decorate(func, parallel=True)
 
 

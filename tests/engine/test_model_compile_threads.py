@@ -90,3 +90,42 @@ def test_one_point_kernel_is_serial_code_split_over_python_threads(monkeypatch, 
         assert np.array_equal(one[name], three[name], equal_nan=True), name
     kernels = [k for k in mc._KERNELS.values() if isinstance(k, mc.Threaded)]
     assert kernels and not any(k.targetoptions.get("parallel") for k in kernels)
+
+
+def test_sampled_trajectory_and_closed_form_kernels_are_serial_code_split_over_python_threads(monkeypatch):
+    """The sampled-trajectory kernel (engine/trajectory.py, one trajectory at a time) and a closed-form
+    model's kernel (engine/closed.py) are compiled as serial code that engine/point.py's Threaded runs
+    on numba.get_num_threads() Python threads (numba's parallel compile of a prange spared): the results
+    are bitwise the same for 1 and 3 threads (the latter uneven: 29 points in strides; 150 designs in
+    blocks of 64)."""
+    from pathlib import Path
+
+    import numba
+    import numpy as np
+
+    from mechsweep.engine import sampling
+    from mechsweep.model import closed, user
+    from tests.evaluating import evaluate
+
+    models = Path(__file__).parents[1] / "user_models"
+    forced, cam = user.resolve(f"{models / 'forced.py'}:FORCED"), user.resolve(f"{models / 'cam.py'}:CAM")
+    monkeypatch.setattr(sampling, "USE_LANES", False)
+    n = 29
+    P_forced = np.column_stack([np.full(n, 1.0), np.full(n, 0.1), np.linspace(0.5, 2.0, n),
+                                np.linspace(0.3, 3.0, n)])
+    n = 150
+    P_cam = np.column_stack([np.full(n, 0.02), np.linspace(0.5, 3.0, n), np.full(n, 30.0), np.arange(n) % 2,
+                             np.full(n, 0.04), np.full(n, np.pi / 6)])
+    got = []
+    for threads in (1, 3):
+        monkeypatch.setattr(numba, "get_num_threads", lambda: threads)
+        got.append((evaluate(forced, P_forced, ("amp", "x_hist"), method="dop853", rtol=1e-8, atol=1e-10,
+                             horizon_periods=20.0),
+                    evaluate(cam, P_cam, ("a_max", "a_u"))))
+    for (one, s1, a1, b1), (three, s3, a3, b3) in zip(*got):
+        assert (s1 == s3).all() and (a1 == a3).all() and (b1 == b3).all()
+        for name in one:
+            assert np.isfinite(one[name]).any() and np.array_equal(one[name], three[name], equal_nan=True), name
+    assert (got[0][0][2] > 0).all()  # every trajectory integrated
+    kernels = [k.kernel for k in sampling._KERNELS.values()] + [k.entry for k in closed._KERNELS.values()]
+    assert kernels and all(isinstance(k, mc.Threaded) and not k.targetoptions.get("parallel") for k in kernels)

@@ -33,7 +33,7 @@ PREFIXES = {"point": "mechsweep_gen_", "lanes": "mechsweep_gen_", "trajectory": 
             "closed": "mechsweep_closed_"}
 _TEMPLATE = '''"""mechsweep kernel binding {name}: {what}.
 Written by mechsweep.engine.binding (do not edit; a changed model gets a new file)."""
-from mechsweep._jit import jit, pjit
+from mechsweep._jit import jit
 from mechsweep.engine.binding import built
 {extra}
 impl = built(__name__{lane_args})
@@ -42,7 +42,7 @@ _ENTRY = '''
 _{entry} = impl.{entry}
 
 
-@{decorator}
+@jit
 def {entry}({args}):
     return _{entry}({args})
 '''
@@ -89,13 +89,10 @@ def built(name: str, *lane_functions):
 
 def text(name: str, what: str, entries: dict, extra: str = "", lane_names: tuple[str, ...] = ()) -> str:
     """The binding module's source: the fixed template filled with the kernel's name, a line saying
-    what it computes, its entry points {name: argument list, or (argument list, "pjit") for a kernel
-    whose prange is compiled into its trampoline} and the extra text (the lane rhs)."""
+    what it computes, its entry points {name: argument list} and the extra text (the lane rhs)."""
     return _TEMPLATE.format(name=name, what=what.replace('"""', "'''"), extra=extra and "\n" + extra,
                             lane_args="".join(", " + x for x in lane_names),
-                            entries="".join(_ENTRY.format(entry=e, args=a[0] if isinstance(a, tuple) else a,
-                                                          decorator=a[1] if isinstance(a, tuple) else "jit")
-                                            for e, a in entries.items()))
+                            entries="".join(_ENTRY.format(entry=e, args=a) for e, a in entries.items()))
 
 
 def bind(name: str, what: str, entries: dict, builder, extra: str = "", lane_names: tuple[str, ...] = ()):

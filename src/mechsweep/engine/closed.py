@@ -1,12 +1,14 @@
-"""The kernel of a ClosedFormModel (model/closed.py): the model's ``compute`` per design, in parallel.
+"""The kernel of a ClosedFormModel (model/closed.py): the model's ``compute`` per design.
 
-    kernel(P, want, slot, table, curves, status, data)    (prange over blocks of BLOCK designs)
-        scratch (nscr x n) per block
-        code = compute(P[i], want, table[i], curves[i], slot, scratch, *data)
-        non-OK: that status, the design's row and curves NaN
+    kernel(P, want, slot, table, curves, status, data, first, step)
+        scratch (nscr x n) per thread                      (the blocks of BLOCK designs first,
+        for i in the blocks first, first + step, ...:       first + step, ...: point.Threaded runs
+            code = compute(P[i], want, table[i], curves[i],  one such stride per thread)
+                           slot, scratch, *data)
+            non-OK: that status, the design's row and curves NaN
 
 An exception the user's compute raises at a design the load-time probe did not see must not escape
-the parallel loop: that design ends USER_ERROR, NaN (mechsweep's own computes never raise: no guard).
+the kernel's threads: that design ends USER_ERROR, NaN (mechsweep's own computes never raise: no guard).
 """
 from __future__ import annotations
 
@@ -16,10 +18,10 @@ import math
 import numpy as np
 
 from .. import status as st
-from .._jit import jit_internal, jit_into_caller, prange
+from .._jit import jit_internal, jit_into_caller
 
-BLOCK = 64  # designs per scratch allocation (one prange iteration)
-ARGS = "P, want, slot, table, curves, status, data"
+BLOCK = 64  # consecutive designs of one thread (their rows of table and curves side by side in memory)
+ARGS = "P, want, slot, table, curves, status, data, first, step"
 
 
 @functools.cache
@@ -54,16 +56,17 @@ def build(compute, n_scr: int, guarded: bool):
 
 @functools.cache
 def _kernel(compute, n_scr):
-    @jit_into_caller  # its prange compiled into the binding's parallel trampoline (no link of its own)
-    def kernel(P, want, slot, table, curves, status, data):
+    @jit_into_caller  # compiled into the binding's cached trampoline (no link of its own)
+    def kernel(P, want, slot, table, curves, status, data, first, step):
+        # the blocks of designs first, first + step, ...; point.Threaded runs one such stride per thread
+        # (nogil), without numba's parallel compile
         n = P.shape[0]
         N = curves.shape[2]
-        n_blocks = (n + BLOCK - 1) // BLOCK
         use_curves = curves.shape[0] == n
-        for b in prange(n_blocks):
-            scratch = np.empty((n_scr, N))
-            dummy = np.empty((0, N))
-            for i in range(b * BLOCK, min(n, (b + 1) * BLOCK)):
+        scratch = np.empty((n_scr, N))
+        dummy = np.empty((0, N))
+        for b in range(first * BLOCK, n, step * BLOCK):
+            for i in range(b, min(n, b + BLOCK)):
                 crv = curves[i] if use_curves else dummy
                 code = compute(P[i], want, table[i], crv, slot, scratch, data)
                 if code != st.OK:

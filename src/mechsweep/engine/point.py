@@ -343,24 +343,24 @@ def _pool() -> ThreadPoolExecutor:
         return _POOL[0]
 
 
-def strides(n: int, threads: int) -> list[tuple]:
-    """The last arguments of each thread's call of the one-point kernel (Threaded's ``tails``): thread
-    t of T computes the points t, t + T, ... (strided: cost varies along the grid), at least BLOCK
+def strides(n: int, threads: int, block: int = BLOCK) -> list[tuple]:
+    """The last arguments of each thread's call of a strided kernel (Threaded's ``tails``): thread t of
+    T computes the points t, t + T, ... (strided: cost varies along the grid), at least ``block``
     points a thread."""
-    threads = max(1, min(threads, (n + BLOCK - 1) // BLOCK))
+    threads = max(1, min(threads, (n + block - 1) // block))
     return [(t, threads) for t in range(threads)]
 
 
 class Threaded:
-    """A chunk kernel ``kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs)``
-    on numba.get_num_threads() threads: the serial ``kernel(..., *tail)`` (nogil) once per thread, with
-    the thread's ``tails(n, threads)`` (``strides``: the one-point kernel; lanes.shared_counter: the lane
-    kernel), the calling thread one of them. A ``prange`` cost numba's parallel compile (parfor passes,
-    the gufunc and its two wrappers, each linking and optimising the whole call tree again): about
-    2.3 s of the one-point kernel's compile CPU and more of the lane kernel's
-    (`python benchmarks/startup.py --only compile`, docs/performance-startup.md). Each point is
-    computed alone, so the results are the same whatever the split. Anything else (``py_func``,
-    ``stats``) is the serial kernel's."""
+    """A chunk kernel ``kernel(P, ...)`` on numba.get_num_threads() threads: the serial
+    ``kernel(P, ..., *tail)`` (nogil) once per thread, with the thread's ``tails(n, threads)`` (n: the
+    rows of P; ``strides``: the one-point, sampled-trajectory and closed-form kernels;
+    lanes.shared_counter: the lane kernel), the calling thread one of them. A ``prange`` cost numba's
+    parallel compile (parfor passes, the gufunc and its two wrappers, each linking and optimising the
+    whole call tree again): about 2.3 s of the one-point kernel's compile CPU and more of the other
+    kernels' (`python benchmarks/startup.py --only compile`, ``--only routes``,
+    docs/performance-startup.md). Each point is computed alone, so the results are the same whatever
+    the split. Anything else (``py_func``, ``stats``) is the serial kernel's."""
 
     def __init__(self, serial, name: str = "", tails=strides):
         self.serial, self.name, self.tails = serial, name, tails
@@ -368,9 +368,8 @@ class Threaded:
     def __getattr__(self, name):
         return getattr(self.serial, name)
 
-    def __call__(self, P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs):
-        args = (P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs)
-        first, *others = self.tails(P.shape[0], _jit.num_threads())
+    def __call__(self, *args):
+        first, *others = self.tails(args[0].shape[0], _jit.num_threads())
         if not others:
             self.serial(*args, *first)
             return

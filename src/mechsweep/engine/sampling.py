@@ -17,6 +17,7 @@ measurement's ``finish``: statuses NO_EVENT, UNDECIDED) and runs the model's Rec
 """
 from __future__ import annotations
 
+import functools
 import math
 from types import SimpleNamespace
 
@@ -25,6 +26,7 @@ import numpy as np
 from .. import _jit
 from .. import status as st
 from ..model.spec import setting_value
+from .point import Threaded, strides
 from .trajectory import NO_CLASSIFY, NOT_RUN, UNUSED, columns
 
 METHODS = ("dop853", "radau", "auto")
@@ -95,14 +97,16 @@ def kernel_for(model, method, measurements=None):
     known = _KERNELS.get(name)
     if known is not None:
         return known
-    entries = {"kernel": (engine.KERNEL_ARGS, "pjit")}
+    entries = {"kernel": engine.KERNEL_ARGS}
     if lane_rhs:
         entries.update(setup=engine.SETUP_ARGS, queue=engine.QUEUE_ARGS)
     mod = binding.bind(name, f"model {model.name!r}, sampled trajectories, method {m.name}", entries,
                        lambda *lane: engine.build(model, chosen, m, always, lock, raw, *lane),
                        extra=binding_text(lane_rhs) if lane_rhs else "",
                        lane_names=("rhs_lanes",) if lane_rhs else ())
-    out = SimpleNamespace(name=name, **{e: getattr(mod, e) for e in entries})  # its entry points, and its name
+    # its entry points (the one-trajectory kernel on threads: point.Threaded), and its name
+    out = SimpleNamespace(name=name, **{e: getattr(mod, e) for e in entries})
+    out.kernel = Threaded(mod.kernel, name, functools.partial(strides, block=engine.BLOCK))
     _KERNELS[name] = out
     return out
 

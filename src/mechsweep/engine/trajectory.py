@@ -4,7 +4,8 @@ same for every point), observed by every sampled measurement of the model that i
 (Steady, Kick, History, ... : each one's ``observer``, model/sampled.py).
 
     kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, rawv, rawh, status, mstat, n_steps,
-           n_rhs)                                   (prange over blocks of BLOCK points, strided)
+           n_rhs, first, step)                      (the points first, first + step, ...: point.Threaded
+                                                     runs one stride per thread)
         status = classify(p), prepare(p)            -> non-OK: that status, outputs NaN
         T = forcing(p) (or 1)                       -> not finite > 0: INFEASIBLE
         each measurement's classify                 (mstat[i, k]: which ones observe; none: not integrated)
@@ -27,15 +28,16 @@ import math
 import numpy as np
 
 from .. import status as st
-from .._jit import jit_internal, jit_into_caller, prange
+from .._jit import jit_internal, jit_into_caller
 from ..ode import dop853_lanes
 from . import binding, equations, point, switches
 
-BLOCK = 8  # points per scratch allocation (a block holds one trajectory of n_samples x n_states)
+BLOCK = 8  # the fewest points a thread of point.Threaded is given (fewer points: fewer threads)
 NOT_RUN = 127  # mstat before a point's measurements ran (a status no measurement gives)
 UNUSED = 126  # mstat of a measurement not chosen (the kernel leaves it)
 NO_CLASSIFY = 125  # mstat before the kernel of a chosen measurement whose classify is not applied
-KERNEL_ARGS = "P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, rawv, rawh, status, mstat, n_steps, n_rhs"
+KERNEL_ARGS = ("P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, rawv, rawh, status, mstat, n_steps, n_rhs, "
+               "first, step")
 SETUP_ARGS = "P, S, rtol, PF, Z0, TT, status, mstat"
 QUEUE_ARGS = ("lanes, idx, first, step, PF, Z0, te, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, rawv, rawh, "
               "status, mstat, n_steps, n_rhs")
@@ -328,12 +330,14 @@ def _admit(classify, prepare, forcing, checks, reset, n_p, n_set):
 
 @functools.cache
 def _kernel(admit, run, new_work, observe, failed, n_s, p_size, npi, fd_at):
-    @jit_into_caller  # its prange compiled into the binding's parallel trampoline (no link of its own)
-    def kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, rawv, rawh, status, mstat, n_steps, n_rhs):
+    @jit_into_caller  # compiled into the binding's cached trampoline (no link of its own)
+    def kernel(P, S, s, bits, K, hoff, rtol, atol, max_steps, vals, hist, rawv, rawh, status, mstat, n_steps, n_rhs,
+               first, step):
+        # the points first, first + step, ... (strided: cost varies along the grid); point.Threaded runs
+        # one such stride per thread (nogil), without numba's parallel compile
         n = P.shape[0]
         ns_ = s.size
-        n_blocks = (n + BLOCK - 1) // BLOCK
-        for blk in prange(n_blocks):
+        if first < n:
             p = np.empty(p_size)
             y = np.empty(n_s)
             te = np.empty(ns_)
@@ -341,7 +345,7 @@ def _kernel(admit, run, new_work, observe, failed, n_s, p_size, npi, fd_at):
             ob2 = np.zeros(ns_)
             traj = np.empty((ns_, n_s))
             work = new_work()
-            for i in range(blk, n, n_blocks):
+            for i in range(first, n, step):
                 if status[i] != st.OK:
                     continue
                 code, T, go = admit(i, p, P, S, rtol, mstat)
@@ -372,8 +376,7 @@ def _kernel(admit, run, new_work, observe, failed, n_s, p_size, npi, fd_at):
 def _setup(admit, initial):
     @jit_internal
     def setup(P, S, rtol, PF, Z0, TT, status, mstat):
-        # serial: a parallel region just before the lane queues (Python threads) may leave the threading
-        # layer's workers spinning while they run (docs/model-layer.md)
+        # serial: a point's classify, prepare and initial state are little beside its integration
         n = P.shape[0]
         for i in range(n):
             if status[i] != st.OK:

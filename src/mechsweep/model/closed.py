@@ -8,6 +8,7 @@ cached on disk through its binding module (engine/binding.py), keyed by the comp
 module source and name, the model's dependency record and the kernel's shape."""
 from __future__ import annotations
 
+import functools
 import hashlib
 import math
 import operator
@@ -195,8 +196,9 @@ def _guarded(ref) -> bool:
 
 
 class _Kernel:
-    """``kernel(P, want, slot, table, curves, status, *data)``: the binding's entry point, which takes
-    the shared data as one tuple; ``stats`` and the like are its dispatcher's."""
+    """``kernel(P, want, slot, table, curves, status, *data)``: the binding's entry point on threads
+    (engine/point.py's Threaded), which takes the shared data as one tuple; ``stats`` and the like are
+    its dispatcher's."""
 
     def __init__(self, entry):
         self.entry = entry
@@ -216,6 +218,7 @@ def kernel_for(model: ClosedFormModel, n_data: int, *, origin: str = ""):
         return known[1]
     from ..engine import binding
     from ..engine import closed as engine
+    from ..engine.point import Threaded, strides
 
     ref = load.function_ref(model.compute, "compute", model.name)
     key = hashlib.sha256()
@@ -226,9 +229,9 @@ def kernel_for(model: ClosedFormModel, n_data: int, *, origin: str = ""):
     name = "mechsweep_closed_" + key.hexdigest()[:20]
     if name not in _KERNELS:
         compute = load.jitted(*ref)
-        mod = binding.bind(name, f"model {model.name!r}, closed forms per design", {"kernel": (engine.ARGS, "pjit")},
+        mod = binding.bind(name, f"model {model.name!r}, closed forms per design", {"kernel": engine.ARGS},
                            lambda: engine.build(compute, model.scratch, _guarded(ref)))
-        _KERNELS[name] = _Kernel(mod.kernel)
+        _KERNELS[name] = _Kernel(Threaded(mod.kernel, name, functools.partial(strides, block=engine.BLOCK)))
     _BY_MODEL[(id(model), n_data)] = (model, _KERNELS[name])
     return _KERNELS[name]
 
