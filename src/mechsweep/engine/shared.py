@@ -255,8 +255,6 @@ def make_shared(rhs, observe=None, switches=None):
         n_steps = 0
         if status != OK:
             for i in range(m):
-                codes[i] = status
-            for i in range(m):
                 if not done[i]:
                     codes[i] = status
             return n_steps, n_rhs
