@@ -365,6 +365,23 @@ def test_plot_refuses_boundaries_no_figure_drawn_can_draw(tmp_path, capsys):
     assert "drawn on stability_map, heatmap_lift; not on nomogram_lift" in capsys.readouterr().err
 
 
+def test_plot_names_an_unknown_kind_before_any_problem_of_the_boundaries(tmp_path, capsys):
+    """`plot --kind NAME --boundaries PATH` with a figure the dataset does not have is refused for the
+    figure, naming those it can draw, whatever the boundaries are (located on its grid, not
+    boundaries at all, missing): it was refused for the boundaries first."""
+    ds = _axes_of(cam(n_speed=12), "speed", "preload")
+    ds.to_netcdf(tmp_path / "cam.h5", engine="h5netcdf")
+    _speed_boundaries(ds).to_netcdf(tmp_path / "b.h5", engine="h5netcdf")
+    cam(n_speed=7).to_netcdf(tmp_path / "other.h5", engine="h5netcdf")
+    for given in ("b.h5", "other.h5", "missing.h5"):
+        args = ["plot", str(tmp_path / "cam.h5"), "--kind", "NOT_A_FIGURE", "--boundaries", str(tmp_path / given)]
+        assert main(args) == 2
+        err = capsys.readouterr().err
+        assert err.splitlines() == ["mechsweep plot: error: figure 'NOT_A_FIGURE' does not fit this dataset; "
+                                    "it can draw: stability_map, heatmap_lift, nomogram_lift"], given
+    assert not list(tmp_path.glob("*.png"))
+
+
 def test_save_refuses_boundaries_no_figure_written_draws(tmp_path):
     """figures.save with boundaries refuses them as `plot --boundaries` does when no figure it writes
     draws them (a nomogram: they were dropped without a word), naming the figure and those that do,

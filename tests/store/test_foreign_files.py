@@ -328,7 +328,7 @@ def test_same_scene_is_recognised_through_its_stored_text():
 # ----------------------------------------------------------------------------- plot: figure path, --point
 def test_plot_refuses_to_overwrite_its_dataset(work, capsys):
     existing_dataset(work / "X.png")  # a dataset named like a figure
-    refused(capsys, ["plot", "X.png", "--kind", "outputs"], work, "X.png is the dataset X.png itself")
+    refused(capsys, ["plot", "X.png", "--kind", "curve_period_exact"], work, "X.png is the dataset X.png itself")
     refused(capsys, ["plot", "X.png"], work, "is the dataset")
     existing_dataset(work / "d.h5")
     os.link(work / "d.h5", work / "hard.png")

@@ -112,8 +112,7 @@ def _plot(args) -> int:
     from ..store.read import open_dataset, reading
     from . import started
 
-    ds = open_dataset(args.dataset)
-    bds = _boundaries_for(ds, args)
+    ds = whole = open_dataset(args.dataset)
     started()
     with reading(args.dataset):
         check_layout(ds)
@@ -121,7 +120,10 @@ def _plot(args) -> int:
             ds = select_point(ds, args.point)
         axes = (args.x, args.y) if args.x or args.y else None
         kinds = figures.available(ds, axes)
-        extra = figures.on_request(ds, axes) if args.list else {}
+        extra = figures.on_request(ds, axes) if args.list or args.kind is not None else {}
+    if args.kind is not None and not args.list:  # before the boundaries: a figure that does not exist comes first
+        figures.check_kind(args.kind, [*kinds, *extra], axes)
+    bds = _boundaries_for(whole, args)
     if args.point and not kinds and not extra and args.kind is None and not args.list:
         raise InputError(f"--point {args.point}: nothing to draw at one point: its figures are time histories (outputs "
                          "with one extra dimension, e.g. a History measurement) and this dataset stores none; its "

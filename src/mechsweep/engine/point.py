@@ -49,7 +49,7 @@ def is_direct(chosen) -> bool:
         return False
     if all(getattr(m, "direct", False) for m in chosen):
         return True
-    return len(chosen) == 1 and type(chosen[0]).__name__ == "Crossing" and chosen[0].n == 1
+    return len(chosen) == 1 and getattr(chosen[0], "direct_alone", False)
 
 
 def floquet_only(chosen) -> bool:

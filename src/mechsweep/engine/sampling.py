@@ -33,9 +33,10 @@ METHODS = ("dop853", "radau", "auto")
 _KERNELS: dict[str, object] = {}
 
 
-def grid(chosen, settings):
+def grid(chosen, settings, wanted=None):
     """(s, bits, K): the sample instants in forcing periods (sorted, unique), bits[j, k] the roles of
-    instant j for measurement k (0: not its instant), K[k] its constants."""
+    instant j for measurement k (0: not its instant), K[k] its constants (for the outputs ``wanted``
+    only, as the measurement declares them: ``constants_for``; None: for all of its outputs)."""
     parts = [(m, inst) for m in chosen for inst in m.instants(settings)]
     s = np.unique(np.concatenate([x for _, (x, _) in parts]))
     bits = np.zeros((s.size, len(chosen)), dtype=np.int64)
@@ -43,10 +44,9 @@ def grid(chosen, settings):
         for x, b in m.instants(settings):
             rows = np.isin(s, x)
             bits[:, k] |= np.where(rows, b(s, settings) if callable(b) else b, 0)
-    width = max([len(m.constants(settings)) for m in chosen] + [1])
-    K = np.zeros((len(chosen), width))
-    for k, m in enumerate(chosen):
-        c = m.constants(settings)
+    consts = [m.constants(settings) if wanted is None else m.constants_for(settings, wanted) for m in chosen]
+    K = np.zeros((len(chosen), max([len(c) for c in consts] + [1])))
+    for k, c in enumerate(consts):
         K[k, :len(c)] = c
     return s, bits, K
 
@@ -157,7 +157,7 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
         kick = next(m for m in model.measurements if m.name == rc.skip_settled)
         chosen = tuple(chosen) + (dataclasses.replace(kick, classify=None),)
     always, lock, raw = (-1, (), False) if rc is None else recheck_variant(model, chosen)
-    s, bits, K = grid(chosen, settings)
+    s, bits, K = grid(chosen, settings, wanted)
     if lock:  # the whole forcing periods of the second half of the Kick's horizon: one more bits column
         H = setting_value(chosen[always].horizon, settings)
         whole = np.arange(math.ceil(0.5 * H), math.floor(H) + 1, dtype=np.float64)
@@ -166,9 +166,6 @@ def evaluate(model, chosen, P, wanted, solver, out, status, n_steps, n_rhs, lane
         bits2[np.searchsorted(s2, s), :bits.shape[1]] = bits
         bits2[:, -1] = np.isin(s2, whole)
         s, bits = s2, bits2
-    for k, m in enumerate(chosen):
-        if type(m).__name__ == "Steady" and not {m.output_name("_h1"), m.output_name("_phase")} & set(wanted):
-            K[k, 2] = 0.0  # no first harmonic asked for: the observer skips its cos/sin per sample
     hw = history_widths(chosen, bits)
     hoff = np.array([sum(hw[:k]) if w else 0 for k, w in enumerate(hw)], dtype=np.int64)
     n_hist = sum(hw)

@@ -255,8 +255,6 @@ def make_shared(rhs, observe=None, switches=None):
         n_steps = 0
         if status != OK:
             for i in range(m):
-                codes[i] = status
-            for i in range(m):
                 if not done[i]:
                     codes[i] = status
             return n_steps, n_rhs
@@ -282,8 +280,10 @@ def make_shared(rhs, observe=None, switches=None):
                 started[i] = True
         t = 0.0
         attempts = 0
-        n_stiff = 0  # dop853's stiffness test, late in the step budget (a spent budget there: STIFF)
-        n_nonstiff = 0
+        # dop853's stiffness test, late in the step budget (a spent budget there: STIFF); np.int64, not 0:
+        # a call typed for Literal[int](0) too compiles each stiffness helper twice
+        n_stiff = np.int64(0)
+        n_nonstiff = np.int64(0)
         while left > 0 and t < t_end:
             status, t_new, h_abs, a = advance(t, y, p, min(t_end, t_sw), h_abs, rtol, atol, work, max_steps - attempts)
             attempts += a

@@ -246,6 +246,19 @@ def targets(ds, path, *, kind: str | None = None, fmt: str = "png", axes=None) -
             for k in chosen]
 
 
+def check_kind(kind: str, names, axes=None) -> None:
+    """Refuse (InputError) a figure ``kind`` that is not one of ``names``, the figures that fit the
+    dataset (over ``axes`` when given: :func:`available` and :func:`on_request`), naming them."""
+    from ..errors import InputError
+
+    if kind in names:
+        return
+    given = axes is not None and any(a is not None for a in axes)
+    raise InputError(f"figure {kind!r} does not fit this dataset{' with ' + _axes_text(axes) if given else ''}; "
+                     f"it can draw: {', '.join(names) or 'nothing'}"
+                     + (" (--x/--y choose the axes of the generic figures only)" if given else ""))
+
+
 def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150, boundaries=None,
          axes=None) -> list[Path]:
     """Write one figure, or every figure drawn by default, to files (what ``mechsweep plot`` does).
@@ -284,10 +297,8 @@ def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150,
     plan = {name: fn for name, _, fn, _ in _plan(ds, boundaries, axes)}
     kinds = available(ds, axes)
     given = axes is not None and any(a is not None for a in axes)
-    if kind is not None and kind not in plan:
-        raise InputError(f"figure {kind!r} does not fit this dataset{' with ' + _axes_text(axes) if given else ''}; "
-                         f"it can draw: {', '.join(plan) or 'nothing'}"
-                         + (" (--x/--y choose the axes of the generic figures only)" if given else ""))
+    if kind is not None:
+        check_kind(kind, plan, axes)
     if not kinds and kind is None:
         raise InputError(f"no generic figure of this dataset is over {_axes_text(axes)}" if given else
                          "no figure fits this dataset (a generic figure needs a float output over at least one "

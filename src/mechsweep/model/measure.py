@@ -206,6 +206,12 @@ class Crossing:
         if isinstance(self.level, bool) or not isinstance(self.level, (int, float)) or not math.isfinite(self.level):
             raise ValueError(f"{self.name}: level = {self.level!r}; expected a finite number")
 
+    @property
+    def direct_alone(self) -> bool:
+        """Whether it integrates on its own (engine/events.py) when it is the kernel's only measurement:
+        a first crossing needs no shared trajectory."""
+        return self.n == 1
+
     def point(self, plan, k):
         """Its block in the one-point kernel (engine/point.py) when it is the kernel's only measurement
         (a first crossing): integrated on its own (else a row of the shared trajectory)."""

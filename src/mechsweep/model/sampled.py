@@ -10,7 +10,8 @@ the scene's solver settings.
 Each declares what it records, in one place:
 
 - ``instants(settings)``: [(s, bits)]: its sample instants and the roles of each (bits, or a function
-  of s); ``constants(settings)``: the numbers its observer reads (its row of K);
+  of s); ``constants(settings)``: the numbers its observer reads (its row of K), and
+  ``constants_for(settings, wanted)`` those when only the outputs ``wanted`` are asked for;
 - ``n_values``: its columns in the kernel's value table (0: a History's samples, in ``hist``);
 - ``observer(plan, k)``: the jitted ``observe(i, p, te, traj, s, bits, K, hoff, vals, hist, rawv, rawh,
   ob, ob2) -> status`` of measurement k in the kernel: its observable(s) on its rows (te: the sample
@@ -128,6 +129,11 @@ class _Sampled(_Outputs):
         _check_numbers(self, self._present(f for f in self.RULES if f not in self.FIXED))
         _check_ranges(self, self.RULES)
         _check_function(self, self.VALUE, f"{self.VALUE}(p, x) -> float (got {getattr(self, self.VALUE)!r})")
+
+    def constants_for(self, settings, wanted):
+        """Its constants when only the outputs ``wanted`` are asked for: those of ``constants`` unless
+        one switches off work whose outputs nobody asked for."""
+        return self.constants(settings)
 
     def check_settings(self, settings):
         """The fields that name a setting: the setting's range within the field's."""
@@ -264,10 +270,15 @@ class Steady(_Sampled):
     def constants(self, settings):
         """The numbers the kernel's observer reads (K row)."""
         check = self.settle_rtol is not None
-        # the third: whether the first harmonic is computed (engine/sampling.py's evaluate clears it when
-        # neither name_h1 nor name_phase is asked for: no cos/sin per sample then)
+        # the third: whether the first harmonic is computed (see constants_for)
         return (setting_value(self.settle_rtol, settings) if check else -1.0, setting_value(self.settle_atol, settings),
                 1.0)
+
+    def constants_for(self, settings, wanted):
+        """Without the first harmonic when neither name_h1 nor name_phase is asked for: the observer
+        then skips its cos/sin per sample."""
+        c = self.constants(settings)
+        return c if {self.output_name("_h1"), self.output_name("_phase")} & set(wanted) else c[:2] + (0.0,)
 
     def observer(self, plan, k):
         """Its observer in the sampled-trajectory kernel (engine/trajectory.py): the observable on its
@@ -546,7 +557,7 @@ class Recheck:
         if not self.rtol_floor > 0.0:
             raise ValueError(f"recheck: rtol_floor = {self.rtol_floor!r}; expected a number > 0")
         if self.skip_settled is not None:
-            kicks = [m.name for m in measurements if type(m).__name__ == "Kick"]
+            kicks = [m.name for m in measurements if isinstance(m, Kick)]
             if self.skip_settled not in kicks:
                 raise ValueError(f"recheck: skip_settled = {self.skip_settled!r}; expected the name of one of the "
                                  f"model's Kick measurements ({', '.join(kicks) or 'none'})")

@@ -457,8 +457,8 @@ def make_solver(rhs, stiffness_test=False):
         status, h_abs, n_rhs = start(t0, y, p, t_end, rtol, atol, h0, work)
         n_steps = 0
         n_attempts = 0
-        n_stiff = 0
-        n_nonstiff = 0
+        n_stiff = np.int64(0)  # not 0: a call typed for Literal[int](0) too compiles each stiffness helper twice
+        n_nonstiff = np.int64(0)
         t = t0
         while status == OK and t < t_end:
             status, t_new, h_abs, attempts = advance(
@@ -503,8 +503,8 @@ def make_event_solver(rhs, event, stiffness_test=False):
         status, h_abs, n_rhs = start(t0, y, p, t_max, rtol, atol, h0, work)
         n_steps = 0
         n_attempts = 0
-        n_stiff = 0
-        n_nonstiff = 0
+        n_stiff = np.int64(0)  # not 0: a call typed for Literal[int](0) too compiles each stiffness helper twice
+        n_nonstiff = np.int64(0)
         t = t0
         if status != OK:
             return status, t, n_steps, n_rhs
@@ -576,8 +576,8 @@ def make_trajectory_solver(rhs, stiffness_test=False):
         status, h_abs, n_rhs = start(t0, y, p, t_end, rtol, atol, h0, work)
         n_steps = 0
         n_attempts = 0
-        n_stiff = 0
-        n_nonstiff = 0
+        n_stiff = np.int64(0)  # not 0: a call typed for Literal[int](0) too compiles each stiffness helper twice
+        n_nonstiff = np.int64(0)
         t = t0
         while status == OK and t < t_end:
             status, t_new, h_abs, attempts = advance(

@@ -13,6 +13,7 @@ from typing import Mapping
 
 import numpy as np
 
+from ..chunks import MAX_CHUNKS, ChunkPlan, least_target
 from ..errors import InputError
 from ..model.spec import ModelSpec
 from ..models import MODELS
@@ -530,8 +531,6 @@ def _storage(table: Mapping, name: str, p: _Problems) -> Storage:
 
 
 def _check_chunk_count(shape: tuple[int, ...], chunk_size: int, p: _Problems) -> None:
-    from ..grid import MAX_CHUNKS, ChunkPlan, least_target
-
     n = len(ChunkPlan(shape, chunk_size))
     if n > MAX_CHUNKS:
         p.add("storage.chunk_size", f"{chunk_size:,} points per chunk cut the grid of {math.prod(shape):,} points "
