@@ -3,6 +3,7 @@ import math
 
 import numba
 import numpy as np
+import pytest
 
 from mechsweep import status as st
 from mechsweep._jit import jit
@@ -42,6 +43,7 @@ def _down_through_zero(t, y, p):
     return y[0]
 
 
+@pytest.mark.slow  # compiles two integrations outside the disk cache (about 9 s of CPU)
 def test_the_stiffness_helpers_are_typed_once_whatever_integration_calls_them():
     """The step counters reach dop853's stiffness helpers as int64 from the first step: counters started
     as a literal 0 typed (and compiled) each helper a second time, for Literal[int](0). Both integrations
