@@ -42,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..chunks import MAX_CHUNKS
 from ..errors import StoreError, WriteFailed
 
 # 2: chunk files named with their size and CRC-32. A journal of format 1 (names without them) is
@@ -354,7 +355,6 @@ def seal(meta: dict) -> dict:
 
 # run.json's entries and their kinds (besides format, and run_id and checksum from format 3 on)
 META_KINDS = {"scene_canonical": str, "scene": str, "chunk_target": int, "n_chunks": int, "attrs": dict}
-MAX_N_CHUNKS = 10_000  # grid.MAX_CHUNKS (not imported: the journal needs no grid)
 # Attributes every run's dataset has (store.read.RUN_ATTRS), and those the runner reads as text.
 _TEXT_ATTRS = ("scene_canonical", "model", "outputs")
 _OPTIONAL_TEXT_ATTRS = ("scene", "title", "history", "scene_folder")
@@ -375,9 +375,9 @@ def meta_problem(meta) -> str | None:
     bad = [k for k, kind in META_KINDS.items() if not isinstance(meta.get(k), kind) or isinstance(meta.get(k), bool)]
     if bad:
         return f"is damaged (entries {', '.join(bad)} missing or of the wrong kind)"
-    if not 1 <= meta["n_chunks"] <= MAX_N_CHUNKS or meta["chunk_target"] < 1:
+    if not 1 <= meta["n_chunks"] <= MAX_CHUNKS or meta["chunk_target"] < 1:
         return (f"is damaged (n_chunks = {meta['n_chunks']}, chunk_target = {meta['chunk_target']}: a run has "
-                f"1 to {MAX_N_CHUNKS:,} chunks of at least one point)")
+                f"1 to {MAX_CHUNKS:,} chunks of at least one point)")
     if (why := seal_problem(meta)) is not None:
         return why
     attrs = meta["attrs"]
