@@ -26,7 +26,7 @@ import numpy as np
 from .. import _jit
 from .. import status as st
 from ..model.spec import setting_value
-from .point import Threaded, strides
+from .point import Threaded, on_threads, strides
 from .trajectory import NO_CLASSIFY, NOT_RUN, UNUSED, columns
 
 METHODS = ("dop853", "radau", "auto")
@@ -371,9 +371,9 @@ def lane_count(n_samples: int, model) -> int:
 def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs,
                rtol=None):
     """setup, then per forcing period the points' queues through the lanes, one queue per thread
-    (numba.get_num_threads() Python threads running the nogil queue); the points of periods shared
-    by fewer than LANE_GROUP_MIN points by the one-trajectory kernel (from their status before
-    setup: it runs classify and prepare again)."""
+    (numba.get_num_threads() threads running the nogil queue: the calling thread and the kernel pool's,
+    point.on_threads); the points of periods shared by fewer than LANE_GROUP_MIN points by the
+    one-trajectory kernel (from their status before setup: it runs classify and prepare again)."""
     n = P.shape[0]
     n_s = len(model.states)
     n_p, n_set, n_int = len(model.params), len(model.settings), len(model.internal)
@@ -402,11 +402,4 @@ def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, raw
             mod.queue(lanes, idx, b, n_queues, PF, Z0, te, s, bits, K, hoff, rtol, solver.atol,
                       solver.max_steps, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs)
 
-        if n_queues == 1:
-            queue(0)
-            continue
-        from concurrent.futures import ThreadPoolExecutor
-
-        with ThreadPoolExecutor(max_workers=n_queues, thread_name_prefix="mechsweep-lanes") as pool:
-            for _ in pool.map(queue, range(n_queues)):
-                pass
+        on_threads(queue, [(b,) for b in range(n_queues)])
