@@ -67,6 +67,41 @@ def test_rms_in_lanes_is_the_one_trajectory_route_bitwise(model, monkeypatch):
         assert np.array_equal(one[name], lan[name], equal_nan=True), name
 
 
+def test_lanes_on_several_threads_use_the_kernel_pool_with_the_same_results(model, monkeypatch):
+    """The lane queues of a forcing period run on the calling thread and the kernel pool's threads
+    (engine/point.py, as the one-trajectory kernel), not on a thread pool started per forcing period:
+    no pool is made on 3 threads (2 queues on each of 2 periods), and the results are bitwise those
+    of 1 thread."""
+    import concurrent.futures
+
+    import numba
+
+    from mechsweep.engine import point
+
+    rows = np.repeat(P[:4], 10, axis=0)
+    rows[:, 0] *= np.tile(np.linspace(1.0, 1.3, 10), 4)
+    rows[:, 3] = np.repeat([0.9, 1.1], 20)  # two forcing periods of 20 points: two queues each
+    monkeypatch.setattr(trajectory, "USE_LANES", True)
+    point._pool()  # the kernel pool, made once per process
+    made = []
+
+    class Counted(concurrent.futures.ThreadPoolExecutor):
+        def __init__(self, *a, **k):
+            made.append(1)
+            super().__init__(*a, **k)
+
+    monkeypatch.setattr(concurrent.futures, "ThreadPoolExecutor", Counted)
+    got = []
+    for threads in (1, 3):
+        monkeypatch.setattr(numba, "get_num_threads", lambda: threads)
+        got.append(evaluate(model, rows, WANTED, method="dop853", rtol=1e-9, atol=1e-12))
+    assert made == []
+    (one, s1, n1, r1), (three, s3, n3, r3) = got
+    assert (s1 == st.OK).all() and (s1 == s3).all() and (n1 == n3).all() and (r1 == r3).all()
+    for name in WANTED:
+        assert np.array_equal(one[name], three[name]), name
+
+
 def test_rms_declaration_is_checked(model):
     for bad, match in ((dict(window=0.0), "window"), (dict(window=1.5), "window"),
                        (dict(samples_per_period=1), "samples_per_period"), (dict(of="z"), "state 'z'")):

@@ -369,21 +369,25 @@ class Threaded:
         return getattr(self.serial, name)
 
     def __call__(self, *args):
-        first, *others = self.tails(args[0].shape[0], _jit.num_threads())
-        if not others:
-            self.serial(*args, *first)
-            return
-        futures = [_pool().submit(self.serial, *args, *tail) for tail in others]
-        try:
-            self.serial(*args, *first)
-        finally:  # never return (nor raise, e.g. KeyboardInterrupt) while a thread still writes the arrays
-            interrupted = None
-            while not all(f.done() for f in futures):
-                try:
-                    wait(futures)
-                except BaseException as e:  # noqa: BLE001 - raised once every thread has finished
-                    interrupted = e
-            if interrupted is not None:
-                raise interrupted
-        for f in futures:
-            f.result()
+        on_threads(lambda *tail: self.serial(*args, *tail), self.tails(args[0].shape[0], _jit.num_threads()))
+
+
+def on_threads(call, tails) -> None:
+    """``call(*tail)`` for each of ``tails`` at once: the first on the calling thread, the others on the
+    kernel pool's threads (at most numba.config.NUMBA_NUM_THREADS in all); returns once every one has
+    finished, raising the first one's error."""
+    first, *others = tails
+    futures = [_pool().submit(call, *tail) for tail in others]
+    try:
+        call(*first)
+    finally:  # never return (nor raise, e.g. KeyboardInterrupt) while a thread still writes the arrays
+        interrupted = None
+        while not all(f.done() for f in futures):
+            try:
+                wait(futures)
+            except BaseException as e:  # noqa: BLE001 - raised once every thread has finished
+                interrupted = e
+        if interrupted is not None:
+            raise interrupted
+    for f in futures:
+        f.result()

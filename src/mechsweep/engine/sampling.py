@@ -26,7 +26,7 @@ import numpy as np
 from .. import _jit
 from .. import status as st
 from ..model.spec import setting_value
-from .point import Threaded, strides
+from .point import Threaded, on_threads, strides
 from .trajectory import NO_CLASSIFY, NOT_RUN, UNUSED, columns
 
 METHODS = ("dop853", "radau", "auto")
@@ -347,10 +347,15 @@ LANE_SAMPLES_BYTES = 256 * 2**20
 # evaluate's route where the lanes apply and the caller names none: True the lanes, False or None one
 # trajectory at a time. A run names the route its plan chose (execution/plan.py, ``choose_route``, which
 # reads this as an override): the lanes for a run of at least LANES_FROM_POINTS points, or once they are
-# compiled (kernels.lanes_recorded, under ``lane_name``). Bitwise the same results either way. The lanes'
-# cold compile and speed: docs/model-layer.md ("Lanes"; tests/data/trajectory_lanes_cost.py).
+# compiled (kernels.lanes_recorded, under ``lane_name``). Bitwise the same results either way.
 USE_LANES: bool | None = None
-LANES_FROM_POINTS = 1000
+# The lanes compile 7-10 s of CPU longer than the one-trajectory kernel and save a model-dependent CPU
+# time a point, so they pay from about 1.1e3 points (sweeps/autobalancer_residual.toml, 9.2 ms a point
+# saved), 2.8e3 (the auto-balancer without its re-integration) to 1.7e4 (the forced oscillators of
+# tests/user_models, forced.py and rms.py, 0.45 ms): `python tests/data/trajectory_lanes_cost.py both 512
+# residual --rounds=2` (models: autobalancer, forced, rms) prints the crossover. 2000 keeps the most a
+# wrong route costs at either end alike, about 7 s of CPU once (then the lanes are compiled).
+LANES_FROM_POINTS = 2000
 # The lanes of a queue share one forcing period (one t_eval): the points of a period shared by fewer
 # than LANE_GROUP_MIN points (a sweep of the forcing frequency in physical time: each its own) are
 # integrated one trajectory at a time (a round of 32 lanes with one active one costs more than ten
@@ -368,9 +373,9 @@ def lane_count(n_samples: int, model) -> int:
 def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs,
                rtol=None):
     """setup, then per forcing period the points' queues through the lanes, one queue per thread
-    (numba.get_num_threads() Python threads running the nogil queue); the points of periods shared
-    by fewer than LANE_GROUP_MIN points by the one-trajectory kernel (from their status before
-    setup: it runs classify and prepare again)."""
+    (numba.get_num_threads() threads running the nogil queue: the calling thread and the kernel pool's,
+    point.on_threads); the points of periods shared by fewer than LANE_GROUP_MIN points by the
+    one-trajectory kernel (from their status before setup: it runs classify and prepare again)."""
     n = P.shape[0]
     n_s = len(model.states)
     n_p, n_set, n_int = len(model.params), len(model.settings), len(model.internal)
@@ -399,11 +404,4 @@ def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, raw
             mod.queue(lanes, idx, b, n_queues, PF, Z0, te, s, bits, K, hoff, rtol, solver.atol,
                       solver.max_steps, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs)
 
-        if n_queues == 1:
-            queue(0)
-            continue
-        from concurrent.futures import ThreadPoolExecutor
-
-        with ThreadPoolExecutor(max_workers=n_queues, thread_name_prefix="mechsweep-lanes") as pool:
-            for _ in pool.map(queue, range(n_queues)):
-                pass
+        on_threads(queue, [(b,) for b in range(n_queues)])
