@@ -22,7 +22,8 @@ Each figure is printed with its target beside it (the project's start-up and cos
   kernel (one trajectory at a time, sweeps/autobalancer_residual.toml) and the closed-form kernel
   (sweeps/fourbar_pareto.toml), each warm in the process that compiled it (``--routes`` picks some);
 - ``--only compile``: the scene's cold compile by function (numba's compile events in a fresh process with
-  an empty JIT cache; each function's own time split into LLVM's work and numba's own), ``repeats`` times.
+  an empty JIT cache; each function's own time split into LLVM's work and numba's own) and by phase (numba's
+  typing, lowering, IR inlining; LLVM's parsing, passes, linking, machine code), ``repeats`` times.
 """
 from __future__ import annotations
 
@@ -261,9 +262,39 @@ def timed(name, slot):  # LLVM's share of the innermost compile: a library's fin
     setattr(codegen.CPUCodeLibrary, name, wrapper)
 timed("finalize", 2)
 timed("_optimize_functions", 3)
+phases, open_phases = {}, []  # the same compile by phase: each phase's time without the phases nested in it
+def phase(owner, name, label):
+    original = getattr(owner, name)
+    def wrapper(*a, **k):
+        open_phases.append([label, time.thread_time(), 0.0])
+        try:
+            return original(*a, **k)
+        finally:
+            label_, start, nested = open_phases.pop()
+            took = time.thread_time() - start
+            phases[label_] = phases.get(label_, 0.0) + took - nested
+            if open_phases:
+                open_phases[-1][2] += took
+    setattr(owner, name, wrapper)
+import llvmlite.binding as ll
+from numba.core import caching, dispatcher, lowering, typed_passes, untyped_passes
+phase(dispatcher.Dispatcher, "compile", "numba: the rest (bytecode to IR, IR passes, dispatch, cache lookups)")
+phase(untyped_passes.InlineInlinables, "run_pass", "numba: IR inlining (inline='always': the callee's IR made, copied)")
+phase(typed_passes.BaseTypeInference, "run_pass", "numba: type inference")
+phase(lowering.BaseLower, "lower", "numba: lowering to LLVM IR")
+phase(lowering.BaseLower, "create_cpython_wrapper", "numba: CPython and cfunc wrappers")
+phase(lowering.BaseLower, "create_cfunc_wrapper", "numba: CPython and cfunc wrappers")
+phase(caching.Cache, "save_overload", "numba: disk cache writes")
+phase(codegen.CPUCodeLibrary, "add_ir_module", "LLVM: parse numba's IR text")
+phase(codegen.CPUCodeLibrary, "_optimize_functions", "LLVM: function passes")
+phase(ll.ModuleRef, "link_in", "LLVM: link the callees' modules")
+phase(codegen.CPUCodeLibrary, "_optimize_final_module", "LLVM: module passes (the linked module)")
+phase(codegen.CPUCodeLibrary, "_finalize_final_module", "LLVM: machine code (the linked module)")
 import mechsweep
+c0 = time.thread_time()
 ds = mechsweep.run(sys.argv[1], output=sys.argv[2], progress=False)  # the dataset the plot breakdown draws
-print(json.dumps({"rows": sorted(rows, reverse=True), "compile_time_s": ds.attrs["compile_time_s"]}))
+print(json.dumps({"rows": sorted(rows, reverse=True), "compile_time_s": ds.attrs["compile_time_s"], "phases": phases,
+                  "run_cpu": time.thread_time() - c0}))
 """
 
 
@@ -494,6 +525,13 @@ def compile_table(result: dict, top: int = 15) -> None:
     own, fin, fpass = (sum(r[i] for r in rows) for i in (1, 4, 5))
     print(f"    all functions: own {own:.2f} = LLVM finalize {fin:.2f} + LLVM function passes {fpass:.2f} + numba "
           f"{own - fin - fpass:.2f}")
+    phases = result.get("phases")
+    if phases:
+        print(f"    by phase (CPU s of the run's thread, each without the phases nested in it; the run {result['run_cpu']:.2f}):")
+        for label, seconds in sorted(phases.items(), key=lambda kv: -kv[1]):
+            print(f"      {seconds:6.2f}  {label}")
+        print(f"      {result['run_cpu'] - sum(phases.values()):6.2f}  the run outside numba's compiles (scene, plan, "
+              "binding, first cache lookups, the points)")
 
 
 def breakdown(scene: Path, folder: Path, repeats: int) -> None:
