@@ -52,3 +52,11 @@ def test_the_first_harmonic_is_computed_only_when_asked_for_whatever_the_class_i
 
 def test_recheck_skip_settled_names_a_kick_whatever_its_class_is_called():
     Recheck(skip_settled="k").validate((Verdict("k", _event),), ())
+
+
+def test_a_steady_without_a_forcing_period_says_t_is_one_time_unit_whatever_its_class_is_called():
+    from mechsweep.model import OdeModel
+    for cls in (Steady, Amplitude):
+        spec = OdeModel(name="x", description="", params=(), states=("y",), rhs=lambda t, y, p, d: None,
+                        initial=lambda p, y: None, measurements=(cls("amp", "y", horizon=10.0),)).spec()
+        assert spec.output("amp").long_name.endswith("(T = 1 time unit: the model declares no forcing period)")

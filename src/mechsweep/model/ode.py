@@ -593,7 +593,9 @@ class OdeModel:
         outputs = (tuple(o for m in self.measurements for o in _outputs(m))
                    + tuple(c.output() for c in self.closed_forms))
         if self.forcing_period is None:  # Steady's horizon, window and harmonic: T = 1, said so
-            steady = {o.name for m in self.measurements if type(m).__name__ == "Steady" for o in _outputs(m)}
+            from .sampled import Steady
+
+            steady = {o.name for m in self.measurements if isinstance(m, Steady) for o in _outputs(m)}
             outputs = tuple(dataclasses.replace(o, long_name=f"{o.long_name} (T = 1 time unit: the model declares "
                                                 "no forcing period)") if o.name in steady else o for o in outputs)
         if self.output_order:
