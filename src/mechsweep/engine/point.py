@@ -362,8 +362,10 @@ class Threaded:
     docs/performance-startup.md). Each point is computed alone, so the results are the same whatever
     the split. Anything else (``py_func``, ``stats``) is the serial kernel's."""
 
-    def __init__(self, serial, name: str = "", tails=strides):
-        self.serial, self.name, self.tails = serial, name, tails
+    def __init__(self, serial, name: str = "", tails=None, block: int = BLOCK):
+        # tails: by default ``strides`` of at least ``block`` points a thread
+        self.serial, self.name = serial, name
+        self.tails = tails or functools.partial(strides, block=block)
 
     def __getattr__(self, name):
         return getattr(self.serial, name)

@@ -17,7 +17,6 @@ measurement's ``finish``: statuses NO_EVENT, UNDECIDED) and runs the model's Rec
 """
 from __future__ import annotations
 
-import functools
 import math
 from types import SimpleNamespace
 
@@ -26,7 +25,7 @@ import numpy as np
 from .. import _jit
 from .. import status as st
 from ..model.spec import setting_value
-from .point import Threaded, on_threads, strides
+from .point import Threaded, on_threads
 from .trajectory import NO_CLASSIFY, NOT_RUN, UNUSED, columns
 
 METHODS = ("dop853", "radau", "auto")
@@ -106,7 +105,7 @@ def kernel_for(model, method, measurements=None):
                        lane_names=("rhs_lanes",) if lane_rhs else ())
     # its entry points (the one-trajectory kernel on threads: point.Threaded), and its name
     out = SimpleNamespace(name=name, **{e: getattr(mod, e) for e in entries})
-    out.kernel = Threaded(mod.kernel, name, functools.partial(strides, block=engine.BLOCK))
+    out.kernel = Threaded(mod.kernel, name, block=engine.BLOCK)
     _KERNELS[name] = out
     return out
 

@@ -8,7 +8,6 @@ cached on disk through its binding module (engine/binding.py), keyed by the comp
 module source and name, the model's dependency record and the kernel's shape."""
 from __future__ import annotations
 
-import functools
 import hashlib
 import math
 import operator
@@ -218,7 +217,7 @@ def kernel_for(model: ClosedFormModel, n_data: int, *, origin: str = ""):
         return known[1]
     from ..engine import binding
     from ..engine import closed as engine
-    from ..engine.point import Threaded, strides
+    from ..engine.point import Threaded
 
     ref = load.function_ref(model.compute, "compute", model.name)
     key = hashlib.sha256()
@@ -231,7 +230,7 @@ def kernel_for(model: ClosedFormModel, n_data: int, *, origin: str = ""):
         compute = load.jitted(*ref)
         mod = binding.bind(name, f"model {model.name!r}, closed forms per design", {"kernel": engine.ARGS},
                            lambda: engine.build(compute, model.scratch, _guarded(ref)))
-        _KERNELS[name] = _Kernel(Threaded(mod.kernel, name, functools.partial(strides, block=engine.BLOCK)))
+        _KERNELS[name] = _Kernel(Threaded(mod.kernel, name, block=engine.BLOCK))
     _BY_MODEL[(id(model), n_data)] = (model, _KERNELS[name])
     return _KERNELS[name]
 
