@@ -20,7 +20,7 @@ import tempfile
 import time
 
 from mechsweep.bench.duffing import grid_scene
-from mechsweep.grid import Chunk
+from mechsweep.chunks import Chunk
 from mechsweep.engine import kernels as model_compile
 from mechsweep.execution.execute import evaluate_chunk, threads as _threads
 from mechsweep.execution.runner import run

@@ -109,7 +109,8 @@ def main(points: int = 200_000, threads: int | None = None, rtol: float | None =
     import numba
 
     from mechsweep import status as st
-    from mechsweep.grid import Chunk, parameter_matrix
+    from mechsweep.chunks import Chunk
+    from mechsweep.grid import parameter_matrix
     from mechsweep.models import duffing
     from mechsweep.execution.execute import evaluate_chunk, threads as _threads
     from mechsweep.scene import SOLVER_LIMITS, Solver, load_scene

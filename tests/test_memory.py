@@ -18,7 +18,8 @@ from mechsweep.store import read as store_read, write as store_write
 from mechsweep.execution import execute, runner
 from mechsweep.scene import sections as scene_sections
 from mechsweep.cli import main
-from mechsweep.grid import MAX_CHUNKS, Chunk, ChunkPlan, ParameterMatrix, chunk_target, least_target, plan_chunks
+from mechsweep.chunks import MAX_CHUNKS, Chunk, ChunkPlan, least_target, plan_chunks
+from mechsweep.grid import ParameterMatrix, chunk_target
 from mechsweep.scene import Axis, SceneError, load_scene
 
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mechsweep.grid import ParameterMatrix, plan_chunks
+from mechsweep.chunks import plan_chunks
+from mechsweep.grid import ParameterMatrix
 from mechsweep.scene import load_scene
 
 from tests.store.test_store_define import SWEEPS, _shrunk

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .chunks import MAX_CHUNKS, Chunk, ChunkPlan, least_target, plan_chunks  # noqa: F401  (the run's names, here too)
+from .chunks import MAX_CHUNKS, ChunkPlan, least_target
 
 if TYPE_CHECKING:  # not imported at run time: reading a dataset (plot, info) needs no model or numba
     from .scene import Scene

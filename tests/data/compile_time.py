@@ -5,7 +5,7 @@ Used to compare the built-in Duffing before and after it moved onto the model la
 import sys
 import time
 
-from mechsweep.grid import Chunk
+from mechsweep.chunks import Chunk
 from mechsweep.execution.execute import evaluate_chunk
 from mechsweep.scene import load_scene
 

@@ -8,7 +8,7 @@ import sys
 import time
 
 from mechsweep.bench.duffing import grid_scene
-from mechsweep.grid import Chunk
+from mechsweep.chunks import Chunk
 from mechsweep.execution.execute import evaluate_chunk, threads as _threads
 from mechsweep.scene import Solver, load_scene
 

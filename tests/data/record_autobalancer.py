@@ -140,7 +140,7 @@ def _evaluate(spec, P, wanted, solver):
 
 
 def evaluate_scene(path, method):
-    from mechsweep.grid import Chunk
+    from mechsweep.chunks import Chunk
     from mechsweep.execution.execute import evaluate_chunk
     from mechsweep.scene import load_scene
 

@@ -20,7 +20,7 @@ METHODS = ("dop853", "radau", "symplectic", "auto")
 def compute(path: Path, method: str) -> dict:
     import tomllib
 
-    from mechsweep.grid import Chunk
+    from mechsweep.chunks import Chunk
     from mechsweep.execution.execute import evaluate_chunk
     from mechsweep.scene import load_scene
 

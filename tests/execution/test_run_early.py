@@ -179,7 +179,8 @@ def test_without_a_progress_bar_a_grid_is_cut_in_few_large_chunks_and_resumes_wi
     least 20 chunks of a bar); a run interrupted so is resumed with its journal's cut, bar or not."""
     (in_tmp / "line.toml").write_text(LINE)
     scene = mechsweep.load_scene(in_tmp / "line.toml")
-    from mechsweep.grid import chunk_target, plan_chunks
+    from mechsweep.chunks import plan_chunks
+    from mechsweep.grid import chunk_target
 
     assert (chunk_target(scene), len(plan_chunks(scene.shape, chunk_target(scene)))) == (5000, 20)
     with interrupted_after(1):

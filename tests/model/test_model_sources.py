@@ -227,7 +227,7 @@ def test_a_dask_worker_with_other_sources_refuses_the_chunk():
     """A worker that would compute with other sources than the client's raises instead."""
     from mechsweep.execution.cluster import compute_chunk
     from mechsweep.errors import InputError
-    from mechsweep.grid import plan_chunks
+    from mechsweep.chunks import plan_chunks
     from mechsweep.models import MODELS
     from mechsweep.execution.plan import make_plan
 

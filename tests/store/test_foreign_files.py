@@ -451,7 +451,7 @@ def test_api_thread_count_must_be_a_whole_number(threads, in_tmp, small_duffing)
 
 def test_extreme_parameters_give_no_numpy_warnings():
     """Overflowing closed forms at extreme (valid) parameters give a status, not warnings on stderr."""
-    from mechsweep.grid import plan_chunks
+    from mechsweep.chunks import plan_chunks
 
     scene = mechsweep.load_scene({
         "scene": {"name": "x", "model": "autobalancer", "outputs": ["P_approx", "omega_p", "stable_first_approx"]},

@@ -27,7 +27,7 @@ import time
 import numpy as np
 
 from .. import status as st
-from ..grid import Chunk
+from ..chunks import Chunk
 from ..engine import kernels as model_compile
 from ..models import duffing
 from . import competitors

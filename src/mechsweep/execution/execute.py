@@ -15,7 +15,8 @@ import numpy as np
 from .. import _jit
 from .. import status as st
 from ..errors import InputError
-from ..grid import Chunk, ParameterMatrix
+from ..chunks import Chunk
+from ..grid import ParameterMatrix
 from .plan import Plan, make_plan
 
 

@@ -20,7 +20,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..grid import ChunkPlan, ParameterMatrix, chunk_target
+from ..chunks import ChunkPlan
+from ..grid import ParameterMatrix, chunk_target
 
 if TYPE_CHECKING:
     from ..scene import Scene

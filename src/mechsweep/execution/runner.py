@@ -26,7 +26,8 @@ from .. import cf
 from .. import status as st
 from ..errors import (ClusterLost, InputError, OutOfSpace, RunError, RunInterrupted, StoreError, WriteFailed,
                       why_os_error)
-from ..grid import Chunk, chunk_target, plan_chunks
+from ..chunks import Chunk, plan_chunks
+from ..grid import chunk_target
 from ..scene import Scene, check_scheduler, check_worker_timeout, load_scene
 from ..store.assemble import COMPILE_KEY, Early, MemorySink, assemble, status_counts
 from ..store.journal import BadChunk, Journal, RunLock, clear_discard, drop, partial_path
@@ -353,7 +354,7 @@ def _journal_target(scene: Scene, final: Path) -> int | None:
     target = meta.get("chunk_target") if isinstance(meta, dict) else None
     if isinstance(target, bool) or not isinstance(target, int) or target < 1:
         return None
-    from ..grid import MAX_CHUNKS
+    from ..chunks import MAX_CHUNKS
 
     return target if len(plan_chunks(scene.shape, target)) <= MAX_CHUNKS else None
 
@@ -483,7 +484,7 @@ def _compute(plan: Plan, final: Path, restart: bool, threads, progress, schedule
     for _ in range(REPAIR_ROUNDS):
         done = journal.done_chunks(repair=True)
         _report_removed(journal)
-        todo = [chunks[int(i)] for i in np.flatnonzero(~done)]  # at most grid.MAX_CHUNKS
+        todo = [chunks[int(i)] for i in np.flatnonzero(~done)]  # at most chunks.MAX_CHUNKS
         early = None
         try:
             with execute.threads(None if scheduler else threads):

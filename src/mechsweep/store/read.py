@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import h5py
 
 from ..errors import SYSTEM_ERRNOS, FileBusy, InputError, StoreError, file_kind, os_error_text, why_os_error
-from ..grid import plan_chunks
+from ..chunks import plan_chunks
 from .assemble import assemble
 from .journal import Journal, partial_path
 from .write import layout
