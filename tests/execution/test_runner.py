@@ -139,6 +139,12 @@ def test_resume_with_a_different_scene_is_refused(in_tmp, small_duffing):
     other["fixed"]["omega"] = 3.0
     with pytest.raises(StoreError, match="different scene"):
         mechsweep.run(other, output="data/runs/x.h5", resume=True)
+    tighter = copy.deepcopy(other)
+    tighter["solver"]["rtol"] = 1e-11
+    with pytest.raises(StoreError) as refused:  # the message names each key that differs, with both values
+        mechsweep.run(tighter, output="data/runs/x.h5", resume=True)
+    assert ("started from a different scene (fixed.omega: 2.0 when the run began, 3.0 now; solver.rtol: 1e-10 "
+            "when the run began, 1e-11 now); resume it") in str(refused.value), refused.value
     ds = mechsweep.run(other, output="data/runs/x.h5", restart=True)
     assert float(ds["omega"]) == 3.0
 
