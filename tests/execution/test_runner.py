@@ -124,8 +124,9 @@ def test_failed_run_leaves_finished_dataset_untouched(in_tmp, small_duffing):
     before = (in_tmp / "data/runs/keep.h5").read_bytes()
     changed = copy.deepcopy(small_duffing)
     changed["fixed"]["omega"] = 3.0
-    with pytest.raises(StoreError, match="different scene"):  # refused: it would replace another scene's run
+    with pytest.raises(StoreError, match="different scene") as refused:  # it would replace another scene's run
         mechsweep.run(changed, output="data/runs/keep.h5")
+    assert "a different scene (fixed.omega: 2.0 in the stored run, 3.0 now); use --overwrite" in str(refused.value)
     with interrupted_after(1), pytest.raises(mechsweep.RunInterrupted):
         mechsweep.run(changed, output="data/runs/keep.h5", overwrite=True)
     assert (in_tmp / "data/runs/keep.h5").read_bytes() == before

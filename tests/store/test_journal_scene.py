@@ -32,7 +32,7 @@ def test_each_changed_key_is_named_with_both_values():
         "outputs: [\"t_peak\", \"z_rms\"] when the run began, [\"t_peak\"] now; "
         "solver.method: \"dop853\" when the run began, \"radau\" now")
     assert scene_differences(began, changed(model_source_sha256="bb")) == (
-        "the model's source files changed since the run began")
+        "the model's source files changed")
 
 
 def test_axes_are_named_by_parameter_and_their_order_counts():

@@ -181,10 +181,10 @@ def _shown(value) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def scene_differences(stored: str, current: str, most: int = 3) -> str:
+def scene_differences(stored: str, current: str, most: int = 3, then: str = "when the run began") -> str:
     """What differs between two canonical scene forms (``Scene.canonical``), key by key, as a user
-    reads it: ``fixed.Y: 0.01 when the run began, 0.02 now``; at most ``most`` keys, then how many
-    more. "" when either is not such a form."""
+    reads it: ``fixed.Y: 0.01 when the run began, 0.02 now`` (``then`` says where the stored form
+    is from); at most ``most`` keys, then how many more. "" when either is not such a form."""
     try:
         old, new = json.loads(stored), json.loads(current)
     except (TypeError, ValueError):
@@ -200,20 +200,20 @@ def scene_differences(stored: str, current: str, most: int = 3) -> str:
                 pass
             else:
                 if sorted(a_names) == sorted(b_names) and a_names != b_names:
-                    found.append(f"axes: in the order {', '.join(a_names)} when the run began, "
+                    found.append(f"axes: in the order {', '.join(a_names)} {then}, "
                                  f"{', '.join(b_names)} now")
         if isinstance(a, dict) and isinstance(b, dict):
             for k in sorted(set(a) | set(b), key=str):
                 name = f"{key}.{k}" if key else str(k)
                 if k not in a:
-                    found.append(f"{name}: not given when the run began, {_shown(b[k])} now")
+                    found.append(f"{name}: not given {then}, {_shown(b[k])} now")
                 elif k not in b:
-                    found.append(f"{name}: {_shown(a[k])} when the run began, not given now")
+                    found.append(f"{name}: {_shown(a[k])} {then}, not given now")
                 else:
                     walk(a[k], b[k], name)
         elif a != b:
-            found.append("the model's source files changed since the run began" if key == "model_source_sha256"
-                         else f"{key}: {_shown(a)} when the run began, {_shown(b)} now")
+            found.append("the model's source files changed" if key == "model_source_sha256"
+                         else f"{key}: {_shown(a)} {then}, {_shown(b)} now")
 
     walk(old, new, "")
     more = f"; and {len(found) - most} more" if len(found) > most else ""
