@@ -76,3 +76,57 @@ def test_a_model_given_from_python_is_checked_too(tmp_path, monkeypatch):
                                                                  + ":VIBRATING_PENDULUM")], ids=lambda s: s.name)
 def test_every_built_in_and_shipped_declaration_passes(spec):
     user.check_declaration(spec, spec.name)
+
+
+# ------------------------------------------------------------ declarations no scene could use as meant
+def _ode(params=None, states=("x", "v")):
+    from mechsweep.model import OdeModel, Param, Period
+
+    def rhs(t, y, p, dydt):
+        dydt[0] = y[1]
+        dydt[1] = -p[0] * y[0]
+
+    def initial(p, y0):
+        y0[0] = 1.0
+        y0[1] = 0.0
+
+    return OdeModel(name="spring", description="x'' + k x = 0",
+                    params=params or (Param("k", "k", "s-2", "stiffness over mass", lo=0.0, lo_open=True),),
+                    states=states, rhs=rhs, initial=initial, measurements=(Period("period", "x", t_max=100.0),))
+
+
+@pytest.mark.parametrize("kw, words", [
+    (dict(lo=0.0, hi=10.0, required=False, default=20.0),
+     "parameter 'zeta': default = 20.0 is outside the physical range; expected a finite number in [0, 10]"),
+    (dict(lo=0.0, lo_open=True, required=False, default=0.0), "default = 0.0 is outside the physical range"),
+    (dict(lo=10.0, hi=0.0), "parameter 'zeta': lo = 10.0, hi = 0.0 (lo_open = False, hi_open = False) admit no value"),
+    (dict(lo=1.0, hi=1.0, hi_open=True), "admit no value"),
+    (dict(choices=("a", "b"), required=False, default=2.0), "default = 2.0 is not the index of one of its choices"),
+])
+def test_a_range_no_value_satisfies_or_a_default_outside_it_is_refused_when_declared(kw, words):
+    from mechsweep.model import Param
+
+    with pytest.raises(ValueError) as refused:
+        Param("zeta", "zeta", "1", "damping ratio", **kw)
+    assert words in str(refused.value), refused.value
+
+
+def test_a_nan_default_still_means_not_given_and_a_one_point_range_is_allowed():
+    from mechsweep.model import Param
+
+    assert Param("l", "l", "m", "rod", lo=0.0, lo_open=True, required=False, default=float("nan")).required is False
+    assert Param("c", "c", "1", "fixed", lo=1.0, hi=1.0, required=False, default=1.0).problem(1.0) is None
+
+
+def test_repeated_parameter_or_state_names_are_refused_when_declared():
+    from mechsweep.model import ClosedFormModel, Output, Param
+
+    k = Param("k", "k", "s-2", "stiffness over mass", lo=0.0, lo_open=True)
+    with pytest.raises(ValueError, match=r"model 'spring': parameter names repeat: \['k', 'k'\]"):
+        _ode(params=(k, k))
+    with pytest.raises(ValueError, match=r"model 'spring': state names repeat: \['x', 'x'\]"):
+        _ode(states=("x", "x"))
+    with pytest.raises(ValueError, match=r"model 'm': parameter names repeat: \['k', 'k'\]"):
+        ClosedFormModel(name="m", description="d", params=(k, k), outputs=(Output("a", "a", "1", "a"),),
+                        compute=len, size=3)
+    assert _ode().params == (k,)  # the same declaration with one of each loads
