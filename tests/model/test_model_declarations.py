@@ -102,6 +102,7 @@ def _ode(params=None, states=("x", "v")):
     (dict(lo=10.0, hi=0.0), "parameter 'zeta': lo = 10.0, hi = 0.0 (lo_open = False, hi_open = False) admit no value"),
     (dict(lo=1.0, hi=1.0, hi_open=True), "admit no value"),
     (dict(choices=("a", "b"), required=False, default=2.0), "default = 2.0 is not the index of one of its choices"),
+    (dict(lo=0.0, required=False), "parameter 'zeta': required=False needs a default"),
 ])
 def test_a_range_no_value_satisfies_or_a_default_outside_it_is_refused_when_declared(kw, words):
     from mechsweep.model import Param

@@ -84,6 +84,9 @@ class Param:
                 raise ValueError(f"parameter {self.name!r}: lo = {self.lo!r}, hi = {self.hi!r} (lo_open = "
                                  f"{self.lo_open}, hi_open = {self.hi_open}) admit no value; expected lo < hi")
         default = self.default
+        if default is None and not self.required:  # the kernel would receive NaN: every point nonfinite
+            raise ValueError(f"parameter {self.name!r}: required=False needs a default (the value used where a "
+                             "scene leaves the parameter out; NaN for 'not given', for the model's check)")
         if default is None or (isinstance(default, numbers.Real) and math.isnan(default)):
             return  # no default, or NaN: "not given", for a model's check() to tell apart
         if self.categorical:
