@@ -1,7 +1,9 @@
 """A user model is refused at load, naming the problem, when a dataset could not carry its
 declaration: a unit UDUNITS-2 does not read (the dataset claims CF), or a name that is no Python
 identifier or is a keyword (a dataset's dimensions are selected by keyword, ``ds.sel(lam=0.3)``).
-Every built-in model's declaration passes the same check."""
+Every built-in model's declaration passes the same check. A declaration no scene could use as
+meant (an empty range, a default outside it, repeated names) is refused when declared, and a
+misspelt model file is named with the closest file beside it."""
 from __future__ import annotations
 
 import pytest
@@ -131,3 +133,15 @@ def test_repeated_parameter_or_state_names_are_refused_when_declared():
         ClosedFormModel(name="m", description="d", params=(k, k), outputs=(Output("a", "a", "1", "a"),),
                         compute=len, size=3)
     assert _ode().params == (k,)  # the same declaration with one of each loads
+
+
+def test_a_misspelt_model_file_is_named_with_the_closest_python_file_beside_it(tmp_path, capsys):
+    (tmp_path / "base_osc.py").write_text("")
+    (tmp_path / "s.toml").write_text('[scene]\nname = "s"\nmodel = "base_os.py:M"\noutputs = ["period"]\n')
+    assert main(["check", str(tmp_path / "s.toml")]) == 2
+    err = capsys.readouterr()
+    assert f"model file {tmp_path / 'base_os.py'} does not exist (did you mean base_osc.py?)" in err.out + err.err
+    (tmp_path / "s.toml").write_text('[scene]\nname = "s"\nmodel = "zzz.py:M"\noutputs = ["period"]\n')
+    assert main(["check", str(tmp_path / "s.toml")]) == 2
+    err = capsys.readouterr()
+    assert "zzz.py does not exist" in err.out + err.err and "did you mean" not in err.out + err.err
