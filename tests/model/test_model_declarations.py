@@ -6,6 +6,7 @@ meant (an empty range, a default outside it, repeated names) is refused when dec
 misspelt model file is named with the closest file beside it."""
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from mechsweep.cli import main
@@ -145,3 +146,28 @@ def test_a_misspelt_model_file_is_named_with_the_closest_python_file_beside_it(t
     assert main(["check", str(tmp_path / "s.toml")]) == 2
     err = capsys.readouterr()
     assert "zzz.py does not exist" in err.out + err.err and "did you mean" not in err.out + err.err
+
+
+@pytest.mark.parametrize("t_max", [lambda p: 10.0, "10", float("inf"), 0.0, True])
+def test_a_crossing_or_period_t_max_that_is_no_positive_number_is_named(t_max):
+    from mechsweep.model import Crossing, Period
+
+    for m in (Crossing("t_cross", "x", t_max=t_max), Period("T", "x", t_max=t_max)):
+        with pytest.raises(ValueError, match=f"{m.name}: t_max = .*; expected a finite number > 0 .*FirstEvent's t_max"):
+            _ode_with(m)
+    _ode_with(Crossing("t_cross", "x", t_max=np.float64(10.0)))  # a numpy number is a number
+
+
+def _ode_with(measurement):
+    from mechsweep.model import OdeModel, Param
+
+    def rhs(t, y, p, dydt):
+        dydt[0] = y[1]
+        dydt[1] = -p[0] * y[0]
+
+    def initial(p, y0):
+        y0[0] = 1.0
+        y0[1] = 0.0
+
+    return OdeModel(name="spring", description="x'' + k x = 0", params=(Param("k", "k", "s-2", "k", lo=0.0),),
+                    states=("x", "v"), rhs=rhs, initial=initial, measurements=(measurement,))

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import functools
 import math
+import numbers
 import os
 import sys
 from dataclasses import dataclass, field
@@ -201,8 +202,10 @@ class Crossing:
             raise ValueError(f"{self.name}: direction {self.direction!r} is not one of {DIRECTIONS}")
         if not (isinstance(self.n, int) and self.n >= 1):
             raise ValueError(f"{self.name}: n = {self.n!r}; expected a whole number >= 1")
-        if not (math.isfinite(self.t_max) and self.t_max > 0):
-            raise ValueError(f"{self.name}: t_max = {self.t_max!r}; expected a finite number > 0")
+        if not (isinstance(self.t_max, numbers.Real) and not isinstance(self.t_max, bool)
+                and math.isfinite(self.t_max) and self.t_max > 0):
+            raise ValueError(f"{self.name}: t_max = {self.t_max!r}; expected a finite number > 0 (the same for "
+                             "every point: a horizon that depends on the parameters is FirstEvent's t_max(p))")
         if isinstance(self.level, bool) or not isinstance(self.level, (int, float)) or not math.isfinite(self.level):
             raise ValueError(f"{self.name}: level = {self.level!r}; expected a finite number")
 
