@@ -11,7 +11,7 @@ import pytest
 
 from mechsweep.cli import main
 from mechsweep.errors import InputError
-from mechsweep.model import user
+from mechsweep.model import Crossing, Extremum, Period, user
 from mechsweep.models import MODELS
 
 from tests.conftest import SWEEPS
@@ -150,8 +150,6 @@ def test_a_misspelt_model_file_is_named_with_the_closest_python_file_beside_it(t
 
 @pytest.mark.parametrize("t_max", [lambda p: 10.0, "10", float("inf"), 0.0, True])
 def test_a_crossing_or_period_t_max_that_is_no_positive_number_is_named(t_max):
-    from mechsweep.model import Crossing, Period
-
     for m in (Crossing("t_cross", "x", t_max=t_max), Period("T", "x", t_max=t_max)):
         with pytest.raises(ValueError, match=f"{m.name}: t_max = .*; expected a finite number > 0 .*FirstEvent's t_max"):
             _ode_with(m)
@@ -171,3 +169,17 @@ def _ode_with(measurement):
 
     return OdeModel(name="spring", description="x'' + k x = 0", params=(Param("k", "k", "s-2", "k", lo=0.0),),
                     states=("x", "v"), rhs=rhs, initial=initial, measurements=(measurement,))
+
+
+@pytest.mark.parametrize("make, words", [
+    (lambda: Crossing("c", "x", level="0"),
+     "c: level = '0'; expected a finite number"),
+    (lambda: Period("c", "x", level=len),
+     "c: level = <built-in function len>; expected a finite number"),
+    (lambda: Extremum("c", "x", "0", 1.0),
+     "c: t0 = '0'; expected a finite number or a function t0(p)"),
+])
+def test_a_level_or_window_that_is_no_number_is_named_not_a_format_error(make, words):
+    with pytest.raises(ValueError) as refused:
+        _ode_with(make())
+    assert words in str(refused.value), refused.value

@@ -60,6 +60,12 @@ def _is_number(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
+def _g(x) -> str:
+    """A number as %g for a default long name; anything else as its repr (validate() refuses it, naming
+    the field: the long name is made first, and must not fail on it)."""
+    return f"{x:g}" if isinstance(x, numbers.Real) else repr(x)
+
+
 def _check_state(state, states, what):
     if state not in states:
         raise ValueError(f"{what}: state {state!r} is not one of the model's states {states}")
@@ -193,7 +199,7 @@ class Crossing:
 
     def output(self) -> Output:
         return Output(self.name, self.name, self.unit,
-                      self.long_name or f"time of crossing {self.n} of {self.state} = {self.level:g} ({self.direction})",
+                      self.long_name or f"time of crossing {self.n} of {self.state} = {_g(self.level)} ({self.direction})",
                       integrated=True)
 
     def validate(self, states):
@@ -266,7 +272,7 @@ class Period:
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
 
     def output(self) -> Output:
-        return Output(self.name, "T", self.unit, self.long_name or f"period of {self.state} (crossings of {self.level:g})",
+        return Output(self.name, "T", self.unit, self.long_name or f"period of {self.state} (crossings of {_g(self.level)})",
                       integrated=True)
 
     def validate(self, states):
@@ -373,7 +379,7 @@ class Extremum:
 
     def _window(self) -> str:
         def one(x):
-            return f"{x:g}" if not callable(x) else f"{getattr(x, '__name__', 't')}(p)"
+            return _g(x) if not callable(x) else f"{getattr(x, '__name__', 't')}(p)"
         return f"[{one(self.t0)}, {one(self.t1)}]"
 
     def output(self) -> Output:
