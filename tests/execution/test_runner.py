@@ -124,8 +124,9 @@ def test_failed_run_leaves_finished_dataset_untouched(in_tmp, small_duffing):
     before = (in_tmp / "data/runs/keep.h5").read_bytes()
     changed = copy.deepcopy(small_duffing)
     changed["fixed"]["omega"] = 3.0
-    with pytest.raises(StoreError, match="different scene"):  # refused: it would replace another scene's run
+    with pytest.raises(StoreError, match="different scene") as refused:  # it would replace another scene's run
         mechsweep.run(changed, output="data/runs/keep.h5")
+    assert "a different scene (fixed.omega: 2.0 in the stored run, 3.0 now); use --overwrite" in str(refused.value)
     with interrupted_after(1), pytest.raises(mechsweep.RunInterrupted):
         mechsweep.run(changed, output="data/runs/keep.h5", overwrite=True)
     assert (in_tmp / "data/runs/keep.h5").read_bytes() == before
@@ -139,6 +140,12 @@ def test_resume_with_a_different_scene_is_refused(in_tmp, small_duffing):
     other["fixed"]["omega"] = 3.0
     with pytest.raises(StoreError, match="different scene"):
         mechsweep.run(other, output="data/runs/x.h5", resume=True)
+    tighter = copy.deepcopy(other)
+    tighter["solver"]["rtol"] = 1e-11
+    with pytest.raises(StoreError) as refused:  # the message names each key that differs, with both values
+        mechsweep.run(tighter, output="data/runs/x.h5", resume=True)
+    assert ("started from a different scene (fixed.omega: 2.0 when the run began, 3.0 now; solver.rtol: 1e-10 "
+            "when the run began, 1e-11 now); resume it") in str(refused.value), refused.value
     ds = mechsweep.run(other, output="data/runs/x.h5", restart=True)
     assert float(ds["omega"]) == 3.0
 

@@ -15,7 +15,8 @@ import numpy as np
 
 from ..errors import FileBusy, InputError, StoreError, WriteFailed, why_os_error
 from ..scene import Scene, load_scene_text
-from ..store.journal import RESTART, Journal, discard_path, lock_path, own_files_problem, partial_path
+from ..store.journal import (RESTART, Journal, discard_path, lock_path, own_files_problem, partial_path,
+                             scene_differences)
 from ..store.read import check_journal_files, file_kind
 from .plan import extra_shape
 
@@ -142,9 +143,10 @@ def _holds_same_scene(final: Path, scene: Scene, overwrite: bool) -> bool | None
         raise StoreError(f"{final} is a mechsweep benchmark dataset, not a run; use --overwrite to replace it, "
                          "or choose another path with -o")
     if same is False and not overwrite:
-        raise StoreError(f"{final} holds a finished run of a different scene (model, outputs, axes, fixed "
-                         "values or solver settings differ); use --overwrite to replace it, or choose "
-                         "another path with -o")
+        what = scene_differences(_stored_canonical(final), scene.canonical(), then="in the stored run")
+        raise StoreError(f"{final} holds a finished run of a different scene ("
+                         + (what or "model, outputs, axes, fixed values or solver settings differ")
+                         + "); use --overwrite to replace it, or choose another path with -o")
     return bool(same)
 
 
@@ -168,6 +170,17 @@ def _stored_same_scene(final: Path, scene: Scene) -> bool | None:
         raise StoreError(f"{final} is not a mechsweep dataset: it is an HDF5 file that cannot be read "
                          f"({str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__})") from None
     return same_scene(attrs, scene) if run else None
+
+
+def _stored_canonical(final: Path) -> str:
+    """The canonical scene form a finished dataset stores ("" if it cannot be read)."""
+    import h5py
+
+    try:
+        with h5py.File(final, "r") as f:
+            return str(_attr_text(f.attrs.get("scene_canonical", "")))
+    except Exception:  # noqa: BLE001 - only words for a refusal decided already
+        return ""
 
 
 def _attr_text(value):

@@ -92,6 +92,9 @@ class ClosedFormModel:
         names = [o.name for o in self.outputs]
         if len(set(names)) != len(names):
             raise ValueError(f"model {self.name!r}: output names repeat: {names}")
+        names = [p.name for p in self.params]
+        if len(set(names)) != len(names):  # a scene key and a dataset coordinate: one each
+            raise ValueError(f"model {self.name!r}: parameter names repeat: {names}")
         dims = {o.extra_dims for o in self.outputs if o.extra_dims}
         if len(dims) > 1 or any(len(d) != 1 for d in dims):
             raise ValueError(f"model {self.name!r}: every curve output must have the same single extra "

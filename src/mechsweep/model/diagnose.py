@@ -10,7 +10,12 @@ each switch, at the time the solvers pass there), with the initial state (the st
 not integrated here). The first exception gives its type, message, and the file and line in the
 model's code. Code reached only later in the integration (at t > 0 elsewhere, in a refinement, or
 in a formula of measured values) is not replayed: the answer then says so. A ClosedFormModel's
-``compute`` is replayed whole at the design (:func:`explain_closed`)."""
+``compute`` is replayed whole at the design (:func:`explain_closed`).
+
+Plain Python raises on float arithmetic the compiled kernel does by IEEE rules (numba's
+``error_model="numpy"``): ``1.0 / 0.0``, ``math.sqrt(-1.0)``, ``math.exp(1000.0)`` give inf or NaN
+there, not an exception. Such an error is not the point's USER_ERROR, so the replay passes over it
+(:func:`_ieee`) and names what raised after it."""
 from __future__ import annotations
 
 import math
@@ -35,6 +40,20 @@ def _where(exc: BaseException) -> str:
         return "unknown place"
     f = frames[-1]
     return f"{f.filename}, line {f.lineno}, in {f.name}"
+
+
+def _ieee(exc: BaseException) -> bool:
+    """Whether ``exc`` is plain Python's float error (a division by zero, a math domain or range
+    error) that the compiled code turns into inf or NaN, not an exception the model's code raises
+    itself (a ``raise`` statement)."""
+    frames = traceback.extract_tb(exc.__traceback__)
+    if frames and (frames[-1].line or "").lstrip().startswith("raise"):
+        return False
+    if isinstance(exc, (ZeroDivisionError, OverflowError)):
+        return True
+    text = str(exc)  # math's messages: "math domain error"; from Python 3.14 "expected a positive input, ..."
+    return isinstance(exc, ValueError) and (text == "math domain error"
+                                            or (text.startswith("expected a ") and " input" in text))
 
 
 def _switches(model, p) -> tuple:
@@ -120,6 +139,9 @@ def explain_closed(model, row: np.ndarray, want: np.ndarray, slot: np.ndarray, n
         with np.errstate(all="ignore"):
             code = func(*args, *[np.array(a) for a in data])
     except Exception as e:  # noqa: BLE001 - the user's exception is the answer
+        if _ieee(e):
+            return (f"compute raised {type(e).__name__}: {e} ({_where(e)}) in plain Python, where the compiled "
+                    "code gives inf or NaN and goes on: what raised there comes later in compute")
         return f"compute raised {type(e).__name__}: {e} ({_where(e)})"
     if code is None:
         return "compute returned None (expected a status code)"
@@ -135,10 +157,15 @@ def explain(model, row: np.ndarray, settings: np.ndarray, rtol: float) -> str:
     p[:n_p] = row
     p[n_p:n_p + n_s] = settings
     y0 = np.zeros(len(model.states))
+    passed = ""  # the first float error passed over (inf or NaN in the kernel), said if nothing else raised
     for what, call in _calls(model, p, y0, rtol):
         try:
-            call()
+            with np.errstate(all="ignore"):
+                call()
         except Exception as e:  # noqa: BLE001 - the user's exception is the answer
-            return f"{what} raised {type(e).__name__}: {e} ({_where(e)})"
+            if not _ieee(e):
+                return f"{what} raised {type(e).__name__}: {e} ({_where(e)})"
+            passed = passed or (f" ({what} raised {type(e).__name__}: {e} ({_where(e)}) in plain Python, "
+                                "inf or NaN in the compiled code, not an exception)")
     return ("no exception in plain Python up to the start of the integration: it raised later (at t > 0, "
-            "in a refinement or in a formula of measured values)")
+            "in a refinement or in a formula of measured values)" + passed)

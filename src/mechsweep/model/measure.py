@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import functools
 import math
+import numbers
 import os
 import sys
 from dataclasses import dataclass, field
@@ -57,6 +58,12 @@ DIRECTIONS = ("down", "up")
 
 def _is_number(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _g(x) -> str:
+    """A number as %g for a default long name; anything else as its repr (validate() refuses it, naming
+    the field: the long name is made first, and must not fail on it)."""
+    return f"{x:g}" if isinstance(x, numbers.Real) else repr(x)
 
 
 def _check_state(state, states, what):
@@ -192,7 +199,7 @@ class Crossing:
 
     def output(self) -> Output:
         return Output(self.name, self.name, self.unit,
-                      self.long_name or f"time of crossing {self.n} of {self.state} = {self.level:g} ({self.direction})",
+                      self.long_name or f"time of crossing {self.n} of {self.state} = {_g(self.level)} ({self.direction})",
                       integrated=True)
 
     def validate(self, states):
@@ -201,8 +208,10 @@ class Crossing:
             raise ValueError(f"{self.name}: direction {self.direction!r} is not one of {DIRECTIONS}")
         if not (isinstance(self.n, int) and self.n >= 1):
             raise ValueError(f"{self.name}: n = {self.n!r}; expected a whole number >= 1")
-        if not (math.isfinite(self.t_max) and self.t_max > 0):
-            raise ValueError(f"{self.name}: t_max = {self.t_max!r}; expected a finite number > 0")
+        if not (isinstance(self.t_max, numbers.Real) and not isinstance(self.t_max, bool)
+                and math.isfinite(self.t_max) and self.t_max > 0):
+            raise ValueError(f"{self.name}: t_max = {self.t_max!r}; expected a finite number > 0 (the same for "
+                             "every point: a horizon that depends on the parameters is FirstEvent's t_max(p))")
         if isinstance(self.level, bool) or not isinstance(self.level, (int, float)) or not math.isfinite(self.level):
             raise ValueError(f"{self.name}: level = {self.level!r}; expected a finite number")
 
@@ -263,7 +272,7 @@ class Period:
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
 
     def output(self) -> Output:
-        return Output(self.name, "T", self.unit, self.long_name or f"period of {self.state} (crossings of {self.level:g})",
+        return Output(self.name, "T", self.unit, self.long_name or f"period of {self.state} (crossings of {_g(self.level)})",
                       integrated=True)
 
     def validate(self, states):
@@ -370,7 +379,7 @@ class Extremum:
 
     def _window(self) -> str:
         def one(x):
-            return f"{x:g}" if not callable(x) else f"{getattr(x, '__name__', 't')}(p)"
+            return _g(x) if not callable(x) else f"{getattr(x, '__name__', 't')}(p)"
         return f"[{one(self.t0)}, {one(self.t1)}]"
 
     def output(self) -> Output:

@@ -329,6 +329,9 @@ class OdeModel:
         object.__setattr__(self, "status_notes", tuple(sorted(dict(self.status_notes).items())))
         if not self.states:
             raise ValueError(f"model {self.name!r}: states is empty")
+        for what, names in (("parameter", [p.name for p in self.params]), ("state", list(self.states))):
+            if len(set(names)) != len(names):  # a scene key, a dataset coordinate, a measured state: one each
+                raise ValueError(f"model {self.name!r}: {what} names repeat: {names}")
         if self.check is not None and not callable(self.check):
             raise ValueError(f"model {self.name!r}: check must be a function check(given) -> list of problems "
                              f"(got {self.check!r})")

@@ -75,6 +75,28 @@ class Param:
     latex: str = ""  # stored as the variable's ``latex`` attribute
     aliases: tuple[str, ...] = field(default=(), repr=False)  # not in the repr, which keys a user model's scenes
 
+    def __post_init__(self):
+        # a range no value satisfies, or a default its own range refuses, would be found by a scene
+        # (every value refused, "in [10, 0]") or never (the default used as it is): refused here
+        if not self.categorical:
+            lo, hi = float(self.lo), float(self.hi)
+            if math.isnan(lo) or math.isnan(hi) or lo > hi or (lo == hi and (self.lo_open or self.hi_open)):
+                raise ValueError(f"parameter {self.name!r}: lo = {self.lo!r}, hi = {self.hi!r} (lo_open = "
+                                 f"{self.lo_open}, hi_open = {self.hi_open}) admit no value; expected lo < hi")
+        default = self.default
+        if default is None and not self.required:  # the kernel would receive NaN: every point nonfinite
+            raise ValueError(f"parameter {self.name!r}: required=False needs a default (the value used where a "
+                             "scene leaves the parameter out; NaN for 'not given', for the model's check)")
+        if default is None or (isinstance(default, numbers.Real) and math.isnan(default)):
+            return  # no default, or NaN: "not given", for a model's check() to tell apart
+        if self.categorical:
+            if (isinstance(default, bool) or not isinstance(default, numbers.Real) or not float(default).is_integer()
+                    or not 0 <= default < len(self.choices)):
+                raise ValueError(f"parameter {self.name!r}: default = {default!r} is not the index of one of its "
+                                 f"choices; expected a whole number in [0, {len(self.choices) - 1}]")
+        elif (why := self.problem(default)) is not None:
+            raise ValueError(f"parameter {self.name!r}: default = {why}")
+
     @property
     def categorical(self) -> bool:
         return bool(self.choices)

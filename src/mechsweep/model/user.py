@@ -333,6 +333,14 @@ def check_model_file(ref: str, path: Path) -> None:
         mode = None
     if mode is None:
         hint = path.with_suffix(".py") if path.suffix != ".py" else None
+        if hint is None or not hint.is_file():  # a misspelt name: the closest Python file beside it
+            import difflib
+            try:
+                beside = sorted(p.name for p in path.parent.glob("*.py") if p.is_file())
+            except OSError:
+                beside = []
+            close = difflib.get_close_matches(path.name, beside, n=1, cutoff=0.8)
+            hint = path.parent / close[0] if close else None
         raise InputError(f"{ref!r}: model file {path} does not exist"
                          + (f" (did you mean {hint.name}?)" if hint is not None and hint.is_file() else ""))
     kinds = ((stat.S_ISDIR, "is a folder"), (stat.S_ISFIFO, "is a FIFO (named pipe)"),

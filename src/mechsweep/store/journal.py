@@ -176,6 +176,50 @@ def _read_pid(fd: int) -> str:
         return ""
 
 
+def _shown(value) -> str:
+    text = json.dumps(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def scene_differences(stored: str, current: str, most: int = 3, then: str = "when the run began") -> str:
+    """What differs between two canonical scene forms (``Scene.canonical``), key by key, as a user
+    reads it: ``fixed.Y: 0.01 when the run began, 0.02 now`` (``then`` says where the stored form
+    is from); at most ``most`` keys, then how many more. "" when either is not such a form."""
+    try:
+        old, new = json.loads(stored), json.loads(current)
+    except (TypeError, ValueError):
+        return ""
+    found: list[str] = []
+
+    def walk(a, b, key):
+        if key == "axes" and isinstance(a, list) and isinstance(b, list):  # [[name, spec], ...] in order
+            try:
+                a_names, b_names = [x[0] for x in a], [x[0] for x in b]
+                a, b = dict(a), dict(b)
+            except (TypeError, ValueError, IndexError, KeyError):
+                pass
+            else:
+                if sorted(a_names) == sorted(b_names) and a_names != b_names:
+                    found.append(f"axes: in the order {', '.join(a_names)} {then}, "
+                                 f"{', '.join(b_names)} now")
+        if isinstance(a, dict) and isinstance(b, dict):
+            for k in sorted(set(a) | set(b), key=str):
+                name = f"{key}.{k}" if key else str(k)
+                if k not in a:
+                    found.append(f"{name}: not given {then}, {_shown(b[k])} now")
+                elif k not in b:
+                    found.append(f"{name}: {_shown(a[k])} {then}, not given now")
+                else:
+                    walk(a[k], b[k], name)
+        elif a != b:
+            found.append("the model's source files changed" if key == "model_source_sha256"
+                         else f"{key}: {_shown(a)} {then}, {_shown(b)} now")
+
+    walk(old, new, "")
+    more = f"; and {len(found) - most} more" if len(found) > most else ""
+    return "; ".join(found[:most]) + more
+
+
 # ----------------------------------------------------------------------------- journal
 class Journal:
     """The ``PATH.partial/`` folder of one run. Open it with ``create`` or ``reopen`` while
@@ -232,9 +276,10 @@ class Journal:
         """Why this journal cannot be resumed by a run of ``canonical`` cut into chunks of
         ``chunk_target`` points (``n_chunks`` of them), or None."""
         if self.meta["scene_canonical"] != canonical:
-            return (f"{self.folder} was started from a different scene (model, outputs, axes, fixed values or "
-                    "solver settings differ); resume it with the scene it was started with, or start over "
-                    "with --restart")
+            what = scene_differences(self.meta["scene_canonical"], canonical)
+            return (f"{self.folder} was started from a different scene ("
+                    + (what or "model, outputs, axes, fixed values or solver settings differ")
+                    + "); resume it with the scene it was started with, or start over with --restart")
         if (self.meta["chunk_target"], self.meta["n_chunks"]) != (chunk_target, n_chunks):
             return (f"{self.folder} was cut into {self.meta['n_chunks']} chunks of up to "
                     f"{self.meta['chunk_target']} points, this run into {n_chunks} of up to {chunk_target}; "
