@@ -68,7 +68,7 @@ def tolerance_text(bds) -> str:
     ok = np.isfinite(loc) & np.isfinite(w)
     # relative to |boundary|, floored (as the location's tolerance is) for a boundary at 0
     scale = np.maximum(np.abs(loc[ok]), 1e-6 * np.max(np.abs(loc[ok]), initial=0.0)) if ok.any() else None
-    widest = f", widest bracket {np.max(w[ok] / scale):.1e}" if ok.any() and (scale > 0).all() else ""
+    widest = f", widest relative bracket {np.max(w[ok] / scale):.1e}" if ok.any() and (scale > 0).all() else ""
     return f"rtol {float(bds.attrs.get('rtol', np.nan)):.0e}{widest}"
 
 
@@ -104,8 +104,9 @@ def overlay(ax, bds, *, line_dim=None, sel=None, xmap=None, ymap=None, color=Non
         x = np.asarray(lines.values, dtype=float)
         ok = np.isfinite(x)
         if ok.any():
-            artists.append(_role(ax.scatter(xmap(x[ok]), ymap(y[ok]), s=9, marker="D", color=color or LOCATED_COLOR,
-                                            linewidths=0, zorder=4, label=text), "located", text))
+            # a white edge keeps the marks visible on every colour map, its dark end included
+            artists.append(_role(ax.scatter(xmap(x[ok]), ymap(y[ok]), s=16, marker="D", color=color or LOCATED_COLOR,
+                                            edgecolors="white", linewidths=0.6, zorder=4, label=text), "located", text))
     cont = bds.attrs.get("continue_in")
     if cont and f"curve_{along}" in bds and chart_other in (None, cont):
         cx, cy = _isel(bds[f"curve_{along}"], sel), _isel(bds[f"curve_{cont}"], sel)
@@ -163,7 +164,7 @@ def legend_entries(artists, bds, ds=None) -> list:
     marks = []
     if "located" in found:
         a = found["located"][0]
-        marks.append(Line2D([], [], marker="D", ls="none", ms=3.5, color=LOCATED_COLOR) if hasattr(a, "get_offsets")
+        marks.append(Line2D([], [], marker="D", ls="none", ms=4.5, color=LOCATED_COLOR, mec="white", mew=0.6) if hasattr(a, "get_offsets")
                      else Line2D([], [], color=LOCATED_COLOR, lw=1.0, ls=(0, (1, 1))))
     if "continued" in found:
         marks.append(Line2D([], [], color=CONTINUED_COLOR, lw=1.6))
