@@ -24,7 +24,7 @@ def describe(ds) -> str:
         c = ds[dim]
         vals = c.values
         rng = f"{vals[0]} .. {vals[-1]}" if vals.dtype.kind in "fiu" else ", ".join(map(str, vals[:6]))
-        lines.append(f"  {dim:<12} {ds.sizes[dim]:>7}  [{c.attrs.get('units', '')}]  {rng}  "
+        lines.append(f"  {dim:<12} {ds.sizes[dim]:>7}  [{c.attrs.get('units') or '-'}]  {rng}  "
                      f"({c.attrs.get('spacing', '')})  {c.attrs.get('long_name', '')}")
     fixed = [k for k in ds.coords if k not in ds.dims]
     if fixed:
@@ -46,7 +46,7 @@ def describe(ds) -> str:
         rng = f"{lo:.6g} .. {hi:.6g}" if np.isfinite(lo) else "no values"
         if np.isfinite(lo) and (lo_ok, hi_ok) != (lo, hi):
             rng += f" (at ok points {lo_ok:.6g} .. {hi_ok:.6g})" if np.isfinite(lo_ok) else " (none at an ok point)"
-        lines.append(f"  {name:<20} [{ds[name].attrs.get('units', '')}]  {rng}  {ds[name].attrs.get('long_name', '')}")
+        lines.append(f"  {name:<20} [{ds[name].attrs.get('units') or '-'}]  {rng}  {ds[name].attrs.get('long_name', '')}")
         lines.append(f"  {'':<20} {_presence(ds, name, codes)}")
     verdicts = [n for n in _outputs(ds) if output_kind(ds, n) == "verdict"]
     for i, a in enumerate(verdicts):
@@ -217,7 +217,7 @@ def model_text(spec) -> str:
     for o in spec.outputs:
         extra = " (integrated)" if o.integrated else ""
         dims = f" (per {', '.join(d.name for d in o.extra_dims)})" if o.extra_dims else ""
-        lines.append(f"    {o.name:<20} [{o.unit}] {o.long_name}{extra}{dims}")
+        lines.append(f"    {o.name:<20} [{o.unit or '-'}] {o.long_name}{extra}{dims}")
     if any(o.integrated for o in spec.outputs):
         from .ode import METHOD_HELP
 
@@ -233,7 +233,7 @@ def model_text(spec) -> str:
     if spec.settings:
         lines.append("  solver settings (besides method, rtol, atol, max_steps):")
         for st in spec.settings:
-            lines.append(f"    {st.name:<20} [{st.unit}] {st.long_name}; default {st.default:g}, "
+            lines.append(f"    {st.name:<20} [{st.unit or '-'}] {st.long_name}; default {st.default:g}, "
                          f"allowed [{st.lo:g}, {st.hi:g}]")
     from . import status
 

@@ -169,6 +169,20 @@ def test_info_ranges_cover_every_value_also_at_points_whose_status_is_not_ok():
     assert "held at points" not in lines[a + 1]
 
 
+def test_info_shows_a_missing_unit_as_a_dash():
+    """An output or axis stored without units (a user model's output declared without one) reads
+    [-] in info, as a parameter without a unit does in `mechsweep models`, not an empty []."""
+    from mechsweep.describe import describe
+
+    ds = _dataset("some_user_model", ["x"])
+    del ds["x"].attrs["units"]
+    del ds["k"].attrs["units"]
+    lines = describe(ds).splitlines()
+    assert "[-]  0 .. 1" in next(line for line in lines if line.startswith("  x "))
+    assert "[-]" in next(line for line in lines if line.startswith("  k "))
+    assert "[]" not in "\n".join(lines)
+
+
 def test_info_reads_the_declared_kinds_of_a_built_in_model_for_an_old_dataset():
     """A dataset written before kinds were stored: the built-in declaration says which outputs are
     verdicts (none is named in the reader), and its status notes are shown."""
