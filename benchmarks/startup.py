@@ -317,6 +317,7 @@ lap("import matplotlib, xarray")
 from mechsweep import figures
 from mechsweep.store import open_dataset
 lap("import mechsweep.figures, store")
+save = getattr(figures, "savefig", None)  # how `plot` writes a figure (older sources: matplotlib's savefig)
 with _no_dask_probe():
     ds = open_dataset(sys.argv[1])
     lap("open the dataset")
@@ -324,7 +325,10 @@ with _no_dask_probe():
     for kind in figures.available(ds):
         fig = plan[kind](ds).figure
         lap(f"draw {kind}")
-        fig.savefig(f"{sys.argv[2]}_{kind}.png", dpi=150)
+        if save is not None:
+            save(fig, f"{sys.argv[2]}_{kind}.png", format="png", dpi=150)
+        else:
+            fig.savefig(f"{sys.argv[2]}_{kind}.png", dpi=150)
         lap(f"savefig {kind} (layout, render, PNG)")
 print(json.dumps(phases))
 """

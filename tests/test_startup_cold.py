@@ -36,6 +36,30 @@ def test_plot_does_not_import_dask_and_leaves_xarray_as_it_was(in_tmp, small_duf
     assert len(pids) == 2 and here in pids and len(set(pids)) == 2
 
 
+def test_plot_process_ends_at_once_once_its_atexit_handlers_ran(in_tmp, small_duffing):
+    """The `mechsweep` program (python -m mechsweep, the console script: cli.script) ends the process of
+    `plot` as soon as the command is done and the atexit handlers have run (commands.leave): the
+    interpreter is not taken apart (an object still alive at the end is never finalized), and the
+    output and the exit code are the command's, also for an error. Other commands exit as usual."""
+    mechsweep.run(small_duffing, output="data/runs/s.h5")
+    code = ("import atexit, runpy, sys\n"
+            "class Alive:\n    def __del__(self): print('taken apart', flush=True)\n"
+            "alive = Alive(); atexit.register(print, 'atexit ran')\n"
+            "sys.argv = ['mechsweep'] + sys.argv[1:]; runpy.run_module('mechsweep', run_name='__main__')\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    for args, returncode, last in ((["plot", "data/runs/s.h5"], 0, "atexit ran"),
+                                   (["plot", "data/runs/missing.h5"], 2, "atexit ran"),
+                                   (["info", "data/runs/s.h5"], 0, "taken apart")):
+        out = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, cwd=in_tmp, env=env)
+        assert out.returncode == returncode, out.stderr
+        lines = out.stdout.strip().splitlines()
+        assert lines[-1] == last and "atexit ran" in lines and ("taken apart" in lines) == (args[0] != "plot")
+        if returncode == 0 and args[0] == "plot":
+            assert lines[:-1] == [f"wrote data/runs/s_{k}.png" for k in ("amplitude_period", "kinematic_coefficients")]
+        if returncode == 2:
+            assert "missing.h5 does not exist" in out.stderr and "Traceback" not in out.stderr
+
+
 def test_side_by_side_runs_jobs_in_forked_processes_and_raises_what_they_raised(tmp_path):
     """figures.jobs.side_by_side (`mechsweep plot`'s figures on two cores): the first job here, the others in
     forked children; an exception of a child is raised here with its type; an exception here is raised

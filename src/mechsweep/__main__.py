@@ -1,6 +1,4 @@
 """`python -m mechsweep ...`: the same as the `mechsweep` command."""
-import sys
+from .cli import script
 
-from .cli import main
-
-sys.exit(main())
+script()

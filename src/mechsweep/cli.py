@@ -10,7 +10,7 @@ import signal
 import sys
 import warnings
 
-from .commands import EXIT_INVALID, boundaries, check, examples, held_collector, info, models, plot, run
+from .commands import EXIT_INVALID, boundaries, check, examples, held_collector, info, leave, models, plot, run
 
 DESCRIPTION = """\
 Parameter sweeps over the dynamics of machine mechanisms, compiled with numba.
@@ -42,6 +42,14 @@ examples:
 def main(argv: list[str] | None = None) -> int:
     with held_collector(argv):  # the command's own process: no full collections during its start-up
         return _main(argv)
+
+
+def script() -> None:
+    """The ``mechsweep`` program (its console script, ``python -m mechsweep``): :func:`main` on the
+    command line, then the process ends with its exit code (at once after `plot`: ``commands.leave``)."""
+    code = main()
+    leave(sys.argv[1] if len(sys.argv) > 1 else None, code)
+    sys.exit(code)
 
 
 def _main(argv: list[str] | None) -> int:
@@ -133,4 +141,4 @@ def _parser() -> argparse.ArgumentParser:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    script()

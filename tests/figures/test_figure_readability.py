@@ -242,3 +242,49 @@ def test_any_declared_text_gives_labels_matplotlib_draws(symbol, long_name, unit
             _drawn(text)
         except Exception as exc:  # the declaration and the label in the message
             raise AssertionError(f"{attrs}: {text!r}: {type(exc).__name__}") from exc
+
+
+def test_labels_holding_the_same_symbol_parse_it_once(monkeypatch):
+    """A figure's labels repeat their symbols (the axis label, a legend, the fixed parameters' caption):
+    the check that matplotlib parses a label (_mathtext._parses) parses each math span once, not each
+    label whole again; a label with one span that does not parse still fails the check."""
+    from matplotlib.mathtext import MathTextParser
+
+    from mechsweep import _mathtext
+
+    calls = []
+    parse = MathTextParser.parse
+
+    def counted(self, s, *args, **kwargs):
+        calls.append(s)
+        return parse(self, s, *args, **kwargs)
+
+    monkeypatch.setattr(MathTextParser, "parse", counted)
+    monkeypatch.setattr(_mathtext, "_PARSED", {})
+    for text in ("$\\omega_{0}$", "$\\omega_{0}$, natural frequency", "fixed: $\\omega_{0}$ = 1 rad s$^{-1}$",
+                 "$\\omega_{0}$\u00a0=\u00a01\u00a0rad\u00a0s$^{-1}$"):
+        assert _mathtext._parses(text)
+    assert calls == ["$\\omega_{0}$", "$^{-1}$"]
+    assert not _mathtext._parses("$\\omega_{0}$ and $\\nosuchsymbol$")
+
+
+LINE = __import__("hypothesis").strategies.text(
+    alphabet=__import__("hypothesis").strategies.sampled_from(list("$$$\\ax_^{} ()=,~%#&12αω\u00a0\r\n")), max_size=16)
+
+
+@__import__("hypothesis").settings(max_examples=300, deadline=None, derandomize=True, database=None)
+@__import__("hypothesis").given(text=LINE)
+def test_the_check_by_math_span_says_what_matplotlibs_parser_says_of_the_whole(text):
+    """_mathtext._parses (each math span of a line checked once) is True exactly when matplotlib's mathtext
+    parser reads the whole text: dollar signs escaped or not, backslashes, braces, line breaks."""
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.mathtext import MathTextParser
+
+    from mechsweep import _mathtext
+
+    try:
+        MathTextParser("path").parse(text, 72, FontProperties())
+        whole = True
+    except Exception:  # noqa: BLE001 (any parse failure)
+        whole = False
+    assert _mathtext._parses(text) == whole, text

@@ -95,6 +95,32 @@ def test_save_writes_files(datasets, tmp_path):
     assert [p.name for p in written] == ["nomo.png"] and written[0].stat().st_size > 20_000
 
 
+@pytest.mark.parametrize("name,kind,axes", [("quickstart", "amplitude_period", None),
+                                            ("quickstart", "kinematic_coefficients", None),
+                                            ("autobalancer_damping", "stability_chart", None),
+                                            ("quickstart", None, ("A", "mu"))])
+def test_save_writes_matplotlibs_png_byte_for_byte_drawing_the_figure_once(datasets, tmp_path, monkeypatch, name,
+                                                                          kind, axes):
+    """figures.save (and so `mechsweep plot`) writes the file matplotlib's savefig writes of the same figure,
+    byte for byte (pixels and metadata), but draws the figure once: matplotlib's savefig of a figure
+    with a layout engine draws it twice, once with drawing turned off to lay it out (figures.savefig).
+    The figure is left with its canvas, resolution and layout engine (a stability map with hatching,
+    a generic heatmap with its colourbar among them)."""
+    from matplotlib.figure import Figure
+
+    ds = datasets[name]
+    kind = kind or next(iter(figures.available(ds, axes)))
+    figures.draw(ds, kind, axes=axes).savefig(tmp_path / "theirs.png", format="png", dpi=150)
+    draws, draw = [], Figure.draw
+    monkeypatch.setattr(Figure, "draw", lambda self, renderer: (draws.append(self), draw(self, renderer))[1])
+    assert figures.save(ds, tmp_path / "ours.png", kind=kind, axes=axes) == [tmp_path / "ours.png"]
+    assert (tmp_path / "ours.png").read_bytes() == (tmp_path / "theirs.png").read_bytes()
+    assert len(draws) == 1
+    fig = draws[0]
+    assert type(fig.canvas).__name__ == "FigureCanvasBase" and fig.dpi == Figure().dpi
+    assert type(fig.get_layout_engine()).__name__ == "ConstrainedLayoutEngine"
+
+
 def test_time_history_of_one_point_via_the_cli(datasets, tmp_path, capsys):
     from mechsweep.cli import main
 

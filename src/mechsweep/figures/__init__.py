@@ -309,10 +309,50 @@ def save(ds, path, *, kind: str | None = None, fmt: str = "png", dpi: int = 150,
             raise InputError(f"boundaries: {why}")
     written = []
     for k, out in zip([kind] if kind else list(kinds), targets(ds, path, kind=kind, fmt=fmt, axes=axes)):
-        fig = plan[k](ds).figure
-        fig.savefig(out, format=fmt, dpi=dpi)
+        savefig(plan[k](ds).figure, out, format=fmt, dpi=dpi)
         written.append(out)
     return written
+
+
+def savefig(fig, path, *, format: str = "png", dpi: int = 150) -> None:
+    """Write ``fig`` to ``path``: the file of ``fig.savefig(path, format=format, dpi=dpi)``, byte for
+    byte, in one pass over the figure's artists instead of two for a PNG of a figure laid out by a
+    layout engine (constrained layout, as every figure of this package).
+
+    matplotlib's savefig runs the engine inside a first draw that renders nothing, each artist
+    drawn with drawing turned off, then draws the figure again into the file, on a canvas of its
+    own. Here the PNG's canvas is the figure's for the time of the call: the engine runs alone at
+    the file's resolution, measuring the texts with that canvas's renderer (which keeps their
+    sizes and parsed mathtext for the draw that follows), and the figure is saved without its
+    engine, so nothing is laid out again. The artists' places come from the layout alone, never
+    from the first draw. The figure's canvas, resolution and engine are put back afterwards.
+    Other formats, and figures without an engine or axes, go to ``fig.savefig`` as they are."""
+    import matplotlib
+
+    engine = fig.get_layout_engine()
+    if engine is None or format != "png" or not fig.axes:
+        fig.savefig(path, format=format, dpi=dpi)
+        return
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas, resolution = fig.canvas, fig.dpi
+    FigureCanvasAgg(fig)  # the canvas savefig would draw a PNG on, the figure's until the file is written
+    fig.dpi = dpi
+    try:
+        try:
+            engine.execute(fig)
+        except ValueError:  # as Figure.draw: a layout that cannot be made leaves the figure as it is
+            pass
+        # set_layout_engine(None) takes rcParams' default engine; under these, none
+        with matplotlib.rc_context({"figure.autolayout": False, "figure.constrained_layout.use": False}):
+            fig.set_layout_engine(None)
+        try:
+            fig.savefig(path, format=format, dpi=dpi)
+        finally:
+            fig.set_layout_engine(engine)
+    finally:
+        fig.dpi = resolution
+        fig.set_canvas(canvas)
 
 
 def _axes_text(axes) -> str:
