@@ -1,7 +1,9 @@
 """Shared fixtures: small scenes and a temporary working directory."""
 from __future__ import annotations
 
+import contextlib
 import copy
+import signal
 import sys
 from pathlib import Path
 
@@ -52,3 +54,17 @@ def in_tmp(tmp_path, monkeypatch):
     (tmp_path / "data" / "runs").mkdir(parents=True)
     monkeypatch.chdir(tmp_path)
     return tmp_path
+
+
+@contextlib.contextmanager
+def ctrl_c_as_from_a_terminal():
+    """Children started inside the block get Ctrl-C's default action, as from a terminal. A suite
+    started in the background by a script (``python -m pytest &``: a non-interactive shell starts it
+    with SIGINT ignored) passes the ignored signal on to every child, where Python then installs no
+    KeyboardInterrupt handler: a test that sends SIGINT to a child would see it ignored."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+

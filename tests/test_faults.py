@@ -20,6 +20,7 @@ from mechsweep.store.journal import Journal, partial_path
 from mechsweep.errors import InputError
 from mechsweep.scene import Execution
 
+from .conftest import ctrl_c_as_from_a_terminal
 from .data.interrupt import interrupted_after
 
 SCENE = """
@@ -622,8 +623,10 @@ SIGNAL_CASES = [("SIGTERM", "computing"), ("SIGTERM", "assembling"), ("SIGINT", 
 @pytest.mark.parametrize("sig,site", SIGNAL_CASES, ids=[f"{s}-{w}" for s, w in SIGNAL_CASES])
 def test_sigterm_and_sigint_keep_the_journal_with_a_message(scene_file, reference, sig, site):
     (scene_file.parent / "signaller.py").write_text(SIGNALLER)
-    child = subprocess.run([sys.executable, "signaller.py", sig, site, "run", "faults.toml", "-o", OUT,
-                            "--no-progress", "--threads", "1"], cwd=scene_file.parent, capture_output=True, text=True)
+    with ctrl_c_as_from_a_terminal():
+        child = subprocess.run([sys.executable, "signaller.py", sig, site, "run", "faults.toml", "-o", OUT,
+                                "--no-progress", "--threads", "1"], cwd=scene_file.parent, capture_output=True,
+                               text=True)
     expected = 128 + getattr(signal, sig)
     assert child.returncode == expected, f"exit {child.returncode}: {child.stderr[-2000:]}"
     assert f"interrupted ({sig})" in child.stderr and "run again with --resume" in child.stderr, child.stderr

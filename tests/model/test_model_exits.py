@@ -23,6 +23,8 @@ from mechsweep.cli import main
 from mechsweep.errors import InputError
 from mechsweep.model import user
 
+from tests.conftest import ctrl_c_as_from_a_terminal
+
 HERE = Path(__file__).resolve().parents[1]
 USER = HERE / "user_models"
 SRC = Path(mechsweep.__file__).resolve().parents[1]  # the children import the mechsweep this process tests
@@ -85,9 +87,10 @@ def test_the_stand_ins_and_the_signal_handlers_are_put_back(importable):
 def _cli(tmp_path, model, *command, env=None):
     (tmp_path / "data" / "runs").mkdir(parents=True, exist_ok=True)
     (tmp_path / "s.toml").write_text(scene(model))
-    return subprocess.Popen([sys.executable, "-m", "mechsweep", *command, "s.toml"], cwd=tmp_path, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            env={**os.environ, "PYTHONPATH": str(SRC), **(env or {})})
+    with ctrl_c_as_from_a_terminal():
+        return subprocess.Popen([sys.executable, "-m", "mechsweep", *command, "s.toml"], cwd=tmp_path, text=True,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                env={**os.environ, "PYTHONPATH": str(SRC), **(env or {})})
 
 
 @pytest.mark.parametrize("file, said", [("exit_os.py", "os._exit(0) called"),
