@@ -82,7 +82,7 @@ def test_every_built_in_and_shipped_declaration_passes(spec):
 
 
 # ------------------------------------------------------------ declarations no scene could use as meant
-def _ode(params=None, states=("x", "v")):
+def _ode(params=None, states=("x", "v"), measurement=None):
     from mechsweep.model import OdeModel, Param, Period
 
     def rhs(t, y, p, dydt):
@@ -95,7 +95,8 @@ def _ode(params=None, states=("x", "v")):
 
     return OdeModel(name="spring", description="x'' + k x = 0",
                     params=params or (Param("k", "k", "s-2", "stiffness over mass", lo=0.0, lo_open=True),),
-                    states=states, rhs=rhs, initial=initial, measurements=(Period("period", "x", t_max=100.0),))
+                    states=states, rhs=rhs, initial=initial,
+                    measurements=(measurement or Period("period", "x", t_max=100.0),))
 
 
 @pytest.mark.parametrize("kw, words", [
@@ -152,23 +153,8 @@ def test_a_misspelt_model_file_is_named_with_the_closest_python_file_beside_it(t
 def test_a_crossing_or_period_t_max_that_is_no_positive_number_is_named(t_max):
     for m in (Crossing("t_cross", "x", t_max=t_max), Period("T", "x", t_max=t_max)):
         with pytest.raises(ValueError, match=f"{m.name}: t_max = .*; expected a finite number > 0 .*FirstEvent's t_max"):
-            _ode_with(m)
-    _ode_with(Crossing("t_cross", "x", t_max=np.float64(10.0)))  # a numpy number is a number
-
-
-def _ode_with(measurement):
-    from mechsweep.model import OdeModel, Param
-
-    def rhs(t, y, p, dydt):
-        dydt[0] = y[1]
-        dydt[1] = -p[0] * y[0]
-
-    def initial(p, y0):
-        y0[0] = 1.0
-        y0[1] = 0.0
-
-    return OdeModel(name="spring", description="x'' + k x = 0", params=(Param("k", "k", "s-2", "k", lo=0.0),),
-                    states=("x", "v"), rhs=rhs, initial=initial, measurements=(measurement,))
+            _ode(measurement=m)
+    _ode(measurement=Crossing("t_cross", "x", t_max=np.float64(10.0)))  # a numpy number is a number
 
 
 @pytest.mark.parametrize("make, words", [
@@ -181,5 +167,5 @@ def _ode_with(measurement):
 ])
 def test_a_level_or_window_that_is_no_number_is_named_not_a_format_error(make, words):
     with pytest.raises(ValueError) as refused:
-        _ode_with(make())
+        _ode(measurement=make())
     assert words in str(refused.value), refused.value
