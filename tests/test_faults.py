@@ -640,6 +640,24 @@ def test_sigterm_and_sigint_keep_the_journal_with_a_message(scene_file, referenc
     resume_and_compare(scene_file.parent, reference)
 
 
+def test_a_run_started_ignoring_sigint_is_not_stopped_by_it(scene_file, reference):
+    """A script's background job (`mechsweep run ... &`: a non-interactive shell starts it with SIGINT
+    ignored) keeps ignoring SIGINT, as Python does: a Ctrl-C meant for the job in the foreground
+    neither stops the run nor loses anything; the dataset is the uninterrupted run's."""
+    (scene_file.parent / "signaller.py").write_text(SIGNALLER)
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # inherited by the child, as from such a shell
+    try:
+        child = subprocess.run([sys.executable, "signaller.py", "SIGINT", "computing", "run", "faults.toml", "-o",
+                                OUT, "--no-progress", "--threads", "1"], cwd=scene_file.parent, capture_output=True,
+                               text=True)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert child.returncode == 0 and "interrupted" not in child.stderr, f"exit {child.returncode}: {child.stderr}"
+    done, ref = mechsweep.open_dataset(scene_file.parent / OUT), mechsweep.open_dataset(reference)
+    for name in COMPARED:
+        np.testing.assert_array_equal(done[name].values, ref[name].values, err_msg=name)
+
+
 # ----------------------------------------------------------------------------- damaged journals
 def tree(folder):
     """What a folder holds, entry by entry, links not followed: kind, and the bytes of a file or

@@ -63,7 +63,9 @@ def _main(argv: list[str] | None) -> int:
     import threading
 
     main_thread = threading.current_thread() is threading.main_thread()  # only it may set handlers
-    previous = signal.signal(signal.SIGTERM, _terminate) if main_thread else None  # SIGTERM stops like Ctrl-C
+    # SIGTERM stops like Ctrl-C (unless the process was started ignoring it: execution/stopping.Signals)
+    handled = main_thread and signal.getsignal(signal.SIGTERM) is not signal.SIG_IGN
+    previous = signal.signal(signal.SIGTERM, _terminate) if handled else None
     from . import cf
 
     cli_args = cf.CLI_ARGS.set(tuple(sys.argv[1:] if argv is None else argv))
@@ -93,7 +95,7 @@ def _main(argv: list[str] | None) -> int:
         return EXIT_INVALID
     finally:
         cf.CLI_ARGS.reset(cli_args)
-        if main_thread:
+        if handled:
             signal.signal(signal.SIGTERM, previous if previous is not None else signal.SIG_DFL)
 
 

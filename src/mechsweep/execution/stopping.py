@@ -153,7 +153,10 @@ class Signals:
     signal is in ``signum``). Inside ``deferred()`` a signal is only noted (``pending()`` says
     so), and raised when the block ends, so files being written are closed first. SIGXFSZ is
     ignored, so that a write over the file-size limit fails with EFBIG instead of killing the
-    process. Handlers are only installed from the main thread (Python allows no other)."""
+    process. Handlers are only installed from the main thread (Python allows no other), and never
+    over a signal the process was started ignoring: a script's background job (``mechsweep run ... &``,
+    which a non-interactive shell starts with SIGINT ignored) is not stopped by a Ctrl-C meant for the
+    job in the foreground, as Python itself keeps such a SIGINT ignored."""
 
     def __init__(self):
         self.signum: int | None = None
@@ -163,7 +166,8 @@ class Signals:
     def __enter__(self) -> "Signals":
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
-                self._previous[sig] = signal.signal(sig, self._handle)
+                if signal.getsignal(sig) is not signal.SIG_IGN:
+                    self._previous[sig] = signal.signal(sig, self._handle)
             if hasattr(signal, "SIGXFSZ"):
                 self._previous[signal.SIGXFSZ] = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
         return self
