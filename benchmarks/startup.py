@@ -278,18 +278,20 @@ def phase(owner, name, label):
     setattr(owner, name, wrapper)
 import llvmlite.binding as ll
 from numba.core import caching, dispatcher, lowering, typed_passes, untyped_passes
-phase(dispatcher.Dispatcher, "compile", "numba: the rest (bytecode to IR, IR passes, dispatch, cache lookups)")
-phase(untyped_passes.InlineInlinables, "run_pass", "numba: IR inlining (inline='always': the callee's IR made, copied)")
-phase(typed_passes.BaseTypeInference, "run_pass", "numba: type inference")
-phase(lowering.BaseLower, "lower", "numba: lowering to LLVM IR")
-phase(lowering.BaseLower, "create_cpython_wrapper", "numba: CPython and cfunc wrappers")
-phase(lowering.BaseLower, "create_cfunc_wrapper", "numba: CPython and cfunc wrappers")
-phase(caching.Cache, "save_overload", "numba: disk cache writes")
-phase(codegen.CPUCodeLibrary, "add_ir_module", "LLVM: parse numba's IR text")
-phase(codegen.CPUCodeLibrary, "_optimize_functions", "LLVM: function passes")
-phase(ll.ModuleRef, "link_in", "LLVM: link the callees' modules")
-phase(codegen.CPUCodeLibrary, "_optimize_final_module", "LLVM: module passes (the linked module)")
-phase(codegen.CPUCodeLibrary, "_finalize_final_module", "LLVM: machine code (the linked module)")
+for owner, names, label in (
+        (dispatcher.Dispatcher, ("compile",), "numba: the rest (bytecode to IR, IR passes, dispatch, cache lookups)"),
+        (untyped_passes.InlineInlinables, ("run_pass",), "numba: IR inlining (inline='always': the callee's IR made, copied)"),
+        (typed_passes.BaseTypeInference, ("run_pass",), "numba: type inference"),
+        (lowering.BaseLower, ("lower",), "numba: lowering to LLVM IR"),
+        (lowering.BaseLower, ("create_cpython_wrapper", "create_cfunc_wrapper"), "numba: CPython and cfunc wrappers"),
+        (caching.Cache, ("save_overload",), "numba: disk cache writes"),
+        (codegen.CPUCodeLibrary, ("add_ir_module",), "LLVM: parse numba's IR text"),
+        (codegen.CPUCodeLibrary, ("_optimize_functions",), "LLVM: function passes"),
+        (ll.ModuleRef, ("link_in",), "LLVM: link the callees' modules"),
+        (codegen.CPUCodeLibrary, ("_optimize_final_module",), "LLVM: module passes (the linked module)"),
+        (codegen.CPUCodeLibrary, ("_finalize_final_module",), "LLVM: machine code (the linked module)")):
+    for name in names:
+        phase(owner, name, label)
 import mechsweep
 c0 = time.thread_time()
 ds = mechsweep.run(sys.argv[1], output=sys.argv[2], progress=False)  # the dataset the plot breakdown draws
