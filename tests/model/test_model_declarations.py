@@ -83,15 +83,10 @@ def test_every_built_in_and_shipped_declaration_passes(spec):
 
 # ------------------------------------------------------------ declarations no scene could use as meant
 def _ode(params=None, states=("x", "v"), measurement=None):
+    """x'' + k x = 0 (the spring of tests/user_models/unstorable.py) with a declaration's pieces replaced."""
     from mechsweep.model import OdeModel, Param, Period
 
-    def rhs(t, y, p, dydt):
-        dydt[0] = y[1]
-        dydt[1] = -p[0] * y[0]
-
-    def initial(p, y0):
-        y0[0] = 1.0
-        y0[1] = 0.0
+    from tests.user_models.unstorable import initial, rhs
 
     return OdeModel(name="spring", description="x'' + k x = 0",
                     params=params or (Param("k", "k", "s-2", "stiffness over mass", lo=0.0, lo_open=True),),
