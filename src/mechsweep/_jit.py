@@ -24,9 +24,15 @@ Options and why:
   :func:`jit_llvm_inline` instead: typed once, inlined by LLVM (``alwaysinline``), bitwise the same
   and as fast. The integrator's large functions (the RK step, the adaptive step) stay separate
   functions: inlining them gains little speed for much more compile time.
+- No cfunc wrapper (``no_cfunc_wrapper=True``): numba builds one for every function, for C callers
+  and first-class function values; mechsweep's functions are called from Python and numba code only.
 - :func:`jit_internal` for functions only numba code calls (the one-point kernel module's functions
-  but the kernel, the integrators' internal steps): no CPython and cfunc wrappers to build, optimise
-  and turn into machine code; a call from Python goes to a twin compiled on first use.
+  but the kernel, the integrators' internal steps): no CPython wrapper, and no machine code of their
+  own (:class:`_LinkOnlyLibrary`): numba links a callee's LLVM module into its caller's, optimises the
+  whole and makes machine code of it, so a callee's own optimised module and machine code were made
+  for nothing, at every level of the call tree. They are optimised once, in the module of the top
+  function (the binding's trampoline), and are in its cached machine code; a call from Python goes to
+  a twin compiled on first use.
 - ``cache=True`` into a folder keyed by a hash of the package sources (:func:`package_hash`):
   numba's own cache only checks the file of the decorated function, so a kernel that calls an
   integrator from another module would keep stale machine code after that module changed. Keying
@@ -73,14 +79,18 @@ from pathlib import Path
 
 import numba
 from numba.core import caching as _caching
+from numba.core.codegen import JITCodeLibrary
+from numba.core.compiler import Compiler, DefaultPassBuilder
+from numba.core.compiler_machinery import PassManager, register_pass
 from numba.core.registry import CPUDispatcher
+from numba.core.typed_passes import NativeLowering
 
 __all__ = ["jit", "jit_noalloc", "jit_inline", "jit_into_caller", "jit_internal", "jit_internal_noalloc", "jit_llvm_inline", "pjit", "prange", "literally", "compile_time_switch", "cache_folder", "num_threads", "set_num_threads"]
 
 prange = numba.prange
 literally = numba.literally
 
-_OPTIONS = dict(fastmath=False, nogil=True, error_model="numpy")
+_OPTIONS = dict(fastmath=False, nogil=True, error_model="numpy", no_cfunc_wrapper=True)
 
 # Guards the once-per-process steps below: kernels may be built in several threads (a dask worker's).
 _LOCK = threading.RLock()
@@ -456,17 +466,15 @@ def jit_into_caller(func):
     return _decorate(func, inline="always")
 
 
-# Wrappers numba builds for every compiled function, needed only to call it from Python (the CPython
-# wrapper) or through a C function pointer (the cfunc wrapper); see jit_internal.
-_NO_WRAPPERS = dict(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+# The wrapper numba builds for every compiled function to call it from Python (see jit_internal).
+_NO_WRAPPERS = dict(no_cpython_wrapper=True)
 
 
 class _NumbaOnly(CPUDispatcher):
-    """A dispatcher compiled without the CPython and cfunc wrappers (:func:`jit_internal`): numba callers
-    call it as any other. Its machine code has no Python entry point, so a call from Python goes to a
-    twin compiled with the wrappers, on first use and without the disk cache (numba keys a cache entry
-    by the function's file, name, types and code, not by these options: a cached twin could load the
-    entry without a Python entry point, or leave its own to this one)."""
+    """A dispatcher compiled without the CPython wrapper and machine code of its own
+    (:func:`jit_internal`): numba callers call it as any other. A call from Python goes to a twin
+    compiled with the wrapper, on first use and without the disk cache (numba keys a cache entry by the
+    function's file, name, types and code, not by these options)."""
 
     def __call__(self, *args, **kwargs):
         twin = self.__dict__.get("_python_twin")
@@ -476,18 +484,99 @@ class _NumbaOnly(CPUDispatcher):
         return twin(*args, **kwargs)
 
 
+class _LinkOnlyLibrary(JITCodeLibrary):
+    """The code library of a :func:`jit_internal` function: its LLVM module is only linked into its
+    callers' (numba links every callee's module into its caller's, optimises the whole and makes
+    machine code of it), so it is neither optimised as a module nor turned into machine code of its
+    own, which numba otherwise does for every function and again for every caller above it. Its
+    functions have no address (nothing calls them but the callers that link them)."""
+
+    def _optimize_final_module(self):
+        pass  # optimised once, in the module of the caller that is turned into machine code
+
+    def _finalize_final_module(self):
+        self._finalize_dynamic_globals()
+        self._verify_declare_only_symbols()
+        self._finalized = True
+
+    def get_pointer_to_function(self, name):
+        self._ensure_finalized()
+        return 0
+
+    @property
+    def codegen(self):
+        return _NoEnvironment(self._codegen)
+
+
+class _NoEnvironment:
+    """A codegen that does not set a function's environment pointer: numba sets it in the machine code
+    of the function's own library, which a :class:`_LinkOnlyLibrary` has none of (the copies linked
+    into callers never read it: a nopython function's environment is its CPython wrapper's)."""
+
+    def __init__(self, codegen):
+        self._codegen = codegen
+
+    def set_env(self, env_name, env):
+        pass
+
+    def __getattr__(self, name):
+        return getattr(self._codegen, name)
+
+
+class _LinkOnlyLowering(NativeLowering):
+    """numba's lowering, into a :class:`_LinkOnlyLibrary`."""
+    _name = "mechsweep_link_only_lowering"
+
+    def run_pass(self, state):
+        if state.library is None:
+            state.library = _LinkOnlyLibrary(state.targetctx.codegen(), state.func_id.func_qualname)
+            state.library.enable_object_caching()
+        return super().run_pass(state)
+
+
+_REGISTERED: list[bool] = []
+
+
+class _LinkOnlyCompiler(Compiler):
+    """numba's nopython pipeline with :class:`_LinkOnlyLowering` for its lowering."""
+
+    def define_pipelines(self):
+        if not _REGISTERED:  # numba's registry of passes, at the first compile rather than at import
+            with _LOCK:
+                if not _REGISTERED:
+                    register_pass(mutates_CFG=True, analysis_only=False)(_LinkOnlyLowering)
+                    _REGISTERED.append(True)
+        pm = PassManager("mechsweep_link_only")
+        for passes in (DefaultPassBuilder.define_untyped_pipeline(self.state),
+                       DefaultPassBuilder.define_typed_pipeline(self.state),
+                       DefaultPassBuilder.define_nopython_lowering_pipeline(self.state)):
+            pm.passes.extend((_LinkOnlyLowering if p is NativeLowering else p, d) for p, d in passes.passes)
+        pm.finalize()
+        return [pm]
+
+
+class _NoDiskCache(_caching.NullCache):
+    """No disk cache (a :class:`_LinkOnlyLibrary` has no machine code to save; its callers' cached
+    machine code holds it), with :func:`_before_compile` at the first compile, as :class:`_LazyCache`."""
+
+    def load_overload(self, sig, target_context):
+        _before_compile(False)
+        return None
+
+
 def _numba_only(func, **extra):
-    dispatcher = _decorate(func, **_NO_WRAPPERS, **extra)
+    dispatcher = _decorate(func, **_NO_WRAPPERS, **extra, pipeline_class=_LinkOnlyCompiler)
+    dispatcher._cache = _NoDiskCache()
     dispatcher.__class__ = _NumbaOnly
     return dispatcher
 
 
 def jit_internal(func):
-    """Compile a function that only numba code calls (a generated module's guards, the integrators'
-    steps), without the CPython and cfunc wrappers numba otherwise builds, lowers and turns into machine
-    code for every function it compiles (and links into each caller): most of a trivial function's
-    compile CPU, and the largest part of the compile of a function with a tuple argument (brent).
-    Called from Python it still works (see _NumbaOnly), through a twin compiled on first use."""
+    """Compile a function that only numba code calls (the one-point kernel's parts, the integrators'
+    steps): without the CPython wrapper numba otherwise builds, lowers and turns into machine code for
+    every function it compiles (most of a trivial function's compile CPU, the largest part of one with a
+    tuple argument: brent), and without machine code of its own (:class:`_LinkOnlyLibrary`: its callers'
+    holds it). Called from Python it still works (see _NumbaOnly), through a twin compiled on first use."""
     return _numba_only(func)
 
 

@@ -38,6 +38,30 @@ def test_internal_function_has_no_python_entry_yet_python_can_call_it():
     assert f(v) == 6.0
 
 
+def test_internal_function_is_machine_code_only_inside_its_callers():
+    """jit_internal's own LLVM module is neither optimised nor turned into machine code: its symbol is
+    not in numba's execution engine after it compiled, yet a caller that links it runs it (the copy in
+    the caller's machine code), and the Python twin gives the same value."""
+    def cubed(v):
+        return v[0] * v[0] * v[0]
+
+    f = jit_internal(cubed)
+    v = np.array([1.5])
+    f.compile((numba.typeof(v),))
+    (compiled,) = f.overloads.values()
+    engine = compiled.library._codegen._engine
+    assert not engine.is_symbol_defined(compiled.fndesc.llvm_func_name)
+
+    @jit
+    def caller(v):
+        return f(v) - 1.0
+
+    assert caller(v) == 1.5 ** 3 - 1.0
+    assert f(v) == 1.5 ** 3
+    assert not any(c.library._codegen._engine.is_symbol_defined(c.fndesc.llvm_cpython_wrapper_name)
+                   for c in f.overloads.values())
+
+
 def test_noalloc_and_inline_functions_work_on_caller_arrays():
     def scaled_sum(v, a):
         acc = 0.0
