@@ -435,6 +435,8 @@ def _distinct_qualname(func) -> None:
 
 def _decorate(func, **extra):
     _distinct_qualname(func)
+    if not extra.get("parallel"):
+        extra.setdefault("pipeline_class", _LINKING)
     dispatcher = numba.njit(**_OPTIONS, **extra)(func)
     # numba's cache=True would make the cache object now (its folder, a hash of the source file) and
     # in numba.config.CACHE_DIR; this one is made at the first compile, in mechsweep's folder
@@ -492,7 +494,7 @@ class _LinkOnlyLibrary(JITCodeLibrary):
     functions have no address (nothing calls them but the callers that link them)."""
 
     def _optimize_final_module(self):
-        pass  # optimised once, in the module of the caller that is turned into machine code
+        pass  # optimised in the module of the caller that is turned into machine code (_LinkingLibrary)
 
     def _finalize_final_module(self):
         self._finalize_dynamic_globals()
@@ -506,6 +508,19 @@ class _LinkOnlyLibrary(JITCodeLibrary):
     @property
     def codegen(self):
         return _NoEnvironment(self._codegen)
+
+
+class _LinkingLibrary(JITCodeLibrary):
+    """The code library of mechsweep's other functions: a module that links :class:`_LinkOnlyLibrary`
+    modules is optimised twice. numba optimised every callee's module before linking it, and LLVM's
+    inliner decides on the optimised callees: optimised once, unoptimised callees and all, the lane
+    kernel ran about 4 % slower (``python benchmarks/startup.py --only routes``); the second pass costs
+    far less than the callees' own passes did."""
+
+    def _optimize_final_module(self):
+        super()._optimize_final_module()
+        if any(isinstance(lib, _LinkOnlyLibrary) for lib in self._linking_libraries):
+            super()._optimize_final_module()
 
 
 class _NoEnvironment:
@@ -523,36 +538,51 @@ class _NoEnvironment:
         return getattr(self._codegen, name)
 
 
-class _LinkOnlyLowering(NativeLowering):
-    """numba's lowering, into a :class:`_LinkOnlyLibrary`."""
-    _name = "mechsweep_link_only_lowering"
+def _lowering(library_class):
+    """numba's lowering pass, into a code library of ``library_class``."""
 
-    def run_pass(self, state):
-        if state.library is None:
-            state.library = _LinkOnlyLibrary(state.targetctx.codegen(), state.func_id.func_qualname)
-            state.library.enable_object_caching()
-        return super().run_pass(state)
+    class Lowering(NativeLowering):
+        _name = f"mechsweep_lowering_{library_class.__name__.strip('_').lower()}"
+
+        def run_pass(self, state):
+            if state.library is None:
+                state.library = library_class(state.targetctx.codegen(), state.func_id.func_qualname)
+                state.library.enable_object_caching()
+            return super().run_pass(state)
+
+    Lowering.__qualname__ = Lowering.__name__ = f"Lowering_{library_class.__name__}"
+    return Lowering
 
 
+_LOWERINGS = {lib: _lowering(lib) for lib in (_LinkOnlyLibrary, _LinkingLibrary)}
 _REGISTERED: list[bool] = []
 
 
-class _LinkOnlyCompiler(Compiler):
-    """numba's nopython pipeline with :class:`_LinkOnlyLowering` for its lowering."""
+def _compiler(library_class):
+    """numba's nopython pipeline (its compiler class) with the lowering into ``library_class``."""
+    lowering = _LOWERINGS[library_class]
 
-    def define_pipelines(self):
-        if not _REGISTERED:  # numba's registry of passes, at the first compile rather than at import
-            with _LOCK:
-                if not _REGISTERED:
-                    register_pass(mutates_CFG=True, analysis_only=False)(_LinkOnlyLowering)
-                    _REGISTERED.append(True)
-        pm = PassManager("mechsweep_link_only")
-        for passes in (DefaultPassBuilder.define_untyped_pipeline(self.state),
-                       DefaultPassBuilder.define_typed_pipeline(self.state),
-                       DefaultPassBuilder.define_nopython_lowering_pipeline(self.state)):
-            pm.passes.extend((_LinkOnlyLowering if p is NativeLowering else p, d) for p, d in passes.passes)
-        pm.finalize()
-        return [pm]
+    class Compiler_(Compiler):
+        def define_pipelines(self):
+            if not _REGISTERED:  # numba's registry of passes, at the first compile rather than at import
+                with _LOCK:
+                    if not _REGISTERED:
+                        for cls in _LOWERINGS.values():
+                            register_pass(mutates_CFG=True, analysis_only=False)(cls)
+                        _REGISTERED.append(True)
+            pm = PassManager(lowering._name)
+            for passes in (DefaultPassBuilder.define_untyped_pipeline(self.state),
+                           DefaultPassBuilder.define_typed_pipeline(self.state),
+                           DefaultPassBuilder.define_nopython_lowering_pipeline(self.state)):
+                pm.passes.extend((lowering if p is NativeLowering else p, d) for p, d in passes.passes)
+            pm.finalize()
+            return [pm]
+
+    Compiler_.__qualname__ = Compiler_.__name__ = f"Compiler_{library_class.__name__}"
+    return Compiler_
+
+
+_LINK_ONLY, _LINKING = _compiler(_LinkOnlyLibrary), _compiler(_LinkingLibrary)
 
 
 class _NoDiskCache(_caching.NullCache):
@@ -565,7 +595,7 @@ class _NoDiskCache(_caching.NullCache):
 
 
 def _numba_only(func, **extra):
-    dispatcher = _decorate(func, **_NO_WRAPPERS, **extra, pipeline_class=_LinkOnlyCompiler)
+    dispatcher = _decorate(func, **_NO_WRAPPERS, **extra, pipeline_class=_LINK_ONLY)
     dispatcher._cache = _NoDiskCache()
     dispatcher.__class__ = _NumbaOnly
     return dispatcher
