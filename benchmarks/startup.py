@@ -283,7 +283,7 @@ for owner, names, label in (
         (untyped_passes.InlineInlinables, ("run_pass",), "numba: IR inlining (inline='always': the callee's IR made, copied)"),
         (typed_passes.BaseTypeInference, ("run_pass",), "numba: type inference"),
         (lowering.BaseLower, ("lower",), "numba: lowering to LLVM IR"),
-        (lowering.BaseLower, ("create_cpython_wrapper", "create_cfunc_wrapper"), "numba: CPython and cfunc wrappers"),
+        (lowering.BaseLower, ("create_cpython_wrapper", "create_cfunc_wrapper"), "numba: CPython wrappers"),
         (caching.Cache, ("save_overload",), "numba: disk cache writes"),
         (codegen.CPUCodeLibrary, ("add_ir_module",), "LLVM: parse numba's IR text"),
         (codegen.CPUCodeLibrary, ("_optimize_functions",), "LLVM: function passes"),

@@ -35,10 +35,10 @@ ROUTES = ("point", "lanes")
 USE_LANES: bool | None = None
 # The lane kernel compiles in about twice the CPU time of the one-point kernel and integrates about
 # twice as fast (Duffing period, sweeps/quickstart.toml; `python benchmarks/startup.py --only routes`
-# measures both and prints the crossover): its extra compile, about 11 s of CPU, is repaid at about 8e6
-# points, so 10^7 keeps a margin. A plan takes the lanes for a run of at least this many points, or when they are
+# measures both and prints the crossover): its extra compile, about 5-5.5 s of CPU, is repaid at
+# 5.4e6-6.0e6 points. A plan takes the lanes for a run of at least this many points, or when they are
 # compiled already (``lanes_recorded``).
-LANES_FROM_POINTS = 10**7
+LANES_FROM_POINTS = 6 * 10**6
 _BY_OBJECTS: dict[tuple, tuple] = {}  # names()' memo by the objects' ids: (the objects kept alive, names)
 _KERNELS: dict[str, object] = {}  # binding name -> kernel, in this process
 _RECORDED: set[str] = set()  # lane kernels compiled (or loaded from the disk cache) in this process
