@@ -169,9 +169,14 @@ def _checks(links: tuple):
 @functools.cache
 def _observe_link(obs, k, always: bool, fold):
     """Measurement k observes its rows where it is chosen and applies (``always``: also where its
-    classify skipped it, when K[k, -1] != 0, its status only where it applies)."""
+    classify skipped it, when K[k, -1] != 0, its status only where it applies). Each link, the chain's
+    ``observe`` and ``admit`` are functions of their own (jit_internal), not inlined into the kernel:
+    numba's compile time grows faster than a function's size: with every observer inlined, the
+    auto-balancer kernel's cold compile took about half as long again (`python benchmarks/startup.py
+    --only compile --scene sweeps/autobalancer_residual.toml`); a call per trajectory costs nothing
+    beside its integration."""
     if always:
-        @jit_into_caller
+        @jit_internal
         def link(i, p, te, traj, s, bits, K, hoff, vals, hist, rawv, rawh, ob, ob2, mstat, code):
             if mstat[i, k] == st.OK or (mstat[i, k] != UNUSED and K[k, K.shape[1] - 1] != 0.0):
                 c = obs(i, p, te, traj, s, bits, K, hoff, vals, hist, rawv, rawh, ob, ob2)
@@ -181,7 +186,7 @@ def _observe_link(obs, k, always: bool, fold):
             return code
         return link
 
-    @jit_into_caller
+    @jit_internal
     def link(i, p, te, traj, s, bits, K, hoff, vals, hist, rawv, rawh, ob, ob2, mstat, code):
         if mstat[i, k] == st.OK:
             c = obs(i, p, te, traj, s, bits, K, hoff, vals, hist, rawv, rawh, ob, ob2)
@@ -270,7 +275,7 @@ def _parts(plan):
 
 @functools.cache
 def _observe(chain, lock):
-    @jit_into_caller
+    @jit_internal
     def observe(i, p, te, traj, s, bits, K, hoff, vals, hist, rawv, rawh, ob, ob2, mstat, code):
         code = chain(i, p, te, traj, s, bits, K, hoff, vals, hist, rawv, rawh, ob, ob2, mstat, code)
         lock(i, te, traj, bits, vals)
@@ -301,7 +306,7 @@ def build(model, chosen, method, always=-1, lock=(), raw=False, rhs_lanes=None):
 
 @functools.cache
 def _admit(classify, prepare, forcing, checks, reset, n_p, n_set):
-    @jit_into_caller
+    @jit_internal
     def admit(i, p, P, S, rtol, mstat):
         """Point i's p filled from its row of P and the settings S: (status, T, whether it is
         integrated): the model's classify and prepare, the forcing period T (not finite > 0:
