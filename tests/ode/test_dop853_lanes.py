@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as hs
 
 from mechsweep import status as st
-from mechsweep._jit import call_with_literal
+from tests.reference.literal_switch import call_with_literal
 from tests.reference import autobalancer_kernels as ab  # the hand-written kernels (reference implementation)
 from mechsweep.ode import METHOD_CODES, _lane_sums_codegen
 from mechsweep.scene import Solver

@@ -21,7 +21,7 @@ import numba
 import numpy as np
 
 from mechsweep import status as st
-from mechsweep._jit import call_with_literal, compile_time_switch, jit, jit_noalloc, literally, pjit, prange
+from mechsweep._jit import jit, jit_noalloc, pjit, prange
 from mechsweep.model.spec import ModelSpec
 from mechsweep.models.autobalancer import (  # noqa: F401 (re-exported: the reference's names)
     IB_SLACK, IP_ALPHA0, IP_ALPHA1, IP_DX, IP_DY, IP_EH, IP_IOTA, IP_KX, IP_KY, IP_LAM, IP_MU, IP_TH1, IP_TH2, NP,
@@ -32,6 +32,8 @@ from mechsweep.models.autobalancer import scaled_jacobian as jacobian
 from mechsweep.models.autobalancer import scaled_rhs as rhs
 from mechsweep.special import SINCOS_MAX, sincos_reduced
 from mechsweep.ode import AUTO, DOP853, METHOD_CODES, RADAU, dop853, dop853_lanes, radau
+
+from .literal_switch import call_with_literal, compile_time_switch, literally
 
 
 @jit_noalloc
