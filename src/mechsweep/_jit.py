@@ -30,9 +30,9 @@ Options and why:
   but the kernel, the integrators' internal steps): no CPython wrapper, and no machine code of their
   own (:class:`_LinkOnlyLibrary`): numba links a callee's LLVM module into its caller's, optimises the
   whole and makes machine code of it, so a callee's own optimised module and machine code were made
-  for nothing, at every level of the call tree. They are optimised once, in the module of the top
-  function (the binding's trampoline), and are in its cached machine code; a call from Python goes to
-  a twin compiled on first use.
+  for nothing, at every level of the call tree. They are optimised with the module of the top function
+  (the binding's trampoline, :class:`_LinkingLibrary`) and are in its cached machine code; a call from
+  Python goes to a twin compiled on first use.
 - ``cache=True`` into a folder keyed by a hash of the package sources (:func:`package_hash`):
   numba's own cache only checks the file of the decorated function, so a kernel that calls an
   integrator from another module would keep stale machine code after that module changed. Keying
@@ -513,8 +513,7 @@ class _LinkingLibrary(JITCodeLibrary):
     """The code library of mechsweep's other functions: a module that links :class:`_LinkOnlyLibrary`
     modules is optimised twice. numba optimised every callee's module before linking it, and LLVM's
     inliner decides on the optimised callees: optimised once, unoptimised callees and all, the lane
-    kernel ran about 4 % slower (``python benchmarks/startup.py --only routes``); the second pass costs
-    far less than the callees' own passes did."""
+    kernel ran measurably slower; the second pass costs far less than the callees' own passes did."""
 
     def _optimize_final_module(self):
         super()._optimize_final_module()

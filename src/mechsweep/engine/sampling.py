@@ -348,12 +348,12 @@ LANE_SAMPLES_BYTES = 256 * 2**20
 # reads this as an override): the lanes for a run of at least LANES_FROM_POINTS points, or once they are
 # compiled (kernels.lanes_recorded, under ``lane_name``). Bitwise the same results either way.
 USE_LANES: bool | None = None
-# The lanes compile 7-10 s of CPU longer than the one-trajectory kernel and save a model-dependent CPU
-# time a point, so they pay from about 1.1e3 points (sweeps/autobalancer_residual.toml, 9.2 ms a point
-# saved), 2.8e3 (the auto-balancer without its re-integration) to 1.7e4 (the forced oscillators of
-# tests/user_models, forced.py and rms.py, 0.45 ms): `python tests/data/trajectory_lanes_cost.py both 512
-# residual --rounds=2` (models: autobalancer, forced, rms) prints the crossover. 2000 keeps the most a
-# wrong route costs at either end alike, about 7 s of CPU once (then the lanes are compiled).
+# The lanes compile 6-8 s of CPU longer than the one-trajectory kernel and save a model-dependent CPU
+# time a point, so they pay from about 1.3e3 points (sweeps/autobalancer_residual.toml, 6.1 ms a point
+# saved) to 2.1e4 (the forced oscillator of tests/user_models/forced.py, 0.29 ms): `python
+# tests/data/trajectory_lanes_cost.py both 256 residual` (models: autobalancer, forced, rms) prints the
+# crossover. 2000 keeps the most a wrong route costs at either end alike, about 6 s of CPU once (then
+# the lanes are compiled).
 LANES_FROM_POINTS = 2000
 # The lanes of a queue share one forcing period (one t_eval): the points of a period shared by fewer
 # than LANE_GROUP_MIN points (a sweep of the forcing frequency in physical time: each its own) are

@@ -171,10 +171,10 @@ def _observe_link(obs, k, always: bool, fold):
     """Measurement k observes its rows where it is chosen and applies (``always``: also where its
     classify skipped it, when K[k, -1] != 0, its status only where it applies). Each link, the chain's
     ``observe`` and ``admit`` are functions of their own (jit_internal), not inlined into the kernel:
-    numba's compile time grows faster than a function's size: with every observer inlined, the
-    auto-balancer kernel's cold compile took about half as long again (`python benchmarks/startup.py
-    --only compile --scene sweeps/autobalancer_residual.toml`); a call per trajectory costs nothing
-    beside its integration."""
+    numba's compile time grows faster than a function's size, and a kernel with every observer inlined
+    spent most of its cold compile in that one function (`python benchmarks/startup.py --only compile
+    --scene sweeps/autobalancer_residual.toml` shows each function's share); a call per trajectory
+    costs nothing beside its integration."""
     if always:
         @jit_internal
         def link(i, p, te, traj, s, bits, K, hoff, vals, hist, rawv, rawh, ob, ob2, mstat, code):
