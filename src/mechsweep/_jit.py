@@ -434,7 +434,7 @@ def _distinct_qualname(func) -> None:
 
 def _decorate(func, **extra):
     _distinct_qualname(func)
-    if not extra.get("parallel"):
+    if not extra.get("parallel") and LINK_ONLY:
         extra.setdefault("pipeline_class", _LINKING)
     dispatcher = numba.njit(**_OPTIONS, **extra)(func)
     # numba's cache=True would make the cache object now (its folder, a hash of the source file) and
@@ -581,6 +581,11 @@ def _compiler(library_class):
 
 
 _LINK_ONLY, _LINKING = _compiler(_LinkOnlyLibrary), _compiler(_LinkingLibrary)
+# The parts of numba's code library that the two classes above override or call (numba 0.59 to 0.68
+# have them all): with a numba that lacks one, every function is compiled as numba compiles it.
+LINK_ONLY = all(hasattr(JITCodeLibrary, name) for name in (
+    "_optimize_final_module", "_finalize_final_module", "_finalize_dynamic_globals", "_verify_declare_only_symbols",
+    "_ensure_finalized", "enable_object_caching"))
 
 
 class _NoDiskCache(_caching.NullCache):
@@ -593,7 +598,7 @@ class _NoDiskCache(_caching.NullCache):
 
 
 def _numba_only(func, **extra):
-    dispatcher = _decorate(func, **_NO_WRAPPERS, **extra, pipeline_class=_LINK_ONLY)
+    dispatcher = _decorate(func, **_NO_WRAPPERS, **extra, pipeline_class=_LINK_ONLY if LINK_ONLY else Compiler)
     dispatcher._cache = _NoDiskCache()
     dispatcher.__class__ = _NumbaOnly
     return dispatcher

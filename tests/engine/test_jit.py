@@ -62,6 +62,30 @@ def test_internal_function_is_machine_code_only_inside_its_callers():
                    for c in f.overloads.values())
 
 
+def test_without_link_only_libraries_internal_functions_compile_as_numba_compiles_them(monkeypatch):
+    """With a numba whose code library lacks what the link-only libraries need (_jit.LINK_ONLY False),
+    an internal function is compiled by numba's own pipeline, with machine code of its own, and its
+    callers work the same."""
+    from mechsweep import _jit
+
+    monkeypatch.setattr(_jit, "LINK_ONLY", False)
+
+    def halved(v):
+        return 0.5 * v[0]
+
+    f = jit_internal(halved)
+
+    @jit
+    def caller(v):
+        return f(v) + 1.0
+
+    v = np.array([3.0])
+    assert caller(v) == 2.5
+    (compiled,) = f.overloads.values()
+    assert not isinstance(compiled.library, _jit._LinkOnlyLibrary)
+    assert compiled.library._codegen._engine.is_symbol_defined(compiled.fndesc.llvm_func_name)
+
+
 def test_noalloc_and_inline_functions_work_on_caller_arrays():
     def scaled_sum(v, a):
         acc = 0.0
