@@ -31,11 +31,16 @@ import numba
 from numba.core.registry import CPUDispatcher
 from numba.core.runtime import nrt
 
-from mechsweep.bench.duffing import _whole_grid, grid_scene
+from mechsweep.bench.duffing import grid_scene
+from mechsweep.chunks import Chunk
 from mechsweep.engine import kernels as model_compile
 from mechsweep.engine import sampling as trajectory
 from mechsweep.execution.execute import evaluate_chunk
 from mechsweep.scene import load_scene
+
+
+def _whole_grid(scene) -> Chunk:
+    return Chunk(0, 0, scene.n_points, ())
 
 
 MEISSNER = {  # switches (model/switches.py): the Meissner equation with its switch times declared, Floquet
