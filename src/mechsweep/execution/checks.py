@@ -130,7 +130,7 @@ def _holds_same_scene(final: Path, scene: Scene, overwrite: bool) -> bool | None
     if not final.exists() or final.stat().st_size == 0:
         return None
     try:
-        same = _stored_same_scene(final, scene)
+        attrs = _stored_run_attrs(final)
     except FileBusy as exc:  # never replaced, whatever the flags: that process's writes would be lost
         raise FileBusy(final, exc.holder, doing="a run would replace it and the writes of that process "
                        "would be lost: wait until it closes the file (or stop it), or write elsewhere with -o") from None
@@ -139,11 +139,12 @@ def _holds_same_scene(final: Path, scene: Scene, overwrite: bool) -> bool | None
             return False
         raise StoreError(f"{exc}; a run would replace it: use --overwrite to replace it anyway, "
                          "or choose another path with -o") from None
+    same = None if attrs is None else same_scene(attrs, scene)
     if same is None and not overwrite:
         raise StoreError(f"{final} is a mechsweep benchmark dataset, not a run; use --overwrite to replace it, "
                          "or choose another path with -o")
     if same is False and not overwrite:
-        what = scene_differences(_stored_canonical(final), scene.canonical(), then="in the stored run")
+        what = scene_differences(str(attrs.get("scene_canonical", "")), scene.canonical(), then="in the stored run")
         raise StoreError(f"{final} holds a finished run of a different scene ("
                          + (what or "model, outputs, axes, fixed values or solver settings differ")
                          + "); use --overwrite to replace it, or choose another path with -o")
@@ -154,6 +155,13 @@ def _stored_same_scene(final: Path, scene: Scene) -> bool | None:
     """Whether the dataset at ``final`` is a run of ``scene`` (None: a benchmark's dataset), from its
     attributes alone (read with h5py: a re-run does not pay for opening the dataset with xarray).
     StoreError when it is not a dataset mechsweep wrote."""
+    attrs = _stored_run_attrs(final)
+    return None if attrs is None else same_scene(attrs, scene)
+
+
+def _stored_run_attrs(final: Path) -> dict | None:
+    """The scene attributes of the run stored at ``final`` (None: a benchmark's dataset). StoreError
+    when it is not a dataset mechsweep wrote, FileBusy while another process writes it."""
     import h5py
 
     from ..store.read import RUN_ATTRS, check_dataset_file, is_lock_error, lock_holder
@@ -169,18 +177,7 @@ def _stored_same_scene(final: Path, scene: Scene) -> bool | None:
             raise FileBusy(final, lock_holder(final)) from None
         raise StoreError(f"{final} is not a mechsweep dataset: it is an HDF5 file that cannot be read "
                          f"({str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__})") from None
-    return same_scene(attrs, scene) if run else None
-
-
-def _stored_canonical(final: Path) -> str:
-    """The canonical scene form a finished dataset stores ("" if it cannot be read)."""
-    import h5py
-
-    try:
-        with h5py.File(final, "r") as f:
-            return str(_attr_text(f.attrs.get("scene_canonical", "")))
-    except Exception:  # noqa: BLE001 - only words for a refusal decided already
-        return ""
+    return attrs if run else None
 
 
 def _attr_text(value):
