@@ -297,7 +297,7 @@ def _point(classify, before, prepare, measures, after, measured: bool, m_slots: 
 @functools.cache
 def _kernel(point, new_work, shared_rows: tuple, n_shared: int, reset, n_p: int, n_set: int, filled: int,
             p_size: int, n_s: int, n_values: int, n_buf: int):
-    shared_M = np.array(shared_rows or ((0.0,) * 7,), dtype=np.float64)  # the shared trajectory's rows
+    new_ws = _workspace(new_work, shared_rows, n_shared)
 
     @jit_into_caller  # compiled into the binding's cached trampoline (no link of its own)
     def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs, first, step):
@@ -307,7 +307,7 @@ def _kernel(point, new_work, shared_rows: tuple, n_shared: int, reset, n_p: int,
         if first < n:
             p = np.empty(p_size)
             y = np.empty(n_s)
-            ws = (new_work(), np.empty(n_shared), np.empty(n_shared, dtype=np.int64), shared_M.copy())
+            ws = new_ws()
             cv = np.empty(n_values)
             buf = np.empty(n_buf)
             for i in range(first, n, step):
@@ -327,6 +327,24 @@ def _kernel(point, new_work, shared_rows: tuple, n_shared: int, reset, n_p: int,
                 status[i] = code
 
     return kernel
+
+
+@functools.cache
+def _workspace(new_work, shared_rows: tuple, n_shared: int):
+    """``new_ws()``: the point's workspace tuple: the method's workspace and, where measurements share a
+    trajectory (engine/shared.py), its values, statuses and rows. Without one it is the method's alone:
+    every array of it is a reference the point function counts on entry and exit."""
+    if not n_shared:
+        @jit_into_caller
+        def alone():
+            return (new_work(),)
+        return alone
+    shared_M = np.array(shared_rows, dtype=np.float64)  # the shared trajectory's rows
+
+    @jit_into_caller
+    def with_shared():
+        return (new_work(), np.empty(n_shared), np.empty(n_shared, dtype=np.int64), shared_M.copy())
+    return with_shared
 
 
 # ----------------------------------------------------------------------------- threads
