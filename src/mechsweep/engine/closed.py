@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from .. import status as st
-from .._jit import jit_internal, jit_into_caller
+from .._jit import jit_internal, jit_internal_noalloc, jit_into_caller
 
 BLOCK = 64  # consecutive designs of one thread (their rows of table and curves side by side in memory)
 ARGS = "P, want, slot, table, curves, status, data, first, step"
@@ -26,7 +26,14 @@ ARGS = "P, want, slot, table, curves, status, data, first, step"
 
 @functools.cache
 def _call(compute):
-    @jit_internal
+    """``call(p, want, row, crv, slot, scratch, data)``: ``compute`` with the data tuple spread. Without
+    reference counting where ``compute`` has none (its author's jit_noalloc, model/load.jitted): the
+    glue would otherwise count its ten arrays up and down at every design (numba keeps them for the
+    exception path); a ``compute`` that may allocate keeps numba's runtime, which its callers must have."""
+    noalloc = getattr(compute, "targetoptions", {}).get("_nrt") is False
+    decorate = jit_internal_noalloc if noalloc else jit_internal
+
+    @decorate
     def call(p, want, row, crv, slot, scratch, data):
         return compute(p, want, row, crv, slot, scratch, *data)
 
