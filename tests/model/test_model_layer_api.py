@@ -201,7 +201,7 @@ def test_one_point_module_has_one_try_around_a_point(osc):
     from mechsweep.engine import events, floquet, point, shared
     from mechsweep.ode.methods import DOP853
 
-    source = inspect.getsource(point._kernel)  # the kernel's loop over points
+    source = inspect.getsource(point._points)  # the loop over points
     tries = [line for line in source.splitlines() if line.strip().startswith("try:")]
     assert len(tries) == 1 and "code = point(i, " in source.split(tries[0])[1].split("except")[0]
     for module in (events, floquet, shared):  # the point and the measurements' blocks: no try of their own

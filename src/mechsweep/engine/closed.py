@@ -19,6 +19,7 @@ import numpy as np
 
 from .. import status as st
 from .._jit import jit_internal, jit_internal_noalloc, jit_into_caller
+from .borrow import borrowed
 
 BLOCK = 64  # consecutive designs of one thread (their rows of table and curves side by side in memory)
 ARGS = "P, want, slot, table, curves, status, data, first, step"
@@ -63,15 +64,28 @@ def build(compute, n_scr: int, guarded: bool):
 
 @functools.cache
 def _kernel(compute, n_scr):
+    designs = _designs(compute)
+
     @jit_into_caller  # compiled into the binding's cached trampoline (no link of its own)
     def kernel(P, want, slot, table, curves, status, data, first, step):
         # the blocks of designs first, first + step, ...; point.Threaded runs one such stride per thread
         # (nogil), without numba's parallel compile
-        n = P.shape[0]
         N = curves.shape[2]
+        designs(P, want, slot, table, curves, status, data, first, step, np.empty((n_scr, N)), np.empty((0, N)))
+
+    return kernel
+
+
+@functools.cache
+def _designs(compute):
+    @jit_internal
+    def designs(P, want, slot, table, curves, status, data, first, step, scratch, dummy):
+        # compute takes the arrays borrowed (engine/borrow.py): the caller holds them for this call, and
+        # numba then counts no reference at every design
+        P, want, slot, table, curves, status, data = borrowed((P, want, slot, table, curves, status, data))
+        scratch, dummy = borrowed((scratch, dummy))
+        n = P.shape[0]
         use_curves = curves.shape[0] == n
-        scratch = np.empty((n_scr, N))
-        dummy = np.empty((0, N))
         for b in range(first * BLOCK, n, step * BLOCK):
             for i in range(b, min(n, b + BLOCK)):
                 crv = curves[i] if use_curves else dummy
@@ -82,4 +96,4 @@ def _kernel(compute, n_scr):
                     if use_curves:
                         crv[:, :] = math.nan
 
-    return kernel
+    return designs

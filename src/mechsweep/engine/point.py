@@ -36,6 +36,7 @@ from .. import status as st
 from .._jit import jit_internal, jit_into_caller
 from ..ode import methods
 from . import binding, calls, equations, shared, switches
+from .borrow import borrowed
 
 BLOCK = 16  # the fewest points a thread of Threaded is given (fewer points: fewer threads)
 ARGS = "P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs, first, step"
@@ -298,35 +299,44 @@ def _point(classify, before, prepare, measures, after, measured: bool, m_slots: 
 def _kernel(point, new_work, shared_rows: tuple, n_shared: int, reset, n_p: int, n_set: int, filled: int,
             p_size: int, n_s: int, n_values: int, n_buf: int):
     new_ws = _workspace(new_work, shared_rows, n_shared)
+    points = _points(point, reset, n_p, n_set, filled)
 
     @jit_into_caller  # compiled into the binding's cached trampoline (no link of its own)
     def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs, first, step):
         # the points first, first + step, ... (strided: cost varies along the grid); Threaded runs one
         # such stride per thread (nogil), as a prange would, without numba's parallel compile
-        n = P.shape[0]
-        if first < n:
-            p = np.empty(p_size)
-            y = np.empty(n_s)
-            ws = new_ws()
-            cv = np.empty(n_values)
-            buf = np.empty(n_buf)
-            for i in range(first, n, step):
-                if status[i] != st.OK:
-                    continue
-                for j in range(n_p):
-                    p[j] = P[i, j]
-                for j in range(n_set):
-                    p[n_p + j] = S[j]
-                for j in range(n_p + n_set, filled):
-                    p[j] = 0.0
-                reset(p)
-                try:  # the one try: what a point computes after its model code raised is not computed
-                    code = point(i, need, rtol, atol, max_steps, table, n_steps, n_rhs, p, y, ws, cv, buf)
-                except Exception:
-                    code = st.USER_ERROR
-                status[i] = code
+        if first < P.shape[0]:
+            points(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs, first, step, np.empty(p_size),
+                   np.empty(n_s), new_ws(), np.empty(n_values), np.empty(n_buf))
 
     return kernel
+
+
+@functools.cache
+def _points(point, reset, n_p: int, n_set: int, filled: int):
+    @jit_internal
+    def points(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs, first, step, p, y, ws, cv, buf):
+        # the point function takes the arrays borrowed (engine/borrow.py): the caller holds them for
+        # this call, and numba then counts no reference at every point
+        P, S, need, table, status, n_steps, n_rhs = borrowed((P, S, need, table, status, n_steps, n_rhs))
+        p, y, ws, cv, buf = borrowed((p, y, ws, cv, buf))
+        for i in range(first, P.shape[0], step):
+            if status[i] != st.OK:
+                continue
+            for j in range(n_p):
+                p[j] = P[i, j]
+            for j in range(n_set):
+                p[n_p + j] = S[j]
+            for j in range(n_p + n_set, filled):
+                p[j] = 0.0
+            reset(p)
+            try:  # the one try: what a point computes after its model code raised is not computed
+                code = point(i, need, rtol, atol, max_steps, table, n_steps, n_rhs, p, y, ws, cv, buf)
+            except Exception:
+                code = st.USER_ERROR
+            status[i] = code
+
+    return points
 
 
 @functools.cache
