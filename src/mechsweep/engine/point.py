@@ -6,7 +6,8 @@ time per thread, composed from closures (no generated code but the binding, engi
                                              stride per thread)
         p = (parameters, settings, internal slots = 0, flag = 0, scratch = 0)
         try: status[i] = point(i, ...)       (an exception of the model's code ends the point:
-        except: status[i] = USER_ERROR       USER_ERROR, the other points computed)
+        except: status[i] = USER_ERROR       USER_ERROR, the other points computed; the arrays
+                                             borrowed, engine/borrow.py: no reference counting)
 
     point:  classify(p)                     -> non-OK: that status, nothing else
             closed forms that need no measurement (where need[j]; a closed form's classify)
@@ -342,8 +343,7 @@ def _points(point, reset, n_p: int, n_set: int, filled: int):
 @functools.cache
 def _workspace(new_work, shared_rows: tuple, n_shared: int):
     """``new_ws()``: the point's workspace tuple: the method's workspace and, where measurements share a
-    trajectory (engine/shared.py), its values, statuses and rows. Without one it is the method's alone:
-    every array of it is a reference the point function counts on entry and exit."""
+    trajectory (engine/shared.py), its values, statuses and rows; without one, the method's alone."""
     if not n_shared:
         @jit_into_caller
         def alone():
