@@ -296,14 +296,14 @@ def build(model, chosen, closed, rhs_lanes):
                          view.npi)
     feed = _feed(plan.classify, calls.chain(point.closed_links(plan, False)), plan.prepare,
                  calls.chain(point.closed_links(plan, True)), prepare0, t_max, start, load, conclude,
-                 1 + plan.slot[m.name], view.n_p, view.n_set, view.scr + plan.n_scr, view.npi)
+                 1 + plan.slot[m.name], point.filler(view.n_p, view.n_set, view.scr + plan.n_scr), view.npi)
     work = _work(feed, conclude, run, lanes_for(view.n_s), view.n_s, view.npi, view.scr + plan.n_scr,
                  1 + plan.n_values, plan.n_buf)
     return binding.Entries(kernel=work)
 
 
 @functools.cache
-def _feed(classify, before, prepare, after, prepare0, t_max, start, load, conclude, m_at, n_p, n_set, filled, npi):
+def _feed(classify, before, prepare, after, prepare0, t_max, start, load, conclude, m_at, fill, npi):
     @jit_internal_noalloc
     def feed(lane, i, n, stride, ws, keep, y, buf, P, S, need, rtol, atol, table, status, n_steps, n_rhs):
         """The next point of this queue (from i on, every stride-th) that needs the integration goes
@@ -317,12 +317,7 @@ def _feed(classify, before, prepare, after, prepare0, t_max, start, load, conclu
             i += stride
             if status[ii] != st.OK:
                 continue
-            for j in range(n_p):
-                p[j] = P[ii, j]
-            for j in range(n_set):
-                p[n_p + j] = S[j]
-            for j in range(n_p + n_set, filled):
-                p[j] = 0.0
+            fill(p, P, ii, S)
             code = st.OK
             c = classify(p)
             if c != st.OK:

@@ -300,7 +300,7 @@ def _point(classify, before, prepare, measures, after, measured: bool, m_slots: 
 def _kernel(point, new_work, shared_rows: tuple, n_shared: int, reset, n_p: int, n_set: int, filled: int,
             p_size: int, n_s: int, n_values: int, n_buf: int):
     new_ws = _workspace(new_work, shared_rows, n_shared)
-    points = _points(point, reset, n_p, n_set, filled)
+    points = _points(point, reset, filler(n_p, n_set, filled))
 
     @jit_into_caller  # compiled into the binding's cached trampoline (no link of its own)
     def kernel(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs, first, step):
@@ -314,7 +314,23 @@ def _kernel(point, new_work, shared_rows: tuple, n_shared: int, reset, n_p: int,
 
 
 @functools.cache
-def _points(point, reset, n_p: int, n_set: int, filled: int):
+def filler(n_p: int, n_set: int, filled: int):
+    """``fill(p, P, i, S)``: a point's p: its parameters from row i of P, the settings S, then zeros up to
+    slot ``filled`` (the internal slots, the flag, the scratch)."""
+    @jit_into_caller
+    def fill(p, P, i, S):
+        for j in range(n_p):
+            p[j] = P[i, j]
+        for j in range(n_set):
+            p[n_p + j] = S[j]
+        for j in range(n_p + n_set, filled):
+            p[j] = 0.0
+
+    return fill
+
+
+@functools.cache
+def _points(point, reset, fill):
     @jit_internal
     def points(P, S, need, rtol, atol, max_steps, table, status, n_steps, n_rhs, first, step, p, y, ws, cv, buf):
         # the point function takes the arrays borrowed (engine/borrow.py): the caller holds them for
@@ -324,12 +340,7 @@ def _points(point, reset, n_p: int, n_set: int, filled: int):
         for i in range(first, P.shape[0], step):
             if status[i] != st.OK:
                 continue
-            for j in range(n_p):
-                p[j] = P[i, j]
-            for j in range(n_set):
-                p[n_p + j] = S[j]
-            for j in range(n_p + n_set, filled):
-                p[j] = 0.0
+            fill(p, P, i, S)
             reset(p)
             try:  # the one try: what a point computes after its model code raised is not computed
                 code = point(i, need, rtol, atol, max_steps, table, n_steps, n_rhs, p, y, ws, cv, buf)
