@@ -48,3 +48,8 @@ def test_a_tuple_is_borrowed_member_by_member_and_other_values_pass_unchanged():
     owned, x_owned, k_owned, scalar, last = _nested((x, (3.0, k), 5))
     assert owned and not x_owned and not k_owned and scalar == 3.0 and last == 5
     assert x[0] == 1.5 and k[0] == 2
+
+
+def test_in_python_a_borrowed_array_is_the_array():
+    a, t = np.zeros(3), (np.zeros(2), 4)
+    assert borrowed(a) is a and borrowed(t) is t

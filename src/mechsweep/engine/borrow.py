@@ -14,7 +14,7 @@ array after the last use of its variable), and never return a borrowed array or 
 from __future__ import annotations
 
 from numba.core import cgutils, types
-from numba.extending import intrinsic
+from numba.extending import intrinsic, overload
 
 
 def _strip(context, builder, ty, value):
@@ -32,10 +32,19 @@ def _strip(context, builder, ty, value):
 
 
 @intrinsic
-def borrowed(typingctx, a):
-    """``a`` without the memory owner of any array in it (an array, or a tuple of arrays and other
-    values, nested): see the module's docstring."""
+def _without_owner(typingctx, a):
     def codegen(context, builder, signature, args):
         return _strip(context, builder, signature.args[0], args[0])
 
     return a(a), codegen
+
+
+def borrowed(a):
+    """``a`` without the memory owner of any array in it (an array, or a tuple of arrays and other
+    values, nested): see the module's docstring. In Python (a kernel's ``py_func``) it is ``a``."""
+    return a
+
+
+@overload(borrowed, jit_options={"nogil": True})
+def _borrowed(a):
+    return lambda a: _without_owner(a)
