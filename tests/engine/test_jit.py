@@ -18,6 +18,17 @@ def test_noalloc_refuses_a_function_that_allocates():
         jit_noalloc(allocating)(3)
 
 
+def _internal_and_caller(func):
+    """``func`` compiled by jit_internal, and a jit function that calls it: ``f(v) + 1``."""
+    f = jit_internal(func)
+
+    @jit
+    def caller(v):
+        return f(v) + 1.0
+
+    return f, caller
+
+
 def test_internal_function_has_no_python_entry_yet_python_can_call_it():
     """jit_internal compiles without numba's CPython wrapper (its machine code has no Python entry: a
     call through it would crash); numba callers use it as any function, and a call from Python goes to
@@ -25,12 +36,7 @@ def test_internal_function_has_no_python_entry_yet_python_can_call_it():
     def twice(v):
         return 2.0 * v[0]
 
-    f = jit_internal(twice)
-
-    @jit
-    def caller(v):
-        return f(v) + 1.0
-
+    f, caller = _internal_and_caller(twice)
     v = np.array([3.0])
     assert caller(v) == 7.0
     (compiled,) = f.overloads.values()
@@ -73,12 +79,7 @@ def test_without_link_only_libraries_internal_functions_compile_as_numba_compile
     def halved(v):
         return 0.5 * v[0]
 
-    f = jit_internal(halved)
-
-    @jit
-    def caller(v):
-        return f(v) + 1.0
-
+    f, caller = _internal_and_caller(halved)
     v = np.array([3.0])
     assert caller(v) == 2.5
     (compiled,) = f.overloads.values()

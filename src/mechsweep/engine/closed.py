@@ -28,9 +28,9 @@ ARGS = "P, want, slot, table, curves, status, data, first, step"
 @functools.cache
 def _call(compute):
     """``call(p, want, row, crv, slot, scratch, data)``: ``compute`` with the data tuple spread. Without
-    reference counting where ``compute`` has none (its author's jit_noalloc, model/load.jitted): the
-    glue would otherwise count its ten arrays up and down at every design (numba keeps them for the
-    exception path); a ``compute`` that may allocate keeps numba's runtime, which its callers must have."""
+    reference counting where ``compute`` has none (its author's jit_noalloc, model/load.jitted): its ten
+    arrays come borrowed (``_designs``), and then not even the null tests of their counting are left; a
+    ``compute`` that may allocate keeps numba's runtime, which its callers must have."""
     noalloc = getattr(compute, "targetoptions", {}).get("_nrt") is False
     decorate = jit_internal_noalloc if noalloc else jit_internal
 
