@@ -204,9 +204,12 @@ def record() -> dict:
 def machine() -> str:
     """What the recorded bytes may depend on: numba's target CPU, numpy's SIMD extensions, the BLAS."""
     import llvmlite.binding as llvm
-    import numpy._core._multiarray_umath as umath
 
-    simd = ",".join(k for k, v in umath.__cpu_features__.items() if v and k.startswith(("AVX", "FMA", "X86")))
+    try:
+        from numpy._core._multiarray_umath import __cpu_features__ as features
+    except ImportError:  # numpy 1.x
+        from numpy.core._multiarray_umath import __cpu_features__ as features
+    simd = ",".join(k for k, v in features.items() if v and k.startswith(("AVX", "FMA", "X86")))
     return f"{llvm.get_host_cpu_name()}; numpy {np.__version__} {simd}"
 
 
