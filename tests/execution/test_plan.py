@@ -20,6 +20,11 @@ from mechsweep.scene import load_scene
     ({"forced": None, "from_points": 100, "recorded": True}, 1, "lanes"),  # compiled already: nothing to repay
     ({"forced": False, "from_points": 100, "recorded": True}, 10**9, "point"),  # the engine's override
     ({"forced": True, "from_points": 100, "recorded": False}, 1, "lanes"),
+    # small runs that add up: this run and those computed one at a time before it repay the whole compile
+    ({"forced": None, "from_points": 100, "recorded": False, "tallied": 150, "after_points": 200}, 49, "point"),
+    ({"forced": None, "from_points": 100, "recorded": False, "tallied": 150, "after_points": 200}, 50, "lanes"),
+    ({"forced": None, "from_points": 100, "recorded": False, "tallied": 10**9}, 1, "point"),  # no after_points
+    ({"forced": False, "from_points": 100, "recorded": False, "tallied": 10**9, "after_points": 1}, 1, "point"),
 ])
 def test_one_rule_chooses_the_route(facts, points, route):
     assert planning.choose_route(points, facts) == route
@@ -88,6 +93,47 @@ def test_the_record_of_a_compiled_lane_kernel_is_mechsweeps_own(tmp_path, monkey
     assert not mc.lanes_recorded(name)
 
 
+def test_the_tally_of_points_computed_one_at_a_time_is_mechsweeps_own(tmp_path, monkeypatch):
+    """A file next to the kernel's module in the cache folder that each run adds to; a tally of another CPU
+    does not count, an unreadable one counts nothing; with caching off the tally is this process's."""
+    monkeypatch.setattr(mc._jit, "cache_dir", str(tmp_path))
+    name = "mechsweep_gen_test_tally"
+    assert mc.points_tallied(name) == 0
+    mc.tally_points(name, 40)
+    mc.tally_points(name, 2)
+    assert mc.points_tallied(name) == 42
+    path = tmp_path / "models" / f"{name}.{mc._cpu_tag()}.points"
+    assert path.read_text() == "42" and [p.name for p in path.parent.iterdir()] == [path.name]
+    path.write_text("forty-two")
+    assert mc.points_tallied(name) == 0
+    monkeypatch.setattr(mc, "_CPU", ["another-cpu"])
+    assert mc.points_tallied(name) == 0
+    monkeypatch.setattr(mc._jit, "cache_dir", None)
+    monkeypatch.setattr(mc, "_TALLY", {})
+    mc.tally_points(name, 7)
+    assert mc.points_tallied(name) == 7 and mc._TALLY == {name: 7}
+
+
+def test_small_runs_that_add_up_lead_to_the_lanes(in_tmp, small_duffing, monkeypatch):
+    """A run on the one-point route adds its points to the lane kernel's tally (a run on the lanes does
+    not); the next plan takes the lanes once the tally and its own points reach LANES_AFTER_POINTS."""
+    tallies = {}
+    monkeypatch.setattr(mc, "points_tallied", lambda name: tallies.get(name, 0))
+    monkeypatch.setattr(mc, "tally_points", lambda name, n: tallies.__setitem__(name, tallies.get(name, 0) + n))
+    monkeypatch.setattr(mc, "lanes_recorded", lambda name: False)  # as with an empty cache folder
+    monkeypatch.setattr(mc, "USE_LANES", None)
+    scene = load_scene(small_duffing)
+    monkeypatch.setattr(mc, "LANES_AFTER_POINTS", 2 * scene.n_points)
+    first = planning.make_plan(scene)
+    (record,) = [r for family, r in first.records if family == "kernel"]
+    assert first.routes == {"kernel": "point"} and not tallies
+    mechsweep.run(small_duffing, output="data/runs/t.h5", progress=False)
+    assert tallies == {record: scene.n_points}
+    assert planning.make_plan(scene).routes == {"kernel": "lanes"}  # 2 runs' points: the whole compile repaid
+    planning.tally(planning.make_plan(scene), 10**6)
+    assert tallies == {record: scene.n_points}  # the lanes' own points are not the one-point route's cost
+
+
 def test_the_runs_size_chooses_the_route_and_the_record_keeps_it(small_duffing, monkeypatch):
     """The run's size, not the rows of a call, chooses the lanes: the warm-up's single row compiles the lane
     kernel of a run of LANES_FROM_POINTS points; once compiled, its record makes a small run take the
@@ -96,6 +142,7 @@ def test_the_runs_size_chooses_the_route_and_the_record_keeps_it(small_duffing, 
     monkeypatch.setattr(mc, "USE_LANES", None)
     monkeypatch.setattr(mc, "_RECORDED", set())
     monkeypatch.setattr(mc, "lanes_recorded", lambda name: name in mc._RECORDED)  # as with an empty cache folder
+    monkeypatch.setattr(mc, "points_tallied", lambda name: 0)
     small = planning.make_plan(scene)
     assert small.routes == {"kernel": "point"}
     monkeypatch.setattr(mc, "LANES_FROM_POINTS", scene.n_points)

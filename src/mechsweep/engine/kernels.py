@@ -8,8 +8,9 @@ Routes of an OdeModel's measurements (other than the sampled trajectories, engin
   engine can rewrite in lane form (engine/lane_rhs.py), without switch times, a status order or a
   measurement's classify. :func:`lanes_apply` says whether it applies.
 
-A run names the route its plan chose (mechsweep/plan.py, ``choose_route``: the lanes for a run of at
-least LANES_FROM_POINTS points, or once :func:`lanes_recorded` says the lane kernel is compiled).
+A run names the route its plan chose (execution/plan.py, ``choose_route``: the lanes for a run of at
+least LANES_FROM_POINTS points, or once :func:`lanes_recorded` says the lane kernel is compiled, or once
+the model's runs computed LANES_AFTER_POINTS points one at a time, :func:`points_tallied`).
 Each kernel is built once per process and its machine code is cached on disk through its binding
 module (engine/binding.py), named by :func:`binding_name`.
 """
@@ -29,7 +30,7 @@ from .point import Threaded
 
 ROUTES = ("point", "lanes")
 # kernel_for's route where the lanes apply and the caller names none (``lanes=None``): True the lanes,
-# False or None one point at a time. A run names the route its plan chose (mechsweep/plan.py,
+# False or None one point at a time. A run names the route its plan chose (execution/plan.py,
 # ``choose_route``, which reads this as an override: the benches and tests set True or False to compare
 # the two routes). The results are bitwise the same either way (tests/engine/test_model_lanes.py).
 USE_LANES: bool | None = None
@@ -39,9 +40,15 @@ USE_LANES: bool | None = None
 # 5.4e6-6.0e6 points. A plan takes the lanes for a run of at least this many points, or when they are
 # compiled already (``lanes_recorded``).
 LANES_FROM_POINTS = 6 * 10**6
+# Once the one-point kernel is compiled, the lanes cost their whole compile, about twice their extra
+# compile (the same command prints the points that repay it: 1.1e7 on a 2-core Zen 3). The points a
+# model's runs computed one at a time are tallied (``tally_points``), and a plan takes the lanes once
+# that tally with its own run reaches this many points.
+LANES_AFTER_POINTS = 11 * 10**6
 _BY_OBJECTS: dict[tuple, tuple] = {}  # names()' memo by the objects' ids: (the objects kept alive, names)
 _KERNELS: dict[str, object] = {}  # binding name -> kernel, in this process
 _RECORDED: set[str] = set()  # lane kernels compiled (or loaded from the disk cache) in this process
+_TALLY: dict[str, int] = {}  # points computed one at a time, by lane record name, when caching is off
 _CPU: list[str] = []
 _LOCK = threading.RLock()
 
@@ -207,17 +214,50 @@ def record_compiled(name: str) -> None:
     if _jit.cache_dir is None:
         return
     path = _record_path(name)
-    if path.exists():
-        return
+    if not path.exists():
+        _write_quietly(path, b"")
+
+
+def _write_quietly(path: Path, data: bytes) -> None:
+    """``data`` into ``path`` at once (a temporary file renamed), or nothing: a record that cannot be
+    written costs a later run the faster route, nothing else."""
     tmp = path.with_suffix(f".{os.getpid()}.{threading.get_ident()}.tmp")
     try:
-        tmp.write_bytes(b"")
+        tmp.write_bytes(data)
         os.replace(tmp, path)
-    except OSError:  # a record that cannot be written costs a later run the faster route, nothing else
+    except OSError:
         try:
             tmp.unlink()
         except OSError:
             pass
+
+
+def _tally_path(name: str) -> Path:
+    return binding.folder() / f"{name}.{_cpu_tag()}.points"
+
+
+def points_tallied(name: str) -> int:
+    """The points computed one at a time by earlier runs on this CPU where the lane kernel ``name``
+    serves (``tally_points``): in the cache folder, or in this process when caching is off."""
+    if _jit.cache_dir is None:
+        return _TALLY.get(name, 0)
+    try:
+        return max(0, int(_tally_path(name).read_text()))
+    except (OSError, ValueError):
+        return 0
+
+
+def tally_points(name: str, n: int) -> None:
+    """Add a run's ``n`` points computed one at a time to the tally of the lane kernel ``name``, which a
+    later plan reads (execution/plan.py, ``choose_route``): small runs of one model that add up to what
+    repays the lanes' whole compile make the next run take them. Two processes adding at once may lose
+    one's points: the lanes then come a run later."""
+    with _LOCK:
+        total = points_tallied(name) + int(n)
+        if _jit.cache_dir is None:
+            _TALLY[name] = total
+        else:
+            _write_quietly(_tally_path(name), str(total).encode())
 
 
 class _Recorded:

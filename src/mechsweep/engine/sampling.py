@@ -355,6 +355,11 @@ USE_LANES: bool | None = None
 # crossover. 2000 keeps the most a wrong route costs at either end alike, about 6 s of CPU once (then
 # the lanes are compiled).
 LANES_FROM_POINTS = 2000
+# Once the one-trajectory kernel is compiled, the lanes cost their whole compile, about 2.2 times their
+# extra compile (the residual scene on a 2-core Zen 3: 27.3 against 12.2 s of CPU, `python
+# tests/data/trajectory_lanes_cost.py cold 4 residual`): a plan takes them once the points a model's
+# runs computed one trajectory at a time (kernels.tally_points) and its own reach this many.
+LANES_AFTER_POINTS = 4500
 # The lanes of a queue share one forcing period (one t_eval): the points of a period shared by fewer
 # than LANE_GROUP_MIN points (a sweep of the forcing frequency in physical time: each its own) are
 # integrated one trajectory at a time (a round of 32 lanes with one active one costs more than ten

@@ -7,9 +7,11 @@ of the grid into chunks. Every chunk is computed from it, here or on a dask work
 without its Scene: a worker loads it again from the scene's text). ``Plan.text`` (JSON) is stored
 in the journal and as the dataset's ``plan`` attribute.
 
-The route is chosen by :func:`choose_route`, from the run's size and a record mechsweep keeps
-itself: the engine notes in the cache folder when a lane kernel has run (engine/kernels.py,
-``record_compiled``), so that a later process knows the faster route costs it no compile."""
+The route is chosen by :func:`choose_route`, from the run's size and records mechsweep keeps
+itself in the cache folder (engine/kernels.py): that a lane kernel has run (``record_compiled``), so
+that a later process knows the faster route costs it no compile, and how many points earlier runs
+computed one at a time where the lanes would serve (``tally_points``, added by :func:`tally` after
+each run), so that small runs of one model that together repay the lanes' compile lead to them."""
 from __future__ import annotations
 
 import functools
@@ -35,15 +37,22 @@ def choose_route(points: int, facts: Mapping, chosen: bool | None = None) -> str
     scene's ``[execution] lanes`` (True "always", False "never", None "auto"), which decides first.
     ``facts`` come from the model (ModelSpec.plan: ``forced``, the engine's override, which decides
     next; ``from_points``, the run size from which the lanes repay their longer compile; ``recorded``,
-    whether the lane kernel is compiled for this CPU already). The lanes integrate about twice as fast
-    and compile about twice as long (engine/kernels.py, LANES_FROM_POINTS): they are taken for a run
-    large enough to repay the compile, or when there is nothing left to compile."""
+    whether the lane kernel is compiled for this CPU already; ``tallied``, the points earlier runs
+    computed one at a time, and ``after_points``, what they and this run must reach to repay the
+    lanes' whole compile). The lanes integrate about twice as fast and compile about twice as long
+    (engine/kernels.py, LANES_FROM_POINTS): they are taken for a run large enough to repay the
+    compile, when there is nothing left to compile, or once small runs have added up to what repays
+    it (rent until the rent paid would have bought: at most about twice the CPU time of the best
+    choice made knowing every later run)."""
     if chosen is not None:
         return LANES if chosen else POINT
     forced = facts.get("forced")
     if forced is not None:
         return LANES if forced else POINT
     if points >= int(facts["from_points"]) or facts.get("recorded"):
+        return LANES
+    after = facts.get("after_points")
+    if after is not None and points + int(facts.get("tallied", 0)) >= int(after):
         return LANES
     return POINT
 
@@ -83,6 +92,7 @@ class Plan:
     chunk_target: int  # points per chunk (at most)
     scene_text: str = field(repr=False)
     base: str = ""  # the folder a user model file path in the scene is resolved against
+    records: tuple[tuple[str, str], ...] = ()  # (kernel family, the name its lane kernel is recorded by)
     _scene: Scene | None = field(default=None, repr=False, compare=False)
 
     @property
@@ -147,7 +157,8 @@ def make_plan(scene: Scene, target: int | None = None) -> Plan:
     hook = getattr(scene.model, "plan", None)
     parts = hook(computed, scene.solver) if hook is not None else {}
     chosen = scene.execution.use_lanes()  # the scene's [execution] lanes
-    route = {family: choose_route(scene.n_points, f, chosen) for family, f in sorted(parts.get("lanes", {}).items())}
+    lanes = parts.get("lanes", {})
+    route = {family: choose_route(scene.n_points, f, chosen) for family, f in sorted(lanes.items())}
     return Plan(
         name=scene.name,
         model=scene.model.name,
@@ -162,8 +173,20 @@ def make_plan(scene: Scene, target: int | None = None) -> Plan:
         chunk_target=int(target if target is not None else chunk_target(scene)),
         scene_text=scene.text,
         base=scene.base,
+        records=tuple((family, f["record"]) for family, f in sorted(lanes.items()) if f.get("record")),
         _scene=scene,
     )
+
+
+def tally(plan: Plan, points: int) -> None:
+    """After a run: its ``points`` computed one at a time go to the tally of each kernel family whose
+    lanes the plan did not take (engine/kernels.py, ``tally_points``; read by a later plan)."""
+    todo = [record for family, record in plan.records if plan.routes.get(family) == POINT]
+    if todo and points > 0:
+        from ..engine.kernels import tally_points
+
+        for record in todo:
+            tally_points(record, points)
 
 
 @functools.lru_cache(maxsize=4)

@@ -38,7 +38,7 @@ from .checks import (CHUNK_MEMORY_FACTOR, available_memory, bytes_per_point, che
                      check_free_space, check_output_place, check_size, check_target, output_state, placing_problem,
                      saved_bytes, size_text)
 from .execute import check_threads, shows_progress
-from .plan import Plan, extra_shape, make_plan
+from .plan import Plan, extra_shape, make_plan, tally
 from .progress import make_progress
 from .provenance import provenance
 from .stopping import Signals, failed, interrupted, out_of_space, what_is_kept
@@ -560,8 +560,10 @@ def _route(plan: Plan, todo: list[Chunk], sink, *, progress, scheduler: str | No
         results = dask_results(plan, todo, scheduler, threads, worker_timeout=worker_timeout, client=client)
     # a local run acts on Ctrl-C or SIGTERM once the chunk being computed is saved; a cluster's run at once
     # (closing its results cancels the tasks in flight)
-    _save_chunks(plan, sink, results, plan.n_points - sum(c.size for c in todo), progress, compile_s, launches,
+    computed = sum(c.size for c in todo)
+    _save_chunks(plan, sink, results, plan.n_points - computed, progress, compile_s, launches,
                  signals if local else None)
+    tally(plan, computed)  # what the one-point route has cost this model so far (a later plan reads it)
     return compile_s
 
 

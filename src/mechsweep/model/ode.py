@@ -69,11 +69,12 @@ def _lanes(route, family: str) -> bool | None:
     return None if route is None else route.get(family) == "lanes"
 
 
-def _facts(name: str, from_points: int, forced) -> dict:
-    """What a plan decides a lane route from (mechsweep/plan.py, choose_route)."""
-    from ..engine.kernels import lanes_recorded
+def _facts(name: str, from_points: int, after_points: int, forced) -> dict:
+    """What a plan decides a lane route from (execution/plan.py, choose_route)."""
+    from ..engine.kernels import lanes_recorded, points_tallied
 
-    return {"record": name, "recorded": lanes_recorded(name), "from_points": int(from_points), "forced": forced}
+    return {"record": name, "recorded": lanes_recorded(name), "tallied": points_tallied(name),
+            "from_points": int(from_points), "after_points": int(after_points), "forced": forced}
 
 
 @contextmanager
@@ -570,12 +571,14 @@ class OdeModel:
                 facts = lane_facts(tuple(rest), solver) if rest else {}
                 name = trajectory.lane_name(model, solver.method)
                 if name is not None:
-                    facts["trajectory"] = _facts(name, trajectory.LANES_FROM_POINTS, trajectory.USE_LANES)
+                    facts["trajectory"] = _facts(name, trajectory.LANES_FROM_POINTS, trajectory.LANES_AFTER_POINTS,
+                                                 trajectory.USE_LANES)
                 return facts
             method = solver.method if (solver is not None and chosen) else "dop853"
             computable = model.computable_closed_forms(chosen) if closed else ()
             name = engine.lane_name(model, chosen, origin=origin, closed=computable, method=method)
-            return {} if name is None else {"kernel": _facts(name, engine.LANES_FROM_POINTS, engine.USE_LANES)}
+            return {} if name is None else {"kernel": _facts(name, engine.LANES_FROM_POINTS, engine.LANES_AFTER_POINTS,
+                                                                engine.USE_LANES)}
 
         def _finish_measurements(model, chosen, cols, table, wanted, solver, out, status) -> list[str]:
             """The measurements' outputs from the kernel's table into ``out`` (their statuses into

@@ -278,9 +278,11 @@ class ModelSpec:
     supports, when some outputs offer fewer than ``methods``; a scene asking another is refused.
     ``plan(wanted, solver) -> dict`` (optional): what ``evaluate`` computes for ``wanted``, decided
     before any chunk (mechsweep/execution/plan.py stores it with the run): ``measurements`` and ``closed_forms``
-    (names), and ``lanes``: {kernel family: {"record", "recorded", "from_points", "forced"}} for each
-    kernel that can also integrate points side by side (its record name, whether it is compiled for
-    this CPU, the run size from which the lanes pay, the engine's override or None). A spec that has
+    (names), and ``lanes``: {kernel family: {"record", "recorded", "tallied", "from_points", "after_points",
+    "forced"}} for each kernel that can also integrate points side by side (its record name, whether it
+    is compiled for this CPU, the points earlier runs computed one at a time, the run size from which
+    the lanes pay, the tally with the run from which their whole compile pays, the engine's override
+    or None; execution/plan.py, ``choose_route``). A spec that has
     ``plan`` takes ``evaluate(..., route={family: "lanes" or "point"})``: the route the run's plan
     chose for each family (bitwise the same results either way); without ``route`` the engine's default.
     """
