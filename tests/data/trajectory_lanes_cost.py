@@ -14,7 +14,8 @@ model: residual (sweeps/autobalancer_residual.toml: its outputs, solver settings
 re-integration, the first ``points`` points of its grid), autobalancer (stable_sim and
 residual_amplitude, Omega 6..60, horizon 300 revolutions, rtol 1e-8, no re-integration, as
 tests/data/autobalancer_layer_speed.py), forced (tests/user_models/forced.py FORCED, amp and
-x_hist, 200 periods, four forcing frequencies), rms (tests/user_models/rms.py, its RMS outputs,
+x_hist, 200 periods, four forcing frequencies; ``--per-period=N``: N points a forcing frequency, of
+five damping ratios 0.05 .. 1), rms (tests/user_models/rms.py, its RMS outputs,
 four forcing frequencies) or forced_distinct (every point its own forcing frequency;
 ``--groups-of-one``: lanes for groups of one point too, trajectory.LANE_GROUP_MIN = 1)."""
 import json
@@ -39,7 +40,12 @@ def problem(model: str, n: int, short: bool):
         # four forcing frequencies (four lane groups), the amplitude varied within each; forced_distinct:
         # every point its own frequency (its own period: too few points for lanes)
         W = np.repeat(np.linspace(0.3, 3.0, 4), -(-n // 4))[:n] if model == "forced" else np.linspace(0.3, 3.0, n)
-        P = np.column_stack([np.full(n, 1.0), np.full(n, 0.1), np.linspace(0.5, 2.0, n), W])
+        zeta = np.full(n, 0.1)
+        per = next((int(a.split("=")[1]) for a in sys.argv if a.startswith("--per-period=")), 0)
+        if per:  # a sweep of the forcing frequency: `per` points a period, of five damping ratios
+            W = np.repeat(np.linspace(0.3, 3.0, -(-n // per)), per)[:n]
+            zeta = np.resize([0.05, 0.1, 0.2, 0.5, 1.0], n)
+        P = np.column_stack([np.full(n, 1.0), zeta, np.linspace(0.5, 2.0, n), W])
         return spec, P, ("amp", "x_hist"), dict(method="dop853", rtol=1e-8, atol=1e-10,
                                                 horizon_periods=20.0 if short else 200.0)
     if model == "rms":

@@ -17,7 +17,9 @@ measurement's ``finish``: statuses NO_EVENT, UNDECIDED) and runs the model's Rec
 """
 from __future__ import annotations
 
+import itertools
 import math
+import threading
 from types import SimpleNamespace
 
 import numpy as np
@@ -374,12 +376,38 @@ def lane_count(n_samples: int, model) -> int:
     return 0
 
 
+def group_lanes(most: int, points: int, queues: int) -> tuple[int, int]:
+    """(lanes per queue, queues) for the ``points`` of one forcing period split into at most ``queues``
+    queues of at least LANES[-1] points each, with at most ``most`` lanes (lane_count) and about half as
+    many lanes as a queue has points (at least LANES[-1]): a lane without a point is stepped all the
+    same, and a queue's last points run in partly idle lanes. Which lane computes a point does not
+    change its results."""
+    queues = max(1, min(queues, points // LANES[-1]))
+    per_queue = -(-points // queues)
+    lanes = next((n for n in LANES if n <= most and 2 * n <= per_queue), min(most, LANES[-1]))
+    return lanes, queues
+
+
+def _lane_tasks(groups, most: int, threads: int) -> list[tuple]:
+    """(idx, te, lanes, first, step) of every queue of the forcing periods ``groups`` ((idx, te) each),
+    the largest first: a period gets queues in proportion to its share of the points (one for a
+    period among many), so that the threads take whole queues of different periods side by side."""
+    total = sum(idx.size for idx, _ in groups)
+    tasks = []
+    for idx, te in groups:
+        lanes, n = group_lanes(most, idx.size, -(-threads * idx.size // total))
+        tasks += [(idx, te, lanes, b, n) for b in range(n)]
+    tasks.sort(key=lambda t: -(t[0].size // t[4]))
+    return tasks
+
+
 def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs,
                rtol=None):
-    """setup, then per forcing period the points' queues through the lanes, one queue per thread
-    (numba.get_num_threads() threads running the nogil queue: the calling thread and the kernel pool's,
-    point.on_threads); the points of periods shared by fewer than LANE_GROUP_MIN points by the
-    one-trajectory kernel (from their status before setup: it runs classify and prepare again)."""
+    """setup, then the points of each forcing period through the lanes in queues (``_lane_tasks``)
+    that numba.get_num_threads() threads take one after another (the nogil queue: the calling thread
+    and the kernel pool's, point.on_threads); the points of periods shared by fewer than LANE_GROUP_MIN
+    points by the one-trajectory kernel (from their status before setup: it runs classify and prepare
+    again)."""
     n = P.shape[0]
     n_s = len(model.states)
     n_p, n_set, n_int = len(model.params), len(model.settings), len(model.internal)
@@ -399,13 +427,22 @@ def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, raw
         mod.kernel(np.ascontiguousarray(P[i]), S, s, bits, K, hoff, rtol, solver.atol, solver.max_steps, *sub)
         for a, b in zip((vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs), sub):
             a[i] = b
-    for T in periods[counts >= LANE_GROUP_MIN]:
-        idx = np.flatnonzero(ok & (TT == T)).astype(np.int64)
-        te = T * s  # the same products as the one-trajectory kernel's te[j] = T * s[j]
-        n_queues = max(1, min(_jit.num_threads(), -(-idx.size // max(1, lanes // 2))))
+    # te: the same products as the one-trajectory kernel's te[j] = T * s[j]
+    groups = [(np.flatnonzero(ok & (TT == T)).astype(np.int64), T * s) for T in periods[counts >= LANE_GROUP_MIN]]
+    if not groups:
+        return
+    threads = _jit.num_threads()
+    tasks = _lane_tasks(groups, lanes, threads)
+    taken, lock = itertools.count(), threading.Lock()
 
-        def queue(b, idx=idx, te=te, n_queues=n_queues):
-            mod.queue(lanes, idx, b, n_queues, PF, Z0, te, s, bits, K, hoff, rtol, solver.atol,
+    def work():  # each thread takes the next queue until none is left
+        while True:
+            with lock:
+                k = next(taken)
+            if k >= len(tasks):
+                return
+            idx, te, width, first, step = tasks[k]
+            mod.queue(width, idx, first, step, PF, Z0, te, s, bits, K, hoff, rtol, solver.atol,
                       solver.max_steps, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs)
 
-        on_threads(queue, [(b,) for b in range(n_queues)])
+    on_threads(work, [()] * min(threads, len(tasks)))

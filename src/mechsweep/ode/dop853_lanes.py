@@ -13,8 +13,8 @@ the same floats, step for step, as :func:`.dop853.make_trajectory_solver` on the
 moment of their attempts: every active lane attempts a step in every round, accepted or not,
 and the three extra stages of the dense output are computed for all lanes when any accepted
 lane has a sample inside its step. A lane whose trajectory ends is handed back to the caller,
-which reads its samples and loads the next trajectory into it (a queue per thread). At the end
-of a queue lanes idle; finishing the last few in scalar code instead measured no faster (a
+which reads its samples and loads the next trajectory into it (a thread runs one queue at a
+time). At the end of a queue lanes idle; finishing the last few in scalar code instead measured no faster (a
 round of 16 lanes cost about four scalar steps) and cost 12 s more JIT compile, so it is not done.
 
 Requirements on ``rhs_lanes`` (else LLVM leaves the loop scalar, at about a third of the speed):
