@@ -408,3 +408,20 @@ def test_radau_counts_the_rhs_calls_of_the_engines_jacobian():
     np.testing.assert_array_equal(a[2], b[2])  # the same steps
     extra = a[3] - b[3]
     assert (extra > 0).all() and (extra % 2 == 0).all(), (a[3], b[3])
+
+
+def test_every_sampled_output_without_a_forcing_period_says_t_is_one_time_unit():
+    """An RMS's window and a Steady's harmonic count in T = 1 time unit when the model declares no forcing
+    period: each such output's long name says so once, and no longer speaks of a forcing period."""
+    from mechsweep.model import RMS, OdeModel, Steady
+    note = "(T = 1 time unit: the model declares no forcing period)"
+    kw = dict(name="x", description="", params=(), states=("y",), rhs=lambda t, y, p, d: None,
+              initial=lambda p, y: None, measurements=(RMS("y_rms", "y", horizon=10.0), Steady("amp", "y", horizon=10.0)))
+    unforced = OdeModel(**kw).spec()
+    forced = OdeModel(forcing_period=lambda p: 1.0, **kw).spec()
+    for o in forced.outputs:
+        long_name = unforced.output(o.name).long_name
+        assert long_name.endswith(note) and long_name.count("T = 1") == 1, long_name
+        assert "forcing period" not in long_name.replace(note, ""), long_name
+        assert note not in o.long_name
+    assert "(forcing period)" in forced.output("amp_h1").long_name

@@ -598,12 +598,14 @@ class OdeModel:
 
         outputs = (tuple(o for m in self.measurements for o in _outputs(m))
                    + tuple(c.output() for c in self.closed_forms))
-        if self.forcing_period is None:  # Steady's horizon, window and harmonic: T = 1, said so
-            from .sampled import Steady
+        if self.forcing_period is None:  # a sampled measurement's horizon, window and harmonic: T = 1, said so
+            from .sampled import History  # (its samples' dimension says it: __post_init__)
 
-            steady = {o.name for m in self.measurements if isinstance(m, Steady) for o in _outputs(m)}
-            outputs = tuple(dataclasses.replace(o, long_name=f"{o.long_name} (T = 1 time unit: the model declares "
-                                                "no forcing period)") if o.name in steady else o for o in outputs)
+            timed = {o.name for m in self.measurements if getattr(m, "sampled", False) and not isinstance(m, History)
+                     for o in _outputs(m)}
+            outputs = tuple(dataclasses.replace(o, long_name=f"{o.long_name.replace(' (forcing period)', '')} (T = 1 "
+                                                "time unit: the model declares no forcing period)")
+                            if o.name in timed else o for o in outputs)
         if self.output_order:
             by_name = {o.name: o for o in outputs}
             outputs = tuple(by_name[n] for n in self.output_order)
