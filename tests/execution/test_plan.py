@@ -94,24 +94,41 @@ def test_the_record_of_a_compiled_lane_kernel_is_mechsweeps_own(tmp_path, monkey
 
 
 def test_the_tally_of_points_computed_one_at_a_time_is_mechsweeps_own(tmp_path, monkeypatch):
-    """A file next to the kernel's module in the cache folder that each run adds to; a tally of another CPU
-    does not count, an unreadable one counts nothing; with caching off the tally is this process's."""
+    """Kept in the process, then added to a file next to the kernel's module in the cache folder (at
+    the process's exit); a tally of another CPU does not count, an unreadable one counts nothing; with
+    caching off the tally stays this process's."""
     monkeypatch.setattr(mc._jit, "cache_dir", str(tmp_path))
+    monkeypatch.setattr(mc, "_TALLY", {})
+    monkeypatch.setattr(mc, "_FLUSH_AT_EXIT", [mc.write_tallies])  # registered already: not again
     name = "mechsweep_gen_test_tally"
     assert mc.points_tallied(name) == 0
     mc.tally_points(name, 40)
     mc.tally_points(name, 2)
-    assert mc.points_tallied(name) == 42
+    assert mc.points_tallied(name) == 42 and not list(tmp_path.rglob("*.points"))  # no file write per run
+    mc.write_tallies()
     path = tmp_path / "models" / f"{name}.{mc._cpu_tag()}.points"
     assert path.read_text() == "42" and [p.name for p in path.parent.iterdir()] == [path.name]
-    path.write_text("forty-two")
+    assert mc.points_tallied(name) == 42 and mc._TALLY == {}
+    mc.tally_points(name, 8)  # as another process: the file's and its own
+    mc.write_tallies()
+    assert path.read_text() == "50"
+    path.write_text("fifty")
     assert mc.points_tallied(name) == 0
     monkeypatch.setattr(mc, "_CPU", ["another-cpu"])
     assert mc.points_tallied(name) == 0
     monkeypatch.setattr(mc._jit, "cache_dir", None)
-    monkeypatch.setattr(mc, "_TALLY", {})
     mc.tally_points(name, 7)
+    mc.write_tallies()
     assert mc.points_tallied(name) == 7 and mc._TALLY == {name: 7}
+
+
+def test_the_tally_is_written_when_the_process_exits(tmp_path):
+    import subprocess
+    import sys
+    code = ("from mechsweep.engine import kernels as mc; mc._jit.cache_dir = {d!r}; mc.tally_points('t', 5); "
+            "print(mc._tally_path('t'))").format(d=str(tmp_path))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert open(out.strip()).read() == "5"
 
 
 def test_small_runs_that_add_up_lead_to_the_lanes(in_tmp, small_duffing, monkeypatch):

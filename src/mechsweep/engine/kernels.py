@@ -16,6 +16,7 @@ module (engine/binding.py), named by :func:`binding_name`.
 """
 from __future__ import annotations
 
+import atexit
 import functools
 import hashlib
 import os
@@ -48,7 +49,8 @@ LANES_AFTER_POINTS = 11 * 10**6
 _BY_OBJECTS: dict[tuple, tuple] = {}  # names()' memo by the objects' ids: (the objects kept alive, names)
 _KERNELS: dict[str, object] = {}  # binding name -> kernel, in this process
 _RECORDED: set[str] = set()  # lane kernels compiled (or loaded from the disk cache) in this process
-_TALLY: dict[str, int] = {}  # points computed one at a time, by lane record name, when caching is off
+_TALLY: dict[str, int] = {}  # points computed one at a time in this process, by lane record name
+_FLUSH_AT_EXIT: list = []  # write_tallies, once registered with atexit
 _CPU: list[str] = []
 _LOCK = threading.RLock()
 
@@ -238,26 +240,38 @@ def _tally_path(name: str) -> Path:
 
 def points_tallied(name: str) -> int:
     """The points computed one at a time by earlier runs on this CPU where the lane kernel ``name``
-    serves (``tally_points``): in the cache folder, or in this process when caching is off."""
+    serves (``tally_points``): in the cache folder, and those of this process not yet written there."""
+    pending = _TALLY.get(name, 0)
     if _jit.cache_dir is None:
-        return _TALLY.get(name, 0)
+        return pending
     try:
-        return max(0, int(_tally_path(name).read_text()))
+        return max(0, int(_tally_path(name).read_text())) + pending
     except (OSError, ValueError):
-        return 0
+        return pending
 
 
 def tally_points(name: str, n: int) -> None:
     """Add a run's ``n`` points computed one at a time to the tally of the lane kernel ``name``, which a
     later plan reads (execution/plan.py, ``choose_route``): small runs of one model that add up to what
-    repays the lanes' whole compile make the next run take them. Two processes adding at once may lose
-    one's points: the lanes then come a run later."""
+    repays the lanes' whole compile make the next run take them. Kept in this process and written to the
+    cache folder when it exits (``write_tallies``), so that a run pays no file write for it."""
     with _LOCK:
-        total = points_tallied(name) + int(n)
+        if not _TALLY and not _FLUSH_AT_EXIT:
+            _FLUSH_AT_EXIT.append(atexit.register(write_tallies))
+        _TALLY[name] = _TALLY.get(name, 0) + int(n)
+
+
+def write_tallies() -> None:
+    """Add this process's tallies to those in the cache folder (nothing when caching is off: they stay
+    this process's). Two processes writing at once may lose one's points: the lanes then come a run
+    later."""
+    with _LOCK:
         if _jit.cache_dir is None:
-            _TALLY[name] = total
-        else:
+            return
+        for name, n in _TALLY.items():
+            total = points_tallied(name)  # the stored tally and n
             _write_quietly(_tally_path(name), str(total).encode())
+        _TALLY.clear()
 
 
 class _Recorded:

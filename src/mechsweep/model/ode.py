@@ -73,7 +73,8 @@ def _facts(name: str, from_points: int, after_points: int, forced) -> dict:
     """What a plan decides a lane route from (execution/plan.py, choose_route)."""
     from ..engine.kernels import lanes_recorded, points_tallied
 
-    return {"record": name, "recorded": lanes_recorded(name), "tallied": points_tallied(name),
+    recorded = lanes_recorded(name)
+    return {"record": name, "recorded": recorded, "tallied": 0 if recorded else points_tallied(name),
             "from_points": int(from_points), "after_points": int(after_points), "forced": forced}
 
 
