@@ -30,7 +30,7 @@ from ..model.spec import setting_value
 from .point import Threaded, on_threads
 from .trajectory import NO_CLASSIFY, NOT_RUN, UNUSED, columns
 
-METHODS = ("dop853", "radau", "auto")
+METHODS = ("dop853", "radau", "auto")  # the methods that make a trajectory solver (OdeModel.methods_for offers these)
 _KERNELS: dict[str, object] = {}
 
 

@@ -481,8 +481,10 @@ class OdeModel:
             methods = tuple(x for x in self.methods if x != "symplectic")
         else:
             methods = ("dop853",)
-        if len(rest) < len(chosen):  # a sampled trajectory: dop853, radau, auto (trajectory.METHODS)
-            methods = tuple(x for x in methods if x in ("dop853", "radau", "auto"))
+        if len(rest) < len(chosen):  # a sampled trajectory: the methods that make a trajectory solver
+            from ..engine.sampling import METHODS as trajectory_methods
+
+            methods = tuple(x for x in methods if x in trajectory_methods)
         return methods
 
     def spec(self, *, origin: str = "", module: str = "", attr: str = "") -> ModelSpec:
