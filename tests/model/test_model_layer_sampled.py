@@ -410,9 +410,9 @@ def test_radau_counts_the_rhs_calls_of_the_engines_jacobian():
     assert (extra > 0).all() and (extra % 2 == 0).all(), (a[3], b[3])
 
 
-def test_every_sampled_output_without_a_forcing_period_says_t_is_one_time_unit():
-    """An RMS's window and a Steady's harmonic count in T = 1 time unit when the model declares no forcing
-    period: each such output's long name says so once, and no longer speaks of a forcing period."""
+def test_a_steady_or_rms_output_without_a_forcing_period_says_t_is_one_time_unit():
+    """An RMS's window and a Steady's window and harmonic count in T = 1 time unit when the model declares
+    no forcing period: each such output's long name says so once, and no longer speaks of a forcing period."""
     from mechsweep.model import RMS, OdeModel, Steady
     note = "(T = 1 time unit: the model declares no forcing period)"
     kw = dict(name="x", description="", params=(), states=("y",), rhs=lambda t, y, p, d: None,

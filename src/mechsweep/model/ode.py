@@ -601,11 +601,10 @@ class OdeModel:
 
         outputs = (tuple(o for m in self.measurements for o in _outputs(m))
                    + tuple(c.output() for c in self.closed_forms))
-        if self.forcing_period is None:  # a sampled measurement's horizon, window and harmonic: T = 1, said so
-            from .sampled import History  # (its samples' dimension says it: __post_init__)
+        if self.forcing_period is None:  # a Steady's or an RMS's window and harmonic: T = 1, said so
+            from .sampled import RMS, Steady
 
-            timed = {o.name for m in self.measurements if getattr(m, "sampled", False) and not isinstance(m, History)
-                     for o in _outputs(m)}
+            timed = {o.name for m in self.measurements if isinstance(m, (Steady, RMS)) for o in _outputs(m)}
             outputs = tuple(dataclasses.replace(o, long_name=f"{o.long_name.replace(' (forcing period)', '')} (T = 1 "
                                                 "time unit: the model declares no forcing period)")
                             if o.name in timed else o for o in outputs)
