@@ -256,7 +256,7 @@ def tally_points(name: str, n: int) -> None:
     repays the lanes' whole compile make the next run take them. Kept in this process and written to the
     cache folder when it exits (``write_tallies``), so that a run pays no file write for it."""
     with _LOCK:
-        if not _TALLY and not _FLUSH_AT_EXIT:
+        if not _FLUSH_AT_EXIT:
             _FLUSH_AT_EXIT.append(atexit.register(write_tallies))
         _TALLY[name] = _TALLY.get(name, 0) + int(n)
 
@@ -268,9 +268,8 @@ def write_tallies() -> None:
     with _LOCK:
         if _jit.cache_dir is None:
             return
-        for name, n in _TALLY.items():
-            total = points_tallied(name)  # the stored tally and n
-            _write_quietly(_tally_path(name), str(total).encode())
+        for name in _TALLY:
+            _write_quietly(_tally_path(name), str(points_tallied(name)).encode())  # the stored tally and this one
         _TALLY.clear()
 
 
