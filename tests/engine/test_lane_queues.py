@@ -43,3 +43,42 @@ def test_a_large_period_is_shared_by_the_threads_and_the_largest_queues_go_first
     assert np.array_equal(np.sort(np.concatenate(_points_by_queue(tasks))), np.arange(1050))
     for idx, te, _, first, step in tasks:  # a queue integrates the points of its own period
         assert te[0] == (0.0 if idx[0] < 30 else 1.0)
+
+
+def test_a_thread_that_stops_stops_the_others_taking_queues(monkeypatch):
+    """A queue that raises (Ctrl-C reaching a thread between its kernel calls) ends the launch once the
+    queues in flight return: the other thread takes no new one."""
+    import threading
+    import time
+    from types import SimpleNamespace
+
+    calls, lock, second, raised = [], threading.Lock(), threading.Event(), threading.Event()
+
+    def queue(width, idx, first, step, *rest):
+        with lock:
+            calls.append(idx[0])
+            first_call = len(calls) == 1
+        if first_call:  # raises once the other thread is inside its first queue
+            second.wait(5)
+            try:
+                raise KeyboardInterrupt
+            finally:
+                raised.set()
+        second.set()
+        raised.wait(5)
+        time.sleep(0.2)  # the raising thread has marked the launch stopped by now
+
+    model = SimpleNamespace(states=("x",), params=(), settings=(), internal=())
+    periods = np.repeat(np.arange(1.0, 7.0), 16)  # six periods of 16 points: six queues
+
+    def setup(P, S, rtol, PF, Z0, TT, code, mstat):
+        TT[:] = periods
+
+    mod = SimpleNamespace(setup=setup, queue=queue, kernel=None)
+    monkeypatch.setattr(sampling._jit, "num_threads", lambda: 2)
+    z = np.zeros(periods.size)
+    with pytest.raises(KeyboardInterrupt):
+        sampling._run_lanes(mod, model, np.zeros((periods.size, 1)), (), np.arange(3.0), None, None, None,
+                            SimpleNamespace(rtol=1e-8, atol=1e-10, max_steps=10), z, z, z, z,
+                            np.zeros(periods.size, dtype=np.int64), z, z, z)
+    assert len(calls) == 2  # the queue that raised and the one in flight beside it; four never taken

@@ -433,16 +433,20 @@ def _run_lanes(mod, model, P, S, s, bits, K, hoff, solver, vals, hist, rawv, raw
         return
     threads = _jit.num_threads()
     tasks = _lane_tasks(groups, lanes, threads)
-    taken, lock = itertools.count(), threading.Lock()
+    taken, lock, stopped = itertools.count(), threading.Lock(), []
 
-    def work():  # each thread takes the next queue until none is left
-        while True:
+    def work():  # each thread takes the next queue until none is left, or another thread stopped (Ctrl-C)
+        while not stopped:
             with lock:
                 k = next(taken)
             if k >= len(tasks):
                 return
             idx, te, width, first, step = tasks[k]
-            mod.queue(width, idx, first, step, PF, Z0, te, s, bits, K, hoff, rtol, solver.atol,
-                      solver.max_steps, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs)
+            try:
+                mod.queue(width, idx, first, step, PF, Z0, te, s, bits, K, hoff, rtol, solver.atol,
+                          solver.max_steps, vals, hist, rawv, rawh, code, mstat, n_steps, n_rhs)
+            except BaseException:
+                stopped.append(True)
+                raise
 
     on_threads(work, [()] * min(threads, len(tasks)))
