@@ -131,6 +131,18 @@ def test_the_tally_is_written_when_the_process_exits(tmp_path):
     assert open(out.strip()).read() == "5"
 
 
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="os.fork")
+def test_a_forked_child_does_not_write_its_parents_tally_again(tmp_path):
+    import subprocess
+    import sys
+    code = ("import os, sys; from mechsweep.engine import kernels as mc; mc._jit.cache_dir = {d!r}; "
+            "mc.tally_points('t', 5); pid = os.fork()\n"
+            "if pid == 0: sys.exit(0)\n"
+            "os.waitpid(pid, 0); print(mc._tally_path('t'))").format(d=str(tmp_path))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert open(out.strip()).read() == "5"  # the parent's 5 points, once
+
+
 def test_small_runs_that_add_up_lead_to_the_lanes(in_tmp, small_duffing, monkeypatch):
     """A run on the one-point route adds its points to the lane kernel's tally (a run on the lanes does
     not); the next plan takes the lanes once the tally and its own points reach LANES_AFTER_POINTS."""

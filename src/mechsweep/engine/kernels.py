@@ -258,6 +258,8 @@ def tally_points(name: str, n: int) -> None:
     with _LOCK:
         if not _FLUSH_AT_EXIT:
             _FLUSH_AT_EXIT.append(atexit.register(write_tallies))
+            if hasattr(os, "register_at_fork"):  # a forked child does not write its parent's points again
+                os.register_at_fork(after_in_child=_TALLY.clear)
         _TALLY[name] = _TALLY.get(name, 0) + int(n)
 
 
