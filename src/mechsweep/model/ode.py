@@ -601,10 +601,8 @@ class OdeModel:
 
         outputs = (tuple(o for m in self.measurements for o in _outputs(m))
                    + tuple(c.output() for c in self.closed_forms))
-        if self.forcing_period is None:  # a Steady's or an RMS's window and harmonic: T = 1, said so
-            from .sampled import RMS, Steady
-
-            timed = {o.name for m in self.measurements if isinstance(m, (Steady, RMS)) for o in _outputs(m)}
+        if self.forcing_period is None:  # a window or harmonic counted in T (Steady, RMS): T = 1, said so
+            timed = {o.name for m in self.measurements if getattr(m, "SAYS_PERIOD", False) for o in _outputs(m)}
             outputs = tuple(dataclasses.replace(o, long_name=f"{o.long_name.replace(' (forcing period)', '')} (T = 1 "
                                                 "time unit: the model declares no forcing period)")
                             if o.name in timed else o for o in outputs)

@@ -118,6 +118,9 @@ class _Sampled(_Outputs):
     OPTIONAL = ()
     VALUE = "value"
     sampled = True
+    # its outputs' long names say "T = 1 time unit" where the model declares no forcing period (a window
+    # or a harmonic counted in T; OdeModel.spec)
+    SAYS_PERIOD = False
 
     def _present(self, fields):
         return [f for f in fields if not (f in self.OPTIONAL and getattr(self, f) is None)]
@@ -237,6 +240,7 @@ class Steady(_Sampled):
     output_meta: object = ()  # {generic output name: {name, symbol, unit, long_name, latex}} (_Outputs)
     RULES = _STEADY
     OPTIONAL = ("settle_rtol",)
+    SAYS_PERIOD = True
     n_values = 4
 
     def _suffixes(self):
@@ -838,6 +842,7 @@ class RMS(_Sampled):
     classify: Callable | None = field(default=None, repr=False, compare=False)  # where it applies (OdeModel)
     output_meta: object = ()  # {name: {symbol, unit, long_name, latex}} (_Outputs; its one output is the main one)
     RULES = _RMS
+    SAYS_PERIOD = True
     n_values = 1
 
     def outputs(self) -> tuple[Output, ...]:
