@@ -122,25 +122,25 @@ def test_the_tally_of_points_computed_one_at_a_time_is_mechsweeps_own(tmp_path, 
     assert mc.points_tallied(name) == 7 and mc._TALLY == {name: 7}
 
 
-def test_the_tally_is_written_when_the_process_exits(tmp_path):
+def _tally_after_a_process(folder, body: str) -> str:
+    """The tally file of 't' after a Python process with the cache folder ``folder`` has tallied 5 points
+    of it and then run ``body``."""
     import subprocess
     import sys
-    code = ("from mechsweep.engine import kernels as mc; mc._jit.cache_dir = {d!r}; mc.tally_points('t', 5); "
-            "print(mc._tally_path('t'))").format(d=str(tmp_path))
+    code = ("import os, sys; from mechsweep.engine import kernels as mc; mc._jit.cache_dir = {d!r}; "
+            "mc.tally_points('t', 5)\n{body}\nprint(mc._tally_path('t'))").format(d=str(folder), body=body)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert open(out.strip()).read() == "5"
+    return open(out.strip()).read()
+
+
+def test_the_tally_is_written_when_the_process_exits(tmp_path):
+    assert _tally_after_a_process(tmp_path, "") == "5"
 
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="os.fork")
 def test_a_forked_child_does_not_write_its_parents_tally_again(tmp_path):
-    import subprocess
-    import sys
-    code = ("import os, sys; from mechsweep.engine import kernels as mc; mc._jit.cache_dir = {d!r}; "
-            "mc.tally_points('t', 5); pid = os.fork()\n"
-            "if pid == 0: sys.exit(0)\n"
-            "os.waitpid(pid, 0); print(mc._tally_path('t'))").format(d=str(tmp_path))
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert open(out.strip()).read() == "5"  # the parent's 5 points, once
+    body = "pid = os.fork()\nif pid == 0: sys.exit(0)\nos.waitpid(pid, 0)"
+    assert _tally_after_a_process(tmp_path, body) == "5"  # the parent's 5 points, once
 
 
 def test_small_runs_that_add_up_lead_to_the_lanes(in_tmp, small_duffing, monkeypatch):
